@@ -1,0 +1,192 @@
+"""Continuous-time true motion on the rotating WGS-84 Earth and the exact increments of
+an ideal IMU riding on it.
+
+A `Motion` knows the vehicle's NED velocity, its time derivative, the attitude q_nb, the
+body rate w_nb^b and its derivative as analytic functions of time. Position is the
+integral of velocity; `generate` integrates it along the sample times and computes the
+ideal angle and velocity increments of every interval (t[k-1], t[k]] by Gauss-Legendre
+quadrature of the continuous body rate and specific force (never by differencing a
+navigator):
+
+    w_ib^b = w_nb^b + C_bn (w_ie^n + w_en^n)                  (Titterton & Weston 3.4)
+    f^b    = C_bn (dv^n/dt + (2 w_ie^n + w_en^n) x v^n - g^n)  (T&W eq. 3.70 solved for f)
+"""
+from dataclasses import dataclass
+
+import math
+
+import numba
+import numpy as np
+import quaternion
+
+from . import attitude, earth
+from .trajectory import Trajectory
+
+# 3-point Gauss-Legendre rule on [0, 1]: exact for polynomials up to degree 5.
+_GL_X = 0.5 + 0.5 * np.array([-np.sqrt(0.6), 0.0, np.sqrt(0.6)])
+_GL_W = np.array([5.0, 8.0, 5.0]) / 18.0
+_CHUNK = 1 << 16       # intervals per batch of quadrature nodes
+
+
+@dataclass
+class Kinematics:
+    """Position-free kinematics at a set of times.
+
+    v_ned: m/s (N, 3); a_ned: d(v_ned)/dt, m/s^2 (N, 3) (the rate of change of the NED
+    components, not an inertial acceleration); q_nb: quaternion array (N,);
+    w_nb_b: body rate relative to NED, in body axes, rad/s (N, 3); dw_nb_b: its time
+    derivative, rad/s^2 (N, 3).
+    """
+    v_ned: np.ndarray
+    a_ned: np.ndarray
+    q_nb: np.ndarray
+    w_nb_b: np.ndarray
+    dw_nb_b: np.ndarray
+
+
+class Motion:
+    """Base class of true motions. Subclasses set t0, t1 (s), lat0, lon0 (rad), h0 (m)
+    and implement `kinematics(t)`; `knots` lists the times where the motion's higher
+    derivatives jump (quadrature intervals are split there)."""
+    t0 = 0.0
+    t1 = np.inf
+    lat0 = lon0 = h0 = 0.0
+    knots = np.empty(0)
+
+    def kinematics(self, t):
+        raise NotImplementedError
+
+
+def integrate_position(motion, t, kin=None):
+    """Geodetic position (lat, lon rad; h m) of `motion` at sorted times t, t[0] == motion.t0.
+
+    Per step, the NED displacement is the Euler-Maclaurin corrected trapezoid
+    d = h/2 (v0 + v1) + h^2/12 (a0 - a1) (exact for cubic velocity), converted to
+    latitude/longitude with the radii at the step's mid-point; the latitude dependence of
+    the radii is resolved by fixed-point iteration (converged to round-off in 3 passes).
+    """
+    kin = motion.kinematics(t) if kin is None else kin
+    dt = np.diff(t)[:, None]
+    v, a = kin.v_ned, kin.a_ned
+    d = 0.5 * dt * (v[1:] + v[:-1]) + dt**2 / 12 * (a[:-1] - a[1:])
+    h = motion.h0 - np.concatenate([[0.0], np.cumsum(d[:, 2])])
+    h_mid = 0.5 * (h[1:] + h[:-1])
+    lat = np.full(len(t), motion.lat0)
+    for _ in range(3):
+        lat_mid = 0.5 * (lat[1:] + lat[:-1])
+        r_n, r_e = earth.radii(lat_mid)
+        lat = motion.lat0 + np.concatenate([[0.0], np.cumsum(d[:, 0] / (r_n + h_mid))])
+    lat_mid = 0.5 * (lat[1:] + lat[:-1])
+    r_n, r_e = earth.radii(lat_mid)
+    lon = motion.lon0 + np.concatenate(
+        [[0.0], np.cumsum(d[:, 1] / ((r_e + h_mid) * np.cos(lat_mid)))])
+    return lat, lon, h
+
+
+def body_rate_and_specific_force(lat, h, kin):
+    """Inertial body rate w_ib^b (rad/s) and specific force f^b (m/s^2) from kinematics at
+    the given positions (rad, m); shapes (N, 3)."""
+    n = len(lat)
+    w_ib, f_b = np.empty((n, 3)), np.empty((n, 3))
+    _imu_signals(np.ascontiguousarray(lat, dtype=float), np.ascontiguousarray(h, dtype=float),
+                 kin.v_ned, kin.a_ned, quaternion.as_float_array(kin.q_nb), kin.w_nb_b,
+                 w_ib, f_b)
+    return w_ib, f_b
+
+
+@numba.njit(cache=True, nogil=True)
+def _imu_signals(lat, h, v, a, q, w_nb, w_ib, f_b):
+    for k in range(lat.shape[0]):
+        ie_n, ie_d, en_n, en_e, en_d, g = earth.nav_rates(lat[k], h[k], v[k, 0], v[k, 1])
+        qw, qx, qy, qz = q[k, 0], -q[k, 1], -q[k, 2], -q[k, 3]      # q_bn
+        wx, wy, wz = attitude.rotate_scalar(qw, qx, qy, qz, ie_n + en_n, en_e, ie_d + en_d)
+        w_ib[k, 0], w_ib[k, 1], w_ib[k, 2] = w_nb[k, 0] + wx, w_nb[k, 1] + wy, w_nb[k, 2] + wz
+        cx, cy, cz = 2.0 * ie_n + en_n, en_e, 2.0 * ie_d + en_d
+        vn, ve, vd = v[k, 0], v[k, 1], v[k, 2]
+        fx, fy, fz = attitude.rotate_scalar(qw, qx, qy, qz, a[k, 0] + cy * vd - cz * ve,
+                                            a[k, 1] + cz * vn - cx * vd,
+                                            a[k, 2] + cx * ve - cy * vn - g)
+        f_b[k, 0], f_b[k, 1], f_b[k, 2] = fx, fy, fz
+
+
+@dataclass
+class TruthRun:
+    """A sampled true flight: the trajectory at t (t[0] is the initial state) and the ideal
+    increments of the intervals (t[k-1], t[k]], k >= 1: dtheta rad, dv m/s, (N-1, 3)."""
+    trajectory: Trajectory
+    dtheta: np.ndarray
+    dv: np.ndarray
+
+
+def generate(motion, t):
+    """Sample `motion` at sorted times t (s, t[0] == motion.t0) and compute exact increments.
+
+    Position at the quadrature nodes inside an interval comes from cubic Hermite
+    interpolation of the sampled positions (position error ~ dt^4 * jerk / 384, far
+    below anything that changes gravity or Earth rate); velocity, attitude and rates at
+    the nodes are evaluated exactly.
+    """
+    t = np.asarray(t, dtype=float)
+    if t[0] != motion.t0 or np.any(np.diff(t) <= 0) or t[-1] > motion.t1 + 1e-9:
+        raise ValueError(f"sample times must increase from the motion's start {motion.t0} s "
+                         f"to at most its end {motion.t1} s")
+    kin = motion.kinematics(t)
+    lat, lon, h = integrate_position(motion, t, kin)
+    truth = Trajectory(t, lat, lon, h, kin.v_ned, kin.q_nb)
+
+    # Quadrature nodes: 3 per interval; intervals with a knot inside are split there.
+    t_lo, t_hi = t[:-1], t[1:]
+    k_split = np.unique(np.searchsorted(t, motion.knots, side="left")) - 1
+    k_split = k_split[(k_split >= 0) & (k_split < len(t_lo))]
+    k_split = k_split[[np.any((motion.knots > t_lo[k]) & (motion.knots < t_hi[k]))
+                       for k in k_split]].astype(int)
+    pieces_k, pieces_a, pieces_b = [np.arange(len(t_lo))], [t_lo], [t_hi]
+    if len(k_split):
+        pieces_a[0], pieces_b[0] = t_lo.copy(), t_hi.copy()
+        for k in k_split:
+            cuts = np.concatenate([[t_lo[k]], np.sort(motion.knots[(motion.knots > t_lo[k])
+                                                                   & (motion.knots < t_hi[k])]),
+                                   [t_hi[k]]])
+            pieces_b[0][k] = cuts[1]
+            pieces_k.append(np.full(len(cuts) - 2, k))
+            pieces_a.append(cuts[1:-1])
+            pieces_b.append(cuts[2:])
+    k_of = np.concatenate(pieces_k).astype(np.int64)
+    a, b = np.concatenate(pieces_a), np.concatenate(pieces_b)
+    dtheta, dv = np.zeros((len(t_lo), 3)), np.zeros((len(t_lo), 3))
+    for c in range(0, len(a), _CHUNK):        # bounded memory: node arrays ~ 10 MB
+        width = b[c:c + _CHUNK] - a[c:c + _CHUNK]
+        nodes = (a[c:c + _CHUNK, None] + width[:, None] * _GL_X).ravel()
+        k_node = np.repeat(k_of[c:c + _CHUNK], 3)
+        lat_n, h_n = _hermite_position(t, lat, h, kin.v_ned, k_node, nodes)
+        w_ib, f_b = body_rate_and_specific_force(lat_n, h_n, motion.kinematics(nodes))
+        _accumulate(k_node, (width[:, None] * _GL_W).ravel(), w_ib, f_b, dtheta, dv)
+    return TruthRun(truth, dtheta, dv)
+
+
+@numba.njit(cache=True, nogil=True)
+def _accumulate(k_node, weights, w_ib, f_b, dtheta, dv):
+    """Quadrature sums: dtheta[k] += w * w_ib, dv[k] += w * f_b over the nodes of interval k."""
+    for j in range(k_node.shape[0]):
+        k, w = k_node[j], weights[j]
+        for i in range(3):
+            dtheta[k, i] += w * w_ib[j, i]
+            dv[k, i] += w * f_b[j, i]
+
+
+@numba.njit(cache=True, nogil=True)
+def _hermite_position(t, lat, h, v_ned, k_node, tq):
+    """Latitude and height at times tq inside intervals k_node, by cubic Hermite
+    interpolation with the exact rates lat' = v_N / (R_N + h), h' = -v_D at the ends."""
+    lat_q, h_q = np.empty(tq.shape[0]), np.empty(tq.shape[0])
+    for j in range(tq.shape[0]):
+        k = k_node[j]
+        w = t[k + 1] - t[k]
+        s = (tq[j] - t[k]) / w
+        h00, h10 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s
+        h01, h11 = -2 * s**3 + 3 * s**2, s**3 - s**2
+        dlat0 = v_ned[k, 0] / (earth.radii_from_sin2(math.sin(lat[k]) ** 2)[0] + h[k])
+        dlat1 = v_ned[k + 1, 0] / (earth.radii_from_sin2(math.sin(lat[k + 1]) ** 2)[0] + h[k + 1])
+        lat_q[j] = h00 * lat[k] + h10 * w * dlat0 + h01 * lat[k + 1] + h11 * w * dlat1
+        h_q[j] = h00 * h[k] - h10 * w * v_ned[k, 2] + h01 * h[k + 1] - h11 * w * v_ned[k + 1, 2]
+    return lat_q, h_q

@@ -1,0 +1,171 @@
+"""Strapdown navigator against truth: exact increments of analytic and profile motions."""
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mimunav import earth, strapdown, truth
+from mimunav.profile import Profile
+from motions import Coning, GreatCircle, Sculling
+
+FLIGHTS = Path(__file__).resolve().parent.parent / "flights"
+
+
+def _fly(motion, rate, duration=None, **kw):
+    duration = motion.t1 if duration is None else duration
+    t = np.arange(0, int(np.floor(duration * rate + 1e-9)) + 1) / rate
+    run = truth.generate(motion, t)
+    nav = strapdown.integrate(t[1:], run.dtheta, run.dv, run.trajectory.state(0), **kw)
+    return nav, run.trajectory, run
+
+
+def test_static_hour_at_45_deg_stays_put():
+    motion = Profile.load(FLIGHTS / "static.toml").motion()
+    nav, ref, _ = _fly(motion, 100.0)
+    err = nav.position_error(ref)
+    assert np.hypot(err[:, 0], err[:, 1]).max() < 0.01        # horizontal < 1 cm
+    assert np.abs(err[:, 2]).max() < 0.10                     # vertical < 10 cm
+
+
+def test_coning_drift_one_sample_analytic_and_two_sample_near_zero():
+    """Coning of half-angle a at W: a single-sample algorithm drifts about the cone axis at
+    a^2 W/2 (1 - sin(l)/l), l = W h; the two-sample algorithm leaves
+    (a^2/2 (l - sin l) - a^2/3 sin^2(l/2) sin l)/h = a^2 W l^4/60 + ... (closed forms from the
+    second-order rotation-vector equation)."""
+    alpha, omega, h, dur = 0.004, 2 * np.pi * 20, 1e-3, 10.0
+    lam = omega * h
+    one = 0.5 * alpha**2 * omega * (1 - np.sin(lam) / lam)
+    two = (0.5 * alpha**2 * (lam - np.sin(lam))
+           - alpha**2 * np.sin(lam / 2) ** 2 * np.sin(lam) / 3) / h
+    motion = Coning(alpha, omega, duration=dur)
+    nav1, ref, _ = _fly(motion, 1 / h, two_sample=False)
+    nav2, _, _ = _fly(motion, 1 / h)
+    drift1 = -nav1.attitude_error(ref)[-1, 0] / dur       # about north, the cone axis
+    drift2 = -nav2.attitude_error(ref)[-1, 0] / dur
+    assert drift1 == pytest.approx(one, rel=1e-2)
+    assert drift2 == pytest.approx(two, rel=0.1)
+    assert abs(drift2) < 0.01 * one
+
+
+def test_sculling_drift_one_sample_analytic_and_two_sample_near_zero():
+    """Yaw oscillation a sin(Wt) in phase with a north acceleration A sin(Wt): a
+    single-sample velocity update drifts east at a A/2 (1 - sin(l)/l); the two-sample
+    sculling term leaves the same fraction as for coning (Ignagni's duality)."""
+    alpha, omega, accel, h, dur = 0.02, 2 * np.pi * 20, 10.0, 1e-3, 10.0
+    lam = omega * h
+    one = 0.5 * alpha * accel * (1 - np.sin(lam) / lam)
+    residual = (0.5 * (lam - np.sin(lam)) - np.sin(lam / 2) ** 2 * np.sin(lam) / 3) \
+        / (0.5 * (lam - np.sin(lam)))
+    motion = Sculling(alpha, omega, accel, duration=dur)
+    nav1, ref, _ = _fly(motion, 1 / h, two_sample=False)
+    nav2, _, _ = _fly(motion, 1 / h)
+    drift1 = -nav1.velocity_error(ref)[-1, 1] / dur
+    drift2 = -nav2.velocity_error(ref)[-1, 1] / dur
+    assert drift1 == pytest.approx(one, rel=1e-2)
+    assert drift2 == pytest.approx(one * residual, rel=0.1)
+
+
+def test_high_dynamic_flight_ends_within_1cm_and_5urad():
+    motion = Profile.load(FLIGHTS / "high-dynamic.toml").motion()
+    nav, ref, _ = _fly(motion, 1000.0)
+    assert np.linalg.norm(nav.position_error(ref)[-1]) < 0.01
+    assert np.linalg.norm(nav.attitude_error(ref)[-1]) < 5e-6
+
+
+def test_convergence_order_when_the_rate_doubles():
+    """Errors of the algorithm fall at least as the square of the interval (two-sample
+    forms are second order; with the second-order rotation term it reaches third)."""
+    prof = Profile.from_dict({"name": "c", "start": dict(
+        latitude_deg=40, longitude_deg=0, height_m=2000, speed_m_s=300, heading_deg=10),
+        "segment": [{"kind": "roll", "rate_deg_s": 400, "angle_deg": 720, "ramp_s": 0.2},
+                    {"kind": "turn", "load_factor": 12, "heading_change_deg": 90,
+                     "roll_rate_deg_s": 300, "ramp_s": 0.1},
+                    {"kind": "coast", "duration_s": 5}]})
+    errs = []
+    for rate in (250.0, 500.0, 1000.0):
+        nav, ref, _ = _fly(prof.motion(), rate)
+        errs.append(np.linalg.norm(nav.velocity_error(ref)[-1]))
+    order = np.log2(np.array(errs[:-1]) / np.array(errs[1:]))
+    assert np.all(order > 1.8), (errs, order)
+
+
+def test_great_circle_flights_follow_the_closed_form():
+    for motion in (GreatCircle(250.0, "east", duration=600.0),
+                   GreatCircle(250.0, "north", lat=np.radians(20.0), duration=600.0)):
+        nav, ref, _ = _fly(motion, 100.0)
+        lat, lon, h = motion.exact_position(nav.t[-1:])
+        end = earth.ned_difference(nav.lat[-1], nav.lon[-1], nav.h[-1], lat[0], lon[0], h[0])
+        assert np.linalg.norm(end) < 0.01
+
+
+def test_accelerometer_bias_follows_the_schuler_closed_form():
+    """A north specific-force error b on a static IMU (perfect gyros) gives the classical
+    north position error b/ws^2 (1 - cos ws t), ws^2 = g/R (T&W sec. 12.3)."""
+    motion = Profile.load(FLIGHTS / "static.toml").motion()
+    t = np.arange(0, 120001) / 100.0
+    run = truth.generate(motion, t)
+    b = 1e-3
+    dv = run.dv + np.array([b, 0, 0]) * 0.01          # body x = north, level
+    nav = strapdown.integrate(t[1:], run.dtheta, dv, run.trajectory.state(0))
+    err = nav.position_error(run.trajectory)
+    lat = motion.lat0
+    r = np.sqrt(np.prod(earth.radii(lat))) + motion.h0
+    ws = np.sqrt(earth.normal_gravity(lat, motion.h0) / r)
+    expected = b / ws**2 * (1 - np.cos(ws * nav.t))
+    np.testing.assert_allclose(err[:, 0], expected, rtol=0, atol=0.02 * expected.max())
+
+
+def test_height_aiding_bounds_the_vertical_channel():
+    """With a vertical accelerometer bias b, the free-inertial height diverges, while the
+    aided loop settles to the closed-form steady state b tau^2."""
+    motion = Profile.load(FLIGHTS / "static.toml").motion()
+    t = np.arange(0, 60001) / 100.0
+    run = truth.generate(motion, t)
+    b, tau = 1e-3, 10.0
+    dv = run.dv + np.array([0, 0, b]) * 0.01
+    start = run.trajectory.state(0)
+    free = strapdown.integrate(t[1:], run.dtheta, dv, start)
+    aided = strapdown.integrate(t[1:], run.dtheta, dv, start, h_aid=run.trajectory.h[1:],
+                                h_aid_tau=tau)
+    assert abs(free.h[-1] - motion.h0) > 150.0
+    assert aided.h[-1] - motion.h0 == pytest.approx(-b * tau**2, rel=0.02)
+
+
+@pytest.fixture(scope="module")
+def short():
+    motion = Profile.load(FLIGHTS / "gentle.toml").motion()
+    t = np.arange(0, 2001) / 100.0
+    run = truth.generate(motion, t)
+    return t[1:], run.dtheta, run.dv, run.trajectory.state(0)
+
+
+def _raises(match, t, dth, dv, start, **kw):
+    with pytest.raises(strapdown.IncrementError, match=match):
+        strapdown.integrate(t, dth, dv, start, **kw)
+
+
+def test_bad_inputs_get_clear_errors_naming_the_sample(short):
+    t, dth, dv, start = short
+    bad = dth.copy()
+    bad[123, 1] = np.nan
+    _raises(r"dtheta is not finite at sample 123 \(t = 1.24 s\)", t, bad, dv, start)
+    bad = dv.copy()
+    bad[7, 2] = np.inf
+    _raises("dv is not finite at sample 7", t, dth, bad, start)
+    tt = t.copy()
+    tt[50] = tt[49]
+    _raises("time does not increase at sample 50", tt, dth, dv, start)
+    _raises(r"shape \(N, 3\)", t, dth[:, :2], dv, start)
+    _raises(r"shape \(N, 3\)", t, dth, dv[:-1], start)
+    # a 60 deg/s roll given in degrees reads as 60 "rad/s" (slower motion in degrees
+    # cannot be told from magnitudes alone)
+    _raises("in degrees", t, np.degrees(dth + [np.radians(60.0) * 0.01, 0, 0]), dv, start)
+    _raises("rates", t, dth, dv * 100, start)
+    _raises("in g", t, dth, dv / 9.81, start)
+    _raises("must be in rad", t, dth, dv, dict(start, lat=45.0))
+    _raises("not a unit quaternion", t, dth, dv, dict(start, q_nb=[1, 0.1, 0, 0]))
+    _raises("not after the initial", t, dth, dv, dict(start, t=t[0]))
+    _raises("initial state needs", t, dth, dv, {"t": 0.0})
+    _raises("one finite height", t, dth, dv, start, h_aid=np.zeros(3))
+    nav = strapdown.integrate(t, dth, dv / 9.81, start, check_units=False)
+    assert len(nav) == len(t) + 1

@@ -1,0 +1,115 @@
+"""Truth generator: exact increments and positions against closed forms."""
+import numpy as np
+import pytest
+
+from mimunav import attitude, earth, truth
+from mimunav.profile import G0, Profile
+from motions import Coning, GreatCircle
+
+
+def _profile(segments, **start):
+    base = dict(latitude_deg=45.0, longitude_deg=10.0, height_m=1000.0, speed_m_s=200.0,
+                heading_deg=0.0)
+    base.update(start)
+    return Profile.from_dict({"name": "t", "start": base, "segment": segments})
+
+
+def test_static_increments_are_earth_rate_and_gravity():
+    prof = _profile([{"kind": "hold", "duration_s": 5.0}], speed_m_s=0.0, heading_deg=37.0,
+                    flight_path_deg=4.0, roll_deg=-3.0)
+    t = np.arange(0, 501) / 100.0
+    run = truth.generate(prof.motion(), t)
+    lat, h = np.radians(45.0), 1000.0
+    q_bn = np.conjugate(attitude.from_euler(np.radians(37.0), np.radians(4.0), np.radians(-3.0)))
+    w_b = attitude.rotate(q_bn, earth.earth_rate_ned(lat))
+    f_b = attitude.rotate(q_bn, -earth.gravity_ned(lat, h))
+    np.testing.assert_allclose(run.dtheta, np.tile(w_b * 0.01, (500, 1)), rtol=1e-13, atol=1e-21)
+    np.testing.assert_allclose(run.dv, np.tile(f_b * 0.01, (500, 1)), rtol=1e-13, atol=0)
+    assert np.ptp(run.trajectory.lat) == 0 and np.ptp(run.trajectory.h) == 0
+
+
+def test_equator_flight_position_and_increments_in_closed_form():
+    v, h = 250.0, 1000.0
+    motion = GreatCircle(v, "east", h=h, duration=600.0)
+    t = np.arange(0, 6001) / 10.0
+    run = truth.generate(motion, t)
+    lat, lon, hh = motion.exact_position(t)
+    assert np.abs(run.trajectory.lon - lon).max() * earth.A < 1e-6
+    assert np.abs(run.trajectory.lat).max() == 0 and np.abs(run.trajectory.h - h).max() < 1e-9
+    # heading east: body x = east, y = south, z = down. w_ib = (W + v/(a+h)) north.
+    rho = v / (earth.A + h)
+    w_b = np.array([0.0, -(earth.OMEGA + rho), 0.0])
+    # f^n = (2 W + rho) x v - g: the centripetal/Coriolis lift (2 W + rho) v upward
+    f_b = np.array([0.0, 0.0, (2 * earth.OMEGA + rho) * v - earth.normal_gravity(0.0, h)])
+    np.testing.assert_allclose(run.dtheta / 0.1, np.tile(w_b, (6000, 1)), atol=1e-17)
+    np.testing.assert_allclose(run.dv / 0.1, np.tile(f_b, (6000, 1)), atol=1e-12)
+
+
+def test_meridian_flight_latitude_matches_the_meridian_arc():
+    motion = GreatCircle(300.0, "north", h=500.0, lat=np.radians(30.0), duration=1000.0)
+    t = np.arange(0, 10001) / 10.0
+    traj = truth.generate(motion, t).trajectory
+    lat, _, _ = motion.exact_position(t[::1000])
+    assert np.abs(traj.lat[::1000] - lat).max() * earth.A < 1e-6     # < 1 um over 300 km
+
+
+def test_increments_are_additive_across_rates_and_knots():
+    """Exact integrals add: the 1 kHz increments summed in fours equal 250 Hz ones. The
+    250 Hz grid is offset so that segment knots fall inside intervals (split quadrature)."""
+    prof = _profile([{"kind": "accelerate", "accel_g": 20.0, "duration_s": 1.0, "ramp_s": 0.1},
+                     {"kind": "roll", "rate_deg_s": 400.0, "angle_deg": 180.0, "ramp_s": 0.05},
+                     {"kind": "turn", "load_factor": 8.0, "heading_change_deg": 60.0,
+                      "roll_rate_deg_s": 300.0, "ramp_s": 0.05}])
+    motion = prof.motion()
+    t_end = np.floor(prof.duration * 250) / 250
+    t_fine = np.concatenate([[0.0], np.arange(0.0013, t_end, 0.001)])
+    t_coarse = np.concatenate([[0.0], t_fine[1::4]])
+    fine, coarse = truth.generate(motion, t_fine), truth.generate(motion, t_coarse)
+    assert np.any([(k > a) & (k < b) for k in motion.knots
+                   for a, b in zip(t_coarse[:-1], t_coarse[1:])])
+    n = (len(t_fine) - 2) // 4
+    sum_th = fine.dtheta[1:1 + 4 * n].reshape(n, 4, 3).sum(axis=1)
+    sum_dv = fine.dv[1:1 + 4 * n].reshape(n, 4, 3).sum(axis=1)
+    np.testing.assert_allclose(sum_th, coarse.dtheta[1:1 + n], rtol=0, atol=1e-13)
+    np.testing.assert_allclose(sum_dv, coarse.dv[1:1 + n], rtol=0, atol=1e-11)
+    np.testing.assert_allclose(fine.dtheta[0], coarse.dtheta[0] - sum_th[:0].sum(0), atol=1e-13)
+
+
+def test_coning_increments_match_the_analytic_integral():
+    # w_nb^b of the coning motion integrates in closed form; Earth rate is added exactly
+    alpha, omega, h = 0.05, 2 * np.pi * 5, 1e-3
+    motion = Coning(alpha, omega, duration=1.0)
+    t = np.arange(0, 1001) * h
+    run = truth.generate(motion, t)
+    k = slice(None)
+    ca = np.cos(omega * t)
+    sa = np.sin(omega * t)
+    dth_cone = np.stack([np.full(1000, -2 * omega * np.sin(alpha / 2) ** 2 * h),
+                         np.sin(alpha) * np.diff(ca), np.sin(alpha) * np.diff(sa)], -1)
+    w_ie = earth.earth_rate_ned(motion.lat0)
+    # Earth-rate part: integral of C_bn(t) w_ie, by dense midpoint rule
+    tm = (t[:-1, None] + h * (np.arange(200) + 0.5) / 200).ravel()
+    q = motion.kinematics(tm).q_nb
+    earth_part = attitude.rotate(np.conjugate(q), np.tile(w_ie, (len(tm), 1)))
+    earth_part = earth_part.reshape(1000, 200, 3).mean(axis=1) * h
+    np.testing.assert_allclose(run.dtheta[k], dth_cone + earth_part, rtol=0, atol=1e-14)
+
+
+def test_body_rate_derivative_is_consistent():
+    prof = _profile([{"kind": "turn", "load_factor": 6.0, "heading_change_deg": 90.0,
+                      "roll_rate_deg_s": 200.0}])
+    m = prof.motion()
+    t = np.linspace(0.05, prof.duration - 0.05, 400)
+    e = 1e-5
+    num = (m.kinematics(t + e).w_nb_b - m.kinematics(t - e).w_nb_b) / (2 * e)
+    np.testing.assert_allclose(m.kinematics(t).dw_nb_b, num, atol=1e-6)
+    num_a = (m.kinematics(t + e).v_ned - m.kinematics(t - e).v_ned) / (2 * e)
+    np.testing.assert_allclose(m.kinematics(t).a_ned, num_a, atol=1e-5)
+
+
+def test_generate_rejects_times_outside_the_motion():
+    m = _profile([{"kind": "hold", "duration_s": 1.0}]).motion()
+    with pytest.raises(ValueError, match="increase from the motion's start"):
+        truth.generate(m, np.array([0.0, 0.5, 0.4]))
+    with pytest.raises(ValueError):
+        truth.generate(m, np.array([0.0, 2.0]))
