@@ -112,10 +112,24 @@ def _imu_signals(lat, h, v, a, q, w_nb, w_ib, f_b):
 @dataclass
 class TruthRun:
     """A sampled true flight: the trajectory at t (t[0] is the initial state) and the ideal
-    increments of the intervals (t[k-1], t[k]], k >= 1: dtheta rad, dv m/s, (N-1, 3)."""
+    increments of the intervals (t[k-1], t[k]], k >= 1: dtheta rad, dv m/s, (N-1, 3), of an
+    IMU at the vehicle frame's origin, in vehicle axes.
+
+    w_ib: inertial body rate at the sample times, rad/s (N, 3); ww: the interval integrals
+    of w w^T, rad^2/s (N-1, 3, 3), which give the centripetal term at any lever arm."""
     trajectory: Trajectory
     dtheta: np.ndarray
     dv: np.ndarray
+    w_ib: np.ndarray
+    ww: np.ndarray
+
+    def dv_at(self, r_b):
+        """Velocity increments (m/s, vehicle axes, (N-1, 3)) felt at lever arm r_b (m, vehicle
+        axes) from the origin: dv + integral of (dw/dt x r + w x (w x r)) dt
+        = dv + (w_k - w_{k-1}) x r + (M - tr(M) I) r, M = integral of w w^T (exact)."""
+        r = np.asarray(r_b, dtype=float)
+        centripetal = self.ww @ r - np.trace(self.ww, axis1=1, axis2=2)[:, None] * r
+        return self.dv + np.cross(np.diff(self.w_ib, axis=0), r) + centripetal
 
 
 def generate(motion, t):
@@ -154,24 +168,29 @@ def generate(motion, t):
     k_of = np.concatenate(pieces_k).astype(np.int64)
     a, b = np.concatenate(pieces_a), np.concatenate(pieces_b)
     dtheta, dv = np.zeros((len(t_lo), 3)), np.zeros((len(t_lo), 3))
+    ww = np.zeros((len(t_lo), 3, 3))
     for c in range(0, len(a), _CHUNK):        # bounded memory: node arrays ~ 10 MB
         width = b[c:c + _CHUNK] - a[c:c + _CHUNK]
         nodes = (a[c:c + _CHUNK, None] + width[:, None] * _GL_X).ravel()
         k_node = np.repeat(k_of[c:c + _CHUNK], 3)
         lat_n, h_n = _hermite_position(t, lat, h, kin.v_ned, k_node, nodes)
         w_ib, f_b = body_rate_and_specific_force(lat_n, h_n, motion.kinematics(nodes))
-        _accumulate(k_node, (width[:, None] * _GL_W).ravel(), w_ib, f_b, dtheta, dv)
-    return TruthRun(truth, dtheta, dv)
+        _accumulate(k_node, (width[:, None] * _GL_W).ravel(), w_ib, f_b, dtheta, dv, ww)
+    w_samples, _ = body_rate_and_specific_force(lat, h, kin)
+    return TruthRun(truth, dtheta, dv, w_samples, ww)
 
 
 @numba.njit(cache=True, nogil=True)
-def _accumulate(k_node, weights, w_ib, f_b, dtheta, dv):
-    """Quadrature sums: dtheta[k] += w * w_ib, dv[k] += w * f_b over the nodes of interval k."""
+def _accumulate(k_node, weights, w_ib, f_b, dtheta, dv, ww):
+    """Quadrature sums over the nodes of interval k: dtheta[k] += c w_ib, dv[k] += c f_b,
+    ww[k] += c w_ib w_ib^T (c the node's weight)."""
     for j in range(k_node.shape[0]):
-        k, w = k_node[j], weights[j]
+        k, c = k_node[j], weights[j]
         for i in range(3):
-            dtheta[k, i] += w * w_ib[j, i]
-            dv[k, i] += w * f_b[j, i]
+            dtheta[k, i] += c * w_ib[j, i]
+            dv[k, i] += c * f_b[j, i]
+            for m in range(3):
+                ww[k, i, m] += c * w_ib[j, i] * w_ib[j, m]
 
 
 @numba.njit(cache=True, nogil=True)

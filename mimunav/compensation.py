@@ -1,0 +1,382 @@
+"""MIMU compensation: the calibration file (contract `mimunav-calibration/1`) and the seed
+paper's equations, raw volts -> physics, and their exact inverse, physics -> raw volts.
+
+Seed S1 (Dai et al. 2011) eqs. 1-4, per axis i, powers element-wise:
+    V_a = U_a - (ct[i,0] + ct[i,1] T + ct[i,2] T^2)          eq. 2, T thermistor degC
+    V_w = U_w - (cw[i,0] + cw[i,1] f + cw[i,2] f^2)          eq. 4, f resonance freq. Hz
+    a   = A0 + A1 @ V_a + A2 * V_a^2 + A3 * V_a^3              eq. 1, m/s^2
+    w   = W0 + W1 @ V_w + W2 * V_w^2 + W3 * V_w^3 + C @ a      eq. 3, rad/s
+applied in the paper's order (section 3.2): wild-value filtering, temperature, accelerometer
+triad, gyro triad with the compensated acceleration.
+
+Models: `entire-63` (all terms), `linear` (A0, A1, W0, W1: the "traditional" compensation;
+absent keys are zero), `cold-start` (seed S3, per axis, on top of the linear triads):
+    E = E(T) / (a + b T) + (c + d T) + e dT
+with E(T) the linear-triad output with its own scale divided out, T the axis's temperature
+reading (accelerometer: degC; gyro: resonance frequency, Hz), dT = T(t) - T(t - window_s)
+(T(t0) before the window is full). Keys: "accel"/"gyro" {"a","b","c","d","e": [3]},
+"window_s".
+"""
+import json
+import math
+import os
+import tempfile
+import warnings
+from dataclasses import dataclass, field
+
+import numba
+import numpy as np
+
+FORMAT = "mimunav-calibration/1"
+MODELS = ("entire-63", "linear", "cold-start")
+_TRIAD_KEYS = {"accel": ("A0", "A1", "A2", "A3", "ct"), "gyro": ("W0", "W1", "W2", "W3", "C", "cw")}
+_SHAPES = {"A0": (3,), "A1": (3, 3), "A2": (3,), "A3": (3,), "ct": (3, 3),
+           "W0": (3,), "W1": (3, 3), "W2": (3,), "W3": (3,), "C": (3, 3), "cw": (3, 3)}
+_COLD_KEYS = ("a", "b", "c", "d", "e")
+
+# Sample flags (bit mask) set by `compensate`
+REPLACED = 1       # a wild (outlier) or non-finite raw value replaced by its neighbours' median
+SATURATED = 2      # compensated output at or beyond the unit's range on some axis
+UNUSABLE = 4       # could not be repaired (non-finite across the whole filter window)
+
+
+class CalibrationError(ValueError):
+    """A calibration file that does not follow the contract, or cannot be applied."""
+
+
+@dataclass
+class Calibration:
+    """Coefficients of one MIMU compensation (SI; see the module doc for the equations).
+
+    A0 m/s^2 (3,); A1 (m/s^2)/V (3, 3); A2, A3 diagonals (m/s^2)/V^2, /V^3 (3,);
+    ct V, V/degC, V/degC^2 (3, 3); W0 rad/s; W1 (rad/s)/V; W2, W3 diagonals;
+    C (rad/s)/(m/s^2) (3, 3); cw V, V/Hz, V/Hz^2 (3, 3).
+    """
+    model: str = "entire-63"
+    unit: str = ""
+    procedure: str = ""
+    A0: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    A1: np.ndarray = field(default_factory=lambda: np.eye(3))
+    A2: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    A3: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    ct: np.ndarray = field(default_factory=lambda: np.zeros((3, 3)))
+    W0: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    W1: np.ndarray = field(default_factory=lambda: np.eye(3))
+    W2: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    W3: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    C: np.ndarray = field(default_factory=lambda: np.zeros((3, 3)))
+    cw: np.ndarray = field(default_factory=lambda: np.zeros((3, 3)))
+    cold_start: dict = field(default_factory=dict)    # {"accel": {a..e}, "gyro": {..}, "window_s"}
+    covariance: dict = field(default_factory=dict)
+    extra: dict = field(default_factory=dict)         # keys of the file this version ignores
+
+    # ---- file contract -------------------------------------------------------------
+    @classmethod
+    def from_dict(cls, doc, source="calibration"):
+        """Validate a parsed `mimunav-calibration/1` document and build the object."""
+        def fail(msg):
+            raise CalibrationError(f"{source}: {msg}")
+        if not isinstance(doc, dict):
+            fail("the top level must be a JSON object")
+        if doc.get("format") != FORMAT:
+            fail(f"format is {doc.get('format')!r}, expected {FORMAT!r}")
+        model = doc.get("model")
+        if model not in MODELS:
+            fail(f"model {model!r} is not one of {', '.join(MODELS)}")
+        cal = cls(model=model, unit=str(doc.get("unit", "")),
+                  procedure=str(doc.get("procedure", "")),
+                  covariance=doc.get("covariance", {}) or {})
+        for triad, keys in _TRIAD_KEYS.items():
+            block = doc.get(triad, {})
+            if not isinstance(block, dict):
+                fail(f'"{triad}" must be an object')
+            allowed = set(keys) | (set(_COLD_KEYS) if model == "cold-start" else set())
+            unknown = set(block) - allowed
+            if unknown:
+                fail(f'"{triad}" has keys {sorted(unknown)} that model {model!r} does not use')
+            if model == "linear":
+                extra_terms = [k for k in block if k not in ("A0", "A1", "W0", "W1")]
+                if extra_terms:
+                    fail(f'model "linear" takes only A0, A1, W0, W1; {triad} has {extra_terms}')
+            for key in keys:
+                if key in block:
+                    setattr(cal, key, _array(block[key], _SHAPES[key], f"{source}: {triad}.{key}"))
+                elif key in ("A1", "W1"):
+                    fail(f'{triad}.{key} is required (the linear scale/misalignment matrix)')
+            if model == "cold-start":
+                missing = [k for k in _COLD_KEYS if k not in block]
+                if missing:
+                    fail(f'cold-start model lacks {triad}.{missing}')
+                cal.cold_start[triad] = {k: _array(block[k], (3,), f"{source}: {triad}.{k}")
+                                         for k in _COLD_KEYS}
+        if model == "cold-start":
+            window = doc.get("window_s")
+            if not isinstance(window, (int, float)) or not window > 0:
+                fail("cold-start model needs window_s > 0 (s), the dT window")
+            cal.cold_start["window_s"] = float(window)
+            for triad in ("accel", "gyro"):
+                scale = cal.cold_start[triad]["a"]
+                if np.any(scale == 0):
+                    fail(f"cold-start {triad}.a has a zero (scale factor a + b T must not vanish)")
+        for name in ("A1", "W1"):
+            m = getattr(cal, name)
+            if np.linalg.cond(m) > 1e8:
+                fail(f"{name} is singular or nearly so (condition number "
+                     f"{np.linalg.cond(m):.3g}): the raw voltages cannot be inverted")
+        known = {"format", "model", "unit", "procedure", "accel", "gyro", "covariance", "window_s"}
+        cal.extra = {k: v for k, v in doc.items() if k not in known}
+        return cal
+
+    @classmethod
+    def load(cls, path):
+        try:
+            with open(path) as fh:
+                doc = json.load(fh)
+        except json.JSONDecodeError as exc:
+            raise CalibrationError(f"{path}: not valid JSON ({exc})") from None
+        return cls.from_dict(doc, source=str(path))
+
+    def as_dict(self):
+        doc = {"format": FORMAT, "model": self.model, "unit": self.unit,
+               "procedure": self.procedure}
+        for triad, keys in _TRIAD_KEYS.items():
+            keys = [k for k in keys if self.model != "linear" or k in ("A0", "A1", "W0", "W1")]
+            doc[triad] = {k: getattr(self, k).tolist() for k in keys}
+            if self.model == "cold-start":
+                doc[triad].update({k: v.tolist() for k, v in self.cold_start[triad].items()})
+        if self.model == "cold-start":
+            doc["window_s"] = self.cold_start["window_s"]
+        if self.covariance:
+            doc["covariance"] = self.covariance
+        doc.update(self.extra)
+        return doc
+
+    def save(self, path, force=False):
+        """Write the file atomically (temporary file + rename); refuses to replace an
+        existing file unless force=True."""
+        write_atomic(path, json.dumps(self.as_dict(), indent=1) + "\n", force=force)
+
+
+def _array(value, shape, where):
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise CalibrationError(f"{where} is not numeric: {value!r}") from None
+    if arr.shape != shape:
+        raise CalibrationError(f"{where} has shape {arr.shape}, expected {shape}")
+    if not np.all(np.isfinite(arr)):
+        raise CalibrationError(f"{where} has non-finite values: {arr.tolist()}")
+    return arr
+
+
+def write_atomic(path, text, force=False):
+    """Write text to path through a temporary file in the same folder and a rename, so a
+    crash never leaves a half-written file; an existing file is kept unless force."""
+    path = os.fspath(path)
+    if os.path.exists(path) and not force:
+        raise FileExistsError(f"{path} exists; pass force to replace it")
+    folder = os.path.dirname(os.path.abspath(path))
+    fd, tmp = tempfile.mkstemp(dir=folder, prefix=".tmp-", suffix=os.path.basename(path))
+    try:
+        with os.fdopen(fd, "w") as fh:
+            fh.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+# ---- equations ---------------------------------------------------------------------------
+def poly2(c, x):
+    """Per-axis quadratic c[i,0] + c[i,1] x_i + c[i,2] x_i^2 for x (N, 3) -> (N, 3)."""
+    return c[:, 0] + x * (c[:, 1] + x * c[:, 2])
+
+
+def triad(p0, p1, p2, p3, v):
+    """p0 + p1 @ v + p2 * v^2 + p3 * v^3 for v (N, 3): eqs. 1 and 3 without C."""
+    return p0 + v @ p1.T + v * v * (p2 + p3 * v)
+
+
+def compensate(cal, accel_volts, gyro_volts, accel_temperature, gyro_frequency,
+               range_accel=np.inf, range_gyro=np.inf, filter_outliers=True):
+    """Raw MIMU samples -> specific force f (m/s^2) and rate w (rad/s), sensor axes, and a
+    flag per sample (REPLACED | SATURATED | UNUSABLE bits).
+
+    Inputs (N, 3): accel_volts U_a and gyro_volts U_w (V), accel_temperature T (degC),
+    gyro_frequency f (Hz). range_*: the unit's range (m/s^2, rad/s); outputs whose magnitude
+    on any axis reaches it are flagged SATURATED.
+    """
+    chans = [np.ascontiguousarray(x, dtype=float) for x in
+             (accel_volts, gyro_volts, accel_temperature, gyro_frequency)]
+    n = len(chans[0])
+    for name, x in zip(("accel_volts", "gyro_volts", "accel_temperature", "gyro_frequency"),
+                       chans):
+        if x.shape != (n, 3):
+            raise ValueError(f"{name} must have shape (N, 3) = ({n}, 3), got {x.shape}")
+    flags = np.zeros(n, dtype=np.uint8)
+    if filter_outliers:
+        chans = [wild_value_filter(x, flags) for x in chans]
+    else:
+        for x in chans:
+            flags[~np.isfinite(x).all(axis=1)] |= UNUSABLE
+    u_a, u_w, temp, freq = chans
+    if cal.model == "cold-start":
+        f, w = _cold_start(cal, u_a, u_w, temp, freq)
+    else:
+        v_a = u_a - poly2(cal.ct, temp)                                   # eq. 2
+        v_w = u_w - poly2(cal.cw, freq)                                   # eq. 4
+        f = triad(cal.A0, cal.A1, cal.A2, cal.A3, v_a)                    # eq. 1
+        w = triad(cal.W0, cal.W1, cal.W2, cal.W3, v_w) + f @ cal.C.T      # eq. 3
+    flags[(np.abs(f) >= range_accel).any(axis=1) | (np.abs(w) >= range_gyro).any(axis=1)] \
+        |= SATURATED
+    return f, w, flags
+
+
+def _cold_start(cal, u_a, u_w, temp, freq):
+    """Seed S3: E = E(T)/(a + b T) + (c + d T) + e dT per axis on the linear triad output."""
+    out = []
+    window = cal.cold_start["window_s"]
+    for triad_name, u, p1, temperature in (("accel", u_a, cal.A1, temp),
+                                           ("gyro", u_w, cal.W1, freq)):
+        k = cal.cold_start[triad_name]
+        p0 = cal.A0 if triad_name == "accel" else cal.W0
+        e_t = p0 + u @ p1.T
+        d_t = temperature_change(temperature, window, cal.cold_start.get("rate_hz"))
+        out.append(e_t / (k["a"] + k["b"] * temperature) + k["c"] + k["d"] * temperature
+                   + k["e"] * d_t)
+    return out[0], out[1]
+
+
+def temperature_change(temperature, window_s, rate_hz=None, t=None):
+    """dT = T(t) - T(t - window), T(t0) until the window is full; (N, 3). Sample times
+    come from t (s) or a constant rate_hz."""
+    if t is None:
+        lag = int(round(window_s * (rate_hz or 1.0)))
+        idx = np.maximum(np.arange(len(temperature)) - lag, 0)
+    else:
+        idx = np.maximum(np.searchsorted(t, t - window_s, side="left"), 0)
+    return temperature - temperature[idx]
+
+
+def wild_value_filter(x, flags, n_sigma=6.0):
+    """Wild-value (outlier) filter, seed S1 section 3.2 step 1.
+
+    A sample is wild when it is non-finite, or when it disagrees with both linear
+    extrapolations from its neighbours, 2 x[k-1] - x[k-2] from the left and 2 x[k+1] - x[k+2]
+    from the right (only the available one at the record's ends), by more than
+    n_sigma * sqrt(6) noise standard deviations (the extrapolation difference of white noise
+    has variance 6 sigma^2). An isolated spike disagrees with both sides; a step or a ramp
+    agrees with one; a spike's neighbours agree with their clean side. Wild samples are
+    flagged REPLACED and replaced by linear interpolation between the nearest good samples;
+    a channel with no good sample is flagged UNUSABLE.
+
+    The noise standard deviation of each channel is robust and global: 1.4826 MAD of the
+    second difference x[k] - (x[k-1] + x[k+1])/2 over the record, divided by sqrt(1.5).
+    x (N, 3); returns a filtered copy; flags are updated in place."""
+    x = np.ascontiguousarray(x, dtype=float)
+    out = x.copy()
+    step = max(1, len(x) // 20000)
+    sub = x[::step]
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)    # all-NaN channel: UNUSABLE below
+        d2 = np.abs(sub[1:-1] - 0.5 * (sub[:-2] + sub[2:])) if len(sub) >= 3 else np.abs(sub)
+        sigma = 1.4826 * np.nanmedian(d2, axis=0) / math.sqrt(1.5)
+        floor = 1e-12 * np.nanmax(np.abs(sub), axis=0)
+    sigma = np.where(np.isfinite(sigma), np.maximum(sigma, floor), 0.0) + 1e-300
+    wild = np.zeros(x.shape, dtype=np.bool_)
+    _find_wild(x, n_sigma * sigma * math.sqrt(6.0), wild)
+    for j in np.nonzero(wild.any(axis=0))[0]:
+        good = ~wild[:, j]
+        if not good.any():
+            flags[:] |= UNUSABLE
+            continue
+        idx = np.arange(len(x))
+        out[~good, j] = np.interp(idx[~good], idx[good], x[good, j])
+        flags[~good] |= REPLACED
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def _find_wild(x, limit, wild):
+    n = x.shape[0]
+    for j in range(x.shape[1]):
+        for k in range(n):
+            v = x[k, j]
+            if not math.isfinite(v):
+                wild[k, j] = True
+                continue
+            if 0 < k < n - 1 and abs(v - 0.5 * (x[k - 1, j] + x[k + 1, j])) <= \
+                    limit[j] * 0.5:           # second difference small: not a candidate
+                continue
+            left = 2.0 * x[k - 1, j] - x[k - 2, j] if k >= 2 else math.nan
+            right = 2.0 * x[k + 1, j] - x[k + 2, j] if k <= n - 3 else math.nan
+            agree = False
+            sides = 0
+            for p in (left, right):
+                if math.isfinite(p):
+                    sides += 1
+                    if abs(v - p) <= limit[j]:
+                        agree = True
+            wild[k, j] = sides > 0 and not agree
+
+
+def raw_from_physics(cal, f, w, accel_temperature, gyro_frequency, f_gyro=None):
+    """Inverse of `compensate` for the triad models (entire-63, linear): the raw voltages
+    U_a, U_w (V, (N, 3)) whose compensation gives specific force f (m/s^2) and rate w
+    (rad/s) at the given temperature readings. Solved by Newton's method to round-off:
+    the cubic terms and the C @ a coupling make the equations implicit. f_gyro: the
+    specific force that drives the g-sensitivity C (default f; a simulation passes the
+    true one, so the compensation's use of the measured f is a realistic residual)."""
+    if cal.model not in ("entire-63", "linear"):
+        raise CalibrationError(f"raw_from_physics has no inverse for model {cal.model!r}")
+    f = np.ascontiguousarray(f, dtype=float)
+    w = np.ascontiguousarray(w, dtype=float)
+    v_a = _invert_triad(cal.A0, cal.A1, cal.A2, cal.A3, f)
+    f_gyro = f if f_gyro is None else np.asarray(f_gyro, dtype=float)
+    v_w = _invert_triad(cal.W0, cal.W1, cal.W2, cal.W3, w - f_gyro @ cal.C.T)
+    return v_a + poly2(cal.ct, accel_temperature), v_w + poly2(cal.cw, gyro_frequency)
+
+
+def _invert_triad(p0, p1, p2, p3, y):
+    v = np.empty_like(y)
+    worst = _newton_triad(p0, p1, np.linalg.inv(p1), p2, p3, y, v)
+    if not worst < 1e-12:
+        raise CalibrationError(f"inverse of the triad model did not converge (relative "
+                               f"residual {worst:.3g}): input beyond the model's monotonic range")
+    return v
+
+
+@numba.njit(cache=True, nogil=True)
+def _newton_triad(p0, p1, p1_inv, p2, p3, y, v):
+    """Solve p0 + p1 v + p2 v^2 + p3 v^3 = y per row (Newton, 3x3 steps by Cramer's rule);
+    returns the worst relative residual."""
+    worst = 0.0
+    for k in range(y.shape[0]):
+        y0, y1, y2 = y[k, 0] - p0[0], y[k, 1] - p0[1], y[k, 2] - p0[2]
+        a = p1_inv[0, 0] * y0 + p1_inv[0, 1] * y1 + p1_inv[0, 2] * y2
+        b = p1_inv[1, 0] * y0 + p1_inv[1, 1] * y1 + p1_inv[1, 2] * y2
+        c = p1_inv[2, 0] * y0 + p1_inv[2, 1] * y1 + p1_inv[2, 2] * y2
+        scale = abs(y[k, 0]) + abs(y[k, 1]) + abs(y[k, 2]) + 1e-300
+        res = 0.0
+        for it in range(30):
+            r0 = p1[0, 0] * a + p1[0, 1] * b + p1[0, 2] * c + (p2[0] + p3[0] * a) * a * a - y0
+            r1 = p1[1, 0] * a + p1[1, 1] * b + p1[1, 2] * c + (p2[1] + p3[1] * b) * b * b - y1
+            r2 = p1[2, 0] * a + p1[2, 1] * b + p1[2, 2] * c + (p2[2] + p3[2] * c) * c * c - y2
+            res = abs(r0) + abs(r1) + abs(r2)
+            if res <= 1e-15 * scale or it == 29:
+                break
+            j00 = p1[0, 0] + (2.0 * p2[0] + 3.0 * p3[0] * a) * a
+            j11 = p1[1, 1] + (2.0 * p2[1] + 3.0 * p3[1] * b) * b
+            j22 = p1[2, 2] + (2.0 * p2[2] + 3.0 * p3[2] * c) * c
+            j01, j02, j10, j12, j20, j21 = p1[0, 1], p1[0, 2], p1[1, 0], p1[1, 2], p1[2, 0], p1[2, 1]
+            c00, c01, c02 = j11 * j22 - j12 * j21, j02 * j21 - j01 * j22, j01 * j12 - j02 * j11
+            c10, c11, c12 = j12 * j20 - j10 * j22, j00 * j22 - j02 * j20, j02 * j10 - j00 * j12
+            c20, c21, c22 = j10 * j21 - j11 * j20, j01 * j20 - j00 * j21, j00 * j11 - j01 * j10
+            det = j00 * c00 + j01 * c10 + j02 * c20
+            a -= (c00 * r0 + c01 * r1 + c02 * r2) / det
+            b -= (c10 * r0 + c11 * r1 + c12 * r2) / det
+            c -= (c20 * r0 + c21 * r1 + c22 * r2) / det
+        v[k, 0], v[k, 1], v[k, 2] = a, b, c
+        worst = max(worst, res / scale)
+    return worst

@@ -1,0 +1,90 @@
+"""The reference FOG-IMU (seed S1 Table 4): fiber-optic gyros and quartz accelerometers,
+delivered calibrated (rad/s, m/s^2, interval means, sensor axes) with residual errors:
+
+    y = (I + S + M) x + b + noise, then pulse quantization of the increments, clipped at range
+  bias b         gyro N(0, 0.5 deg/h) (Table 4: <= 1 deg/h), accel N(0, 50 ug) (~100 ug)
+  scale S        diagonal N(0, 1e-4): residual <= 0.05 % FS (Table 4) at 2 sigma
+  misalignment M off-diagonal N(0, 20 urad) (4 arcsec): "small", datasheet class
+  noise          white gyro 0.003 deg/sqrt(h), accel 10 ug/sqrt(Hz); flicker B gyro 0.05 deg/h,
+                 accel 10 ug (medium-accuracy navigation grade, datasheet class)
+  quantum        angle 1 arcsec, velocity 0.1 mm/s per pulse (datasheet class)
+  range          gyro 1000 deg/s, accel 40 g (Table 4: >= 1000 deg/s, >= 30 g)
+"""
+import math
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+from . import noise
+from .mounting import Mounting
+
+G0 = 9.80665
+DEG = math.pi / 180
+
+
+@dataclass
+class FogUnit:
+    name: str
+    gyro_bias: np.ndarray                 # rad/s
+    accel_bias: np.ndarray                # m/s^2
+    gyro_matrix: np.ndarray               # I + S + M
+    accel_matrix: np.ndarray
+    gyro_white: float = 0.003 * DEG / 60          # rad/sqrt(s)
+    accel_white: float = 10e-6 * G0               # (m/s^2)/sqrt(Hz)
+    gyro_flicker: float = 0.05 * DEG / 3600       # rad/s
+    accel_flicker: float = 10e-6 * G0             # m/s^2
+    angle_quantum: float = DEG / 3600             # rad
+    velocity_quantum: float = 1e-4                # m/s
+    range_gyro: float = 1000 * DEG
+    range_accel: float = 40 * G0
+    rate_hz: float = 1000.0
+    mounting: Mounting = field(default_factory=Mounting)
+    seed: int | None = None
+
+    @classmethod
+    def draw(cls, seed, rate_hz=1000.0, name=None):
+        rng = np.random.default_rng(seed)
+
+        def matrix(scale_sigma, misalign_sigma):
+            m = rng.normal(0, misalign_sigma, (3, 3))
+            np.fill_diagonal(m, rng.normal(0, scale_sigma, 3))
+            return np.eye(3) + m
+        return cls(name=name or f"FOG-{seed:04d}", seed=seed,
+                   gyro_bias=rng.normal(0, 0.5 * DEG / 3600, 3),
+                   accel_bias=rng.normal(0, 50e-6 * G0, 3),
+                   gyro_matrix=matrix(1e-4, 20e-6), accel_matrix=matrix(1e-4, 20e-6),
+                   rate_hz=rate_hz)
+
+    def simulate(self, t, dtheta, dv, rng):
+        """Calibrated outputs for ideal sensor-axis increments over (t[k-1], t[k]] (rad, m/s,
+        (N, 3)) at sample times t (s, uniform at rate_hz): dict with angular_velocity (rad/s)
+        and linear_acceleration (m/s^2, specific force), interval means, and saturated."""
+        t = np.asarray(t, dtype=float)
+        n = len(t)
+        dt = np.diff(t, prepend=t[0] - 1 / self.rate_hz)[:, None]
+        w = (dtheta / dt) @ self.gyro_matrix.T + self.gyro_bias \
+            + noise.white(rng, n, self.rate_hz, [self.gyro_white] * 3) \
+            + noise.flicker(rng, n, self.rate_hz, [self.gyro_flicker] * 3)
+        f = (dv / dt) @ self.accel_matrix.T + self.accel_bias \
+            + noise.white(rng, n, self.rate_hz, [self.accel_white] * 3) \
+            + noise.flicker(rng, n, self.rate_hz, [self.accel_flicker] * 3)
+        saturated = ((np.abs(w) > self.range_gyro) | (np.abs(f) > self.range_accel)).any(axis=1)
+        w = np.clip(w, -self.range_gyro, self.range_gyro)
+        f = np.clip(f, -self.range_accel, self.range_accel)
+        w = noise.quantize_increments(w * dt, self.angle_quantum) / dt
+        f = noise.quantize_increments(f * dt, self.velocity_quantum) / dt
+        return dict(t=t, angular_velocity=w, linear_acceleration=f, saturated=saturated)
+
+    def as_dict(self):
+        doc = {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in asdict(self).items()}
+        doc["mounting"] = self.mounting.as_dict()
+        doc["format"] = "mimunav-fog/1"
+        return doc
+
+    @classmethod
+    def from_dict(cls, doc):
+        doc = {k: v for k, v in doc.items() if k != "format"}
+        doc["mounting"] = Mounting.from_dict(doc.get("mounting", {}))
+        for k in ("gyro_bias", "accel_bias", "gyro_matrix", "accel_matrix"):
+            doc[k] = np.asarray(doc[k], dtype=float)
+        return cls(**doc)

@@ -1,0 +1,92 @@
+"""Temperatures in time: environment, power-on self-heating, gyro resonance frequency.
+
+Every sensor follows a first-order thermal lag toward the equipment-bay temperature plus
+its own self-heating rise (its power dissipation):
+    tau_i dT_i/dt = T_bay(t) + dT_self,i - T_i,      T_i(0) = T_bay(0) (powered on cold)
+and the bay lags the outside air, which follows the ISA lapse rate with altitude:
+    tau_bay dT_bay/dt = T_ground - 0.0065 (h - h_ground) - T_bay
+so a cold start (seed S3's warm-up) and in-flight swings happen in every simulated flight.
+Lags are integrated exactly for a piecewise-constant input (y += (1 - exp(-dt/tau))(u - y)).
+
+A MEMS gyro's drive-mode resonance frequency falls with temperature through Young's
+modulus of silicon: f = f0 (1 + tcf (T - 25 degC)), tcf about -30 ppm/degC (datasheet
+class); f is the gyro's only temperature reading (seed S1, eq. 4).
+"""
+from dataclasses import asdict, dataclass
+
+import math
+
+import numba
+import numpy as np
+
+ISA_LAPSE = 0.0065          # K/m, ISA troposphere
+
+
+def first_order_lag(t, u, tau, y0):
+    """y with tau dy/dt = u - y and y(t[0]) = y0, u held over each step (exact for that):
+    y[k] = y[k-1] + (1 - exp(-(t[k] - t[k-1]) / tau)) (u[k] - y[k-1]).
+    t (n,) s; u (n,) or (n, k); tau s, scalar or (k,); returns the shape of u."""
+    u = np.asarray(u, dtype=float)
+    u2 = u.reshape(len(u), -1)
+    tau = np.broadcast_to(np.asarray(tau, dtype=float), (u2.shape[1],)).copy()
+    y = np.empty_like(u2)
+    _lag(np.asarray(t, dtype=float), u2, tau, float(y0), y)
+    return y.reshape(u.shape)
+
+
+@numba.njit(cache=True, nogil=True)
+def _lag(t, u, tau, y0, y):
+    for j in range(u.shape[1]):
+        prev = y0
+        for k in range(u.shape[0]):
+            if k > 0:
+                prev += (1.0 - math.exp(-(t[k] - t[k - 1]) / tau[j])) * (u[k, j] - prev)
+            y[k, j] = prev
+
+
+@dataclass
+class ThermalModel:
+    """Thermal parameters of one unit. Temperatures degC, times s.
+
+    self_heating / tau: 6 values, accelerometers x y z then gyros x y z."""
+    self_heating: list
+    tau: list
+    bay_tau: float = 900.0
+    f0: list = (10000.0, 10000.0, 10000.0)      # gyro resonance at 25 degC, Hz
+    tcf: list = (-30e-6, -30e-6, -30e-6)        # 1/degC
+    thermistor_noise: float = 0.005             # degC, per sample
+    frequency_noise: float = 0.002              # Hz, per sample
+
+    @classmethod
+    def draw(cls, rng):
+        """Datasheet-class values: 8-20 degC self-heating reached with 3-10 min time
+        constants; resonance 8-12 kHz with -25..-35 ppm/degC."""
+        return cls(self_heating=rng.uniform(8, 20, 6).tolist(),
+                   tau=rng.uniform(180, 600, 6).tolist(),
+                   f0=rng.uniform(8000, 12000, 3).tolist(),
+                   tcf=(-rng.uniform(25e-6, 35e-6, 3)).tolist())
+
+    def as_dict(self):
+        return {k: (list(v) if isinstance(v, (tuple, list)) else v)
+                for k, v in asdict(self).items()}
+
+    def sensor_temperatures(self, t, t_env):
+        """True accelerometer and gyro temperatures (degC, (n, 3) each) for a bay
+        temperature history t_env (degC, (n,)) from power-on at t[0]."""
+        u = np.asarray(t_env, dtype=float)[:, None] + np.asarray(self.self_heating)
+        temps = first_order_lag(t, u, np.asarray(self.tau), float(np.asarray(t_env)[0]))
+        return temps[:, :3], temps[:, 3:]
+
+    def resonance_frequency(self, t_gyro):
+        """Gyro drive-mode resonance frequency, Hz (n, 3), at gyro temperatures degC."""
+        return np.asarray(self.f0) * (1 + np.asarray(self.tcf) * (t_gyro - 25.0))
+
+    def temperature_at_frequency(self, freq):
+        """Inverse of `resonance_frequency`, degC."""
+        return 25.0 + (freq / np.asarray(self.f0) - 1) / np.asarray(self.tcf)
+
+
+def bay_temperature(t, h, t_ground, h_ground, tau=900.0):
+    """Equipment-bay temperature (degC) lagging the ISA outside air along height h (m)."""
+    outside = t_ground - ISA_LAPSE * (np.asarray(h) - h_ground)
+    return first_order_lag(t, outside, tau, t_ground)

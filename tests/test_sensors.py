@@ -1,0 +1,150 @@
+"""Sensor models: units drawn as documented, temperatures, lever arms, noise levels."""
+import math
+
+import allantools
+import numpy as np
+import pytest
+
+from mimunav import attitude, earth, truth
+from mimunav.compensation import compensate
+from mimunav.sensors import FogUnit, MimuUnit, Mounting
+from mimunav.sensors.thermal import first_order_lag
+from mimunav.truth import Kinematics, Motion
+
+G0 = 9.80665
+DEG = math.pi / 180
+
+
+def test_units_follow_seed_table_2_and_are_reproducible():
+    for seed in range(20):
+        u = MimuUnit.draw(seed)
+        c = u.coefficients
+        for m, lo, hi in ((c.A1, 0.001, 0.02), (c.W1, 0.001, 0.005)):
+            rel = np.abs(m / np.diag(m)[:, None])[~np.eye(3, dtype=bool)]
+            assert rel.min() >= lo * 0.999 and rel.max() <= hi * 1.001
+        a1, w1 = np.diag(c.A1), np.diag(c.W1)
+        k2a, k3a = np.abs(c.A2) * G0 / a1**2, np.abs(c.A3) * G0**2 / a1**3
+        k2w, k3w = np.abs(c.W2) * DEG / w1**2, np.abs(c.W3) * DEG**2 / w1**3
+        assert np.all((2e-5 <= k2a) & (k2a <= 1e-4)) and np.all((5e-6 <= k3a) & (k3a <= 2e-5))
+        assert np.all((1.5e-4 <= k2w) & (k2w <= 2.5e-4 * 1.0001))
+        assert np.all((4e-10 <= k3w) & (k3w <= 1e-9 * 1.0001))
+        c_dps_g = np.abs(c.C) / DEG * G0
+        assert np.all((0.01 <= c_dps_g) & (c_dps_g <= 0.04 * 1.0001))
+    assert MimuUnit.draw(3).as_dict() == MimuUnit.draw(3).as_dict()
+    assert MimuUnit.draw(3).as_dict() != MimuUnit.draw(4).as_dict()
+    mild = MimuUnit.draw(3, nonlinearity="datasheet").coefficients
+    assert np.allclose(np.abs(mild.W2) * 100, np.abs(MimuUnit.draw(3).coefficients.W2))
+
+
+def test_unit_file_round_trip(tmp_path):
+    u = MimuUnit.draw(11)
+    u.save(tmp_path / "u.json")
+    assert MimuUnit.load(tmp_path / "u.json").as_dict() == u.as_dict()
+    with pytest.raises(FileExistsError):
+        u.save(tmp_path / "u.json")
+
+
+def test_temperature_follows_the_first_order_lag_closed_form():
+    t = np.arange(0, 3000.0, 0.5)
+    y = first_order_lag(t, np.full(len(t), 40.0), 300.0, 10.0)
+    np.testing.assert_allclose(y, 40 - 30 * np.exp(-t / 300.0), rtol=1e-12)
+    u = MimuUnit.draw(5)
+    t_acc, t_gyro = u.thermal.sensor_temperatures(t, np.full(len(t), 20.0))
+    rise = np.asarray(u.thermal.self_heating)
+    tau = np.asarray(u.thermal.tau)
+    np.testing.assert_allclose(t_acc, 20 + rise[:3] * (1 - np.exp(-t[:, None] / tau[:3])),
+                               rtol=1e-12)
+    freq = u.thermal.resonance_frequency(t_gyro)
+    np.testing.assert_allclose(u.thermal.temperature_at_frequency(freq), t_gyro, rtol=1e-10)
+
+
+class RateTable(Motion):
+    """A level table at a fixed site turning about down with rate w0 + alpha t."""
+    def __init__(self, w0, alpha, duration=2.0):
+        self.w0, self.alpha, self.t1 = w0, alpha, duration
+        self.lat0, self.lon0, self.h0 = np.radians(40.0), 0.0, 50.0
+
+    def kinematics(self, t):
+        t = np.asarray(t, dtype=float)
+        z = np.zeros_like(t)
+        yaw = self.w0 * t + 0.5 * self.alpha * t**2
+        w = np.stack([z, z, self.w0 + self.alpha * t], -1)
+        dw = np.stack([z, z, z + self.alpha], -1)
+        return Kinematics(np.zeros((len(t), 3)), np.zeros((len(t), 3)),
+                          attitude.from_euler(yaw, z, z), w, dw)
+
+
+def test_lever_arm_gives_centripetal_and_tangential_acceleration():
+    w0, alpha, r = 3.0, 2.0, 0.25
+    motion = RateTable(w0, alpha)
+    t = np.arange(0, 2001) / 1000.0
+    run = truth.generate(motion, t)
+    mount = Mounting([1, 0, 0, 0], [r, 0, 0])
+    _, dv = mount.sensor_increments(run)
+    extra = (dv - run.dv) * 1000                       # interval means, m/s^2
+    tm = 0.5 * (t[1:] + t[:-1])
+    w = w0 + alpha * tm
+    # -w^2 r along x (centripetal, plus the w^2 variance term alpha^2 dt^2/12),
+    # alpha r along y (tangential); Earth rate changes these by < 1e-4 relative
+    np.testing.assert_allclose(extra[:, 0], -(w**2 + alpha**2 * 1e-6 / 12) * r, rtol=1e-4)
+    np.testing.assert_allclose(extra[:, 1], alpha * r, rtol=1e-3)
+    # a rotated mounting: the sensor's x axis along vehicle y
+    q_vs = attitude.from_euler(np.array([np.pi / 2]), np.zeros(1), np.zeros(1))
+    mount = Mounting(attitude.quaternion.as_float_array(q_vs)[0], [r, 0, 0])
+    _, dv_s = mount.sensor_increments(run)
+    np.testing.assert_allclose(dv_s[:, 0] * 1000, alpha * r + run.dv[:, 1] * 1000, rtol=1e-3)
+
+
+def _static_output(unit, hours, rate_hz, seed):
+    """Compensated output of a unit resting level at 45 deg N (true coefficients), with
+    its increments in closed form: Earth rate and gravity in body axes."""
+    n = int(hours * 3600 * rate_hz)
+    t = np.arange(1, n + 1) / rate_hz
+    lat = np.radians(45.0)
+    w_b = earth.earth_rate_ned(lat)
+    f_b = -earth.gravity_ned(lat, 0.0)
+    unit.rate_hz = rate_hz
+    raw = unit.simulate(t, np.tile(w_b / rate_hz, (n, 1)), np.tile(f_b / rate_hz, (n, 1)),
+                        np.full(n, 25.0), np.random.default_rng(seed))
+    f, w, _ = compensate(unit.coefficients, raw["accel_volts"], raw["gyro_volts"],
+                         raw["accel_temperature"], raw["gyro_frequency"])
+    return f - f_b, w - w_b
+
+
+def test_allan_deviation_shows_the_configured_random_walk_and_bias_instability():
+    """ADEV of the static output against the configured model sqrt((N/sqrt(tau))^2 +
+    (0.664 B)^2) (IEEE 952): levels and slope at 0.1-1 s (white dominated for the gyro) and
+    the flicker floor at 300-3000 s, within 10 %."""
+    unit = MimuUnit.draw(8)
+    nz = unit.noise
+    rate = 10.0
+    f_err, w_err = _static_output(unit, 60.0, rate, seed=1)
+    for err, white, flick in ((w_err, nz.gyro_white, nz.gyro_flicker),
+                              (f_err, nz.accel_white, nz.accel_flicker)):
+        floor = 0.664 * flick
+        for axis in range(3):
+            taus, adev, _, _ = allantools.oadev(err[:, axis], rate=rate, data_type="freq",
+                                                taus=np.array([0.1, 1.0, 300.0, 1000.0, 3000.0]))
+            model = np.hypot(floor, white / np.sqrt(taus))   # the two terms in quadrature
+            np.testing.assert_allclose(adev[:2], model[:2], rtol=0.1)
+            slope = math.log(adev[1] / adev[0]) / math.log(10.0)
+            assert slope == pytest.approx(math.log(model[1] / model[0]) / math.log(10.0),
+                                          abs=0.05)
+            assert np.mean(adev[2:] / model[2:]) == pytest.approx(1.0, rel=0.1)
+
+
+def test_fog_output_is_within_table_4_grade():
+    fog = FogUnit.draw(2)
+    assert np.all(np.abs(fog.gyro_bias) < 2 * DEG / 3600)
+    assert np.all(np.abs(np.diag(fog.gyro_matrix) - 1) < 5e-4)
+    n, rate = 200000, 1000.0
+    t = np.arange(1, n + 1) / rate
+    w_true = np.array([0.3, -0.2, 0.1])
+    out = fog.simulate(t, np.tile(w_true / rate, (n, 1)), np.tile([0, 0, -G0 / rate], (n, 1)),
+                       np.random.default_rng(0))
+    mean_err = out["angular_velocity"].mean(axis=0) - fog.gyro_matrix @ w_true - fog.gyro_bias
+    assert np.all(np.abs(mean_err) < 0.5 * DEG / 3600)   # noise + flicker over 200 s
+    # pulse quantization carries the residual: summed increments lose nothing
+    total = out["angular_velocity"].sum(axis=0) / rate
+    assert np.all(np.abs(total - (fog.gyro_matrix @ w_true + fog.gyro_bias) * n / rate)
+                  < 50 * DEG / 3600)
