@@ -199,13 +199,14 @@ def triad(p0, p1, p2, p3, v):
 
 
 def compensate(cal, accel_volts, gyro_volts, accel_temperature, gyro_frequency,
-               range_accel=np.inf, range_gyro=np.inf, filter_outliers=True):
+               range_accel=np.inf, range_gyro=np.inf, filter_outliers=True, t=None):
     """Raw MIMU samples -> specific force f (m/s^2) and rate w (rad/s), sensor axes, and a
     flag per sample (REPLACED | SATURATED | UNUSABLE bits).
 
     Inputs (N, 3): accel_volts U_a and gyro_volts U_w (V), accel_temperature T (degC),
     gyro_frequency f (Hz). range_*: the unit's range (m/s^2, rad/s); outputs whose magnitude
-    on any axis reaches it are flagged SATURATED.
+    on any axis reaches it are flagged SATURATED. t: sample times, s (N,), needed by the
+    cold-start model's dT window.
     """
     chans = [np.ascontiguousarray(x, dtype=float) for x in
              (accel_volts, gyro_volts, accel_temperature, gyro_frequency)]
@@ -222,7 +223,9 @@ def compensate(cal, accel_volts, gyro_volts, accel_temperature, gyro_frequency,
             flags[~np.isfinite(x).all(axis=1)] |= UNUSABLE
     u_a, u_w, temp, freq = chans
     if cal.model == "cold-start":
-        f, w = _cold_start(cal, u_a, u_w, temp, freq)
+        if t is None:
+            raise CalibrationError("the cold-start model needs the sample times t for dT")
+        f, w = _cold_start(cal, u_a, u_w, temp, freq, np.asarray(t, dtype=float))
     else:
         v_a = u_a - poly2(cal.ct, temp)                                   # eq. 2
         v_w = u_w - poly2(cal.cw, freq)                                   # eq. 4
@@ -233,7 +236,7 @@ def compensate(cal, accel_volts, gyro_volts, accel_temperature, gyro_frequency,
     return f, w, flags
 
 
-def _cold_start(cal, u_a, u_w, temp, freq):
+def _cold_start(cal, u_a, u_w, temp, freq, t):
     """Seed S3: E = E(T)/(a + b T) + (c + d T) + e dT per axis on the linear triad output."""
     out = []
     window = cal.cold_start["window_s"]
@@ -242,20 +245,16 @@ def _cold_start(cal, u_a, u_w, temp, freq):
         k = cal.cold_start[triad_name]
         p0 = cal.A0 if triad_name == "accel" else cal.W0
         e_t = p0 + u @ p1.T
-        d_t = temperature_change(temperature, window, cal.cold_start.get("rate_hz"))
+        d_t = temperature_change(temperature, window, t)
         out.append(e_t / (k["a"] + k["b"] * temperature) + k["c"] + k["d"] * temperature
                    + k["e"] * d_t)
     return out[0], out[1]
 
 
-def temperature_change(temperature, window_s, rate_hz=None, t=None):
-    """dT = T(t) - T(t - window), T(t0) until the window is full; (N, 3). Sample times
-    come from t (s) or a constant rate_hz."""
-    if t is None:
-        lag = int(round(window_s * (rate_hz or 1.0)))
-        idx = np.maximum(np.arange(len(temperature)) - lag, 0)
-    else:
-        idx = np.maximum(np.searchsorted(t, t - window_s, side="left"), 0)
+def temperature_change(temperature, window_s, t):
+    """dT = T(t) - T(t - window_s) per axis, T(t[0]) until the window is full; t (N,) s,
+    temperature (N, 3)."""
+    idx = np.searchsorted(t, t - window_s, side="left")
     return temperature - temperature[idx]
 
 

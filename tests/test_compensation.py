@@ -110,15 +110,16 @@ def test_linear_and_cold_start_models(tmp_path):
     cold = dict(lin, model="cold-start", window_s=2.0,
                 accel=dict(lin["accel"], **coef), gyro=dict(lin["gyro"], **coef))
     cal = Calibration.from_dict(cold)
-    cal.cold_start["rate_hz"] = 1.0
     n = 10
     temp = np.linspace(10, 19, n)[:, None] * np.ones(3)
     u = np.full((n, 3), 0.5)
-    f, w, _ = compensate(cal, u, u, temp, temp, filter_outliers=False)
+    f, w, _ = compensate(cal, u, u, temp, temp, filter_outliers=False, t=np.arange(n) * 1.0)
     e_t = np.asarray(lin["accel"]["A0"]) + u @ np.asarray(lin["accel"]["A1"]).T
     d_t = temp - temp[np.maximum(np.arange(n) - 2, 0)]
     expected = e_t / (1.02 - 1e-4 * temp) + 0.01 + 2e-4 * temp - 3e-3 * d_t
     np.testing.assert_allclose(f, expected, rtol=1e-14)
+    with pytest.raises(CalibrationError, match="needs the sample times"):
+        compensate(cal, u, u, temp, temp)
     with pytest.raises(CalibrationError, match="window_s"):
         Calibration.from_dict({k: v for k, v in cold.items() if k != "window_s"})
 

@@ -8,7 +8,7 @@ import pytest
 from mimunav import attitude, earth, truth
 from mimunav.compensation import compensate
 from mimunav.sensors import FogUnit, MimuUnit, Mounting
-from mimunav.sensors.thermal import first_order_lag
+from mimunav.sensors.thermal import ISA_LAPSE, bay_temperature, first_order_lag
 from mimunav.truth import Kinematics, Motion
 
 G0 = 9.80665
@@ -56,6 +56,9 @@ def test_temperature_follows_the_first_order_lag_closed_form():
                                rtol=1e-12)
     freq = u.thermal.resonance_frequency(t_gyro)
     np.testing.assert_allclose(u.thermal.temperature_at_frequency(freq), t_gyro, rtol=1e-10)
+    # a climb of 3000 m at t = 0: the bay lags the ISA air, -19.5 degC, with its time constant
+    bay = bay_temperature(t, np.full(len(t), 3000.0), 20.0, 0.0, tau=900.0)
+    np.testing.assert_allclose(bay, 20 - ISA_LAPSE * 3000 * (1 - np.exp(-t / 900.0)), rtol=1e-12)
 
 
 class RateTable(Motion):
