@@ -28,13 +28,6 @@ class Trajectory:
     def __len__(self):
         return len(self.t)
 
-    def __getitem__(self, index):
-        """Sub-trajectory (slice, mask or index array); an int gives a length-1 trajectory."""
-        if isinstance(index, (int, np.integer)):
-            index = slice(index, index + 1 if index != -1 else None)
-        return Trajectory(self.t[index], self.lat[index], self.lon[index], self.h[index],
-                          self.v_ned[index], self.q_nb[index])
-
     def state(self, k=0):
         """The state at sample k as plain floats: dict(t, lat, lon, h, v_ned, q_nb)."""
         return dict(t=float(self.t[k]), lat=float(self.lat[k]), lon=float(self.lon[k]),

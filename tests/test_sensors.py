@@ -8,6 +8,7 @@ import pytest
 from mimunav import attitude, earth, truth
 from mimunav.compensation import compensate
 from mimunav.sensors import FogUnit, MimuUnit, Mounting
+from mimunav.sensors.noise import FLICKER_ADEV
 from mimunav.sensors.thermal import ISA_LAPSE, bay_temperature, first_order_lag
 from mimunav.truth import Kinematics, Motion
 
@@ -124,7 +125,7 @@ def test_allan_deviation_shows_the_configured_random_walk_and_bias_instability()
     f_err, w_err = _static_output(unit, 60.0, rate, seed=1)
     for err, white, flick in ((w_err, nz.gyro_white, nz.gyro_flicker),
                               (f_err, nz.accel_white, nz.accel_flicker)):
-        floor = 0.664 * flick
+        floor = FLICKER_ADEV * flick
         for axis in range(3):
             taus, adev, _, _ = allantools.oadev(err[:, axis], rate=rate, data_type="freq",
                                                 taus=np.array([0.1, 1.0, 300.0, 1000.0, 3000.0]))

@@ -1,0 +1,29 @@
+"""Attitude conventions against independent geometry."""
+import numpy as np
+
+from mimunav import attitude
+
+
+def test_euler_round_trip_and_axes_in_ned():
+    rng = np.random.default_rng(0)
+    yaw, pitch, roll = (rng.uniform(-np.pi, np.pi, 1000), rng.uniform(-1.5, 1.5, 1000),
+                        rng.uniform(-np.pi, np.pi, 1000))
+    q = attitude.from_euler(yaw, pitch, roll)
+    for a, b in zip(attitude.as_euler(q), (yaw, pitch, roll)):
+        np.testing.assert_allclose(np.angle(np.exp(1j * (a - b))), 0, atol=1e-12)
+    # body x (forward) in NED is (cos p cos y, cos p sin y, -sin p) for any roll
+    x_n = attitude.rotate(q, np.tile([1.0, 0, 0], (1000, 1)))
+    np.testing.assert_allclose(x_n, np.stack([np.cos(pitch) * np.cos(yaw),
+                                              np.cos(pitch) * np.sin(yaw), -np.sin(pitch)], -1),
+                               atol=1e-12)
+    # a 90 deg right bank puts body y (right wing) along NED down
+    q = attitude.from_euler(np.zeros(1), np.zeros(1), np.full(1, np.pi / 2))
+    np.testing.assert_allclose(attitude.rotate(q, np.array([[0.0, 1, 0]])), [[0, 0, 1]], atol=1e-15)
+
+
+def test_rotation_vector_error_is_the_small_rotation_in_ned():
+    q_ref = attitude.from_euler(np.array([0.3]), np.array([0.1]), np.array([-0.2]))
+    q = attitude.from_euler(np.array([0.3 + 1e-6]), np.array([0.1]), np.array([-0.2]))
+    # a yaw step is a rotation about NED down
+    np.testing.assert_allclose(attitude.rotation_vector_error(q, q_ref), [[0, 0, 1e-6]],
+                               atol=1e-12)
