@@ -1,0 +1,199 @@
+"""MCAP flight-log reader.
+
+`FlightLog(path)` reads the summary (schemas, channels, chunk indexes, statistics,
+metadata); `read(topic)` returns a channel as a numpy structured array (the CDR layout of
+`schemas.cdr_dtype` plus `log_time` ns) by gathering the payloads straight out of the
+decompressed chunks at the offsets of the message indexes - no per-message decoding.
+Channels whose messages are not of one fixed size (a varying frame_id, another schema) go
+through the generic `mcap_ros2` decoder instead.
+"""
+import json
+import os
+
+import numpy as np
+import zstandard
+from mcap.exceptions import McapError
+from mcap.reader import make_reader
+
+from . import schemas
+
+_MSG_HEADER = 31        # opcode 1 + length 8 + channel 2 + sequence 4 + log_time 8 + publish 8
+_INDEX_ENTRY = np.dtype([("log_time", "<u8"), ("offset", "<u8")])
+
+
+class LogError(ValueError):
+    """A log that cannot be read as the contract says, with what and where."""
+
+
+class FlightLog:
+    def __init__(self, path):
+        self.path = os.fspath(path)
+        self._fh = open(self.path, "rb")
+        try:
+            self.summary = make_reader(self._fh).get_summary()
+        except (McapError, ValueError, EOFError, OSError) as exc:
+            self.summary = None
+            self._summary_error = str(exc)
+        if self.summary is None:
+            raise LogError(f"{self.path}: no readable summary section ("
+                           f"{getattr(self, '_summary_error', 'missing')}); the file may be "
+                           "truncated - run `mimunav info` to recover its intact chunks")
+        self.channels = {c.topic: c for c in self.summary.channels.values()}
+        self._dctx = zstandard.ZstdDecompressor()
+
+    def close(self):
+        self._fh.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    # ---- summary --------------------------------------------------------------------
+    def schema_name(self, topic):
+        return self.summary.schemas[self._channel(topic).schema_id].name
+
+    def count(self, topic):
+        stats = self.summary.statistics
+        cid = self._channel(topic).id
+        return stats.channel_message_counts.get(cid, 0) if stats else None
+
+    def metadata(self):
+        """{name: {key: value}} with JSON values decoded where they parse."""
+        self._fh.seek(0)
+        out = {}
+        for record in make_reader(self._fh).iter_metadata():
+            out[record.name] = {k: _maybe_json(v) for k, v in record.metadata.items()}
+        return out
+
+    def _channel(self, topic):
+        if topic not in self.channels:
+            raise LogError(f"{self.path}: no channel {topic!r}; the log has "
+                           f"{', '.join(sorted(self.channels)) or 'no channels'}")
+        return self.channels[topic]
+
+    # ---- messages -------------------------------------------------------------------
+    def read(self, topic):
+        """All messages of a channel as a structured array with a log_time (ns) field,
+        in time order."""
+        channel = self._channel(topic)
+        chunks = [ci for ci in sorted(self.summary.chunk_indexes,
+                                      key=lambda c: c.message_start_time)
+                  if channel.id in ci.message_index_offsets]
+        indexes = [self._message_index(ci, channel.id) for ci in chunks]
+        out, pos = None, 0
+        for ci, index in zip(chunks, indexes):
+            if len(index) == 0:
+                continue
+            data = self._chunk_data(ci)
+            if out is None:
+                dtype = self._layout(data, index, topic)
+                out = np.empty(sum(len(i) for i in indexes), dtype=_with_log_time(dtype))
+            self._gather(data, index, dtype, out[pos:pos + len(index)], topic, ci)
+            pos += len(index)
+        if out is None:
+            return np.zeros(0, dtype=[("log_time", "<u8")])
+        if np.any(np.diff(out["log_time"].astype(np.int64)) < 0):    # overlapping chunks
+            out = out[np.argsort(out["log_time"], kind="stable")]
+        return out
+
+    def _chunk_data(self, ci):
+        """Decompressed records of a chunk. Chunk record layout (MCAP spec): opcode 1,
+        length 8, start 8, end 8, uncompressed size 8, crc 4, compression string (4 + n),
+        records length 8, records."""
+        self._fh.seek(ci.chunk_start_offset)
+        rec = memoryview(self._fh.read(ci.chunk_length))
+        size = int.from_bytes(rec[25:33], "little")
+        n = int.from_bytes(rec[37:41], "little")
+        compression = bytes(rec[41:41 + n]).decode()
+        body = rec[49 + n:]
+        if len(body) < int.from_bytes(rec[41 + n:49 + n], "little"):
+            raise LogError(f"{self.path}: chunk at byte {ci.chunk_start_offset} is cut short")
+        if compression == "zstd":
+            data = self._dctx.decompress(body, max_output_size=size)
+        elif compression == "":
+            data = bytes(body)
+        elif compression == "lz4":
+            import lz4.frame
+            data = lz4.frame.decompress(body)
+        else:
+            raise LogError(f"{self.path}: unknown chunk compression {compression!r}")
+        if len(data) != size:
+            raise LogError(f"{self.path}: chunk at byte {ci.chunk_start_offset} decompresses "
+                           f"to {len(data)} bytes, expected {size}")
+        return np.frombuffer(data, dtype=np.uint8)
+
+    def _message_index(self, ci, channel_id):
+        self._fh.seek(ci.message_index_offsets[channel_id])
+        head = self._fh.read(15)          # opcode 1, length 8, channel 2, records length 4
+        n_bytes = int.from_bytes(head[11:15], "little")
+        return np.frombuffer(self._fh.read(n_bytes), dtype=_INDEX_ENTRY)
+
+    def _layout(self, data, index, topic):
+        """The CDR dtype of a fixed-size channel, from its first message."""
+        schema = self.schema_name(topic)
+        start = int(index["offset"][0]) + _MSG_HEADER
+        size = int(_u64(data, index["offset"][:1].astype(np.int64) + 1)[0]) - 22
+        frame = _frame_id(data, start)
+        if schema not in schemas.BODIES or schemas.cdr_dtype(schema, frame).itemsize != size:
+            raise LogError(f"{self.path}: {topic} ({schema}) is not a fixed-size channel "
+                           "of the contract; read it with read_generic()")
+        return schemas.cdr_dtype(schema, frame)
+
+    def _gather(self, data, index, dtype, out, topic, ci):
+        """Fill out (structured, with log_time) from the messages at the index offsets."""
+        off = index["offset"].astype(np.int64)
+        size = dtype.itemsize
+        lengths = _u64(data, off + 1) - 22
+        rows = _rows(data, off + _MSG_HEADER, size)
+        msgs = rows.view(dtype).ravel()
+        if np.any(lengths != size) or np.any(msgs["frame_len"] != msgs["frame_len"][0]) or \
+                np.any(rows[:, :2] != np.frombuffer(schemas.ENCAPSULATION[:2], np.uint8)):
+            raise LogError(f"{self.path}: {topic} changes message size, frame_id or CDR "
+                           f"encapsulation within the chunk starting at "
+                           f"{ci.message_start_time} ns; read it with read_generic()")
+        for name in out.dtype.names[:-1]:
+            out[name] = msgs[name]
+        out["log_time"] = _u64(data, off + 15)
+
+    def read_generic(self, topic):
+        """Messages of any ROS 2 channel, decoded one by one (mcap_ros2): list of
+        (log_time ns, message object)."""
+        from mcap_ros2.decoder import DecoderFactory
+        self._fh.seek(0)
+        reader = make_reader(self._fh, decoder_factories=[DecoderFactory()])
+        return [(m.log_time, d) for _, _, m, d in
+                reader.iter_decoded_messages(topics=[self._channel(topic).topic])]
+
+
+def _rows(data, starts, size):
+    """(n, size) bytes starting at the given offsets: a strided view when the offsets are
+    equally spaced (one channel written in order), else a gather."""
+    step = int(starts[1] - starts[0]) if len(starts) > 1 else size
+    if step > 0 and starts[-1] - starts[0] == step * (len(starts) - 1) and \
+            np.all(np.diff(starts) == step):
+        return np.lib.stride_tricks.as_strided(data[starts[0]:], (len(starts), size),
+                                               (step, 1), writeable=False).copy()
+    return data[starts[:, None] + np.arange(size)]
+
+
+def _u64(data, offsets):
+    return _rows(data, offsets, 8).view("<u8").ravel()
+
+
+def _frame_id(data, payload_start):
+    n = int(data[payload_start + 12:payload_start + 16].view("<u4")[0])
+    return bytes(data[payload_start + 16:payload_start + 15 + n]).decode()
+
+
+def _with_log_time(dtype):
+    return np.dtype([(name, dtype.fields[name][0]) for name in dtype.names
+                     if name not in ("encap",)] + [("log_time", "<u8")])
+
+
+def _maybe_json(value):
+    try:
+        return json.loads(value)
+    except (json.JSONDecodeError, TypeError):
+        return value
