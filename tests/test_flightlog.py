@@ -27,6 +27,14 @@ def _channels(n, rng):
     return t, raw, imu, nav
 
 
+def _write(path, t, raw, imu=None):
+    with LogWriter(path) as log:
+        log.write("/mimu/raw", S.RAW_MIMU, "mimu", t, **raw)
+        if imu is not None:
+            log.write("/fog/imu", S.IMU, "fog", t, **imu)
+    return path
+
+
 def test_every_channel_round_trips_bit_exactly(tmp_path):
     rng = np.random.default_rng(0)
     t, raw, imu, nav = _channels(30000, rng)
@@ -54,10 +62,7 @@ def test_every_channel_round_trips_bit_exactly(tmp_path):
 def test_generic_ros2_decoder_reads_what_mimunav_writes(tmp_path):
     rng = np.random.default_rng(1)
     t, raw, imu, _ = _channels(50, rng)
-    path = tmp_path / "f.mcap"
-    with LogWriter(path) as log:
-        log.write("/mimu/raw", S.RAW_MIMU, "mimu", t, **raw)
-        log.write("/fog/imu", S.IMU, "fog", t, **imu)
+    path = _write(tmp_path / "f.mcap", t, raw, imu)
     with FlightLog(path) as lg:
         decoded = lg.read_generic("/fog/imu")
         for k, (log_time, msg) in enumerate(decoded):
@@ -101,9 +106,7 @@ def test_a_log_from_another_writer_following_the_contract_reads_back(tmp_path):
 def test_missing_channel_lists_what_is_there_and_writing_is_safe(tmp_path):
     rng = np.random.default_rng(2)
     t, raw, _, _ = _channels(10, rng)
-    path = tmp_path / "f.mcap"
-    with LogWriter(path) as log:
-        log.write("/mimu/raw", S.RAW_MIMU, "mimu", t, **raw)
+    path = _write(tmp_path / "f.mcap", t, raw)
     with FlightLog(path) as lg, pytest.raises(LogError, match=r"no channel '/fog/imu'; "
                                                              r"the log has /mimu/raw"):
         lg.read("/fog/imu")
