@@ -1,0 +1,73 @@
+"""`mimunav info`: a log's channels, rates, gaps, dropped samples and metadata."""
+import numpy as np
+
+from . import schemas
+
+
+def channel_report(log, topic):
+    """dict: schema, count, rate_hz (median), duration_s, gaps [(t0, t1) s since the first
+    stamp, where the step exceeds 1.5 x the median], dropped samples (sample_index jumps)."""
+    msgs = log.read(topic)
+    t = msgs["log_time"].astype(np.int64)
+    rep = {"schema": log.schema_name(topic), "count": len(t)}
+    if len(t) < 2:
+        return rep
+    step = np.diff(t)
+    med = float(np.median(step))
+    gap = np.nonzero(step > 1.5 * med)[0]
+    rep.update(rate_hz=1e9 / med, duration_s=(t[-1] - t[0]) / 1e9,
+               start_ns=int(t[0]), gaps=[((t[k] - t[0]) / 1e9, (t[k + 1] - t[0]) / 1e9)
+                                          for k in gap],
+               backwards=int(np.sum(step < 0)), duplicates=int(np.sum(step == 0)))
+    if "sample_index" in msgs.dtype.names:
+        jumps = np.diff(msgs["sample_index"].astype(np.int64))
+        bad = np.nonzero(jumps != 1)[0]
+        rep["dropped"] = int(np.sum(jumps[jumps > 1] - 1))
+        rep["index_jumps"] = [((t[k] - t[0]) / 1e9, int(jumps[k])) for k in bad]
+    if "header" not in msgs.dtype.names and "sec" in msgs.dtype.names:
+        rep["stamp_mismatch"] = int(np.sum(schemas.stamps_ns(msgs) != t))
+    return rep
+
+
+def describe(log):
+    lines = [f"log       {log.path}"]
+    meta = log.metadata()
+    flight = meta.get("flight", {})
+    for key in ("format", "name", "description", "source", "epoch_unix_ns"):
+        if key in flight:
+            lines.append(f"{key:<9} {flight[key]}")
+    if "initial_state" in flight:
+        s = flight["initial_state"]
+        lines.append(f"initial   t = {s.get('t')} s, lat {np.degrees(s.get('latitude', 0)):.6f} "
+                     f"deg, lon {np.degrees(s.get('longitude', 0)):.6f} deg, "
+                     f"h {s.get('height', 0):.1f} m, v_ned {s.get('velocity_ned')}")
+    for name in sorted(k for k in meta if k.startswith("sensor/")):
+        m = meta[name]
+        lines.append(f"{name:<11} {m.get('model', '?')}, {m.get('sample_rate_hz', '?')} Hz, "
+                     f"mounting {m.get('mounting')}, range {m.get('range')}")
+    lines.append("channels")
+    for topic in sorted(log.channels):
+        try:
+            r = channel_report(log, topic)
+        except ValueError as exc:
+            lines.append(f"  {topic:<14} {log.schema_name(topic)}: {exc}")
+            continue
+        text = f"  {topic:<14} {r['schema']:<28} {r['count']:>9} msgs"
+        if "rate_hz" in r:
+            text += f"  {r['rate_hz']:9.3f} Hz  {r['duration_s']:9.3f} s"
+            problems = []
+            if r["gaps"]:
+                problems.append(f"{len(r['gaps'])} gaps (first {r['gaps'][0][0]:.3f}-"
+                                f"{r['gaps'][0][1]:.3f} s)")
+            if r.get("dropped"):
+                problems.append(f"{r['dropped']} dropped samples (first jump at "
+                                f"{r['index_jumps'][0][0]:.3f} s)")
+            if r["backwards"]:
+                problems.append(f"time goes backwards {r['backwards']} times")
+            if r["duplicates"]:
+                problems.append(f"{r['duplicates']} duplicate stamps")
+            if r.get("stamp_mismatch"):
+                problems.append(f"{r['stamp_mismatch']} header stamps differ from log_time")
+            text += "  " + ("; ".join(problems) if problems else "no gaps")
+        lines.append(text)
+    return "\n".join(lines)

@@ -1,0 +1,133 @@
+"""Simulated flights: profile -> truth -> sensors -> MCAP log (+ a separate truth file).
+
+Timeline: profile time 0 is the initial state, stamped `epoch_unix_ns`; each IMU has a
+sample stamped there (the contract asks for one) and then one every 1/rate s. That first
+sample stands for (-dt, 0], before the profile begins; it repeats the first interval's
+increments (every shipped profile starts steady) and is never navigated.
+
+Truth and exact increments are generated once at a base rate that both IMU rates divide,
+and summed to each IMU's rate (exact: increments add). Each IMU sees the vehicle motion at
+its own mounting (lever arm and attitude). The MIMU is powered on cold at the start, in an
+equipment bay that lags the ISA air along the flown heights (`sensors.thermal`).
+"""
+import json
+import math
+import os
+from datetime import datetime, timezone
+
+import numpy as np
+import quaternion
+from tqdm import tqdm
+
+from . import truth
+from .compensation import write_atomic
+from .flightlog import LogWriter
+from .flightlog import schemas as S
+from .sensors import FogUnit, MimuUnit, Mounting
+from .sensors.thermal import bay_temperature
+
+DEFAULT_EPOCH = "2026-01-01T00:00:00Z"
+# Documented default mountings: the FOG-IMU defines the vehicle frame origin; the MIMU sits
+# 0.30 m ahead, 0.10 m left and 0.05 m below it, axes aligned with the vehicle.
+MIMU_MOUNTING = {"attitude_wxyz": [1.0, 0.0, 0.0, 0.0], "lever_arm_m": [0.30, -0.10, 0.05]}
+FOG_MOUNTING = {"attitude_wxyz": [1.0, 0.0, 0.0, 0.0], "lever_arm_m": [0.0, 0.0, 0.0]}
+GROUND_TEMPERATURE_C = 15.0     # ISA sea-level temperature, at the profile's start height
+MAX_BASE_RATE = 4000
+
+
+def epoch_ns(text):
+    return int(datetime.fromisoformat(text.replace("Z", "+00:00")).timestamp()) * 10**9
+
+
+def simulate_flight(profile, out, seed, unit=None, fog_rate=1000.0, truth_rate=100.0,
+                    force=False, progress=True):
+    """Simulate `profile` into the log `out` (.mcap) and `out` with .truth.json beside it.
+    Returns (log path, truth path)."""
+    truth_path = (str(out)[:-5] if str(out).endswith(".mcap") else str(out)) + ".truth.json"
+    for path in (out, truth_path):
+        if os.path.exists(path) and not force:
+            raise FileExistsError(f"{path} exists; use --force to replace it")
+    ss = np.random.SeedSequence(seed)
+    s_unit, s_fog, s_mimu_noise, s_fog_noise = ss.spawn(4)
+    if unit is None:        # a drawn unit sits at the default mounting; a given one keeps its own
+        unit = MimuUnit.draw(int(s_unit.generate_state(1)[0]), name=f"MIMU-{seed:04d}")
+        unit.mounting = Mounting.from_dict(MIMU_MOUNTING)
+    fog = FogUnit.draw(int(s_fog.generate_state(1)[0]), rate_hz=fog_rate, name=f"FOG-{seed:04d}")
+    fog.mounting = Mounting.from_dict(FOG_MOUNTING)
+    rates = [unit.rate_hz, fog.rate_hz, truth_rate]
+    if any(r != int(r) for r in rates):
+        raise ValueError(f"sample rates must be whole numbers of Hz, got {rates}")
+    base = math.lcm(*(int(r) for r in rates[:2]))
+    if base > MAX_BASE_RATE or base % int(truth_rate):
+        raise ValueError(f"rates {rates} need a common base rate of {base} Hz (at most "
+                         f"{MAX_BASE_RATE}, a multiple of the truth rate)")
+    steps = tqdm(total=5, desc="simulate", disable=not progress, unit="step")
+    motion = profile.motion()
+    t_base = np.arange(0, int(math.floor(profile.duration * base + 1e-9)) + 1) / base
+    run = truth.generate(motion, t_base)
+    steps.update()
+
+    def at_rate(mounting, rate):
+        dth, dv = mounting.sensor_increments(run)
+        k = base // int(rate)
+        n = len(dth) // k
+        dth = dth[:n * k].reshape(n, k, 3).sum(axis=1)
+        dv = dv[:n * k].reshape(n, k, 3).sum(axis=1)
+        t = np.arange(n + 1) / rate
+        return t, np.vstack([dth[:1], dth]), np.vstack([dv[:1], dv])
+
+    t_m, dth_m, dv_m = at_rate(unit.mounting, unit.rate_hz)
+    env = bay_temperature(t_m, np.interp(t_m, t_base, run.trajectory.h), GROUND_TEMPERATURE_C,
+                          motion.h0)
+    raw = unit.simulate(t_m, dth_m, dv_m, env, np.random.default_rng(s_mimu_noise))
+    steps.update()
+    t_f, dth_f, dv_f = at_rate(fog.mounting, fog.rate_hz)
+    fog_out = fog.simulate(t_f, dth_f, dv_f, np.random.default_rng(s_fog_noise))
+    steps.update()
+
+    epoch = epoch_ns(DEFAULT_EPOCH)
+    k_truth = np.arange(0, len(t_base), base // int(truth_rate))
+    tr = run.trajectory
+    start = tr.state(0)
+    initial = {"t": 0.0, "latitude": start["lat"], "longitude": start["lon"],
+               "height": start["h"], "velocity_ned": start["v_ned"].tolist(),
+               "attitude_wxyz": start["q_nb"].tolist()}
+    with LogWriter(out, force=force) as log:
+        log.metadata("flight", {"format": "mimunav-log/1", "name": profile.name,
+                                "description": profile.description,
+                                "epoch_unix_ns": str(epoch), "source": "simulation",
+                                "initial_state": initial})
+        for name, imu, model in (("mimu", unit, "MEMS IMU, 63-coefficient model (simulated)"),
+                                 ("fog", fog, "FOG-IMU, Table 4 grade (simulated)")):
+            log.metadata(f"sensor/{name}", {
+                "model": model, "sample_rate_hz": str(imu.rate_hz),
+                "mounting": imu.mounting.as_dict(),
+                "range": {"gyro_rad_s": imu.range_gyro, "accel_m_s2": imu.range_accel}})
+        stamp = lambda t: epoch + np.round(t * 1e9).astype(np.int64)      # noqa: E731
+        log.write("/mimu/raw", S.RAW_MIMU, "mimu", stamp(t_m), sample_index=raw["sample_index"],
+                  gyro_volts=raw["gyro_volts"], accel_volts=raw["accel_volts"],
+                  accel_temperature=raw["accel_temperature"],
+                  gyro_frequency=raw["gyro_frequency"])
+        steps.update()
+        n = len(t_f)
+        log.write("/fog/imu", S.IMU, "fog", stamp(t_f),
+                  orientation=np.tile([0.0, 0, 0, 1], (n, 1)),
+                  orientation_covariance=np.tile([-1.0] + [0.0] * 8, (n, 1)),
+                  angular_velocity=fog_out["angular_velocity"],
+                  linear_acceleration=fog_out["linear_acceleration"])
+        log.write("/truth/state", S.NAV_STATE, "vehicle", stamp(t_base[k_truth]),
+                  latitude=tr.lat[k_truth], longitude=tr.lon[k_truth], height=tr.h[k_truth],
+                  velocity_ned=tr.v_ned[k_truth],
+                  attitude_wxyz=quaternion.as_float_array(tr.q_nb[k_truth]))
+    steps.update()
+    steps.close()
+    write_atomic(truth_path, json.dumps({
+        "format": "mimunav-truth/1", "log": str(out), "seed": seed, "profile": profile.name,
+        "mimu": unit.as_dict(), "fog": fog.as_dict(),
+        "environment": {"ground_temperature_c": GROUND_TEMPERATURE_C,
+                        "bay_tau_s": 900.0, "lapse_k_per_m": 0.0065},
+        "saturated_samples": {"mimu": int(raw["saturated"].sum()),
+                              "fog": int(fog_out["saturated"].sum())}}, indent=1) + "\n",
+        force=force)
+    return str(out), truth_path
+

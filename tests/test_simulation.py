@@ -1,0 +1,109 @@
+"""`mimunav simulate` and `mimunav info`: a simulated log follows the contract and holds
+what the sensor models produced, with the unit's truth kept outside the log."""
+import json
+import math
+
+import numpy as np
+import pytest
+
+from mimunav import truth
+from mimunav.cli import main
+from mimunav.compensation import Calibration, compensate
+from mimunav.flightlog import FlightLog
+from mimunav.profile import Profile
+from mimunav.sensors import Mounting
+from mimunav.simulation import MIMU_MOUNTING, epoch_ns
+
+PROFILE = {"name": "short", "description": "a short test flight",
+           "start": {"latitude_deg": 30, "longitude_deg": 20, "height_m": 500,
+                     "speed_m_s": 150, "heading_deg": 45},
+           "segment": [{"kind": "coast", "duration_s": 2},
+                       {"kind": "roll", "rate_deg_s": 200, "angle_deg": 180, "ramp_s": 0.2},
+                       {"kind": "turn", "load_factor": 4, "heading_change_deg": 40,
+                        "roll_rate_deg_s": 100, "ramp_s": 0.2}]}
+
+
+@pytest.fixture(scope="module")
+def simulated(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("sim")
+    prof = folder / "short.toml"
+    prof.write_text(_toml(PROFILE))
+    log = folder / "short.mcap"
+    assert main(["simulate", str(prof), "-o", str(log), "--seed", "5"]) == 0
+    return prof, log, folder / "short.truth.json"
+
+
+def _toml(doc):
+    lines = [f'name = "{doc["name"]}"', f'description = "{doc["description"]}"', "[start]"]
+    lines += [f"{k} = {v}" for k, v in doc["start"].items()]
+    for seg in doc["segment"]:
+        lines.append("[[segment]]")
+        lines += [f'{k} = "{v}"' if isinstance(v, str) else f"{k} = {v}" for k, v in seg.items()]
+    return "\n".join(lines) + "\n"
+
+
+def test_log_follows_the_contract_and_keeps_the_truth_outside(simulated):
+    _, log_path, truth_path = simulated
+    with FlightLog(log_path) as log:
+        meta = log.metadata()
+        assert set(log.channels) == {"/mimu/raw", "/fog/imu", "/truth/state"}
+        flight = meta["flight"]
+        assert flight["format"] == "mimunav-log/1" and flight["source"] == "simulation"
+        assert flight["initial_state"]["t"] == 0.0
+        epoch = int(flight["epoch_unix_ns"])
+        for topic in ("/mimu/raw", "/fog/imu"):
+            t = log.read(topic)["log_time"].astype(np.int64)
+            assert t[0] == epoch                       # a sample on the initial state's time
+            assert np.all(np.diff(t) == 1_000_000)
+        assert meta["sensor/mimu"]["mounting"] == MIMU_MOUNTING
+        text = json.dumps(meta)
+    unit = json.loads(truth_path.read_text())["mimu"]
+    # no coefficient of the unit appears anywhere in the log's metadata
+    for value in np.ravel(unit["coefficients"]["gyro"]["C"]):
+        assert repr(value) not in text and f"{value:.6g}" not in text
+
+
+def test_logged_channels_hold_the_simulated_physics(simulated):
+    prof_path, log_path, truth_path = simulated
+    doc = json.loads(truth_path.read_text())
+    cal = Calibration.from_dict(doc["mimu"]["coefficients"])
+    prof = Profile.load(prof_path)
+    with FlightLog(log_path) as log:
+        raw = log.read("/mimu/raw")
+        fog = log.read("/fog/imu")
+        state = log.read("/truth/state")
+        epoch = int(log.metadata()["flight"]["epoch_unix_ns"])
+    t = (raw["log_time"].astype(np.int64) - epoch) / 1e9
+    run = truth.generate(prof.motion(), t)
+    # /truth/state is the trajectory, sampled at 100 Hz
+    ts = (state["log_time"].astype(np.int64) - epoch) / 1e9
+    k = np.searchsorted(t, ts)
+    np.testing.assert_allclose(state["latitude"], run.trajectory.lat[k], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(state["velocity_ned"], run.trajectory.v_ned[k], atol=1e-9)
+    # the MIMU, compensated with its true coefficients, reads the motion at its lever arm
+    f, w, flags = compensate(cal, raw["accel_volts"], raw["gyro_volts"],
+                             raw["accel_temperature"], raw["gyro_frequency"])
+    _, dv = Mounting.from_dict(MIMU_MOUNTING).sensor_increments(run)
+    err = f[1:] - dv * 1000
+    nz = doc["mimu"]["noise"]
+    white = nz["accel_white"] * math.sqrt(1000)
+    assert not flags.any()
+    np.testing.assert_allclose(err.std(axis=0), white, rtol=0.1)
+    assert np.all(np.abs(err.mean(axis=0)) < 5 * nz["accel_turn_on"] + 3 * nz["accel_flicker"])
+    # the FOG reads the vehicle origin's motion within its grade
+    fog_err = fog["angular_velocity"][1:] - run.dtheta * 1000
+    assert np.all(np.abs(fog_err.mean(axis=0)) < math.radians(5 / 3600) + 1e-4)
+
+
+def test_info_reports_channels_and_refuses_nothing_silently(simulated, capsys, tmp_path):
+    _, log_path, _ = simulated
+    assert main(["info", str(log_path)]) == 0
+    out = capsys.readouterr().out
+    assert "/mimu/raw" in out and "1000.000 Hz" in out and "no gaps" in out
+    assert main(["simulate", str(simulated[0]), "-o", str(log_path)]) == 2
+    assert "exists; use --force" in capsys.readouterr().err
+    assert main(["info", str(tmp_path / "missing.mcap")]) == 2
+
+
+def test_epoch_is_absolute_utc():
+    assert epoch_ns("2026-01-01T00:00:00Z") == 1_767_225_600 * 10**9
