@@ -1,0 +1,89 @@
+"""Benchmark of the MCAP flight log: write 10^6 samples of a channel, read them back with
+the fast path, and compare with the mcap package's iter_decoded_messages on the same file.
+
+    python bench/flightlog.py [--samples 1000000] [--json out.json]
+
+The data are a simulated MIMU raw channel (realistic compressibility): the shipped
+high-dynamic flight, looped. iter_decoded_messages is timed on the first 100 000 messages
+and scaled (it is linear).
+"""
+import argparse
+import json
+import os
+import platform
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+from mcap.reader import make_reader                     # noqa: E402
+from mcap_ros2.decoder import DecoderFactory            # noqa: E402
+
+from mimunav import truth                               # noqa: E402
+from mimunav.flightlog import FlightLog, LogWriter      # noqa: E402
+from mimunav.flightlog import schemas as S              # noqa: E402
+from mimunav.profile import Profile                     # noqa: E402
+from mimunav.sensors import MimuUnit                    # noqa: E402
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--samples", type=int, default=1_000_000)
+    ap.add_argument("--json")
+    args = ap.parse_args()
+    n = args.samples
+    prof = Profile.load(ROOT / "flights" / "high-dynamic.toml")
+    doc = {"name": "bench", "start": {"latitude_deg": 40, "longitude_deg": 100, "height_m": 3000,
+                                      "speed_m_s": 250, "heading_deg": 30, "ramp_s": 0.2},
+           "segment": prof.segments * int(np.ceil(n / 1000 / prof.duration))}
+    t = np.arange(0, n + 1) / 1000.0
+    run = truth.generate(Profile.from_dict(doc).motion(), t)
+    raw = MimuUnit.draw(1).simulate(t[1:], run.dtheta, run.dv, np.full(n, 15.0),
+                                    np.random.default_rng(0))
+    stamps = 1_767_225_600 * 10**9 + np.round(t[1:] * 1e9).astype(np.int64)
+    with tempfile.TemporaryDirectory() as tmp:
+        path = os.path.join(tmp, "bench.mcap")
+        t0 = time.perf_counter()
+        with LogWriter(path) as log:
+            log.write("/mimu/raw", S.RAW_MIMU, "mimu", stamps, sample_index=raw["sample_index"],
+                      gyro_volts=raw["gyro_volts"], accel_volts=raw["accel_volts"],
+                      accel_temperature=raw["accel_temperature"],
+                      gyro_frequency=raw["gyro_frequency"])
+        t_write = time.perf_counter() - t0
+        size = os.path.getsize(path)
+        reads = []
+        for _ in range(3):
+            with FlightLog(path) as lg:
+                t0 = time.perf_counter()
+                msgs = lg.read("/mimu/raw")
+                reads.append(time.perf_counter() - t0)
+        assert np.array_equal(msgs["gyro_volts"], raw["gyro_volts"])
+        m = min(n, 100_000)
+        with open(path, "rb") as fh:
+            reader = make_reader(fh, decoder_factories=[DecoderFactory()])
+            t0 = time.perf_counter()
+            for k, _ in enumerate(reader.iter_decoded_messages()):
+                if k + 1 == m:
+                    break
+            t_generic = (time.perf_counter() - t0) * n / m
+    res = {"machine": f"{platform.machine()} {os.cpu_count()} cores, {platform.python_version()}",
+           "samples": n, "file_mb": size / 1e6, "write_s": t_write,
+           "read_s_first": reads[0], "read_s_best": min(reads),
+           "read_samples_per_s_first": n / reads[0], "read_samples_per_s_best": n / min(reads),
+           "iter_decoded_messages_s": t_generic, "speedup_first": t_generic / reads[0]}
+    print(f"write       {t_write:.2f} s for {n} samples ({size / 1e6:.1f} MB)")
+    print(f"read        {n / reads[0] / 1e6:.1f} M samples/s first, "
+          f"{n / min(reads) / 1e6:.1f} M best of 3")
+    print(f"mcap        iter_decoded_messages {t_generic:.1f} s for {n}: fast path "
+          f"{res['speedup_first']:.0f}x faster (first read)")
+    print(f"machine     {res['machine']}")
+    if args.json:
+        Path(args.json).write_text(json.dumps(res, indent=2))
+
+
+if __name__ == "__main__":
+    main()
