@@ -71,6 +71,20 @@ def _info(args):
     return 0
 
 
+def _compensate(args):
+    """Apply a calibration file to a log's raw MIMU channel."""
+    from .compensation import Calibration, CalibrationError, compensate_log
+    from .flightlog import LogError
+    try:
+        counts = compensate_log(args.log, Calibration.load(args.cal), args.output, args.force)
+    except (OSError, LogError, CalibrationError) as exc:
+        print(f"mimunav compensate: {exc}", file=sys.stderr)
+        return 2
+    print(f"wrote {args.output} with /mimu/imu; samples replaced (wild values) "
+          f"{counts['replaced']}, saturated {counts['saturated']}, unusable {counts['unusable']}")
+    return 0
+
+
 def build_parser():
     parser = argparse.ArgumentParser(
         prog="mimunav", description="Flight-test evaluation of MEMS IMUs against a FOG-IMU.")
@@ -89,6 +103,13 @@ def build_parser():
     p.add_argument("--fog-rate", type=float, default=1000.0, help="FOG-IMU sample rate, Hz")
     p.add_argument("--force", action="store_true", help="replace existing output files")
     p.set_defaults(func=_simulate)
+    p = sub.add_parser("compensate", help="apply a calibration to /mimu/raw and write the "
+                       "compensated MIMU as /mimu/imu (rad/s, m/s^2, sensor axes)")
+    p.add_argument("log", help="MCAP flight log with /mimu/raw")
+    p.add_argument("--cal", required=True, help="calibration file (mimunav-calibration/1)")
+    p.add_argument("-o", "--output", required=True, help="log to write (.mcap)")
+    p.add_argument("--force", action="store_true", help="replace an existing output")
+    p.set_defaults(func=_compensate)
     p = sub.add_parser("info", help="channels, rates, gaps, dropped samples and metadata "
                        "of a log")
     p.add_argument("log", help="MCAP flight log")

@@ -379,3 +379,51 @@ def _newton_triad(p0, p1, p1_inv, p2, p3, y, v):
         v[k, 0], v[k, 1], v[k, 2] = a, b, c
         worst = max(worst, res / scale)
     return worst
+
+
+def compensate_log(log_path, cal, out, force=False):
+    """Apply a calibration to a log's /mimu/raw channel and write OUT: every channel,
+    metadata record and attachment of the input copied (the contract's fixed-size channels
+    field by field, with CDR padding written as zeros; others byte for byte), plus /mimu/imu
+    (sensor_msgs/msg/Imu, sensor axes, interval means, no orientation). Returns the flag
+    counts {REPLACED, SATURATED, UNUSABLE}."""
+    from mcap.reader import make_reader
+
+    from .flightlog import FlightLog, LogError, LogWriter
+    from .flightlog import schemas as S
+    with FlightLog(log_path) as log:
+        if "/mimu/imu" in log.channels:
+            raise LogError(f"{log_path} already has /mimu/imu")
+        raw = log.read("/mimu/raw")
+        rng = log.metadata().get("sensor/mimu", {}).get("range", {})
+    stamps = raw["log_time"].astype(np.int64)
+    f, w, flags = compensate(cal, raw["accel_volts"], raw["gyro_volts"], raw["accel_temperature"],
+                             raw["gyro_frequency"], rng.get("accel_m_s2", np.inf),
+                             rng.get("gyro_rad_s", np.inf), t=(stamps - stamps[0]) / 1e9)
+    n = len(stamps)
+    with open(log_path, "rb") as fh, LogWriter(out, force=force) as dst:
+        reader = make_reader(fh)
+        for record in reader.iter_metadata():
+            dst.metadata(record.name, record.metadata)
+        for att in reader.iter_attachments():
+            dst.attachment(att.name, att.data, att.media_type)
+        generic = []
+        with FlightLog(log_path) as log:
+            for topic in log.channels:
+                try:
+                    msgs = log.read(topic)          # contract channel: copy field by field
+                except LogError:
+                    generic.append(topic)
+                    continue
+                fields = {name: msgs[name] for name, _, _ in S.BODIES[log.schema_name(topic)]}
+                dst.write(topic, log.schema_name(topic), msgs["frame_id"][0].decode(),
+                          msgs["log_time"].astype(np.int64), **fields)
+        fh.seek(0)
+        for schema, channel, message in make_reader(fh).iter_messages(topics=generic):
+            dst.copy(schema, channel, message)
+        dst.write("/mimu/imu", S.IMU, "mimu", stamps,
+                  orientation=np.tile([0.0, 0, 0, 1], (n, 1)),
+                  orientation_covariance=np.tile([-1.0] + [0.0] * 8, (n, 1)),
+                  angular_velocity=w, linear_acceleration=f)
+    return {name: int(np.sum(flags & bit > 0)) for name, bit in
+            (("replaced", REPLACED), ("saturated", SATURATED), ("unusable", UNUSABLE))}

@@ -107,3 +107,35 @@ def test_info_reports_channels_and_refuses_nothing_silently(simulated, capsys, t
 
 def test_epoch_is_absolute_utc():
     assert epoch_ns("2026-01-01T00:00:00Z") == 1_767_225_600 * 10**9
+
+
+def test_compensate_writes_mimu_imu_and_copies_everything_else(simulated, tmp_path, capsys):
+    _, log_path, truth_path = simulated
+    cal_path = tmp_path / "true.cal.json"
+    cal_path.write_text(json.dumps(json.loads(truth_path.read_text())["mimu"]["coefficients"]))
+    out = tmp_path / "comp.mcap"
+    assert main(["compensate", str(log_path), "--cal", str(cal_path), "-o", str(out)]) == 0
+    assert "replaced (wild values) 0" in capsys.readouterr().out
+    cal = Calibration.load(cal_path)
+    with FlightLog(log_path) as a, FlightLog(out) as b:
+        assert b.metadata() == a.metadata()
+        for topic in a.channels:
+            x, y = a.read(topic), b.read(topic)
+            assert all(np.array_equal(x[n], y[n]) for n in x.dtype.names), topic
+        raw, imu = a.read("/mimu/raw"), b.read("/mimu/imu")
+    f, w, _ = compensate(cal, raw["accel_volts"], raw["gyro_volts"], raw["accel_temperature"],
+                         raw["gyro_frequency"])
+    assert np.array_equal(imu["linear_acceleration"], f)
+    assert np.array_equal(imu["angular_velocity"], w)
+    assert np.array_equal(imu["log_time"], raw["log_time"])
+    assert np.all(imu["orientation_covariance"][:, 0] == -1)
+    assert main(["compensate", str(log_path), "--cal", str(cal_path), "-o", str(out)]) == 2
+    assert main(["compensate", str(out), "--cal", str(cal_path), "-o",
+                 str(tmp_path / "again.mcap")]) == 2
+    assert "already has /mimu/imu" in capsys.readouterr().err
+    bad = tmp_path / "bad.json"
+    bad.write_text('{"format": "mimunav-calibration/1", "model": "nope"}')
+    assert main(["compensate", str(log_path), "--cal", str(bad), "-o",
+                 str(tmp_path / "x.mcap")]) == 2
+    assert "model 'nope'" in capsys.readouterr().err
+    assert not (tmp_path / "x.mcap").exists() and not (tmp_path / "again.mcap").exists()

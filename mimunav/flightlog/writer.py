@@ -77,6 +77,19 @@ class LogWriter:
             add(channel_id=channel, log_time=t, publish_time=t, sequence=i,
                 data=buf[i * size:(i + 1) * size])
 
+    def copy(self, schema, channel, message):
+        """Copy a message read from another MCAP (mcap.records objects) unchanged."""
+        if channel.topic not in self._channels:
+            if schema.name not in self._schemas:
+                self._schemas[schema.name] = self._mcap.register_schema(
+                    name=schema.name, encoding=schema.encoding, data=schema.data)
+            self._channels[channel.topic] = self._mcap.register_channel(
+                topic=channel.topic, message_encoding=channel.message_encoding,
+                schema_id=self._schemas[schema.name], metadata=channel.metadata)
+        self._mcap.add_message(channel_id=self._channels[channel.topic],
+                               log_time=message.log_time, publish_time=message.publish_time,
+                               sequence=message.sequence, data=message.data)
+
     def _channel(self, topic, schema_name):
         if schema_name not in self._schemas:
             self._schemas[schema_name] = self._mcap.register_schema(
