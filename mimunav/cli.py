@@ -59,13 +59,23 @@ def _simulate(args):
 
 
 def _info(args):
-    """What an engineer checks first in a log."""
+    """What an engineer checks first in a log; for a damaged one, what is intact."""
     from .flightlog import FlightLog, LogError
     from .flightlog.inspect import describe
+    from .flightlog.recover import describe_scan, recover, scan
     try:
+        if args.recover:
+            report = recover(args.log, args.recover, force=args.force)
+            print(describe_scan(report))
+            print(f"wrote the intact part to {args.recover}")
+            return 0
         with FlightLog(args.log) as log:
             print(describe(log))
-    except (OSError, LogError) as exc:
+    except LogError as exc:
+        print(f"mimunav info: {exc}", file=sys.stderr)
+        print(describe_scan(scan(args.log)))
+        return 2
+    except OSError as exc:
         print(f"mimunav info: {exc}", file=sys.stderr)
         return 2
     return 0
@@ -113,6 +123,9 @@ def build_parser():
     p = sub.add_parser("info", help="channels, rates, gaps, dropped samples and metadata "
                        "of a log")
     p.add_argument("log", help="MCAP flight log")
+    p.add_argument("--recover", metavar="OUT.mcap",
+                   help="write the intact part of a damaged (e.g. truncated) log to OUT")
+    p.add_argument("--force", action="store_true", help="replace an existing OUT")
     p.set_defaults(func=_info)
     return parser
 

@@ -118,3 +118,92 @@ def test_missing_channel_lists_what_is_there_and_writing_is_safe(tmp_path):
             log.write("/mimu/raw", S.RAW_MIMU, "mimu", t[::-1], **raw)
     assert path.read_bytes() == before                       # the old log is untouched
     assert sorted(p.name for p in tmp_path.iterdir()) == ["f.mcap"]   # no temporary left
+
+
+@pytest.fixture
+def flight_file(tmp_path):
+    rng = np.random.default_rng(4)
+    t, raw, imu, _ = _channels(60000, rng)
+    path = tmp_path / "f.mcap"
+    with LogWriter(path) as log:
+        log.metadata("flight", {"format": "mimunav-log/1", "epoch_unix_ns": str(EPOCH)})
+        log.write("/mimu/raw", S.RAW_MIMU, "mimu", t, **raw)
+        log.write("/fog/imu", S.IMU, "fog", t, **imu)
+    return path, t, raw
+
+
+def test_truncated_log_reports_and_recovers_its_intact_chunks(flight_file, tmp_path, capsys):
+    from mimunav.cli import main
+    path, t, raw = flight_file
+    cut = tmp_path / "cut.mcap"
+    data = path.read_bytes()
+    cut.write_bytes(data[:len(data) // 2])
+    with pytest.raises(LogError, match="truncated"):
+        FlightLog(cut)
+    assert main(["info", str(cut)]) == 2
+    out = capsys.readouterr().out
+    assert "/mimu/raw" in out and "intact messages, t = 0.001 .." in out
+    assert "reading stopped at byte" in out
+    fixed = tmp_path / "fixed.mcap"
+    assert main(["info", str(cut), "--recover", str(fixed)]) == 0
+    with FlightLog(fixed) as log:
+        msgs = log.read("/mimu/raw")
+        assert log.metadata()["flight"]["epoch_unix_ns"] == EPOCH
+    n = len(msgs)
+    assert 0 < n < len(t)
+    assert np.array_equal(msgs["gyro_volts"], raw["gyro_volts"][:n])    # a prefix, intact
+    assert cut.read_bytes() == data[:len(data) // 2]                    # input untouched
+
+
+def test_corrupt_chunk_is_named_by_its_time_range(flight_file, tmp_path):
+    path, _, _ = flight_file
+    data = bytearray(path.read_bytes())
+    with FlightLog(path) as log:
+        ci = sorted(log.summary.chunk_indexes, key=lambda c: c.chunk_start_offset)[3]
+    data[ci.chunk_start_offset + ci.chunk_length // 2] ^= 0xFF           # flip bits inside
+    bad = tmp_path / "bad.mcap"
+    bad.write_bytes(bytes(data))
+    start = (ci.message_start_time - EPOCH) / 1e9
+    with FlightLog(bad) as log, pytest.raises(LogError, match=rf"corrupt chunk .* from "
+                                                              rf"t = {start:.3f} s"):
+        for topic in log.channels:
+            log.read(topic)
+
+
+def test_other_schemas_and_irregular_time_are_reported(tmp_path, capsys):
+    from mcap.writer import Writer as McapWriter
+
+    from mimunav.cli import main
+    rng = np.random.default_rng(5)
+    t, raw, _, _ = _channels(1000, rng)
+    t = t.copy()
+    t[500:] += 50_000_000                       # a 50 ms gap
+    raw["sample_index"][700:] += 3              # 3 dropped samples
+    path = _write(tmp_path / "g.mcap", t, raw)
+    assert main(["info", str(path)]) == 0
+    out = capsys.readouterr().out
+    assert "1 gaps (first 0.499-0.550 s)" in out and "3 dropped samples" in out
+    # stamps that go backwards or repeat, written by a recorder that does not check
+    t2 = t.copy()
+    t2[300], t2[301] = t2[301], t2[300]
+    t2[800] = t2[799]
+    path2 = tmp_path / "h.mcap"
+    with LogWriter(path2) as log:
+        msgs = S.encode(S.RAW_MIMU, "mimu", t2, **raw)
+        log.write_encoded("/mimu/raw", S.RAW_MIMU, msgs, t2)
+    assert main(["info", str(path2)]) == 0
+    out = capsys.readouterr().out
+    assert "time goes backwards 1 times" in out and "1 duplicate stamps" in out
+    # a channel of another layout (a string field of varying length) is not read blindly
+    other = tmp_path / "other.mcap"
+    with open(other, "wb") as fh:
+        w = McapWriter(fh)
+        w.start(profile="ros2", library="x")
+        sid = w.register_schema(name=S.NAV_STATE, encoding="ros2msg",
+                                data=S.SCHEMAS[S.NAV_STATE])
+        cid = w.register_channel(topic="/truth/state", message_encoding="cdr", schema_id=sid)
+        w.add_message(cid, log_time=EPOCH, publish_time=EPOCH, sequence=0,
+                      data=b"\x00\x01\x00\x00" + bytes(20))
+        w.finish()
+    with FlightLog(other) as log, pytest.raises(LogError, match="not a fixed-size channel"):
+        log.read("/truth/state")

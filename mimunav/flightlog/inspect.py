@@ -18,7 +18,7 @@ def channel_report(log, topic):
     rep.update(rate_hz=1e9 / med, duration_s=(t[-1] - t[0]) / 1e9,
                start_ns=int(t[0]), gaps=[((t[k] - t[0]) / 1e9, (t[k + 1] - t[0]) / 1e9)
                                           for k in gap],
-               backwards=int(np.sum(step < 0)), duplicates=int(np.sum(step == 0)))
+               backwards=log.time_reversals.get(topic, 0), duplicates=int(np.sum(step == 0)))
     if "sample_index" in msgs.dtype.names:
         jumps = np.diff(msgs["sample_index"].astype(np.int64))
         bad = np.nonzero(jumps != 1)[0]

@@ -9,6 +9,7 @@ through the generic `mcap_ros2` decoder instead.
 """
 import json
 import os
+import zlib
 
 import numpy as np
 import zstandard
@@ -37,8 +38,10 @@ class FlightLog:
         if self.summary is None:
             raise LogError(f"{self.path}: no readable summary section ("
                            f"{getattr(self, '_summary_error', 'missing')}); the file may be "
-                           "truncated - run `mimunav info` to recover its intact chunks")
+                           "truncated: `mimunav info LOG` reports what is intact, "
+                           "`mimunav info LOG --recover OUT.mcap` saves it")
         self.channels = {c.topic: c for c in self.summary.channels.values()}
+        self.time_reversals = {}    # topic -> times a stamp went backwards (file order)
         self._dctx = zstandard.ZstdDecompressor()
 
     def close(self):
@@ -76,7 +79,8 @@ class FlightLog:
     # ---- messages -------------------------------------------------------------------
     def read(self, topic):
         """All messages of a channel as a structured array with a log_time (ns) field,
-        in time order."""
+        in time order (the number of backward steps in file order goes to
+        `time_reversals[topic]`)."""
         channel = self._channel(topic)
         chunks = [ci for ci in sorted(self.summary.chunk_indexes,
                                       key=lambda c: c.message_start_time)
@@ -94,7 +98,9 @@ class FlightLog:
             pos += len(index)
         if out is None:
             return np.zeros(0, dtype=[("log_time", "<u8")])
-        if np.any(np.diff(out["log_time"].astype(np.int64)) < 0):    # overlapping chunks
+        reversals = int(np.sum(np.diff(out["log_time"].astype(np.int64)) < 0))
+        self.time_reversals[topic] = reversals      # in file order, before sorting
+        if reversals:
             out = out[np.argsort(out["log_time"], kind="stable")]
         return out
 
@@ -119,9 +125,12 @@ class FlightLog:
             data = lz4.frame.decompress(body)
         else:
             raise LogError(f"{self.path}: unknown chunk compression {compression!r}")
-        if len(data) != size:
-            raise LogError(f"{self.path}: chunk at byte {ci.chunk_start_offset} decompresses "
-                           f"to {len(data)} bytes, expected {size}")
+        crc = int.from_bytes(rec[33:37], "little")
+        if len(data) != size or (crc and zlib.crc32(data) != crc):
+            raise LogError(f"{self.path}: corrupt chunk at byte {ci.chunk_start_offset} "
+                           f"holding messages from {_since_epoch(self, ci.message_start_time)}"
+                           f" to {_since_epoch(self, ci.message_end_time)} (CRC or size "
+                           "mismatch); `mimunav info LOG --recover OUT.mcap` keeps the rest")
         return np.frombuffer(data, dtype=np.uint8)
 
     def _message_index(self, ci, channel_id):
@@ -176,6 +185,12 @@ def _rows(data, starts, size):
         return np.lib.stride_tricks.as_strided(data[starts[0]:], (len(starts), size),
                                                (step, 1), writeable=False).copy()
     return data[starts[:, None] + np.arange(size)]
+
+
+def _since_epoch(log, ns):
+    """A message time for people: s since the flight's epoch (absolute ns if unknown)."""
+    epoch = log.metadata().get("flight", {}).get("epoch_unix_ns")
+    return f"t = {(ns - int(epoch)) / 1e9:.3f} s" if epoch is not None else f"{ns} ns"
 
 
 def _u64(data, offsets):
