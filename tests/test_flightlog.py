@@ -207,3 +207,29 @@ def test_other_schemas_and_irregular_time_are_reported(tmp_path, capsys):
         w.finish()
     with FlightLog(other) as log, pytest.raises(LogError, match="not a fixed-size channel"):
         log.read("/truth/state")
+
+
+def test_layouts_are_bit_exact_with_the_ros2_reference_encoder():
+    """Every contract schema encoded by the vectorised layout equals mcap_ros2's encoder."""
+    from mcap_ros2._dynamic import serialize_dynamic
+    stamp = EPOCH + 123_456_789
+    header = {"stamp": {"sec": stamp // 10**9, "nanosec": stamp % 10**9}}
+    cases = {
+        S.NAV_SAT_FIX: ("gps", dict(status=1, service=3, latitude=0.7, longitude=-1.2,
+                                    altitude=1600.5, position_covariance=[0.01] * 9,
+                                    position_covariance_type=2)),
+        S.NAV_STATE: ("vehicle", dict(latitude=0.1, longitude=0.2, height=3.0,
+                                      velocity_ned=[1.0, 2.0, 3.0],
+                                      attitude_wxyz=[1.0, 0.0, 0.0, 0.0])),
+        S.RAW_MIMU: ("mimu", dict(sample_index=9, gyro_volts=[1.0, 2, 3], accel_volts=[4.0, 5, 6],
+                                  accel_temperature=[7.0, 8, 9], gyro_frequency=[1e4, 2e4, 3e4])),
+    }
+    for name, (frame, fields) in cases.items():
+        ref_fields = dict(fields)
+        if name == S.NAV_SAT_FIX:
+            ref_fields = {k: v for k, v in fields.items() if k not in ("status", "service")}
+            ref_fields["status"] = {"status": fields["status"], "service": fields["service"]}
+        ref = serialize_dynamic(name, S.SCHEMAS[name].decode())[name](
+            dict(header=dict(header, frame_id=frame), **ref_fields))
+        ours = S.encode(name, frame, [stamp], **{k: [v] for k, v in fields.items()})
+        assert bytes(ref) == ours.tobytes(), name
