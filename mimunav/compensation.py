@@ -400,7 +400,6 @@ def compensate_log(log_path, cal, out, force=False):
     f, w, flags = compensate(cal, raw["accel_volts"], raw["gyro_volts"], raw["accel_temperature"],
                              raw["gyro_frequency"], rng.get("accel_m_s2", np.inf),
                              rng.get("gyro_rad_s", np.inf), t=(stamps - stamps[0]) / 1e9)
-    n = len(stamps)
     with open(log_path, "rb") as fh, LogWriter(out, force=force) as dst:
         reader = make_reader(fh)
         for record in reader.iter_metadata():
@@ -421,9 +420,6 @@ def compensate_log(log_path, cal, out, force=False):
         fh.seek(0)
         for schema, channel, message in make_reader(fh).iter_messages(topics=generic):
             dst.copy(schema, channel, message)
-        dst.write("/mimu/imu", S.IMU, "mimu", stamps,
-                  orientation=np.tile([0.0, 0, 0, 1], (n, 1)),
-                  orientation_covariance=np.tile([-1.0] + [0.0] * 8, (n, 1)),
-                  angular_velocity=w, linear_acceleration=f)
+        dst.write("/mimu/imu", S.IMU, "mimu", stamps, **S.imu_fields(w, f))
     return {name: int(np.sum(flags & bit > 0)) for name, bit in
             (("replaced", REPLACED), ("saturated", SATURATED), ("unusable", UNUSABLE))}

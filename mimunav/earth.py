@@ -69,14 +69,14 @@ def radii(lat):
 
 @numba.njit(cache=True, inline="always")
 def nav_rates(lat, h, vn, ve):
-    """Scalar core: Earth rate w_ie^n and transport rate w_en^n in NED (rad/s), and gravity
-    (m/s^2, down), at (lat rad, h m) moving with NED velocity (vn, ve) m/s.
-    Returns (ie_n, ie_d, en_n, en_e, en_d, g); ie_e is zero."""
+    """Scalar core: Earth rate w_ie^n and transport rate w_en^n in NED (rad/s), gravity
+    (m/s^2, down) and the radii R_N, R_E (m), at (lat rad, h m) moving with NED velocity
+    (vn, ve) m/s. Returns (ie_n, ie_d, en_n, en_e, en_d, g, r_n, r_e); ie_e is zero."""
     sl, cl = math.sin(lat), math.cos(lat)
     r_n, r_e = radii_from_sin2(sl * sl)
     en_n = ve / (r_e + h)
     return (OMEGA * cl, -OMEGA * sl, en_n, -vn / (r_n + h), -en_n * sl / cl,
-            gravity_from_sin2(sl * sl, h))
+            gravity_from_sin2(sl * sl, h), r_n, r_e)
 
 
 def earth_rate_ned(lat):

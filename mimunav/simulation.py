@@ -24,7 +24,7 @@ from .compensation import write_atomic
 from .flightlog import LogWriter
 from .flightlog import schemas as S
 from .sensors import FogUnit, MimuUnit, Mounting
-from .sensors.thermal import bay_temperature
+from .sensors.thermal import BAY_TAU_S, ISA_LAPSE, bay_temperature
 
 DEFAULT_EPOCH = "2026-01-01T00:00:00Z"
 # Documented default mountings: the FOG-IMU defines the vehicle frame origin; the MIMU sits
@@ -109,12 +109,8 @@ def simulate_flight(profile, out, seed, unit=None, fog_rate=1000.0, truth_rate=1
                   accel_temperature=raw["accel_temperature"],
                   gyro_frequency=raw["gyro_frequency"])
         steps.update()
-        n = len(t_f)
-        log.write("/fog/imu", S.IMU, "fog", stamp(t_f),
-                  orientation=np.tile([0.0, 0, 0, 1], (n, 1)),
-                  orientation_covariance=np.tile([-1.0] + [0.0] * 8, (n, 1)),
-                  angular_velocity=fog_out["angular_velocity"],
-                  linear_acceleration=fog_out["linear_acceleration"])
+        log.write("/fog/imu", S.IMU, "fog", stamp(t_f), **S.imu_fields(
+            fog_out["angular_velocity"], fog_out["linear_acceleration"]))
         log.write("/truth/state", S.NAV_STATE, "vehicle", stamp(t_base[k_truth]),
                   latitude=tr.lat[k_truth], longitude=tr.lon[k_truth], height=tr.h[k_truth],
                   velocity_ned=tr.v_ned[k_truth],
@@ -125,7 +121,7 @@ def simulate_flight(profile, out, seed, unit=None, fog_rate=1000.0, truth_rate=1
         "format": "mimunav-truth/1", "log": str(out), "seed": seed, "profile": profile.name,
         "mimu": unit.as_dict(), "fog": fog.as_dict(),
         "environment": {"ground_temperature_c": GROUND_TEMPERATURE_C,
-                        "bay_tau_s": 900.0, "lapse_k_per_m": 0.0065},
+                        "bay_tau_s": BAY_TAU_S, "lapse_k_per_m": ISA_LAPSE},
         "saturated_samples": {"mimu": int(raw["saturated"].sum()),
                               "fog": int(fog_out["saturated"].sum())}}, indent=1) + "\n",
         force=force)

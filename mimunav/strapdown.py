@@ -204,8 +204,7 @@ def _navigate(dt, dth, dvb, lat0, lon0, h0, v0, q0, two_sample, h_ref, k1, k2,
         la_m = la + r * (la - la_p)
         hh_m = hh + r * (hh - hh_p)
         vn_m, ve_m, vd_m = vn + r * (vn - vn_p), ve + r * (ve - ve_p), vd + r * (vd - vd_p)
-        ien, ied, enn, ene, end, g = earth.nav_rates(la_m, hh_m, vn_m, ve_m)
-        r_n, r_e = earth.radii_from_sin2(math.sin(la_m) ** 2)
+        ien, ied, enn, ene, end, g, r_n, r_e = earth.nav_rates(la_m, hh_m, vn_m, ve_m)
         zx, zy, zz = (ien + enn) * T, ene * T, (ied + end) * T
         # velocity: rotate dv' to NED at k-1, then the nav-frame rotation over the interval
         dn, de, dd = attitude.rotate_scalar(qw, qx, qy, qz, wx, wy, wz)

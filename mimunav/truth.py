@@ -97,7 +97,8 @@ def body_rate_and_specific_force(lat, h, kin):
 @numba.njit(cache=True, nogil=True)
 def _imu_signals(lat, h, v, a, q, w_nb, w_ib, f_b):
     for k in range(lat.shape[0]):
-        ie_n, ie_d, en_n, en_e, en_d, g = earth.nav_rates(lat[k], h[k], v[k, 0], v[k, 1])
+        ie_n, ie_d, en_n, en_e, en_d, g, _, _ = earth.nav_rates(lat[k], h[k], v[k, 0],
+                                                                v[k, 1])
         qw, qx, qy, qz = q[k, 0], -q[k, 1], -q[k, 2], -q[k, 3]      # q_bn
         wx, wy, wz = attitude.rotate_scalar(qw, qx, qy, qz, ie_n + en_n, en_e, ie_d + en_d)
         w_ib[k, 0], w_ib[k, 1], w_ib[k, 2] = w_nb[k, 0] + wx, w_nb[k, 1] + wy, w_nb[k, 2] + wz
@@ -148,25 +149,14 @@ def generate(motion, t):
     lat, lon, h = integrate_position(motion, t, kin)
     truth = Trajectory(t, lat, lon, h, kin.v_ned, kin.q_nb)
 
-    # Quadrature nodes: 3 per interval; intervals with a knot inside are split there.
-    t_lo, t_hi = t[:-1], t[1:]
-    k_split = np.unique(np.searchsorted(t, motion.knots, side="left")) - 1
-    k_split = k_split[(k_split >= 0) & (k_split < len(t_lo))]
-    k_split = k_split[[np.any((motion.knots > t_lo[k]) & (motion.knots < t_hi[k]))
-                       for k in k_split]].astype(int)
-    pieces_k, pieces_a, pieces_b = [np.arange(len(t_lo))], [t_lo], [t_hi]
-    if len(k_split):
-        pieces_a[0], pieces_b[0] = t_lo.copy(), t_hi.copy()
-        for k in k_split:
-            cuts = np.concatenate([[t_lo[k]], np.sort(motion.knots[(motion.knots > t_lo[k])
-                                                                   & (motion.knots < t_hi[k])]),
-                                   [t_hi[k]]])
-            pieces_b[0][k] = cuts[1]
-            pieces_k.append(np.full(len(cuts) - 2, k))
-            pieces_a.append(cuts[1:-1])
-            pieces_b.append(cuts[2:])
-    k_of = np.concatenate(pieces_k).astype(np.int64)
-    a, b = np.concatenate(pieces_a), np.concatenate(pieces_b)
+    # Quadrature nodes: 3 per piece; the pieces are the sample intervals cut at the
+    # motion's knots (where its higher derivatives jump), each piece tagged with its interval.
+    knots = motion.knots[(motion.knots > t[0]) & (motion.knots < t[-1])]
+    knots = knots[~np.isin(knots, t)]
+    edges = np.insert(t, np.searchsorted(t, knots), knots)
+    a, b = edges[:-1], edges[1:]
+    k_of = np.searchsorted(t, a, side="right") - 1
+    t_lo = t[:-1]
     dtheta, dv = np.zeros((len(t_lo), 3)), np.zeros((len(t_lo), 3))
     ww = np.zeros((len(t_lo), 3, 3))
     for c in range(0, len(a), _CHUNK):        # bounded memory: node arrays ~ 10 MB

@@ -95,6 +95,15 @@ def encode(schema_name, frame_id, stamp_ns, **fields):
     return out
 
 
+def imu_fields(angular_velocity, linear_acceleration):
+    """Body fields of sensor_msgs/msg/Imu as the contract writes them: rate (rad/s) and
+    specific force (m/s^2), orientation identity with orientation_covariance[0] = -1."""
+    n = len(angular_velocity)
+    return dict(orientation=np.tile([0.0, 0, 0, 1], (n, 1)),
+                orientation_covariance=np.tile([-1.0] + [0.0] * 8, (n, 1)),
+                angular_velocity=angular_velocity, linear_acceleration=linear_acceleration)
+
+
 def stamps_ns(msgs):
     """header.stamp of decoded messages as integer ns since the epoch."""
     return msgs["sec"].astype(np.int64) * 1_000_000_000 + msgs["nanosec"].astype(np.int64)

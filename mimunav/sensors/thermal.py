@@ -20,6 +20,7 @@ import numba
 import numpy as np
 
 ISA_LAPSE = 0.0065          # K/m, ISA troposphere
+BAY_TAU_S = 900.0           # s, equipment-bay lag behind the outside air (datasheet class)
 
 
 def first_order_lag(t, u, tau, y0):
@@ -51,7 +52,6 @@ class ThermalModel:
     self_heating / tau: 6 values, accelerometers x y z then gyros x y z."""
     self_heating: list
     tau: list
-    bay_tau: float = 900.0
     f0: list = (10000.0, 10000.0, 10000.0)      # gyro resonance at 25 degC, Hz
     tcf: list = (-30e-6, -30e-6, -30e-6)        # 1/degC
     thermistor_noise: float = 0.005             # degC, per sample
@@ -86,7 +86,7 @@ class ThermalModel:
         return 25.0 + (freq / np.asarray(self.f0) - 1) / np.asarray(self.tcf)
 
 
-def bay_temperature(t, h, t_ground, h_ground, tau=900.0):
+def bay_temperature(t, h, t_ground, h_ground, tau=BAY_TAU_S):
     """Equipment-bay temperature (degC) lagging the ISA outside air along height h (m)."""
     outside = t_ground - ISA_LAPSE * (np.asarray(h) - h_ground)
     return first_order_lag(t, outside, tau, t_ground)
