@@ -95,6 +95,38 @@ def _compensate(args):
     return 0
 
 
+def _unit(args):
+    """Draw a MIMU unit (seed S1 Table 2 and datasheet values) into a unit file."""
+    from .sensors import MimuUnit
+    MimuUnit.draw(args.seed, nonlinearity=args.nonlinearity).save(args.output, args.force)
+    print(f"wrote {args.output} (the unit's true coefficients)")
+    return 0
+
+
+def _lab(args):
+    """Run a calibration-lab procedure on a unit and record it as a log."""
+    from . import lab
+    from .sensors import MimuUnit
+    log, truth_file = lab.run(lab.plan(args.procedure), MimuUnit.load(args.unit), args.output,
+                              args.seed, force=args.force)
+    print(f"wrote {log}\nwrote {truth_file} (unit and drawn setting errors)")
+    return 0
+
+
+def _calibrate(args):
+    """Fit a calibration method to lab runs and write the calibration file."""
+    from .calibration import calibrate, standard_errors
+    cal = calibrate(args.runs, args.method, unit=args.unit_name)
+    cal.save(args.output, force=args.force)
+    rms = cal.covariance.get("residual_rms", {})
+    for stage, per_axis in rms.items():
+        print(f"{stage:24s} residual rms " + ", ".join(f"{k} {v:.3g}" for k, v in
+                                                        per_axis.items()))
+    print(f"wrote {args.output} ({cal.model}, {len(standard_errors(cal))} fitted terms "
+          "with standard errors and covariance)")
+    return 0
+
+
 def build_parser():
     parser = argparse.ArgumentParser(
         prog="mimunav", description="Flight-test evaluation of MEMS IMUs against a FOG-IMU.")
@@ -127,9 +159,42 @@ def build_parser():
                    help="write the intact part of a damaged (e.g. truncated) log to OUT")
     p.add_argument("--force", action="store_true", help="replace an existing OUT")
     p.set_defaults(func=_info)
+    from .calibration import METHODS
+    from .lab import PROCEDURES
+    p = sub.add_parser("unit", help="draw a simulated MIMU into a unit file (true coefficients)")
+    p.add_argument("-o", "--output", required=True, help="unit file to write (.json)")
+    p.add_argument("--seed", type=int, default=0, help="draws the unit")
+    p.add_argument("--nonlinearity", choices=("table2", "datasheet"), default="table2",
+                   help="gyro 2nd-order scale factor: seed Table 2 literally, or /100")
+    p.add_argument("--force", action="store_true", help="replace an existing output")
+    p.set_defaults(func=_unit)
+    p = sub.add_parser("lab", help="run a calibration-lab procedure on a unit into a log "
+                       "(/mimu/raw + /lab/state; see mimunav.lab)")
+    p.add_argument("procedure", choices=PROCEDURES)
+    p.add_argument("--unit", required=True, help="unit file (mimunav-unit/1 JSON)")
+    p.add_argument("-o", "--output", required=True, help="run log to write (.mcap)")
+    p.add_argument("--seed", type=int, default=0, help="draws setting errors and noise")
+    p.add_argument("--force", action="store_true", help="replace existing outputs")
+    p.set_defaults(func=_lab)
+    p = sub.add_parser("calibrate", help="fit lab runs into a calibration file "
+                       "(mimunav-calibration/1, SI units, covariance included)")
+    p.add_argument("runs", nargs="+", help="lab run logs (.mcap)")
+    p.add_argument("--method", required=True, choices=METHODS,
+                   help="entire: chamber + rate-table + centrifuge; traditional: "
+                   "multi-position + single-axis-rate; twelve-position; cold-start")
+    p.add_argument("-o", "--output", required=True, help="calibration file to write (.json)")
+    p.add_argument("--unit-name", default="", help="unit name written to the file")
+    p.add_argument("--force", action="store_true", help="replace an existing output")
+    p.set_defaults(func=_calibrate)
     return parser
 
 
 def main(argv=None):
+    """Run a command; input errors (files, formats, fits: OSError and ValueError, the base
+    of every mimunav error type) end with one line naming the command and exit status 2."""
     args = build_parser().parse_args(argv)
-    return args.func(args)
+    try:
+        return args.func(args)
+    except (OSError, ValueError) as exc:
+        print(f"mimunav {args.command}: {exc}", file=sys.stderr)
+        return 2

@@ -19,13 +19,13 @@ reading (accelerometer: degC; gyro: resonance frequency, Hz), dT = T(t) - T(t - 
 """
 import json
 import math
-import os
-import tempfile
 import warnings
 from dataclasses import dataclass, field
 
 import numba
 import numpy as np
+
+from .files import write_atomic
 
 FORMAT = "mimunav-calibration/1"
 MODELS = ("entire-63", "linear", "cold-start")
@@ -151,6 +151,25 @@ class Calibration:
         doc.update(self.extra)
         return doc
 
+    def with_voltage_offset(self, d_accel, d_gyro):
+        """The same compensation written with temperature polynomials lowered by d (V, per
+        axis), so V' = V + d: eqs. 1/3 re-expanded about the shifted voltage, exactly
+        (A0' = A0 - A1 d + A2 d^2 - A3 d^3, A1' = A1 + diag(3 A3 d^2 - 2 A2 d),
+        A2' = A2 - 3 A3 d). A constant offset of eq. 2 (4) is not identifiable apart from
+        the triad's terms; this moves a calibration to another gauge."""
+        out = Calibration.from_dict(self.as_dict())
+        for p0, p1, p2, p3, c, d in (("A0", "A1", "A2", "A3", "ct", d_accel),
+                                     ("W0", "W1", "W2", "W3", "cw", d_gyro)):
+            d = np.asarray(d, dtype=float)
+            a0, a1, a2, a3 = (getattr(self, k) for k in (p0, p1, p2, p3))
+            setattr(out, p0, a0 - a1 @ d + a2 * d**2 - a3 * d**3)
+            setattr(out, p1, a1 + np.diag(3 * a3 * d**2 - 2 * a2 * d))
+            setattr(out, p2, a2 - 3 * a3 * d)
+            shifted = getattr(self, c).copy()
+            shifted[:, 0] -= d
+            setattr(out, c, shifted)
+        return out
+
     def save(self, path, force=False):
         """Write the file atomically (temporary file + rename); refuses to replace an
         existing file unless force=True."""
@@ -167,24 +186,6 @@ def _array(value, shape, where):
     if not np.all(np.isfinite(arr)):
         raise CalibrationError(f"{where} has non-finite values: {arr.tolist()}")
     return arr
-
-
-def write_atomic(path, text, force=False):
-    """Write text to path through a temporary file in the same folder and a rename, so a
-    crash never leaves a half-written file; an existing file is kept unless force."""
-    path = os.fspath(path)
-    if os.path.exists(path) and not force:
-        raise FileExistsError(f"{path} exists; pass force to replace it")
-    folder = os.path.dirname(os.path.abspath(path))
-    fd, tmp = tempfile.mkstemp(dir=folder, prefix=".tmp-", suffix=os.path.basename(path))
-    try:
-        with os.fdopen(fd, "w") as fh:
-            fh.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
 
 
 # ---- equations ---------------------------------------------------------------------------

@@ -224,7 +224,7 @@ def _taylor_shift(c, d):
     return out
 
 
-def _rate_ppoly(ramps, t_end):
+def rate_ppoly(ramps, t_end):
     """One PPoly with the four channels' rates (c shape (6, intervals, 4))."""
     pieces = []          # (channel, a, b, ascending coefficients in (t - a))
     for r in ramps:
@@ -252,7 +252,7 @@ class ProfileMotion(Motion):
         s = profile.start
         self.t0, self.t1 = 0.0, profile.duration
         self.lat0, self.lon0, self.h0 = s["lat"], s["lon"], s["h"]
-        rate = _rate_ppoly(profile.ramps, profile.duration)
+        rate = rate_ppoly(profile.ramps, profile.duration)
         value = rate.antiderivative()
         value.c[-1] += np.array([s["speed"], s["path"], s["heading"], s["bank"]])
         self.knots = rate.x

@@ -20,7 +20,7 @@ import quaternion
 from tqdm import tqdm
 
 from . import truth
-from .compensation import write_atomic
+from .files import write_atomic
 from .flightlog import LogWriter
 from .flightlog import schemas as S
 from .sensors import FogUnit, MimuUnit, Mounting

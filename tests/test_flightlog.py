@@ -223,6 +223,11 @@ def test_layouts_are_bit_exact_with_the_ros2_reference_encoder():
                                       attitude_wxyz=[1.0, 0.0, 0.0, 0.0])),
         S.RAW_MIMU: ("mimu", dict(sample_index=9, gyro_volts=[1.0, 2, 3], accel_volts=[4.0, 5, 6],
                                   accel_temperature=[7.0, 8, 9], gyro_frequency=[1e4, 2e4, 3e4])),
+        S.LAB_STATE: ("lab", dict(point=5, position=2, steady=1,
+                                  fixture_attitude_wxyz=[0.5, 0.5, -0.5, 0.5],
+                                  position_m=[6.5, 0.0, 0.1], table_angle=1.25,
+                                  table_rate=-6.9, sensor_radius_m=[6.5] * 6,
+                                  chamber_temperature=25.0)),
     }
     for name, (frame, fields) in cases.items():
         ref_fields = dict(fields)

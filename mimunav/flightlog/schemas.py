@@ -23,6 +23,7 @@ RAW_MIMU = "mimunav_msgs/msg/RawMimu"
 NAV_STATE = "mimunav_msgs/msg/NavState"
 IMU = "sensor_msgs/msg/Imu"
 NAV_SAT_FIX = "sensor_msgs/msg/NavSatFix"
+LAB_STATE = "mimunav_msgs/msg/LabState"
 
 SCHEMAS = {
     RAW_MIMU: _text("std_msgs/Header header\nuint64 sample_index\nfloat64[3] gyro_volts\n"
@@ -41,6 +42,13 @@ SCHEMAS = {
                        "float64[9] position_covariance\nuint8 position_covariance_type",
                        _HEADER, _TIME, "MSG: sensor_msgs/NavSatStatus\nint8 status\n"
                        "uint16 service"),
+    # Calibration-lab state (mimunav extension, documented in mimunav.lab): one message when
+    # a set point begins (steady = 0) and one when it has settled (steady = 1); the state
+    # holds until the next message.
+    LAB_STATE: _text("std_msgs/Header header\nuint32 point\nuint32 position\nuint8 steady\n"
+                     "float64[4] fixture_attitude_wxyz\nfloat64[3] position_m\n"
+                     "float64 table_angle\nfloat64 table_rate\nfloat64[6] sensor_radius_m\n"
+                     "float64 chamber_temperature", _HEADER, _TIME),
 }
 
 # Fields after the header: (name, numpy scalar type, count). Imu vectors are 3 (x, y, z) and
@@ -53,6 +61,10 @@ BODIES = {
     NAV_SAT_FIX: [("status", "<i1", 1), ("service", "<u2", 1), ("latitude", "<f8", 1),
                   ("longitude", "<f8", 1), ("altitude", "<f8", 1),
                   ("position_covariance", "<f8", 9), ("position_covariance_type", "<u1", 1)],
+    LAB_STATE: [("point", "<u4", 1), ("position", "<u4", 1), ("steady", "<u1", 1),
+                ("fixture_attitude_wxyz", "<f8", 4), ("position_m", "<f8", 3),
+                ("table_angle", "<f8", 1), ("table_rate", "<f8", 1),
+                ("sensor_radius_m", "<f8", 6), ("chamber_temperature", "<f8", 1)],
     IMU: [("orientation", "<f8", 4), ("orientation_covariance", "<f8", 9),
           ("angular_velocity", "<f8", 3), ("angular_velocity_covariance", "<f8", 9),
           ("linear_acceleration", "<f8", 3), ("linear_acceleration_covariance", "<f8", 9)],

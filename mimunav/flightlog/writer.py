@@ -4,11 +4,11 @@ Writes to a temporary file beside the target and renames it on success, so a fai
 interrupted write leaves nothing behind and never replaces an existing log unless forced."""
 import json
 import os
-import tempfile
 
 import numpy as np
 from mcap.writer import CompressionType, Writer
 
+from ..files import temporary_beside
 from . import schemas
 
 # offered_qos_profiles as rosbag2 writes it (reliable, volatile, keep-last), so ROS 2 tools
@@ -30,8 +30,7 @@ class LogWriter:
         self._schemas, self._channels = {}, {}
 
     def __enter__(self):
-        folder = os.path.dirname(os.path.abspath(self.path))
-        fd, self._tmp = tempfile.mkstemp(dir=folder, prefix=".tmp-", suffix=".mcap")
+        fd, self._tmp = temporary_beside(self.path, ".mcap")
         self._fh = os.fdopen(fd, "wb")
         self._mcap = Writer(self._fh, chunk_size=self._chunk_size,
                             compression=CompressionType.ZSTD)

@@ -35,7 +35,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .. import compensation
-from ..compensation import Calibration, write_atomic
+from ..compensation import Calibration
+from ..files import write_atomic
 from . import noise
 from .mounting import Mounting
 from .thermal import ThermalModel
@@ -108,11 +109,11 @@ class MimuUnit:
                    seed=seed)
 
     # ---- simulation ---------------------------------------------------------------
-    def simulate(self, t, dtheta, dv, t_env, rng, hidden=None):
+    def simulate(self, t, dtheta, dv, t_env, rng, hidden=None, warm_up_s=0.0):
         """Raw outputs for ideal sensor-axis increments over (t[k-1], t[k]] (rad, m/s, (N, 3))
-        at sample times t (s, (N,), uniform at rate_hz), the unit powered on at t[0] - dt in
-        a bay at t_env (degC, (N,)). Returns a dict of the `/mimu/raw` fields plus the true
-        sensor temperatures (for the truth file).
+        at sample times t (s, (N,), uniform at rate_hz), the unit powered on cold at
+        t[0] - dt - warm_up_s in a bay at t_env (degC, (N,)). Returns a dict of the
+        `/mimu/raw` fields plus the true sensor temperatures (for the truth file).
 
         Order: interval-mean rates -> + noise (white, flicker, turn-on bias) -> saturation
         of the sensing element at the range -> temperatures -> inverse of eqs. 1-4 (the
@@ -133,7 +134,7 @@ class MimuUnit:
         w = (w_true + noise.white(rng, n, self.rate_hz, [nz.gyro_white] * 3)
              + noise.flicker(rng, n, self.rate_hz, [nz.gyro_flicker] * 3)
              + rng.normal(0, nz.gyro_turn_on, 3))
-        t_acc, t_gyro = self.thermal.sensor_temperatures(t, t_env)
+        t_acc, t_gyro = self.thermal.sensor_temperatures(t, t_env, warm_up_s)
         freq = self.thermal.resonance_frequency(t_gyro)
         if hidden is not None:
             f, w = hidden(f, w, dict(t=t, accel_temperature=t_acc, gyro_temperature=t_gyro,

@@ -70,11 +70,18 @@ class ThermalModel:
         return {k: (list(v) if isinstance(v, (tuple, list)) else v)
                 for k, v in asdict(self).items()}
 
-    def sensor_temperatures(self, t, t_env):
+    def sensor_temperatures(self, t, t_env, warm_up_s=0.0):
         """True accelerometer and gyro temperatures (degC, (n, 3) each) for a bay
-        temperature history t_env (degC, (n,)) from power-on at t[0]."""
-        u = np.asarray(t_env, dtype=float)[:, None] + np.asarray(self.self_heating)
-        temps = first_order_lag(t, u, np.asarray(self.tau), float(np.asarray(t_env)[0]))
+        temperature history t_env (degC, (n,)), the unit powered on cold warm_up_s
+        seconds before t[0] (the bay at t_env[0] meanwhile)."""
+        t = np.asarray(t, dtype=float)
+        t_env = np.asarray(t_env, dtype=float)
+        if warm_up_s > 0:
+            t, t_env = np.insert(t, 0, t[0] - warm_up_s), np.insert(t_env, 0, t_env[0])
+        u = t_env[:, None] + np.asarray(self.self_heating)
+        temps = first_order_lag(t, u, np.asarray(self.tau), float(t_env[0]))
+        if warm_up_s > 0:
+            temps = temps[1:]
         return temps[:, :3], temps[:, 3:]
 
     def resonance_frequency(self, t_gyro):

@@ -1,0 +1,691 @@
+"""Fits that turn lab runs (`lab`, or real lab recordings with the same channels) into
+calibration files (`mimunav-calibration/1`) with the covariance of every fitted term.
+
+A run is read as steady *windows* (from `/lab/state`): per window the means of the raw
+outputs over the whole sample intervals inside it, and the *known input*, the exact mean
+specific force and rate that the sensor axes felt there, computed from the nominal lab state
+(platform frame as in `lab`: z down along the table axis, heading theta(t) = theta_a +
+W (t - t_a)), never from the simulator:
+    w_p = W z + C_pn(theta) w_ie^n
+    f_p = -W^2 r_h + 2 (C_pn(theta) w_ie^n) x (W z x r) - C_pn(theta) g^n
+(the Earth-rate cross terms of w_ib x (w_ib x r) + dw_ib/dt x r reduce to the Coriolis form),
+averaged over the window in closed form (theta is linear in t), then C_sp applied.
+
+Methods (seed S1 section 3.1 unless stated):
+  entire           thermal chamber -> ct, cw (eqs. 2, 4); rate table, paired positions
+                   (axis up at +W with axis down at -W: gravity and its C term cancel) ->
+                   W0..W3 (eqs. 5, 6); centrifuge -> A0..A3 (eq. 7) and C from the residual
+                   of eq. 3 regressed on the applied acceleration (eqs. 8-10), with a
+                   nuisance bias for that power-on's turn-on offset (not written)
+  traditional      multi-position statics -> A0, A1; single-axis rate table -> W0, W1;
+                   no temperature, nonlinearity or g-sensitivity (the paper's refs [2-5])
+  twelve-position  seed S2: twelve statics -> A0, A1; gyro biases from the mean of all
+                   twelve (Earth rate and g cancel) with the datasheet scale (5 mV/(deg/s))
+  cold-start       seed S3 (see `fit_cold_start`)
+
+Estimator: generalised least squares per output axis, point weights 1/(s_k^2 + s_b^2) with
+s_k^2 the white-noise variance of window k's mean and s_b^2 the between-window bias wander,
+solved so the weighted residual sum of squares equals its degrees of freedom (Paule-Mandel;
+s_b = 0 when the white noise explains the scatter). Uncertainty is carried as a linear map
+from independent unit-variance sources to every coefficient's error: each stage's own GLS
+covariance, the lab's setting errors (`lab.EQUIPMENT`, from the log's metadata), the turn-on
+bias repeatability of the power-on a bias was fitted in (datasheet values, `sensors.mimu`),
+and the upstream coefficients a stage depends on (chamber -> rate table and centrifuge;
+rate table -> C), each propagated by finite differences of the refit (the fits are linear
+in these perturbations to first order).
+
+Gauge: a constant voltage offset of eq. 2 (4) trades exactly against A0..A3 (W0..W3),
+so the temperature polynomials are fixed to vanish at a reference reading: T_ref = 25 degC
+for the accelerometers, f_ref = each gyro's resonance frequency at the chamber's 25 degC set
+point; both are written to the file under "reference".
+"""
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import quaternion
+import scipy.linalg
+
+from . import earth
+from .compensation import Calibration, compensate, poly2
+from .flightlog import FlightLog, LogError
+from .sensors.mimu import DEG, G0, NoiseModel
+
+POSITION_NAMES = ["x up", "x down", "y up", "y down", "z up", "z down"]    # lab.SIX_POSITIONS
+METHODS = ("entire", "traditional", "twelve-position", "cold-start")
+T_REF = 25.0
+AXES = "xyz"
+# Datasheet values of the unit class (`sensors.mimu`): turn-on bias repeatability and bias
+# instability B (flicker) in physical units, nominal voltage scale
+TURN_ON = {"accel": NoiseModel().accel_turn_on, "gyro": NoiseModel().gyro_turn_on}
+INSTABILITY = {"accel": NoiseModel().accel_flicker, "gyro": NoiseModel().gyro_flicker}
+NOMINAL_SCALE = {"accel": G0 / 0.1, "gyro": DEG / 5e-3}     # (m/s^2)/V, (rad/s)/V
+# Table 1 of seed S1: full scale (the stated minimum range) and scale-factor fit residuals
+TABLE1_FULL_SCALE = {"accel": 30 * G0, "gyro": 400 * DEG}
+TABLE1_RESIDUAL = {"accel": 0.05e-2, "gyro": 0.2e-2}       # fraction of full scale
+
+
+class FitError(ValueError):
+    """Lab data that cannot give the requested coefficients, saying what is missing."""
+
+
+# ---- reading a run -----------------------------------------------------------------------
+@dataclass
+class Window:
+    point: int
+    position: int
+    q_ps: np.ndarray           # sensor -> platform (nominal)
+    r_p: np.ndarray            # unit origin, platform axes, m
+    rate: float                # rad/s about platform z
+    theta0: float              # platform heading at t0, rad
+    t0: float                  # s, start of the first whole interval inside
+    t1: float                  # s, end of the last
+    k0: int                    # sample slice [k0, k1)
+    k1: int
+    chamber_c: float
+
+
+@dataclass
+class LabRun:
+    """A lab log as windows and raw samples. Times in s since the log's epoch."""
+    path: str
+    procedure: str
+    site: dict
+    equipment: dict
+    t: np.ndarray
+    raw: dict                   # accel_volts, gyro_volts, accel_temperature, gyro_frequency
+    windows: list
+    power_cycle: bool = False
+
+    @classmethod
+    def load(cls, path):
+        with FlightLog(path) as log:
+            meta = log.metadata()
+            if "lab" not in meta:
+                raise FitError(f"{path}: no `lab` metadata: not a lab run (see mimunav.lab)")
+            raw = log.read("/mimu/raw")
+            state = log.read("/lab/state")
+        epoch = int(meta["flight"]["epoch_unix_ns"])
+        t = (raw["log_time"].astype(np.int64) - epoch) / 1e9
+        if len(t) < 2:
+            raise FitError(f"{path}: /mimu/raw has {len(t)} samples")
+        fields = ("accel_volts", "gyro_volts", "accel_temperature", "gyro_frequency")
+        data = {k: np.ascontiguousarray(raw[k], dtype=float) for k in fields}
+        bad = [k for k in fields if not np.isfinite(data[k]).all()]
+        if bad:
+            raise FitError(f"{path}: non-finite raw values in {', '.join(bad)}")
+        ts = (state["log_time"].astype(np.int64) - epoch) / 1e9
+        windows = []
+        for j in np.nonzero(state["steady"] == 1)[0]:
+            end = ts[j + 1] if j + 1 < len(ts) else t[-1]
+            k0 = int(np.searchsorted(t, ts[j], side="left")) + 1     # interval (t[k0-1], t[k0]]
+            k1 = int(np.searchsorted(t, end + 1e-9, side="right"))
+            if k1 - k0 < 2:
+                continue
+            s = state[j]
+            t0 = t[k0 - 1]
+            windows.append(Window(int(s["point"]), int(s["position"]),
+                                  np.array(s["fixture_attitude_wxyz"]), np.array(s["position_m"]),
+                                  float(s["table_rate"]),
+                                  float(s["table_angle"]) + float(s["table_rate"]) * (t0 - ts[j]),
+                                  t0, t[k1 - 1], k0, k1, float(s["chamber_temperature"])))
+        lab = meta["lab"]
+        return cls(str(path), lab["procedure"], lab["site"], lab["equipment"], t, data,
+                   windows, bool(lab.get("power_cycle", False)))
+
+    def means(self, x):
+        """Window means of a per-sample array x (N, ...) -> (n_windows, ...)."""
+        k0 = np.array([w.k0 for w in self.windows])
+        k1 = np.array([w.k1 for w in self.windows])
+        pad = np.concatenate([x, np.zeros((1,) + x.shape[1:])])
+        sums = np.add.reduceat(pad, np.column_stack([k0, k1]).ravel(), axis=0)[::2]
+        return sums / (k1 - k0).reshape((-1,) + (1,) * (x.ndim - 1))
+
+    def flicker(self):
+        """`flicker_covariance` of this run's windows, from 1 / (run length) to Nyquist
+        (cached)."""
+        if getattr(self, "_flicker", None) is None:
+            t0 = np.array([w.t0 for w in self.windows])
+            t1 = np.array([w.t1 for w in self.windows])
+            rate = 1.0 / np.median(np.diff(self.t))
+            self._flicker = flicker_covariance(t0, t1, 1.0 / (self.t[-1] - self.t[0]), rate / 2)
+        return self._flicker
+
+    def row_covariance(self, white, instability, rows):
+        """Covariance of row means (each row the mean of its windows) for window white
+        variances `white` (n_windows,) and a flicker bias of instability B (same units)."""
+        p = np.zeros((len(rows), len(self.windows)))
+        for j, r in enumerate(rows):
+            p[j, list(r)] = 1.0 / len(r)
+        return p @ (np.diag(white) + instability**2 * self.flicker()) @ p.T
+
+    def design(self, v, order):
+        """`WindowDesign` of the voltages v (N, 3) for polynomial order 1 or 3."""
+        return WindowDesign(self, v, order)
+
+    def mean_variances(self, x):
+        """White-noise variance of each window mean of x (N, k): var(x) / n, var from the
+        second difference of the samples (insensitive to slow drift within the window)."""
+        return np.array([np.diff(x[w.k0:w.k1], n=2, axis=0).var(axis=0) / 6.0 / (w.k1 - w.k0)
+                         for w in self.windows])
+
+
+class WindowDesign:
+    """Window means of the triad regressors [1, Vx, Vy, Vz, V^2 (3), V^3 (3)] and the
+    white-noise covariance of those means (from second differences), so the regressors of
+    output axis i, [1, V, V_i^2, V_i^3], and the variance b^T S b of any model's window mean
+    come without touching the samples again."""
+
+    def __init__(self, run, v, order):
+        cols = [np.ones((len(v), 1)), v] + ([v * v, v * v * v] if order == 3 else [])
+        x = np.concatenate(cols, axis=1)
+        self.order = order
+        self.mean = run.means(x)
+        self.cov = np.array([_second_difference_cov(x[w.k0:w.k1]) for w in run.windows])
+
+    def columns(self, i):
+        return [0, 1, 2, 3] + ([4 + i, 7 + i] if self.order == 3 else [])
+
+    def regressors(self, i, rows):
+        """(n_rows, p) regressors of output axis i averaged over each row's windows."""
+        m = self.mean[:, self.columns(i)]
+        return np.array([m[list(r)].mean(axis=0) for r in rows])
+
+    def variances(self, i, b):
+        """White variance of each window's mean model output b . regressors."""
+        c = self.columns(i)
+        return np.einsum("j,kjl,l->k", b, self.cov[:, c][:, :, c], b)
+
+
+def _second_difference_cov(x):
+    d2 = np.diff(x, n=2, axis=0)
+    d2 = d2 - d2.mean(axis=0)
+    return d2.T @ d2 / (6.0 * max(len(d2) - 1, 1) * len(x))
+
+
+# ---- known input ---------------------------------------------------------------------------
+def known_inputs(run, tilt=(0.0, 0.0), rate_rel=0.0, fixture=None, radius=None):
+    """Mean specific force (m/s^2) and rate (rad/s), sensor axes, over every window (n, 3)
+    each, for the nominal lab state perturbed by setting errors: table tilt (rad, 2), rate
+    error (relative), fixture rotation per position (rad, (n_pos, 3), platform axes), radius
+    error per position (m)."""
+    ws = run.windows
+    lat, g = run.site["latitude"], run.site["gravity_m_s2"]
+    omega = run.site["earth_rate_rad_s"]
+    c_tilt = quaternion.as_rotation_matrix(quaternion.from_rotation_vector([*tilt, 0.0]))
+    w_ie = c_tilt.T @ np.array([omega * math.cos(lat), 0.0, -omega * math.sin(lat)])
+    g_n = c_tilt.T @ np.array([0.0, 0.0, g])
+    pos = np.array([w.position for w in ws])
+    rate = np.array([w.rate for w in ws]) * (1 + rate_rel)
+    th0 = np.array([w.theta0 for w in ws])
+    dth = rate * np.array([w.t1 - w.t0 for w in ws])
+    moving = np.abs(dth) > 1e-12
+    safe = np.where(moving, dth, 1.0)
+    c = np.where(moving, (np.sin(th0 + dth) - np.sin(th0)) / safe, np.cos(th0))
+    s = np.where(moving, (np.cos(th0) - np.cos(th0 + dth)) / safe, np.sin(th0))
+
+    def mean_to_platform(v):          # mean of Rz(theta)^T v
+        return np.column_stack([c * v[0] + s * v[1], -s * v[0] + c * v[1],
+                                np.full(len(c), v[2])])
+    r = np.array([w.r_p for w in ws], dtype=float)
+    if radius is not None:
+        r[:, 0] += np.where(r[:, 0] != 0, np.asarray(radius)[pos], 0.0)
+    r_h = r * [1.0, 1.0, 0.0]
+    w_ie_p = mean_to_platform(w_ie)
+    v_p = np.cross(rate[:, None] * [0.0, 0.0, 1.0], r)            # velocity / ... of the point
+    f_p = -rate[:, None] ** 2 * r_h + 2 * np.cross(w_ie_p, v_p) - mean_to_platform(g_n)
+    w_p = w_ie_p + rate[:, None] * [0.0, 0.0, 1.0]
+    q = quaternion.from_float_array(np.array([w.q_ps for w in ws]))
+    if fixture is not None:
+        q = quaternion.from_rotation_vector(np.asarray(fixture)[pos]) * q
+    c_ps = quaternion.as_rotation_matrix(q)
+    return np.einsum("kji,kj->ki", c_ps, f_p), np.einsum("kji,kj->ki", c_ps, w_p)
+
+
+def setting_perturbations(run):
+    """The lab's setting errors as (name, kwargs for known_inputs) at +1 sigma each."""
+    eq = run.equipment
+    n_pos = 1 + max(w.position for w in run.windows)
+    out = [(f"tilt{i}", {"tilt": tuple(eq["table_tilt_rad"] * (np.arange(2) == i))})
+           for i in range(2)]
+    if any(w.rate for w in run.windows):
+        out.append(("rate", {"rate_rel": eq["rate_rel"]}))
+    for p in range(n_pos):
+        for i in range(3):
+            fix = np.zeros((n_pos, 3))
+            fix[p, i] = eq["fixture_rad"]
+            out.append((f"fixture{p}{AXES[i]}", {"fixture": fix}))
+        if any(w.r_p[0] and w.position == p for w in run.windows):
+            rad = np.zeros(n_pos)
+            rad[p] = eq["radius_m"]
+            out.append((f"radius{p}", {"radius": rad}))
+    return out
+
+
+# ---- estimator -----------------------------------------------------------------------------
+def gls(x, y, cov):
+    """Generalised least squares y = x b + e, Cov(e) = cov (n, n). Returns (b, Cov(b),
+    chi2 / dof, rms residual); Cov(b) is scaled by chi2 / dof when that exceeds 1 (scatter
+    beyond the noise model is reported, never hidden)."""
+    n, p = x.shape
+    if n <= p:
+        raise FitError(f"{n} data points for {p} coefficients")
+    scale = np.abs(x).max(axis=0)
+    scale[scale == 0] = 1.0
+    xs = x / scale
+    chol = np.linalg.cholesky(cov + np.eye(n) * 1e-12 * np.trace(cov) / n)
+    a = scipy.linalg.solve_triangular(chol, xs, lower=True)
+    yw = scipy.linalg.solve_triangular(chol, y, lower=True)
+    cond = np.linalg.cond(a)
+    if cond > 1e10:
+        raise FitError(f"the design cannot separate the {p} coefficients (condition number "
+                       f"{cond:.2g})")
+    b, *_ = np.linalg.lstsq(a, yw, rcond=None)
+    ratio = float(np.sum((yw - a @ b) ** 2)) / (n - p)
+    cov_b = np.linalg.inv(a.T @ a) * max(1.0, ratio)
+    rms = float(np.sqrt(np.mean((y - xs @ b) ** 2)))
+    return b / scale, cov_b / np.outer(scale, scale), ratio, rms
+
+
+def flicker_covariance(t0, t1, f_min, f_max, n_freq=4000):
+    """Covariance of the means over windows [t0_k, t1_k] (s) of a flicker process of unit
+    instability (one-sided PSD 1 / (pi f), `sensors.noise`) between f_min and f_max (Hz):
+    C_jk = int S(f) cos(2 pi f (c_j - c_k)) sinc(f T_j) sinc(f T_k) df, c the window
+    centres, T the lengths (numerical, log-spaced frequencies)."""
+    f = np.geomspace(f_min, f_max, n_freq)
+    weight = np.gradient(np.log(f)) * f / (math.pi * f)          # S(f) df on a log grid
+    c, length = 0.5 * (t0 + t1), t1 - t0
+    h = np.sinc(np.outer(length, f))
+    phase = 2 * math.pi * np.outer(c, f)
+    re, im = h * np.cos(phase), h * np.sin(phase)
+    return (re * weight) @ re.T + (im * weight) @ im.T
+
+
+@dataclass
+class Fitted:
+    """Coefficients with their error as a linear map from independent unit sources:
+    error = E @ z, z ~ N(0, I); sources named so later stages can extend E."""
+    values: dict                                    # name -> float
+    errors: dict = field(default_factory=dict)      # name -> {source: sensitivity}
+    stage: str = ""
+    rms: dict = field(default_factory=dict)         # residual rms per output axis
+
+    def covariance(self, names):
+        sources = sorted({s for n in names for s in self.errors.get(n, {})})
+        e = np.array([[self.errors.get(n, {}).get(s, 0.0) for s in sources] for n in names])
+        return e @ e.T if sources else np.zeros((len(names), len(names)))
+
+
+def _merge(into, name, sens):
+    row = into.setdefault(name, {})
+    for s, v in sens.items():
+        row[s] = row.get(s, 0.0) + v
+
+
+def _add_cov_sources(fitted, names, cov, tag):
+    """Own GLS covariance of `names` as sources tag:0.. (its Cholesky columns)."""
+    vals, vecs = np.linalg.eigh(cov)
+    cols = vecs * np.sqrt(np.clip(vals, 0, None))
+    for i, name in enumerate(names):
+        _merge(fitted.errors, name, {f"{tag}:{j}": cols[i, j] for j in range(len(names))})
+
+
+def _propagate(fitted, names, refit, base, upstream, parents):
+    """Add to `names` the effect of the errors of `parents` (names in `upstream`): for every
+    source of the parents, refit with the parents moved by that source's sensitivity."""
+    sources = sorted({s for n in parents for s in upstream.errors.get(n, {})})
+    for s in sources:
+        delta = {n: upstream.errors.get(n, {}).get(s, 0.0) for n in parents}
+        if not any(delta.values()):
+            continue
+        new = refit(delta)
+        for i, name in enumerate(names):
+            _merge(fitted.errors, name, {s: new[i] - base[i]})
+
+
+# ---- stage 1: temperature (eqs. 2, 4) ----------------------------------------------------
+def fit_temperature(run):
+    """Chamber: per axis U = c0 + c1 x + c2 x^2 on window means (x = T, or f), gauge fixed
+    at the reference reading. Returns (Fitted, reference dict)."""
+    temps = sorted({round(w.chamber_c, 3) for w in run.windows})
+    if len(temps) < 4 or temps[-1] - temps[0] < 30:
+        raise FitError(f"{run.path}: the chamber run has steady set points at {temps} degC; "
+                       "eqs. 2/4 need at least 4 set points spanning 30 degC or more")
+    room = min(range(len(run.windows)), key=lambda k: abs(run.windows[k].chamber_c - T_REF))
+    fitted = Fitted({})
+    reference = {"accel_temperature_c": [T_REF] * 3, "gyro_frequency_hz": []}
+    for sensor, volts, reading in (("accel", "accel_volts", "accel_temperature"),
+                                   ("gyro", "gyro_volts", "gyro_frequency")):
+        u, x = run.raw[volts], run.raw[reading]
+        u_mean, u_var = run.means(u), run.mean_variances(u)
+        for i in range(3):
+            x_ref = T_REF if sensor == "accel" else float(run.means(x[:, i])[room])
+            span = 10.0 if sensor == "accel" else 1.0      # scaled reading for conditioning
+            s = (x[:, i] - x_ref) / span
+            design = np.column_stack([np.ones(len(run.windows)), run.means(s), run.means(s * s)])
+            instability = INSTABILITY[sensor] / NOMINAL_SCALE[sensor]        # V
+            b, cov, _, _ = gls(design, u_mean[:, i], np.diag(u_var[:, i])
+                               + instability**2 * run.flicker())
+            # gauge: b0 = 0 (the polynomial vanishes at x_ref); back to raw-reading powers
+            jac = np.array([[0.0, -x_ref / span, x_ref**2 / span**2],
+                            [0.0, 1 / span, -2 * x_ref / span**2],
+                            [0.0, 0.0, 1 / span**2]])
+            c = jac @ b
+            key = "ct" if sensor == "accel" else "cw"
+            names = [f"{key}[{i}][{j}]" for j in range(3)]
+            for j in range(3):
+                fitted.values[names[j]] = float(c[j])
+            _add_cov_sources(fitted, names, jac @ cov @ jac.T, f"chamber-{key}{i}")
+            if sensor == "gyro":
+                reference["gyro_frequency_hz"].append(x_ref)
+    return fitted, reference
+
+
+def _poly_matrix(fitted, key):
+    return np.array([[fitted.values.get(f"{key}[{i}][{j}]", 0.0) for j in range(3)]
+                     for i in range(3)])
+
+
+# ---- stage 2/3: triads (eqs. 5-7) ----------------------------------------------------------
+def _block_names(sensor, order, i):
+    p = "A" if sensor == "accel" else "W"
+    names = [f"{p}0[{i}]"] + [f"{p}1[{i}][{j}]" for j in range(3)]
+    return names + ([f"{p}2[{i}]", f"{p}3[{i}]"] if order == 3 else [])
+
+
+def _require_positions(run, n):
+    """Refuse a run that lacks any of its procedure's n fixture positions."""
+    have = {w.position for w in run.windows}
+    missing = [p for p in range(n) if p not in have]
+    if missing:
+        names = [POSITION_NAMES[p % 6] + (" turned 180 deg" if p >= 6 else "") for p in missing]
+        raise FitError(f"{run.path}: the {run.procedure} run has no steady data in fixture "
+                       f"position(s) {', '.join(names)}; each sensor axis must be measured "
+                       "pointing both ways along the input axis")
+
+
+def _pairs(run):
+    """Window index pairs (axis up at +W, axis down at -W) for the rate table; refuses a run
+    whose positions or rates do not pair."""
+    _require_positions(run, 6)
+    by = {}
+    for k, w in enumerate(run.windows):
+        by.setdefault(w.position, []).append(k)
+    pairs = []
+    for p in range(0, 6, 2):
+        up, down = by[p], list(by[p + 1])
+        for k in up:
+            target = -run.windows[k].rate
+            match = [m for m in down if abs(run.windows[m].rate - target) < 1e-9]
+            if not match:
+                raise FitError(f"{run.path}: rate {math.degrees(run.windows[k].rate):.1f} "
+                               f"deg/s in position {p} has no reverse-rate partner in "
+                               f"position {p + 1}")
+            down.remove(match[0])
+            pairs.append((k, match[0]))
+    return pairs
+
+
+def _fit_triad_blocks(run, design, y_rows, rows, sensor):
+    """GLS of every output axis on the design's regressors; returns (values (3, p), covs,
+    rms residuals). Row covariance: white variance of each window's mean model output
+    (from a first OLS pass) plus the datasheet bias instability as flicker."""
+    out, covs, rms = [], [], []
+    for i in range(3):
+        x = design.regressors(i, rows)
+        b, *_ = np.linalg.lstsq(x, y_rows[:, i], rcond=None)
+        cov = run.row_covariance(design.variances(i, b), INSTABILITY[sensor], rows)
+        b, cov, _, r = gls(x, y_rows[:, i], cov)
+        out.append(b), covs.append(cov), rms.append(r)
+    return np.array(out), covs, rms
+
+
+def _voltage_design(run, sensor, poly, order):
+    """Design of the temperature-compensated voltages (eqs. 2, 4) with polynomial `poly`."""
+    if sensor == "accel":
+        v = run.raw["accel_volts"] - poly2(poly, run.raw["accel_temperature"])
+    else:
+        v = run.raw["gyro_volts"] - poly2(poly, run.raw["gyro_frequency"])
+    return run.design(v, order)
+
+
+def _check_levels(values, need, what, path):
+    """Refuse inputs with fewer than `need` levels apart by 1 % of the largest input."""
+    step = 0.01 * np.abs(values).max()
+    levels = np.unique(np.round(values / step)) * step if step > 0 else np.zeros(1)
+    if len(levels) < need:
+        raise FitError(f"{path}: {what} takes only {len(levels)} distinct input levels "
+                       f"({', '.join(f'{x:.4g}' for x in levels)}); the fit needs at least "
+                       f"{need} to separate its polynomial terms")
+
+
+def fit_gyro_triad(run, temp, order=3):
+    """Rate table (paired positions) -> W0, W1 (, W2, W3), errors propagated from `temp`
+    (the chamber fit, or None for no temperature model) and the lab settings."""
+    pairs = _pairs(run)
+    cw = _poly_matrix(temp, "cw") if temp else np.zeros((3, 3))
+    design = _voltage_design(run, "gyro", cw, order)
+
+    def solve(cw_=None, **perturb):
+        d = design if cw_ is None else _voltage_design(run, "gyro", cw_, order)
+        _, w_in = known_inputs(run, **perturb)
+        y = np.array([w_in[list(r)].mean(axis=0) for r in pairs])
+        return _fit_triad_blocks(run, d, y, pairs, "gyro")
+    _, w_in = known_inputs(run)
+    y = np.array([w_in[list(r)].mean(axis=0) for r in pairs])
+    for i in range(3):
+        _check_levels(y[:, i], order + 1 if order == 3 else 2,
+                      f"gyro {AXES[i]} (paired rate points, rad/s)", run.path)
+    coef, covs, rms = solve()
+    return _assemble(run, "gyro", order, coef, covs, rms, solve, cw, temp, "cw",
+                     tag=run.procedure)
+
+
+def fit_accel_triad(run, temp, order=3):
+    """Centrifuge (or static positions) -> A0, A1 (, A2, A3)."""
+    ct = _poly_matrix(temp, "ct") if temp else np.zeros((3, 3))
+    rows = [(k,) for k in range(len(run.windows))]
+    _require_positions(run, 12 if run.procedure == "twelve-position" else 6)
+    f_in, _ = known_inputs(run)
+    for i in range(3):
+        _check_levels(f_in[:, i], order + 1, f"accelerometer {AXES[i]} (m/s^2)", run.path)
+
+    design = _voltage_design(run, "accel", ct, order)
+
+    def solve(ct_=None, **perturb):
+        d = design if ct_ is None else _voltage_design(run, "accel", ct_, order)
+        f, _ = known_inputs(run, **perturb)
+        return _fit_triad_blocks(run, d, f, rows, "accel")
+    coef, covs, rms = solve()
+    return _assemble(run, "accel", order, coef, covs, rms, solve, ct, temp, "ct",
+                     tag=run.procedure)
+
+
+def _assemble(run, sensor, order, coef, covs, rms, solve, poly, temp, key, tag):
+    fitted = Fitted({})
+    names = []
+    for i in range(3):
+        block = _block_names(sensor, order, i)
+        names += block
+        for n, val in zip(block, coef[i]):
+            fitted.values[n] = float(val)
+        _add_cov_sources(fitted, block, covs[i], f"{tag}-{sensor}{i}")
+    base = np.concatenate(list(coef))
+    for label, perturb in setting_perturbations(run):
+        new = np.concatenate(list(solve(**perturb)[0]))
+        for n, d in zip(names, new - base):
+            _merge(fitted.errors, n, {f"{tag}-setting-{label}": d})
+    # the turn-on bias of this power-on sits in the bias terms
+    p0 = "A0" if sensor == "accel" else "W0"
+    for i in range(3):
+        _merge(fitted.errors, f"{p0}[{i}]", {f"{tag}-turn-on-{sensor}{i}": TURN_ON[sensor]})
+    if temp:
+        parents = [f"{key}[{i}][{j}]" for i in range(3) for j in range(3)]
+
+        def refit(delta):
+            moved = poly + np.array([[delta[f"{key}[{i}][{j}]"] for j in range(3)]
+                                     for i in range(3)])
+            return np.concatenate(list(solve(moved)[0]))
+        _propagate(fitted, names, refit, base, temp, parents)
+    fitted.rms = dict(zip(AXES, rms))
+    fitted.stage = f"{tag} {sensor}"
+    return fitted
+
+
+# ---- stage 3b: g-sensitivity (eqs. 8-10) ---------------------------------------------------
+def fit_g_sensitivity(run, temp, gyro):
+    """Centrifuge: R = w_known - w_model(V_w) (eq. 10) regressed on the applied specific force,
+    R_i = C_i . f + b_i (b_i the turn-on nuisance). Errors from `temp`, `gyro`, settings."""
+    cw = _poly_matrix(temp, "cw")
+    f_in, w_in = known_inputs(run)
+
+    design = _voltage_design(run, "gyro", cw, 3)
+    rows = [(k,) for k in range(len(run.windows))]
+
+    def solve(cw_, g_vals, **perturb):
+        f, w = known_inputs(run, **perturb) if perturb else (f_in, w_in)
+        d = design if cw_ is None else _voltage_design(run, "gyro", cw_, 3)
+        x = np.column_stack([f, np.ones(len(f))])
+        res = []
+        for i in range(3):
+            b = np.array([g_vals[n] for n in _block_names("gyro", 3, i)])
+            w_model = d.regressors(i, rows) @ b
+            cov = run.row_covariance(d.variances(i, b), INSTABILITY["gyro"], rows)
+            res.append(gls(x, w[:, i] - w_model, cov))
+        return np.array([r[0][:3] for r in res]), [r[1][:3, :3] for r in res], \
+            [r[3] for r in res]
+    c, covs, rms = solve(None, gyro.values)
+    fitted = Fitted({})
+    names = [f"C[{i}][{j}]" for i in range(3) for j in range(3)]
+    for i in range(3):
+        block = names[3 * i:3 * i + 3]
+        for n, val in zip(block, c[i]):
+            fitted.values[n] = float(val)
+        _add_cov_sources(fitted, block, covs[i], f"centrifuge-C{i}")
+    base = c.ravel()
+    for label, perturb in setting_perturbations(run):
+        new = solve(None, gyro.values, **perturb)[0].ravel()
+        for n, d in zip(names, new - base):
+            _merge(fitted.errors, n, {f"centrifuge-setting-{label}": d})
+    # upstream: every source of cw and of W moves C; refit with both moved
+    parents = [f"cw[{i}][{j}]" for i in range(3) for j in range(3)]
+    w_names = list(gyro.values)
+    upstream = Fitted({**temp.values, **gyro.values}, {**temp.errors})
+    for n in w_names:
+        upstream.errors[n] = gyro.errors.get(n, {})
+
+    def refit(delta):
+        moved = cw + np.array([[delta.get(f"cw[{i}][{j}]", 0.0) for j in range(3)]
+                               for i in range(3)])
+        g_vals = {n: gyro.values[n] + delta.get(n, 0.0) for n in w_names}
+        return solve(moved, g_vals)[0].ravel()
+    _propagate(fitted, names, refit, base, upstream, parents + w_names)
+    fitted.rms = dict(zip(AXES, rms))
+    fitted.stage = "centrifuge C"
+    return fitted
+
+
+# ---- methods -------------------------------------------------------------------------------
+def _runs_by_procedure(runs, need, method):
+    by = {r.procedure: r for r in runs}
+    missing = [p for p in need if p not in by]
+    if missing:
+        have = ", ".join(sorted(by)) or "none"
+        raise FitError(f"method {method!r} needs lab runs {', '.join(need)}; missing "
+                       f"{', '.join(missing)} (given: {have})")
+    return by
+
+
+def calibrate(paths, method, unit=""):
+    """Fit `method` to the lab logs `paths`; returns a `Calibration` with covariance."""
+    if method not in METHODS:
+        raise FitError(f"unknown method {method!r}; one of {', '.join(METHODS)}")
+    runs = [LabRun.load(p) for p in paths]
+    if method == "entire":
+        by = _runs_by_procedure(runs, ("thermal-chamber", "rate-table", "centrifuge"), method)
+        temp, reference = fit_temperature(by["thermal-chamber"])
+        gyro = fit_gyro_triad(by["rate-table"], temp)
+        accel = fit_accel_triad(by["centrifuge"], temp)
+        g_sens = fit_g_sensitivity(by["centrifuge"], temp, gyro)
+        parts = (temp, gyro, accel, g_sens)
+        cal = Calibration(model="entire-63", unit=unit,
+                          procedure="thermal-chamber+rate-table+centrifuge")
+        cal.extra["reference"] = reference
+    elif method == "traditional":
+        by = _runs_by_procedure(runs, ("multi-position", "single-axis-rate"), method)
+        accel = fit_accel_triad(by["multi-position"], None, order=1)
+        gyro = fit_gyro_triad(by["single-axis-rate"], None, order=1)
+        parts = (accel, gyro)
+        cal = Calibration(model="linear", unit=unit, procedure="multi-position+single-axis-rate")
+    elif method == "twelve-position":
+        by = _runs_by_procedure(runs, ("twelve-position",), method)
+        accel = fit_accel_triad(by["twelve-position"], None, order=1)
+        gyro = fit_gyro_bias(by["twelve-position"])
+        parts = (accel, gyro)
+        cal = Calibration(model="linear", unit=unit, procedure="twelve-position (seed S2)")
+    else:
+        by = _runs_by_procedure(runs, ("cold-start",), method)
+        return fit_cold_start(by["cold-start"], unit=unit)
+    merged = Fitted({})
+    for part in parts:
+        merged.values.update(part.values)
+        merged.errors.update(part.errors)
+    _fill(cal, merged.values)
+    names = list(merged.values)
+    cov = merged.covariance(names)
+    se = np.sqrt(np.diag(cov))
+    cal.covariance = {"names": names, "standard_error": se.tolist(), "matrix": cov.tolist(),
+                      "residual_rms": {p.stage: p.rms for p in parts if p.rms},
+                      "note": "GLS + setting errors + turn-on repeatability + upstream "
+                              "coefficients, first-order propagation (mimunav.calibration)"}
+    return cal
+
+
+def _fill(cal, values):
+    import re
+    for name, val in values.items():
+        key, *idx = re.findall(r"\w+", name)
+        arr = getattr(cal, key)
+        arr[tuple(int(i) for i in idx)] = val
+
+
+def standard_errors(cal):
+    """{name: standard error} from a fitted file's covariance block."""
+    cov = cal.covariance
+    return dict(zip(cov.get("names", []), cov.get("standard_error", [])))
+
+
+def fit_gyro_bias(run):
+    """Seed S2: gyro bias = -W1_nominal @ mean V over all positions (each axis up and
+    down, each turned 180 deg: Earth rate and the g term average out)."""
+    if len(run.windows) < 12:
+        raise FitError(f"{run.path}: the twelve-position run has {len(run.windows)} steady "
+                       "positions; gyro biases need all twelve")
+    v = run.means(run.raw["gyro_volts"]).mean(axis=0)
+    var = run.mean_variances(run.raw["gyro_volts"]).sum(axis=0) / len(run.windows) ** 2
+    fitted = Fitted({})
+    for i in range(3):
+        fitted.values[f"W0[{i}]"] = float(-NOMINAL_SCALE["gyro"] * v[i])
+        for j in range(3):
+            fitted.values[f"W1[{i}][{j}]"] = NOMINAL_SCALE["gyro"] * (i == j)
+        fitted.errors[f"W0[{i}]"] = {f"twelve-gyro{i}": NOMINAL_SCALE["gyro"] * math.sqrt(var[i]),
+                                     f"turn-on-gyro{i}": TURN_ON["gyro"]}
+    return fitted
+
+
+def fit_cold_start(run, unit=""):
+    raise FitError("cold-start fit not available yet")
+
+
+def check(cal, run):
+    """Held-out check of a calibration on a lab run it was not fitted on: per steady window,
+    compensated mean output minus the known input. Returns a dict of (n_windows, 3) arrays:
+    accel_error m/s^2, gyro_error rad/s, accel_input m/s^2, gyro_input rad/s,
+    temperature degC (accelerometer thermistors)."""
+    r = run.raw
+    f, w, _ = compensate(cal, r["accel_volts"], r["gyro_volts"], r["accel_temperature"],
+                         r["gyro_frequency"], t=run.t)
+    f_in, w_in = known_inputs(run)
+    return {"accel_error": run.means(f) - f_in, "gyro_error": run.means(w) - w_in,
+            "accel_input": f_in, "gyro_input": w_in,
+            "temperature": run.means(r["accel_temperature"])}
