@@ -23,10 +23,12 @@ Methods (seed S1 section 3.1 unless stated):
                    twelve (Earth rate and g cancel) with the datasheet scale (5 mV/(deg/s))
   cold-start       seed S3 (see `fit_cold_start`)
 
-Estimator: generalised least squares per output axis, point weights 1/(s_k^2 + s_b^2) with
-s_k^2 the white-noise variance of window k's mean and s_b^2 the between-window bias wander,
-solved so the weighted residual sum of squares equals its degrees of freedom (Paule-Mandel;
-s_b = 0 when the white noise explains the scatter). Uncertainty is carried as a linear map
+Estimator: generalised least squares per output axis on window means. Their covariance is
+the white noise of each mean (from second differences of its samples) plus the bias
+instability of the unit class as a flicker process (datasheet B, `sensors.mimu`; the
+covariance of window means under a 1/f spectrum, `flicker_covariance`), so slow bias wander
+shared by neighbouring set points is not mistaken for independent scatter; the covariance
+is scaled by chi2/dof where that exceeds 1. Uncertainty is carried as a linear map
 from independent unit-variance sources to every coefficient's error: each stage's own GLS
 covariance, the lab's setting errors (`lab.EQUIPMENT`, from the log's metadata), the turn-on
 bias repeatability of the power-on a bias was fitted in (datasheet values, `sensors.mimu`),
@@ -45,9 +47,10 @@ from dataclasses import dataclass, field
 import numpy as np
 import quaternion
 import scipy.linalg
+import scipy.optimize
 
 from . import earth
-from .compensation import Calibration, compensate, poly2
+from .compensation import Calibration, compensate, poly2, temperature_change
 from .flightlog import FlightLog, LogError
 from .sensors.mimu import DEG, G0, NoiseModel
 
@@ -61,6 +64,10 @@ TURN_ON = {"accel": NoiseModel().accel_turn_on, "gyro": NoiseModel().gyro_turn_o
 INSTABILITY = {"accel": NoiseModel().accel_flicker, "gyro": NoiseModel().gyro_flicker}
 NOMINAL_SCALE = {"accel": G0 / 0.1, "gyro": DEG / 5e-3}     # (m/s^2)/V, (rad/s)/V
 # Table 1 of seed S1: full scale (the stated minimum range) and scale-factor fit residuals
+# 1/f bias wander extends below any record: the covariance model integrates from
+# 1 / (FLICKER_SPAN_FACTOR x run length); slower wander is a near-constant offset that the
+# fitted bias absorbs, faster is modelled
+FLICKER_SPAN_FACTOR = 4.0
 TABLE1_FULL_SCALE = {"accel": 30 * G0, "gyro": 400 * DEG}
 TABLE1_RESIDUAL = {"accel": 0.05e-2, "gyro": 0.2e-2}       # fraction of full scale
 
@@ -148,7 +155,8 @@ class LabRun:
             t0 = np.array([w.t0 for w in self.windows])
             t1 = np.array([w.t1 for w in self.windows])
             rate = 1.0 / np.median(np.diff(self.t))
-            self._flicker = flicker_covariance(t0, t1, 1.0 / (self.t[-1] - self.t[0]), rate / 2)
+            f_low = 1.0 / (FLICKER_SPAN_FACTOR * (self.t[-1] - self.t[0]))
+            self._flicker = flicker_covariance(t0, t1, f_low, rate / 2)
         return self._flicker
 
     def row_covariance(self, white, instability, rows):
@@ -673,8 +681,125 @@ def fit_gyro_bias(run):
     return fitted
 
 
+COLD_START_WINDOWS_S = (60.0, 120.0, 180.0, 300.0)     # n = 1, 2, 3, 5 min (seed S3)
+COLD_START_BIN_S = 60.0
+
+
 def fit_cold_start(run, unit=""):
-    raise FitError("cold-start fit not available yet")
+    """Seed S3 on a cold-start run (one power-on per axis up): per axis
+        E = E(T) / (a + b T) + (c + d T) + e dT_n
+    with E(T) the nominally scaled raw output (datasheet 0.1 V/g, 5 mV/(deg/s); A1, W1
+    diagonal, no bias), T the accelerometer thermistor (degC) or the gyro resonance (Hz),
+    E the known input (gravity and Earth rate of each position). Gyros keep a = 1, b = 0:
+    Earth rate is too small to separate their scale from their bias.
+    Data: 60 s bin means; GLS with flicker + per-power-on turn-on covariance (white noise
+    of a 60 s mean is below 5 % of the flicker there),
+    solved by scipy.optimize.least_squares on the whitened residuals. The window n is
+    chosen among the basic model (no e) and n = 1, 2, 3, 5 min by BIC; every candidate's
+    chi2, BIC and e are written to the file ("selection")."""
+    if len(run.windows) < 3:
+        raise FitError(f"{run.path}: the cold-start run has {len(run.windows)} power-ons; "
+                       "seed S3 needs x, y and z up")
+    f_in, w_in = known_inputs(run)
+    edges = []                                  # bins: (k0, k1, power-on index)
+    for j, w in enumerate(run.windows):
+        step = max(2, int(round(COLD_START_BIN_S / np.median(np.diff(run.t)))))
+        edges += [(k, min(k + step, w.k1), j) for k in range(w.k0, w.k1 - 1, step)]
+    k0 = np.array([e[0] for e in edges])
+    k1 = np.array([e[1] for e in edges])
+    power_on = np.array([e[2] for e in edges])
+    t0, t1 = run.t[k0 - 1], run.t[k1 - 1]
+    same = (power_on[:, None] == power_on[None, :]).astype(float)
+
+    def bins(x):
+        pad = np.concatenate([x, np.zeros((1,) + x.shape[1:])])
+        return np.add.reduceat(pad, np.column_stack([k0, k1]).ravel(), axis=0)[::2] / \
+            (k1 - k0).reshape((-1,) + (1,) * (x.ndim - 1))
+    flick = flicker_covariance(t0, t1, 1.0 / (FLICKER_SPAN_FACTOR * (run.t[-1] - run.t[0])),
+                               0.5 / np.median(np.diff(run.t)))
+    cal = Calibration(model="cold-start", unit=unit, procedure="cold-start (seed S3)",
+                      A1=np.diag([NOMINAL_SCALE["accel"]] * 3),
+                      W1=np.diag([NOMINAL_SCALE["gyro"]] * 3))
+    selection, fits = {}, {}
+    for sensor, volts, reading, truth_in in (("accel", "accel_volts", "accel_temperature", f_in),
+                                             ("gyro", "gyro_volts", "gyro_frequency", w_in)):
+        e_t = run.raw[volts] * NOMINAL_SCALE[sensor]
+        temp = run.raw[reading]
+        cov_base = (INSTABILITY[sensor] ** 2 * flick + TURN_ON[sensor] ** 2 * same)
+        for n in (None,) + COLD_START_WINDOWS_S:
+            d_t = bins(_power_on_temperature_change(run, temp, n or 60.0))
+            fit = [_fit_cold_axis(bins(e_t[:, i]), bins(temp[:, i]), d_t[:, i],
+                                  truth_in[power_on, i], cov_base, sensor == "accel",
+                                  n is not None) for i in range(3)]
+            fits[sensor, n] = fit
+            label = "basic" if n is None else f"{n:g}"
+            selection.setdefault(sensor, {})[label] = {
+                "chi2": [f["chi2"] for f in fit], "bic": float(sum(f["bic"] for f in fit)),
+                "e": [f["values"][4] for f in fit], "e_se": [f["se"][4] for f in fit]}
+    # one window for the file: the best total BIC over both triads
+    best = min((None,) + COLD_START_WINDOWS_S, key=lambda n: sum(
+        selection[s]["basic" if n is None else f"{n:g}"]["bic"] for s in ("accel", "gyro")))
+    for sensor in ("accel", "gyro"):
+        fit = fits[sensor, best]
+        cal.cold_start[sensor] = {k: np.array([f["values"][j] for f in fit])
+                                  for j, k in enumerate("abcde")}
+        cal.covariance[sensor] = {k: [f["se"][j] for f in fit] for j, k in enumerate("abcde")}
+    cal.cold_start["window_s"] = best or 60.0
+    cal.extra["selection"] = {"chosen": "basic" if best is None else f"{best:g} s",
+                              "criterion": "BIC (GLS chi2 + k ln N)", "candidates": selection}
+    return cal
+
+
+def _power_on_temperature_change(run, temp, window):
+    """dT = T(t) - T(t - window) within each power-on (compensation.temperature_change)."""
+    out = np.zeros_like(temp)
+    for w in run.windows:
+        first = w.k0 - 1
+        out[first:w.k1] = temperature_change(temp[first:w.k1], window, run.t[first:w.k1])
+    return out
+
+
+def _fit_cold_axis(e_t, temp, d_t, known, cov, scale_free, with_rate):
+    """One axis of the S3 model by whitened nonlinear least squares."""
+    chol = np.linalg.cholesky(cov + np.eye(len(cov)) * 1e-12 * np.trace(cov) / len(cov))
+    t_c = temp - temp.mean()                           # centred for conditioning
+
+    def model(p):
+        a, b, c, d, e = p
+        return e_t / (a + b * t_c) + c + d * t_c + e * d_t
+    free = np.array([scale_free, scale_free, True, True, with_rate])
+    p0 = np.array([1.0, 0.0, 0.0, 0.0, 0.0])
+
+    def resid(q):
+        p = p0.copy()
+        p[free] = q
+        return scipy.linalg.solve_triangular(chol, model(p) - known, lower=True)
+    sol = scipy.optimize.least_squares(resid, p0[free], method="lm", x_scale="jac")
+    p = p0.copy()
+    p[free] = sol.x
+    jac = sol.jac
+    cov_q = np.linalg.inv(jac.T @ jac)
+    se = np.zeros(5)
+    se[free] = np.sqrt(np.diag(cov_q))
+    chi2 = float(sol.fun @ sol.fun)
+    # back from centred temperature: a + b (T - Tm) = (a - b Tm) + b T, likewise c + d T
+    tm = temp.mean()
+    values = np.array([p[0] - p[1] * tm, p[1], p[2] - p[3] * tm, p[3], p[4]])
+    se_abs = se.copy()
+    se_abs[0] = math.sqrt(cov_entry(cov_q, free, 0, 0) + tm**2 * cov_entry(cov_q, free, 1, 1)
+                          - 2 * tm * cov_entry(cov_q, free, 0, 1))
+    se_abs[2] = math.sqrt(cov_entry(cov_q, free, 2, 2) + tm**2 * cov_entry(cov_q, free, 3, 3)
+                          - 2 * tm * cov_entry(cov_q, free, 2, 3))
+    return {"values": values.tolist(), "se": se_abs.tolist(), "chi2": chi2,
+            "bic": chi2 + int(free.sum()) * math.log(len(known))}
+
+
+def cov_entry(cov_q, free, i, j):
+    """Entry (i, j) of the covariance of all five parameters (0 for fixed ones)."""
+    if not (free[i] and free[j]):
+        return 0.0
+    idx = np.cumsum(free) - 1
+    return float(cov_q[idx[i], idx[j]])
 
 
 def check(cal, run):

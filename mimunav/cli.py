@@ -127,6 +127,15 @@ def _calibrate(args):
     return 0
 
 
+def _report(args):
+    """Write a generated report into a folder."""
+    from .reports import calibration
+    md, png = calibration.write(args.output, n_units=args.units, first_seed=args.seed,
+                                force=args.force)
+    print(f"wrote {md}\nwrote {png}")
+    return 0
+
+
 def build_parser():
     parser = argparse.ArgumentParser(
         prog="mimunav", description="Flight-test evaluation of MEMS IMUs against a FOG-IMU.")
@@ -186,6 +195,14 @@ def build_parser():
     p.add_argument("--unit-name", default="", help="unit name written to the file")
     p.add_argument("--force", action="store_true", help="replace an existing output")
     p.set_defaults(func=_calibrate)
+    p = sub.add_parser("report", help="generate a report (calibration: the entire lab on "
+                       "many units, z-scores of every coefficient, held-out check)")
+    p.add_argument("kind", choices=("calibration",))
+    p.add_argument("-o", "--output", default="reports", help="folder (default: reports)")
+    p.add_argument("--units", type=int, default=20, help="number of drawn units")
+    p.add_argument("--seed", type=int, default=1000, help="seed of the first unit")
+    p.add_argument("--force", action="store_true", help="replace an existing report")
+    p.set_defaults(func=_report)
     return parser
 
 

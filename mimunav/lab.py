@@ -232,10 +232,11 @@ class _Segment:
     env: list = field(default_factory=list)
 
 
-def run(plan_, unit, out, seed, force=False, progress=True, equipment=None):
+def run(plan_, unit, out, seed, force=False, progress=True, equipment=None, hidden=None):
     """Simulate `plan_` on `unit` (a `MimuUnit`) and write the log `out` (+ `out` with
     .truth.json beside it: the unit and the drawn setting errors). `equipment` replaces
-    the setting-error specification `EQUIPMENT` (1 sigma). Returns (log, truth)."""
+    the setting-error specification `EQUIPMENT` (1 sigma); `hidden` is passed to
+    `MimuUnit.simulate` (physics the 63-coefficient model lacks). Returns (log, truth)."""
     truth_path = (str(out)[:-5] if str(out).endswith(".mcap") else str(out)) + ".truth.json"
     for path in (out, truth_path):
         if os.path.exists(path) and not force:
@@ -321,7 +322,7 @@ def run(plan_, unit, out, seed, force=False, progress=True, equipment=None):
     for seg in segments:
         raws.append(lab_unit.simulate(np.concatenate(seg.t), np.concatenate(seg.dtheta),
                                       np.concatenate(seg.dv), np.concatenate(seg.env),
-                                      rng_noise, warm_up_s=plan_.warm_up_s))
+                                      rng_noise, hidden=hidden, warm_up_s=plan_.warm_up_s))
     raw = {k: np.concatenate([r[k] for r in raws]) for k in raws[0]}
     raw["sample_index"] = np.arange(len(raw["t"]), dtype=np.uint64)
     bar.update()

@@ -1,0 +1,52 @@
+"""Benchmark of the whole `entire` lab: thermal chamber + rate table + centrifuge simulated
+into logs and fitted into a calibration file, as `mimunav lab` / `mimunav calibrate` do.
+
+    python bench/lab.py [--seed 7] [--json out.json]
+
+Times include writing and reading the logs (a fresh process: JIT caches warm from earlier
+runs, as for a user's second command). Target: under 60 s on 2 cores.
+"""
+import argparse
+import json
+import os
+import platform
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+from mimunav import calibration, lab          # noqa: E402
+from mimunav.sensors import MimuUnit          # noqa: E402
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--seed", type=int, default=7)
+    ap.add_argument("--json")
+    args = ap.parse_args()
+    unit = MimuUnit.draw(args.seed)
+    res = {"machine": f"{platform.machine()} {os.cpu_count()} cores, {platform.python_version()}"}
+    t_all = time.perf_counter()
+    with tempfile.TemporaryDirectory() as tmp:
+        paths = []
+        for proc in ("thermal-chamber", "rate-table", "centrifuge"):
+            t0 = time.perf_counter()
+            paths.append(lab.run(lab.plan(proc), unit, os.path.join(tmp, proc + ".mcap"),
+                                 args.seed)[0])
+            res[f"{proc}_s"] = time.perf_counter() - t0
+            res[f"{proc}_samples"] = calibration.LabRun.load(paths[-1]).t.size
+        t0 = time.perf_counter()
+        cal = calibration.calibrate(paths, "entire")
+        res["fit_s"] = time.perf_counter() - t0
+    res["total_s"] = time.perf_counter() - t_all
+    for key, value in res.items():
+        print(f"{key:28s} {value:.2f}" if isinstance(value, float) else f"{key:28s} {value}")
+    print(f"fitted {len(calibration.standard_errors(cal))} coefficients")
+    if args.json:
+        Path(args.json).write_text(json.dumps(res, indent=2))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,1 @@
+"""Reports a person reads: markdown tables with figures, generated into `reports/`."""
