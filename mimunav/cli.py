@@ -127,6 +127,109 @@ def _calibrate(args):
     return 0
 
 
+def _replay(args):
+    """Compensate, navigate both IMUs and compare; outputs into a new folder, atomically."""
+    import json
+    import shutil
+    import tempfile
+
+    import quaternion
+
+    from . import evaluation
+    from .compensation import Calibration
+    from .flightlog import LogWriter
+    from .flightlog import schemas as S
+    from .reports.plots import navigation_errors
+    out = Path(args.output)
+    if out.exists() and not args.force:
+        raise FileExistsError(f"{out} exists; use --force to replace it")
+    flight = evaluation.Flight.load(args.log)
+    cal = Calibration.load(args.cal)
+    rep = evaluation.replay(flight, cal)
+    t = evaluation.comparison_times(flight, args.end)
+    err = evaluation.errors(rep, t)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(dir=out.parent, prefix=".tmp-replay-"))
+    try:
+        with LogWriter(tmp / "nav.mcap") as log:
+            for topic, traj in (("/mimu/nav", evaluation.resample(rep.mimu, t)),
+                                ("/fog/nav", evaluation.resample(rep.fog, t))):
+                log.write(topic, S.NAV_STATE, "vehicle",
+                          flight.epoch_ns + np.round(traj.t * 1e9).astype(np.int64),
+                          latitude=traj.lat, longitude=traj.lon, height=traj.h,
+                          velocity_ned=traj.v_ned, attitude_wxyz=quaternion.as_float_array(traj.q_nb))
+        series = {k: dict(v, t=t) for k, v in err.items() if k != "t"}
+        navigation_errors(series, str(tmp / "errors.png"), f"{flight.name}: {args.cal}")
+        summary = {"format": "mimunav-replay/1", "log": args.log, "calibration": args.cal,
+                   "end_t_s": float(t[-1]), "flags": rep.flags,
+                   "end": {k: {q: ned_to_enu_list(v[q][-1]) if q != "attitude"
+                               else v[q][-1].tolist() for q in v}
+                           for k, v in err.items() if k != "t"},
+                   "frames": "position/velocity ENU (m, m/s); attitude NED rotation vector "
+                             "(rad)"}
+        (tmp / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
+        if out.exists():
+            shutil.rmtree(out)
+        tmp.rename(out)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    end = summary["end"]
+    for key, v in end.items():
+        e = v["position"]
+        print(f"{key:11s} end position error east {e[0]:+.3g} m, north {e[1]:+.3g} m, "
+              f"up {e[2]:+.3g} m")
+    if args.json:
+        print(json.dumps(summary))
+    print(f"wrote {out}/nav.mcap, summary.json, errors.png")
+    return 0
+
+
+def ned_to_enu_list(d):
+    return [float(d[1]), float(d[0]), float(-d[2])]
+
+
+def _variants(specs):
+    from .compensation import Calibration
+    cals = {}
+    for spec in specs:
+        name, sep, path = spec.partition("=")
+        if not sep:
+            name, path = Path(spec).stem, spec
+        cals[name] = Calibration.load(path)
+    return cals
+
+
+def _table(args):
+    """The normalised end-point table (seed S1 Table 3) for any number of variants."""
+    import json
+
+    from . import evaluation
+    from .files import write_atomic
+    flight = evaluation.Flight.load(args.log)
+    doc = evaluation.table(flight, _variants(args.cal), args.end)
+    text = evaluation.table_markdown(doc)
+    if args.output:
+        outputs = {".md": text, ".csv": evaluation.table_csv(doc),
+                   ".json": json.dumps(doc, indent=1) + "\n"}
+        for ext in outputs:
+            if Path(args.output + ext).exists() and not args.force:
+                raise FileExistsError(f"{args.output + ext} exists; use --force")
+        for ext, content in outputs.items():
+            write_atomic(args.output + ext, content, force=args.force)
+    print(text, end="")
+    return 0
+
+
+def _budget(args):
+    """Error budget: end-point error with each group of a calibration's terms off."""
+    from . import evaluation
+    flight = evaluation.Flight.load(args.log)
+    (cal,) = _variants([args.cal]).values()
+    print(evaluation.budget_markdown(evaluation.error_budget(flight, cal, args.end)), end="")
+    return 0
+
+
 def _report(args):
     """Write a generated report into a folder."""
     from .reports import calibration
@@ -134,6 +237,12 @@ def _report(args):
                                 force=args.force)
     print(f"wrote {md}\nwrote {png}")
     return 0
+
+
+def _flight_arguments(p):
+    p.add_argument("log", help="flight log (.mcap) with /mimu/raw and /fog/imu")
+    p.add_argument("--end", type=float, help="end point, s since the log's epoch "
+                   "(default: the last instant every channel covers)")
 
 
 def build_parser():
@@ -195,6 +304,28 @@ def build_parser():
     p.add_argument("--unit-name", default="", help="unit name written to the file")
     p.add_argument("--force", action="store_true", help="replace an existing output")
     p.set_defaults(func=_calibrate)
+    p = sub.add_parser("replay", help="compensate the MIMU, navigate MIMU and FOG-IMU with "
+                       "the same navigator, compare with the truth and each other")
+    _flight_arguments(p)
+    p.add_argument("--cal", required=True, help="calibration file (mimunav-calibration/1)")
+    p.add_argument("-o", "--output", required=True, help="folder for nav.mcap (NavState "
+                   "/mimu/nav, /fog/nav at the comparison instants), summary.json, errors.png")
+    p.add_argument("--json", action="store_true", help="also print the summary as JSON")
+    p.add_argument("--force", action="store_true", help="replace an existing folder")
+    p.set_defaults(func=_replay)
+    p = sub.add_parser("table", help="end-point east/north/up errors of calibration variants "
+                       "normalised by the FOG-IMU's (seed S1 Table 3)")
+    _flight_arguments(p)
+    p.add_argument("--cal", action="append", required=True, metavar="NAME=CAL.json",
+                   help="a calibration variant (repeat for more)")
+    p.add_argument("-o", "--output", help="write OUTPUT.md, OUTPUT.csv, OUTPUT.json")
+    p.add_argument("--force", action="store_true", help="replace existing outputs")
+    p.set_defaults(func=_table)
+    p = sub.add_parser("budget", help="error budget: end-point error with each group of a "
+                       "calibration's terms switched off")
+    _flight_arguments(p)
+    p.add_argument("--cal", required=True, help="calibration file")
+    p.set_defaults(func=_budget)
     p = sub.add_parser("report", help="generate a report (calibration: the entire lab on "
                        "many units, z-scores of every coefficient, held-out check)")
     p.add_argument("kind", choices=("calibration",))

@@ -15,6 +15,7 @@ from .. import calibration, lab
 from ..compensation import poly2
 from ..files import write_atomic
 from ..sensors import MimuUnit
+from .plots import figure, save
 
 ENTIRE = ("thermal-chamber", "rate-table", "centrifuge")
 TRADITIONAL = ("multi-position", "single-axis-rate")
@@ -80,9 +81,6 @@ def held_out(seed, folder):
 
 def plot_held_out(checks, out_png):
     """Held-out error (% of Table 1 full scale) against the condition it grows with."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
     fs, lim = calibration.TABLE1_FULL_SCALE, calibration.TABLE1_RESIDUAL
     panels = [("centrifuge", "accel", lambda c: np.abs(c["accel_input"]).max(axis=1) / 9.80665,
                "applied specific force, g"),
@@ -92,7 +90,7 @@ def plot_held_out(checks, out_png):
                "accelerometer temperature, degC"),
               ("thermal-chamber", "gyro", lambda c: c["temperature"].mean(axis=1),
                "accelerometer temperature, degC")]
-    fig, axes = plt.subplots(2, 2, figsize=(11, 8))
+    plt, fig, axes = figure(2, 2, (11, 8))
     for ax, (proc, sensor, x_of, xlabel) in zip(axes.ravel(), panels):
         for name, marker in (("traditional", "x"), ("entire", "o")):
             c = checks[name, proc]
@@ -104,11 +102,7 @@ def plot_held_out(checks, out_png):
         ax.set_title(f"held-out {proc}: {sensor}")
         ax.grid(True, which="both", alpha=0.3)
     axes[0, 0].legend()
-    fig.tight_layout()
-    tmp = out_png + ".tmp.png"
-    fig.savefig(tmp, dpi=110)
-    plt.close(fig)
-    os.replace(tmp, out_png)
+    save(plt, fig, out_png)
 
 
 def write(out_dir, n_units=20, first_seed=1000, workers=2, progress=True, force=False):

@@ -1,0 +1,346 @@
+"""Replay of a flight log and the seed paper's normalised end-point error table.
+
+Replay: the MIMU raw channel is compensated with a calibration (eqs. 1-4), the MIMU and the
+FOG-IMU are navigated by the same strapdown navigator from the log's `initial_state`, each at
+its own mounting: increments are rotated from sensor to vehicle axes (q_vs) and navigated from
+the initial state moved to the sensor's place (position + C_nb r, velocity + C_nb (w_nb x r));
+the solution is moved back to the vehicle origin (- C_nb r, - C_nb (w_nb x r)) before any
+comparison. Samples stamped after `initial_state.t` are navigated; each stands for the mean
+over the interval ending at its stamp (log contract).
+
+Table (seed S1 Table 3): end-point east, north and up position errors of every calibration
+variant against the reference trajectory, each divided by the FOG-IMU's error in the same
+axis (|e_MIMU| / |e_FOG|, FOG = 1). Without a truth channel the FOG is the reference and the
+table gives MIMU-vs-FOG differences in metres (no normalisation is possible).
+"""
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import quaternion
+
+from . import attitude, earth, strapdown
+from .compensation import Calibration, compensate, poly2
+from .flightlog import FlightLog, LogError
+from .sensors import Mounting
+from .trajectory import Trajectory
+
+
+@dataclass
+class Flight:
+    """What a replay needs from a log (times in s since the log's epoch)."""
+    path: str
+    name: str
+    epoch_ns: int                   # epoch_unix_ns of the flight metadata
+    initial: dict                   # strapdown initial state (t, lat, lon, h, v_ned, q_nb)
+    mimu_t: np.ndarray
+    mimu_raw: dict                  # accel_volts, gyro_volts, accel_temperature, gyro_frequency
+    mimu_mounting: Mounting
+    mimu_range: dict
+    fog_t: np.ndarray
+    fog_w: np.ndarray               # rad/s, sensor axes
+    fog_f: np.ndarray               # m/s^2, sensor axes
+    fog_mounting: Mounting
+    truth: Trajectory | None
+
+    @classmethod
+    def load(cls, path):
+        with FlightLog(path) as log:
+            meta = log.metadata()
+            flight = meta.get("flight", {})
+            for key in ("epoch_unix_ns", "initial_state"):
+                if key not in flight:
+                    raise LogError(f"{path}: the `flight` metadata lacks {key!r} (log contract "
+                                   "section 1): cannot place the navigation start")
+            for topic in ("/mimu/raw", "/fog/imu"):
+                if topic not in log.channels:
+                    raise LogError(f"{path}: no {topic} channel; replay compares the MIMU with "
+                                   "the FOG-IMU flown with it (channels: "
+                                   f"{', '.join(sorted(log.channels))})")
+            epoch = int(flight["epoch_unix_ns"])
+            raw = log.read("/mimu/raw")
+            fog = log.read("/fog/imu")
+            truth = log.read("/truth/state") if "/truth/state" in log.channels else None
+        sec = lambda m: (m["log_time"].astype(np.int64) - epoch) / 1e9      # noqa: E731
+        init = flight["initial_state"]
+        initial = {"t": float(init["t"]), "lat": init["latitude"], "lon": init["longitude"],
+                   "h": init["height"], "v_ned": np.asarray(init["velocity_ned"], float),
+                   "q_nb": np.asarray(init["attitude_wxyz"], float)}
+        mount = lambda name: Mounting.from_dict(                                # noqa: E731
+            meta.get(f"sensor/{name}", {}).get("mounting", {}))
+        truth_traj = None
+        if truth is not None and len(truth):
+            truth_traj = Trajectory(sec(truth), truth["latitude"].copy(), truth["longitude"].copy(),
+                                    truth["height"].copy(), truth["velocity_ned"].copy(),
+                                    quaternion.from_float_array(truth["attitude_wxyz"]))
+        return cls(str(path), flight.get("name", ""), epoch, initial, sec(raw),
+                   {k: np.ascontiguousarray(raw[k], float) for k in
+                    ("accel_volts", "gyro_volts", "accel_temperature", "gyro_frequency")},
+                   mount("mimu"), meta.get("sensor/mimu", {}).get("range", {}),
+                   sec(fog), np.ascontiguousarray(fog["angular_velocity"], float),
+                   np.ascontiguousarray(fog["linear_acceleration"], float), mount("fog"),
+                   truth_traj)
+
+    @property
+    def end(self):
+        """Last instant every navigated channel (and the truth) covers, s."""
+        ends = [self.mimu_t[-1], self.fog_t[-1]] + ([self.truth.t[-1]] if self.truth else [])
+        return float(min(ends))
+
+
+def navigate(t, w, f, mounting, initial):
+    """Navigate sensor-axis rates w (rad/s) and specific forces f (m/s^2), interval means at
+    stamps t (s), from the vehicle's initial state; returns the vehicle-origin Trajectory
+    at [initial t, t after it]."""
+    after = t > initial["t"] + 1e-12
+    if after.sum() < 2:
+        raise ValueError("fewer than two samples after the initial state's time")
+    t, w, f = t[after], w[after], f[after]
+    dt = np.diff(t, prepend=initial["t"])
+    q_vs = mounting.q_vs
+    w_v = attitude.rotate(q_vs, w)
+    f_v = attitude.rotate(q_vs, f)
+    r = mounting.lever_arm_m
+    start = dict(initial)
+    q0 = quaternion.from_float_array(np.asarray(initial["q_nb"], float))
+    if np.any(r):
+        w_nb0 = _body_rate(w_v[:1], q0, initial)[0]
+        start["lat"], start["lon"], start["h"] = _moved(initial["lat"], initial["lon"],
+                                                        initial["h"], attitude.rotate(q0, r))
+        start["v_ned"] = initial["v_ned"] + attitude.rotate(q0, np.cross(w_nb0, r))
+    nav = strapdown.integrate(t, w_v * dt[:, None], f_v * dt[:, None], start)
+    if not np.any(r):
+        return nav
+    # back to the vehicle origin; body rate at a state ~ mean of its two adjacent intervals
+    w_at = np.vstack([w_v[:1], 0.5 * (w_v[:-1] + w_v[1:]), w_v[-1:]])
+    w_nb = _body_rate(w_at, nav.q_nb, initial)
+    d_ned = attitude.rotate(nav.q_nb, np.broadcast_to(-r, (len(nav), 3)))
+    lat, lon, h = _moved(nav.lat, nav.lon, nav.h, d_ned)
+    v = nav.v_ned - attitude.rotate(nav.q_nb, np.cross(w_nb, r))
+    return Trajectory(nav.t, lat, lon, h, v, nav.q_nb)
+
+
+def _body_rate(w_ib, q_nb, initial):
+    """w_nb^b = w_ib^b - C_bn w_ie^n (transport rate < 1e-4 rad/s is neglected here: it
+    moves a 1 m lever arm's velocity by < 0.1 mm/s)."""
+    w_ie = earth.earth_rate_ned(initial["lat"])
+    return w_ib - attitude.rotate(np.conjugate(q_nb), np.broadcast_to(w_ie, w_ib.shape))
+
+
+def _moved(lat, lon, h, d_ned):
+    """Geodetic position moved by a small NED offset d (m)."""
+    r_n, r_e = earth.radii(lat)
+    d = np.asarray(d_ned)
+    return (lat + d[..., 0] / (r_n + h), lon + d[..., 1] / ((r_e + h) * np.cos(lat)),
+            h - d[..., 2])
+
+
+def resample(traj, t):
+    """Trajectory at times t (s) inside its span: linear in position and velocity, slerp
+    in attitude."""
+    if t[0] < traj.t[0] - 1e-9 or t[-1] > traj.t[-1] + 1e-9:
+        raise ValueError(f"times {t[0]:.3f}-{t[-1]:.3f} s outside the trajectory's "
+                         f"{traj.t[0]:.3f}-{traj.t[-1]:.3f} s")
+    k = np.clip(np.searchsorted(traj.t, t, side="right"), 1, len(traj) - 1)
+    tau = (t - traj.t[k - 1]) / (traj.t[k] - traj.t[k - 1])
+    lerp = lambda x: x[k - 1] + (x[k] - x[k - 1]) * (tau if x.ndim == 1 else tau[:, None])  # noqa
+    q0, q1 = traj.q_nb[k - 1], traj.q_nb[k]
+    q = q0 * np.exp(np.log(np.conjugate(q0) * q1) * tau)              # slerp
+    return Trajectory(np.asarray(t, float), lerp(traj.lat), lerp(traj.lon), lerp(traj.h),
+                      lerp(traj.v_ned), q)
+
+
+@dataclass
+class Replay:
+    """Navigated solutions (vehicle origin) and the compensation's sample flags."""
+    flight: Flight
+    mimu: Trajectory
+    fog: Trajectory
+    flags: dict
+
+
+def compensated_mimu(flight, cal):
+    """(w rad/s, f m/s^2, flag counts) of the flight's raw MIMU through `cal`."""
+    r = flight.mimu_raw
+    f, w, flags = compensate(cal, r["accel_volts"], r["gyro_volts"], r["accel_temperature"],
+                             r["gyro_frequency"], flight.mimu_range.get("accel_m_s2", np.inf),
+                             flight.mimu_range.get("gyro_rad_s", np.inf),
+                             t=flight.mimu_t - flight.mimu_t[0])
+    counts = {name: int(np.sum(flags & bit > 0)) for name, bit in
+              (("replaced", 1), ("saturated", 2), ("unusable", 4))}
+    return w, f, counts
+
+
+def navigate_fog(flight):
+    return navigate(flight.fog_t, flight.fog_w, flight.fog_f, flight.fog_mounting,
+                    flight.initial)
+
+
+def replay(flight, cal, fog=None):
+    """Compensate and navigate the MIMU with `cal` and the FOG (or reuse `fog`)."""
+    w, f, counts = compensated_mimu(flight, cal)
+    mimu = navigate(flight.mimu_t, w, f, flight.mimu_mounting, flight.initial)
+    return Replay(flight, mimu, fog if fog is not None else navigate_fog(flight), counts)
+
+
+def comparison_times(flight, end=None, rate_hz=100.0):
+    """Common comparison instants: the truth's stamps (or a rate_hz grid) from the initial
+    state to `end` (default: the last instant every channel covers)."""
+    t0, last = flight.initial["t"], flight.end
+    if end is None:
+        end = last
+    if end > last + 1e-9:
+        raise ValueError(f"{flight.path}: the requested end point {end:.3f} s is after the "
+                         f"end of the recorded flight ({last:.3f} s since the epoch)")
+    if end <= t0:
+        raise ValueError(f"the end point {end:.3f} s is not after the initial state "
+                         f"({t0:.3f} s)")
+    if flight.truth is not None:
+        t = flight.truth.t[(flight.truth.t >= t0 - 1e-9) & (flight.truth.t <= end + 1e-9)]
+    else:
+        t = np.arange(t0, end + 1e-9, 1.0 / rate_hz)
+    return t if abs(t[-1] - end) < 1e-9 else np.append(t, end)
+
+
+def errors(rep, t):
+    """Position (NED m), velocity (NED m/s) and attitude (rad) errors at times t of MIMU and
+    FOG against the truth (if any) and of the MIMU against the FOG."""
+    mimu, fog = resample(rep.mimu, t), resample(rep.fog, t)
+    out = {"t": t, "mimu-fog": _diff(mimu, fog)}
+    if rep.flight.truth is not None:
+        ref = resample(rep.flight.truth, t)
+        out["mimu-truth"], out["fog-truth"] = _diff(mimu, ref), _diff(fog, ref)
+    return out
+
+
+def _diff(a, b):
+    return {"position": a.position_error(b), "velocity": a.velocity_error(b),
+            "attitude": a.attitude_error(b)}
+
+
+def ned_to_enu(d):
+    return np.stack([d[..., 1], d[..., 0], -d[..., 2]], axis=-1)
+
+
+def table(flight, cals, end=None):
+    """The normalised end-point table for calibration variants {name: Calibration}.
+    Returns a dict (JSON-ready): end time, reference, FOG row, one row per variant with
+    east/north/up errors (m), their ratio to the FOG's (when a truth exists), horizontal and
+    3-D norms."""
+    fog = navigate_fog(flight)
+    t = comparison_times(flight, end)
+    t_end = t[-1:]
+    has_truth = flight.truth is not None
+    rows = {}
+    fog_enu = None
+    for name, cal in cals.items():
+        rep = replay(flight, cal, fog=fog)
+        err = errors(rep, t_end)
+        key = "mimu-truth" if has_truth else "mimu-fog"
+        enu = ned_to_enu(err[key]["position"][-1])
+        rows[name] = {"enu_m": enu.tolist(), "horizontal_m": float(np.hypot(enu[0], enu[1])),
+                      "norm_m": float(np.linalg.norm(enu)), "flags": rep.flags}
+        if has_truth:
+            fog_enu = ned_to_enu(err["fog-truth"]["position"][-1])
+    doc = {"format": "mimunav-table/1", "log": flight.path, "flight": flight.name,
+           "end_t_s": float(t_end[0]), "duration_s": float(t_end[0] - flight.initial["t"]),
+           "reference": "truth" if has_truth else "fog", "variants": rows}
+    if has_truth:
+        doc["fog"] = {"enu_m": fog_enu.tolist(), "horizontal_m": float(np.hypot(*fog_enu[:2])),
+                      "norm_m": float(np.linalg.norm(fog_enu))}
+        for row in rows.values():
+            row["normalised_enu"] = (np.abs(row["enu_m"]) / np.abs(fog_enu)).tolist()
+    return doc
+
+
+def table_markdown(doc, paper=None):
+    """The table as markdown (paper: optional {variant: [e, n, u]} of the published row)."""
+    lines = [f"End point t = {doc['end_t_s']:.2f} s ({doc['duration_s']:.2f} s after the "
+             f"initial state), flight `{doc['flight']}`.", ""]
+    if doc["reference"] == "truth":
+        lines += ["| variant | east / FOG | north / FOG | up / FOG | east m | north m | up m "
+                  "| horizontal m | 3-D m |", "|---|---|---|---|---|---|---|---|---|"]
+        for name, row in doc["variants"].items():
+            ne, e = row["normalised_enu"], row["enu_m"]
+            lines.append(f"| {name} | {ne[0]:.3g} | {ne[1]:.3g} | {ne[2]:.3g} | {e[0]:+.3g} | "
+                         f"{e[1]:+.3g} | {e[2]:+.3g} | {row['horizontal_m']:.3g} | "
+                         f"{row['norm_m']:.3g} |")
+        fog = doc["fog"]
+        e = fog["enu_m"]
+        lines.append(f"| FOG-IMU | 1 | 1 | 1 | {e[0]:+.3g} | {e[1]:+.3g} | {e[2]:+.3g} | "
+                     f"{fog['horizontal_m']:.3g} | {fog['norm_m']:.3g} |")
+    else:
+        lines += ["No `/truth/state` in this log: the FOG-IMU's solution is the reference, so "
+                  "the table gives MIMU-vs-FOG differences (no normalisation is possible).", "",
+                  "| variant | east m | north m | up m | horizontal m | 3-D m |",
+                  "|---|---|---|---|---|---|"]
+        for name, row in doc["variants"].items():
+            e = row["enu_m"]
+            lines.append(f"| {name} | {e[0]:+.3g} | {e[1]:+.3g} | {e[2]:+.3g} | "
+                         f"{row['horizontal_m']:.3g} | {row['norm_m']:.3g} |")
+    return "\n".join(lines) + "\n"
+
+
+def table_csv(doc):
+    head = "variant,east_m,north_m,up_m,horizontal_m,norm_m,east_norm,north_norm,up_norm\n"
+    rows = []
+    for name, row in doc["variants"].items():
+        ne = row.get("normalised_enu", [math.nan] * 3)
+        rows.append(",".join([name] + [f"{x:.6g}" for x in row["enu_m"]] +
+                             [f"{row['horizontal_m']:.6g}", f"{row['norm_m']:.6g}"] +
+                             [f"{x:.6g}" for x in ne]))
+    if "fog" in doc:
+        fog = doc["fog"]
+        rows.append(",".join(["FOG-IMU"] + [f"{x:.6g}" for x in fog["enu_m"]] +
+                             [f"{fog['horizontal_m']:.6g}", f"{fog['norm_m']:.6g}", "1", "1", "1"]))
+    return head + "\n".join(rows) + "\n"
+
+
+BUDGET_GROUPS = ("temperature", "nonlinear scale factor", "g-sensitivity", "cross-coupling")
+
+
+def without(cal, group, flight):
+    """`cal` with one group of terms switched off: temperature (eqs. 2, 4 frozen at the
+    flight's first readings), nonlinear scale factor (A2, A3, W2, W3), g-sensitivity (C),
+    cross-coupling (off-diagonals of A1 and W1)."""
+    out = Calibration.from_dict(cal.as_dict())
+    if group == "temperature":
+        r = flight.mimu_raw
+        for key, reading in (("ct", r["accel_temperature"][0]), ("cw", r["gyro_frequency"][0])):
+            poly = getattr(out, key)
+            poly[:, 0] = poly2(poly, reading[None, :])[0]
+            poly[:, 1:] = 0.0
+    elif group == "nonlinear scale factor":
+        for key in ("A2", "A3", "W2", "W3"):
+            getattr(out, key)[:] = 0.0
+    elif group == "g-sensitivity":
+        out.C[:] = 0.0
+    elif group == "cross-coupling":
+        for key in ("A1", "W1"):
+            m = getattr(out, key)
+            m[~np.eye(3, dtype=bool)] = 0.0
+    else:
+        raise ValueError(f"unknown term group {group!r}; one of {', '.join(BUDGET_GROUPS)}")
+    return out
+
+
+def error_budget(flight, cal, end=None):
+    """What each group of `cal`'s terms is worth on this flight: the end-point errors with
+    the group switched off, against the full calibration. Returns a JSON-ready dict."""
+    variants = {"full": cal} | {f"without {g}": without(cal, g, flight) for g in BUDGET_GROUPS}
+    doc = table(flight, variants, end)
+    base = doc["variants"]["full"]["norm_m"]
+    for name, row in doc["variants"].items():
+        row["worth_m"] = row["norm_m"] - base
+    return doc
+
+
+def budget_markdown(doc):
+    lines = ["| calibration | east m | north m | up m | 3-D m | group worth (3-D, m) |",
+             "|---|---|---|---|---|---|"]
+    for name, row in doc["variants"].items():
+        e = row["enu_m"]
+        worth = "-" if name == "full" else f"{row['worth_m']:+.3g}"
+        lines.append(f"| {name} | {e[0]:+.3g} | {e[1]:+.3g} | {e[2]:+.3g} | "
+                     f"{row['norm_m']:.3g} | {worth} |")
+    return "\n".join(lines) + "\n"

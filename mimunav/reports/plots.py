@@ -1,0 +1,62 @@
+"""Figures a person would rather look at than tables: navigation errors against time,
+distributions of a campaign. Written with matplotlib (Agg) atomically."""
+import os
+
+import numpy as np
+
+from ..evaluation import ned_to_enu
+
+
+def figure(rows, cols, size):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    return plt, *plt.subplots(rows, cols, figsize=size, squeeze=False)
+
+
+def save(plt, fig, png):
+    tmp = png + ".tmp.png"
+    fig.tight_layout()
+    fig.savefig(tmp, dpi=100)
+    plt.close(fig)
+    os.replace(tmp, png)
+
+
+def navigation_errors(series, png, title=""):
+    """series: {label: errors dict of `evaluation.errors` entries (position NED m, velocity
+    NED m/s, attitude rad) with "t"}. East/north/up position and velocity errors and the
+    attitude error (deg) against time, one line style per label."""
+    plt, fig, axes = figure(3, 3, (14, 9))
+    comps = ("east", "north", "up")
+    for label, err in series.items():
+        t = err["t"] - err["t"][0]
+        pos, vel = ned_to_enu(err["position"]), ned_to_enu(err["velocity"])
+        att = np.degrees(ned_to_enu(err["attitude"]))
+        for j in range(3):
+            axes[0, j].plot(t, pos[:, j], label=label)
+            axes[1, j].plot(t, vel[:, j], label=label)
+            axes[2, j].plot(t, att[:, j], label=label)
+    for j, comp in enumerate(comps):
+        axes[0, j].set_ylabel(f"{comp} position error, m")
+        axes[1, j].set_ylabel(f"{comp} velocity error, m/s")
+        axes[2, j].set_ylabel(f"attitude error about {comp}, deg")
+        axes[2, j].set_xlabel("time since the initial state, s")
+    for ax in axes.ravel():
+        ax.grid(True, alpha=0.3)
+    axes[0, 0].legend(fontsize=8)
+    fig.suptitle(title)
+    save(plt, fig, png)
+
+
+def campaign_distributions(results, variants, png):
+    """Box plots of the normalised east/north/up end errors per variant (log scale)."""
+    plt, fig, axes = figure(1, 3, (14, 4.5))
+    for j, comp in enumerate(("east", "north", "up")):
+        data = [[r["variants"][v]["normalised_enu"][j] for r in results] for v in variants]
+        axes[0, j].boxplot(data, whis=(5, 95), showfliers=True)
+        axes[0, j].set_xticks(range(1, len(variants) + 1), variants)
+        axes[0, j].set_yscale("log")
+        axes[0, j].axhline(1.0, color="k", ls="--", lw=0.8)
+        axes[0, j].set_title(f"{comp} end error / FOG-IMU's ({len(results)} units)")
+        axes[0, j].grid(True, which="both", alpha=0.3)
+    save(plt, fig, png)
