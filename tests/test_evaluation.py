@@ -1,0 +1,125 @@
+"""Replay and the normalised table against analytic truth: a perfect MIMU leaves only the
+FOG-IMU's noise in the normalised errors; a lone accelerometer bias b gives 0.5 b t^2 along
+its axis; bad inputs are refused with the reason and leave nothing behind."""
+import json
+
+import numpy as np
+import pytest
+
+from mimunav import evaluation
+from mimunav.cli import main
+from mimunav.compensation import Calibration, CalibrationError
+from mimunav.flightlog import FlightLog, LogError, LogWriter
+from mimunav.profile import Profile
+from mimunav.sensors import MimuUnit
+from mimunav.sensors.mimu import NoiseModel
+from mimunav.simulation import simulate_flight
+
+T_HOLD = 60.0
+
+
+def perfect_unit():
+    unit = MimuUnit.draw(4)
+    unit.noise = NoiseModel(*(0.0,) * 6)
+    unit.thermal.thermistor_noise = unit.thermal.frequency_noise = 0.0
+    unit.adc_lsb = 1e-15
+    unit.coefficients.C[:] = 0.0        # no g-sensitivity: a lone bias stays a lone error
+    return unit
+
+
+@pytest.fixture(scope="module")
+def static_flight(tmp_path_factory):
+    """60 s parked, level, heading north, perfect MIMU at the default lever arm."""
+    prof = Profile.from_dict({"name": "parked", "start": {
+        "latitude_deg": 45.0, "longitude_deg": 10.0, "height_m": 100.0, "speed_m_s": 0.0,
+        "heading_deg": 0.0}, "segment": [{"kind": "hold", "duration_s": T_HOLD}]})
+    unit = perfect_unit()
+    from mimunav.simulation import MIMU_MOUNTING
+    from mimunav.sensors import Mounting
+    unit.mounting = Mounting.from_dict(MIMU_MOUNTING)
+    path = tmp_path_factory.mktemp("flight") / "parked.mcap"
+    simulate_flight(prof, path, seed=2, unit=unit, progress=False)
+    return str(path), unit
+
+
+def test_perfect_mimu_leaves_only_fog_noise(static_flight):
+    path, unit = static_flight
+    doc = evaluation.table(evaluation.Flight.load(path), {"perfect": unit.coefficients})
+    row, fog = doc["variants"]["perfect"], doc["fog"]
+    assert row["norm_m"] < 1e-3                       # the navigator's own error
+    assert fog["norm_m"] > 20 * row["norm_m"]         # FOG noise dominates
+    assert max(row["normalised_enu"]) < 0.1
+
+
+def test_accelerometer_bias_gives_half_b_t_squared(static_flight):
+    """A 1 mg bias on the north-pointing accelerometer, nothing else wrong."""
+    path, unit = static_flight
+    b = 1e-3 * 9.80665                                # 1 mg on the x (north) accelerometer
+    cal = Calibration.from_dict(unit.coefficients.as_dict())
+    cal.A0 = cal.A0 + np.array([b, 0.0, 0.0])
+    doc = evaluation.table(evaluation.Flight.load(path), {"biased": cal})
+    east, north, up = doc["variants"]["biased"]["enu_m"]
+    t = doc["duration_s"]
+    assert north == pytest.approx(0.5 * b * t**2, rel=2e-3)
+    # Coriolis on the growing north velocity b t: east = 2 W sin(lat) b t^3 / 6
+    assert east == pytest.approx(2 * 7.292115e-5 * np.sin(np.radians(45)) * b * t**3 / 6,
+                                 rel=0.02)
+    assert abs(up) < 1e-3 * north
+
+
+def test_gyro_bias_tilt_gives_g_eps_t_cubed_over_6(static_flight):
+    """A y-gyro bias e tilts the platform about east at e t; the north error is then
+    -g e t^3 / 6 (first term of the Schuler response)."""
+    path, unit = static_flight
+    eps = np.radians(10.0 / 3600)
+    cal = Calibration.from_dict(unit.coefficients.as_dict())
+    cal.W0 = cal.W0 + np.array([0.0, eps, 0.0])
+    doc = evaluation.table(evaluation.Flight.load(path), {"biased": cal})
+    north = doc["variants"]["biased"]["enu_m"][1]
+    g = 9.8066
+    assert north == pytest.approx(-g * eps * doc["duration_s"] ** 3 / 6, rel=1e-2)
+
+
+def test_error_budget_prices_each_group_on_this_flight(static_flight):
+    """Parked after a cold power-on: the warm-up drift makes temperature worth metres; the
+    unit has no g-sensitivity, so that group is worth exactly nothing."""
+    path, unit = static_flight
+    budget = evaluation.error_budget(evaluation.Flight.load(path), unit.coefficients)
+    rows = budget["variants"]
+    assert rows["full"]["norm_m"] < 1e-3
+    assert rows["without temperature"]["worth_m"] > 0.1
+    assert rows["without g-sensitivity"]["worth_m"] == 0.0
+    assert rows["without cross-coupling"]["worth_m"] > 0.1
+
+
+def test_bad_inputs_are_refused_and_leave_nothing(static_flight, tmp_path, capsys):
+    path, unit = static_flight
+    cal_path = tmp_path / "cal.json"
+    unit.coefficients.save(cal_path)
+    # a log without the FOG channel
+    no_fog = tmp_path / "nofog.mcap"
+    with FlightLog(path) as log, LogWriter(no_fog) as out:
+        for name, values in log.metadata().items():
+            out.metadata(name, values)
+        raw = log.read("/mimu/raw")
+        from mimunav.flightlog import schemas as S
+        out.write("/mimu/raw", S.RAW_MIMU, "mimu", raw["log_time"].astype(np.int64),
+                  **{k: raw[k] for k, _, _ in S.BODIES[S.RAW_MIMU]})
+    with pytest.raises(LogError, match="/fog/imu"):
+        evaluation.Flight.load(no_fog)
+    assert main(["replay", str(no_fog), "--cal", str(cal_path), "-o", str(tmp_path / "o")]) == 2
+    assert "no /fog/imu channel" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".tmp")]
+    # a calibration for another model
+    other = tmp_path / "other.json"
+    other.write_text(json.dumps(dict(unit.coefficients.as_dict(), model="rotation-s4")))
+    with pytest.raises(CalibrationError, match="rotation-s4"):
+        Calibration.load(other)
+    # an end point after the flight
+    flight = evaluation.Flight.load(path)
+    with pytest.raises(ValueError, match="after the end of the recorded flight"):
+        evaluation.table(flight, {"x": unit.coefficients}, end=T_HOLD + 5)
+    assert main(["table", path, "--cal", f"x={cal_path}", "--end", "1000",
+                 "-o", str(tmp_path / "tab")]) == 2
+    assert not list(tmp_path.glob("tab*"))
