@@ -49,9 +49,8 @@ import quaternion
 import scipy.linalg
 import scipy.optimize
 
-from . import earth
 from .compensation import Calibration, compensate, poly2, temperature_change
-from .flightlog import FlightLog, LogError
+from .flightlog import FlightLog
 from .sensors.mimu import DEG, G0, NoiseModel
 
 POSITION_NAMES = ["x up", "x down", "y up", "y down", "z up", "z down"]    # lab.SIX_POSITIONS
@@ -122,22 +121,27 @@ class LabRun:
         if bad:
             raise FitError(f"{path}: non-finite raw values in {', '.join(bad)}")
         ts = (state["log_time"].astype(np.int64) - epoch) / 1e9
+        return cls.from_arrays(str(path), meta["lab"], t, data, ts, state)
+
+    @classmethod
+    def from_arrays(cls, path, lab, t, data, ts, state):
+        """A run from its samples (t s, raw fields) and lab-state messages (stamps ts s and
+        a structured array or dict of LabState fields); `lab` is the `lab` metadata."""
         windows = []
-        for j in np.nonzero(state["steady"] == 1)[0]:
+        for j in np.nonzero(np.asarray(state["steady"]) == 1)[0]:
             end = ts[j + 1] if j + 1 < len(ts) else t[-1]
             k0 = int(np.searchsorted(t, ts[j], side="left")) + 1     # interval (t[k0-1], t[k0]]
             k1 = int(np.searchsorted(t, end + 1e-9, side="right"))
             if k1 - k0 < 2:
                 continue
-            s = state[j]
             t0 = t[k0 - 1]
-            windows.append(Window(int(s["point"]), int(s["position"]),
-                                  np.array(s["fixture_attitude_wxyz"]), np.array(s["position_m"]),
-                                  float(s["table_rate"]),
-                                  float(s["table_angle"]) + float(s["table_rate"]) * (t0 - ts[j]),
-                                  t0, t[k1 - 1], k0, k1, float(s["chamber_temperature"])))
-        lab = meta["lab"]
-        return cls(str(path), lab["procedure"], lab["site"], lab["equipment"], t, data,
+            rate = float(state["table_rate"][j])
+            windows.append(Window(int(state["point"][j]), int(state["position"][j]),
+                                  np.array(state["fixture_attitude_wxyz"][j]),
+                                  np.array(state["position_m"][j]), rate,
+                                  float(state["table_angle"][j]) + rate * (t0 - ts[j]),
+                                  t0, t[k1 - 1], k0, k1, float(state["chamber_temperature"][j])))
+        return cls(path, lab["procedure"], lab["site"], lab["equipment"], t, data,
                    windows, bool(lab.get("power_cycle", False)))
 
     def means(self, x):
@@ -467,7 +471,7 @@ def _check_levels(values, need, what, path):
                        f"{need} to separate its polynomial terms")
 
 
-def fit_gyro_triad(run, temp, order=3):
+def fit_gyro_triad(run, temp, order=3, propagate=True):
     """Rate table (paired positions) -> W0, W1 (, W2, W3), errors propagated from `temp`
     (the chamber fit, or None for no temperature model) and the lab settings."""
     pairs = _pairs(run)
@@ -486,10 +490,10 @@ def fit_gyro_triad(run, temp, order=3):
                       f"gyro {AXES[i]} (paired rate points, rad/s)", run.path)
     coef, covs, rms = solve()
     return _assemble(run, "gyro", order, coef, covs, rms, solve, cw, temp, "cw",
-                     tag=run.procedure)
+                     tag=run.procedure, propagate=propagate)
 
 
-def fit_accel_triad(run, temp, order=3):
+def fit_accel_triad(run, temp, order=3, propagate=True):
     """Centrifuge (or static positions) -> A0, A1 (, A2, A3)."""
     ct = _poly_matrix(temp, "ct") if temp else np.zeros((3, 3))
     rows = [(k,) for k in range(len(run.windows))]
@@ -506,10 +510,12 @@ def fit_accel_triad(run, temp, order=3):
         return _fit_triad_blocks(run, d, f, rows, "accel")
     coef, covs, rms = solve()
     return _assemble(run, "accel", order, coef, covs, rms, solve, ct, temp, "ct",
-                     tag=run.procedure)
+                     tag=run.procedure, propagate=propagate)
 
 
-def _assemble(run, sensor, order, coef, covs, rms, solve, poly, temp, key, tag):
+def _assemble(run, sensor, order, coef, covs, rms, solve, poly, temp, key, tag, propagate):
+    """Fitted values with their error sources; `propagate=False` keeps only each stage's
+    own GLS covariance and the turn-on term (fast, for campaigns that need no covariance)."""
     fitted = Fitted({})
     names = []
     for i in range(3):
@@ -519,7 +525,7 @@ def _assemble(run, sensor, order, coef, covs, rms, solve, poly, temp, key, tag):
             fitted.values[n] = float(val)
         _add_cov_sources(fitted, block, covs[i], f"{tag}-{sensor}{i}")
     base = np.concatenate(list(coef))
-    for label, perturb in setting_perturbations(run):
+    for label, perturb in setting_perturbations(run) if propagate else []:
         new = np.concatenate(list(solve(**perturb)[0]))
         for n, d in zip(names, new - base):
             _merge(fitted.errors, n, {f"{tag}-setting-{label}": d})
@@ -527,7 +533,7 @@ def _assemble(run, sensor, order, coef, covs, rms, solve, poly, temp, key, tag):
     p0 = "A0" if sensor == "accel" else "W0"
     for i in range(3):
         _merge(fitted.errors, f"{p0}[{i}]", {f"{tag}-turn-on-{sensor}{i}": TURN_ON[sensor]})
-    if temp:
+    if temp and propagate:
         parents = [f"{key}[{i}][{j}]" for i in range(3) for j in range(3)]
 
         def refit(delta):
@@ -541,7 +547,7 @@ def _assemble(run, sensor, order, coef, covs, rms, solve, poly, temp, key, tag):
 
 
 # ---- stage 3b: g-sensitivity (eqs. 8-10) ---------------------------------------------------
-def fit_g_sensitivity(run, temp, gyro):
+def fit_g_sensitivity(run, temp, gyro, propagate=True):
     """Centrifuge: R = w_known - w_model(V_w) (eq. 10) regressed on the applied specific force,
     R_i = C_i . f + b_i (b_i the turn-on nuisance). Errors from `temp`, `gyro`, settings."""
     cw = _poly_matrix(temp, "cw")
@@ -571,6 +577,9 @@ def fit_g_sensitivity(run, temp, gyro):
             fitted.values[n] = float(val)
         _add_cov_sources(fitted, block, covs[i], f"centrifuge-C{i}")
     base = c.ravel()
+    if not propagate:
+        fitted.rms, fitted.stage = dict(zip(AXES, rms)), "centrifuge C"
+        return fitted
     for label, perturb in setting_perturbations(run):
         new = solve(None, gyro.values, **perturb)[0].ravel()
         for n, d in zip(names, new - base):
@@ -604,25 +613,26 @@ def _runs_by_procedure(runs, need, method):
     return by
 
 
-def calibrate(paths, method, unit=""):
-    """Fit `method` to the lab logs `paths`; returns a `Calibration` with covariance."""
+def calibrate(runs, method, unit="", propagate=True):
+    """Fit `method` to lab runs (log paths or `LabRun`s); returns a `Calibration` with
+    covariance (`propagate=False`: each stage's own only, for speed)."""
     if method not in METHODS:
         raise FitError(f"unknown method {method!r}; one of {', '.join(METHODS)}")
-    runs = [LabRun.load(p) for p in paths]
+    runs = [r if isinstance(r, LabRun) else LabRun.load(r) for r in runs]
     if method == "entire":
         by = _runs_by_procedure(runs, ("thermal-chamber", "rate-table", "centrifuge"), method)
         temp, reference = fit_temperature(by["thermal-chamber"])
-        gyro = fit_gyro_triad(by["rate-table"], temp)
-        accel = fit_accel_triad(by["centrifuge"], temp)
-        g_sens = fit_g_sensitivity(by["centrifuge"], temp, gyro)
+        gyro = fit_gyro_triad(by["rate-table"], temp, propagate=propagate)
+        accel = fit_accel_triad(by["centrifuge"], temp, propagate=propagate)
+        g_sens = fit_g_sensitivity(by["centrifuge"], temp, gyro, propagate=propagate)
         parts = (temp, gyro, accel, g_sens)
         cal = Calibration(model="entire-63", unit=unit,
                           procedure="thermal-chamber+rate-table+centrifuge")
         cal.extra["reference"] = reference
     elif method == "traditional":
         by = _runs_by_procedure(runs, ("multi-position", "single-axis-rate"), method)
-        accel = fit_accel_triad(by["multi-position"], None, order=1)
-        gyro = fit_gyro_triad(by["single-axis-rate"], None, order=1)
+        accel = fit_accel_triad(by["multi-position"], None, order=1, propagate=propagate)
+        gyro = fit_gyro_triad(by["single-axis-rate"], None, order=1, propagate=propagate)
         parts = (accel, gyro)
         cal = Calibration(model="linear", unit=unit, procedure="multi-position+single-axis-rate")
     elif method == "twelve-position":

@@ -225,33 +225,31 @@ def site_gravity():
 
 @dataclass
 class _Segment:
-    """One power-on's samples: times, ideal increments, bay temperature."""
+    """One power-on's samples: times (s), ideal increments (rad, m/s; sensor axes), bay
+    temperature (degC); lists while being built, arrays once done."""
     t: list = field(default_factory=list)
     dtheta: list = field(default_factory=list)
     dv: list = field(default_factory=list)
     env: list = field(default_factory=list)
 
 
-def run(plan_, unit, out, seed, force=False, progress=True, equipment=None, hidden=None):
-    """Simulate `plan_` on `unit` (a `MimuUnit`) and write the log `out` (+ `out` with
-    .truth.json beside it: the unit and the drawn setting errors). `equipment` replaces
-    the setting-error specification `EQUIPMENT` (1 sigma); `hidden` is passed to
-    `MimuUnit.simulate` (physics the 63-coefficient model lacks). Returns (log, truth)."""
-    truth_path = (str(out)[:-5] if str(out).endswith(".mcap") else str(out)) + ".truth.json"
-    for path in (out, truth_path):
-        if os.path.exists(path) and not force:
-            raise FileExistsError(f"{path} exists; use --force to replace it")
-    s_set, s_noise = np.random.SeedSequence(seed).spawn(2)
-    rng_set = np.random.default_rng(s_set)
+def draw_setting_errors(plan_, seed, equipment=None):
+    """Setting errors of one run (drawn from `equipment`, default `EQUIPMENT`, 1 sigma)."""
+    rng = np.random.default_rng(np.random.SeedSequence(seed).spawn(2)[0])
     eq = EQUIPMENT if equipment is None else equipment
-    errors = {"table_tilt_rad": rng_set.normal(0, eq["table_tilt_rad"], 2),
-              "rate_rel": rng_set.normal(0, eq[plan_.rate_rel_key]),
-              "fixture_rad": rng_set.normal(0, eq["fixture_rad"], (len(plan_.positions), 3)),
-              "radius_m": rng_set.normal(0, eq["radius_m"], len(plan_.positions)),
-              "axis_offset_m": rng_set.normal(0, eq["axis_offset_m"],
-                                              (len(plan_.positions), 2))}
+    n_pos = len(plan_.positions)
+    return {"table_tilt_rad": rng.normal(0, eq["table_tilt_rad"], 2),
+            "rate_rel": rng.normal(0, eq[plan_.rate_rel_key]),
+            "fixture_rad": rng.normal(0, eq["fixture_rad"], (n_pos, 3)),
+            "radius_m": rng.normal(0, eq["radius_m"], n_pos),
+            "axis_offset_m": rng.normal(0, eq["axis_offset_m"], (n_pos, 2))}
+
+
+def lab_motion(plan_, errors, progress=False):
+    """The true lab motion of a plan with its setting errors: per power-on the sample times,
+    ideal sensor-axis increments and bay (chamber/room air) temperature, and the lab-state
+    messages [(t s, fields)]. Unit-independent, so many units can share it."""
     dt = 1.0 / plan_.rate_hz
-    lab_unit = replace(unit, rate_hz=plan_.rate_hz)
     groups = []                      # consecutive points sharing a position
     for k, p in enumerate(plan_.points):
         if groups and groups[-1][0] == p.position and not plan_.power_cycle:
@@ -259,8 +257,8 @@ def run(plan_, unit, out, seed, force=False, progress=True, equipment=None, hidd
         else:
             groups.append((p.position, [k]))
     segments, states, t_now, air = [], [], 0.0, plan_.points[0].chamber_c
-    bar = tqdm(total=len(groups) + 2, desc=f"lab {plan_.procedure}", disable=not progress,
-               unit="step")
+    bar = tqdm(total=len(groups), desc=f"lab {plan_.procedure}", disable=not progress,
+               unit="position")
     for g, (pos, idx) in enumerate(groups):
         if plan_.power_cycle and g:
             t_now += plan_.cool_down_s
@@ -317,30 +315,64 @@ def run(plan_, unit, out, seed, force=False, progress=True, equipment=None, hidd
                                            table_angle=float(motion.angle(stamp)))))
         t_now = t_pt
         bar.update()
-    raws = []
-    rng_noise = np.random.default_rng(s_noise)
-    for seg in segments:
-        raws.append(lab_unit.simulate(np.concatenate(seg.t), np.concatenate(seg.dtheta),
-                                      np.concatenate(seg.dv), np.concatenate(seg.env),
-                                      rng_noise, hidden=hidden, warm_up_s=plan_.warm_up_s))
+    bar.close()
+    return [_Segment(*(np.concatenate(x) for x in (s.t, s.dtheta, s.dv, s.env)))
+            for s in segments], states
+
+
+def record(plan_, unit, segments, seed, hidden=None):
+    """The unit's raw outputs over the lab motion (one power-on per segment), noise drawn
+    from `seed`: the `/mimu/raw` fields plus truth extras (`MimuUnit.simulate`)."""
+    lab_unit = replace(unit, rate_hz=plan_.rate_hz)
+    rng = np.random.default_rng(np.random.SeedSequence(seed).spawn(2)[1])
+    raws = [lab_unit.simulate(s.t, s.dtheta, s.dv, s.env, rng, hidden=hidden,
+                              warm_up_s=plan_.warm_up_s) for s in segments]
     raw = {k: np.concatenate([r[k] for r in raws]) for k in raws[0]}
     raw["sample_index"] = np.arange(len(raw["t"]), dtype=np.uint64)
-    bar.update()
+    return raw
+
+
+def run(plan_, unit, out, seed, force=False, progress=True, equipment=None, hidden=None):
+    """Simulate `plan_` on `unit` (a `MimuUnit`) and write the log `out` (+ `out` with
+    .truth.json beside it: the unit and the drawn setting errors). `equipment` replaces
+    the setting-error specification `EQUIPMENT` (1 sigma); `hidden` is passed to
+    `MimuUnit.simulate` (physics the 63-coefficient model lacks). Returns (log, truth)."""
+    truth_path = (str(out)[:-5] if str(out).endswith(".mcap") else str(out)) + ".truth.json"
+    for path in (out, truth_path):
+        if os.path.exists(path) and not force:
+            raise FileExistsError(f"{path} exists; use --force to replace it")
+    eq = EQUIPMENT if equipment is None else equipment
+    errors = draw_setting_errors(plan_, seed, eq)
+    segments, states = lab_motion(plan_, errors, progress)
+    raw = record(plan_, unit, segments, seed, hidden)
     _write(out, plan_, raw, states, eq, force)
     write_atomic(truth_path, json.dumps({
         "format": "mimunav-lab-truth/1", "log": str(out), "seed": seed,
         "procedure": plan_.procedure, "mimu": unit.as_dict(),
         "setting_errors": {k: np.asarray(v).tolist() for k, v in errors.items()},
         "saturated_samples": int(raw["saturated"].sum())}, indent=1) + "\n", force=force)
-    bar.update()
-    bar.close()
     return str(out), truth_path
+
+
+def lab_metadata(plan_, equipment=None):
+    """The `lab` metadata record of a run (values before JSON encoding)."""
+    eq = EQUIPMENT if equipment is None else equipment
+    return {"procedure": plan_.procedure,
+            "site": dict(SITE, gravity_m_s2=site_gravity(), earth_rate_rad_s=earth.OMEGA),
+            "equipment": {**eq, "rate_rel": eq[plan_.rate_rel_key]},
+            "room_temperature_c": ROOM_C, "warm_up_s": plan_.warm_up_s,
+            "power_cycle": plan_.power_cycle}
+
+
+def state_arrays(states):
+    """Lab-state messages [(t, fields)] as (stamps s, {field: array})."""
+    return (np.array([s[0] for s in states]),
+            {name: np.array([s[1][name] for s in states]) for name, _, _ in S.BODIES[S.LAB_STATE]})
 
 
 def _write(out, plan_, raw, states, equipment, force):
     epoch = epoch_ns(DEFAULT_EPOCH)
     stamp = lambda t: epoch + np.round(np.asarray(t) * 1e9).astype(np.int64)   # noqa: E731
-    g = site_gravity()
     q0 = quaternion.as_float_array(quaternion.from_float_array(plan_.positions[0][0]))
     with LogWriter(out, force=force) as log:
         log.metadata("flight", {
@@ -355,16 +387,10 @@ def _write(out, plan_, raw, states, equipment, force):
             "sample_rate_hz": str(plan_.rate_hz),
             "mounting": {"attitude_wxyz": q0.tolist(), "lever_arm_m": [0.0, 0.0, 0.0]},
             "mounting_note": "the fixture position changes; see /lab/state"})
-        log.metadata("lab", {
-            "procedure": plan_.procedure,
-            "site": dict(SITE, gravity_m_s2=g, earth_rate_rad_s=earth.OMEGA),
-            "equipment": {**equipment, "rate_rel": equipment[plan_.rate_rel_key]},
-            "room_temperature_c": ROOM_C, "warm_up_s": plan_.warm_up_s,
-            "power_cycle": plan_.power_cycle})
+        log.metadata("lab", lab_metadata(plan_, equipment))
         log.write("/mimu/raw", S.RAW_MIMU, "mimu", stamp(raw["t"]),
                   sample_index=raw["sample_index"], gyro_volts=raw["gyro_volts"],
                   accel_volts=raw["accel_volts"], accel_temperature=raw["accel_temperature"],
                   gyro_frequency=raw["gyro_frequency"])
-        fields = {name: np.array([s[1][name] for s in states])
-                  for name, _, _ in S.BODIES[S.LAB_STATE]}
-        log.write("/lab/state", S.LAB_STATE, "lab", stamp([s[0] for s in states]), **fields)
+        ts, fields = state_arrays(states)
+        log.write("/lab/state", S.LAB_STATE, "lab", stamp(ts), **fields)

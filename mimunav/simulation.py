@@ -13,7 +13,7 @@ equipment bay that lags the ISA air along the flown heights (`sensors.thermal`).
 import json
 import math
 import os
-from datetime import datetime, timezone
+from datetime import datetime
 
 import numpy as np
 import quaternion

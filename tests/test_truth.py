@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from mimunav import attitude, earth, truth
-from mimunav.profile import G0, Profile
+from mimunav.profile import Profile
 from motions import Coning, GreatCircle
 
 
