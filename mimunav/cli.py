@@ -230,6 +230,23 @@ def _budget(args):
     return 0
 
 
+def _reproduce(args):
+    """The main job: seed S1 Table 3 for a drawn unit, budget and Monte Carlo."""
+    from .reports.table3 import reproduce
+    md = reproduce(args.output, seed=args.seed, mc_units=args.units, force=True)
+    print(f"wrote {md}")
+    return 0
+
+
+def _campaign(args):
+    """Monte Carlo over units: the distribution of every normalised end error."""
+    from . import campaign
+    records = campaign.run_campaign(args.profile, args.units, args.seed, args.output,
+                                    workers=args.workers, scheduler=args.scheduler)
+    print(campaign.summary_markdown(campaign.summary(records), len(records)), end="")
+    return 0
+
+
 def _report(args):
     """Write a generated report into a folder."""
     from .reports import calibration
@@ -326,6 +343,22 @@ def build_parser():
     _flight_arguments(p)
     p.add_argument("--cal", required=True, help="calibration file")
     p.set_defaults(func=_budget)
+    p = sub.add_parser("reproduce", help="the main job: draw a unit, run the traditional and "
+                       "entire lab, fly the high-dynamic profile, write reports/table3.md")
+    p.add_argument("-o", "--output", default="reports", help="folder (default: reports)")
+    p.add_argument("--seed", type=int, default=1, help="draws the unit, lab and noise")
+    p.add_argument("--units", type=int, default=16, help="Monte Carlo units")
+    p.set_defaults(func=_reproduce)
+    p = sub.add_parser("campaign", help="Monte Carlo: many units through the same lab and "
+                       "flight; results stream to a JSON-lines file and resume")
+    p.add_argument("profile", nargs="?", default=str(FLIGHTS / "high-dynamic.toml"),
+                   help="flight profile TOML")
+    p.add_argument("-o", "--output", required=True, help="results file (.jsonl), resumed")
+    p.add_argument("--units", type=int, default=200)
+    p.add_argument("--seed", type=int, default=1)
+    p.add_argument("--workers", type=int, default=2, help="local processes")
+    p.add_argument("--scheduler", help="Dask scheduler address (runs there instead)")
+    p.set_defaults(func=_campaign)
     p = sub.add_parser("report", help="generate a report (calibration: the entire lab on "
                        "many units, z-scores of every coefficient, held-out check)")
     p.add_argument("kind", choices=("calibration",))

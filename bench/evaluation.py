@@ -1,0 +1,82 @@
+"""Benchmarks of evaluation: `mimunav replay` of a 10-minute 1 kHz log (MIMU + FOG) end to
+end, and a Monte Carlo campaign of many units on a 100 s 1 kHz flight.
+
+    python bench/evaluation.py [--units 200] [--json out.json]
+
+Replay: the high-dynamic profile's segments repeated to 600 s, simulated once, then the CLI
+command timed in a fresh process (reading, compensation, both navigations, comparison,
+nav.mcap, summary and plots). Campaign: `mimunav.campaign.run_campaign` on 2 local
+processes, each unit drawn, calibrated `entire` and `traditional` in the lab (in memory,
+no covariance propagation) and flown.
+"""
+import argparse
+import json
+import os
+import platform
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+from mimunav import campaign                      # noqa: E402
+from mimunav.profile import Profile               # noqa: E402
+from mimunav.simulation import simulate_flight    # noqa: E402
+
+
+def profile_doc(duration, name):
+    """High-dynamic segments repeated, then a coast, to `duration` s."""
+    base = Profile.load(ROOT / "flights" / "high-dynamic.toml")
+    doc = {"name": name, "description": f"high-dynamic segments to {duration} s",
+           "start": {"latitude_deg": 40, "longitude_deg": 100, "height_m": 3000,
+                     "speed_m_s": 250, "heading_deg": 30, "ramp_s": 0.2}, "segment": []}
+    while Profile.from_dict(dict(doc, segment=doc["segment"] + base.segments)).duration \
+            < duration - 10:
+        doc["segment"] += base.segments
+    total = Profile.from_dict(doc).duration if doc["segment"] else 0.0
+    doc["segment"].append({"kind": "coast", "duration_s": duration - total})
+    return doc
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--units", type=int, default=200)
+    ap.add_argument("--json")
+    args = ap.parse_args()
+    res = {"machine": f"{platform.machine()} {os.cpu_count()} cores, {platform.python_version()}"}
+    with tempfile.TemporaryDirectory() as tmp:
+        log, truth = simulate_flight(Profile.from_dict(profile_doc(600.0, "ten-minutes")),
+                                     os.path.join(tmp, "ten.mcap"), 1, progress=False)
+        cal = os.path.join(tmp, "cal.json")
+        from mimunav.compensation import Calibration
+        Calibration.from_dict(json.load(open(truth))["mimu"]["coefficients"]).save(cal)
+        t0 = time.perf_counter()
+        subprocess.run([sys.executable, "-m", "mimunav", "replay", log, "--cal", cal, "-o",
+                        os.path.join(tmp, "out")], check=True, capture_output=True)
+        res["replay_600s_1kHz_s"] = time.perf_counter() - t0
+        hundred = os.path.join(tmp, "hundred.toml")
+        doc = profile_doc(100.0, "hundred-seconds")
+        Path(hundred).write_text(_toml(doc))
+        t0 = time.perf_counter()
+        records = campaign.run_campaign(hundred, args.units, 1, os.path.join(tmp, "c.jsonl"))
+        res["campaign_units"] = len(records)
+        res["campaign_100s_1kHz_s"] = time.perf_counter() - t0
+    for key, value in res.items():
+        print(f"{key:24s} {value:.2f}" if isinstance(value, float) else f"{key:24s} {value}")
+    if args.json:
+        Path(args.json).write_text(json.dumps(res, indent=2))
+
+
+def _toml(doc):
+    lines = [f'name = "{doc["name"]}"', f'description = "{doc["description"]}"', "[start]"]
+    lines += [f"{k} = {v}" for k, v in doc["start"].items()]
+    for seg in doc["segment"]:
+        lines.append("[[segment]]")
+        lines += [f'{k} = "{v}"' if isinstance(v, str) else f"{k} = {v}" for k, v in seg.items()]
+    return "\n".join(lines) + "\n"
+
+
+if __name__ == "__main__":
+    main()

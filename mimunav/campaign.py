@@ -1,0 +1,162 @@
+"""Monte Carlo campaign: many drawn units (and noise realisations) through the same lab
+procedures and the same flight, each calibrated `entire` and `traditional` and replayed;
+the distribution of every normalised end-point error per variant.
+
+Reproducible from one seed: unit i is drawn from SeedSequence(seed).spawn(n)[i]; its lab
+runs and its flight take their noise from the same sequence; the lab's setting errors are
+the lab's (drawn once from the seed, shared by every unit, as one lab session would be).
+Results stream to a JSON-lines file, one unit per line as it finishes, so an interrupted
+campaign resumes where it stopped. Units run on local processes, or on a Dask cluster when
+given a scheduler address (`dask[distributed]`, optional).
+"""
+import json
+import os
+import tempfile
+from pathlib import Path
+
+import numpy as np
+from tqdm import tqdm
+
+from . import calibration, evaluation, lab
+from .profile import Profile
+from .sensors import MimuUnit, Mounting
+from .simulation import MIMU_MOUNTING, simulate_flight
+
+VARIANTS = {"traditional": ("multi-position", "single-axis-rate"),
+            "entire": ("thermal-chamber", "rate-table", "centrifuge")}
+_MOTIONS = {}                        # per process: (procedure, lab seed) -> lab motion
+
+
+def _lab_motion(procedure, lab_seed):
+    key = (procedure, lab_seed)
+    if key not in _MOTIONS:
+        plan = lab.plan(procedure)
+        _MOTIONS[key] = lab_motion = lab.lab_motion(plan, lab.draw_setting_errors(plan, lab_seed))
+        return lab_motion
+    return _MOTIONS[key]
+
+
+def unit_seed(seed, index):
+    return int(np.random.SeedSequence(seed).spawn(index + 1)[index].generate_state(1)[0])
+
+
+def run_unit(profile_path, seed, index):
+    """One unit through both calibrations and the flight; a JSON-ready dict."""
+    useed = unit_seed(seed, index)
+    unit = MimuUnit.draw(useed, name=f"MIMU-{index:04d}")
+    unit.mounting = Mounting.from_dict(MIMU_MOUNTING)
+    cals = {}
+    for variant, procedures in VARIANTS.items():
+        runs = []
+        for k, proc in enumerate(procedures):
+            plan = lab.plan(proc)
+            segments, states = _lab_motion(proc, seed)
+            raw = lab.record(plan, unit, segments, useed + k + 1)
+            ts, fields = lab.state_arrays(states)
+            runs.append(calibration.LabRun.from_arrays(
+                f"{proc} (unit {index})", lab.lab_metadata(plan), raw["t"],
+                {k_: raw[k_] for k_ in ("accel_volts", "gyro_volts", "accel_temperature",
+                                        "gyro_frequency")}, ts, fields))
+        cals[variant] = calibration.calibrate(runs, variant, unit.name, propagate=False)
+    profile = Profile.load(profile_path)
+    with tempfile.TemporaryDirectory() as tmp:
+        log, _ = simulate_flight(profile, os.path.join(tmp, "flight.mcap"), useed, unit=unit,
+                                 progress=False)
+        doc = evaluation.table(evaluation.Flight.load(log), cals)
+    doc.pop("log")
+    return {"index": index, "unit_seed": useed, "campaign": _identity(profile_path, seed), **doc}
+
+
+def _identity(profile_path, seed):
+    return {"seed": seed, "profile": Path(profile_path).name}
+
+
+def done_indices(path):
+    """Indices already in a results file (a torn last line from an interrupted write is
+    ignored and rewritten)."""
+    if not os.path.exists(path):
+        return {}
+    out = {}
+    with open(path) as fh:
+        for line in fh:
+            try:
+                rec = json.loads(line)
+            except json.JSONDecodeError:
+                continue
+            out[rec["index"]] = rec
+    return out
+
+
+def run_campaign(profile_path, n_units, seed, results, workers=2, scheduler=None,
+                 progress=True):
+    """Run (or resume) a campaign into the JSON-lines file `results`; returns the records
+    of units 0..n_units-1 in index order."""
+    done = done_indices(results)
+    wrong = [i for i, r in done.items() if r.get("campaign") != _identity(profile_path, seed)]
+    if wrong:
+        raise ValueError(f"{results} holds units of another campaign ({done[wrong[0]].get('campaign')}"
+                         f", this one is {_identity(profile_path, seed)}); use another file")
+    todo = [i for i in range(n_units) if i not in done]
+    with open(results, "w") as fh:                   # rewrite intact lines, drop a torn one
+        for rec in done.values():
+            fh.write(json.dumps(rec) + "\n")
+    bar = tqdm(total=n_units, initial=n_units - len(todo), desc="campaign units",
+               disable=not progress)
+    with open(results, "a") as fh:
+        for rec in _execute(profile_path, seed, todo, workers, scheduler):
+            fh.write(json.dumps(rec) + "\n")
+            fh.flush()
+            done[rec["index"]] = rec
+            bar.update()
+    bar.close()
+    return [done[i] for i in range(n_units)]
+
+
+def _execute(profile_path, seed, indices, workers, scheduler):
+    """Yield unit records as they finish, on local processes or a Dask cluster."""
+    if not indices:
+        return
+    profile_path = str(Path(profile_path).resolve())
+    if scheduler:
+        from dask.distributed import Client, as_completed
+        with Client(scheduler) as client:
+            futures = client.map(run_unit, [profile_path] * len(indices), [seed] * len(indices),
+                                 indices, pure=False)
+            for future in as_completed(futures):
+                yield future.result()
+        return
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+    with ProcessPoolExecutor(workers) as pool:
+        futures = [pool.submit(run_unit, profile_path, seed, i) for i in indices]
+        for future in as_completed(futures):
+            yield future.result()
+
+
+def summary(records, variants=tuple(VARIANTS)):
+    """Median and 5-95 % of every normalised (and absolute) end error per variant."""
+    out = {}
+    for v in variants:
+        norm = np.array([r["variants"][v]["normalised_enu"] for r in records])
+        absolute = np.abs(np.array([r["variants"][v]["enu_m"] for r in records]))
+        out[v] = {"median": np.median(norm, axis=0).tolist(),
+                  "p05": np.percentile(norm, 5, axis=0).tolist(),
+                  "p95": np.percentile(norm, 95, axis=0).tolist(),
+                  "abs_median_m": np.median(absolute, axis=0).tolist()}
+    fog = np.abs(np.array([r["fog"]["enu_m"] for r in records]))
+    out["FOG-IMU"] = {"abs_median_m": np.median(fog, axis=0).tolist()}
+    return out
+
+
+def summary_markdown(stats, n):
+    lines = [f"Monte Carlo over {n} units: normalised end error (|MIMU| / |FOG| per axis), "
+             "median [5 %, 95 %].", "",
+             "| variant | east | north | up | median abs error E/N/U, m |", "|---|---|---|---|---|"]
+    for v, s in stats.items():
+        if v == "FOG-IMU":
+            continue
+        cells = [f"{s['median'][j]:.3g} [{s['p05'][j]:.3g}, {s['p95'][j]:.3g}]" for j in range(3)]
+        lines.append(f"| {v} | " + " | ".join(cells) + " | " +
+                     ", ".join(f"{x:.3g}" for x in s["abs_median_m"]) + " |")
+    lines.append("| FOG-IMU | 1 | 1 | 1 | " +
+                 ", ".join(f"{x:.3g}" for x in stats["FOG-IMU"]["abs_median_m"]) + " |")
+    return "\n".join(lines) + "\n"
