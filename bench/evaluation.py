@@ -22,7 +22,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 from mimunav import campaign                      # noqa: E402
-from mimunav.profile import Profile               # noqa: E402
+from mimunav.profile import Profile, dumps        # noqa: E402
 from mimunav.simulation import simulate_flight    # noqa: E402
 
 
@@ -58,7 +58,7 @@ def main():
         res["replay_600s_1kHz_s"] = time.perf_counter() - t0
         hundred = os.path.join(tmp, "hundred.toml")
         doc = profile_doc(100.0, "hundred-seconds")
-        Path(hundred).write_text(_toml(doc))
+        Path(hundred).write_text(dumps(doc))
         t0 = time.perf_counter()
         records = campaign.run_campaign(hundred, args.units, 1, os.path.join(tmp, "c.jsonl"))
         res["campaign_units"] = len(records)
@@ -67,15 +67,6 @@ def main():
         print(f"{key:24s} {value:.2f}" if isinstance(value, float) else f"{key:24s} {value}")
     if args.json:
         Path(args.json).write_text(json.dumps(res, indent=2))
-
-
-def _toml(doc):
-    lines = [f'name = "{doc["name"]}"', f'description = "{doc["description"]}"', "[start]"]
-    lines += [f"{k} = {v}" for k, v in doc["start"].items()]
-    for seg in doc["segment"]:
-        lines.append("[[segment]]")
-        lines += [f'{k} = "{v}"' if isinstance(v, str) else f"{k} = {v}" for k, v in seg.items()]
-    return "\n".join(lines) + "\n"
 
 
 if __name__ == "__main__":

@@ -41,6 +41,17 @@ SPEED, PATH, HEADING, BANK = range(4)
 _SMOOTHERSTEP = np.array([0, 0, 0, 10, -15, 6], dtype=float)   # ascending powers of x
 
 
+def dumps(doc):
+    """A profile document (the dict `Profile.from_dict` takes) as TOML text."""
+    lines = [f'name = "{doc["name"]}"', f'description = "{doc.get("description", "")}"',
+             "[start]"]
+    lines += [f"{k} = {v}" for k, v in doc["start"].items()]
+    for seg in doc["segment"]:
+        lines.append("[[segment]]")
+        lines += [f'{k} = "{v}"' if isinstance(v, str) else f"{k} = {v}" for k, v in seg.items()]
+    return "\n".join(lines) + "\n"
+
+
 class ProfileError(ValueError):
     """A flight profile that cannot be flown as written."""
 

@@ -10,7 +10,7 @@ from mimunav import truth
 from mimunav.cli import main
 from mimunav.compensation import Calibration, compensate
 from mimunav.flightlog import FlightLog
-from mimunav.profile import Profile
+from mimunav.profile import Profile, dumps
 from mimunav.sensors import Mounting
 from mimunav.simulation import MIMU_MOUNTING, epoch_ns
 
@@ -27,19 +27,12 @@ PROFILE = {"name": "short", "description": "a short test flight",
 def simulated(tmp_path_factory):
     folder = tmp_path_factory.mktemp("sim")
     prof = folder / "short.toml"
-    prof.write_text(_toml(PROFILE))
+    prof.write_text(dumps(PROFILE))
     log = folder / "short.mcap"
     assert main(["simulate", str(prof), "-o", str(log), "--seed", "5"]) == 0
     return prof, log, folder / "short.truth.json"
 
 
-def _toml(doc):
-    lines = [f'name = "{doc["name"]}"', f'description = "{doc["description"]}"', "[start]"]
-    lines += [f"{k} = {v}" for k, v in doc["start"].items()]
-    for seg in doc["segment"]:
-        lines.append("[[segment]]")
-        lines += [f'{k} = "{v}"' if isinstance(v, str) else f"{k} = {v}" for k, v in seg.items()]
-    return "\n".join(lines) + "\n"
 
 
 def test_log_follows_the_contract_and_keeps_the_truth_outside(simulated):
