@@ -5,26 +5,27 @@ the distribution of every normalised end-point error per variant.
 Reproducible from one seed: unit i is drawn from SeedSequence(seed).spawn(n)[i]; its lab
 runs and its flight take their noise from the same sequence; the lab's setting errors are
 the lab's (drawn once from the seed, shared by every unit, as one lab session would be).
-Results stream to a JSON-lines file, one unit per line as it finishes, so an interrupted
+The flight is simulated in memory (`simulation.flight_motion` once per process, then each
+unit's outputs) exactly as `mimunav simulate` would write it. Results stream to a JSON-lines file, one unit per line as it finishes, so an interrupted
 campaign resumes where it stopped. Units run on local processes, or on a Dask cluster when
 given a scheduler address (`dask[distributed]`, optional).
 """
 import json
 import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 from tqdm import tqdm
 
-from . import calibration, evaluation, lab
+from . import calibration, evaluation, lab, simulation
 from .profile import Profile
 from .sensors import MimuUnit, Mounting
-from .simulation import MIMU_MOUNTING, simulate_flight
+from .simulation import MIMU_MOUNTING
 
 VARIANTS = {"traditional": ("multi-position", "single-axis-rate"),
             "entire": ("thermal-chamber", "rate-table", "centrifuge")}
 _MOTIONS = {}                        # per process: (procedure, lab seed) -> lab motion
+_FLIGHTS = {}                        # per process: profile path -> simulation.FlightMotion
 
 
 def _lab_motion(procedure, lab_seed):
@@ -58,11 +59,14 @@ def run_unit(profile_path, seed, index):
                 {k_: raw[k_] for k_ in ("accel_volts", "gyro_volts", "accel_temperature",
                                         "gyro_frequency")}, ts, fields))
         cals[variant] = calibration.calibrate(runs, variant, unit.name, propagate=False)
-    profile = Profile.load(profile_path)
-    with tempfile.TemporaryDirectory() as tmp:
-        log, _ = simulate_flight(profile, os.path.join(tmp, "flight.mcap"), useed, unit=unit,
-                                 progress=False)
-        doc = evaluation.table(evaluation.Flight.load(log), cals)
+    unit, fog, rng_mimu, rng_fog = simulation.flight_units(useed, unit)
+    if profile_path not in _FLIGHTS:
+        _FLIGHTS[profile_path] = simulation.flight_motion(
+            Profile.load(profile_path), unit.mounting, unit.rate_hz, fog.mounting, fog.rate_hz,
+            100.0)
+    fm = _FLIGHTS[profile_path]
+    raw, fog_out = simulation.record_flight(fm, unit, fog, rng_mimu, rng_fog)
+    doc = evaluation.table(evaluation.Flight.from_simulation(fm, unit, fog, raw, fog_out), cals)
     doc.pop("log")
     return {"index": index, "unit_seed": useed, "campaign": _identity(profile_path, seed), **doc}
 

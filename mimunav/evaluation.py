@@ -81,6 +81,22 @@ class Flight:
                    np.ascontiguousarray(fog["linear_acceleration"], float), mount("fog"),
                    truth_traj)
 
+    @classmethod
+    def from_simulation(cls, fm, unit, fog, raw, fog_out):
+        """The same Flight a log of this simulation gives (`simulation.simulate_flight`),
+        built in memory: for campaigns that need no files."""
+        tr, k = fm.run.trajectory, fm.k_truth
+        start = tr.state(0)
+        initial = {"t": 0.0, "lat": start["lat"], "lon": start["lon"], "h": start["h"],
+                   "v_ned": start["v_ned"], "q_nb": start["q_nb"]}
+        truth = Trajectory(fm.t_base[k], tr.lat[k], tr.lon[k], tr.h[k], tr.v_ned[k], tr.q_nb[k])
+        return cls("(in memory)", fm.profile.name, 0, initial, fm.mimu[0],
+                   {key: raw[key] for key in ("accel_volts", "gyro_volts", "accel_temperature",
+                                              "gyro_frequency")},
+                   unit.mounting, {"accel_m_s2": unit.range_accel, "gyro_rad_s": unit.range_gyro},
+                   fm.fog[0], fog_out["angular_velocity"], fog_out["linear_acceleration"],
+                   fog.mounting, truth)
+
     @property
     def end(self):
         """Last instant every navigated channel (and the truth) covers, s."""

@@ -13,6 +13,7 @@ equipment bay that lags the ISA air along the flown heights (`sensors.thermal`).
 import json
 import math
 import os
+from dataclasses import dataclass
 from datetime import datetime
 
 import numpy as np
@@ -39,33 +40,33 @@ def epoch_ns(text):
     return int(datetime.fromisoformat(text.replace("Z", "+00:00")).timestamp()) * 10**9
 
 
-def simulate_flight(profile, out, seed, unit=None, fog_rate=1000.0, truth_rate=100.0,
-                    force=False, progress=True):
-    """Simulate `profile` into the log `out` (.mcap) and `out` with .truth.json beside it.
-    Returns (log path, truth path)."""
-    truth_path = (str(out)[:-5] if str(out).endswith(".mcap") else str(out)) + ".truth.json"
-    for path in (out, truth_path):
-        if os.path.exists(path) and not force:
-            raise FileExistsError(f"{path} exists; use --force to replace it")
-    ss = np.random.SeedSequence(seed)
-    s_unit, s_fog, s_mimu_noise, s_fog_noise = ss.spawn(4)
-    if unit is None:        # a drawn unit sits at the default mounting; a given one keeps its own
-        unit = MimuUnit.draw(int(s_unit.generate_state(1)[0]), name=f"MIMU-{seed:04d}")
-        unit.mounting = Mounting.from_dict(MIMU_MOUNTING)
-    fog = FogUnit.draw(int(s_fog.generate_state(1)[0]), rate_hz=fog_rate, name=f"FOG-{seed:04d}")
-    fog.mounting = Mounting.from_dict(FOG_MOUNTING)
-    rates = [unit.rate_hz, fog.rate_hz, truth_rate]
+@dataclass
+class FlightMotion:
+    """The unit-independent part of a simulated flight: the truth at the base rate, the
+    ideal increments of each IMU at its mounting and rate (sample k covers (t[k-1], t[k]];
+    the sample at 0 repeats the first interval), the MIMU bay temperature (degC) and the
+    indices of the truth samples written to /truth/state."""
+    profile: object
+    run: object
+    t_base: np.ndarray
+    mimu: tuple                 # (t s, dtheta rad, dv m/s), sensor axes
+    fog: tuple
+    env: np.ndarray
+    k_truth: np.ndarray
+
+
+def flight_motion(profile, mimu_mounting, mimu_rate, fog_mounting, fog_rate, truth_rate):
+    """Truth and ideal increments of `profile` for IMUs at the given mountings and rates."""
+    rates = [mimu_rate, fog_rate, truth_rate]
     if any(r != int(r) for r in rates):
         raise ValueError(f"sample rates must be whole numbers of Hz, got {rates}")
     base = math.lcm(*(int(r) for r in rates[:2]))
     if base > MAX_BASE_RATE or base % int(truth_rate):
         raise ValueError(f"rates {rates} need a common base rate of {base} Hz (at most "
                          f"{MAX_BASE_RATE}, a multiple of the truth rate)")
-    steps = tqdm(total=5, desc="simulate", disable=not progress, unit="step")
     motion = profile.motion()
     t_base = np.arange(0, int(math.floor(profile.duration * base + 1e-9)) + 1) / base
     run = truth.generate(motion, t_base)
-    steps.update()
 
     def at_rate(mounting, rate):
         dth, dv = mounting.sensor_increments(run)
@@ -75,18 +76,50 @@ def simulate_flight(profile, out, seed, unit=None, fog_rate=1000.0, truth_rate=1
         dv = dv[:n * k].reshape(n, k, 3).sum(axis=1)
         t = np.arange(n + 1) / rate
         return t, np.vstack([dth[:1], dth]), np.vstack([dv[:1], dv])
+    mimu = at_rate(mimu_mounting, mimu_rate)
+    env = bay_temperature(mimu[0], np.interp(mimu[0], t_base, run.trajectory.h),
+                          GROUND_TEMPERATURE_C, motion.h0)
+    return FlightMotion(profile, run, t_base, mimu, at_rate(fog_mounting, fog_rate), env,
+                        np.arange(0, len(t_base), base // int(truth_rate)))
 
-    t_m, dth_m, dv_m = at_rate(unit.mounting, unit.rate_hz)
-    env = bay_temperature(t_m, np.interp(t_m, t_base, run.trajectory.h), GROUND_TEMPERATURE_C,
-                          motion.h0)
-    raw = unit.simulate(t_m, dth_m, dv_m, env, np.random.default_rng(s_mimu_noise))
+
+def flight_units(seed, unit=None, fog_rate=1000.0):
+    """The MIMU (drawn at the default mounting unless given) and FOG-IMU of flight `seed`,
+    and the noise generators of each."""
+    s_unit, s_fog, s_mimu_noise, s_fog_noise = np.random.SeedSequence(seed).spawn(4)
+    if unit is None:        # a drawn unit sits at the default mounting; a given one keeps its own
+        unit = MimuUnit.draw(int(s_unit.generate_state(1)[0]), name=f"MIMU-{seed:04d}")
+        unit.mounting = Mounting.from_dict(MIMU_MOUNTING)
+    fog = FogUnit.draw(int(s_fog.generate_state(1)[0]), rate_hz=fog_rate, name=f"FOG-{seed:04d}")
+    fog.mounting = Mounting.from_dict(FOG_MOUNTING)
+    return unit, fog, np.random.default_rng(s_mimu_noise), np.random.default_rng(s_fog_noise)
+
+
+def record_flight(fm, unit, fog, rng_mimu, rng_fog):
+    """Raw MIMU and FOG outputs over a `FlightMotion`."""
+    raw = unit.simulate(*fm.mimu, fm.env, rng_mimu)
+    return raw, fog.simulate(*fm.fog, rng_fog)
+
+
+def simulate_flight(profile, out, seed, unit=None, fog_rate=1000.0, truth_rate=100.0,
+                    force=False, progress=True):
+    """Simulate `profile` into the log `out` (.mcap) and `out` with .truth.json beside it.
+    Returns (log path, truth path)."""
+    truth_path = (str(out)[:-5] if str(out).endswith(".mcap") else str(out)) + ".truth.json"
+    for path in (out, truth_path):
+        if os.path.exists(path) and not force:
+            raise FileExistsError(f"{path} exists; use --force to replace it")
+    unit, fog, rng_mimu, rng_fog = flight_units(seed, unit, fog_rate)
+    steps = tqdm(total=3, desc="simulate", disable=not progress, unit="step")
+    fm = flight_motion(profile, unit.mounting, unit.rate_hz, fog.mounting, fog.rate_hz,
+                       truth_rate)
     steps.update()
-    t_f, dth_f, dv_f = at_rate(fog.mounting, fog.rate_hz)
-    fog_out = fog.simulate(t_f, dth_f, dv_f, np.random.default_rng(s_fog_noise))
+    raw, fog_out = record_flight(fm, unit, fog, rng_mimu, rng_fog)
     steps.update()
+    run, t_base, k_truth = fm.run, fm.t_base, fm.k_truth
+    t_m, t_f = fm.mimu[0], fm.fog[0]
 
     epoch = epoch_ns(DEFAULT_EPOCH)
-    k_truth = np.arange(0, len(t_base), base // int(truth_rate))
     tr = run.trajectory
     start = tr.state(0)
     initial = {"t": 0.0, "latitude": start["lat"], "longitude": start["lon"],
@@ -108,7 +141,6 @@ def simulate_flight(profile, out, seed, unit=None, fog_rate=1000.0, truth_rate=1
                   gyro_volts=raw["gyro_volts"], accel_volts=raw["accel_volts"],
                   accel_temperature=raw["accel_temperature"],
                   gyro_frequency=raw["gyro_frequency"])
-        steps.update()
         log.write("/fog/imu", S.IMU, "fog", stamp(t_f), **S.imu_fields(
             fog_out["angular_velocity"], fog_out["linear_acceleration"]))
         log.write("/truth/state", S.NAV_STATE, "vehicle", stamp(t_base[k_truth]),

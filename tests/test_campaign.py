@@ -69,3 +69,22 @@ def test_campaign_on_a_local_dask_cluster_matches_local_processes(profile, tmp_p
         remote = campaign.run_campaign(profile, 2, 3, str(tmp_path / "d.jsonl"),
                                        scheduler=cluster.scheduler_address, progress=False)
     assert remote == local
+
+
+def test_in_memory_flight_equals_the_logged_one(profile, tmp_path):
+    """The campaign's in-memory flight gives the table a written log gives."""
+    from mimunav import evaluation, simulation
+    from mimunav.profile import Profile
+    prof = Profile.load(profile)
+    log, _ = simulation.simulate_flight(prof, tmp_path / "f.mcap", 4, progress=False)
+    unit, fog, rng_m, rng_f = simulation.flight_units(4)
+    fm = simulation.flight_motion(prof, unit.mounting, unit.rate_hz, fog.mounting,
+                                  fog.rate_hz, 100.0)
+    mem = evaluation.Flight.from_simulation(fm, unit, fog, *simulation.record_flight(
+        fm, unit, fog, rng_m, rng_f))
+    cals = {"true": unit.coefficients}
+    a = evaluation.table(evaluation.Flight.load(log), cals)
+    b = evaluation.table(mem, cals)
+    assert a["variants"]["true"]["enu_m"] == pytest.approx(b["variants"]["true"]["enu_m"],
+                                                           rel=1e-9, abs=1e-9)
+    assert a["fog"]["enu_m"] == pytest.approx(b["fog"]["enu_m"], rel=1e-9, abs=1e-9)
