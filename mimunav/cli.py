@@ -148,12 +148,13 @@ def _replay(args):
     rep = evaluation.replay(flight, cal)
     t = evaluation.comparison_times(flight, args.end)
     err = evaluation.errors(rep, t)
+    t_nav = np.append(np.arange(t[0], t[-1], 1.0 / args.nav_rate), t[-1])
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(dir=out.parent, prefix=".tmp-replay-"))
     try:
         with LogWriter(tmp / "nav.mcap") as log:
-            for topic, traj in (("/mimu/nav", evaluation.resample(rep.mimu, t)),
-                                ("/fog/nav", evaluation.resample(rep.fog, t))):
+            for topic, traj in (("/mimu/nav", evaluation.resample(rep.mimu, t_nav)),
+                                ("/fog/nav", evaluation.resample(rep.fog, t_nav))):
                 log.write(topic, S.NAV_STATE, "vehicle",
                           flight.epoch_ns + np.round(traj.t * 1e9).astype(np.int64),
                           latitude=traj.lat, longitude=traj.lon, height=traj.h,
@@ -294,8 +295,6 @@ def build_parser():
                    help="write the intact part of a damaged (e.g. truncated) log to OUT")
     p.add_argument("--force", action="store_true", help="replace an existing OUT")
     p.set_defaults(func=_info)
-    from .calibration import METHODS
-    from .lab import PROCEDURES
     p = sub.add_parser("unit", help="draw a simulated MIMU into a unit file (true coefficients)")
     p.add_argument("-o", "--output", required=True, help="unit file to write (.json)")
     p.add_argument("--seed", type=int, default=0, help="draws the unit")
@@ -305,7 +304,8 @@ def build_parser():
     p.set_defaults(func=_unit)
     p = sub.add_parser("lab", help="run a calibration-lab procedure on a unit into a log "
                        "(/mimu/raw + /lab/state; see mimunav.lab)")
-    p.add_argument("procedure", choices=PROCEDURES)
+    p.add_argument("procedure", help="thermal-chamber, rate-table, centrifuge, multi-position, "
+                   "single-axis-rate, twelve-position, cold-start or rotation")
     p.add_argument("--unit", required=True, help="unit file (mimunav-unit/1 JSON)")
     p.add_argument("-o", "--output", required=True, help="run log to write (.mcap)")
     p.add_argument("--seed", type=int, default=0, help="draws setting errors and noise")
@@ -314,7 +314,7 @@ def build_parser():
     p = sub.add_parser("calibrate", help="fit lab runs into a calibration file "
                        "(mimunav-calibration/1, SI units, covariance included)")
     p.add_argument("runs", nargs="+", help="lab run logs (.mcap)")
-    p.add_argument("--method", required=True, choices=METHODS,
+    p.add_argument("--method", required=True,
                    help="entire: chamber + rate-table + centrifuge; traditional: "
                    "multi-position + single-axis-rate; twelve-position; cold-start")
     p.add_argument("-o", "--output", required=True, help="calibration file to write (.json)")
@@ -326,7 +326,9 @@ def build_parser():
     _flight_arguments(p)
     p.add_argument("--cal", required=True, help="calibration file (mimunav-calibration/1)")
     p.add_argument("-o", "--output", required=True, help="folder for nav.mcap (NavState "
-                   "/mimu/nav, /fog/nav at the comparison instants), summary.json, errors.png")
+                   "/mimu/nav, /fog/nav, vehicle origin), summary.json, errors.png")
+    p.add_argument("--nav-rate", type=float, default=10.0,
+                   help="rate of the NavState channels written to nav.mcap, Hz (default 10)")
     p.add_argument("--json", action="store_true", help="also print the summary as JSON")
     p.add_argument("--force", action="store_true", help="replace an existing folder")
     p.set_defaults(func=_replay)

@@ -26,6 +26,9 @@ from .sensors import Mounting
 from .trajectory import Trajectory
 
 
+RAW_FIELDS = ("accel_volts", "gyro_volts", "accel_temperature", "gyro_frequency")
+
+
 @dataclass
 class Flight:
     """What a replay needs from a log (times in s since the log's epoch)."""
@@ -58,8 +61,8 @@ class Flight:
                                    "the FOG-IMU flown with it (channels: "
                                    f"{', '.join(sorted(log.channels))})")
             epoch = int(flight["epoch_unix_ns"])
-            raw = log.read("/mimu/raw")
-            fog = log.read("/fog/imu")
+            raw = log.read("/mimu/raw", fields=RAW_FIELDS)
+            fog = log.read("/fog/imu", fields=("angular_velocity", "linear_acceleration"))
             truth = log.read("/truth/state") if "/truth/state" in log.channels else None
         sec = lambda m: (m["log_time"].astype(np.int64) - epoch) / 1e9      # noqa: E731
         init = flight["initial_state"]
@@ -74,8 +77,7 @@ class Flight:
                                     truth["height"].copy(), truth["velocity_ned"].copy(),
                                     quaternion.from_float_array(truth["attitude_wxyz"]))
         return cls(str(path), flight.get("name", ""), epoch, initial, sec(raw),
-                   {k: np.ascontiguousarray(raw[k], float) for k in
-                    ("accel_volts", "gyro_volts", "accel_temperature", "gyro_frequency")},
+                   {k: np.ascontiguousarray(raw[k], float) for k in RAW_FIELDS},
                    mount("mimu"), meta.get("sensor/mimu", {}).get("range", {}),
                    sec(fog), np.ascontiguousarray(fog["angular_velocity"], float),
                    np.ascontiguousarray(fog["linear_acceleration"], float), mount("fog"),
@@ -91,8 +93,7 @@ class Flight:
                    "v_ned": start["v_ned"], "q_nb": start["q_nb"]}
         truth = Trajectory(fm.t_base[k], tr.lat[k], tr.lon[k], tr.h[k], tr.v_ned[k], tr.q_nb[k])
         return cls("(in memory)", fm.profile.name, 0, initial, fm.mimu[0],
-                   {key: raw[key] for key in ("accel_volts", "gyro_volts", "accel_temperature",
-                                              "gyro_frequency")},
+                   {key: raw[key] for key in RAW_FIELDS},
                    unit.mounting, {"accel_m_s2": unit.range_accel, "gyro_rad_s": unit.range_gyro},
                    fm.fog[0], fog_out["angular_velocity"], fog_out["linear_acceleration"],
                    fog.mounting, truth)

@@ -123,3 +123,19 @@ def test_bad_inputs_are_refused_and_leave_nothing(static_flight, tmp_path, capsy
     assert main(["table", path, "--cal", f"x={cal_path}", "--end", "1000",
                  "-o", str(tmp_path / "tab")]) == 2
     assert not list(tmp_path.glob("tab*"))
+
+
+def test_without_truth_the_table_says_so_and_gives_mimu_minus_fog(static_flight):
+    path, unit = static_flight
+    b = 1e-3 * 9.80665
+    cal = Calibration.from_dict(unit.coefficients.as_dict())
+    cal.A0 = cal.A0 + np.array([b, 0.0, 0.0])
+    flight = evaluation.Flight.load(path)
+    with_truth = evaluation.table(flight, {"biased": cal})
+    flight.truth = None
+    doc = evaluation.table(flight, {"biased": cal})
+    assert doc["reference"] == "fog" and "fog" not in doc
+    assert "normalised_enu" not in doc["variants"]["biased"]
+    expect = np.subtract(with_truth["variants"]["biased"]["enu_m"], with_truth["fog"]["enu_m"])
+    np.testing.assert_allclose(doc["variants"]["biased"]["enu_m"], expect, atol=1e-4)
+    assert "No `/truth/state`" in evaluation.table_markdown(doc)

@@ -77,10 +77,10 @@ class FlightLog:
         return self.channels[topic]
 
     # ---- messages -------------------------------------------------------------------
-    def read(self, topic):
+    def read(self, topic, fields=None):
         """All messages of a channel as a structured array with a log_time (ns) field,
         in time order (the number of backward steps in file order goes to
-        `time_reversals[topic]`)."""
+        `time_reversals[topic]`); `fields` (names) limits the copy to those fields."""
         channel = self._channel(topic)
         chunks = [ci for ci in sorted(self.summary.chunk_indexes,
                                       key=lambda c: c.message_start_time)
@@ -93,7 +93,8 @@ class FlightLog:
             data = self._chunk_data(ci)
             if out is None:
                 dtype = self._layout(data, index, topic)
-                out = np.empty(sum(len(i) for i in indexes), dtype=_with_log_time(dtype))
+                out = np.empty(sum(len(i) for i in indexes),
+                               dtype=_with_log_time(dtype, fields))
             self._gather(data, index, dtype, out[pos:pos + len(index)], topic, ci)
             pos += len(index)
         if out is None:
@@ -202,9 +203,11 @@ def _frame_id(data, payload_start):
     return bytes(data[payload_start + 16:payload_start + 15 + n]).decode()
 
 
-def _with_log_time(dtype):
-    return np.dtype([(name, dtype.fields[name][0]) for name in dtype.names
-                     if name not in ("encap",)] + [("log_time", "<u8")])
+def _with_log_time(dtype, fields=None):
+    names = [n for n in dtype.names if n != "encap" and (fields is None or n in fields)]
+    if fields is not None and len(names) != len(fields):
+        raise LogError(f"fields {sorted(set(fields) - set(names))} are not in the message")
+    return np.dtype([(name, dtype.fields[name][0]) for name in names] + [("log_time", "<u8")])
 
 
 def _maybe_json(value):

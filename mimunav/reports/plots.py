@@ -29,9 +29,10 @@ def navigation_errors(series, png, title=""):
     plt, fig, axes = figure(3, 3, (14, 9))
     comps = ("east", "north", "up")
     for label, err in series.items():
-        t = err["t"] - err["t"][0]
-        pos, vel = ned_to_enu(err["position"]), ned_to_enu(err["velocity"])
-        att = np.degrees(ned_to_enu(err["attitude"]))
+        step = max(1, len(err["t"]) // 1500)          # a screen's worth of points per line
+        t = err["t"][::step] - err["t"][0]
+        pos, vel = ned_to_enu(err["position"][::step]), ned_to_enu(err["velocity"][::step])
+        att = np.degrees(ned_to_enu(err["attitude"][::step]))
         for j in range(3):
             axes[0, j].plot(t, pos[:, j], label=label)
             axes[1, j].plot(t, vel[:, j], label=label)
@@ -41,8 +42,10 @@ def navigation_errors(series, png, title=""):
         axes[1, j].set_ylabel(f"{comp} velocity error, m/s")
         axes[2, j].set_ylabel(f"attitude error about {comp}, deg")
         axes[2, j].set_xlabel("time since the initial state, s")
-    for ax in axes.ravel():
-        ax.grid(True, alpha=0.3)
+    for row, linthresh in zip(axes, (1.0, 0.01, 0.01)):   # m, m/s, deg: errors span decades
+        for ax in row:
+            ax.set_yscale("symlog", linthresh=linthresh)
+            ax.grid(True, alpha=0.3)
     axes[0, 0].legend(fontsize=8)
     fig.suptitle(title)
     save(plt, fig, png)
