@@ -796,15 +796,15 @@ def _fit_cold_axis(e_t, temp, d_t, known, cov, scale_free, with_rate):
     tm = temp.mean()
     values = np.array([p[0] - p[1] * tm, p[1], p[2] - p[3] * tm, p[3], p[4]])
     se_abs = se.copy()
-    se_abs[0] = math.sqrt(cov_entry(cov_q, free, 0, 0) + tm**2 * cov_entry(cov_q, free, 1, 1)
-                          - 2 * tm * cov_entry(cov_q, free, 0, 1))
-    se_abs[2] = math.sqrt(cov_entry(cov_q, free, 2, 2) + tm**2 * cov_entry(cov_q, free, 3, 3)
-                          - 2 * tm * cov_entry(cov_q, free, 2, 3))
+    se_abs[0] = math.sqrt(_cov_entry(cov_q, free, 0, 0) + tm**2 * _cov_entry(cov_q, free, 1, 1)
+                          - 2 * tm * _cov_entry(cov_q, free, 0, 1))
+    se_abs[2] = math.sqrt(_cov_entry(cov_q, free, 2, 2) + tm**2 * _cov_entry(cov_q, free, 3, 3)
+                          - 2 * tm * _cov_entry(cov_q, free, 2, 3))
     return {"values": values.tolist(), "se": se_abs.tolist(), "chi2": chi2,
             "bic": chi2 + int(free.sum()) * math.log(len(known))}
 
 
-def cov_entry(cov_q, free, i, j):
+def _cov_entry(cov_q, free, i, j):
     """Entry (i, j) of the covariance of all five parameters (0 for fixed ones)."""
     if not (free[i] and free[j]):
         return 0.0
