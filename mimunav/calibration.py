@@ -146,11 +146,8 @@ class LabRun:
 
     def means(self, x):
         """Window means of a per-sample array x (N, ...) -> (n_windows, ...)."""
-        k0 = np.array([w.k0 for w in self.windows])
-        k1 = np.array([w.k1 for w in self.windows])
-        pad = np.concatenate([x, np.zeros((1,) + x.shape[1:])])
-        sums = np.add.reduceat(pad, np.column_stack([k0, k1]).ravel(), axis=0)[::2]
-        return sums / (k1 - k0).reshape((-1,) + (1,) * (x.ndim - 1))
+        return slice_means(x, np.array([w.k0 for w in self.windows]),
+                           np.array([w.k1 for w in self.windows]))
 
     def flicker(self):
         """`flicker_covariance` of this run's windows, from 1 / (run length) to Nyquist
@@ -180,6 +177,13 @@ class LabRun:
         second difference of the samples (insensitive to slow drift within the window)."""
         return np.array([np.diff(x[w.k0:w.k1], n=2, axis=0).var(axis=0) / 6.0 / (w.k1 - w.k0)
                          for w in self.windows])
+
+
+def slice_means(x, k0, k1):
+    """Means of x (N, ...) over the disjoint, increasing sample slices [k0, k1)."""
+    pad = np.concatenate([x, np.zeros((1,) + x.shape[1:])])
+    sums = np.add.reduceat(pad, np.column_stack([k0, k1]).ravel(), axis=0)[::2]
+    return sums / (k1 - k0).reshape((-1,) + (1,) * (x.ndim - 1))
 
 
 class WindowDesign:
@@ -722,9 +726,7 @@ def fit_cold_start(run, unit=""):
     same = (power_on[:, None] == power_on[None, :]).astype(float)
 
     def bins(x):
-        pad = np.concatenate([x, np.zeros((1,) + x.shape[1:])])
-        return np.add.reduceat(pad, np.column_stack([k0, k1]).ravel(), axis=0)[::2] / \
-            (k1 - k0).reshape((-1,) + (1,) * (x.ndim - 1))
+        return slice_means(x, k0, k1)
     flick = flicker_covariance(t0, t1, 1.0 / (FLICKER_SPAN_FACTOR * (run.t[-1] - run.t[0])),
                                0.5 / np.median(np.diff(run.t)))
     cal = Calibration(model="cold-start", unit=unit, procedure="cold-start (seed S3)",

@@ -32,8 +32,7 @@ def _lab_motion(procedure, lab_seed):
     key = (procedure, lab_seed)
     if key not in _MOTIONS:
         plan = lab.plan(procedure)
-        _MOTIONS[key] = lab_motion = lab.lab_motion(plan, lab.draw_setting_errors(plan, lab_seed))
-        return lab_motion
+        _MOTIONS[key] = lab.lab_motion(plan, lab.draw_setting_errors(plan, lab_seed))
     return _MOTIONS[key]
 
 

@@ -163,8 +163,8 @@ def _replay(args):
         navigation_errors(series, str(tmp / "errors.png"), f"{flight.name}: {args.cal}")
         summary = {"format": "mimunav-replay/1", "log": args.log, "calibration": args.cal,
                    "end_t_s": float(t[-1]), "flags": rep.flags,
-                   "end": {k: {q: ned_to_enu_list(v[q][-1]) if q != "attitude"
-                               else v[q][-1].tolist() for q in v}
+                   "end": {k: {q: (evaluation.ned_to_enu(v[q][-1]) if q != "attitude"
+                                   else v[q][-1]).tolist() for q in v}
                            for k, v in err.items() if k != "t"},
                    "frames": "position/velocity ENU (m, m/s); attitude NED rotation vector "
                              "(rad)"}
@@ -184,10 +184,6 @@ def _replay(args):
         print(json.dumps(summary))
     print(f"wrote {out}/nav.mcap, summary.json, errors.png")
     return 0
-
-
-def ned_to_enu_list(d):
-    return [float(d[1]), float(d[0]), float(-d[2])]
 
 
 def _variants(specs):

@@ -266,8 +266,10 @@ def wild_value_filter(x, flags, n_sigma=6.0):
     extrapolations from its neighbours, 2 x[k-1] - x[k-2] from the left and 2 x[k+1] - x[k+2]
     from the right (only the available one at the record's ends), by more than
     n_sigma * sqrt(6) noise standard deviations (the extrapolation difference of white noise
-    has variance 6 sigma^2). An isolated spike disagrees with both sides; a step or a ramp
-    agrees with one; a spike's neighbours agree with their clean side. Wild samples are
+    has variance 6 sigma^2), plus twice the local curvature seen without the sample (the
+    second differences centred two samples away), so a smooth but fast-changing signal with
+    little noise is not mistaken for spikes. An isolated spike disagrees with both sides; a
+    step or a ramp agrees with one; a spike's neighbours agree with their clean side. Wild samples are
     flagged REPLACED and replaced by linear interpolation between the nearest good samples;
     a channel with no good sample is flagged UNUSABLE.
 
@@ -306,8 +308,15 @@ def _find_wild(x, limit, wild):
             if not math.isfinite(v):
                 wild[k, j] = True
                 continue
+            # local curvature seen without x[k]: second differences centred at k-2 and k+2
+            curve = 0.0
+            if k >= 3:
+                curve = max(curve, abs(x[k - 1, j] - 2.0 * x[k - 2, j] + x[k - 3, j]))
+            if k <= n - 4:
+                curve = max(curve, abs(x[k + 1, j] - 2.0 * x[k + 2, j] + x[k + 3, j]))
+            tol = limit[j] + 2.0 * curve if math.isfinite(curve) else limit[j]
             if 0 < k < n - 1 and abs(v - 0.5 * (x[k - 1, j] + x[k + 1, j])) <= \
-                    limit[j] * 0.5:           # second difference small: not a candidate
+                    tol * 0.5:                # second difference small: not a candidate
                 continue
             left = 2.0 * x[k - 1, j] - x[k - 2, j] if k >= 2 else math.nan
             right = 2.0 * x[k + 1, j] - x[k + 2, j] if k <= n - 3 else math.nan
@@ -316,7 +325,7 @@ def _find_wild(x, limit, wild):
             for p in (left, right):
                 if math.isfinite(p):
                     sides += 1
-                    if abs(v - p) <= limit[j]:
+                    if abs(v - p) <= tol:
                         agree = True
             wild[k, j] = sides > 0 and not agree
 
@@ -422,5 +431,10 @@ def compensate_log(log_path, cal, out, force=False):
         for schema, channel, message in make_reader(fh).iter_messages(topics=generic):
             dst.copy(schema, channel, message)
         dst.write("/mimu/imu", S.IMU, "mimu", stamps, **S.imu_fields(w, f))
+    return flag_counts(flags)
+
+
+def flag_counts(flags):
+    """Samples flagged REPLACED, SATURATED, UNUSABLE by `compensate`: {name: count}."""
     return {name: int(np.sum(flags & bit > 0)) for name, bit in
             (("replaced", REPLACED), ("saturated", SATURATED), ("unusable", UNUSABLE))}

@@ -20,7 +20,7 @@ import numpy as np
 import quaternion
 
 from . import attitude, earth, strapdown
-from .compensation import Calibration, compensate, poly2
+from .compensation import Calibration, compensate, flag_counts, poly2
 from .flightlog import FlightLog, LogError
 from .sensors import Mounting
 from .trajectory import Trajectory
@@ -183,9 +183,7 @@ def compensated_mimu(flight, cal):
                              r["gyro_frequency"], flight.mimu_range.get("accel_m_s2", np.inf),
                              flight.mimu_range.get("gyro_rad_s", np.inf),
                              t=flight.mimu_t - flight.mimu_t[0])
-    counts = {name: int(np.sum(flags & bit > 0)) for name, bit in
-              (("replaced", 1), ("saturated", 2), ("unusable", 4))}
-    return w, f, counts
+    return w, f, flag_counts(flags)
 
 
 def navigate_fog(flight):
@@ -248,17 +246,14 @@ def table(flight, cals, end=None):
     t = comparison_times(flight, end)
     t_end = t[-1:]
     has_truth = flight.truth is not None
+    ref = resample(flight.truth if has_truth else fog, t_end)
     rows = {}
-    fog_enu = None
     for name, cal in cals.items():
         rep = replay(flight, cal, fog=fog)
-        err = errors(rep, t_end)
-        key = "mimu-truth" if has_truth else "mimu-fog"
-        enu = ned_to_enu(err[key]["position"][-1])
+        enu = ned_to_enu(resample(rep.mimu, t_end).position_error(ref)[-1])
         rows[name] = {"enu_m": enu.tolist(), "horizontal_m": float(np.hypot(enu[0], enu[1])),
                       "norm_m": float(np.linalg.norm(enu)), "flags": rep.flags}
-        if has_truth:
-            fog_enu = ned_to_enu(err["fog-truth"]["position"][-1])
+    fog_enu = ned_to_enu(resample(fog, t_end).position_error(ref)[-1]) if has_truth else None
     doc = {"format": "mimunav-table/1", "log": flight.path, "flight": flight.name,
            "end_t_s": float(t_end[0]), "duration_s": float(t_end[0] - flight.initial["t"]),
            "reference": "truth" if has_truth else "fog", "variants": rows}
