@@ -49,7 +49,8 @@ import quaternion
 import scipy.linalg
 import scipy.optimize
 
-from .compensation import Calibration, compensate, poly2, temperature_change
+from .compensation import Calibration, compensate, poly2
+from .effects import temperature_change
 from .flightlog import FlightLog
 from .sensors.mimu import DEG, G0, NoiseModel
 
@@ -763,7 +764,7 @@ def fit_cold_start(run, unit=""):
 
 
 def _power_on_temperature_change(run, temp, window):
-    """dT = T(t) - T(t - window) within each power-on (compensation.temperature_change)."""
+    """dT = T(t) - T(t - window) within each power-on (effects.temperature_change)."""
     out = np.zeros_like(temp)
     for w in run.windows:
         first = w.k0 - 1

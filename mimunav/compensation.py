@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 import numba
 import numpy as np
 
+from .effects import temperature_change
 from .files import write_atomic
 
 FORMAT = "mimunav-calibration/1"
@@ -250,13 +251,6 @@ def _cold_start(cal, u_a, u_w, temp, freq, t):
         out.append(e_t / (k["a"] + k["b"] * temperature) + k["c"] + k["d"] * temperature
                    + k["e"] * d_t)
     return out[0], out[1]
-
-
-def temperature_change(temperature, window_s, t):
-    """dT = T(t) - T(t - window_s) per axis, T(t[0]) until the window is full; t (N,) s,
-    temperature (N, 3)."""
-    idx = np.searchsorted(t, t - window_s, side="left")
-    return temperature - temperature[idx]
 
 
 def wild_value_filter(x, flags, n_sigma=6.0):

@@ -95,16 +95,19 @@ def flight_units(seed, unit=None, fog_rate=1000.0):
     return unit, fog, np.random.default_rng(s_mimu_noise), np.random.default_rng(s_fog_noise)
 
 
-def record_flight(fm, unit, fog, rng_mimu, rng_fog):
-    """Raw MIMU and FOG outputs over a `FlightMotion`."""
-    raw = unit.simulate(*fm.mimu, fm.env, rng_mimu)
+def record_flight(fm, unit, fog, rng_mimu, rng_fog, hidden=None):
+    """Raw MIMU and FOG outputs over a `FlightMotion`; `hidden`: extra MIMU physics
+    (`MimuUnit.simulate`)."""
+    raw = unit.simulate(*fm.mimu, fm.env, rng_mimu, hidden=hidden)
     return raw, fog.simulate(*fm.fog, rng_fog)
 
 
 def simulate_flight(profile, out, seed, unit=None, fog_rate=1000.0, truth_rate=100.0,
-                    force=False, progress=True):
+                    force=False, progress=True, hidden=None):
     """Simulate `profile` into the log `out` (.mcap) and `out` with .truth.json beside it.
-    Returns (log path, truth path)."""
+    `hidden`: extra MIMU physics the log must not reveal (`MimuUnit.simulate`); its
+    description goes to the truth file when it has an `as_dict`. Returns (log path, truth
+    path)."""
     truth_path = (str(out)[:-5] if str(out).endswith(".mcap") else str(out)) + ".truth.json"
     for path in (out, truth_path):
         if os.path.exists(path) and not force:
@@ -114,7 +117,7 @@ def simulate_flight(profile, out, seed, unit=None, fog_rate=1000.0, truth_rate=1
     fm = flight_motion(profile, unit.mounting, unit.rate_hz, fog.mounting, fog.rate_hz,
                        truth_rate)
     steps.update()
-    raw, fog_out = record_flight(fm, unit, fog, rng_mimu, rng_fog)
+    raw, fog_out = record_flight(fm, unit, fog, rng_mimu, rng_fog, hidden)
     steps.update()
     run, t_base, k_truth = fm.run, fm.t_base, fm.k_truth
     t_m, t_f = fm.mimu[0], fm.fog[0]
@@ -154,6 +157,7 @@ def simulate_flight(profile, out, seed, unit=None, fog_rate=1000.0, truth_rate=1
         "mimu": unit.as_dict(), "fog": fog.as_dict(),
         "environment": {"ground_temperature_c": GROUND_TEMPERATURE_C,
                         "bay_tau_s": BAY_TAU_S, "lapse_k_per_m": ISA_LAPSE},
+        "hidden": hidden.as_dict() if hasattr(hidden, "as_dict") else None,
         "saturated_samples": {"mimu": int(raw["saturated"].sum()),
                               "fog": int(fog_out["saturated"].sum())}}, indent=1) + "\n",
         force=force)

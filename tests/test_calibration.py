@@ -165,7 +165,7 @@ def test_cold_start_selects_the_temperature_rate_term_only_when_it_is_there(tmp_
     k = np.radians(0.02)                                       # rad/s per degC of dT
 
     def rate_term(f, w, c):
-        from mimunav.compensation import temperature_change
+        from mimunav.effects import temperature_change
         return f, w + k * temperature_change(c["gyro_temperature"], 120.0, c["t"])
     null = calibration.calibrate([_run(tmp_path, "cold-start", unit, 1)], "cold-start")
     assert null.extra["selection"]["chosen"] == "basic"

@@ -1,0 +1,202 @@
+"""The effect vocabulary of the diagnosis contract (log contract section 3): the physics a
+sensor model may leave out, each as a regressor built from the flight's conditions.
+
+One definition serves three users: the diagnosis tests a residual against these regressors,
+a compensation file carries found terms (`Calibration.found`) and removes them, and the
+concealed-effect suite hides them in simulated recordings (where the physics allows an exact
+simulation instead, the suite uses that: time shifts, proof-mass offsets).
+
+Conditions (`Conditions`), all sensor axes, interval means at the sample stamps:
+    f      specific force, m/s^2 (N, 3)        w      angular rate, rad/s (N, 3)
+    f_dot  d f / dt, m/s^3                     w_dot  d w / dt, rad/s^2
+    T      accelerometer case temperatures, degC; freq  gyro resonance frequencies, Hz
+    t      sample times, s (N,)
+Temperature regressors use T for accelerometer axes and freq for gyro axes (the gyro's only
+temperature reading), about a reference theta0 (the log's mean in a diagnosis).
+
+A term is a dict like a diagnosis finding: effect, sensor ("accel" | "gyro" | "imu"),
+axis ("x" | "y" | "z" | "all"), optional input_axis, coefficient (SI, multiplies the
+regressor) or vector (size_effect, lever_arm: r in m; mounting_misalignment: small rotation
+vector in rad, sensor frame), and the keys a regressor needs (order, window_s, reference).
+"""
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.signal import savgol_filter
+
+
+AXES = "xyz"
+SENSORS = ("accel", "gyro")
+UNITS = {  # units of the coefficient per effect and sensor (per unit of the regressor)
+    ("bias_shift", "accel"): "m/s^2", ("bias_shift", "gyro"): "rad/s",
+    "scale_factor": "1", "cross_coupling": "1",
+    ("scale_nonlinearity", 2, "accel"): "1/(m/s^2)", ("scale_nonlinearity", 3, "accel"): "1/(m/s^2)^2",
+    ("scale_nonlinearity", 2, "gyro"): "1/(rad/s)", ("scale_nonlinearity", 3, "gyro"): "1/(rad/s)^2",
+    "scale_asymmetry": "1", "g_sensitivity": "(rad/s)/(m/s^2)", "g2_sensitivity": "(rad/s)/(m/s^2)^2",
+    ("temperature_bias", "accel"): "(m/s^2)/degC", ("temperature_bias", "gyro"): "(rad/s)/Hz",
+    ("temperature_scale", "accel"): "1/degC", ("temperature_scale", "gyro"): "1/Hz",
+    ("temperature_rate", "accel"): "(m/s^2)/degC", ("temperature_rate", "gyro"): "(rad/s)/Hz",
+    ("thermal_hysteresis", "accel"): "m/s^2", ("thermal_hysteresis", "gyro"): "rad/s",
+    "time_skew": "s", "size_effect": "m", "lever_arm": "m", "mounting_misalignment": "rad",
+}
+HYSTERESIS_SLOPE_WINDOW_S = 10.0     # dT/dt of thermal_hysteresis: slope over this window
+DERIVATIVE_WINDOW_S = 0.01           # d/dt of measured rates when a found term is removed
+
+
+@dataclass
+class Conditions:
+    t: np.ndarray
+    f: np.ndarray
+    w: np.ndarray
+    f_dot: np.ndarray
+    w_dot: np.ndarray
+    T: np.ndarray
+    freq: np.ndarray
+
+    @classmethod
+    def from_outputs(cls, t, f, w, T, freq, window_s=DERIVATIVE_WINDOW_S):
+        """Conditions from sensor outputs; derivatives by central differences over
+        window_s (smooths the sensor noise a point derivative would amplify)."""
+        t = np.asarray(t, float)
+        return cls(t, f, w, derivative(t, f, window_s), derivative(t, w, window_s), T, freq)
+
+    def of(self, sensor):
+        """(input x, its time derivative, temperature reading) of a triad."""
+        return ((self.f, self.f_dot, self.T) if sensor == "accel"
+                else (self.w, self.w_dot, self.freq))
+
+    def __len__(self):
+        return len(self.t)
+
+
+def temperature_change(temperature, window_s, t):
+    """dT = T(t) - T(t - window_s) per axis, T(t[0]) until the window is full; t (N,) s,
+    temperature (N, 3)."""
+    idx = np.searchsorted(t, t - window_s, side="left")
+    return temperature - temperature[idx]
+
+
+def derivative(t, x, window_s=0.0):
+    """d x / dt of samples at uniform times t, (N, k): a Savitzky-Golay derivative (local
+    quartic fit, exact for motion up to 4th order in time) over about window_s, which smooths
+    the noise a point derivative would amplify without lagging; central differences when
+    the window holds fewer than 5 samples."""
+    n = len(t)
+    dt = float(np.median(np.diff(t))) if n > 1 else 1.0
+    m = int(round(window_s / dt)) // 2 * 2 + 1
+    if m >= 5 and n >= m:
+        return savgol_filter(x, m, 4, deriv=1, delta=dt, axis=0, mode="interp")
+    lo, hi = np.maximum(np.arange(n) - 1, 0), np.minimum(np.arange(n) + 1, n - 1)
+    return (x[hi] - x[lo]) / (t[hi] - t[lo])[:, None]
+
+
+def regressor(term, cond):
+    """The regressor columns of `term` on `cond`: {(sensor, axis index): (N, k) array}, one
+    entry per output channel the term acts on; the output changes by columns @ parameter
+    (coefficient, or the vector of size_effect / lever_arm / mounting_misalignment)."""
+    effect, sensor = term["effect"], term["sensor"]
+    if effect == "time_skew":                         # x(t - tau) - x(t) = -tau dx/dt
+        sensors = SENSORS if sensor == "imu" else (sensor,)
+        return {(s, i): -cond.of(s)[1][:, i:i + 1] for s in sensors for i in range(3)}
+    if effect in ("size_effect", "lever_arm"):        # w x (w x r) + dw/dt x r, row i
+        k = _centripetal_matrix(cond.w, cond.w_dot)
+        axes = range(3) if effect == "lever_arm" else [AXES.index(term["axis"])]
+        return {("accel", i): k[:, i, :] for i in axes}
+    if effect == "mounting_misalignment":             # C(phi) x - x = x x phi
+        out = {}
+        for s in SENSORS:
+            x = cond.of(s)[0]
+            cols = np.stack([np.cross(x, e) for e in np.eye(3)], axis=2)   # (N, 3 out, 3 phi)
+            out.update({(s, i): cols[:, i, :] for i in range(3)})
+        return out
+    i = AXES.index(term["axis"])
+    x, _, theta = cond.of(sensor)
+    col = _scalar(term, cond, x, theta, i)
+    return {(sensor, i): col[:, None]}
+
+
+def _scalar(term, cond, x, theta, i):
+    effect = term["effect"]
+    j = [AXES.index(a) for a in term.get("input_axis", "")]
+    th = theta[:, i] - term.get("reference", 0.0)
+    if effect == "bias_shift":
+        return np.ones(len(x))
+    if effect == "scale_factor":
+        return x[:, i]
+    if effect == "cross_coupling":
+        return x[:, j[0]]
+    if effect == "scale_nonlinearity":
+        return x[:, i] ** term["order"]
+    if effect == "scale_asymmetry":
+        return np.abs(x[:, i])
+    if effect == "g_sensitivity":
+        return cond.f[:, j[0]]
+    if effect == "g2_sensitivity":
+        return cond.f[:, j[0]] * cond.f[:, j[1]]
+    if effect == "temperature_bias":
+        return th
+    if effect == "temperature_scale":
+        return th * x[:, i]
+    if effect == "temperature_rate":
+        return temperature_change(theta[:, i:i + 1], term["window_s"], cond.t)[:, 0]
+    if effect == "thermal_hysteresis":
+        k = np.searchsorted(cond.t, cond.t + HYSTERESIS_SLOPE_WINDOW_S / 2)
+        k0 = np.searchsorted(cond.t, cond.t - HYSTERESIS_SLOPE_WINDOW_S / 2)
+        k = np.minimum(k, len(cond.t) - 1)
+        return np.sign(theta[k, i] - theta[k0, i])
+    raise ValueError(f"effect {effect!r} has no regressor here (vocabulary: "
+                     f"{', '.join(sorted(set(k if isinstance(k, str) else k[0] for k in UNITS)))})")
+
+
+def _centripetal_matrix(w, w_dot):
+    """K (N, 3, 3) with K r = w x (w x r) + w_dot x r."""
+    wx, wd = _skew(w), _skew(w_dot)
+    return wx @ wx + wd
+
+
+def _skew(v):
+    z = np.zeros(len(v))
+    return np.stack([np.stack([z, -v[:, 2], v[:, 1]], -1), np.stack([v[:, 2], z, -v[:, 0]], -1),
+                     np.stack([-v[:, 1], v[:, 0], z], -1)], axis=1)
+
+
+def parameter(term):
+    """The term's parameter as a vector (coefficient -> (1,), vector -> (3,))."""
+    return np.atleast_1d(np.asarray(term.get("vector", term.get("coefficient")), float))
+
+
+def units(term):
+    effect, sensor = term["effect"], term["sensor"]
+    for key in ((effect, term.get("order"), sensor), (effect, sensor), effect):
+        if key in UNITS:
+            return UNITS[key]
+    raise ValueError(f"unknown effect {effect!r}")
+
+
+def apply(terms, cond, sign=1.0):
+    """Outputs f, w (copies) with `sign` x every term's contribution added: sign=+1 puts
+    effects into ideal outputs (simulation), sign=-1 removes found terms from measured ones
+    (compensation). time_skew is applied as a shift of the samples, not its derivative."""
+    f, w = cond.f.copy(), cond.w.copy()
+    out = {"accel": f, "gyro": w}
+    for term in terms:
+        if term["effect"] == "time_skew":
+            tau = sign * parameter(term)[0]
+            for s in (SENSORS if term["sensor"] == "imu" else (term["sensor"],)):
+                out[s][:] = shift(cond.t, out[s], tau)
+            continue
+        p = parameter(term)
+        for (s, i), cols in regressor(term, cond).items():
+            out[s][:, i] += sign * cols @ p
+    return f, w
+
+
+def shift(t, x, tau):
+    """Interval-mean samples x (N, k) at stamps t describing the motion tau s earlier:
+    the cumulative increment interpolated at t - tau and differenced (exact for motion
+    that is linear within a sample; the ends hold)."""
+    dt = np.diff(t, prepend=t[0] - (t[1] - t[0]))
+    cum = np.vstack([np.zeros((1, x.shape[1])), np.cumsum(x * dt[:, None], axis=0)])
+    edges = np.concatenate([[t[0] - dt[0]], t])
+    moved = np.column_stack([np.interp(edges - tau, edges, cum[:, k]) for k in range(x.shape[1])])
+    return np.diff(moved, axis=0) / dt[:, None]
