@@ -130,18 +130,17 @@ def _calibrate(args):
 def _replay(args):
     """Compensate, navigate both IMUs and compare; outputs into a new folder, atomically."""
     import json
-    import shutil
-    import tempfile
 
     import quaternion
 
     from . import evaluation
     from .compensation import Calibration
+    from .files import atomic_folder
     from .flightlog import LogWriter
     from .flightlog import schemas as S
     from .reports.plots import navigation_errors
     out = Path(args.output)
-    if out.exists() and not args.force:
+    if out.exists() and not args.force:         # before the work, not after
         raise FileExistsError(f"{out} exists; use --force to replace it")
     flight = evaluation.Flight.load(args.log)
     cal = Calibration.load(args.cal)
@@ -149,9 +148,7 @@ def _replay(args):
     t = evaluation.comparison_times(flight, args.end)
     err = evaluation.errors(rep, t)
     t_nav = np.append(np.arange(t[0], t[-1], 1.0 / args.nav_rate), t[-1])
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(dir=out.parent, prefix=".tmp-replay-"))
-    try:
+    with atomic_folder(out, force=args.force) as tmp:
         with LogWriter(tmp / "nav.mcap") as log:
             for topic, traj in (("/mimu/nav", evaluation.resample(rep.mimu, t_nav)),
                                 ("/fog/nav", evaluation.resample(rep.fog, t_nav))):
@@ -169,12 +166,6 @@ def _replay(args):
                    "frames": "position/velocity ENU (m, m/s); attitude NED rotation vector "
                              "(rad)"}
         (tmp / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
-        if out.exists():
-            shutil.rmtree(out)
-        tmp.rename(out)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
     end = summary["end"]
     for key, v in end.items():
         e = v["position"]
@@ -183,6 +174,36 @@ def _replay(args):
     if args.json:
         print(json.dumps(summary))
     print(f"wrote {out}/nav.mcap, summary.json, errors.png")
+    return 0
+
+
+def _diagnose(args):
+    """Sensor-level diagnosis of a log against a calibration; JSON and report."""
+    from . import diagnosis, evaluation
+    from .compensation import Calibration
+    from .diagnosis import sensor
+    from .files import write_atomic
+    from .reports import diagnosis as report
+    for out in (args.json, args.output):           # refuse before the work, not after
+        if out and Path(out).exists() and not args.force:
+            raise FileExistsError(f"{out} exists; use --force to replace it")
+    flight = evaluation.Flight.load(args.log)
+    cal = Calibration.load(args.model)
+    diag = sensor.diagnose(flight, cal, alpha=args.alpha, seed=args.seed)
+    doc = diagnosis.document(args.log, diag, args.alpha)
+    found = diagnosis.with_found(cal, doc["findings"])
+    if args.output:
+        report.write(args.output, doc, diag, flight, cal, found, args.model, force=args.force)
+    if args.json:
+        write_atomic(args.json, diagnosis.dumps(doc), force=args.force)
+    print(f"verdict: {doc['verdict']} ({doc['candidates_tested']} candidates)")
+    for f in doc["findings"]:
+        print(f"  {f['label']}: {f['coefficient']:.4g} {f['units']} "
+              f"[{f['ci95'][0]:.4g}, {f['ci95'][1]:.4g}] (held-out p {f['p_heldout']:.2g})")
+    for u in doc["unexplained"][:10]:
+        print(f"  unexplained residual {u['channel']} {u['t0']:.1f}-{u['t1']:.1f} s (z {u['z']:.1f})")
+    if args.output:
+        print(f"wrote {args.output}/diagnosis.md" + (" and CAL+found.json" if found else ""))
     return 0
 
 
@@ -328,6 +349,20 @@ def build_parser():
     p.add_argument("--json", action="store_true", help="also print the summary as JSON")
     p.add_argument("--force", action="store_true", help="replace an existing folder")
     p.set_defaults(func=_replay)
+    p = sub.add_parser("diagnose", help="find the physics the model leaves out: test the "
+                       "MIMU's residual against the reference IMU for every term of the effect "
+                       "vocabulary (log contract section 3)")
+    p.add_argument("log", help="flight log (MCAP) with /mimu/raw and /fog/imu")
+    p.add_argument("--model", required=True, help="the calibration the user believes "
+                   "(mimunav-calibration/1)")
+    p.add_argument("--json", help="write the mimunav-diagnosis/1 document here")
+    p.add_argument("-o", "--output", help="report folder: diagnosis.md, plots, diagnosis.json, "
+                   "CAL+found.json (the model with the found terms)")
+    p.add_argument("--alpha", type=float, default=0.05,
+                   help="family-wise error rate over the candidate library (default 0.05)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the block bootstrap")
+    p.add_argument("--force", action="store_true", help="replace existing outputs")
+    p.set_defaults(func=_diagnose)
     p = sub.add_parser("table", help="end-point east/north/up errors of calibration variants "
                        "normalised by the FOG-IMU's (seed S1 Table 3)")
     _flight_arguments(p)

@@ -16,6 +16,11 @@ with E(T) the linear-triad output with its own scale divided out, T the axis's t
 reading (accelerometer: degC; gyro: resonance frequency, Hz), dT = T(t) - T(t - window_s)
 (T(t0) before the window is full). Keys: "accel"/"gyro" {"a","b","c","d","e": [3]},
 "window_s".
+Any model name + "+found" (e.g. `entire-63+found`, written by `mimunav diagnose`) adds the
+key "found": a list of terms of the diagnosis effect vocabulary (`mimunav.effects`, log
+contract section 3: effect, sensor, axis, input_axis, coefficient or vector, and order,
+window_s, reference where the regressor needs them), each removed from the output after
+eqs. 1-4 (time_skew by shifting the samples back).
 """
 import json
 import math
@@ -25,11 +30,14 @@ from dataclasses import dataclass, field
 import numba
 import numpy as np
 
-from .effects import temperature_change
+from . import effects
+from .effects import Conditions, temperature_change
+from .effects import apply as apply_effects
 from .files import write_atomic
 
 FORMAT = "mimunav-calibration/1"
 MODELS = ("entire-63", "linear", "cold-start")
+FOUND_SUFFIX = "+found"     # a model plus the terms a diagnosis found ("found": [terms])
 _TRIAD_KEYS = {"accel": ("A0", "A1", "A2", "A3", "ct"), "gyro": ("W0", "W1", "W2", "W3", "C", "cw")}
 _SHAPES = {"A0": (3,), "A1": (3, 3), "A2": (3,), "A3": (3,), "ct": (3, 3),
            "W0": (3,), "W1": (3, 3), "W2": (3,), "W3": (3,), "C": (3, 3), "cw": (3, 3)}
@@ -69,7 +77,12 @@ class Calibration:
     cw: np.ndarray = field(default_factory=lambda: np.zeros((3, 3)))
     cold_start: dict = field(default_factory=dict)    # {"accel": {a..e}, "gyro": {..}, "window_s"}
     covariance: dict = field(default_factory=dict)
+    found: list = field(default_factory=list)         # diagnosis terms (model "<base>+found")
     extra: dict = field(default_factory=dict)         # keys of the file this version ignores
+
+    @property
+    def base_model(self):
+        return self.model[:-len(FOUND_SUFFIX)] if self.model.endswith(FOUND_SUFFIX) else self.model
 
     # ---- file contract -------------------------------------------------------------
     @classmethod
@@ -82,8 +95,11 @@ class Calibration:
         if doc.get("format") != FORMAT:
             fail(f"format is {doc.get('format')!r}, expected {FORMAT!r}")
         model = doc.get("model")
-        if model not in MODELS:
-            fail(f"model {model!r} is not one of {', '.join(MODELS)}")
+        base = (model[:-len(FOUND_SUFFIX)] if isinstance(model, str)
+                and model.endswith(FOUND_SUFFIX) else model)
+        if base not in MODELS:
+            fail(f"model {model!r} is not one of {', '.join(MODELS)} (optionally with "
+                 f"{FOUND_SUFFIX!r})")
         cal = cls(model=model, unit=str(doc.get("unit", "")),
                   procedure=str(doc.get("procedure", "")),
                   covariance=doc.get("covariance", {}) or {})
@@ -91,11 +107,11 @@ class Calibration:
             block = doc.get(triad, {})
             if not isinstance(block, dict):
                 fail(f'"{triad}" must be an object')
-            allowed = set(keys) | (set(_COLD_KEYS) if model == "cold-start" else set())
+            allowed = set(keys) | (set(_COLD_KEYS) if base == "cold-start" else set())
             unknown = set(block) - allowed
             if unknown:
-                fail(f'"{triad}" has keys {sorted(unknown)} that model {model!r} does not use')
-            if model == "linear":
+                fail(f'"{triad}" has keys {sorted(unknown)} that model {base!r} does not use')
+            if base == "linear":
                 extra_terms = [k for k in block if k not in ("A0", "A1", "W0", "W1")]
                 if extra_terms:
                     fail(f'model "linear" takes only A0, A1, W0, W1; {triad} has {extra_terms}')
@@ -104,13 +120,13 @@ class Calibration:
                     setattr(cal, key, _array(block[key], _SHAPES[key], f"{source}: {triad}.{key}"))
                 elif key in ("A1", "W1"):
                     fail(f'{triad}.{key} is required (the linear scale/misalignment matrix)')
-            if model == "cold-start":
+            if base == "cold-start":
                 missing = [k for k in _COLD_KEYS if k not in block]
                 if missing:
                     fail(f'cold-start model lacks {triad}.{missing}')
                 cal.cold_start[triad] = {k: _array(block[k], (3,), f"{source}: {triad}.{k}")
                                          for k in _COLD_KEYS}
-        if model == "cold-start":
+        if base == "cold-start":
             window = doc.get("window_s")
             if not isinstance(window, (int, float)) or not window > 0:
                 fail("cold-start model needs window_s > 0 (s), the dT window")
@@ -124,7 +140,18 @@ class Calibration:
             if np.linalg.cond(m) > 1e8:
                 fail(f"{name} is singular or nearly so (condition number "
                      f"{np.linalg.cond(m):.3g}): the raw voltages cannot be inverted")
-        known = {"format", "model", "unit", "procedure", "accel", "gyro", "covariance", "window_s"}
+        if model != base:
+            found = doc.get("found")
+            if not isinstance(found, list) or not found:
+                fail(f'model {model!r} needs a non-empty "found" list of terms')
+            for k, term in enumerate(found):
+                try:
+                    effects.check_term(term)
+                except (ValueError, TypeError, KeyError) as exc:
+                    fail(f"found[{k}]: {exc}")
+            cal.found = [dict(term) for term in found]
+        known = {"format", "model", "unit", "procedure", "accel", "gyro", "covariance", "window_s",
+                 "found"}
         cal.extra = {k: v for k, v in doc.items() if k not in known}
         return cal
 
@@ -141,12 +168,14 @@ class Calibration:
         doc = {"format": FORMAT, "model": self.model, "unit": self.unit,
                "procedure": self.procedure}
         for triad, keys in _TRIAD_KEYS.items():
-            keys = [k for k in keys if self.model != "linear" or k in ("A0", "A1", "W0", "W1")]
+            keys = [k for k in keys if self.base_model != "linear" or k in ("A0", "A1", "W0", "W1")]
             doc[triad] = {k: getattr(self, k).tolist() for k in keys}
-            if self.model == "cold-start":
+            if self.base_model == "cold-start":
                 doc[triad].update({k: v.tolist() for k, v in self.cold_start[triad].items()})
-        if self.model == "cold-start":
+        if self.base_model == "cold-start":
             doc["window_s"] = self.cold_start["window_s"]
+        if self.found:
+            doc["found"] = self.found
         if self.covariance:
             doc["covariance"] = self.covariance
         doc.update(self.extra)
@@ -224,15 +253,18 @@ def compensate(cal, accel_volts, gyro_volts, accel_temperature, gyro_frequency,
         for x in chans:
             flags[~np.isfinite(x).all(axis=1)] |= UNUSABLE
     u_a, u_w, temp, freq = chans
-    if cal.model == "cold-start":
-        if t is None:
-            raise CalibrationError("the cold-start model needs the sample times t for dT")
+    if (cal.base_model == "cold-start" or cal.found) and t is None:
+        raise CalibrationError(f"model {cal.model!r} needs the sample times t")
+    if cal.base_model == "cold-start":
         f, w = _cold_start(cal, u_a, u_w, temp, freq, np.asarray(t, dtype=float))
     else:
         v_a = u_a - poly2(cal.ct, temp)                                   # eq. 2
         v_w = u_w - poly2(cal.cw, freq)                                   # eq. 4
         f = triad(cal.A0, cal.A1, cal.A2, cal.A3, v_a)                    # eq. 1
         w = triad(cal.W0, cal.W1, cal.W2, cal.W3, v_w) + f @ cal.C.T      # eq. 3
+    if cal.found:                      # terms found by a diagnosis, removed (effects.apply)
+        cond = Conditions.from_outputs(np.asarray(t, float), f, w, temp, freq)
+        f, w = apply_effects(cal.found, cond, sign=-1.0)
     flags[(np.abs(f) >= range_accel).any(axis=1) | (np.abs(w) >= range_gyro).any(axis=1)] \
         |= SATURATED
     return f, w, flags

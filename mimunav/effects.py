@@ -40,7 +40,7 @@ UNITS = {  # units of the coefficient per effect and sensor (per unit of the reg
     "time_skew": "s", "size_effect": "m", "lever_arm": "m", "mounting_misalignment": "rad",
 }
 HYSTERESIS_SLOPE_WINDOW_S = 10.0     # dT/dt of thermal_hysteresis: slope over this window
-DERIVATIVE_WINDOW_S = 0.01           # d/dt of measured rates when a found term is removed
+DERIVATIVE_WINDOW_S = 0.05           # d/dt of measured outputs when a found term is removed
 
 
 @dataclass
@@ -160,9 +160,48 @@ def _skew(v):
                      np.stack([-v[:, 1], v[:, 0], z], -1)], axis=1)
 
 
+VECTOR_EFFECTS = ("size_effect", "lever_arm", "mounting_misalignment")
+EFFECTS = ("bias_shift", "scale_factor", "cross_coupling", "scale_nonlinearity",
+           "scale_asymmetry", "g_sensitivity", "g2_sensitivity", "temperature_bias",
+           "temperature_scale", "temperature_rate", "thermal_hysteresis", "time_skew") \
+    + VECTOR_EFFECTS
+
+
+def check_term(term):
+    """Raise ValueError unless `term` is a complete term this module can apply."""
+    if not isinstance(term, dict):
+        raise ValueError("a term must be an object")
+    effect = term.get("effect")
+    if effect not in EFFECTS:
+        raise ValueError(f"effect {effect!r} is not one mimunav can apply ({', '.join(EFFECTS)})")
+    whole = effect in ("time_skew", "lever_arm", "mounting_misalignment")
+    sensors = ("imu",) + SENSORS if effect == "time_skew" else (
+        ("imu",) if whole else ("accel",) if effect == "size_effect" else
+        ("gyro",) if effect.startswith("g") else SENSORS)
+    if term.get("sensor") not in sensors:
+        raise ValueError(f"{effect}: sensor must be one of {sensors}")
+    if not whole and term.get("axis") not in tuple(AXES):
+        raise ValueError(f"{effect}: axis must be x, y or z")
+    need = {"cross_coupling": 1, "g_sensitivity": 1, "g2_sensitivity": 2}.get(effect)
+    if need and (len(term.get("input_axis", "")) != need
+                 or any(a not in AXES for a in term["input_axis"])):
+        raise ValueError(f"{effect}: input_axis must be {need} of x, y, z")
+    if effect == "scale_nonlinearity" and term.get("order") not in (2, 3):
+        raise ValueError("scale_nonlinearity: order must be 2 or 3")
+    if effect == "temperature_rate" and not float(term.get("window_s", 0)) > 0:
+        raise ValueError("temperature_rate: window_s (s) must be > 0")
+    p = parameter(term)
+    if p.shape != ((3,) if effect in VECTOR_EFFECTS else (1,)) or not np.all(np.isfinite(p)):
+        raise ValueError(f"{effect}: needs a finite "
+                         f"{'vector [3]' if effect in VECTOR_EFFECTS else 'coefficient'}")
+
+
 def parameter(term):
     """The term's parameter as a vector (coefficient -> (1,), vector -> (3,))."""
-    return np.atleast_1d(np.asarray(term.get("vector", term.get("coefficient")), float))
+    value = term.get("vector", term.get("coefficient"))
+    if value is None:
+        raise ValueError(f"{term.get('effect')}: no coefficient or vector")
+    return np.atleast_1d(np.asarray(value, float))
 
 
 def units(term):

@@ -2,7 +2,10 @@
 success, so a crash or an error never leaves a half-written file, and an existing file is
 never replaced unless the caller forces it."""
 import os
+import shutil
 import tempfile
+from contextlib import contextmanager
+from pathlib import Path
 
 
 def temporary_beside(path, suffix):
@@ -30,4 +33,24 @@ def write_atomic(path, text, force=False):
     except BaseException:
         if os.path.exists(tmp):
             os.unlink(tmp)
+        raise
+
+
+@contextmanager
+def atomic_folder(path, force=False):
+    """Build a folder in a temporary folder beside `path` (yielded, a Path) and rename it
+    into place when the block succeeds; on error nothing is left. An existing folder is
+    kept unless force."""
+    out = Path(path)
+    if out.exists() and not force:
+        raise FileExistsError(f"{out} exists; use --force to replace it")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(dir=out.parent, prefix=".tmp-"))
+    try:
+        yield tmp
+        if out.exists():
+            shutil.rmtree(out)
+        tmp.rename(out)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
         raise

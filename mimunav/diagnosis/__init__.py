@@ -2,7 +2,73 @@
 name the physics the model left out (the effect vocabulary of log contract section 3), fit
 it with an interval and show the fit improve on held-out data.
 
-    sensor.diagnose      sensor level: the reference IMU predicts the MIMU's outputs
-    library              the candidate terms;  inference  the tests and their nuisance
-    reference            the reference motion moved to the MIMU's mounting
+    sensor       sensor level: the reference IMU predicts the MIMU's outputs
+    library      the candidate terms;  inference  the tests and their nuisance
+    reference    the reference motion moved to the MIMU's mounting
+    concealed    the proof on simulated recordings with hidden effects
+`diagnose_log` is what `mimunav diagnose` runs: the contract document (`mimunav-diagnosis/1`)
+and the calibration with the found terms (`CAL+found.json`).
 """
+import json
+import math
+import os
+
+import numpy as np
+
+from ..compensation import FOUND_SUFFIX, Calibration
+from . import sensor
+
+FORMAT = "mimunav-diagnosis/1"
+CONTRACT_KEYS = ("effect", "sensor", "axis", "input_axis", "coefficient", "ci95", "units",
+                 "vector", "vector_ci95", "where", "fit")
+
+
+def document(log_path, diag, alpha=0.05):
+    """The `mimunav-diagnosis/1` document of a sensor-level diagnosis (contract keys first,
+    then this tool's extra keys)."""
+    findings = [{**{k: f[k] for k in CONTRACT_KEYS if k in f},
+                 **{k: v for k, v in f.items() if k not in CONTRACT_KEYS}} for f in diag.findings]
+    return {"format": FORMAT, "log": os.path.basename(str(log_path)),
+            "verdict": sensor.verdict(diag), "findings": _plain(findings),
+            "unexplained": _plain(diag.unexplained),
+            "not_confirmed": _plain(diag.rejected),
+            "level": "sensor", "candidates_tested": diag.candidates, "alpha": alpha,
+            "method": ("forward selection on even tenths of the flight with Holm's step-down "
+                       "thresholds over the library; held-out odd tenths give the coefficient, "
+                       "its 95 % interval and the confirmation; block-bootstrap stability")}
+
+
+def with_found(cal, findings):
+    """A copy of calibration `cal` that also removes the found terms (model '<base>+found')."""
+    if not findings:
+        return None
+    doc = cal.as_dict()
+    doc["model"] = cal.base_model + FOUND_SUFFIX
+    terms = list(cal.found)
+    for f in findings:
+        term = {k: f[k] for k in ("effect", "sensor", "axis", "input_axis", "order", "window_s",
+                                  "reference") if k in f}
+        term.update({"vector": f["vector"]} if "vector" in f else {"coefficient": f["coefficient"]})
+        terms.append(_plain(term))
+    doc["found"] = terms
+    doc["procedure"] = (cal.procedure + " + " if cal.procedure else "") + "mimunav diagnose"
+    return Calibration.from_dict(doc)
+
+
+def _plain(x):
+    """JSON-ready copy (numpy scalars and arrays to Python)."""
+    if isinstance(x, dict):
+        return {k: _plain(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_plain(v) for v in x]
+    if isinstance(x, np.ndarray):
+        return x.tolist()
+    if isinstance(x, np.generic):
+        x = x.item()
+    if isinstance(x, float) and not math.isfinite(x):
+        return None                     # e.g. an rms over no rows
+    return x
+
+
+def dumps(doc):
+    return json.dumps(doc, indent=1, allow_nan=False, default=float) + "\n"

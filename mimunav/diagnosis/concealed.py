@@ -123,3 +123,143 @@ def draw(effect, rng, unit):
 def _random_direction(rng):
     v = rng.standard_normal(3)
     return v / np.linalg.norm(v)
+
+
+# ---- the suite ----------------------------------------------------------------------------
+PROOF_PROFILE = "diagnosis-proof.toml"
+_MOTION = {}
+
+
+def proof_mounting():
+    from .. import attitude
+    from ..sensors import Mounting
+    import quaternion
+    q = attitude.from_euler(*[math.radians(a) for a in PROOF_MOUNTING_EULER_DEG])
+    return Mounting(quaternion.as_float_array(q), [0.30, -0.10, 0.05])
+
+
+def proof_motion(profile_path):
+    """The proof flight's truth and ideal increments (cached per process)."""
+    if profile_path not in _MOTION:
+        from .. import simulation
+        from ..profile import Profile
+        from ..sensors import Mounting
+        _MOTION[profile_path] = simulation.flight_motion(
+            Profile.load(profile_path), proof_mounting(), 1000.0,
+            Mounting.from_dict(simulation.FOG_MOUNTING), 1000.0, 100.0)
+    return _MOTION[profile_path]
+
+
+def recording(profile_path, effect, seed):
+    """(Flight, unit, HiddenEffect | None): one concealed-data recording in memory."""
+    from .. import simulation
+    from ..evaluation import Flight
+    from ..sensors import MimuUnit
+    fm = proof_motion(profile_path)
+    s_unit, s_effect = np.random.SeedSequence([seed, 7]).spawn(2)
+    unit = MimuUnit.draw(int(s_unit.generate_state(1)[0]), name=f"MIMU-P{seed:04d}")
+    unit.mounting = proof_mounting()
+    unit, fog, rng_m, rng_f = simulation.flight_units(seed, unit)
+    hidden = draw(effect, np.random.default_rng(s_effect), unit) if effect else None
+    raw, fog_out = simulation.record_flight(fm, unit, fog, rng_m, rng_f, hidden)
+    return Flight.from_simulation(fm, unit, fog, raw, fog_out), unit, hidden
+
+
+def run_case(args):
+    """Diagnose one recording and score it against what was hidden."""
+    profile_path, effect, seed = args
+    from . import sensor
+    flight, unit, hidden = recording(profile_path, effect, seed)
+    diag = sensor.diagnose(flight, unit.coefficients, seed=seed)
+    verdict = sensor.verdict(diag)
+    case = {"effect": effect, "seed": seed, "verdict": verdict,
+            "findings": [f["label"] for f in diag.findings],
+            "unexplained": len(diag.unexplained)}
+    if hidden is None:
+        case["false_alarm"] = verdict != "no-missing-physics"
+        return case
+    true = hidden.as_dict()
+    case["hidden"] = true
+    case["z_detectable"] = _true_term_z(diag, true)
+    match = [f for f in diag.findings if _same(f, true)]
+    ambiguous = [f for f in diag.findings if any(_same(a, true) for a in f["indistinguishable_from"])]
+    case["identified"] = bool(match or ambiguous)
+    case["exact"] = bool(match)
+    case["others"] = [f["label"] for f in diag.findings if f not in match and f not in ambiguous]
+    if match:
+        f = match[0]
+        p = np.atleast_1d(true.get("vector", true.get("coefficient")))
+        ci = np.asarray(f.get("vector_ci95", [f["ci95"]]))
+        case["covered"] = bool(np.all((ci[:, 0] <= p) & (p <= ci[:, 1])))
+        case["coefficient"], case["ci95"] = f.get("vector", f["coefficient"]), f.get(
+            "vector_ci95", f["ci95"])
+        fit = f["fit"]
+        case["heldout_rms_ratio"] = fit["heldout_rms_after"] / fit["heldout_rms_before"]
+    return case
+
+
+def _same(found, true):
+    keys = ["effect", "sensor", "axis"] + [k for k in ("input_axis", "order", "window_s")
+                                          if k in true and true["effect"] != "temperature_rate"]
+    return all(found.get(k) == true.get(k) for k in keys)
+
+
+def _true_term_z(diag, true):
+    """How detectable the hidden term was on this recording: its Wald z (sqrt of the
+    statistic) fitted alone on all rows."""
+    from . import inference
+    for tn, term, pos in diag.candidates_list:
+        if _same(term, true) and (true["effect"] != "temperature_rate" or term["window_s"] == true["window_s"]):
+            tier = diag.tiers[tn]
+            fit = inference.fit(tier, [pos], np.ones(len(tier.t), bool))
+            return float(math.sqrt(fit.test(0)[0] * len(fit.beta)))
+    return float("nan")
+
+
+def run_suite(profile_path, hidden=PROOF_EFFECTS, repeats=1, nulls=12, workers=2, seed=0,
+              progress=True):
+    """Each effect of `hidden` `repeats` times and `nulls` null recordings; list of cases."""
+    from concurrent.futures import ProcessPoolExecutor
+    from tqdm import tqdm
+    jobs = [(profile_path, e, seed + 1000 * r + k) for r in range(repeats)
+            for k, e in enumerate(hidden)]
+    jobs += [(profile_path, None, seed + 500000 + k) for k in range(nulls)]
+    bar = tqdm(total=len(jobs), desc="concealed-data suite", unit="rec", disable=not progress)
+    out = []
+    if workers <= 1:
+        for job in jobs:
+            out.append(run_case(job))
+            bar.update()
+    else:
+        with ProcessPoolExecutor(workers) as pool:
+            for case in pool.map(run_case, jobs):
+                out.append(case)
+                bar.update()
+    bar.close()
+    return out
+
+
+def summary(cases):
+    """Identification rate, false alarms, coverage, held-out improvement (with binomial
+    95 % intervals where they are rates)."""
+    eff = [c for c in cases if c["effect"]]
+    nul = [c for c in cases if not c["effect"]]
+    cov = [c["covered"] for c in eff if "covered" in c]
+    ratios = [c["heldout_rms_ratio"] for c in eff if "heldout_rms_ratio" in c]
+    return {"recordings": len(cases), "with_effect": len(eff), "nulls": len(nul),
+            "identified": _rate([c["identified"] for c in eff]),
+            "identified_exact": _rate([c["exact"] for c in eff]),
+            "false_alarms": _rate([c["false_alarm"] for c in nul]),
+            "other_findings_in_effect_recordings": sum(len(c["others"]) for c in eff),
+            "interval_coverage": _rate(cov),
+            "heldout_rms_ratio_median": float(np.median(ratios)) if ratios else None}
+
+
+def _rate(flags):
+    from scipy.stats import beta
+    n, k = len(flags), int(sum(flags))
+    if n == 0:
+        return {"k": 0, "n": 0}
+    lo = beta.ppf(0.025, k, n - k + 1) if k else 0.0
+    hi = beta.ppf(0.975, k + 1, n - k) if k < n else 1.0
+    return {"k": k, "n": n, "rate": k / n, "ci95": [float(lo), float(hi)]}

@@ -41,6 +41,7 @@ MAX_TERMS = 4
 STABILITY = 0.5
 BOOTSTRAP = 200
 SCAN_WINDOW_S = 2.0
+MAP_SECONDS = 1.0
 # What the reference itself may carry: a Table-4-grade FOG-IMU's residual scale factor and
 # axis misalignment (3 sigma of `sensors.fog`: 1e-4 scale, 20 urad), which the MIMU's
 # residual shows as scale, cross-coupling and misalignment terms of its own. A term of
@@ -61,6 +62,8 @@ class SensorDiagnosis:
     conditions: dict            # fast-bin condition masks for the map
     residual_map: dict          # "before"/"after": (conditions, 6) rms ratios
     candidates: int
+    candidates_list: list       # [(tier, term, position in tier)]
+    residual_after: dict        # tier -> residual with the confirmed terms removed
 
 
 def residual(flight, cal):
@@ -128,7 +131,15 @@ def diagnose(flight, cal, noise=None, alpha=0.05, seed=0, progress=None):
     before_map = _map(tiers["fast"], tiers["fast"].residual, conds)
     after_map = _map(tiers["fast"], after["fast"], conds)
     return SensorDiagnosis(findings, unexplained, rejected, tiers, train, conds,
-                           {"before": before_map, "after": after_map}, len(cands))
+                           {"before": before_map, "after": after_map}, len(cands), cands, after)
+
+
+def verdict(diag):
+    """The contract verdict: missing-physics when a term is confirmed, otherwise
+    unexplained-residual when a localized excursion remains, otherwise no-missing-physics."""
+    if diag.findings:
+        return "missing-physics"
+    return "unexplained-residual" if diag.unexplained else "no-missing-physics"
 
 
 # ---- tiers ----------------------------------------------------------------------------
@@ -226,6 +237,9 @@ def _judge(tier, cands, c, pos, fit_tr, fit_ho, n_chosen, alpha, train, held, st
     b_tr, b_ho = fit_tr.beta[fit_tr.slices[pos]] * 1, fit_ho.beta[s]
     _, p_ho = fit_ho.test(pos)
     lo, hi = fit_ho.interval(pos)
+    if term["effect"] in REFERENCE_ACCURACY:      # the reference's own error, 1 sigma, added
+        half = np.hypot(hi - b_ho, 1.96 * REFERENCE_ACCURACY[term["effect"]] / 3)
+        lo, hi = b_ho - half, b_ho + half
     stability = _stability(tier, cands, c, train, rng)
     contribution = _contribution(tier, cands[c["j"]][2], b_ho)
     where_rows = _where_rows(contribution)
@@ -442,14 +456,23 @@ def _condition_masks(tier, cond, m, usable):
     return {k: masks[k] for k in CONDITIONS}
 
 
-def _map(tier, resid, conds):
-    """(conditions, 6): rms of the cleaned residual in each condition over its rms in quiet
-    flight (NaN where a condition has fewer than 50 bins)."""
+def _map(tier, resid, conds, seconds=MAP_SECONDS):
+    """(conditions, 6): rms of the cleaned residual averaged over `seconds` (so systematic
+    terms stand out of the white noise) in each condition (a majority of its bins) over the
+    same in quiet flight; NaN where a condition has fewer than 10 such averages."""
     x = clean(tier, resid)
-    quiet = conds["quiet"] if conds["quiet"].sum() >= 50 else np.ones(len(x), bool)
-    ref = np.sqrt(np.mean(x[quiet] ** 2, axis=0))
+    sec = np.floor((tier.t - tier.t[0]) / seconds).astype(int)
+    n = sec.max() + 1
+    count = np.maximum(np.bincount(sec, minlength=n), 1)
+    means = np.column_stack([np.bincount(sec, x[:, c], minlength=n) / count for c in range(6)])
+    full = np.bincount(sec, minlength=n) >= 0.5 * seconds / FAST_BIN_S
+    share = {k: np.bincount(sec, m.astype(float), minlength=n) / count for k, m in conds.items()}
+    quiet = full & (share["quiet"] > 0.5)
+    quiet = quiet if quiet.sum() >= 10 else full
+    ref = np.sqrt(np.mean(means[quiet] ** 2, axis=0))
     out = np.full((len(conds), 6), np.nan)
-    for r, mask in enumerate(conds.values()):
-        if mask.sum() >= 50:
-            out[r] = np.sqrt(np.mean(x[mask] ** 2, axis=0)) / ref
+    for r, key in enumerate(conds):
+        mask = full & (share[key] > 0.5)
+        if mask.sum() >= 10:
+            out[r] = np.sqrt(np.mean(means[mask] ** 2, axis=0)) / ref
     return out

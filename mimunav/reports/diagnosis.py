@@ -1,0 +1,176 @@
+"""The diagnosis report: REPORT_DIR/diagnosis.md with
+  residual-map.png   condition x channel map of the residual, before and after the found terms
+  timeline.png       the residual along the flight with the located segments (and any
+                     unexplained excursion) marked
+  navigation.png     navigation error of the model and of the model with the found terms
+  diagnosis.json     the `mimunav-diagnosis/1` document;  CAL+found.json  the calibration
+                     with the found terms (when any), for `mimunav table`.
+The folder is built beside its final place and renamed into it (nothing half-written).
+"""
+import math
+
+import numpy as np
+
+from .. import evaluation
+from ..files import atomic_folder
+from ..diagnosis import dumps, sensor
+from ..diagnosis.sensor import CHANNELS, CONDITIONS
+from .plots import figure, save
+
+CHANNEL_NAMES = [f"{s}.{a}" for s, a in CHANNELS]
+
+
+def navigation_gain(flight, cal, cal_found):
+    """Position error (m, 3-D) against the truth (else the FOG-IMU) at the end and its
+    maximum, for the model and the model with the found terms; and the series to plot."""
+    t = evaluation.comparison_times(flight)
+    fog = evaluation.navigate_fog(flight)
+    ref_key = "mimu-truth" if flight.truth is not None else "mimu-fog"
+    out, series = {"reference": "truth" if flight.truth is not None else "FOG-IMU"}, {}
+    for name, c in (("model", cal), ("model+found", cal_found)):
+        if c is None:
+            continue
+        err = evaluation.errors(evaluation.replay(flight, c, fog=fog), t)[ref_key]["position"]
+        norm = np.linalg.norm(err, axis=1)
+        out[name] = {"end_m": float(norm[-1]), "max_m": float(norm.max()),
+                     "end_enu_m": evaluation.ned_to_enu(err[-1]).tolist()}
+        series[name] = norm
+    return out, t, series
+
+
+def write(out_dir, doc, diag, flight, cal, cal_found, cal_label, force=False):
+    with atomic_folder(out_dir, force=force) as tmp:
+        nav, t_nav, series = navigation_gain(flight, cal, cal_found)
+        doc["navigation"] = nav
+        (tmp / "diagnosis.json").write_text(dumps(doc))
+        if cal_found is not None:
+            cal_found.save(str(tmp / "CAL+found.json"))
+        _residual_map(diag, str(tmp / "residual-map.png"))
+        _timeline(diag, doc, str(tmp / "timeline.png"))
+        _navigation(t_nav, series, nav, str(tmp / "navigation.png"))
+        (tmp / "diagnosis.md").write_text(markdown(doc, diag, cal_label))
+    return out_dir
+
+
+def markdown(doc, diag, cal_label):
+    lines = [f"# Diagnosis of {doc['log']}", "",
+             f"Model: `{cal_label}`. Verdict: **{doc['verdict']}** "
+             f"({doc['candidates_tested']} candidate terms, family-wise alpha {doc['alpha']}).",
+             "", doc["method"] + ".", ""]
+    if doc["findings"]:
+        lines += ["## Found terms (coefficient and 95 % interval from the held-out segments)", "",
+                  "| term | coefficient | 95 % interval | units | p train / Holm limit | "
+                  "p held-out | bootstrap | held-out rms before -> after | cannot be told from |",
+                  "|---|---|---|---|---|---|---|---|---|"]
+        for f in doc["findings"]:
+            fit = f["fit"]
+            alt = ", ".join(a["label"] for a in f["indistinguishable_from"]) or "-"
+            vec = f" (vector {_vec(f['vector'])})" if "vector" in f else ""
+            lines.append(
+                f"| {f['label']} | {f['coefficient']:.4g}{vec} | [{f['ci95'][0]:.4g}, "
+                f"{f['ci95'][1]:.4g}] | {f['units']} | {f['p_train']:.2g} / "
+                f"{f['holm_threshold']:.2g} | {f['p_heldout']:.2g} | "
+                f"{f['bootstrap_stability']:.0%} | {fit['heldout_rms_before']:.4g} -> "
+                f"{fit['heldout_rms_after']:.4g} {fit['units']} | {alt} |")
+        lines += ["", "Where each term acts (first spans; all in diagnosis.json):", ""]
+        for f in doc["findings"]:
+            for w in f["where"][:5]:
+                lines.append(f"- {f['label']}: {w['t0']:.1f}-{w['t1']:.1f} s, {w['condition']}")
+        lines.append("")
+    else:
+        lines += ["No term of the library is confirmed on the held-out segments.", ""]
+    if doc["unexplained"]:
+        lines += ["## Unexplained residual", "",
+                  "Localized excursions no candidate explains (2 s windows, robust z, "
+                  "Bonferroni over windows and channels):", ""]
+        lines += [f"- {u['channel']}: {u['t0']:.1f}-{u['t1']:.1f} s, z = {u['z']:.1f}"
+                  for u in doc["unexplained"][:20]]
+        lines.append("")
+    if doc["not_confirmed"]:
+        lines += ["## Chosen on the training segments, not confirmed", ""]
+        lines += [f"- {f['label']}: {f['rejected']}" for f in doc["not_confirmed"]]
+        lines.append("")
+    lines += ["## Residual by flight condition", "",
+              "RMS of the residual's 1 s means (bias wander removed) in each condition (the "
+              "seconds spent mostly in it) over the same in quiet flight; before -> after the "
+              "found terms (residual-map.png). White noise alone gives about 1.", "",
+              "| condition | " + " | ".join(CHANNEL_NAMES) + " |",
+              "|---|" + "---|" * 6]
+    before, after = diag.residual_map["before"], diag.residual_map["after"]
+    for r, cond in enumerate(CONDITIONS):
+        cells = [f"{before[r, c]:.2f} -> {after[r, c]:.2f}" if np.isfinite(before[r, c]) else "n/a"
+                 for c in range(6)]
+        lines.append("| " + cond.replace("|", "\\|") + " | " + " | ".join(cells) + " |")
+    nav = doc["navigation"]
+    lines += ["", f"## Navigation error against the {nav['reference']} (navigation.png)", "",
+              "| compensation | end 3-D error, m | max 3-D error, m |", "|---|---|---|"]
+    for name in ("model", "model+found"):
+        if name in nav:
+            lines.append(f"| {name} | {nav[name]['end_m']:.1f} | {nav[name]['max_m']:.1f} |")
+    if "model+found" in nav:
+        lines += ["", "`CAL+found.json` holds the model with the found terms: "
+                  "`mimunav table LOG --cal model=CAL --cal found=CAL+found.json` compares them."]
+    return "\n".join(lines) + "\n"
+
+
+def _vec(v):
+    return "[" + ", ".join(f"{x:.3g}" for x in v) + "]"
+
+
+def _residual_map(diag, png):
+    plt, fig, axes = figure(1, 2, (13, 4.2))
+    before, after = diag.residual_map["before"], diag.residual_map["after"]
+    top = np.nanmax(np.r_[before.ravel(), after.ravel(), 1.5]) if np.isfinite(before).any() else 2
+    for ax, data, title in ((axes[0, 0], before, "before"), (axes[0, 1], after, "after found terms")):
+        im = ax.imshow(data, cmap="magma_r", vmin=1.0 if top > 1 else 0, vmax=top, aspect="auto")
+        ax.set_xticks(range(6), CHANNEL_NAMES, rotation=30)
+        ax.set_yticks(range(len(CONDITIONS)), CONDITIONS)
+        ax.set_title(f"residual rms / quiet rms, {title}")
+        for (r, c), v in np.ndenumerate(data):
+            ax.text(c, r, "n/a" if not np.isfinite(v) else f"{v:.2f}", ha="center", va="center",
+                    fontsize=8, color="grey")
+        fig.colorbar(im, ax=ax, shrink=0.8)
+    save(plt, fig, png)
+
+
+def _timeline(diag, doc, png):
+    """Per channel: rms over 1 s of the cleaned fast residual, before and after, with the
+    located spans (green) and unexplained excursions (red)."""
+    tier = diag.tiers["fast"]
+    before = sensor.clean(tier, tier.residual)
+    after = sensor.clean(tier, diag.residual_after["fast"])
+    sec = np.floor(tier.t - tier.t[0]).astype(int)
+    n = sec.max() + 1
+    count = np.maximum(np.bincount(sec, minlength=n), 1)
+    t_s = tier.t[0] + np.arange(n) + 0.5
+    plt, fig, axes = figure(6, 1, (13, 11))
+    for c in range(6):
+        ax = axes[c, 0]
+        unit, scale = ("mg", 1e3 / 9.80665) if c < 3 else ("deg/s", 180 / math.pi)
+        for x, label in ((before, "before"), (after, "after")):
+            rms = np.sqrt(np.bincount(sec, x[:, c] ** 2, minlength=n) / count) * scale
+            ax.plot(t_s, rms, lw=0.8, label=label)
+        for f in doc["findings"]:
+            if CHANNEL_NAMES[c] in f["fit"]["channels"] or f["sensor"] == "imu":
+                for w in f["where"]:
+                    ax.axvspan(w["t0"], w["t1"], color="tab:green", alpha=0.15)
+        for u in doc["unexplained"]:
+            if u["channel"] == CHANNEL_NAMES[c]:
+                ax.axvspan(u["t0"], u["t1"], color="tab:red", alpha=0.3)
+        ax.set_ylabel(f"{CHANNEL_NAMES[c]}\n{unit}")
+    axes[0, 0].legend(loc="upper right")
+    axes[0, 0].set_title("residual rms per second (10 ms bins, wander removed); green: where a "
+                         "found term acts, red: unexplained")
+    axes[-1, 0].set_xlabel("time since the log epoch, s")
+    save(plt, fig, png)
+
+
+def _navigation(t, series, nav, png):
+    plt, fig, axes = figure(1, 1, (9, 4))
+    ax = axes[0, 0]
+    for name, norm in series.items():
+        ax.plot(t - t[0], norm, label=name)
+    ax.set_xlabel("time since the initial state, s")
+    ax.set_ylabel(f"3-D position error vs {nav['reference']}, m")
+    ax.legend()
+    save(plt, fig, png)

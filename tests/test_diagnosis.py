@@ -1,0 +1,198 @@
+"""Diagnosis: the effect regressors and the reference transfer against exact truth, the
+found-term compensation, the command's contract output, and the concealed-data proof in its
+reduced (CI) form: the eight required effects hidden one per recording, plus null recordings."""
+import json
+import math
+import os
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from mimunav import attitude, effects, simulation
+from mimunav.cli import main
+from mimunav.compensation import Calibration, CalibrationError, compensate
+from mimunav.diagnosis import concealed
+from mimunav.diagnosis.reference import predicted_mimu
+from mimunav.profile import Profile
+from mimunav.sensors import Mounting
+
+PROOF = os.path.join(os.path.dirname(__file__), "..", "flights", "diagnosis-proof.toml")
+PULL_ROLL = {"name": "pull-roll", "start": {
+    "latitude_deg": 30.0, "longitude_deg": 104.0, "height_m": 1000.0, "speed_m_s": 200.0,
+    "heading_deg": 45.0}, "segment": [
+        {"kind": "pull", "load_factor": 3.0, "flight_path_change_deg": 15.0},
+        {"kind": "roll", "rate_deg_s": 240.0, "angle_deg": 360.0},
+        {"kind": "hold", "duration_s": 2.0}]}
+
+
+def _ideal(mounting, fm_kwargs=None):
+    """Exact interval-mean (t, f, w) of a sensor at `mounting` on the pull-roll, 1 kHz."""
+    fm = simulation.flight_motion(Profile.from_dict(PULL_ROLL), mounting, 1000.0,
+                                  Mounting(), 1000.0, 100.0)
+    t, dth, dv = fm.mimu
+    return t, dv * 1000.0, dth * 1000.0, fm
+
+
+def test_reference_moved_to_the_mimu_mounting_matches_its_exact_increments():
+    """FOG at the origin, MIMU turned (30, 20, 45 deg) and 0.33 m away, a 3 g pull and a
+    240 deg/s roll: the transferred FOG output equals the MIMU's exact interval means to
+    the derivative's accuracy (the lever-arm terms reach 0.2 g here)."""
+    q = attitude.from_euler(*np.radians([30.0, 20.0, 45.0]))
+    mount = Mounting(np.asarray(q.components), [0.30, -0.10, 0.05])
+    t, f, w, fm = _ideal(mount)
+    _, dth_fog, dv_fog = fm.fog
+    flight = SimpleNamespace(path="x", mimu_t=t, mimu_mounting=mount, fog_t=fm.fog[0],
+                             fog_w=dth_fog * 1000.0, fog_f=dv_fog * 1000.0, fog_mounting=Mounting())
+    f_p, w_p, inside = predicted_mimu(flight)
+    k = inside & (t > 0.1) & (t < t[-1] - 0.1)
+    assert np.abs(w_p[k] - w[k]).max() < 1e-9
+    assert np.abs(f_p[k] - f[k]).max() < 2e-3            # 0.2 mg
+    centripetal = np.linalg.norm(f[k] - attitude.rotate(np.conjugate(mount.q_vs), dv_fog[k] * 1000.0),
+                                 axis=1).max()
+    assert centripetal > 1.5
+
+
+def test_size_effect_regressor_equals_an_exactly_simulated_proof_mass_offset():
+    """An accelerometer 8 mm off the sensor origin, simulated exactly (truth increments at
+    the moved point), against the effects regressor K r built from the rates."""
+    r = np.array([0.004, -0.006, 0.003])
+    base, moved = Mounting(lever_arm_m=[0.2, 0.0, 0.0]), Mounting(lever_arm_m=[0.2, 0.0, 0.0] + r)
+    t, f0, w, _ = _ideal(base)
+    _, f1, _, _ = _ideal(moved)
+    cond = effects.Conditions.from_outputs(t, f0, w, np.zeros((len(t), 3)), np.zeros((len(t), 3)))
+    for i, axis in enumerate("xyz"):
+        cols = effects.regressor({"effect": "size_effect", "sensor": "accel", "axis": axis},
+                                 cond)[("accel", i)]
+        k = slice(100, -100)
+        assert np.abs((cols @ r)[k] - (f1 - f0)[k, i]).max() < 1e-3 * np.abs(f1 - f0).max() + 1e-5
+
+
+def test_time_shift_is_exact_for_linear_motion_and_has_the_contract_sign():
+    t = np.arange(1, 2001) / 1000.0
+    rate = 0.5 + 3.0 * (t - 0.0005)[:, None] * np.array([1.0, -2.0, 0.5])  # interval means of a ramp
+    tau = 0.0007
+    lagged = effects.shift(t, rate, tau)
+    expect = 0.5 + 3.0 * (t - 0.0005 - tau)[:, None] * np.array([1.0, -2.0, 0.5])
+    assert np.abs(lagged[5:] - expect[5:]).max() < 1e-10
+    # the regressor: lagged - true = tau * (-dx/dt), coefficient tau > 0 for a lag
+    cond = effects.Conditions.from_outputs(t, rate, rate, rate, rate)
+    col = effects.regressor({"effect": "time_skew", "sensor": "accel", "axis": "all"}, cond)
+    assert np.allclose(col[("accel", 0)][10:-10, 0] * tau, (lagged - rate)[10:-10, 0], atol=1e-12)
+
+
+def test_found_terms_round_trip_and_remove_the_effect_they_name():
+    """A noise-free unit with a hidden g-sensitivity: its own model leaves the term in the
+    output; model + found term removes it to rounding."""
+    from mimunav.sensors import MimuUnit
+    from mimunav.sensors.mimu import NoiseModel
+    unit = MimuUnit.draw(3)
+    unit.noise = NoiseModel(*(0.0,) * 6)
+    unit.thermal.thermistor_noise = unit.thermal.frequency_noise = 0.0
+    unit.adc_lsb = 0.0
+    term = {"effect": "g_sensitivity", "sensor": "gyro", "axis": "y", "input_axis": "z",
+            "coefficient": 4e-5}
+    t, f, w, fm = _ideal(unit.mounting)
+    raw = unit.simulate(t, w / 1000.0, f / 1000.0, np.full(len(t), 20.0),
+                        np.random.default_rng(0), hidden=concealed.HiddenEffect(term))
+    doc = unit.coefficients.as_dict()
+    doc.update(model="entire-63+found", found=[term])
+    cal = Calibration.from_dict(json.loads(json.dumps(doc)))
+    assert Calibration.from_dict(cal.as_dict()).found == [term]
+    args = [raw[k] for k in ("accel_volts", "gyro_volts", "accel_temperature", "gyro_frequency")]
+    _, w_model, _ = compensate(unit.coefficients, *args, t=t)
+    _, w_found, _ = compensate(cal, *args, t=t)
+    k = slice(1, None)
+    assert np.abs(w_model[k, 1] - w[k, 1]).max() > 1e-3           # 3 g x 4e-5
+    assert np.abs(w_found[k] - w[k]).max() < 1e-9
+    bad = dict(doc, found=[dict(term, effect="warp_drive")])
+    with pytest.raises(CalibrationError, match="found\\[0\\]"):
+        Calibration.from_dict(bad)
+
+
+@pytest.fixture(scope="module")
+def skewed_log(tmp_path_factory):
+    """A proof-flight log with a hidden 0.6 ms time skew, and the unit's own model."""
+    from mimunav.sensors import MimuUnit
+    d = tmp_path_factory.mktemp("diag")
+    unit = MimuUnit.draw(11)
+    unit.mounting = concealed.proof_mounting()
+    hidden = concealed.HiddenEffect({"effect": "time_skew", "sensor": "imu", "axis": "all",
+                                     "coefficient": 6e-4})
+    log, truth = simulation.simulate_flight(Profile.load(PROOF), d / "f.mcap", 11, unit=unit,
+                                            hidden=hidden, progress=False)
+    unit.coefficients.save(str(d / "model.json"))
+    return d, log, truth
+
+
+def test_diagnose_command_writes_the_contract_and_a_report(skewed_log, capsys):
+    d, log, truth_file = skewed_log
+    with open(log, "rb") as fh:                  # the log hides the effect
+        assert b"time_skew" not in fh.read()
+    assert json.load(open(truth_file))["hidden"]["effect"] == "time_skew"
+    rc = main(["diagnose", str(log), "--model", str(d / "model.json"), "--json",
+               str(d / "out.json"), "-o", str(d / "report")])
+    assert rc == 0
+    doc = json.load(open(d / "out.json"))
+    assert doc["format"] == "mimunav-diagnosis/1" and doc["verdict"] == "missing-physics"
+    f = doc["findings"][0]
+    for key in ("effect", "sensor", "axis", "coefficient", "ci95", "units", "where", "fit"):
+        assert key in f
+    assert (f["effect"], f["sensor"], f["axis"], f["units"]) == ("time_skew", "imu", "all", "s")
+    assert f["ci95"][0] <= 6e-4 <= f["ci95"][1]
+    assert all(set(w) >= {"t0", "t1", "condition"} for w in f["where"])
+    fit = f["fit"]
+    assert fit["heldout_rms_after"] < fit["heldout_rms_before"]
+    for name in ("diagnosis.md", "residual-map.png", "timeline.png", "navigation.png",
+                 "CAL+found.json", "diagnosis.json"):
+        assert (d / "report" / name).exists(), name
+    found = Calibration.load(str(d / "report" / "CAL+found.json"))
+    assert found.model == "entire-63+found" and found.found[0]["effect"] == "time_skew"
+    assert main(["table", str(log), "--cal", f"model={d / 'model.json'}",
+                 "--cal", f"found={d / 'report' / 'CAL+found.json'}"]) == 0
+    # outputs are never overwritten silently
+    assert main(["diagnose", str(log), "--model", str(d / "model.json"), "--json",
+                 str(d / "out.json")]) == 2
+    assert "exists" in capsys.readouterr().err
+
+
+def test_diagnose_refuses_a_log_without_a_reference(tmp_path, capsys):
+    from mimunav.flightlog import LogWriter
+    from mimunav.flightlog import schemas as S
+    path = tmp_path / "bare.mcap"
+    with LogWriter(path) as log:
+        log.metadata("flight", {"format": "mimunav-log/1", "epoch_unix_ns": "0",
+                                "initial_state": {"t": 0.0, "latitude": 0.5, "longitude": 0.1,
+                                                  "height": 0.0, "velocity_ned": [0, 0, 0],
+                                                  "attitude_wxyz": [1, 0, 0, 0]}})
+        n = 10
+        log.write("/mimu/raw", S.RAW_MIMU, "mimu", np.arange(n, dtype=np.int64) * 10**6,
+                  sample_index=np.arange(n, dtype=np.uint64), gyro_volts=np.zeros((n, 3)),
+                  accel_volts=np.zeros((n, 3)), accel_temperature=np.zeros((n, 3)),
+                  gyro_frequency=np.zeros((n, 3)))
+    Calibration().save(str(tmp_path / "c.json"))
+    assert main(["diagnose", str(path), "--model", str(tmp_path / "c.json"),
+                 "-o", str(tmp_path / "r")]) == 2
+    assert "/fog/imu" in capsys.readouterr().err
+    assert not (tmp_path / "r").exists()
+
+
+def test_concealed_effects_are_found_and_nulls_stay_quiet():
+    """Reduced proof (CI): the eight required effects, one recording each, and four nulls.
+    Every hidden effect the flight makes detectable (its z on the whole flight > 8) must be
+    named, with the true value in the interval and a held-out improvement; no null may raise
+    a verdict; no effect recording may name another effect."""
+    cases = concealed.run_suite(PROOF, hidden=concealed.REQUIRED, repeats=1, nulls=4,
+                                workers=2, seed=0, progress=False)
+    s = concealed.summary(cases)
+    assert s["false_alarms"]["k"] == 0, [c for c in cases if not c["effect"]]
+    assert s["other_findings_in_effect_recordings"] == 0, [c["others"] for c in cases if c["effect"]]
+    strong = [c for c in cases if c["effect"] and c["z_detectable"] > 8]
+    assert len(strong) >= 4
+    for c in strong:
+        assert c["identified"], c
+        if c["exact"]:
+            assert c["heldout_rms_ratio"] < 1.0, c
+    assert s["interval_coverage"]["k"] >= s["interval_coverage"]["n"] - 1
+    assert s["identified"]["k"] >= 4
+    assert math.isfinite(s["heldout_rms_ratio_median"])
