@@ -3,8 +3,9 @@ sensor model may leave out, each as a regressor built from the flight's conditio
 
 One definition serves three users: the diagnosis tests a residual against these regressors,
 a compensation file carries found terms (`Calibration.found`) and removes them, and the
-concealed-effect suite hides them in simulated recordings (where the physics allows an exact
-simulation instead, the suite uses that: time shifts, proof-mass offsets).
+concealed-effect suite hides them in simulated recordings (a time skew as an exact shift of
+the samples, not through its derivative; the size-effect regressor is tested against an
+exactly simulated proof-mass offset in tests/test_diagnosis.py).
 
 Conditions (`Conditions`), all sensor axes, interval means at the sample stamps:
     f      specific force, m/s^2 (N, 3)        w      angular rate, rad/s (N, 3)

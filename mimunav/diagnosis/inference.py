@@ -95,7 +95,8 @@ class Fit:
     beta: np.ndarray            # all parameters, stacked in term order
     cov: np.ndarray
     slices: list                # per term: slice into beta
-    dof: int                    # degrees of freedom of the covariance (blocks - 1 or rows)
+    dof: list                   # per term: degrees of freedom of its variance (blocks - 1,
+                                # or rows - parameters)
     resid_ms: float
 
     def test(self, j):
@@ -107,11 +108,11 @@ class Fit:
         except np.linalg.LinAlgError:
             return 0.0, 1.0
         k = len(b)
-        return w / k, float(stats.f.sf(w / k, k, max(self.dof, 1)))
+        return w / k, float(stats.f.sf(w / k, k, self.dof[j]))
 
     def interval(self, j, level=0.95):
         s = self.slices[j]
-        q = stats.t.ppf(0.5 + level / 2, max(self.dof, 1))
+        q = stats.t.ppf(0.5 + level / 2, self.dof[j])
         se = np.sqrt(np.diag(self.cov[s, s]))
         return self.beta[s] - q * se, self.beta[s] + q * se
 
@@ -159,11 +160,13 @@ def fit(tier, terms, rows):
         g = np.zeros((nb, x.shape[1]))
         np.add.at(g, blocks, x * e[:, None])
         meat = g.T @ g * nb / max(nb - 1, 1)
-        cov, dof = inv @ meat @ inv, nb - 1
+        cov = inv @ meat @ inv
+        dof = [nb - 1] * len(slices)
     else:
-        dof = len(y) - x.shape[1]
-        s2 = max(1.0, float(e @ e) / max(dof, 1))
+        n_dof = len(y) - x.shape[1]
+        s2 = max(1.0, float(e @ e) / max(n_dof, 1))
         cov = inv * s2
+        dof = [n_dof] * len(slices)
     return Fit(beta, cov, slices, dof, float(e @ e) / len(e))
 
 
@@ -200,17 +203,3 @@ def wald_from_blocks(s, q, weights):
 def holm_threshold(alpha, m, step):
     """Holm's step-down threshold for the step-th smallest of m p-values (step from 0)."""
     return alpha / max(m - step, 1)
-
-
-def two_sided_normal_quantile(alpha):
-    return stats.norm.isf(alpha / 2)
-
-
-def correlation(tier, a, b, rows):
-    """Correlation of two scalar candidates' nuisance-free columns over the rows."""
-    _, x, _, _ = design(tier, [a, b], rows)
-    if x.shape[1] != 2:
-        return 0.0
-    num = x[:, 0] @ x[:, 1]
-    den = math.sqrt((x[:, 0] @ x[:, 0]) * (x[:, 1] @ x[:, 1])) or 1.0
-    return float(num / den)

@@ -1,0 +1,94 @@
+"""Benchmarks and proof of the diagnosis.
+
+    python bench/diagnosis.py [--repeats 2] [--nulls 40] [--report reports] [--json out.json]
+
+1. `mimunav diagnose` of a 10-minute 1 kHz flight (the proof flight's blocks to 600 s, a
+   hidden g-sensitivity), timed end to end in a fresh process with its report.
+2. The concealed-data suite (`mimunav.diagnosis.concealed.run_suite`): every proof effect
+   `--repeats` times and `--nulls` null recordings on 2 processes; writes
+   REPORT/diagnosis-proof.md and .json.
+"""
+import argparse
+import json
+import os
+import platform
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+from mimunav import simulation                               # noqa: E402
+from mimunav.diagnosis import concealed                      # noqa: E402
+from mimunav.profile import Profile                          # noqa: E402
+from mimunav.reports.diagnosis import proof_markdown         # noqa: E402
+from mimunav.sensors import MimuUnit                         # noqa: E402
+
+PROOF = ROOT / "flights" / "diagnosis-proof.toml"
+
+
+def ten_minutes():
+    """The proof flight's segments repeated to about 600 s."""
+    import tomllib
+    doc = tomllib.loads(PROOF.read_text())
+    doc["name"] = "diagnosis-ten-minutes"
+    while Profile.from_dict(doc).duration < 590:
+        doc["segment"] += doc["segment"][:7]
+    return Profile.from_dict(doc)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--repeats", type=int, default=2)
+    ap.add_argument("--nulls", type=int, default=40)
+    ap.add_argument("--report", default=str(ROOT / "reports"))
+    ap.add_argument("--seed", type=int, default=100, help="first seed of the suite's recordings")
+    ap.add_argument("--skip-suite", action="store_true")
+    ap.add_argument("--json")
+    args = ap.parse_args()
+    res = {"machine": f"{platform.machine()} {os.cpu_count()} cores, {platform.python_version()}"}
+    with tempfile.TemporaryDirectory() as tmp:
+        unit = MimuUnit.draw(21)
+        unit.mounting = concealed.proof_mounting()
+        hidden = concealed.draw("g_sensitivity", np.random.default_rng(21), unit)
+        prof = ten_minutes()
+        log, _ = simulation.simulate_flight(prof, os.path.join(tmp, "ten.mcap"), 21, unit=unit,
+                                            hidden=hidden, progress=False)
+        cal = os.path.join(tmp, "model.json")
+        unit.coefficients.save(cal)
+        t0 = time.perf_counter()
+        run = subprocess.run([sys.executable, "-m", "mimunav", "diagnose", log, "--model", cal,
+                              "-o", os.path.join(tmp, "rep")], check=True, capture_output=True,
+                             text=True)
+        res["diagnose_%.0fs_1kHz_s" % prof.duration] = time.perf_counter() - t0
+        res["diagnose_output"] = run.stdout.strip().splitlines()[:3]
+        res["hidden"] = hidden.as_dict()
+    if not args.skip_suite:
+        t0 = time.perf_counter()
+        cases = concealed.run_suite(str(PROOF), repeats=args.repeats, nulls=args.nulls,
+                                    seed=args.seed)
+        wall = time.perf_counter() - t0
+        summary = concealed.summary(cases)
+        res["suite_s"], res["suite"] = wall, summary
+        meta = {"command": f"python bench/diagnosis.py --repeats {args.repeats} --nulls "
+                           f"{args.nulls} --seed {args.seed}", "machine": res["machine"], "wall_s": wall,
+                "duration_s": Profile.load(PROOF).duration}
+        out = Path(args.report)
+        out.mkdir(parents=True, exist_ok=True)
+        from mimunav.files import write_atomic
+        write_atomic(out / "diagnosis-proof.md", proof_markdown(cases, summary, meta), force=True)
+        write_atomic(out / "diagnosis-proof.json", json.dumps(
+            {"summary": summary, "cases": cases, "meta": meta}, indent=1, default=float) + "\n",
+            force=True)
+    for key, value in res.items():
+        print(f"{key:28s} {value:.2f}" if isinstance(value, float) else f"{key:28s} {value}")
+    if args.json:
+        Path(args.json).write_text(json.dumps(res, indent=2, default=float))
+
+
+if __name__ == "__main__":
+    main()
