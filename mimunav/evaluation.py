@@ -176,14 +176,15 @@ class Replay:
     flags: dict
 
 
-def compensated_mimu(flight, cal):
-    """(w rad/s, f m/s^2, flag counts) of the flight's raw MIMU through `cal`."""
+def compensated_mimu(flight, cal, per_sample=False):
+    """(w rad/s, f m/s^2, flag counts) of the flight's raw MIMU through `cal` (with
+    per_sample: the flag of every sample instead of the counts)."""
     r = flight.mimu_raw
     f, w, flags = compensate(cal, r["accel_volts"], r["gyro_volts"], r["accel_temperature"],
                              r["gyro_frequency"], flight.mimu_range.get("accel_m_s2", np.inf),
                              flight.mimu_range.get("gyro_rad_s", np.inf),
                              t=flight.mimu_t - flight.mimu_t[0])
-    return w, f, flag_counts(flags)
+    return w, f, (flags if per_sample else flag_counts(flags))
 
 
 def navigate_fog(flight):

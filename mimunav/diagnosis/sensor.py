@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import effects
-from ..compensation import compensate
+from ..evaluation import compensated_mimu
 from ..effects import AXES, Conditions, derivative
 from ..sensors.mimu import G0, NoiseModel
 from ..calibration import flicker_covariance
@@ -70,10 +70,7 @@ class SensorDiagnosis:
 def residual(flight, cal):
     """(t s, residual (N, 6) accel m/s^2 then gyro rad/s, usable (N,), Conditions)."""
     r = flight.mimu_raw
-    f, w, flags = compensate(cal, r["accel_volts"], r["gyro_volts"], r["accel_temperature"],
-                             r["gyro_frequency"], flight.mimu_range.get("accel_m_s2", np.inf),
-                             flight.mimu_range.get("gyro_rad_s", np.inf),
-                             t=flight.mimu_t - flight.mimu_t[0])
+    w, f, flags = compensated_mimu(flight, cal, per_sample=True)
     f_p, w_p, inside = predicted_mimu(flight)
     t = flight.mimu_t
     cond = Conditions(t, f_p, w_p, derivative(t, f_p, DERIVATIVE_WINDOW_S),
