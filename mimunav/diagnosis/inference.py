@@ -30,6 +30,8 @@ class Tier:
     residual: np.ndarray            # (nb, 6) bin means
     columns: list                   # per candidate: {channel: (nb, k)}
     k: list                         # per candidate: parameter count
+    samples_per_bin: int = 1        # m: raw samples averaged into one bin
+    kept: np.ndarray = None         # which bins of the raw binning are usable (all samples good)
     knot_s: tuple = ()              # (6,) bias-wander knot spacing per channel, s (fast tier)
     white: np.ndarray = None        # (6,) white noise of a bin mean (slow tier)
     flicker: np.ndarray = None      # (6,) flicker instability B (slow tier)
@@ -172,8 +174,8 @@ def fit(tier, terms, rows):
 
 def block_scores(tier, j, terms, rows):
     """Per-block sums of the score of candidate j added to `terms` (for the bootstrap):
-    (s_b = sum x e0, q_b = sum x^2, u_b = sum x e0 cross) with x, e0 the candidate's column
-    and the residual, both with `terms` projected out. Scalar candidates only."""
+    (s_b = sum x e0 (nb, k), q_b = sum x x' (nb, k, k)) with x, e0 the candidate's columns
+    and the residual, both with `terms` projected out."""
     y, x, blocks, slices = design(tier, list(terms) + [j], rows)
     xc, xo = x[:, slices[-1]], x[:, :slices[-1].start]
     if xo.shape[1]:

@@ -24,6 +24,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from scipy import stats
 
 from .. import effects
 from ..evaluation import compensated_mimu
@@ -149,8 +150,7 @@ def _tiers(t, res, usable, cond, cands, m_fast, m_slow, noise):
         tb = _bin(t, m, usable)
         rb = _bin(res, m, usable)
         ok = np.isfinite(rb).all(axis=1)
-        out[name] = Tier(name, tb[ok], rb[ok], [], [])
-        out[name].ok, out[name].m = ok, m
+        out[name] = Tier(name, tb[ok], rb[ok], [], [], samples_per_bin=m, kept=ok)
     out["fast"].knot_s = tuple(
         [inference.knot_spacing(noise.accel_white, noise.accel_flicker)] * 3
         + [inference.knot_spacing(noise.gyro_white, noise.gyro_flicker)] * 3)
@@ -170,7 +170,7 @@ def _tiers(t, res, usable, cond, cands, m_fast, m_slow, noise):
             term["reference"] = float(means[term["sensor"]][AXES.index(term["axis"])])
         cols = {}
         for (sensor, i), x in effects.regressor(term, cond).items():
-            cols[(0 if sensor == "accel" else 3) + i] = _bin(x, tier.m, usable)[tier.ok]
+            cols[(0 if sensor == "accel" else 3) + i] = _bin(x, tier.samples_per_bin, usable)[tier.kept]
         scale = max(np.abs(x).max() for x in cols.values())
         spread = max(np.ptp(x, axis=0).max() for x in cols.values())
         if not np.isfinite(spread) or spread <= 1e-9 * max(scale, 1e-300):
@@ -285,7 +285,6 @@ def _stability(tier, cands, c, train, rng):
     """Share of block-bootstrap replicates of the training rows in which the chosen term (or
     a candidate it cannot be told from) has the smallest p-value among its tier's ten
     strongest competitors."""
-    from scipy import stats
     winners = {c["j"], *c["alternatives"]}
     pvals, weights = [], None
     for j in c["competitors"]:
@@ -403,7 +402,6 @@ def _remove(tiers, cands, findings):
 def _scan(tier, resid, alpha):
     """Localized excursions of the cleaned residual: means over SCAN_WINDOW_S windows per
     channel, robust z across the windows, Bonferroni over windows x channels."""
-    from scipy import stats
     x = clean(tier, resid)
     win = np.floor((tier.t - tier.t[0]) / SCAN_WINDOW_S).astype(int)
     nwin = win.max() + 1
@@ -442,7 +440,7 @@ CONDITIONS = ("quiet", "|f| > 2 g", "|w| > 60 deg/s", "|dw/dt| > 300 deg/s^2",
 
 def _condition_masks(tier, cond, m, usable):
     """Fast-bin masks of the flight conditions of the residual map."""
-    ok = tier.ok
+    ok = tier.kept
     f = _bin(np.linalg.norm(cond.f, axis=1)[:, None], m, usable)[ok, 0] / G0
     w = _bin(np.linalg.norm(cond.w, axis=1)[:, None], m, usable)[ok, 0] / DEG
     wd = _bin(np.linalg.norm(cond.w_dot, axis=1)[:, None], m, usable)[ok, 0] / DEG
