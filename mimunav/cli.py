@@ -178,18 +178,27 @@ def _replay(args):
 
 
 def _diagnose(args):
-    """Sensor-level diagnosis of a log against a calibration; JSON and report."""
+    """Diagnosis of a log against a calibration (sensor level with a reference IMU,
+    navigation level with only a reference trajectory); JSON and report."""
     from . import diagnosis, evaluation
     from .compensation import Calibration
-    from .diagnosis import sensor
+    from .diagnosis import navigation, sensor
     from .files import write_atomic
+    from .flightlog import LogError
     from .reports import diagnosis as report
     for out in (args.json, args.output):           # refuse before the work, not after
         if out and Path(out).exists() and not args.force:
             raise FileExistsError(f"{out} exists; use --force to replace it")
-    flight = evaluation.Flight.load(args.log)
+    flight = evaluation.Flight.load(args.log, reference_imu=args.level == "sensor")
     cal = Calibration.load(args.model)
-    diag = sensor.diagnose(flight, cal, alpha=args.alpha, seed=args.seed)
+    level = args.level
+    if level == "auto":
+        level = "sensor" if flight.fog_t is not None else "navigation"
+    if level == "navigation" and flight.truth is None:
+        raise LogError(f"{args.log}: neither /fog/imu (sensor level) nor /truth/state "
+                       "(navigation level): nothing to diagnose against")
+    run = sensor.diagnose if level == "sensor" else navigation.diagnose
+    diag = run(flight, cal, alpha=args.alpha, seed=args.seed)
     doc = diagnosis.document(args.log, diag, args.alpha)
     found = diagnosis.with_found(cal, doc["findings"])
     if args.output:
@@ -350,9 +359,15 @@ def build_parser():
     p.add_argument("--force", action="store_true", help="replace an existing folder")
     p.set_defaults(func=_replay)
     p = sub.add_parser("diagnose", help="find the physics the model leaves out: test the "
-                       "MIMU's residual against the reference IMU for every term of the effect "
-                       "vocabulary (log contract section 3)")
-    p.add_argument("log", help="flight log (MCAP) with /mimu/raw and /fog/imu")
+                       "MIMU's residual against the reference IMU (or, without one, its "
+                       "navigation error against the reference trajectory) for every term of "
+                       "the effect vocabulary (log contract section 3)")
+    p.add_argument("log", help="flight log (MCAP) with /mimu/raw and /fog/imu (sensor level) "
+                   "or /truth/state (navigation level)")
+    p.add_argument("--level", choices=("auto", "sensor", "navigation"), default="auto",
+                   help="sensor: MIMU outputs (m/s^2, rad/s) against the FOG-IMU's; navigation: "
+                   "NED velocity error (m/s) against /truth/state; auto (default): sensor when "
+                   "the log has /fog/imu")
     p.add_argument("--model", required=True, help="the calibration the user believes "
                    "(mimunav-calibration/1)")
     p.add_argument("--json", help="write the mimunav-diagnosis/1 document here")

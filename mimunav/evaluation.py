@@ -40,14 +40,16 @@ class Flight:
     mimu_raw: dict                  # accel_volts, gyro_volts, accel_temperature, gyro_frequency
     mimu_mounting: Mounting
     mimu_range: dict
-    fog_t: np.ndarray
-    fog_w: np.ndarray               # rad/s, sensor axes
-    fog_f: np.ndarray               # m/s^2, sensor axes
+    fog_t: np.ndarray | None        # None: a log without the reference IMU
+    fog_w: np.ndarray | None        # rad/s, sensor axes
+    fog_f: np.ndarray | None        # m/s^2, sensor axes
     fog_mounting: Mounting
     truth: Trajectory | None
 
     @classmethod
-    def load(cls, path):
+    def load(cls, path, reference_imu=True):
+        """The flight of the log at `path`; with reference_imu=False a log without
+        /fog/imu is accepted too (then fog_t, fog_w, fog_f are None)."""
         with FlightLog(path) as log:
             meta = log.metadata()
             flight = meta.get("flight", {})
@@ -55,14 +57,16 @@ class Flight:
                 if key not in flight:
                     raise LogError(f"{path}: the `flight` metadata lacks {key!r} (log contract "
                                    "section 1): cannot place the navigation start")
-            for topic in ("/mimu/raw", "/fog/imu"):
+            needed = ("/mimu/raw", "/fog/imu") if reference_imu else ("/mimu/raw",)
+            for topic in needed:
                 if topic not in log.channels:
                     raise LogError(f"{path}: no {topic} channel; replay compares the MIMU with "
                                    "the FOG-IMU flown with it (channels: "
                                    f"{', '.join(sorted(log.channels))})")
             epoch = int(flight["epoch_unix_ns"])
             raw = log.read("/mimu/raw", fields=RAW_FIELDS)
-            fog = log.read("/fog/imu", fields=("angular_velocity", "linear_acceleration"))
+            fog = (log.read("/fog/imu", fields=("angular_velocity", "linear_acceleration"))
+                   if "/fog/imu" in log.channels else None)
             truth = log.read("/truth/state") if "/truth/state" in log.channels else None
         sec = lambda m: (m["log_time"].astype(np.int64) - epoch) / 1e9      # noqa: E731
         init = flight["initial_state"]
@@ -79,9 +83,9 @@ class Flight:
         return cls(str(path), flight.get("name", ""), epoch, initial, sec(raw),
                    {k: np.ascontiguousarray(raw[k], float) for k in RAW_FIELDS},
                    mount("mimu"), meta.get("sensor/mimu", {}).get("range", {}),
-                   sec(fog), np.ascontiguousarray(fog["angular_velocity"], float),
-                   np.ascontiguousarray(fog["linear_acceleration"], float), mount("fog"),
-                   truth_traj)
+                   *((sec(fog), np.ascontiguousarray(fog["angular_velocity"], float),
+                      np.ascontiguousarray(fog["linear_acceleration"], float))
+                     if fog is not None else (None, None, None)), mount("fog"), truth_traj)
 
     @classmethod
     def from_simulation(cls, fm, unit, fog, raw, fog_out):
@@ -101,7 +105,8 @@ class Flight:
     @property
     def end(self):
         """Last instant every navigated channel (and the truth) covers, s."""
-        ends = [self.mimu_t[-1], self.fog_t[-1]] + ([self.truth.t[-1]] if self.truth else [])
+        ends = [self.mimu_t[-1]] + ([self.fog_t[-1]] if self.fog_t is not None else []) \
+            + ([self.truth.t[-1]] if self.truth else [])
         return float(min(ends))
 
 

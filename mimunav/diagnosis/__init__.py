@@ -3,6 +3,7 @@ name the physics the model left out (the effect vocabulary of log contract secti
 it with an interval and show the fit improve on held-out data.
 
     sensor       sensor level: the reference IMU predicts the MIMU's outputs
+    navigation   navigation level: only a reference trajectory; candidates' error signatures
     library      the candidate terms;  inference  the tests and their nuisance
     reference    the reference motion moved to the MIMU's mounting
     concealed    the proof on simulated recordings with hidden effects
@@ -16,7 +17,7 @@ import os
 import numpy as np
 
 from ..compensation import FOUND_SUFFIX, Calibration
-from . import sensor
+from . import navigation, sensor
 
 FORMAT = "mimunav-diagnosis/1"
 CONTRACT_KEYS = ("effect", "sensor", "axis", "input_axis", "coefficient", "ci95", "units",
@@ -24,18 +25,32 @@ CONTRACT_KEYS = ("effect", "sensor", "axis", "input_axis", "coefficient", "ci95"
 
 
 def document(log_path, diag, alpha=0.05):
-    """The `mimunav-diagnosis/1` document of a sensor-level diagnosis (contract keys first,
-    then this tool's extra keys)."""
+    """The `mimunav-diagnosis/1` document of a diagnosis (sensor or navigation level;
+    contract keys first, then this tool's extra keys)."""
     findings = [{**{k: f[k] for k in CONTRACT_KEYS if k in f},
                  **{k: v for k, v in f.items() if k not in CONTRACT_KEYS}} for f in diag.findings]
-    return {"format": FORMAT, "log": os.path.basename(str(log_path)),
-            "verdict": sensor.verdict(diag), "findings": _plain(findings),
-            "unexplained": _plain(diag.unexplained),
-            "not_confirmed": _plain(diag.rejected),
-            "level": "sensor", "candidates_tested": diag.candidates, "alpha": alpha,
-            "method": ("forward selection on even tenths of the flight with Holm's step-down "
-                       "thresholds over the library; held-out odd tenths give the coefficient, "
-                       "its 95 % interval and the confirmation; block-bootstrap stability")}
+    doc = {"format": FORMAT, "log": os.path.basename(str(log_path)),
+           "verdict": sensor.verdict(diag), "findings": _plain(findings),
+           "unexplained": _plain(diag.unexplained),
+           "not_confirmed": _plain(diag.rejected),
+           "level": diag.level, "candidates_tested": diag.candidates, "alpha": alpha,
+           "method": METHOD[diag.level]}
+    if diag.level == "navigation":
+        doc.update(epoch_s=navigation.EPOCH_S, reference="truth (/truth/state)",
+                   velocity_error_rms=_plain(np.sqrt(np.mean(diag.observed ** 2, axis=0))))
+    return doc
+
+
+METHOD = {
+    "sensor": ("sensor level (the reference IMU predicts the MIMU's outputs): forward "
+               "selection on even tenths of the flight with Holm's step-down thresholds over "
+               "the library; held-out odd tenths give the coefficient, its 95 % interval and "
+               "the confirmation; block-bootstrap stability"),
+    "navigation": ("navigation level (no reference IMU: the MIMU's free-inertial velocity "
+                   "error against the reference trajectory is fitted to each candidate's "
+                   "error signature on this trajectory, bias wander and initial attitude "
+                   "error as nuisance): the same selection, held-out confirmation and "
+                   "bootstrap as the sensor level")}
 
 
 def with_found(cal, findings):

@@ -150,8 +150,9 @@ def proof_motion(profile_path):
     return _MOTION[profile_path]
 
 
-def recording(profile_path, effect, seed):
-    """(Flight, unit, HiddenEffect | None): one concealed-data recording in memory."""
+def recording(profile_path, effect, seed, hidden=None):
+    """(Flight, unit, HiddenEffect | None): one concealed-data recording in memory (with
+    `hidden` given, that term instead of one drawn for `effect`)."""
     from .. import simulation
     from ..evaluation import Flight
     from ..sensors import MimuUnit
@@ -160,7 +161,8 @@ def recording(profile_path, effect, seed):
     unit = MimuUnit.draw(int(s_unit.generate_state(1)[0]), name=f"MIMU-P{seed:04d}")
     unit.mounting = proof_mounting()
     unit, fog, rng_m, rng_f = simulation.flight_units(seed, unit)
-    hidden = draw(effect, np.random.default_rng(s_effect), unit) if effect else None
+    if hidden is None and effect:
+        hidden = draw(effect, np.random.default_rng(s_effect), unit)
     raw, fog_out = simulation.record_flight(fm, unit, fog, rng_m, rng_f, hidden)
     return Flight.from_simulation(fm, unit, fog, raw, fog_out), unit, hidden
 

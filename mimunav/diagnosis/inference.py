@@ -1,15 +1,22 @@
-"""Tests of candidate terms against a residual, with the bias wander and coloured noise as
-nuisance, on chosen rows (training or held-out segments).
+"""Tests of candidate terms against a residual, with the bias wander, coloured noise and
+the reference's own linear error as nuisance, on chosen rows (training or held-out segments).
 
-A tier holds bin means of the residual (6 channels: accel x y z, gyro x y z) and of every
-candidate's regressor columns. Per channel, the nuisance is removed by projection:
-    fast tier: a piecewise-linear bias in time fitted on the chosen rows, its knots as far
-               apart as the channel's flicker allows (`knot_spacing`); the remaining coloured noise is handled by a block-robust (HAC)
-               covariance: blocks of BLOCK_S are treated as independent, the score
-               g_b = X_b' e_b summed inside each block;
-    slow tier: generalised least squares with a constant bias and the covariance of white
+A tier holds bin means of the residual (sensor level: 6 channels, accel x y z, gyro x y z;
+navigation level: velocity-error increments N E D) and of every candidate's columns. Per channel, the nuisance is removed by projection:
+    fast kind: a piecewise-linear bias in time fitted on the chosen rows, its knots as far
+               apart as the channel's flicker allows (`knot_spacing`); the remaining
+               coloured noise is handled by a block-robust (HAC) covariance: blocks of
+               BLOCK_S are treated as independent, the score g_b = X_b' e_b summed inside
+               each block, with Satterthwaite's degrees of freedom (`effective_blocks`);
+    slow kind: generalised least squares with a constant bias and the covariance of white
                noise plus the unit's flicker wander (its datasheet instability B), i.e. the
                noise model of `sensors.noise` over bins: Sigma = s_w^2/m I + B^2 F.
+    linear   (optional, either kind): the channel's sensor input x (3 columns: specific
+               force for an accelerometer, rate for a gyro), i.e. a full scale and
+               cross-coupling row. The reference IMU carries such an error of its own
+               (`sensor.REFERENCE_ACCURACY`), which leaks into any regressor that
+               correlates with x (x^3 of a roll rate with the rate itself); non-linear
+               candidates are tested with it removed.
 Channels are stacked, each scaled by its noise level, so a term that acts on several
 channels (time skew, misalignment) is one parameter vector fitted to all of them.
 """
@@ -26,6 +33,7 @@ BLOCK_S = 5.0       # HAC blocks of the fast tier
 @dataclass
 class Tier:
     name: str
+    kind: str                       # "fast" (wander + HAC) or "slow" (GLS), see above
     t: np.ndarray                   # bin centres, s (nb,)
     residual: np.ndarray            # (nb, 6) bin means
     columns: list                   # per candidate: {channel: (nb, k)}
@@ -36,6 +44,9 @@ class Tier:
     white: np.ndarray = None        # (6,) white noise of a bin mean (slow tier)
     flicker: np.ndarray = None      # (6,) flicker instability B (slow tier)
     flicker_cov: np.ndarray = None  # (nb, nb) unit-B flicker covariance of the bins (slow)
+    linear: list = None             # per channel (nb, q) extra nuisance columns (the sensor
+                                    # input: linear response; navigation: error signatures)
+    block_s: float = BLOCK_S        # HAC block length, s (fast kind)
     _cache: dict = field(default_factory=dict)
 
     def prepared(self, rows):
@@ -43,19 +54,21 @@ class Tier:
         nuisance-free scaled v, and the block index of each row."""
         key = rows.tobytes()
         if key not in self._cache:
-            self._cache[key] = (self._fast(rows) if self.name == "fast" else self._slow(rows))
+            self._cache[key] = (self._fast(rows) if self.kind == "fast" else self._slow(rows))
         return self._cache[key]
 
     def _fast(self, rows):
         t = self.t[rows]
-        bases = {}
+        wander = {}
         for spacing in set(self.knot_s):
             knots = np.arange(t[0], t[-1] + spacing, spacing)
             basis = np.clip(1 - np.abs((t[:, None] - knots[None, :]) / spacing), 0, None)
-            bases[spacing] = np.linalg.qr(basis[:, basis.sum(axis=0) > 0.5])[0]
-        project = lambda v, c: v - bases[self.knot_s[c]] @ (bases[self.knot_s[c]].T @ v)  # noqa
-        scale = [np.std(project(self.residual[rows, c], c)) or 1.0 for c in range(6)]
-        blocks = np.floor((t - t[0]) / BLOCK_S).astype(int)
+            wander[spacing] = basis[:, basis.sum(axis=0) > 0.5]
+        bases = [np.linalg.qr(self._with_linear(wander[self.knot_s[c]], c, rows))[0]
+                 for c in range(self.channels)]
+        project = lambda v, c: v - bases[c] @ (bases[c].T @ v)  # noqa
+        scale = [np.std(project(self.residual[rows, c], c)) or 1.0 for c in range(self.channels)]
+        blocks = np.floor((t - t[0]) / self.block_s).astype(int)
         # a gap (held-out segment) starts a new block
         blocks += np.concatenate([[0], np.cumsum(np.diff(t) > 1.5 * np.median(np.diff(t)))])
         return (lambda v, c: project(v, c) / scale[c]), _renumber(blocks), np.asarray(scale)
@@ -64,18 +77,25 @@ class Tier:
         idx = np.flatnonzero(rows)
         fc = self.flicker_cov[np.ix_(idx, idx)]
         whiten = []
-        for c in range(6):
+        for c in range(self.channels):
             cov = self.white[c] ** 2 * np.eye(len(idx)) + self.flicker[c] ** 2 * fc
             chol = linalg.cholesky(cov, lower=True)
-            one = linalg.solve_triangular(chol, np.ones(len(idx)), lower=True)
-            one /= np.linalg.norm(one)
-            whiten.append((chol, one))
+            nuisance = self._with_linear(np.ones((len(idx), 1)), c, rows)
+            q = np.linalg.qr(linalg.solve_triangular(chol, nuisance, lower=True))[0]
+            whiten.append((chol, q))
 
         def apply(v, c):
-            chol, one = whiten[c]
+            chol, q = whiten[c]
             w = linalg.solve_triangular(chol, v, lower=True)
-            return w - np.outer(one, one @ w) if w.ndim == 2 else w - one * (one @ w)
-        return apply, np.arange(len(idx)), np.ones(6)
+            return w - q @ (q.T @ w)
+        return apply, np.arange(len(idx)), np.ones(self.channels)
+
+    @property
+    def channels(self):
+        return self.residual.shape[1]
+
+    def _with_linear(self, basis, c, rows):
+        return basis if self.linear is None else np.hstack([basis, self.linear[c][rows]])
 
 
 def knot_spacing(white, flicker):
@@ -97,12 +117,14 @@ class Fit:
     beta: np.ndarray            # all parameters, stacked in term order
     cov: np.ndarray
     slices: list                # per term: slice into beta
-    dof: list                   # per term: degrees of freedom of its variance (blocks - 1,
-                                # or rows - parameters)
+    dof: list                   # per term: degrees of freedom of its variance (fast tier:
+                                # effective blocks, `effective_blocks`; slow: rows - parameters)
     resid_ms: float
+    dof_nominal: list = None    # per term: blocks - 1 (fast tier) / rows - parameters (slow)
 
-    def test(self, j):
-        """(F statistic, p value) of term j's parameters being zero."""
+    def test(self, j, nominal=False):
+        """(F statistic, p value) of term j's parameters being zero; `nominal`: with the
+        nominal degrees of freedom (a ranking of the evidence, not a test)."""
         s = self.slices[j]
         b, v = self.beta[s], self.cov[s, s]
         try:
@@ -110,7 +132,8 @@ class Fit:
         except np.linalg.LinAlgError:
             return 0.0, 1.0
         k = len(b)
-        return w / k, float(stats.f.sf(w / k, k, self.dof[j]))
+        dof = (self.dof_nominal or self.dof)[j] if nominal else self.dof[j]
+        return w / k, float(stats.f.sf(w / k, k, dof))
 
     def interval(self, j, level=0.95):
         s = self.slices[j]
@@ -129,7 +152,7 @@ def design(tier, terms, rows):
     for w in widths:
         slices.append(slice(start, start + w))
         start += w
-    for c in range(6):
+    for c in range(tier.channels):
         cols = np.zeros((rows.sum(), start))
         used = False
         for j, s in zip(terms, slices):
@@ -157,19 +180,33 @@ def fit(tier, terms, rows):
         inv = np.linalg.pinv(xtx)
     beta = inv @ (x.T @ y)
     e = y - x @ beta
-    if tier.name == "fast":
+    if tier.kind == "fast":
         nb = blocks.max() + 1
         g = np.zeros((nb, x.shape[1]))
         np.add.at(g, blocks, x * e[:, None])
         meat = g.T @ g * nb / max(nb - 1, 1)
         cov = inv @ meat @ inv
-        dof = [nb - 1] * len(slices)
+        nominal = [nb - 1] * len(slices)
+        dof = [min(nb - 1, effective_blocks(x @ inv, blocks, nb, s)) for s in slices]
     else:
         n_dof = len(y) - x.shape[1]
         s2 = max(1.0, float(e @ e) / max(n_dof, 1))
         cov = inv * s2
-        dof = [n_dof] * len(slices)
-    return Fit(beta, cov, slices, dof, float(e @ e) / len(e))
+        dof = nominal = [n_dof] * len(slices)
+    return Fit(beta, cov, slices, dof, float(e @ e) / len(e), nominal)
+
+
+def effective_blocks(a, blocks, nb, s):
+    """Degrees of freedom of the block-robust variance of the parameters in slice s
+    (Satterthwaite's approximation, as in Bell & McCaffrey 2002 for clustered errors): the
+    variance is a sum over blocks of terms with weights h_b = sum_(rows of b) a_ri^2 (a = X
+    (X'X)^-1), and such a sum carries (sum h_b)^2 / sum h_b^2 degrees of freedom - nb - 1
+    when every block weighs the same, few when a regressor (x^3 of a roll rate, say) lives
+    in few blocks, whose scatter then cannot measure its variance. The smallest over the
+    slice's parameters."""
+    h = np.zeros((nb, s.stop - s.start))
+    np.add.at(h, blocks, a[:, s] ** 2)
+    return float(np.min(h.sum(axis=0) ** 2 / np.maximum((h ** 2).sum(axis=0), 1e-300)))
 
 
 def block_scores(tier, j, terms, rows):

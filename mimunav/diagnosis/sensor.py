@@ -21,7 +21,7 @@ Procedure (every choice is made on training segments and judged on held-out ones
     unexplained residual with its place.
 """
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy import stats
@@ -56,6 +56,7 @@ DEG = math.pi / 180
 
 @dataclass
 class SensorDiagnosis:
+    level = "sensor"
     findings: list              # contract findings (+ extra keys)
     unexplained: list           # [{"t0", "t1", "channel", "z"}]
     rejected: list              # chosen on training data, not confirmed (with why)
@@ -110,12 +111,13 @@ def diagnose(flight, cal, noise=None, alpha=0.05, seed=0):
     chosen = _select(tiers, cands, train, alpha)
     rng = np.random.default_rng(seed)
     findings, rejected = [], []
-    for tier_name in ("fast", "slow"):
+    for tier_name in ("fast", "linear", "slow"):
         terms = [c for c in chosen if cands[c["j"]][0] == tier_name]
         if not terms:
             continue
         tier = tiers[tier_name]
         idx = [cands[c["j"]][2] for c in terms]
+        idx += [pos for pos in _current(cands, chosen, tier_name) if pos not in idx]
         fit_tr = inference.fit(tier, idx, train[tier_name])
         fit_ho = inference.fit(tier, idx, held[tier_name])
         for pos, c in enumerate(terms):
@@ -124,10 +126,11 @@ def diagnose(flight, cal, noise=None, alpha=0.05, seed=0):
             (findings if why is None else rejected).append(
                 finding if why is None else dict(finding, rejected=why))
     after = _remove(tiers, cands, findings)
-    unexplained = _scan(tiers["fast"], after["fast"], alpha)
-    conds = _condition_masks(tiers["fast"], cond, m_fast, usable)
-    before_map = _map(tiers["fast"], tiers["fast"].residual, conds)
-    after_map = _map(tiers["fast"], after["fast"], conds)
+    shown = tiers["linear"]                 # fast bins, bias wander removed only
+    unexplained = _scan(shown, after["linear"], alpha)
+    conds = _condition_masks(shown, cond, m_fast, usable)
+    before_map = _map(shown, shown.residual, conds)
+    after_map = _map(shown, after["linear"], conds)
     return SensorDiagnosis(findings, unexplained, rejected, tiers, train, conds,
                            {"before": before_map, "after": after_map}, len(cands), cands, after)
 
@@ -150,10 +153,14 @@ def _tiers(t, res, usable, cond, cands, m_fast, m_slow, noise):
         tb = _bin(t, m, usable)
         rb = _bin(res, m, usable)
         ok = np.isfinite(rb).all(axis=1)
-        out[name] = Tier(name, tb[ok], rb[ok], [], [], samples_per_bin=m, kept=ok)
+        inputs = _bin(np.hstack([cond.f, cond.w]), m, usable)[ok]
+        out[name] = Tier(name, name, tb[ok], rb[ok], [], [], samples_per_bin=m, kept=ok,
+                         linear=[inputs[:, :3]] * 3 + [inputs[:, 3:]] * 3)
     out["fast"].knot_s = tuple(
         [inference.knot_spacing(noise.accel_white, noise.accel_flicker)] * 3
         + [inference.knot_spacing(noise.gyro_white, noise.gyro_flicker)] * 3)
+    # the linear terms: the same bins and columns, without the linear nuisance
+    out["linear"] = replace(out["fast"], name="linear", linear=None, _cache={})
     slow = out["slow"]
     slow.white = np.asarray(sigma) / math.sqrt(m_slow)
     b = [noise.accel_flicker] * 3 + [noise.gyro_flicker] * 3
@@ -189,7 +196,11 @@ def _white_sigma(x):
 
 # ---- selection on training rows ---------------------------------------------------------
 def _current(cands, chosen, tier_name):
-    return [cands[c["j"]][2] for c in chosen if cands[c["j"]][0] == tier_name]
+    """Positions of the chosen terms a test in `tier_name` conditions on: its own, and for
+    the linear tier also the fast ones (same bins and columns; in the fast tier the linear
+    terms are part of the nuisance)."""
+    own = ("fast", "linear") if tier_name == "linear" else (tier_name,)
+    return [cands[c["j"]][2] for c in chosen if cands[c["j"]][0] in own]
 
 
 def _select(tiers, cands, train, alpha):
@@ -197,15 +208,20 @@ def _select(tiers, cands, train, alpha):
     chosen, excluded = [], set()
     m = len(cands)
     for step in range(MAX_TERMS):
-        p = np.ones(m)
+        p, evidence = np.ones(m), np.ones(m)
         for j, (tn, _, pos) in enumerate(cands):
             if j not in excluded:
                 cur = _current(cands, chosen, tn)
-                p[j] = inference.fit(tiers[tn], cur + [pos], train[tn]).test(len(cur))[1]
-        best = int(np.argmin(p))
+                fit = inference.fit(tiers[tn], cur + [pos], train[tn])
+                p[j], evidence[j] = fit.test(len(cur))[1], fit.test(len(cur), nominal=True)[1]
         threshold = inference.holm_threshold(alpha, m, step)
-        if p[best] > threshold:
+        if p.min() > threshold:
             break
+        # of the candidates that pass, the one the data favour most (nominal p: the Wald
+        # statistic), so that a term whose regressor lives in fewer blocks (x^2 against |x|)
+        # is not passed over for the size of its degrees-of-freedom correction
+        passing = np.flatnonzero(p <= threshold)
+        best = int(passing[np.argmin(evidence[passing])])
         tn, _, pos_b = cands[best]
         cur = _current(cands, chosen, tn)
         alternatives = []
@@ -217,7 +233,7 @@ def _select(tiers, cands, train, alpha):
             p_b = inference.fit(tiers[tn], cur + [pos_j, pos_b], train[tn]).test(len(cur) + 1)[1]
             if p_j > alpha and p_b > alpha:
                 alternatives.append(int(j))
-        same = [j for j in np.argsort(p) if cands[j][0] == tn and j not in excluded]
+        same = [j for j in np.argsort(evidence) if cands[j][0] == tn and j not in excluded]
         chosen.append(dict(j=best, alternatives=alternatives, p_train=float(p[best]),
                            threshold=threshold, competitors=[int(j) for j in same[:10]],
                            prior=list(cur)))
@@ -238,14 +254,7 @@ def _judge(tier, cands, c, pos, fit_tr, fit_ho, n_chosen, alpha, train, held, rn
     stability = _stability(tier, cands, c, train, rng)
     contribution = _contribution(tier, cands[c["j"]][2], b_ho)
     where_rows = _where_rows(contribution)
-    finding = {k: v for k, v in term.items() if k in ("effect", "sensor", "axis", "input_axis")}
-    if len(b_ho) == 1:
-        finding.update(coefficient=float(b_ho[0]), ci95=[float(lo[0]), float(hi[0])])
-    else:
-        big = int(np.argmax(np.abs(b_ho)))
-        finding.update(coefficient=float(b_ho[big]), ci95=[float(lo[big]), float(hi[big])],
-                       vector=b_ho.tolist(), vector_ci95=np.column_stack([lo, hi]).tolist())
-    finding["units"] = effects.units(term)
+    finding = estimate(term, b_ho, lo, hi)
     finding["where"] = _spans(tier, where_rows, term, cond)
     finding["fit"] = _rms_fit(tier, cands[c["j"]][2], b_tr, where_rows, train, held, term)
     for key in ("order", "window_s", "reference"):
@@ -267,6 +276,20 @@ def _judge(tier, cands, c, pos, fit_tr, fit_ho, n_chosen, alpha, train, held, rn
     elif stability < STABILITY:
         why = f"chosen in {stability:.0%} of the block-bootstrap replicates (< {STABILITY:.0%})"
     return finding, why
+
+
+def estimate(term, beta, lo, hi):
+    """The contract's description of a term with its held-out estimate and 95 % interval
+    (a vector parameter as `vector`, its largest component as `coefficient`)."""
+    finding = {k: v for k, v in term.items() if k in ("effect", "sensor", "axis", "input_axis")}
+    if len(beta) == 1:
+        finding.update(coefficient=float(beta[0]), ci95=[float(lo[0]), float(hi[0])])
+    else:
+        big = int(np.argmax(np.abs(beta)))
+        finding.update(coefficient=float(beta[big]), ci95=[float(lo[big]), float(hi[big])],
+                       vector=beta.tolist(), vector_ci95=np.column_stack([lo, hi]).tolist())
+    finding["units"] = effects.units(term)
+    return finding
 
 
 def _beyond_reference(effect, lo, hi):
@@ -303,7 +326,7 @@ def _stability(tier, cands, c, train, rng):
 
 def _contribution(tier, pos, beta):
     """(nb, 6) the term's contribution to each channel, natural units."""
-    out = np.zeros((len(tier.t), 6))
+    out = np.zeros((len(tier.t), tier.channels))
     for ch, cols in tier.columns[pos].items():
         out[:, ch] = cols @ beta
     return out
@@ -318,10 +341,11 @@ def _where_rows(contribution):
 
 
 def clean(tier, resid):
-    """Residual with the tier's bias nuisance removed over all rows (for display and rms):
-    fast tier the piecewise-linear wander, slow tier the mean."""
+    """Residual with the tier's nuisance removed over all rows (for display and rms): fast
+    kind the piecewise-linear wander (and the linear response if the tier has it), slow
+    kind the mean."""
     rows = np.ones(len(tier.t), bool)
-    if tier.name == "slow":
+    if tier.kind == "slow":
         return resid - resid.mean(axis=0)
     whiten, _, scale = tier.prepared(rows)
     return np.column_stack([whiten(resid[:, c], c) * scale[c] for c in range(6)])
@@ -347,9 +371,9 @@ def _rms_fit(tier, pos, b_tr, where, train, held, term):
         out[f"{part}_rms_after"] = _rms(after, where & rows, chans)
     out["units"] = "m/s^2" if sensor == "accel" else "rad/s"
     out["channels"] = [f"{CHANNELS[ch][0]}.{CHANNELS[ch][1]}" for ch in chans]
-    out["basis"] = (f"{tier.name}-tier bin means ({FAST_BIN_S if tier.name == 'fast' else SLOW_BIN_S:g} s)"
-                    ", bias nuisance removed, rows where the term acts; 'after' uses the "
-                    "training coefficient")
+    out["basis"] = (f"{tier.name}-tier bin means ({FAST_BIN_S if tier.kind == 'fast' else SLOW_BIN_S:g} s)"
+                    ", the tier's nuisance removed, rows where the term acts; 'after' uses "
+                    "the training coefficient")
     return out
 
 
@@ -364,7 +388,7 @@ def _spans(tier, rows, term, cond, gap_s=2.0, max_spans=20):
     t = tier.t
     if not rows.any():
         return []
-    half = 0.5 * (FAST_BIN_S if tier.name == "fast" else SLOW_BIN_S)
+    half = 0.5 * float(np.median(np.diff(t)))
     idx = np.flatnonzero(rows)
     breaks = np.flatnonzero(np.diff(t[idx]) > gap_s)
     starts, ends = np.r_[idx[0], idx[breaks + 1]], np.r_[idx[breaks], idx[-1]]
@@ -390,12 +414,15 @@ def _describe(cond, t0, t1, term):
 
 # ---- after the fit: residual map and localized excursions -------------------------------
 def _remove(tiers, cands, findings):
+    """Each tier's residual with the findings on its bins removed."""
     out = {name: tier.residual.copy() for name, tier in tiers.items()}
     by_label = {library.label(term): (tn, pos) for tn, term, pos in cands}
     for fd in findings:
         tn, pos = by_label[fd["label"]]
         beta = np.asarray(fd.get("vector", [fd["coefficient"]]), float)
-        out[tn] -= _contribution(tiers[tn], pos, beta)
+        for name, tier in tiers.items():
+            if tier.kind == tiers[tn].kind:
+                out[name] -= _contribution(tiers[tn], pos, beta)
     return out
 
 

@@ -1,7 +1,9 @@
 """The diagnosis report: REPORT_DIR/diagnosis.md with
-  residual-map.png   condition x channel map of the residual, before and after the found terms
+  residual-map.png   condition x channel map of the residual, before and after the found
+                     terms (sensor level)
   timeline.png       the residual along the flight with the located segments (and any
-                     unexplained excursion) marked
+                     unexplained excursion) marked (sensor level); at the navigation level
+                     the velocity error against the reference and the found terms' share
   navigation.png     navigation error of the model and of the model with the found terms
   diagnosis.json     the `mimunav-diagnosis/1` document;  CAL+found.json  the calibration
                      with the found terms (when any), for `mimunav table`.
@@ -14,6 +16,7 @@ import numpy as np
 from .. import evaluation
 from ..files import atomic_folder
 from ..diagnosis import dumps, sensor
+from ..diagnosis import library
 from ..diagnosis.sensor import CHANNELS, CONDITIONS
 from .plots import figure, save
 
@@ -24,13 +27,15 @@ def navigation_gain(flight, cal, cal_found):
     """Position error (m, 3-D) against the truth (else the FOG-IMU) at the end and its
     maximum, for the model and the model with the found terms; and the series to plot."""
     t = evaluation.comparison_times(flight)
-    fog = evaluation.navigate_fog(flight)
-    ref_key = "mimu-truth" if flight.truth is not None else "mimu-fog"
+    ref = evaluation.resample(flight.truth, t) if flight.truth is not None else \
+        evaluation.resample(evaluation.navigate_fog(flight), t)
     out, series = {"reference": "truth" if flight.truth is not None else "FOG-IMU"}, {}
     for name, c in (("model", cal), ("model+found", cal_found)):
         if c is None:
             continue
-        err = evaluation.errors(evaluation.replay(flight, c, fog=fog), t)[ref_key]["position"]
+        w, f, _ = evaluation.compensated_mimu(flight, c)
+        nav = evaluation.navigate(flight.mimu_t, w, f, flight.mimu_mounting, flight.initial)
+        err = evaluation.resample(nav, t).position_error(ref)
         norm = np.linalg.norm(err, axis=1)
         out[name] = {"end_m": float(norm[-1]), "max_m": float(norm.max()),
                      "end_enu_m": evaluation.ned_to_enu(err[-1]).tolist()}
@@ -45,15 +50,18 @@ def write(out_dir, doc, diag, flight, cal, cal_found, cal_label, force=False):
         (tmp / "diagnosis.json").write_text(dumps(doc))
         if cal_found is not None:
             cal_found.save(str(tmp / "CAL+found.json"))
-        _residual_map(diag, str(tmp / "residual-map.png"))
-        _timeline(diag, doc, str(tmp / "timeline.png"))
+        if diag.level == "sensor":
+            _residual_map(diag, str(tmp / "residual-map.png"))
+            _timeline(diag, doc, str(tmp / "timeline.png"))
+        else:
+            _velocity_timeline(diag, doc, str(tmp / "timeline.png"))
         _navigation(t_nav, series, nav, str(tmp / "navigation.png"))
         (tmp / "diagnosis.md").write_text(markdown(doc, diag, cal_label))
     return out_dir
 
 
 def markdown(doc, diag, cal_label):
-    lines = [f"# Diagnosis of {doc['log']}", "",
+    lines = [f"# Diagnosis of {doc['log']} ({doc['level']} level)", "",
              f"Model: `{cal_label}`. Verdict: **{doc['verdict']}** "
              f"({doc['candidates_tested']} candidate terms, family-wise alpha {doc['alpha']}).",
              "", doc["method"] + ".", ""]
@@ -90,17 +98,14 @@ def markdown(doc, diag, cal_label):
         lines += ["## Chosen on the training segments, not confirmed", ""]
         lines += [f"- {f['label']}: {f['rejected']}" for f in doc["not_confirmed"]]
         lines.append("")
-    lines += ["## Residual by flight condition", "",
-              "RMS of the residual's 1 s means (bias wander removed) in each condition (the "
-              "seconds spent mostly in it) over the same in quiet flight; before -> after the "
-              "found terms (residual-map.png). White noise alone gives about 1.", "",
-              "| condition | " + " | ".join(CHANNEL_NAMES) + " |",
-              "|---|" + "---|" * 6]
-    before, after = diag.residual_map["before"], diag.residual_map["after"]
-    for r, cond in enumerate(CONDITIONS):
-        cells = [f"{before[r, c]:.2f} -> {after[r, c]:.2f}" if np.isfinite(before[r, c]) else "n/a"
-                 for c in range(6)]
-        lines.append("| " + cond.replace("|", "\\|") + " | " + " | ".join(cells) + " |")
+    if diag.level == "sensor":
+        lines += _condition_table(diag)
+    else:
+        lines += ["## Velocity error against the reference (timeline.png)", "",
+                  "The MIMU navigated free-inertial from the initial state; the fit uses its "
+                  f"velocity-error increments over {doc['epoch_s']:g} s. RMS of the velocity "
+                  "error (N, E, D): " + ", ".join(f"{x:.3g}" for x in doc["velocity_error_rms"])
+                  + " m/s.", ""]
     nav = doc["navigation"]
     lines += ["", f"## Navigation error against the {nav['reference']} (navigation.png)", "",
               "| compensation | end 3-D error, m | max 3-D error, m |", "|---|---|---|"]
@@ -111,6 +116,21 @@ def markdown(doc, diag, cal_label):
         lines += ["", "`CAL+found.json` holds the model with the found terms: "
                   "`mimunav table LOG --cal model=CAL --cal found=CAL+found.json` compares them."]
     return "\n".join(lines) + "\n"
+
+
+def _condition_table(diag):
+    lines = ["## Residual by flight condition", "",
+              "RMS of the residual's 1 s means (bias wander removed) in each condition (the "
+              "seconds spent mostly in it) over the same in quiet flight; before -> after the "
+              "found terms (residual-map.png). White noise alone gives about 1.", "",
+              "| condition | " + " | ".join(CHANNEL_NAMES) + " |",
+              "|---|" + "---|" * 6]
+    before, after = diag.residual_map["before"], diag.residual_map["after"]
+    for r, cond in enumerate(CONDITIONS):
+        cells = [f"{before[r, c]:.2f} -> {after[r, c]:.2f}" if np.isfinite(before[r, c]) else "n/a"
+                 for c in range(6)]
+        lines.append("| " + cond.replace("|", "\\|") + " | " + " | ".join(cells) + " |")
+    return lines
 
 
 def _vec(v):
@@ -136,9 +156,9 @@ def _residual_map(diag, png):
 def _timeline(diag, doc, png):
     """Per channel: 1 s means of the cleaned fast residual, before and after, with the
     located spans (green) and unexplained excursions (red)."""
-    tier = diag.tiers["fast"]
+    tier = diag.tiers["linear"]             # fast bins with only the bias wander removed
     before = sensor.clean(tier, tier.residual)
-    after = sensor.clean(tier, diag.residual_after["fast"])
+    after = sensor.clean(tier, diag.residual_after["linear"])
     sec = np.floor(tier.t - tier.t[0]).astype(int)
     n = sec.max() + 1
     count = np.maximum(np.bincount(sec, minlength=n), 1)
@@ -162,6 +182,33 @@ def _timeline(diag, doc, png):
     axes[0, 0].set_title("residual, 1 s means (bias wander removed); green: where a found term "
                          "acts, red: unexplained")
     axes[-1, 0].set_xlabel("time since the log epoch, s")
+    save(plt, fig, png)
+
+
+def _velocity_timeline(diag, doc, png):
+    """Navigation level: velocity error against the reference per NED axis, and what the
+    found terms (training coefficients) account for, with their located spans."""
+    from ..diagnosis.navigation import CHANNELS as NED
+    plt, fig, axes = figure(3, 1, (13, 8))
+    t = diag.epochs - diag.epochs[0]
+    explained = np.zeros_like(diag.observed)
+    by_label = {library.label(term): pos for _, term, pos in diag.candidates_list}
+    for f in doc["findings"]:
+        beta = np.atleast_1d(np.asarray(f["train_coefficient"], float))
+        inc = sensor._contribution(diag.tier, by_label[f["label"]], beta)
+        explained[1:] += np.cumsum(inc, axis=0)
+    for c in range(3):
+        ax = axes[c, 0]
+        ax.plot(t, diag.observed[:, c], label="MIMU - reference")
+        if doc["findings"]:
+            ax.plot(t, explained[:, c], label="found terms (signature)")
+        for f in doc["findings"]:
+            for w in f["where"]:
+                ax.axvspan(w["t0"] - diag.epochs[0], w["t1"] - diag.epochs[0], color="green",
+                           alpha=0.15, lw=0)
+        ax.set_ylabel(f"v error {NED[c]}, m/s")
+    axes[0, 0].legend(fontsize=8)
+    axes[-1, 0].set_xlabel("time since the first epoch, s")
     save(plt, fig, png)
 
 

@@ -1,0 +1,227 @@
+"""Navigation-level diagnosis: when the only reference is a trajectory (position and velocity:
+a simulation's truth, a GNSS/INS solution, RTK), not a second IMU.
+
+The compensated MIMU is navigated from the log's initial state with the project's strapdown
+navigator (`evaluation.navigate`); its velocity error against the reference, sampled every
+EPOCH_S, is the observation. Every candidate term of the library (`library.candidates`)
+has an error signature on this trajectory: the velocity error its regressor, at unit
+coefficient, produces through the linearised strapdown error equations (psi-angle form,
+Titterton & Weston, Strapdown Inertial Navigation Technology, 2nd ed., section 12.2):
+
+    d(phi)/dt = - C_nb d(w_b)                    attitude error, rad
+    d(dv)/dt  =   C_nb d(f_b) + f_n x phi        velocity error, m/s
+
+over minutes, where the earth-rate and transport-rate couplings and the Schuler feedback of
+gravity (period 84 min) are below the noise (tested against the full navigator in
+tests/test_diagnosis.py). The regressors are built from the compensated MIMU outputs
+themselves (the error of a regressor built from a slightly wrong input is second order).
+
+The fit is on velocity-error increments over EPOCH_S (white accelerometer noise gives
+independent increments; gyro noise and wander give correlated ones, handled by HAC blocks of
+BLOCK_S with Satterthwaite's degrees of freedom, `inference`), with nuisance signatures:
+constant accelerometer and gyro biases, the initial attitude error, and a piecewise-linear
+bias wander of both with knots every WANDER_KNOT_S. Selection, Holm thresholds, held-out
+confirmation and block-bootstrap stability are those of the sensor level (`sensor`).
+"""
+from dataclasses import dataclass
+
+import numpy as np
+import quaternion
+
+from .. import effects
+from ..effects import Conditions
+from ..evaluation import compensated_mimu, navigate, resample
+from . import inference, library, sensor
+from .inference import Tier
+from .reference import DERIVATIVE_WINDOW_S
+
+EPOCH_S = 1.0
+BLOCK_S = 30.0
+WANDER_KNOT_S = 60.0
+MIN_EPOCHS = 40                 # shortest reference overlap, in epochs
+BIN_S = 0.01                    # regressors and the error equations are integrated on 10 ms bins
+CHANNELS = ("north", "east", "down")
+
+
+@dataclass
+class NavigationDiagnosis:
+    level = "navigation"
+    findings: list
+    rejected: list
+    tier: Tier
+    train: np.ndarray
+    candidates: int
+    candidates_list: list
+    observed: np.ndarray            # (ne, 3) velocity error at the epochs, NED m/s
+    epochs: np.ndarray              # (ne,) s
+    unexplained: list
+
+
+@dataclass
+class ErrorModel:
+    """What the signatures need, on bins of BIN_S: time t (s), the sensor-to-NED rotation
+    c_ns (nb, 3, 3), the specific force in NED f_n (nb, 3), the bin length dt (s)."""
+    t: np.ndarray
+    c_ns: np.ndarray
+    f_n: np.ndarray
+    dt: np.ndarray
+
+    def velocity(self, d_f, d_w):
+        """Velocity error (nb, 3, k), NED m/s, at the bin ends caused by sensor-axis
+        specific-force errors d_f (nb, 3, k) m/s^2 and rate errors d_w (nb, 3, k) rad/s."""
+        dt = self.dt[:, None, None]
+        phi = -np.cumsum(np.einsum("nij,njk->nik", self.c_ns, d_w) * dt, axis=0)
+        dv_dot = np.einsum("nij,njk->nik", self.c_ns, d_f) + np.cross(
+            self.f_n[:, :, None], phi, axisa=1, axisb=1, axisc=1)
+        return np.cumsum(dv_dot * dt, axis=0)
+
+
+def observed_error(flight, cal):
+    """(MIMU navigation Trajectory, w rad/s, f m/s^2 sensor-axis outputs) of the compensated
+    MIMU, navigated from the log's initial state."""
+    w, f, _ = compensated_mimu(flight, cal)
+    if not (np.isfinite(w).all() and np.isfinite(f).all()):
+        raise ValueError(f"{flight.path}: the compensated MIMU has non-finite samples: the "
+                         "navigation level needs an unbroken free-inertial run")
+    nav = navigate(flight.mimu_t, w, f, flight.mimu_mounting, flight.initial)
+    return nav, w, f
+
+
+def error_model(flight, nav, w, f):
+    """The ErrorModel on BIN_S bins after the initial state, and the bins' Conditions."""
+    t = flight.mimu_t
+    after = t > flight.initial["t"] + 1e-12
+    rate = 1.0 / np.median(np.diff(t))
+    m = max(1, round(BIN_S * rate))
+    idx = np.flatnonzero(after)
+    n = len(idx) // m * m
+    idx = idx[:n]
+    mean = lambda x: x[idx].reshape(n // m, m, *x.shape[1:]).mean(axis=1)  # noqa: E731
+    t_end = t[idx].reshape(n // m, m)[:, -1]
+    t_start = np.r_[flight.initial["t"], t_end[:-1]]
+    q_nb = resample(nav, t_end - 0.5 * (t_end - t_start)).q_nb
+    q_ns = q_nb * flight.mimu_mounting.q_vs
+    c_ns = quaternion.as_rotation_matrix(q_ns)
+    f_b, w_b = mean(f), mean(w)
+    model = ErrorModel(t_end, c_ns, np.einsum("nij,nj->ni", c_ns, f_b), t_end - t_start)
+    r = flight.mimu_raw
+    cond = Conditions.from_outputs(t_end, f_b, w_b, mean(r["accel_temperature"]),
+                                   mean(r["gyro_frequency"]), DERIVATIVE_WINDOW_S)
+    return model, cond
+
+
+def signature(model, regressor, k):
+    """Velocity-error signature (nb, 3, k) of a regressor {(sensor, axis index): (nb, k)}."""
+    d = {"accel": np.zeros((len(model.t), 3, k)), "gyro": np.zeros((len(model.t), 3, k))}
+    for (sens, i), x in regressor.items():
+        d[sens][:, i, :] = x
+    return model.velocity(d["accel"], d["gyro"])
+
+
+def nuisance(model):
+    """Signatures (nb, 3, q) of what the navigation level does not test: piecewise-linear
+    (wandering) accelerometer and gyro biases, the initial attitude error."""
+    t = model.t
+    knots = np.arange(t[0], t[-1] + WANDER_KNOT_S, WANDER_KNOT_S)
+    hat = np.clip(1 - np.abs((t[:, None] - knots[None, :]) / WANDER_KNOT_S), 0, None)
+    hat = hat[:, hat.sum(axis=0) > 0.5]                 # the hats sum to 1: constants included
+    cols = [signature(model, {(sens, i): hat}, hat.shape[1])
+            for i in range(3) for sens in ("accel", "gyro")]
+    phi0 = np.cumsum(np.cross(model.f_n[:, :, None], np.eye(3)[None], axisa=1, axisb=1,
+                              axisc=1) * model.dt[:, None, None], axis=0)
+    cols.append(phi0)
+    return np.concatenate(cols, axis=2)
+
+
+def diagnose(flight, cal, alpha=0.05, seed=0, reference=None):
+    """Navigation-level diagnosis of `flight` (an `evaluation.Flight`) against calibration
+    `cal`, with `reference` (a Trajectory; default the log's /truth/state)."""
+    reference = reference or flight.truth
+    if reference is None:
+        raise ValueError(f"{flight.path}: no reference trajectory (/truth/state) for the "
+                         "navigation-level diagnosis")
+    nav, w, f = observed_error(flight, cal)
+    model, cond = error_model(flight, nav, w, f)
+    t0 = max(model.t[0], reference.t[0])
+    t1 = min(model.t[-1], reference.t[-1])
+    epochs = np.arange(t0, t1 + 1e-9, EPOCH_S)
+    if len(epochs) < MIN_EPOCHS:
+        raise ValueError(f"{flight.path}: {t1 - t0:.0f} s of reference overlap is too short "
+                         "for a navigation-level diagnosis")
+    observed = resample(nav, epochs).velocity_error(resample(reference, epochs))
+    at = np.clip(np.searchsorted(model.t, epochs), 0, len(model.t) - 1)
+    increments = lambda x: np.diff(x[at], axis=0)                            # noqa: E731
+    z = increments(nuisance(model))
+    tier = Tier("navigation", "fast", epochs[1:], np.diff(observed, axis=0), [], [],
+                knot_s=(t1 - t0,) * 3, linear=[z[:, c, :] for c in range(3)], block_s=BLOCK_S,
+                kept=np.ones(len(epochs) - 1, bool))
+    cands = []
+    for _, term in library.candidates():
+        if term["effect"] in ("temperature_bias", "temperature_scale"):
+            sens = cond.T if term["sensor"] == "accel" else cond.freq
+            term["reference"] = float(np.mean(sens[:, effects.AXES.index(term["axis"])]))
+        reg = effects.regressor(term, cond)
+        k = next(iter(reg.values())).shape[1]
+        if not all(np.isfinite(x).all() for x in reg.values()):
+            continue
+        sig = increments(signature(model, reg, k))
+        if np.ptp(sig) <= 1e-12 * max(np.abs(sig).max(), 1e-300):
+            continue
+        tier.columns.append({c: sig[:, c, :] for c in range(3)})
+        tier.k.append(k)
+        cands.append(("navigation", term, len(tier.columns) - 1))
+    seg = np.minimum(((tier.t - t0) / (t1 - t0) * sensor.SEGMENTS).astype(int),
+                     sensor.SEGMENTS - 1)
+    train = seg % 2 == 0
+    chosen = sensor._select({"navigation": tier}, cands, {"navigation": train}, alpha)
+    findings, rejected = _confirm(tier, cands, chosen, train, alpha, seed, cond)
+    return NavigationDiagnosis(findings, rejected, tier, train, len(cands), cands, observed,
+                               epochs, [])
+
+
+def _confirm(tier, cands, chosen, train, alpha, seed, cond):
+    """Held-out refit of the chosen terms; the sensor level's rules (held-out p, sign,
+    bootstrap stability)."""
+    if not chosen:
+        return [], []
+    rng = np.random.default_rng(seed)
+    held = ~train
+    idx = [cands[c["j"]][2] for c in chosen]
+    fit_tr, fit_ho = inference.fit(tier, idx, train), inference.fit(tier, idx, held)
+    findings, rejected = [], []
+    for pos, c in enumerate(chosen):
+        _, term, col = cands[c["j"]]
+        b_tr, b_ho = fit_tr.beta[fit_tr.slices[pos]], fit_ho.beta[fit_ho.slices[pos]]
+        _, p_ho = fit_ho.test(pos)
+        lo, hi = fit_ho.interval(pos)
+        stability = sensor._stability(tier, cands, c, train, rng)
+        finding = sensor.estimate(term, b_ho, lo, hi)
+        finding.update({k: term[k] for k in ("order", "window_s", "reference") if k in term})
+        contribution = sensor._contribution(tier, col, b_tr)
+        rows = sensor._where_rows(contribution)
+        before = tier.residual
+        after = before - contribution
+        rms = lambda x, r: float(np.sqrt(np.mean(x[r] ** 2))) if r.any() else float("nan")  # noqa
+        finding.update(
+            where=sensor._spans(tier, rows, term, cond),
+            fit={"train_rms_before": rms(before, rows & train),
+                 "train_rms_after": rms(after, rows & train),
+                 "heldout_rms_before": rms(before, rows & held),
+                 "heldout_rms_after": rms(after, rows & held),
+                 "units": "m/s", "basis": f"velocity-error increments over {EPOCH_S:g} s (NED), "
+                 "epochs where the term acts; 'after' uses the training coefficient"},
+            label=library.label(term), level="navigation", p_train=c["p_train"],
+            holm_threshold=c["threshold"], p_heldout=p_ho,
+            train_coefficient=b_tr.tolist() if len(b_tr) > 1 else float(b_tr[0]),
+            bootstrap_stability=stability,
+            indistinguishable_from=[sensor._alternative(cands[j][1]) for j in c["alternatives"]])
+        why = None
+        if p_ho >= alpha / len(chosen):
+            why = f"held-out p = {p_ho:.2g}, needs < {alpha / len(chosen):.2g}"
+        elif float(b_tr @ b_ho) <= 0:
+            why = "the held-out coefficient has the other sign"
+        elif stability < sensor.STABILITY:
+            why = f"chosen in {stability:.0%} of the block-bootstrap replicates"
+        (findings if why is None else rejected).append(
+            finding if why is None else dict(finding, rejected=why))
+    return findings, rejected
