@@ -201,7 +201,8 @@ def _confirm(tier, cands, chosen, train, alpha, seed, cond):
         rows = sensor._where_rows(contribution)
         before = tier.residual
         after = before - contribution
-        rms = lambda x, r: float(np.sqrt(np.mean(x[r] ** 2))) if r.any() else float("nan")  # noqa
+        chans = list(range(tier.channels))
+        rms = lambda x, r: sensor._rms(x, r, chans)                               # noqa: E731
         finding.update(
             where=sensor._spans(tier, rows, term, cond),
             fit={"train_rms_before": rms(before, rows & train),
