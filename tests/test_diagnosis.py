@@ -260,3 +260,14 @@ def test_concealed_effects_are_found_and_nulls_stay_quiet():
     assert s["interval_coverage"]["k"] >= s["interval_coverage"]["n"] - 1
     assert s["identified"]["k"] >= 4
     assert math.isfinite(s["heldout_rms_ratio_median"])
+
+
+def test_effective_blocks_count_the_blocks_a_regressor_lives_in():
+    """Satterthwaite's df in closed form: a regressor spread evenly over 40 blocks has 40;
+    one that is non-zero in 3 blocks of equal weight has 3 (whatever the others hold)."""
+    from mimunav.diagnosis.inference import effective_blocks
+    blocks = np.repeat(np.arange(40), 25)
+    even = np.ones((len(blocks), 1))
+    assert effective_blocks(even, blocks, 40, slice(0, 1)) == pytest.approx(40.0)
+    few = np.where(np.isin(blocks, [3, 17, 30]), 1.0, 0.0)[:, None]
+    assert effective_blocks(few, blocks, 40, slice(0, 1)) == pytest.approx(3.0)
