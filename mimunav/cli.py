@@ -182,7 +182,7 @@ def _diagnose(args):
     navigation level with only a reference trajectory); JSON and report."""
     from . import diagnosis, evaluation
     from .compensation import Calibration
-    from .diagnosis import navigation, sensor
+    from .diagnosis import navigation, sensor, track
     from .files import write_atomic
     from .flightlog import LogError
     from .reports import diagnosis as report
@@ -190,19 +190,26 @@ def _diagnose(args):
         if out and Path(out).exists() and not args.force:
             raise FileExistsError(f"{out} exists; use --force to replace it")
     flight = evaluation.Flight.load(args.log, reference_imu=args.level == "sensor")
-    cal = Calibration.load(args.model)
+    recorded = flight.mimu_raw is None          # an imported /mimu/imu: already compensated
+    if args.model is None and not recorded:
+        raise ValueError(f"{args.log}: the log has /mimu/raw; --model CAL is required")
+    cal = Calibration.load(args.model) if args.model else Calibration.identity()
     level = args.level
     if level == "auto":
-        level = "sensor" if flight.fog_t is not None else "navigation"
-    if level == "navigation" and flight.truth is None:
+        level = ("sensor" if flight.fog_t is not None else
+                 "track" if recorded and flight.truth is not None and
+                 np.isnan(flight.truth.q_nb[0].w) else "navigation")
+    if level in ("navigation", "track") and flight.truth is None:
         raise LogError(f"{args.log}: neither /fog/imu (sensor level) nor /truth/state "
-                       "(navigation level): nothing to diagnose against")
-    run = sensor.diagnose if level == "sensor" else navigation.diagnose
+                       f"({level} level): nothing to diagnose against")
+    run = {"sensor": sensor.diagnose, "navigation": navigation.diagnose,
+           "track": track.diagnose}[level]
     diag = run(flight, cal, alpha=args.alpha, seed=args.seed)
     doc = diagnosis.document(args.log, diag, args.alpha)
     found = diagnosis.with_found(cal, doc["findings"])
     if args.output:
-        report.write(args.output, doc, diag, flight, cal, found, args.model, force=args.force)
+        report.write(args.output, doc, diag, flight, cal, found,
+                     args.model or "identity (the log's /mimu/imu as recorded)", force=args.force)
     if args.json:
         write_atomic(args.json, diagnosis.dumps(doc), force=args.force)
     print(f"verdict: {doc['verdict']} ({doc['candidates_tested']} candidates)")
@@ -213,6 +220,54 @@ def _diagnose(args):
         print(f"  unexplained residual {u['channel']} {u['t0']:.1f}-{u['t1']:.1f} s (z {u['z']:.1f})")
     if args.output:
         print(f"wrote {args.output}/diagnosis.md" + (" and CAL+found.json" if found else ""))
+    return 0
+
+
+def _import(args):
+    """A foreign recording into a contract log."""
+    from . import importers
+    from .importers import rtklib
+    mounting = (rtklib.mounting_from_rpy(args.mounting_rpy_deg) if args.mounting_rpy_deg
+                else None)
+    if args.kind == "rtklib":
+        rec = rtklib.read_drive(args.source, mounting=mounting)
+    elif args.kind == "ros2":
+        from .importers import ros2
+        rec = ros2.read(args.source, args.imu_topic, args.fix_topic, mounting=mounting)
+    else:
+        from .importers import ulog
+        rec = ulog.read(args.source, mounting=mounting)
+    align = importers.write_log(rec, args.output, force=args.force)
+    print(f"wrote {args.output}: {len(rec.imu_ns)} IMU samples at {rec.sample_rate_hz:.1f} Hz"
+          + (f", {len(rec.reference['ns'])} reference epochs" if rec.reference else "")
+          + (f", {len(rec.fixes['ns'])} GNSS fixes" if rec.fixes else ""))
+    print(f"initial state at t = {align.t:.3f} s: {align.method}")
+    print("gyro bias at rest (sensor axes) " + ", ".join(
+        f"{np.degrees(b):+.4f}" for b in align.gyro_bias) + " deg/s")
+    return 0
+
+
+def _windows(args):
+    """Free-inertial windows against the reference trajectory."""
+    import json
+
+    from . import evaluation, windows
+    from .compensation import Calibration
+    from .files import atomic_folder
+    from .reports import windows as report
+    if args.output and Path(args.output).exists() and not args.force:
+        raise FileExistsError(f"{args.output} exists; use --force to replace it")
+    flight = evaluation.Flight.load(args.log, reference_imu=False)
+    cal = Calibration.load(args.cal) if args.cal else None
+    results, rest = windows.run_all(flight, cal, args.lengths, args.step, args.time_shift,
+                                    progress=True)
+    doc = report.document(flight, results, rest, args.cal, args.time_shift)
+    print(report.markdown_table(doc), end="")
+    if args.output:
+        with atomic_folder(args.output, force=args.force) as tmp:
+            (tmp / "windows.json").write_text(json.dumps(doc, indent=1) + "\n")
+            report.plot({"": results}, str(tmp / "windows.png"))
+        print(f"wrote {args.output}/windows.json, windows.png")
     return 0
 
 
@@ -362,14 +417,16 @@ def build_parser():
                        "MIMU's residual against the reference IMU (or, without one, its "
                        "navigation error against the reference trajectory) for every term of "
                        "the effect vocabulary (log contract section 3)")
-    p.add_argument("log", help="flight log (MCAP) with /mimu/raw and /fog/imu (sensor level) "
-                   "or /truth/state (navigation level)")
-    p.add_argument("--level", choices=("auto", "sensor", "navigation"), default="auto",
+    p.add_argument("log", help="flight log (MCAP) with /mimu/raw or /mimu/imu, and /fog/imu "
+                   "(sensor level) or /truth/state (navigation and track levels)")
+    p.add_argument("--level", choices=("auto", "sensor", "navigation", "track"), default="auto",
                    help="sensor: MIMU outputs (m/s^2, rad/s) against the FOG-IMU's; navigation: "
-                   "NED velocity error (m/s) against /truth/state; auto (default): sensor when "
-                   "the log has /fog/imu")
-    p.add_argument("--model", required=True, help="the calibration the user believes "
-                   "(mimunav-calibration/1)")
+                   "NED velocity error (m/s) against /truth/state; track: MIMU outputs against "
+                   "the ideal IMU simulated along a land vehicle's /truth/state without attitude "
+                   "(a recording); auto (default): sensor with /fog/imu, track for a recorded "
+                   "/mimu/imu with such a reference, else navigation")
+    p.add_argument("--model", help="the calibration the user believes (mimunav-calibration/1); "
+                   "required for /mimu/raw, optional for a recorded /mimu/imu (identity)")
     p.add_argument("--json", help="write the mimunav-diagnosis/1 document here")
     p.add_argument("-o", "--output", help="report folder: diagnosis.md, plots, diagnosis.json, "
                    "CAL+found.json (the model with the found terms)")
@@ -378,6 +435,35 @@ def build_parser():
     p.add_argument("--seed", type=int, default=0, help="seed of the block bootstrap")
     p.add_argument("--force", action="store_true", help="replace existing outputs")
     p.set_defaults(func=_diagnose)
+    p = sub.add_parser("import", help="turn a recording nobody here wrote into a contract log "
+                       "(/mimu/imu in SI sensor axes, /truth/state, /gnss/fix, metadata of what "
+                       "is real and what is assumed)")
+    p.add_argument("kind", choices=("rtklib", "ros2", "ulog"),
+                   help="rtklib: folder with imu_*.csv, its RTKLIB .tag and an RTKLIB .pos; "
+                   "ros2: an MCAP with sensor_msgs/msg/Imu (+ NavSatFix); ulog: a PX4 .ulg")
+    p.add_argument("source", help="the folder (rtklib) or file (ros2, ulog)")
+    p.add_argument("-o", "--output", required=True, help="log to write (.mcap)")
+    p.add_argument("--imu-topic", help="ros2: the sensor_msgs/msg/Imu topic (default: the only one)")
+    p.add_argument("--fix-topic", help="ros2: the sensor_msgs/msg/NavSatFix topic (default: the "
+                   "only one, if any)")
+    p.add_argument("--mounting-rpy-deg", type=float, nargs=3, metavar=("ROLL", "PITCH", "YAW"),
+                   help="sensor -> vehicle (FRD) rotation, deg (default: rtklib the README's "
+                   "180 0 180; ros2/ulog 0 0 0, i.e. the IMU frame is taken as FRD)")
+    p.add_argument("--force", action="store_true", help="replace an existing output")
+    p.set_defaults(func=_import)
+    p = sub.add_parser("windows", help="free-inertial windows of 10/30/60 s restarted from the "
+                       "reference (/truth/state) along a recording: position error growth")
+    p.add_argument("log", help="log with /mimu/imu (or /mimu/raw and --cal) and /truth/state")
+    p.add_argument("--cal", help="calibration: for /mimu/raw the unit's; for /mimu/imu only "
+                   "found terms on an identity base (a diagnosis's CAL+found.json)")
+    p.add_argument("--lengths", type=float, nargs="+", default=[10.0, 30.0, 60.0],
+                   help="window lengths, s")
+    p.add_argument("--step", type=float, default=5.0, help="spacing of window starts, s")
+    p.add_argument("--time-shift", type=float, default=0.0,
+                   help="added to the IMU stamps, s (negative: the IMU lags)")
+    p.add_argument("-o", "--output", help="folder: windows.json, windows.png")
+    p.add_argument("--force", action="store_true", help="replace an existing folder")
+    p.set_defaults(func=_windows)
     p = sub.add_parser("table", help="end-point east/north/up errors of calibration variants "
                        "normalised by the FOG-IMU's (seed S1 Table 3)")
     _flight_arguments(p)

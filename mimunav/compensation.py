@@ -84,6 +84,20 @@ class Calibration:
     def base_model(self):
         return self.model[:-len(FOUND_SUFFIX)] if self.model.endswith(FOUND_SUFFIX) else self.model
 
+    @classmethod
+    def identity(cls, procedure="identity: outputs already in SI units (/mimu/imu)"):
+        """The linear model that leaves outputs as they are: the base of the found terms of
+        a unit recorded already compensated (an imported recording's /mimu/imu)."""
+        return cls(model="linear", procedure=procedure)
+
+    @property
+    def is_identity(self):
+        """True when the base model changes nothing (eqs. 1-4 with A1 = W1 = I, the rest 0)."""
+        zero = ("A0", "A2", "A3", "ct", "W0", "W2", "W3", "C", "cw")
+        return (self.base_model in ("linear", "entire-63") and not self.cold_start
+                and all(not np.any(getattr(self, k)) for k in zero)
+                and all(np.array_equal(getattr(self, k), np.eye(3)) for k in ("A1", "W1")))
+
     # ---- file contract -------------------------------------------------------------
     @classmethod
     def from_dict(cls, doc, source="calibration"):

@@ -20,7 +20,9 @@ import numpy as np
 import quaternion
 
 from . import attitude, earth, strapdown
-from .compensation import Calibration, compensate, flag_counts, poly2
+from .compensation import Calibration, CalibrationError, compensate, flag_counts, poly2
+from .effects import Conditions
+from .effects import apply as apply_effects
 from .flightlog import FlightLog, LogError
 from .sensors import Mounting
 from .trajectory import Trajectory
@@ -37,7 +39,8 @@ class Flight:
     epoch_ns: int                   # epoch_unix_ns of the flight metadata
     initial: dict                   # strapdown initial state (t, lat, lon, h, v_ned, q_nb)
     mimu_t: np.ndarray
-    mimu_raw: dict                  # accel_volts, gyro_volts, accel_temperature, gyro_frequency
+    mimu_raw: dict | None           # accel_volts, gyro_volts, accel_temperature, gyro_frequency
+                                    # (None: a log with the compensated /mimu/imu only)
     mimu_mounting: Mounting
     mimu_range: dict
     fog_t: np.ndarray | None        # None: a log without the reference IMU
@@ -45,11 +48,14 @@ class Flight:
     fog_f: np.ndarray | None        # m/s^2, sensor axes
     fog_mounting: Mounting
     truth: Trajectory | None
+    mimu_imu: tuple | None = None   # (w rad/s, f m/s^2) of /mimu/imu when there is no raw
 
     @classmethod
     def load(cls, path, reference_imu=True):
         """The flight of the log at `path`; with reference_imu=False a log without
-        /fog/imu is accepted too (then fog_t, fog_w, fog_f are None)."""
+        /fog/imu is accepted too (then fog_t, fog_w, fog_f are None). The MIMU comes from
+        /mimu/raw, or when the log has none (an imported recording) from the already
+        compensated /mimu/imu, which a calibration then leaves as it is."""
         with FlightLog(path) as log:
             meta = log.metadata()
             flight = meta.get("flight", {})
@@ -57,14 +63,22 @@ class Flight:
                 if key not in flight:
                     raise LogError(f"{path}: the `flight` metadata lacks {key!r} (log contract "
                                    "section 1): cannot place the navigation start")
-            needed = ("/mimu/raw", "/fog/imu") if reference_imu else ("/mimu/raw",)
+            mimu_topic = "/mimu/imu" if "/mimu/raw" not in log.channels and \
+                "/mimu/imu" in log.channels else "/mimu/raw"
+            needed = (mimu_topic, "/fog/imu") if reference_imu else (mimu_topic,)
             for topic in needed:
                 if topic not in log.channels:
                     raise LogError(f"{path}: no {topic} channel; replay compares the MIMU with "
                                    "the FOG-IMU flown with it (channels: "
                                    f"{', '.join(sorted(log.channels))})")
             epoch = int(flight["epoch_unix_ns"])
-            raw = log.read("/mimu/raw", fields=RAW_FIELDS)
+            if mimu_topic == "/mimu/raw":
+                raw = log.read("/mimu/raw", fields=RAW_FIELDS)
+                imu = None
+            else:
+                raw = log.read("/mimu/imu", fields=("angular_velocity", "linear_acceleration"))
+                imu = tuple(np.ascontiguousarray(raw[k], float)
+                            for k in ("angular_velocity", "linear_acceleration"))
             fog = (log.read("/fog/imu", fields=("angular_velocity", "linear_acceleration"))
                    if "/fog/imu" in log.channels else None)
             truth = log.read("/truth/state") if "/truth/state" in log.channels else None
@@ -81,11 +95,11 @@ class Flight:
                                     truth["height"].copy(), truth["velocity_ned"].copy(),
                                     quaternion.from_float_array(truth["attitude_wxyz"]))
         return cls(str(path), flight.get("name", ""), epoch, initial, sec(raw),
-                   {k: np.ascontiguousarray(raw[k], float) for k in RAW_FIELDS},
+                   None if imu else {k: np.ascontiguousarray(raw[k], float) for k in RAW_FIELDS},
                    mount("mimu"), meta.get("sensor/mimu", {}).get("range", {}),
                    *((sec(fog), np.ascontiguousarray(fog["angular_velocity"], float),
                       np.ascontiguousarray(fog["linear_acceleration"], float))
-                     if fog is not None else (None, None, None)), mount("fog"), truth_traj)
+                     if fog is not None else (None, None, None)), mount("fog"), truth_traj, imu)
 
     @classmethod
     def from_simulation(cls, fm, unit, fog, raw, fog_out):
@@ -101,6 +115,14 @@ class Flight:
                    unit.mounting, {"accel_m_s2": unit.range_accel, "gyro_rad_s": unit.range_gyro},
                    fm.fog[0], fog_out["angular_velocity"], fog_out["linear_acceleration"],
                    fog.mounting, truth)
+
+    def mimu_temperatures(self):
+        """(accelerometer case temperatures degC, gyro resonance frequencies Hz), (N, 3)
+        each; NaN for a MIMU recorded without them (/mimu/imu only)."""
+        if self.mimu_raw is None:
+            nan = np.full((len(self.mimu_t), 3), np.nan)
+            return nan, nan
+        return self.mimu_raw["accel_temperature"], self.mimu_raw["gyro_frequency"]
 
     @property
     def end(self):
@@ -167,7 +189,8 @@ def resample(traj, t):
     tau = (t - traj.t[k - 1]) / (traj.t[k] - traj.t[k - 1])
     lerp = lambda x: x[k - 1] + (x[k] - x[k - 1]) * (tau if x.ndim == 1 else tau[:, None])  # noqa
     q0, q1 = traj.q_nb[k - 1], traj.q_nb[k]
-    q = q0 * np.exp(np.log(np.conjugate(q0) * q1) * tau)              # slerp
+    with np.errstate(invalid="ignore"):     # a reference without attitude: NaN stays NaN
+        q = q0 * np.exp(np.log(np.conjugate(q0) * q1) * tau)          # slerp
     return Trajectory(np.asarray(t, float), lerp(traj.lat), lerp(traj.lon), lerp(traj.h),
                       lerp(traj.v_ned), q)
 
@@ -183,7 +206,23 @@ class Replay:
 
 def compensated_mimu(flight, cal, per_sample=False):
     """(w rad/s, f m/s^2, flag counts) of the flight's raw MIMU through `cal` (with
-    per_sample: the flag of every sample instead of the counts)."""
+    per_sample: the flag of every sample instead of the counts). A flight recorded as
+    /mimu/imu is already compensated: `cal` must then be None or an identity base with
+    found terms (`Calibration.identity`, the diagnosis's `CAL+found.json`), which are removed
+    from the recorded outputs."""
+    if flight.mimu_raw is None:
+        w, f = flight.mimu_imu
+        if cal is not None and not cal.is_identity:
+            raise CalibrationError(
+                f"{flight.path}: the MIMU is recorded compensated (/mimu/imu); a calibration of "
+                f"raw outputs ({cal.model!r}) cannot apply to it (only found terms on an "
+                "identity base can)")
+        if cal is not None and cal.found:
+            temperature, frequency = flight.mimu_temperatures()
+            cond = Conditions.from_outputs(flight.mimu_t, f, w, temperature, frequency)
+            f, w = apply_effects(cal.found, cond, sign=-1.0)
+        flags = np.zeros(len(w), dtype=np.uint8)
+        return w, f, (flags if per_sample else flag_counts(flags))
     r = flight.mimu_raw
     f, w, flags = compensate(cal, r["accel_volts"], r["gyro_volts"], r["accel_temperature"],
                              r["gyro_frequency"], flight.mimu_range.get("accel_m_s2", np.inf),

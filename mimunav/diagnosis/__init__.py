@@ -4,6 +4,7 @@ it with an interval and show the fit improve on held-out data.
 
     sensor       sensor level: the reference IMU predicts the MIMU's outputs
     navigation   navigation level: only a reference trajectory; candidates' error signatures
+    track        track level: a land vehicle's trajectory simulated into a reference IMU
     library      the candidate terms;  inference  the tests and their nuisance
     reference    the reference motion moved to the MIMU's mounting
     concealed    the proof on simulated recordings with hidden effects
@@ -35,6 +36,8 @@ def document(log_path, diag, alpha=0.05):
            "not_confirmed": _plain(diag.rejected),
            "level": diag.level, "candidates_tested": diag.candidates, "alpha": alpha,
            "method": METHOD[diag.level]}
+    if getattr(diag, "reference_check", None):
+        doc["reference_check"] = _plain(diag.reference_check)
     if diag.level == "navigation":
         doc.update(epoch_s=navigation.EPOCH_S, reference="truth (/truth/state)",
                    velocity_error_rms=_plain(np.sqrt(np.mean(diag.observed ** 2, axis=0))))
@@ -50,7 +53,12 @@ METHOD = {
                    "error against the reference trajectory is fitted to each candidate's "
                    "error signature on this trajectory, bias wander and initial attitude "
                    "error as nuisance): the same selection, held-out confirmation and "
-                   "bootstrap as the sensor level")}
+                   "bootstrap as the sensor level"),
+    "track": ("track level (no reference IMU; a land vehicle's reference trajectory without "
+              "attitude): the ideal IMU simulated along the trajectory (attitude from the "
+              "velocity: no side slip, roll 0) is the reference of the sensor level - residual, "
+              "Holm selection on even tenths, held-out confirmation on odd tenths, bootstrap; "
+              "samples below 2 m/s in motion left out")}
 
 
 def with_found(cal, findings):

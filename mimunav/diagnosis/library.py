@@ -65,3 +65,18 @@ def label(term):
     if "window_s" in term:
         s += f" (n = {term['window_s']:g} s)"
     return s
+
+
+def inputs(term):
+    """The reference inputs a term is driven by, {(sensor, axis)}, when it is driven by
+    single axes of the motion (scale terms: its own; cross-coupling: the input axis;
+    g-sensitivity: the specific-force axes); None for terms of the whole motion
+    (misalignment, time skew, proof-mass offsets) or of temperature alone."""
+    effect, sensor, axis = term["effect"], term["sensor"], term["axis"]
+    if effect in ("scale_factor", "scale_asymmetry", "scale_nonlinearity", "temperature_scale"):
+        return {(sensor, axis)}
+    if effect == "cross_coupling":
+        return {(sensor, term["input_axis"])}
+    if effect in ("g_sensitivity", "g2_sensitivity"):
+        return {("accel", a) for a in term["input_axis"]}
+    return None

@@ -104,9 +104,9 @@ def error_model(flight, nav, w, f):
     c_ns = quaternion.as_rotation_matrix(q_ns)
     f_b, w_b = mean(f), mean(w)
     model = ErrorModel(t_end, c_ns, np.einsum("nij,nj->ni", c_ns, f_b), t_end - t_start)
-    r = flight.mimu_raw
-    cond = Conditions.from_outputs(t_end, f_b, w_b, mean(r["accel_temperature"]),
-                                   mean(r["gyro_frequency"]), DERIVATIVE_WINDOW_S)
+    temperature, frequency = flight.mimu_temperatures()
+    cond = Conditions.from_outputs(t_end, f_b, w_b, mean(temperature), mean(frequency),
+                                   DERIVATIVE_WINDOW_S)
     return model, cond
 
 

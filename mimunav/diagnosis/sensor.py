@@ -71,13 +71,13 @@ class SensorDiagnosis:
 
 def residual(flight, cal):
     """(t s, residual (N, 6) accel m/s^2 then gyro rad/s, usable (N,), Conditions)."""
-    r = flight.mimu_raw
+    temperature, frequency = flight.mimu_temperatures()
     w, f, flags = compensated_mimu(flight, cal, per_sample=True)
     f_p, w_p, inside = predicted_mimu(flight)
     t = flight.mimu_t
     cond = Conditions(t, f_p, w_p, derivative(t, f_p, DERIVATIVE_WINDOW_S),
                       derivative(t, w_p, DERIVATIVE_WINDOW_S),
-                      r["accel_temperature"], r["gyro_frequency"])
+                      temperature, frequency)
     res = np.hstack([f - f_p, w - w_p])
     usable = inside & (flags == 0) & np.isfinite(res).all(axis=1)
     usable[0] = False                       # the sample at the first stamp has no interval
@@ -94,15 +94,17 @@ def _bin(x, m, usable):
     return out
 
 
-def diagnose(flight, cal, noise=None, alpha=0.05, seed=0):
+def diagnose(flight, cal, noise=None, alpha=0.05, seed=0, candidates=None):
     """Sensor-level diagnosis of `flight` (an `evaluation.Flight` with a reference IMU)
     against calibration `cal`. `noise`: the unit's noise model (default: the datasheet class
-    of `sensors.mimu.NoiseModel`), whose flicker instability sets the slow tier's wander."""
+    of `sensors.mimu.NoiseModel`), whose flicker instability sets the slow tier's wander;
+    `candidates`: the library to test (default `library.candidates()`)."""
     noise = noise or NoiseModel()
     t, res, usable, cond = residual(flight, cal)
     rate = 1.0 / np.median(np.diff(t))
     m_fast, m_slow = max(1, round(FAST_BIN_S * rate)), max(1, round(SLOW_BIN_S * rate))
-    tiers, cands = _tiers(t, res, usable, cond, library.candidates(), m_fast, m_slow, noise)
+    tiers, cands = _tiers(t, res, usable, cond, candidates or library.candidates(), m_fast,
+                          m_slow, noise)
     t0, t1 = tiers["fast"].t[0], tiers["fast"].t[-1]
     seg = lambda tt: np.minimum(((tt - t0) / (t1 - t0) * SEGMENTS).astype(int), SEGMENTS - 1)  # noqa
     train = {k: seg(tr.t) % 2 == 0 for k, tr in tiers.items()}
@@ -471,8 +473,9 @@ def _condition_masks(tier, cond, m, usable):
     f = _bin(np.linalg.norm(cond.f, axis=1)[:, None], m, usable)[ok, 0] / G0
     w = _bin(np.linalg.norm(cond.w, axis=1)[:, None], m, usable)[ok, 0] / DEG
     wd = _bin(np.linalg.norm(cond.w_dot, axis=1)[:, None], m, usable)[ok, 0] / DEG
-    slope = derivative(cond.t, cond.T.mean(axis=1)[:, None], 30.0) * 60
-    dT = np.abs(_bin(slope, m, usable)[ok, 0])
+    temperature = cond.T.mean(axis=1)[:, None]
+    dT = (np.abs(_bin(derivative(cond.t, temperature, 30.0) * 60, m, usable)[ok, 0])
+          if np.isfinite(temperature).all() else np.zeros(ok.sum()))   # none recorded
     masks = {"|f| > 2 g": f > 2, "|w| > 60 deg/s": w > 60, "|dw/dt| > 300 deg/s^2": wd > 300,
              "|dT/dt| > 0.5 degC/min": dT > 0.5}
     masks["quiet"] = ~np.any(list(masks.values()), axis=0)

@@ -82,10 +82,15 @@ class FlightLog:
         in time order (the number of backward steps in file order goes to
         `time_reversals[topic]`); `fields` (names) limits the copy to those fields."""
         channel = self._channel(topic)
-        chunks = [ci for ci in sorted(self.summary.chunk_indexes,
-                                      key=lambda c: c.message_start_time)
+        chunks = [ci for ci in self.summary.chunk_indexes
                   if channel.id in ci.message_index_offsets]
         indexes = [self._message_index(ci, channel.id) for ci in chunks]
+        # chunk order by this channel's own first message (a chunk shared with a channel
+        # written after it starts earlier than the chunk's other messages of this one)
+        order = sorted(range(len(chunks)), key=lambda i: (
+            int(indexes[i]["log_time"].min()) if len(indexes[i]) else 0,
+            chunks[i].chunk_start_offset))
+        chunks, indexes = [chunks[i] for i in order], [indexes[i] for i in order]
         out, pos = None, 0
         for ci, index in zip(chunks, indexes):
             if len(index) == 0:

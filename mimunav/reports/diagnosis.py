@@ -50,7 +50,7 @@ def write(out_dir, doc, diag, flight, cal, cal_found, cal_label, force=False):
         (tmp / "diagnosis.json").write_text(dumps(doc))
         if cal_found is not None:
             cal_found.save(str(tmp / "CAL+found.json"))
-        if diag.level == "sensor":
+        if diag.level in ("sensor", "track"):
             _residual_map(diag, str(tmp / "residual-map.png"))
             _timeline(diag, doc, str(tmp / "timeline.png"))
         else:
@@ -98,7 +98,7 @@ def markdown(doc, diag, cal_label):
         lines += ["## Chosen on the training segments, not confirmed", ""]
         lines += [f"- {f['label']}: {f['rejected']}" for f in doc["not_confirmed"]]
         lines.append("")
-    if diag.level == "sensor":
+    if diag.level in ("sensor", "track"):
         lines += _condition_table(diag)
     else:
         lines += ["## Velocity error against the reference (timeline.png)", "",

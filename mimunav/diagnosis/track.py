@@ -1,0 +1,107 @@
+"""Track-level diagnosis: a recording with no reference IMU, only a land vehicle's reference
+trajectory (RTK GNSS position and velocity, no attitude).
+
+The ideal IMU is simulated along the trajectory - `vehicle.TrackMotion` (attitude from the
+velocity under the no-side-slip and zero-roll assumptions) through `truth.generate`, the
+same exact-increment generator as every simulated flight - and stands in for the reference
+IMU of the sensor level (`sensor.diagnose`: residual, library, Holm selection, held-out
+confirmation, bootstrap). Where the vehicle model is not trusted (crawling between rest
+and TRUSTED_SPEED, where the course is noise) the MIMU's samples are left out.
+
+What this reference cannot carry, and so what a finding may partly be:
+  - body roll and road camber (roll = 0 assumed): a lateral specific force and a roll rate
+    the model lacks, proportional to lateral acceleration - they look like accel.y and
+    gyro.x terms driven by the yaw rate or lateral acceleration;
+  - pitch of the body on its springs under braking and acceleration;
+  - motion above ~1 Hz (the 4 Hz track is smoothed), i.e. vibration: noise to the fit;
+  - the lever arm between antenna and IMU (assumed zero).
+So before the search the reference is checked channel by channel against the recording:
+the correlation of the 1 s means of the MIMU's output and of the simulated one over the
+trusted samples. An input axis whose correlation is below PREDICTED_CORRELATION (the model
+explains less than 81 % of what the MIMU saw on it) is not predicted, and the terms driven
+by that axis alone (`library.inputs`) are left out of the library: their regressor would be
+mostly the reference's own error (errors in variables: a scale factor fitted against a noisy
+input tends to -1). They are reported as not resolvable on this recording.
+"""
+from dataclasses import replace
+
+import numpy as np
+
+from .. import truth as truth_mod
+from ..sensors import Mounting
+from ..sensors.mimu import DEG, G0, NoiseModel
+from ..vehicle import TrackMotion
+from . import library, sensor
+from .sensor import CHANNELS
+
+PREDICTED_CORRELATION = 0.9
+CHECK_BIN_S = 1.0
+
+# Noise of the consumer part (shared/data/rtklib-drive/README: the author's settings, an
+# LSM6DSO-class device): white densities; its flicker instability is not published, the
+# datasheet class of `sensors.mimu.NoiseModel` is kept. Only the bias-wander knot spacing
+# depends on these (the temperature tier has no channel on such a recording).
+CONSUMER_NOISE = NoiseModel(accel_white=70e-6 * G0, gyro_white=0.0038 * DEG)
+
+
+def simulated_reference(flight):
+    """(flight with the ideal IMU simulated from its /truth/state as the reference IMU at
+    the vehicle origin, trusted (N,) bool over the MIMU's samples)."""
+    tr = flight.truth
+    if tr is None:
+        raise ValueError(f"{flight.path}: no /truth/state to simulate the reference IMU from")
+    motion = TrackMotion(tr.t, tr.lat, tr.lon, tr.h, tr.v_ned)
+    t = flight.mimu_t
+    inside = (t > motion.t0) & (t <= motion.t1)
+    if inside.sum() < 2:
+        raise ValueError(f"{flight.path}: the reference trajectory does not cover the MIMU")
+    stamps = np.concatenate([[motion.t0], t[inside]])
+    run = truth_mod.generate(motion, stamps)
+    dt = np.diff(stamps)[:, None]
+    ref = replace(flight, fog_t=t[inside], fog_w=run.dtheta / dt, fog_f=run.dv / dt,
+                  fog_mounting=Mounting())
+    trusted = inside & motion.trusted(t)
+    return ref, trusted
+
+
+def reference_check(ref, trusted):
+    """{channel label: correlation of the CHECK_BIN_S means of the recorded and the
+    simulated output over trusted samples} (channels in `sensor.CHANNELS` order)."""
+    from .reference import predicted_mimu
+    f_p, w_p, _ = predicted_mimu(ref)
+    w, f = ref.mimu_imu
+    t = ref.mimu_t
+    m = max(1, round(CHECK_BIN_S / np.median(np.diff(t))))
+    k = np.flatnonzero(trusted)
+    k = k[:len(k) // m * m]
+    mean = lambda x: x[k].reshape(-1, m, 6).mean(axis=1)                     # noqa: E731
+    meas, pred = mean(np.hstack([f, w])), mean(np.hstack([f_p, w_p]))
+    return {f"{s}.{a}": float(np.corrcoef(meas[:, c], pred[:, c])[0, 1])
+            for c, (s, a) in enumerate(CHANNELS)}
+
+
+def diagnose(flight, cal, alpha=0.05, seed=0, noise=CONSUMER_NOISE):
+    """Sensor-level diagnosis of `flight` against the ideal IMU simulated along its
+    reference trajectory; untrusted samples and the terms of unpredicted input axes (see the
+    module) are left out. The returned diagnosis carries `reference_check`."""
+    ref, trusted = simulated_reference(flight)
+    if flight.mimu_raw is None:
+        w, f = (np.where(trusted[:, None], x, np.nan) for x in flight.mimu_imu)
+        ref = replace(ref, mimu_imu=(w, f))
+    else:
+        raise ValueError(f"{flight.path}: the track level takes a recorded /mimu/imu; a raw "
+                         "MIMU with a reference trajectory goes to the navigation level")
+    corr = reference_check(replace(ref, mimu_imu=flight.mimu_imu), trusted)
+    unpredicted = {tuple(c.split(".")) for c, r in corr.items() if not r >= PREDICTED_CORRELATION}
+    kept, left_out = [], []
+    for tier, term in library.candidates():
+        drivers = library.inputs(term)
+        (left_out if drivers and drivers & unpredicted else kept).append((tier, term))
+    diag = sensor.diagnose(ref, cal, noise=noise, alpha=alpha, seed=seed, candidates=kept)
+    diag.level = "track"
+    diag.reference_check = {
+        "correlation_1s": corr, "threshold": PREDICTED_CORRELATION,
+        "unpredicted_inputs": sorted(".".join(c) for c in unpredicted),
+        "not_tested": [library.label(term) for _, term in left_out],
+        "trusted_fraction": float(trusted.mean())}
+    return diag

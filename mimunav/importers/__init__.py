@@ -1,0 +1,127 @@
+"""Recordings that nobody here wrote, turned into contract logs (`mimunav-log/1`).
+
+    rtklib   a CSV IMU log with RTKLIB time tags and an RTKLIB position solution
+    ros2     any ROS 2 MCAP with sensor_msgs/msg/Imu (+ sensor_msgs/msg/NavSatFix), by topic
+    ulog     a PX4 ULog (sensor_combined + vehicle_gps_position / sensor_gps), by pyulog
+
+Each reader returns a `Recording` - the IMU in SI units and its own axes, the GNSS and
+reference data it has, and what is measured and what is assumed - and `write_log` writes
+it: `/mimu/imu` (calibrated units, not compensated beyond the recorder's own scaling),
+`/truth/state` when an external reference exists (attitude unknown: NaN quaternion, and
+`reference.attitude = "unknown"` in the metadata), `/gnss/fix` (latitude and longitude in
+rad as the contract's conventions say - not ROS's degrees - and position_covariance ENU m^2), the `flight` metadata with
+an `initial_state` from `alignment.initial_alignment`, `sensor/mimu`, and `recording` (what is
+real, what was assumed).
+"""
+import json
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .. import alignment
+from ..flightlog import LogWriter
+from ..flightlog import schemas as S
+from ..sensors import Mounting
+
+UNKNOWN_ATTITUDE = np.full(4, np.nan)
+
+
+class ImportError_(ValueError):
+    """A recording that cannot be turned into a contract log, with what and where."""
+
+
+@dataclass
+class Recording:
+    """A foreign recording in SI units.
+
+    imu_ns: IMU stamps, integer ns since the UNIX epoch (N,), strictly increasing;
+    w: angular rate, rad/s, IMU sensor axes (N, 3); f: specific force, m/s^2 (N, 3);
+    reference: optional external trajectory {ns, lat, lon (rad), h (m), v_ned (m/s, (M, 3)),
+      quality (M,) 1 = best}; fixes: optional GNSS fixes {ns, lat, lon, h, status (int8 as
+      in NavSatStatus), covariance (M, 9) m^2 ENU}; real / assumed: what the metadata says
+      is measured and what this import assumed."""
+    name: str
+    description: str
+    imu_ns: np.ndarray
+    w: np.ndarray
+    f: np.ndarray
+    mounting: Mounting
+    model: str = "unknown"
+    reference: dict | None = None
+    fixes: dict | None = None
+    real: dict = field(default_factory=dict)
+    assumed: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        self.imu_ns = np.asarray(self.imu_ns, dtype=np.int64)
+        n = len(self.imu_ns)
+        for name in ("w", "f"):
+            x = np.asarray(getattr(self, name), dtype=float)
+            if x.shape != (n, 3):
+                raise ImportError_(f"{self.name}: IMU {name} has shape {x.shape}, expected "
+                                   f"({n}, 3)")
+            setattr(self, name, x)
+        if n < 2:
+            raise ImportError_(f"{self.name}: fewer than two IMU samples")
+        if np.any(np.diff(self.imu_ns) <= 0):
+            k = int(np.argmax(np.diff(self.imu_ns) <= 0))
+            raise ImportError_(f"{self.name}: IMU stamps do not increase at sample {k + 1}")
+        bad = ~np.isfinite(np.hstack([self.w, self.f])).all(axis=1)
+        if bad.any():
+            raise ImportError_(f"{self.name}: {bad.sum()} IMU samples are not finite (first at "
+                               f"sample {int(np.argmax(bad))}); a log must not carry them")
+
+    @property
+    def sample_rate_hz(self):
+        return float(1e9 / np.median(np.diff(self.imu_ns)))
+
+
+def write_log(rec, path, force=False):
+    """Write `rec` as a contract log at `path` (atomically; an existing file only with
+    force). Returns the initial alignment (`alignment.Alignment`)."""
+    epoch = int(rec.imu_ns[0])
+    t = (rec.imu_ns - epoch) / 1e9
+    ref = rec.reference
+    ref_t = None if ref is None else (np.asarray(ref["ns"], np.int64) - epoch) / 1e9
+    align = alignment.initial_alignment(
+        t, rec.w, rec.f, rec.mounting,
+        None if ref is None else dict(t=ref_t, lat=ref["lat"], lon=ref["lon"], h=ref["h"],
+                                      v_ned=ref["v_ned"]))
+    initial = {"t": float(align.t), "latitude": float(align.lat), "longitude": float(align.lon),
+               "height": float(align.h), "velocity_ned": list(map(float, align.v_ned)),
+               "attitude_wxyz": list(map(float, align.q_nb))}
+    assumed = dict(rec.assumed)
+    assumed["initial_state"] = align.method
+    rate = rec.sample_rate_hz
+    with LogWriter(path, force=force) as log:
+        log.metadata("flight", {
+            "format": "mimunav-log/1", "name": rec.name, "description": rec.description,
+            "epoch_unix_ns": str(epoch), "source": "recording", "initial_state": initial})
+        log.metadata("sensor/mimu", {
+            "model": rec.model, "sample_rate_hz": f"{rate:.6g}",
+            "mounting": rec.mounting.as_dict(),
+            "range": {"gyro_rad_s": float(np.abs(rec.w).max()),
+                      "accel_m_s2": float(np.abs(rec.f).max())}})
+        log.metadata("recording", {"real": json.dumps(rec.real), "assumed": json.dumps(assumed),
+                                   "gyro_bias_static_rad_s": list(map(float, align.gyro_bias)),
+                                   "accel_bias_along_gravity_m_s2":
+                                       list(map(float, align.accel_bias)),
+                                   "static_s": [float(align.static[0]), float(align.static[1])]})
+        log.write("/mimu/imu", S.IMU, "mimu", rec.imu_ns, **S.imu_fields(rec.w, rec.f))
+        if ref is not None:
+            log.metadata("reference", {"source": rec.real.get("reference", "external"),
+                                       "attitude": "unknown", "velocity": "measured"})
+            m = len(ref["ns"])
+            log.write("/truth/state", S.NAV_STATE, "vehicle", ref["ns"],
+                      latitude=ref["lat"], longitude=ref["lon"], height=ref["h"],
+                      velocity_ned=ref["v_ned"], attitude_wxyz=np.tile(UNKNOWN_ATTITUDE, (m, 1)))
+        if rec.fixes is not None:
+            fx = rec.fixes
+            log.metadata("gnss", {"latitude_longitude": "rad (log contract conventions)",
+                                  "position_covariance": "m^2, ENU"})
+            log.write("/gnss/fix", S.NAV_SAT_FIX, "gnss", fx["ns"], status=fx["status"],
+                      service=np.ones(len(fx["ns"]), np.uint16), latitude=fx["lat"],
+                      longitude=fx["lon"], altitude=fx["h"],
+                      position_covariance=fx["covariance"],
+                      position_covariance_type=np.full(len(fx["ns"]), 2, np.uint8))
+    return align

@@ -1,0 +1,173 @@
+"""A CSV IMU log time-tagged by RTKLIB's stream server, with an RTKLIB position solution
+(the rtklibexplorer/GNSS_IMU drive format, shared/data/rtklib-drive/README.md).
+
+    imu_*.csv       ax, ay, az [g], gx, gy, gz [deg/s], tick [ms since IMU power-up]; no
+                    header; lines with another number of fields (a partial first or last
+                    line) are dropped and counted
+    imu_*.csv.tag   RTKLIB time tags: 60-byte text header, uint32 tick_f, uint32 start
+                    (GPST s since 1970), float64 fraction, then (uint32 tick ms, uint32 file
+                    position) records; the IMU ticks are mapped linearly onto
+                    [start, start + last tag tick] (the README's rule)
+    *.pos           RTKLIB solution: GPST date and time, lat, lon [deg], height [m,
+                    ellipsoidal], Q (1 fix, 2 float), ns, sdn, sde, sdu, sdne, sdeu, sdun [m],
+                    age, ratio, vn, ve, vu [m/s], then velocity sigmas
+Times go from GPST to the UNIX (UTC) scale of the log contract by the leap seconds in force.
+"""
+import calendar
+import glob
+import math
+import os
+import struct
+
+import numpy as np
+import quaternion
+
+from .. import attitude
+from ..sensors import Mounting
+from . import ImportError_, Recording
+
+G_UNIT = 9.80665            # m/s^2 per g: the standard gravity an accelerometer's g means
+GPS_UTC_LEAP_S = 18         # GPST - UTC since 2017-01-01 (IERS Bulletin C: none added since)
+TAG_HEADER = 60
+# The author's sensor -> vehicle (FRD) rotation, roll/pitch/yaw in deg (README): sensor z
+# up, x backward. His further "small misalignment" (about [0, -6.79, 5.35] deg) is NOT put
+# in the mounting: it is what `mimunav diagnose` should find, and is kept in the metadata.
+NOMINAL_RPY_DEG = (180.0, 0.0, 180.0)
+AUTHOR_MISALIGNMENT_RPY_DEG = (0.0, -6.79, 5.35)
+AUTHOR_TIME_SHIFT_S = -0.125
+
+
+def mounting_from_rpy(rpy_deg, lever_arm_m=(0.0, 0.0, 0.0)):
+    """Mounting with q_vs from roll, pitch, yaw (deg, z-y-x as `attitude.from_euler`)."""
+    roll, pitch, yaw = np.radians(rpy_deg)
+    q = attitude.from_euler(np.array(yaw), np.array(pitch), np.array(roll))
+    return Mounting(quaternion.as_float_array(q), lever_arm_m)
+
+
+def read_imu_csv(path):
+    """(ticks ms (N,) int64, f m/s^2 (N, 3), w rad/s (N, 3), dropped line numbers)."""
+    rows, dropped = [], []
+    with open(path) as fh:
+        for number, line in enumerate(fh, 1):
+            parts = line.strip().split(",")
+            try:
+                if len(parts) != 7:
+                    raise ValueError
+                rows.append([float(x) for x in parts])
+            except ValueError:
+                dropped.append(number)
+    if len(rows) < 2:
+        raise ImportError_(f"{path}: fewer than two complete IMU lines")
+    a = np.asarray(rows)
+    if not np.isfinite(a).all():
+        k = int(np.argmax(~np.isfinite(a).all(axis=1)))
+        raise ImportError_(f"{path}: a value that is not finite near line {k + 1}")
+    return a[:, 6].astype(np.int64), a[:, :3] * G_UNIT, np.radians(a[:, 3:6]), dropped
+
+
+def read_time_tags(path):
+    """(start GPST s since 1970 as float, tag ticks ms (M,), file positions (M,))."""
+    raw = open(path, "rb").read()
+    if len(raw) < TAG_HEADER + 16 or not raw.startswith(b"TIMETAG"):
+        raise ImportError_(f"{path}: not an RTKLIB time-tag file (no 'TIMETAG' header)")
+    _tick_f, start, fraction = struct.unpack("<IId", raw[TAG_HEADER:TAG_HEADER + 16])
+    body = raw[TAG_HEADER + 16:]
+    records = np.frombuffer(body[:len(body) // 8 * 8], dtype="<u4").reshape(-1, 2)
+    if len(records) == 0:
+        raise ImportError_(f"{path}: no time-tag records")
+    return start + fraction, records[:, 0].astype(np.int64), records[:, 1].astype(np.int64)
+
+
+def imu_stamps_ns(ticks, start_gpst, tag_ticks):
+    """UNIX ns of each IMU tick: ticks mapped linearly onto [start, start + last tag tick]
+    (GPST), then GPST -> UTC."""
+    span = tag_ticks[-1] / 1e3
+    if ticks[-1] == ticks[0]:
+        raise ImportError_("the IMU ticks do not advance")
+    s = start_gpst - GPS_UTC_LEAP_S + (ticks - ticks[0]) / (ticks[-1] - ticks[0]) * span
+    ns = np.round(s * 1e9).astype(np.int64)
+    return ns
+
+
+def read_pos(path):
+    """RTKLIB solution as arrays: ns (UNIX), lat, lon (rad), h (m), Q, sd (M, 3) n/e/u m,
+    v_ned (M, 3) m/s (NaN where the file has no velocity columns)."""
+    rows = []
+    with open(path) as fh:
+        for number, line in enumerate(fh, 1):
+            if not line.strip() or line.startswith("%"):
+                continue
+            parts = line.split()
+            if len(parts) < 15:
+                raise ImportError_(f"{path}:{number}: {len(parts)} columns, an RTKLIB solution "
+                                   "line has at least 15 (date, time, lat, lon, height, Q, ns, "
+                                   "6 sigmas, age, ratio)")
+            date, clock = parts[0].split("/"), parts[1].split(":")
+            try:
+                sec = float(clock[2])
+                whole = calendar.timegm((int(date[0]), int(date[1]), int(date[2]),
+                                         int(clock[0]), int(clock[1]), int(sec)))
+                vals = [float(x) for x in parts[2:]]
+            except (ValueError, IndexError):
+                raise ImportError_(f"{path}:{number}: cannot read {line.strip()[:60]!r}") from None
+            t = whole + (sec - int(sec)) - GPS_UTC_LEAP_S
+            vel = vals[13:16] if len(vals) >= 16 else [math.nan] * 3
+            rows.append([t] + vals[:13] + vel)
+    if not rows:
+        raise ImportError_(f"{path}: no solution lines")
+    a = np.asarray(rows)
+    vn, ve, vu = a[:, 14], a[:, 15], a[:, 16]
+    return dict(ns=np.round(a[:, 0] * 1e9).astype(np.int64), lat=np.radians(a[:, 1]),
+                lon=np.radians(a[:, 2]), h=a[:, 3], quality=a[:, 4].astype(int),
+                sd=a[:, 6:9], v_ned=np.column_stack([vn, ve, -vu]))
+
+
+def find_files(folder):
+    """(csv, tag, pos) of a drive folder: one imu_*.csv, its .tag, one *.pos."""
+    def one(pattern):
+        found = sorted(glob.glob(os.path.join(folder, pattern)))
+        if len(found) != 1:
+            raise ImportError_(f"{folder}: expected one {pattern}, found {len(found)}")
+        return found[0]
+    csv = one("imu_*.csv")
+    tag = csv + ".tag"
+    if not os.path.exists(tag):
+        raise ImportError_(f"{folder}: no time-tag file {os.path.basename(tag)}")
+    return csv, tag, one("*.pos")
+
+
+def read_drive(folder, mounting=None, name=None):
+    """The drive in `folder` as a `Recording` (IMU in SI sensor axes, RTK as the reference,
+    the fixed and float RTK epochs also as GNSS fixes)."""
+    csv, tag, pos = find_files(folder)
+    ticks, f, w, dropped = read_imu_csv(csv)
+    start, tag_ticks, _ = read_time_tags(tag)
+    ns = imu_stamps_ns(ticks, start, tag_ticks)
+    keep = np.concatenate([[True], np.diff(ns) > 0])       # repeated ticks: keep the first
+    sol = read_pos(pos)
+    good = np.isfinite(sol["v_ned"]).all(axis=1) & (sol["quality"] == 1)
+    reference = {k: sol[k][good] for k in ("ns", "lat", "lon", "h", "v_ned")}
+    sd = sol["sd"]
+    cov = np.zeros((len(sol["ns"]), 9))
+    cov[:, 0], cov[:, 4], cov[:, 8] = sd[:, 1] ** 2, sd[:, 0] ** 2, sd[:, 2] ** 2    # ENU
+    fixes = dict(ns=sol["ns"], lat=sol["lat"], lon=sol["lon"], h=sol["h"],
+                 status=np.where(sol["quality"] == 1, 2, 0).astype(np.int8), covariance=cov)
+    mounting = mounting or mounting_from_rpy(NOMINAL_RPY_DEG)
+    real = {"imu": f"{os.path.basename(csv)}: {len(ticks)} complete lines "
+                   f"({len(dropped)} partial dropped: lines {dropped[:5]}); g -> m/s^2 by "
+                   f"{G_UNIT}, deg/s -> rad/s; no temperature channel",
+            "imu_time": f"IMU ticks mapped onto the RTKLIB time tags of {os.path.basename(tag)}"
+                        f", GPST - {GPS_UTC_LEAP_S} s = UTC; no lag correction applied",
+            "reference": f"RTK solution {os.path.basename(pos)}: {int(good.sum())} fixed epochs "
+                         f"of {len(good)} with velocity (float epochs only in /gnss/fix)",
+            "source": "rtklibexplorer/GNSS_IMU data/drive_0708 (BSD-3-Clause)"}
+    assumed = {"mounting": f"sensor -> vehicle roll/pitch/yaw {list(NOMINAL_RPY_DEG)} deg (the "
+                           "README's frame); lever arm 0: IMU and antenna at one point",
+               "author_misalignment_rpy_deg": list(AUTHOR_MISALIGNMENT_RPY_DEG),
+               "author_time_shift_s": AUTHOR_TIME_SHIFT_S,
+               "calibration": "none: the IMU's outputs are used as recorded (bias, scale and "
+                              "axis errors remain)"}
+    name = name or os.path.basename(os.path.normpath(folder))
+    return Recording(name, "real car drive: consumer MEMS IMU 100 Hz + RTK GNSS 4 Hz", ns[keep],
+                     w[keep], f[keep], mounting, model="consumer MEMS (LSM6DSO class)",
+                     reference=reference, fixes=fixes, real=real, assumed=assumed)

@@ -1,0 +1,73 @@
+"""Free-inertial window results (`mimunav.windows`) as a document, a table and plots:
+  growth  horizontal position error against time since the restart: every window (thin)
+          and the median per length, log scale, one panel per variant;
+  cdf     the distribution of the end-point horizontal error per length and variant."""
+import numpy as np
+
+from .. import windows
+from .plots import figure, save
+
+
+def document(flight, results, rest, cal_label, time_shift_s):
+    """JSON-ready: the summary table, the alignment at rest and every window's end error."""
+    span = float(flight.truth.t[-1] - rest.static[1])
+    return {"format": "mimunav-windows/1", "log": flight.path, "calibration": cal_label,
+            "time_shift_s": time_shift_s,
+            "rest": {"t0_s": rest.static[0], "t1_s": rest.static[1],
+                     "gyro_bias_rad_s": rest.gyro_bias.tolist(),
+                     "accel_bias_along_gravity_m_s2": rest.accel_bias.tolist()},
+            "summary": {f"{length:g}": row for length, row in
+                        windows.summary(results, span).items()},
+            "windows": {f"{length:g}": [{"t0_s": w.t0, "end_ned_m": w.error_ned[-1].tolist()}
+                                        for w in wins] for length, wins in results.items()},
+            "frames": "errors NED m, window navigated minus reference; t0 s since the epoch"}
+
+
+def markdown_table(doc, label=None):
+    head = "| variant | " if label else "| "
+    lines = [head + "window s | windows (disjoint) | horizontal error p50 / p68 / p95 / max, m "
+             "| vertical p50 / p95, m | median drift, m/s |",
+             "|" + "---|" * (6 if label else 5)]
+    for length, row in doc["summary"].items():
+        h, v = row["horizontal_m"], row["vertical_m"]
+        lines.append((f"| {label} " if label else "") +
+                     f"| {length} | {row['windows']} ({row['disjoint']}) | {h['p50']:.3g} / "
+                     f"{h['p68']:.3g} / {h['p95']:.3g} / {h['max']:.3g} | {v['p50']:.3g} / "
+                     f"{v['p95']:.3g} | {row['median_rate_m_s']:.3g} |")
+    return "\n".join(lines) + "\n"
+
+
+def plot(variants, png):
+    """variants: {label: {length: [Window]}}; growth curves (one panel per variant) and the
+    end-error CDFs (last panel)."""
+    n = len(variants)
+    plt, fig, axes = figure(1, n + 1, (5.5 * (n + 1), 4.5))
+    colors = {}
+    for i, (label, results) in enumerate(variants.items()):
+        ax = axes[0, i]
+        for length, wins in sorted(results.items()):
+            color = colors.setdefault(length, f"C{len(colors)}")
+            grid = np.linspace(0, length, 61)[1:]
+            curves = np.array([np.interp(grid, w.t - w.t0, w.horizontal) for w in wins])
+            for c in curves:
+                ax.plot(grid, c, color=color, lw=0.3, alpha=0.3)
+            ax.plot(grid, np.median(curves, axis=0), color=color, lw=2,
+                    label=f"{length:g} s: median of {len(wins)}")
+            ends = np.sort([w.horizontal[-1] for w in wins])
+            axes[0, n].step(ends, np.arange(1, len(ends) + 1) / len(ends), where="post",
+                            color=color, ls=("-", "--", ":", "-.")[i % 4],
+                            label=f"{label + ', ' if label else ''}{length:g} s")
+        ax.set_yscale("log")
+        ax.set_xlabel("time since restart, s")
+        ax.set_ylabel("horizontal position error, m")
+        ax.set_title(label or "free-inertial windows")
+        ax.legend(fontsize=8)
+        ax.grid(alpha=0.3, which="both")
+    cdf = axes[0, n]
+    cdf.set_xscale("log")
+    cdf.set_xlabel("end-point horizontal error, m")
+    cdf.set_ylabel("fraction of windows")
+    cdf.set_title("distribution of the end-point error")
+    cdf.legend(fontsize=7)
+    cdf.grid(alpha=0.3, which="both")
+    save(plt, fig, png)

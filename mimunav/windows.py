@@ -1,0 +1,123 @@
+"""Free-inertial windows on a recording with an external reference trajectory.
+
+How fast does the IMU alone lose position? Along the drive, the IMU is restarted every
+`step` seconds from the reference's position and velocity, with the attitude of a moving
+two-vector alignment (`alignment.moving_attitude`: the reference gives no attitude), and
+navigated free-inertial (no aiding of any kind, vertical channel included) by the project's
+strapdown navigator for 10, 30 and 60 s; the error is the navigated position minus the
+reference's, NED m, at every reference epoch inside the window.
+
+The gyro bias and the accelerometer bias along gravity are those of the rest at the start
+of the recording (`alignment`), removed from every window; nothing else is calibrated. A window starts only where the reference is
+moving faster than `alignment.COURSE_SPEED` (heading needs a course) and has no gap
+longer than MAX_GAP_S inside. Windows of one length overlap when step < length, so they are
+not independent: the summary gives the count of disjoint windows the recording holds.
+"""
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import alignment
+from .evaluation import compensated_mimu, navigate, resample
+
+WINDOW_LENGTHS_S = (10.0, 30.0, 60.0)
+START_STEP_S = 5.0
+MAX_GAP_S = 1.0             # s: largest reference gap allowed inside a window
+
+
+@dataclass
+class Window:
+    """One free-inertial run: start t0 (s), length (s), reference epochs t (s) inside it,
+    position error (M, 3) NED m at them."""
+    t0: float
+    length: float
+    t: np.ndarray
+    error_ned: np.ndarray
+
+    @property
+    def horizontal(self):
+        return np.hypot(self.error_ned[:, 0], self.error_ned[:, 1])
+
+
+def track_of(truth):
+    """The reference as the dict `alignment` takes (t s, lat, lon rad, h m, v_ned m/s)."""
+    return dict(t=truth.t, lat=truth.lat, lon=truth.lon, h=truth.h, v_ned=truth.v_ned)
+
+
+def starts(truth, length, step=START_STEP_S, first=0.0):
+    """Window starts (s) on a grid of `step` from `first`: moving fast enough, the whole
+    window (and the alignment interval before it) covered without gaps."""
+    half = alignment.MOVING_HALF_WINDOW_S
+    grid = np.arange(max(first, truth.t[0] + half), truth.t[-1] - length, step)
+    speed = np.hypot(truth.v_ned[:, 0], truth.v_ned[:, 1])
+    gap_end = truth.t[1:][np.diff(truth.t) > MAX_GAP_S]
+    out = []
+    for t0 in grid:
+        if np.interp(t0, truth.t, speed) < alignment.COURSE_SPEED:
+            continue
+        if np.any((gap_end > t0 - half) & (gap_end - MAX_GAP_S < t0 + length)):
+            continue
+        out.append(float(t0))
+    return np.asarray(out)
+
+
+def run(flight, t0, length, w, f, t_imu=None):
+    """One window from reference start t0 (moved to the IMU stamp at or before it) over
+    `length` s; w rad/s, f m/s^2 sensor axes at stamps t_imu (default flight.mimu_t), the
+    biases already removed."""
+    t = flight.mimu_t if t_imu is None else t_imu
+    truth = flight.truth
+    k0 = int(np.searchsorted(t, t0, side="right")) - 1
+    t_start = float(t[k0])
+    start = resample(truth, np.array([t_start]))
+    q_nb = alignment.moving_attitude(t, f, flight.mimu_mounting, track_of(truth), t_start)
+    initial = dict(t=t_start, lat=float(start.lat[0]), lon=float(start.lon[0]),
+                   h=float(start.h[0]), v_ned=start.v_ned[0].copy(), q_nb=q_nb)
+    sel = slice(k0, int(np.searchsorted(t, t_start + length, side="right")) + 1)
+    nav = navigate(t[sel], w[sel], f[sel], flight.mimu_mounting, initial)
+    epochs = truth.t[(truth.t > t_start) & (truth.t <= min(t_start + length, nav.t[-1]))]
+    err = resample(nav, epochs).position_error(resample(truth, epochs))
+    return Window(t_start, length, epochs, err)
+
+
+def run_all(flight, cal=None, lengths=WINDOW_LENGTHS_S, step=START_STEP_S, time_shift_s=0.0,
+            progress=False):
+    """All windows of each length: {length: [Window]}, and the alignment at rest that gave
+    the gyro bias. The MIMU is compensated with `cal` (`evaluation.compensated_mimu`: for a
+    recorded /mimu/imu, None or found terms on an identity base); time_shift_s is added to
+    the IMU's stamps (negative: the IMU lags)."""
+    if flight.truth is None:
+        raise ValueError(f"{flight.path}: free-inertial windows need a reference trajectory "
+                         "(/truth/state)")
+    w, f, _ = compensated_mimu(flight, cal)
+    t = flight.mimu_t + time_shift_s
+    rest = alignment.initial_alignment(t, w, f, flight.mimu_mounting, track_of(flight.truth))
+    w, f = w - rest.gyro_bias, f - rest.accel_bias
+    out = {}
+    todo = [(length, t0) for length in lengths
+            for t0 in starts(flight.truth, length, step, first=rest.static[1])]
+    if progress:
+        from tqdm import tqdm
+        todo = tqdm(todo, desc="windows", unit="window")
+    for length, t0 in todo:
+        out.setdefault(length, []).append(run(flight, t0, length, w, f, t))
+    return out, rest
+
+
+def summary(results, span_s):
+    """Per length: number of windows, disjoint windows the span holds, and percentiles
+    (50, 68, 95, max) of the end-point horizontal and vertical errors (m), plus the median
+    drift rate (horizontal end error / length, m/s)."""
+    rows = {}
+    for length, wins in sorted(results.items()):
+        hor = np.array([w.horizontal[-1] for w in wins])
+        up = np.array([abs(w.error_ned[-1, 2]) for w in wins])
+        rows[length] = {"windows": len(wins), "disjoint": int(span_s // length),
+                        "horizontal_m": _percentiles(hor), "vertical_m": _percentiles(up),
+                        "median_rate_m_s": float(np.median(hor) / length)}
+    return rows
+
+
+def _percentiles(x):
+    return {"p50": float(np.percentile(x, 50)), "p68": float(np.percentile(x, 68)),
+            "p95": float(np.percentile(x, 95)), "max": float(np.max(x))}
