@@ -448,7 +448,8 @@ def build_parser():
                    "only one, if any)")
     p.add_argument("--mounting-rpy-deg", type=float, nargs=3, metavar=("ROLL", "PITCH", "YAW"),
                    help="sensor -> vehicle (FRD) rotation, deg (default: rtklib the README's "
-                   "180 0 180; ros2/ulog 0 0 0, i.e. the IMU frame is taken as FRD)")
+                   "180 0 180; ros2 180 0 0, REP-103 x forward, y left, z up; ulog 0 0 0, "
+                   "PX4's FRD body frame)")
     p.add_argument("--force", action="store_true", help="replace an existing output")
     p.set_defaults(func=_import)
     p = sub.add_parser("windows", help="free-inertial windows of 10/30/60 s restarted from the "

@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .. import alignment
+from .. import alignment, earth
 from ..flightlog import LogWriter
 from ..flightlog import schemas as S
 from ..sensors import Mounting
@@ -82,11 +82,7 @@ def write_log(rec, path, force=False):
     epoch = int(rec.imu_ns[0])
     t = (rec.imu_ns - epoch) / 1e9
     ref = rec.reference
-    ref_t = None if ref is None else (np.asarray(ref["ns"], np.int64) - epoch) / 1e9
-    align = alignment.initial_alignment(
-        t, rec.w, rec.f, rec.mounting,
-        None if ref is None else dict(t=ref_t, lat=ref["lat"], lon=ref["lon"], h=ref["h"],
-                                      v_ned=ref["v_ned"]))
+    align = alignment.initial_alignment(t, rec.w, rec.f, rec.mounting, _track(rec, epoch))
     initial = {"t": float(align.t), "latitude": float(align.lat), "longitude": float(align.lon),
                "height": float(align.h), "velocity_ned": list(map(float, align.v_ned)),
                "attitude_wxyz": list(map(float, align.q_nb))}
@@ -125,3 +121,20 @@ def write_log(rec, path, force=False):
                       position_covariance=fx["covariance"],
                       position_covariance_type=np.full(len(fx["ns"]), 2, np.uint8))
     return align
+
+
+def _track(rec, epoch):
+    """The trajectory the alignment takes heading from (t s since epoch, lat, lon, h,
+    v_ned): the reference, else the GNSS fixes (their velocity when recorded, else central
+    differences of their positions), else None."""
+    src = rec.reference if rec.reference is not None else rec.fixes
+    if src is None or len(src["ns"]) < 3:
+        return None
+    t = (np.asarray(src["ns"], np.int64) - epoch) / 1e9
+    v = src.get("v_ned")
+    if v is None:
+        r_n, r_e = earth.radii(src["lat"])
+        north = (src["lat"] - src["lat"][0]) * (r_n + src["h"])
+        east = (src["lon"] - src["lon"][0]) * (r_e + src["h"]) * np.cos(src["lat"])
+        v = np.column_stack([np.gradient(north, t), np.gradient(east, t), -np.gradient(src["h"], t)])
+    return dict(t=t, lat=src["lat"], lon=src["lon"], h=src["h"], v_ned=v)

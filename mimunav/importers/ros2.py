@@ -1,0 +1,90 @@
+"""Any ROS 2 MCAP recording: the IMU from a `sensor_msgs/msg/Imu` topic and, when present,
+GNSS fixes from a `sensor_msgs/msg/NavSatFix` topic, decoded by mcap-ros2-support.
+
+ROS conventions (REP-103, REP-145): angular_velocity rad/s and linear_acceleration m/s^2
+(the specific force: +g up at rest) in the message's frame_id; a body frame is x forward,
+y left, z up (FLU), so the default mounting to the vehicle's FRD is a half turn about x.
+NavSatFix: latitude/longitude deg (turned to rad), altitude m above the WGS-84 ellipsoid,
+position_covariance m^2 ENU. Times: header.stamp (the sensor's time), log_time where a
+stamp is zero.
+"""
+import os
+
+import numpy as np
+from mcap.reader import make_reader
+from mcap_ros2.decoder import DecoderFactory
+
+from ..sensors import Mounting
+from . import ImportError_, Recording
+
+IMU = "sensor_msgs/msg/Imu"
+NAV_SAT_FIX = "sensor_msgs/msg/NavSatFix"
+FLU_TO_FRD = Mounting([0.0, 1.0, 0.0, 0.0])       # half turn about x
+
+
+def topics(path):
+    """{topic: schema name} of an MCAP file."""
+    with open(path, "rb") as fh:
+        summary = make_reader(fh).get_summary()
+    if summary is None:
+        raise ImportError_(f"{path}: no summary section (truncated?); `mimunav info --recover`")
+    return {c.topic: summary.schemas[c.schema_id].name for c in summary.channels.values()}
+
+
+def _pick(path, available, schema, topic, required):
+    found = [t for t, s in available.items() if s == schema]
+    if topic is not None:
+        if available.get(topic) != schema:
+            raise ImportError_(f"{path}: {topic!r} is not a {schema} topic (those: {found})")
+        return topic
+    if len(found) == 1:
+        return found[0]
+    if not found and not required:
+        return None
+    raise ImportError_(f"{path}: {len(found)} {schema} topics {found}; choose one by topic")
+
+
+def _messages(path, topic):
+    with open(path, "rb") as fh:
+        reader = make_reader(fh, decoder_factories=[DecoderFactory()])
+        for _, _, message, ros in reader.iter_decoded_messages(topics=[topic]):
+            stamp = ros.header.stamp.sec * 1_000_000_000 + ros.header.stamp.nanosec
+            yield (stamp if stamp > 0 else message.log_time), ros
+
+
+def read(path, imu_topic=None, fix_topic=None, mounting=None):
+    """The recording of a ROS 2 MCAP as a `Recording`."""
+    available = topics(path)
+    imu_topic = _pick(path, available, IMU, imu_topic, required=True)
+    fix_topic = _pick(path, available, NAV_SAT_FIX, fix_topic, required=False)
+    rows = [(ns, m.angular_velocity.x, m.angular_velocity.y, m.angular_velocity.z,
+             m.linear_acceleration.x, m.linear_acceleration.y, m.linear_acceleration.z)
+            for ns, m in _messages(path, imu_topic)]
+    if len(rows) < 2:
+        raise ImportError_(f"{path}: {imu_topic} has {len(rows)} messages")
+    a = np.asarray(rows, dtype=object)
+    ns = a[:, 0].astype(np.int64)
+    order = np.argsort(ns, kind="stable")
+    ns, data = ns[order], a[order, 1:].astype(float)
+    keep = np.concatenate([[True], np.diff(ns) > 0])
+    fixes = None
+    if fix_topic:
+        fx = [(ns_f, m.status.status, np.radians(m.latitude), np.radians(m.longitude), m.altitude,
+               *m.position_covariance) for ns_f, m in _messages(path, fix_topic)]
+        fx = np.asarray(fx, dtype=float)
+        good = np.isfinite(fx[:, 2:5]).all(axis=1) & (fx[:, 1] >= 0)
+        fx = fx[good][np.argsort(fx[good, 0], kind="stable")]
+        if len(fx):
+            fixes = dict(ns=fx[:, 0].astype(np.int64), status=fx[:, 1].astype(np.int8),
+                         lat=fx[:, 2], lon=fx[:, 3], h=fx[:, 4], covariance=fx[:, 5:14])
+    name = os.path.splitext(os.path.basename(path))[0]
+    real = {"imu": f"{imu_topic} ({len(rows)} messages; {int((~keep).sum())} repeated stamps "
+                   "dropped)", "source": os.path.basename(path)}
+    if fixes is not None:
+        real["gnss"] = f"{fix_topic} ({len(fixes['ns'])} fixes with status >= 0)"
+    assumed = {"mounting": "REP-103 body axes (x forward, y left, z up) -> FRD" if mounting is None
+               else "given on the command line",
+               "calibration": "none: the Imu messages are used as recorded"}
+    return Recording(name, f"ROS 2 recording {os.path.basename(path)}", ns[keep],
+                     data[keep, :3], data[keep, 3:], mounting or FLU_TO_FRD, fixes=fixes,
+                     real=real, assumed=assumed)

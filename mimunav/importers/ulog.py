@@ -1,0 +1,83 @@
+"""PX4 ULog flight logs (read by pyulog): the IMU from `sensor_combined` and GNSS from
+`vehicle_gps_position` (or `sensor_gps` in newer PX4).
+
+PX4 conventions: sensor_combined holds gyro_rad (rad/s) and accelerometer_m_s2 (specific
+force, m/s^2) in the vehicle body frame FRD (the board rotation applied), each the mean
+over its integration interval, stamped in microseconds since boot. GNSS: lat/lon in 1e-7 deg
+(or latitude_deg), alt_ellipsoid in mm (or altitude_ellipsoid_m), vel_n/e/d_m_s. The UNIX
+time of boot comes from the GNSS's time_utc_usec; without it boot is put at the UNIX epoch
+and the metadata says so.
+"""
+import os
+
+import numpy as np
+
+from ..sensors import Mounting
+from . import ImportError_, Recording
+
+GNSS_TOPICS = ("vehicle_gps_position", "sensor_gps")
+
+
+def _topic(ulog, name):
+    found = [d for d in ulog.data_list if d.name == name]
+    return min(found, key=lambda d: d.multi_id) if found else None
+
+
+def _field(data, *names):
+    for name in names:
+        if name in data.data:
+            return np.asarray(data.data[name], dtype=float)
+    raise ImportError_(f"ULog topic {data.name} lacks {' / '.join(names)}")
+
+
+def read(path, mounting=None):
+    """The recording of a PX4 ULog as a `Recording` (IMU in FRD body axes)."""
+    from pyulog import ULog
+    try:
+        ulog = ULog(path, message_name_filter_list=["sensor_combined", *GNSS_TOPICS])
+    except Exception as exc:            # pyulog raises its own and struct errors
+        raise ImportError_(f"{path}: not a readable ULog ({exc})") from None
+    imu = _topic(ulog, "sensor_combined")
+    if imu is None:
+        raise ImportError_(f"{path}: no sensor_combined topic")
+    boot_us = np.asarray(imu.data["timestamp"], dtype=np.int64)
+    w = np.column_stack([_field(imu, f"gyro_rad[{i}]") for i in range(3)])
+    f = np.column_stack([_field(imu, f"accelerometer_m_s2[{i}]") for i in range(3)])
+    gps = next((g for g in (_topic(ulog, n) for n in GNSS_TOPICS) if g is not None), None)
+    offset_us, assumed = 0, {}
+    fixes = None
+    if gps is not None:
+        t_gps = np.asarray(gps.data["timestamp"], dtype=np.int64)
+        utc = np.asarray(gps.data.get("time_utc_usec", np.zeros(len(t_gps))), dtype=np.int64)
+        valid = utc > 0
+        if valid.any():
+            offset_us = int(np.median(utc[valid] - t_gps[valid]))
+        lat = np.radians(_field(gps, "latitude_deg", "lat") *
+                         (1.0 if "latitude_deg" in gps.data else 1e-7))
+        lon = np.radians(_field(gps, "longitude_deg", "lon") *
+                         (1.0 if "longitude_deg" in gps.data else 1e-7))
+        h = _field(gps, "altitude_ellipsoid_m", "alt_ellipsoid") * \
+            (1.0 if "altitude_ellipsoid_m" in gps.data else 1e-3)
+        fix_type = _field(gps, "fix_type").astype(int)
+        eph, epv = _field(gps, "eph"), _field(gps, "epv")
+        good = fix_type >= 3
+        cov = np.zeros((len(t_gps), 9))
+        cov[:, 0] = cov[:, 4] = eph ** 2
+        cov[:, 8] = epv ** 2
+        ns = (t_gps + offset_us) * 1000
+        fixes = dict(ns=ns[good], status=np.zeros(good.sum(), np.int8), lat=lat[good],
+                     lon=lon[good], h=h[good], covariance=cov[good])
+        fixes["v_ned"] = np.column_stack([_field(gps, f"vel_{c}_m_s") for c in "ned"])[good]
+    if offset_us == 0:
+        assumed["time"] = "no GNSS UTC time: boot placed at the UNIX epoch"
+    keep = np.concatenate([[True], np.diff(boot_us) > 0])
+    name = os.path.splitext(os.path.basename(path))[0]
+    real = {"imu": f"sensor_combined ({len(boot_us)} samples)", "source": os.path.basename(path)}
+    if fixes is not None:
+        real["gnss"] = f"{gps.name} ({len(fixes['ns'])} 3-D fixes)"
+    assumed.update(mounting="PX4 body frame FRD = vehicle frame" if mounting is None
+                   else "given on the command line",
+                   calibration="PX4's on-board calibration, as logged")
+    return Recording(name, f"PX4 ULog {os.path.basename(path)}", (boot_us[keep] + offset_us) * 1000,
+                     w[keep], f[keep], mounting or Mounting(), fixes=fixes,
+                     real=real, assumed=assumed)
