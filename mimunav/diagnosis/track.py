@@ -105,3 +105,45 @@ def diagnose(flight, cal, alpha=0.05, seed=0, noise=CONSUMER_NOISE):
         "not_tested": [library.label(term) for _, term in left_out],
         "trusted_fraction": float(trusted.mean())}
     return diag
+
+
+LAG_SEARCH_S = 0.5
+LAG_STEP_S = 0.005
+LAG_SEGMENTS = 10
+
+
+def time_lag(flight):
+    """The IMU's time-stamp lag tau (s, positive: its samples describe motion tau seconds
+    earlier than their stamps, as `time_skew`) from the vehicle's yaw rate alone - the
+    channel the land-vehicle model predicts best: the tau minimising the rms of
+    w_z,IMU(t) - w_z,model(t - tau) over trusted moving samples (grid of LAG_STEP_S, refined
+    by a parabola), per LAG_SEGMENTS contiguous segments; returns (tau, its 95 % interval
+    from the spread of the segments' values (Student t), the segments' values)."""
+    from scipy import stats
+    from .. import attitude
+    ref, trusted = simulated_reference(flight)
+    t = flight.mimu_t
+    w_imu = attitude.rotate(flight.mimu_mounting.q_vs, flight.mimu_imu[0])[:, 2]
+    w_model = np.interp(t, ref.fog_t, ref.fog_w[:, 2])
+    moving = trusted & (np.abs(w_model) > 0) & (t > ref.fog_t[0] + LAG_SEARCH_S) & \
+        (t < ref.fog_t[-1] - LAG_SEARCH_S)
+    k = np.flatnonzero(moving)
+    taus = np.arange(-LAG_SEARCH_S, LAG_SEARCH_S + 1e-12, LAG_STEP_S)
+    shifted = np.stack([np.interp(t[k] - tau, ref.fog_t, ref.fog_w[:, 2]) for tau in taus])
+    err = (w_imu[k] - w_imu[k].mean()) - (shifted - shifted.mean(axis=1, keepdims=True))
+    values = []
+    for seg in np.array_split(np.arange(len(k)), LAG_SEGMENTS):
+        values.append(_parabola_min(taus, np.mean(err[:, seg] ** 2, axis=1)))
+    values = np.asarray(values)
+    tau = _parabola_min(taus, np.mean(err ** 2, axis=1))
+    half = stats.t.ppf(0.975, LAG_SEGMENTS - 1) * values.std(ddof=1) / np.sqrt(LAG_SEGMENTS)
+    return tau, (values.mean() - half, values.mean() + half), values
+
+
+def _parabola_min(x, y):
+    """Abscissa of the minimum of y(x) on a uniform grid, refined by a parabola through the
+    smallest value and its neighbours."""
+    j = int(np.clip(np.argmin(y), 1, len(y) - 2))
+    a, b, c = y[j - 1], y[j], y[j + 1]
+    den = a - 2 * b + c
+    return float(x[j] + (0.5 * (a - c) / den if den > 0 else 0.0) * (x[1] - x[0]))

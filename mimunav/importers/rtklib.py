@@ -6,8 +6,14 @@
                     line) are dropped and counted
     imu_*.csv.tag   RTKLIB time tags: 60-byte text header, uint32 tick_f, uint32 start
                     (GPST s since 1970), float64 fraction, then (uint32 tick ms, uint32 file
-                    position) records; the IMU ticks are mapped linearly onto
-                    [start, start + last tag tick] (the README's rule)
+                    position) records: the receiving computer's clock when each piece of the
+                    stream arrived. The first and last IMU ticks are mapped linearly onto the
+                    first and last tag ticks, [start + first, start + last]: both ends are
+                    arrival times. (The data README maps onto [start, start + last]; that
+                    stretches the IMU's 548.59 s by the 0.131 s before the first arrival,
+                    2.4e-4, and the yaw-rate lag then drifts from 0 to 0.13 s along the drive
+                    - measured by `diagnosis.track.time_lag` per segment. With both ends as
+                    arrival times the stamps carry the stream's latency as a constant lag.)
     *.pos           RTKLIB solution: GPST date and time, lat, lon [deg], height [m,
                     ellipsoidal], Q (1 fix, 2 float), ns, sdn, sde, sdu, sdne, sdeu, sdun [m],
                     age, ratio, vn, ve, vu [m/s], then velocity sigmas
@@ -79,14 +85,14 @@ def read_time_tags(path):
 
 
 def imu_stamps_ns(ticks, start_gpst, tag_ticks):
-    """UNIX ns of each IMU tick: ticks mapped linearly onto [start, start + last tag tick]
-    (GPST), then GPST -> UTC."""
-    span = tag_ticks[-1] / 1e3
+    """UNIX ns of each IMU tick: the first and last ticks on the first and last tag ticks
+    after `start` (GPST), linear in between, then GPST -> UTC."""
     if ticks[-1] == ticks[0]:
         raise ImportError_("the IMU ticks do not advance")
-    s = start_gpst - GPS_UTC_LEAP_S + (ticks - ticks[0]) / (ticks[-1] - ticks[0]) * span
-    ns = np.round(s * 1e9).astype(np.int64)
-    return ns
+    first, last = tag_ticks[0] / 1e3, tag_ticks[-1] / 1e3
+    s = start_gpst - GPS_UTC_LEAP_S + first + (ticks - ticks[0]) / (ticks[-1] - ticks[0]) * \
+        (last - first)
+    return np.round(s * 1e9).astype(np.int64)
 
 
 def read_pos(path):
@@ -156,8 +162,9 @@ def read_drive(folder, mounting=None, name=None):
     real = {"imu": f"{os.path.basename(csv)}: {len(ticks)} complete lines "
                    f"({len(dropped)} partial dropped: lines {dropped[:5]}); g -> m/s^2 by "
                    f"{G_UNIT}, deg/s -> rad/s; no temperature channel",
-            "imu_time": f"IMU ticks mapped onto the RTKLIB time tags of {os.path.basename(tag)}"
-                        f", GPST - {GPS_UTC_LEAP_S} s = UTC; no lag correction applied",
+            "imu_time": f"first and last IMU ticks mapped onto the first and last RTKLIB time "
+                        f"tags (arrival times) of {os.path.basename(tag)}, GPST - "
+                        f"{GPS_UTC_LEAP_S} s = UTC; the stream's latency is not removed",
             "reference": f"RTK solution {os.path.basename(pos)}: {int(good.sum())} fixed epochs "
                          f"of {len(good)} with velocity (float epochs only in /gnss/fix)",
             "source": "rtklibexplorer/GNSS_IMU data/drive_0708 (BSD-3-Clause)"}
