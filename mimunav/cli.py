@@ -331,6 +331,14 @@ def _campaign(args):
 
 def _report(args):
     """Write a generated report into a folder."""
+    if args.kind == "real-drive":
+        from .reports import real_drive
+        if not args.data:
+            raise ValueError("report real-drive needs --data DIR (e.g. "
+                             "../shared/data/rtklib-drive/drive_0708)")
+        md = real_drive.write(args.data, args.output, force=args.force)
+        print(f"wrote {md} and {Path(args.output) / 'real-drive'}/")
+        return 0
     from .reports import calibration
     md, png = calibration.write(args.output, n_units=args.units, first_seed=args.seed,
                                 force=args.force)
@@ -495,8 +503,12 @@ def build_parser():
     p.add_argument("--scheduler", help="Dask scheduler address (runs there instead)")
     p.set_defaults(func=_campaign)
     p = sub.add_parser("report", help="generate a report (calibration: the entire lab on "
-                       "many units, z-scores of every coefficient, held-out check)")
-    p.add_argument("kind", choices=("calibration",))
+                       "many units, z-scores of every coefficient, held-out check; real-drive: "
+                       "a real recording imported, replayed in windows and diagnosed)")
+    p.add_argument("kind", choices=("calibration", "real-drive"),
+                   help="calibration; real-drive: import, windows and diagnosis of the RTKLIB "
+                   "drive in --data")
+    p.add_argument("--data", help="real-drive: the drive folder (imu_*.csv, .tag, .pos)")
     p.add_argument("-o", "--output", default="reports", help="folder (default: reports)")
     p.add_argument("--units", type=int, default=20, help="number of drawn units")
     p.add_argument("--seed", type=int, default=1000, help="seed of the first unit")

@@ -41,7 +41,12 @@ def plot(variants, png):
     """variants: {label: {length: [Window]}}; growth curves (one panel per variant) and the
     end-error CDFs (last panel)."""
     n = len(variants)
-    plt, fig, axes = figure(1, n + 1, (5.5 * (n + 1), 4.5))
+    cols = min(3, n + 1)
+    rows = -(-(n + 1) // cols)
+    plt, fig, grid = figure(rows, cols, (5.5 * cols, 4.5 * rows))
+    axes = grid.reshape(1, -1)
+    for ax in axes[0, n + 1:]:
+        ax.set_visible(False)
     colors = {}
     for i, (label, results) in enumerate(variants.items()):
         ax = axes[0, i]
@@ -55,7 +60,7 @@ def plot(variants, png):
                     label=f"{length:g} s: median of {len(wins)}")
             ends = np.sort([w.horizontal[-1] for w in wins])
             axes[0, n].step(ends, np.arange(1, len(ends) + 1) / len(ends), where="post",
-                            color=color, ls=("-", "--", ":", "-.")[i % 4],
+                            color=color, ls=("-", "--", ":", "-.", (0, (6, 1, 1, 1)))[i % 5],
                             label=f"{label + ', ' if label else ''}{length:g} s")
         ax.set_yscale("log")
         ax.set_xlabel("time since restart, s")
