@@ -19,7 +19,7 @@ from mimunav.cli import main
 from mimunav.evaluation import Flight
 from mimunav.flightlog import FlightLog, LogWriter
 from mimunav.flightlog import schemas as S
-from mimunav.importers import ImportError_, Recording, rtklib, ros2, ulog, write_log
+from mimunav.importers import RecordingError, Recording, rtklib, ros2, ulog, write_log
 from mimunav.sensors import Mounting
 from mimunav.vehicle import TrackMotion
 
@@ -181,12 +181,12 @@ def test_rtklib_bad_inputs_are_named(tmp_path):
     ticks, _, _, dropped = rtklib.read_imu_csv(tmp_path / "imu_1.csv")
     assert list(ticks) == [10, 20] and dropped == [1, 4]
     (tmp_path / "imu_1.csv.tag").write_bytes(b"NOT A TAG FILE" + b"\0" * 80)
-    with pytest.raises(ImportError_, match="TIMETAG"):
+    with pytest.raises(RecordingError, match="TIMETAG"):
         rtklib.read_time_tags(tmp_path / "imu_1.csv.tag")
     (tmp_path / "a.pos").write_text("% header\n2025/07/08 19:34:18.499 40.0 -105.0\n")
-    with pytest.raises(ImportError_, match="a.pos:2"):
+    with pytest.raises(RecordingError, match="a.pos:2"):
         rtklib.read_pos(tmp_path / "a.pos")
-    with pytest.raises(ImportError_, match="not finite"):
+    with pytest.raises(RecordingError, match="not finite"):
         Recording("x", "", [1, 2], [[0, 0, 0], [np.nan, 0, 0]], np.zeros((2, 3)), Mounting())
 
 
@@ -208,7 +208,7 @@ def test_ros2_import_by_topic(tmp_path):
                   longitude=np.full(len(fix_ns), -105.1), altitude=np.full(len(fix_ns), 1600.0),
                   position_covariance=np.tile(np.eye(3).ravel(), (len(fix_ns), 1)),
                   position_covariance_type=np.full(len(fix_ns), 2, np.uint8))
-    with pytest.raises(ImportError_, match="choose one by topic"):
+    with pytest.raises(RecordingError, match="choose one by topic"):
         ros2.read(bag)
     rec = ros2.read(bag, imu_topic="/imu/data")
     assert np.array_equal(rec.imu_ns, stamps) and np.allclose(rec.w, w) and np.allclose(rec.f, f)
@@ -267,7 +267,7 @@ def test_ulog_import(tmp_path):
     assert np.allclose(rec.fixes["lat"], np.radians(40.1)) and np.allclose(rec.fixes["h"], 1600.5)
     assert rec.sample_rate_hz == pytest.approx(250.0)
     (tmp_path / "junk.ulg").write_bytes(b"not a ulog")
-    with pytest.raises(ImportError_, match="not a readable ULog"):
+    with pytest.raises(RecordingError, match="not a readable ULog"):
         ulog.read(str(tmp_path / "junk.ulg"))
 
 

@@ -26,7 +26,7 @@ from ..sensors import Mounting
 UNKNOWN_ATTITUDE = np.full(4, np.nan)
 
 
-class ImportError_(ValueError):
+class RecordingError(ValueError):
     """A recording that cannot be turned into a contract log, with what and where."""
 
 
@@ -58,17 +58,17 @@ class Recording:
         for name in ("w", "f"):
             x = np.asarray(getattr(self, name), dtype=float)
             if x.shape != (n, 3):
-                raise ImportError_(f"{self.name}: IMU {name} has shape {x.shape}, expected "
+                raise RecordingError(f"{self.name}: IMU {name} has shape {x.shape}, expected "
                                    f"({n}, 3)")
             setattr(self, name, x)
         if n < 2:
-            raise ImportError_(f"{self.name}: fewer than two IMU samples")
+            raise RecordingError(f"{self.name}: fewer than two IMU samples")
         if np.any(np.diff(self.imu_ns) <= 0):
             k = int(np.argmax(np.diff(self.imu_ns) <= 0))
-            raise ImportError_(f"{self.name}: IMU stamps do not increase at sample {k + 1}")
+            raise RecordingError(f"{self.name}: IMU stamps do not increase at sample {k + 1}")
         bad = ~np.isfinite(np.hstack([self.w, self.f])).all(axis=1)
         if bad.any():
-            raise ImportError_(f"{self.name}: {bad.sum()} IMU samples are not finite (first at "
+            raise RecordingError(f"{self.name}: {bad.sum()} IMU samples are not finite (first at "
                                f"sample {int(np.argmax(bad))}); a log must not carry them")
 
     @property

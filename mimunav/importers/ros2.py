@@ -15,7 +15,7 @@ from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 
 from ..sensors import Mounting
-from . import ImportError_, Recording
+from . import RecordingError, Recording
 
 IMU = "sensor_msgs/msg/Imu"
 NAV_SAT_FIX = "sensor_msgs/msg/NavSatFix"
@@ -27,7 +27,7 @@ def topics(path):
     with open(path, "rb") as fh:
         summary = make_reader(fh).get_summary()
     if summary is None:
-        raise ImportError_(f"{path}: no summary section (truncated?); `mimunav info --recover`")
+        raise RecordingError(f"{path}: no summary section (truncated?); `mimunav info --recover`")
     return {c.topic: summary.schemas[c.schema_id].name for c in summary.channels.values()}
 
 
@@ -35,13 +35,13 @@ def _pick(path, available, schema, topic, required):
     found = [t for t, s in available.items() if s == schema]
     if topic is not None:
         if available.get(topic) != schema:
-            raise ImportError_(f"{path}: {topic!r} is not a {schema} topic (those: {found})")
+            raise RecordingError(f"{path}: {topic!r} is not a {schema} topic (those: {found})")
         return topic
     if len(found) == 1:
         return found[0]
     if not found and not required:
         return None
-    raise ImportError_(f"{path}: {len(found)} {schema} topics {found}; choose one by topic")
+    raise RecordingError(f"{path}: {len(found)} {schema} topics {found}; choose one by topic")
 
 
 def _messages(path, topic):
@@ -61,7 +61,7 @@ def read(path, imu_topic=None, fix_topic=None, mounting=None):
              m.linear_acceleration.x, m.linear_acceleration.y, m.linear_acceleration.z)
             for ns, m in _messages(path, imu_topic)]
     if len(rows) < 2:
-        raise ImportError_(f"{path}: {imu_topic} has {len(rows)} messages")
+        raise RecordingError(f"{path}: {imu_topic} has {len(rows)} messages")
     a = np.asarray(rows, dtype=object)
     ns = a[:, 0].astype(np.int64)
     order = np.argsort(ns, kind="stable")

@@ -30,7 +30,7 @@ import quaternion
 
 from .. import attitude
 from ..sensors import Mounting
-from . import ImportError_, Recording
+from . import RecordingError, Recording
 
 G_UNIT = 9.80665            # m/s^2 per g: the standard gravity an accelerometer's g means
 GPS_UTC_LEAP_S = 18         # GPST - UTC since 2017-01-01 (IERS Bulletin C: none added since)
@@ -63,11 +63,11 @@ def read_imu_csv(path):
             except ValueError:
                 dropped.append(number)
     if len(rows) < 2:
-        raise ImportError_(f"{path}: fewer than two complete IMU lines")
+        raise RecordingError(f"{path}: fewer than two complete IMU lines")
     a = np.asarray(rows)
     if not np.isfinite(a).all():
         k = int(np.argmax(~np.isfinite(a).all(axis=1)))
-        raise ImportError_(f"{path}: a value that is not finite near line {k + 1}")
+        raise RecordingError(f"{path}: a value that is not finite near line {k + 1}")
     return a[:, 6].astype(np.int64), a[:, :3] * G_UNIT, np.radians(a[:, 3:6]), dropped
 
 
@@ -75,12 +75,12 @@ def read_time_tags(path):
     """(start GPST s since 1970 as float, tag ticks ms (M,), file positions (M,))."""
     raw = open(path, "rb").read()
     if len(raw) < TAG_HEADER + 16 or not raw.startswith(b"TIMETAG"):
-        raise ImportError_(f"{path}: not an RTKLIB time-tag file (no 'TIMETAG' header)")
+        raise RecordingError(f"{path}: not an RTKLIB time-tag file (no 'TIMETAG' header)")
     _tick_f, start, fraction = struct.unpack("<IId", raw[TAG_HEADER:TAG_HEADER + 16])
     body = raw[TAG_HEADER + 16:]
     records = np.frombuffer(body[:len(body) // 8 * 8], dtype="<u4").reshape(-1, 2)
     if len(records) == 0:
-        raise ImportError_(f"{path}: no time-tag records")
+        raise RecordingError(f"{path}: no time-tag records")
     return start + fraction, records[:, 0].astype(np.int64), records[:, 1].astype(np.int64)
 
 
@@ -88,7 +88,7 @@ def imu_stamps_ns(ticks, start_gpst, tag_ticks):
     """UNIX ns of each IMU tick: the first and last ticks on the first and last tag ticks
     after `start` (GPST), linear in between, then GPST -> UTC."""
     if ticks[-1] == ticks[0]:
-        raise ImportError_("the IMU ticks do not advance")
+        raise RecordingError("the IMU ticks do not advance")
     first, last = tag_ticks[0] / 1e3, tag_ticks[-1] / 1e3
     s = start_gpst - GPS_UTC_LEAP_S + first + (ticks - ticks[0]) / (ticks[-1] - ticks[0]) * \
         (last - first)
@@ -105,7 +105,7 @@ def read_pos(path):
                 continue
             parts = line.split()
             if len(parts) < 15:
-                raise ImportError_(f"{path}:{number}: {len(parts)} columns, an RTKLIB solution "
+                raise RecordingError(f"{path}:{number}: {len(parts)} columns, an RTKLIB solution "
                                    "line has at least 15 (date, time, lat, lon, height, Q, ns, "
                                    "6 sigmas, age, ratio)")
             date, clock = parts[0].split("/"), parts[1].split(":")
@@ -115,12 +115,12 @@ def read_pos(path):
                                          int(clock[0]), int(clock[1]), int(sec)))
                 vals = [float(x) for x in parts[2:]]
             except (ValueError, IndexError):
-                raise ImportError_(f"{path}:{number}: cannot read {line.strip()[:60]!r}") from None
+                raise RecordingError(f"{path}:{number}: cannot read {line.strip()[:60]!r}") from None
             t = whole + (sec - int(sec)) - GPS_UTC_LEAP_S
             vel = vals[13:16] if len(vals) >= 16 else [math.nan] * 3
             rows.append([t] + vals[:13] + vel)
     if not rows:
-        raise ImportError_(f"{path}: no solution lines")
+        raise RecordingError(f"{path}: no solution lines")
     a = np.asarray(rows)
     vn, ve, vu = a[:, 14], a[:, 15], a[:, 16]
     return dict(ns=np.round(a[:, 0] * 1e9).astype(np.int64), lat=np.radians(a[:, 1]),
@@ -133,12 +133,12 @@ def find_files(folder):
     def one(pattern):
         found = sorted(glob.glob(os.path.join(folder, pattern)))
         if len(found) != 1:
-            raise ImportError_(f"{folder}: expected one {pattern}, found {len(found)}")
+            raise RecordingError(f"{folder}: expected one {pattern}, found {len(found)}")
         return found[0]
     csv = one("imu_*.csv")
     tag = csv + ".tag"
     if not os.path.exists(tag):
-        raise ImportError_(f"{folder}: no time-tag file {os.path.basename(tag)}")
+        raise RecordingError(f"{folder}: no time-tag file {os.path.basename(tag)}")
     return csv, tag, one("*.pos")
 
 

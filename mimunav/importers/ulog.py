@@ -13,7 +13,7 @@ import os
 import numpy as np
 
 from ..sensors import Mounting
-from . import ImportError_, Recording
+from . import RecordingError, Recording
 
 GNSS_TOPICS = ("vehicle_gps_position", "sensor_gps")
 
@@ -27,7 +27,7 @@ def _field(data, *names):
     for name in names:
         if name in data.data:
             return np.asarray(data.data[name], dtype=float)
-    raise ImportError_(f"ULog topic {data.name} lacks {' / '.join(names)}")
+    raise RecordingError(f"ULog topic {data.name} lacks {' / '.join(names)}")
 
 
 def read(path, mounting=None):
@@ -36,10 +36,10 @@ def read(path, mounting=None):
     try:
         ulog = ULog(path, message_name_filter_list=["sensor_combined", *GNSS_TOPICS])
     except Exception as exc:            # pyulog raises its own and struct errors
-        raise ImportError_(f"{path}: not a readable ULog ({exc})") from None
+        raise RecordingError(f"{path}: not a readable ULog ({exc})") from None
     imu = _topic(ulog, "sensor_combined")
     if imu is None:
-        raise ImportError_(f"{path}: no sensor_combined topic")
+        raise RecordingError(f"{path}: no sensor_combined topic")
     boot_us = np.asarray(imu.data["timestamp"], dtype=np.int64)
     w = np.column_stack([_field(imu, f"gyro_rad[{i}]") for i in range(3)])
     f = np.column_stack([_field(imu, f"accelerometer_m_s2[{i}]") for i in range(3)])

@@ -1,0 +1,50 @@
+"""Benchmarks of real recordings: the RTKLIB drive (549 s, 100 Hz) through the CLI, each
+command timed in a fresh process.
+
+    python bench/recordings.py [--data ../shared/data/rtklib-drive/drive_0708] [--json out.json]
+
+import (CSV + tags + .pos -> contract log with the alignment), diagnose (track level: the
+drive simulated from RTK, the library search, bootstrap, report folder), windows (10/30/60 s
+every 5 s: 260 free-inertial runs).
+"""
+import argparse
+import json
+import os
+import platform
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def timed(args):
+    t0 = time.perf_counter()
+    subprocess.run([sys.executable, "-m", "mimunav", *args], check=True, cwd=ROOT,
+                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    return time.perf_counter() - t0
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--data", default=str(ROOT.parent / "shared" / "data" / "rtklib-drive"
+                                              / "drive_0708"))
+    parser.add_argument("--json", help="write the numbers here")
+    args = parser.parse_args()
+    with tempfile.TemporaryDirectory() as tmp:
+        log = os.path.join(tmp, "drive.mcap")
+        out = {"import_s": timed(["import", "rtklib", args.data, "-o", log]),
+               "diagnose_s": timed(["diagnose", log, "-o", os.path.join(tmp, "d")]),
+               "windows_s": timed(["windows", log, "-o", os.path.join(tmp, "w")])}
+    out.update(machine=f"{os.cpu_count()} cores, {platform.machine()}, Python "
+                       f"{platform.python_version()}")
+    for key, value in out.items():
+        print(f"{key:12s} {value:.2f}" if isinstance(value, float) else f"{key:12s} {value}")
+    if args.json:
+        Path(args.json).write_text(json.dumps(out, indent=1) + "\n")
+
+
+if __name__ == "__main__":
+    main()
