@@ -23,6 +23,7 @@ from .truth import Kinematics, Motion
 HOLD_SPEED = 0.5            # m/s: below it the attitude holds and the rates are zero
 TRUSTED_SPEED = 2.0         # m/s: above it (or at rest) the attitude model is taken as valid
 REST_SPEED = 0.05           # m/s: at rest
+DW_STEP_S = 1e-3            # s: step of the central difference of the body rate
 
 
 class TrackMotion(Motion):
@@ -57,6 +58,14 @@ class TrackMotion(Motion):
 
     def kinematics(self, t):
         t = np.asarray(t, float)
+        v, a, q, w = self._state(t)
+        # dw_nb_b by a central difference (only a lever arm's tangential term needs it)
+        h = DW_STEP_S
+        dw = (self._state(t + h)[3] - self._state(t - h)[3]) / (2 * h)
+        return Kinematics(v, a, q, w, dw)
+
+    def _state(self, t):
+        """(v_ned, a_ned, q_nb, w_nb_b) at times t, the attitude model of the module."""
         v = self._velocity(t)
         a = np.column_stack([s(t) for s in self._a])
         yaw, pitch = _yaw_pitch(v)
@@ -72,8 +81,7 @@ class TrackMotion(Motion):
         pitch = np.where(moving, pitch, self._pitch_hold[k])
         yaw_dot, pitch_dot = np.where(moving, yaw_dot, 0.0), np.where(moving, pitch_dot, 0.0)
         w = np.column_stack([-yaw_dot * np.sin(pitch), pitch_dot, yaw_dot * np.cos(pitch)])
-        q = attitude.from_euler(yaw, pitch, np.zeros_like(yaw))
-        return Kinematics(v, a, q, w, np.zeros_like(w))
+        return v, a, attitude.from_euler(yaw, pitch, np.zeros_like(yaw)), w
 
 
 def _yaw_pitch(v):

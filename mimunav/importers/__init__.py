@@ -95,14 +95,14 @@ def write_log(rec, path, force=False):
             "epoch_unix_ns": str(epoch), "source": "recording", "initial_state": initial})
         log.metadata("sensor/mimu", {
             "model": rec.model, "sample_rate_hz": f"{rate:.6g}",
-            "mounting": rec.mounting.as_dict(),
-            "range": {"gyro_rad_s": float(np.abs(rec.w).max()),
-                      "accel_m_s2": float(np.abs(rec.f).max())}})
+            "mounting": rec.mounting.as_dict()})      # range: unknown, not written
         log.metadata("recording", {"real": json.dumps(rec.real), "assumed": json.dumps(assumed),
                                    "gyro_bias_static_rad_s": list(map(float, align.gyro_bias)),
                                    "accel_bias_along_gravity_m_s2":
                                        list(map(float, align.accel_bias)),
-                                   "static_s": [float(align.static[0]), float(align.static[1])]})
+                                   "static_s": [float(align.static[0]), float(align.static[1])],
+                                   "observed_max": {"gyro_rad_s": float(np.abs(rec.w).max()),
+                                                    "accel_m_s2": float(np.abs(rec.f).max())}})
         log.write("/mimu/imu", S.IMU, "mimu", rec.imu_ns, **S.imu_fields(rec.w, rec.f))
         if ref is not None:
             log.metadata("reference", {"source": rec.real.get("reference", "external"),
