@@ -235,8 +235,8 @@ def _finding_reading(flight, f):
         v = f["vector"]
         return ("r = [" + ", ".join(f"{x:+.2f}" for x in v) + "] m (sensor axes)",
                 "; ".join(f"[{a:+.2f}, {b:+.2f}]" for a, b in f["vector_ci95"]),
-                "decimetres: not a proof-mass offset but the IMU-antenna lever arm (assumed 0) "
-                "seen on this axis")
+                "decimetres: too large for a proof-mass offset; consistent with the IMU-antenna "
+                "lever arm (assumed 0) seen on this axis")
     units = f["units"]
     return (f"{f['coefficient']:.4g} {units}", f"[{f['ci95'][0]:.4g}, {f['ci95'][1]:.4g}]",
             "-")
