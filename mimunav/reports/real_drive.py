@@ -79,6 +79,7 @@ def write(data_dir, out="reports", force=False, progress=True):
             results[name], rest_w = windows.run_all(fl, cal, time_shift_s=shift,
                                                     progress=progress)
             docs[name] = windows_report.document(fl, results[name], rest_w, name, shift)
+            docs[name]["log"] = doc["log"]          # not the scratch file's path
         with atomic_folder(out / "real-drive", force=force) as tmp:
             windows_report.plot(results, str(tmp / "windows.png"))
             (tmp / "windows.json").write_text(json.dumps(docs, indent=1) + "\n")
