@@ -154,11 +154,10 @@ def _windows_reading(docs, base):
             "between the two means both act - the tilt the 0.5 s two-vector alignment leaves "
             "and the accelerometers' scale and axis errors, and the gyro errors the rest bias "
             "does not remove (scale factor and axis errors in turns, bias drift). ")
-    text += ("The found terms as `CAL+found.json` writes them are applied to first order "
-             "(a misalignment as x + x cross phi): at 7 deg that leaves 0.7 % of g, 70 mg, in "
-             "the axis it tilts, and the `time_skew` there is the attenuated 6-channel value; "
-             "the variant with the found misalignment as an exact rotation and the yaw-rate "
-             "lag is the diagnosis's full worth. ")
+    text += ("`CAL+found.json` removes every confirmed term (the misalignment as an exact "
+             "rotation), its `time_skew` being the attenuated 6-channel value; the variant with "
+             "the found misalignment in the mounting and the yaw-rate lag is the diagnosis's "
+             "full worth. ")
     text += "Against the as-recorded medians: " + "; ".join(
         f"{n}: " + ", ".join(f"{k} s {100 * (med[n][k] / med[names[0]][k] - 1):+.0f} %"
                              for k in med[n]) for n in names[1:]) + "."
