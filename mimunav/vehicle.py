@@ -13,6 +13,7 @@ derivative come from a smoothing spline per NED component (scipy `make_smoothing
 smoothing chosen by generalised cross-validation). The rates follow analytically:
     yaw' = (v_N a_E - v_E a_N) / v_H^2,   pitch' = (v_D v_H' - a_D v_H) / (v_H^2 + v_D^2),
     w_nb^b = (-yaw' sin(pitch), pitch', yaw' cos(pitch))      (roll = 0, T&W eq. 3.19)
+and their derivatives from the spline's second derivative (jerk) in the same way.
 """
 import numpy as np
 from scipy.interpolate import make_smoothing_spline
@@ -23,7 +24,6 @@ from .truth import Kinematics, Motion
 HOLD_SPEED = 0.5            # m/s: below it the attitude holds and the rates are zero
 TRUSTED_SPEED = 2.0         # m/s: above it (or at rest) the attitude model is taken as valid
 REST_SPEED = 0.05           # m/s: at rest
-DW_STEP_S = 1e-3            # s: step of the central difference of the body rate
 
 
 class TrackMotion(Motion):
@@ -35,6 +35,7 @@ class TrackMotion(Motion):
         self.lat0, self.lon0, self.h0 = float(lat[0]), float(lon[0]), float(h[0])
         self._v = [make_smoothing_spline(t, v_ned[:, i]) for i in range(3)]
         self._a = [s.derivative() for s in self._v]
+        self._j = [s.derivative(2) for s in self._v]
         v = self._velocity(t)
         yaw, pitch = _yaw_pitch(v)
         moving = np.hypot(v[:, 0], v[:, 1]) >= HOLD_SPEED
@@ -58,30 +59,34 @@ class TrackMotion(Motion):
 
     def kinematics(self, t):
         t = np.asarray(t, float)
-        v, a, q, w = self._state(t)
-        # dw_nb_b by a central difference (only a lever arm's tangential term needs it)
-        h = DW_STEP_S
-        dw = (self._state(t + h)[3] - self._state(t - h)[3]) / (2 * h)
-        return Kinematics(v, a, q, w, dw)
-
-    def _state(self, t):
-        """(v_ned, a_ned, q_nb, w_nb_b) at times t, the attitude model of the module."""
         v = self._velocity(t)
         a = np.column_stack([s(t) for s in self._a])
+        j = np.column_stack([s(t) for s in self._j])
         yaw, pitch = _yaw_pitch(v)
         vh2 = v[:, 0] ** 2 + v[:, 1] ** 2
         vh = np.sqrt(vh2)
         moving = vh >= HOLD_SPEED
         with np.errstate(invalid="ignore", divide="ignore"):
             yaw_dot = (v[:, 0] * a[:, 1] - v[:, 1] * a[:, 0]) / vh2
+            yaw_ddot = (v[:, 0] * j[:, 1] - v[:, 1] * j[:, 0]) / vh2 \
+                - 2 * yaw_dot * (v[:, 0] * a[:, 0] + v[:, 1] * a[:, 1]) / vh2
             vh_dot = (v[:, 0] * a[:, 0] + v[:, 1] * a[:, 1]) / vh
-            pitch_dot = (v[:, 2] * vh_dot - a[:, 2] * vh) / (vh2 + v[:, 2] ** 2)
+            vh_ddot = (a[:, 0] ** 2 + a[:, 1] ** 2 + v[:, 0] * j[:, 0] + v[:, 1] * j[:, 1]) / vh \
+                - vh_dot ** 2 / vh
+            den = vh2 + v[:, 2] ** 2
+            pitch_dot = (v[:, 2] * vh_dot - a[:, 2] * vh) / den
+            pitch_ddot = (v[:, 2] * vh_ddot - j[:, 2] * vh
+                          - 2 * pitch_dot * (vh * vh_dot + v[:, 2] * a[:, 2])) / den
         k = np.clip(np.searchsorted(self._t, t, side="right") - 1, 0, len(self._t) - 1)
         yaw = np.where(moving, yaw, self._yaw_hold[k])
         pitch = np.where(moving, pitch, self._pitch_hold[k])
-        yaw_dot, pitch_dot = np.where(moving, yaw_dot, 0.0), np.where(moving, pitch_dot, 0.0)
-        w = np.column_stack([-yaw_dot * np.sin(pitch), pitch_dot, yaw_dot * np.cos(pitch)])
-        return v, a, attitude.from_euler(yaw, pitch, np.zeros_like(yaw)), w
+        yd, pd, ydd, pdd = (np.where(moving, x, 0.0)
+                            for x in (yaw_dot, pitch_dot, yaw_ddot, pitch_ddot))
+        s_p, c_p = np.sin(pitch), np.cos(pitch)
+        w = np.column_stack([-yd * s_p, pd, yd * c_p])
+        dw = np.column_stack([-ydd * s_p - yd * pd * c_p, pdd, ydd * c_p - yd * pd * s_p])
+        q = attitude.from_euler(yaw, pitch, np.zeros_like(yaw))
+        return Kinematics(v, a, q, w, dw)
 
 
 def _yaw_pitch(v):

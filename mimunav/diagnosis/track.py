@@ -80,17 +80,17 @@ def reference_check(ref, trusted):
             for c, (s, a) in enumerate(CHANNELS)}
 
 
-def diagnose(flight, cal, alpha=0.05, seed=0, noise=CONSUMER_NOISE):
+def diagnose(flight, cal, alpha=0.05, seed=0, noise=CONSUMER_NOISE, reference=None):
     """Sensor-level diagnosis of `flight` against the ideal IMU simulated along its
-    reference trajectory; untrusted samples and the terms of unpredicted input axes (see the
-    module) are left out. The returned diagnosis carries `reference_check`."""
-    ref, trusted = simulated_reference(flight)
-    if flight.mimu_raw is None:
-        w, f = (np.where(trusted[:, None], x, np.nan) for x in flight.mimu_imu)
-        ref = replace(ref, mimu_imu=(w, f))
-    else:
+    reference trajectory (`reference`: a `simulated_reference(flight)` already made);
+    untrusted samples and the terms of unpredicted input axes (see the module) are left out.
+    The returned diagnosis carries `reference_check`."""
+    if flight.mimu_raw is not None:
         raise ValueError(f"{flight.path}: the track level takes a recorded /mimu/imu; a raw "
                          "MIMU with a reference trajectory goes to the navigation level")
+    ref, trusted = reference or simulated_reference(flight)
+    w, f = (np.where(trusted[:, None], x, np.nan) for x in flight.mimu_imu)
+    ref = replace(ref, mimu_imu=(w, f))
     corr = reference_check(replace(ref, mimu_imu=flight.mimu_imu), trusted)
     unpredicted = {tuple(c.split(".")) for c, r in corr.items() if not r >= PREDICTED_CORRELATION}
     kept, left_out = [], []
@@ -112,16 +112,17 @@ LAG_STEP_S = 0.005
 LAG_SEGMENTS = 10
 
 
-def time_lag(flight):
+def time_lag(flight, reference=None):
     """The IMU's time-stamp lag tau (s, positive: its samples describe motion tau seconds
     earlier than their stamps, as `time_skew`) from the vehicle's yaw rate alone - the
     channel the land-vehicle model predicts best: the tau minimising the rms of
     w_z,IMU(t) - w_z,model(t - tau) over trusted moving samples (grid of LAG_STEP_S, refined
     by a parabola), per LAG_SEGMENTS contiguous segments; returns (tau, its 95 % interval
-    from the spread of the segments' values (Student t), the segments' values)."""
+    from the spread of the segments' values (Student t), the segments' values).
+    `reference`: a `simulated_reference(flight)` already made."""
     from scipy import stats
     from .. import attitude
-    ref, trusted = simulated_reference(flight)
+    ref, trusted = reference or simulated_reference(flight)
     t = flight.mimu_t
     w_imu = attitude.rotate(flight.mimu_mounting.q_vs, flight.mimu_imu[0])[:, 2]
     w_model = np.interp(t, ref.fog_t, ref.fog_w[:, 2])

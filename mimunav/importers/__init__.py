@@ -133,8 +133,7 @@ def _track(rec, epoch):
     t = (np.asarray(src["ns"], np.int64) - epoch) / 1e9
     v = src.get("v_ned")
     if v is None:
-        r_n, r_e = earth.radii(src["lat"])
-        north = (src["lat"] - src["lat"][0]) * (r_n + src["h"])
-        east = (src["lon"] - src["lon"][0]) * (r_e + src["h"]) * np.cos(src["lat"])
-        v = np.column_stack([np.gradient(north, t), np.gradient(east, t), -np.gradient(src["h"], t)])
+        ned = earth.ned_difference(src["lat"], src["lon"], src["h"], src["lat"][0],
+                                   src["lon"][0], src["h"][0])
+        v = np.gradient(ned, t, axis=0)
     return dict(t=t, lat=src["lat"], lon=src["lon"], h=src["h"], v_ned=v)

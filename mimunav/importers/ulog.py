@@ -23,10 +23,12 @@ def _topic(ulog, name):
     return min(found, key=lambda d: d.multi_id) if found else None
 
 
-def _field(data, *names):
-    for name in names:
+def _field(data, *names, scales=None):
+    """The first of `names` the topic has, times its scale (default 1): newer and older PX4
+    messages name and scale a quantity differently."""
+    for k, name in enumerate(names):
         if name in data.data:
-            return np.asarray(data.data[name], dtype=float)
+            return np.asarray(data.data[name], dtype=float) * (scales[k] if scales else 1.0)
     raise RecordingError(f"ULog topic {data.name} lacks {' / '.join(names)}")
 
 
@@ -52,12 +54,9 @@ def read(path, mounting=None):
         valid = utc > 0
         if valid.any():
             offset_us = int(np.median(utc[valid] - t_gps[valid]))
-        lat = np.radians(_field(gps, "latitude_deg", "lat") *
-                         (1.0 if "latitude_deg" in gps.data else 1e-7))
-        lon = np.radians(_field(gps, "longitude_deg", "lon") *
-                         (1.0 if "longitude_deg" in gps.data else 1e-7))
-        h = _field(gps, "altitude_ellipsoid_m", "alt_ellipsoid") * \
-            (1.0 if "altitude_ellipsoid_m" in gps.data else 1e-3)
+        lat = np.radians(_field(gps, "latitude_deg", "lat", scales=(1.0, 1e-7)))
+        lon = np.radians(_field(gps, "longitude_deg", "lon", scales=(1.0, 1e-7)))
+        h = _field(gps, "altitude_ellipsoid_m", "alt_ellipsoid", scales=(1.0, 1e-3))
         fix_type = _field(gps, "fix_type").astype(int)
         eph, epv = _field(gps, "eph"), _field(gps, "epv")
         good = fix_type >= 3

@@ -23,22 +23,28 @@ from . import windows as windows_report
 DEG = math.pi / 180
 
 
+def _turned(mounting, dq, vehicle_axes=False):
+    """The mounting turned by dq: q_vs * dq (a rotation in sensor axes), or dq * q_vs
+    (vehicle axes)."""
+    q = dq * mounting.q_vs if vehicle_axes else mounting.q_vs * dq
+    return replace(mounting, attitude_wxyz=quaternion.as_float_array(q))
+
+
 def _author_mounting(mounting):
     """The nominal mounting turned by the author's misalignment, read as roll/pitch/yaw of
     the vehicle-axis correction (an assumption: the README does not give the convention)."""
     roll, pitch, yaw = np.radians(rtklib.AUTHOR_MISALIGNMENT_RPY_DEG)
-    dq = attitude.from_euler(np.array(yaw), np.array(pitch), np.array(roll))
-    return replace(mounting, attitude_wxyz=quaternion.as_float_array(dq * mounting.q_vs))
+    return _turned(mounting, attitude.from_euler(np.array(yaw), np.array(pitch), np.array(roll)),
+                   vehicle_axes=True)
 
 
 def _found_mounting(mounting, findings):
     """The mounting turned by a found `mounting_misalignment` phi (sensor axes) as an exact
-    rotation: the sensor reads C(phi) x = x + x cross phi of its nominal input, so
-    q_vs = q_vs,nominal * exp(phi / 2); None when none was found."""
+    rotation: the sensor reads R(-phi) x of its nominal input, so q_vs = q_vs * exp(phi / 2);
+    None when none was found."""
     for f in findings:
         if f["effect"] == "mounting_misalignment":
-            dq = quaternion.from_rotation_vector(np.asarray(f["vector"], float))
-            return replace(mounting, attitude_wxyz=quaternion.as_float_array(mounting.q_vs * dq))
+            return _turned(mounting, quaternion.from_rotation_vector(np.asarray(f["vector"], float)))
     return None
 
 
@@ -59,8 +65,9 @@ def write(data_dir, out="reports", force=False, progress=True):
         rec = rtklib.read_drive(data_dir)
         rest = write_log(rec, log)
         flight = evaluation.Flight.load(log, reference_imu=False)
-        lag, lag_ci, lag_segments = track.time_lag(flight)
-        diag = track.diagnose(flight, Calibration.identity())
+        simulated = track.simulated_reference(flight)       # the spline fit, once
+        lag, lag_ci, lag_segments = track.time_lag(flight, simulated)
+        diag = track.diagnose(flight, Calibration.identity(), reference=simulated)
         doc = document(Path(data_dir).name + " (imported)", diag)
         found = with_found(Calibration.identity(), doc["findings"])
         variants = {"as recorded": (flight, None, 0.0),
