@@ -2,11 +2,13 @@
 
     python bench/diagnosis.py [--repeats 2] [--nulls 40] [--report reports] [--json out.json]
 
-1. `mimunav diagnose` of a 10-minute 1 kHz flight (the proof flight's blocks to 600 s, a
-   hidden g-sensitivity), timed end to end in a fresh process with its report.
-2. The concealed-data suite (`mimunav.diagnosis.concealed.run_suite`): every proof effect
+1. `mimunav diagnose` of a 10-minute 1 kHz flight (the proof flight's manoeuvres repeated to
+   600 s, a hidden g-sensitivity), timed end to end in a fresh process with its report.
+2. The development set of an independent simulator (shared/data/foreign-flights): each log
+   diagnosed with its calibration and scored against its answer key.
+3. The concealed-data suite (`mimunav.diagnosis.concealed.run_suite`): every proof effect
    `--repeats` times and `--nulls` null recordings on 2 processes; writes
-   REPORT/diagnosis-proof.md and .json.
+   REPORT/diagnosis-proof.md and .json with the development-set score beside it.
 """
 import argparse
 import json
@@ -41,6 +43,36 @@ def ten_minutes():
     return Profile.from_dict(doc)
 
 
+FOREIGN = ROOT.parent / "shared" / "data" / "foreign-flights"
+
+
+def foreign_flights():
+    """Score of `mimunav diagnose` on the foreign development set: per log the key, the
+    verdict, the findings and whether the truth is named inside its interval."""
+    from mimunav.compensation import Calibration
+    from mimunav.diagnosis import sensor
+    from mimunav.evaluation import Flight
+    rows = []
+    for key_path in sorted(FOREIGN.glob("foreign-*.key.json")):
+        base = str(key_path)[:-len(".key.json")]
+        key = json.loads(key_path.read_text())["hidden"]
+        t0 = time.perf_counter()
+        diag = sensor.diagnose(Flight.load(base + ".mcap"), Calibration.load(base + ".cal.json"))
+        row = {"log": Path(base).name, "verdict": sensor.verdict(diag),
+               "findings": [f["label"] for f in diag.findings],
+               "seconds": time.perf_counter() - t0}
+        if key is None:
+            row["correct"] = row["verdict"] == "no-missing-physics"
+        else:
+            truth = key.get("coefficient_per_hz", key["coefficient"])
+            row["hidden"] = f"{key['effect']} {key['sensor']}.{key['axis']} = {truth:.4g}"
+            row["correct"] = any(
+                (f["effect"], f["sensor"], f["axis"]) == (key["effect"], key["sensor"], key["axis"])
+                and f["ci95"][0] <= truth <= f["ci95"][1] for f in diag.findings)
+        rows.append(row)
+    return rows
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--repeats", type=int, default=2)
@@ -54,8 +86,8 @@ def main():
     with tempfile.TemporaryDirectory() as tmp:
         unit = MimuUnit.draw(21)
         unit.mounting = concealed.proof_mounting()
-        hidden = concealed.draw("g_sensitivity", np.random.default_rng(21), unit)
         prof = ten_minutes()
+        hidden = concealed.draw("g_sensitivity", np.random.default_rng(21), unit, prof.duration)
         log, _ = simulation.simulate_flight(prof, os.path.join(tmp, "ten.mcap"), 21, unit=unit,
                                             hidden=hidden, progress=False)
         cal = os.path.join(tmp, "model.json")
@@ -67,6 +99,7 @@ def main():
         res["diagnose_%.0fs_1kHz_s" % prof.duration] = time.perf_counter() - t0
         res["diagnose_output"] = run.stdout.strip().splitlines()[:3]
         res["hidden"] = hidden.as_dict()
+    res["foreign_flights"] = foreign_flights()
     if not args.skip_suite:
         t0 = time.perf_counter()
         cases = concealed.run_suite(str(PROOF), repeats=args.repeats, nulls=args.nulls,
@@ -76,7 +109,7 @@ def main():
         res["suite_s"], res["suite"] = wall, summary
         meta = {"command": f"python bench/diagnosis.py --repeats {args.repeats} --nulls "
                            f"{args.nulls} --seed {args.seed}", "machine": res["machine"], "wall_s": wall,
-                "duration_s": Profile.load(PROOF).duration}
+                "duration_s": Profile.load(PROOF).duration, "foreign": res["foreign_flights"]}
         out = Path(args.report)
         out.mkdir(parents=True, exist_ok=True)
         from mimunav.files import write_atomic

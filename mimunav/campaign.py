@@ -45,19 +45,7 @@ def run_unit(profile_path, seed, index):
     useed = unit_seed(seed, index)
     unit = MimuUnit.draw(useed, name=f"MIMU-{index:04d}")
     unit.mounting = Mounting.from_dict(MIMU_MOUNTING)
-    cals = {}
-    for variant, procedures in VARIANTS.items():
-        runs = []
-        for k, proc in enumerate(procedures):
-            plan = lab.plan(proc)
-            segments, states = _lab_motion(proc, seed)
-            raw = lab.record(plan, unit, segments, useed + k + 1)
-            ts, fields = lab.state_arrays(states)
-            runs.append(calibration.LabRun.from_arrays(
-                f"{proc} (unit {index})", lab.lab_metadata(plan), raw["t"],
-                {k_: raw[k_] for k_ in ("accel_volts", "gyro_volts", "accel_temperature",
-                                        "gyro_frequency")}, ts, fields))
-        cals[variant] = calibration.calibrate(runs, variant, unit.name, propagate=False)
+    cals = {variant: lab_calibration(unit, variant, seed, useed) for variant in VARIANTS}
     unit, fog, rng_mimu, rng_fog = simulation.flight_units(useed, unit)
     if profile_path not in _FLIGHTS:
         _FLIGHTS[profile_path] = simulation.flight_motion(
@@ -68,6 +56,23 @@ def run_unit(profile_path, seed, index):
     doc = evaluation.table(evaluation.Flight.from_simulation(fm, unit, fog, raw, fog_out), cals)
     doc.pop("log")
     return {"index": index, "unit_seed": useed, "campaign": _identity(profile_path, seed), **doc}
+
+
+def lab_calibration(unit, variant, lab_seed, noise_seed, propagate=False):
+    """`unit` through the lab procedures of `variant` (the lab's setting errors drawn from
+    `lab_seed`, the unit's noise from `noise_seed`) and their fit, in memory (`propagate`:
+    with the full covariance, `calibration.calibrate`)."""
+    runs = []
+    for k, proc in enumerate(VARIANTS[variant]):
+        plan = lab.plan(proc)
+        segments, states = _lab_motion(proc, lab_seed)
+        raw = lab.record(plan, unit, segments, noise_seed + k + 1)
+        ts, fields = lab.state_arrays(states)
+        runs.append(calibration.LabRun.from_arrays(
+            f"{proc} ({unit.name})", lab.lab_metadata(plan), raw["t"],
+            {key: raw[key] for key in ("accel_volts", "gyro_volts", "accel_temperature",
+                                       "gyro_frequency")}, ts, fields))
+    return calibration.calibrate(runs, variant, unit.name, propagate=propagate)
 
 
 def _identity(profile_path, seed):

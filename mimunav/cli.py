@@ -44,12 +44,14 @@ def _simulate(args):
     """Simulate a flight profile into an MCAP log and a separate truth file."""
     from .profile import Profile, ProfileError
     from .sensors import MimuUnit
+    from .sensors.hidden import parse_term
     from .simulation import simulate_flight
     try:
         profile = Profile.load(args.profile)
         unit = MimuUnit.load(args.unit) if args.unit else None
+        hide = [parse_term(text) for text in args.hide]
         log, truth_file = simulate_flight(profile, args.output, args.seed, unit=unit,
-                                          fog_rate=args.fog_rate, force=args.force)
+                                          fog_rate=args.fog_rate, force=args.force, hide=hide)
     except (OSError, ProfileError, ValueError) as exc:
         print(f"mimunav simulate: {exc}", file=sys.stderr)
         return 2
@@ -183,6 +185,7 @@ def _diagnose(args):
     from . import diagnosis, evaluation
     from .compensation import Calibration
     from .diagnosis import navigation, sensor, track
+    from .diagnosis.reference import Accuracy
     from .files import write_atomic
     from .flightlog import LogError
     from .reports import diagnosis as report
@@ -202,9 +205,12 @@ def _diagnose(args):
     if level in ("navigation", "track") and flight.truth is None:
         raise LogError(f"{args.log}: neither /fog/imu (sensor level) nor /truth/state "
                        f"({level} level): nothing to diagnose against")
-    run = {"sensor": sensor.diagnose, "navigation": navigation.diagnose,
-           "track": track.diagnose}[level]
-    diag = run(flight, cal, alpha=args.alpha, seed=args.seed)
+    accuracy = Accuracy.parse(args.reference_accuracy) if args.reference_accuracy else None
+    if level == "navigation":
+        diag = navigation.diagnose(flight, cal, alpha=args.alpha, seed=args.seed)
+    else:
+        run = sensor.diagnose if level == "sensor" else track.diagnose
+        diag = run(flight, cal, alpha=args.alpha, accuracy=accuracy)
     doc = diagnosis.document(args.log, diag, args.alpha)
     found = diagnosis.with_found(cal, doc["findings"])
     if args.output:
@@ -368,6 +374,17 @@ def build_parser():
     p.add_argument("--seed", type=int, default=0, help="draws the units and the noise")
     p.add_argument("--unit", help="MIMU unit file (mimunav-unit/1 JSON) instead of a drawn one")
     p.add_argument("--fog-rate", type=float, default=1000.0, help="FOG-IMU sample rate, Hz")
+    p.add_argument("--hide", action="append", default=[], metavar="EFFECT:SENSOR:AXIS=VALUE",
+                   help="hide physics the 63-coefficient model lacks in the MIMU (repeatable; "
+                   "written to LOG.truth.json, never to the log): "
+                   "EFFECT:SENSOR:AXIS[:INPUT]=VALUE[@KEY=VALUE...], VALUE the coefficient in "
+                   "the contract's SI units (log contract section 3; gyro temperature terms "
+                   "per Hz of resonance frequency; vectors a/b/c). Examples: "
+                   "g_sensitivity:gyro:x:z=1.8e-5 ((rad/s)/(m/s^2)), "
+                   "cross_coupling:gyro:z:x=6e-4 (1), time_skew:accel:all=5e-4 (s), "
+                   "temperature_rate:accel:x=2e-3@window_s=120 ((m/s^2)/degC), "
+                   "size_effect:accel:z=0.004/0/-0.002 (m), "
+                   "bias_pulse:gyro:y=2e-3@t0=40@t1=43 (rad/s; outside the vocabulary)")
     p.add_argument("--force", action="store_true", help="replace existing output files")
     p.set_defaults(func=_simulate)
     p = sub.add_parser("compensate", help="apply a calibration to /mimu/raw and write the "
@@ -440,7 +457,13 @@ def build_parser():
                    "CAL+found.json (the model with the found terms)")
     p.add_argument("--alpha", type=float, default=0.05,
                    help="family-wise error rate over the candidate library (default 0.05)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the block bootstrap")
+    p.add_argument("--reference-accuracy", metavar="KEY=VALUE,...",
+                   help="the reference IMU's 1-sigma accuracy, overriding the log's sensor/fog "
+                   "`accuracy` metadata and the defaults (seed S1 Table 4: scale 2.5e-4; "
+                   "misalignment 1e-4 rad, assumed): gyro_scale, accel_scale (1), "
+                   "gyro_misalignment_rad, accel_misalignment_rad (rad)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the navigation level's block "
+                   "bootstrap (the sensor and track levels draw nothing)")
     p.add_argument("--force", action="store_true", help="replace existing outputs")
     p.set_defaults(func=_diagnose)
     p = sub.add_parser("import", help="turn a recording nobody here wrote into a contract log "

@@ -49,6 +49,7 @@ class Flight:
     fog_mounting: Mounting
     truth: Trajectory | None
     mimu_imu: tuple | None = None   # (w rad/s, f m/s^2) of /mimu/imu when there is no raw
+    fog_meta: dict | None = None    # the log's `sensor/fog` metadata (model, accuracy, ...)
 
     @classmethod
     def load(cls, path, reference_imu=True):
@@ -99,7 +100,8 @@ class Flight:
                    mount("mimu"), meta.get("sensor/mimu", {}).get("range", {}),
                    *((sec(fog), np.ascontiguousarray(fog["angular_velocity"], float),
                       np.ascontiguousarray(fog["linear_acceleration"], float))
-                     if fog is not None else (None, None, None)), mount("fog"), truth_traj, imu)
+                     if fog is not None else (None, None, None)), mount("fog"), truth_traj, imu,
+                   meta.get("sensor/fog", {}))
 
     @classmethod
     def from_simulation(cls, fm, unit, fog, raw, fog_out):
@@ -114,7 +116,7 @@ class Flight:
                    {key: raw[key] for key in RAW_FIELDS},
                    unit.mounting, {"accel_m_s2": unit.range_accel, "gyro_rad_s": unit.range_gyro},
                    fm.fog[0], fog_out["angular_velocity"], fog_out["linear_acceleration"],
-                   fog.mounting, truth)
+                   fog.mounting, truth, fog_meta={"accuracy": fog.accuracy()})
 
     def mimu_temperatures(self):
         """(accelerometer case temperatures degC, gyro resonance frequencies Hz), (N, 3)

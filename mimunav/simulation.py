@@ -25,6 +25,7 @@ from .files import write_atomic
 from .flightlog import LogWriter
 from .flightlog import schemas as S
 from .sensors import FogUnit, MimuUnit, Mounting
+from .sensors.hidden import HiddenPhysics, HiddenSet
 from .sensors.thermal import BAY_TAU_S, ISA_LAPSE, bay_temperature
 
 DEFAULT_EPOCH = "2026-01-01T00:00:00Z"
@@ -103,16 +104,20 @@ def record_flight(fm, unit, fog, rng_mimu, rng_fog, hidden=None):
 
 
 def simulate_flight(profile, out, seed, unit=None, fog_rate=1000.0, truth_rate=100.0,
-                    force=False, progress=True, hidden=None):
+                    force=False, progress=True, hidden=None, hide=()):
     """Simulate `profile` into the log `out` (.mcap) and `out` with .truth.json beside it.
     `hidden`: extra MIMU physics the log must not reveal (`MimuUnit.simulate`); its
-    description goes to the truth file when it has an `as_dict`. Returns (log path, truth
-    path)."""
+    description goes to the truth file when it has an `as_dict`. `hide`: hidden effects as
+    terms (`sensors.hidden`, e.g. from `mimunav simulate --hide`), made sensor behaviour of
+    this flight's unit. Returns (log path, truth path)."""
     truth_path = (str(out)[:-5] if str(out).endswith(".mcap") else str(out)) + ".truth.json"
     for path in (out, truth_path):
         if os.path.exists(path) and not force:
             raise FileExistsError(f"{path} exists; use --force to replace it")
     unit, fog, rng_mimu, rng_fog = flight_units(seed, unit, fog_rate)
+    if hide:
+        effects = [HiddenPhysics(term, unit.thermal) for term in hide]
+        hidden = HiddenSet(effects + ([hidden] if hidden is not None else []))
     steps = tqdm(total=3, desc="simulate", disable=not progress, unit="step")
     fm = flight_motion(profile, unit.mounting, unit.rate_hz, fog.mounting, fog.rate_hz,
                        truth_rate)
@@ -138,7 +143,8 @@ def simulate_flight(profile, out, seed, unit=None, fog_rate=1000.0, truth_rate=1
             log.metadata(f"sensor/{name}", {
                 "model": model, "sample_rate_hz": str(imu.rate_hz),
                 "mounting": imu.mounting.as_dict(),
-                "range": {"gyro_rad_s": imu.range_gyro, "accel_m_s2": imu.range_accel}})
+                "range": {"gyro_rad_s": imu.range_gyro, "accel_m_s2": imu.range_accel},
+                **({"accuracy": imu.accuracy()} if name == "fog" else {})})
         stamp = lambda t: epoch + np.round(t * 1e9).astype(np.int64)      # noqa: E731
         log.write("/mimu/raw", S.RAW_MIMU, "mimu", stamp(t_m), sample_index=raw["sample_index"],
                   gyro_volts=raw["gyro_volts"], accel_volts=raw["accel_volts"],

@@ -36,6 +36,9 @@ def document(log_path, diag, alpha=0.05):
            "not_confirmed": _plain(diag.rejected),
            "level": diag.level, "candidates_tested": diag.candidates, "alpha": alpha,
            "method": METHOD[diag.level]}
+    if diag.level in ("sensor", "track"):
+        doc["reference_accuracy"] = _plain(diag.accuracy)
+        doc["within_reference_accuracy"] = _plain(diag.within_reference)
     if getattr(diag, "reference_check", None):
         doc["reference_check"] = _plain(diag.reference_check)
     if diag.level == "navigation":
@@ -45,10 +48,12 @@ def document(log_path, diag, alpha=0.05):
 
 
 METHOD = {
-    "sensor": ("sensor level (the reference IMU predicts the MIMU's outputs): forward "
-               "selection on even tenths of the flight with Holm's step-down thresholds over "
-               "the library; held-out odd tenths give the coefficient, its 95 % interval and "
-               "the confirmation; block-bootstrap stability"),
+    "sensor": ("sensor level (the reference IMU predicts the MIMU's outputs): generalised "
+               "least squares with a random-walk bias of fitted level and the reference's "
+               "own linear error under a prior of its stated accuracy; forward selection on "
+               "alternate 0.5 s blocks with Holm's step-down thresholds over the library; "
+               "the other blocks give the coefficient, its 95 % interval and the "
+               "confirmation"),
     "navigation": ("navigation level (no reference IMU: the MIMU's free-inertial velocity "
                    "error against the reference trajectory is fitted to each candidate's "
                    "error signature on this trajectory, bias wander and initial attitude "
@@ -57,7 +62,7 @@ METHOD = {
     "track": ("track level (no reference IMU; a land vehicle's reference trajectory without "
               "attitude): the ideal IMU simulated along the trajectory (attitude from the "
               "velocity: no side slip, roll 0) is the reference of the sensor level - residual, "
-              "Holm selection on even tenths, held-out confirmation on odd tenths, bootstrap; "
+              "Holm selection on alternate 0.5 s blocks, held-out confirmation on the others; "
               "samples below 2 m/s in motion left out")}
 
 

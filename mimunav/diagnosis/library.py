@@ -1,57 +1,51 @@
 """The candidate library: every term of the effect vocabulary (`mimunav.effects`) that the
-recorded conditions can drive, per channel and input axis, sorted into two tiers by the
-time scale on which it acts:
-    linear the terms linear in the sensor's own input - scale factor, cross-coupling,
-           mounting misalignment - which the reference IMU also carries at its own accuracy.
-           Tested on 100 Hz bins against a slowly varying bias (the wander nuisance, a
-           piecewise-linear function of time) and the fast terms already chosen.
-    fast   the rest that varies with the flight's manoeuvres (seconds): nonlinearity,
-           asymmetry, g and g^2 sensitivity, temperature x input, time skew, proof-mass
-           offsets. Tested on the same bins against the wander and a full linear response
-           (`inference`: the reference's own scale and cross-coupling error must not pass
-           for a non-linear term).
-    slow   varies with temperature (minutes): temperature bias, temperature rate (several
-           windows), thermal hysteresis. Tested on 1 s bins against a constant bias plus
-           the unit's flicker wander and white noise as a covariance.
-Terms the conditions cannot drive on this flight (a column with no variation) are left out.
-Not in the library: saturation and quantization (visible in the raw log, not as a
-regressor), vibration_rectification (no vibration channel in mimunav's logs),
-bias_instability (a noise level, not a term), lever_arm (for an IMU-wide separation the
-size_effect of each axis is tested; a joint one adds nothing the three cannot show).
+recorded conditions can drive, per channel and input axis, and the physical range of each.
+
+Terms the conditions cannot drive on a flight (a column with no variation) are left out by
+the diagnosis. Not in the library: saturation and quantization (visible in the raw log, not
+as a regressor), vibration_rectification (no vibration channel in mimunav's logs),
+bias_instability (a noise level, not a term; the diagnosis fits the wander's level),
+lever_arm (for an IMU-wide separation the size_effect of each axis is tested).
+Time skews come three ways: the whole unit against the reference (`imu`), and each triad
+alone (`accel`, `gyro`) - a lag of one triad against the other has a different signature
+from the unit lagging the reference.
 """
+import math
 from itertools import combinations_with_replacement
+
+import numpy as np
 
 from ..effects import AXES
 
 TEMPERATURE_RATE_WINDOWS_S = (60.0, 120.0, 300.0)
+G0 = 9.80665
+DEG = math.pi / 180
 
 
 def candidates():
-    """[(tier, term)], terms without coefficients."""
+    """[term], terms without coefficients."""
     out = []
     for sensor in ("accel", "gyro"):
         for i, axis in enumerate(AXES):
             base = {"sensor": sensor, "axis": axis}
-            linear = [dict(base, effect="scale_factor")]
-            linear += [dict(base, effect="cross_coupling", input_axis=AXES[j])
-                       for j in range(3) if j != i]
-            fast = [dict(base, effect="scale_asymmetry"),
+            out += [dict(base, effect="scale_factor")]
+            out += [dict(base, effect="cross_coupling", input_axis=AXES[j])
+                    for j in range(3) if j != i]
+            out += [dict(base, effect="scale_asymmetry"),
                     dict(base, effect="scale_nonlinearity", order=2),
                     dict(base, effect="scale_nonlinearity", order=3),
                     dict(base, effect="temperature_scale")]
             if sensor == "gyro":
-                fast += [dict(base, effect="g_sensitivity", input_axis=a) for a in AXES]
-                fast += [dict(base, effect="g2_sensitivity", input_axis=a + b)
-                         for a, b in combinations_with_replacement(AXES, 2)]
+                out += [dict(base, effect="g_sensitivity", input_axis=a) for a in AXES]
+                out += [dict(base, effect="g2_sensitivity", input_axis=a + b)
+                        for a, b in combinations_with_replacement(AXES, 2)]
             else:
-                fast.append(dict(base, effect="size_effect"))
-            slow = [dict(base, effect="temperature_bias"), dict(base, effect="thermal_hysteresis")]
-            slow += [dict(base, effect="temperature_rate", window_s=n)
-                     for n in TEMPERATURE_RATE_WINDOWS_S]
-            out += [("linear", term) for term in linear] + [("fast", term) for term in fast]
-            out += [("slow", term) for term in slow]
-    out.append(("fast", {"effect": "time_skew", "sensor": "imu", "axis": "all"}))
-    out.append(("linear", {"effect": "mounting_misalignment", "sensor": "imu", "axis": "all"}))
+                out.append(dict(base, effect="size_effect"))
+            out += [dict(base, effect="temperature_bias"), dict(base, effect="thermal_hysteresis")]
+            out += [dict(base, effect="temperature_rate", window_s=n)
+                    for n in TEMPERATURE_RATE_WINDOWS_S]
+    out += [{"effect": "time_skew", "sensor": s, "axis": "all"} for s in ("imu", "accel", "gyro")]
+    out.append({"effect": "mounting_misalignment", "sensor": "imu", "axis": "all"})
     return out
 
 
@@ -80,3 +74,51 @@ def inputs(term):
     if effect in ("g_sensitivity", "g2_sensitivity"):
         return {("accel", a) for a in term["input_axis"]}
     return None
+
+
+# The physical range of each term for a MEMS unit (magnitude, SI units of the coefficient).
+# Generous on purpose - several times the seeds' largest figure - so that a real term is never
+# refused; a fitted value beyond it is a sign that a look-alike term is absorbing another's
+# signature (a lag of the accelerometers fitted as a 0.2 m proof-mass offset), not a finding.
+PHYSICAL_RANGE = {
+    "scale_factor": 0.05,               # 5 %: Table 1/2 scale and cross terms are <= 2 %
+    "cross_coupling": 0.05,             # Table 2: 0.1-2 % before calibration
+    "scale_asymmetry": 0.05,
+    "mounting_misalignment": 0.35,      # rad (20 deg): a mounting, not a machining error
+    "size_effect": 0.05,                # m: proof masses sit within a few cm of the origin
+    "time_skew": 1.0,                   # s
+    "g_sensitivity": 0.1 * DEG / G0,    # Table 2: 0.01-0.04 (deg/s)/g
+    "g2_sensitivity": 0.05 * DEG / G0 ** 2,   # datasheet class <= 0.01 (deg/s)/g^2
+    ("temperature_bias", "accel"): 5e-3 * G0,     # 5 mg/degC (unit draws: <= 0.5 mg/degC)
+    ("temperature_bias", "gyro"): 1.0 * DEG,      # 1 (deg/s)/Hz (draws <= 0.1 (deg/s)/Hz)
+    ("temperature_rate", "accel"): 5e-3 * G0,
+    ("temperature_rate", "gyro"): 1.0 * DEG,
+    ("temperature_scale", "accel"): 1e-2,         # 1/degC
+    ("temperature_scale", "gyro"): 1e-2,          # 1/Hz
+    ("thermal_hysteresis", "accel"): 0.01 * G0,   # 10 mg
+    ("thermal_hysteresis", "gyro"): 1.0 * DEG,    # 1 deg/s
+}
+NONLINEARITY_OF_RANGE = 0.2     # k2 x^2 or k3 x^3 at full scale: <= 20 % of full scale
+
+
+def physical_limit(term, full_scale):
+    """The largest plausible magnitude of the term's coefficient (vector: its norm);
+    `full_scale`: {"accel": m/s^2, "gyro": rad/s} of the MIMU (for nonlinearity)."""
+    effect = term["effect"]
+    if effect == "scale_nonlinearity":
+        x = full_scale[term["sensor"]]
+        return NONLINEARITY_OF_RANGE / x ** (term["order"] - 1)
+    return PHYSICAL_RANGE.get((effect, term["sensor"]), PHYSICAL_RANGE.get(effect, np.inf))
+
+
+SECOND_ORDER = ("scale_asymmetry", "g2_sensitivity", "temperature_scale", "temperature_rate",
+                "thermal_hysteresis", "size_effect")
+
+
+def order(term):
+    """The order of a term's physics, for parsimony among terms this flight cannot tell
+    apart: 1 first-order (bias-like, linear in an input), 2 second-order (products, rates,
+    proof-mass offsets), 3 cubic."""
+    if term["effect"] == "scale_nonlinearity":
+        return term["order"]
+    return 2 if term["effect"] in SECOND_ORDER else 1

@@ -27,6 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import quaternion
+from scipy import stats
 
 from .. import effects
 from ..effects import Conditions
@@ -41,6 +42,10 @@ WANDER_KNOT_S = 60.0
 MIN_EPOCHS = 40                 # shortest reference overlap, in epochs
 BIN_S = 0.01                    # regressors and the error equations are integrated on 10 ms bins
 CHANNELS = ("north", "east", "down")
+SEGMENTS = 10                   # contiguous segments: even ones train, odd ones held out
+MAX_TERMS = 4
+STABILITY = 0.5                 # share of bootstrap replicates a term must win
+BOOTSTRAP = 200
 
 
 @dataclass
@@ -156,7 +161,7 @@ def diagnose(flight, cal, alpha=0.05, seed=0, reference=None):
                 knot_s=(t1 - t0,) * 3, linear=[z[:, c, :] for c in range(3)], block_s=BLOCK_S,
                 kept=np.ones(len(epochs) - 1, bool))
     cands = []
-    for _, term in library.candidates():
+    for term in library.candidates():
         if term["effect"] in ("temperature_bias", "temperature_scale"):
             sens = cond.T if term["sensor"] == "accel" else cond.freq
             term["reference"] = float(np.mean(sens[:, effects.AXES.index(term["axis"])]))
@@ -170,10 +175,10 @@ def diagnose(flight, cal, alpha=0.05, seed=0, reference=None):
         tier.columns.append({c: sig[:, c, :] for c in range(3)})
         tier.k.append(k)
         cands.append(("navigation", term, len(tier.columns) - 1))
-    seg = np.minimum(((tier.t - t0) / (t1 - t0) * sensor.SEGMENTS).astype(int),
-                     sensor.SEGMENTS - 1)
+    seg = np.minimum(((tier.t - t0) / (t1 - t0) * SEGMENTS).astype(int),
+                     SEGMENTS - 1)
     train = seg % 2 == 0
-    chosen = sensor._select({"navigation": tier}, cands, {"navigation": train}, alpha)
+    chosen = _select({"navigation": tier}, cands, {"navigation": train}, alpha)
     findings, rejected = _confirm(tier, cands, chosen, train, alpha, seed, cond)
     return NavigationDiagnosis(findings, rejected, tier, train, len(cands), cands, observed,
                                epochs, [])
@@ -194,7 +199,7 @@ def _confirm(tier, cands, chosen, train, alpha, seed, cond):
         b_tr, b_ho = fit_tr.beta[fit_tr.slices[pos]], fit_ho.beta[fit_ho.slices[pos]]
         _, p_ho = fit_ho.test(pos)
         lo, hi = fit_ho.interval(pos)
-        stability = sensor._stability(tier, cands, c, train, rng)
+        stability = _stability(tier, cands, c, train, rng)
         finding = sensor.estimate(term, b_ho, lo, hi)
         finding.update({k: term[k] for k in ("order", "window_s", "reference") if k in term})
         contribution = sensor._contribution(tier, col, b_tr)
@@ -221,8 +226,75 @@ def _confirm(tier, cands, chosen, train, alpha, seed, cond):
             why = f"held-out p = {p_ho:.2g}, needs < {alpha / len(chosen):.2g}"
         elif float(b_tr @ b_ho) <= 0:
             why = "the held-out coefficient has the other sign"
-        elif stability < sensor.STABILITY:
+        elif stability < STABILITY:
             why = f"chosen in {stability:.0%} of the block-bootstrap replicates"
         (findings if why is None else rejected).append(
             finding if why is None else dict(finding, rejected=why))
     return findings, rejected
+
+
+# ---- selection (Holm over the library, HAC blocks, block bootstrap) ------------------
+def _current(cands, chosen, tier_name):
+    """Positions of the chosen terms a test in `tier_name` conditions on: its own, and for
+    the linear tier also the fast ones (same bins and columns; in the fast tier the linear
+    terms are part of the nuisance)."""
+    own = ("fast", "linear") if tier_name == "linear" else (tier_name,)
+    return [cands[c["j"]][2] for c in chosen if cands[c["j"]][0] in own]
+
+
+def _select(tiers, cands, train, alpha):
+    """Forward selection with Holm's step-down thresholds over the whole library."""
+    chosen, excluded = [], set()
+    m = len(cands)
+    for step in range(MAX_TERMS):
+        p, evidence = np.ones(m), np.ones(m)
+        for j, (tn, _, pos) in enumerate(cands):
+            if j not in excluded:
+                cur = _current(cands, chosen, tn)
+                fit = inference.fit(tiers[tn], cur + [pos], train[tn])
+                p[j], evidence[j] = fit.test(len(cur))[1], fit.test(len(cur), nominal=True)[1]
+        threshold = inference.holm_threshold(alpha, m, step)
+        if p.min() > threshold:
+            break
+        # of the candidates that pass, the one the data favour most (nominal p: the Wald
+        # statistic), so that a term whose regressor lives in fewer blocks (x^2 against |x|)
+        # is not passed over for the size of its degrees-of-freedom correction
+        passing = np.flatnonzero(p <= threshold)
+        best = int(passing[np.argmin(evidence[passing])])
+        tn, _, pos_b = cands[best]
+        cur = _current(cands, chosen, tn)
+        alternatives = []
+        for j in np.flatnonzero(p <= threshold):
+            if j == best or cands[j][0] != tn:
+                continue
+            pos_j = cands[j][2]
+            p_j = inference.fit(tiers[tn], cur + [pos_b, pos_j], train[tn]).test(len(cur) + 1)[1]
+            p_b = inference.fit(tiers[tn], cur + [pos_j, pos_b], train[tn]).test(len(cur) + 1)[1]
+            if p_j > alpha and p_b > alpha:
+                alternatives.append(int(j))
+        same = [j for j in np.argsort(evidence) if cands[j][0] == tn and j not in excluded]
+        chosen.append(dict(j=best, alternatives=alternatives, p_train=float(p[best]),
+                           threshold=threshold, competitors=[int(j) for j in same[:10]],
+                           prior=list(cur)))
+        excluded |= {best, *alternatives}
+    return chosen
+
+
+def _stability(tier, cands, c, train, rng):
+    """Share of block-bootstrap replicates of the training rows in which the chosen term (or
+    a candidate it cannot be told from) has the smallest p-value among its tier's ten
+    strongest competitors."""
+    winners = {c["j"], *c["alternatives"]}
+    pvals, weights = [], None
+    for j in c["competitors"]:
+        s, q = inference.block_scores(tier, cands[j][2], c["prior"], train)
+        if weights is None:
+            weights = rng.multinomial(len(s), np.full(len(s), 1 / len(s)), size=BOOTSTRAP)
+        with np.errstate(all="ignore"):
+            try:
+                w = inference.wald_from_blocks(s, q, weights.astype(float))
+            except np.linalg.LinAlgError:
+                w = np.zeros(BOOTSTRAP)
+        pvals.append(stats.f.sf(np.nan_to_num(w), s.shape[1], len(s) - 1))
+    best = np.asarray(c["competitors"])[np.argmin(np.array(pvals), axis=0)]
+    return float(np.isin(best, list(winners)).mean())

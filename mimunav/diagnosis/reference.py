@@ -9,7 +9,10 @@ Samples are interval means (log contract): the reference's cumulative increments
 interpolated at the MIMU's interval ends and differenced, which is exact when the stamps
 coincide and keeps the interval-mean meaning when they do not.
 """
+from dataclasses import dataclass
+
 import numpy as np
+import quaternion
 
 from .. import attitude
 from ..effects import derivative
@@ -21,6 +24,15 @@ DERIVATIVE_WINDOW_S = 0.1       # d/dt of reference rates: quartic Savitzky-Gola
 # the size-effect regressor (x r) - errors in variables: over 20 ms it faked centimetre
 # proof-mass offsets on null recordings, over 50 ms it still raised 2 false size effects in
 # 40 nulls (reports/diagnosis-proof.md, seed 200 run); over 100 ms none in the cases tried.
+
+
+TRANSFER_WINDOW_S = 0.03        # d/dt of the reference rate in the lever-arm transfer
+# dw/dt x dr: short, because where the angular acceleration changes (the start and end of a
+# roll) a 100 ms window is off by up to 2.4 mg at 0.33 m - a systematic error a proof-mass
+# offset (size_effect) fits at z 3-5 on null recordings; over 30 ms the transfer error of
+# an ideal reference is 0.2 mg at most and its noise (the reference's quantization through a
+# short derivative) is far below the MIMU's. The regressors keep DERIVATIVE_WINDOW_S, so the
+# two do not share that noise (errors in variables).
 
 
 def on_intervals(t_src, x_src, t):
@@ -47,7 +59,82 @@ def predicted_mimu(flight):
         .transpose(1, 0, 2)
     dr = flight.mimu_mounting.lever_arm_m - flight.fog_mounting.lever_arm_m
     if np.any(dr):
-        w_dot = derivative(t, w_v, DERIVATIVE_WINDOW_S)
+        w_dot = derivative(t, w_v, TRANSFER_WINDOW_S)
         f_v = f_v + np.cross(w_v, np.cross(w_v, dr)) + np.cross(w_dot, dr)
     q_sv = np.conjugate(flight.mimu_mounting.q_vs)
     return attitude.rotate(q_sv, f_v), attitude.rotate(q_sv, w_v), inside
+
+
+# ---- the reference's own accuracy ------------------------------------------------------
+@dataclass(frozen=True)
+class Accuracy:
+    """1-sigma residual errors of a calibrated reference IMU (sensor axes): scale-factor error
+    (per axis, 1) and axis misalignment (per off-diagonal element, rad) of each triad. From
+    the `accuracy` object of the log's `sensor/fog` metadata when present (contract
+    extension, same keys), else `mimunav diagnose --reference-accuracy`, else these defaults:
+      scale 2.5e-4  seed S1 Table 4: FOG-IMU scale-factor residual <= 0.05 % FS, read as 2 sigma
+      misalignment 1e-4 rad  (20 arcsec) - Table 4 gives none: an assumption, medium-accuracy
+                    FOG-IMU class.
+    Bias and noise of the reference need no entry: the bias is part of the wander the
+    diagnosis fits, the noise part of the residual's white noise."""
+    gyro_scale: float = 2.5e-4
+    accel_scale: float = 2.5e-4
+    gyro_misalignment_rad: float = 1e-4
+    accel_misalignment_rad: float = 1e-4
+    source: str = "default (seed S1 Table 4; misalignment assumed)"
+
+    KEYS = ("gyro_scale", "accel_scale", "gyro_misalignment_rad", "accel_misalignment_rad")
+
+    @classmethod
+    def from_dict(cls, doc, source):
+        """From an `accuracy` object; unknown keys refused, missing keys default."""
+        if not isinstance(doc, dict):
+            raise ValueError(f"{source}: the reference accuracy must be an object of "
+                             f"{', '.join(cls.KEYS)}")
+        bad = sorted(set(doc) - set(cls.KEYS))
+        if bad:
+            raise ValueError(f"{source}: unknown reference-accuracy keys {bad} "
+                             f"(known: {', '.join(cls.KEYS)})")
+        values = {k: float(v) for k, v in doc.items()}
+        if not all(np.isfinite(v) and 0 <= v < 0.1 for v in values.values()):
+            raise ValueError(f"{source}: reference accuracies must be finite, >= 0 and < 0.1 "
+                             f"(1-sigma, 1 or rad): {values}")
+        return cls(**values, source=source)
+
+    @classmethod
+    def parse(cls, text):
+        """From the command-line form 'gyro_scale=5e-5,accel_scale=5e-5,...'."""
+        try:
+            pairs = dict(item.split("=", 1) for item in text.split(",") if item.strip())
+        except ValueError:
+            raise ValueError(f"--reference-accuracy {text!r}: expected KEY=VALUE,... with keys "
+                             f"{', '.join(cls.KEYS)}") from None
+        return cls.from_dict({k.strip(): v for k, v in pairs.items()}, "--reference-accuracy")
+
+    def as_dict(self):
+        return {k: getattr(self, k) for k in self.KEYS + ("source",)}
+
+    def prior(self, q_sf):
+        """(18, 18) covariance of the reference's linear error seen in the MIMU's axes:
+        parameters gamma = [accel E' row-major (9), gyro E' row-major (9)], where the
+        reference's error matrix E (diagonal: scale, off-diagonal: misalignment, independent)
+        appears as E' = C E C' with C the reference -> MIMU sensor rotation (quaternion
+        q_sf); row-major vec(C E C') = (C kron C) vec(E)."""
+        c = quaternion.as_rotation_matrix(q_sf)
+        kron = np.kron(c, c)
+        out = np.zeros((18, 18))
+        for k, (scale, mis) in enumerate(((self.accel_scale, self.accel_misalignment_rad),
+                                          (self.gyro_scale, self.gyro_misalignment_rad))):
+            var = np.where(np.eye(3, dtype=bool), scale ** 2, mis ** 2).ravel()
+            out[9 * k:9 * k + 9, 9 * k:9 * k + 9] = kron @ np.diag(var) @ kron.T
+        return out
+
+
+def accuracy_of(meta_fog, override=None):
+    """The reference's `Accuracy`: `override` (from the command line) first, else the
+    `accuracy` object of the `sensor/fog` metadata, else the defaults."""
+    if override is not None:
+        return override
+    if isinstance(meta_fog, dict) and "accuracy" in meta_fog:
+        return Accuracy.from_dict(meta_fog["accuracy"], "log metadata sensor/fog accuracy")
+    return Accuracy()

@@ -1,27 +1,45 @@
 """Sensor-level diagnosis: the recorded MIMU, compensated with the user's calibration, against
 what the reference motion says it should have read (`reference.predicted_mimu`).
 
-Procedure (every choice is made on training segments and judged on held-out ones):
- 1. residual = compensated MIMU - prediction, 6 channels, bad samples (flagged by the
-    compensation, outside the reference) dropped with their bins;
- 2. the flight is cut into SEGMENTS contiguous segments; even ones train, odd ones are held
-    out (contiguous, so a held-out segment shares no noise with the training data beyond
-    the wander that the nuisance carries);
- 3. forward selection on the training rows: every candidate of the library is tested
-    against the nuisance and the terms already chosen; the smallest p-value must pass
-    Holm's step-down threshold over the whole library (family-wise error alpha). Candidates
-    that are significant on their own but explain each other away (each one's p > alpha once
-    the other is in) are named together: this trajectory cannot tell them apart;
- 4. the chosen terms are refitted on the held-out rows alone: coefficient, 95 % interval and
-    p-value there; a term is confirmed when p < alpha / (number chosen) with the training
-    sign, and when it wins the block bootstrap of the training data in at least
-    STABILITY of the replicates (against the ten nearest competitors of its tier);
- 5. the residual left after the confirmed terms is scanned for localized excursions (2 s
-    windows, robust z over the windows, Bonferroni at alpha): any found is reported as an
-    unexplained residual with its place.
+Model of the residual (6 channels: accel x y z in m/s^2, gyro x y z in rad/s, on 10 ms bin
+means), per channel c:
+    r_c = sum_j X_cj beta_j  +  x_ref,c' gamma  +  b_c(t)  +  white noise
+  - X_cj: the candidate terms of the library (`library`, regressors `effects.regressor`);
+  - gamma: the reference IMU's own linear error (scale factor and axis misalignment of each
+    triad, seen in the MIMU's axes) with a Gaussian prior of the reference's stated accuracy
+    (`reference.Accuracy`: from the log's `sensor/fog` metadata, the command line, or seed
+    S1 Table 4) - so the reference's error is neither ignored nor allowed to be anything;
+  - b_c: a bias that wanders as a random walk whose level is fitted to the channel's own
+    residual by maximum likelihood (`wander`); the bias itself is part of it.
+Generalised least squares under that covariance (`wander`: the Kalman filter's innovations),
+so a term that acts in one event (one boost) or slowly (temperature) is tested against the
+noise and wander that really overlap it.
+
+Procedure:
+ 1. the flight is cut into SPLIT_BLOCK_S blocks, alternately training and held-out, so every
+    manoeuvre of the flight as flown - one boost, one ramp - lands in both halves;
+ 2. forward selection on the training rows: each candidate is tested (Wald) against the
+    nuisance and the terms already chosen; the smallest p-value must pass Holm's step-down
+    threshold over the library (family-wise error alpha). A candidate whose estimate lies
+    outside its physical range (`library.physical_limit`) is a look-alike absorbing another
+    term's signature and is not chosen. Candidates that fit as well as the chosen one and
+    explain each other away are named with it (`indistinguishable_from`);
+ 3. terms linear in the sensor's own input (scale factor, cross-coupling, mounting
+    misalignment: exactly what the reference's own error, or the calibration's own fit
+    error, looks like) must pass the same threshold with the stated accuracies of both
+    (`reference.Accuracy`, the calibration file's covariance) added to their variance;
+    those significant against the noise alone are listed as `within_reference_accuracy`,
+    never dropped silently;
+ 4. the chosen terms are refitted on the held-out rows alone: coefficient and 95 % interval
+    (for linear terms including those accuracies); confirmed when p < alpha / (number
+    chosen) with the training sign. Attribution: `mimu`, or for a linear term that the
+    stated accuracies could still explain on the held-out rows, `mimu-or-reference`;
+ 5. the residual left after the confirmed terms and the fitted reference error is scanned
+    for localized excursions (2 s windows, robust z, Bonferroni): an unexplained residual
+    with its place.
 """
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 from scipy import stats
@@ -29,29 +47,42 @@ from scipy import stats
 from .. import effects
 from ..evaluation import compensated_mimu
 from ..effects import AXES, Conditions, derivative
-from ..sensors.mimu import G0, NoiseModel
-from ..calibration import flicker_covariance
-from . import inference, library
-from .inference import Tier
-from .reference import DERIVATIVE_WINDOW_S, predicted_mimu
+from ..sensors.mimu import G0
+from . import library, wander
+from .reference import DERIVATIVE_WINDOW_S, accuracy_of, predicted_mimu
 
 FAST_BIN_S = 0.01
-SLOW_BIN_S = 1.0
-SEGMENTS = 10
-MAX_TERMS = 4
-STABILITY = 0.5
-BOOTSTRAP = 200
+SPLIT_BLOCK_S = 0.5
+MAX_TERMS = 6
 SCAN_WINDOW_S = 2.0
-SCAN_DOF = 5
+SCAN_DOF = 10
 MAP_SECONDS = 1.0
-# What the reference itself may carry: a Table-4-grade FOG-IMU's residual scale factor and
-# axis misalignment (3 sigma of `sensors.fog`: 1e-4 scale, 20 urad), which the MIMU's
-# residual shows as scale, cross-coupling and misalignment terms of its own. A term of
-# these kinds is charged to the MIMU only when its held-out interval lies beyond this.
-REFERENCE_ACCURACY = {"scale_factor": 3e-4, "cross_coupling": 3e-4,
-                      "mounting_misalignment": 3e-4}
+DETREND_KNOT_S = 10.0           # bias removed for display and the scan: piecewise linear
+LINEAR_TOLERANCE = 1e-9         # a candidate is 'linear' when the reference inputs span it
 CHANNELS = [("accel", a) for a in AXES] + [("gyro", a) for a in AXES]
 DEG = math.pi / 180
+
+
+@dataclass
+class Design:
+    """Bin means of the residual, the reference's inputs and every candidate's columns."""
+    t: np.ndarray               # (nb,) bin centres, s
+    residual: np.ndarray        # (nb, 6)
+    inputs: np.ndarray          # (nb, 6): predicted f (m/s^2) then w (rad/s), MIMU axes
+    columns: list               # per candidate: {channel: (nb, k)}
+    k: list                     # per candidate: parameter count
+    terms: list                 # the candidates
+    kept: np.ndarray            # usable bins of the raw binning
+    prior: np.ndarray           # (18, 18) reference error covariance (`Accuracy.prior`)
+    along: list                 # per candidate: (18, k) map to gamma if linear, else None
+
+    @property
+    def channels(self):
+        return 6
+
+    def ref_columns(self, c):
+        """(nb, 3) the reference input of channel c's triad."""
+        return self.inputs[:, :3] if c < 3 else self.inputs[:, 3:]
 
 
 @dataclass
@@ -60,13 +91,16 @@ class SensorDiagnosis:
     findings: list              # contract findings (+ extra keys)
     unexplained: list           # [{"t0", "t1", "channel", "z"}]
     rejected: list              # chosen on training data, not confirmed (with why)
-    tiers: dict
-    train: dict                 # tier -> bool rows
-    conditions: dict            # fast-bin condition masks for the map
+    within_reference: list      # significant, but no larger than the reference's accuracy
+    design: Design
+    train: np.ndarray           # bool over bins
+    conditions: dict            # bin condition masks for the map
     residual_map: dict          # "before"/"after": (conditions, 6) rms ratios
+    before: np.ndarray          # (nb, 6) residual, fitted reference error and bias removed
+    after: np.ndarray           # the same with the confirmed terms removed
+    accuracy: dict              # the reference accuracy used
     candidates: int
-    candidates_list: list       # [(tier, term, position in tier)]
-    residual_after: dict        # tier -> residual with the confirmed terms removed
+    candidates_list: list       # [term]
 
 
 def residual(flight, cal):
@@ -94,47 +128,57 @@ def _bin(x, m, usable):
     return out
 
 
-def diagnose(flight, cal, noise=None, alpha=0.05, seed=0, candidates=None):
+def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None):
     """Sensor-level diagnosis of `flight` (an `evaluation.Flight` with a reference IMU)
-    against calibration `cal`. `noise`: the unit's noise model (default: the datasheet class
-    of `sensors.mimu.NoiseModel`), whose flicker instability sets the slow tier's wander;
-    `candidates`: the library to test (default `library.candidates()`)."""
-    noise = noise or NoiseModel()
+    against calibration `cal`. `candidates`: the library to test (default
+    `library.candidates()`); `accuracy`: the reference's `reference.Accuracy` (default: the
+    log's metadata, else Table 4). Nothing here is random."""
+    acc = accuracy_of(flight.fog_meta, accuracy)
+    q_sf = np.conjugate(flight.mimu_mounting.q_vs) * flight.fog_mounting.q_vs
     t, res, usable, cond = residual(flight, cal)
     rate = 1.0 / np.median(np.diff(t))
-    m_fast, m_slow = max(1, round(FAST_BIN_S * rate)), max(1, round(SLOW_BIN_S * rate))
-    tiers, cands = _tiers(t, res, usable, cond, candidates or library.candidates(), m_fast,
-                          m_slow, noise)
-    t0, t1 = tiers["fast"].t[0], tiers["fast"].t[-1]
-    seg = lambda tt: np.minimum(((tt - t0) / (t1 - t0) * SEGMENTS).astype(int), SEGMENTS - 1)  # noqa
-    train = {k: seg(tr.t) % 2 == 0 for k, tr in tiers.items()}
-    held = {k: ~v for k, v in train.items()}
+    m = max(1, round(FAST_BIN_S * rate))
+    design = _design(t, res, usable, cond, candidates or library.candidates(), m,
+                     acc.prior(q_sf) + calibration_prior(cal))
+    block = np.floor((design.t - design.t[0]) / SPLIT_BLOCK_S).astype(int)
+    train = block % 2 == 0
+    held = ~train
+    full_scale = {"accel": float(flight.mimu_range.get("accel_m_s2", 40 * G0)),
+                  "gyro": float(flight.mimu_range.get("gyro_rad_s", 450 * DEG))}
 
-    chosen = _select(tiers, cands, train, alpha)
-    rng = np.random.default_rng(seed)
-    findings, rejected = [], []
-    for tier_name in ("fast", "linear", "slow"):
-        terms = [c for c in chosen if cands[c["j"]][0] == tier_name]
-        if not terms:
-            continue
-        tier = tiers[tier_name]
-        idx = [cands[c["j"]][2] for c in terms]
-        idx += [pos for pos in _current(cands, chosen, tier_name) if pos not in idx]
-        fit_tr = inference.fit(tier, idx, train[tier_name])
-        fit_ho = inference.fit(tier, idx, held[tier_name])
-        for pos, c in enumerate(terms):
-            finding, why = _judge(tier, cands, c, pos, fit_tr, fit_ho, len(chosen), alpha,
-                                  train[tier_name], held[tier_name], rng, cond)
-            (findings if why is None else rejected).append(
-                finding if why is None else dict(finding, rejected=why))
-    after = _remove(tiers, cands, findings)
-    shown = tiers["linear"]                 # fast bins, bias wander removed only
-    unexplained = _scan(shown, after["linear"], alpha)
-    conds = _condition_masks(shown, cond, m_fast, usable)
-    before_map = _map(shown, shown.residual, conds)
-    after_map = _map(shown, after["linear"], conds)
-    return SensorDiagnosis(findings, unexplained, rejected, tiers, train, conds,
-                           {"before": before_map, "after": after_map}, len(cands), cands, after)
+    chosen, within = _select(design, train, alpha, full_scale)
+    findings, rejected = _judge(design, chosen, train, held, alpha, full_scale, cond)
+    everything = Fitter(design, np.ones(len(design.t), bool))
+    before = _clean(design, design.residual - _reference_error(design, everything.fit([])))
+    found = [_position(design, f) for f in findings]
+    fit = everything.fit(found)
+    removed = design.residual - _reference_error(design, fit)
+    for f, j in zip(findings, found):
+        removed = removed - _contribution(design, j, _beta(f))
+    after = _clean(design, removed)
+    unexplained = _scan(design, removed, alpha)
+    conds = _condition_masks(design, cond, m, usable)
+    return SensorDiagnosis(findings, unexplained, rejected, within, design, train, conds,
+                           {"before": _map(design, before, conds),
+                            "after": _map(design, after, conds)},
+                           before, after, acc.as_dict(), len(design.terms), design.terms)
+
+
+def calibration_prior(cal):
+    """(18, 18) covariance of the calibration's own linear error in the MIMU's axes, in the
+    layout of `reference.Accuracy.prior`: from the standard errors of A1 and W1 in the file's
+    `covariance` block (relative: E_ij = dA1_ij / A1_jj, the compensated output's error per
+    unit input); zero when the file states none (e.g. a unit's true coefficients). A term
+    within it is the lab fit's own uncertainty, not physics the model lacks."""
+    se = dict(zip(cal.covariance.get("names", []), cal.covariance.get("standard_error", [])))
+    var = np.zeros(18)
+    for k, (key, matrix) in enumerate((("A1", cal.A1), ("W1", cal.W1))):
+        for i in range(3):
+            for j in range(3):
+                s = se.get(f"{key}[{i}][{j}]")
+                if s is not None and np.isfinite(s) and matrix[j, j] != 0:
+                    var[9 * k + 3 * i + j] = (s / abs(matrix[j, j])) ** 2
+    return np.diag(var)
 
 
 def verdict(diag):
@@ -145,139 +189,346 @@ def verdict(diag):
     return "unexplained-residual" if diag.unexplained else "no-missing-physics"
 
 
-# ---- tiers ----------------------------------------------------------------------------
-def _tiers(t, res, usable, cond, cands, m_fast, m_slow, noise):
-    """Bin the residual and each candidate's regressor into its tier; drop candidates the
-    flight cannot drive (no variation once the bias is removed)."""
-    sigma = [_white_sigma(res[usable, c]) for c in range(6)]
-    out = {}
-    for name, m in (("fast", m_fast), ("slow", m_slow)):
-        tb = _bin(t, m, usable)
-        rb = _bin(res, m, usable)
-        ok = np.isfinite(rb).all(axis=1)
-        inputs = _bin(np.hstack([cond.f, cond.w]), m, usable)[ok]
-        out[name] = Tier(name, name, tb[ok], rb[ok], [], [], samples_per_bin=m, kept=ok,
-                         linear=[inputs[:, :3]] * 3 + [inputs[:, 3:]] * 3)
-    out["fast"].knot_s = tuple(
-        [inference.knot_spacing(noise.accel_white, noise.accel_flicker)] * 3
-        + [inference.knot_spacing(noise.gyro_white, noise.gyro_flicker)] * 3)
-    # the linear terms: the same bins and columns, without the linear nuisance
-    out["linear"] = replace(out["fast"], name="linear", linear=None, _cache={})
-    slow = out["slow"]
-    slow.white = np.asarray(sigma) / math.sqrt(m_slow)
-    b = [noise.accel_flicker] * 3 + [noise.gyro_flicker] * 3
-    slow.flicker = np.asarray(b)
-    half = 0.5 * SLOW_BIN_S
-    span = t[-1] - t[0]
-    slow.flicker_cov = flicker_covariance(slow.t - half, slow.t + half, 1 / (4 * span),
-                                          0.5 / SLOW_BIN_S)
+# ---- the design --------------------------------------------------------------------------
+def _design(t, res, usable, cond, cands, m, prior):
+    """Bin the residual, the reference inputs and each candidate's regressor; drop candidates
+    the flight cannot drive (no variation) and mark those the reference inputs span."""
+    tb, rb = _bin(t, m, usable), _bin(res, m, usable)
+    ok = np.isfinite(rb).all(axis=1)
+    inputs = _bin(np.hstack([cond.f, cond.w]), m, usable)[ok]
+    design = Design(tb[ok], rb[ok], inputs, [], [], [], ok, prior, [])
     means = {"accel": cond.T[usable].mean(axis=0), "gyro": cond.freq[usable].mean(axis=0)}
-    kept = []
-    for tier_name, term in cands:
-        tier = out[tier_name]
+    for term in cands:
+        term = dict(term)
         if term["effect"] in ("temperature_bias", "temperature_scale"):
             term["reference"] = float(means[term["sensor"]][AXES.index(term["axis"])])
         cols = {}
         for (sensor, i), x in effects.regressor(term, cond).items():
-            cols[(0 if sensor == "accel" else 3) + i] = _bin(x, tier.samples_per_bin, usable)[tier.kept]
+            cols[(0 if sensor == "accel" else 3) + i] = _bin(x, m, usable)[ok]
+        if not all(np.isfinite(x).all() for x in cols.values()):
+            continue                        # e.g. temperature terms of a log without them
         scale = max(np.abs(x).max() for x in cols.values())
         spread = max(np.ptp(x, axis=0).max() for x in cols.values())
-        if not np.isfinite(spread) or spread <= 1e-9 * max(scale, 1e-300):
+        if not spread > 1e-9 * max(scale, 1e-300):
             continue
-        tier.columns.append(cols)
-        tier.k.append(next(iter(cols.values())).shape[1])
-        kept.append((tier_name, term, len(tier.columns) - 1))
-    return out, kept
+        design.columns.append(cols)
+        design.k.append(next(iter(cols.values())).shape[1])
+        design.terms.append(term)
+        design.along.append(_along(design, cols))
+    return design
 
 
-def _white_sigma(x):
-    """White noise of one sample from first differences (robust: MAD)."""
-    d = np.diff(x)
-    return float(1.4826 * np.median(np.abs(d - np.median(d))) / math.sqrt(2))
+def _gamma_slots(c):
+    """Indices into gamma of channel c's row of its triad's error matrix."""
+    return (0 if c < 3 else 9) + 3 * (c % 3) + np.arange(3)
 
 
-# ---- selection on training rows ---------------------------------------------------------
-def _current(cands, chosen, tier_name):
-    """Positions of the chosen terms a test in `tier_name` conditions on: its own, and for
-    the linear tier also the fast ones (same bins and columns; in the fast tier the linear
-    terms are part of the nuisance)."""
-    own = ("fast", "linear") if tier_name == "linear" else (tier_name,)
-    return [cands[c["j"]][2] for c in chosen if cands[c["j"]][0] in own]
+def _along(design, cols):
+    """(18, k) V with columns = reference inputs @ V on every channel, when the candidate is
+    exactly a combination of the reference's inputs (a linear term); None otherwise."""
+    k = next(iter(cols.values())).shape[1]
+    v = np.zeros((18, k))
+    for c, x in cols.items():
+        ref = design.ref_columns(c)
+        coef, *_ = np.linalg.lstsq(ref, x, rcond=None)
+        if np.linalg.norm(x - ref @ coef) > LINEAR_TOLERANCE * max(np.linalg.norm(x), 1e-300):
+            return None
+        v[_gamma_slots(c)] = coef
+    return v
 
 
-def _select(tiers, cands, train, alpha):
-    """Forward selection with Holm's step-down thresholds over the whole library."""
-    chosen, excluded = [], set()
-    m = len(cands)
+# ---- fits --------------------------------------------------------------------------------
+class Fitter:
+    """GLS fits on a set of rows. For each channel and each wander level of `wander.LAMBDA_GRID`,
+    the Gram matrix of the Kalman innovations of [residual, reference inputs, every candidate
+    column of the channel] is computed once; a fit then takes, per channel, the level of
+    maximum profile likelihood under its own model (so a slow term is tested against the
+    wander that remains with it in the model, not against one inflated by it)."""
+
+    def __init__(self, design, rows):
+        self.design, self.rows = design, rows
+        self.gram, self.logdet, self.slot = [], [], []
+        for c in range(6):
+            cols = [design.residual[:, c:c + 1], design.ref_columns(c)]
+            slot, start = {}, 4
+            for j in range(len(design.terms)):
+                if c in design.columns[j]:
+                    cols.append(design.columns[j][c])
+                    slot[j] = np.arange(start, start + design.k[j])
+                    start += design.k[j]
+            x = np.hstack(cols)
+            grams, logdets = [], []
+            for lam in wander.LAMBDA_GRID:
+                z, logdet = wander.innovations(x, rows, lam)
+                grams.append(z.T @ z)
+                logdets.append(logdet)
+            self.gram.append(np.stack(grams))
+            self.logdet.append(np.asarray(logdets))
+            self.slot.append(slot)
+            self.n = len(z)
+        self.precision = np.linalg.inv(design.prior + 1e-24 * np.eye(18))
+        self.row_prior = [design.prior[np.ix_(_gamma_slots(c), _gamma_slots(c))]
+                          for c in range(6)]
+        self.row_precision = [np.linalg.inv(p + 1e-24 * np.eye(3)) for p in self.row_prior]
+
+    def _level(self, c, cols):
+        """(Gram, r, log-likelihood) of channel c at the wander level of maximum marginal
+        likelihood with the candidate columns `cols` (indices into the channel's columns) in
+        the mean and the reference inputs (columns 1-3) under the reference's prior: the
+        likelihood of y ~ N(X beta, r (wander) + R P R'), by Woodbury over the 3 prior
+        columns, with r profiled (fixed-point on the penalized residual)."""
+        g = self.gram[c]
+        every = [1, 2, 3] + list(cols)
+        m = g[:, every][:, :, every]
+        h = g[:, every, 0]
+        pen = np.zeros((len(every), len(every)))
+        pen[:3, :3] = self.row_precision[c]
+        r = np.maximum(g[:, 0, 0], 1e-300) / self.n
+        for _ in range(4):
+            theta = np.linalg.solve(m + r[:, None, None] * pen + 1e-12 * np.eye(len(every)) *
+                                    np.maximum(np.einsum("lii->l", m), 1e-300)[:, None, None]
+                                    / len(every), h[:, :, None])[:, :, 0]
+            q = np.maximum(g[:, 0, 0] - np.einsum("li,li->l", h, theta), 1e-300)
+            r = q / self.n
+        _, logdet_prior = np.linalg.slogdet(np.eye(3) + self.row_prior[c] @ m[:, :3, :3]
+                                            / r[:, None, None])
+        loglik = -0.5 * (self.logdet[c] + self.n * np.log(r) + logdet_prior + q / r)
+        best = int(np.argmax(loglik))
+        return g[best], float(r[best]), float(loglik[best])
+
+    def _columns(self, c, terms):
+        return [i for j in terms if j in self.slot[c] for i in self.slot[c][j]]
+
+    def likelihood_ratio(self, terms, j):
+        """2 (max log-likelihood with candidate j - without it), the other `terms` in both and
+        each channel's wander level profiled in each (the reference error unconstrained)."""
+        return 2 * sum(self._level(c, self._columns(c, terms + [j]))[2]
+                       - self._level(c, self._columns(c, terms))[2]
+                       for c in self.design.columns[j])
+
+    def fit(self, terms):
+        """`Fit` of the candidates `terms` (indices) with the reference error gamma under its
+        prior; parameters [gamma (18), terms...]."""
+        k = [self.design.k[j] for j in terms]
+        offsets = 18 + np.concatenate([[0], np.cumsum(k)]).astype(int)
+        size = offsets[-1]
+        a, h = np.zeros((size, size)), np.zeros(size)
+        for c in range(6):
+            cols, slots = [1, 2, 3], list(_gamma_slots(c))
+            for j, o, kj in zip(terms, offsets, k):
+                if j in self.slot[c]:
+                    cols += list(self.slot[c][j])
+                    slots += list(range(o, o + kj))
+            g, r, _ = self._level(c, cols[3:])
+            a[np.ix_(slots, slots)] += g[np.ix_(cols, cols)] / r
+            h[slots] += g[cols, 0] / r
+        a[:18, :18] += self.precision
+        try:
+            cov = np.linalg.inv(a)
+        except np.linalg.LinAlgError:
+            cov = np.linalg.pinv(a)
+        beta = cov @ h
+        return Fit(beta, cov, [slice(o, o + kj) for o, kj in zip(offsets, k)], list(terms))
+
+
+@dataclass
+class Fit:
+    beta: np.ndarray
+    cov: np.ndarray
+    slices: list
+    terms: list
+
+    def gamma(self):
+        return self.beta[:18]
+
+    def of(self, j):
+        """(estimate, covariance) of candidate j."""
+        s = self.slices[self.terms.index(j)]
+        return self.beta[s], self.cov[s, s]
+
+
+def _reference_dir(design, j):
+    """Covariance of the reference's error expressed as candidate j's parameter (the part of
+    j the reference can fake); None for a term the reference's linear error cannot make."""
+    v = design.along[j]
+    if v is None:
+        return None
+    vp = np.linalg.pinv(v)
+    return vp @ design.prior @ vp.T
+
+
+def wald(b, cov):
+    """(chi-square statistic, log p) of b = 0."""
+    try:
+        stat = float(b @ np.linalg.solve(cov, b))
+    except np.linalg.LinAlgError:
+        return 0.0, 0.0
+    return stat, float(stats.chi2.logsf(stat, len(b)))
+
+
+def _statistical(cov, ref):
+    """The covariance of an estimate without the reference's share (`ref`), kept positive."""
+    if ref is None:
+        return cov
+    vals, vecs = np.linalg.eigh(cov - ref)
+    floor = 1e-6 * max(float(np.max(np.diag(cov))), 1e-300)
+    return (vecs * np.maximum(vals, floor)) @ vecs.T
+
+
+def _test(fitter, terms, j):
+    """Test of candidate j within the fit of `terms` (which holds j): dict with the estimate,
+    its covariance (with the reference's share), log p of the statistical test and log p
+    with the reference's (and the calibration's) stated accuracy. A term the reference's
+    linear error cannot make is tested by the likelihood ratio when it acts on one channel
+    (wander level profiled with and without it: a slow term must beat the wander it would
+    otherwise be), by Wald when it acts on several (one parameter shared by the channels:
+    time skew); a linear one by Wald, with and without the reference's share of its
+    variance."""
+    design = fitter.design
+    b, cov = fitter.fit(terms).of(j)
+    ref = _reference_dir(design, j)
+    if ref is None and len(design.columns[j]) == 1:
+        stat = max(fitter.likelihood_ratio([i for i in terms if i != j], j), 0.0)
+        logp = float(stats.chi2.logsf(stat, len(b)))
+        return {"b": b, "cov": cov, "stat": stat, "logp": logp, "logp_ref": logp,
+                "linear": False}
+    if ref is None:                 # a term of several channels (time skew): Wald
+        stat, logp = wald(b, cov)
+        return {"b": b, "cov": cov, "stat": stat, "logp": logp, "logp_ref": logp,
+                "linear": False}
+    stat, logp = wald(b, _statistical(cov, ref))
+    _, logp_ref = wald(b, cov)
+    return {"b": b, "cov": cov, "stat": stat, "logp": logp, "logp_ref": logp_ref,
+            "linear": True}
+
+
+def _plausible(design, j, b, full_scale):
+    limit = library.physical_limit(design.terms[j], full_scale)
+    return float(np.linalg.norm(b)) <= limit, limit
+
+
+# ---- selection on training rows ----------------------------------------------------------
+def _select(design, train, alpha, full_scale):
+    """Forward selection with Holm's step-down thresholds over the library. Returns (chosen:
+    [dict], within: linear terms significant but inside the reference's accuracy)."""
+    m = len(design.terms)
+    chosen, excluded, within = [], set(), {}
+    fitter = Fitter(design, train)
     for step in range(MAX_TERMS):
-        p, evidence = np.ones(m), np.ones(m)
-        for j, (tn, _, pos) in enumerate(cands):
-            if j not in excluded:
-                cur = _current(cands, chosen, tn)
-                fit = inference.fit(tiers[tn], cur + [pos], train[tn])
-                p[j], evidence[j] = fit.test(len(cur))[1], fit.test(len(cur), nominal=True)[1]
-        threshold = inference.holm_threshold(alpha, m, step)
-        if p.min() > threshold:
-            break
-        # of the candidates that pass, the one the data favour most (nominal p: the Wald
-        # statistic), so that a term whose regressor lives in fewer blocks (x^2 against |x|)
-        # is not passed over for the size of its degrees-of-freedom correction
-        passing = np.flatnonzero(p <= threshold)
-        best = int(passing[np.argmin(evidence[passing])])
-        tn, _, pos_b = cands[best]
-        cur = _current(cands, chosen, tn)
-        alternatives = []
-        for j in np.flatnonzero(p <= threshold):
-            if j == best or cands[j][0] != tn:
+        current = [c["j"] for c in chosen]
+        tests, implausible = {}, []
+        for j in range(m):
+            if j in excluded:
                 continue
-            pos_j = cands[j][2]
-            p_j = inference.fit(tiers[tn], cur + [pos_b, pos_j], train[tn]).test(len(cur) + 1)[1]
-            p_b = inference.fit(tiers[tn], cur + [pos_j, pos_b], train[tn]).test(len(cur) + 1)[1]
-            if p_j > alpha and p_b > alpha:
-                alternatives.append(int(j))
-        same = [j for j in np.argsort(evidence) if cands[j][0] == tn and j not in excluded]
-        chosen.append(dict(j=best, alternatives=alternatives, p_train=float(p[best]),
-                           threshold=threshold, competitors=[int(j) for j in same[:10]],
-                           prior=list(cur)))
+            res = _test(fitter, current + [j], j)
+            if res["linear"]:           # a linear term must beat the reference's accuracy
+                if res["logp_ref"] > math.log(alpha / max(m - step, 1)):
+                    if res["logp"] < math.log(alpha / m) and j not in within:
+                        within[j] = res
+                    continue
+                res = dict(res, logp=res["logp_ref"])
+            ok, limit = _plausible(design, j, res["b"], full_scale)
+            if not ok:
+                implausible.append(j)
+                continue
+            tests[j] = res
+        threshold = alpha / max(m - step, 1)
+        passing = [j for j, r in tests.items() if r["logp"] <= math.log(threshold)]
+        if not passing:
+            break
+        best, alternatives = _encompassing(fitter, current, passing, tests, threshold)
+        chosen.append(dict(j=best, alternatives=alternatives,
+                           p_train=math.exp(tests[best]["logp"]), threshold=threshold,
+                           b_train=tests[best]["b"],
+                           implausible=[library.label(design.terms[j]) for j in implausible]))
         excluded |= {best, *alternatives}
-    return chosen
+    return chosen, [_within(design, j, r) for j, r in within.items()
+                    if j not in {c["j"] for c in chosen}]
+
+
+def _encompassing(fitter, current, passing, tests, level, contenders=10):
+    """The chosen term among the passing candidates, and those it cannot be told from. The
+    strongest alone is not enough (a linear term's Wald test and a slow term's likelihood
+    ratio differ in kind): a contender replaces it when it stays significant given the
+    current choice while the choice adds nothing given it (it encompasses the choice), both
+    at the selection's own `level` (Holm's threshold of the step: telling look-alikes apart
+    needs the same evidence as finding a term).
+    Candidates that explain each other away are indistinguishable on this flight; among them
+    the one of lowest order is named (`library.order`: a g-sensitivity before a g^2 term
+    that mimics it at constant f_z), the others listed."""
+    design = fitter.design
+    ranked = sorted(passing, key=lambda j: (tests[j]["logp"], -tests[j]["stat"]))[:contenders]
+    log_level = math.log(level)
+
+    def adds(j, given):
+        return _test(fitter, current + [given, j], j)["logp"] <= log_level
+    best = ranked[0]
+    for j in ranked[1:]:
+        if adds(j, best) and not adds(best, j):
+            best = j
+    alike = [j for j in ranked if j != best and not adds(j, best) and not adds(best, j)]
+    group = [best] + alike
+    named = min(group, key=lambda j: (library.order(design.terms[j]), tests[j]["logp"]))
+    return named, [j for j in group if j != named]
+
+
+def _within(design, j, res):
+    ref = _reference_dir(design, j)
+    return {"label": library.label(design.terms[j]), **_describe_b(design.terms[j], res["b"]),
+            "reference_1sigma": np.sqrt(np.diag(ref)).tolist(),
+            "p_train": math.exp(res["logp"]),
+            "note": "significant against the noise, but not beyond the accuracy the "
+                    "reference IMU and the calibration state in this direction: cannot be "
+                    "charged to physics the model lacks"}
+
+
+def _describe_b(term, b):
+    return {"vector": b.tolist()} if len(b) > 1 else {"coefficient": float(b[0])}
 
 
 # ---- confirmation on held-out rows -------------------------------------------------------
-def _judge(tier, cands, c, pos, fit_tr, fit_ho, n_chosen, alpha, train, held, rng, cond):
-    tn, term, _ = cands[c["j"]]
-    s = fit_ho.slices[pos]
-    b_tr, b_ho = fit_tr.beta[fit_tr.slices[pos]], fit_ho.beta[s]
-    _, p_ho = fit_ho.test(pos)
-    lo, hi = fit_ho.interval(pos)
-    if term["effect"] in REFERENCE_ACCURACY:      # the reference's own error, 1 sigma, added
-        half = np.hypot(hi - b_ho, 1.96 * REFERENCE_ACCURACY[term["effect"]] / 3)
-        lo, hi = b_ho - half, b_ho + half
-    stability = _stability(tier, cands, c, train, rng)
-    contribution = _contribution(tier, cands[c["j"]][2], b_ho)
-    where_rows = _where_rows(contribution)
-    finding = estimate(term, b_ho, lo, hi)
-    finding["where"] = _spans(tier, where_rows, term, cond)
-    finding["fit"] = _rms_fit(tier, cands[c["j"]][2], b_tr, where_rows, train, held, term)
-    for key in ("order", "window_s", "reference"):
-        if key in term:
-            finding[key] = term[key]
-    finding.update(
-        label=library.label(term), tier=tn, p_train=c["p_train"], holm_threshold=c["threshold"],
-        p_heldout=p_ho, train_coefficient=b_tr.tolist() if len(b_tr) > 1 else float(b_tr[0]),
-        bootstrap_stability=stability,
-        indistinguishable_from=[_alternative(cands[j][1]) for j in c["alternatives"]])
-    why = None
-    if p_ho >= alpha / n_chosen:
-        why = f"held-out p = {p_ho:.2g}, needs < {alpha / n_chosen:.2g}"
-    elif float(b_tr @ b_ho) <= 0:
-        why = "the held-out coefficient has the other sign"
-    elif not _beyond_reference(term["effect"], lo, hi):
-        why = (f"inside the reference's own accuracy (+-{REFERENCE_ACCURACY[term['effect']]:g}):"
-               " cannot be charged to the MIMU")
-    elif stability < STABILITY:
-        why = f"chosen in {stability:.0%} of the block-bootstrap replicates (< {STABILITY:.0%})"
-    return finding, why
+def _judge(design, chosen, train, held, alpha, full_scale, cond):
+    if not chosen:
+        return [], []
+    idx = [c["j"] for c in chosen]
+    held_fitter = Fitter(design, held)
+    level = alpha / len(chosen)
+    findings, rejected = [], []
+    for c in chosen:
+        j = c["j"]
+        term = design.terms[j]
+        res = _test(held_fitter, idx, j)
+        b_tr, b_ho = c["b_train"], res["b"]
+        half = 1.96 * np.sqrt(np.diag(res["cov"]))
+        finding = estimate(term, b_ho, b_ho - half, b_ho + half)
+        where = _where_rows(_contribution(design, j, b_ho))
+        finding["where"] = _spans(design, where, term, cond)
+        finding["fit"] = _rms_fit(design, j, b_tr, where, train, held, term)
+        for key in ("order", "window_s", "reference"):
+            if key in term:
+                finding[key] = term[key]
+        p_ho, p_ref = math.exp(res["logp"]), math.exp(res["logp_ref"])
+        finding.update(
+            label=library.label(term), p_train=c["p_train"], holm_threshold=c["threshold"],
+            p_heldout=p_ho, train_coefficient=b_tr.tolist() if len(b_tr) > 1 else float(b_tr[0]),
+            attribution="mimu" if not res["linear"] or p_ref < level else "mimu-or-reference",
+            indistinguishable_from=[_alternative(design.terms[a]) for a in c["alternatives"]],
+            not_chosen_as_implausible=c["implausible"])
+        if res["linear"]:
+            finding["p_heldout_with_reference_accuracy"] = p_ref
+        ok, limit = _plausible(design, j, b_ho, full_scale)
+        why = None
+        if p_ho >= level:
+            why = f"held-out p = {p_ho:.2g}, needs < {level:.2g}"
+        elif float(b_tr @ np.linalg.lstsq(res["cov"], b_ho, rcond=None)[0]) <= 0:
+            # (a vector in the held-out fit's metric: its well-determined directions count)
+            why = "the held-out coefficient has the other sign"
+        elif not ok:
+            why = (f"held-out magnitude {np.linalg.norm(b_ho):.3g} beyond the physical range "
+                   f"{limit:.3g}")
+        (findings if why is None else rejected).append(
+            finding if why is None else dict(finding, rejected=why))
+    return findings, rejected
 
 
 def estimate(term, beta, lo, hi):
@@ -294,11 +545,6 @@ def estimate(term, beta, lo, hi):
     return finding
 
 
-def _beyond_reference(effect, lo, hi):
-    limit = REFERENCE_ACCURACY.get(effect)
-    return limit is None or bool(np.any((lo > limit) | (hi < -limit)))
-
-
 def _alternative(term):
     out = {k: term[k] for k in ("effect", "sensor", "axis", "input_axis", "order", "window_s")
            if k in term}
@@ -306,32 +552,28 @@ def _alternative(term):
     return out
 
 
-def _stability(tier, cands, c, train, rng):
-    """Share of block-bootstrap replicates of the training rows in which the chosen term (or
-    a candidate it cannot be told from) has the smallest p-value among its tier's ten
-    strongest competitors."""
-    winners = {c["j"], *c["alternatives"]}
-    pvals, weights = [], None
-    for j in c["competitors"]:
-        s, q = inference.block_scores(tier, cands[j][2], c["prior"], train)
-        if weights is None:
-            weights = rng.multinomial(len(s), np.full(len(s), 1 / len(s)), size=BOOTSTRAP)
-        with np.errstate(all="ignore"):
-            try:
-                w = inference.wald_from_blocks(s, q, weights.astype(float))
-            except np.linalg.LinAlgError:
-                w = np.zeros(BOOTSTRAP)
-        pvals.append(stats.f.sf(np.nan_to_num(w), s.shape[1], len(s) - 1))
-    best = np.asarray(c["competitors"])[np.argmin(np.array(pvals), axis=0)]
-    return float(np.isin(best, list(winners)).mean())
+def _position(design, finding):
+    labels = [library.label(t) for t in design.terms]
+    return labels.index(finding["label"])
+
+
+def _beta(finding):
+    return np.asarray(finding.get("vector", [finding["coefficient"]]), float)
 
 
 def _contribution(tier, pos, beta):
-    """(nb, 6) the term's contribution to each channel, natural units."""
+    """(nb, channels) the term's contribution to each channel, natural units (`tier`: any
+    object with `t`, `channels` and per-candidate `columns`)."""
     out = np.zeros((len(tier.t), tier.channels))
     for ch, cols in tier.columns[pos].items():
         out[:, ch] = cols @ beta
     return out
+
+
+def _reference_error(design, fit):
+    """(nb, 6) the fitted reference error x_ref' gamma per channel."""
+    g = fit.gamma()
+    return np.column_stack([design.ref_columns(c) @ g[_gamma_slots(c)] for c in range(6)])
 
 
 def _where_rows(contribution):
@@ -342,23 +584,22 @@ def _where_rows(contribution):
     return mag >= 0.25 * peak if peak > 0 else np.zeros(len(mag), bool)
 
 
-def clean(tier, resid):
-    """Residual with the tier's nuisance removed over all rows (for display and rms): fast
-    kind the piecewise-linear wander (and the linear response if the tier has it), slow
-    kind the mean."""
-    rows = np.ones(len(tier.t), bool)
-    if tier.kind == "slow":
-        return resid - resid.mean(axis=0)
-    whiten, _, scale = tier.prepared(rows)
-    return np.column_stack([whiten(resid[:, c], c) * scale[c] for c in range(6)])
+def _clean(design, resid):
+    """Residual with a piecewise-linear bias (knots every DETREND_KNOT_S) removed per
+    channel: for display, the rms figures and the scan."""
+    t = design.t
+    knots = np.arange(t[0], t[-1] + DETREND_KNOT_S, DETREND_KNOT_S)
+    basis = np.clip(1 - np.abs((t[:, None] - knots[None, :]) / DETREND_KNOT_S), 0, None)
+    q = np.linalg.qr(basis[:, basis.sum(axis=0) > 0.5])[0]
+    return resid - q @ (q.T @ resid)
 
 
-def _rms_fit(tier, pos, b_tr, where, train, held, term):
+def _rms_fit(design, j, b_tr, where, train, held, term):
     """Residual rms in the term's located rows before and after removing it with the
-    training coefficient, on training and on held-out rows (nuisance removed)."""
-    before = clean(tier, tier.residual)
-    after = clean(tier, tier.residual - _contribution(tier, pos, b_tr))
-    chans = sorted(tier.columns[pos])
+    training coefficient, on training and on held-out rows (bias removed)."""
+    before = _clean(design, design.residual)
+    after = _clean(design, design.residual - _contribution(design, j, b_tr))
+    chans = sorted(design.columns[j])
     if term["sensor"] == "imu":         # report the sensor whose channels gain most
         gains = {s: [ch for ch in chans if (ch < 3) == (s == "accel")] for s in ("accel", "gyro")}
         ratio = {s: _rms(after, where, chs) / max(_rms(before, where, chs), 1e-300)
@@ -373,9 +614,8 @@ def _rms_fit(tier, pos, b_tr, where, train, held, term):
         out[f"{part}_rms_after"] = _rms(after, where & rows, chans)
     out["units"] = "m/s^2" if sensor == "accel" else "rad/s"
     out["channels"] = [f"{CHANNELS[ch][0]}.{CHANNELS[ch][1]}" for ch in chans]
-    out["basis"] = (f"{tier.name}-tier bin means ({FAST_BIN_S if tier.kind == 'fast' else SLOW_BIN_S:g} s)"
-                    ", the tier's nuisance removed, rows where the term acts; 'after' uses "
-                    "the training coefficient")
+    out["basis"] = (f"bin means ({FAST_BIN_S:g} s), piecewise-linear bias removed, rows where "
+                    "the term acts; 'after' uses the training coefficient")
     return out
 
 
@@ -398,11 +638,11 @@ def _spans(tier, rows, term, cond, gap_s=2.0, max_spans=20):
     spans = []
     for a, b in sorted(zip(starts[order], ends[order])):
         t0, t1 = float(t[a] - half), float(t[b] + half)
-        spans.append({"t0": t0, "t1": t1, "condition": _describe(cond, t0, t1, term)})
+        spans.append({"t0": t0, "t1": t1, "condition": _condition(cond, t0, t1, term)})
     return spans
 
 
-def _describe(cond, t0, t1, term):
+def _condition(cond, t0, t1, term):
     """What the flight did in [t0, t1]: peak |f| (g), |w| (deg/s), temperature range."""
     k = (cond.t >= t0) & (cond.t <= t1)
     if not k.any():
@@ -410,71 +650,93 @@ def _describe(cond, t0, t1, term):
     f = np.linalg.norm(cond.f[k], axis=1).max() / G0
     w = np.linalg.norm(cond.w[k], axis=1).max() / DEG
     temp = cond.T[k].mean(axis=1)
-    return (f"{library.label(term)} acting: |f| up to {f:.1f} g, |w| up to {w:.0f} deg/s, "
-            f"T {temp.min():.1f}-{temp.max():.1f} degC")
+    text = f"{library.label(term)} acting: |f| up to {f:.1f} g, |w| up to {w:.0f} deg/s"
+    if np.isfinite(temp).all():
+        text += f", T {temp.min():.1f}-{temp.max():.1f} degC"
+    return text
+
+
+def term_z(diag, term):
+    """How detectable `term` is on this flight: its Wald z (sqrt of the statistic) fitted
+    alone on all rows; NaN when it is not among the candidates."""
+    labels = [library.label(t) for t in diag.design.terms]
+    if library.label(term) not in labels:
+        return float("nan")
+    j = labels.index(library.label(term))
+    rows = np.ones(len(diag.design.t), bool)
+    res = _test(Fitter(diag.design, rows), [j], j)
+    return math.sqrt(res["stat"])
 
 
 # ---- after the fit: residual map and localized excursions -------------------------------
-def _remove(tiers, cands, findings):
-    """Each tier's residual with the findings on its bins removed."""
-    out = {name: tier.residual.copy() for name, tier in tiers.items()}
-    by_label = {library.label(term): (tn, pos) for tn, term, pos in cands}
-    for fd in findings:
-        tn, pos = by_label[fd["label"]]
-        beta = np.asarray(fd.get("vector", [fd["coefficient"]]), float)
-        for name, tier in tiers.items():
-            if tier.kind == tiers[tn].kind:
-                out[name] -= _contribution(tiers[tn], pos, beta)
-    return out
-
-
-def _scan(tier, resid, alpha):
-    """Localized excursions of the cleaned residual: means over SCAN_WINDOW_S windows per
-    channel, robust z across the windows, Bonferroni over windows x channels."""
-    x = clean(tier, resid)
-    win = np.floor((tier.t - tier.t[0]) / SCAN_WINDOW_S).astype(int)
-    nwin = win.max() + 1
-    counts = np.bincount(win, minlength=nwin)
-    full = counts >= 0.5 * np.median(counts)
-    # window means of the flicker-dominated accelerometers have heavier tails than a normal
-    # law (the null recordings of the proof raised 4 false excursions in 40 with one):
-    # Student t with SCAN_DOF degrees of freedom
+def _scan(design, x, alpha):
+    """Localized excursions of the residual x: per channel, the mean over SCAN_WINDOW_S
+    windows started every second against its local baseline (the windows starting 4 and 5 s
+    before and after, so a slow wander cancels and an excursion of a few seconds does not
+    hide in its own baseline); robust z across the windows (MAD), Bonferroni over windows x
+    channels with Student-t tails of SCAN_DOF degrees of freedom. Returns spans
+    [{"t0", "t1", "channel", "z"}] (overlapping windows merged)."""
+    t = design.t
+    sec = np.floor(t - t[0]).astype(int)
+    n = sec.max() + 1
+    counts = np.bincount(sec, minlength=n).astype(float)
+    length = int(round(SCAN_WINDOW_S))
+    kernel = np.ones(length)
+    win_counts = np.convolve(counts, kernel, "valid")
+    full = win_counts >= 0.5 * np.median(win_counts)
+    nwin = len(win_counts)
     z_limit = stats.t.isf(alpha / (2 * nwin * 6), SCAN_DOF)
     spans = []
     for ch in range(6):
-        means = np.bincount(win, x[:, ch], minlength=nwin)[full] / counts[full]
-        centre = np.median(means)
-        spread = 1.4826 * np.median(np.abs(means - centre))
+        sums = np.convolve(np.bincount(sec, x[:, ch], minlength=n), kernel, "valid")
+        means = np.where(full, sums / np.maximum(win_counts, 1), np.nan)
+        pad = np.concatenate([np.full(5, np.nan), means, np.full(5, np.nan)])
+        around = np.stack([pad[5 + d:5 + d + nwin] for d in (-5, -4, 4, 5)])
+        count = np.isfinite(around).sum(axis=0)
+        base = np.nansum(around, axis=0) / np.maximum(count, 1)
+        step = np.where(count >= 2, means - base, np.nan)
+        good = np.isfinite(step)
+        if good.sum() < 10:
+            continue
+        centre = np.median(step[good])
+        spread = 1.4826 * np.median(np.abs(step[good] - centre))
         if spread == 0:
             continue
-        z = (means - centre) / spread
-        ids = np.flatnonzero(full)[np.abs(z) > z_limit]
-        zz = z[np.abs(z) > z_limit]
-        for w_id, zv in zip(ids, zz):
-            t0 = tier.t[0] + w_id * SCAN_WINDOW_S
-            if spans and spans[-1]["channel"] == ch and abs(spans[-1]["t1"] - t0) < 1e-9:
+        z = np.where(good, (step - centre) / spread, 0.0)
+        # an excursion also shows, halved and reversed, where it sits in a baseline (4-6 s
+        # away): keep only windows that are the largest within that reach
+        peak = np.abs(z) >= _running_max(np.abs(z), 6)
+        for w_id in np.flatnonzero((np.abs(z) > z_limit) & peak):
+            t0 = t[0] + w_id
+            if spans and spans[-1]["channel"] == ch and spans[-1]["t1"] >= t0 - 1e-9:
                 spans[-1]["t1"] = t0 + SCAN_WINDOW_S
-                spans[-1]["z"] = max(spans[-1]["z"], abs(float(zv)), key=abs)
+                spans[-1]["z"] = max(spans[-1]["z"], float(z[w_id]), key=abs)
             else:
                 spans.append({"t0": float(t0), "t1": float(t0 + SCAN_WINDOW_S), "channel": ch,
-                              "z": float(zv)})
+                              "z": float(z[w_id])})
     for s in spans:
         s["channel"] = f"{CHANNELS[s['channel']][0]}.{CHANNELS[s['channel']][1]}"
     return spans
+
+
+def _running_max(x, reach):
+    """max(x[i - reach .. i + reach]) for every i."""
+    pad = np.concatenate([np.zeros(reach), x, np.zeros(reach)])
+    return np.max(np.stack([pad[k:k + len(x)] for k in range(2 * reach + 1)]), axis=0)
 
 
 CONDITIONS = ("quiet", "|f| > 2 g", "|w| > 60 deg/s", "|dw/dt| > 300 deg/s^2",
               "|dT/dt| > 0.5 degC/min")
 
 
-def _condition_masks(tier, cond, m, usable):
-    """Fast-bin masks of the flight conditions of the residual map."""
-    ok = tier.kept
+def _condition_masks(design, cond, m, usable):
+    """Bin masks of the flight conditions of the residual map."""
+    ok = design.kept
     f = _bin(np.linalg.norm(cond.f, axis=1)[:, None], m, usable)[ok, 0] / G0
     w = _bin(np.linalg.norm(cond.w, axis=1)[:, None], m, usable)[ok, 0] / DEG
     wd = _bin(np.linalg.norm(cond.w_dot, axis=1)[:, None], m, usable)[ok, 0] / DEG
-    temperature = cond.T.mean(axis=1)[:, None]
-    dT = (np.abs(_bin(derivative(cond.t, temperature, 30.0) * 60, m, usable)[ok, 0])
+    temperature = _bin(cond.T.mean(axis=1)[:, None], m, usable)[ok]     # slope on the bins
+    dT = (np.abs(derivative(design.t, temperature, 30.0)[:, 0] * 60)
           if np.isfinite(temperature).all() else np.zeros(ok.sum()))   # none recorded
     masks = {"|f| > 2 g": f > 2, "|w| > 60 deg/s": w > 60, "|dw/dt| > 300 deg/s^2": wd > 300,
              "|dT/dt| > 0.5 degC/min": dT > 0.5}
@@ -482,12 +744,12 @@ def _condition_masks(tier, cond, m, usable):
     return {k: masks[k] for k in CONDITIONS}
 
 
-def _map(tier, resid, conds, seconds=MAP_SECONDS):
-    """(conditions, 6): rms of the cleaned residual averaged over `seconds` (so systematic
+def _map(design, x, conds, seconds=MAP_SECONDS):
+    """(conditions, 6): rms of the cleaned residual x averaged over `seconds` (so systematic
     terms stand out of the white noise) in each condition (a majority of its bins) over the
     same in quiet flight; NaN where a condition has fewer than 10 such averages."""
-    x = clean(tier, resid)
-    sec = np.floor((tier.t - tier.t[0]) / seconds).astype(int)
+    t = design.t
+    sec = np.floor((t - t[0]) / seconds).astype(int)
     n = sec.max() + 1
     count = np.maximum(np.bincount(sec, minlength=n), 1)
     means = np.column_stack([np.bincount(sec, x[:, c], minlength=n) / count for c in range(6)])

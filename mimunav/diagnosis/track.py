@@ -32,15 +32,23 @@ from ..sensors import Mounting
 from ..sensors.mimu import DEG, G0, NoiseModel
 from ..vehicle import TrackMotion
 from . import library, sensor
+from .reference import Accuracy
 from .sensor import CHANNELS
 
+# The reference here is a vehicle model, not a FOG-IMU: its attitude comes from the velocity
+# under no side slip and zero roll, so its own "scale and misalignment" are those of the
+# assumption - road bank and grade, tyre slip: about 1 % and 10 mrad (assumed, a car on
+# ordinary roads). Linear terms must beat that to be charged to the IMU.
+VEHICLE_MODEL_ACCURACY = Accuracy(gyro_scale=1e-2, accel_scale=1e-2, gyro_misalignment_rad=1e-2,
+                                  accel_misalignment_rad=1e-2,
+                                  source="track level: land-vehicle model (assumed 1 %, 10 mrad)")
 PREDICTED_CORRELATION = 0.9
 CHECK_BIN_S = 1.0
 
 # Noise of the consumer part (shared/data/rtklib-drive/README: the author's settings, an
 # LSM6DSO-class device): white densities; its flicker instability is not published, the
-# datasheet class of `sensors.mimu.NoiseModel` is kept. Only the bias-wander knot spacing
-# depends on these (the temperature tier has no channel on such a recording).
+# datasheet class of `sensors.mimu.NoiseModel` is kept. For simulating such a part (tests);
+# the diagnosis fits the noise and wander levels from the data.
 CONSUMER_NOISE = NoiseModel(accel_white=70e-6 * G0, gyro_white=0.0038 * DEG)
 
 
@@ -80,7 +88,7 @@ def reference_check(ref, trusted):
             for c, (s, a) in enumerate(CHANNELS)}
 
 
-def diagnose(flight, cal, alpha=0.05, seed=0, noise=CONSUMER_NOISE, reference=None):
+def diagnose(flight, cal, alpha=0.05, reference=None, accuracy=None):
     """Sensor-level diagnosis of `flight` against the ideal IMU simulated along its
     reference trajectory (`reference`: a `simulated_reference(flight)` already made);
     untrusted samples and the terms of unpredicted input axes (see the module) are left out.
@@ -94,15 +102,16 @@ def diagnose(flight, cal, alpha=0.05, seed=0, noise=CONSUMER_NOISE, reference=No
     corr = reference_check(replace(ref, mimu_imu=flight.mimu_imu), trusted)
     unpredicted = {tuple(c.split(".")) for c, r in corr.items() if not r >= PREDICTED_CORRELATION}
     kept, left_out = [], []
-    for tier, term in library.candidates():
+    for term in library.candidates():
         drivers = library.inputs(term)
-        (left_out if drivers and drivers & unpredicted else kept).append((tier, term))
-    diag = sensor.diagnose(ref, cal, noise=noise, alpha=alpha, seed=seed, candidates=kept)
+        (left_out if drivers and drivers & unpredicted else kept).append(term)
+    diag = sensor.diagnose(ref, cal, alpha=alpha, candidates=kept,
+                           accuracy=accuracy or VEHICLE_MODEL_ACCURACY)
     diag.level = "track"
     diag.reference_check = {
         "correlation_1s": corr, "threshold": PREDICTED_CORRELATION,
         "unpredicted_inputs": sorted(".".join(c) for c in unpredicted),
-        "not_tested": [library.label(term) for _, term in left_out],
+        "not_tested": [library.label(term) for term in left_out],
         "trusted_fraction": float(trusted.mean())}
     return diag
 

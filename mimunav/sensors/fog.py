@@ -20,6 +20,8 @@ from .mounting import Mounting
 
 G0 = 9.80665
 DEG = math.pi / 180
+SCALE_SIGMA = 1e-4          # residual scale factor, 1 sigma (see above)
+MISALIGNMENT_SIGMA = 20e-6  # residual axis misalignment, rad, 1 sigma
 
 
 @dataclass
@@ -52,8 +54,17 @@ class FogUnit:
         return cls(name=name or f"FOG-{seed:04d}", seed=seed,
                    gyro_bias=rng.normal(0, 0.5 * DEG / 3600, 3),
                    accel_bias=rng.normal(0, 50e-6 * G0, 3),
-                   gyro_matrix=matrix(1e-4, 20e-6), accel_matrix=matrix(1e-4, 20e-6),
+                   gyro_matrix=matrix(SCALE_SIGMA, MISALIGNMENT_SIGMA),
+                   accel_matrix=matrix(SCALE_SIGMA, MISALIGNMENT_SIGMA),
                    rate_hz=rate_hz)
+
+    @staticmethod
+    def accuracy():
+        """The 1-sigma accuracy this model draws its residual errors from, as the `accuracy`
+        object of the log's `sensor/fog` metadata (`diagnosis.reference.Accuracy`)."""
+        return {"gyro_scale": SCALE_SIGMA, "accel_scale": SCALE_SIGMA,
+                "gyro_misalignment_rad": MISALIGNMENT_SIGMA,
+                "accel_misalignment_rad": MISALIGNMENT_SIGMA}
 
     def simulate(self, t, dtheta, dv, rng):
         """Calibrated outputs for ideal sensor-axis increments over (t[k-1], t[k]] (rad, m/s,
