@@ -112,3 +112,51 @@ def test_generate_rejects_times_outside_the_motion():
         truth.generate(m, np.array([0.0, 0.5, 0.4]))
     with pytest.raises(ValueError):
         truth.generate(m, np.array([0.0, 2.0]))
+
+
+def test_east_flight_at_45_deg_is_a_circle_about_the_earth_axis():
+    """Independent closed form at a general latitude (every term of the navigation equations
+    non-zero, the vertical transport rate included): flying east at constant latitude and
+    height, the vehicle circles the Earth's axis at radius rho = (R_N + h) cos(lat) with rate
+    W + v / rho. Its specific force is that circle's centripetal acceleration less the
+    gravitation: f = (2 W v + v^2 / rho) (sin lat, 0, cos lat) - (0, 0, g) in NED; its body
+    rate is (W + v / rho) about the axis direction (cos lat, 0, -sin lat). Neither uses the
+    project's Earth- or transport-rate kernel (`earth.nav_rates`)."""
+    lat_deg, v, h = 45.0, 250.0, 1000.0
+    prof = _profile([{"kind": "coast", "duration_s": 60.0}], latitude_deg=lat_deg,
+                    heading_deg=90.0, speed_m_s=v, height_m=h)
+    t = np.arange(0, 6001) / 100.0
+    run = truth.generate(prof.motion(), t)
+    lat = np.radians(lat_deg)
+    assert np.abs(run.trajectory.lat - lat).max() * earth.A < 1e-6        # a parallel
+    rho = (earth.prime_vertical_radius(lat) + h) * np.cos(lat)
+    axis = np.array([np.cos(lat), 0.0, -np.sin(lat)])                    # Earth axis, NED
+    inward = np.array([np.sin(lat), 0.0, np.cos(lat)])                   # towards the axis
+    f_n = (2 * earth.OMEGA * v + v * v / rho) * inward - [0, 0, earth.normal_gravity(lat, h)]
+    w_n = (earth.OMEGA + v / rho) * axis
+    q_bn = np.conjugate(run.trajectory.q_nb[1:])
+    np.testing.assert_allclose(run.dv / 0.01, attitude.rotate(q_bn, np.tile(f_n, (6000, 1))),
+                               atol=2e-9)
+    np.testing.assert_allclose(run.dtheta / 0.01, attitude.rotate(q_bn, np.tile(w_n, (6000, 1))),
+                               atol=1e-14)
+    # the north term v^2 tan(lat) / (R_N + h) alone is 1 mg here: a sign error cannot hide
+    assert v * v * np.tan(lat) / (earth.prime_vertical_radius(lat) + h) > 9e-3
+
+
+def test_transport_rate_is_the_turn_rate_of_the_ned_frame():
+    """w_en^n from the NED->ECEF matrix differentiated along a path (north-east, 45 deg):
+    Omega = C_ne dC_en/dt, skew-symmetric, against `earth.transport_rate_ned` and the
+    navigator's kernel `earth.nav_rates`."""
+    lat0, lon0, h = np.radians(45.0), 0.2, 800.0
+    vn, ve = 150.0, 220.0
+    r_m, r_n = earth.radii(lat0)
+    dlat, dlon = vn / (r_m + h), ve / ((r_n + h) * np.cos(lat0))
+    dt = 1e-3
+    c = [earth.ned_to_ecef_matrix(lat0 + k * dlat * dt, lon0 + k * dlon * dt) for k in (-1, 1)]
+    c0 = earth.ned_to_ecef_matrix(lat0, lon0)
+    omega = c0.T @ (c[1] - c[0]) / (2 * dt)
+    w_en = np.array([omega[2, 1], omega[0, 2], omega[1, 0]])
+    expected = earth.transport_rate_ned(lat0, h, np.array([vn, ve, 0.0]))
+    np.testing.assert_allclose(w_en, expected, rtol=1e-6, atol=1e-12)
+    rates = earth.nav_rates(lat0, h, vn, ve)
+    np.testing.assert_allclose([rates[2], rates[3], rates[4]], expected, rtol=1e-12)
