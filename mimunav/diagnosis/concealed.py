@@ -212,7 +212,7 @@ def run_case(args):
 
 def _same(found, true):
     keys = ["effect", "sensor", "axis"] + [k for k in ("input_axis", "order", "window_s")
-                                          if k in true and true["effect"] != "temperature_rate"]
+                                          if k in true]
     return all(found.get(k) == true.get(k) for k in keys)
 
 
@@ -228,6 +228,7 @@ def run_suite(profile_path, hidden=PROOF_EFFECTS, repeats=1, nulls=12, workers=2
     """Each effect of `hidden` `repeats` times and `nulls` null recordings; list of cases."""
     from concurrent.futures import ProcessPoolExecutor
     from tqdm import tqdm
+    from ..campaign import one_blas_thread
     jobs = [(profile_path, e, seed + 1000 * r + k) for r in range(repeats)
             for k, e in enumerate(hidden)]
     jobs += [(profile_path, None, seed + 500000 + k) for k in range(nulls)]
@@ -238,7 +239,7 @@ def run_suite(profile_path, hidden=PROOF_EFFECTS, repeats=1, nulls=12, workers=2
             out.append(run_case(job))
             bar.update()
     else:
-        with ProcessPoolExecutor(workers) as pool:
+        with ProcessPoolExecutor(workers, initializer=one_blas_thread) as pool:
             for case in pool.map(run_case, jobs):
                 out.append(case)
                 bar.update()

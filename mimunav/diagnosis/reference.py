@@ -18,7 +18,7 @@ from .. import attitude
 from ..effects import derivative
 
 DERIVATIVE_WINDOW_S = 0.1       # d/dt of reference rates: quartic Savitzky-Golay over 100 ms,
-# exact for the profiles' smootherstep ramps (rate quintic in time) away from their ends, and
+# exact for motion up to 4th order in time (close to it inside the profiles' ramps), and
 # long enough that the reference's output quantization (FOG: 5 urad per pulse) does not turn
 # into angular-acceleration noise. That noise is shared by the lever-arm transfer (x dr) and
 # the size-effect regressor (x r) - errors in variables: over 20 ms it faked centimetre

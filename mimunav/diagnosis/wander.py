@@ -11,7 +11,7 @@ other half of a split, unusable bins) are skipped: the filter predicts across th
 costs only its wander and no absent row leaks into a present one.
 
 The wander level lam is not taken from a datasheet: it maximises the profile likelihood of
-the channel's own residual under the model in force (`estimate`), so a bias that wanders
+the channel's own residual under the model in force (`sensor.Fitter`), so a bias that wanders
 more than the noise model says widens every interval instead of passing for a term, and a
 slow term (a temperature bias) competes with a wander of the level the data show, not with an
 arbitrary piecewise-linear nuisance that would absorb it.
@@ -51,27 +51,9 @@ def _innovations(cols, present, lam):
 
 def innovations(cols, present, lam):
     """(standardized innovations of the present rows (m, k), log-determinant term sum log s
-    over the present rows, excluding the diffuse first one)."""
+    over the present rows, excluding the diffuse first one). cols (n, k): the residual and
+    regressors, one column each; present (n,) bool; lam the random walk's step variance
+    over the white variance, per row."""
     z, s = _innovations(np.ascontiguousarray(cols, float), np.ascontiguousarray(present), lam)
     idx = np.flatnonzero(present)
     return z[idx[1:]], float(np.log(s[idx[1:]]).sum())
-
-
-def estimate(y, model, present, grid=LAMBDA_GRID):
-    """Maximum-likelihood wander level of one channel: (lam, r) for the residual y (n,) with
-    the regressors `model` (n, p) in the mean, over the rows `present` (bool, n). r is the
-    white variance of one bin (profiled out), lam the random walk's step variance over r."""
-    cols = np.column_stack([y, model]) if model.size else y[:, None]
-    best = (-np.inf, None, None)
-    for lam in grid:
-        z, logdet = innovations(cols, present, lam)
-        if model.size:
-            coef = np.linalg.lstsq(z[:, 1:], z[:, 0], rcond=None)[0]
-            e = z[:, 0] - z[:, 1:] @ coef
-        else:
-            e = z[:, 0]
-        r = float(e @ e) / len(e)
-        loglik = -0.5 * (logdet + len(e) * math.log(max(r, 1e-300)))
-        if loglik > best[0]:
-            best = (loglik, float(lam), r)
-    return best[1], best[2]

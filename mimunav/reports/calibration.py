@@ -12,6 +12,7 @@ import numpy as np
 from tqdm import tqdm
 
 from .. import calibration, lab
+from ..campaign import one_blas_thread
 from ..compensation import poly2
 from ..files import write_atomic
 from ..sensors import MimuUnit
@@ -112,7 +113,7 @@ def write(out_dir, n_units=20, first_seed=1000, workers=2, progress=True, force=
     if os.path.exists(md) and not force:
         raise FileExistsError(f"{md} exists; use --force to replace it")
     seeds = list(range(first_seed, first_seed + n_units))
-    with ProcessPoolExecutor(workers) as pool:
+    with ProcessPoolExecutor(workers, initializer=one_blas_thread) as pool:
         units = list(tqdm(pool.map(_one_unit, seeds), total=len(seeds), desc="units",
                           disable=not progress))
     with tempfile.TemporaryDirectory() as tmp:

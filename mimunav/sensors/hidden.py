@@ -115,8 +115,8 @@ class HiddenPhysics:
         reading = self._temperature_reading(ctx, sensor, i)
         if effect == "temperature_bias":
             return reading - reading[0]
-        if effect == "temperature_scale":
-            return (reading - reading[0]) * x[:, i]
+        if effect == "temperature_scale":        # about the flight's mean, as the contract's
+            return (reading - reading.mean()) * x[:, i]     # regressor: no scale factor added
         if effect == "temperature_rate":
             before = np.interp(t - term["window_s"], t, reading)   # held at the start
             return reading - before
@@ -197,7 +197,10 @@ def _check(term):
                ("imu", "accel", "gyro") if effect == "time_skew" else ("accel", "gyro"))
     if sensor not in allowed:
         raise ValueError(f"{effect}: sensor must be one of {allowed}")
-    if effect not in WHOLE + ("time_skew",) and term.get("axis") not in tuple(AXES):
+    if effect in WHOLE + ("time_skew",):
+        if term.get("axis") != "all":
+            raise ValueError(f"{effect}: axis must be 'all' (it acts on whole triads)")
+    elif term.get("axis") not in tuple(AXES):
         raise ValueError(f"{effect}: axis must be x, y or z")
     need = {"cross_coupling": 1, "g_sensitivity": 1, "g2_sensitivity": 2}.get(effect, 0)
     if len(term.get("input_axis", "")) != need or any(a not in AXES for a in term.get("input_axis", "")):
