@@ -46,7 +46,7 @@ Procedure:
     with its place.
 """
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy import stats
@@ -83,6 +83,8 @@ class Design:
     kept: np.ndarray            # usable bins of the raw binning
     prior: np.ndarray           # (18, 18) reference error covariance (`Accuracy.prior`)
     along: list                 # per candidate: (18, k) map to gamma if linear, else None
+    levels: np.ndarray = field(default_factory=lambda: wander.LAMBDA_GRID)   # wander levels
+                                # the fits may choose from
 
     @property
     def channels(self):
@@ -136,10 +138,13 @@ def _bin(x, m, usable):
     return out
 
 
-def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None):
+def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander=None):
     """Sensor-level diagnosis of `flight` (an `evaluation.Flight` with a reference IMU)
     against calibration `cal`. `candidates`: the library to test (default
-    `library.candidates()`); `accuracy`: the reference's `reference.Accuracy` (default: the
+    `library.candidates()`); `max_wander`: the largest wander level (random-walk step
+    variance over the white variance of a bin) the fits may choose - for a reference whose
+    own errors are structured and would otherwise pass for wander (`track`); `accuracy`:
+    the reference's `reference.Accuracy` (default: the
     log's metadata, else Table 4). Nothing here is random."""
     acc = accuracy_of(flight.fog_meta, accuracy)
     q_sf = np.conjugate(flight.mimu_mounting.q_vs) * flight.fog_mounting.q_vs
@@ -149,6 +154,8 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None):
     design = _design(t, res, usable, cond,
                      library.candidates() if candidates is None else candidates, m,
                      acc.prior(q_sf) + calibration_prior(cal))
+    if max_wander is not None:
+        design.levels = wander.LAMBDA_GRID[wander.LAMBDA_GRID <= max_wander]
     if len(design.t) < 4 * SPLIT_BLOCK_S / FAST_BIN_S:
         raise ValueError(f"{flight.path}: {len(design.t) * FAST_BIN_S:.1f} s of usable MIMU "
                          f"samples inside the reference IMU's span; the sensor level needs "
@@ -257,7 +264,7 @@ def _along(design, cols):
 
 # ---- fits --------------------------------------------------------------------------------
 class Fitter:
-    """GLS fits on a set of rows. For each channel and each wander level of `wander.LAMBDA_GRID`,
+    """GLS fits on a set of rows. For each channel and each wander level of `design.levels`,
     the Gram matrix of the Kalman innovations of [residual, reference inputs, every candidate
     column of the channel] is computed once; a fit then takes, per channel, the level of
     maximum profile likelihood under its own model (so a slow term is tested against the
@@ -276,7 +283,7 @@ class Fitter:
                     start += design.k[j]
             x = np.hstack(cols)
             grams, logdets = [], []
-            for lam in wander.LAMBDA_GRID:
+            for lam in design.levels:
                 z, logdet = wander.innovations(x, rows, lam)
                 grams.append(z.T @ z)
                 logdets.append(logdet)

@@ -52,6 +52,19 @@ CHECK_BIN_S = 1.0
 CONSUMER_NOISE = NoiseModel(accel_white=70e-6 * G0, gyro_white=0.0038 * DEG)
 
 
+def wander_limit(noise=CONSUMER_NOISE, bin_s=0.01, span_s=100.0):
+    """The largest bias-wander level of the track level's fits: a random walk that reaches
+    the part's datasheet instability B in span_s, over the white variance of a bin, the
+    larger of the two triads' (the sensor level fits the level freely; here the vehicle
+    model's own errors - body roll in corners, suspension - are fast and structured, and a
+    freely fitted wander takes their level: on the RTKLIB drive it came out 10^3 times the
+    part's and turned the found pitch misalignment's sign)."""
+    levels = [(b * b * bin_s / span_s) / (white * white / bin_s)
+              for b, white in ((noise.accel_flicker, noise.accel_white),
+                               (noise.gyro_flicker, noise.gyro_white))]
+    return max(levels)
+
+
 def simulated_reference(flight):
     """(flight with the ideal IMU simulated from its /truth/state as the reference IMU at
     the vehicle origin, trusted (N,) bool over the MIMU's samples)."""
@@ -106,7 +119,8 @@ def diagnose(flight, cal, alpha=0.05, reference=None, accuracy=None):
         drivers = library.inputs(term)
         (left_out if drivers and drivers & unpredicted else kept).append(term)
     diag = sensor.diagnose(ref, cal, alpha=alpha, candidates=kept,
-                           accuracy=accuracy or VEHICLE_MODEL_ACCURACY)
+                           accuracy=accuracy or VEHICLE_MODEL_ACCURACY,
+                           max_wander=wander_limit())
     diag.level = "track"
     diag.reference_check = {
         "correlation_1s": corr, "threshold": PREDICTED_CORRELATION,

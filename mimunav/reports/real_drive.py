@@ -192,12 +192,12 @@ def _diagnosis_text(flight, doc, tau, lo, hi, segs):
         "-0.92 came out: the errors-in-variables signature of a reference that is mostly noise "
         "on that axis).", "",
         f"Verdict: **{doc['verdict']}**, {doc['candidates_tested']} candidates tested.", "",
-        "| term | estimate (held-out) | 95 % interval | held-out p | bootstrap | reading |",
+        "| term | estimate (held-out) | 95 % interval | held-out p | attribution | reading |",
         "|---|---|---|---|---|---|"]
     for f in doc["findings"]:
         est, ci, reading = _finding_reading(flight, f)
         out.append(f"| {f['label']} | {est} | {ci} | {f['p_heldout']:.2g} | "
-                   f"{f['bootstrap_stability']:.0%} | {reading} |")
+                   f"{f['attribution']} | {reading} |")
     for f in doc["not_confirmed"]:
         out.append(f"| {f['label']} | not confirmed | | | | {f['rejected']} |")
     out += ["", f"**Time lag from the yaw rate alone** (`diagnosis.track.time_lag`: the shift "
