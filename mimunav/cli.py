@@ -86,8 +86,10 @@ def _info(args):
 def _compensate(args):
     """Apply a calibration file to a log's raw MIMU channel."""
     from .compensation import Calibration, CalibrationError, compensate_log
+    from .files import refuse_inputs
     from .flightlog import LogError
     try:
+        refuse_inputs([args.output], [args.log, args.cal])
         counts = compensate_log(args.log, Calibration.load(args.cal), args.output, args.force)
     except (OSError, LogError, CalibrationError) as exc:
         print(f"mimunav compensate: {exc}", file=sys.stderr)
@@ -137,11 +139,12 @@ def _replay(args):
 
     from . import evaluation
     from .compensation import Calibration
-    from .files import atomic_folder
+    from .files import atomic_folder, refuse_inputs
     from .flightlog import LogWriter
     from .flightlog import schemas as S
     from .reports.plots import navigation_errors
     out = Path(args.output)
+    refuse_inputs([out], [args.log, args.cal])
     if out.exists() and not args.force:         # before the work, not after
         raise FileExistsError(f"{out} exists; use --force to replace it")
     flight = evaluation.Flight.load(args.log)
@@ -150,7 +153,7 @@ def _replay(args):
     t = evaluation.comparison_times(flight, args.end)
     err = evaluation.errors(rep, t)
     t_nav = np.append(np.arange(t[0], t[-1], 1.0 / args.nav_rate), t[-1])
-    with atomic_folder(out, force=args.force) as tmp:
+    with atomic_folder(out, force=args.force, inputs=[args.log, args.cal]) as tmp:
         with LogWriter(tmp / "nav.mcap") as log:
             for topic, traj in (("/mimu/nav", evaluation.resample(rep.mimu, t_nav)),
                                 ("/fog/nav", evaluation.resample(rep.fog, t_nav))):
@@ -186,9 +189,10 @@ def _diagnose(args):
     from .compensation import Calibration
     from .diagnosis import navigation, sensor, track
     from .diagnosis.reference import Accuracy
-    from .files import write_atomic
+    from .files import refuse_inputs, write_atomic
     from .flightlog import LogError
     from .reports import diagnosis as report
+    refuse_inputs([args.json, args.output], [args.log, args.model])
     for out in (args.json, args.output):           # refuse before the work, not after
         if out and Path(out).exists() and not args.force:
             raise FileExistsError(f"{out} exists; use --force to replace it")
@@ -259,18 +263,20 @@ def _windows(args):
 
     from . import evaluation, windows
     from .compensation import Calibration
-    from .files import atomic_folder
+    from .files import atomic_folder, refuse_inputs
     from .reports import windows as report
+    refuse_inputs([args.output], [args.log, args.cal])
     if args.output and Path(args.output).exists() and not args.force:
         raise FileExistsError(f"{args.output} exists; use --force to replace it")
     flight = evaluation.Flight.load(args.log, reference_imu=False)
     cal = Calibration.load(args.cal) if args.cal else None
     results, rest = windows.run_all(flight, cal, args.lengths, args.step, args.time_shift,
-                                    progress=True)
+                                    progress=True, min_speed=args.min_speed,
+                                    max_gap=args.max_gap)
     doc = report.document(flight, results, rest, args.cal, args.time_shift)
     print(report.markdown_table(doc), end="")
     if args.output:
-        with atomic_folder(args.output, force=args.force) as tmp:
+        with atomic_folder(args.output, force=args.force, inputs=[args.log, args.cal]) as tmp:
             (tmp / "windows.json").write_text(json.dumps(doc, indent=1) + "\n")
             report.plot({"": results}, str(tmp / "windows.png"))
         print(f"wrote {args.output}/windows.json, windows.png")
@@ -493,6 +499,11 @@ def build_parser():
     p.add_argument("--step", type=float, default=5.0, help="spacing of window starts, s")
     p.add_argument("--time-shift", type=float, default=0.0,
                    help="added to the IMU stamps, s (negative: the IMU lags)")
+    p.add_argument("--min-speed", type=float, default=3.0,
+                   help="horizontal speed a window must start above, m/s (heading comes from "
+                   "the reference's course; default 3)")
+    p.add_argument("--max-gap", type=float, default=1.0,
+                   help="longest reference gap allowed inside a window, s (default 1)")
     p.add_argument("-o", "--output", help="folder: windows.json, windows.png")
     p.add_argument("--force", action="store_true", help="replace an existing folder")
     p.set_defaults(func=_windows)

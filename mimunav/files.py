@@ -36,19 +36,45 @@ def write_atomic(path, text, force=False):
         raise
 
 
+def refuse_inputs(outputs, inputs):
+    """Raise FileExistsError when an output (file or folder; None skipped) is one of the
+    inputs or a folder holding one: no command may overwrite or delete what it reads."""
+    for out in filter(None, outputs):
+        o = Path(out).resolve()
+        for inp in filter(None, inputs):
+            i = Path(inp).resolve()
+            if i == o or o in i.parents:
+                raise FileExistsError(f"{out} would replace the input {inp}; choose another "
+                                      "output")
+
+
 @contextmanager
-def atomic_folder(path, force=False):
+def atomic_folder(path, force=False, inputs=()):
     """Build a folder in a temporary folder beside `path` (yielded, a Path) and rename it
     into place when the block succeeds; on error nothing is left. An existing folder is
-    kept unless force."""
+    kept unless force, and even then replaced only when it holds nothing but what this
+    command writes (the names the new folder has): never a folder of other files, never
+    one that holds an input (`inputs`). The folder gets an ordinary new folder's mode."""
     out = Path(path)
+    refuse_inputs([out], inputs)
     if out.exists() and not force:
         raise FileExistsError(f"{out} exists; use --force to replace it")
+    if out.exists() and not out.is_dir():
+        raise FileExistsError(f"{out} exists and is not a folder; not replaced")
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(dir=out.parent, prefix=".tmp-"))
+    umask = os.umask(0)
+    os.umask(umask)
+    os.chmod(tmp, 0o777 & ~umask)
     try:
         yield tmp
         if out.exists():
+            foreign = sorted(set(os.listdir(out)) - set(os.listdir(tmp)))
+            if foreign:
+                raise FileExistsError(
+                    f"{out} holds {', '.join(foreign[:5])}{' ...' if len(foreign) > 5 else ''}"
+                    ", which this command does not write: not replaced (move them, or choose "
+                    "another folder)")
             shutil.rmtree(out)
         tmp.rename(out)
     except BaseException:

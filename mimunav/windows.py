@@ -44,21 +44,35 @@ def track_of(truth):
     return dict(t=truth.t, lat=truth.lat, lon=truth.lon, h=truth.h, v_ned=truth.v_ned)
 
 
-def starts(truth, length, step=START_STEP_S, first=0.0):
-    """Window starts (s) on a grid of `step` from `first`: moving fast enough, the whole
-    window (and the alignment interval before it) covered without gaps."""
+def starts(truth, length, step=START_STEP_S, first=0.0, min_speed=alignment.COURSE_SPEED,
+           max_gap=MAX_GAP_S):
+    """Window starts (s) on a grid of `step` from `first`: moving faster than min_speed
+    (m/s, horizontal), the whole window (and the alignment interval before it) covered
+    without a reference gap longer than max_gap (s)."""
     half = alignment.MOVING_HALF_WINDOW_S
     grid = np.arange(max(first, truth.t[0] + half), truth.t[-1] - length, step)
     speed = np.hypot(truth.v_ned[:, 0], truth.v_ned[:, 1])
-    gap_end = truth.t[1:][np.diff(truth.t) > MAX_GAP_S]
+    gap_end = truth.t[1:][np.diff(truth.t) > max_gap]
     out = []
     for t0 in grid:
-        if np.interp(t0, truth.t, speed) < alignment.COURSE_SPEED:
+        if np.interp(t0, truth.t, speed) < min_speed:
             continue
-        if np.any((gap_end > t0 - half) & (gap_end - MAX_GAP_S < t0 + length)):
+        if np.any((gap_end > t0 - half) & (gap_end - max_gap < t0 + length)):
             continue
         out.append(float(t0))
     return np.asarray(out)
+
+
+def _no_windows(truth, lengths, first, min_speed, max_gap):
+    """Why a recording holds no window: the reference's speed, span and gaps."""
+    speed = np.hypot(truth.v_ned[:, 0], truth.v_ned[:, 1])
+    span = truth.t[-1] - max(first, truth.t[0])
+    gaps = np.diff(truth.t)
+    return (f"no free-inertial window fits this recording: windows of {min(lengths):g} s need "
+            f"a horizontal speed above {min_speed:g} m/s at their start (the reference peaks "
+            f"at {speed.max():.2f} m/s: --min-speed), no reference gap above {max_gap:g} s "
+            f"(largest {gaps.max() if len(gaps) else 0:.2f} s: --max-gap) and {min(lengths):g} s "
+            f"of reference after the rest ({span:.1f} s: --lengths)")
 
 
 def run(flight, t0, length, w, f, t_imu=None):
@@ -81,11 +95,12 @@ def run(flight, t0, length, w, f, t_imu=None):
 
 
 def run_all(flight, cal=None, lengths=WINDOW_LENGTHS_S, step=START_STEP_S, time_shift_s=0.0,
-            progress=False):
+            progress=False, min_speed=alignment.COURSE_SPEED, max_gap=MAX_GAP_S):
     """All windows of each length: {length: [Window]}, and the alignment at rest that gave
     the gyro bias. The MIMU is compensated with `cal` (`evaluation.compensated_mimu`: for a
     recorded /mimu/imu, None or found terms on an identity base); time_shift_s is added to
-    the IMU's stamps (negative: the IMU lags)."""
+    the IMU's stamps (negative: the IMU lags); min_speed (m/s) and max_gap (s) as `starts`.
+    A recording that holds no window at all is a ValueError that says why."""
     if flight.truth is None:
         raise ValueError(f"{flight.path}: free-inertial windows need a reference trajectory "
                          "(/truth/state)")
@@ -95,7 +110,10 @@ def run_all(flight, cal=None, lengths=WINDOW_LENGTHS_S, step=START_STEP_S, time_
     w, f = w - rest.gyro_bias, f - rest.accel_bias
     out = {}
     todo = [(length, t0) for length in lengths
-            for t0 in starts(flight.truth, length, step, first=rest.static[1])]
+            for t0 in starts(flight.truth, length, step, rest.static[1], min_speed, max_gap)]
+    if not todo:
+        raise ValueError(f"{flight.path}: " + _no_windows(flight.truth, lengths, rest.static[1],
+                                                           min_speed, max_gap))
     if progress:
         from tqdm import tqdm
         todo = tqdm(todo, desc="windows", unit="window")

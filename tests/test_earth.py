@@ -66,3 +66,24 @@ def test_transport_rate_is_the_rotation_rate_of_ned_along_a_path():
     skew = earth.ned_to_ecef_matrix(lat0, lon0).T @ (c1 - c0) / dt   # C_ne dC_en/dt = [w_en x]
     w = np.array([skew[2, 1], skew[0, 2], skew[1, 0]])
     np.testing.assert_allclose(w, earth.transport_rate_ned(lat0, h, v), rtol=1e-6, atol=1e-12)
+
+
+def test_geodesy_against_pymap3d():
+    """An implementation nobody here wrote (pymap3d, WGS-84): geodetic <-> ECEF and the local
+    NED offset, at random points from the poles to 100 km up and 100 km apart."""
+    import pymap3d as pm
+    rng = np.random.default_rng(11)
+    lat = rng.uniform(-1.55, 1.55, 500)
+    lon = rng.uniform(-np.pi, np.pi, 500)
+    h = rng.uniform(-500.0, 1e5, 500)
+    ours = earth.geodetic_to_ecef(lat, lon, h)
+    theirs = np.column_stack(pm.geodetic2ecef(lat, lon, h, deg=False))
+    assert np.abs(ours - theirs).max() < 1e-6
+    back = np.column_stack(pm.ecef2geodetic(*ours.T, deg=False))
+    lat2, lon2, h2 = earth.ecef_to_geodetic(theirs)
+    assert np.abs(lat2 - back[:, 0]).max() < 1e-12 and np.abs(h2 - back[:, 2]).max() < 1e-5
+    assert np.abs(np.angle(np.exp(1j * (lon2 - back[:, 1])))).max() < 1e-12
+    lat0, lon0, h0 = lat + rng.uniform(-0.01, 0.01, 500), lon + rng.uniform(-0.01, 0.01, 500), h / 2
+    ned = earth.ned_difference(lat, lon, h, lat0, lon0, h0)
+    ref = np.column_stack(pm.geodetic2ned(lat, lon, h, lat0, lon0, h0, deg=False))
+    assert np.abs(ned - ref).max() < 1e-5

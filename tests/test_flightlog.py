@@ -182,7 +182,7 @@ def test_other_schemas_and_irregular_time_are_reported(tmp_path, capsys):
     path = _write(tmp_path / "g.mcap", t, raw)
     assert main(["info", str(path)]) == 0
     out = capsys.readouterr().out
-    assert "1 gaps (first 0.499-0.550 s)" in out and "3 dropped samples" in out
+    assert "1 gaps, 50 samples missing (first 0.499-0.550 s)" in out and "3 dropped samples" in out
     # stamps that go backwards or repeat, written by a recorder that does not check
     t2 = t.copy()
     t2[300], t2[301] = t2[301], t2[300]
@@ -238,3 +238,19 @@ def test_layouts_are_bit_exact_with_the_ros2_reference_encoder():
             dict(header=dict(header, frame_id=frame), **ref_fields))
         ours = S.encode(name, frame, [stamp], **{k: [v] for k, v in fields.items()})
         assert bytes(ref) == ours.tobytes(), name
+
+
+def test_gaps_are_missing_samples_not_jitter():
+    """Issue 16: sampling jitter was reported as hundreds of 'gaps'. Stamps jittered by
+    +-3 ms on a 10 ms period (steps of 4-16 ms) with no sample missing give no gap; three
+    samples taken out give one gap of three; a clock 1e-4 fast is followed."""
+    from mimunav.flightlog.inspect import missing_samples
+    rng = np.random.default_rng(4)
+    nominal = np.arange(5000) * 10_000_000
+    jittered = nominal + rng.uniform(-3e6, 3e6, len(nominal)).astype(np.int64)
+    jittered.sort()
+    assert missing_samples(jittered) == []
+    holed = np.delete(jittered, [2000, 2001, 2002])
+    assert missing_samples(holed) == [(1999, 3)]
+    assert missing_samples(np.delete(nominal, [10])) == [(9, 1)]
+    assert missing_samples((jittered * 1.0001).astype(np.int64)) == []

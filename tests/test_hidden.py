@@ -198,3 +198,28 @@ def test_simulate_hide_writes_the_answer_beside_the_log_only(tmp_path):
     assert b"g_sensitivity" not in log.read_bytes()
     assert main(["simulate", str(tmp_path / "short.toml"), "-o", str(tmp_path / "g.mcap"),
                  "--hide", "g_sensitivity:gyro:x=1"]) == 2
+
+
+
+def test_model_allowance_maps_the_calibration_covariance_to_terms():
+    """The variance a calibration's stated covariance allows a term the model carries: C[i][j]
+    for a g-sensitivity, A2_i / A1_ii^2 for an x^2 term, A1_ii (ct1 + 2 ct2 T0) for a
+    temperature bias per degC - and nothing without a covariance."""
+    from mimunav.compensation import Calibration
+    from mimunav.diagnosis.sensor import model_allowance
+    cal = Calibration()
+    cal.A1 = np.diag([2.0, 4.0, 5.0])
+    names = ["C[1][2]", "A2[1]", "ct[0][1]", "ct[0][2]"]
+    cov = np.diag([1e-10, 1e-6, 4e-8, 1e-10])
+    cov[2, 3] = cov[3, 2] = -1e-9
+    assert model_allowance(cal, {"effect": "g_sensitivity", "sensor": "gyro", "axis": "y",
+                                 "input_axis": "z"}) == 0.0
+    cal.covariance = {"names": names, "matrix": cov.tolist()}
+    g = {"effect": "g_sensitivity", "sensor": "gyro", "axis": "y", "input_axis": "z"}
+    assert model_allowance(cal, g) == pytest.approx(1e-10)
+    nl = {"effect": "scale_nonlinearity", "sensor": "accel", "axis": "y", "order": 2}
+    assert model_allowance(cal, nl) == pytest.approx(1e-6 / 4.0 ** 4)
+    tb = {"effect": "temperature_bias", "sensor": "accel", "axis": "x", "reference": 30.0}
+    w = np.array([2.0, 2 * 30.0 * 2.0])
+    assert model_allowance(cal, tb) == pytest.approx(w @ cov[2:, 2:] @ w)
+    assert model_allowance(cal, dict(nl, axis="x")) == 0.0          # A2[0] not stated

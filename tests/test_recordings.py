@@ -142,6 +142,11 @@ def test_windows_of_an_ideal_imu_stay_at_the_alignment_error(tmp_path):
     ends10 = [w.horizontal[-1] for w in results[10.0]]
     ends30 = [w.horizontal[-1] for w in results[30.0]]
     assert max(ends10) < 0.05 and max(ends30) < 0.44, (max(ends10), max(ends30))
+    # a recording that holds no window says why and what option would help (issue 16: a walk
+    # returned zero windows and exit 0)
+    with pytest.raises(ValueError, match="peaks at .* m/s: --min-speed"):
+        windows.run_all(flight, lengths=(10.0,), min_speed=1e3)
+    assert main(["windows", str(path), "--min-speed", "1000"]) == 2
 
 
 def test_time_lag_recovers_a_known_stamp_delay(tmp_path):

@@ -29,12 +29,15 @@ Procedure:
     misalignment: exactly what the reference's own error, or the calibration's own fit
     error, looks like) must pass the same threshold with the stated accuracies of both
     (`reference.Accuracy`, the calibration file's covariance) added to their variance;
-    those significant against the noise alone are listed as `within_reference_accuracy`,
-    never dropped silently;
+    so must the terms the model itself carries (g-sensitivity C, nonlinearity A2/A3/W2/W3,
+    temperature ct/cw) against the calibration's stated covariance of them
+    (`model_allowance`); those significant against the noise alone are listed as
+    `within_reference_accuracy`, never dropped silently;
  4. the chosen terms are refitted on the held-out rows alone: coefficient and 95 % interval
     (for linear terms including those accuracies); confirmed when p < alpha / (number
-    chosen) with the training sign. Attribution: `mimu`, or for a linear term that the
-    stated accuracies could still explain on the held-out rows, `mimu-or-reference`;
+    chosen) with the training sign. Attribution: `mimu`, or where the stated accuracies
+    could still explain it on the held-out rows, `mimu-or-reference` (a linear term) or
+    `mimu-or-calibration` (a term the model carries);
     Limits, said plainly: for terms slower than a block (temperature), both halves share one
     bias path, so the held-out check guards against noise but not against a wander the
     random-walk model misdescribes; forward selection with recomputed p-values follows
@@ -83,6 +86,8 @@ class Design:
     kept: np.ndarray            # usable bins of the raw binning
     prior: np.ndarray           # (18, 18) reference error covariance (`Accuracy.prior`)
     along: list                 # per candidate: (18, k) map to gamma if linear, else None
+    allowance: list = field(default_factory=list)   # per candidate: the calibration's
+                                # stated variance of that term (`model_allowance`)
     levels: np.ndarray = field(default_factory=lambda: wander.LAMBDA_GRID)   # wander levels
                                 # the fits may choose from
 
@@ -153,7 +158,7 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
     m = max(1, round(FAST_BIN_S * rate))
     design = _design(t, res, usable, cond,
                      library.candidates() if candidates is None else candidates, m,
-                     acc.prior(q_sf) + calibration_prior(cal))
+                     acc.prior(q_sf) + calibration_prior(cal), cal)
     if max_wander is not None:
         design.levels = wander.LAMBDA_GRID[wander.LAMBDA_GRID <= max_wander]
     if len(design.t) < 4 * SPLIT_BLOCK_S / FAST_BIN_S:
@@ -204,6 +209,40 @@ def calibration_prior(cal):
     return np.diag(var)
 
 
+def model_allowance(cal, term):
+    """Variance (SI, of the term's coefficient) that the calibration's own stated covariance
+    allows a non-linear term the model carries: g_sensitivity gyro i <- f_j is the error of
+    C[i][j]; scale_nonlinearity order 2 / 3 of A2_i / A1_ii^2, A3_i / A1_ii^3 (W for gyros);
+    temperature_bias per degC (per Hz for gyros) of A1_ii (ct1_i + 2 ct2_i T0) with the
+    log's mean T0 (W1_ii and cw). 0 when the file states no covariance or the term has no
+    counterpart in the model."""
+    names = cal.covariance.get("names", [])
+    if not names or "matrix" not in cal.covariance:
+        return 0.0
+    index = {n: k for k, n in enumerate(names)}
+    cov = np.asarray(cal.covariance["matrix"], float)
+    effect, sensor = term["effect"], term["sensor"]
+    if sensor not in ("accel", "gyro") or term["axis"] not in AXES:
+        return 0.0
+    i = AXES.index(term["axis"])
+    gain = abs((cal.A1 if sensor == "accel" else cal.W1)[i, i])
+    if effect == "g_sensitivity":
+        weights = {f"C[{i}][{AXES.index(term['input_axis'])}]": 1.0}
+    elif effect == "scale_nonlinearity":
+        key = {("accel", 2): "A2", ("accel", 3): "A3", ("gyro", 2): "W2", ("gyro", 3): "W3"}
+        weights = {f"{key[sensor, term['order']]}[{i}]": 1.0 / gain ** term["order"]}
+    elif effect == "temperature_bias":
+        poly = "ct" if sensor == "accel" else "cw"
+        weights = {f"{poly}[{i}][1]": gain, f"{poly}[{i}][2]": 2 * term["reference"] * gain}
+    else:
+        return 0.0
+    if not all(n in index for n in weights):
+        return 0.0
+    k = [index[n] for n in weights]
+    w = np.asarray(list(weights.values()))
+    return float(w @ cov[np.ix_(k, k)] @ w)
+
+
 def verdict(diag):
     """The contract verdict: missing-physics when a term is confirmed, otherwise
     unexplained-residual when a localized excursion remains, otherwise no-missing-physics."""
@@ -213,7 +252,7 @@ def verdict(diag):
 
 
 # ---- the design --------------------------------------------------------------------------
-def _design(t, res, usable, cond, cands, m, prior):
+def _design(t, res, usable, cond, cands, m, prior, cal):
     """Bin the residual, the reference inputs and each candidate's regressor; drop candidates
     the flight cannot drive (no variation) and mark those the reference inputs span."""
     if len(t) < m:
@@ -240,6 +279,7 @@ def _design(t, res, usable, cond, cands, m, prior):
         design.k.append(next(iter(cols.values())).shape[1])
         design.terms.append(term)
         design.along.append(_along(design, cols))
+        design.allowance.append(model_allowance(cal, term))
     return design
 
 
@@ -408,7 +448,10 @@ def _test(fitter, terms, j):
     if ref is None and len(design.columns[j]) == 1:
         stat = max(fitter.likelihood_ratio([i for i in terms if i != j], j), 0.0)
         logp = float(stats.chi2.logsf(stat, len(b)))
-        return {"b": b, "cov": cov, "stat": stat, "logp": logp, "logp_ref": logp,
+        logp_ref = logp
+        if design.allowance[j] > 0:     # must also beat the calibration's own uncertainty
+            logp_ref = max(logp, wald(b, cov + design.allowance[j])[1])
+        return {"b": b, "cov": cov, "stat": stat, "logp": logp, "logp_ref": logp_ref,
                 "linear": False}
     if ref is None:                 # a term of several channels (time skew): Wald
         stat, logp = wald(b, cov)
@@ -439,12 +482,13 @@ def _select(design, train, alpha, full_scale):
             if j in excluded:
                 continue
             res = _test(fitter, current + [j], j)
-            if res["linear"]:           # a linear term must beat the reference's accuracy
-                if res["logp_ref"] > math.log(alpha / max(m - step, 1)):
-                    if res["logp"] < math.log(alpha / m) and j not in within:
-                        within[j] = res
-                    continue
-                res = dict(res, logp=res["logp_ref"])
+            # a term must beat the stated accuracies (the reference's for a linear term, the
+            # calibration's own for one the model carries) at the selection's threshold
+            if res["logp_ref"] > math.log(alpha / max(m - step, 1)):
+                if res["logp"] < math.log(alpha / m) and j not in within:
+                    within[j] = res
+                continue
+            res = dict(res, logp=res["logp_ref"])
             ok, limit = _plausible(design, j, res["b"], full_scale)
             if not ok:
                 implausible.append(j)
@@ -492,8 +536,10 @@ def _encompassing(fitter, current, passing, tests, level, contenders=10):
 
 def _within(design, j, res):
     ref = _reference_dir(design, j)
+    sigma = (np.sqrt(np.diag(ref)) if ref is not None
+             else np.full(len(res["b"]), math.sqrt(design.allowance[j])))
     return {"label": library.label(design.terms[j]), **_describe_b(design.terms[j], res["b"]),
-            "reference_1sigma": np.sqrt(np.diag(ref)).tolist(),
+            "reference_1sigma": sigma.tolist(),
             "p_train": math.exp(res["logp"]),
             "note": "significant against the noise, but not beyond the accuracy the "
                     "reference IMU and the calibration state in this direction: cannot be "
@@ -529,7 +575,8 @@ def _judge(design, chosen, train, held, alpha, full_scale, cond):
         finding.update(
             label=library.label(term), p_train=c["p_train"], holm_threshold=c["threshold"],
             p_heldout=p_ho, train_coefficient=b_tr.tolist() if len(b_tr) > 1 else float(b_tr[0]),
-            attribution="mimu" if not res["linear"] or p_ref < level else "mimu-or-reference",
+            attribution=("mimu" if p_ref < level else
+                         "mimu-or-reference" if res["linear"] else "mimu-or-calibration"),
             indistinguishable_from=[_alternative(design.terms[a]) for a in c["alternatives"]],
             not_chosen_as_implausible=c["implausible"])
         if res["linear"]:
