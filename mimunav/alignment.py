@@ -27,6 +27,7 @@ import quaternion
 from scipy.spatial.transform import Rotation
 
 from . import attitude, earth
+from .errors import InputError
 
 STATIC_SPEED = 0.2          # m/s: GNSS speed below which the vehicle is taken to be at rest
 STATIC_MARGIN_S = 1.0       # s cut from the end of the rest period (the car starts to roll)
@@ -91,7 +92,7 @@ def initial_alignment(t, w, f, mounting, track=None):
         notes.append(f"rest assumed for the first {MIN_STATIC_S:g} s (no GNSS track)")
     rest = (t >= t[0]) & (t <= t_end)
     if t_end - t[0] < MIN_STATIC_S or rest.sum() < 10:
-        raise ValueError(f"the recording does not start at rest (rest {t_end - t[0]:.2f} s, "
+        raise InputError(f"the recording does not start at rest (rest {t_end - t[0]:.2f} s, "
                          f"need {MIN_STATIC_S:g} s): level and gyro bias cannot be found")
     f_v = attitude.rotate(q_vs, f[rest].mean(axis=0))
     roll, pitch = level(f_v)
@@ -134,7 +135,7 @@ def moving_attitude(t, f, mounting, track, t0, half=MOVING_HALF_WINDOW_S):
     forward axis to the track's velocity direction. See the module's docstring."""
     k = (t > t0 - half) & (t <= t0 + half)
     if k.sum() < 2:
-        raise ValueError(f"no IMU samples around t = {t0:.2f} s")
+        raise InputError(f"no IMU samples around t = {t0:.2f} s")
     f_b = attitude.rotate(mounting.q_vs, f[k].mean(axis=0))
     v = lambda s: np.array([np.interp(s, track["t"], track["v_ned"][:, i])  # noqa: E731
                             for i in range(3)])

@@ -53,6 +53,7 @@ from .compensation import Calibration, compensate, poly2
 from .effects import temperature_change
 from .flightlog import FlightLog
 from .sensors.mimu import DEG, G0, NoiseModel
+from .errors import InputError
 
 POSITION_NAMES = ["x up", "x down", "y up", "y down", "z up", "z down"]    # lab.SIX_POSITIONS
 METHODS = ("entire", "traditional", "twelve-position", "cold-start")
@@ -72,7 +73,7 @@ TABLE1_FULL_SCALE = {"accel": 30 * G0, "gyro": 400 * DEG}
 TABLE1_RESIDUAL = {"accel": 0.05e-2, "gyro": 0.2e-2}       # fraction of full scale
 
 
-class FitError(ValueError):
+class FitError(InputError):
     """Lab data that cannot give the requested coefficients, saying what is missing."""
 
 

@@ -21,6 +21,7 @@ from . import calibration, evaluation, lab, simulation
 from .profile import Profile
 from .sensors import MimuUnit, Mounting
 from .simulation import MIMU_MOUNTING
+from .errors import InputError
 
 VARIANTS = {"traditional": ("multi-position", "single-axis-rate"),
             "entire": ("thermal-chamber", "rate-table", "centrifuge")}
@@ -110,7 +111,7 @@ def run_campaign(profile_path, n_units, seed, results, workers=2, scheduler=None
     done = done_indices(results)
     wrong = [i for i, r in done.items() if r.get("campaign") != _identity(profile_path, seed)]
     if wrong:
-        raise ValueError(f"{results} holds units of another campaign ({done[wrong[0]].get('campaign')}"
+        raise InputError(f"{results} holds units of another campaign ({done[wrong[0]].get('campaign')}"
                          f", this one is {_identity(profile_path, seed)}); use another file")
     todo = [i for i in range(n_units) if i not in done]
     with open(results, "w") as fh:                   # rewrite intact lines, drop a torn one

@@ -5,6 +5,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from .errors import InputError
 
 FLIGHTS = Path(__file__).resolve().parent.parent / "flights"
 
@@ -42,7 +43,7 @@ def _demo(args):
 
 def _simulate(args):
     """Simulate a flight profile into an MCAP log and a separate truth file."""
-    from .profile import Profile, ProfileError
+    from .profile import Profile
     from .sensors import MimuUnit
     from .sensors.hidden import parse_term
     from .simulation import simulate_flight
@@ -52,7 +53,7 @@ def _simulate(args):
         hide = [parse_term(text) for text in args.hide]
         log, truth_file = simulate_flight(profile, args.output, args.seed, unit=unit,
                                           fog_rate=args.fog_rate, force=args.force, hide=hide)
-    except (OSError, ProfileError, ValueError) as exc:
+    except (OSError, InputError) as exc:
         print(f"mimunav simulate: {exc}", file=sys.stderr)
         return 2
     print(f"wrote {log}\nwrote {truth_file} (the unit's true coefficients: keep it apart "
@@ -199,7 +200,7 @@ def _diagnose(args):
     flight = evaluation.Flight.load(args.log, reference_imu=args.level == "sensor")
     recorded = flight.mimu_raw is None          # an imported /mimu/imu: already compensated
     if args.model is None and not recorded:
-        raise ValueError(f"{args.log}: the log has /mimu/raw; --model CAL is required")
+        raise InputError(f"{args.log}: the log has /mimu/raw; --model CAL is required")
     cal = Calibration.load(args.model) if args.model else Calibration.identity()
     level = args.level
     if level == "auto":
@@ -346,7 +347,7 @@ def _report(args):
     if args.kind == "real-drive":
         from .reports import real_drive
         if not args.data:
-            raise ValueError("report real-drive needs --data DIR (e.g. "
+            raise InputError("report real-drive needs --data DIR (e.g. "
                              "../shared/data/rtklib-drive/drive_0708)")
         md = real_drive.write(args.data, args.output, force=args.force)
         print(f"wrote {md} and {Path(args.output) / 'real-drive'}/")
@@ -552,11 +553,12 @@ def build_parser():
 
 
 def main(argv=None):
-    """Run a command; input errors (files, formats, fits: OSError and ValueError, the base
-    of every mimunav error type) end with one line naming the command and exit status 2."""
+    """Run a command; input errors (the project's `errors.InputError`, the base of every
+    mimunav error type, and the operating system's file errors) end with one line naming the
+    command and exit status 2; anything else is a bug and shows its traceback."""
     args = build_parser().parse_args(argv)
     try:
         return args.func(args)
-    except (OSError, ValueError) as exc:
+    except (OSError, InputError) as exc:
         print(f"mimunav {args.command}: {exc}", file=sys.stderr)
         return 2

@@ -34,6 +34,7 @@ from . import effects
 from .effects import Conditions, temperature_change
 from .effects import apply as apply_effects
 from .files import write_atomic
+from .errors import InputError
 
 FORMAT = "mimunav-calibration/1"
 MODELS = ("entire-63", "linear", "cold-start")
@@ -49,7 +50,7 @@ SATURATED = 2      # compensated output at or beyond the unit's range on some ax
 UNUSABLE = 4       # could not be repaired (non-finite across the whole filter window)
 
 
-class CalibrationError(ValueError):
+class CalibrationError(InputError):
     """A calibration file that does not follow the contract, or cannot be applied."""
 
 
@@ -259,7 +260,7 @@ def compensate(cal, accel_volts, gyro_volts, accel_temperature, gyro_frequency,
     for name, x in zip(("accel_volts", "gyro_volts", "accel_temperature", "gyro_frequency"),
                        chans):
         if x.shape != (n, 3):
-            raise ValueError(f"{name} must have shape (N, 3) = ({n}, 3), got {x.shape}")
+            raise InputError(f"{name} must have shape (N, 3) = ({n}, 3), got {x.shape}")
     flags = np.zeros(n, dtype=np.uint8)
     if filter_outliers:
         chans = [wild_value_filter(x, flags) for x in chans]

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.signal import savgol_filter
 from scipy.spatial.transform import Rotation
+from .errors import InputError
 
 
 AXES = "xyz"
@@ -146,7 +147,7 @@ def _scalar(term, cond, x, theta, i):
         k0 = np.searchsorted(cond.t, cond.t - HYSTERESIS_SLOPE_WINDOW_S / 2)
         k = np.minimum(k, len(cond.t) - 1)
         return np.sign(theta[k, i] - theta[k0, i])
-    raise ValueError(f"effect {effect!r} has no regressor here (vocabulary: "
+    raise InputError(f"effect {effect!r} has no regressor here (vocabulary: "
                      f"{', '.join(sorted(set(k if isinstance(k, str) else k[0] for k in UNITS)))})")
 
 
@@ -172,29 +173,29 @@ EFFECTS = ("bias_shift", "scale_factor", "cross_coupling", "scale_nonlinearity",
 def check_term(term):
     """Raise ValueError unless `term` is a complete term this module can apply."""
     if not isinstance(term, dict):
-        raise ValueError("a term must be an object")
+        raise InputError("a term must be an object")
     effect = term.get("effect")
     if effect not in EFFECTS:
-        raise ValueError(f"effect {effect!r} is not one mimunav can apply ({', '.join(EFFECTS)})")
+        raise InputError(f"effect {effect!r} is not one mimunav can apply ({', '.join(EFFECTS)})")
     whole = effect in ("time_skew", "lever_arm", "mounting_misalignment")
     sensors = ("imu",) + SENSORS if effect == "time_skew" else (
         ("imu",) if whole else ("accel",) if effect == "size_effect" else
         ("gyro",) if effect.startswith("g") else SENSORS)
     if term.get("sensor") not in sensors:
-        raise ValueError(f"{effect}: sensor must be one of {sensors}")
+        raise InputError(f"{effect}: sensor must be one of {sensors}")
     if not whole and term.get("axis") not in tuple(AXES):
-        raise ValueError(f"{effect}: axis must be x, y or z")
+        raise InputError(f"{effect}: axis must be x, y or z")
     need = {"cross_coupling": 1, "g_sensitivity": 1, "g2_sensitivity": 2}.get(effect)
     if need and (len(term.get("input_axis", "")) != need
                  or any(a not in AXES for a in term["input_axis"])):
-        raise ValueError(f"{effect}: input_axis must be {need} of x, y, z")
+        raise InputError(f"{effect}: input_axis must be {need} of x, y, z")
     if effect == "scale_nonlinearity" and term.get("order") not in (2, 3):
-        raise ValueError("scale_nonlinearity: order must be 2 or 3")
+        raise InputError("scale_nonlinearity: order must be 2 or 3")
     if effect == "temperature_rate" and not float(term.get("window_s", 0)) > 0:
-        raise ValueError("temperature_rate: window_s (s) must be > 0")
+        raise InputError("temperature_rate: window_s (s) must be > 0")
     p = parameter(term)
     if p.shape != ((3,) if effect in VECTOR_EFFECTS else (1,)) or not np.all(np.isfinite(p)):
-        raise ValueError(f"{effect}: needs a finite "
+        raise InputError(f"{effect}: needs a finite "
                          f"{'vector [3]' if effect in VECTOR_EFFECTS else 'coefficient'}")
 
 
@@ -202,7 +203,7 @@ def parameter(term):
     """The term's parameter as a vector (coefficient -> (1,), vector -> (3,))."""
     value = term.get("vector", term.get("coefficient"))
     if value is None:
-        raise ValueError(f"{term.get('effect')}: no coefficient or vector")
+        raise InputError(f"{term.get('effect')}: no coefficient or vector")
     return np.atleast_1d(np.asarray(value, float))
 
 
@@ -211,7 +212,7 @@ def units(term):
     for key in ((effect, term.get("order"), sensor), (effect, sensor), effect):
         if key in UNITS:
             return UNITS[key]
-    raise ValueError(f"unknown effect {effect!r}")
+    raise InputError(f"unknown effect {effect!r}")
 
 
 def apply(terms, cond, sign=1.0):

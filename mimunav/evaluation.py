@@ -26,6 +26,7 @@ from .effects import apply as apply_effects
 from .flightlog import FlightLog, LogError
 from .sensors import Mounting
 from .trajectory import Trajectory
+from .errors import InputError
 
 
 RAW_FIELDS = ("accel_volts", "gyro_volts", "accel_temperature", "gyro_frequency")
@@ -140,7 +141,7 @@ def navigate(t, w, f, mounting, initial):
     at [initial t, t after it]."""
     after = t > initial["t"] + 1e-12
     if after.sum() < 2:
-        raise ValueError("fewer than two samples after the initial state's time")
+        raise InputError("fewer than two samples after the initial state's time")
     t, w, f = t[after], w[after], f[after]
     dt = np.diff(t, prepend=initial["t"])
     q_vs = mounting.q_vs
@@ -185,7 +186,7 @@ def resample(traj, t):
     """Trajectory at times t (s) inside its span: linear in position and velocity, slerp
     in attitude."""
     if t[0] < traj.t[0] - 1e-9 or t[-1] > traj.t[-1] + 1e-9:
-        raise ValueError(f"times {t[0]:.3f}-{t[-1]:.3f} s outside the trajectory's "
+        raise InputError(f"times {t[0]:.3f}-{t[-1]:.3f} s outside the trajectory's "
                          f"{traj.t[0]:.3f}-{traj.t[-1]:.3f} s")
     k = np.clip(np.searchsorted(traj.t, t, side="right"), 1, len(traj) - 1)
     tau = (t - traj.t[k - 1]) / (traj.t[k] - traj.t[k - 1])
@@ -252,10 +253,10 @@ def comparison_times(flight, end=None, rate_hz=100.0):
     if end is None:
         end = last
     if end > last + 1e-9:
-        raise ValueError(f"{flight.path}: the requested end point {end:.3f} s is after the "
+        raise InputError(f"{flight.path}: the requested end point {end:.3f} s is after the "
                          f"end of the recorded flight ({last:.3f} s since the epoch)")
     if end <= t0:
-        raise ValueError(f"the end point {end:.3f} s is not after the initial state "
+        raise InputError(f"the end point {end:.3f} s is not after the initial state "
                          f"({t0:.3f} s)")
     if flight.truth is not None:
         t = flight.truth.t[(flight.truth.t >= t0 - 1e-9) & (flight.truth.t <= end + 1e-9)]
@@ -379,7 +380,7 @@ def without(cal, group, flight):
             m = getattr(out, key)
             m[~np.eye(3, dtype=bool)] = 0.0
     else:
-        raise ValueError(f"unknown term group {group!r}; one of {', '.join(BUDGET_GROUPS)}")
+        raise InputError(f"unknown term group {group!r}; one of {', '.join(BUDGET_GROUPS)}")
     return out
 
 

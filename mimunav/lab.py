@@ -57,6 +57,7 @@ from .flightlog import schemas as S
 from .profile import G0, Ramp, rate_ppoly
 from .sensors import Mounting
 from .simulation import DEFAULT_EPOCH, epoch_ns
+from .errors import InputError
 
 SITE = {"latitude": math.radians(31.47), "longitude": math.radians(104.68), "height": 480.0}
 ROOM_C = 25.0                       # lab air, degC
@@ -180,7 +181,7 @@ def plan(procedure):
                for r in rates for sign in (1, -1)]
         return Plan(procedure, "rotation about z on a level table, 0-400 deg/s, both ways",
                     100.0, six, pts)
-    raise ValueError(f"unknown lab procedure {procedure!r}; one of {', '.join(PROCEDURES)}")
+    raise InputError(f"unknown lab procedure {procedure!r}; one of {', '.join(PROCEDURES)}")
 
 
 class TableMotion(truth.Motion):
@@ -276,7 +277,7 @@ def lab_motion(plan_, errors, progress=False):
             p = plan_.points[k]
             t_on = t_pt + p.settle_s
             if p.rate and not p.ramp_s:
-                raise ValueError(f"set point {k} turns at {p.rate} rad/s with no ramp_s")
+                raise InputError(f"set point {k} turns at {p.rate} rad/s with no ramp_s")
             if p.rate:
                 ramps.append(Ramp(0, t_on, t_on + 2 * p.ramp_s + p.hold_s,
                                   p.rate * (1 + errors["rate_rel"]), p.ramp_s))

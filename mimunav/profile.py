@@ -35,6 +35,7 @@ import quaternion
 from scipy.interpolate import PPoly
 
 from .truth import Kinematics, Motion
+from .errors import InputError
 
 G0 = 9.80665        # standard gravity, m/s^2: the unit of load factors and accel_g
 SPEED, PATH, HEADING, BANK = range(4)
@@ -52,7 +53,7 @@ def dumps(doc):
     return "\n".join(lines) + "\n"
 
 
-class ProfileError(ValueError):
+class ProfileError(InputError):
     """A flight profile that cannot be flown as written."""
 
 

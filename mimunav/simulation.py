@@ -27,6 +27,7 @@ from .flightlog import schemas as S
 from .sensors import FogUnit, MimuUnit, Mounting
 from .sensors.hidden import HiddenPhysics, HiddenSet
 from .sensors.thermal import BAY_TAU_S, ISA_LAPSE, bay_temperature
+from .errors import InputError
 
 DEFAULT_EPOCH = "2026-01-01T00:00:00Z"
 # Documented default mountings: the FOG-IMU defines the vehicle frame origin; the MIMU sits
@@ -60,10 +61,10 @@ def flight_motion(profile, mimu_mounting, mimu_rate, fog_mounting, fog_rate, tru
     """Truth and ideal increments of `profile` for IMUs at the given mountings and rates."""
     rates = [mimu_rate, fog_rate, truth_rate]
     if any(r != int(r) for r in rates):
-        raise ValueError(f"sample rates must be whole numbers of Hz, got {rates}")
+        raise InputError(f"sample rates must be whole numbers of Hz, got {rates}")
     base = math.lcm(*(int(r) for r in rates[:2]))
     if base > MAX_BASE_RATE or base % int(truth_rate):
-        raise ValueError(f"rates {rates} need a common base rate of {base} Hz (at most "
+        raise InputError(f"rates {rates} need a common base rate of {base} Hz (at most "
                          f"{MAX_BASE_RATE}, a multiple of the truth rate)")
     motion = profile.motion()
     t_base = np.arange(0, int(math.floor(profile.duration * base + 1e-9)) + 1) / base

@@ -35,12 +35,13 @@ import quaternion
 
 from . import attitude, earth
 from .trajectory import Trajectory
+from .errors import InputError
 
 MAX_RATE = 50.0          # rad/s (2865 deg/s): above any navigation gyro's range
 MAX_SPECIFIC_FORCE = 2000.0   # m/s^2 (~200 g): above any navigation accelerometer's range
 
 
-class IncrementError(ValueError):
+class IncrementError(InputError):
     """Navigation inputs that cannot be right (shape, NaN/inf, time order, units)."""
 
 

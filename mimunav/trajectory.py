@@ -9,6 +9,7 @@ import numpy as np
 import quaternion
 
 from . import attitude, earth
+from .errors import InputError
 
 
 @dataclass
@@ -53,5 +54,5 @@ class Trajectory:
 
 def _check_same_times(a, b):
     if len(a) != len(b) or not np.allclose(a.t, b.t, rtol=0, atol=1e-9):
-        raise ValueError("the two trajectories are not sampled at the same times "
+        raise InputError("the two trajectories are not sampled at the same times "
                          f"({len(a)} vs {len(b)} samples)")

@@ -21,6 +21,7 @@ import quaternion
 
 from . import attitude, earth
 from .trajectory import Trajectory
+from .errors import InputError
 
 # 3-point Gauss-Legendre rule on [0, 1]: exact for polynomials up to degree 5.
 _GL_X = 0.5 + 0.5 * np.array([-np.sqrt(0.6), 0.0, np.sqrt(0.6)])
@@ -143,7 +144,7 @@ def generate(motion, t):
     """
     t = np.asarray(t, dtype=float)
     if t[0] != motion.t0 or np.any(np.diff(t) <= 0) or t[-1] > motion.t1 + 1e-9:
-        raise ValueError(f"sample times must increase from the motion's start {motion.t0} s "
+        raise InputError(f"sample times must increase from the motion's start {motion.t0} s "
                          f"to at most its end {motion.t1} s")
     kin = motion.kinematics(t)
     lat, lon, h = integrate_position(motion, t, kin)

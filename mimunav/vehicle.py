@@ -20,6 +20,7 @@ from scipy.interpolate import make_smoothing_spline
 
 from . import attitude
 from .truth import Kinematics, Motion
+from .errors import InputError
 
 HOLD_SPEED = 0.5            # m/s: below it the attitude holds and the rates are zero
 TRUSTED_SPEED = 2.0         # m/s: above it (or at rest) the attitude model is taken as valid
@@ -40,7 +41,7 @@ class TrackMotion(Motion):
         yaw, pitch = _yaw_pitch(v)
         moving = np.hypot(v[:, 0], v[:, 1]) >= HOLD_SPEED
         if not moving.any():
-            raise ValueError("the track never moves: no heading to hold")
+            raise InputError("the track never moves: no heading to hold")
         first = np.argmax(moving)
         last = np.maximum.accumulate(np.where(moving, np.arange(len(t)), first))
         self._t, self._yaw_hold, self._pitch_hold = t, yaw[last], pitch[last]

@@ -19,6 +19,7 @@ import numpy as np
 
 from . import alignment
 from .evaluation import compensated_mimu, navigate, resample
+from .errors import InputError
 
 WINDOW_LENGTHS_S = (10.0, 30.0, 60.0)
 START_STEP_S = 5.0
@@ -102,7 +103,7 @@ def run_all(flight, cal=None, lengths=WINDOW_LENGTHS_S, step=START_STEP_S, time_
     the IMU's stamps (negative: the IMU lags); min_speed (m/s) and max_gap (s) as `starts`.
     A recording that holds no window at all is a ValueError that says why."""
     if flight.truth is None:
-        raise ValueError(f"{flight.path}: free-inertial windows need a reference trajectory "
+        raise InputError(f"{flight.path}: free-inertial windows need a reference trajectory "
                          "(/truth/state)")
     w, f, _ = compensated_mimu(flight, cal)
     t = flight.mimu_t + time_shift_s
@@ -112,7 +113,7 @@ def run_all(flight, cal=None, lengths=WINDOW_LENGTHS_S, step=START_STEP_S, time_
     todo = [(length, t0) for length in lengths
             for t0 in starts(flight.truth, length, step, rest.static[1], min_speed, max_gap)]
     if not todo:
-        raise ValueError(f"{flight.path}: " + _no_windows(flight.truth, lengths, rest.static[1],
+        raise InputError(f"{flight.path}: " + _no_windows(flight.truth, lengths, rest.static[1],
                                                            min_speed, max_gap))
     if progress:
         from tqdm import tqdm

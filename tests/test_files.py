@@ -36,3 +36,29 @@ def test_outputs_never_replace_inputs_or_foreign_folders(tmp_path):
     assert (os.stat(tmp_path / "fresh").st_mode & 0o777) == 0o777 & ~umask
     assert main(["diagnose", str(log), "--model", str(log), "--json", str(log), "--force"]) == 2
     assert log.read_bytes() == b"precious"
+
+
+def test_the_command_line_reports_input_errors_and_lets_bugs_show(tmp_path, monkeypatch):
+    """Issue 21: exit 2 with one line for the user's input (the project's InputError and file
+    errors); a ValueError from inside the code is a bug and keeps its traceback."""
+    from mimunav import cli
+    bad = tmp_path / "bad.json"
+    bad.write_text("{not json")
+    assert main(["simulate", "flights/gentle.toml", "-o", str(tmp_path / "f.mcap"),
+                 "--unit", str(bad)]) == 2
+    assert main(["calibrate", str(tmp_path / "missing.mcap"), "--method", "entire",
+                 "-o", str(tmp_path / "c.json")]) == 2
+    args = cli.build_parser().parse_args(["unit", "-o", str(tmp_path / "v.json")])
+    args.func = lambda a: int("not a number")           # a bug inside a command
+    monkeypatch.setattr(cli, "build_parser", lambda: _Fixed(args))
+    with pytest.raises(ValueError, match="invalid literal"):
+        cli.main([])
+
+
+class _Fixed:
+    """A parser that returns prepared arguments."""
+    def __init__(self, args):
+        self.args = args
+
+    def parse_args(self, argv):
+        return self.args

@@ -47,6 +47,7 @@ import numpy as np
 from ..effects import AXES
 from ..sensors.hidden import HiddenPhysics
 from ..sensors.mimu import G0
+from ..errors import InputError
 
 DEG = math.pi / 180
 MG = 1e-3 * G0
@@ -109,7 +110,7 @@ def draw(effect, rng, unit, duration_s):
         term.update(t0=t0, t1=t0 + float(rng.uniform(2.0, 4.0)),
                     coefficient=mag(5, 15) * MG if sensor == "accel" else mag(0.2, 0.5) * DEG)
     else:
-        raise ValueError(f"no concealed-data recipe for {effect!r}")
+        raise InputError(f"no concealed-data recipe for {effect!r}")
     return HiddenPhysics(term, unit.thermal)
 
 

@@ -35,6 +35,7 @@ from ..evaluation import compensated_mimu, navigate, resample
 from . import inference, library, sensor
 from .inference import Tier
 from .reference import DERIVATIVE_WINDOW_S
+from ..errors import InputError
 
 EPOCH_S = 1.0
 BLOCK_S = 30.0
@@ -86,7 +87,7 @@ def observed_error(flight, cal):
     MIMU, navigated from the log's initial state."""
     w, f, _ = compensated_mimu(flight, cal)
     if not (np.isfinite(w).all() and np.isfinite(f).all()):
-        raise ValueError(f"{flight.path}: the compensated MIMU has non-finite samples: the "
+        raise InputError(f"{flight.path}: the compensated MIMU has non-finite samples: the "
                          "navigation level needs an unbroken free-inertial run")
     nav = navigate(flight.mimu_t, w, f, flight.mimu_mounting, flight.initial)
     return nav, w, f
@@ -143,7 +144,7 @@ def diagnose(flight, cal, alpha=0.05, seed=0, reference=None):
     `cal`, with `reference` (a Trajectory; default the log's /truth/state)."""
     reference = reference or flight.truth
     if reference is None:
-        raise ValueError(f"{flight.path}: no reference trajectory (/truth/state) for the "
+        raise InputError(f"{flight.path}: no reference trajectory (/truth/state) for the "
                          "navigation-level diagnosis")
     nav, w, f = observed_error(flight, cal)
     model, cond = error_model(flight, nav, w, f)
@@ -151,7 +152,7 @@ def diagnose(flight, cal, alpha=0.05, seed=0, reference=None):
     t1 = min(model.t[-1], reference.t[-1])
     epochs = np.arange(t0, t1 + 1e-9, EPOCH_S)
     if len(epochs) < MIN_EPOCHS:
-        raise ValueError(f"{flight.path}: {t1 - t0:.0f} s of reference overlap is too short "
+        raise InputError(f"{flight.path}: {t1 - t0:.0f} s of reference overlap is too short "
                          "for a navigation-level diagnosis")
     observed = resample(nav, epochs).velocity_error(resample(reference, epochs))
     at = np.clip(np.searchsorted(model.t, epochs), 0, len(model.t) - 1)

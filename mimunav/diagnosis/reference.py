@@ -16,6 +16,7 @@ import quaternion
 
 from .. import attitude
 from ..effects import derivative
+from ..errors import InputError
 
 DERIVATIVE_WINDOW_S = 0.1       # d/dt of reference rates: quartic Savitzky-Golay over 100 ms,
 # exact for motion up to 4th order in time (close to it inside the profiles' ramps), and
@@ -52,7 +53,7 @@ def predicted_mimu(flight):
     t = flight.mimu_t
     inside = (t > flight.fog_t[0]) & (t <= flight.fog_t[-1])
     if inside.sum() < 2:
-        raise ValueError(f"{flight.path}: the reference IMU does not cover the MIMU's samples")
+        raise InputError(f"{flight.path}: the reference IMU does not cover the MIMU's samples")
     w_v = attitude.rotate(flight.fog_mounting.q_vs, flight.fog_w)
     f_v = attitude.rotate(flight.fog_mounting.q_vs, flight.fog_f)
     w_v, f_v = on_intervals(flight.fog_t, np.hstack([w_v, f_v]), t).reshape(len(t), 2, 3) \
@@ -89,15 +90,18 @@ class Accuracy:
     def from_dict(cls, doc, source):
         """From an `accuracy` object; unknown keys refused, missing keys default."""
         if not isinstance(doc, dict):
-            raise ValueError(f"{source}: the reference accuracy must be an object of "
+            raise InputError(f"{source}: the reference accuracy must be an object of "
                              f"{', '.join(cls.KEYS)}")
         bad = sorted(set(doc) - set(cls.KEYS))
         if bad:
-            raise ValueError(f"{source}: unknown reference-accuracy keys {bad} "
+            raise InputError(f"{source}: unknown reference-accuracy keys {bad} "
                              f"(known: {', '.join(cls.KEYS)})")
-        values = {k: float(v) for k, v in doc.items()}
+        try:
+            values = {k: float(v) for k, v in doc.items()}
+        except (TypeError, ValueError):
+            raise InputError(f"{source}: reference accuracies must be numbers: {doc}") from None
         if not all(np.isfinite(v) and 0 <= v < 0.1 for v in values.values()):
-            raise ValueError(f"{source}: reference accuracies must be finite, >= 0 and < 0.1 "
+            raise InputError(f"{source}: reference accuracies must be finite, >= 0 and < 0.1 "
                              f"(1-sigma, 1 or rad): {values}")
         return cls(**values, source=source)
 
@@ -107,7 +111,7 @@ class Accuracy:
         try:
             pairs = dict(item.split("=", 1) for item in text.split(",") if item.strip())
         except ValueError:
-            raise ValueError(f"--reference-accuracy {text!r}: expected KEY=VALUE,... with keys "
+            raise InputError(f"--reference-accuracy {text!r}: expected KEY=VALUE,... with keys "
                              f"{', '.join(cls.KEYS)}") from None
         return cls.from_dict({k.strip(): v for k, v in pairs.items()}, "--reference-accuracy")
 

@@ -60,6 +60,7 @@ from ..effects import AXES, Conditions, derivative
 from ..sensors.mimu import G0
 from . import library, wander
 from .reference import DERIVATIVE_WINDOW_S, accuracy_of, predicted_mimu
+from ..errors import InputError
 
 FAST_BIN_S = 0.01
 SPLIT_BLOCK_S = 0.5
@@ -162,7 +163,7 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
     if max_wander is not None:
         design.levels = wander.LAMBDA_GRID[wander.LAMBDA_GRID <= max_wander]
     if len(design.t) < 4 * SPLIT_BLOCK_S / FAST_BIN_S:
-        raise ValueError(f"{flight.path}: {len(design.t) * FAST_BIN_S:.1f} s of usable MIMU "
+        raise InputError(f"{flight.path}: {len(design.t) * FAST_BIN_S:.1f} s of usable MIMU "
                          f"samples inside the reference IMU's span; the sensor level needs "
                          f"at least {4 * SPLIT_BLOCK_S:g} s")
     block = np.floor((design.t - design.t[0]) / SPLIT_BLOCK_S).astype(int)
@@ -256,7 +257,7 @@ def _design(t, res, usable, cond, cands, m, prior, cal):
     """Bin the residual, the reference inputs and each candidate's regressor; drop candidates
     the flight cannot drive (no variation) and mark those the reference inputs span."""
     if len(t) < m:
-        raise ValueError(f"{len(t)} MIMU samples: fewer than one {FAST_BIN_S:g} s bin")
+        raise InputError(f"{len(t)} MIMU samples: fewer than one {FAST_BIN_S:g} s bin")
     tb, rb = _bin(t, m, usable), _bin(res, m, usable)
     ok = np.isfinite(rb).all(axis=1)
     inputs = _bin(np.hstack([cond.f, cond.w]), m, usable)[ok]

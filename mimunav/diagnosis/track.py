@@ -34,6 +34,7 @@ from ..vehicle import TrackMotion
 from . import library, sensor
 from .reference import Accuracy
 from .sensor import CHANNELS
+from ..errors import InputError
 
 # The reference here is a vehicle model, not a FOG-IMU: its attitude comes from the velocity
 # under no side slip and zero roll, so its own "scale and misalignment" are those of the
@@ -70,12 +71,12 @@ def simulated_reference(flight):
     the vehicle origin, trusted (N,) bool over the MIMU's samples)."""
     tr = flight.truth
     if tr is None:
-        raise ValueError(f"{flight.path}: no /truth/state to simulate the reference IMU from")
+        raise InputError(f"{flight.path}: no /truth/state to simulate the reference IMU from")
     motion = TrackMotion(tr.t, tr.lat, tr.lon, tr.h, tr.v_ned)
     t = flight.mimu_t
     inside = (t > motion.t0) & (t <= motion.t1)
     if inside.sum() < 2:
-        raise ValueError(f"{flight.path}: the reference trajectory does not cover the MIMU")
+        raise InputError(f"{flight.path}: the reference trajectory does not cover the MIMU")
     stamps = np.concatenate([[motion.t0], t[inside]])
     run = truth_mod.generate(motion, stamps)
     dt = np.diff(stamps)[:, None]
@@ -107,7 +108,7 @@ def diagnose(flight, cal, alpha=0.05, reference=None, accuracy=None):
     untrusted samples and the terms of unpredicted input axes (see the module) are left out.
     The returned diagnosis carries `reference_check`."""
     if flight.mimu_raw is not None:
-        raise ValueError(f"{flight.path}: the track level takes a recorded /mimu/imu; a raw "
+        raise InputError(f"{flight.path}: the track level takes a recorded /mimu/imu; a raw "
                          "MIMU with a reference trajectory goes to the navigation level")
     ref, trusted = reference or simulated_reference(flight)
     w, f = (np.where(trusted[:, None], x, np.nan) for x in flight.mimu_imu)

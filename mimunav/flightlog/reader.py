@@ -9,6 +9,7 @@ through the generic `mcap_ros2` decoder instead.
 """
 import json
 import os
+import struct
 import zlib
 
 import numpy as np
@@ -17,12 +18,13 @@ from mcap.exceptions import McapError
 from mcap.reader import make_reader
 
 from . import schemas
+from ..errors import InputError
 
 _MSG_HEADER = 31        # opcode 1 + length 8 + channel 2 + sequence 4 + log_time 8 + publish 8
 _INDEX_ENTRY = np.dtype([("log_time", "<u8"), ("offset", "<u8")])
 
 
-class LogError(ValueError):
+class LogError(InputError):
     """A log that cannot be read as the contract says, with what and where."""
 
 
@@ -80,7 +82,18 @@ class FlightLog:
     def read(self, topic, fields=None):
         """All messages of a channel as a structured array with a log_time (ns) field,
         in time order (the number of backward steps in file order goes to
-        `time_reversals[topic]`); `fields` (names) limits the copy to those fields."""
+        `time_reversals[topic]`); `fields` (names) limits the copy to those fields. Data that
+        cannot be decoded (a damaged chunk or index) is a `LogError` naming the channel."""
+        try:
+            return self._read(topic, fields)
+        except LogError:
+            raise
+        except (McapError, ValueError, IndexError, EOFError, struct.error,
+                zstandard.ZstdError) as exc:
+            raise LogError(f"{self.path}: {topic}: damaged data ({type(exc).__name__}: {exc});"
+                           " `mimunav info LOG --recover OUT.mcap` keeps what is intact") from exc
+
+    def _read(self, topic, fields=None):
         channel = self._channel(topic)
         chunks = [ci for ci in self.summary.chunk_indexes
                   if channel.id in ci.message_index_offsets]

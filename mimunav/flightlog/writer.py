@@ -10,6 +10,7 @@ from mcap.writer import CompressionType, Writer
 
 from ..files import temporary_beside
 from . import schemas
+from ..errors import InputError
 
 # offered_qos_profiles as rosbag2 writes it (reliable, volatile, keep-last), so ROS 2 tools
 # (Foxglove, PlotJuggler, ros2 bag) take the channel as an ordinary topic
@@ -63,7 +64,7 @@ class LogWriter:
         UNIX epoch (N,), increasing; fields as in `schemas.BODIES`."""
         stamp_ns = np.asarray(stamp_ns, dtype=np.int64)
         if np.any(np.diff(stamp_ns) <= 0):
-            raise ValueError(f"{topic}: stamps must increase")
+            raise InputError(f"{topic}: stamps must increase")
         msgs = schemas.encode(schema_name, frame_id, stamp_ns, **fields)
         self.write_encoded(topic, schema_name, msgs, stamp_ns)
 

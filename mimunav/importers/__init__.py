@@ -22,11 +22,12 @@ from .. import alignment, earth
 from ..flightlog import LogWriter
 from ..flightlog import schemas as S
 from ..sensors import Mounting
+from ..errors import InputError
 
 UNKNOWN_ATTITUDE = np.full(4, np.nan)
 
 
-class RecordingError(ValueError):
+class RecordingError(InputError):
     """A recording that cannot be turned into a contract log, with what and where."""
 
 

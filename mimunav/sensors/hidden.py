@@ -33,6 +33,7 @@ import math
 
 import numpy as np
 from scipy.spatial.transform import Rotation
+from ..errors import InputError
 
 AXES = "xyz"
 VECTOR = ("size_effect", "mounting_misalignment")
@@ -124,7 +125,7 @@ class HiddenPhysics:
             half = HYSTERESIS_WINDOW_S / 2
             slope = np.interp(t + half, t, reading) - np.interp(t - half, t, reading)
             return np.sign(slope)
-        raise ValueError(f"hidden effect {effect!r} has no behaviour here")
+        raise InputError(f"hidden effect {effect!r} has no behaviour here")
 
     def _temperature_reading(self, ctx, sensor, i):
         """The true temperature in the contract's regressor units: degC for accelerometers;
@@ -132,7 +133,7 @@ class HiddenPhysics:
         if sensor == "accel":
             return ctx["accel_temperature"][:, i]
         if self.thermal is None:
-            raise ValueError("a gyro temperature effect needs the unit's thermal model")
+            raise InputError("a gyro temperature effect needs the unit's thermal model")
         f0, tcf = self.thermal.f0[i], self.thermal.tcf[i]
         return f0 * (1 + tcf * (ctx["gyro_temperature"][:, i] - 25.0))
 
@@ -170,7 +171,7 @@ def parse_term(text):
             key, v = opt.split("=", 1)
             term[key] = int(v) if key == "order" else float(v)
     except (ValueError, IndexError):
-        raise ValueError(f"--hide {text!r}: expected EFFECT:SENSOR:AXIS[:INPUT]=VALUE"
+        raise InputError(f"--hide {text!r}: expected EFFECT:SENSOR:AXIS[:INPUT]=VALUE"
                          "[@KEY=VALUE...] (see `mimunav simulate --help`)") from None
     _check(term)
     return term
@@ -190,27 +191,27 @@ def delayed(t, x, tau):
 def _check(term):
     effect = term.get("effect")
     if effect not in EFFECTS:
-        raise ValueError(f"hidden effect {effect!r}: one of {', '.join(EFFECTS)}")
+        raise InputError(f"hidden effect {effect!r}: one of {', '.join(EFFECTS)}")
     sensor = term.get("sensor")
     allowed = (("imu",) if effect in WHOLE else ("accel",) if effect == "size_effect" else
                ("gyro",) if effect.startswith("g") and effect.endswith("sensitivity") else
                ("imu", "accel", "gyro") if effect == "time_skew" else ("accel", "gyro"))
     if sensor not in allowed:
-        raise ValueError(f"{effect}: sensor must be one of {allowed}")
+        raise InputError(f"{effect}: sensor must be one of {allowed}")
     if effect in WHOLE + ("time_skew",):
         if term.get("axis") != "all":
-            raise ValueError(f"{effect}: axis must be 'all' (it acts on whole triads)")
+            raise InputError(f"{effect}: axis must be 'all' (it acts on whole triads)")
     elif term.get("axis") not in tuple(AXES):
-        raise ValueError(f"{effect}: axis must be x, y or z")
+        raise InputError(f"{effect}: axis must be x, y or z")
     need = {"cross_coupling": 1, "g_sensitivity": 1, "g2_sensitivity": 2}.get(effect, 0)
     if len(term.get("input_axis", "")) != need or any(a not in AXES for a in term.get("input_axis", "")):
-        raise ValueError(f"{effect}: needs {need} input axis letter(s) of x, y, z")
+        raise InputError(f"{effect}: needs {need} input axis letter(s) of x, y, z")
     if effect == "scale_nonlinearity" and term.get("order") not in (2, 3):
-        raise ValueError("scale_nonlinearity: @order=2 or @order=3")
+        raise InputError("scale_nonlinearity: @order=2 or @order=3")
     if effect == "temperature_rate" and not term.get("window_s", 0) > 0:
-        raise ValueError("temperature_rate: @window_s=SECONDS (> 0)")
+        raise InputError("temperature_rate: @window_s=SECONDS (> 0)")
     if effect == "bias_pulse" and not term.get("t1", -math.inf) > term.get("t0", math.inf):
-        raise ValueError("bias_pulse: @t0=S@t1=S with t1 > t0 (s since the flight's start)")
+        raise InputError("bias_pulse: @t0=S@t1=S with t1 > t0 (s since the flight's start)")
     value = np.atleast_1d(np.asarray(term.get("vector", term.get("coefficient", np.nan)), float))
     if value.shape != ((3,) if effect in VECTOR else (1,)) or not np.isfinite(value).all():
-        raise ValueError(f"{effect}: needs a finite {'vector a/b/c' if effect in VECTOR else 'value'}")
+        raise InputError(f"{effect}: needs a finite {'vector a/b/c' if effect in VECTOR else 'value'}")

@@ -40,6 +40,7 @@ from ..files import write_atomic
 from . import noise
 from .mounting import Mounting
 from .thermal import ThermalModel
+from ..errors import InputError
 
 G0 = 9.80665
 DEG = math.pi / 180
@@ -78,7 +79,7 @@ class MimuUnit:
     def draw(cls, seed, nonlinearity="table2", rate_hz=1000.0, name=None):
         """Draw a unit like a real one (see the module doc for every value's source)."""
         if nonlinearity not in ("table2", "datasheet"):
-            raise ValueError("nonlinearity must be 'table2' or 'datasheet'")
+            raise InputError("nonlinearity must be 'table2' or 'datasheet'")
         rng = np.random.default_rng(seed)
         sign = lambda n: rng.choice([-1.0, 1.0], n)                        # noqa: E731
         thermal = ThermalModel.draw(rng)
@@ -167,7 +168,7 @@ class MimuUnit:
     @classmethod
     def from_dict(cls, doc, source="unit"):
         if doc.get("format") != UNIT_FORMAT:
-            raise ValueError(f"{source}: format is {doc.get('format')!r}, expected {UNIT_FORMAT!r}")
+            raise InputError(f"{source}: format is {doc.get('format')!r}, expected {UNIT_FORMAT!r}")
         try:
             return cls(name=doc["name"], seed=doc.get("seed"),
                        coefficients=Calibration.from_dict(doc["coefficients"], source),
@@ -178,12 +179,16 @@ class MimuUnit:
                        rate_hz=doc["sample_rate_hz"],
                        mounting=Mounting.from_dict(doc.get("mounting", {})))
         except (KeyError, TypeError) as exc:
-            raise ValueError(f"{source}: unit file lacks or mistypes {exc}") from None
+            raise InputError(f"{source}: unit file lacks or mistypes {exc}") from None
 
     @classmethod
     def load(cls, path):
         with open(path) as fh:
-            return cls.from_dict(json.load(fh), str(path))
+            try:
+                doc = json.load(fh)
+            except json.JSONDecodeError as exc:
+                raise InputError(f"{path}: not valid JSON ({exc})") from None
+        return cls.from_dict(doc, str(path))
 
     def save(self, path, force=False):
         write_atomic(path, json.dumps(self.as_dict(), indent=1) + "\n", force=force)

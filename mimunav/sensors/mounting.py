@@ -6,6 +6,7 @@ import numpy as np
 import quaternion
 
 from .. import attitude
+from ..errors import InputError
 
 
 @dataclass
@@ -16,7 +17,7 @@ class Mounting:
     def __post_init__(self):
         q = np.asarray(self.attitude_wxyz, dtype=float).reshape(4)
         if abs(np.linalg.norm(q) - 1) > 1e-9:
-            raise ValueError(f"mounting attitude {q} is not a unit quaternion")
+            raise InputError(f"mounting attitude {q} is not a unit quaternion")
         self.attitude_wxyz = q
         self.lever_arm_m = np.asarray(self.lever_arm_m, dtype=float).reshape(3)
 

@@ -1,0 +1,8 @@
+"""The project's error for bad input: a file, an option, a profile, a calibration or a fit
+that cannot be used, said in one line. The command line reports these (and the operating
+system's file errors) as the user's, with exit status 2; anything else is a bug in mimunav
+and shows as one, with its traceback."""
+
+
+class InputError(ValueError):
+    """Input mimunav cannot use; the message says which and why."""
