@@ -806,7 +806,9 @@ def _condition_masks(design, cond, m, usable):
           if np.isfinite(temperature).all() else np.zeros(ok.sum()))   # none recorded
     masks = {"|f| > 2 g": f > 2, "|w| > 60 deg/s": w > 60, "|dw/dt| > 300 deg/s^2": wd > 300,
              "|dT/dt| > 0.5 degC/min": dT > 0.5}
-    masks["quiet"] = ~np.any(list(masks.values()), axis=0)
+    # quiet: no manoeuvre (a warm-up's temperature change alone does not make a bin busy,
+    # else a flight that warms throughout would have no quiet reference at all)
+    masks["quiet"] = ~np.any([masks[k] for k in CONDITIONS[1:4]], axis=0)
     return {k: masks[k] for k in CONDITIONS}
 
 

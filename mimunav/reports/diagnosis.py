@@ -96,12 +96,13 @@ def markdown(doc, diag, cal_label):
         lines.append("")
     if doc.get("within_reference_accuracy"):
         acc = doc["reference_accuracy"]
-        lines += ["## Within the reference's own accuracy", "",
-                  "Significant against the noise, but no larger than the reference IMU's own "
-                  f"1-sigma error in that direction ({acc['source']}): not charged to the MIMU.",
-                  ""]
-        lines += [f"- {w['label']}: {w.get('coefficient', w.get('vector'))} (reference 1 sigma "
-                  f"{_vec(w['reference_1sigma'])}, p train {w['p_train']:.2g})"
+        lines += ["## Within the stated accuracies", "",
+                  "Significant against the noise alone, but not beyond what the reference IMU's "
+                  f"accuracy ({acc['source']}) and the calibration's stated covariance allow in "
+                  "that direction, at the selection's threshold: not charged to physics the "
+                  "model lacks.", ""]
+        lines += [f"- {w['label']}: {_vec(w.get('vector', [w.get('coefficient')]))} (stated "
+                  f"1 sigma {_vec(w['reference_1sigma'])}, p train {w['p_train']:.2g})"
                   for w in doc["within_reference_accuracy"]]
         lines.append("")
     if doc["not_confirmed"]:
