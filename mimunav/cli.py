@@ -194,6 +194,11 @@ def _diagnose(args):
     from .flightlog import LogError
     from .reports import diagnosis as report
     refuse_inputs([args.json, args.output], [args.log, args.model])
+    inside = args.json and args.output and \
+        Path(args.output).resolve() in Path(args.json).resolve().parents
+    if inside:
+        raise InputError(f"--json {args.json} lies inside the report folder {args.output}, which "
+                         "gets its own diagnosis.json: give -o alone, or --json elsewhere")
     for out in (args.json, args.output):           # refuse before the work, not after
         if out and Path(out).exists() and not args.force:
             raise FileExistsError(f"{out} exists; use --force to replace it")
@@ -225,8 +230,10 @@ def _diagnose(args):
         write_atomic(args.json, diagnosis.dumps(doc), force=args.force)
     print(f"verdict: {doc['verdict']} ({doc['candidates_tested']} candidates)")
     for f in doc["findings"]:
-        print(f"  {f['label']}: {f['coefficient']:.4g} {f['units']} "
-              f"[{f['ci95'][0]:.4g}, {f['ci95'][1]:.4g}] (held-out p {f['p_heldout']:.2g})")
+        units = "" if f["units"] == "1" else f" {f['units']}"
+        print(f"  {f['label']}: {f['coefficient']:.4g}{units} "
+              f"[{f['ci95'][0]:.4g}, {f['ci95'][1]:.4g}] (held-out p {f['p_heldout']:.2g}; "
+              f"{f.get('attribution', 'navigation level')})")
     for u in doc["unexplained"][:10]:
         print(f"  unexplained residual {u['channel']} {u['t0']:.1f}-{u['t1']:.1f} s (z {u['z']:.1f})")
     if args.output:
@@ -462,11 +469,13 @@ def build_parser():
     p.add_argument("--json", help="write the mimunav-diagnosis/1 document here")
     p.add_argument("-o", "--output", help="report folder: diagnosis.md, plots, diagnosis.json, "
                    "CAL+found.json (the model with the found terms)")
-    p.add_argument("--alpha", type=float, default=0.05,
-                   help="family-wise error rate over the candidate library (default 0.05)")
+    p.add_argument("--alpha", type=_probability, default=0.05,
+                   help="family-wise error rate over the candidate library, 0 < alpha < 1 "
+                   "(default 0.05)")
     p.add_argument("--reference-accuracy", metavar="KEY=VALUE,...",
-                   help="the reference IMU's 1-sigma accuracy, overriding the log's sensor/fog "
-                   "`accuracy` metadata and the defaults (seed S1 Table 4: scale 2.5e-4; "
+                   help="the reference IMU's 1-sigma accuracy; the keys given override the log's "
+                   "sensor/fog `accuracy` metadata, which overrides the defaults (seed S1 Table "
+                   "4: scale 2.5e-4; "
                    "misalignment 1e-4 rad, assumed): gyro_scale, accel_scale (1), "
                    "gyro_misalignment_rad, accel_misalignment_rad (rad)")
     p.add_argument("--seed", type=int, default=0, help="seed of the navigation level's block "
@@ -550,6 +559,18 @@ def build_parser():
     p.add_argument("--force", action="store_true", help="replace an existing report")
     p.set_defaults(func=_report)
     return parser
+
+
+def _probability(text):
+    """argparse type: a number strictly between 0 and 1."""
+    import argparse
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not 0 < value < 1:
+        raise argparse.ArgumentTypeError(f"{value:g} is not between 0 and 1")
+    return value
 
 
 def main(argv=None):

@@ -36,6 +36,12 @@ def test_outputs_never_replace_inputs_or_foreign_folders(tmp_path):
     assert (os.stat(tmp_path / "fresh").st_mode & 0o777) == 0o777 & ~umask
     assert main(["diagnose", str(log), "--model", str(log), "--json", str(log), "--force"]) == 2
     assert log.read_bytes() == b"precious"
+    out = tmp_path / "d5"
+    assert main(["diagnose", str(log), "--model", str(log), "-o", str(out),
+                 "--json", str(out / "diagnosis.json")]) == 2           # refused before work
+    assert not out.exists()
+    with pytest.raises(SystemExit):                                     # checked at parse time
+        main(["diagnose", str(log), "--model", str(log), "--alpha", "1.5"])
 
 
 def test_the_command_line_reports_input_errors_and_lets_bugs_show(tmp_path, monkeypatch):

@@ -167,6 +167,10 @@ def test_reference_accuracy_prior_turns_with_the_mounting_and_parses():
     assert Accuracy.parse("gyro_scale=5e-5,accel_scale=6e-5").accel_scale == 6e-5
     assert accuracy_of({"accuracy": {"gyro_scale": 3e-5}}).gyro_scale == 3e-5
     assert accuracy_of({}).source.startswith("default")
+    # the command line's keys over the log's, the log's over the defaults
+    meta = {"accuracy": {"gyro_scale": 3e-5, "gyro_misalignment_rad": 2e-5}}
+    both = accuracy_of(meta, Accuracy.parse("gyro_scale=5e-5"))
+    assert (both.gyro_scale, both.gyro_misalignment_rad, both.accel_scale) == (5e-5, 2e-5, 2.5e-4)
     for bad in ("gyro_scale", "warp=1", "gyro_scale=-1", "gyro_scale=inf"):
         with pytest.raises(ValueError):
             Accuracy.parse(bad)

@@ -50,10 +50,12 @@ def candidates():
 
 
 def label(term):
-    """A short readable name: 'g_sensitivity gyro.x <- f_z'."""
+    """A short readable name with the input's physical symbol (f specific force, w angular
+    rate): 'g_sensitivity gyro.x <- f_z', 'cross_coupling gyro.z <- w_x'."""
     s = f"{term['effect']} {term['sensor']}.{term['axis']}"
     if "input_axis" in term:
-        s += f" <- {'f' if term['effect'].startswith('g') else term['sensor'][0]}_{term['input_axis']}"
+        symbol = "f" if term["effect"].startswith("g") or term["sensor"] == "accel" else "w"
+        s += f" <- {symbol}_{term['input_axis']}"
     if "order" in term:
         s += f" (x^{term['order']})"
     if "window_s" in term:

@@ -83,12 +83,14 @@ class Accuracy:
     gyro_misalignment_rad: float = 1e-4
     accel_misalignment_rad: float = 1e-4
     source: str = "default (seed S1 Table 4; misalignment assumed)"
+    given: tuple = ()               # the keys the source stated (the rest are defaults)
 
     KEYS = ("gyro_scale", "accel_scale", "gyro_misalignment_rad", "accel_misalignment_rad")
 
     @classmethod
     def from_dict(cls, doc, source):
-        """From an `accuracy` object; unknown keys refused, missing keys default."""
+        """From an `accuracy` object; unknown keys refused, missing keys default (and not
+        `given`, so `merged` keeps another source's values for them)."""
         if not isinstance(doc, dict):
             raise InputError(f"{source}: the reference accuracy must be an object of "
                              f"{', '.join(cls.KEYS)}")
@@ -103,7 +105,7 @@ class Accuracy:
         if not all(np.isfinite(v) and 0 <= v < 0.1 for v in values.values()):
             raise InputError(f"{source}: reference accuracies must be finite, >= 0 and < 0.1 "
                              f"(1-sigma, 1 or rad): {values}")
-        return cls(**values, source=source)
+        return cls(**values, source=source, given=tuple(values))
 
     @classmethod
     def parse(cls, text):
@@ -117,6 +119,14 @@ class Accuracy:
 
     def as_dict(self):
         return {k: getattr(self, k) for k in self.KEYS + ("source",)}
+
+    def merged(self, override):
+        """These accuracies with the keys `override` states replaced (None: unchanged)."""
+        if override is None or not override.given:
+            return self
+        values = {k: getattr(override if k in override.given else self, k) for k in self.KEYS}
+        return Accuracy(**values, source=f"{override.source} over {self.source}",
+                        given=tuple(set(self.given) | set(override.given)))
 
     def prior(self, q_sf):
         """(18, 18) covariance of the reference's linear error seen in the MIMU's axes:
@@ -135,10 +145,9 @@ class Accuracy:
 
 
 def accuracy_of(meta_fog, override=None):
-    """The reference's `Accuracy`: `override` (from the command line) first, else the
-    `accuracy` object of the `sensor/fog` metadata, else the defaults."""
-    if override is not None:
-        return override
+    """The reference's `Accuracy`: the keys `override` states (the command line's), over the
+    `accuracy` object of the `sensor/fog` metadata, over the defaults."""
+    base = Accuracy()
     if isinstance(meta_fog, dict) and "accuracy" in meta_fog:
-        return Accuracy.from_dict(meta_fog["accuracy"], "log metadata sensor/fog accuracy")
-    return Accuracy()
+        base = Accuracy.from_dict(meta_fog["accuracy"], "log metadata sensor/fog accuracy")
+    return base.merged(override)

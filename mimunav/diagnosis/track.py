@@ -42,7 +42,8 @@ from ..errors import InputError
 # ordinary roads). Linear terms must beat that to be charged to the IMU.
 VEHICLE_MODEL_ACCURACY = Accuracy(gyro_scale=1e-2, accel_scale=1e-2, gyro_misalignment_rad=1e-2,
                                   accel_misalignment_rad=1e-2,
-                                  source="track level: land-vehicle model (assumed 1 %, 10 mrad)")
+                                  source="track level: land-vehicle model (assumed 1 %, 10 mrad)",
+                                  given=Accuracy.KEYS)
 PREDICTED_CORRELATION = 0.9
 CHECK_BIN_S = 1.0
 
@@ -120,7 +121,7 @@ def diagnose(flight, cal, alpha=0.05, reference=None, accuracy=None):
         drivers = library.inputs(term)
         (left_out if drivers and drivers & unpredicted else kept).append(term)
     diag = sensor.diagnose(ref, cal, alpha=alpha, candidates=kept,
-                           accuracy=accuracy or VEHICLE_MODEL_ACCURACY,
+                           accuracy=VEHICLE_MODEL_ACCURACY.merged(accuracy),
                            max_wander=wander_limit())
     diag.level = "track"
     diag.reference_check = {
