@@ -124,6 +124,11 @@ def markdown(doc, diag, cal_label):
         if name in nav:
             lines.append(f"| {name} | {nav[name]['end_m']:.1f} | {nav[name]['max_m']:.1f} |")
     if "model+found" in nav:
+        if nav["model+found"]["end_m"] > nav["model"]["end_m"]:
+            lines += ["", "Removing the found terms alone does not shorten the end error here: the "
+                      "model's other errors dominate it (and errors can cancel in part), so one "
+                      "term's removal can go either way; the held-out residual rms above is the "
+                      "measure of each term."]
         lines += ["", "`CAL+found.json` holds the model with the found terms: "
                   "`mimunav table LOG --cal model=CAL --cal found=CAL+found.json` compares them."]
     return "\n".join(lines) + "\n"
