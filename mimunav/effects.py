@@ -1,11 +1,12 @@
 """The effect vocabulary of the diagnosis contract (log contract section 3): the physics a
 sensor model may leave out, each as a regressor built from the flight's conditions.
 
-One definition serves three users: the diagnosis tests a residual against these regressors,
-a compensation file carries found terms (`Calibration.found`) and removes them, and the
-concealed-effect suite hides them in simulated recordings (a time skew as an exact shift of
-the samples, not through its derivative; the size-effect regressor is tested against an
-exactly simulated proof-mass offset in tests/test_diagnosis.py).
+One definition serves two users: the diagnosis tests a residual against these regressors,
+and a compensation file carries found terms (`Calibration.found`) and removes them (a time
+skew as an exact shift of the samples, not through its derivative). Simulated recordings hide
+effects through their own code (`sensors.hidden`, sensor behaviour from the truth), so the
+proof does not share these regressors; the size-effect regressor is tested against an
+exactly simulated proof-mass offset in tests/test_diagnosis.py.
 
 Conditions (`Conditions`), all sensor axes, interval means at the sample stamps:
     f      specific force, m/s^2 (N, 3)        w      angular rate, rad/s (N, 3)

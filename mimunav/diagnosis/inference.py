@@ -1,63 +1,45 @@
-"""Tests of candidate terms against a residual, with the bias wander, coloured noise and
-the reference's own linear error as nuisance, on chosen rows (training or held-out segments).
-
-A tier holds bin means of the residual (sensor level: 6 channels, accel x y z, gyro x y z;
-navigation level: velocity-error increments N E D) and of every candidate's columns. Per channel, the nuisance is removed by projection:
-    fast kind: a piecewise-linear bias in time fitted on the chosen rows, its knots as far
-               apart as the channel's flicker allows (`knot_spacing`); the remaining
-               coloured noise is handled by a block-robust (HAC) covariance: blocks of
-               BLOCK_S are treated as independent, the score g_b = X_b' e_b summed inside
-               each block, with Satterthwaite's degrees of freedom (`effective_blocks`);
-    slow kind: generalised least squares with a constant bias and the covariance of white
-               noise plus the unit's flicker wander (its datasheet instability B), i.e. the
-               noise model of `sensors.noise` over bins: Sigma = s_w^2/m I + B^2 F.
-    linear   (optional, either kind): the channel's sensor input x (3 columns: specific
-               force for an accelerometer, rate for a gyro), i.e. a full scale and
-               cross-coupling row. The reference IMU carries such an error of its own
-               (`sensor.REFERENCE_ACCURACY`), which leaks into any regressor that
-               correlates with x (x^3 of a roll rate with the rate itself); non-linear
-               candidates are tested with it removed.
-Channels are stacked, each scaled by its noise level, so a term that acts on several
-channels (time skew, misalignment) is one parameter vector fitted to all of them.
+"""Tests of candidate terms against the navigation level's observation (`navigation`: the
+MIMU's velocity-error increments N E D over epochs), with a bias wander and the error
+signatures of the nuisance (biases, initial attitude) removed, on chosen rows (training or
+held-out segments). Per channel, the nuisance is removed by projection:
+    wander   a piecewise-linear bias in time fitted on the chosen rows, knots `knot_s` apart;
+    linear   extra nuisance columns per channel (the navigation level's nuisance signatures);
+the remaining coloured noise is handled by a block-robust (HAC) covariance: blocks of
+`block_s` are treated as independent, the score g_b = X_b' e_b summed inside each block, with
+Satterthwaite's degrees of freedom (`effective_blocks`). Channels are stacked, each scaled by
+its noise level, so a term that acts on several channels is one parameter vector fitted to
+all of them. (The sensor level has its own GLS: `sensor`, `wander`.)
 """
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import linalg, stats
+from scipy import stats
 
-KNOT_S = (10.0, 60.0)   # bias-wander knot spacing: limits, s
-BLOCK_S = 5.0       # HAC blocks of the fast tier
+BLOCK_S = 5.0       # HAC blocks
 
 
 @dataclass
 class Tier:
     name: str
-    kind: str                       # "fast" (wander + HAC) or "slow" (GLS), see above
     t: np.ndarray                   # bin centres, s (nb,)
-    residual: np.ndarray            # (nb, 6) bin means
+    residual: np.ndarray            # (nb, channels) bin means
     columns: list                   # per candidate: {channel: (nb, k)}
     k: list                         # per candidate: parameter count
-    samples_per_bin: int = 1        # m: raw samples averaged into one bin
-    kept: np.ndarray = None         # which bins of the raw binning are usable (all samples good)
-    knot_s: tuple = ()              # (6,) bias-wander knot spacing per channel, s (fast tier)
-    white: np.ndarray = None        # (6,) white noise of a bin mean (slow tier)
-    flicker: np.ndarray = None      # (6,) flicker instability B (slow tier)
-    flicker_cov: np.ndarray = None  # (nb, nb) unit-B flicker covariance of the bins (slow)
-    linear: list = None             # per channel (nb, q) extra nuisance columns (the sensor
-                                    # input: linear response; navigation: error signatures)
-    block_s: float = BLOCK_S        # HAC block length, s (fast kind)
+    kept: np.ndarray = None         # which bins are usable
+    knot_s: tuple = ()              # per channel: bias-wander knot spacing, s
+    linear: list = None             # per channel (nb, q) extra nuisance columns
+    block_s: float = BLOCK_S        # HAC block length, s
     _cache: dict = field(default_factory=dict)
 
     def prepared(self, rows):
         """Whitening of the chosen rows (bool mask): a function v (nrows,) , channel ->
-        nuisance-free scaled v, and the block index of each row."""
+        nuisance-free scaled v, the block index of each row, and the channels' scales."""
         key = rows.tobytes()
         if key not in self._cache:
-            self._cache[key] = (self._fast(rows) if self.kind == "fast" else self._slow(rows))
+            self._cache[key] = self._project(rows)
         return self._cache[key]
 
-    def _fast(self, rows):
+    def _project(self, rows):
         t = self.t[rows]
         wander = {}
         for spacing in set(self.knot_s):
@@ -73,38 +55,12 @@ class Tier:
         blocks += np.concatenate([[0], np.cumsum(np.diff(t) > 1.5 * np.median(np.diff(t)))])
         return (lambda v, c: project(v, c) / scale[c]), _renumber(blocks), np.asarray(scale)
 
-    def _slow(self, rows):
-        idx = np.flatnonzero(rows)
-        fc = self.flicker_cov[np.ix_(idx, idx)]
-        whiten = []
-        for c in range(self.channels):
-            cov = self.white[c] ** 2 * np.eye(len(idx)) + self.flicker[c] ** 2 * fc
-            chol = linalg.cholesky(cov, lower=True)
-            nuisance = self._with_linear(np.ones((len(idx), 1)), c, rows)
-            q = np.linalg.qr(linalg.solve_triangular(chol, nuisance, lower=True))[0]
-            whiten.append((chol, q))
-
-        def apply(v, c):
-            chol, q = whiten[c]
-            w = linalg.solve_triangular(chol, v, lower=True)
-            return w - q @ (q.T @ w)
-        return apply, np.arange(len(idx)), np.ones(self.channels)
-
     @property
     def channels(self):
         return self.residual.shape[1]
 
     def _with_linear(self, basis, c, rows):
         return basis if self.linear is None else np.hstack([basis, self.linear[c][rows]])
-
-
-def knot_spacing(white, flicker):
-    """Knot spacing (s) of the bias-wander nuisance for a channel with white noise density
-    `white` (per sqrt(Hz)) and flicker instability `flicker`: the period at which the
-    flicker's one-sided PSD B^2/(pi f) falls to the white 2 N^2 (`sensors.noise`), within
-    KNOT_S. Below that frequency the wander dominates and the nuisance carries it."""
-    f_cross = flicker ** 2 / (2 * math.pi * white ** 2)
-    return float(np.clip(round(1 / f_cross), *KNOT_S))
 
 
 def _renumber(blocks):
@@ -117,10 +73,10 @@ class Fit:
     beta: np.ndarray            # all parameters, stacked in term order
     cov: np.ndarray
     slices: list                # per term: slice into beta
-    dof: list                   # per term: degrees of freedom of its variance (fast tier:
-                                # effective blocks, `effective_blocks`; slow: rows - parameters)
+    dof: list                   # per term: degrees of freedom of its variance (effective
+                                # blocks, `effective_blocks`)
     resid_ms: float
-    dof_nominal: list = None    # per term: blocks - 1 (fast tier) / rows - parameters (slow)
+    dof_nominal: list = None    # per term: blocks - 1
 
     def test(self, j, nominal=False):
         """(F statistic, p value) of term j's parameters being zero; `nominal`: with the
@@ -169,9 +125,8 @@ def design(tier, terms, rows):
 
 
 def fit(tier, terms, rows):
-    """Least squares of the residual on the candidates `terms` over `rows`, with the tier's
-    covariance (fast: block-robust; slow: GLS, scaled up if the residual is noisier than the
-    noise model says)."""
+    """Least squares of the residual on the candidates `terms` over `rows`, with the
+    block-robust covariance and its effective degrees of freedom."""
     y, x, blocks, slices = design(tier, terms, rows)
     xtx = x.T @ x
     try:
@@ -180,19 +135,13 @@ def fit(tier, terms, rows):
         inv = np.linalg.pinv(xtx)
     beta = inv @ (x.T @ y)
     e = y - x @ beta
-    if tier.kind == "fast":
-        nb = blocks.max() + 1
-        g = np.zeros((nb, x.shape[1]))
-        np.add.at(g, blocks, x * e[:, None])
-        meat = g.T @ g * nb / max(nb - 1, 1)
-        cov = inv @ meat @ inv
-        nominal = [nb - 1] * len(slices)
-        dof = [min(nb - 1, effective_blocks(x @ inv, blocks, nb, s)) for s in slices]
-    else:
-        n_dof = len(y) - x.shape[1]
-        s2 = max(1.0, float(e @ e) / max(n_dof, 1))
-        cov = inv * s2
-        dof = nominal = [n_dof] * len(slices)
+    nb = blocks.max() + 1
+    g = np.zeros((nb, x.shape[1]))
+    np.add.at(g, blocks, x * e[:, None])
+    meat = g.T @ g * nb / max(nb - 1, 1)
+    cov = inv @ meat @ inv
+    nominal = [nb - 1] * len(slices)
+    dof = [min(nb - 1, effective_blocks(x @ inv, blocks, nb, s)) for s in slices]
     return Fit(beta, cov, slices, dof, float(e @ e) / len(e), nominal)
 
 

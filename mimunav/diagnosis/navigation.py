@@ -158,7 +158,7 @@ def diagnose(flight, cal, alpha=0.05, seed=0, reference=None):
     at = np.clip(np.searchsorted(model.t, epochs), 0, len(model.t) - 1)
     increments = lambda x: np.diff(x[at], axis=0)                            # noqa: E731
     z = increments(nuisance(model))
-    tier = Tier("navigation", "fast", epochs[1:], np.diff(observed, axis=0), [], [],
+    tier = Tier("navigation", epochs[1:], np.diff(observed, axis=0), [], [],
                 knot_s=(t1 - t0,) * 3, linear=[z[:, c, :] for c in range(3)], block_s=BLOCK_S,
                 kept=np.ones(len(epochs) - 1, bool))
     cands = []

@@ -55,9 +55,10 @@ import numpy as np
 from scipy import stats
 
 from .. import effects
+from ..calibration import standard_errors
 from ..evaluation import compensated_mimu
 from ..effects import AXES, Conditions, derivative
-from ..sensors.mimu import G0
+from ..sensors.mimu import G0, MimuUnit
 from . import library, wander
 from .reference import DERIVATIVE_WINDOW_S, accuracy_of, predicted_mimu
 from ..errors import InputError
@@ -117,6 +118,7 @@ class SensorDiagnosis:
     accuracy: dict              # the reference accuracy used
     candidates: int
     candidates_list: list       # [term]
+    fitter: object = None       # the all-rows `Fitter` (for `term_z`)
 
 
 def residual(flight, cal):
@@ -169,8 +171,8 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
     block = np.floor((design.t - design.t[0]) / SPLIT_BLOCK_S).astype(int)
     train = block % 2 == 0
     held = ~train
-    full_scale = {"accel": float(flight.mimu_range.get("accel_m_s2", 40 * G0)),
-                  "gyro": float(flight.mimu_range.get("gyro_rad_s", 450 * DEG))}
+    full_scale = {"accel": float(flight.mimu_range.get("accel_m_s2", MimuUnit.range_accel)),
+                  "gyro": float(flight.mimu_range.get("gyro_rad_s", MimuUnit.range_gyro))}
 
     chosen, within = _select(design, train, alpha, full_scale)
     findings, rejected = _judge(design, chosen, train, held, alpha, full_scale, cond)
@@ -187,7 +189,8 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
     return SensorDiagnosis(findings, unexplained, rejected, within, design, train, conds,
                            {"before": _map(design, before, conds),
                             "after": _map(design, after, conds)},
-                           before, after, acc.as_dict(), len(design.terms), design.terms)
+                           before, after, acc.as_dict(), len(design.terms), design.terms,
+                           everything)
 
 
 def calibration_prior(cal):
@@ -195,11 +198,9 @@ def calibration_prior(cal):
     layout of `reference.Accuracy.prior`: from the standard errors of A1 and W1 in the file's
     `covariance` block (relative: E_ij = dA1_ij / A1_jj, the compensated output's error per
     unit input); zero when the file states none (e.g. a unit's true coefficients). A term
-    within it is the lab fit's own uncertainty, not physics the model lacks. Not yet carried:
-    the uncertainties of C, ct/cw and A2/W2, which match g_sensitivity, temperature_bias and
-    scale_nonlinearity - a term inside those is still reported (as the proof's nulls show
-    when the lab fit is off)."""
-    se = dict(zip(cal.covariance.get("names", []), cal.covariance.get("standard_error", [])))
+    within it is the lab fit's own uncertainty, not physics the model lacks (the terms the
+    model carries beyond A1/W1: `model_allowance`)."""
+    se = standard_errors(cal)
     var = np.zeros(18)
     for k, (key, matrix) in enumerate((("A1", cal.A1), ("W1", cal.W1))):
         for i in range(3):
@@ -539,7 +540,7 @@ def _within(design, j, res):
     ref = _reference_dir(design, j)
     sigma = (np.sqrt(np.diag(ref)) if ref is not None
              else np.full(len(res["b"]), math.sqrt(design.allowance[j])))
-    return {"label": library.label(design.terms[j]), **_describe_b(design.terms[j], res["b"]),
+    return {"label": library.label(design.terms[j]), **_describe_b(res["b"]),
             "reference_1sigma": sigma.tolist(),
             "p_train": math.exp(res["logp"]),
             "note": "significant against the noise, but not beyond the accuracy the "
@@ -547,7 +548,7 @@ def _within(design, j, res):
                     "charged to physics the model lacks"}
 
 
-def _describe_b(term, b):
+def _describe_b(b):
     return {"vector": b.tolist()} if len(b) > 1 else {"coefficient": float(b[0])}
 
 
@@ -557,6 +558,7 @@ def _judge(design, chosen, train, held, alpha, full_scale, cond):
         return [], []
     idx = [c["j"] for c in chosen]
     held_fitter = Fitter(design, held)
+    cleaned = _clean(design, design.residual)
     level = alpha / len(chosen)
     findings, rejected = [], []
     for c in chosen:
@@ -568,7 +570,7 @@ def _judge(design, chosen, train, held, alpha, full_scale, cond):
         finding = estimate(term, b_ho, b_ho - half, b_ho + half)
         where = _where_rows(_contribution(design, j, b_ho))
         finding["where"] = _spans(design, where, term, cond)
-        finding["fit"] = _rms_fit(design, j, b_tr, where, train, held, term)
+        finding["fit"] = _rms_fit(design, cleaned, j, b_tr, where, train, held, term)
         for key in ("order", "window_s", "reference"):
             if key in term:
                 finding[key] = term[key]
@@ -660,10 +662,10 @@ def _clean(design, resid):
     return resid - q @ (q.T @ resid)
 
 
-def _rms_fit(design, j, b_tr, where, train, held, term):
-    """Residual rms in the term's located rows before and after removing it with the
-    training coefficient, on training and on held-out rows (bias removed)."""
-    before = _clean(design, design.residual)
+def _rms_fit(design, before, j, b_tr, where, train, held, term):
+    """Residual rms in the term's located rows before (`before`: the residual with its bias
+    removed, `_clean`) and after removing the term with the training coefficient, on
+    training and on held-out rows."""
     after = _clean(design, design.residual - _contribution(design, j, b_tr))
     chans = sorted(design.columns[j])
     if term["sensor"] == "imu":         # report the sensor whose channels gain most
@@ -729,8 +731,7 @@ def term_z(diag, term):
     if library.label(term) not in labels:
         return float("nan")
     j = labels.index(library.label(term))
-    rows = np.ones(len(diag.design.t), bool)
-    res = _test(Fitter(diag.design, rows), [j], j)
+    res = _test(diag.fitter, [j], j)
     return math.sqrt(res["stat"])
 
 
