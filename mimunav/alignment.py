@@ -39,9 +39,11 @@ MOVING_HALF_WINDOW_S = 0.25     # s: half the interval of the moving two-vector 
 
 @dataclass
 class Alignment:
-    """An initial state (contract `initial_state` in SI: rad, m, m/s, q_nb wxyz) and what
-    the alignment learnt: the gyro bias at rest (rad/s, sensor axes), the rest interval
-    (t0, t1) s, and `method` (how each part was obtained, for the log's metadata)."""
+    """An initial state (contract `initial_state` in SI: t s, rad, m, m/s, q_nb wxyz) and
+    what the alignment learnt: the gyro bias (rad/s, sensor axes) and the accelerometer bias
+    along gravity (m/s^2, sensor axes) of the rest `static` (t0, t1) s they came from ((nan,
+    nan): no rest, biases 0), `at_rest_start` (the state is that of a rest that starts the
+    recording), and `method` (how each part was obtained, for the log's metadata)."""
     t: float
     lat: float
     lon: float
@@ -49,9 +51,16 @@ class Alignment:
     v_ned: np.ndarray
     q_nb: np.ndarray
     gyro_bias: np.ndarray
-    accel_bias: np.ndarray          # m/s^2, sensor axes: the part along gravity only
+    accel_bias: np.ndarray
     static: tuple
     method: str
+    at_rest_start: bool = True
+
+    @property
+    def navigable_from(self):
+        """First instant (s) after the rest the biases came from, when that rest starts the
+        recording; else the initial state's time."""
+        return self.static[1] if self.at_rest_start else self.t
 
 
 def level(f_v):
@@ -61,13 +70,21 @@ def level(f_v):
     return math.atan2(-fy, -fz), math.atan2(fx, math.hypot(fy, fz))
 
 
-def rest_end(t_track, v_ned, t_first):
-    """End of the rest period that starts the track (s): the first epoch moving faster than
-    STATIC_SPEED, less STATIC_MARGIN_S; t_first when the track starts moving."""
-    moving = np.linalg.norm(v_ned, axis=1) > STATIC_SPEED
-    if not moving.any():
-        return float(t_track[-1])
-    return max(float(t_first), float(t_track[np.argmax(moving)]) - STATIC_MARGIN_S)
+def rest_intervals(t_track, v_ned, t_first, t_last):
+    """Rest periods of a track, [(t0, t1)] s: runs of epochs slower than STATIC_SPEED (m/s),
+    each end that meets motion moved STATIC_MARGIN_S into the rest from the neighbouring
+    moving epoch; a run that starts the track starts at t_first (the IMU's first stamp), one
+    that ends it ends at t_last. Only rests of at least MIN_STATIC_S are returned."""
+    still = np.linalg.norm(v_ned, axis=1) <= STATIC_SPEED
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], still.astype(int), [0]])))
+    out = []
+    for a, b in zip(edges[::2], edges[1::2]):          # still[a:b]
+        t0 = t_first if a == 0 else float(t_track[a - 1]) + STATIC_MARGIN_S
+        t1 = t_last if b == len(still) else float(t_track[b]) - STATIC_MARGIN_S
+        t0, t1 = max(t0, t_first), min(t1, t_last)
+        if t1 - t0 >= MIN_STATIC_S:
+            out.append((float(t0), float(t1)))
+    return out
 
 
 def yaw_turned(t, w_v, t0, t1):
@@ -78,54 +95,155 @@ def yaw_turned(t, w_v, t0, t1):
     return float(np.sum(w_v[k, 2] * dt[k]))
 
 
+def reference_attitude(track, t0):
+    """q_nb (wxyz) of the reference at its first epoch at or after t0 with a finite attitude,
+    and that epoch (s); (None, None) when the reference carries no attitude."""
+    q = track.get("q_nb")
+    if q is None:
+        return None, None
+    ok = np.flatnonzero(np.isfinite(q).all(axis=1) & (track["t"] >= t0))
+    if not len(ok):
+        return None, None
+    return np.asarray(q[ok[0]], float), float(track["t"][ok[0]])
+
+
 def initial_alignment(t, w, f, mounting, track=None):
-    """Initial state at the first IMU stamp: level and gyro bias from the rest that starts
-    the recording, heading from the course of `track` {t s, lat, lon rad, h m, v_ned m/s}
-    once it moves faster than COURSE_SPEED. t s, w rad/s, f m/s^2 (sensor axes).
-    Without a track, or without a rest, the missing parts are assumed (say so in `method`)."""
+    """Initial state of a recording: t s, w rad/s, f m/s^2 (sensor axes), `track` the
+    reference {t s, lat, lon rad, h m, v_ned m/s, optional q_nb wxyz of the vehicle (NaN
+    rows: unknown)}. In order of preference:
+
+    1. a rest that starts the recording (MIN_STATIC_S or more): level from its mean specific
+       force, heading from the course once faster than COURSE_SPEED less the gyro's yaw
+       since (else the reference's attitude), state at the first IMU stamp;
+    2. the reference's own attitude at its first epoch with one (an autopilot's estimate,
+       a fused pose): the whole state from the reference;
+    3. moving: the two-vector alignment (`moving_attitude`) at the first reference epoch
+       faster than COURSE_SPEED.
+    The biases come from the rest of case 1, else from the longest rest anywhere (with the
+    Earth rate removed as far as the attitude there is known), else are 0. Without a track
+    a rest of MIN_STATIC_S at the start is assumed and position and heading are 0. When no
+    case applies, an InputError says what the recording lacks."""
+    if track is None or len(track["t"]) < 2:
+        return _untracked(t, w, f, mounting)
+    rests = rest_intervals(track["t"], track["v_ned"], float(t[0]), float(t[-1]))
+    if rests and rests[0][0] <= t[0]:
+        return _from_rest(t, w, f, mounting, track, rests[0])
+    notes = [f"no rest of {MIN_STATIC_S:g} s starts the recording"]
+    q_ref, t_ref = reference_attitude(track, float(t[0]))
+    speed = np.hypot(track["v_ned"][:, 0], track["v_ned"][:, 1])
+    fast = np.flatnonzero((speed >= COURSE_SPEED)
+                          & (track["t"] >= t[0] + MOVING_HALF_WINDOW_S)
+                          & (track["t"] <= t[-1] - MOVING_HALF_WINDOW_S))
+    if q_ref is not None:
+        t0, q_nb = t_ref, q_ref
+        notes.append(f"whole state from the reference at t = {t0:.2f} s (its attitude: "
+                     f"{track.get('attitude_source', 'the reference')})")
+    elif len(fast):
+        t0 = float(track["t"][fast[0]])
+        q_nb = moving_attitude(t, f, mounting, track, t0)
+        notes.append(f"moving alignment at t = {t0:.2f} s ({speed[fast[0]]:.1f} m/s): mean "
+                     "specific force matched to the reference's, forward axis to its velocity")
+    else:
+        raise InputError(
+            "no initial state can be found: the recording does not start with a rest of "
+            f"{MIN_STATIC_S:g} s (reference speed <= {STATIC_SPEED:g} m/s), the reference "
+            f"carries no attitude, and it never moves faster than {COURSE_SPEED:g} m/s "
+            f"(peak {speed.max():.2f} m/s) for a moving alignment")
+    lat, lon, h = (float(np.interp(t0, track["t"], track[k])) for k in ("lat", "lon", "h"))
+    v0 = np.array([np.interp(t0, track["t"], track["v_ned"][:, i]) for i in range(3)])
+    gyro_bias, accel_bias, static, bias_note = _biases_at_a_rest(t, w, f, mounting, track, rests)
+    notes.append(bias_note)
+    return Alignment(t0, lat, lon, h, v0, q_nb, gyro_bias, accel_bias, static,
+                     "; ".join(notes), at_rest_start=False)
+
+
+def _untracked(t, w, f, mounting):
+    """No reference: a rest of MIN_STATIC_S assumed at the start, position and heading 0."""
+    t_end = t[0] + MIN_STATIC_S
+    rest = t <= t_end
+    if rest.sum() < 10:
+        raise InputError(f"fewer than 10 IMU samples in the first {MIN_STATIC_S:g} s: no level")
+    roll, pitch = level(attitude.rotate(mounting.q_vs, f[rest].mean(axis=0)))
+    q_nb = attitude.from_euler(np.array(0.0), np.array(pitch), np.array(roll))
+    w_ie_s = attitude.rotate(np.conjugate(q_nb * mounting.q_vs), earth.earth_rate_ned(0.0))
+    return Alignment(float(t[0]), 0.0, 0.0, 0.0, np.zeros(3), quaternion.as_float_array(q_nb),
+                     w[rest].mean(axis=0) - w_ie_s, np.zeros(3), (float(t[0]), float(t_end)),
+                     f"rest assumed for the first {MIN_STATIC_S:g} s (no GNSS track); level "
+                     "from its mean specific force; position and heading assumed 0")
+
+
+def _from_rest(t, w, f, mounting, track, interval):
+    """Case 1 of `initial_alignment`: the rest `interval` (t0, t1) starts the recording."""
     q_vs = mounting.q_vs
-    notes = []
-    if track is not None and len(track["t"]) >= 2:
-        t_end = rest_end(track["t"], track["v_ned"], t[0])
-    else:
-        t_end = t[0] + MIN_STATIC_S
-        notes.append(f"rest assumed for the first {MIN_STATIC_S:g} s (no GNSS track)")
+    t_end = interval[1]
     rest = (t >= t[0]) & (t <= t_end)
-    if t_end - t[0] < MIN_STATIC_S or rest.sum() < 10:
-        raise InputError(f"the recording does not start at rest (rest {t_end - t[0]:.2f} s, "
-                         f"need {MIN_STATIC_S:g} s): level and gyro bias cannot be found")
-    f_v = attitude.rotate(q_vs, f[rest].mean(axis=0))
-    roll, pitch = level(f_v)
-    notes.append(f"level from the mean specific force over the rest {t[0]:.2f}-{t_end:.2f} s")
-    if track is not None:
-        lat, lon, h = (float(np.interp(t[0], track["t"], track[k])) for k in ("lat", "lon", "h"))
-        speed = np.hypot(track["v_ned"][:, 0], track["v_ned"][:, 1])
-        fast = np.flatnonzero(speed >= COURSE_SPEED)
-        if len(fast):
-            k = fast[0]
-            course = math.atan2(track["v_ned"][k, 1], track["v_ned"][k, 0])
-            w_bias_v = attitude.rotate(q_vs, w[rest].mean(axis=0))
-            w_v = attitude.rotate(q_vs, w) - w_bias_v
-            yaw = course - yaw_turned(t, w_v, t_end, float(track["t"][k]))
-            notes.append(f"heading from the GNSS course at t = {track['t'][k]:.2f} s "
-                         f"({speed[k]:.1f} m/s) less the gyro's yaw since the rest "
-                         "(non-holonomic: no side slip)")
-        else:
-            yaw = 0.0
-            notes.append(f"heading assumed 0 (the track never exceeds {COURSE_SPEED:g} m/s)")
+    if rest.sum() < 10:
+        raise InputError(f"fewer than 10 IMU samples in the rest {t[0]:.2f}-{t_end:.2f} s")
+    roll, pitch = level(attitude.rotate(q_vs, f[rest].mean(axis=0)))
+    notes = [f"level from the mean specific force over the rest {t[0]:.2f}-{t_end:.2f} s"]
+    lat, lon, h = (float(np.interp(t[0], track["t"], track[k])) for k in ("lat", "lon", "h"))
+    speed = np.hypot(track["v_ned"][:, 0], track["v_ned"][:, 1])
+    fast = np.flatnonzero(speed >= COURSE_SPEED)
+    q_ref, t_ref = reference_attitude(track, float(t[0]))
+    if len(fast):
+        k = fast[0]
+        course = math.atan2(track["v_ned"][k, 1], track["v_ned"][k, 0])
+        w_v = attitude.rotate(q_vs, w - w[rest].mean(axis=0))
+        yaw = course - yaw_turned(t, w_v, t_end, float(track["t"][k]))
+        notes.append(f"heading from the GNSS course at t = {track['t'][k]:.2f} s "
+                     f"({speed[k]:.1f} m/s) less the gyro's yaw since the rest "
+                     "(non-holonomic: no side slip)")
+    elif q_ref is not None:
+        yaw = float(attitude.as_euler(quaternion.from_float_array(q_ref))[0])
+        notes.append(f"heading from the reference's attitude at t = {t_ref:.2f} s")
     else:
-        lat = lon = h = 0.0
         yaw = 0.0
-        notes.append("position and heading assumed 0 (no GNSS track)")
+        notes.append(f"heading assumed 0 (the track never exceeds {COURSE_SPEED:g} m/s and "
+                     "carries no attitude)")
     q_nb = attitude.from_euler(np.array(yaw), np.array(pitch), np.array(roll))
-    w_ie_s = attitude.rotate(np.conjugate(q_nb * q_vs), earth.earth_rate_ned(lat))
-    bias = w[rest].mean(axis=0) - w_ie_s
-    f_rest = f[rest].mean(axis=0)
-    norm = np.linalg.norm(f_rest)
-    accel_bias = ((norm - float(earth.normal_gravity(lat, h))) * f_rest / norm
-                  if track is not None else np.zeros(3))
+    gyro_bias, accel_bias = _rest_biases(w[rest], f[rest], q_nb * q_vs, lat, h)
     return Alignment(float(t[0]), lat, lon, h, np.zeros(3), quaternion.as_float_array(q_nb),
-                     bias, accel_bias, (float(t[0]), float(t_end)), "; ".join(notes))
+                     gyro_bias, accel_bias, (float(t[0]), float(t_end)), "; ".join(notes))
+
+
+def _rest_biases(w, f, q_ns, lat, h):
+    """Gyro bias (mean rate less the Earth rate in sensor axes, q_ns the sensor's attitude)
+    and the accelerometer bias along gravity ((|f| - g) f/|f|) of samples at rest."""
+    w_ie_s = attitude.rotate(np.conjugate(q_ns), earth.earth_rate_ned(lat))
+    f_rest = f.mean(axis=0)
+    norm = np.linalg.norm(f_rest)
+    return (w.mean(axis=0) - w_ie_s,
+            (norm - float(earth.normal_gravity(lat, h))) * f_rest / norm)
+
+
+def _biases_at_a_rest(t, w, f, mounting, track, rests):
+    """(gyro bias, accel bias, (t0, t1), note) of the longest rest anywhere in the
+    recording; zeros and (nan, nan) without one. The Earth rate is removed with the
+    reference's attitude there when it has one; else only its vertical part (the level is
+    known, the heading is not), leaving at most Omega cos(lat) = 7.3e-5 rad/s."""
+    if not rests:
+        return (np.zeros(3), np.zeros(3), (math.nan, math.nan),
+                f"biases taken as 0: no rest of {MIN_STATIC_S:g} s in the recording")
+    t0, t1 = max(rests, key=lambda r: r[1] - r[0])
+    k = (t >= t0) & (t <= t1)
+    lat, h = (float(np.interp(0.5 * (t0 + t1), track["t"], track[x])) for x in ("lat", "h"))
+    q_ref, _ = reference_attitude(track, t0)
+    if q_ref is not None:
+        q_nb = quaternion.from_float_array(q_ref)
+        note = "its Earth rate removed with the reference's attitude"
+    else:
+        roll, pitch = level(attitude.rotate(mounting.q_vs, f[k].mean(axis=0)))
+        q_nb = attitude.from_euler(np.array(0.0), np.array(pitch), np.array(roll))
+        note = ("only the Earth rate's vertical part removed (heading unknown there: up to "
+                f"{earth.OMEGA * math.cos(lat):.1e} rad/s of it remain)")
+    gyro_bias, accel_bias = _rest_biases(w[k], f[k], q_nb * mounting.q_vs, lat, h)
+    if q_ref is None:               # take the horizontal Earth rate back out of the removal
+        w_n = earth.earth_rate_ned(lat)
+        horizontal = attitude.rotate(np.conjugate(q_nb * mounting.q_vs),
+                                     np.array([w_n[0], w_n[1], 0.0]))
+        gyro_bias = gyro_bias + horizontal
+    return (gyro_bias, accel_bias, (t0, t1),
+            f"biases from the rest {t0:.2f}-{t1:.2f} s ({note})")
 
 
 def moving_attitude(t, f, mounting, track, t0, half=MOVING_HALF_WINDOW_S):

@@ -211,7 +211,8 @@ def _diagnose(args):
     if level == "auto":
         level = ("sensor" if flight.fog_t is not None else
                  "track" if recorded and flight.truth is not None and
-                 np.isnan(flight.truth.q_nb[0].w) else "navigation")
+                 (flight.source == "recording" or np.isnan(flight.truth.q_nb[0].w))
+                 else "navigation")
     if level in ("navigation", "track") and flight.truth is None:
         raise LogError(f"{args.log}: neither /fog/imu (sensor level) nor /truth/state "
                        f"({level} level): nothing to diagnose against")
@@ -228,7 +229,13 @@ def _diagnose(args):
                      args.model or "identity (the log's /mimu/imu as recorded)", force=args.force)
     if args.json:
         write_atomic(args.json, diagnosis.dumps(doc), force=args.force)
-    print(f"verdict: {doc['verdict']} ({doc['candidates_tested']} candidates)")
+    if doc["conclusive"]:
+        print(f"verdict: {doc['verdict']} ({doc['candidates_tested']} candidates)")
+    else:
+        print(f"verdict: inconclusive (contract verdict {doc['verdict']}; "
+              f"{doc['candidates_tested']} candidates)")
+        for reason in doc["inconclusive_reasons"]:
+            print(f"  because {reason}")
     for f in doc["findings"]:
         units = "" if f["units"] == "1" else f" {f['units']}"
         print(f"  {f['label']}: {f['coefficient']:.4g}{units} "
@@ -245,13 +252,19 @@ def _import(args):
     """A foreign recording into a contract log."""
     from . import importers
     from .importers import rtklib
-    mounting = (rtklib.mounting_from_rpy(args.mounting_rpy_deg) if args.mounting_rpy_deg
+    from .sensors import Mounting
+    mounting = (Mounting.from_rpy_deg(args.mounting_rpy_deg) if args.mounting_rpy_deg
                 else None)
     if args.kind == "rtklib":
-        rec = rtklib.read_drive(args.source, mounting=mounting)
+        names = {v: k for k, v in rtklib.SOLUTION_NAMES.items()}
+        rec = rtklib.read_drive(args.source, mounting=mounting,
+                                solutions=tuple(names[s] for s in args.solutions))
     elif args.kind == "ros2":
         from .importers import ros2
         rec = ros2.read(args.source, args.imu_topic, args.fix_topic, mounting=mounting)
+    elif args.kind == "table":
+        from .importers import table
+        rec = table.read(args.source, mounting=mounting)
     else:
         from .importers import ulog
         rec = ulog.read(args.source, mounting=mounting)
@@ -485,10 +498,13 @@ def build_parser():
     p = sub.add_parser("import", help="turn a recording nobody here wrote into a contract log "
                        "(/mimu/imu in SI sensor axes, /truth/state, /gnss/fix, metadata of what "
                        "is real and what is assumed)")
-    p.add_argument("kind", choices=("rtklib", "ros2", "ulog"),
+    p.add_argument("kind", choices=("rtklib", "ros2", "ulog", "table"),
                    help="rtklib: folder with imu_*.csv, its RTKLIB .tag and an RTKLIB .pos; "
-                   "ros2: an MCAP with sensor_msgs/msg/Imu (+ NavSatFix); ulog: a PX4 .ulg")
-    p.add_argument("source", help="the folder (rtklib) or file (ros2, ulog)")
+                   "ros2: an MCAP with sensor_msgs/msg/Imu (+ NavSatFix); ulog: a PX4 .ulg "
+                   "(its EKF2 estimate as a reference that is not independent); table: a TOML "
+                   "spec of CSV / NumPy columns with units, axes, time base and reference "
+                   "(see mimunav/importers/table.py; example tests/data/comma2k19.toml)")
+    p.add_argument("source", help="the folder (rtklib), file (ros2, ulog) or spec (table)")
     p.add_argument("-o", "--output", required=True, help="log to write (.mcap)")
     p.add_argument("--imu-topic", help="ros2: the sensor_msgs/msg/Imu topic (default: the only one)")
     p.add_argument("--fix-topic", help="ros2: the sensor_msgs/msg/NavSatFix topic (default: the "
@@ -496,7 +512,11 @@ def build_parser():
     p.add_argument("--mounting-rpy-deg", type=float, nargs=3, metavar=("ROLL", "PITCH", "YAW"),
                    help="sensor -> vehicle (FRD) rotation, deg (default: rtklib the README's "
                    "180 0 180; ros2 180 0 0, REP-103 x forward, y left, z up; ulog 0 0 0, "
-                   "PX4's FRD body frame)")
+                   "PX4's FRD body frame; table: the spec's axes)")
+    p.add_argument("--solutions", nargs="+", default=["fix"],
+                   choices=("fix", "float", "sbas", "dgps", "single", "ppp"),
+                   help="rtklib: the solution kinds (RTKLIB Q) that serve as the reference "
+                   "(default fix; every epoch is kept in /gnss/fix with its sigmas)")
     p.add_argument("--force", action="store_true", help="replace an existing output")
     p.set_defaults(func=_import)
     p = sub.add_parser("windows", help="free-inertial windows of 10/30/60 s restarted from the "

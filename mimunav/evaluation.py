@@ -51,6 +51,7 @@ class Flight:
     truth: Trajectory | None
     mimu_imu: tuple | None = None   # (w rad/s, f m/s^2) of /mimu/imu when there is no raw
     fog_meta: dict | None = None    # the log's `sensor/fog` metadata (model, accuracy, ...)
+    source: str = ""                # the flight metadata's source: "simulation", "recording"
 
     @classmethod
     def load(cls, path, reference_imu=True):
@@ -102,7 +103,7 @@ class Flight:
                    *((sec(fog), np.ascontiguousarray(fog["angular_velocity"], float),
                       np.ascontiguousarray(fog["linear_acceleration"], float))
                      if fog is not None else (None, None, None)), mount("fog"), truth_traj, imu,
-                   meta.get("sensor/fog", {}))
+                   meta.get("sensor/fog", {}), str(flight.get("source", "")))
 
     @classmethod
     def from_simulation(cls, fm, unit, fog, raw, fog_out):

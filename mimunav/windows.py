@@ -1,14 +1,16 @@
 """Free-inertial windows on a recording with an external reference trajectory.
 
 How fast does the IMU alone lose position? Along the drive, the IMU is restarted every
-`step` seconds from the reference's position and velocity, with the attitude of a moving
-two-vector alignment (`alignment.moving_attitude`: the reference gives no attitude), and
+`step` seconds from the reference's position and velocity, with the reference's attitude
+where it has one (an autopilot's or a fused pose's), else that of a moving two-vector
+alignment (`alignment.moving_attitude`), and
 navigated free-inertial (no aiding of any kind, vertical channel included) by the project's
 strapdown navigator for 10, 30 and 60 s; the error is the navigated position minus the
 reference's, NED m, at every reference epoch inside the window.
 
 The gyro bias and the accelerometer bias along gravity are those of the rest at the start
-of the recording (`alignment`), removed from every window; nothing else is calibrated. A window starts only where the reference is
+of the recording, else of the longest rest in it, else 0 (`alignment`), removed from every
+window; nothing else is calibrated. A window starts only where the reference is
 moving faster than `alignment.COURSE_SPEED` (heading needs a course) and has no gap
 longer than MAX_GAP_S inside. Windows of one length overlap when step < length, so they are
 not independent: the summary gives the count of disjoint windows the recording holds.
@@ -16,6 +18,7 @@ not independent: the summary gives the count of disjoint windows the recording h
 from dataclasses import dataclass
 
 import numpy as np
+import quaternion
 
 from . import alignment
 from .evaluation import compensated_mimu, navigate, resample
@@ -41,8 +44,10 @@ class Window:
 
 
 def track_of(truth):
-    """The reference as the dict `alignment` takes (t s, lat, lon rad, h m, v_ned m/s)."""
-    return dict(t=truth.t, lat=truth.lat, lon=truth.lon, h=truth.h, v_ned=truth.v_ned)
+    """The reference as the dict `alignment` takes (t s, lat, lon rad, h m, v_ned m/s,
+    q_nb wxyz: NaN rows where the reference has no attitude)."""
+    return dict(t=truth.t, lat=truth.lat, lon=truth.lon, h=truth.h, v_ned=truth.v_ned,
+                q_nb=quaternion.as_float_array(truth.q_nb))
 
 
 def starts(truth, length, step=START_STEP_S, first=0.0, min_speed=alignment.COURSE_SPEED,
@@ -85,7 +90,9 @@ def run(flight, t0, length, w, f, t_imu=None):
     k0 = int(np.searchsorted(t, t0, side="right")) - 1
     t_start = float(t[k0])
     start = resample(truth, np.array([t_start]))
-    q_nb = alignment.moving_attitude(t, f, flight.mimu_mounting, track_of(truth), t_start)
+    q_nb = quaternion.as_float_array(start.q_nb[0])
+    if not np.isfinite(q_nb).all():         # the reference has no attitude: align moving
+        q_nb = alignment.moving_attitude(t, f, flight.mimu_mounting, track_of(truth), t_start)
     initial = dict(t=t_start, lat=float(start.lat[0]), lon=float(start.lon[0]),
                    h=float(start.h[0]), v_ned=start.v_ned[0].copy(), q_nb=q_nb)
     sel = slice(k0, int(np.searchsorted(t, t_start + length, side="right")) + 1)
@@ -110,10 +117,11 @@ def run_all(flight, cal=None, lengths=WINDOW_LENGTHS_S, step=START_STEP_S, time_
     rest = alignment.initial_alignment(t, w, f, flight.mimu_mounting, track_of(flight.truth))
     w, f = w - rest.gyro_bias, f - rest.accel_bias
     out = {}
+    first = rest.navigable_from
     todo = [(length, t0) for length in lengths
-            for t0 in starts(flight.truth, length, step, rest.static[1], min_speed, max_gap)]
+            for t0 in starts(flight.truth, length, step, first, min_speed, max_gap)]
     if not todo:
-        raise InputError(f"{flight.path}: " + _no_windows(flight.truth, lengths, rest.static[1],
+        raise InputError(f"{flight.path}: " + _no_windows(flight.truth, lengths, first,
                                                            min_speed, max_gap))
     if progress:
         from tqdm import tqdm

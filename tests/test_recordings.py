@@ -16,6 +16,7 @@ import quaternion
 
 from mimunav import alignment, attitude, earth, truth, windows
 from mimunav.cli import main
+from mimunav.errors import InputError
 from mimunav.evaluation import Flight
 from mimunav.flightlog import FlightLog, LogWriter
 from mimunav.flightlog import schemas as S
@@ -44,28 +45,32 @@ def _track(duration=120.0, rate=4.0):
         H0 - d[:, 2], v
 
 
-def _ideal_flight(tmp_path, mounting, gyro_bias=np.zeros(3), rate=100.0, lag=0.0):
-    """A log of the synthetic drive: the ideal IMU of its TrackMotion (exact increments,
-    interval means) at `mounting` plus a gyro bias, stamped `lag` s late; the track as
-    /truth/state."""
-    t_tr, lat, lon, h, v = _track()
+def _ideal_flight(tmp_path, mounting, gyro_bias=np.zeros(3), rate=100.0, lag=0.0, track=None,
+                  with_attitude=False):
+    """A log of the synthetic drive (or `track`): the ideal IMU of its TrackMotion (exact
+    increments, interval means) at `mounting` plus a gyro bias, stamped `lag` s late; the
+    track as /truth/state (with the motion's attitude when with_attitude)."""
+    t_tr, lat, lon, h, v = _track() if track is None else track
     motion = TrackMotion(t_tr, lat, lon, h, v)
-    t = np.arange(0.0, t_tr[-1] + 1e-9, 1.0 / rate)
+    t = np.arange(t_tr[0], t_tr[-1] + 1e-9, 1.0 / rate)
     run = truth.generate(motion, t)
     dth, dv = mounting.sensor_increments(run)
     w, f = dth * rate + gyro_bias, dv * rate
     epoch = 1_700_000_000_000_000_000
+    reference = dict(ns=epoch + np.round(t_tr * 1e9).astype(np.int64), lat=lat, lon=lon, h=h,
+                     v_ned=v)
+    if with_attitude:
+        reference["q_nb"] = quaternion.as_float_array(motion.kinematics(t_tr).q_nb)
     rec = Recording("synthetic", "synthetic drive",
                     epoch + np.round((t[1:] + lag) * 1e9).astype(np.int64),
-                    w, f, mounting, reference=dict(ns=epoch + np.round(t_tr * 1e9).astype(np.int64),
-                                                   lat=lat, lon=lon, h=h, v_ned=v))
+                    w, f, mounting, reference=reference)
     tmp_path.mkdir(parents=True, exist_ok=True)
     path = tmp_path / "synthetic.mcap"
     write_log(rec, path)
     return path, motion, run
 
 
-MOUNT = rtklib.mounting_from_rpy((180.0, 0.0, 180.0))
+MOUNT = Mounting.from_rpy_deg((180.0, 0.0, 180.0))
 
 
 def test_track_motion_circle_matches_closed_form():
@@ -128,6 +133,88 @@ def test_alignment_recovers_attitude_and_bias_of_a_synthetic_drive(tmp_path):
         # averaging over a turning interval: second order in the angle turned, (w half)^2
         # = (0.11 rad/s x 0.25 s)^2 = 8e-4 rad at the weave's peak rate
         assert np.linalg.norm(err) < 0.1 * DEG, (t0, np.degrees(err))
+
+
+def _cut(track, t0):
+    return tuple(x[track[0] >= t0] for x in track)
+
+
+def _stop_track(rate=4.0):
+    """Driving at 10 m/s heading 30 deg, a smooth stop at 20-25 s, 20 s at rest, a smooth
+    start at 45-50 s and on to 80 s."""
+    t = np.arange(0.0, 80.0 + 1e-9, 1.0 / rate)
+    down = np.clip((t - 20.0) / 5.0, 0.0, 1.0)
+    up = np.clip((t - 45.0) / 5.0, 0.0, 1.0)
+    smooth = lambda s: s ** 3 * (10 - 15 * s + 6 * s ** 2)           # noqa: E731
+    speed = 10.0 * (1 - smooth(down) + smooth(up))
+    yaw = np.full_like(t, 30 * DEG)
+    v = np.column_stack([speed * np.cos(yaw), speed * np.sin(yaw), np.zeros_like(t)])
+    d = np.vstack([np.zeros(3), np.cumsum(0.5 * (v[1:] + v[:-1]) * np.diff(t)[:, None], axis=0)])
+    r_n, r_e = earth.radii(LAT0)
+    return t, LAT0 + d[:, 0] / (r_n + H0), LON0 + d[:, 1] / ((r_e + H0) * math.cos(LAT0)), \
+        H0 - d[:, 2], v
+
+
+def test_alignment_in_motion_without_a_rest(tmp_path):
+    """A recording that starts on the move (the synthetic drive from 40 s, weaving): the
+    initial state is the moving two-vector alignment at the first fast epoch, its attitude
+    within 0.1 deg of the truth; the biases, never observed, are 0 and the metadata says
+    so. With the reference's own attitude the state is the reference's, exactly."""
+    bias = np.array([0.001, -0.002, 0.003])
+    track = _cut(_track(), 40.0)
+    path, motion, _ = _ideal_flight(tmp_path / "moving", MOUNT, gyro_bias=bias, track=track)
+    flight = Flight.load(path, reference_imu=False)
+    t0 = flight.initial["t"]
+    assert t0 == pytest.approx(40.5 - 40.01, abs=1e-6)     # first fast epoch half a window in
+    q_true = motion.kinematics(np.array([t0 + 40.0])).q_nb[0]
+    err = attitude.rotation_vector_error(quaternion.from_float_array(flight.initial["q_nb"]),
+                                         q_true)
+    assert np.degrees(np.linalg.norm(err)) < 0.1
+    with FlightLog(path) as log:
+        meta = log.metadata()["recording"]
+    assert "moving alignment" in meta["assumed"]["initial_state"]
+    assert "biases taken as 0" in meta["assumed"]["initial_state"]
+    assert meta["static_s"] is None and meta["gyro_bias_static_rad_s"] == [0.0, 0.0, 0.0]
+
+    path, motion, _ = _ideal_flight(tmp_path / "attitude", MOUNT, track=track,
+                                    with_attitude=True)
+    flight = Flight.load(path, reference_imu=False)
+    t0 = flight.initial["t"]            # the first reference epoch after the first IMU stamp
+    assert t0 == pytest.approx(40.25 - 40.01, abs=1e-6)
+    assert np.allclose(flight.initial["q_nb"], quaternion.as_float_array(
+        motion.kinematics(np.array([40.25])).q_nb[0]), atol=1e-9)
+
+
+def test_gyro_bias_from_a_rest_in_the_middle(tmp_path):
+    """No rest at the start, 20 s of rest in the middle: the gyro bias comes from that rest,
+    exact up to the horizontal Earth rate its unknown heading leaves (Omega cos lat); with
+    the reference's attitude the Earth rate is removed whole."""
+    bias = np.array([0.01, -0.02, 0.03])
+    for with_attitude, tol in ((False, earth.OMEGA * math.cos(LAT0) + 1e-7), (True, 1e-7)):
+        path, _, _ = _ideal_flight(tmp_path / str(with_attitude), MOUNT, gyro_bias=bias,
+                                   track=_stop_track(), with_attitude=with_attitude)
+        flight = Flight.load(path, reference_imu=False)
+        w, f = flight.mimu_imu
+        align = alignment.initial_alignment(flight.mimu_t, w, f, flight.mimu_mounting,
+                                            windows.track_of(flight.truth))
+        assert not align.at_rest_start
+        assert 25.0 < align.static[0] < align.static[1] < 45.0 and \
+            align.static[1] - align.static[0] > 15.0
+        assert np.abs(align.gyro_bias - bias).max() < tol, (with_attitude, align.gyro_bias - bias)
+    assert np.abs(align.accel_bias).max() < 1e-4
+
+
+def test_no_initial_state_is_a_clear_error():
+    """Never at rest, no attitude, never faster than the course speed: the error says all
+    three."""
+    t = np.arange(0.0, 20.0, 0.01)
+    n = len(t)
+    track = dict(t=t[::25], lat=np.full(n // 25, LAT0), lon=np.full(n // 25, LON0),
+                 h=np.full(n // 25, H0), v_ned=np.tile([1.0, 0.0, 0.0], (n // 25, 1)))
+    with pytest.raises(InputError, match="does not start with a rest.*no attitude.*never "
+                                         "moves faster"):
+        alignment.initial_alignment(t, np.zeros((n, 3)), np.tile([0, 0, -9.8], (n, 1)),
+                                    Mounting(), track)
 
 
 def test_windows_of_an_ideal_imu_stay_at_the_alignment_error(tmp_path):
@@ -214,7 +301,11 @@ def test_rtklib_excerpt_import_follows_the_contract(tmp_path):
         meta = log.metadata()
         assert meta["flight"]["source"] == "recording"
         assert meta["reference"]["attitude"] == "unknown"
-        assert "author_misalignment_rpy_deg" in meta["recording"]["assumed"]
+        assert meta["reference"]["independent"].startswith("yes")
+        # the source's facts, not a constant description: rate and span from the data
+        assert meta["flight"]["description"].startswith("MEMS IMU 100 Hz")
+        assert meta["recording"]["real"]["source"] == str(DRIVE.resolve())
+        assert "author" not in meta["recording"]["assumed"]
         fix = log.read("/gnss/fix")
         state = log.read("/truth/state")
         imu = log.read("/mimu/imu")
@@ -230,6 +321,16 @@ def test_rtklib_excerpt_import_follows_the_contract(tmp_path):
         quaternion.from_float_array(flight.initial["q_nb"])))
     assert abs(pitch) < 10 and abs(roll) < 10
     assert main(["import", "rtklib", str(DRIVE), "-o", str(out)]) == 2       # never overwrite
+    # a mounting given on the command line is the one written; float epochs on request
+    given = tmp_path / "given.mcap"
+    assert main(["import", "rtklib", str(DRIVE), "-o", str(given), "--mounting-rpy-deg", "0", "0",
+                 "90", "--solutions", "fix", "float"]) == 0
+    with FlightLog(given) as log:
+        meta = log.metadata()
+    q = Mounting.from_dict(meta["sensor/mimu"]["mounting"]).attitude_wxyz
+    assert np.allclose(q, Mounting.from_rpy_deg((0, 0, 90)).attitude_wxyz)
+    assert "given" in meta["recording"]["assumed"]["mounting"]
+    assert meta["reference"]["solutions"] == "fix/float"
 
 
 def test_rtklib_bad_inputs_are_named(tmp_path):

@@ -41,6 +41,10 @@ def document(log_path, diag, alpha=0.05):
         doc["within_reference_accuracy"] = _plain(diag.within_reference)
     if getattr(diag, "reference_check", None):
         doc["reference_check"] = _plain(diag.reference_check)
+    reasons = getattr(diag, "inconclusive", None) or []
+    doc["conclusive"] = not reasons
+    if reasons:
+        doc["inconclusive_reasons"] = reasons
     if diag.level == "navigation":
         doc.update(epoch_s=navigation.EPOCH_S, reference="truth (/truth/state)",
                    velocity_error_rms=_plain(np.sqrt(np.mean(diag.observed ** 2, axis=0))))

@@ -247,10 +247,13 @@ def model_allowance(cal, term):
 
 def verdict(diag):
     """The contract verdict: missing-physics when a term is confirmed, otherwise
-    unexplained-residual when a localized excursion remains, otherwise no-missing-physics."""
+    unexplained-residual when a localized excursion remains or the reference cannot explain
+    the recording (an inconclusive track level), otherwise no-missing-physics."""
     if diag.findings:
         return "missing-physics"
-    return "unexplained-residual" if diag.unexplained else "no-missing-physics"
+    if diag.unexplained or getattr(diag, "inconclusive", None):
+        return "unexplained-residual"
+    return "no-missing-physics"
 
 
 # ---- the design --------------------------------------------------------------------------

@@ -22,6 +22,20 @@ explains less than 81 % of what the MIMU saw on it) is not predicted, and the te
 by that axis alone (`library.inputs`) are left out of the library: their regressor would be
 mostly the reference's own error (errors in variables: a scale factor fitted against a noisy
 input tends to -1). They are reported as not resolvable on this recording.
+
+After the search every finding must also hold where the reference is weakest (`screen`):
+  - it acts on at least one output channel the reference predicts (else its residual is
+    mostly the vehicle model's own error);
+  - removing it lowers the held-out residual rms where it acts;
+  - removing it does not make the IMU navigate worse: the median of the paired differences
+    of the 10 s free-inertial windows' end errors (`windows`) with and without it is not
+    positive.
+A finding that fails one is not confirmed; when none survives, the diagnosis is then
+**inconclusive** (something was seen that this reference cannot support); so it is when the reference predicts fewer than MIN_PREDICTED of the six channels or fewer than
+MIN_TRUSTED of the samples are usable. The contract's verdict has no such word: an
+inconclusive diagnosis keeps its findings' verdict if any survive, otherwise
+"unexplained-residual" (the reference does not explain the recording), with
+`conclusive: false` and the reasons in the document.
 """
 from dataclasses import replace
 
@@ -46,6 +60,9 @@ VEHICLE_MODEL_ACCURACY = Accuracy(gyro_scale=1e-2, accel_scale=1e-2, gyro_misali
                                   given=Accuracy.KEYS)
 PREDICTED_CORRELATION = 0.9
 CHECK_BIN_S = 1.0
+MIN_PREDICTED = 3           # of six channels: fewer, and the reference cannot carry a verdict
+MIN_TRUSTED = 0.25          # fraction of the MIMU's samples inside the trusted motion
+CHECK_WINDOW_S = 10.0       # free-inertial windows of the navigation check
 
 # Noise of the consumer part (shared/data/rtklib-drive/README: the author's settings, an
 # LSM6DSO-class device): white densities; its flicker instability is not published, the
@@ -128,8 +145,71 @@ def diagnose(flight, cal, alpha=0.05, reference=None, accuracy=None):
         "correlation_1s": corr, "threshold": PREDICTED_CORRELATION,
         "unpredicted_inputs": sorted(".".join(c) for c in unpredicted),
         "not_tested": [library.label(term) for term in left_out],
-        "trusted_fraction": float(trusted.mean())}
+        "trusted_fraction": float(trusted.mean()),
+        "usable_s": float(len(diag.design.t) * np.median(np.diff(diag.design.t)))}
+    diag.inconclusive = screen(diag, flight, cal)
     return diag
+
+
+def screen(diag, flight, cal):
+    """Move the findings that fail the module's checks to `diag.rejected`; returns the
+    reasons the diagnosis is inconclusive ([] when it is not)."""
+    check = diag.reference_check
+    unpredicted = set(check["unpredicted_inputs"])
+    reasons = []
+    predicted = 6 - len(unpredicted)
+    if predicted < MIN_PREDICTED:
+        reasons.append(f"the reference predicts {predicted} of 6 channels (1 s correlation >= "
+                       f"{PREDICTED_CORRELATION:g}; not: {', '.join(sorted(unpredicted))})")
+    if check["trusted_fraction"] < MIN_TRUSTED:
+        reasons.append(f"{100 * check['trusted_fraction']:.0f} % of the samples are in trusted "
+                       f"motion (need {100 * MIN_TRUSTED:.0f} %)")
+    kept, demoted = [], []
+    baseline = None
+    for finding in diag.findings:
+        j = sensor._position(diag.design, finding)
+        acts_on = {".".join(CHANNELS[ch]) for ch in diag.design.columns[j]}
+        fit = finding["fit"]
+        why = None
+        if acts_on <= unpredicted:
+            why = f"acts only on channels the reference does not predict ({', '.join(sorted(acts_on))})"
+        elif not fit["heldout_rms_after"] < fit["heldout_rms_before"]:
+            why = (f"does not lower the held-out residual where it acts "
+                   f"({fit['heldout_rms_before']:.4g} -> {fit['heldout_rms_after']:.4g} "
+                   f"{fit['units']})")
+        else:
+            if baseline is None:
+                baseline = _window_ends(flight, cal, [])
+            ends = _window_ends(flight, cal, [finding])
+            if baseline is not None and ends is not None:
+                paired = float(np.median(ends - baseline))
+                finding["navigation_check"] = {
+                    "windows": len(ends), "window_s": CHECK_WINDOW_S,
+                    "median_end_error_m": [float(np.median(baseline)), float(np.median(ends))],
+                    "median_paired_change_m": paired}
+                if paired > 0:
+                    why = (f"navigates worse: the median {CHECK_WINDOW_S:g} s window end error "
+                           f"rises by {paired:.3g} m over {len(ends)} windows")
+        if why is None:
+            kept.append(finding)
+        else:
+            diag.rejected.append(dict(finding, rejected=why))
+            demoted.append(f"{finding['label']} {why}")
+    diag.findings = kept
+    return reasons + (demoted if not kept else [])
+
+
+def _window_ends(flight, cal, findings):
+    """Horizontal end errors (m) of the CHECK_WINDOW_S free-inertial windows with the
+    findings removed from the MIMU, or None when the recording holds no window."""
+    from .. import windows
+    from . import with_found
+    found = with_found(cal, findings) if findings else None
+    try:
+        results, _ = windows.run_all(flight, found, lengths=(CHECK_WINDOW_S,))
+    except InputError:
+        return None
+    return np.array([w.horizontal[-1] for w in results[CHECK_WINDOW_S]])
 
 
 LAG_SEARCH_S = 0.5

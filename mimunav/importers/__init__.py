@@ -25,6 +25,12 @@ from ..sensors import Mounting
 from ..errors import InputError
 
 UNKNOWN_ATTITUDE = np.full(4, np.nan)
+GPS_EPOCH_UNIX_S = 315964800            # 1980-01-06T00:00:00Z, the start of GPS time
+# GPS - UTC, s, from the GPS time (s since the GPS epoch) at which each took effect (IERS
+# Bulletin C; none added after 2017-01-01)
+LEAP_SECONDS = ((0, 0), (46828800, 7), (78364801, 8), (109900802, 9), (173059203, 10),
+                (252028804, 11), (315187205, 12), (346723206, 13), (820108813, 14),
+                (914803214, 15), (1025136015, 16), (1119744016, 17), (1167264017, 18))
 
 
 class RecordingError(InputError):
@@ -38,7 +44,9 @@ class Recording:
     imu_ns: IMU stamps, integer ns since the UNIX epoch (N,), strictly increasing;
     w: angular rate, rad/s, IMU sensor axes (N, 3); f: specific force, m/s^2 (N, 3);
     reference: optional external trajectory {ns, lat, lon (rad), h (m), v_ned (m/s, (M, 3)),
-      quality (M,) 1 = best}; fixes: optional GNSS fixes {ns, lat, lon, h, status (int8 as
+      optional q_nb (M, 4) wxyz vehicle FRD -> NED (NaN rows: unknown)}, described by
+      `reference_meta` {source, independent ("yes"/"no: why"), position_sigma_m, ...};
+    fixes: optional GNSS fixes {ns, lat, lon, h, status (int8 as
       in NavSatStatus), covariance (M, 9) m^2 ENU}; real / assumed: what the metadata says
       is measured and what this import assumed."""
     name: str
@@ -49,6 +57,7 @@ class Recording:
     mounting: Mounting
     model: str = "unknown"
     reference: dict | None = None
+    reference_meta: dict = field(default_factory=dict)
     fixes: dict | None = None
     real: dict = field(default_factory=dict)
     assumed: dict = field(default_factory=dict)
@@ -77,6 +86,14 @@ class Recording:
         return float(1e9 / np.median(np.diff(self.imu_ns)))
 
 
+def gps_to_unix_s(gps_s):
+    """UNIX (UTC) seconds of GPS times (s since 1980-01-06), the leap seconds then in force
+    removed."""
+    gps_s = np.asarray(gps_s, dtype=float)
+    starts, leaps = np.array(LEAP_SECONDS).T
+    return gps_s + GPS_EPOCH_UNIX_S - leaps[np.searchsorted(starts, gps_s, side="right") - 1]
+
+
 def write_log(rec, path, force=False):
     """Write `rec` as a contract log at `path` (atomically; an existing file only with
     force). Returns the initial alignment (`alignment.Alignment`)."""
@@ -101,17 +118,22 @@ def write_log(rec, path, force=False):
                                    "gyro_bias_static_rad_s": list(map(float, align.gyro_bias)),
                                    "accel_bias_along_gravity_m_s2":
                                        list(map(float, align.accel_bias)),
-                                   "static_s": [float(align.static[0]), float(align.static[1])],
+                                   "static_s": (None if np.isnan(align.static[0]) else
+                                                [float(align.static[0]), float(align.static[1])]),
                                    "observed_max": {"gyro_rad_s": float(np.abs(rec.w).max()),
                                                     "accel_m_s2": float(np.abs(rec.f).max())}})
         log.write("/mimu/imu", S.IMU, "mimu", rec.imu_ns, **S.imu_fields(rec.w, rec.f))
         if ref is not None:
-            log.metadata("reference", {"source": rec.real.get("reference", "external"),
-                                       "attitude": "unknown", "velocity": "measured"})
-            m = len(ref["ns"])
+            q = ref.get("q_nb")
+            known = q is not None and np.isfinite(q).all(axis=1).any()
+            meta = {"source": rec.real.get("reference", "external"),
+                    "attitude": "measured" if known else "unknown", "velocity": "measured"}
+            meta.update({k: str(v) for k, v in rec.reference_meta.items()})
+            log.metadata("reference", meta)
             log.write("/truth/state", S.NAV_STATE, "vehicle", ref["ns"],
                       latitude=ref["lat"], longitude=ref["lon"], height=ref["h"],
-                      velocity_ned=ref["v_ned"], attitude_wxyz=np.tile(UNKNOWN_ATTITUDE, (m, 1)))
+                      velocity_ned=ref["v_ned"],
+                      attitude_wxyz=q if known else np.tile(UNKNOWN_ATTITUDE, (len(ref["ns"]), 1)))
         if rec.fixes is not None:
             fx = rec.fixes
             log.metadata("gnss", {"latitude_longitude": "rad (log contract conventions)",
@@ -137,4 +159,5 @@ def _track(rec, epoch):
         ned = earth.ned_difference(src["lat"], src["lon"], src["h"], src["lat"][0],
                                    src["lon"][0], src["h"][0])
         v = np.gradient(ned, t, axis=0)
-    return dict(t=t, lat=src["lat"], lon=src["lon"], h=src["h"], v_ned=v)
+    return dict(t=t, lat=src["lat"], lon=src["lon"], h=src["h"], v_ned=v, q_nb=src.get("q_nb"),
+                attitude_source=rec.reference_meta.get("source", "the reference"))

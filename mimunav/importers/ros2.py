@@ -19,7 +19,7 @@ from . import RecordingError, Recording
 
 IMU = "sensor_msgs/msg/Imu"
 NAV_SAT_FIX = "sensor_msgs/msg/NavSatFix"
-FLU_TO_FRD = Mounting([0.0, 1.0, 0.0, 0.0])       # half turn about x
+FLU_TO_FRD = Mounting.from_axes("FLU")            # a half turn about x
 
 
 def topics(path):

@@ -26,28 +26,21 @@ import os
 import struct
 
 import numpy as np
-import quaternion
 
-from .. import attitude
 from ..sensors import Mounting
 from . import RecordingError, Recording
 
 G_UNIT = 9.80665            # m/s^2 per g: the standard gravity an accelerometer's g means
 GPS_UTC_LEAP_S = 18         # GPST - UTC since 2017-01-01 (IERS Bulletin C: none added since)
+SOLUTION_NAMES = {1: "fix", 2: "float", 3: "sbas", 4: "dgps", 5: "single", 6: "ppp"}   # RTKLIB Q
 TAG_HEADER = 60
-# The author's sensor -> vehicle (FRD) rotation, roll/pitch/yaw in deg (README): sensor z
-# up, x backward. His further "small misalignment" (about [0, -6.79, 5.35] deg) is NOT put
-# in the mounting: it is what `mimunav diagnose` should find, and is kept in the metadata.
+# The sensor -> vehicle (FRD) rotation of the rtklibexplorer kit, roll/pitch/yaw in deg (the
+# drive's README): sensor z up, x backward - the default; --mounting-rpy-deg overrides it.
+# The author's own estimates for drive_0708 (a further misalignment of about [0, -6.79,
+# 5.35] deg and a -0.125 s time shift) belong to that drive: only its report uses them.
 NOMINAL_RPY_DEG = (180.0, 0.0, 180.0)
 AUTHOR_MISALIGNMENT_RPY_DEG = (0.0, -6.79, 5.35)
 AUTHOR_TIME_SHIFT_S = -0.125
-
-
-def mounting_from_rpy(rpy_deg, lever_arm_m=(0.0, 0.0, 0.0)):
-    """Mounting with q_vs from roll, pitch, yaw (deg, z-y-x as `attitude.from_euler`)."""
-    roll, pitch, yaw = np.radians(rpy_deg)
-    q = attitude.from_euler(np.array(yaw), np.array(pitch), np.array(roll))
-    return Mounting(quaternion.as_float_array(q), lever_arm_m)
 
 
 def read_imu_csv(path):
@@ -142,39 +135,51 @@ def find_files(folder):
     return csv, tag, one("*.pos")
 
 
-def read_drive(folder, mounting=None, name=None):
-    """The drive in `folder` as a `Recording` (IMU in SI sensor axes, RTK as the reference,
-    the fixed and float RTK epochs also as GNSS fixes)."""
+def read_drive(folder, mounting=None, name=None, solutions=(1,)):
+    """The drive in `folder` as a `Recording` (IMU in SI sensor axes; as the reference the
+    RTK epochs whose Q is in `solutions` (1 fix, 2 float, 5 single) and that carry velocity;
+    every epoch also as a GNSS fix with its sigmas)."""
     csv, tag, pos = find_files(folder)
     ticks, f, w, dropped = read_imu_csv(csv)
     start, tag_ticks, _ = read_time_tags(tag)
     ns = imu_stamps_ns(ticks, start, tag_ticks)
     keep = np.concatenate([[True], np.diff(ns) > 0])       # repeated ticks: keep the first
     sol = read_pos(pos)
-    good = np.isfinite(sol["v_ned"]).all(axis=1) & (sol["quality"] == 1)
+    good = np.isfinite(sol["v_ned"]).all(axis=1) & np.isin(sol["quality"], solutions)
     reference = {k: sol[k][good] for k in ("ns", "lat", "lon", "h", "v_ned")}
     sd = sol["sd"]
     cov = np.zeros((len(sol["ns"]), 9))
     cov[:, 0], cov[:, 4], cov[:, 8] = sd[:, 1] ** 2, sd[:, 0] ** 2, sd[:, 2] ** 2    # ENU
     fixes = dict(ns=sol["ns"], lat=sol["lat"], lon=sol["lon"], h=sol["h"],
                  status=np.where(sol["quality"] == 1, 2, 0).astype(np.int8), covariance=cov)
-    mounting = mounting or mounting_from_rpy(NOMINAL_RPY_DEG)
+    given = mounting is not None
+    mounting = mounting or Mounting.from_rpy_deg(NOMINAL_RPY_DEG)
+    kinds = "/".join(SOLUTION_NAMES.get(q, str(q)) for q in solutions)
+    counts = ", ".join(f"{SOLUTION_NAMES.get(q, q)} {int((sol['quality'] == q).sum())}"
+                       for q in np.unique(sol["quality"]))
+    rate = 1e9 / np.median(np.diff(ns[keep]))
+    span = (ns[keep][-1] - ns[keep][0]) / 1e9
     real = {"imu": f"{os.path.basename(csv)}: {len(ticks)} complete lines "
                    f"({len(dropped)} partial dropped: lines {dropped[:5]}); g -> m/s^2 by "
                    f"{G_UNIT}, deg/s -> rad/s; no temperature channel",
             "imu_time": f"first and last IMU ticks mapped onto the first and last RTKLIB time "
                         f"tags (arrival times) of {os.path.basename(tag)}, GPST - "
                         f"{GPS_UTC_LEAP_S} s = UTC; the stream's latency is not removed",
-            "reference": f"RTK solution {os.path.basename(pos)}: {int(good.sum())} fixed epochs "
-                         f"of {len(good)} with velocity (float epochs only in /gnss/fix)",
-            "source": "rtklibexplorer/GNSS_IMU data/drive_0708 (BSD-3-Clause)"}
-    assumed = {"mounting": f"sensor -> vehicle roll/pitch/yaw {list(NOMINAL_RPY_DEG)} deg (the "
-                           "README's frame); lever arm 0: IMU and antenna at one point",
-               "author_misalignment_rpy_deg": list(AUTHOR_MISALIGNMENT_RPY_DEG),
-               "author_time_shift_s": AUTHOR_TIME_SHIFT_S,
+            "reference": f"RTK solution {os.path.basename(pos)}: {int(good.sum())} {kinds} "
+                         f"epochs with velocity of {len(good)} ({counts})",
+            "source": os.path.abspath(folder)}
+    assumed = {"mounting": ("given on the command line" if given else
+                            f"sensor -> vehicle roll/pitch/yaw {list(NOMINAL_RPY_DEG)} deg (the "
+                            "rtklibexplorer kit's frame)"),
+               "lever_arm": "as the mounting says (0 unless given): IMU and antenna at one point",
                "calibration": "none: the IMU's outputs are used as recorded (bias, scale and "
                               "axis errors remain)"}
+    sigma = np.linalg.norm(sd[good], axis=1)
+    meta = {"source": f"RTKLIB solution ({kinds})", "independent": "yes: GNSS only",
+            "position_sigma_m": f"{np.median(sigma):.3g}" if len(sigma) else "unknown",
+            "solutions": kinds}
     name = name or os.path.basename(os.path.normpath(folder))
-    return Recording(name, "real car drive: consumer MEMS IMU 100 Hz + RTK GNSS 4 Hz", ns[keep],
-                     w[keep], f[keep], mounting, model="consumer MEMS (LSM6DSO class)",
-                     reference=reference, fixes=fixes, real=real, assumed=assumed)
+    return Recording(name, f"MEMS IMU {rate:.0f} Hz, {span:.0f} s, with an RTK solution "
+                     f"({counts})", ns[keep], w[keep], f[keep], mounting,
+                     model="unknown (RTKLIB-tagged CSV)", reference=reference,
+                     reference_meta=meta, fixes=fixes, real=real, assumed=assumed)

@@ -1,5 +1,10 @@
 """PX4 ULog flight logs (read by pyulog): the IMU from `sensor_combined` and GNSS from
-`vehicle_gps_position` (or `sensor_gps` in newer PX4).
+`vehicle_gps_position` (or `sensor_gps` in newer PX4); as reference, when the log has it, the
+autopilot's own estimate (`vehicle_global_position` with the velocity of
+`vehicle_local_position` and the attitude of `vehicle_attitude`) - labelled "autopilot
+estimate, not independent": EKF2 fuses this very IMU, so it cannot show that IMU's errors
+beyond what the filter leaves. Every `sensor_accel` / `sensor_gyro` instance is listed in the
+metadata with its rate and temperature range.
 
 PX4 conventions: sensor_combined holds gyro_rad (rad/s) and accelerometer_m_s2 (specific
 force, m/s^2) in the vehicle body frame FRD (the board rotation applied), each the mean
@@ -16,6 +21,8 @@ from ..sensors import Mounting
 from . import RecordingError, Recording
 
 GNSS_TOPICS = ("vehicle_gps_position", "sensor_gps")
+REFERENCE_TOPICS = ("vehicle_global_position", "vehicle_local_position", "vehicle_attitude")
+INSTANCE_TOPICS = ("sensor_accel", "sensor_gyro")
 
 
 def _topic(ulog, name):
@@ -36,7 +43,8 @@ def read(path, mounting=None):
     """The recording of a PX4 ULog as a `Recording` (IMU in FRD body axes)."""
     from pyulog import ULog
     try:
-        ulog = ULog(path, message_name_filter_list=["sensor_combined", *GNSS_TOPICS])
+        ulog = ULog(path, message_name_filter_list=["sensor_combined", *GNSS_TOPICS,
+                                                    *REFERENCE_TOPICS, *INSTANCE_TOPICS])
     except Exception as exc:            # pyulog raises its own and struct errors
         raise RecordingError(f"{path}: not a readable ULog ({exc})") from None
     imu = _topic(ulog, "sensor_combined")
@@ -71,12 +79,68 @@ def read(path, mounting=None):
         assumed["time"] = "no GNSS UTC time: boot placed at the UNIX epoch"
     keep = np.concatenate([[True], np.diff(boot_us) > 0])
     name = os.path.splitext(os.path.basename(path))[0]
-    real = {"imu": f"sensor_combined ({len(boot_us)} samples)", "source": os.path.basename(path)}
+    real = {"imu": f"sensor_combined ({len(boot_us)} samples)", "source": os.path.abspath(path),
+            "imu_instances": instances(ulog)}
     if fixes is not None:
         real["gnss"] = f"{gps.name} ({len(fixes['ns'])} 3-D fixes)"
+    reference = autopilot_estimate(ulog, offset_us)
+    if reference is not None:
+        real["reference"] = ("PX4 EKF2 output: vehicle_global_position, vehicle_local_position "
+                             f"velocity, vehicle_attitude ({len(reference['ns'])} epochs)")
     assumed.update(mounting="PX4 body frame FRD = vehicle frame" if mounting is None
                    else "given on the command line",
                    calibration="PX4's on-board calibration, as logged")
-    return Recording(name, f"PX4 ULog {os.path.basename(path)}", (boot_us[keep] + offset_us) * 1000,
-                     w[keep], f[keep], mounting or Mounting(), fixes=fixes,
-                     real=real, assumed=assumed)
+    rate = 1e6 / np.median(np.diff(boot_us[keep]))
+    span = (boot_us[-1] - boot_us[0]) / 1e6
+    return Recording(name, f"PX4 ULog {os.path.basename(path)}: sensor_combined {rate:.0f} Hz, "
+                     f"{span:.1f} s", (boot_us[keep] + offset_us) * 1000,
+                     w[keep], f[keep], mounting or Mounting(), model="PX4 autopilot IMU",
+                     reference=reference,
+                     reference_meta=({"source": "autopilot estimate (PX4 EKF2)",
+                                      "independent": "no: the autopilot fuses this IMU"}
+                                     if reference is not None else {}),
+                     fixes=fixes, real=real, assumed=assumed)
+
+
+def instances(ulog):
+    """{topic:instance: 'N samples at R Hz, temperature a-b degC'} of every sensor_accel and
+    sensor_gyro instance (the IMUs behind sensor_combined)."""
+    out = {}
+    for d in sorted((d for d in ulog.data_list if d.name in INSTANCE_TOPICS),
+                    key=lambda d: (d.name, d.multi_id)):
+        t = np.asarray(d.data["timestamp"], float) / 1e6
+        rate = (len(t) - 1) / (t[-1] - t[0]) if len(t) > 1 and t[-1] > t[0] else 0.0
+        text = f"{len(t)} samples at {rate:.3g} Hz"
+        if "temperature" in d.data:
+            temp = np.asarray(d.data["temperature"], float)
+            temp = temp[np.isfinite(temp)]
+            if len(temp):
+                text += f", temperature {temp.min():.2f} to {temp.max():.2f} degC"
+        out[f"{d.name}:{d.multi_id}"] = text
+    return out
+
+
+def autopilot_estimate(ulog, offset_us):
+    """The autopilot's trajectory on the epochs of vehicle_global_position: lat, lon (rad),
+    h (m, ellipsoidal), v_ned (m/s, vehicle_local_position vx/vy/vz interpolated), q_nb (wxyz,
+    vehicle_attitude q, body FRD -> NED, by slerp; NaN outside its span); None when the log
+    has no global position or no local velocity."""
+    from scipy.spatial.transform import Rotation, Slerp
+    pos, loc = _topic(ulog, "vehicle_global_position"), _topic(ulog, "vehicle_local_position")
+    if pos is None or loc is None or len(pos.data["timestamp"]) < 2:
+        return None
+    t = np.asarray(pos.data["timestamp"], np.int64)
+    h = _field(pos, "alt_ellipsoid", "alt")
+    t_loc = np.asarray(loc.data["timestamp"], float)
+    v = np.column_stack([np.interp(t, t_loc, _field(loc, c)) for c in ("vx", "vy", "vz")])
+    q = np.full((len(t), 4), np.nan)
+    att = _topic(ulog, "vehicle_attitude")
+    if att is not None and len(att.data["timestamp"]) >= 2:
+        t_att = np.asarray(att.data["timestamp"], float)
+        wxyz = np.column_stack([_field(att, f"q[{i}]") for i in range(4)])
+        inside = (t >= t_att[0]) & (t <= t_att[-1])
+        slerp = Slerp(t_att, Rotation.from_quat(wxyz[:, [1, 2, 3, 0]]))
+        xyzw = slerp(t[inside].astype(float)).as_quat()
+        q[inside] = xyzw[:, [3, 0, 1, 2]]
+    return dict(ns=(t + offset_us) * 1000, lat=np.radians(_field(pos, "lat")),
+                lon=np.radians(_field(pos, "lon")), h=h, v_ned=v, q_nb=q)

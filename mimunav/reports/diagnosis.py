@@ -65,6 +65,21 @@ def markdown(doc, diag, cal_label):
              f"Model: `{cal_label}`. Verdict: **{doc['verdict']}** "
              f"({doc['candidates_tested']} candidate terms, family-wise alpha {doc['alpha']}).",
              "", doc["method"] + ".", ""]
+    if not doc["conclusive"]:
+        lines += ["**Inconclusive**: this recording cannot support a verdict on missing "
+                  "physics (the contract's verdict field says "
+                  f"`{doc['verdict']}`), because", ""]
+        lines += [f"- {r}" for r in doc["inconclusive_reasons"]] + [""]
+    check = doc.get("reference_check")
+    if check:
+        corr = check["correlation_1s"]
+        lines += ["## What the reference predicts", "",
+                  "Correlation of the 1 s means of the recorded and the reference-predicted "
+                  f"output over trusted samples ({100 * check['trusted_fraction']:.0f} % of the "
+                  f"samples; {check['usable_s']:.0f} s usable); below {check['threshold']:g} a "
+                  "channel is not predicted and the terms it drives are not tested.", "",
+                  "| " + " | ".join(corr) + " |", "|" + "---|" * len(corr),
+                  "| " + " | ".join(f"{v:.3f}" for v in corr.values()) + " |", ""]
     if doc["findings"]:
         lines += ["## Found terms (coefficient and 95 % interval from the held-out segments)", "",
                   "| term | coefficient | 95 % interval | units | p train / Holm limit | "

@@ -10,10 +10,11 @@ from .plots import figure, save
 
 def document(flight, results, rest, cal_label, time_shift_s):
     """JSON-ready: the summary table, the alignment at rest and every window's end error."""
-    span = float(flight.truth.t[-1] - rest.static[1])
+    span = float(flight.truth.t[-1] - rest.navigable_from)
+    static = [None if np.isnan(x) else x for x in rest.static]
     return {"format": "mimunav-windows/1", "log": flight.path, "calibration": cal_label,
             "time_shift_s": time_shift_s,
-            "rest": {"t0_s": rest.static[0], "t1_s": rest.static[1],
+            "rest": {"t0_s": static[0], "t1_s": static[1], "alignment": rest.method,
                      "gyro_bias_rad_s": rest.gyro_bias.tolist(),
                      "accel_bias_along_gravity_m_s2": rest.accel_bias.tolist()},
             "summary": {f"{length:g}": row for length, row in

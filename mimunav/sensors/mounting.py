@@ -26,6 +26,35 @@ class Mounting:
         return quaternion.from_float_array(self.attitude_wxyz)
 
     @classmethod
+    def from_rpy_deg(cls, rpy_deg, lever_arm_m=(0.0, 0.0, 0.0)):
+        """Mounting with q_vs from roll, pitch, yaw (deg, z-y-x as `attitude.from_euler`)."""
+        roll, pitch, yaw = np.radians(np.asarray(rpy_deg, dtype=float).reshape(3))
+        q = attitude.from_euler(np.array(yaw), np.array(pitch), np.array(roll))
+        return cls(quaternion.as_float_array(q), lever_arm_m)
+
+    @classmethod
+    def from_axes(cls, axes, lever_arm_m=(0.0, 0.0, 0.0)):
+        """Mounting from the vehicle direction of each sensor axis x, y, z, as three letters
+        of F/B (forward, backward), R/L (right, left), D/U (down, up): "FRD" is the vehicle
+        frame itself, "FLU" ROS's body frame (REP-103), "RFU" an ENU-like phone frame. The
+        axes must form a right-handed frame."""
+        unit = {"F": (0, 1.0), "B": (0, -1.0), "R": (1, 1.0), "L": (1, -1.0), "D": (2, 1.0),
+                "U": (2, -1.0)}
+        letters = str(axes).upper()
+        if len(letters) != 3 or any(c not in unit for c in letters):
+            raise InputError(f"axes {axes!r}: three letters of F/B, R/L, D/U (e.g. FRD, FLU)")
+        c_vs = np.zeros((3, 3))
+        for k, c in enumerate(letters):
+            row, sign = unit[c]
+            c_vs[row, k] = sign
+        if abs(np.linalg.det(c_vs) - 1) > 1e-9:
+            raise InputError(f"axes {axes!r} are not a right-handed frame (repeated or mirrored "
+                             "directions)")
+        q = quaternion.as_float_array(quaternion.from_rotation_matrix(c_vs))
+        lead = q[np.flatnonzero(np.abs(q) > 1e-12)[0]]
+        return cls(np.sign(lead) * q + 0.0, lever_arm_m)    # one sign of q, no -0.0
+
+    @classmethod
     def from_dict(cls, doc):
         return cls(doc.get("attitude_wxyz", [1, 0, 0, 0]), doc.get("lever_arm_m", [0, 0, 0]))
 

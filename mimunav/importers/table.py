@@ -1,0 +1,263 @@
+"""Any logger's columns - CSV or NumPy arrays - described by a TOML spec, as a `Recording`.
+
+    mimunav import table SPEC.toml -o OUT.mcap
+
+The spec names each quantity's file (and columns), its unit and its time base; nothing is
+guessed. Paths are relative to `root` (default: the spec's folder). A column source is either
+a path string or a table:
+
+    { file = "imu.csv", columns = ["gx", "gy", "gz"], unit = "deg/s", time = <column source> }
+
+`columns` picks CSV columns by header name or 0-based index, or NumPy columns by index
+(default: all). `time` overrides the section's time for that quantity (e.g. a gyro on its own
+clock: it is interpolated linearly onto the specific force's stamps, and the metadata says so).
+
+    name, description, model     text
+    root                         folder of the data files
+    [imu]     time               device time of the samples
+              angular_rate       rad/s | deg/s                      (N, 3), sensor axes
+              specific_force     m/s^2 | g                          (N, 3), sensor axes
+              axes = "FRD"       vehicle direction of sensor x, y, z (`Mounting.from_axes`)
+              or mounting_rpy_deg = [roll, pitch, yaw]; lever_arm_m = [x, y, z] (vehicle FRD)
+    [time]    unix_offset_s      UNIX time = device time + offset (s), or
+              gps_week_tow       {file, time}: rows of (GPS week, time of week s) stamped in
+                                 device time; the offset is their median difference, the GPS -
+                                 UTC leap seconds of that date removed
+    [reference] (optional)
+              time               device time of the epochs
+              latitude, longitude  deg | rad;  height  m (ellipsoidal)   or  position_ecef m
+              velocity_ned  m/s  or  velocity_ecef  m/s  (else central differences of position)
+              attitude_wxyz      unit quaternions with `rotates` = "body_to_ecef" | "body_to_ned"
+              source, independent ("yes" / "no: why"), position_sigma_m   text for the metadata
+
+Units: s, ms, us, ns; rad/s, deg/s; m/s^2, g (9.80665); deg, rad; m, mm; m/s.
+"""
+import os
+import tomllib
+
+import numpy as np
+import quaternion
+
+from .. import earth
+from ..sensors import Mounting
+from . import RecordingError, Recording, gps_to_unix_s
+
+G_UNIT = 9.80665
+UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9, "rad/s": 1.0,
+         "deg/s": np.pi / 180, "m/s^2": 1.0, "g": G_UNIT, "rad": 1.0, "deg": np.pi / 180,
+         "m": 1.0, "mm": 1e-3, "m/s": 1.0, "1": 1.0}
+KINDS = {"time": ("s", "ms", "us", "ns"), "angular_rate": ("rad/s", "deg/s"),
+         "specific_force": ("m/s^2", "g"), "latitude": ("deg", "rad"), "longitude": ("deg", "rad"),
+         "height": ("m", "mm"), "position_ecef": ("m",), "velocity_ned": ("m/s",),
+         "velocity_ecef": ("m/s",), "attitude_wxyz": ("1",)}
+WIDTH = {"angular_rate": 3, "specific_force": 3, "position_ecef": 3, "velocity_ned": 3,
+         "velocity_ecef": 3, "attitude_wxyz": 4}
+
+
+class Spec:
+    """A parsed table spec: `column(section, key)` loads a quantity in SI units."""
+
+    def __init__(self, path):
+        self.path = os.path.abspath(path)
+        try:
+            with open(path, "rb") as fh:
+                self.doc = tomllib.load(fh)
+        except tomllib.TOMLDecodeError as exc:
+            raise RecordingError(f"{path}: not a valid TOML spec ({exc})") from None
+        root = self.doc.get("root", ".")
+        self.root = os.path.normpath(os.path.join(os.path.dirname(self.path), root))
+        for section in ("imu", "time"):
+            if not isinstance(self.doc.get(section), dict):
+                raise RecordingError(f"{path}: no [{section}] section")
+
+    def section(self, name):
+        return self.doc.get(name) or {}
+
+    def has(self, section, key):
+        return key in self.section(section)
+
+    def column(self, section, key):
+        """The quantity `key` of `section` in SI units, (N,) or (N, width)."""
+        source = self.section(section).get(key)
+        if source is None:
+            raise RecordingError(f"{self.path}: [{section}] has no {key}")
+        return self.load(source, key, f"[{section}] {key}")
+
+    def load(self, source, kind, where):
+        """A column source (path string or {file, columns, unit}) of quantity `kind`, SI."""
+        if isinstance(source, str):
+            source = {"file": source}
+        if not isinstance(source, dict) or "file" not in source:
+            raise RecordingError(f"{self.path}: {where} needs a file")
+        unit = source.get("unit", KINDS[kind][0])
+        if unit not in KINDS[kind]:
+            raise RecordingError(f"{self.path}: {where} unit {unit!r}: one of "
+                                 f"{', '.join(KINDS[kind])}")
+        x = _load(os.path.join(self.root, source["file"]), source.get("columns"))
+        width = WIDTH.get(kind, 1)
+        if width == 1 and x.ndim == 2 and x.shape[1] == 1:
+            x = x[:, 0]
+        if (x.ndim == 1 and width != 1) or (x.ndim == 2 and x.shape[1] != width) or x.ndim > 2:
+            raise RecordingError(f"{self.path}: {where} from {source['file']} has shape "
+                                 f"{x.shape}, expected {width} column(s)")
+        if not np.isfinite(x).all():
+            raise RecordingError(f"{self.path}: {where} from {source['file']} holds values that "
+                                 f"are not finite (first at row "
+                                 f"{int(np.argmax(~np.isfinite(x.reshape(len(x), -1)).all(1)))})")
+        return x * UNITS[unit]
+
+    def time_of(self, section, key):
+        """Device time (s) of quantity `key`: its own `time`, else its section's."""
+        source = self.section(section).get(key)
+        if isinstance(source, dict) and "time" in source:
+            return self.load(source["time"], "time", f"[{section}] {key}.time")
+        return self.column(section, "time")
+
+
+def _load(path, columns):
+    """A numeric array from a CSV (header row optional) or a NumPy file (.npy, .npz with one
+    array, or an extension-less .npy as comma2k19 stores them)."""
+    if not os.path.exists(path):
+        raise RecordingError(f"{path}: no such file")
+    if path.endswith((".csv", ".txt")):
+        with open(path) as fh:
+            first = fh.readline()
+        header = any(c.isalpha() for c in first.replace("e", "").replace("E", ""))
+        data = np.genfromtxt(path, delimiter=",", names=True if header else None,
+                             dtype=float, invalid_raise=True)
+        if header:
+            names = list(data.dtype.names)
+            data = np.column_stack([data[n] for n in names])
+            if columns is not None:
+                try:
+                    columns = [names.index(c) if isinstance(c, str) else c for c in columns]
+                except ValueError:
+                    raise RecordingError(f"{path}: columns {columns} not among {names}") from None
+    else:
+        try:
+            data = np.load(path, allow_pickle=False)
+        except (ValueError, OSError) as exc:
+            raise RecordingError(f"{path}: not a NumPy array file ({exc})") from None
+        if isinstance(data, np.lib.npyio.NpzFile):
+            if len(data.files) != 1:
+                raise RecordingError(f"{path}: {len(data.files)} arrays; store one per file")
+            data = data[data.files[0]]
+    data = np.asarray(data, dtype=float)
+    if columns is not None:
+        if any(isinstance(c, str) for c in columns):
+            raise RecordingError(f"{path}: columns by name need a CSV header")
+        data = data.reshape(len(data), -1)[:, list(columns)]
+    return data
+
+
+def unix_offset_s(spec):
+    """UNIX time minus device time, s, from the [time] section."""
+    section = spec.section("time")
+    if "unix_offset_s" in section:
+        return float(section["unix_offset_s"])
+    if "gps_week_tow" in section:
+        src = section["gps_week_tow"]
+        rows = _load(os.path.join(spec.root, src["file"]), src.get("columns"))
+        device = spec.load(src.get("time"), "time", "[time] gps_week_tow.time")
+        if rows.ndim != 2 or rows.shape[1] != 2 or len(rows) != len(device):
+            raise RecordingError(f"{spec.path}: gps_week_tow needs (N, 2) rows of (week, time of "
+                                 f"week) and N device times; got {rows.shape}, {device.shape}")
+        gps_s = rows[:, 0] * 604800.0 + rows[:, 1]
+        return float(np.median(gps_to_unix_s(gps_s) - device))
+    raise RecordingError(f"{spec.path}: [time] needs unix_offset_s or gps_week_tow")
+
+
+def _mounting(spec):
+    imu = spec.section("imu")
+    lever = imu.get("lever_arm_m", (0.0, 0.0, 0.0))
+    if "mounting_rpy_deg" in imu:
+        return Mounting.from_rpy_deg(imu["mounting_rpy_deg"], lever), \
+            f"roll/pitch/yaw {imu['mounting_rpy_deg']} deg (spec)"
+    if "axes" in imu:
+        return Mounting.from_axes(imu["axes"], lever), f"sensor axes {imu['axes']} (spec)"
+    raise RecordingError(f"{spec.path}: [imu] needs axes (e.g. \"FRD\") or mounting_rpy_deg")
+
+
+def _reference(spec, offset):
+    """The [reference] section as a Recording's reference dict, or None."""
+    if not spec.section("reference"):
+        return None
+    t = spec.column("reference", "time")
+    if spec.has("reference", "position_ecef"):
+        r_e = spec.column("reference", "position_ecef")
+        lat, lon, h = earth.ecef_to_geodetic(r_e)
+    else:
+        lat, lon = spec.column("reference", "latitude"), spec.column("reference", "longitude")
+        h = spec.column("reference", "height")
+    if spec.has("reference", "velocity_ned"):
+        v = spec.column("reference", "velocity_ned")
+    elif spec.has("reference", "velocity_ecef"):
+        v = np.einsum("kji,kj->ki", earth.ned_to_ecef_matrix(lat, lon),
+                      spec.column("reference", "velocity_ecef"))
+    else:
+        ned = earth.ned_difference(lat, lon, h, lat[0], lon[0], h[0])
+        v = np.gradient(ned, t, axis=0)
+    ref = dict(ns=np.round((t + offset) * 1e9).astype(np.int64), lat=lat, lon=lon, h=h, v_ned=v)
+    if spec.has("reference", "attitude_wxyz"):
+        ref["q_nb"] = _attitude_ned(spec, lat, lon)
+    n = len(t)
+    for key, x in ref.items():
+        if len(x) != n:
+            raise RecordingError(f"{spec.path}: [reference] {key} has {len(x)} rows, time {n}")
+    return ref
+
+
+def _attitude_ned(spec, lat, lon):
+    """The reference attitude as q_nb (body -> NED, wxyz)."""
+    q = quaternion.from_float_array(spec.column("reference", "attitude_wxyz"))
+    rotates = spec.section("reference")["attitude_wxyz"].get("rotates", "body_to_ned")
+    if rotates == "body_to_ned":
+        q_nb = q
+    elif rotates == "body_to_ecef":
+        q_en = quaternion.from_rotation_matrix(earth.ned_to_ecef_matrix(lat, lon))
+        q_nb = np.conjugate(q_en) * q
+    else:
+        raise RecordingError(f"{spec.path}: attitude rotates {rotates!r}: body_to_ned or "
+                             "body_to_ecef")
+    return quaternion.as_float_array(q_nb)
+
+
+def read(path, mounting=None):
+    """The recording a table spec describes, as a `Recording`."""
+    spec = Spec(path)
+    offset = unix_offset_s(spec)
+    t_f = spec.time_of("imu", "specific_force")
+    f = spec.column("imu", "specific_force")
+    t_w = spec.time_of("imu", "angular_rate")
+    w = spec.column("imu", "angular_rate")
+    for name, t, x in (("specific_force", t_f, f), ("angular_rate", t_w, w)):
+        if len(t) != len(x):
+            raise RecordingError(f"{path}: [imu] {name} has {len(x)} rows, its time {len(t)}")
+    notes = {}
+    if len(t_w) != len(t_f) or np.any(t_w != t_f):
+        if np.any(np.diff(t_w) <= 0):
+            raise RecordingError(f"{path}: angular_rate times do not increase")
+        inside = (t_f >= t_w[0]) & (t_f <= t_w[-1])
+        t_f, f = t_f[inside], f[inside]
+        w = np.column_stack([np.interp(t_f, t_w, w[:, i]) for i in range(3)])
+        notes["imu_time"] = "angular rate interpolated linearly onto the specific force's stamps"
+    given = mounting is not None
+    spec_mounting, how = _mounting(spec)
+    mounting = mounting or spec_mounting
+    reference = _reference(spec, offset)
+    meta = {k: v for k, v in spec.section("reference").items()
+            if k in ("source", "independent", "position_sigma_m")}
+    name = spec.doc.get("name", os.path.splitext(os.path.basename(path))[0])
+    rate = 1.0 / np.median(np.diff(t_f))
+    real = {"imu": f"{len(t_f)} samples at {rate:.4g} Hz from {spec.root}",
+            "source": spec.doc.get("source", spec.root), "spec": spec.path, **notes}
+    if reference is not None:
+        real["reference"] = f"{meta.get('source', 'reference columns')} " \
+                            f"({len(reference['ns'])} epochs)"
+    assumed = {"mounting": "given on the command line" if given else how,
+               "time": spec.section("time").get("note", "as the spec's [time] says"),
+               "calibration": "none: the outputs are used as recorded"}
+    return Recording(name, spec.doc.get("description", f"table import of {spec.path}"),
+                     np.round((t_f + offset) * 1e9).astype(np.int64), w, f, mounting,
+                     model=spec.doc.get("model", "unknown"), reference=reference,
+                     reference_meta=meta, real=real, assumed=assumed)

@@ -1,0 +1,129 @@
+"""Recordings nobody here wrote (../shared/data): comma2k19 (phone IMU, fused pose, by the
+table importer) and two PX4 ULogs (autopilot estimate as reference), through import -> info
+-> windows -> diagnose. The checks are facts of the data's own documentation (dates, rates,
+the README's measured heading offset, PX4's logged temperatures), not our outputs."""
+import datetime
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+import quaternion
+
+from mimunav import attitude, earth
+from mimunav.cli import main
+from mimunav.evaluation import Flight
+from mimunav.flightlog import FlightLog
+from mimunav.importers import gps_to_unix_s, table, ulog
+
+SHARED = Path(__file__).resolve().parent.parent.parent / "shared" / "data"
+COMMA_SPEC = Path(__file__).parent / "data" / "comma2k19.toml"
+PX4 = SHARED / "px4-ulog"
+
+
+def _need(path):
+    if not path.exists():
+        pytest.skip(f"{path} is not beside the repository")
+
+
+def test_gps_time_to_utc_at_known_dates():
+    """GPS - UTC is 13 s in 2005, 17 s in 2016, 18 s from 2017 (IERS Bulletin C): the GPS
+    time of a UTC instant is its UNIX time - 315964800 + the leap seconds."""
+    for iso, leap in (("2005-06-01T00:00:00", 13), ("2016-06-01T00:00:00", 17),
+                      ("2018-08-02T16:14:47", 18), ("2026-01-01T00:00:00", 18)):
+        unix = datetime.datetime.fromisoformat(iso).replace(tzinfo=datetime.UTC).timestamp()
+        assert gps_to_unix_s(unix - 315964800 + leap) == pytest.approx(unix, abs=1e-6)
+
+
+def test_comma2k19_through_the_table_importer(tmp_path):
+    _need(SHARED / "comma2k19")
+    rec = table.read(COMMA_SPEC)
+    # The segment is minute 40 of a drive that started 2018-08-02 08:34:47 PDT (its folder
+    # name): 16:14:47 UTC, give or take the second the folder name rounds.
+    start = datetime.datetime(2018, 8, 2, 16, 14, 47, tzinfo=datetime.UTC).timestamp()
+    assert abs(rec.imu_ns[0] / 1e9 - start) < 2.0
+    assert rec.sample_rate_hz == pytest.approx(104.36, abs=0.05)
+    assert np.linalg.norm(rec.f.mean(axis=0)) == pytest.approx(9.8, abs=0.3)
+    ref = rec.reference
+    # velocity turned from ECEF to NED agrees with the positions' own differences
+    t = (ref["ns"] - ref["ns"][0]) / 1e9
+    ned = earth.ned_difference(ref["lat"], ref["lon"], ref["h"], ref["lat"][0], ref["lon"][0],
+                               ref["h"][0])
+    assert np.median(np.abs(np.gradient(ned, t, axis=0) - ref["v_ned"])) < 0.1
+    # the README: yaw from the quaternion minus the velocity's heading = -0.90 +- 0.11 deg
+    yaw = attitude.as_euler(quaternion.from_float_array(ref["q_nb"]))[0]
+    course = np.arctan2(ref["v_ned"][:, 1], ref["v_ned"][:, 0])
+    offset = np.degrees(np.median(np.angle(np.exp(1j * (yaw - course)))))
+    assert offset == pytest.approx(-0.90, abs=0.25)
+
+    log = tmp_path / "comma.mcap"
+    assert main(["import", "table", str(COMMA_SPEC), "-o", str(log)]) == 0
+    with FlightLog(log) as fl:
+        meta = fl.metadata()
+    assert meta["reference"]["independent"].startswith("no")
+    assert meta["reference"]["attitude"] == "measured"
+    assert "whole state from the reference" in meta["recording"]["assumed"]["initial_state"]
+    assert main(["info", str(log)]) == 0
+    assert main(["windows", str(log), "-o", str(tmp_path / "w"), "--lengths", "10"]) == 0
+    doc = json.loads((tmp_path / "w" / "windows.json").read_text())
+    assert doc["summary"]["10"]["windows"] >= 5
+    out = tmp_path / "diag.json"
+    assert main(["diagnose", str(log), "--json", str(out)]) == 0
+    diag = json.loads(out.read_text())
+    assert diag["level"] == "track"
+    # whatever it concludes, nothing it confirms makes the IMU navigate worse
+    for f in diag["findings"]:
+        assert f["navigation_check"]["median_paired_change_m"] <= 0
+        assert f["fit"]["heldout_rms_after"] < f["fit"]["heldout_rms_before"]
+    if not diag["conclusive"]:
+        assert diag["verdict"] in ("unexplained-residual", "missing-physics")
+        assert diag["inconclusive_reasons"]
+
+
+def test_px4_v6c_autopilot_reference_and_imu_instances(tmp_path):
+    """The Pixhawk 6C log: 6.5 s, never at rest, never fast - the autopilot's attitude gives
+    the initial state; the reference is labelled as not independent; both IMU instances
+    with PX4's logged temperatures (11.0 degC and 12.2-12.4 degC, the data README)."""
+    path = PX4 / "mcap_test_ulog_v6c.ulg"
+    _need(path)
+    rec = ulog.read(str(path))
+    inst = rec.real["imu_instances"]
+    assert set(inst) == {"sensor_accel:0", "sensor_accel:1", "sensor_gyro:0", "sensor_gyro:1"}
+    assert "temperature 11.00 to 11.00 degC" in inst["sensor_accel:0"]
+    low, high = map(float, inst["sensor_gyro:1"].split("temperature ")[1].split(" degC")[0]
+                    .split(" to "))
+    assert 12.1 <= low <= high <= 12.5
+    assert rec.reference is not None and np.isfinite(rec.reference["q_nb"]).all()
+    # Daejeon, KR (the README): about 36.37 N, 127.37 E
+    assert math.degrees(rec.reference["lat"][0]) == pytest.approx(36.37, abs=0.01)
+    assert math.degrees(rec.reference["lon"][0]) == pytest.approx(127.37, abs=0.01)
+    log = tmp_path / "v6c.mcap"
+    assert main(["import", "ulog", str(path), "-o", str(log)]) == 0
+    with FlightLog(log) as fl:
+        meta = fl.metadata()
+    assert meta["reference"]["source"].startswith("autopilot estimate")
+    assert meta["reference"]["independent"].startswith("no")
+    flight = Flight.load(log, reference_imu=False)
+    # the initial attitude is the autopilot's, which has the vehicle level within 10 deg
+    yaw, pitch, roll = np.degrees(attitude.as_euler(
+        quaternion.from_float_array(flight.initial["q_nb"])))
+    assert abs(pitch) < 10 and abs(roll) < 10
+    assert main(["windows", str(log), "-o", str(tmp_path / "w"), "--min-speed", "0",
+                 "--lengths", "3", "--step", "1"]) == 0
+
+
+def test_px4_sample_without_gnss(tmp_path):
+    """pyulog's sample: 69 s of sensor_combined at 250 Hz, no GNSS and no global position:
+    imported with the rest assumed at the start and position 0, and says so."""
+    path = PX4 / "pyulog_sample.ulg"
+    _need(path)
+    log = tmp_path / "sample.mcap"
+    assert main(["import", "ulog", str(path), "-o", str(log)]) == 0
+    with FlightLog(log) as fl:
+        meta = fl.metadata()
+        n = len(fl.read("/mimu/imu")["log_time"])
+    assert "no GNSS track" in meta["recording"]["assumed"]["initial_state"]
+    assert "reference" not in meta
+    assert float(meta["sensor/mimu"]["sample_rate_hz"]) == pytest.approx(250.0, abs=0.5)
+    assert n == 17070                   # every sensor_combined sample (the README's count)
