@@ -241,6 +241,10 @@ def _diagnose(args):
         print(f"  {f['label']}: {f['coefficient']:.4g}{units} "
               f"[{f['ci95'][0]:.4g}, {f['ci95'][1]:.4g}] (held-out p {f['p_heldout']:.2g}; "
               f"{f.get('attribution', 'navigation level')})")
+    lag = doc.get("time_lag", {})
+    if "tau_s" in lag:
+        print(f"  time lag from the yaw rate: {lag['tau_s'] * 1e3:.1f} ms "
+              f"[{lag['ci95'][0] * 1e3:.1f}, {lag['ci95'][1] * 1e3:.1f}] (positive: the IMU lags)")
     for u in doc["unexplained"][:10]:
         print(f"  unexplained residual {u['channel']} {u['t0']:.1f}-{u['t1']:.1f} s (z {u['z']:.1f})")
     if args.output:
@@ -273,8 +277,11 @@ def _import(args):
           + (f", {len(rec.reference['ns'])} reference epochs" if rec.reference else "")
           + (f", {len(rec.fixes['ns'])} GNSS fixes" if rec.fixes else ""))
     print(f"initial state at t = {align.t:.3f} s: {align.method}")
-    print("gyro bias at rest (sensor axes) " + ", ".join(
-        f"{np.degrees(b):+.4f}" for b in align.gyro_bias) + " deg/s")
+    if np.isnan(align.static[0]):
+        print("gyro bias: not observed (no rest of 2 s in the recording)")
+    else:
+        print(f"gyro bias at rest {align.static[0]:.1f}-{align.static[1]:.1f} s (sensor axes) "
+              + ", ".join(f"{np.degrees(b):+.4f}" for b in align.gyro_bias) + " deg/s")
     return 0
 
 
@@ -364,13 +371,15 @@ def _campaign(args):
 
 def _report(args):
     """Write a generated report into a folder."""
-    if args.kind == "real-drive":
-        from .reports import real_drive
-        if not args.data:
-            raise InputError("report real-drive needs --data DIR (e.g. "
-                             "../shared/data/rtklib-drive/drive_0708)")
-        md = real_drive.write(args.data, args.output, force=args.force)
-        print(f"wrote {md} and {Path(args.output) / 'real-drive'}/")
+    if args.kind == "recording":
+        from .reports import recording
+        if not args.log:
+            raise InputError("report recording needs the log: mimunav report recording "
+                             "LOG.mcap -o DIR (a log from mimunav import ...)")
+        if args.output == "reports":
+            raise InputError("report recording needs its own folder: -o DIR")
+        md = recording.write(args.log, args.output, force=args.force, min_speed=args.min_speed)
+        print(f"wrote {md}")
         return 0
     from .reports import calibration
     md, png = calibration.write(args.output, n_units=args.units, first_seed=args.seed,
@@ -529,9 +538,10 @@ def build_parser():
     p.add_argument("--step", type=float, default=5.0, help="spacing of window starts, s")
     p.add_argument("--time-shift", type=float, default=0.0,
                    help="added to the IMU stamps, s (negative: the IMU lags)")
-    p.add_argument("--min-speed", type=float, default=3.0,
-                   help="horizontal speed a window must start above, m/s (heading comes from "
-                   "the reference's course; default 3)")
+    p.add_argument("--min-speed", type=float,
+                   help="horizontal speed a window must start above, m/s (default: 3 when the "
+                   "heading must come from the reference's course, 0 when the reference has "
+                   "an attitude)")
     p.add_argument("--max-gap", type=float, default=1.0,
                    help="longest reference gap allowed inside a window, s (default 1)")
     p.add_argument("-o", "--output", help="folder: windows.json, windows.png")
@@ -567,12 +577,16 @@ def build_parser():
     p.add_argument("--scheduler", help="Dask scheduler address (runs there instead)")
     p.set_defaults(func=_campaign)
     p = sub.add_parser("report", help="generate a report (calibration: the entire lab on "
-                       "many units, z-scores of every coefficient, held-out check; real-drive: "
-                       "a real recording imported, replayed in windows and diagnosed)")
-    p.add_argument("kind", choices=("calibration", "real-drive"),
-                   help="calibration; real-drive: import, windows and diagnosis of the RTKLIB "
-                   "drive in --data")
-    p.add_argument("--data", help="real-drive: the drive folder (imu_*.csv, .tag, .pos)")
+                       "many units, z-scores of every coefficient, held-out check; recording: "
+                       "an imported recording's metadata, channels, free-inertial windows and "
+                       "diagnosis)")
+    p.add_argument("kind", choices=("calibration", "recording"),
+                   help="calibration; recording: LOG (a contract log with /mimu/imu and "
+                   "/truth/state, e.g. from mimunav import) into the folder -o")
+    p.add_argument("log", nargs="?", help="recording: the log (.mcap)")
+    p.add_argument("--min-speed", type=float, help="recording: horizontal speed (m/s) a window "
+                   "needs at its start (default: 3, the alignment's course speed, when the "
+                   "reference has no attitude; 0 when it has one)")
     p.add_argument("-o", "--output", default="reports", help="folder (default: reports)")
     p.add_argument("--units", type=int, default=20, help="number of drawn units")
     p.add_argument("--seed", type=int, default=1000, help="seed of the first unit")

@@ -41,7 +41,8 @@ class TrackMotion(Motion):
         yaw, pitch = _yaw_pitch(v)
         moving = np.hypot(v[:, 0], v[:, 1]) >= HOLD_SPEED
         if not moving.any():
-            raise InputError("the track never moves: no heading to hold")
+            raise InputError(f"the reference never moves faster than {HOLD_SPEED:g} m/s: a land "
+                             "vehicle's attitude cannot be taken from its course (track level)")
         first = np.argmax(moving)
         last = np.maximum.accumulate(np.where(moving, np.arange(len(t)), first))
         self._t, self._yaw_hold, self._pitch_hold = t, yaw[last], pitch[last]

@@ -103,11 +103,13 @@ def run(flight, t0, length, w, f, t_imu=None):
 
 
 def run_all(flight, cal=None, lengths=WINDOW_LENGTHS_S, step=START_STEP_S, time_shift_s=0.0,
-            progress=False, min_speed=alignment.COURSE_SPEED, max_gap=MAX_GAP_S):
+            progress=False, min_speed=None, max_gap=MAX_GAP_S):
     """All windows of each length: {length: [Window]}, and the alignment at rest that gave
     the gyro bias. The MIMU is compensated with `cal` (`evaluation.compensated_mimu`: for a
     recorded /mimu/imu, None or found terms on an identity base); time_shift_s is added to
-    the IMU's stamps (negative: the IMU lags); min_speed (m/s) and max_gap (s) as `starts`.
+    the IMU's stamps (negative: the IMU lags); min_speed (m/s; default: the course speed
+    `alignment.COURSE_SPEED` when the reference has no attitude, 0 when it has one) and
+    max_gap (s) as `starts`.
     A recording that holds no window at all is a ValueError that says why."""
     if flight.truth is None:
         raise InputError(f"{flight.path}: free-inertial windows need a reference trajectory "
@@ -117,6 +119,9 @@ def run_all(flight, cal=None, lengths=WINDOW_LENGTHS_S, step=START_STEP_S, time_
     rest = alignment.initial_alignment(t, w, f, flight.mimu_mounting, track_of(flight.truth))
     w, f = w - rest.gyro_bias, f - rest.accel_bias
     out = {}
+    if min_speed is None:
+        has_attitude = np.isfinite(quaternion.as_float_array(flight.truth.q_nb)).all()
+        min_speed = 0.0 if has_attitude else alignment.COURSE_SPEED
     first = rest.navigable_from
     todo = [(length, t0) for length in lengths
             for t0 in starts(flight.truth, length, step, first, min_speed, max_gap)]

@@ -444,3 +444,27 @@ def test_track_diagnosis_of_the_excerpt_writes_the_contract(tmp_path):
     assert check["correlation_1s"]["gyro.z"] > 0.95           # yaw rate: the model's best channel
     for f in doc["findings"]:
         assert f["effect"] not in ("temperature_bias", "temperature_scale", "temperature_rate")
+
+
+def test_report_recording_of_the_excerpt_and_its_refusals(tmp_path):
+    """`mimunav report recording`: one folder with the metadata table, the channels, the
+    windows and the diagnosis; a log it cannot report on leaves no folder behind."""
+    log = tmp_path / "drive.mcap"
+    assert main(["import", "rtklib", str(DRIVE), "-o", str(log)]) == 0
+    out = tmp_path / "report"
+    assert main(["report", "recording", str(log), "-o", str(out)]) == 0
+    text = (out / "recording.md").read_text()
+    assert "| reference | RTKLIB solution (fix)" in text
+    assert "independent of this IMU: yes" in text
+    assert "| 10 |" in text                              # the 10 s windows' row
+    doc = json.loads((out / "diagnosis" / "diagnosis.json").read_text())
+    assert doc["level"] == "track" and "conclusive" in doc
+    assert (out / "windows.png").stat().st_size > 0
+    assert main(["report", "recording", str(log), "-o", str(out)]) == 2      # no --force
+    bare = tmp_path / "bare.mcap"                        # no /truth/state
+    flight = Flight.load(log, reference_imu=False)
+    rec = Recording("bare", "", flight.epoch_ns + np.round(flight.mimu_t * 1e9).astype(np.int64),
+                    *flight.mimu_imu, flight.mimu_mounting)
+    write_log(rec, bare)
+    assert main(["report", "recording", str(bare), "-o", str(tmp_path / "none")]) == 2
+    assert not (tmp_path / "none").exists()

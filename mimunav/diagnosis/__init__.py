@@ -41,6 +41,8 @@ def document(log_path, diag, alpha=0.05):
         doc["within_reference_accuracy"] = _plain(diag.within_reference)
     if getattr(diag, "reference_check", None):
         doc["reference_check"] = _plain(diag.reference_check)
+    if getattr(diag, "time_lag", None):
+        doc["time_lag"] = _plain(diag.time_lag)
     reasons = getattr(diag, "inconclusive", None) or []
     doc["conclusive"] = not reasons
     if reasons:

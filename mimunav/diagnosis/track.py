@@ -148,6 +148,15 @@ def diagnose(flight, cal, alpha=0.05, reference=None, accuracy=None):
         "trusted_fraction": float(trusted.mean()),
         "usable_s": float(len(diag.design.t) * np.median(np.diff(diag.design.t)))}
     diag.inconclusive = screen(diag, flight, cal)
+    if corr["gyro.z"] >= PREDICTED_CORRELATION:
+        tau, ci, segments = time_lag(replace(flight, mimu_imu=ref.mimu_imu), (ref, trusted))
+        diag.time_lag = {"tau_s": tau, "ci95": list(ci), "segments_s": segments.tolist(),
+                         "channel": "gyro.z (the vehicle's yaw rate, the model's best channel)",
+                         "sign": "positive: the IMU's samples describe motion tau s earlier "
+                                 "than their stamps (it lags), as time_skew"}
+    else:
+        diag.time_lag = {"not_estimated": f"the yaw rate is not predicted (1 s correlation "
+                                          f"{corr['gyro.z']:.2f} < {PREDICTED_CORRELATION:g})"}
     return diag
 
 

@@ -36,11 +36,7 @@ SOLUTION_NAMES = {1: "fix", 2: "float", 3: "sbas", 4: "dgps", 5: "single", 6: "p
 TAG_HEADER = 60
 # The sensor -> vehicle (FRD) rotation of the rtklibexplorer kit, roll/pitch/yaw in deg (the
 # drive's README): sensor z up, x backward - the default; --mounting-rpy-deg overrides it.
-# The author's own estimates for drive_0708 (a further misalignment of about [0, -6.79,
-# 5.35] deg and a -0.125 s time shift) belong to that drive: only its report uses them.
 NOMINAL_RPY_DEG = (180.0, 0.0, 180.0)
-AUTHOR_MISALIGNMENT_RPY_DEG = (0.0, -6.79, 5.35)
-AUTHOR_TIME_SHIFT_S = -0.125
 
 
 def read_imu_csv(path):

@@ -80,6 +80,12 @@ def markdown(doc, diag, cal_label):
                   "channel is not predicted and the terms it drives are not tested.", "",
                   "| " + " | ".join(corr) + " |", "|" + "---|" * len(corr),
                   "| " + " | ".join(f"{v:.3f}" for v in corr.values()) + " |", ""]
+        lag = doc.get("time_lag", {})
+        lines += [(f"Time lag of the IMU from the yaw rate: **{lag['tau_s'] * 1e3:.1f} ms** "
+                   f"(95 % interval {lag['ci95'][0] * 1e3:.1f} to {lag['ci95'][1] * 1e3:.1f} ms "
+                   f"from {len(lag['segments_s'])} segments; positive: the IMU lags)")
+                  if "tau_s" in lag else f"Time lag not estimated: {lag.get('not_estimated')}",
+                  ""]
     if doc["findings"]:
         lines += ["## Found terms (coefficient and 95 % interval from the held-out segments)", "",
                   "| term | coefficient | 95 % interval | units | p train / Holm limit | "
