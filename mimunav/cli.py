@@ -66,20 +66,23 @@ def _info(args):
     from .flightlog import FlightLog, LogError
     from .flightlog.inspect import describe
     from .flightlog.recover import describe_scan, recover, scan
+    if args.recover:
+        report = recover(args.log, args.recover, force=args.force)
+        print(describe_scan(report))
+        print(f"wrote the intact part to {args.recover}")
+        return 0
+    unreadable = []
     try:
-        if args.recover:
-            report = recover(args.log, args.recover, force=args.force)
-            print(describe_scan(report))
-            print(f"wrote the intact part to {args.recover}")
-            return 0
         with FlightLog(args.log) as log:
-            print(describe(log))
+            print(describe(log, unreadable))
     except LogError as exc:
+        report = scan(args.log)         # a file that is no MCAP at all: that one error
         print(f"mimunav info: {exc}", file=sys.stderr)
-        print(describe_scan(scan(args.log)))
+        print(describe_scan(report))
         return 2
-    except OSError as exc:
-        print(f"mimunav info: {exc}", file=sys.stderr)
+    if unreadable:
+        print(f"mimunav info: {args.log}: damaged {', '.join(unreadable)} (above); "
+              "`mimunav info LOG --recover OUT.mcap` keeps every intact chunk", file=sys.stderr)
         return 2
     return 0
 
@@ -91,7 +94,8 @@ def _compensate(args):
     from .flightlog import LogError
     try:
         refuse_inputs([args.output], [args.log, args.cal])
-        counts = compensate_log(args.log, Calibration.load(args.cal), args.output, args.force)
+        counts = compensate_log(args.log, Calibration.load(args.cal), args.output, args.force,
+                                skip_damaged=args.skip_damaged)
     except (OSError, LogError, CalibrationError) as exc:
         print(f"mimunav compensate: {exc}", file=sys.stderr)
         return 2
@@ -428,6 +432,9 @@ def build_parser():
     p.add_argument("log", help="MCAP flight log with /mimu/raw")
     p.add_argument("--cal", required=True, help="calibration file (mimunav-calibration/1)")
     p.add_argument("-o", "--output", required=True, help="log to write (.mcap)")
+    p.add_argument("--skip-damaged", action="store_true", help="leave out the messages of "
+                   "damaged chunks (listed in the output's `damage` metadata) instead of "
+                   "refusing the log")
     p.add_argument("--force", action="store_true", help="replace an existing output")
     p.set_defaults(func=_compensate)
     p = sub.add_parser("info", help="channels, rates, gaps, dropped samples and metadata "

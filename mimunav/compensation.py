@@ -432,46 +432,61 @@ def _newton_triad(p0, p1, p1_inv, p2, p3, y, v):
     return worst
 
 
-def compensate_log(log_path, cal, out, force=False):
+def compensate_log(log_path, cal, out, force=False, skip_damaged=False):
     """Apply a calibration to a log's /mimu/raw channel and write OUT: every channel,
     metadata record and attachment of the input copied (the contract's fixed-size channels
-    field by field, with CDR padding written as zeros; others byte for byte), plus /mimu/imu
-    (sensor_msgs/msg/Imu, sensor axes, interval means, no orientation). Returns the flag
-    counts {REPLACED, SATURATED, UNUSABLE}."""
+    field by field, with CDR padding written as zeros; others byte for byte, their chunks'
+    CRCs checked), plus /mimu/imu (sensor_msgs/msg/Imu, sensor axes, interval means, no
+    orientation). A damaged chunk or index is a LogError; with skip_damaged its messages are
+    left out and listed in the output's `damage` metadata record. Returns the flag counts
+    {REPLACED, SATURATED, UNUSABLE}."""
     from mcap.reader import make_reader
 
-    from .flightlog import FlightLog, LogError, LogWriter
+    from .flightlog import FlightLog, LayoutError, LogError, LogWriter
     from .flightlog import schemas as S
-    with FlightLog(log_path) as log:
+    with FlightLog(log_path, skip_damaged=skip_damaged) as log:
         if "/mimu/imu" in log.channels:
             raise LogError(f"{log_path} already has /mimu/imu")
         raw = log.read("/mimu/raw")
         rng = log.metadata().get("sensor/mimu", {}).get("range", {})
+    if len(raw) < 2:
+        raise LogError(f"{log_path}: /mimu/raw has {len(raw)} intact messages")
     stamps = raw["log_time"].astype(np.int64)
     f, w, flags = compensate(cal, raw["accel_volts"], raw["gyro_volts"], raw["accel_temperature"],
                              raw["gyro_frequency"], rng.get("accel_m_s2", np.inf),
                              rng.get("gyro_rad_s", np.inf), t=(stamps - stamps[0]) / 1e9)
-    with open(log_path, "rb") as fh, LogWriter(out, force=force) as dst:
+    with open(log_path, "rb") as fh, LogWriter(out, force=force) as dst, \
+            FlightLog(log_path, skip_damaged=skip_damaged) as log:
+        log.metadata()                      # a damaged metadata record is a LogError
         reader = make_reader(fh)
         for record in reader.iter_metadata():
             dst.metadata(record.name, record.metadata)
         for att in reader.iter_attachments():
             dst.attachment(att.name, att.data, att.media_type)
         generic = []
-        with FlightLog(log_path) as log:
-            for topic in log.channels:
-                try:
-                    msgs = log.read(topic)          # contract channel: copy field by field
-                except LogError:
-                    generic.append(topic)
-                    continue
+        for topic in log.channels:
+            try:
+                msgs = log.read(topic)          # contract channel: copy field by field
+            except LayoutError:
+                generic.append(topic)
+                continue
+            if len(msgs):
                 fields = {name: msgs[name] for name, _, _ in S.BODIES[log.schema_name(topic)]}
                 dst.write(topic, log.schema_name(topic), msgs["frame_id"][0].decode(),
                           msgs["log_time"].astype(np.int64), **fields)
         fh.seek(0)
-        for schema, channel, message in make_reader(fh).iter_messages(topics=generic):
-            dst.copy(schema, channel, message)
+        try:
+            for schema, channel, message in make_reader(fh, validate_crcs=True).iter_messages(
+                    topics=generic):
+                dst.copy(schema, channel, message)
+        except Exception as exc:            # the mcap reader's own errors on damaged chunks
+            raise LogError(f"{log_path}: damaged data in {', '.join(generic)} "
+                           f"({type(exc).__name__}: {exc})") from None
         dst.write("/mimu/imu", S.IMU, "mimu", stamps, **S.imu_fields(w, f))
+        if log.damaged:
+            dst.metadata("damage", {topic: [{"start_ns": a, "end_ns": b, "reason": r}
+                                            for a, b, r in spans]
+                                    for topic, spans in log.damaged.items()})
     return flag_counts(flags)
 
 

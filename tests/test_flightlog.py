@@ -142,8 +142,8 @@ def test_truncated_log_reports_and_recovers_its_intact_chunks(flight_file, tmp_p
         FlightLog(cut)
     assert main(["info", str(cut)]) == 2
     out = capsys.readouterr().out
-    assert "/mimu/raw" in out and "intact messages, t = 0.001 .." in out
-    assert "reading stopped at byte" in out
+    assert "/mimu/raw" in out and "intact messages, t = 0.001 s .." in out
+    assert "cut short: the file ends" in out
     fixed = tmp_path / "fixed.mcap"
     assert main(["info", str(cut), "--recover", str(fixed)]) == 0
     with FlightLog(fixed) as log:

@@ -63,7 +63,9 @@ def channel_report(log, topic):
     return rep
 
 
-def describe(log):
+def describe(log, unreadable=None):
+    """The text of `mimunav info`; the topics that cannot be read are appended to the list
+    `unreadable` when one is given."""
     lines = [f"log       {log.path}"]
     meta = log.metadata()
     flight = meta.get("flight", {})
@@ -85,6 +87,8 @@ def describe(log):
             r = channel_report(log, topic)
         except ValueError as exc:
             lines.append(f"  {topic:<14} {log.schema_name(topic)}: {exc}")
+            if unreadable is not None:
+                unreadable.append(topic)
             continue
         text = f"  {topic:<14} {r['schema']:<28} {r['count']:>9} msgs"
         if "rate_hz" in r:

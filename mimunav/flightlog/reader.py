@@ -28,13 +28,28 @@ class LogError(InputError):
     """A log that cannot be read as the contract says, with what and where."""
 
 
+class LayoutError(LogError):
+    """A channel that is not one of the contract's fixed-size layouts (read it generically);
+    not damage."""
+
+
+_DAMAGE = (McapError, ValueError, IndexError, EOFError, struct.error, zstandard.ZstdError)
+
+
 class FlightLog:
-    def __init__(self, path):
+    """A log opened for reading. skip_damaged=False (default): a damaged chunk, an index
+    inconsistent with the data or a count that differs from the statistics record is a
+    LogError naming the channel and time range; True: the damaged chunk is left out and
+    listed in `damaged` {topic: [(start_ns, end_ns, reason)]}."""
+
+    def __init__(self, path, skip_damaged=False):
         self.path = os.fspath(path)
+        self.skip_damaged = skip_damaged
+        self.damaged = {}
         self._fh = open(self.path, "rb")
         try:
             self.summary = make_reader(self._fh).get_summary()
-        except (McapError, ValueError, EOFError, OSError) as exc:
+        except (*_DAMAGE, KeyError, OSError) as exc:
             self.summary = None
             self._summary_error = str(exc)
         if self.summary is None:
@@ -68,8 +83,12 @@ class FlightLog:
         """{name: {key: value}} with JSON values decoded where they parse."""
         self._fh.seek(0)
         out = {}
-        for record in make_reader(self._fh).iter_metadata():
-            out[record.name] = {k: _maybe_json(v) for k, v in record.metadata.items()}
+        try:
+            for record in make_reader(self._fh).iter_metadata():
+                out[record.name] = {k: _maybe_json(v) for k, v in record.metadata.items()}
+        except _DAMAGE as exc:
+            raise LogError(f"{self.path}: damaged metadata ({type(exc).__name__}: {exc}); "
+                           "`mimunav info LOG --recover OUT.mcap` keeps what is intact") from None
         return out
 
     def _channel(self, topic):
@@ -85,13 +104,19 @@ class FlightLog:
         `time_reversals[topic]`); `fields` (names) limits the copy to those fields. Data that
         cannot be decoded (a damaged chunk or index) is a `LogError` naming the channel."""
         try:
-            return self._read(topic, fields)
+            out = self._read(topic, fields)
         except LogError:
             raise
-        except (McapError, ValueError, IndexError, EOFError, struct.error,
-                zstandard.ZstdError) as exc:
+        except _DAMAGE as exc:
             raise LogError(f"{self.path}: {topic}: damaged data ({type(exc).__name__}: {exc});"
                            " `mimunav info LOG --recover OUT.mcap` keeps what is intact") from exc
+        expected = self.count(topic)
+        if expected is not None and expected != len(out) and topic not in self.damaged:
+            raise LogError(f"{self.path}: {topic}: the indexes lead to {len(out)} messages, "
+                           f"the statistics record counts {expected}: an index is damaged; "
+                           "`mimunav info LOG --recover OUT.mcap` rebuilds the log from its "
+                           "intact chunks")
+        return out
 
     def _read(self, topic, fields=None):
         channel = self._channel(topic)
@@ -108,15 +133,25 @@ class FlightLog:
         for ci, index in zip(chunks, indexes):
             if len(index) == 0:
                 continue
-            data = self._chunk_data(ci)
-            if out is None:
-                dtype = self._layout(data, index, topic)
-                out = np.empty(sum(len(i) for i in indexes),
-                               dtype=_with_log_time(dtype, fields))
-            self._gather(data, index, dtype, out[pos:pos + len(index)], topic, ci)
+            try:
+                data = self._chunk_data(ci)
+                if out is None:
+                    dtype = self._layout(data, index, topic)
+                    out = np.empty(sum(len(i) for i in indexes),
+                                   dtype=_with_log_time(dtype, fields))
+                self._gather(data, index, dtype, out[pos:pos + len(index)], topic, ci)
+            except LayoutError:
+                raise
+            except (LogError, *_DAMAGE) as exc:
+                if not self.skip_damaged:
+                    raise
+                self.damaged.setdefault(topic, []).append(
+                    (int(ci.message_start_time), int(ci.message_end_time), str(exc)))
+                continue
             pos += len(index)
         if out is None:
             return np.zeros(0, dtype=[("log_time", "<u8")])
+        out = out[:pos]
         reversals = int(np.sum(np.diff(out["log_time"].astype(np.int64)) < 0))
         self.time_reversals[topic] = reversals      # in file order, before sorting
         if reversals:
@@ -165,8 +200,8 @@ class FlightLog:
         size = int(_u64(data, index["offset"][:1].astype(np.int64) + 1)[0]) - 22
         frame = _frame_id(data, start)
         if schema not in schemas.BODIES or schemas.cdr_dtype(schema, frame).itemsize != size:
-            raise LogError(f"{self.path}: {topic} ({schema}) is not a fixed-size channel "
-                           "of the contract; read it with read_generic()")
+            raise LayoutError(f"{self.path}: {topic} ({schema}) is not a fixed-size channel "
+                              "of the contract; read it with read_generic()")
         return schemas.cdr_dtype(schema, frame)
 
     def _gather(self, data, index, dtype, out, topic, ci):
@@ -181,9 +216,19 @@ class FlightLog:
             raise LogError(f"{self.path}: {topic} changes message size, frame_id or CDR "
                            f"encapsulation within the chunk starting at "
                            f"{ci.message_start_time} ns; read it with read_generic()")
+        log_time = _u64(data, off + 15)
+        channel = _rows(data, off + 9, 2).view("<u2").ravel()
+        if np.any(log_time != index["log_time"]) or \
+                np.any(channel != self._channel(topic).id) or \
+                np.any(_rows(data, off, 1).ravel() != 0x05):
+            raise LogError(f"{self.path}: {topic}: the message index of the chunk at byte "
+                           f"{ci.chunk_start_offset} ({_since_epoch(self, ci.message_start_time)}"
+                           f" to {_since_epoch(self, ci.message_end_time)}) does not point at "
+                           "its messages (damaged index); `mimunav info LOG --recover OUT.mcap` "
+                           "rebuilds the log from its intact chunks")
         for name in out.dtype.names[:-1]:
             out[name] = msgs[name]
-        out["log_time"] = _u64(data, off + 15)
+        out["log_time"] = log_time
 
     def read_generic(self, topic):
         """Messages of any ROS 2 channel, decoded one by one (mcap_ros2): list of
