@@ -1,0 +1,91 @@
+"""The fuzz run: many damaged copies of a simulated log through every command.
+
+    python bench/fuzz.py [--cases 2000] [--seed 1]
+
+A case is one command on one damaged file (`tests/fuzzing.py`: a flipped byte in a record
+of every opcode, truncations, bit flips and 4 KiB overwrites at random places, empty and
+foreign files). Counts per command and outcome: ok (exactly the undamaged log's result;
+for --recover: only the original's messages, byte for byte), refused (one-line error, exit
+2), and the failures - traceback, laundered (exit 0 with another result), altered (recover
+changed a message). Prints a markdown table and the first example of each failure.
+"""
+import argparse
+import collections
+import shutil
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
+import fuzzing  # noqa: E402
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--cases", type=int, default=2000, help="command runs (about 6 per file)")
+    ap.add_argument("--seed", type=int, default=1)
+    args = ap.parse_args()
+    from tqdm import tqdm
+    started = time.time()
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(tmp)
+        log, cal = fuzzing.corpus_log(folder)
+        base = folder / "base"
+        base.mkdir()
+        reference = {}
+        for argv in fuzzing.commands(log, cal, base):
+            outcome, err, out = fuzzing.run(argv)
+            if outcome != "ok":
+                sys.exit(f"the undamaged log fails {argv[0]}: {err}")
+            reference[_key(argv)] = fuzzing.results(argv, out, base)
+        rng = np.random.default_rng(args.seed)
+        data = log.read_bytes()
+        per_file = len(fuzzing.commands(log, cal, base))
+        files = []
+        while len(files) * per_file < args.cases:
+            files += fuzzing.damages(data, rng, n_random=10)
+        files = files[:-(-args.cases // per_file)]
+        counts, examples = collections.Counter(), {}
+        for name, damaged in tqdm(files, desc="fuzz", unit="file"):
+            case = folder / "case"
+            shutil.rmtree(case, ignore_errors=True)
+            case.mkdir()
+            path = case / "damaged.mcap"
+            path.write_bytes(damaged)
+            for argv in fuzzing.commands(path, cal, case):
+                outcome, err, out = fuzzing.run(argv)
+                if outcome == "ok":
+                    if "--recover" in argv:
+                        if not fuzzing.recovered_subset(log, case / "recovered.mcap"):
+                            outcome = "altered"
+                    elif fuzzing.results(argv, out, case) != reference[_key(argv)]:
+                        outcome = "laundered"
+                if path.read_bytes() != damaged:
+                    outcome = "input modified"
+                counts[_key(argv), outcome] += 1
+                if outcome not in ("ok", "refused"):
+                    examples.setdefault((_key(argv), outcome), (name, err[-600:]))
+    elapsed = time.time() - started
+    outcomes = ["ok", "refused", "traceback", "laundered", "altered", "input modified"]
+    keys = sorted({k for k, _ in counts})
+    print(f"`python bench/fuzz.py --cases {args.cases} --seed {args.seed}`: {len(files)} damaged "
+          f"files, {sum(counts.values())} command runs in {elapsed / 60:.1f} min (2 cores)\n")
+    print("| command | " + " | ".join(outcomes) + " |")
+    print("|---|" + "---|" * len(outcomes))
+    for k in keys:
+        print(f"| {k} | " + " | ".join(str(counts[k, o]) for o in outcomes) + " |")
+    print(f"| **all** | " + " | ".join(str(sum(counts[k, o] for k in keys)) for o in outcomes)
+          + " |")
+    for (k, outcome), (name, err) in examples.items():
+        print(f"\n{k} {outcome} on '{name}':\n{err}")
+
+
+def _key(argv):
+    return argv[0] + (" --recover" if "--recover" in argv else "")
+
+
+if __name__ == "__main__":
+    main()
