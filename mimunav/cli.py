@@ -8,6 +8,7 @@ import numpy as np
 from .errors import InputError
 
 FLIGHTS = Path(__file__).resolve().parent.parent / "flights"
+DEMO_MAX_SAMPLES = 20_000_000      # ~150 bytes per sample held (truth, increments, navigation)
 
 
 def _demo(args):
@@ -20,7 +21,11 @@ def _demo(args):
     except (OSError, ProfileError) as exc:
         print(f"mimunav demo: {exc}", file=sys.stderr)
         return 2
-    t = np.arange(0, int(round(profile.duration * args.rate)) + 1) / args.rate
+    n = int(np.floor(profile.duration * args.rate * (1 + 1e-12)))
+    if n > DEMO_MAX_SAMPLES:
+        raise InputError(f"{n:.3g} samples ({profile.duration:g} s at {args.rate:g} Hz): the "
+                         f"demo holds every sample in memory, at most {DEMO_MAX_SAMPLES:.0e}")
+    t = np.minimum(np.arange(n + 1) / args.rate, profile.duration)
     t0 = time.perf_counter()
     run = truth.generate(profile.motion(), t)
     t1 = time.perf_counter()
@@ -154,7 +159,7 @@ def _replay(args):
         raise FileExistsError(f"{out} exists; use --force to replace it")
     flight = evaluation.Flight.load(args.log)
     cal = Calibration.load(args.cal)
-    rep = evaluation.replay(flight, cal)
+    rep = evaluation.replay(flight, cal, check="the calibration")
     t = evaluation.comparison_times(flight, args.end)
     err = evaluation.errors(rep, t)
     t_nav = np.append(np.arange(t[0], t[-1], 1.0 / args.nav_rate), t[-1])
@@ -322,6 +327,9 @@ def _variants(specs):
         name, sep, path = spec.partition("=")
         if not sep:
             name, path = Path(spec).stem, spec
+        if name in cals:
+            raise InputError(f"two calibrations are labelled {name!r}: give each its own "
+                             "label (--cal LABEL=FILE)")
         cals[name] = Calibration.load(path)
     return cals
 
@@ -333,7 +341,7 @@ def _table(args):
     from . import evaluation
     from .files import write_atomic
     flight = evaluation.Flight.load(args.log)
-    doc = evaluation.table(flight, _variants(args.cal), args.end)
+    doc = evaluation.table(flight, _variants(args.cal), args.end, check=True)
     text = evaluation.table_markdown(doc)
     if args.output:
         outputs = {".md": text, ".csv": evaluation.table_csv(doc),
@@ -394,7 +402,7 @@ def _report(args):
 
 def _flight_arguments(p):
     p.add_argument("log", help="flight log (.mcap) with /mimu/raw and /fog/imu")
-    p.add_argument("--end", type=float, help="end point, s since the log's epoch "
+    p.add_argument("--end", type=_number(-1e9, 1e9), help="end point, s since the log's epoch "
                    "(default: the last instant every channel covers)")
 
 
@@ -405,15 +413,15 @@ def build_parser():
     p = sub.add_parser("demo", help="fly a profile with an ideal IMU through the navigator")
     p.add_argument("profile", nargs="?", default=str(FLIGHTS / "high-dynamic.toml"),
                    help="flight profile TOML (default: flights/high-dynamic.toml)")
-    p.add_argument("--rate", type=float, default=1000.0, help="IMU sample rate, Hz")
+    p.add_argument("--rate", type=RATE_HZ, default=1000.0, help="IMU sample rate, Hz")
     p.set_defaults(func=_demo)
     p = sub.add_parser("simulate", help="simulate a flight profile into an MCAP log "
                        "(/mimu/raw, /fog/imu, /truth/state) and LOG.truth.json")
     p.add_argument("profile", help="flight profile TOML, e.g. flights/high-dynamic.toml")
     p.add_argument("-o", "--output", required=True, help="log to write (.mcap)")
-    p.add_argument("--seed", type=int, default=0, help="draws the units and the noise")
+    p.add_argument("--seed", type=SEED, default=0, help="draws the units and the noise")
     p.add_argument("--unit", help="MIMU unit file (mimunav-unit/1 JSON) instead of a drawn one")
-    p.add_argument("--fog-rate", type=float, default=1000.0, help="FOG-IMU sample rate, Hz")
+    p.add_argument("--fog-rate", type=RATE_HZ, default=1000.0, help="FOG-IMU sample rate, Hz")
     p.add_argument("--hide", action="append", default=[], metavar="EFFECT:SENSOR:AXIS=VALUE",
                    help="hide physics the 63-coefficient model lacks in the MIMU (repeatable; "
                    "written to LOG.truth.json, never to the log): "
@@ -446,7 +454,7 @@ def build_parser():
     p.set_defaults(func=_info)
     p = sub.add_parser("unit", help="draw a simulated MIMU into a unit file (true coefficients)")
     p.add_argument("-o", "--output", required=True, help="unit file to write (.json)")
-    p.add_argument("--seed", type=int, default=0, help="draws the unit")
+    p.add_argument("--seed", type=SEED, default=0, help="draws the unit")
     p.add_argument("--nonlinearity", choices=("table2", "datasheet"), default="table2",
                    help="gyro 2nd-order scale factor: seed Table 2 literally, or /100")
     p.add_argument("--force", action="store_true", help="replace an existing output")
@@ -457,7 +465,7 @@ def build_parser():
                    "single-axis-rate, twelve-position, cold-start or rotation")
     p.add_argument("--unit", required=True, help="unit file (mimunav-unit/1 JSON)")
     p.add_argument("-o", "--output", required=True, help="run log to write (.mcap)")
-    p.add_argument("--seed", type=int, default=0, help="draws setting errors and noise")
+    p.add_argument("--seed", type=SEED, default=0, help="draws setting errors and noise")
     p.add_argument("--force", action="store_true", help="replace existing outputs")
     p.set_defaults(func=_lab)
     p = sub.add_parser("calibrate", help="fit lab runs into a calibration file "
@@ -476,7 +484,7 @@ def build_parser():
     p.add_argument("--cal", required=True, help="calibration file (mimunav-calibration/1)")
     p.add_argument("-o", "--output", required=True, help="folder for nav.mcap (NavState "
                    "/mimu/nav, /fog/nav, vehicle origin), summary.json, errors.png")
-    p.add_argument("--nav-rate", type=float, default=10.0,
+    p.add_argument("--nav-rate", type=_number(0.0, 1e4, open_low=True), default=10.0,
                    help="rate of the NavState channels written to nav.mcap, Hz (default 10)")
     p.add_argument("--json", action="store_true", help="also print the summary as JSON")
     p.add_argument("--force", action="store_true", help="replace an existing folder")
@@ -507,7 +515,7 @@ def build_parser():
                    "4: scale 2.5e-4; "
                    "misalignment 1e-4 rad, assumed): gyro_scale, accel_scale (1), "
                    "gyro_misalignment_rad, accel_misalignment_rad (rad)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the navigation level's block "
+    p.add_argument("--seed", type=SEED, default=0, help="seed of the navigation level's block "
                    "bootstrap (the sensor and track levels draw nothing)")
     p.add_argument("--force", action="store_true", help="replace existing outputs")
     p.set_defaults(func=_diagnose)
@@ -525,7 +533,7 @@ def build_parser():
     p.add_argument("--imu-topic", help="ros2: the sensor_msgs/msg/Imu topic (default: the only one)")
     p.add_argument("--fix-topic", help="ros2: the sensor_msgs/msg/NavSatFix topic (default: the "
                    "only one, if any)")
-    p.add_argument("--mounting-rpy-deg", type=float, nargs=3, metavar=("ROLL", "PITCH", "YAW"),
+    p.add_argument("--mounting-rpy-deg", type=_number(-360.0, 360.0), nargs=3, metavar=("ROLL", "PITCH", "YAW"),
                    help="sensor -> vehicle (FRD) rotation, deg (default: rtklib the README's "
                    "180 0 180; ros2 180 0 0, REP-103 x forward, y left, z up; ulog 0 0 0, "
                    "PX4's FRD body frame; table: the spec's axes)")
@@ -540,16 +548,16 @@ def build_parser():
     p.add_argument("log", help="log with /mimu/imu (or /mimu/raw and --cal) and /truth/state")
     p.add_argument("--cal", help="calibration: for /mimu/raw the unit's; for /mimu/imu only "
                    "found terms on an identity base (a diagnosis's CAL+found.json)")
-    p.add_argument("--lengths", type=float, nargs="+", default=[10.0, 30.0, 60.0],
+    p.add_argument("--lengths", type=SECONDS, nargs="+", default=[10.0, 30.0, 60.0],
                    help="window lengths, s")
-    p.add_argument("--step", type=float, default=5.0, help="spacing of window starts, s")
-    p.add_argument("--time-shift", type=float, default=0.0,
+    p.add_argument("--step", type=SECONDS, default=5.0, help="spacing of window starts, s")
+    p.add_argument("--time-shift", type=_number(-60.0, 60.0), default=0.0,
                    help="added to the IMU stamps, s (negative: the IMU lags)")
-    p.add_argument("--min-speed", type=float,
+    p.add_argument("--min-speed", type=_number(0.0, 1000.0),
                    help="horizontal speed a window must start above, m/s (default: 3 when the "
                    "heading must come from the reference's course, 0 when the reference has "
                    "an attitude)")
-    p.add_argument("--max-gap", type=float, default=1.0,
+    p.add_argument("--max-gap", type=SECONDS, default=1.0,
                    help="longest reference gap allowed inside a window, s (default 1)")
     p.add_argument("-o", "--output", help="folder: windows.json, windows.png")
     p.add_argument("--force", action="store_true", help="replace an existing folder")
@@ -570,17 +578,17 @@ def build_parser():
     p = sub.add_parser("reproduce", help="the main job: draw a unit, run the traditional and "
                        "entire lab, fly the high-dynamic profile, write reports/table3.md")
     p.add_argument("-o", "--output", default="reports", help="folder (default: reports)")
-    p.add_argument("--seed", type=int, default=1, help="draws the unit, lab and noise")
-    p.add_argument("--units", type=int, default=16, help="Monte Carlo units")
+    p.add_argument("--seed", type=SEED, default=1, help="draws the unit, lab and noise")
+    p.add_argument("--units", type=COUNT, default=16, help="Monte Carlo units")
     p.set_defaults(func=_reproduce)
     p = sub.add_parser("campaign", help="Monte Carlo: many units through the same lab and "
                        "flight; results stream to a JSON-lines file and resume")
     p.add_argument("profile", nargs="?", default=str(FLIGHTS / "high-dynamic.toml"),
                    help="flight profile TOML")
     p.add_argument("-o", "--output", required=True, help="results file (.jsonl), resumed")
-    p.add_argument("--units", type=int, default=200)
-    p.add_argument("--seed", type=int, default=1)
-    p.add_argument("--workers", type=int, default=2, help="local processes")
+    p.add_argument("--units", type=COUNT, default=200)
+    p.add_argument("--seed", type=SEED, default=1)
+    p.add_argument("--workers", type=_number(1, 256, int), default=2, help="local processes")
     p.add_argument("--scheduler", help="Dask scheduler address (runs there instead)")
     p.set_defaults(func=_campaign)
     p = sub.add_parser("report", help="generate a report (calibration: the entire lab on "
@@ -591,12 +599,12 @@ def build_parser():
                    help="calibration; recording: LOG (a contract log with /mimu/imu and "
                    "/truth/state, e.g. from mimunav import) into the folder -o")
     p.add_argument("log", nargs="?", help="recording: the log (.mcap)")
-    p.add_argument("--min-speed", type=float, help="recording: horizontal speed (m/s) a window "
+    p.add_argument("--min-speed", type=_number(0.0, 1000.0), help="recording: horizontal speed (m/s) a window "
                    "needs at its start (default: 3, the alignment's course speed, when the "
                    "reference has no attitude; 0 when it has one)")
     p.add_argument("-o", "--output", default="reports", help="folder (default: reports)")
-    p.add_argument("--units", type=int, default=20, help="number of drawn units")
-    p.add_argument("--seed", type=int, default=1000, help="seed of the first unit")
+    p.add_argument("--units", type=COUNT, default=20, help="number of drawn units")
+    p.add_argument("--seed", type=SEED, default=1000, help="seed of the first unit")
     p.add_argument("--force", action="store_true", help="replace an existing report")
     p.set_defaults(func=_report)
     return parser
@@ -612,6 +620,29 @@ def _probability(text):
     if not 0 < value < 1:
         raise argparse.ArgumentTypeError(f"{value:g} is not between 0 and 1")
     return value
+
+
+def _number(lo, hi, kind=float, open_low=False):
+    """An argparse type: a finite `kind` number within [lo, hi] ((lo, hi] with open_low),
+    checked at parse time."""
+    import argparse
+
+    def parse(text):
+        try:
+            value = kind(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not a{'n integer' if kind is int else ' number'}") from None
+        if not np.isfinite(value) or value < lo or value > hi or (open_low and value == lo):
+            raise argparse.ArgumentTypeError(
+                f"{text} is outside {'(' if open_low else '['}{lo:g}, {hi:g}]")
+        return value
+    return parse
+
+
+RATE_HZ = _number(0.0, 1e5, open_low=True)          # sample rates: above 0, at most 100 kHz
+SEED = _number(0, 2 ** 32 - 1, int)
+COUNT = _number(1, 100000, int)
+SECONDS = _number(0.0, 86400.0, open_low=True)
 
 
 def main(argv=None):

@@ -6,3 +6,10 @@ and shows as one, with its traceback."""
 
 class InputError(ValueError):
     """Input mimunav cannot use; the message says which and why."""
+
+
+def warn(message):
+    """A loud warning for something suspicious that does not stop the work: one line on
+    standard error, prefixed like the command line's errors."""
+    import sys
+    print(f"mimunav: warning: {message}", file=sys.stderr)

@@ -97,13 +97,16 @@ class Flight:
             truth_traj = Trajectory(sec(truth), truth["latitude"].copy(), truth["longitude"].copy(),
                                     truth["height"].copy(), truth["velocity_ned"].copy(),
                                     quaternion.from_float_array(truth["attitude_wxyz"]))
-        return cls(str(path), flight.get("name", ""), epoch, initial, sec(raw),
-                   None if imu else {k: np.ascontiguousarray(raw[k], float) for k in RAW_FIELDS},
-                   mount("mimu"), meta.get("sensor/mimu", {}).get("range", {}),
-                   *((sec(fog), np.ascontiguousarray(fog["angular_velocity"], float),
-                      np.ascontiguousarray(fog["linear_acceleration"], float))
-                     if fog is not None else (None, None, None)), mount("fog"), truth_traj, imu,
-                   meta.get("sensor/fog", {}), str(flight.get("source", "")))
+        loaded = cls(str(path), flight.get("name", ""), epoch, initial, sec(raw),
+                     None if imu else {k: np.ascontiguousarray(raw[k], float)
+                                       for k in RAW_FIELDS},
+                     mount("mimu"), meta.get("sensor/mimu", {}).get("range", {}),
+                     *((sec(fog), np.ascontiguousarray(fog["angular_velocity"], float),
+                        np.ascontiguousarray(fog["linear_acceleration"], float))
+                       if fog is not None else (None, None, None)), mount("fog"), truth_traj,
+                     imu, meta.get("sensor/fog", {}), str(flight.get("source", "")))
+        check_plausible(loaded)
+        return loaded
 
     @classmethod
     def from_simulation(cls, fm, unit, fog, raw, fog_out):
@@ -134,6 +137,87 @@ class Flight:
         ends = [self.mimu_t[-1]] + ([self.fog_t[-1]] if self.fog_t is not None else []) \
             + ([self.truth.t[-1]] if self.truth else [])
         return float(min(ends))
+
+
+MAX_GAP_S = 0.5            # s of missing MIMU samples navigation will not bridge
+
+
+def check_plausible(flight):
+    """Refuse a log whose numbers cannot be what the contract says (LogError naming the
+    channel, the time and the likely cause); warn (stderr) about missing samples shorter
+    than MAX_GAP_S. Checks: stamps increase; MIMU gaps; the initial state inside the MIMU's
+    span; the truth finite, latitude in rad, its span overlapping the MIMU's; the reference
+    IMU finite, its specific force near 1 g (not in g), its rates of the truth's attitude
+    rate's size (not deg/s)."""
+    from .errors import warn
+    from .flightlog.inspect import missing_samples
+    where = flight.path
+    for name, t in (("MIMU", flight.mimu_t), ("/fog/imu", flight.fog_t),
+                    ("/truth/state", None if flight.truth is None else flight.truth.t)):
+        if t is None or len(t) < 2:
+            continue
+        step = np.diff(t)
+        if np.any(step <= 0):
+            k = int(np.argmax(step <= 0))
+            raise LogError(f"{where}: {name} stamps do not increase at t = {t[k + 1]:.6f} s "
+                           f"({'a duplicate' if step[k] == 0 else 'backwards'}): the log is "
+                           "not a time series the navigator can integrate")
+    t = flight.mimu_t
+    if len(t) > 10:
+        gaps = missing_samples(np.round(t * 1e9).astype(np.int64))
+        if gaps:
+            longest = max(gaps, key=lambda g: t[g[0] + 1] - t[g[0]])
+            k, n = longest
+            if t[k + 1] - t[k] > MAX_GAP_S:
+                raise LogError(f"{where}: the MIMU misses {n} samples between t = {t[k]:.3f} "
+                               f"and {t[k + 1]:.3f} s ({sum(m for _, m in gaps)} in all): "
+                               f"navigation would bridge {t[k + 1] - t[k]:.3g} s with one "
+                               "sample; cut the log at the gap")
+            warn(f"{where}: the MIMU misses {sum(m for _, m in gaps)} samples in "
+                 f"{len(gaps)} gaps (longest {t[k + 1] - t[k]:.3g} s at t = {t[k]:.3f} s)")
+    if not t[0] - 1e-6 <= flight.initial["t"] <= t[-1]:
+        raise LogError(f"{where}: the initial state's t = {flight.initial['t']:.3f} s lies "
+                       f"outside the MIMU's stamps {t[0]:.3f} .. {t[-1]:.3f} s (epoch_unix_ns "
+                       "or the stamps' time base off?)")
+    tr = flight.truth
+    if tr is not None:
+        state = np.column_stack([tr.lat, tr.lon, tr.h, tr.v_ned])
+        if not np.isfinite(state).all():
+            k = int(np.argmax(~np.isfinite(state).all(axis=1)))
+            raise LogError(f"{where}: /truth/state is not finite at t = {tr.t[k]:.3f} s")
+        if np.abs(tr.lat).max() > np.pi / 2 or np.abs(tr.lon).max() > 2 * np.pi:
+            raise LogError(f"{where}: /truth/state latitude/longitude up to "
+                           f"{np.abs(tr.lat).max():.4g} / {np.abs(tr.lon).max():.4g}: the "
+                           "contract stores rad (degrees written?)")
+        overlap = min(tr.t[-1], t[-1]) - max(tr.t[0], t[0])
+        if overlap <= 0:
+            raise LogError(f"{where}: /truth/state ({tr.t[0]:.1f} .. {tr.t[-1]:.1f} s) and the "
+                           f"MIMU ({t[0]:.1f} .. {t[-1]:.1f} s) do not overlap: their time "
+                           "bases differ")
+    if flight.fog_t is not None and len(flight.fog_t) > 10:
+        _check_reference_units(flight)
+
+
+def _check_reference_units(flight):
+    """The reference IMU's specific force near 1 g and rates of the truth's size."""
+    w, f = flight.fog_w, flight.fog_f
+    if not (np.isfinite(w).all() and np.isfinite(f).all()):
+        k = int(np.argmax(~(np.isfinite(w).all(axis=1) & np.isfinite(f).all(axis=1))))
+        raise LogError(f"{flight.path}: /fog/imu is not finite at t = {flight.fog_t[k]:.3f} s")
+    g = float(np.median(np.linalg.norm(f, axis=1)))
+    if not 2.0 < g < 100.0:
+        raise LogError(f"{flight.path}: /fog/imu specific force has median magnitude {g:.3g}: "
+                       "the contract's m/s^2 gives about 9.8 on Earth (in g?)")
+    tr = flight.truth
+    if tr is None or len(tr.t) < 10 or not np.isfinite(quaternion.as_float_array(tr.q_nb)).all():
+        return
+    dq = np.conjugate(tr.q_nb[:-1]) * tr.q_nb[1:]
+    rate = np.linalg.norm(quaternion.as_rotation_vector(dq), axis=1) / np.diff(tr.t)
+    truth_rate, fog_rate = np.percentile(rate, 99), np.percentile(np.linalg.norm(w, axis=1), 99)
+    if truth_rate > 0.05 and not 0.2 < fog_rate / truth_rate < 5:
+        raise LogError(f"{flight.path}: /fog/imu rates reach {fog_rate:.3g}, the truth's "
+                       f"attitude turns at up to {truth_rate:.3g} rad/s: the contract's rad/s "
+                       f"differs by {fog_rate / truth_rate:.3g}x (deg/s?)")
 
 
 def navigate(t, w, f, mounting, initial):
@@ -240,9 +324,60 @@ def navigate_fog(flight):
                     flight.initial)
 
 
-def replay(flight, cal, fog=None):
-    """Compensate and navigate the MIMU with `cal` and the FOG (or reuse `fog`)."""
+COMPENSATION_WARN = {"accel_m_s2": 0.2, "gyro_rad_s": 0.01}   # medians of |f|, |w| apart
+QUIET = {"gyro_rad_s": 0.05, "accel_m_s2": 0.5}   # a quiet second: |w| and ||f| - g| below
+
+
+def check_compensation(flight, w, f, label="the calibration"):
+    """Warn when, in the flight's quiet seconds (the reference IMU turning slower than
+    QUIET and feeling 1 g within QUIET), the compensated MIMU's and the reference IMU's
+    1 s means differ in size (|f|, |w|: no mounting changes them, averaging removes the
+    noise) by more than COMPENSATION_WARN (20 mg, 0.6 deg/s) in the median: a calibration
+    written in other units (A0 in mg, ct scaled) gives navigation errors of 1e5 m without
+    another sign. Returns the two differences (m/s^2, rad/s), or None without a reference
+    IMU or a quiet second."""
+    from .errors import warn
+    if flight.fog_t is None:
+        return None
+    (fog_f, fog_w), seconds = _second_means(flight.fog_t, flight.fog_f, flight.fog_w)
+    (mimu_f, mimu_w), mimu_seconds = _second_means(flight.mimu_t, f, w)
+    size = lambda x: np.linalg.norm(x, axis=1)                           # noqa: E731
+    g = float(np.median(size(fog_f)))
+    quiet = (size(fog_w) < QUIET["gyro_rad_s"]) & (np.abs(size(fog_f) - g) < QUIET["accel_m_s2"])
+    common, i, j = np.intersect1d(seconds[quiet], mimu_seconds, return_indices=True)
+    if not len(common):
+        return None
+    k = np.flatnonzero(quiet)[i]
+    df = float(np.median(np.abs(size(mimu_f[j]) - size(fog_f[k]))))
+    dw = float(np.median(np.abs(size(mimu_w[j]) - size(fog_w[k]))))
+    if df > COMPENSATION_WARN["accel_m_s2"] or dw > COMPENSATION_WARN["gyro_rad_s"]:
+        warn(f"{flight.path}: with {label}, in {len(common)} quiet seconds the MIMU's |f| "
+             f"differs from the reference IMU's by {df:.3g} m/s^2 and its |w| by {dw:.3g} "
+             f"rad/s in the median (a calibration that fits this unit leaves below "
+             f"{COMPENSATION_WARN['accel_m_s2']:g} and {COMPENSATION_WARN['gyro_rad_s']:g}): "
+             "another unit's file, units other than mimunav-calibration/1's (A0 in mg, ct "
+             "scaled), or a model that misses this flight's temperatures?")
+    return df, dw
+
+
+def _second_means(t, *series):
+    """Means of each (N, 3) series over the whole seconds of t (s since the epoch), and the
+    seconds that hold samples."""
+    k = np.floor(t).astype(np.int64)
+    k0 = k[0]
+    counts = np.bincount(k - k0)
+    have = counts > 0
+    means = [np.stack([np.bincount(k - k0, weights=x[:, i]) for i in range(3)], axis=1)[have]
+             / counts[have, None] for x in series]
+    return means, np.flatnonzero(have) + k0
+
+
+def replay(flight, cal, fog=None, check=None):
+    """Compensate and navigate the MIMU with `cal` and the FOG (or reuse `fog`); with a
+    `check` label, `check_compensation` warns about a calibration far off in quiet flight."""
     w, f, counts = compensated_mimu(flight, cal)
+    if check is not None:
+        check_compensation(flight, w, f, check)
     mimu = navigate(flight.mimu_t, w, f, flight.mimu_mounting, flight.initial)
     return Replay(flight, mimu, fog if fog is not None else navigate_fog(flight), counts)
 
@@ -286,8 +421,9 @@ def ned_to_enu(d):
     return np.stack([d[..., 1], d[..., 0], -d[..., 2]], axis=-1)
 
 
-def table(flight, cals, end=None):
-    """The normalised end-point table for calibration variants {name: Calibration}.
+def table(flight, cals, end=None, check=False):
+    """The normalised end-point table for calibration variants {name: Calibration}
+    (check: warn about a variant far off in quiet flight, `check_compensation`).
     Returns a dict (JSON-ready): end time, reference, FOG row, one row per variant with
     east/north/up errors (m), their ratio to the FOG's (when a truth exists), horizontal and
     3-D norms."""
@@ -298,7 +434,7 @@ def table(flight, cals, end=None):
     ref = resample(flight.truth if has_truth else fog, t_end)
     rows = {}
     for name, cal in cals.items():
-        rep = replay(flight, cal, fog=fog)
+        rep = replay(flight, cal, fog=fog, check=f"calibration {name!r}" if check else None)
         enu = ned_to_enu(resample(rep.mimu, t_end).position_error(ref)[-1])
         rows[name] = {"enu_m": enu.tolist(), "horizontal_m": float(np.hypot(enu[0], enu[1])),
                       "norm_m": float(np.linalg.norm(enu)), "flags": rep.flags}

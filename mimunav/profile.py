@@ -93,11 +93,16 @@ class Profile:
 
     @classmethod
     def from_dict(cls, doc, source="profile"):
+        _known(doc, TOP_KEYS, source)
         start_doc = dict(doc.get("start", {}))
         need = ["latitude_deg", "longitude_deg", "height_m", "speed_m_s", "heading_deg"]
         missing = [k for k in need if k not in start_doc]
         if missing:
             raise ProfileError(f"{source}: [start] lacks {', '.join(missing)}")
+        _known(start_doc, START_KEYS, f"{source}: [start]")
+        for key, (lo, hi) in START_KEYS.items():
+            if key in start_doc:
+                _number(start_doc[key], lo, hi, f"{source}: [start] {key}")
         start = dict(lat=math.radians(start_doc["latitude_deg"]),
                      lon=math.radians(start_doc["longitude_deg"]),
                      h=float(start_doc["height_m"]), speed=float(start_doc["speed_m_s"]),
@@ -110,6 +115,14 @@ class Profile:
         segments = doc.get("segment", [])
         if not segments:
             raise ProfileError(f"{source}: no [[segment]] tables")
+        for i, seg in enumerate(segments):
+            where = f"{source}: segment {i + 1} ({seg.get('kind', '?')})"
+            if seg.get("kind") not in SEGMENT_KEYS:
+                raise ProfileError(f"{where}: unknown kind; one of {', '.join(SEGMENT_KEYS)}")
+            _known(seg, {"kind": None, "ramp_s": None, **SEGMENT_KEYS[seg["kind"]]}, where)
+            for key, value in seg.items():
+                if key != "kind":
+                    _number(value, *VALUE_RANGES[key], f"{where}: {key}")
         prof = cls(doc.get("name", source), doc.get("description", ""), start, segments)
         prof._plan(source)
         return prof
@@ -137,6 +150,9 @@ class Profile:
             self.ramps += ramps
             t = t_end
         self.duration = t
+        if t > MAX_DURATION_S:
+            raise ProfileError(f"{source}: the profile lasts {t:.4g} s; at most "
+                               f"{MAX_DURATION_S:g} s (24 h) per flight")
 
     def motion(self):
         return ProfileMotion(self)
@@ -211,6 +227,48 @@ def _pull(n, change, t, speed, ramp):
     length = change / rate + ramp
     _fits(length, 2 * ramp)
     return [Ramp(PATH, t, t + length, rate, ramp)], t + length
+
+
+TOP_KEYS = {"name": None, "description": None, "start": None, "segment": None}
+# [start] keys and their ranges (deg, m, m/s, s): the Euler pitch singularity, the WGS-84
+# normal gravity's validity (up to ~20 km above the ellipsoid it is good to 1e-6 g; the
+# range allows suborbital profiles), speeds below orbital
+START_KEYS = {"latitude_deg": (-89.0, 89.0), "longitude_deg": (-360.0, 360.0),
+              "height_m": (-1000.0, 100e3), "speed_m_s": (0.0, 7800.0),
+              "heading_deg": (-360.0, 720.0), "flight_path_deg": (-85.0, 85.0),
+              "roll_deg": (-180.0, 180.0), "ramp_s": (1e-3, 3600.0)}
+SEGMENT_KEYS = {"hold": {"duration_s": None}, "coast": {"duration_s": None},
+                "accelerate": {"accel_g": None, "duration_s": None, "to_speed_m_s": None},
+                "turn": {"load_factor": None, "heading_change_deg": None,
+                         "roll_rate_deg_s": None},
+                "pull": {"load_factor": None, "flight_path_change_deg": None},
+                "climb": {"flight_path_deg": None, "duration_s": None, "load_factor": None},
+                "dive": {"flight_path_deg": None, "duration_s": None, "load_factor": None},
+                "roll": {"rate_deg_s": None, "angle_deg": None}}
+VALUE_RANGES = {"duration_s": (0.0, 86400.0), "ramp_s": (1e-3, 3600.0),
+                "accel_g": (-100.0, 100.0), "to_speed_m_s": (0.0, 7800.0),
+                "load_factor": (-20.0, 100.0), "heading_change_deg": (-36000.0, 36000.0),
+                "roll_rate_deg_s": (1e-3, 3600.0), "flight_path_change_deg": (-170.0, 170.0),
+                "flight_path_deg": (-85.0, 85.0), "rate_deg_s": (1e-3, 3600.0),
+                "angle_deg": (-36000.0, 36000.0)}
+MAX_DURATION_S = 86400.0
+
+
+def _known(doc, keys, where):
+    unknown = sorted(set(doc) - set(keys))
+    if unknown:
+        raise ProfileError(f"{where}: unknown key(s) {', '.join(unknown)}; known: "
+                           f"{', '.join(keys)}")
+
+
+def _number(value, lo, hi, where):
+    """A finite number within [lo, hi] (bool and text refused)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or \
+            not math.isfinite(value):
+        raise ProfileError(f"{where} = {value!r}: a finite number is needed")
+    if not lo <= value <= hi:
+        raise ProfileError(f"{where} = {value!r}: outside [{lo:g}, {hi:g}]")
+    return float(value)
 
 
 def _positive(seg, key):

@@ -49,7 +49,7 @@ def test_steady_turn_is_coordinated_at_the_load_factor():
     ({"kind": "warp", "duration_s": 1}, "unknown kind"),
     ({"kind": "hold"}, "duration_s"),
     ({"kind": "accelerate", "accel_g": 1, "to_speed_m_s": 100}, "not reached"),
-    ({"kind": "climb", "flight_path_deg": 89, "duration_s": 1}, "85 deg"),
+    ({"kind": "climb", "flight_path_deg": 89, "duration_s": 1}, r"outside \[-85, 85\]"),
     ({"kind": "turn", "load_factor": 9, "heading_change_deg": 1}, "too small"),
 ])
 def test_bad_segments_are_refused_with_the_reason(segment, message):
