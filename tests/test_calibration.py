@@ -22,18 +22,6 @@ def _run(tmp_path, procedure, unit, seed, plan=None, **kw):
     return str(path)
 
 
-def test_voltage_offset_gauge_is_the_same_compensation():
-    cal = MimuUnit.draw(3).coefficients
-    shifted = cal.with_voltage_offset([1e-3, -2e-3, 5e-4], [3e-3, 1e-3, -4e-3])
-    rng = np.random.default_rng(0)
-    u_a, u_w = rng.normal(0, 1, (50, 3)), rng.normal(0, 1, (50, 3))
-    temp, freq = rng.uniform(0, 70, (50, 3)), rng.uniform(9e3, 1.1e4, (50, 3))
-    a = compensate(cal, u_a, u_w, temp, freq, filter_outliers=False)
-    b = compensate(shifted, u_a, u_w, temp, freq, filter_outliers=False)
-    np.testing.assert_allclose(b[0], a[0], rtol=0, atol=1e-10)
-    np.testing.assert_allclose(b[1], a[1], rtol=0, atol=1e-12)
-
-
 @pytest.mark.parametrize("procedure", ["rate-table", "centrifuge", "twelve-position"])
 def test_known_inputs_match_the_simulated_motion(tmp_path, procedure):
     """A noiseless unit with no setting errors, compensated with its true coefficients,

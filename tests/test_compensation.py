@@ -3,6 +3,7 @@ import json
 
 import numpy as np
 import pytest
+import quaternion  # noqa: F401  (np.quaternion)
 
 from mimunav.compensation import (REPLACED, SATURATED, UNUSABLE, Calibration,
                                   CalibrationError, compensate, raw_from_physics)
@@ -149,3 +150,74 @@ def test_bad_raw_samples_are_flagged_never_silent():
     assert np.all(flags & UNUSABLE)
     with pytest.raises(ValueError, match=r"gyro_volts must have shape \(N, 3\)"):
         compensate(unit.coefficients, u_a, u_w[:, :2], temp, freq)
+
+
+def test_voltage_offset_gauge_is_the_same_compensation():
+    """with_voltage_offset re-expands eqs. 1/3 about a shifted voltage: the same raw
+    readings give the same outputs to round-off, with offsets of 0.1 V, where every
+    re-expanded term (A2 d^2, A3 d^3, 3 A3 d^2 ...) is far above round-off."""
+    unit = MimuUnit.draw(3)
+    cal = unit.coefficients
+    cal.A2, cal.A3, cal.W2, cal.W3 = (cal.A2 + 0.05, cal.A3 + 0.02, cal.W2 + 0.01,
+                                      cal.W3 + 0.005)
+    shifted = cal.with_voltage_offset([0.1, -0.2, 0.05], [0.3, 0.1, -0.15])
+    rng = np.random.default_rng(0)
+    u_a, u_w = rng.normal(0, 1, (50, 3)), rng.normal(0, 1, (50, 3))
+    temp, freq = rng.uniform(0, 70, (50, 3)), rng.uniform(9e3, 1.1e4, (50, 3))
+    a = compensate(cal, u_a, u_w, temp, freq, filter_outliers=False)
+    b = compensate(shifted, u_a, u_w, temp, freq, filter_outliers=False)
+    for x, y in zip(a[:2], b[:2]):
+        np.testing.assert_allclose(y, x, rtol=0, atol=1e-12 * np.abs(x).max())
+    assert not np.allclose(shifted.A0, cal.A0)
+
+
+def test_wild_value_filter_at_its_threshold():
+    """Seed S1 section 3.2: on a curving signal with white noise sigma, a spike of 3 times
+    the threshold 6 sqrt(6) sigma is flagged and replaced at any position (the ends
+    included), one of 0.3 times it is not, nor is a step, nor the curvature of a fast clean
+    sinusoid; nothing else is flagged."""
+    from mimunav.compensation import wild_value_filter
+    n, sigma = 4000, 1e-3
+    k = np.arange(n)
+    rng = np.random.default_rng(7)
+    clean = np.stack([np.sin(2 * np.pi * k / 400), np.cos(2 * np.pi * k / 250),
+                      0.5 * np.sin(2 * np.pi * k / 97)], -1)
+    x = clean + rng.normal(0, sigma, (n, 3))
+    threshold = 6 * np.sqrt(6) * sigma
+    big = {0: 0, 1: 1, 1000: 2, n - 2: 0, n - 1: 1}
+    small = {2000: 0, 2500: 1, 3000: 2}
+    for pos, axis in big.items():
+        x[pos, axis] += 3 * threshold
+    for pos, axis in small.items():
+        x[pos, axis] += 0.3 * threshold
+    x[3300:, 2] += 10 * threshold                     # a step: agrees with one side
+    flags = np.zeros(n, np.uint8)
+    out = wild_value_filter(x, flags)
+    wild = {int(p) for p in np.flatnonzero(flags & REPLACED)}
+    assert wild == set(big), sorted(wild)
+    for pos, axis in big.items():
+        if 0 < pos < n - 1:                 # inside: interpolated between its neighbours
+            assert abs(out[pos, axis] - clean[pos, axis]) < 10 * sigma
+        else:                               # at an end: the neighbouring sample's value
+            assert out[pos, axis] == x[1 if pos == 0 else n - 2, axis]
+    fast = np.stack([np.sin(2 * np.pi * k / 7.3)] * 3, -1)        # curvature, no noise
+    flags = np.zeros(n, np.uint8)
+    wild_value_filter(fast + rng.normal(0, 1e-9, (n, 3)), flags)
+    assert not flags.any()
+
+
+def test_trajectories_compared_only_at_the_same_times():
+    from mimunav.errors import InputError
+    from mimunav.trajectory import Trajectory
+    t = np.arange(5.0)
+    q = np.full(5, np.quaternion(1, 0, 0, 0))
+    a = Trajectory(t, np.full(5, 0.7), np.zeros(5), np.zeros(5), np.zeros((5, 3)), q)
+    for other_t in (t + 2e-9, t[:4], np.array([0, 1, 2, 3, 4.5])):
+        n = len(other_t)
+        b = Trajectory(other_t, np.full(n, 0.7), np.zeros(n), np.zeros(n), np.zeros((n, 3)),
+                       q[:n])
+        for method in (a.position_error, a.velocity_error, a.attitude_error):
+            with pytest.raises(InputError, match="not sampled at the same times"):
+                method(b)
+    close = Trajectory(t + 5e-10, np.full(5, 0.7), np.zeros(5), np.zeros(5), np.zeros((5, 3)), q)
+    assert np.abs(a.position_error(close)).max() == 0.0
