@@ -2,6 +2,7 @@
 and on a (local) Dask cluster, refusing a results file of another campaign."""
 import json
 
+import numpy as np
 import pytest
 
 from mimunav import campaign
@@ -48,9 +49,14 @@ def test_campaign_resumes_and_is_reproducible(profile, tmp_path):
     both = campaign.run_campaign(profile, 2, 7, str(out), workers=1, progress=False)
     assert [r["index"] for r in _lines(out)] == [0, 1]
     assert both[0] == first[0]                           # unit 0 was not recomputed
-    for rec in both:
+    for rec in both:             # each row is its own errors over the FOG-IMU's, per axis
+        fog = np.abs(rec["fog"]["enu_m"])
+        assert np.isfinite(fog).all() and fog.min() > 0
         for v in campaign.VARIANTS:
-            assert all(x > 0 for x in rec["variants"][v]["normalised_enu"])
+            row = rec["variants"][v]
+            np.testing.assert_allclose(row["normalised_enu"], np.abs(row["enu_m"]) / fog,
+                                       rtol=1e-12)
+            assert row["norm_m"] == pytest.approx(float(np.linalg.norm(row["enu_m"])))
     again = campaign.run_campaign(profile, 2, 7, str(tmp_path / "b.jsonl"), workers=2,
                                   progress=False)
     assert again == both                                 # same seed, same numbers
