@@ -274,7 +274,9 @@ def _import(args):
                                 solutions=tuple(names[s] for s in args.solutions))
     elif args.kind == "ros2":
         from .importers import ros2
-        rec = ros2.read(args.source, args.imu_topic, args.fix_topic, mounting=mounting)
+        rec = ros2.read(args.source, args.imu_topic, args.fix_topic, mounting=mounting,
+                        reference_status=args.reference_status,
+                        reference_sigma_m=args.reference_sigma)
     elif args.kind == "table":
         from .importers import table
         rec = table.read(args.source, mounting=mounting)
@@ -537,6 +539,12 @@ def build_parser():
                    help="sensor -> vehicle (FRD) rotation, deg (default: rtklib the README's "
                    "180 0 180; ros2 180 0 0, REP-103 x forward, y left, z up; ulog 0 0 0, "
                    "PX4's FRD body frame; table: the spec's axes)")
+    p.add_argument("--reference-status", type=_number(-1, 2, int),
+                   help="ros2: NavSatFix fixes of at least this status (2 = GBAS_FIX, RTK "
+                   "grade) serve as the reference trajectory (/truth/state)")
+    p.add_argument("--reference-sigma", type=_number(0.0, 1e4, open_low=True), default=np.inf,
+                   help="ros2: and with a horizontal sigma from position_covariance of at most "
+                   "this, m")
     p.add_argument("--solutions", nargs="+", default=["fix"],
                    choices=("fix", "float", "sbas", "dgps", "single", "ppp"),
                    help="rtklib: the solution kinds (RTKLIB Q) that serve as the reference "

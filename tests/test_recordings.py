@@ -382,6 +382,45 @@ def test_ros2_import_by_topic(tmp_path):
     assert abs(pitch) < 0.01 and abs(roll) < 0.01
 
 
+def test_ros2_rtk_fixes_as_the_reference(tmp_path):
+    """NavSatFix of a receiver driving north at 5 m/s, RTK-grade (status 2, 2 cm) with a few
+    degraded fixes (status 0, 3 m): with --reference-status 2 only the RTK fixes become
+    /truth/state, their velocity from position differences is 5 m/s north, and the reference
+    says it is GNSS only with its sigma."""
+    n, rate = 3000, 100.0
+    stamps = 1_700_000_000_000_000_000 + np.arange(n) * 10_000_000
+    w = np.zeros((n, 3))
+    f = np.tile([0.0, 0.0, 9.80], (n, 1))
+    fix_ns = stamps[::25]
+    t = (fix_ns - fix_ns[0]) / 1e9
+    r_n, _ = earth.radii(LAT0)
+    lat = np.degrees(LAT0 + 5.0 * t / (r_n + H0))
+    status = np.full(len(fix_ns), 2, np.int8)
+    status[10:14] = 0
+    sigma2 = np.where(status == 2, 0.02 ** 2, 3.0 ** 2)
+    cov = np.zeros((len(fix_ns), 9))
+    cov[:, 0] = cov[:, 4] = sigma2
+    cov[:, 8] = 4 * sigma2
+    bag = tmp_path / "rtk.mcap"
+    with LogWriter(bag) as log:
+        log.write("/imu", S.IMU, "imu_link", stamps, **S.imu_fields(w, f))
+        log.write("/fix", S.NAV_SAT_FIX, "gps", fix_ns, status=status,
+                  service=np.ones(len(fix_ns), np.uint16), latitude=lat,
+                  longitude=np.full(len(fix_ns), np.degrees(LON0)), altitude=np.full(len(fix_ns), H0),
+                  position_covariance=cov, position_covariance_type=np.full(len(fix_ns), 2, np.uint8))
+    out = tmp_path / "rtk-log.mcap"
+    assert main(["import", "ros2", str(bag), "-o", str(out), "--reference-status", "2"]) == 0
+    with FlightLog(out) as log:
+        ref = log.read("/truth/state")
+        meta = log.metadata()["reference"]
+    assert len(ref) == len(fix_ns) - 4
+    np.testing.assert_allclose(ref["velocity_ned"][:, 0], 5.0, atol=1e-5)
+    assert meta["independent"].startswith("yes") and float(meta["position_sigma_m"]) == \
+        pytest.approx(0.02 * np.sqrt(2), rel=1e-3)
+    with pytest.raises(RecordingError, match="at least 3"):
+        ros2.read(bag, reference_status=2, reference_sigma_m=0.01)
+
+
 def _ulog_bytes(formats, topics, rows, info_utc=True):
     """A minimal ULog (version 1): header, 'F' formats, 'A' subscriptions, 'D' data."""
     def msg(kind, body):

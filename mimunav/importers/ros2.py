@@ -52,8 +52,13 @@ def _messages(path, topic):
             yield (stamp if stamp > 0 else message.log_time), ros
 
 
-def read(path, imu_topic=None, fix_topic=None, mounting=None):
-    """The recording of a ROS 2 MCAP as a `Recording`."""
+def read(path, imu_topic=None, fix_topic=None, mounting=None, reference_status=None,
+         reference_sigma_m=np.inf):
+    """The recording of a ROS 2 MCAP as a `Recording`. With `reference_status` (the lowest
+    NavSatStatus that counts: 2 = GBAS_FIX, RTK-grade) the fixes of at least that status
+    whose horizontal sigma (from position_covariance, when known) is at most
+    reference_sigma_m serve as the reference trajectory too, velocity from central
+    differences of their positions."""
     available = topics(path)
     imu_topic = _pick(path, available, IMU, imu_topic, required=True)
     fix_topic = _pick(path, available, NAV_SAT_FIX, fix_topic, required=False)
@@ -77,6 +82,12 @@ def read(path, imu_topic=None, fix_topic=None, mounting=None):
         if len(fx):
             fixes = dict(ns=fx[:, 0].astype(np.int64), status=fx[:, 1].astype(np.int8),
                          lat=fx[:, 2], lon=fx[:, 3], h=fx[:, 4], covariance=fx[:, 5:14])
+    reference, reference_meta = None, {}
+    if reference_status is not None:
+        if fixes is None:
+            raise RecordingError(f"{path}: a reference from fixes needs a NavSatFix topic")
+        reference, reference_meta = _fix_reference(fixes, reference_status, reference_sigma_m,
+                                                   fix_topic)
     name = os.path.splitext(os.path.basename(path))[0]
     real = {"imu": f"{imu_topic} ({len(rows)} messages; {int((~keep).sum())} repeated stamps "
                    "dropped)", "source": os.path.basename(path)}
@@ -85,6 +96,33 @@ def read(path, imu_topic=None, fix_topic=None, mounting=None):
     assumed = {"mounting": "REP-103 body axes (x forward, y left, z up) -> FRD" if mounting is None
                else "given on the command line",
                "calibration": "none: the Imu messages are used as recorded"}
-    return Recording(name, f"ROS 2 recording {os.path.basename(path)}", ns[keep],
+    if reference is not None:
+        real["reference"] = f"{len(reference['ns'])} fixes of {fix_topic}: {reference_meta['source']}"
+    rate = 1e9 / np.median(np.diff(ns[keep]))
+    return Recording(name, f"ROS 2 recording {os.path.basename(path)}: {imu_topic} {rate:.0f} Hz, "
+                     f"{(ns[keep][-1] - ns[keep][0]) / 1e9:.1f} s", ns[keep],
                      data[keep, :3], data[keep, 3:], mounting or FLU_TO_FRD, fixes=fixes,
+                     reference=reference, reference_meta=reference_meta,
                      real=real, assumed=assumed)
+
+
+def _fix_reference(fixes, status, sigma_m, topic):
+    """The fixes of at least `status` and horizontal sigma <= sigma_m as a reference
+    (velocity by central differences of the positions), and its metadata."""
+    from .. import earth
+    cov = fixes["covariance"]
+    sigma = np.sqrt(np.maximum(cov[:, 0], 0) + np.maximum(cov[:, 4], 0))
+    use = (fixes["status"] >= status) & ((sigma <= sigma_m) | ~(sigma > 0))
+    if use.sum() < 3:
+        raise RecordingError(f"{topic}: {int(use.sum())} fixes of status >= {status} and sigma "
+                             f"<= {sigma_m:g} m; a reference needs at least 3")
+    ns = fixes["ns"][use]
+    lat, lon, h = fixes["lat"][use], fixes["lon"][use], fixes["h"][use]
+    t = (ns - ns[0]) / 1e9
+    ned = earth.ned_difference(lat, lon, h, lat[0], lon[0], h[0])
+    meta = {"source": f"NavSatFix {topic}, status >= {status}, velocity from position "
+                      "differences",
+            "independent": "yes: GNSS only",
+            "position_sigma_m": f"{np.median(sigma[use]):.3g}" if np.any(sigma[use] > 0)
+                                else "not stated"}
+    return dict(ns=ns, lat=lat, lon=lon, h=h, v_ned=np.gradient(ned, t, axis=0)), meta
