@@ -307,7 +307,7 @@ def _windows(args):
     refuse_inputs([args.output], [args.log, args.cal])
     if args.output and Path(args.output).exists() and not args.force:
         raise FileExistsError(f"{args.output} exists; use --force to replace it")
-    flight = evaluation.Flight.load(args.log, reference_imu=False)
+    flight = evaluation.Flight.load(args.log, reference_imu=False, max_gap_s=np.inf)
     cal = Calibration.load(args.cal) if args.cal else None
     results, rest = windows.run_all(flight, cal, args.lengths, args.step, args.time_shift,
                                     progress=True, min_speed=args.min_speed,

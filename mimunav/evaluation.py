@@ -54,7 +54,7 @@ class Flight:
     source: str = ""                # the flight metadata's source: "simulation", "recording"
 
     @classmethod
-    def load(cls, path, reference_imu=True):
+    def load(cls, path, reference_imu=True, max_gap_s=None):
         """The flight of the log at `path`; with reference_imu=False a log without
         /fog/imu is accepted too (then fog_t, fog_w, fog_f are None). The MIMU comes from
         /mimu/raw, or when the log has none (an imported recording) from the already
@@ -105,7 +105,7 @@ class Flight:
                         np.ascontiguousarray(fog["linear_acceleration"], float))
                        if fog is not None else (None, None, None)), mount("fog"), truth_traj,
                      imu, meta.get("sensor/fog", {}), str(flight.get("source", "")))
-        check_plausible(loaded)
+        check_plausible(loaded, MAX_GAP_S if max_gap_s is None else max_gap_s)
         return loaded
 
     @classmethod
@@ -142,10 +142,11 @@ class Flight:
 MAX_GAP_S = 0.5            # s of missing MIMU samples navigation will not bridge
 
 
-def check_plausible(flight):
+def check_plausible(flight, max_gap_s=None):
     """Refuse a log whose numbers cannot be what the contract says (LogError naming the
     channel, the time and the likely cause); warn (stderr) about missing samples shorter
-    than MAX_GAP_S. Checks: stamps increase; MIMU gaps; the initial state inside the MIMU's
+    than max_gap_s (default MAX_GAP_S; a command that does not navigate across gaps, such as
+    `windows`, passes inf). Checks: stamps increase; MIMU gaps; the initial state inside the MIMU's
     span; the truth finite, latitude in rad, its span overlapping the MIMU's; the reference
     IMU finite, its specific force near 1 g (not in g), its rates of the truth's attitude
     rate's size (not deg/s)."""
@@ -168,7 +169,7 @@ def check_plausible(flight):
         if gaps:
             longest = max(gaps, key=lambda g: t[g[0] + 1] - t[g[0]])
             k, n = longest
-            if t[k + 1] - t[k] > MAX_GAP_S:
+            if t[k + 1] - t[k] > (MAX_GAP_S if max_gap_s is None else max_gap_s):
                 raise LogError(f"{where}: the MIMU misses {n} samples between t = {t[k]:.3f} "
                                f"and {t[k + 1]:.3f} s ({sum(m for _, m in gaps)} in all): "
                                f"navigation would bridge {t[k + 1] - t[k]:.3g} s with one "

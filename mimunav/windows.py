@@ -51,14 +51,16 @@ def track_of(truth):
 
 
 def starts(truth, length, step=START_STEP_S, first=0.0, min_speed=alignment.COURSE_SPEED,
-           max_gap=MAX_GAP_S):
+           max_gap=MAX_GAP_S, t_imu=None):
     """Window starts (s) on a grid of `step` from `first`: moving faster than min_speed
     (m/s, horizontal), the whole window (and the alignment interval before it) covered
-    without a reference gap longer than max_gap (s)."""
+    without a gap longer than max_gap (s) in the reference or in the IMU's stamps t_imu."""
     half = alignment.MOVING_HALF_WINDOW_S
     grid = np.arange(max(first, truth.t[0] + half), truth.t[-1] - length, step)
     speed = np.hypot(truth.v_ned[:, 0], truth.v_ned[:, 1])
     gap_end = truth.t[1:][np.diff(truth.t) > max_gap]
+    if t_imu is not None:
+        gap_end = np.concatenate([gap_end, t_imu[1:][np.diff(t_imu) > max_gap]])
     out = []
     for t0 in grid:
         if np.interp(t0, truth.t, speed) < min_speed:
@@ -124,7 +126,7 @@ def run_all(flight, cal=None, lengths=WINDOW_LENGTHS_S, step=START_STEP_S, time_
         min_speed = 0.0 if has_attitude else alignment.COURSE_SPEED
     first = rest.navigable_from
     todo = [(length, t0) for length in lengths
-            for t0 in starts(flight.truth, length, step, first, min_speed, max_gap)]
+            for t0 in starts(flight.truth, length, step, first, min_speed, max_gap, t)]
     if not todo:
         raise InputError(f"{flight.path}: " + _no_windows(flight.truth, lengths, first,
                                                            min_speed, max_gap))

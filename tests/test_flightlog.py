@@ -254,3 +254,53 @@ def test_gaps_are_missing_samples_not_jitter():
     assert missing_samples(holed) == [(1999, 3)]
     assert missing_samples(np.delete(nominal, [10])) == [(9, 1)]
     assert missing_samples((jittered * 1.0001).astype(np.int64)) == []
+
+
+def test_the_bulk_writer_makes_mcap_the_mcap_package_validates(tmp_path):
+    """Our own record layouts checked by an implementation we did not write: the `mcap`
+    package streams every record with CRCs validated (chunks, indexes, summary, footer),
+    finds the summary through the footer and its offsets (statistics, chunk and metadata
+    indexes agree with the data), decodes every message by mcap_ros2 to the values written,
+    and returns the metadata and the attachment; this project's recovery walk finds the
+    file complete."""
+    from mcap.reader import make_reader
+    from mcap.records import Footer
+    from mcap.stream_reader import StreamReader
+    from mcap_ros2.decoder import DecoderFactory
+    from mimunav.flightlog.recover import scan
+    n = 25_000                                   # several chunks at a 64 KiB chunk size
+    stamps = EPOCH + np.arange(n, dtype=np.int64) * 1_000_000
+    rng = np.random.default_rng(3)
+    w, f = rng.normal(size=(n, 3)), rng.normal(size=(n, 3))
+    src = tmp_path / "src.mcap"
+    with LogWriter(src) as log:
+        log.write("/other", S.IMU, "x", stamps[:10], **S.imu_fields(w[:10], f[:10]))
+    path = tmp_path / "bulk.mcap"
+    with LogWriter(path, chunk_size=1 << 16) as log:
+        log.metadata("flight", {"epoch_unix_ns": str(EPOCH), "n": n})
+        log.write("/fog/imu", S.IMU, "fog", stamps, **S.imu_fields(w, f))
+        log.attachment("note.txt", b"hello", "text/plain")
+        with open(src, "rb") as fh:
+            for schema, channel, message in make_reader(fh).iter_messages():
+                log.copy(schema, channel, message)
+    with open(path, "rb") as fh:
+        records = list(StreamReader(fh, validate_crcs=True).records)
+    assert isinstance(records[-1], Footer)
+    with open(path, "rb") as fh:
+        reader = make_reader(fh, decoder_factories=[DecoderFactory()])
+        summary = reader.get_summary()
+        topics = {c.id: c.topic for c in summary.channels.values()}
+        assert {topics[c]: k for c, k in summary.statistics.channel_message_counts.items()} == \
+            {"/fog/imu": n, "/other": 10}
+        assert summary.statistics.chunk_count == len(summary.chunk_indexes) > 3
+        got = [(m.log_time, ros.angular_velocity.y, ros.linear_acceleration.z)
+               for _, channel, m, ros in reader.iter_decoded_messages(topics=["/fog/imu"])]
+        assert [g[0] for g in got] == stamps.tolist()
+        np.testing.assert_array_equal([g[1] for g in got], w[:, 1])
+        np.testing.assert_array_equal([g[2] for g in got], f[:, 2])
+        meta = {m.name: m.metadata for m in reader.iter_metadata()}
+        assert meta["flight"]["n"] == str(n)
+        (att,) = list(reader.iter_attachments())
+        assert att.data == b"hello" and att.media_type == "text/plain"
+    report = scan(path)
+    assert report["complete"] and report["channels"]["/fog/imu"][0] == n

@@ -65,9 +65,10 @@ METHOD = {
                    "error signature on this trajectory, bias wander and initial attitude "
                    "error as nuisance): the same selection, held-out confirmation and "
                    "bootstrap as the sensor level"),
-    "track": ("track level (no reference IMU; a land vehicle's reference trajectory without "
-              "attitude): the ideal IMU simulated along the trajectory (attitude from the "
-              "velocity: no side slip, roll 0) is the reference of the sensor level - residual, "
+    "track": ("track level (no reference IMU; a vehicle's reference trajectory, whose own "
+              "attitude, if any, is not used): the ideal IMU simulated along the trajectory "
+              "(attitude from the velocity: no side slip, roll 0) is the reference of the "
+              "sensor level - residual, "
               "Holm selection on alternate 0.5 s blocks, held-out confirmation on the others; "
               "samples below 2 m/s in motion left out")}
 

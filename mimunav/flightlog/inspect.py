@@ -63,6 +63,19 @@ def channel_report(log, topic):
     return rep
 
 
+def _mounting_text(doc):
+    """A mounting as roll/pitch/yaw (deg, sensor -> vehicle) and lever arm (m)."""
+    from .. import attitude
+    from ..sensors import Mounting
+    try:
+        m = Mounting.from_dict(doc or {})
+    except (ValueError, TypeError):
+        return f"{doc} (not readable)"
+    yaw, pitch, roll = (float(np.degrees(a)) + 0.0 for a in attitude.as_euler(m.q_vs))
+    return (f"roll/pitch/yaw [{roll:.2f}, {pitch:.2f}, {yaw:.2f}] deg, lever arm "
+            f"{np.round(m.lever_arm_m, 3).tolist()} m")
+
+
 def describe(log, unreadable=None):
     """The text of `mimunav info`; the topics that cannot be read are appended to the list
     `unreadable` when one is given."""
@@ -74,13 +87,16 @@ def describe(log, unreadable=None):
             lines.append(f"{key:<9} {flight[key]}")
     if "initial_state" in flight:
         s = flight["initial_state"]
-        lines.append(f"initial   t = {s.get('t')} s, lat {np.degrees(s.get('latitude', 0)):.6f} "
-                     f"deg, lon {np.degrees(s.get('longitude', 0)):.6f} deg, "
-                     f"h {s.get('height', 0):.1f} m, v_ned {s.get('velocity_ned')}")
+        v = np.asarray(s.get("velocity_ned", [np.nan] * 3), float)
+        lines.append(f"initial   t = {float(s.get('t', np.nan)):.3f} s, lat "
+                     f"{np.degrees(s.get('latitude', 0)):.6f} deg, lon "
+                     f"{np.degrees(s.get('longitude', 0)):.6f} deg, h {s.get('height', 0):.1f} m, "
+                     f"v_ned [{v[0]:.3f}, {v[1]:.3f}, {v[2]:.3f}] m/s")
     for name in sorted(k for k in meta if k.startswith("sensor/")):
         m = meta[name]
         lines.append(f"{name:<11} {m.get('model', '?')}, {m.get('sample_rate_hz', '?')} Hz, "
-                     f"mounting {m.get('mounting')}, range {m.get('range')}")
+                     f"mounting {_mounting_text(m.get('mounting'))}, range "
+                     f"{m.get('range') or 'not stated'}")
     lines.append("channels")
     for topic in sorted(log.channels):
         try:

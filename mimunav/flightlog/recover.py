@@ -253,6 +253,9 @@ def describe_scan(report):
         lines.append(f"  {topic:<14} {n:>9}{of} intact messages, {when(first)} .. {when(last)}")
     for topic in sorted(set(expected) - set(report["channels"])):
         lines.append(f"  {topic:<14}         0 of {expected[topic]} intact messages")
+    if not expected and not report["complete"]:
+        lines.append("the summary (statistics) is lost: a channel all of whose chunks were "
+                     "lost is not listed above, and the counts cannot be compared")
     for d in report["damaged"]:
         where = f"bytes {d['offset']}-{d['offset'] + d['bytes']}" if d["offset"] is not None \
             else "messages"

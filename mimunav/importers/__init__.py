@@ -17,14 +17,16 @@ import json
 from dataclasses import dataclass, field
 
 import numpy as np
+import quaternion
 
-from .. import alignment, earth
+from .. import alignment, attitude, earth
 from ..flightlog import LogWriter
 from ..flightlog import schemas as S
 from ..sensors import Mounting
 from ..errors import InputError
 
 UNKNOWN_ATTITUDE = np.full(4, np.nan)
+G0 = 9.80665                # m/s^2, standard gravity: the size a check of units compares with
 GPS_EPOCH_UNIX_S = 315964800            # 1980-01-06T00:00:00Z, the start of GPS time
 # GPS - UTC, s, from the GPS time (s since the GPS epoch) at which each took effect (IERS
 # Bulletin C; none added after 2017-01-01)
@@ -94,9 +96,53 @@ def gps_to_unix_s(gps_s):
     return gps_s + GPS_EPOCH_UNIX_S - leaps[np.searchsorted(starts, gps_s, side="right") - 1]
 
 
+def check_recording(rec):
+    """Refuse a recording whose IMU cannot be in the units and axes the import says: the
+    median |specific force| far from 1 g (g read as m/s^2 or the reverse); with a reference
+    attitude, the 1 s mean specific force turned into NED by the mounting and that attitude
+    not pointing up (axes, mounting or quaternion convention wrong), or the gyro's rates a
+    factor of ten or more from the attitude's own rate (deg/s read as rad/s)."""
+    g = float(np.median(np.linalg.norm(rec.f, axis=1)))
+    if not 0.5 * G0 < g < 2 * G0:
+        raise RecordingError(f"{rec.name}: the median |specific force| is {g:.3g} m/s^2; a "
+                             "vehicle on Earth feels about 9.8: is the accelerometer's unit "
+                             "(g or m/s^2) right?")
+    ref = rec.reference
+    q = None if ref is None else ref.get("q_nb")
+    if q is None or np.isfinite(q).all(axis=1).sum() < 10:
+        return
+    ok = np.isfinite(q).all(axis=1)
+    t_ref = ref["ns"][ok]
+    k = np.clip(np.searchsorted(rec.imu_ns, t_ref), 0, len(rec.imu_ns) - 1)
+    q_ns = quaternion.from_float_array(q[ok]) * rec.mounting.q_vs
+    f_n = np.median(attitude.rotate(q_ns, _local_mean(rec.f, k)), axis=0)
+    if f_n[2] > -0.8 * g or np.hypot(f_n[0], f_n[1]) > 0.3 * g:
+        raise RecordingError(f"{rec.name}: the specific force turned into NED by the mounting and "
+                             f"the reference attitude is {np.round(f_n, 2).tolist()} m/s^2 in the "
+                             f"median, not [0, 0, -{g:.1f}]: the sensor axes, the mounting or "
+                             "the attitude quaternion's convention (body -> NED or ECEF) is wrong")
+    dq = np.conjugate(quaternion.from_float_array(q[ok][:-1])) * \
+        quaternion.from_float_array(q[ok][1:])
+    rate = np.linalg.norm(quaternion.as_rotation_vector(dq), axis=1) / (np.diff(t_ref) / 1e9)
+    ref_rate = float(np.percentile(rate, 99))
+    imu_rate = float(np.percentile(np.linalg.norm(_local_mean(rec.w, k), axis=1), 99))
+    if ref_rate > 0.05 and not 0.1 < imu_rate / ref_rate < 10:
+        raise RecordingError(f"{rec.name}: the gyro's rates reach {imu_rate:.3g}, the reference "
+                             f"attitude turns at up to {ref_rate:.3g} rad/s: is the gyro's unit "
+                             "(deg/s or rad/s) right?")
+
+
+def _local_mean(x, k, half=5):
+    """Means of x over the samples k - half .. k + half (noise averaged, motion kept)."""
+    c = np.vstack([np.zeros((1, x.shape[1])), np.cumsum(x, axis=0)])
+    lo, hi = np.clip(k - half, 0, len(x)), np.clip(k + half + 1, 0, len(x))
+    return (c[hi] - c[lo]) / (hi - lo)[:, None]
+
+
 def write_log(rec, path, force=False):
     """Write `rec` as a contract log at `path` (atomically; an existing file only with
-    force). Returns the initial alignment (`alignment.Alignment`)."""
+    force), after `check_recording`. Returns the initial alignment (`alignment.Alignment`)."""
+    check_recording(rec)
     epoch = int(rec.imu_ns[0])
     t = (rec.imu_ns - epoch) / 1e9
     ref = rec.reference
@@ -127,7 +173,10 @@ def write_log(rec, path, force=False):
             q = ref.get("q_nb")
             known = q is not None and np.isfinite(q).all(axis=1).any()
             meta = {"source": rec.real.get("reference", "external"),
-                    "attitude": "measured" if known else "unknown", "velocity": "measured"}
+                    "attitude": ("given by the reference (" +
+                                 rec.reference_meta.get("source", "its source") + ")"
+                                 if known else "unknown"),
+                    "velocity": "given by the reference"}
             meta.update({k: str(v) for k, v in rec.reference_meta.items()})
             log.metadata("reference", meta)
             log.write("/truth/state", S.NAV_STATE, "vehicle", ref["ns"],

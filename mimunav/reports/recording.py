@@ -43,54 +43,72 @@ def write(log_path, out_dir, force=False, progress=True, min_speed=None,
     with FlightLog(log_path) as log:
         meta = log.metadata()
         channels = describe(log)
-    flight = evaluation.Flight.load(log_path, reference_imu=False)
+    flight = evaluation.Flight.load(log_path, reference_imu=False, max_gap_s=np.inf)
     if flight.mimu_raw is not None:
         raise InputError(f"{log_path}: a raw /mimu/raw needs its calibration; the recording "
                          "report takes a recorded /mimu/imu (mimunav import ...)")
     if flight.truth is None:
         raise InputError(f"{log_path}: no reference trajectory (/truth/state): nothing to "
                          "report the IMU against")
-    span = float(flight.truth.t[-1] - flight.truth.t[0])
-    lengths = tuple(x for x in lengths if x < span) or (max(0.1, round(span / 2, 1)),)
-    step = min(windows.START_STEP_S, min(lengths) / 2)
-    try:
-        results, rest = windows.run_all(flight, None, lengths=lengths, step=step,
-                                        progress=progress, min_speed=min_speed)
-        windows_doc, no_windows = windows_report.document(flight, results, rest, IDENTITY,
-                                                          0.0), None
-    except InputError as exc:
-        results, windows_doc, no_windows = None, None, str(exc)
     cal = Calibration.identity()
     diag = doc = no_diagnosis = None
+    gap = np.diff(flight.mimu_t)
+    if gap.max() > evaluation.MAX_GAP_S:
+        k = int(np.argmax(gap))
+        no_diagnosis = (f"the IMU's stamps jump by {gap[k]:.3g} s at t = {flight.mimu_t[k]:.2f} s "
+                        "(lost samples): the diagnosis and its navigation would bridge the gap; "
+                        "the windows above avoid it")
+    else:
+        try:
+            if flight.fog_t is None:
+                diag = track.diagnose(flight, cal)
+            else:           # a recording with a reference IMU: the sensor level
+                from ..diagnosis import sensor
+                diag = sensor.diagnose(flight, cal)
+            doc = document(Path(log_path).name, diag)
+        except InputError as exc:
+            no_diagnosis = str(exc)
+    span = float(flight.truth.t[-1] - flight.truth.t[0])
+    shortened = not any(x < span for x in lengths)
+    lengths = tuple(x for x in lengths if x < span) or (max(0.1, round(span / 2, 1)),)
+    step = min(windows.START_STEP_S, min(lengths) / 2)
+    lag = (doc or {}).get("time_lag", {})
+    shifts = {"as recorded": 0.0}
+    if "tau_s" in lag and (lag["ci95"][0] > 0 or lag["ci95"][1] < 0):
+        shifts[f"the yaw-rate lag {lag['tau_s'] * 1e3:.0f} ms removed"] = -lag["tau_s"]
+    results, docs, no_windows = {}, {}, None
     try:
-        if flight.fog_t is None:
-            diag = track.diagnose(flight, cal)
-        else:           # a recording with a reference IMU: the sensor level
-            from ..diagnosis import sensor
-            diag = sensor.diagnose(flight, cal)
-        doc = document(Path(log_path).name, diag)
+        for label, shift in shifts.items():
+            results[label], rest = windows.run_all(flight, None, lengths=lengths, step=step,
+                                                   time_shift_s=shift, progress=progress,
+                                                   min_speed=min_speed)
+            docs[label] = windows_report.document(flight, results[label], rest, IDENTITY, shift)
     except InputError as exc:
-        no_diagnosis = str(exc)
+        results, docs, no_windows = {}, {}, str(exc)
+    if shortened and docs:
+        no_windows = (f"the reference spans {span:.1f} s, shorter than every default window "
+                      f"length: one length of {lengths[0]:g} s (half the span), windows every "
+                      f"{step:g} s")
     with atomic_folder(out_dir, force=force, inputs=[log_path]) as tmp:
-        if results is not None:
-            windows_report.plot({"as recorded": results}, str(tmp / "windows.png"))
-            (tmp / "windows.json").write_text(json.dumps(windows_doc, indent=1) + "\n")
+        if results:
+            windows_report.plot(results, str(tmp / "windows.png"))
+            (tmp / "windows.json").write_text(json.dumps(docs, indent=1) + "\n")
         if doc is not None:
             diagnosis_report.write(tmp / "diagnosis", doc, diag, flight, cal,
                                    with_found(cal, doc["findings"]), IDENTITY)
-        text = markdown(log_path, meta, channels, flight, windows_doc, no_windows, doc,
+        text = markdown(log_path, meta, channels, flight, docs, no_windows, doc,
                         no_diagnosis, time.perf_counter() - started)
         (tmp / "recording.md").write_text(text)
     return Path(out_dir) / "recording.md"
 
 
-def markdown(log_path, meta, channels, flight, windows_doc, no_windows, doc, no_diagnosis,
-             elapsed):
+def markdown(log_path, meta, channels, flight, docs, no_windows, doc, no_diagnosis, elapsed):
     fl, rec, ref = meta.get("flight", {}), meta.get("recording", {}), meta.get("reference", {})
     mimu = meta.get("sensor/mimu", {})
     lines = [f"# Recording {fl.get('name', Path(log_path).stem)}", "",
-             f"Generated by `mimunav report recording {Path(log_path).name}` in {elapsed:.0f} s. "
-             f"{fl.get('description', '')}", "",
+             fl.get("description", ""), "",
+             f"Generated by `mimunav report recording {Path(log_path).name}` in {elapsed:.0f} s.",
+             "",
              "## What it is", "",
              "| item | value |", "|---|---|",
              f"| source | {_cell(rec.get('real', {}).get('source', fl.get('source', '?')))} |",
@@ -113,11 +131,17 @@ def markdown(log_path, meta, channels, flight, windows_doc, no_windows, doc, no_
               f"{np.linalg.norm(flight.initial['v_ned']):.2f} m/s.", "",
               "## Channels (`mimunav info`)", "", "```", channels, "```", "",
               "## Free-inertial windows against the reference (`mimunav windows`)", ""]
-    if windows_doc is None:
+    if not docs:
         lines += [f"No window: {no_windows}", ""]
     else:
-        lines += [windows_doc["rest"]["alignment"] + ".", "",
-                  windows_report.markdown_table(windows_doc), "", "![windows](windows.png)", "",
+        first = next(iter(docs.values()))
+        lines += [first["rest"]["alignment"] + ".", ""]
+        if no_windows:
+            lines += [f"Window length: {no_windows}.", ""]
+        for label, d in docs.items():
+            lines += [f"**{label}** (IMU stamps shifted by {d['time_shift_s'] * 1e3:+.0f} ms)", "",
+                      windows_report.markdown_table(d), ""]
+        lines += ["![windows](windows.png)", "",
                   "Windows overlap (the count of disjoint ones in brackets): percentiles over "
                   "them are not independent samples. The reference's own position error ("
                   + (f"sigma {_cell(ref['position_sigma_m'])} m" if "position_sigma_m" in ref
@@ -125,16 +149,17 @@ def markdown(log_path, meta, channels, flight, windows_doc, no_windows, doc, no_
     lines += ["## Diagnosis (`mimunav diagnose`)", ""]
     if doc is None:
         return "\n".join(lines + [f"Not run: {no_diagnosis}"]) + "\n"
-    lines += [f"Level: {doc['level']}. Verdict: **"
-              + (doc["verdict"] if doc["conclusive"] else
-                 f"inconclusive** (contract verdict `{doc['verdict']}`) **") + "**.", ""]
+    lines += [f"Level: {doc['level']}. Verdict: "
+              + (f"**{doc['verdict']}**." if doc["conclusive"] else
+                 f"**inconclusive** (contract verdict `{doc['verdict']}`)."), ""]
     if not doc["conclusive"]:
         lines += [f"- {r}" for r in doc["inconclusive_reasons"]] + [""]
     for f in doc["findings"]:
         lines.append(f"- found {f['label']}: {f['coefficient']:.4g} {f['units']} "
                      f"[{f['ci95'][0]:.4g}, {f['ci95'][1]:.4g}] ({f.get('attribution', '')})")
     for f in doc["not_confirmed"]:
-        lines.append(f"- not confirmed {f['label']}: {f['rejected']}")
+        if not any(r.startswith(f["label"]) for r in doc.get("inconclusive_reasons", [])):
+            lines.append(f"- not confirmed {f['label']}: {f['rejected']}")
     lag = doc.get("time_lag", {})
     if "tau_s" in lag:
         lines.append(f"- time lag of the IMU from the yaw rate: {lag['tau_s'] * 1e3:.1f} ms "
@@ -150,4 +175,6 @@ def _rpy(mounting):
 
 
 def _cell(x):
+    if isinstance(x, dict):
+        x = "; ".join(f"{k}: {v}" for k, v in x.items())
     return str(x).replace("|", "/").replace("\n", " ")

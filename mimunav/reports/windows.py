@@ -27,7 +27,7 @@ def document(flight, results, rest, cal_label, time_shift_s):
 def markdown_table(doc, label=None):
     head = "| variant | " if label else "| "
     lines = [head + "window s | windows (disjoint) | horizontal error p50 / p68 / p95 / max, m "
-             "| vertical p50 / p95, m | median drift, m/s |",
+             "| vertical p50 / p95, m | median horizontal end error / length, m/s |",
              "|" + "---|" * (6 if label else 5)]
     for length, row in doc["summary"].items():
         h, v = row["horizontal_m"], row["vertical_m"]
