@@ -581,8 +581,7 @@ def _judge(design, chosen, train, held, alpha, full_scale, cond):
         finding.update(
             label=library.label(term), p_train=c["p_train"], holm_threshold=c["threshold"],
             p_heldout=p_ho, train_coefficient=b_tr.tolist() if len(b_tr) > 1 else float(b_tr[0]),
-            attribution=("mimu" if p_ref < level else
-                         "mimu-or-reference" if res["linear"] else "mimu-or-calibration"),
+            attribution=_attribution(term, p_ref < level, res["linear"]),
             indistinguishable_from=[_alternative(design.terms[a]) for a in c["alternatives"]],
             not_chosen_as_implausible=c["implausible"])
         if res["linear"]:
@@ -600,6 +599,18 @@ def _judge(design, chosen, train, held, alpha, full_scale, cond):
         (findings if why is None else rejected).append(
             finding if why is None else dict(finding, rejected=why))
     return findings, rejected
+
+
+def _attribution(term, beyond_reference, linear):
+    """Whom a finding is charged to: the MIMU's sensors, or for the whole unit's terms its
+    installation (mounting, lever arm) or its timing (time_skew); '-or-reference' when the
+    reference's stated accuracy could hold it, '-or-calibration' when the calibration's
+    stated covariance could."""
+    who = {"mounting_misalignment": "installation", "lever_arm": "installation",
+           "time_skew": "timing"}.get(term["effect"], "mimu")
+    if beyond_reference:
+        return who
+    return who + ("-or-reference" if linear else "-or-calibration")
 
 
 def estimate(term, beta, lo, hi):

@@ -155,8 +155,11 @@ def markdown(log_path, meta, channels, flight, docs, no_windows, doc, no_diagnos
     if not doc["conclusive"]:
         lines += [f"- {r}" for r in doc["inconclusive_reasons"]] + [""]
     for f in doc["findings"]:
-        lines.append(f"- found {f['label']}: {f['coefficient']:.4g} {f['units']} "
-                     f"[{f['ci95'][0]:.4g}, {f['ci95'][1]:.4g}] ({f.get('attribution', '')})")
+        value = (f"vector [{', '.join(f'{x:.4g}' for x in f['vector'])}] {f['units']} (sensor "
+                 "axes; the largest component's 95 % interval "
+                 if "vector" in f else f"{f['coefficient']:.4g} {f['units']} (95 % interval ")
+        lines.append(f"- found {f['label']}: {value}[{f['ci95'][0]:.4g}, {f['ci95'][1]:.4g}]; "
+                     f"attribution {f.get('attribution', '')})")
     for f in doc["not_confirmed"]:
         if not any(r.startswith(f["label"]) for r in doc.get("inconclusive_reasons", [])):
             lines.append(f"- not confirmed {f['label']}: {f['rejected']}")
