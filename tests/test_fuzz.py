@@ -84,3 +84,17 @@ def test_recover_reads_past_damage_and_skip_damaged_says_what_it_left(corpus, tm
         damage = comp.metadata()["damage"]
         assert list(damage) == ["/mimu/raw"] and damage["/mimu/raw"][0]["start_ns"] > 0
         assert len(comp.read("/mimu/imu")) == counts["/mimu/raw"][0]
+
+
+def test_a_channel_pointing_at_no_schema_is_refused(corpus, tmp_path):
+    """The case bench/fuzz.py found (2000 runs, seed 1): a flipped byte in the schema id of
+    a summary Channel record; every command refuses it in one line."""
+    _, log, cal, _ = corpus
+    data = bytearray(log.read_bytes())
+    pos = [p for p, op, _ in fuzzing.records(bytes(data)) if op == 0x04][-1]
+    data[pos + 9 + 2] ^= 0xFF                           # schema_id follows the channel id
+    path = tmp_path / "chan.mcap"
+    path.write_bytes(bytes(data))
+    for argv in fuzzing.commands(path, cal, tmp_path)[2:]:
+        outcome, err, _ = fuzzing.run(argv)
+        assert outcome == "refused" and "refers to schema" in err, (argv[0], err)

@@ -58,6 +58,11 @@ class FlightLog:
                            "truncated: `mimunav info LOG` reports what is intact, "
                            "`mimunav info LOG --recover OUT.mcap` saves it")
         self.channels = {c.topic: c for c in self.summary.channels.values()}
+        for c in self.channels.values():
+            if c.schema_id not in self.summary.schemas:
+                raise LogError(f"{self.path}: channel {c.topic!r} refers to schema "
+                               f"{c.schema_id}, which the log does not define (a damaged "
+                               "summary); `mimunav info LOG --recover OUT.mcap` rebuilds it")
         self.time_reversals = {}    # topic -> times a stamp went backwards (file order)
         self._dctx = zstandard.ZstdDecompressor()
 
