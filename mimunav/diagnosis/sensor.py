@@ -545,10 +545,12 @@ def _within(design, j, res):
              else np.full(len(res["b"]), math.sqrt(design.allowance[j])))
     return {"label": library.label(design.terms[j]), **_describe_b(res["b"]),
             "reference_1sigma": sigma.tolist(),
+            "total_1sigma": np.sqrt(np.diag(res["cov"])).tolist(),
             "p_train": math.exp(res["logp"]),
-            "note": "significant against the noise, but not beyond the accuracy the "
-                    "reference IMU and the calibration state in this direction: cannot be "
-                    "charged to physics the model lacks"}
+            "note": "significant against the noise alone, but not once the reference's and "
+                    "the calibration's stated errors may share it: the data cannot tell it "
+                    "from them (total_1sigma: the estimate's uncertainty with those priors), "
+                    "so it cannot be charged to physics the model lacks"}
 
 
 def _describe_b(b):

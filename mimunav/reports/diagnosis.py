@@ -118,13 +118,15 @@ def markdown(doc, diag, cal_label):
     if doc.get("within_reference_accuracy"):
         acc = doc["reference_accuracy"]
         lines += ["## Within the stated accuracies", "",
-                  "Significant against the noise alone, but not beyond what the reference IMU's "
-                  f"accuracy ({acc['source']}) and the calibration's stated covariance allow in "
-                  "that direction, at the selection's threshold: not charged to physics the "
-                  "model lacks.", ""]
-        lines += [f"- {w['label']}: {_vec(w.get('vector', [w.get('coefficient')]))} (stated "
-                  f"1 sigma {_vec(w['reference_1sigma'])}, p train {w['p_train']:.2g})"
-                  for w in doc["within_reference_accuracy"]]
+                  "Significant against the noise alone, but not once the reference's stated "
+                  f"error ({acc['source']}) and the calibration's stated covariance may share "
+                  "it: with those priors the estimate's own uncertainty (total 1 sigma) is too "
+                  "large at the selection's threshold - the data cannot tell the term from "
+                  "them, so it is not charged to physics the model lacks.", ""]
+        lines += [f"- {w['label']}: {_vec(w.get('vector', [w.get('coefficient')]))}, total "
+                  f"1 sigma {_vec(w.get('total_1sigma', []))} (the reference's stated 1 sigma "
+                  f"{_vec(w['reference_1sigma'])}; p train against the noise alone "
+                  f"{w['p_train']:.2g})" for w in doc["within_reference_accuracy"]]
         lines.append("")
     if doc["not_confirmed"]:
         lines += ["## Chosen on the training segments, not confirmed", ""]
