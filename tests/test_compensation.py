@@ -212,12 +212,65 @@ def test_trajectories_compared_only_at_the_same_times():
     t = np.arange(5.0)
     q = np.full(5, np.quaternion(1, 0, 0, 0))
     a = Trajectory(t, np.full(5, 0.7), np.zeros(5), np.zeros(5), np.zeros((5, 3)), q)
-    for other_t in (t + 2e-9, t[:4], np.array([0, 1, 2, 3, 4.5])):
+    assert a.state()["t"] == 0.0 and a.state(-1)["t"] == 4.0      # the first by default
+    for other_t in (t + 2e-9, t[:4], np.arange(6.0), np.array([0, 1, 2, 3, 4.5])):
         n = len(other_t)
         b = Trajectory(other_t, np.full(n, 0.7), np.zeros(n), np.zeros(n), np.zeros((n, 3)),
-                       q[:n])
+                       np.full(n, np.quaternion(1, 0, 0, 0)))
         for method in (a.position_error, a.velocity_error, a.attitude_error):
             with pytest.raises(InputError, match="not sampled at the same times"):
                 method(b)
     close = Trajectory(t + 5e-10, np.full(5, 0.7), np.zeros(5), np.zeros(5), np.zeros((5, 3)), q)
     assert np.abs(a.position_error(close)).max() == 0.0
+
+
+def test_found_terms_are_removed_not_added():
+    """A calibration with a found gyro.x scale factor k = 0.01 (model 'linear+found') on an
+    identity base: the output is (1 - k) x the reading (removed to first order), not
+    (1 + k); base_model strips the suffix."""
+    doc = Calibration.identity().as_dict()
+    doc["model"] = "linear+found"
+    doc["found"] = [{"effect": "scale_factor", "sensor": "gyro", "axis": "x",
+                     "coefficient": 0.01}]
+    cal = Calibration.from_dict(doc)
+    assert cal.base_model == "linear" and Calibration.identity().base_model == "linear"
+    n = 200
+    u = np.tile([0.5, -0.2, 0.1], (n, 1))
+    temp = np.full((n, 3), 25.0)
+    f, w, flags = compensate(cal, u, u, temp, temp, filter_outliers=False,
+                             t=np.arange(n) / 100.0)
+    np.testing.assert_allclose(w[:, 0], 0.99 * 0.5, rtol=1e-12)
+    np.testing.assert_allclose(w[:, 1:], u[:, 1:], rtol=1e-12)
+    np.testing.assert_allclose(f, u, rtol=1e-12)
+
+
+def test_flags_are_distinct_bits():
+    """A sample only saturated carries SATURATED alone; the three flags are separate bits."""
+    assert {REPLACED, SATURATED, UNUSABLE} == {1, 2, 4}
+    unit = MimuUnit.draw(2)
+    n = 500
+    f = np.tile([0.0, 0.0, -G0], (n, 1))
+    w = np.zeros((n, 3))
+    temp = np.full((n, 3), 25.0)
+    freq = unit.thermal.resonance_frequency(temp)
+    u_a, u_w = raw_from_physics(unit.coefficients, f, w, temp, freq)
+    u_a[200:260, 0] = 10.0                   # beyond the range for a whole minute of samples
+    _, _, flags = compensate(unit.coefficients, u_a, u_w, temp, freq, unit.range_accel,
+                             unit.range_gyro)
+    assert np.all(flags[210:250] == SATURATED)
+
+
+def test_cold_start_scale_must_not_vanish():
+    from mimunav.sensors.mimu import MimuUnit as _U
+    doc = _U.draw(4).coefficients.as_dict()
+    doc["model"] = "cold-start"
+    doc["window_s"] = 60.0
+    for triad in ("accel", "gyro"):
+        doc[triad].update({k: [1.0, 1.0, 1.0] if k == "a" else [0.0, 0.0, 0.0]
+                           for k in ("a", "b", "c", "d", "e")})
+    Calibration.from_dict(doc)
+    doc["gyro"]["a"] = [1.0, 0.0, 1.0]
+    with pytest.raises(CalibrationError, match="must not vanish"):
+        Calibration.from_dict(doc)
+    doc["gyro"]["a"] = [1.0, -1.0, 1.0]      # negative is a scale, not a vanishing one
+    Calibration.from_dict(doc)
