@@ -65,8 +65,10 @@ def test_command(clone, tests):
     return f"bash -c '{body}'"
 
 
-def sample(clone, module, per_module, rng):
-    """The sampled work items of one module (cosmic-ray session enumerated in the clone)."""
+def sample(clone, module, per_module, seed):
+    """The sampled work items of one module (cosmic-ray session enumerated in the clone),
+    drawn by a generator seeded from (seed, module): a module's sample does not depend on
+    which other modules are run."""
     from cosmic_ray.work_db import WorkDB, use_db
     config = clone / f"cr-{module}.toml"
     config.write_text(f'[cosmic-ray]\nmodule-path = "mimunav/{module}.py"\ntimeout = {TIMEOUT_S}\n'
@@ -77,6 +79,7 @@ def sample(clone, module, per_module, rng):
                    capture_output=True)
     with use_db(str(session), WorkDB.Mode.open) as db:
         items = [i for i in db.work_items if plausible(i)]
+    rng = random.Random(f"{seed}:{module}")
     chosen = rng.sample(items, min(per_module, len(items)))
     return chosen, len(items)
 
@@ -91,7 +94,6 @@ def main():
     from cosmic_ray.mutating import mutate_and_test
     from cosmic_ray.work_item import TestOutcome
     from tqdm import tqdm
-    rng = random.Random(args.seed)
     started = time.time()
     with tempfile.TemporaryDirectory() as tmp:
         clone = Path(tmp) / "main"
@@ -107,7 +109,7 @@ def main():
         os.chdir(clone)
         results = {}
         for module in args.modules:
-            chosen, total = sample(clone, module, args.per_module, rng)
+            chosen, total = sample(clone, module, args.per_module, args.seed)
             cmd = test_command(clone, TESTS[module])
             baseline = subprocess.run(cmd, shell=True)
             if baseline.returncode != 0:
