@@ -74,7 +74,7 @@ class LogWriter:
         self._fh = os.fdopen(fd, "wb")
         self._fh.write(MAGIC)
         self._fh.write(_record(OP["header"], _string("ros2") + _string("mimunav")))
-        self._zstd = zstandard.ZstdCompressor(level=3)
+        self._zstd = zstandard.ZstdCompressor(level=1)     # as small as 3 on IMU data, 1.6x faster
         return self
 
     def __exit__(self, exc_type, exc, tb):
@@ -108,33 +108,46 @@ class LogWriter:
     # ---- messages ---------------------------------------------------------------------
     def write(self, topic, schema_name, frame_id, stamp_ns, **fields):
         """Write a whole channel of fixed-size messages: stamp_ns integer ns since the
-        UNIX epoch (N,), increasing; fields as in `schemas.BODIES`."""
+        UNIX epoch (N,), increasing; fields as in `schemas.BODIES`. Encoded a chunk at a time
+        (memory and cache stay small)."""
         stamp_ns = np.asarray(stamp_ns, dtype=np.int64)
         if np.any(np.diff(stamp_ns) <= 0):
             raise InputError(f"{topic}: stamps must increase")
-        msgs = schemas.encode(schema_name, frame_id, stamp_ns, **fields)
-        self.write_encoded(topic, schema_name, msgs, stamp_ns)
+        channel = self._channel(topic, schema_name)
+        per = self._per_chunk(schemas.cdr_dtype(schema_name, frame_id).itemsize)
+        for a in range(0, len(stamp_ns), per):
+            piece = {k: (v[a:a + per] if np.ndim(v) and len(v) == len(stamp_ns) else v)
+                     for k, v in fields.items()}
+            self._messages(channel, schemas.encode(schema_name, frame_id, stamp_ns[a:a + per],
+                                                   **piece), stamp_ns[a:a + per], a)
 
     def write_encoded(self, topic, schema_name, msgs, stamp_ns):
         """Messages already encoded (a structured array of CDR payloads, one size) with
         their log times (ns), in bulk."""
         channel = self._channel(topic, schema_name)
+        stamp_ns = np.asarray(stamp_ns, np.int64)
+        per = self._per_chunk(msgs.dtype.itemsize)
+        for a in range(0, len(msgs), per):
+            self._messages(channel, msgs[a:a + per], stamp_ns[a:a + per], a)
+
+    def _per_chunk(self, payload_size):
+        return max(1, self._chunk_size // (_MESSAGE_HEAD + payload_size))
+
+    def _messages(self, channel, msgs, stamp_ns, first_sequence):
+        """One chunk of Message records built as a numpy structured array."""
         size = msgs.dtype.itemsize
         n = len(msgs)
-        records = np.zeros(n, dtype=np.dtype([("op", "u1"), ("length", "<u8"), ("channel", "<u2"),
-                                               ("sequence", "<u4"), ("log_time", "<u8"),
-                                               ("publish_time", "<u8"), ("data", f"V{size}")]))
+        records = np.empty(n, dtype=np.dtype([("op", "u1"), ("length", "<u8"), ("channel", "<u2"),
+                                              ("sequence", "<u4"), ("log_time", "<u8"),
+                                              ("publish_time", "<u8"), ("data", f"V{size}")]))
         records["op"] = OP["message"]
         records["length"] = _MESSAGE_HEAD - 9 + size
         records["channel"] = channel
-        records["sequence"] = np.arange(n, dtype=np.uint32)
-        records["log_time"] = records["publish_time"] = np.asarray(stamp_ns, np.int64)
-        records["data"] = msgs.view(f"V{size}").ravel()
-        per_chunk = max(1, self._chunk_size // records.itemsize)
-        for a in range(0, n, per_chunk):
-            part = records[a:a + per_chunk]
-            self._chunk(channel, part.tobytes(), part["log_time"],
-                        np.arange(len(part), dtype=np.uint64) * records.itemsize)
+        records["sequence"] = np.arange(first_sequence, first_sequence + n, dtype=np.uint32)
+        records["log_time"] = records["publish_time"] = stamp_ns
+        records["data"] = np.ascontiguousarray(msgs).view(f"V{size}").ravel()
+        self._chunk(channel, records.tobytes(), records["log_time"],
+                    np.arange(n, dtype=np.uint64) * np.uint64(records.itemsize))
 
     def copy(self, schema, channel, message):
         """Copy a message read from another MCAP (mcap.records objects) unchanged."""
