@@ -31,7 +31,8 @@ TESTS = {
     "strapdown": ["tests/test_strapdown.py"],
     "truth": ["tests/test_truth.py", "tests/test_strapdown.py"],
     "compensation": ["tests/test_compensation.py"],
-    "trajectory": ["tests/test_evaluation.py", "tests/test_strapdown.py"],
+    "trajectory": ["tests/test_trajectory.py", "tests/test_evaluation.py",
+                   "tests/test_strapdown.py"],
 }
 PLAUSIBLE = ("ReplaceBinaryOperator_Add_Sub", "ReplaceBinaryOperator_Sub_Add",
              "ReplaceBinaryOperator_Mul_Div", "ReplaceBinaryOperator_Div_Mul",

@@ -3,7 +3,6 @@ import json
 
 import numpy as np
 import pytest
-import quaternion  # noqa: F401  (np.quaternion)
 
 from mimunav.compensation import (REPLACED, SATURATED, UNUSABLE, Calibration,
                                   CalibrationError, compensate, raw_from_physics)
@@ -204,24 +203,6 @@ def test_wild_value_filter_at_its_threshold():
     flags = np.zeros(n, np.uint8)
     wild_value_filter(fast + rng.normal(0, 1e-9, (n, 3)), flags)
     assert not flags.any()
-
-
-def test_trajectories_compared_only_at_the_same_times():
-    from mimunav.errors import InputError
-    from mimunav.trajectory import Trajectory
-    t = np.arange(5.0)
-    q = np.full(5, np.quaternion(1, 0, 0, 0))
-    a = Trajectory(t, np.full(5, 0.7), np.zeros(5), np.zeros(5), np.zeros((5, 3)), q)
-    assert a.state()["t"] == 0.0 and a.state(-1)["t"] == 4.0      # the first by default
-    for other_t in (t + 2e-9, t[:4], np.arange(6.0), np.array([0, 1, 2, 3, 4.5])):
-        n = len(other_t)
-        b = Trajectory(other_t, np.full(n, 0.7), np.zeros(n), np.zeros(n), np.zeros((n, 3)),
-                       np.full(n, np.quaternion(1, 0, 0, 0)))
-        for method in (a.position_error, a.velocity_error, a.attitude_error):
-            with pytest.raises(InputError, match="not sampled at the same times"):
-                method(b)
-    close = Trajectory(t + 5e-10, np.full(5, 0.7), np.zeros(5), np.zeros(5), np.zeros((5, 3)), q)
-    assert np.abs(a.position_error(close)).max() == 0.0
 
 
 def test_found_terms_are_removed_not_added():
