@@ -15,7 +15,7 @@ from mimunav import attitude, earth
 from mimunav.cli import main
 from mimunav.evaluation import Flight
 from mimunav.flightlog import FlightLog
-from mimunav.importers import gps_to_unix_s, table, ulog
+from mimunav.importers import RecordingError, gps_to_unix_s, table, ulog, write_log
 
 SHARED = Path(__file__).resolve().parent.parent.parent / "shared" / "data"
 COMMA_SPEC = Path(__file__).parent / "data" / "comma2k19.toml"
@@ -127,3 +127,25 @@ def test_px4_sample_without_gnss(tmp_path):
     assert "reference" not in meta
     assert float(meta["sensor/mimu"]["sample_rate_hz"]) == pytest.approx(250.0, abs=0.5)
     assert n == 17070                   # every sensor_combined sample (the README's count)
+
+
+@pytest.mark.parametrize("old, new, message", [
+    ('value", unit = "m/s^2"', 'value", unit = "g"', r"accelerometer's unit \(g or m/s\^2\)"),
+    ('axes = "FRD"', 'axes = "FLU"', "not pointing|not \\[0, 0, -"),
+    ('rotates = "body_to_ecef"', 'rotates = "body_to_ned"', "convention"),
+    ('gyro_uncalibrated/value", unit = "rad/s"', 'gyro_uncalibrated/value", unit = "deg/s"',
+     r"gyro's unit \(deg/s or rad/s\)"),
+    ('gyro_uncalibrated/t", unit = "s"', 'gyro_uncalibrated/t", unit = "ms"', "do not overlap"),
+])
+def test_comma2k19_spec_mistakes_are_refused(tmp_path, old, new, message):
+    """The mistakes a new user made writing a spec for this data (each silently accepted
+    before): a wrong unit, axes or quaternion convention is refused with the reason."""
+    _need(SHARED / "comma2k19")
+    text = COMMA_SPEC.read_text()
+    assert old in text
+    spec = tmp_path / "spec.toml"
+    spec.write_text(text.replace(old, new).replace(
+        'root = "../../../shared/data/comma2k19"', f'root = "{SHARED / "comma2k19"}"'))
+    with pytest.raises(RecordingError, match=message):
+        write_log(table.read(spec), tmp_path / "x.mcap")
+    assert not (tmp_path / "x.mcap").exists()

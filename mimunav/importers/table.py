@@ -238,6 +238,10 @@ def read(path, mounting=None):
         if np.any(np.diff(t_w) <= 0):
             raise RecordingError(f"{path}: angular_rate times do not increase")
         inside = (t_f >= t_w[0]) & (t_f <= t_w[-1])
+        if inside.sum() < 2:
+            raise RecordingError(f"{path}: the angular rate's times ({t_w[0]:.6g} .. {t_w[-1]:.6g} "
+                                 f"s) and the specific force's ({t_f[0]:.6g} .. {t_f[-1]:.6g} s) "
+                                 "do not overlap: are both time units right?")
         t_f, f = t_f[inside], f[inside]
         w = np.column_stack([np.interp(t_f, t_w, w[:, i]) for i in range(3)])
         notes["imu_time"] = "angular rate interpolated linearly onto the specific force's stamps"
