@@ -11,7 +11,6 @@ changed a message). Prints a markdown table and the first example of each failur
 """
 import argparse
 import collections
-import shutil
 import sys
 import tempfile
 import time
@@ -33,41 +32,22 @@ def main():
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
         log, cal = fuzzing.corpus_log(folder)
-        base = folder / "base"
-        base.mkdir()
-        reference = {}
-        for argv in fuzzing.commands(log, cal, base):
-            outcome, err, out = fuzzing.run(argv)
-            if outcome != "ok":
-                sys.exit(f"the undamaged log fails {argv[0]}: {err}")
-            reference[_key(argv)] = fuzzing.results(argv, out, base)
+        reference = fuzzing.references(log, cal, folder / "base")
         rng = np.random.default_rng(args.seed)
         data = log.read_bytes()
-        per_file = len(fuzzing.commands(log, cal, base))
+        per_file = len(fuzzing.commands(log, cal, folder))
         files = []
         while len(files) * per_file < args.cases:
             files += fuzzing.damages(data, rng, n_random=10)
         files = files[:-(-args.cases // per_file)]
         counts, examples = collections.Counter(), {}
         for name, damaged in tqdm(files, desc="fuzz", unit="file"):
-            case = folder / "case"
-            shutil.rmtree(case, ignore_errors=True)
-            case.mkdir()
-            path = case / "damaged.mcap"
-            path.write_bytes(damaged)
+            case, path = fuzzing.case_file(folder, damaged)
             for argv in fuzzing.commands(path, cal, case):
-                outcome, err, out = fuzzing.run(argv)
-                if outcome == "ok":
-                    if "--recover" in argv:
-                        if not fuzzing.recovered_subset(log, case / "recovered.mcap"):
-                            outcome = "altered"
-                    elif fuzzing.results(argv, out, case) != reference[_key(argv)]:
-                        outcome = "laundered"
-                if path.read_bytes() != damaged:
-                    outcome = "input modified"
-                counts[_key(argv), outcome] += 1
+                outcome, err = fuzzing.judge(argv, log, case, reference, damaged)
+                counts[fuzzing.key(argv), outcome] += 1
                 if outcome not in ("ok", "refused"):
-                    examples.setdefault((_key(argv), outcome), (name, err[-600:]))
+                    examples.setdefault((fuzzing.key(argv), outcome), (name, err[-600:]))
     elapsed = time.time() - started
     outcomes = ["ok", "refused", "traceback", "laundered", "altered", "input modified"]
     keys = sorted({k for k, _ in counts})
@@ -81,10 +61,6 @@ def main():
           + " |")
     for (k, outcome), (name, err) in examples.items():
         print(f"\n{k} {outcome} on '{name}':\n{err}")
-
-
-def _key(argv):
-    return argv[0] + (" --recover" if "--recover" in argv else "")
 
 
 if __name__ == "__main__":

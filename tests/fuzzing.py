@@ -149,3 +149,47 @@ def recovered_subset(original, recovered):
                     kept.tobytes():
                 return False
     return True
+
+
+def key(argv):
+    """A command's name for counting and for its reference result."""
+    return argv[0] + (" --recover" if "--recover" in argv else "")
+
+
+def references(log, cal, folder):
+    """{key: result} of every command on the undamaged log (each must succeed)."""
+    folder.mkdir(exist_ok=True)
+    out = {}
+    for argv in commands(log, cal, folder):
+        outcome, err, stdout = run(argv)
+        if outcome != "ok":
+            raise AssertionError(f"the undamaged log fails {argv[0]}: {err}")
+        out[key(argv)] = results(argv, stdout, folder)
+    return out
+
+
+def case_file(folder, damaged):
+    """A fresh case folder holding the damaged bytes as damaged.mcap; (folder, path)."""
+    import shutil
+    case = folder / "case"
+    shutil.rmtree(case, ignore_errors=True)
+    case.mkdir()
+    path = case / "damaged.mcap"
+    path.write_bytes(damaged)
+    return case, path
+
+
+def judge(argv, original, case, reference, damaged):
+    """(outcome, stderr) of one command on a damaged file: 'ok' only when the result is the
+    undamaged log's (for --recover: only the original's messages), else 'laundered' or
+    'altered'; 'input modified' when the damaged file changed; otherwise `run`'s outcome."""
+    outcome, err, stdout = run(argv)
+    if outcome == "ok":
+        if "--recover" in argv:
+            if not recovered_subset(original, case / "recovered.mcap"):
+                outcome = "altered"
+        elif results(argv, stdout, case) != reference[key(argv)]:
+            outcome = "laundered"
+    if (case / "damaged.mcap").read_bytes() != damaged:
+        outcome = "input modified"
+    return outcome, err
