@@ -42,6 +42,13 @@ def rotation_vector_error(q, q_ref):
     return quaternion.as_rotation_vector(q * np.conjugate(q_ref))
 
 
+def turn_rate(t, q):
+    """Mean rotation rate (rad/s, (N-1,)) between successive attitudes q (quaternion array)
+    at times t (s): the angle of conj(q_k) q_k+1 over the step."""
+    return np.linalg.norm(quaternion.as_rotation_vector(np.conjugate(q[:-1]) * q[1:]),
+                          axis=1) / np.diff(t)
+
+
 @numba.njit(cache=True, inline="always")
 def rotate_scalar(qw, qx, qy, qz, x, y, z):
     """Scalar core of `rotate` for compiled kernels: q * (x, y, z) * conj(q), q unit.

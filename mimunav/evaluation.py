@@ -212,8 +212,7 @@ def _check_reference_units(flight):
     tr = flight.truth
     if tr is None or len(tr.t) < 10 or not np.isfinite(quaternion.as_float_array(tr.q_nb)).all():
         return
-    dq = np.conjugate(tr.q_nb[:-1]) * tr.q_nb[1:]
-    rate = np.linalg.norm(quaternion.as_rotation_vector(dq), axis=1) / np.diff(tr.t)
+    rate = attitude.turn_rate(tr.t, tr.q_nb)
     truth_rate, fog_rate = np.percentile(rate, 99), np.percentile(np.linalg.norm(w, axis=1), 99)
     if truth_rate > 0.05 and not 0.2 < fog_rate / truth_rate < 5:
         raise LogError(f"{flight.path}: /fog/imu rates reach {fog_rate:.3g}, the truth's "

@@ -27,3 +27,13 @@ def test_rotation_vector_error_is_the_small_rotation_in_ned():
     # a yaw step is a rotation about NED down
     np.testing.assert_allclose(attitude.rotation_vector_error(q, q_ref), [[0, 0, 1e-6]],
                                atol=1e-12)
+
+
+def test_turn_rate_of_a_steady_rotation_is_its_rate():
+    """q(t) = exp(w t / 2 n) about a fixed axis n: the rate between samples is w exactly
+    (the step angle over the step), at uneven steps too."""
+    import quaternion
+    w, n = 0.7, np.array([1.0, -2.0, 0.5]) / np.linalg.norm([1.0, -2.0, 0.5])
+    t = np.cumsum(np.r_[0.0, np.random.default_rng(1).uniform(0.01, 0.2, 50)])
+    q = quaternion.from_rotation_vector(w * t[:, None] * n)
+    np.testing.assert_allclose(attitude.turn_rate(t, q), w, rtol=1e-12)

@@ -121,9 +121,7 @@ def check_recording(rec):
                              f"the reference attitude is {np.round(f_n, 2).tolist()} m/s^2 in the "
                              f"median, not [0, 0, -{g:.1f}]: the sensor axes, the mounting or "
                              "the attitude quaternion's convention (body -> NED or ECEF) is wrong")
-    dq = np.conjugate(quaternion.from_float_array(q[ok][:-1])) * \
-        quaternion.from_float_array(q[ok][1:])
-    rate = np.linalg.norm(quaternion.as_rotation_vector(dq), axis=1) / (np.diff(t_ref) / 1e9)
+    rate = attitude.turn_rate(t_ref / 1e9, quaternion.from_float_array(q[ok]))
     ref_rate = float(np.percentile(rate, 99))
     imu_rate = float(np.percentile(np.linalg.norm(_local_mean(rec.w, k), axis=1), 99))
     if ref_rate > 0.05 and not 0.1 < imu_rate / ref_rate < 10:
