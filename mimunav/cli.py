@@ -112,7 +112,8 @@ def _compensate(args):
 def _unit(args):
     """Draw a MIMU unit (seed S1 Table 2 and datasheet values) into a unit file."""
     from .sensors import MimuUnit
-    MimuUnit.draw(args.seed, nonlinearity=args.nonlinearity).save(args.output, args.force)
+    MimuUnit.draw(args.seed, nonlinearity=args.nonlinearity, grade=args.grade,
+                  beyond_model=not args.exact_model).save(args.output, args.force)
     print(f"wrote {args.output} (the unit's true coefficients)")
     return 0
 
@@ -369,15 +370,54 @@ def _budget(args):
 def _reproduce(args):
     """The main job: seed S1 Table 3 for a drawn unit, budget and Monte Carlo."""
     from .reports.table3 import reproduce
-    md = reproduce(args.output, seed=args.seed, mc_units=args.units, force=True)
+    if args.regime_map:
+        from .reports.regime import regime_map
+        md = regime_map(args.output, seed=args.seed, units=args.units, workers=args.workers,
+                        scheduler=args.scheduler, base=_scenario(args))
+    else:
+        md = reproduce(args.output, seed=args.seed, mc_units=args.units, force=True,
+                       scenario=_scenario(args), workers=args.workers)
     print(f"wrote {md}")
     return 0
+
+
+def _scenario(args):
+    from .campaign import Scenario
+    return Scenario(flight=str(Path(args.flight).resolve()), severity=args.severity,
+                    ground_temperature_c=args.ground_temperature_c, mimu_grade=args.mimu_grade,
+                    nonlinearity=args.nonlinearity, fog_grade=args.fog_grade,
+                    beyond_model=not args.exact_model)
+
+
+def _scenario_options(p, flight=True):
+    """The options of `campaign.Scenario`: what shapes a Table 3 comparison."""
+    if flight:
+        p.add_argument("--flight", default=str(FLIGHTS / "high-dynamic.toml"),
+                       help="flight profile TOML (default: flights/high-dynamic.toml, seed S1 "
+                       "4.2)")
+    p.add_argument("--severity", type=_number(1e-3, 10.0), default=1.0,
+                   help="scale the flight's dynamics: g exposure (n - 1), accelerations and "
+                   "rates x S (default 1)")
+    p.add_argument("--ground-temperature-c", type=_number(-60.0, 60.0), default=15.0,
+                   help="air temperature at the start height, degC (default 15, ISA)")
+    p.add_argument("--mimu-grade", default="table1",
+                   help="MIMU random errors (default table1: seed S1 Table 1 at its bound; "
+                   "tactical: ADIS16488A class; stim300: STIM300 class)")
+    p.add_argument("--nonlinearity", default="table1",
+                   help="nonlinear scale factors: Table 2 scaled to Table 1's fit residual "
+                   "(default) or Table 2 literally")
+    p.add_argument("--fog-grade", default="table4",
+                   help="reference FOG-IMU (default table4: Table 4 medium accuracy; "
+                   "table4-bound: its bounds as 1 sigma; navigation: 0.01 deg/h class)")
+    p.add_argument("--exact-model", action="store_true",
+                   help="MIMU exactly the 63-coefficient model (no scale asymmetry, no dT term)")
 
 
 def _campaign(args):
     """Monte Carlo over units: the distribution of every normalised end error."""
     from . import campaign
-    records = campaign.run_campaign(args.profile, args.units, args.seed, args.output,
+    scenario = _scenario(argparse.Namespace(**dict(vars(args), flight=args.profile)))
+    records = campaign.run_campaign(scenario, args.units, args.seed, args.output,
                                     workers=args.workers, scheduler=args.scheduler)
     print(campaign.summary_markdown(campaign.summary(records), len(records)), end="")
     return 0
@@ -457,8 +497,14 @@ def build_parser():
     p = sub.add_parser("unit", help="draw a simulated MIMU into a unit file (true coefficients)")
     p.add_argument("-o", "--output", required=True, help="unit file to write (.json)")
     p.add_argument("--seed", type=SEED, default=0, help="draws the unit")
-    p.add_argument("--nonlinearity", choices=("table2", "datasheet"), default="table2",
-                   help="gyro 2nd-order scale factor: seed Table 2 literally, or /100")
+    p.add_argument("--nonlinearity", choices=("table1", "table2"), default="table1",
+                   help="nonlinear scale factors: Table 2 scaled to Table 1's fit residual "
+                   "(default) or Table 2 literally (sensors.mimu)")
+    p.add_argument("--grade", choices=("table1", "tactical", "stim300"), default="table1",
+                   help="random errors: Table 1 at its bound (default), ADIS16488A class, "
+                   "STIM300 class (sensors.mimu.MIMU_GRADES)")
+    p.add_argument("--exact-model", action="store_true",
+                   help="exactly the 63-coefficient model (no physics beyond it)")
     p.add_argument("--force", action="store_true", help="replace an existing output")
     p.set_defaults(func=_unit)
     p = sub.add_parser("lab", help="run a calibration-lab procedure on a unit into a log "
@@ -587,7 +633,15 @@ def build_parser():
                        "entire lab, fly the high-dynamic profile, write reports/table3.md")
     p.add_argument("-o", "--output", default="reports", help="folder (default: reports)")
     p.add_argument("--seed", type=SEED, default=1, help="draws the unit, lab and noise")
-    p.add_argument("--units", type=COUNT, default=16, help="Monte Carlo units")
+    p.add_argument("--units", type=COUNT, default=16,
+                   help="Monte Carlo units (per point with --regime-map; default 16)")
+    p.add_argument("--workers", type=_number(1, 256, int), default=2, help="local processes")
+    p.add_argument("--regime-map", action="store_true",
+                   help="instead: the regime map (normalised errors against MIMU grade, FOG "
+                   "grade, g exposure and temperature, each point a small Monte Carlo; "
+                   "reports/regime.md, resumable)")
+    p.add_argument("--scheduler", help="Dask scheduler address for --regime-map")
+    _scenario_options(p)
     p.set_defaults(func=_reproduce)
     p = sub.add_parser("campaign", help="Monte Carlo: many units through the same lab and "
                        "flight; results stream to a JSON-lines file and resume")
@@ -598,6 +652,7 @@ def build_parser():
     p.add_argument("--seed", type=SEED, default=1)
     p.add_argument("--workers", type=_number(1, 256, int), default=2, help="local processes")
     p.add_argument("--scheduler", help="Dask scheduler address (runs there instead)")
+    _scenario_options(p, flight=False)
     p.set_defaults(func=_campaign)
     p = sub.add_parser("report", help="generate a report (calibration: the entire lab on "
                        "many units, z-scores of every coefficient, held-out check; recording: "

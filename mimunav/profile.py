@@ -83,12 +83,16 @@ class Profile:
     duration: float = 0.0
 
     @classmethod
-    def load(cls, path):
+    def load(cls, path, severity=1.0):
+        """A profile from its TOML file; `severity` != 1 scales its dynamics
+        (`scale_severity`)."""
         with open(path, "rb") as fh:
             try:
                 doc = tomllib.load(fh)
             except tomllib.TOMLDecodeError as exc:
                 raise ProfileError(f"{path}: not valid TOML: {exc}") from None
+        if severity != 1.0:
+            doc = scale_severity(doc, severity)
         return cls.from_dict(doc, source=str(path))
 
     @classmethod
@@ -252,6 +256,24 @@ VALUE_RANGES = {"duration_s": (0.0, 86400.0), "ramp_s": (1e-3, 3600.0),
                 "flight_path_deg": (-85.0, 85.0), "rate_deg_s": (1e-3, 3600.0),
                 "angle_deg": (-36000.0, 36000.0)}
 MAX_DURATION_S = 86400.0
+
+
+def scale_severity(doc, s):
+    """A profile document (TOML dict) with its dynamics scaled by s > 0: accelerations
+    accel_g x s, load factors n -> 1 + s (n - 1) (the g exposure above 1 g), roll and turn-in
+    rates x s; angles, speeds reached and hold durations kept, so a milder flight flies the
+    same manoeuvres more slowly. Named NAME@s."""
+    if not (isinstance(s, (int, float)) and 0 < s <= 10):
+        raise ProfileError(f"severity must be in (0, 10], got {s!r}")
+    out = dict(doc, segment=[dict(seg) for seg in doc.get("segment", [])])
+    out["name"] = f"{doc.get('name', 'profile')}@{s:g}"
+    for seg in out["segment"]:
+        for key in ("accel_g", "rate_deg_s", "roll_rate_deg_s"):
+            if key in seg:
+                seg[key] = seg[key] * s
+        if "load_factor" in seg:
+            seg["load_factor"] = 1 + s * (seg["load_factor"] - 1)
+    return out
 
 
 def _known(doc, keys, where):

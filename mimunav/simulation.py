@@ -57,8 +57,11 @@ class FlightMotion:
     k_truth: np.ndarray
 
 
-def flight_motion(profile, mimu_mounting, mimu_rate, fog_mounting, fog_rate, truth_rate):
-    """Truth and ideal increments of `profile` for IMUs at the given mountings and rates."""
+def flight_motion(profile, mimu_mounting, mimu_rate, fog_mounting, fog_rate, truth_rate,
+                  ground_temperature_c=GROUND_TEMPERATURE_C):
+    """Truth and ideal increments of `profile` for IMUs at the given mountings and rates;
+    the bay follows the outside air of a day at `ground_temperature_c` (degC at the
+    profile's start height)."""
     rates = [mimu_rate, fog_rate, truth_rate]
     if any(r != int(r) for r in rates):
         raise InputError(f"sample rates must be whole numbers of Hz, got {rates}")
@@ -80,19 +83,20 @@ def flight_motion(profile, mimu_mounting, mimu_rate, fog_mounting, fog_rate, tru
         return t, np.vstack([dth[:1], dth]), np.vstack([dv[:1], dv])
     mimu = at_rate(mimu_mounting, mimu_rate)
     env = bay_temperature(mimu[0], np.interp(mimu[0], t_base, run.trajectory.h),
-                          GROUND_TEMPERATURE_C, motion.h0)
+                          ground_temperature_c, motion.h0)
     return FlightMotion(profile, run, t_base, mimu, at_rate(fog_mounting, fog_rate), env,
                         np.arange(0, len(t_base), base // int(truth_rate)))
 
 
-def flight_units(seed, unit=None, fog_rate=1000.0):
-    """The MIMU (drawn at the default mounting unless given) and FOG-IMU of flight `seed`,
-    and the noise generators of each."""
+def flight_units(seed, unit=None, fog_rate=1000.0, fog_grade="table4"):
+    """The MIMU (drawn at the default mounting unless given) and FOG-IMU (of `fog_grade`,
+    `sensors.fog.FOG_GRADES`) of flight `seed`, and the noise generators of each."""
     s_unit, s_fog, s_mimu_noise, s_fog_noise = np.random.SeedSequence(seed).spawn(4)
     if unit is None:        # a drawn unit sits at the default mounting; a given one keeps its own
         unit = MimuUnit.draw(int(s_unit.generate_state(1)[0]), name=f"MIMU-{seed:04d}")
         unit.mounting = Mounting.from_dict(MIMU_MOUNTING)
-    fog = FogUnit.draw(int(s_fog.generate_state(1)[0]), rate_hz=fog_rate, name=f"FOG-{seed:04d}")
+    fog = FogUnit.draw(int(s_fog.generate_state(1)[0]), rate_hz=fog_rate, name=f"FOG-{seed:04d}",
+                       grade=fog_grade)
     fog.mounting = Mounting.from_dict(FOG_MOUNTING)
     return unit, fog, np.random.default_rng(s_mimu_noise), np.random.default_rng(s_fog_noise)
 
@@ -105,23 +109,25 @@ def record_flight(fm, unit, fog, rng_mimu, rng_fog, hidden=None):
 
 
 def simulate_flight(profile, out, seed, unit=None, fog_rate=1000.0, truth_rate=100.0,
-                    force=False, progress=True, hidden=None, hide=()):
+                    force=False, progress=True, hidden=None, hide=(),
+                    ground_temperature_c=GROUND_TEMPERATURE_C, fog_grade="table4"):
     """Simulate `profile` into the log `out` (.mcap) and `out` with .truth.json beside it.
     `hidden`: extra MIMU physics the log must not reveal (`MimuUnit.simulate`); its
     description goes to the truth file when it has an `as_dict`. `hide`: hidden effects as
     terms (`sensors.hidden`, e.g. from `mimunav simulate --hide`), made sensor behaviour of
-    this flight's unit. Returns (log path, truth path)."""
+    this flight's unit. `ground_temperature_c`, `fog_grade`: see `flight_motion`,
+    `flight_units`. Returns (log path, truth path)."""
     truth_path = (str(out)[:-5] if str(out).endswith(".mcap") else str(out)) + ".truth.json"
     for path in (out, truth_path):
         if os.path.exists(path) and not force:
             raise FileExistsError(f"{path} exists; use --force to replace it")
-    unit, fog, rng_mimu, rng_fog = flight_units(seed, unit, fog_rate)
+    unit, fog, rng_mimu, rng_fog = flight_units(seed, unit, fog_rate, fog_grade)
     if hide:
         effects = [HiddenPhysics(term, unit.thermal) for term in hide]
         hidden = HiddenSet(effects + ([hidden] if hidden is not None else []))
     steps = tqdm(total=3, desc="simulate", disable=not progress, unit="step")
     fm = flight_motion(profile, unit.mounting, unit.rate_hz, fog.mounting, fog.rate_hz,
-                       truth_rate)
+                       truth_rate, ground_temperature_c)
     steps.update()
     raw, fog_out = record_flight(fm, unit, fog, rng_mimu, rng_fog, hidden)
     steps.update()
@@ -162,7 +168,7 @@ def simulate_flight(profile, out, seed, unit=None, fog_rate=1000.0, truth_rate=1
     write_atomic(truth_path, json.dumps({
         "format": "mimunav-truth/1", "log": str(out), "seed": seed, "profile": profile.name,
         "mimu": unit.as_dict(), "fog": fog.as_dict(),
-        "environment": {"ground_temperature_c": GROUND_TEMPERATURE_C,
+        "environment": {"ground_temperature_c": ground_temperature_c,
                         "bay_tau_s": BAY_TAU_S, "lapse_k_per_m": ISA_LAPSE},
         "hidden": hidden.as_dict() if hasattr(hidden, "as_dict") else None,
         "saturated_samples": {"mimu": int(raw["saturated"].sum()),

@@ -27,7 +27,7 @@ def test_known_inputs_match_the_simulated_motion(tmp_path, procedure):
     """A noiseless unit with no setting errors, compensated with its true coefficients,
     outputs per window exactly the closed-form known input of the fit (Earth rate, gravity,
     centripetal and Coriolis terms) - two independent codes of the same physics."""
-    unit = MimuUnit.draw(11)
+    unit = MimuUnit.draw(11, beyond_model=False)
     unit.noise = NoiseModel(*(0.0,) * 6)
     unit.thermal.thermistor_noise = unit.thermal.frequency_noise = 0.0
     unit.adc_lsb = 1e-15                  # no quantization: static inputs would not dither it
@@ -52,11 +52,12 @@ def test_known_inputs_match_the_simulated_motion(tmp_path, procedure):
 
 @pytest.fixture(scope="module")
 def entire_lab(tmp_path_factory):
-    """Two units through the entire lab, fitted, plus held-out runs of the first."""
+    """Two units that are exactly the 63-coefficient model through the entire lab, fitted,
+    plus held-out runs of the first (recovery of known coefficients needs the model's form)."""
     tmp = tmp_path_factory.mktemp("lab")
     units, cals = [], []
     for seed in (21, 22):
-        unit = MimuUnit.draw(seed)
+        unit = MimuUnit.draw(seed, beyond_model=False)
         paths = [_run(tmp, p, unit, seed) for p in ENTIRE]
         units.append(unit)
         cals.append(calibration.calibrate(paths, "entire", unit=unit.name))
@@ -74,6 +75,23 @@ def test_entire_recovers_every_coefficient_within_its_reported_uncertainty(entir
     assert 0.7 < np.sqrt(np.mean(z**2)) < 1.3
 
 
+def test_physics_beyond_the_model_biases_the_fit_where_it_should(tmp_path):
+    """The default unit (scale-factor asymmetry and seed S3's dT term beyond eqs. 1-4, see
+    `sensors.mimu`): the same lab and fit no longer recover the coefficients within their
+    uncertainty; the even (2nd-order) scale terms absorb the asymmetry k|x| and are the worst
+    off, with the sign of the asymmetry - a calibration is not perfect by construction."""
+    unit = MimuUnit.draw(21)
+    cal = calibration.calibrate([_run(tmp_path, p, unit, 21) for p in ENTIRE], "entire")
+    z = z_scores(unit, cal)
+    worst = sorted(z, key=lambda k: -abs(z[k]))[:3]
+    assert all(k.startswith("W2") for k in worst) and abs(z[worst[0]]) > 6, worst
+    asym = {t["axis"]: t["coefficient"] for t in unit.beyond_model
+            if t["effect"] == "scale_asymmetry" and t["sensor"] == "gyro"}
+    for k in worst:     # output w + k|w|: the compensation must subtract k|w| ~ k c v^2 (c > 0)
+        i = int(k[3])
+        assert np.sign(cal.W2[i] - unit.coefficients.W2[i]) == -np.sign(asym["xyz"[i]]), k
+
+
 def test_fit_residuals_sit_at_the_noise_level(entire_lab):
     """Window-mean residual rms ~ bias instability of the noise model (flicker B: accel
     0.5 mg, gyro 15 deg/h) plus white noise of a 10 s mean, not model error."""
@@ -85,6 +103,9 @@ def test_fit_residuals_sit_at_the_noise_level(entire_lab):
 
 
 def test_held_out_entire_meets_table1_and_traditional_does_not(entire_lab):
+    """Fresh runs: the entire calibration within Table 1's fit residuals everywhere; the
+    traditional one outside them at high g and off 25 degC, and far above the entire at
+    high rate."""
     units, cals, trad, fresh = entire_lab
     fs, lim = calibration.TABLE1_FULL_SCALE, calibration.TABLE1_RESIDUAL
     worst = {}
@@ -97,7 +118,10 @@ def test_held_out_entire_meets_table1_and_traditional_does_not(entire_lab):
         assert worst["entire", proc][0] < lim["accel"]
         assert worst["entire", proc][1] < lim["gyro"]
     assert worst["traditional", "centrifuge"][0] > lim["accel"]          # high g
-    assert worst["traditional", "rate-table"][1] > lim["gyro"]           # high rate
+    # high rate: the default unit's nonlinearity is within Table 1's residual by its reading
+    # (sensors.mimu), so a linear fit's worst error is near that limit, well above the entire's
+    assert worst["traditional", "rate-table"][1] > 0.5 * lim["gyro"], worst
+    assert worst["traditional", "rate-table"][1] > 3 * worst["entire", "rate-table"][1], worst
     assert max(worst["traditional", "thermal-chamber"]) > min(lim.values())  # off 25 degC
 
 
@@ -129,7 +153,7 @@ def test_twelve_position_fit_removes_static_errors_held_out(tmp_path):
     thermal time constants). The gyros, as S2 found, hardly improve: what is left is their
     temperature drift and g-sensitivity (-C f), which the unit's true eqs. 3-4 predict to
     0.01 deg/s."""
-    unit = MimuUnit.draw(8)
+    unit = MimuUnit.draw(8, beyond_model=False)
     cal = calibration.calibrate([_run(tmp_path, "twelve-position", unit, 1)], "twelve-position")
     fresh = calibration.LabRun.load(_run(tmp_path, "twelve-position", unit, 2))
     nominal = dataclasses.replace(cal, A0=np.zeros(3), W0=np.zeros(3),
@@ -149,7 +173,7 @@ def test_twelve_position_fit_removes_static_errors_held_out(tmp_path):
 def test_cold_start_selects_the_temperature_rate_term_only_when_it_is_there(tmp_path):
     """Seed S3: with no dT physics the basic model wins; with a gyro bias k dT(120 s) hidden
     in the unit, n = 120 s is chosen and e = -k / (f0 tcf) per Hz of resonance shift."""
-    unit = MimuUnit.draw(7)
+    unit = MimuUnit.draw(7, beyond_model=False)
     k = np.radians(0.02)                                       # rad/s per degC of dT
 
     def rate_term(f, w, c):

@@ -1,5 +1,6 @@
 """Monte Carlo campaign: reproducible from its seed, resumable, the same on local processes
 and on a (local) Dask cluster, refusing a results file of another campaign."""
+import dataclasses
 import json
 
 import numpy as np
@@ -62,6 +63,9 @@ def test_campaign_resumes_and_is_reproducible(profile, tmp_path):
     assert again == both                                 # same seed, same numbers
     with pytest.raises(ValueError, match="another campaign"):
         campaign.run_campaign(profile, 2, 8, str(out), workers=1, progress=False)
+    other = campaign.Scenario(flight=profile, mimu_grade="tactical")      # same seed, other unit
+    with pytest.raises(ValueError, match="another campaign"):
+        campaign.run_campaign(other, 2, 7, str(out), workers=1, progress=False)
     stats = campaign.summary(both)
     assert set(stats) == {"traditional", "entire", "FOG-IMU"}
 
@@ -94,3 +98,45 @@ def test_in_memory_flight_equals_the_logged_one(profile, tmp_path):
     assert a["variants"]["true"]["enu_m"] == pytest.approx(b["variants"]["true"]["enu_m"],
                                                            rel=1e-9, abs=1e-9)
     assert a["fog"]["enu_m"] == pytest.approx(b["fog"]["enu_m"], rel=1e-9, abs=1e-9)
+
+
+def test_scenario_options_reach_the_unit_and_the_reference(profile):
+    """Each option of a Scenario changes what it names and nothing else of the draw."""
+    base = campaign.Scenario(flight=profile)
+    u = base.draw_unit(5, "u")
+    t = dataclasses.replace(base, mimu_grade="tactical").draw_unit(5, "u")
+    assert t.noise.gyro_flicker == pytest.approx(np.radians(5.1 / 3600))
+    assert u.noise.gyro_flicker == pytest.approx(np.radians(15 / 3600))
+    assert t.coefficients.as_dict() == u.coefficients.as_dict()
+    exact = dataclasses.replace(base, beyond_model=False).draw_unit(5, "u")
+    assert exact.beyond_model == [] and u.beyond_model
+    with pytest.raises(ValueError, match="MIMU grade"):
+        campaign.Scenario(mimu_grade="perfect")
+    with pytest.raises(ValueError, match="FOG grade"):
+        campaign.Scenario(fog_grade="ring-laser")
+    from mimunav.simulation import flight_units
+    fogs = {g: flight_units(3, u, fog_grade=g)[1] for g in ("table4", "table4-bound")}
+    assert fogs["table4-bound"].accuracy()["gyro_scale"] == 2.5e-4
+    dev = {g: np.abs(np.diag(f.gyro_matrix) - 1) for g, f in fogs.items()}
+    np.testing.assert_allclose(dev["table4-bound"], 2.5 * dev["table4"])   # same draw, scaled
+
+
+def test_regime_points_and_their_summary():
+    """One-at-a-time points around the base (each level once, the base's not repeated), and
+    the summary's medians and paper test on records whose ratios are known."""
+    from mimunav.reports import regime
+    pts = regime.points(campaign.Scenario())
+    assert len(pts) == 1 + sum(len(v) - 1 for v in regime.LEVELS.values())
+    assert len({p[2] for p in pts}) == len(pts)
+    recs = []
+    for k in range(1, 21):                     # FOG 1 m per axis; entire k/10, trad 10 k
+        recs.append({"fog": {"enu_m": [1.0, -1.0, 1.0]}, "variants": {
+            "entire": {"enu_m": [k / 10, -k / 10, 0.0 + k / 10]},
+            "traditional": {"enu_m": [10.0 * k, 10.0 * k, -10.0 * k]}}})
+    s = regime.point_summary(recs)
+    np.testing.assert_allclose(s["entire"]["median"], [1.05] * 4)
+    np.testing.assert_allclose(s["traditional"]["median"], [105.0] * 4)
+    assert s["improvement_horizontal"] == pytest.approx(100.0)
+    # bands: entire [0.195, 1.905] (paper 2.78 / 0.3 / 6.69), traditional [19.5, 190.5]
+    assert s["entire"]["paper_inside"] == [False, True, False]
+    assert s["traditional"]["paper_inside"] == [False, True, False]

@@ -116,7 +116,7 @@ def test_found_terms_round_trip_and_remove_the_effect_they_name():
     output; model + found term removes it to rounding."""
     from mimunav.sensors import MimuUnit
     from mimunav.sensors.mimu import NoiseModel
-    unit = MimuUnit.draw(3)
+    unit = MimuUnit.draw(3, beyond_model=False)
     unit.noise = NoiseModel(*(0.0,) * 6)
     unit.thermal.thermistor_noise = unit.thermal.frequency_noise = 0.0
     unit.adc_lsb = 0.0

@@ -19,7 +19,7 @@ T_HOLD = 60.0
 
 
 def perfect_unit():
-    unit = MimuUnit.draw(4)
+    unit = MimuUnit.draw(4, beyond_model=False)      # exactly the model: closed forms
     unit.noise = NoiseModel(*(0.0,) * 6)
     unit.thermal.thermistor_noise = unit.thermal.frequency_noise = 0.0
     unit.adc_lsb = 1e-15

@@ -71,3 +71,34 @@ def test_shipped_profiles_load_and_span_their_regimes(tmp_path):
     bad.write_text("name = 'x'\n[start\n")
     with pytest.raises(ProfileError, match="not valid TOML"):
         Profile.load(bad)
+
+
+def test_severity_scales_the_g_exposure_and_rates_and_keeps_the_manoeuvres(tmp_path):
+    """A profile flown at severity s: peak longitudinal acceleration and roll rate x s, the
+    steady turn's specific force 1 + s (n - 1) g; headings, bank and speed reached kept."""
+    from mimunav.profile import scale_severity
+    doc = {"name": "p", "start": {"latitude_deg": 30.0, "longitude_deg": 0.0, "height_m": 1e3,
+                                  "speed_m_s": 250.0, "heading_deg": 0.0},
+           "segment": [{"kind": "accelerate", "accel_g": 20.0, "to_speed_m_s": 400.0},
+                       {"kind": "roll", "rate_deg_s": 300.0, "angle_deg": 360.0},
+                       {"kind": "turn", "load_factor": 9.0, "heading_change_deg": 180.0}]}
+    s = 0.5
+    full, mild = Profile.from_dict(doc), Profile.from_dict(scale_severity(doc, s))
+    assert mild.name == "p@0.5" and doc["segment"][0]["accel_g"] == 20.0   # input untouched
+    for prof, k in ((full, 1.0), (mild, s)):
+        m = prof.motion()
+        t = np.linspace(0, prof.duration, 400001)
+        ch = m.channels(t)
+        rate = np.gradient(ch, t, axis=0)
+        assert rate[:, 0].max() == pytest.approx(20 * G0 * k, rel=1e-4)
+        assert np.degrees(np.abs(rate[:, 3])).max() == pytest.approx(300.0 * k, rel=1e-4)
+        end = m.channels([prof.duration])[0]
+        assert end[0] == pytest.approx(400.0) and math.degrees(end[2]) == pytest.approx(180.0)
+    assert mild.duration > full.duration
+    n = 1 + s * (9.0 - 1)                        # the turn's load factor at severity s
+    tt = np.arange(0, int(mild.duration * 200) + 1) / 200
+    run = truth.generate(mild.motion(), tt)
+    f = -run.dv[:, 2] * 200 / G0                 # body -z specific force, g
+    assert f.max() == pytest.approx(n, rel=3e-3)
+    with pytest.raises(ProfileError, match="severity"):
+        scale_severity(doc, 0.0)

@@ -18,7 +18,7 @@ DEG = math.pi / 180
 
 def test_units_follow_seed_table_2_and_are_reproducible():
     for seed in range(20):
-        u = MimuUnit.draw(seed)
+        u = MimuUnit.draw(seed, nonlinearity="table2")          # Table 2 taken literally
         c = u.coefficients
         for m, lo, hi in ((c.A1, 0.001, 0.02), (c.W1, 0.001, 0.005)):
             rel = np.abs(m / np.diag(m)[:, None])[~np.eye(3, dtype=bool)]
@@ -32,9 +32,37 @@ def test_units_follow_seed_table_2_and_are_reproducible():
         c_dps_g = np.abs(c.C) / DEG * G0
         assert np.all((0.01 <= c_dps_g) & (c_dps_g <= 0.04 * 1.0001))
     assert MimuUnit.draw(3).as_dict() == MimuUnit.draw(3).as_dict()
+    unit = MimuUnit.draw(3)
+    assert {t["effect"] for t in unit.beyond_model} == {"temperature_rate", "scale_asymmetry"}
+    assert MimuUnit.from_dict(unit.as_dict()).beyond_model == unit.beyond_model
+    exact = MimuUnit.draw(3, beyond_model=False)
+    assert exact.beyond_model == [] and \
+        exact.coefficients.as_dict() == unit.coefficients.as_dict()     # same unit otherwise
+    old_file = unit.as_dict()
+    del old_file["beyond_model"]                                        # files before the key
+    assert MimuUnit.from_dict(old_file).beyond_model == []
     assert MimuUnit.draw(3).as_dict() != MimuUnit.draw(4).as_dict()
-    mild = MimuUnit.draw(3, nonlinearity="datasheet").coefficients
-    assert np.allclose(np.abs(mild.W2) * 100, np.abs(MimuUnit.draw(3).coefficients.W2))
+
+@pytest.mark.parametrize("seed", range(8))
+def test_table1_reading_keeps_the_nonlinearity_within_table1_residuals(seed):
+    """The default nonlinearity reading (spec, Table 2 reading): the nonlinear part of the
+    compensated output at full scale (30 g, 400 deg/s on one axis, voltage from the linear
+    part alone) stays within Table 1's scale-factor fit residual (accel 0.05 % FS, gyro
+    0.2 % FS); Table 2 taken literally exceeds it by more than 20x."""
+    for reading, limit_factor in (("table1", 1.0), ("table2", 20.0)):
+        c = MimuUnit.draw(seed, nonlinearity=reading, beyond_model=False).coefficients
+        for p1, p2, p3, fs, residual in ((c.A1, c.A2, c.A3, 30 * 9.80665, 5e-4),
+                                         (c.W1, c.W2, c.W3, np.radians(400), 2e-3)):
+            v = fs / np.diag(p1)                                 # volts at full scale
+            nonlinear = np.abs(p2 * v**2) + np.abs(p3 * v**3)
+            if reading == "table1":
+                assert nonlinear.max() <= residual * fs * (1 + 1e-9), (reading, nonlinear / fs)
+            else:
+                assert nonlinear.max() > limit_factor * residual * fs
+    a, b = (MimuUnit.draw(seed, nonlinearity=r).coefficients for r in ("table1", "table2"))
+    np.testing.assert_allclose(b.W2 / a.W2, b.W3 / a.W3)     # one factor per triad: ranking kept
+    np.testing.assert_allclose(b.A2 / a.A2, b.A3 / a.A3)
+    assert 30 < (b.A3 / a.A3)[0] < 60 and 30 < (b.W2 / a.W2)[0] < 60
 
 
 def test_unit_file_round_trip(tmp_path):

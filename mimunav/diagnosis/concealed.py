@@ -154,7 +154,9 @@ def recording(profile_path, effect, seed, hidden=None, calibrate=True):
     from ..sensors import MimuUnit
     fm = proof_motion(profile_path)
     s_unit, s_effect = np.random.SeedSequence([seed, 7]).spawn(2)
-    unit = MimuUnit.draw(int(s_unit.generate_state(1)[0]), name=f"MIMU-P{seed:04d}")
+    # exactly the 63-coefficient model: each answer key holds only what its log hides
+    unit = MimuUnit.draw(int(s_unit.generate_state(1)[0]), name=f"MIMU-P{seed:04d}",
+                         beyond_model=False)
     unit.mounting = proof_mounting()
     cal = lab_calibration(unit, "entire", seed, seed + 11, propagate=True) if calibrate \
         else unit.coefficients

@@ -17,11 +17,31 @@ import numpy as np
 
 from . import noise
 from .mounting import Mounting
+from ..errors import InputError
 
 G0 = 9.80665
 DEG = math.pi / 180
 SCALE_SIGMA = 1e-4          # residual scale factor, 1 sigma (see above)
 MISALIGNMENT_SIGMA = 20e-6  # residual axis misalignment, rad, 1 sigma
+
+# Grades of the reference FOG-IMU: 1-sigma residuals (gyro bias deg/h, accel bias ug, scale
+# factor, misalignment rad) and noise (gyro white deg/sqrt(h), accel white ug/sqrt(Hz),
+# flicker B deg/h and ug).
+FOG_GRADES = {
+    # the module doc above: Table 4 read as medium accuracy, the bounds at about 2 sigma
+    "table4": {"gyro_bias": 0.5, "accel_bias": 50.0, "scale": SCALE_SIGMA,
+               "misalignment": MISALIGNMENT_SIGMA, "gyro_white": 0.003, "accel_white": 10.0,
+               "gyro_flicker": 0.05, "accel_flicker": 10.0},
+    # Table 4's bounds as 1 sigma: zero drift 1 deg/h and 100 ug, scale-factor residual
+    # 0.05 % FS read as a 2.5e-4 scale error (2 sigma of 0.05 %), in-run flicker 0.1 deg/h
+    "table4-bound": {"gyro_bias": 1.0, "accel_bias": 100.0, "scale": 2.5e-4,
+                     "misalignment": MISALIGNMENT_SIGMA, "gyro_white": 0.01,
+                     "accel_white": 20.0, "gyro_flicker": 0.1, "accel_flicker": 20.0},
+    # navigation-grade reference (datasheet class of 0.01 deg/h FOG INS, 10 ppm, 10 ug)
+    "navigation": {"gyro_bias": 0.01, "accel_bias": 10.0, "scale": 1e-5,
+                   "misalignment": 5e-6, "gyro_white": 0.001, "accel_white": 5.0,
+                   "gyro_flicker": 0.005, "accel_flicker": 2.0},
+}
 
 
 @dataclass
@@ -42,9 +62,16 @@ class FogUnit:
     rate_hz: float = 1000.0
     mounting: Mounting = field(default_factory=Mounting)
     seed: int | None = None
+    scale_sigma: float = SCALE_SIGMA              # the grade's 1-sigma residuals drawn from
+    misalignment_sigma: float = MISALIGNMENT_SIGMA
+    grade: str = "table4"
 
     @classmethod
-    def draw(cls, seed, rate_hz=1000.0, name=None):
+    def draw(cls, seed, rate_hz=1000.0, name=None, grade="table4"):
+        """A reference IMU of `grade` (`FOG_GRADES`)."""
+        if grade not in FOG_GRADES:
+            raise InputError(f"FOG grade {grade!r}: one of {', '.join(FOG_GRADES)}")
+        g = FOG_GRADES[grade]
         rng = np.random.default_rng(seed)
 
         def matrix(scale_sigma, misalign_sigma):
@@ -52,19 +79,22 @@ class FogUnit:
             np.fill_diagonal(m, rng.normal(0, scale_sigma, 3))
             return np.eye(3) + m
         return cls(name=name or f"FOG-{seed:04d}", seed=seed,
-                   gyro_bias=rng.normal(0, 0.5 * DEG / 3600, 3),
-                   accel_bias=rng.normal(0, 50e-6 * G0, 3),
-                   gyro_matrix=matrix(SCALE_SIGMA, MISALIGNMENT_SIGMA),
-                   accel_matrix=matrix(SCALE_SIGMA, MISALIGNMENT_SIGMA),
-                   rate_hz=rate_hz)
+                   gyro_bias=rng.normal(0, g["gyro_bias"] * DEG / 3600, 3),
+                   accel_bias=rng.normal(0, g["accel_bias"] * 1e-6 * G0, 3),
+                   gyro_matrix=matrix(g["scale"], g["misalignment"]),
+                   accel_matrix=matrix(g["scale"], g["misalignment"]),
+                   gyro_white=g["gyro_white"] * DEG / 60, accel_white=g["accel_white"] * 1e-6 * G0,
+                   gyro_flicker=g["gyro_flicker"] * DEG / 3600,
+                   accel_flicker=g["accel_flicker"] * 1e-6 * G0,
+                   rate_hz=rate_hz, scale_sigma=g["scale"], misalignment_sigma=g["misalignment"],
+                   grade=grade)
 
-    @staticmethod
-    def accuracy():
-        """The 1-sigma accuracy this model draws its residual errors from, as the `accuracy`
+    def accuracy(self):
+        """The 1-sigma accuracy this unit's residual errors were drawn from, as the `accuracy`
         object of the log's `sensor/fog` metadata (`diagnosis.reference.Accuracy`)."""
-        return {"gyro_scale": SCALE_SIGMA, "accel_scale": SCALE_SIGMA,
-                "gyro_misalignment_rad": MISALIGNMENT_SIGMA,
-                "accel_misalignment_rad": MISALIGNMENT_SIGMA}
+        return {"gyro_scale": self.scale_sigma, "accel_scale": self.scale_sigma,
+                "gyro_misalignment_rad": self.misalignment_sigma,
+                "accel_misalignment_rad": self.misalignment_sigma}
 
     def simulate(self, t, dtheta, dv, rng):
         """Calibrated outputs for ideal sensor-axis increments over (t[k-1], t[k]] (rad, m/s,

@@ -12,21 +12,40 @@ values for tactical MEMS parts of the seed's class, ranges >= 30 g / >= 400 deg/
                       W2 = k2 W1^2 (180/pi)                   seed S1 Table 2 [reading of spec]
   3rd-order scale     k3 uniform 5e-6..2e-5 /g^2 (4e-10..1e-9 /(deg/s)^2): A3 = k3 A1^3 / G0^2,
                       W3 = k3 W1^3 (180/pi)^2                               seed S1 Table 2
+                      Both taken literally only with `nonlinearity="table2"`. The default
+                      reading `"table1"` (the spec's corrected reading) scales each triad's
+                      Table 2 ranges by one factor, so the largest nonlinearity at full scale
+                      (k2 x^2 + k3 x^3 at the ranges' tops: gyro 10 % FS at 400 deg/s, accel
+                      2.1 % FS at 30 g) equals Table 1's scale-factor fit residual (gyro
+                      0.2 % FS, accel 0.05 % FS): gyro x 1/50, accel x 1/42; Table 2's ranking
+                      of the terms is kept
   g-sensitivity C     every entry uniform 0.01-0.04 (deg/s)/g, random sign  seed S1 Table 2
   bias A0, W0         accel N(0, 20 mg), gyro N(0, 0.5 deg/s); datasheet-class zero offsets
   temperature         bias slope accel U(0.05, 0.5) mg/degC, gyro U(0.005, 0.05) (deg/s)/degC,
                       curvature accel U(1, 5) ug/degC^2, gyro U(1e-5, 1e-4) (deg/s)/degC^2,
                       random signs, zero at 25 degC; datasheet class. Gyro terms expressed in
                       the resonance frequency f through f(T) (thermal.py) as the file needs
-  noise               white: accel 100 ug/sqrt(Hz), gyro 0.02 (deg/s)/sqrt(Hz) (datasheet
-                      class); flicker bias instability B: accel 0.5 mg, gyro 15 deg/h, half
-                      the Table 1 zero-drift bounds (<= 1 mg, <= 30 deg/h); turn-on bias
-                      repeatability (per power-on) accel 0.2 mg, gyro 10 deg/h (1 sigma)
+  noise               by grade (`MIMU_GRADES`, default "table1"): white density, flicker bias
+                      instability B and turn-on repeatability (1 sigma) of each triad; every
+                      grade's source is given where it is defined
   range               accel 40 g, gyro 450 deg/s (Table 1: >= 30 g, >= 400 deg/s, with margin
                       for the shipped 30 g / 400 deg/s flight); the sensing element saturates
   ADC                 20 bits over +-5 V (9.5 uV LSB), outputs clipped at the rails
-The `nonlinearity="datasheet"` option divides the gyro k2 by 100: Table 2 taken literally
-gives 6-10 % of full scale at 400 deg/s before compensation (see the spec's reading).
+
+Beyond the model (`beyond_model`, drawn by default): physics a real MIMU has and the
+63-coefficient model of eqs. 1-4 lacks, so that no calibration of that model is perfect by
+construction. Written as sensor behaviour in `sensors.hidden` (terms in the log contract's
+effect vocabulary, so a diagnosis can name them and a truth file lists them):
+  temperature_rate    seed S3's e*dT (thermal gradient during warm-up), dT = change of the
+                      sensor temperature over the preceding 60 s: accel U(0.02, 0.1) mg/degC,
+                      gyro U(0.001, 0.005) (deg/s)/degC, random sign. S3 gives no magnitudes:
+                      assumption, a tenth to a fifth of the static bias slopes above, so a cold
+                      start's first minutes carry 0.05-0.3 mg and 10-50 deg/h
+  scale_asymmetry     k |x| on each axis (IEEE Std 528 scale-factor asymmetry), |k| U(50, 200)
+                      ppm, random sign; datasheet class (an odd-only cubic cannot absorb it)
+`beyond_model=False` draws a unit that is exactly the 63-coefficient model: for tests of a
+fit's recovery of known coefficients and for the diagnosis proof, whose answer keys must hold
+only the effect each log hides.
 """
 import json
 import math
@@ -38,6 +57,7 @@ from .. import compensation
 from ..compensation import Calibration
 from ..files import write_atomic
 from . import noise
+from .hidden import HiddenPhysics, HiddenSet
 from .mounting import Mounting
 from .thermal import ThermalModel
 from ..errors import InputError
@@ -47,16 +67,55 @@ DEG = math.pi / 180
 UNIT_FORMAT = "mimunav-unit/1"
 
 
+# Random-error grades of the MIMU, in datasheet units: white density (accel ug/sqrt(Hz),
+# gyro deg/h/sqrt(Hz) = 60 x ARW in deg/sqrt(h)), flicker bias instability B (mg, deg/h),
+# turn-on repeatability per power-on (mg, deg/h, 1 sigma).
+MIMU_GRADES = {
+    # Seed S1 Table 1 at its bound: gyro zero drift <= 30 deg/h, accel ~1 mg, read as the
+    # bias stability of 10 s means (GJB 2426 style): white noise gives 2/3 of it (gyro 72
+    # deg/h/sqrt(Hz) = 1.2 deg/sqrt(h), 23 deg/h over 10 s; ADXRS450-class density 0.015-0.02
+    # (deg/s)/sqrt(Hz)), flicker B half of it; turn-on 1/3 of it (assumption).
+    "table1": {"accel_white": 100.0, "accel_flicker": 0.5, "accel_turn_on": 0.2,
+               "gyro_white": 72.0, "gyro_flicker": 15.0, "gyro_turn_on": 10.0},
+    # Tactical MEMS IMU, ADIS16488A-class datasheet: gyro ARW 0.26 deg/sqrt(h), in-run bias
+    # stability 5.1 deg/h; accel VRW 0.029 m/s/sqrt(h) (49 ug/sqrt(Hz)), in-run 0.1 mg;
+    # turn-on taken equal to the in-run stability (assumption).
+    "tactical": {"accel_white": 49.0, "accel_flicker": 0.1, "accel_turn_on": 0.1,
+                 "gyro_white": 15.6, "gyro_flicker": 5.1, "gyro_turn_on": 5.1},
+    # Navigation-class MEMS IMU, STIM300-class datasheet: gyro ARW 0.15 deg/sqrt(h), bias
+    # instability 0.5 deg/h; accel VRW 0.07 m/s/sqrt(h) (119 ug/sqrt(Hz)), instability
+    # 0.05 mg; turn-on twice the instability (assumption).
+    "stim300": {"accel_white": 119.0, "accel_flicker": 0.05, "accel_turn_on": 0.1,
+                "gyro_white": 9.0, "gyro_flicker": 0.5, "gyro_turn_on": 1.0},
+}
+# Nonlinearity readings (module doc): one factor per triad (accel, gyro) on Table 2's k2, k3.
+# "table1": the largest k2 x^2 + k3 x^3 at full scale (30 g, 400 deg/s) equals Table 1's fit
+# residual (0.05 % FS, 0.2 % FS): accel 0.15 g / (0.09 + 0.54) g, gyro 0.8 / (40 + 0.064) deg/s.
+NONLINEARITY = {"table1": (5e-4 * 30 / (1e-4 * 30**2 + 2e-5 * 30**3),
+                           2e-3 * 400 / (2.5e-4 * 400**2 + 1e-9 * 400**3)),
+                "table2": (1.0, 1.0)}
+
+
 @dataclass
 class NoiseModel:
     """Noise of one triad in physical units: white density (per sqrt(Hz)), flicker
-    instability B, turn-on repeatability (1 sigma). Accel m/s^2..., gyro rad/s..."""
+    instability B, turn-on repeatability (1 sigma). Accel m/s^2..., gyro rad/s...
+    Defaults: the "table1" grade (`MIMU_GRADES`)."""
     accel_white: float = 100e-6 * G0
     accel_flicker: float = 0.5e-3 * G0
     accel_turn_on: float = 0.2e-3 * G0
-    gyro_white: float = 0.02 * DEG
+    gyro_white: float = 72 * DEG / 3600
     gyro_flicker: float = 15 * DEG / 3600
     gyro_turn_on: float = 10 * DEG / 3600
+
+    @classmethod
+    def grade(cls, name):
+        """The noise of a named grade of `MIMU_GRADES` in SI units."""
+        if name not in MIMU_GRADES:
+            raise InputError(f"MIMU grade {name!r}: one of {', '.join(MIMU_GRADES)}")
+        g = MIMU_GRADES[name]
+        return cls(**{k: v * (1e-6 * G0 if k == "accel_white" else 1e-3 * G0
+                              if k.startswith("accel") else DEG / 3600) for k, v in g.items()})
 
 
 @dataclass
@@ -74,12 +133,18 @@ class MimuUnit:
     rate_hz: float = 1000.0
     mounting: Mounting = field(default_factory=Mounting)
     seed: int | None = None
+    beyond_model: list = field(default_factory=list)   # terms, log contract section 3
 
     @classmethod
-    def draw(cls, seed, nonlinearity="table2", rate_hz=1000.0, name=None):
-        """Draw a unit like a real one (see the module doc for every value's source)."""
-        if nonlinearity not in ("table2", "datasheet"):
-            raise InputError("nonlinearity must be 'table2' or 'datasheet'")
+    def draw(cls, seed, nonlinearity="table1", rate_hz=1000.0, name=None, beyond_model=True,
+             grade="table1"):
+        """Draw a unit like a real one (see the module doc for every value's source):
+        `nonlinearity` "table1" (default) or "table2" (Table 2 literally), random errors of
+        `grade` (`MIMU_GRADES`); `beyond_model=False`: exactly the 63-coefficient model."""
+        if nonlinearity not in NONLINEARITY:
+            raise InputError(f"nonlinearity must be one of {', '.join(NONLINEARITY)}")
+        noise_model = NoiseModel.grade(grade)
+        k_accel, k_gyro = NONLINEARITY[nonlinearity]
         rng = np.random.default_rng(seed)
         sign = lambda n: rng.choice([-1.0, 1.0], n)                        # noqa: E731
         thermal = ThermalModel.draw(rng)
@@ -87,9 +152,10 @@ class MimuUnit:
         w_diag = DEG / (5e-3 * (1 + 0.02 * rng.standard_normal(3)))       # (rad/s)/V
         a1 = np.diag(a_diag) + _cross(rng, a_diag, 0.001, 0.02)
         w1 = np.diag(w_diag) + _cross(rng, w_diag, 0.001, 0.005)
-        k2a, k3a = sign(3) * rng.uniform(2e-5, 1e-4, 3), sign(3) * rng.uniform(5e-6, 2e-5, 3)
-        k2w = sign(3) * rng.uniform(1.5e-4, 2.5e-4, 3) / (100 if nonlinearity == "datasheet" else 1)
-        k3w = sign(3) * rng.uniform(4e-10, 1e-9, 3)
+        k2a = sign(3) * rng.uniform(2e-5, 1e-4, 3) * k_accel
+        k3a = sign(3) * rng.uniform(5e-6, 2e-5, 3) * k_accel
+        k2w = sign(3) * rng.uniform(1.5e-4, 2.5e-4, 3) * k_gyro
+        k3w = sign(3) * rng.uniform(4e-10, 1e-9, 3) * k_gyro
         coeff = Calibration(
             model="entire-63", unit=name or f"MIMU-{seed:04d}", procedure="true coefficients",
             A0=rng.normal(0, 20e-3 * G0, 3), A1=a1,
@@ -106,8 +172,11 @@ class MimuUnit:
         # gyro: T - 25 = (f - f0) / (f0 tcf)
         f0, tcf = np.asarray(thermal.f0), np.asarray(thermal.tcf)
         coeff.cw = _poly_about(w_s1, w_s2, f0, f0 * tcf)
+        extra = _draw_beyond_model(
+            np.random.default_rng(None if seed is None else [seed, 63]), thermal) \
+            if beyond_model else []
         return cls(name=coeff.unit, coefficients=coeff, thermal=thermal, rate_hz=rate_hz,
-                   seed=seed)
+                   seed=seed, beyond_model=extra, noise=noise_model)
 
     # ---- simulation ---------------------------------------------------------------
     def simulate(self, t, dtheta, dv, t_env, rng, hidden=None, warm_up_s=0.0):
@@ -122,7 +191,8 @@ class MimuUnit:
         rails. The nonlinearity acts on the interval mean (its intra-interval variance term
         is below 1e-6 of full scale at >= 100 Hz for flight dynamics).
         `hidden` (optional) maps (f, w, temps) -> (f, w): extra physics the 63-coefficient
-        model lacks (used by the diagnosis tests), applied before saturation."""
+        model lacks (used by the diagnosis tests), applied before saturation after the
+        unit's own `beyond_model` terms."""
         t = np.asarray(t, dtype=float)
         n = len(t)
         dt = np.diff(t, prepend=t[0] - 1 / self.rate_hz)
@@ -137,6 +207,9 @@ class MimuUnit:
              + rng.normal(0, nz.gyro_turn_on, 3))
         t_acc, t_gyro = self.thermal.sensor_temperatures(t, t_env, warm_up_s)
         freq = self.thermal.resonance_frequency(t_gyro)
+        if self.beyond_model:
+            own = HiddenSet([HiddenPhysics(term, self.thermal) for term in self.beyond_model])
+            hidden = own if hidden is None else HiddenSet([own, hidden])
         if hidden is not None:
             f, w = hidden(f, w, dict(t=t, accel_temperature=t_acc, gyro_temperature=t_gyro,
                                      gyro_frequency=freq, f_true=f_true, w_true=w_true))
@@ -163,7 +236,8 @@ class MimuUnit:
                 "noise": vars(self.noise).copy(),
                 "range": {"accel_m_s2": self.range_accel, "gyro_rad_s": self.range_gyro},
                 "adc": {"lsb_v": self.adc_lsb, "rail_v": self.adc_rail},
-                "sample_rate_hz": self.rate_hz, "mounting": self.mounting.as_dict()}
+                "sample_rate_hz": self.rate_hz, "mounting": self.mounting.as_dict(),
+                "beyond_model": [dict(term) for term in self.beyond_model]}
 
     @classmethod
     def from_dict(cls, doc, source="unit"):
@@ -177,7 +251,9 @@ class MimuUnit:
                        range_gyro=doc["range"]["gyro_rad_s"],
                        adc_lsb=doc["adc"]["lsb_v"], adc_rail=doc["adc"]["rail_v"],
                        rate_hz=doc["sample_rate_hz"],
-                       mounting=Mounting.from_dict(doc.get("mounting", {})))
+                       mounting=Mounting.from_dict(doc.get("mounting", {})),
+                       beyond_model=[HiddenPhysics(term).term
+                                     for term in doc.get("beyond_model", [])])
         except (KeyError, TypeError) as exc:
             raise InputError(f"{source}: unit file lacks or mistypes {exc}") from None
 
@@ -192,6 +268,23 @@ class MimuUnit:
 
     def save(self, path, force=False):
         write_atomic(path, json.dumps(self.as_dict(), indent=1) + "\n", force=force)
+
+
+def _draw_beyond_model(rng, thermal):
+    """The unit's physics beyond eqs. 1-4 (module doc), as effect terms in SI units of the
+    contract: gyro temperature terms per Hz of resonance frequency (f = f0 (1 + tcf dT))."""
+    sign = lambda: float(rng.choice([-1.0, 1.0]))                         # noqa: E731
+    terms = []
+    for i, axis in enumerate("xyz"):
+        per_hz = 1.0 / (thermal.f0[i] * thermal.tcf[i])                   # degC per Hz
+        terms += [
+            {"effect": "temperature_rate", "sensor": "accel", "axis": axis, "window_s": 60.0,
+             "coefficient": sign() * rng.uniform(0.02e-3, 0.1e-3) * G0},
+            {"effect": "temperature_rate", "sensor": "gyro", "axis": axis, "window_s": 60.0,
+             "coefficient": sign() * rng.uniform(0.001, 0.005) * DEG * per_hz}]
+        terms += [{"effect": "scale_asymmetry", "sensor": s, "axis": axis,
+                   "coefficient": sign() * rng.uniform(50e-6, 200e-6)} for s in ("accel", "gyro")]
+    return terms
 
 
 def _cross(rng, diag, lo, hi):
