@@ -104,6 +104,18 @@ class LabRun:
     raw: dict                   # accel_volts, gyro_volts, accel_temperature, gyro_frequency
     windows: list
     power_cycle: bool = False
+    # the unit's random errors the fits weight with: flicker instability B and turn-on
+    # repeatability per sensor (SI); by default the unit class's (`sensors.mimu`, grade
+    # "table1"), or measured (`calibrate(noise=...)`, a `mimunav noise` file)
+    noise: dict = field(default_factory=lambda: {
+        "instability": dict(INSTABILITY), "turn_on": dict(TURN_ON),
+        "source": "assumed: the unit class of seed S1 Table 1 (sensors.mimu, grade table1)"})
+
+    def instability(self, sensor):
+        return self.noise["instability"][sensor]
+
+    def turn_on(self, sensor):
+        return self.noise["turn_on"][sensor]
 
     @classmethod
     def load(cls, path):
@@ -381,7 +393,7 @@ def fit_temperature(run):
             span = 10.0 if sensor == "accel" else 1.0      # scaled reading for conditioning
             s = (x[:, i] - x_ref) / span
             design = np.column_stack([np.ones(len(run.windows)), run.means(s), run.means(s * s)])
-            instability = INSTABILITY[sensor] / NOMINAL_SCALE[sensor]        # V
+            instability = run.instability(sensor) / NOMINAL_SCALE[sensor]        # V
             b, cov, _, _ = gls(design, u_mean[:, i], np.diag(u_var[:, i])
                                + instability**2 * run.flicker())
             # gauge: b0 = 0 (the polynomial vanishes at x_ref); back to raw-reading powers
@@ -452,7 +464,7 @@ def _fit_triad_blocks(run, design, y_rows, rows, sensor):
     for i in range(3):
         x = design.regressors(i, rows)
         b, *_ = np.linalg.lstsq(x, y_rows[:, i], rcond=None)
-        cov = run.row_covariance(design.variances(i, b), INSTABILITY[sensor], rows)
+        cov = run.row_covariance(design.variances(i, b), run.instability(sensor), rows)
         b, cov, _, r = gls(x, y_rows[:, i], cov)
         out.append(b), covs.append(cov), rms.append(r)
     return np.array(out), covs, rms
@@ -538,7 +550,7 @@ def _assemble(run, sensor, order, coef, covs, rms, solve, poly, temp, key, tag, 
     # the turn-on bias of this power-on sits in the bias terms
     p0 = "A0" if sensor == "accel" else "W0"
     for i in range(3):
-        _merge(fitted.errors, f"{p0}[{i}]", {f"{tag}-turn-on-{sensor}{i}": TURN_ON[sensor]})
+        _merge(fitted.errors, f"{p0}[{i}]", {f"{tag}-turn-on-{sensor}{i}": run.turn_on(sensor)})
     if temp and propagate:
         parents = [f"{key}[{i}][{j}]" for i in range(3) for j in range(3)]
 
@@ -570,7 +582,7 @@ def fit_g_sensitivity(run, temp, gyro, propagate=True):
         for i in range(3):
             b = np.array([g_vals[n] for n in _block_names("gyro", 3, i)])
             w_model = d.regressors(i, rows) @ b
-            cov = run.row_covariance(d.variances(i, b), INSTABILITY["gyro"], rows)
+            cov = run.row_covariance(d.variances(i, b), run.instability("gyro"), rows)
             res.append(gls(x, w[:, i] - w_model, cov))
         return np.array([r[0][:3] for r in res]), [r[1][:3, :3] for r in res], \
             [r[3] for r in res]
@@ -619,12 +631,17 @@ def _runs_by_procedure(runs, need, method):
     return by
 
 
-def calibrate(runs, method, unit="", propagate=True):
+def calibrate(runs, method, unit="", propagate=True, noise=None):
     """Fit `method` to lab runs (log paths or `LabRun`s); returns a `Calibration` with
-    covariance (`propagate=False`: each stage's own only, for speed)."""
+    covariance (`propagate=False`: each stage's own only, for speed). `noise`: the unit's
+    measured random errors, {"source": str, "instability": {"accel": m/s^2, "gyro": rad/s}}
+    (e.g. `reports.noise.load` of a `mimunav noise` file; RMS over axes), used instead of the
+    unit class's assumed bias instability."""
     if method not in METHODS:
         raise FitError(f"unknown method {method!r}; one of {', '.join(METHODS)}")
     runs = [r if isinstance(r, LabRun) else LabRun.load(r) for r in runs]
+    for r in runs if noise else []:
+        r.noise = dict(r.noise, instability=dict(noise["instability"]), source=noise["source"])
     if method == "entire":
         by = _runs_by_procedure(runs, ("thermal-chamber", "rate-table", "centrifuge"), method)
         temp, reference = fit_temperature(by["thermal-chamber"])
@@ -661,7 +678,8 @@ def calibrate(runs, method, unit="", propagate=True):
     cal.covariance = {"names": names, "standard_error": se.tolist(), "matrix": cov.tolist(),
                       "residual_rms": {p.stage: p.rms for p in parts if p.rms},
                       "note": "GLS + setting errors + turn-on repeatability + upstream "
-                              "coefficients, first-order propagation (mimunav.calibration)"}
+                              "coefficients, first-order propagation (mimunav.calibration)",
+                      "noise_model": runs[0].noise}
     return cal
 
 
@@ -693,7 +711,7 @@ def fit_gyro_bias(run):
         for j in range(3):
             fitted.values[f"W1[{i}][{j}]"] = NOMINAL_SCALE["gyro"] * (i == j)
         fitted.errors[f"W0[{i}]"] = {f"twelve-gyro{i}": NOMINAL_SCALE["gyro"] * math.sqrt(var[i]),
-                                     f"turn-on-gyro{i}": TURN_ON["gyro"]}
+                                     f"turn-on-gyro{i}": run.turn_on("gyro")}
     return fitted
 
 
@@ -739,7 +757,7 @@ def fit_cold_start(run, unit=""):
                                              ("gyro", "gyro_volts", "gyro_frequency", w_in)):
         e_t = run.raw[volts] * NOMINAL_SCALE[sensor]
         temp = run.raw[reading]
-        cov_base = (INSTABILITY[sensor] ** 2 * flick + TURN_ON[sensor] ** 2 * same)
+        cov_base = (run.instability(sensor) ** 2 * flick + run.turn_on(sensor) ** 2 * same)
         for n in (None,) + COLD_START_WINDOWS_S:
             d_t = bins(_power_on_temperature_change(run, temp, n or 60.0))
             fit = [_fit_cold_axis(bins(e_t[:, i]), bins(temp[:, i]), d_t[:, i],

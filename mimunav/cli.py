@@ -128,10 +128,35 @@ def _lab(args):
     return 0
 
 
+def _noise(args):
+    """Allan deviation and IEEE-952 terms of a static span."""
+    from .reports.noise import write
+    out = write(args.log, args.output, channel=args.channel, cal_path=args.cal, span=args.span,
+                force=args.force)
+    print(f"wrote {out}/noise.json, noise.md, noise.png")
+    return 0
+
+
+def _span(text):
+    try:
+        t0, t1 = (float(v) for v in text.split(":"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected T0:T1 in s, got {text!r}") from None
+    if not (np.isfinite(t0) and np.isfinite(t1) and t1 > t0 >= 0):
+        raise argparse.ArgumentTypeError(f"need 0 <= T0 < T1 (finite), got {text!r}")
+    return t0, t1
+
+
 def _calibrate(args):
     """Fit a calibration method to lab runs and write the calibration file."""
     from .calibration import calibrate, standard_errors
-    cal = calibrate(args.runs, args.method, unit=args.unit_name)
+    noise = None
+    if args.noise:
+        from .reports.noise import load
+        measured = load(args.noise)
+        noise = {"source": f"measured: {args.noise}", "instability": {
+            s: float(np.sqrt(np.mean(np.square(v["instability"])))) for s, v in measured.items()}}
+    cal = calibrate(args.runs, args.method, unit=args.unit_name, noise=noise)
     cal.save(args.output, force=args.force)
     rms = cal.covariance.get("residual_rms", {})
     for stage, per_axis in rms.items():
@@ -277,7 +302,8 @@ def _import(args):
         from .importers import ros2
         rec = ros2.read(args.source, args.imu_topic, args.fix_topic, mounting=mounting,
                         reference_status=args.reference_status,
-                        reference_sigma_m=args.reference_sigma)
+                        reference_sigma_m=args.reference_sigma, pose_topic=args.pose_topic,
+                        origin=args.origin)
     elif args.kind == "table":
         from .importers import table
         rec = table.read(args.source, mounting=mounting)
@@ -384,7 +410,8 @@ def _reproduce(args):
 def _scenario(args):
     from .campaign import Scenario
     return Scenario(flight=str(Path(args.flight).resolve()), severity=args.severity,
-                    ground_temperature_c=args.ground_temperature_c, mimu_grade=args.mimu_grade,
+                    ground_temperature_c=args.ground_temperature_c, warm_up_s=args.warm_up_s,
+                    mimu_grade=args.mimu_grade,
                     nonlinearity=args.nonlinearity, fog_grade=args.fog_grade,
                     beyond_model=not args.exact_model)
 
@@ -400,6 +427,9 @@ def _scenario_options(p, flight=True):
                    "rates x S (default 1)")
     p.add_argument("--ground-temperature-c", type=_number(-60.0, 60.0), default=15.0,
                    help="air temperature at the start height, degC (default 15, ISA)")
+    p.add_argument("--warm-up-s", type=_number(0.0, 86400.0), default=600.0,
+                   help="MIMU powered on this long before take-off, s (default 600: the "
+                   "reference's ground alignment; 0 = cold at take-off)")
     p.add_argument("--mimu-grade", default="table1",
                    help="MIMU random errors (default table1: seed S1 Table 1 at its bound; "
                    "tactical: ADIS16488A class; stim300: STIM300 class)")
@@ -524,8 +554,23 @@ def build_parser():
                    "multi-position + single-axis-rate; twelve-position; cold-start")
     p.add_argument("-o", "--output", required=True, help="calibration file to write (.json)")
     p.add_argument("--unit-name", default="", help="unit name written to the file")
+    p.add_argument("--noise", help="the unit's measured random errors (mimunav-noise/1 from "
+                   "`mimunav noise`): its bias instability weights the fits instead of the "
+                   "unit class's assumed one")
     p.add_argument("--force", action="store_true", help="replace an existing output")
     p.set_defaults(func=_calibrate)
+    p = sub.add_parser("noise", help="random errors of an IMU channel over a static span: "
+                       "Allan deviation per axis with 68 %% bands, IEEE-952 terms with "
+                       "intervals -> DIR/noise.json (mimunav-noise/1, SI), noise.md, noise.png")
+    p.add_argument("log", help="log (.mcap): a lab run, a simulated flight, an imported recording")
+    p.add_argument("--channel", default="/mimu/imu",
+                   help="/mimu/imu (default), /fog/imu, or /mimu/raw with --cal")
+    p.add_argument("--cal", help="calibration file, to read /mimu/raw in SI units")
+    p.add_argument("--span", type=_span, help="T0:T1, s since the channel's first sample "
+                   "(default: the longest rest of /truth/state, else the longest still stretch)")
+    p.add_argument("-o", "--output", required=True, help="folder to write")
+    p.add_argument("--force", action="store_true", help="replace an existing folder")
+    p.set_defaults(func=_noise)
     p = sub.add_parser("replay", help="compensate the MIMU, navigate MIMU and FOG-IMU with "
                        "the same navigator, compare with the truth and each other")
     _flight_arguments(p)
@@ -585,6 +630,11 @@ def build_parser():
                    help="sensor -> vehicle (FRD) rotation, deg (default: rtklib the README's "
                    "180 0 180; ros2 180 0 0, REP-103 x forward, y left, z up; ulog 0 0 0, "
                    "PX4's FRD body frame; table: the spec's axes)")
+    p.add_argument("--pose-topic", help="ros2: a nav_msgs/msg/Odometry or geometry_msgs/msg/"
+                   "PoseStamped topic (local ENU frame) as the reference; needs --origin")
+    p.add_argument("--origin", type=_number(-360.0, 1e5), nargs=3,
+                   metavar=("LAT_DEG", "LON_DEG", "H_M"),
+                   help="ros2: geodetic origin of the pose topic's frame (deg, deg, m)")
     p.add_argument("--reference-status", type=_number(-1, 2, int),
                    help="ros2: NavSatFix fixes of at least this status (2 = GBAS_FIX, RTK "
                    "grade) serve as the reference trajectory (/truth/state)")

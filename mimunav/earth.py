@@ -155,3 +155,11 @@ def ned_difference(lat, lon, h, lat_ref, lon_ref, h_ref):
     d_e = geodetic_to_ecef(lat, lon, h) - geodetic_to_ecef(lat_ref, lon_ref, h_ref)
     c_en = ned_to_ecef_matrix(lat_ref, lon_ref)
     return np.einsum("...ji,...j->...i", c_en, d_e)
+
+
+def ned_offset_to_geodetic(d_ned, lat_ref, lon_ref, h_ref):
+    """Inverse of `ned_difference`: the point at NED offset d_ned (m, (..., 3)) from a
+    reference point -> (lat rad, lon rad, h m); exact through ECEF."""
+    c_en = ned_to_ecef_matrix(lat_ref, lon_ref)
+    r_e = geodetic_to_ecef(lat_ref, lon_ref, h_ref) + np.einsum("ij,...j->...i", c_en, d_ned)
+    return ecef_to_geodetic(r_e)

@@ -52,6 +52,7 @@ class Flight:
     mimu_imu: tuple | None = None   # (w rad/s, f m/s^2) of /mimu/imu when there is no raw
     fog_meta: dict | None = None    # the log's `sensor/fog` metadata (model, accuracy, ...)
     source: str = ""                # the flight metadata's source: "simulation", "recording"
+    reference_meta: dict | None = None  # the log's `reference` metadata (a recording's)
 
     @classmethod
     def load(cls, path, reference_imu=True, max_gap_s=None):
@@ -104,7 +105,8 @@ class Flight:
                      *((sec(fog), np.ascontiguousarray(fog["angular_velocity"], float),
                         np.ascontiguousarray(fog["linear_acceleration"], float))
                        if fog is not None else (None, None, None)), mount("fog"), truth_traj,
-                     imu, meta.get("sensor/fog", {}), str(flight.get("source", "")))
+                     imu, meta.get("sensor/fog", {}), str(flight.get("source", "")),
+                     meta.get("reference", {}))
         check_plausible(loaded, MAX_GAP_S if max_gap_s is None else max_gap_s)
         return loaded
 

@@ -101,22 +101,23 @@ def flight_units(seed, unit=None, fog_rate=1000.0, fog_grade="table4"):
     return unit, fog, np.random.default_rng(s_mimu_noise), np.random.default_rng(s_fog_noise)
 
 
-def record_flight(fm, unit, fog, rng_mimu, rng_fog, hidden=None):
+def record_flight(fm, unit, fog, rng_mimu, rng_fog, hidden=None, warm_up_s=0.0):
     """Raw MIMU and FOG outputs over a `FlightMotion`; `hidden`: extra MIMU physics
-    (`MimuUnit.simulate`)."""
-    raw = unit.simulate(*fm.mimu, fm.env, rng_mimu, hidden=hidden)
+    (`MimuUnit.simulate`); the MIMU powered on `warm_up_s` before take-off (0: cold)."""
+    raw = unit.simulate(*fm.mimu, fm.env, rng_mimu, hidden=hidden, warm_up_s=warm_up_s)
     return raw, fog.simulate(*fm.fog, rng_fog)
 
 
 def simulate_flight(profile, out, seed, unit=None, fog_rate=1000.0, truth_rate=100.0,
                     force=False, progress=True, hidden=None, hide=(),
-                    ground_temperature_c=GROUND_TEMPERATURE_C, fog_grade="table4"):
+                    ground_temperature_c=GROUND_TEMPERATURE_C, fog_grade="table4",
+                    warm_up_s=0.0):
     """Simulate `profile` into the log `out` (.mcap) and `out` with .truth.json beside it.
     `hidden`: extra MIMU physics the log must not reveal (`MimuUnit.simulate`); its
     description goes to the truth file when it has an `as_dict`. `hide`: hidden effects as
     terms (`sensors.hidden`, e.g. from `mimunav simulate --hide`), made sensor behaviour of
-    this flight's unit. `ground_temperature_c`, `fog_grade`: see `flight_motion`,
-    `flight_units`. Returns (log path, truth path)."""
+    this flight's unit. `ground_temperature_c`, `fog_grade`, `warm_up_s`: see
+    `flight_motion`, `flight_units`, `record_flight`. Returns (log path, truth path)."""
     truth_path = (str(out)[:-5] if str(out).endswith(".mcap") else str(out)) + ".truth.json"
     for path in (out, truth_path):
         if os.path.exists(path) and not force:
@@ -129,7 +130,7 @@ def simulate_flight(profile, out, seed, unit=None, fog_rate=1000.0, truth_rate=1
     fm = flight_motion(profile, unit.mounting, unit.rate_hz, fog.mounting, fog.rate_hz,
                        truth_rate, ground_temperature_c)
     steps.update()
-    raw, fog_out = record_flight(fm, unit, fog, rng_mimu, rng_fog, hidden)
+    raw, fog_out = record_flight(fm, unit, fog, rng_mimu, rng_fog, hidden, warm_up_s)
     steps.update()
     run, t_base, k_truth = fm.run, fm.t_base, fm.k_truth
     t_m, t_f = fm.mimu[0], fm.fog[0]
@@ -169,6 +170,7 @@ def simulate_flight(profile, out, seed, unit=None, fog_rate=1000.0, truth_rate=1
         "format": "mimunav-truth/1", "log": str(out), "seed": seed, "profile": profile.name,
         "mimu": unit.as_dict(), "fog": fog.as_dict(),
         "environment": {"ground_temperature_c": ground_temperature_c,
+                        "mimu_warm_up_s": warm_up_s,
                         "bay_tau_s": BAY_TAU_S, "lapse_k_per_m": ISA_LAPSE},
         "hidden": hidden.as_dict() if hasattr(hidden, "as_dict") else None,
         "saturated_samples": {"mimu": int(raw["saturated"].sum()),

@@ -15,6 +15,7 @@ moving faster than `alignment.COURSE_SPEED` (heading needs a course) and has no 
 longer than MAX_GAP_S inside. Windows of one length overlap when step < length, so they are
 not independent: the summary gives the count of disjoint windows the recording holds.
 """
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -138,18 +139,43 @@ def run_all(flight, cal=None, lengths=WINDOW_LENGTHS_S, step=START_STEP_S, time_
     return out, rest
 
 
-def summary(results, span_s):
+def summary(results, span_s, reference_meta=None):
     """Per length: number of windows, disjoint windows the span holds, and percentiles
-    (50, 68, 95, max) of the end-point horizontal and vertical errors (m), plus the median
-    drift rate (horizontal end error / length, m/s)."""
+    (50, 68, 95, max) of the end-point horizontal and vertical errors (m), the median
+    drift rate (horizontal end error / length, m/s), and the part of the end error the
+    reference alone explains (`reference_floor`)."""
     rows = {}
     for length, wins in sorted(results.items()):
         hor = np.array([w.horizontal[-1] for w in wins])
         up = np.array([abs(w.error_ned[-1, 2]) for w in wins])
         rows[length] = {"windows": len(wins), "disjoint": int(span_s // length),
                         "horizontal_m": _percentiles(hor), "vertical_m": _percentiles(up),
-                        "median_rate_m_s": float(np.median(hor) / length)}
+                        "median_rate_m_s": float(np.median(hor) / length),
+                        "reference_floor": reference_floor(reference_meta or {}, length)}
     return rows
+
+
+def reference_floor(meta, length):
+    """The horizontal end error (m, rms of the 2-D norm) a window of `length` s shows from
+    the reference's own errors alone, from its stated sigmas (`reference` metadata:
+    position_sigma_m horizontal, velocity_sigma_m_s horizontal): the start position (taken
+    from the reference) and the end position it is compared with each carry sigma_p, the
+    start velocity sigma_v grows as sigma_v * length; independent, so
+    floor = sqrt(2 sigma_p^2 + (sigma_v length)^2). Unstated sigmas are left out and named;
+    a reference attitude's own error (g sigma_tilt length^2 / 2) is not included: no source
+    states it."""
+    def number(key):
+        try:
+            value = float(meta.get(key, "nan"))
+        except (TypeError, ValueError):
+            return None
+        return value if np.isfinite(value) and value >= 0 else None
+    sigma_p, sigma_v = number("position_sigma_m"), number("velocity_sigma_m_s")
+    missing = [k for k, v in (("position", sigma_p), ("velocity", sigma_v)) if v is None]
+    if sigma_p is None and sigma_v is None:
+        return {"horizontal_m": None, "not_stated": missing}
+    floor = math.sqrt(2 * (sigma_p or 0.0) ** 2 + ((sigma_v or 0.0) * length) ** 2)
+    return {"horizontal_m": floor, "not_stated": missing}
 
 
 def _percentiles(x):

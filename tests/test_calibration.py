@@ -188,3 +188,20 @@ def test_cold_start_selects_the_temperature_rate_term_only_when_it_is_there(tmp_
     expect = -k / (np.array(unit.thermal.f0) * np.array(unit.thermal.tcf))
     np.testing.assert_allclose(hidden.cold_start["gyro"]["e"], expect, rtol=0.2)
     assert hidden.cold_start["window_s"] == 120.0
+
+
+def test_a_measured_noise_model_weights_the_fit_and_is_recorded(tmp_path):
+    """`calibrate(noise=...)` (`mimunav calibrate --noise`): the fits weight the window means
+    with the given bias instability instead of the unit class's, so ten times the
+    instability widens the reported bias uncertainty, and the file says which was used."""
+    unit = MimuUnit.draw(3)
+    paths = [_run(tmp_path, p, unit, 3) for p in TRADITIONAL]
+    base = calibration.calibrate(paths, "traditional")
+    wide = {"source": "measured: test", "instability": {
+        s: 10 * v for s, v in calibration.INSTABILITY.items()}}
+    noisy = calibration.calibrate(paths, "traditional", noise=wide)
+    se0, se1 = calibration.standard_errors(base), calibration.standard_errors(noisy)
+    assert all(se1[f"A0[{i}]"] > 1.5 * se0[f"A0[{i}]"] for i in range(3))
+    assert noisy.covariance["noise_model"]["source"] == "measured: test"
+    assert base.covariance["noise_model"]["source"].startswith("assumed")
+    np.testing.assert_allclose(noisy.A1, base.A1, rtol=1e-3)     # weights, not the model

@@ -417,6 +417,8 @@ def test_ros2_rtk_fixes_as_the_reference(tmp_path):
     np.testing.assert_allclose(ref["velocity_ned"][:, 0], 5.0, atol=1e-5)
     assert meta["independent"].startswith("yes") and float(meta["position_sigma_m"]) == \
         pytest.approx(0.02 * np.sqrt(2), rel=1e-3)
+    # central differences of fixes 0.25 s apart: sigma_v = sigma_p / (sqrt(2) 0.25 s)
+    assert float(meta["velocity_sigma_m_s"]) == pytest.approx(0.02 / 0.25, rel=1e-2)
     with pytest.raises(RecordingError, match="at least 3"):
         ros2.read(bag, reference_status=2, reference_sigma_m=0.01)
 
@@ -507,3 +509,141 @@ def test_report_recording_of_the_excerpt_and_its_refusals(tmp_path):
     write_log(rec, bare)
     assert main(["report", "recording", str(bare), "-o", str(tmp_path / "none")]) == 2
     assert not (tmp_path / "none").exists()
+
+
+_HEADER = """================================================================================
+MSG: std_msgs/Header
+builtin_interfaces/Time stamp
+string frame_id
+================================================================================
+MSG: builtin_interfaces/Time
+int32 sec
+uint32 nanosec
+"""
+_POSE = """================================================================================
+MSG: geometry_msgs/Pose
+geometry_msgs/Point position
+geometry_msgs/Quaternion orientation
+================================================================================
+MSG: geometry_msgs/Point
+float64 x
+float64 y
+float64 z
+================================================================================
+MSG: geometry_msgs/Quaternion
+float64 x
+float64 y
+float64 z
+float64 w
+"""
+_VECTOR = """================================================================================
+MSG: geometry_msgs/Vector3
+float64 x
+float64 y
+float64 z
+"""
+MSGDEFS = {
+    "sensor_msgs/msg/Imu": "std_msgs/Header header\ngeometry_msgs/Quaternion orientation\n"
+    "float64[9] orientation_covariance\ngeometry_msgs/Vector3 angular_velocity\n"
+    "float64[9] angular_velocity_covariance\ngeometry_msgs/Vector3 linear_acceleration\n"
+    "float64[9] linear_acceleration_covariance\n" + _HEADER + "=" * 80
+    + "\nMSG: geometry_msgs/Quaternion\nfloat64 x\nfloat64 y\nfloat64 z\nfloat64 w\n" + _VECTOR,
+    "nav_msgs/msg/Odometry": "std_msgs/Header header\nstring child_frame_id\n"
+    "geometry_msgs/PoseWithCovariance pose\ngeometry_msgs/TwistWithCovariance twist\n" + _HEADER
+    + "=" * 80 + "\nMSG: geometry_msgs/PoseWithCovariance\ngeometry_msgs/Pose pose\n"
+    "float64[36] covariance\n" + "=" * 80 + "\nMSG: geometry_msgs/TwistWithCovariance\n"
+    "geometry_msgs/Twist twist\nfloat64[36] covariance\n" + "=" * 80
+    + "\nMSG: geometry_msgs/Twist\ngeometry_msgs/Vector3 linear\ngeometry_msgs/Vector3 angular\n"
+    + _POSE + _VECTOR,
+    "geometry_msgs/msg/PoseStamped": "std_msgs/Header header\ngeometry_msgs/Pose pose\n"
+    + _HEADER + _POSE,
+}
+
+
+@pytest.mark.parametrize("schema", ["nav_msgs/msg/Odometry", "geometry_msgs/msg/PoseStamped"])
+def test_ros2_pose_topic_in_a_local_enu_frame_as_the_reference(tmp_path, schema):
+    """A bag written by mcap-ros2-support's own writer: a level vehicle driving at 10 m/s
+    with its body x axis 30 deg north of east (ENU yaw 30 deg = NED heading 60 deg), pose in
+    a local ENU frame whose origin is given. /truth/state: heading 60 deg, level, velocity
+    (5, 8.66, 0) m/s NED (Odometry: from its body-frame twist; PoseStamped: from positions),
+    positions at the ENU offsets from the origin."""
+    from mcap_ros2.writer import Writer
+    n, rate = 2000, 100.0
+    stamps = 1_700_000_000_000_000_000 + np.arange(n) * 10_000_000
+    yaw = np.radians(30.0)
+    q_enu = {"x": 0.0, "y": 0.0, "z": math.sin(yaw / 2), "w": math.cos(yaw / 2)}
+    bag = tmp_path / "pose.mcap"
+    zero3 = {"x": 0.0, "y": 0.0, "z": 0.0}
+    with open(bag, "wb") as fh:
+        writer = Writer(fh)
+        s_imu = writer.register_msgdef("sensor_msgs/msg/Imu", MSGDEFS["sensor_msgs/msg/Imu"])
+        s_pose = writer.register_msgdef(schema, MSGDEFS[schema])
+        for k, ns in enumerate(stamps):
+            header = {"stamp": {"sec": int(ns // 10**9), "nanosec": int(ns % 10**9)},
+                      "frame_id": "base_link"}
+            writer.write_message("/imu", s_imu, {
+                "header": header, "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0},
+                "orientation_covariance": [0.0] * 9, "angular_velocity": zero3,
+                "angular_velocity_covariance": [0.0] * 9,
+                "linear_acceleration": {"x": 0.0, "y": 0.0, "z": 9.80},
+                "linear_acceleration_covariance": [0.0] * 9}, log_time=int(ns))
+            if k % 10:
+                continue
+            t = k / rate
+            pose = {"position": {"x": 10 * t * math.cos(yaw), "y": 10 * t * math.sin(yaw),
+                                 "z": 0.0}, "orientation": q_enu}
+            header["frame_id"] = "map"
+            if schema == "nav_msgs/msg/Odometry":
+                cov = [0.0] * 36
+                cov[0] = cov[7] = 0.03 ** 2
+                msg = {"header": header, "child_frame_id": "base_link",
+                       "pose": {"pose": pose, "covariance": cov},
+                       "twist": {"twist": {"linear": {"x": 10.0, "y": 0.0, "z": 0.0},
+                                           "angular": zero3}, "covariance": [0.0] * 36}}
+            else:
+                msg = {"header": header, "pose": pose}
+            writer.write_message("/pose", s_pose, msg, log_time=int(ns))
+        writer.finish()
+    out = tmp_path / "log.mcap"
+    args = ["import", "ros2", str(bag), "-o", str(out), "--pose-topic", "/pose"]
+    assert main(args) == 2                                         # no origin: refused
+    assert main(args + ["--origin", "45.0", "10.0", "100.0"]) == 0
+    with FlightLog(out) as log:
+        ref = log.read("/truth/state")
+        meta = log.metadata()["reference"]
+    assert len(ref) == n // 10
+    inner = slice(1, -1)                                           # central differences
+    np.testing.assert_allclose(ref["velocity_ned"][inner],
+                               np.tile([5.0, 10 * math.sin(np.radians(60)), 0.0],
+                                       (len(ref) - 2, 1)), atol=2e-4)
+    heading, pitch, roll = attitude.as_euler(quaternion.from_float_array(ref["attitude_wxyz"]))
+    np.testing.assert_allclose(np.degrees(heading), 60.0, atol=1e-9)
+    np.testing.assert_allclose([pitch, roll], 0.0, atol=1e-12)
+    d = earth.ned_difference(ref["latitude"], ref["longitude"], ref["height"],
+                             np.radians(45.0), np.radians(10.0), 100.0)
+    t = np.arange(len(ref)) / 10.0
+    np.testing.assert_allclose(d[:, 0], 10 * t * math.sin(yaw), atol=1e-6)   # north = ENU y
+    np.testing.assert_allclose(d[:, 1], 10 * t * math.cos(yaw), atol=1e-6)
+    assert meta["independent"].startswith("unknown")
+    if schema == "nav_msgs/msg/Odometry":
+        assert "twist" in meta["source"] and float(meta["position_sigma_m"]) == \
+            pytest.approx(0.03 * math.sqrt(2), rel=1e-2)
+
+
+def test_reference_floor_of_a_window_from_the_stated_sigmas():
+    """The end error a window inherits from its reference alone: start and end positions
+    (sigma_p each) and the start velocity (sigma_v * L), independent - checked against a
+    Monte Carlo of exactly that error budget; unstated sigmas are named, not invented."""
+    floor = windows.reference_floor({"position_sigma_m": "0.02", "velocity_sigma_m_s": "0.05"},
+                                    30.0)
+    rng = np.random.default_rng(0)
+    n = 200000
+    e = (rng.normal(0, 0.02 / math.sqrt(2), (n, 2)) + rng.normal(0, 0.05 / math.sqrt(2), (n, 2))
+         * 30.0 - rng.normal(0, 0.02 / math.sqrt(2), (n, 2)))        # 2-D rms sigmas
+    assert floor["horizontal_m"] == pytest.approx(np.sqrt(np.mean(np.sum(e**2, axis=1))),
+                                                  rel=0.01)
+    assert floor["not_stated"] == []
+    only_p = windows.reference_floor({"position_sigma_m": "0.5"}, 60.0)
+    assert only_p == {"horizontal_m": pytest.approx(0.5 * math.sqrt(2)),
+                      "not_stated": ["velocity"]}
+    assert windows.reference_floor({"position_sigma_m": "unknown"}, 10.0)["horizontal_m"] is None

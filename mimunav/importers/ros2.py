@@ -1,16 +1,22 @@
 """Any ROS 2 MCAP recording: the IMU from a `sensor_msgs/msg/Imu` topic and, when present,
-GNSS fixes from a `sensor_msgs/msg/NavSatFix` topic, decoded by mcap-ros2-support.
+GNSS fixes from a `sensor_msgs/msg/NavSatFix` topic, decoded by mcap-ros2-support. The
+reference may be RTK-grade fixes (`reference_status`) or a pose topic
+(`nav_msgs/msg/Odometry`, `geometry_msgs/msg/PoseStamped`) in a local ENU frame placed at a
+given geodetic origin (REP-105 map/odom frames carry no geodetic origin of their own).
 
 ROS conventions (REP-103, REP-145): angular_velocity rad/s and linear_acceleration m/s^2
 (the specific force: +g up at rest) in the message's frame_id; a body frame is x forward,
 y left, z up (FLU), so the default mounting to the vehicle's FRD is a half turn about x.
 NavSatFix: latitude/longitude deg (turned to rad), altitude m above the WGS-84 ellipsoid,
-position_covariance m^2 ENU. Times: header.stamp (the sensor's time), log_time where a
-stamp is zero.
+position_covariance m^2 ENU. Pose: position m in the frame's ENU axes, orientation the
+body (FLU, child frame) in that frame; Odometry twist in the child (body) frame. Times:
+header.stamp (the sensor's time), log_time where a stamp is zero.
 """
+import math
 import os
 
 import numpy as np
+import quaternion
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 
@@ -19,7 +25,13 @@ from . import RecordingError, Recording
 
 IMU = "sensor_msgs/msg/Imu"
 NAV_SAT_FIX = "sensor_msgs/msg/NavSatFix"
+ODOMETRY = "nav_msgs/msg/Odometry"
+POSE_STAMPED = "geometry_msgs/msg/PoseStamped"
 FLU_TO_FRD = Mounting.from_axes("FLU")            # a half turn about x
+# q_NED<-ENU: swap east/north, flip up (a half turn about (1, 1, 0)/sqrt(2)); q_FLU<-FRD: a
+# half turn about x. Hamilton, scalar first.
+Q_NED_ENU = np.quaternion(0.0, math.sqrt(0.5), math.sqrt(0.5), 0.0)
+Q_FLU_FRD = np.quaternion(0.0, 1.0, 0.0, 0.0)
 
 
 def topics(path):
@@ -53,12 +65,14 @@ def _messages(path, topic):
 
 
 def read(path, imu_topic=None, fix_topic=None, mounting=None, reference_status=None,
-         reference_sigma_m=np.inf):
+         reference_sigma_m=np.inf, pose_topic=None, origin=None):
     """The recording of a ROS 2 MCAP as a `Recording`. With `reference_status` (the lowest
     NavSatStatus that counts: 2 = GBAS_FIX, RTK-grade) the fixes of at least that status
     whose horizontal sigma (from position_covariance, when known) is at most
     reference_sigma_m serve as the reference trajectory too, velocity from central
-    differences of their positions."""
+    differences of their positions. With `pose_topic` (Odometry or PoseStamped) and
+    `origin` (lat deg, lon deg, h m of the pose frame's origin) the poses are the reference
+    instead (`_pose_reference`)."""
     available = topics(path)
     imu_topic = _pick(path, available, IMU, imu_topic, required=True)
     fix_topic = _pick(path, available, NAV_SAT_FIX, fix_topic, required=False)
@@ -83,7 +97,12 @@ def read(path, imu_topic=None, fix_topic=None, mounting=None, reference_status=N
             fixes = dict(ns=fx[:, 0].astype(np.int64), status=fx[:, 1].astype(np.int8),
                          lat=fx[:, 2], lon=fx[:, 3], h=fx[:, 4], covariance=fx[:, 5:14])
     reference, reference_meta = None, {}
-    if reference_status is not None:
+    if pose_topic is not None:
+        if reference_status is not None:
+            raise RecordingError("choose one reference: RTK fixes (--reference-status) or a "
+                                 "pose topic (--pose-topic)")
+        reference, reference_meta = _pose_reference(path, available, pose_topic, origin)
+    elif reference_status is not None:
         if fixes is None:
             raise RecordingError(f"{path}: a reference from fixes needs a NavSatFix topic")
         reference, reference_meta = _fix_reference(fixes, reference_status, reference_sigma_m,
@@ -97,7 +116,7 @@ def read(path, imu_topic=None, fix_topic=None, mounting=None, reference_status=N
                else "given on the command line",
                "calibration": "none: the Imu messages are used as recorded"}
     if reference is not None:
-        real["reference"] = f"{len(reference['ns'])} fixes of {fix_topic}: {reference_meta['source']}"
+        real["reference"] = f"{len(reference['ns'])} epochs: {reference_meta['source']}"
     rate = 1e9 / np.median(np.diff(ns[keep]))
     return Recording(name, f"ROS 2 recording {os.path.basename(path)}: {imu_topic} {rate:.0f} Hz, "
                      f"{(ns[keep][-1] - ns[keep][0]) / 1e9:.1f} s", ns[keep],
@@ -125,4 +144,75 @@ def _fix_reference(fixes, status, sigma_m, topic):
             "independent": "yes: GNSS only",
             "position_sigma_m": f"{np.median(sigma[use]):.3g}" if np.any(sigma[use] > 0)
                                 else "not stated"}
+    meta.update(_difference_velocity_sigma(sigma[use], t))
     return dict(ns=ns, lat=lat, lon=lon, h=h, v_ned=np.gradient(ned, t, axis=0)), meta
+
+
+def _pose_reference(path, available, topic, origin):
+    """An Odometry or PoseStamped topic as the reference: ENU position placed at `origin`
+    (lat deg, lon deg, h m) -> geodetic, orientation (body FLU in ENU) -> q_nb (vehicle FRD
+    -> NED), velocity from Odometry's body-frame twist, else central differences."""
+    from .. import attitude, earth
+    schema = available.get(topic)
+    if schema not in (ODOMETRY, POSE_STAMPED):
+        raise RecordingError(f"{path}: {topic!r} is {schema or 'not a topic'}; a pose reference "
+                             f"needs {ODOMETRY} or {POSE_STAMPED}")
+    if origin is None or len(origin) != 3 or not np.isfinite(origin).all() \
+            or abs(origin[0]) > 90:
+        raise RecordingError(f"a pose reference needs the geodetic origin of its frame "
+                             f"(--origin LAT_DEG LON_DEG H_M), got {origin}")
+    rows = []
+    for ns, m in _messages(path, topic):
+        pose = m.pose.pose if schema == ODOMETRY else m.pose
+        p, o = pose.position, pose.orientation
+        v = (m.twist.twist.linear.x, m.twist.twist.linear.y, m.twist.twist.linear.z) \
+            if schema == ODOMETRY else (np.nan,) * 3
+        cov = m.pose.covariance if schema == ODOMETRY else [0.0] * 36
+        v_cov = m.twist.covariance if schema == ODOMETRY else [0.0] * 36
+        rows.append((ns, p.x, p.y, p.z, o.w, o.x, o.y, o.z, *v, cov[0], cov[7], v_cov[0],
+                     v_cov[7]))
+    a = np.asarray(rows, dtype=float)
+    if len(a) < 3 or not np.isfinite(a[:, 1:8]).all():
+        raise RecordingError(f"{path}: {topic} has {len(a)} poses (finite ones needed, >= 3)")
+    a = a[np.argsort(a[:, 0], kind="stable")]
+    ns = a[:, 0].astype(np.int64)
+    enu = a[:, 1:4]
+    ned = np.column_stack([enu[:, 1], enu[:, 0], -enu[:, 2]])
+    lat0, lon0, h0 = np.radians(origin[0]), np.radians(origin[1]), float(origin[2])
+    lat, lon, h = earth.ned_offset_to_geodetic(ned, lat0, lon0, h0)
+    q_enu_flu = quaternion.from_float_array(a[:, 4:8])
+    norm = np.abs(q_enu_flu)
+    if np.any(np.abs(norm - 1) > 1e-3):
+        raise RecordingError(f"{topic}: orientations are not unit quaternions (|q| "
+                             f"{norm.min():.3g}-{norm.max():.3g})")
+    q_nb = Q_NED_ENU * (q_enu_flu / norm) * Q_FLU_FRD
+    sigma = np.sqrt(np.maximum(a[:, 11], 0) + np.maximum(a[:, 12], 0))
+    t = (ns - ns[0]) / 1e9
+    if schema == ODOMETRY:
+        v_ned = attitude.rotate(Q_NED_ENU * (q_enu_flu / norm), a[:, 8:11])
+        how = "velocity from its body-frame twist"
+        v_sigma = np.sqrt(np.maximum(a[:, 13], 0) + np.maximum(a[:, 14], 0))
+        velocity = {"velocity_sigma_m_s": f"{np.median(v_sigma):.3g}"} if np.any(v_sigma > 0) \
+            else {}
+    else:
+        v_ned = np.gradient(earth.ned_difference(lat, lon, h, lat0, lon0, h0), t, axis=0)
+        how = "velocity from position differences"
+        velocity = _difference_velocity_sigma(sigma, t)
+    meta = {"source": f"{schema} {topic}, frame origin {origin[0]:.8f} deg, {origin[1]:.8f} "
+                      f"deg, {origin[2]:.3f} m (given), {how}",
+            "independent": "unknown: a pose estimate of the recording system, which may fuse "
+                           "this IMU",
+            "position_sigma_m": f"{np.median(sigma):.3g}" if np.any(sigma > 0) else "not stated",
+            **velocity}
+    return dict(ns=ns, lat=lat, lon=lon, h=h, v_ned=v_ned,
+                q_nb=quaternion.as_float_array(q_nb)), meta
+
+
+def _difference_velocity_sigma(sigma, t):
+    """Metadata of the horizontal velocity sigma of central differences of positions whose
+    horizontal sigma is `sigma` (m) at times t (s): sigma / (sqrt(2) dt), independent fixes
+    assumed; nothing when the positions' sigma is not stated."""
+    if not np.any(sigma > 0) or len(t) < 3:
+        return {}
+    dt = float(np.median(np.diff(t)))
+    return {"velocity_sigma_m_s": f"{np.median(sigma[sigma > 0]) / (math.sqrt(2) * dt):.3g}"}

@@ -24,10 +24,12 @@ from .table3 import PAPER, assumptions_markdown
 LEVELS = {"mimu_grade": ("table1", "tactical", "stim300"),
           "fog_grade": ("table4-bound", "table4", "navigation"),
           "severity": (0.25, 0.5, 1.0),
-          "ground_temperature_c": (-40.0, 15.0, 45.0)}
+          "ground_temperature_c": (-40.0, 15.0, 45.0),
+          "warm_up_s": (0.0, 600.0, 3600.0)}
 LABELS = {"mimu_grade": "MIMU random-error grade", "fog_grade": "FOG-IMU grade",
           "severity": "flight severity (g exposure x)",
-          "ground_temperature_c": "ground air temperature, degC"}
+          "ground_temperature_c": "ground air temperature, degC",
+          "warm_up_s": "MIMU warm-up before take-off, s"}
 AXES = ("east", "north", "up", "horizontal")
 CLOSE_TO_FOG = 3.0          # "close to the FOG-IMU": horizontal error within 3x the FOG's
 ORDER_OF_MAGNITUDE = 5.0    # "about one order of magnitude": traditional/entire >= 5
@@ -75,8 +77,8 @@ def regime_map(out_dir="reports", seed=1, units=16, workers=2, scheduler=None, b
     folder = out_dir / "regime"
     folder.mkdir(parents=True, exist_ok=True)
     rows = []
-    for key, level, scenario in points(base):
-        name = "base" if key is None else f"{key}={level}"
+
+    def run(key, level, scenario, name):
         if progress:
             print(f"regime point {name}", flush=True)
         records = campaign.run_campaign(scenario, units, seed, str(folder / f"{name}.jsonl"),
@@ -84,6 +86,11 @@ def regime_map(out_dir="reports", seed=1, units=16, workers=2, scheduler=None, b
                                         progress=progress)
         rows.append({"option": key, "level": level, "name": name, "units": len(records),
                      "scenario": scenario.identity(), **point_summary(records)})
+    for key, level, scenario in points(base):
+        run(key, level, scenario, "base" if key is None else f"{key}={level}")
+    corner = favourable_corner(rows, base)
+    if corner not in [p[2] for p in points(base)]:
+        run("corner", None, corner, "favourable corner")
     plot(rows, base, str(out_dir / "regime.png"))
     write_atomic(out_dir / "regime.json", json.dumps({"seed": seed, "units_per_point": units,
                                                       "points": rows}, indent=1) + "\n",
@@ -93,9 +100,19 @@ def regime_map(out_dir="reports", seed=1, units=16, workers=2, scheduler=None, b
     return md
 
 
+def favourable_corner(rows, base):
+    """The base with every option at the level of its sweep whose entire calibration gave
+    the smallest horizontal normalised error (median): the map's own most favourable
+    combination, not chosen to match anything."""
+    best = {key: min(_sweep(rows, key, base), key=lambda lr: lr[1]["entire"]["median"][3])[0]
+            for key in LEVELS}
+    return dataclasses.replace(base, **best)
+
+
 def _sweep(rows, key, base):
     """The rows of one option's sweep in level order, the base row at the base's level."""
     by_level = {r["level"]: r for r in rows if r["option"] == key}
+    by_level.pop(None, None)
     by_level[getattr(base, key)] = rows[0]
     return [(level, by_level[level]) for level in LEVELS[key]]
 
@@ -151,7 +168,20 @@ def markdown(rows, base, seed, units):
             lines.append(f"| {r['name']} | {variant} | " + " | ".join(_cell(s, j)
                                                                       for j in range(4))
                          + f" | {inside} |")
-    lines += ["", "## What the map says", "", *findings(rows), ""]
+    corner = [r for r in rows if r["option"] == "corner"]
+    if corner:
+        levels = ", ".join(f"`{k}` {corner[0]['scenario'][k]}" for k in LEVELS)
+        lines += ["", f"The `favourable corner` combines, per option, the level of its sweep "
+                  f"with the smallest entire horizontal error: {levels}."]
+    lines += ["", "## What the map says", "", *findings(rows),
+              "- Why the traditional row stays far from the paper's at every point: the "
+              "traditional method fits no g-sensitivity, temperature or nonlinear terms, and "
+              "the unit drawn from seed S1 Table 2 has a g-sensitivity of 0.01-0.04 (deg/s)/g "
+              "that acts at 1 g through the whole flight (40-140 deg/h on every gyro) - the "
+              "largest group of the error budget in `table3.md`. The paper's traditional row "
+              "implies a unit whose uncompensated g-sensitivity was far below Table 2's range, "
+              "or a calibration that removed it; none of the options swept here reaches it.",
+              ""]
     return "\n".join(lines)
 
 
@@ -173,10 +203,13 @@ def findings(rows):
                "improvement ranges " f"{min(r['improvement_horizontal'] for r in rows):.3g}-"
                f"{max(r['improvement_horizontal'] for r in rows):.3g}x over the map.")
     for variant in campaign.VARIANTS:
-        score = sorted(rows, key=lambda r: -sum(r[variant]["paper_inside"]))
-        best = [r for r in score if sum(r[variant]["paper_inside"]) ==
-                sum(score[0][variant]["paper_inside"])]
+        top = max(sum(r[variant]["paper_inside"]) for r in rows)
+        best = [r for r in rows if sum(r[variant]["paper_inside"]) == top]
+        lowest = min(rows, key=lambda r: r[variant]["median"][3])
         out.append(f"- The paper's {variant} row ({' / '.join(str(x) for x in PAPER[variant])})"
-                   f" lies inside the 5-95 % band in {sum(best[0][variant]['paper_inside'])} of 3"
-                   f" axes at best, at: " + ", ".join(f"`{r['name']}`" for r in best) + ".")
+                   + (f" lies inside the 5-95 % band in {top} of 3 axes at best, at: "
+                      + ", ".join(f"`{r['name']}`" for r in best) if top else
+                      " lies outside the 5-95 % band in every axis at every point")
+                   + f"; the lowest {variant} horizontal median is "
+                   f"{lowest[variant]['median'][3]:.3g} x FOG (`{lowest['name']}`).")
     return out

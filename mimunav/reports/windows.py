@@ -18,7 +18,7 @@ def document(flight, results, rest, cal_label, time_shift_s):
                      "gyro_bias_rad_s": rest.gyro_bias.tolist(),
                      "accel_bias_along_gravity_m_s2": rest.accel_bias.tolist()},
             "summary": {f"{length:g}": row for length, row in
-                        windows.summary(results, span).items()},
+                        windows.summary(results, span, flight.reference_meta).items()},
             "windows": {f"{length:g}": [{"t0_s": w.t0, "end_ned_m": w.error_ned[-1].tolist()}
                                         for w in wins] for length, wins in results.items()},
             "frames": "errors NED m, window navigated minus reference; t0 s since the epoch"}
@@ -27,14 +27,19 @@ def document(flight, results, rest, cal_label, time_shift_s):
 def markdown_table(doc, label=None):
     head = "| variant | " if label else "| "
     lines = [head + "window s | windows (disjoint) | horizontal error p50 / p68 / p95 / max, m "
-             "| vertical p50 / p95, m | median horizontal end error / length, m/s |",
-             "|" + "---|" * (6 if label else 5)]
+             "| vertical p50 / p95, m | median horizontal end error / length, m/s "
+             "| reference alone (1 sigma), m |",
+             "|" + "---|" * (7 if label else 6)]
     for length, row in doc["summary"].items():
         h, v = row["horizontal_m"], row["vertical_m"]
+        floor = row.get("reference_floor", {})
+        cell = ("not stated" if floor.get("horizontal_m") is None else
+                f"{floor['horizontal_m']:.3g}" + (f" ({', '.join(floor['not_stated'])} sigma "
+                                                  "not stated)" if floor["not_stated"] else ""))
         lines.append((f"| {label} " if label else "") +
                      f"| {length} | {row['windows']} ({row['disjoint']}) | {h['p50']:.3g} / "
                      f"{h['p68']:.3g} / {h['p95']:.3g} / {h['max']:.3g} | {v['p50']:.3g} / "
-                     f"{v['p95']:.3g} | {row['median_rate_m_s']:.3g} |")
+                     f"{v['p95']:.3g} | {row['median_rate_m_s']:.3g} | {cell} |")
     return "\n".join(lines) + "\n"
 
 

@@ -1,0 +1,257 @@
+"""`mimunav noise`: the random errors of an IMU channel over a static span of a log - Allan
+deviation per axis with its 68 % band, the five IEEE-952 terms with intervals
+(`mimunav.allan`), a figure, and `noise.json` (`mimunav-noise/1`, SI units) that the lab fits
+read as their noise model (`mimunav calibrate --noise`).
+
+The span: given (`--span T0:T1`, s since the log's first sample of the channel), else the
+longest rest of the log's reference (`/truth/state` slower than 0.05 m/s), else the longest
+stretch whose 1 s mean outputs stay still (gyro within 0.2 deg/s and accelerometer within
+0.05 m/s^2 of the previous second's) - at least 10 s; a span where more than 10 % of the
+seconds stray that far from the span's median is refused.
+"""
+import json
+import math
+
+import numpy as np
+
+from .. import allan
+from ..compensation import Calibration, compensate
+from ..errors import InputError
+from ..files import atomic_folder
+from ..flightlog import FlightLog
+from .plots import figure, save
+
+FORMAT = "mimunav-noise/1"
+MIN_SPAN_S = 10.0                 # s: N from taus up to 1 s; B and K need far longer spans
+STILL_GYRO = math.radians(0.2)       # rad/s between successive 1 s means
+STILL_ACCEL = 0.05                   # m/s^2 between successive 1 s means
+STILL_SPEED = 0.05                   # m/s, reference velocity at rest
+SENSORS = {"gyro": ("rad/s", {"quantization": "rad", "random_walk": "rad/sqrt(s)",
+                               "bias_instability": "rad/s", "rate_random_walk": "rad/s/sqrt(s)",
+                               "rate_ramp": "rad/s^2"}),
+           "accel": ("m/s^2", {"quantization": "m/s", "random_walk": "m/s/sqrt(s)",
+                               "bias_instability": "m/s^2",
+                               "rate_random_walk": "m/s^2/sqrt(s)", "rate_ramp": "m/s^3"})}
+# datasheet units for the markdown table: (factor from SI, unit)
+DATASHEET = {("gyro", "random_walk"): (180 / math.pi * 60, "deg/sqrt(h)"),
+             ("gyro", "bias_instability"): (180 / math.pi * 3600, "deg/h"),
+             ("gyro", "rate_random_walk"): (180 / math.pi * 3600 * 60, "deg/h/sqrt(h)"),
+             ("accel", "random_walk"): (60.0, "m/s/sqrt(h)"),
+             ("accel", "bias_instability"): (1e3 / 9.80665, "mg"),
+             ("accel", "rate_random_walk"): (1e3 / 9.80665 * 60, "mg/sqrt(h)")}
+
+
+def outputs(log_path, channel, cal=None):
+    """(t s since the channel's first sample, w rad/s, f m/s^2) of an IMU channel:
+    /mimu/imu, /fog/imu (sensor_msgs/Imu) or /mimu/raw through calibration `cal`."""
+    with FlightLog(log_path) as log:
+        if channel not in log.channels:
+            raise InputError(f"{log_path}: no channel {channel}; it has "
+                             f"{', '.join(sorted(log.channels))}")
+        truth = log.read("/truth/state") if "/truth/state" in log.channels else None
+        if channel == "/mimu/raw":
+            if cal is None:
+                raise InputError("/mimu/raw is in volts: give --cal CAL.json to read it in SI "
+                                 "units (or choose /mimu/imu)")
+            raw = log.read(channel)
+            t0 = int(raw["log_time"][0])
+            t = (raw["log_time"].astype(np.int64) - t0) / 1e9
+            f, w, _ = compensate(cal, raw["accel_volts"], raw["gyro_volts"],
+                                 raw["accel_temperature"], raw["gyro_frequency"], t=t)
+        else:
+            msg = log.read(channel, fields=("angular_velocity", "linear_acceleration"))
+            if len(msg) == 0:
+                raise InputError(f"{log_path}: {channel} has no messages")
+            t0 = int(msg["log_time"][0])
+            t = (msg["log_time"].astype(np.int64) - t0) / 1e9
+            w = np.ascontiguousarray(msg["angular_velocity"], float)
+            f = np.ascontiguousarray(msg["linear_acceleration"], float)
+    rests = []
+    if truth is not None and len(truth):
+        tt = (truth["log_time"].astype(np.int64) - t0) / 1e9
+        rests = [(max(a, 0.0), min(b, float(t[-1]))) for a, b in
+                 _runs(tt, np.linalg.norm(truth["velocity_ned"], axis=1) <= STILL_SPEED)]
+    return t, w, f, rests
+
+
+def _runs(t, still):
+    """[(t0, t1)] of the runs of `still` (bool per t)."""
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], still.astype(int), [0]])))
+    return [(float(t[a]), float(t[b - 1])) for a, b in zip(edges[::2], edges[1::2])]
+
+
+def still_spans(t, w, f):
+    """Spans (s) whose successive 1 s mean outputs stay within STILL_GYRO / STILL_ACCEL."""
+    sec = np.floor(t - t[0]).astype(int)
+    n = sec[-1] + 1
+    counts = np.bincount(sec, minlength=n)
+    ok = counts > 0
+    means = [np.column_stack([np.bincount(sec, x[:, j], minlength=n) for j in range(3)])
+             / np.maximum(counts, 1)[:, None] for x in (w, f)]
+    step_w = np.linalg.norm(np.diff(means[0], axis=0), axis=1)
+    step_f = np.linalg.norm(np.diff(means[1], axis=0), axis=1)
+    still = np.concatenate([[False], (step_w < STILL_GYRO) & (step_f < STILL_ACCEL)
+                            & ok[1:] & ok[:-1]])
+    return [(t[0] + a - 1, t[0] + b + 1) for a, b in _runs(np.arange(n), still)]
+
+
+def choose_span(t, w, f, rests, span=None):
+    """The static span (t0, t1) s to analyse and how it was chosen: the given one, else the
+    longest static candidate among the reference's rests, then the still stretches."""
+    if span is not None:
+        _check_span(t, w, f, *span)
+        return float(span[0]), float(span[1]), "given (--span)"
+    candidates = sorted(((b - a, a, b, "the longest static rest of the log's reference "
+                          "(/truth/state)") for a, b in rests if b - a >= MIN_SPAN_S),
+                        reverse=True)
+    candidates += sorted(((b - a, a, b, "the longest stretch whose 1 s means stay still")
+                          for a, b in still_spans(t, w, f) if b - a >= MIN_SPAN_S), reverse=True)
+    refused = []
+    for _, t0, t1, how in candidates:
+        try:
+            _check_span(t, w, f, t0, t1)
+        except InputError as exc:
+            refused.append(str(exc))
+            continue
+        return float(t0), float(t1), how
+    longest = max((b - a for a, b in still_spans(t, w, f)), default=0.0)
+    raise InputError(f"no static span of {MIN_SPAN_S:g} s found (longest still stretch "
+                     f"{longest:.0f} s{'; ' + refused[0] if refused else ''}); give one with "
+                     "--span T0:T1 (s)")
+
+
+def _check_span(t, w, f, t0, t1):
+    k = (t >= t0) & (t <= t1)
+    if t1 - t0 < MIN_SPAN_S or k.sum() < 100:
+        raise InputError(f"span {t0:g}:{t1:g} s holds {k.sum()} samples over "
+                         f"{t1 - t0:.0f} s; need >= {MIN_SPAN_S:g} s")
+    moved = _moving_fraction(t[k], w[k], f[k])
+    if moved > 0.1:
+        raise InputError(f"span {t0:g}:{t1:g} s is not static: its 1 s mean outputs stray more "
+                         f"than 0.2 deg/s or 0.05 m/s^2 from their median in {100 * moved:.0f} % "
+                         "of it; Allan analysis needs steady inputs (give --span)")
+
+
+def _second_means(t, x):
+    sec = np.floor(t - t[0]).astype(int)
+    counts = np.bincount(sec)
+    keep = counts > 0
+    means = np.column_stack([np.bincount(sec, x[:, j]) for j in range(3)])[keep]
+    return means / counts[keep][:, None]
+
+
+def _moving_fraction(t, w, f):
+    """Fraction of the span's seconds whose mean output strays from the span's median."""
+    stray = np.zeros(0, dtype=bool)
+    for x, limit in ((w, STILL_GYRO), (f, STILL_ACCEL)):
+        m = _second_means(t, x)
+        far = np.linalg.norm(m - np.median(m, axis=0), axis=1) > limit
+        stray = far if stray.size == 0 else stray | far
+    return float(stray.mean())
+
+
+def analyse(t, w, f):
+    """dict sensor -> axis -> {curve, terms} over samples (t, w, f) of a static span."""
+    dt = np.diff(t)
+    rate = 1.0 / float(np.median(dt))
+    if np.max(np.abs(dt * rate - 1)) > 0.5:
+        raise InputError("the span has gaps or jitter over half a sample: Allan deviation "
+                         "needs uniform sampling (choose a span without gaps)")
+    out = {"rate_hz": rate}
+    for sensor, x in (("gyro", w), ("accel", f)):
+        out[sensor] = {}
+        for j, axis in enumerate("xyz"):
+            curve = allan.allan_deviation(x[:, j] - x[:, j].mean(), rate)
+            out[sensor][axis] = {"curve": curve, "terms": allan.fit_terms(curve)}
+    return out
+
+
+def as_document(result, log_path, channel, span, how):
+    doc = {"format": FORMAT, "log": str(log_path), "channel": channel,
+           "span_s": [span[0], span[1]], "span_chosen": how, "rate_hz": result["rate_hz"],
+           "model": "AVAR = 3Q^2/tau^2 + N^2/tau + (2 ln2/pi) B^2 + K^2 tau/3 + R^2 tau^2/2 "
+                    "(IEEE Std 952-1997 Annex C); intervals 68 %"}
+    for sensor, (unit, term_units) in SENSORS.items():
+        doc[sensor] = {}
+        for axis, r in result[sensor].items():
+            c = r["curve"]
+            doc[sensor][axis] = {
+                "terms": {name: {"value": v, "interval68": list(iv), "unit": term_units[name]}
+                          for name, (v, iv) in r["terms"].items()},
+                "allan": {"tau_s": c["tau_s"].tolist(), "adev": c["adev"].tolist(),
+                          "lo": c["lo"].tolist(), "hi": c["hi"].tolist(), "unit": unit}}
+    return doc
+
+
+def load(path):
+    """A `mimunav-noise/1` file -> {sensor: {"white": per-axis N, "instability": per-axis B}}
+    in SI units (for the lab fits)."""
+    try:
+        with open(path) as fh:
+            doc = json.load(fh)
+    except (OSError, json.JSONDecodeError) as exc:
+        raise InputError(f"{path}: cannot read a noise file ({exc})") from None
+    if doc.get("format") != FORMAT:
+        raise InputError(f"{path}: format is {doc.get('format')!r}, expected {FORMAT!r}")
+    try:
+        return {s: {"white": [doc[s][a]["terms"]["random_walk"]["value"] for a in "xyz"],
+                    "instability": [doc[s][a]["terms"]["bias_instability"]["value"]
+                                    for a in "xyz"]} for s in SENSORS}
+    except (KeyError, TypeError) as exc:
+        raise InputError(f"{path}: noise file lacks {exc}") from None
+
+
+def plot(result, png, title):
+    plt, fig, axes = figure(1, 2, (12, 4.8))
+    for ax, (sensor, (unit, _)) in zip(axes[0], SENSORS.items()):
+        for j, axis in enumerate("xyz"):
+            r = result[sensor][axis]
+            c = r["curve"]
+            ax.fill_between(c["tau_s"], c["lo"], c["hi"], color=f"C{j}", alpha=0.2)
+            ax.loglog(c["tau_s"], c["adev"], color=f"C{j}", label=f"{axis}")
+            ax.loglog(c["tau_s"], allan.model_adev(r["terms"], c["tau_s"]), color=f"C{j}",
+                      ls="--", lw=1)
+        ax.set_xlabel("tau, s")
+        ax.set_ylabel(f"Allan deviation, {unit}")
+        ax.set_title(f"{sensor} (dashed: fitted IEEE-952 terms; band: 68 %)")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend()
+    fig.suptitle(title)
+    save(plt, fig, png)
+
+
+def markdown(doc):
+    lines = [f"# Random errors of {doc['channel']}", "",
+             f"Log `{doc['log']}`, span {doc['span_s'][0]:.1f}-{doc['span_s'][1]:.1f} s "
+             f"({doc['span_chosen']}), {doc['rate_hz']:.4g} Hz. {doc['model']}.", "",
+             "![Allan deviation](noise.png)", "",
+             "| sensor | axis | random walk | bias instability | rate random walk |",
+             "|---|---|---|---|---|"]
+    for sensor in SENSORS:
+        for axis in "xyz":
+            cells = []
+            for name in ("random_walk", "bias_instability", "rate_random_walk"):
+                term = doc[sensor][axis]["terms"][name]
+                k, unit = DATASHEET[sensor, name]
+                lo, hi = term["interval68"]
+                cells.append(f"{term['value'] * k:.3g} [{lo * k:.3g}, {hi * k:.3g}] {unit}")
+            lines.append(f"| {sensor} | {axis} | " + " | ".join(cells) + " |")
+    lines += ["", "A term the data do not show is reported as 0 with its upper bound; bias "
+              "instability needs spans of several times its correlation time, rate random "
+              "walk spans of hours.", ""]
+    return "\n".join(lines)
+
+
+def write(log_path, out_dir, channel="/mimu/imu", cal_path=None, span=None, force=False):
+    """Run `mimunav noise`; returns the folder's path."""
+    cal = Calibration.load(cal_path) if cal_path else None
+    t, w, f, rests = outputs(log_path, channel, cal)
+    t0, t1, how = choose_span(t, w, f, rests, span)
+    k = (t >= t0) & (t <= t1)
+    result = analyse(t[k], w[k], f[k])
+    doc = as_document(result, log_path, channel, (t0, t1), how)
+    with atomic_folder(out_dir, force=force, inputs=[log_path, cal_path]) as tmp:
+        (tmp / "noise.json").write_text(json.dumps(doc, indent=1) + "\n")
+        plot(result, str(tmp / "noise.png"), f"{channel}, {t0:.0f}-{t1:.0f} s")
+        (tmp / "noise.md").write_text(markdown(doc))
+    return out_dir
