@@ -64,6 +64,7 @@ AXES = "xyz"
 TURN_ON = {"accel": NoiseModel().accel_turn_on, "gyro": NoiseModel().gyro_turn_on}
 INSTABILITY = {"accel": NoiseModel().accel_flicker, "gyro": NoiseModel().gyro_flicker}
 NOMINAL_SCALE = {"accel": G0 / 0.1, "gyro": DEG / 5e-3}     # (m/s^2)/V, (rad/s)/V
+NOMINAL_SCALE_TOLERANCE = 0.02       # 1 sigma, unit to unit (datasheet class, sensors.mimu)
 # Table 1 of seed S1: full scale (the stated minimum range) and scale-factor fit residuals
 # 1/f bias wander extends below any record: the covariance model integrates from
 # 1 / (FLICKER_SPAN_FACTOR x run length); slower wander is a near-constant offset that the
@@ -710,8 +711,12 @@ def fit_gyro_bias(run):
         fitted.values[f"W0[{i}]"] = float(-NOMINAL_SCALE["gyro"] * v[i])
         for j in range(3):
             fitted.values[f"W1[{i}][{j}]"] = NOMINAL_SCALE["gyro"] * (i == j)
-        fitted.errors[f"W0[{i}]"] = {f"twelve-gyro{i}": NOMINAL_SCALE["gyro"] * math.sqrt(var[i]),
-                                     f"turn-on-gyro{i}": run.turn_on("gyro")}
+        # the datasheet scale is a nominal value: the unit's own differs by up to the
+        # class's tolerance (1 sigma, sensors.mimu), an error of tol x the bias itself
+        fitted.errors[f"W0[{i}]"] = {
+            f"twelve-gyro{i}": NOMINAL_SCALE["gyro"] * math.sqrt(var[i]),
+            f"turn-on-gyro{i}": run.turn_on("gyro"),
+            f"nominal-scale-gyro{i}": NOMINAL_SCALE_TOLERANCE * NOMINAL_SCALE["gyro"] * abs(v[i])}
     return fitted
 
 
@@ -810,19 +815,22 @@ def _fit_cold_axis(e_t, temp, d_t, known, cov, scale_free, with_rate):
     p = p0.copy()
     p[free] = sol.x
     jac = sol.jac
-    cov_q = np.linalg.inv(jac.T @ jac)
+    chi2 = float(sol.fun @ sol.fun)
+    # a model that misses part of the data (chi^2/dof > 1) has wider errors than its GLS
+    # covariance says: scale by the Birge ratio chi^2/dof (never shrink)
+    birge = max(chi2 / max(len(known) - int(free.sum()), 1), 1.0)
+    cov_q = birge * np.linalg.inv(jac.T @ jac)
     se = np.zeros(5)
     se[free] = np.sqrt(np.diag(cov_q))
-    chi2 = float(sol.fun @ sol.fun)
     # back from centred temperature: a + b (T - Tm) = (a - b Tm) + b T, likewise c + d T
     tm = temp.mean()
     values = np.array([p[0] - p[1] * tm, p[1], p[2] - p[3] * tm, p[3], p[4]])
     se_abs = se.copy()
-    se_abs[0] = math.sqrt(_cov_entry(cov_q, free, 0, 0) + tm**2 * _cov_entry(cov_q, free, 1, 1)
-                          - 2 * tm * _cov_entry(cov_q, free, 0, 1))
-    se_abs[2] = math.sqrt(_cov_entry(cov_q, free, 2, 2) + tm**2 * _cov_entry(cov_q, free, 3, 3)
-                          - 2 * tm * _cov_entry(cov_q, free, 2, 3))
-    return {"values": values.tolist(), "se": se_abs.tolist(), "chi2": chi2,
+    se_abs[0] = math.sqrt(max(_cov_entry(cov_q, free, 0, 0) + tm**2 * _cov_entry(
+        cov_q, free, 1, 1) - 2 * tm * _cov_entry(cov_q, free, 0, 1), 0.0))
+    se_abs[2] = math.sqrt(max(_cov_entry(cov_q, free, 2, 2) + tm**2 * _cov_entry(
+        cov_q, free, 3, 3) - 2 * tm * _cov_entry(cov_q, free, 2, 3), 0.0))
+    return {"values": values.tolist(), "se": se_abs.tolist(), "chi2": chi2, "birge": birge,
             "bic": chi2 + int(free.sum()) * math.log(len(known))}
 
 

@@ -407,7 +407,8 @@ def _newton_triad(p0, p1, p1_inv, p2, p3, y, v):
         a = p1_inv[0, 0] * y0 + p1_inv[0, 1] * y1 + p1_inv[0, 2] * y2
         b = p1_inv[1, 0] * y0 + p1_inv[1, 1] * y1 + p1_inv[1, 2] * y2
         c = p1_inv[2, 0] * y0 + p1_inv[2, 1] * y1 + p1_inv[2, 2] * y2
-        scale = abs(y[k, 0]) + abs(y[k, 1]) + abs(y[k, 2]) + 1e-300
+        scale = (abs(y[k, 0]) + abs(y[k, 1]) + abs(y[k, 2]) + abs(p0[0]) + abs(p0[1])
+                 + abs(p0[2]) + 1e-300)           # relative to the outputs and the offset
         res = 0.0
         for it in range(30):
             r0 = p1[0, 0] * a + p1[0, 1] * b + p1[0, 2] * c + (p2[0] + p3[0] * a) * a * a - y0

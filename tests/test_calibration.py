@@ -205,3 +205,46 @@ def test_a_measured_noise_model_weights_the_fit_and_is_recorded(tmp_path):
     assert noisy.covariance["noise_model"]["source"] == "measured: test"
     assert base.covariance["noise_model"]["source"].startswith("assumed")
     np.testing.assert_allclose(noisy.A1, base.A1, rtol=1e-3)     # weights, not the model
+
+
+def test_twelve_position_gyro_bias_errors_cover_the_truth_over_units(tmp_path):
+    """Seed S2's gyro biases use the datasheet scale: the unit's own differs by the class's
+    2 % (1 sigma), an error of 2 % of the bias itself, which the reported standard error
+    must carry (without it z reached 9 over units). The predicted rate at the truth's zero-
+    rate voltage (run temperature, g-sensitivity left out: the twelve positions cancel it),
+    over the standard error: RMS z 0.5-1.5, all |z| < 4."""
+    from mimunav.compensation import raw_from_physics
+    z = []
+    for seed in range(8):
+        unit = MimuUnit.draw(100 + seed)
+        path = _run(tmp_path, "twelve-position", unit, seed)
+        cal = calibration.calibrate([path], "twelve-position")
+        run = calibration.LabRun.load(path)
+        temp = run.means(run.raw["accel_temperature"]).mean(axis=0)
+        freq = run.means(run.raw["gyro_frequency"]).mean(axis=0)
+        _, v0 = raw_from_physics(unit.coefficients, np.zeros((1, 3)), np.zeros((1, 3)),
+                                 temp[None], freq[None], f_gyro=np.zeros((1, 3)))
+        se = calibration.standard_errors(cal)
+        z += list((cal.W0 + cal.W1 @ v0[0]) / np.array([se[f"W0[{i}]"] for i in range(3)]))
+    z = np.array(z)
+    assert 0.5 < np.sqrt(np.mean(z**2)) < 1.5 and np.abs(z).max() < 4, z
+
+
+def test_cold_start_errors_grow_with_a_misfit():
+    """A model that misses the data by 3x its assumed noise reports 3x wider errors (the
+    Birge ratio chi^2/dof, about 9), never narrower ones when it fits."""
+    from mimunav.calibration import _fit_cold_axis
+    rng = np.random.default_rng(0)
+    n = 200
+    temp = 10 + 30 * (1 - np.exp(-np.arange(n) / 50.0))       # a warm-up
+    d_t = temp - np.concatenate([np.full(5, temp[0]), temp[:-5]])
+    known = np.where(np.arange(n) < n // 3, 9.8, 0.0)     # this axis up in one power-on
+    cov = np.eye(n) * 1e-4
+    fits = {}
+    for k in (1.0, 3.0):
+        e_t = known + 0.01 * k * rng.standard_normal(n)
+        fits[k] = _fit_cold_axis(e_t, temp, d_t, known, cov, True, True)
+    assert fits[3.0]["birge"] == pytest.approx(9.0, rel=0.25)
+    assert fits[1.0]["birge"] >= 1.0
+    ratio = np.array(fits[3.0]["se"])[[3, 4]] / np.array(fits[1.0]["se"])[[3, 4]]   # d, e
+    np.testing.assert_allclose(ratio, 3.0 / np.sqrt(fits[1.0]["birge"]), rtol=0.3)
