@@ -22,6 +22,9 @@ Methods (seed S1 section 3.1 unless stated):
   twelve-position  seed S2: twelve statics -> A0, A1; gyro biases from the mean of all
                    twelve (Earth rate and g cancel) with the datasheet scale (5 mV/(deg/s))
   cold-start       seed S3 (see `fit_cold_start`)
+  ellipsoid        seed S4 / S1 ref [3], field calibration: static orientations nobody
+                   measured (`lab` procedure hand-held) -> A0 and an upper-triangular A1
+                   from |A0 + A1 u| = g alone (`fit_ellipsoid`); gyro biases as S2's
 
 Estimator: generalised least squares per output axis on window means. Their covariance is
 the white noise of each mean (from second differences of its samples) plus the bias
@@ -56,7 +59,7 @@ from .sensors.mimu import DEG, G0, NoiseModel
 from .errors import InputError
 
 POSITION_NAMES = ["x up", "x down", "y up", "y down", "z up", "z down"]    # lab.SIX_POSITIONS
-METHODS = ("entire", "traditional", "twelve-position", "cold-start")
+METHODS = ("entire", "traditional", "twelve-position", "cold-start", "ellipsoid")
 T_REF = 25.0
 AXES = "xyz"
 # Datasheet values of the unit class (`sensors.mimu`): turn-on bias repeatability and bias
@@ -659,6 +662,13 @@ def calibrate(runs, method, unit="", propagate=True, noise=None):
         gyro = fit_gyro_triad(by["single-axis-rate"], None, order=1, propagate=propagate)
         parts = (accel, gyro)
         cal = Calibration(model="linear", unit=unit, procedure="multi-position+single-axis-rate")
+    elif method == "ellipsoid":
+        by = _runs_by_procedure(runs, ("hand-held",), method)
+        accel = fit_ellipsoid(by["hand-held"])
+        gyro = fit_gyro_bias_unknown_attitude(by["hand-held"], accel)
+        parts = (accel, gyro)
+        cal = Calibration(model="linear", unit=unit,
+                          procedure="hand-held orientations, ellipsoid fit (seed S4)")
     elif method == "twelve-position":
         by = _runs_by_procedure(runs, ("twelve-position",), method)
         accel = fit_accel_triad(by["twelve-position"], None, order=1)
@@ -717,6 +727,86 @@ def fit_gyro_bias(run):
             f"twelve-gyro{i}": NOMINAL_SCALE["gyro"] * math.sqrt(var[i]),
             f"turn-on-gyro{i}": run.turn_on("gyro"),
             f"nominal-scale-gyro{i}": NOMINAL_SCALE_TOLERANCE * NOMINAL_SCALE["gyro"] * abs(v[i])}
+    return fitted
+
+
+def fit_ellipsoid(run, windows=None):
+    """Accelerometer triad from static windows at unknown orientations: per window k the
+    mean voltage u_k and |A0 + A1 u_k| = g (site gravity). A1 upper triangular (its rotation
+    is not observable from magnitudes: the calibrated frame has z along the sensor z axis,
+    x in the sensor x-z plane), A0 (3): 9 unknowns, so >= 9 windows, well spread. Whitened
+    nonlinear least squares (scipy), each window's magnitude weighted by its mean's white
+    noise plus the unit's bias instability; the covariance is scaled by the Birge ratio
+    chi^2/dof when above 1 and carries the turn-on repeatability in A0.
+    `windows`: indices of the run's windows to use (default all)."""
+    ws = run.windows if windows is None else [run.windows[k] for k in windows]
+    if len(ws) < 9:
+        raise FitError(f"{run.path}: {len(ws)} static orientations; the ellipsoid fit has 9 "
+                       "unknowns and needs at least 9 (more, well spread, for accuracy)")
+    k0, k1 = np.array([w.k0 for w in ws]), np.array([w.k1 for w in ws])
+    u = slice_means(run.raw["accel_volts"], k0, k1)
+    var = np.array([np.diff(run.raw["accel_volts"][a:b], n=2, axis=0).var(axis=0) / 6.0 / (b - a)
+                    for a, b in zip(k0, k1)])
+    g = run.site["gravity_m_s2"]
+    sigma = np.sqrt(NOMINAL_SCALE["accel"] ** 2 * var.mean(axis=1) + run.instability("accel") ** 2)
+    upper = np.triu_indices(3)
+
+    def unpack(p):
+        a1 = np.zeros((3, 3))
+        a1[upper] = p[3:]
+        return p[:3], a1
+
+    def resid(p):
+        a0, a1 = unpack(p)
+        return (np.linalg.norm(a0 + u @ a1.T, axis=1) - g) / sigma
+    p0 = np.concatenate([np.zeros(3), np.diag([NOMINAL_SCALE["accel"]] * 3)[upper]])
+    sol = scipy.optimize.least_squares(resid, p0, method="lm", x_scale="jac")
+    chi2 = float(sol.fun @ sol.fun)
+    dof = len(ws) - 9
+    birge = max(chi2 / dof, 1.0) if dof > 0 else 1.0
+    cov = birge * np.linalg.pinv(sol.jac.T @ sol.jac)
+    if dof <= 0 or not np.all(np.isfinite(cov)) or np.linalg.cond(sol.jac) > 1e12:
+        raise FitError(f"{run.path}: the orientations do not determine the ellipsoid (too few "
+                       "or too alike); hold the unit in more, well-spread attitudes")
+    a0, a1 = unpack(sol.x)
+    names = [f"A0[{i}]" for i in range(3)] + [f"A1[{i}][{j}]" for i, j in zip(*upper)]
+    fitted = Fitted({n: float(v) for n, v in zip(names, sol.x)}, stage="hand-held accel",
+                    rms={"magnitude": float(np.sqrt(np.mean((sol.fun * sigma) ** 2))),
+                         "birge_ratio": birge})
+    for i, j in zip(*np.tril_indices(3, -1)):
+        fitted.values[f"A1[{i}][{j}]"] = 0.0
+    _add_cov_sources(fitted, names, cov, "ellipsoid")
+    for i in range(3):
+        _merge(fitted.errors, f"A0[{i}]", {f"ellipsoid-turn-on-accel{i}": run.turn_on("accel")})
+    return fitted
+
+
+def fit_gyro_bias_unknown_attitude(run, accel, windows=None):
+    """Gyro biases from static windows at unknown orientations, the datasheet scale (like
+    seed S2): per window, the Earth rate's vertical part (Omega sin(lat) along the up
+    direction the fitted accelerometers give) minus the nominally scaled output; the horizontal
+    part (Omega cos(lat), heading unknown) averages out over varied headings and stays in
+    the scatter, whose standard error of the mean is the reported error with the nominal
+    scale's tolerance and the turn-on repeatability."""
+    ws = run.windows if windows is None else [run.windows[k] for k in windows]
+    k0, k1 = np.array([w.k0 for w in ws]), np.array([w.k1 for w in ws])
+    a0 = np.array([accel.values[f"A0[{i}]"] for i in range(3)])
+    a1 = np.array([[accel.values[f"A1[{i}][{j}]"] for j in range(3)] for i in range(3)])
+    f = slice_means(run.raw["accel_volts"], k0, k1) @ a1.T + a0
+    up = f / np.linalg.norm(f, axis=1)[:, None]
+    omega_up = run.site["earth_rate_rad_s"] * math.sin(run.site["latitude"])
+    # w = W0 + N v must read the Earth rate at rest: W0 = Omega_up up - N v, per window
+    w0 = omega_up * up - NOMINAL_SCALE["gyro"] * slice_means(run.raw["gyro_volts"], k0, k1)
+    mean = w0.mean(axis=0)
+    sem = w0.std(axis=0, ddof=1) / math.sqrt(len(ws))
+    fitted = Fitted({}, stage="hand-held gyro")
+    for i in range(3):
+        fitted.values[f"W0[{i}]"] = float(mean[i])
+        for j in range(3):
+            fitted.values[f"W1[{i}][{j}]"] = NOMINAL_SCALE["gyro"] * (i == j)
+        fitted.errors[f"W0[{i}]"] = {
+            f"hand-held-gyro{i}": float(sem[i]), f"turn-on-gyro{i}": run.turn_on("gyro"),
+            f"nominal-scale-gyro{i}": NOMINAL_SCALE_TOLERANCE * abs(float(mean[i]))}
     return fitted
 
 

@@ -48,6 +48,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 import quaternion
+from scipy.spatial.transform import Rotation
 from tqdm import tqdm
 
 from . import earth, truth
@@ -69,7 +70,9 @@ CENTRIFUGE_RADIUS_M = 6.5           # arm rate at 30 g is 385 deg/s: inside the 
                                     # the rate-table span, as the C fit (eqs. 9-10) needs
 CHAMBER_RAMP_C_PER_S = 2.0 / 60     # chamber air slews 2 degC/min between set points
 PROCEDURES = ("thermal-chamber", "rate-table", "centrifuge", "multi-position",
-              "single-axis-rate", "twelve-position", "cold-start", "rotation")
+              "single-axis-rate", "twelve-position", "cold-start", "rotation", "hand-held")
+HAND_HELD_POSITIONS = 24            # orientations of the hand-held procedure (seed S4)
+HAND_HELD_SEED = 2024               # draws the hand's orientations (the same every run)
 
 
 def _fixture(axes):
@@ -124,6 +127,7 @@ class Plan:
     rate_rel_key: str = "rate_rel"
     power_cycle: bool = False        # each position a separate cold power-on (seed S3)
     cool_down_s: float = 0.0
+    attitudes_known: bool = True     # False: /lab/state records NaN attitudes (hand-held)
 
 
 def plan(procedure):
@@ -173,6 +177,16 @@ def plan(procedure):
         return Plan(procedure, "cold-start warm-up, x, y, z up, 40 min each from power-on",
                     1.0, six, [Point(p, hold_s=2400.0) for p in (0, 2, 4)], warm_up_s=0.0,
                     power_cycle=True, cool_down_s=3 * 3600.0)
+    if procedure == "hand-held":
+        # seed S4 / S1 ref [3]: field calibration without a turntable - the unit set down by
+        # hand at orientations nobody measures (uniform on the sphere, random heading), still
+        # for 5 s each, on a bench in the room, after a 5 min warm-up
+        q_xyzw = Rotation.random(HAND_HELD_POSITIONS, random_state=HAND_HELD_SEED).as_quat()
+        q = np.roll(q_xyzw, 1, axis=1)                                  # -> w, x, y, z
+        return Plan(procedure, f"hand-held: {HAND_HELD_POSITIONS} unknown static orientations, "
+                    "5 s each", 100.0, [(qi, on_axis) for qi in q],
+                    [Point(p, hold_s=5.0, settle_s=1.0) for p in range(HAND_HELD_POSITIONS)],
+                    warm_up_s=300.0, attitudes_known=False)
     if procedure == "rotation":
         # seed S4: the IMU turned on a level rate table about one (z) axis, both ways, for
         # w_out = k0 + k1 w + k2 w^2 + k3 w^3
@@ -305,7 +319,9 @@ def lab_motion(plan_, errors, progress=False):
         seg.env.append(env)
         for k, t_begin, t_steady, t_end in steady:
             p = plan_.points[k]
-            base = dict(point=k, position=pos, fixture_attitude_wxyz=q_nom,
+            base = dict(point=k, position=pos,
+                        fixture_attitude_wxyz=q_nom if plan_.attitudes_known else
+                        np.full(4, np.nan),
                         position_m=np.asarray(r_nom, float), table_rate=p.rate,
                         sensor_radius_m=np.full(6, float(np.hypot(*np.asarray(r_nom)[:2]))),
                         chamber_temperature=p.chamber_c)

@@ -248,3 +248,50 @@ def test_cold_start_errors_grow_with_a_misfit():
     assert fits[1.0]["birge"] >= 1.0
     ratio = np.array(fits[3.0]["se"])[[3, 4]] / np.array(fits[1.0]["se"])[[3, 4]]   # d, e
     np.testing.assert_allclose(ratio, 3.0 / np.sqrt(fits[1.0]["birge"]), rtol=0.3)
+
+
+def _zero_rate_voltage(unit, run):
+    """The truth's voltages at zero specific force and rate at the run's mean temperature
+    readings (g-sensitivity left out): (accel V, gyro V)."""
+    from mimunav.compensation import raw_from_physics
+    temp = run.means(run.raw["accel_temperature"]).mean(axis=0)
+    freq = run.means(run.raw["gyro_frequency"]).mean(axis=0)
+    u_a, u_w = raw_from_physics(unit.coefficients, np.zeros((1, 3)), np.zeros((1, 3)),
+                                temp[None], freq[None], f_gyro=np.zeros((1, 3)))
+    return u_a[0], u_w[0]
+
+
+def test_ellipsoid_fit_from_unknown_orientations_recovers_the_unit(tmp_path):
+    """Seed S4's field calibration: 24 static orientations nobody measured (the lab state
+    says NaN), |A0 + A1 u| = g alone. Over 8 units, against the truth in rotation-invariant
+    form (the fitted frame is not the sensor's): the zero-g voltage as a specific-force error
+    A1 (u0_fit - u0_true) over the reported A0 error, the metric A1^T A1 to 0.3 %, and the
+    gyro bias at the truth's zero-rate voltage over its error: z RMS 0.5-1.5, |z| < 4."""
+    z_a, z_w = [], []
+    for seed in range(8):
+        unit = MimuUnit.draw(300 + seed)
+        path = _run(tmp_path, "hand-held", unit, seed)
+        run = calibration.LabRun.load(path)
+        assert np.isnan([w.q_ps for w in run.windows]).all()        # nobody measured them
+        cal = calibration.calibrate([path], "ellipsoid")
+        se = calibration.standard_errors(cal)
+        c = unit.coefficients
+        u_a, u_w = _zero_rate_voltage(unit, run)
+        z_a += list(c.A1 @ (-np.linalg.solve(cal.A1, cal.A0) - u_a)
+                    / np.array([se[f"A0[{i}]"] for i in range(3)]))
+        z_w += list((cal.W0 + cal.W1 @ u_w) / np.array([se[f"W0[{i}]"] for i in range(3)]))
+        metric = c.A1.T @ c.A1
+        assert np.abs(cal.A1.T @ cal.A1 - metric).max() < 3e-3 * metric.max()
+        assert np.allclose(np.tril(cal.A1, -1), 0.0)
+    for z in (np.array(z_a), np.array(z_w)):
+        assert 0.5 < np.sqrt(np.mean(z**2)) < 1.5 and np.abs(z).max() < 4, z
+
+
+def test_ellipsoid_refuses_too_few_or_alike_orientations(tmp_path):
+    unit = MimuUnit.draw(5)
+    run = calibration.LabRun.load(_run(tmp_path, "hand-held", unit, 1))
+    with pytest.raises(calibration.FitError, match="at least 9"):
+        calibration.fit_ellipsoid(run, windows=range(8))
+    alike = dataclasses.replace(run, windows=[run.windows[0]] * 12)
+    with pytest.raises(calibration.FitError, match="do not determine"):
+        calibration.fit_ellipsoid(alike)
