@@ -61,12 +61,29 @@ def allan_deviation(x, rate_hz, points_per_decade=8):
     return {"tau_s": taus, "adev": adev, "lo": lo, "hi": hi, "edf": edf}
 
 
+def _weights(curve):
+    """sd of each AVAR point in the fit (chi-squared, floored at MODEL_FLOOR)."""
+    avar = curve["adev"] ** 2
+    return avar * np.maximum(np.sqrt(2.0 / np.maximum(curve["edf"], 1.0)), MODEL_FLOOR)
+
+
+def goodness(curve, terms):
+    """chi^2/dof of fitted terms against the curve, in the fit's weights: about 1 when the
+    five-term model describes the data; well above 1 (say > 3) when it misses the curve's
+    shape and the terms are approximate."""
+    sigma = _weights(curve)
+    model = model_adev(terms, curve["tau_s"]) ** 2
+    used = sum(1 for t in TERMS if (terms[t][0] if isinstance(terms[t], tuple) else terms[t]) > 0)
+    chi2 = float(np.sum(((curve["adev"] ** 2 - model) / sigma) ** 2))
+    return chi2 / max(len(sigma) - used, 1)
+
+
 def fit_terms(curve):
     """The five terms (module doc) from an `allan_deviation` curve: dict term -> (value,
     68 % interval (lo, hi)); a term at zero reports (0, (0, upper bound))."""
-    tau, adev, edf = curve["tau_s"], curve["adev"], curve["edf"]
+    tau, adev = curve["tau_s"], curve["adev"]
     avar = adev**2
-    sigma = avar * np.maximum(np.sqrt(2.0 / np.maximum(edf, 1.0)), MODEL_FLOOR)
+    sigma = _weights(curve)
     a = avar_basis(tau) / sigma[:, None]
     b = avar / sigma
     scale = np.abs(a).max(axis=0)                                # conditioning of the columns

@@ -639,13 +639,14 @@ def calibrate(runs, method, unit="", propagate=True, noise=None):
     """Fit `method` to lab runs (log paths or `LabRun`s); returns a `Calibration` with
     covariance (`propagate=False`: each stage's own only, for speed). `noise`: the unit's
     measured random errors, {"source": str, "instability": {"accel": m/s^2, "gyro": rad/s}}
-    (e.g. `reports.noise.load` of a `mimunav noise` file; RMS over axes), used instead of the
-    unit class's assumed bias instability."""
+    (e.g. `reports.noise.load` of a `mimunav noise` file; a sensor left out keeps the unit
+    class's), used instead of the unit class's assumed bias instability."""
     if method not in METHODS:
         raise FitError(f"unknown method {method!r}; one of {', '.join(METHODS)}")
     runs = [r if isinstance(r, LabRun) else LabRun.load(r) for r in runs]
     for r in runs if noise else []:
-        r.noise = dict(r.noise, instability=dict(noise["instability"]), source=noise["source"])
+        r.noise = dict(r.noise, instability={**r.noise["instability"], **noise["instability"]},
+                       source=noise["source"])
     if method == "entire":
         by = _runs_by_procedure(runs, ("thermal-chamber", "rate-table", "centrifuge"), method)
         temp, reference = fit_temperature(by["thermal-chamber"])

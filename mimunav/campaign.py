@@ -10,6 +10,7 @@ unit's outputs) exactly as `mimunav simulate` would write it. Results stream to 
 campaign resumes where it stopped. Units run on local processes, or on a Dask cluster when
 given a scheduler address (`dask[distributed]`, optional).
 """
+import hashlib
 import json
 import os
 from dataclasses import asdict, dataclass
@@ -23,8 +24,8 @@ from .profile import Profile
 from .sensors import MimuUnit, Mounting
 from .simulation import GROUND_TEMPERATURE_C, MIMU_MOUNTING
 from .errors import InputError
-from .sensors.fog import FOG_GRADES
-from .sensors.mimu import MIMU_GRADES, NONLINEARITY
+from .sensors.fog import FOG_GRADE_SOURCES, FOG_GRADES
+from .sensors.mimu import MIMU_GRADE_SOURCES, MIMU_GRADES, NONLINEARITY, NONLINEARITY_SOURCES
 
 VARIANTS = {"traditional": ("multi-position", "single-axis-rate"),
             "entire": ("thermal-chamber", "rate-table", "centrifuge")}
@@ -64,8 +65,29 @@ class Scenario:
                              "expected -60..60")
 
     def identity(self):
-        """JSON-ready, with the flight by file name (a campaign file moves with its data)."""
-        return dict(asdict(self), flight=Path(self.flight).name)
+        """JSON-ready, with the flight by file name and content hash (a campaign file moves
+        with its data; another profile of the same name is another campaign)."""
+        digest = hashlib.sha256(Path(self.flight).read_bytes()).hexdigest()[:16]
+        return dict(asdict(self), flight=Path(self.flight).name, flight_sha256=digest)
+
+    def source(self, key):
+        """Where this scenario's value of option `key` comes from (`SOURCES` for the
+        defaults; the value's own source, or "given", otherwise)."""
+        value = getattr(self, key)
+        if key == "mimu_grade":
+            return MIMU_GRADE_SOURCES[value]
+        if key == "fog_grade":
+            return FOG_GRADE_SOURCES[value]
+        if key == "nonlinearity":
+            return NONLINEARITY_SOURCES[value]
+        if value == getattr(Scenario(), key) and (key != "flight" or Path(value).resolve()
+                                                  == Path(Scenario().flight).resolve()):
+            return SOURCES[key]
+        if key == "flight":
+            return f"given: {Path(value).resolve()} ({Profile.load(value).description})"
+        if key == "beyond_model":
+            return "given: the MIMU is exactly the 63-coefficient model"
+        return "given on the command line"
 
     def profile(self):
         return Profile.load(self.flight, self.severity)

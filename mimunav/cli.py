@@ -153,9 +153,8 @@ def _calibrate(args):
     noise = None
     if args.noise:
         from .reports.noise import load
-        measured = load(args.noise)
-        noise = {"source": f"measured: {args.noise}", "instability": {
-            s: float(np.sqrt(np.mean(np.square(v["instability"])))) for s, v in measured.items()}}
+        noise = load(args.noise)
+        print(f"noise model: {noise['source']}")
     cal = calibrate(args.runs, args.method, unit=args.unit_name, noise=noise)
     cal.save(args.output, force=args.force)
     rms = cal.covariance.get("residual_rms", {})
@@ -434,8 +433,8 @@ def _scenario_options(p, flight=True):
                    help="MIMU random errors (default table1: seed S1 Table 1 at its bound; "
                    "tactical: ADIS16488A class; stim300: STIM300 class)")
     p.add_argument("--nonlinearity", default="table1",
-                   help="nonlinear scale factors: Table 2 scaled to Table 1's fit residual "
-                   "(default) or Table 2 literally")
+                   help="nonlinear scale factors: table1 = Table 2 scaled to Table 1's fit "
+                   "residual (default), table2 = Table 2 literally")
     p.add_argument("--fog-grade", default="table4",
                    help="reference FOG-IMU (default table4: Table 4 medium accuracy; "
                    "table4-bound: its bounds as 1 sigma; navigation: 0.01 deg/h class)")
@@ -685,7 +684,8 @@ def build_parser():
     p.add_argument("--seed", type=SEED, default=1, help="draws the unit, lab and noise")
     p.add_argument("--units", type=COUNT, default=16,
                    help="Monte Carlo units (per point with --regime-map; default 16)")
-    p.add_argument("--workers", type=_number(1, 256, int), default=2, help="local processes")
+    p.add_argument("--workers", type=_number(1, 256, int), default=2,
+                   help="local processes (default 2)")
     p.add_argument("--regime-map", action="store_true",
                    help="instead: the regime map (normalised errors against MIMU grade, FOG "
                    "grade, g exposure and temperature, each point a small Monte Carlo; "
@@ -696,11 +696,13 @@ def build_parser():
     p = sub.add_parser("campaign", help="Monte Carlo: many units through the same lab and "
                        "flight; results stream to a JSON-lines file and resume")
     p.add_argument("profile", nargs="?", default=str(FLIGHTS / "high-dynamic.toml"),
-                   help="flight profile TOML")
+                   help="flight profile TOML (default: flights/high-dynamic.toml)")
     p.add_argument("-o", "--output", required=True, help="results file (.jsonl), resumed")
-    p.add_argument("--units", type=COUNT, default=200)
-    p.add_argument("--seed", type=SEED, default=1)
-    p.add_argument("--workers", type=_number(1, 256, int), default=2, help="local processes")
+    p.add_argument("--units", type=COUNT, default=200, help="units to draw (default 200)")
+    p.add_argument("--seed", type=SEED, default=1,
+                   help="draws the units, the lab's setting errors and all noise (default 1)")
+    p.add_argument("--workers", type=_number(1, 256, int), default=2,
+                   help="local processes (default 2)")
     p.add_argument("--scheduler", help="Dask scheduler address (runs there instead)")
     _scenario_options(p, flight=False)
     p.set_defaults(func=_campaign)

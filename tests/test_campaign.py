@@ -66,6 +66,12 @@ def test_campaign_resumes_and_is_reproducible(profile, tmp_path):
     other = campaign.Scenario(flight=profile, mimu_grade="tactical")      # same seed, other unit
     with pytest.raises(ValueError, match="another campaign"):
         campaign.run_campaign(other, 2, 7, str(out), workers=1, progress=False)
+    namesake = tmp_path / "other" / "short.toml"           # same file name, other flight
+    namesake.parent.mkdir()
+    namesake.write_text(PROFILE.replace("duration_s = 8.0", "duration_s = 9.0", 1))
+    assert namesake.read_text() != PROFILE
+    with pytest.raises(ValueError, match="another campaign"):
+        campaign.run_campaign(str(namesake), 2, 7, str(out), workers=1, progress=False)
     stats = campaign.summary(both)
     assert set(stats) == {"traditional", "entire", "FOG-IMU"}
 
@@ -140,3 +146,15 @@ def test_regime_points_and_their_summary():
     # bands: entire [0.195, 1.905] (paper 2.78 / 0.3 / 6.69), traditional [19.5, 190.5]
     assert s["entire"]["paper_inside"] == [False, True, False]
     assert s["traditional"]["paper_inside"] == [False, True, False]
+
+
+def test_the_report_names_each_values_source_and_the_command_that_gives_it():
+    from mimunav.reports.table3 import assumptions_markdown, command_line
+    s = dataclasses.replace(campaign.Scenario(), mimu_grade="stim300", fog_grade="navigation",
+                            warm_up_s=0.0)
+    rows = {r.split("|")[1].strip(" `"): r for r in assumptions_markdown(s)[2:]}
+    assert "STIM300" in rows["mimu_grade"] and "not the default" in rows["mimu_grade"]
+    assert "not the paper's" in rows["fog_grade"]
+    assert "given" in rows["warm_up_s"] and "not the default" not in rows["severity"]
+    assert command_line(s, 3, 8) == ("mimunav reproduce --seed 3 --units 8 --warm-up-s 0.0 "
+                                     "--mimu-grade stim300 --fog-grade navigation")

@@ -89,6 +89,7 @@ def test_noise_command_reads_the_units_random_walk_from_a_parked_flight(parked, 
             assert terms["random_walk"]["value"] == pytest.approx(noise[f"{sensor}_white"],
                                                                   rel=0.05)
             assert set(terms) == set(allan.TERMS)
+            assert not doc[sensor][axis]["approximate"]      # white + flicker: the model fits
     b = [doc["accel"][a]["terms"]["bias_instability"]["value"] for a in "xyz"]
     assert np.all(np.abs(np.log(np.array(b) / noise["accel_flicker"])) < math.log(1.5))
     assert (out / "noise.png").stat().st_size > 10_000 and (out / "noise.md").exists()
@@ -105,17 +106,62 @@ def test_noise_command_refuses_what_it_cannot_analyse(parked, capsys):
     assert not (d / "x").exists()
 
 
-def test_a_span_with_motion_is_refused(tmp_path):
+def _static(n_s, rate=100.0, seed=0):
+    t = np.arange(0, n_s * rate) / rate
+    rng = np.random.default_rng(seed)
+    return (t, rng.normal(0, 1e-3, (len(t), 3)),
+            rng.normal(0, 1e-3, (len(t), 3)) + [0, 0, -9.8])
+
+
+def test_a_span_with_motion_or_drift_is_refused_whatever_its_length():
     from mimunav.errors import InputError
     from mimunav.reports.noise import choose_span
-    rate = 100.0
-    t = np.arange(0, 200 * rate) / rate
-    rng = np.random.default_rng(0)
-    w = rng.normal(0, 1e-3, (len(t), 3))
-    f = rng.normal(0, 1e-3, (len(t), 3)) + [0, 0, -9.8]
+    t, w, f = _static(200)
     w[(t > 50) & (t < 120), 2] += 0.5                     # a 70 s turn at 29 deg/s
-    with pytest.raises(InputError, match="not static"):
-        choose_span(t, w, f, [], (0.0, 190.0))
+    for span in ((0.0, 190.0), (0.0, 60.0), (40.0, 190.0)):   # any span holding a step
+        with pytest.raises(InputError, match="not static"):
+            choose_span(t, w, f, [], span)
     t0, t1, how = choose_span(t, w, f, [])                 # the longest still stretch
     assert t1 - t0 >= 60 and (t0 >= 119 or t1 <= 51), (t0, t1)
     assert "still" in how
+    t, w, f = _static(300)
+    w[:, 0] += np.radians(0.5) * t / 300                   # a slow warm-up drift
+    with pytest.raises(InputError, match="drifts"):
+        choose_span(t, w, f, [], (0.0, 299.0))
+    t, w, f = _static(100)
+    t0, t1, how = choose_span(t, w, f, [], (50.0, 400.0))   # past the data: clipped
+    assert t1 == pytest.approx(t[-1]) and "clipped" in how
+
+
+def test_the_reference_rest_stops_before_the_motion():
+    """Parked 60 s, then 0.1 g forward: the span from the reference's rest (cut
+    `alignment.STATIC_MARGIN_S` before the first epoch over 0.2 m/s) ends before the
+    vehicle moves."""
+    from mimunav import alignment
+    from mimunav.reports.noise import choose_span
+    t, w, f = _static(120)
+    f[t >= 60.0, 0] += 0.98
+    tt = np.arange(0, 120, 0.2)
+    v = np.zeros((len(tt), 3))
+    v[:, 0] = np.clip(tt - 60.0, 0, None) * 0.98
+    rests = alignment.rest_intervals(tt, v, float(t[0]), float(t[-1]))
+    t0, t1, how = choose_span(t, w, f, rests)
+    assert t1 < 60.0 - 0.5 and "reference" in how
+
+
+def test_calibrate_takes_only_a_mimu_noise_file_and_only_measured_terms(tmp_path):
+    from mimunav.errors import InputError
+    from mimunav.reports import noise
+    doc = {"format": noise.FORMAT, "channel": "/fog/imu", "span_s": [0, 100]}
+    path = tmp_path / "fog.json"
+    path.write_text(json.dumps(doc))
+    with pytest.raises(InputError, match="not the MIMU"):
+        noise.load(path)
+    term = lambda b: {"terms": {"bias_instability": {"value": b}}, "approximate": False}  # noqa
+    doc.update(channel="/mimu/raw", gyro={a: term(0.0) for a in "xyz"},
+               accel={"x": term(1e-3), "y": term(2e-3), "z": term(0.0)})
+    path.write_text(json.dumps(doc))
+    got = noise.load(path)
+    assert set(got["instability"]) == {"accel"}            # gyro: upper bounds only
+    assert got["instability"]["accel"] == pytest.approx(math.sqrt((1e-6 + 4e-6) / 2))
+    assert "unit class kept" in got["source"]

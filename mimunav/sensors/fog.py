@@ -27,6 +27,10 @@ MISALIGNMENT_SIGMA = 20e-6  # residual axis misalignment, rad, 1 sigma
 # Grades of the reference FOG-IMU: 1-sigma residuals (gyro bias deg/h, accel bias ug, scale
 # factor, misalignment rad) and noise (gyro white deg/sqrt(h), accel white ug/sqrt(Hz),
 # flicker B deg/h and ug).
+FOG_GRADE_SOURCES = {
+    "table4": "seed S1 Table 4 read as medium accuracy, its bounds at about 2 sigma",
+    "table4-bound": "seed S1 Table 4's bounds taken as 1 sigma (1 deg/h, 100 ug, 2.5e-4)",
+    "navigation": "a navigation-grade reference (0.01 deg/h, 10 ppm): not the paper's FOG-IMU"}
 FOG_GRADES = {
     # the module doc above: Table 4 read as medium accuracy, the bounds at about 2 sigma
     "table4": {"gyro_bias": 0.5, "accel_bias": 50.0, "scale": SCALE_SIGMA,

@@ -91,6 +91,16 @@ MIMU_GRADES = {
 # Nonlinearity readings (module doc): one factor per triad (accel, gyro) on Table 2's k2, k3.
 # "table1": the largest k2 x^2 + k3 x^3 at full scale (30 g, 400 deg/s) equals Table 1's fit
 # residual (0.05 % FS, 0.2 % FS): accel 0.15 g / (0.09 + 0.54) g, gyro 0.8 / (40 + 0.064) deg/s.
+MIMU_GRADE_SOURCES = {
+    "table1": "seed S1 Table 1 at its bound (gyro zero drift 30 deg/h, accel ~1 mg as 10 s bias "
+              "stability; ADXRS-class white noise 1.2 deg/sqrt(h))",
+    "tactical": "ADIS16488A-class datasheet (ARW 0.26 deg/sqrt(h), in-run 5.1 deg/h; VRW 0.029 "
+                "m/s/sqrt(h), 0.1 mg); turn-on assumed equal to in-run",
+    "stim300": "STIM300-class datasheet (ARW 0.15 deg/sqrt(h), instability 0.5 deg/h; VRW 0.07 "
+               "m/s/sqrt(h), 0.05 mg); turn-on assumed twice the instability"}
+NONLINEARITY_SOURCES = {
+    "table1": "Table 2 ranges scaled to Table 1's fit residual (the spec's corrected reading)",
+    "table2": "Table 2 taken literally (6-10 % of full scale at 400 deg/s; contradicts Table 1)"}
 NONLINEARITY = {"table1": (5e-4 * 30 / (1e-4 * 30**2 + 2e-5 * 30**3),
                            2e-3 * 400 / (2.5e-4 * 400**2 + 1e-9 * 400**3)),
                 "table2": (1.0, 1.0)}
