@@ -128,6 +128,16 @@ def _lab(args):
     return 0
 
 
+def _drift(args):
+    """Seed S4's AR + Kalman treatment of the gyro drift."""
+    from .reports.drift import write
+    out = write(args.log, args.output, channel=args.channel, cal_path=args.cal,
+                static=args.static, dynamic=args.dynamic, window_s=args.window_s,
+                force=args.force)
+    print(f"wrote {out}/drift.md, drift.json, drift.png")
+    return 0
+
+
 def _noise(args):
     """Allan deviation and IEEE-952 terms of a static span."""
     from .reports.noise import write
@@ -570,6 +580,22 @@ def build_parser():
     p.add_argument("-o", "--output", required=True, help="folder to write")
     p.add_argument("--force", action="store_true", help="replace an existing folder")
     p.set_defaults(func=_noise)
+    p = sub.add_parser("drift", help="seed S4: an AR model of the gyro drift at rest and its "
+                       "Kalman filter; variance reduction at rest, what the filter does under "
+                       "motion, what it cannot remove -> DIR/drift.md, drift.json, drift.png")
+    p.add_argument("log", help="log (.mcap)")
+    p.add_argument("--channel", default="/mimu/imu",
+                   help="/mimu/imu (default), /fog/imu, or /mimu/raw with --cal")
+    p.add_argument("--cal", help="calibration file, to read /mimu/raw in SI units")
+    p.add_argument("--static", type=_span, help="T0:T1 s of a rest (default: found as by "
+                   "`mimunav noise`)")
+    p.add_argument("--dynamic", type=_span, help="T0:T1 s of a span with motion, to see what "
+                   "the filter does there")
+    p.add_argument("--window-s", type=_number(1e-3, 600.0), default=1.0,
+                   help="averaging before the model, s (default 1)")
+    p.add_argument("-o", "--output", required=True, help="folder to write")
+    p.add_argument("--force", action="store_true", help="replace an existing folder")
+    p.set_defaults(func=_drift)
     p = sub.add_parser("replay", help="compensate the MIMU, navigate MIMU and FOG-IMU with "
                        "the same navigator, compare with the truth and each other")
     _flight_arguments(p)
