@@ -416,6 +416,16 @@ def _reproduce(args):
     return 0
 
 
+def _imu_channel_arguments(p):
+    """A log's IMU channel in SI units and the output folder (`noise`, `drift`)."""
+    p.add_argument("log", help="log (.mcap): a lab run, a simulated flight, an imported recording")
+    p.add_argument("--channel", default="/mimu/imu",
+                   help="/mimu/imu (default), /fog/imu, or /mimu/raw with --cal")
+    p.add_argument("--cal", help="calibration file, to read /mimu/raw in SI units")
+    p.add_argument("-o", "--output", required=True, help="folder to write")
+    p.add_argument("--force", action="store_true", help="replace an existing folder")
+
+
 def _scenario(args):
     from .campaign import Scenario
     return Scenario(flight=str(Path(args.flight).resolve()), severity=args.severity,
@@ -571,30 +581,20 @@ def build_parser():
     p = sub.add_parser("noise", help="random errors of an IMU channel over a static span: "
                        "Allan deviation per axis with 68 %% bands, IEEE-952 terms with "
                        "intervals -> DIR/noise.json (mimunav-noise/1, SI), noise.md, noise.png")
-    p.add_argument("log", help="log (.mcap): a lab run, a simulated flight, an imported recording")
-    p.add_argument("--channel", default="/mimu/imu",
-                   help="/mimu/imu (default), /fog/imu, or /mimu/raw with --cal")
-    p.add_argument("--cal", help="calibration file, to read /mimu/raw in SI units")
+    _imu_channel_arguments(p)
     p.add_argument("--span", type=_span, help="T0:T1, s since the channel's first sample "
                    "(default: the longest rest of /truth/state, else the longest still stretch)")
-    p.add_argument("-o", "--output", required=True, help="folder to write")
-    p.add_argument("--force", action="store_true", help="replace an existing folder")
     p.set_defaults(func=_noise)
     p = sub.add_parser("drift", help="seed S4: an AR model of the gyro drift at rest and its "
                        "Kalman filter; variance reduction at rest, what the filter does under "
                        "motion, what it cannot remove -> DIR/drift.md, drift.json, drift.png")
-    p.add_argument("log", help="log (.mcap)")
-    p.add_argument("--channel", default="/mimu/imu",
-                   help="/mimu/imu (default), /fog/imu, or /mimu/raw with --cal")
-    p.add_argument("--cal", help="calibration file, to read /mimu/raw in SI units")
+    _imu_channel_arguments(p)
     p.add_argument("--static", type=_span, help="T0:T1 s of a rest (default: found as by "
                    "`mimunav noise`)")
     p.add_argument("--dynamic", type=_span, help="T0:T1 s of a span with motion, to see what "
                    "the filter does there")
     p.add_argument("--window-s", type=_number(1e-3, 600.0), default=1.0,
                    help="averaging before the model, s (default 1)")
-    p.add_argument("-o", "--output", required=True, help="folder to write")
-    p.add_argument("--force", action="store_true", help="replace an existing folder")
     p.set_defaults(func=_drift)
     p = sub.add_parser("replay", help="compensate the MIMU, navigate MIMU and FOG-IMU with "
                        "the same navigator, compare with the truth and each other")
