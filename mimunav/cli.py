@@ -138,6 +138,23 @@ def _drift(args):
     return 0
 
 
+def _calibration_compare(args):
+    """A fitted calibration against the unit's truth file, coefficient by coefficient."""
+    from .compensation import Calibration
+    from .reports.calibration import compare
+    from .sensors import MimuUnit
+    rows, families = compare(Calibration.load(args.fit), MimuUnit.load(args.unit))
+    print(f"{'coefficient':14s} {'fitted':>13s} {'true (fit gauge)':>17s} {'std error':>11s} "
+          f"{'z':>7s}")
+    for name, fitted, true, se, z in rows:
+        print(f"{name:14s} {fitted:13.6g} {true:17.6g} {se:11.3g} {z:7.2f}")
+    print("RMS z per family: " + ", ".join(f"{k} {v:.2f}" for k, v in families.items()))
+    all_z = np.array([r[4] for r in rows])
+    print(f"all: n = {len(all_z)}, RMS z {np.sqrt(np.mean(all_z**2)):.2f}, max |z| "
+          f"{np.abs(all_z).max():.2f}")
+    return 0
+
+
 def _noise(args):
     """Allan deviation and IEEE-952 terms of a static span."""
     from .reports.noise import write
@@ -578,6 +595,14 @@ def build_parser():
                    "unit class's assumed one")
     p.add_argument("--force", action="store_true", help="replace an existing output")
     p.set_defaults(func=_calibrate)
+    p = sub.add_parser("calibration", help="work with calibration files: compare FIT UNIT")
+    compare_sub = p.add_subparsers(dest="action", required=True)
+    q = compare_sub.add_parser("compare", help="a fitted entire-63 file against the unit's "
+                               "truth file (mimunav-unit/1), in the fit's gauge: fitted, true, "
+                               "standard error and z of every coefficient, RMS z per family")
+    q.add_argument("fit", help="fitted calibration (mimunav-calibration/1, entire-63)")
+    q.add_argument("unit", help="unit file (mimunav-unit/1) or the truth file's unit")
+    q.set_defaults(func=_calibration_compare)
     p = sub.add_parser("noise", help="random errors of an IMU channel over a static span: "
                        "Allan deviation per axis with 68 %% bands, IEEE-952 terms with "
                        "intervals -> DIR/noise.json (mimunav-noise/1, SI), noise.md, noise.png")

@@ -46,7 +46,9 @@ _COLD_KEYS = ("a", "b", "c", "d", "e")
 
 # Sample flags (bit mask) set by `compensate`
 REPLACED = 1       # a wild (outlier) or non-finite raw value replaced by its neighbours' median
-SATURATED = 2      # compensated output at or beyond the unit's range on some axis
+SATURATED = 2      # compensated output at or beyond the unit's range on some axis, or a raw
+                   # output clipped (stuck at its extreme, `clipped`)
+CLIP_RUN = 5       # identical consecutive samples at a channel's extreme: clipped
 UNUSABLE = 4       # could not be repaired (non-finite across the whole filter window)
 
 
@@ -251,7 +253,9 @@ def compensate(cal, accel_volts, gyro_volts, accel_temperature, gyro_frequency,
 
     Inputs (N, 3): accel_volts U_a and gyro_volts U_w (V), accel_temperature T (degC),
     gyro_frequency f (Hz). range_*: the unit's range (m/s^2, rad/s); outputs whose magnitude
-    on any axis reaches it are flagged SATURATED. t: sample times, s (N,), needed by the
+    on any axis reaches it are flagged SATURATED, and so are raw outputs stuck at their
+    extreme (`clipped`: an ADC or amplifier limit below the declared range). t: sample
+    times, s (N,), needed by the
     cold-start model's dT window.
     """
     chans = [np.ascontiguousarray(x, dtype=float) for x in
@@ -268,6 +272,7 @@ def compensate(cal, accel_volts, gyro_volts, accel_temperature, gyro_frequency,
         for x in chans:
             flags[~np.isfinite(x).all(axis=1)] |= UNUSABLE
     u_a, u_w, temp, freq = chans
+    flags[clipped(u_a) | clipped(u_w)] |= SATURATED
     if (cal.base_model == "cold-start" or cal.found) and t is None:
         raise CalibrationError(f"model {cal.model!r} needs the sample times t")
     if cal.base_model == "cold-start":
@@ -298,6 +303,26 @@ def _cold_start(cal, u_a, u_w, temp, freq, t):
         out.append(e_t / (k["a"] + k["b"] * temperature) + k["c"] + k["d"] * temperature
                    + k["e"] * d_t)
     return out[0], out[1]
+
+
+def clipped(x):
+    """Samples (N,) bool where some axis of x (N, 3) sits at that axis's extreme value in a
+    run of at least CLIP_RUN identical consecutive samples: an output clipped by its ADC or
+    amplifier, whatever the declared range says. A live sensor's noise moves a quantized
+    output every sample; a channel that never moves (ptp 0) is left alone."""
+    x = np.asarray(x, dtype=float)
+    out = np.zeros(len(x), dtype=bool)
+    for col in x.T:
+        finite = col[np.isfinite(col)]
+        if len(finite) < CLIP_RUN or np.ptp(finite) == 0:
+            continue
+        for extreme in (finite.max(), finite.min()):
+            at = np.concatenate([[0], (col == extreme).astype(np.int8), [0]])
+            edges = np.flatnonzero(np.diff(at))
+            for a, b in zip(edges[::2], edges[1::2]):
+                if b - a >= CLIP_RUN:
+                    out[a:b] = True
+    return out
 
 
 def wild_value_filter(x, flags, n_sigma=6.0):

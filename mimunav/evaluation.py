@@ -20,7 +20,8 @@ import numpy as np
 import quaternion
 
 from . import attitude, earth, strapdown
-from .compensation import Calibration, CalibrationError, compensate, flag_counts, poly2
+from .compensation import (CLIP_RUN, Calibration, CalibrationError, clipped, compensate,
+                           flag_counts, poly2)
 from .effects import Conditions
 from .effects import apply as apply_effects
 from .flightlog import FlightLog, LogError
@@ -314,6 +315,12 @@ def compensated_mimu(flight, cal, per_sample=False):
         flags = np.zeros(len(w), dtype=np.uint8)
         return w, f, (flags if per_sample else flag_counts(flags))
     r = flight.mimu_raw
+    stuck = int((clipped(r["accel_volts"]) | clipped(r["gyro_volts"])).sum())
+    if stuck:
+        from .errors import warn
+        warn(f"{flight.path}: {stuck} MIMU samples have a raw output stuck at its extreme for "
+             f">= {CLIP_RUN} samples (clipped by the ADC or amplifier, whatever the declared "
+             "range): flagged saturated; the navigation through them is wrong")
     f, w, flags = compensate(cal, r["accel_volts"], r["gyro_volts"], r["accel_temperature"],
                              r["gyro_frequency"], flight.mimu_range.get("accel_m_s2", np.inf),
                              flight.mimu_range.get("gyro_rad_s", np.inf),

@@ -295,3 +295,24 @@ def test_ellipsoid_refuses_too_few_or_alike_orientations(tmp_path):
     alike = dataclasses.replace(run, windows=[run.windows[0]] * 12)
     with pytest.raises(calibration.FitError, match="do not determine"):
         calibration.fit_ellipsoid(alike)
+
+
+def test_calibration_compare_prints_the_reports_z_scores(entire_lab, tmp_path, capsys):
+    """`mimunav calibration compare FIT UNIT`: a user comparing a fitted file with the unit
+    file gets the z-scores the calibration report computes; a linear fit is refused."""
+    from mimunav.cli import main
+    units, cals, trad, _ = entire_lab
+    cals[0].save(tmp_path / "fit.json")
+    units[0].save(tmp_path / "unit.json")
+    assert main(["calibration", "compare", str(tmp_path / "fit.json"),
+                 str(tmp_path / "unit.json")]) == 0
+    out = capsys.readouterr().out
+    z = z_scores(units[0], cals[0])
+    printed = {line.split()[0]: float(line.split()[-1]) for line in out.splitlines()
+               if line[:2] in ("A0", "A1", "A2", "A3", "W0", "W1", "W2", "W3", "C[", "ct", "cw")}
+    assert len(printed) == 63
+    assert all(abs(printed[k] - z[k]) < 0.006 for k in z)
+    trad.save(tmp_path / "trad.json")
+    assert main(["calibration", "compare", str(tmp_path / "trad.json"),
+                 str(tmp_path / "unit.json")]) == 2
+    assert "no unique truth" in capsys.readouterr().err

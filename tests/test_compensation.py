@@ -255,3 +255,31 @@ def test_cold_start_scale_must_not_vanish():
         Calibration.from_dict(doc)
     doc["gyro"]["a"] = [1.0, -1.0, 1.0]      # negative is a scale, not a vanishing one
     Calibration.from_dict(doc)
+
+
+def test_outputs_clipped_below_the_declared_range_are_flagged():
+    """A gyro whose amplifier clips at 2 V (about 400 deg/s at 5 mV/(deg/s), under the
+    450 deg/s range and the 5 V ADC rails) in a fast roll: the plateau samples are flagged
+    SATURATED although the compensated rate stays inside the range; a live, unclipped
+    output is never flagged."""
+    from mimunav.compensation import SATURATED, clipped
+    unit = MimuUnit.draw(6)
+    n, rate = 4000, 1000.0
+    t = np.arange(1, n + 1) / rate
+    w_true = np.zeros((n, 3))
+    w_true[1000:3000, 0] = np.radians(430.0) * np.sin(np.pi * (np.arange(2000) / 2000))
+    f_true = np.tile([0.0, 0.0, -9.80665], (n, 1))
+    raw = unit.simulate(t, w_true / rate, f_true / rate, np.full(n, 25.0),
+                        np.random.default_rng(1))
+    assert not clipped(raw["gyro_volts"]).any() and not clipped(raw["accel_volts"]).any()
+    u = raw["gyro_volts"].copy()
+    limit = 2.0 * np.sign(u[2000, 0])
+    over = np.abs(u[:, 0]) > 2.0
+    u[over, 0] = limit
+    assert over.sum() > 50
+    f, w, flags = compensate(unit.coefficients, raw["accel_volts"], u, raw["accel_temperature"],
+                             raw["gyro_frequency"], unit.range_accel, unit.range_gyro)
+    assert np.abs(w[over, 0]).max() < unit.range_gyro                  # inside the range
+    hit = (flags & SATURATED) > 0
+    assert hit[over].mean() > 0.95          # all but isolated noisy crossings of 2 V
+    assert not hit[~over].any()

@@ -12,6 +12,7 @@ import numpy as np
 from tqdm import tqdm
 
 from .. import calibration, lab
+from ..errors import InputError
 from ..campaign import one_blas_thread
 from ..compensation import poly2
 from ..files import write_atomic
@@ -41,6 +42,30 @@ def z_scores(unit, cal):
         idx = tuple(int(i) for i in idx)
         out[name] = float((getattr(cal, key)[idx] - getattr(truth, key)[idx]) / se)
     return out
+
+
+def compare(cal, unit):
+    """A fitted `entire-63` calibration against a unit's truth, coefficient by coefficient,
+    in the fit's gauge (`true_in_gauge`): rows (name, fitted, true, standard error, z) and
+    the RMS z per coefficient family - what `mimunav report calibration` computes, for one
+    file a user holds. Other models have no unique truth in their gauge (a linear fit
+    absorbs the temperature terms at its run's temperature): refused."""
+    if cal.model != "entire-63" or "reference" not in cal.extra:
+        raise InputError(f"compare needs an entire-63 fit with its reference readings (this is "
+                         f"{cal.model!r}); a {cal.model} fit has no unique truth in its gauge")
+    truth = true_in_gauge(unit, cal)
+    se = calibration.standard_errors(cal)
+    z = z_scores(unit, cal)
+    rows = []
+    for name in se:
+        key, *idx = re.findall(r"\w+", name)
+        idx = tuple(int(i) for i in idx)
+        rows.append((name, float(getattr(cal, key)[idx]), float(getattr(truth, key)[idx]),
+                     se[name], z[name]))
+    fam = collections.defaultdict(list)
+    for name, value in z.items():
+        fam[_family(name)].append(value)
+    return rows, {k: float(np.sqrt(np.mean(np.square(v)))) for k, v in sorted(fam.items())}
 
 
 def _family(name):
@@ -82,6 +107,66 @@ def held_out(seed, folder):
             for p, run in fresh.items()}
 
 
+ORIENTATIONS = (10, 12, 15, 18, 24)         # the fit has 9 unknowns: 10 is the least with a residual
+
+
+def orientations_study(seeds, folder):
+    """Field calibration against the turntable (seed S4 vs S2) on the same units: the
+    ellipsoid fit on the first N of a hand-held run's orientations, and the twelve-position
+    fit, each checked on a fresh twelve-position run it was not fitted on by the rotation-
+    invariant specific-force error ||f| - g| (RMS over the windows, m/s^2) and against the
+    unit's truth by its zero-g offset error |A1_true (u0_fit - u0_true)| (m/s^2).
+    Returns {"ellipsoid": {N: [(magnitude, offset) per unit]}, "twelve-position": [...]}."""
+    out = {"ellipsoid": {n: [] for n in ORIENTATIONS}, "twelve-position": []}
+    path = lambda p, s: os.path.join(folder, f"{p}-{s}.mcap")          # noqa: E731
+    for seed in seeds:
+        unit = MimuUnit.draw(seed)
+        hand = calibration.LabRun.load(lab.run(lab.plan("hand-held"), unit,
+                                               path("hand-held", seed), seed, progress=False)[0])
+        twelve = lab.run(lab.plan("twelve-position"), unit, path("twelve", seed), seed,
+                         progress=False)[0]
+        fresh = calibration.LabRun.load(lab.run(lab.plan("twelve-position"), unit,
+                                                path("fresh", seed), seed + 1, progress=False)[0])
+        g = fresh.site["gravity_m_s2"]
+        u_fresh = fresh.means(fresh.raw["accel_volts"])
+        truth = unit.coefficients
+
+        def score(a0, a1, run):
+            """(held-out magnitude error, zero-g offset error at the fitted run's mean
+            temperature) m/s^2."""
+            temp = run.means(run.raw["accel_temperature"]).mean(axis=0)
+            u0_true = poly2(truth.ct, temp[None])[0] - np.linalg.solve(truth.A1, truth.A0)
+            magnitude = np.sqrt(np.mean((np.linalg.norm(a0 + u_fresh @ a1.T, axis=1) - g) ** 2))
+            offset = np.linalg.norm(truth.A1 @ (-np.linalg.solve(a1, a0) - u0_true))
+            return float(magnitude), float(offset)
+        for n in ORIENTATIONS:
+            fit = calibration.fit_ellipsoid(hand, windows=range(n))
+            a0 = np.array([fit.values[f"A0[{i}]"] for i in range(3)])
+            a1 = np.array([[fit.values[f"A1[{i}][{j}]"] for j in range(3)] for i in range(3)])
+            out["ellipsoid"][n].append(score(a0, a1, hand))
+        cal = calibration.calibrate([twelve], "twelve-position")
+        out["twelve-position"].append(score(cal.A0, cal.A1, calibration.LabRun.load(twelve)))
+    return out
+
+
+def plot_orientations(study, out_png):
+    plt, fig, axes = figure(1, 2, (11, 4.2))
+    n = np.array(ORIENTATIONS)
+    for ax, k, label in ((axes[0, 0], 0, "held-out ||f| - g| RMS"),
+                         (axes[0, 1], 1, "zero-g offset error vs truth")):
+        per_n = np.array([[u[k] for u in study["ellipsoid"][m]] for m in ORIENTATIONS]) * 1e3 / 9.80665
+        ax.plot(n, np.median(per_n, axis=1), "o-", label="ellipsoid (hand-held), median")
+        ax.fill_between(n, per_n.min(axis=1), per_n.max(axis=1), alpha=0.2, label="range")
+        tw = np.array([u[k] for u in study["twelve-position"]]) * 1e3 / 9.80665
+        ax.axhline(np.median(tw), color="k", ls="--", label="twelve-position (turntable), median")
+        ax.set_xlabel("orientations used")
+        ax.set_ylabel(f"{label}, mg")
+        ax.set_yscale("log")
+        ax.grid(True, which="both", alpha=0.3)
+    axes[0, 0].legend(fontsize=8)
+    save(plt, fig, out_png)
+
+
 def plot_held_out(checks, out_png):
     """Held-out error (% of Table 1 full scale) against the condition it grows with."""
     fs, lim = calibration.TABLE1_FULL_SCALE, calibration.TABLE1_RESIDUAL
@@ -120,9 +205,36 @@ def write(out_dir, n_units=20, first_seed=1000, workers=2, progress=True, force=
                           total=2 * n_units, desc="units", disable=not progress))
     with tempfile.TemporaryDirectory() as tmp:
         checks = held_out(first_seed, tmp)
+        study = orientations_study(seeds[:8], tmp)
     plot_held_out(checks, png)
-    write_atomic(md, _markdown(units, checks, os.path.basename(png)), force=True)
+    plot_orientations(study, os.path.join(out_dir, "calibration-orientations.png"))
+    write_atomic(md, _markdown(units, checks, os.path.basename(png)) + _orientations_markdown(
+        study), force=True)
     return md, png
+
+
+def _orientations_markdown(study):
+    mg = 1e3 / 9.80665
+    lines = ["## Field calibration without a turntable: how many orientations", "",
+             f"`--method ellipsoid` on the first N orientations of a hand-held run (seed S4; "
+             f"nobody measured the attitudes) against `--method twelve-position` on a turntable "
+             f"(seed S2), the same {len(study['twelve-position'])} units, both checked on a fresh "
+             "twelve-position run: the rotation-invariant error ||f| - g| (RMS over its windows) "
+             "and the zero-g offset against the truth (median [min, max] over units, mg).", "",
+             "| method | orientations | held-out ||f| - g|, mg | zero-g offset error, mg |",
+             "|---|---|---|---|"]
+
+    def cell(values):
+        v = np.array(values) * mg
+        return f"{np.median(v):.3g} [{v.min():.3g}, {v.max():.3g}]"
+    for n, scores in study["ellipsoid"].items():
+        lines.append(f"| ellipsoid | {n} | {cell([s[0] for s in scores])} | "
+                     f"{cell([s[1] for s in scores])} |")
+    tw = study["twelve-position"]
+    lines.append(f"| twelve-position | 12 (known) | {cell([s[0] for s in tw])} | "
+                 f"{cell([s[1] for s in tw])} |")
+    lines += ["", "![orientations](calibration-orientations.png)", ""]
+    return "\n".join(lines)
 
 
 def _z_table(units):
