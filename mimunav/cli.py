@@ -501,6 +501,12 @@ def _report(args):
         md = recording.write(args.log, args.output, force=args.force, min_speed=args.min_speed)
         print(f"wrote {md}")
         return 0
+    if args.kind == "modulation":
+        from .reports import modulation
+        md = modulation.write(args.output, units=min(args.units, 50), seed=args.seed,
+                              force=args.force)
+        print(f"wrote {md}")
+        return 0
     from .reports import calibration
     md, png = calibration.write(args.output, n_units=args.units, first_seed=args.seed,
                                 force=args.force)
@@ -760,8 +766,10 @@ def build_parser():
     p = sub.add_parser("report", help="generate a report (calibration: the entire lab on "
                        "many units, z-scores of every coefficient, held-out check; recording: "
                        "an imported recording's metadata, channels, free-inertial windows and "
-                       "diagnosis)")
-    p.add_argument("kind", choices=("calibration", "recording"),
+                       "diagnosis; modulation: seed S4's rotation modulation measured - "
+                       "platform configurations against error sources, the seed's claims "
+                       "checked)")
+    p.add_argument("kind", choices=("calibration", "recording", "modulation"),
                    help="calibration; recording: LOG (a contract log with /mimu/imu and "
                    "/truth/state, e.g. from mimunav import) into the folder -o")
     p.add_argument("log", nargs="?", help="recording: the log (.mcap)")

@@ -1,0 +1,199 @@
+"""Rotation modulation (seed S4): a MIMU on a single-axis platform that turns - continuously
+or back and forth - so that constant sensor errors perpendicular to the axis change sign in
+the vehicle frame and average out, and what that buys in free-inertial navigation.
+
+Frames: vehicle (body) b; platform p, turning about its own z axis by the angle theta(t);
+sensor s, fixed on the platform. q_bs(t) = q_bp0 Rz(theta(t)) q_ps, with q_bp0 the
+platform's base attitude in the vehicle (its axis direction, plus a small axis tilt error)
+and q_ps the IMU's mounting on the platform (an inclination tilts all three sensor axes out
+of the plane perpendicular to the axis, so that all three are modulated). The IMU sits on
+the axis at the vehicle origin (no lever arm).
+
+Exact increments: `RotatingMotion` is a `truth.Motion` whose "body" is the sensor itself,
+q_ns = q_nb q_bs, with the sensor's rate relative to NED and its derivative in sensor axes
+    w_ns^s  = C_sb w_nb^b + C_sp theta' e_z
+    dw_ns^s = C_sb dw_nb^b - (C_sp theta' e_z) x (C_sb w_nb^b) + C_sp theta'' e_z
+so `truth.generate` integrates the true sensor-axis increments by quadrature, as for any
+motion: no sampled rotation of interval means.
+
+Navigation through the rotation: the same strapdown navigator integrates the sensor frame
+(its position and velocity are the vehicle's: the IMU is on the axis); the vehicle attitude
+is q_nb = q_ns q_bs(theta)^-1 with the platform angle at each epoch.
+"""
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import quaternion
+
+from . import attitude, truth
+from .errors import InputError
+from .profile import Ramp, rate_ppoly
+
+MODES = ("fixed", "continuous", "back-and-forth")
+
+
+@dataclass
+class Platform:
+    """A single-axis rotation platform. mode: fixed | continuous | back-and-forth; rate_rad_s:
+    the turning rate; swing_rad: the back-and-forth amplitude (turn +swing, dwell, turn back,
+    dwell, ...); dwell_s: the pause at each end; ramp_s: the rate's smooth rise and fall;
+    inclination_rad: the IMU tilted on the platform about the platform x axis; axis_tilt_rad:
+    a small error of the axis direction (rotation vector about vehicle x, y)."""
+    mode: str = "continuous"
+    rate_rad_s: float = math.radians(10.0)
+    swing_rad: float = 2 * math.pi
+    dwell_s: float = 0.0
+    ramp_s: float = 1.0
+    inclination_rad: float = 0.0
+    axis_tilt_rad: tuple = (0.0, 0.0)
+
+    def __post_init__(self):
+        if self.mode not in MODES:
+            raise InputError(f"platform mode {self.mode!r}: one of {', '.join(MODES)}")
+        if self.mode != "fixed" and not self.rate_rad_s > 0:
+            raise InputError("a turning platform needs rate_rad_s > 0")
+
+    def angle_ppoly(self, t_end):
+        """PPoly of the platform rate (rad/s) over [0, t_end] (its antiderivative is the angle)."""
+        if self.mode == "fixed":
+            return rate_ppoly([], t_end)
+        if self.mode == "continuous":
+            return rate_ppoly([Ramp(0, 0.0, t_end + self.ramp_s, self.rate_rad_s,
+                                    self.ramp_s)], t_end + self.ramp_s)
+        ramps, t, sign = [], 0.0, 1.0
+        turn = self.swing_rad / self.rate_rad_s + self.ramp_s     # a trapezoid's length
+        while t < t_end:
+            ramps.append(Ramp(0, t, t + turn, sign * self.rate_rad_s, self.ramp_s))
+            t += turn + self.dwell_s
+            sign = -sign
+        return rate_ppoly(ramps, max(t, t_end))
+
+    def q_bp0(self):
+        return quaternion.from_rotation_vector([*self.axis_tilt_rad, 0.0])
+
+    def q_ps(self):
+        return quaternion.from_rotation_vector([self.inclination_rad, 0.0, 0.0])
+
+
+def _rz(theta):
+    half = 0.5 * np.asarray(theta, float)
+    z = np.zeros_like(half)
+    return quaternion.from_float_array(np.stack([np.cos(half), z, z, np.sin(half)], axis=-1))
+
+
+class RotatingMotion(truth.Motion):
+    """A vehicle motion seen by an IMU on a `Platform` (module doc): the sensor as the body."""
+
+    def __init__(self, base, platform, t_end):
+        self.base, self.platform = base, platform
+        self.t0, self.t1 = base.t0, min(base.t1, t_end)
+        self.lat0, self.lon0, self.h0 = base.lat0, base.lon0, base.h0
+        self._rate = platform.angle_ppoly(t_end - base.t0)
+        self._angle = self._rate.antiderivative()
+        self._accel = self._rate.derivative()
+        self.knots = np.union1d(np.asarray(base.knots, float), self._rate.x + base.t0)
+
+    def angle(self, t):
+        """Platform angle theta (rad) at times t (s)."""
+        return self._angle(np.asarray(t, float) - self.t0)[..., 0]
+
+    def q_bs(self, t):
+        p = self.platform
+        return p.q_bp0() * _rz(self.angle(t)) * p.q_ps()
+
+    def kinematics(self, t):
+        t = np.asarray(t, float)
+        kin = self.base.kinematics(t)
+        u = t - self.t0
+        rate, accel = self._rate(u)[:, 0], self._accel(u)[:, 0]
+        q_bs = self.q_bs(t)
+        q_sp = np.conjugate(self.platform.q_ps())
+        e_z = np.zeros((len(t), 3))
+        e_z[:, 2] = 1.0
+        w_rel = attitude.rotate(q_sp, e_z * rate[:, None])       # C_sp theta' e_z
+        w_b = attitude.rotate(np.conjugate(q_bs), kin.w_nb_b)      # C_sb w_nb^b
+        dw_b = attitude.rotate(np.conjugate(q_bs), kin.dw_nb_b)
+        return truth.Kinematics(kin.v_ned, kin.a_ned, kin.q_nb * q_bs, w_b + w_rel,
+                                dw_b - np.cross(w_rel, w_b) +
+                                attitude.rotate(q_sp, e_z * accel[:, None]))
+
+
+def vehicle_attitude(q_ns, q_bs):
+    """q_nb = q_ns q_bs^-1 (quaternion arrays)."""
+    return q_ns * np.conjugate(q_bs)
+
+
+# The study's configurations (seed S4): fixed, continuous and back-and-forth rotation about
+# the vehicle's vertical, with the IMU orthogonal on the platform or inclined so that its
+# three axes make equal angles with the turning axis (54.7 deg: every axis modulated).
+MAGIC_INCLINATION = math.acos(1 / math.sqrt(3))
+CONFIGURATIONS = {
+    "fixed": Platform("fixed"),
+    "continuous": Platform("continuous", math.radians(10.0)),
+    "back-and-forth": Platform("back-and-forth", math.radians(10.0), swing_rad=2 * math.pi,
+                               dwell_s=5.0),
+    "continuous, inclined": Platform("continuous", math.radians(10.0),
+                                     inclination_rad=MAGIC_INCLINATION),
+    "back-and-forth, inclined": Platform("back-and-forth", math.radians(10.0),
+                                         swing_rad=2 * math.pi, dwell_s=5.0,
+                                         inclination_rad=MAGIC_INCLINATION),
+}
+# Error sources, 1 sigma per axis, drawn per unit (the unit class of seed S1 Table 1,
+# `sensors.mimu` grade table1): constant biases (turn-on), bias instability (flicker),
+# scale factor (the datasheet tolerance after calibration is assumed 0.1 %).
+ERRORS = {"constant bias": {"gyro_bias": math.radians(10 / 3600), "accel_bias": 0.2e-3 * 9.80665},
+          "bias instability": {"gyro_flicker": math.radians(15 / 3600),
+                               "accel_flicker": 0.5e-3 * 9.80665},
+          "scale factor": {"gyro_scale": 1e-3, "accel_scale": 1e-3}}
+
+
+def free_inertial(profile, platform, errors, seed, duration_s=600.0, rate_hz=100.0):
+    """One unit on `platform` through `profile` (a `profile.Profile`) for duration_s, its
+    sensor-axis increments made exactly (`RotatingMotion`), errors drawn from `errors`
+    (ERRORS-style keys, 1 sigma per axis) added, navigated free-inertial by the strapdown
+    navigator: end-point horizontal position error (m), tilt and heading errors of the
+    vehicle attitude (rad)."""
+    from . import evaluation
+    from .sensors import Mounting, noise
+    from .trajectory import Trajectory
+    motion = RotatingMotion(profile.motion(), platform, duration_s)
+    t = np.arange(0, int(round(duration_s * rate_hz)) + 1) / rate_hz
+    run = truth.generate(motion, t)
+    rng = np.random.default_rng(seed)
+    n = len(t) - 1
+    w = run.dtheta * rate_hz
+    f = run.dv * rate_hz
+    w = w * (1 + rng.normal(0, errors.get("gyro_scale", 0.0), 3)) \
+        + rng.normal(0, errors.get("gyro_bias", 0.0), 3) \
+        + noise.flicker(rng, n, rate_hz, [errors.get("gyro_flicker", 0.0)] * 3)
+    f = f * (1 + rng.normal(0, errors.get("accel_scale", 0.0), 3)) \
+        + rng.normal(0, errors.get("accel_bias", 0.0), 3) \
+        + noise.flicker(rng, n, rate_hz, [errors.get("accel_flicker", 0.0)] * 3)
+    tr = run.trajectory
+    start = tr.state(0)
+    initial = {"t": 0.0, "lat": start["lat"], "lon": start["lon"], "h": start["h"],
+               "v_ned": start["v_ned"], "q_nb": start["q_nb"]}
+    nav = evaluation.navigate(t[1:], w, f, Mounting(), initial)
+    q_bs = motion.q_bs(nav.t)
+    vehicle = Trajectory(nav.t, nav.lat, nav.lon, nav.h, nav.v_ned,
+                         vehicle_attitude(nav.q_nb, q_bs))
+    ref = evaluation.resample(tr, nav.t)
+    ref = Trajectory(ref.t, ref.lat, ref.lon, ref.h, ref.v_ned, vehicle_attitude(ref.q_nb, q_bs))
+    pos = vehicle.position_error(ref)[-1]
+    att = vehicle.attitude_error(ref)[-1]
+    return {"horizontal_m": float(np.hypot(pos[0], pos[1])),
+            "tilt_rad": float(np.hypot(att[0], att[1])), "heading_rad": float(abs(att[2]))}
+
+
+def study(profile, units=8, seed=0, duration_s=600.0, progress=False):
+    """Every configuration against every error source (each alone), `units` units each:
+    {source: {configuration: [result per unit]}} (`free_inertial`)."""
+    from tqdm import tqdm
+    out = {}
+    jobs = [(s, c) for s in ERRORS for c in CONFIGURATIONS]
+    for source, config in tqdm(jobs, desc="modulation", disable=not progress):
+        out.setdefault(source, {})[config] = [
+            free_inertial(profile, CONFIGURATIONS[config], ERRORS[source], seed + k, duration_s)
+            for k in range(units)]
+    return out

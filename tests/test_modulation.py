@@ -1,0 +1,94 @@
+"""Rotation modulation (seed S4, `mimunav.modulation`): the rotating IMU's increments against
+closed-form interval means, and what modulation does to known errors in closed form - a
+scale-factor error under continuous rotation is heading drift k x turned angle, a bias along
+the axis is never modulated, a horizontal bias is."""
+import math
+
+import numpy as np
+import pytest
+
+from mimunav import attitude, earth, evaluation, modulation, truth
+from mimunav.profile import Profile
+from mimunav.sensors import Mounting
+from mimunav.trajectory import Trajectory
+
+LAT = 45.0
+RATE = math.radians(36.0)
+
+
+def _parked(duration):
+    return Profile.from_dict({"name": "parked", "start": {
+        "latitude_deg": LAT, "longitude_deg": 10.0, "height_m": 100.0, "speed_m_s": 0.0,
+        "heading_deg": 0.0}, "segment": [{"kind": "hold", "duration_s": duration}]})
+
+
+def test_rotating_imu_increments_are_the_closed_form_interval_means():
+    """Parked level, heading north, platform turning at 36 deg/s about the vertical: each
+    interval's mean rate is the Earth rate turned by -theta, averaged over the interval in
+    closed form (mean of cos/sin over [theta0, theta1]), plus the platform rate; the mean
+    specific force likewise (only its vertical part: unchanged)."""
+    p = modulation.Platform("continuous", RATE, ramp_s=1.0)
+    m = modulation.RotatingMotion(_parked(20.0).motion(), p, 20.0)
+    t = np.arange(0, 2001) / 100.0
+    run = truth.generate(m, t)
+    k = np.arange(200, 2000)                                # after the ramp: constant rate
+    th0, th1 = m.angle(t[k]), m.angle(t[k + 1])
+    dth = th1 - th0
+    c, s = (np.sin(th1) - np.sin(th0)) / dth, (np.cos(th0) - np.cos(th1)) / dth
+    w_ie = earth.earth_rate_ned(math.radians(LAT))       # body = NED axes (level, north)
+    expect = np.column_stack([c * w_ie[0] + s * w_ie[1], -s * w_ie[0] + c * w_ie[1],
+                              np.full(len(k), w_ie[2] + RATE)])     # platform z = down
+    np.testing.assert_allclose(run.dtheta[k] * 100.0, expect, rtol=0, atol=1e-11)
+    g = earth.gravity_ned(math.radians(LAT), 100.0)
+    np.testing.assert_allclose(run.dv[k] * 100.0, np.tile(-g, (len(k), 1)), atol=1e-9)
+
+
+def _navigate(platform, duration, disturb):
+    """Free-inertial run of an IMU on `platform`, parked; disturb(w, f) adds the errors.
+    Returns (vehicle attitude error rotation vectors NED, rad, at the end; turned angle)."""
+    m = modulation.RotatingMotion(_parked(duration).motion(), platform, duration)
+    t = np.arange(0, int(duration * 100) + 1) / 100.0
+    run = truth.generate(m, t)
+    w, f = disturb(run.dtheta * 100.0, run.dv * 100.0)
+    s0 = run.trajectory.state(0)
+    nav = evaluation.navigate(t[1:], w, f, Mounting(), {"t": 0.0, "lat": s0["lat"],
+                              "lon": s0["lon"], "h": s0["h"], "v_ned": s0["v_ned"],
+                              "q_nb": s0["q_nb"]})
+    q_bs = m.q_bs(nav.t)
+    ref = evaluation.resample(run.trajectory, nav.t)
+    est = Trajectory(nav.t, nav.lat, nav.lon, nav.h, nav.v_ned,
+                     modulation.vehicle_attitude(nav.q_nb, q_bs))
+    true = Trajectory(ref.t, ref.lat, ref.lon, ref.h, ref.v_ned,
+                      modulation.vehicle_attitude(ref.q_nb, q_bs))
+    return est.attitude_error(true)[-1], float(m.angle(nav.t[-1]))
+
+
+def test_continuous_rotation_turns_a_scale_error_into_heading_drift():
+    k = 1e-3
+    err, turned = _navigate(modulation.Platform("continuous", RATE, ramp_s=1.0), 60.0,
+                            lambda w, f: (w * [1, 1, 1 + k], f))
+    assert abs(err[2]) == pytest.approx(k * abs(turned), rel=0.02)
+    # back and forth: after whole swings (4 x (10 s + 1 s ramp)) the platform is home and
+    # the scale error's heading has cancelled
+    back, home = _navigate(modulation.Platform("back-and-forth", RATE, swing_rad=2 * math.pi,
+                                               ramp_s=1.0), 44.0,
+                           lambda w, f: (w * [1, 1, 1 + k], f))
+    assert abs(home) < 1e-6 and abs(back[2]) < 0.05 * abs(err[2])
+
+
+def test_a_bias_along_the_axis_is_never_modulated_a_horizontal_one_is():
+    b = math.radians(10 / 3600)
+    axial = lambda w, f: (w + [0, 0, b], f)                                   # noqa: E731
+    for p in (modulation.Platform("fixed"), modulation.Platform("continuous", RATE)):
+        err, _ = _navigate(p, 120.0, axial)
+        assert abs(err[2]) == pytest.approx(b * 120.0, rel=0.02)          # heading b T
+    horizontal = lambda w, f: (w + [b, 0, 0], f)                              # noqa: E731
+    fixed, _ = _navigate(modulation.Platform("fixed"), 120.0, horizontal)
+    turning, _ = _navigate(modulation.Platform("continuous", RATE), 120.0, horizontal)
+    assert np.hypot(*turning[:2]) < 0.1 * np.hypot(*fixed[:2])
+
+
+def test_platform_refuses_an_unknown_mode():
+    from mimunav.errors import InputError
+    with pytest.raises(InputError, match="platform mode"):
+        modulation.Platform("wobble")
