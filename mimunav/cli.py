@@ -56,8 +56,16 @@ def _simulate(args):
         profile = Profile.load(args.profile)
         unit = MimuUnit.load(args.unit) if args.unit else None
         hide = [parse_term(text) for text in args.hide]
+        platform = None
+        if args.platform:
+            from .modulation import Platform
+            platform = Platform(args.platform, np.radians(args.platform_rate_deg_s),
+                                swing_rad=np.radians(args.platform_swing_deg),
+                                dwell_s=args.platform_dwell_s,
+                                inclination_rad=np.radians(args.inclination_deg))
         log, truth_file = simulate_flight(profile, args.output, args.seed, unit=unit,
-                                          fog_rate=args.fog_rate, force=args.force, hide=hide)
+                                          fog_rate=args.fog_rate, force=args.force, hide=hide,
+                                          platform=platform)
     except (OSError, InputError) as exc:
         print(f"mimunav simulate: {exc}", file=sys.stderr)
         return 2
@@ -536,6 +544,17 @@ def build_parser():
     p.add_argument("--seed", type=SEED, default=0, help="draws the units and the noise")
     p.add_argument("--unit", help="MIMU unit file (mimunav-unit/1 JSON) instead of a drawn one")
     p.add_argument("--fog-rate", type=RATE_HZ, default=1000.0, help="FOG-IMU sample rate, Hz")
+    p.add_argument("--platform", choices=("continuous", "back-and-forth"),
+                   help="the MIMU turns on a single-axis platform about the vehicle z axis "
+                   "(seed S4; angle logged as /mimu/platform, sensor_msgs/msg/JointState)")
+    p.add_argument("--platform-rate-deg-s", type=_number(1e-3, 1000.0), default=10.0,
+                   help="platform rate, deg/s (default 10)")
+    p.add_argument("--platform-swing-deg", type=_number(1.0, 36000.0), default=360.0,
+                   help="back-and-forth: turn this far each way, deg (default 360)")
+    p.add_argument("--platform-dwell-s", type=_number(0.0, 3600.0), default=5.0,
+                   help="back-and-forth: pause at each end, s (default 5)")
+    p.add_argument("--inclination-deg", type=_number(-90.0, 90.0), default=0.0,
+                   help="the IMU tilted on the platform about its x axis, deg (default 0)")
     p.add_argument("--hide", action="append", default=[], metavar="EFFECT:SENSOR:AXIS=VALUE",
                    help="hide physics the 63-coefficient model lacks in the MIMU (repeatable; "
                    "written to LOG.truth.json, never to the log): "

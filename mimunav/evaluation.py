@@ -54,6 +54,7 @@ class Flight:
     fog_meta: dict | None = None    # the log's `sensor/fog` metadata (model, accuracy, ...)
     source: str = ""                # the flight metadata's source: "simulation", "recording"
     reference_meta: dict | None = None  # the log's `reference` metadata (a recording's)
+    mimu_platform: dict | None = None   # a rotating MIMU: {"t" s, "angle" rad, "meta"}
 
     @classmethod
     def load(cls, path, reference_imu=True, max_gap_s=None):
@@ -87,6 +88,13 @@ class Flight:
             fog = (log.read("/fog/imu", fields=("angular_velocity", "linear_acceleration"))
                    if "/fog/imu" in log.channels else None)
             truth = log.read("/truth/state") if "/truth/state" in log.channels else None
+            joint = (log.read("/mimu/platform", fields=("position",))
+                     if "/mimu/platform" in log.channels else None)
+            platform_meta = meta.get("sensor/mimu", {}).get("platform")
+            if (joint is None) != (platform_meta is None):
+                raise LogError(f"{path}: a rotating MIMU needs both /mimu/platform and the "
+                               "`platform` object of the sensor/mimu metadata (README: "
+                               "rotating MIMUs); the log has only one of them")
         sec = lambda m: (m["log_time"].astype(np.int64) - epoch) / 1e9      # noqa: E731
         init = flight["initial_state"]
         initial = {"t": float(init["t"]), "lat": init["latitude"], "lon": init["longitude"],
@@ -107,7 +115,9 @@ class Flight:
                         np.ascontiguousarray(fog["linear_acceleration"], float))
                        if fog is not None else (None, None, None)), mount("fog"), truth_traj,
                      imu, meta.get("sensor/fog", {}), str(flight.get("source", "")),
-                     meta.get("reference", {}))
+                     meta.get("reference", {}),
+                     None if joint is None else {"t": sec(joint), "meta": platform_meta,
+                                                 "angle": np.unwrap(joint["position"])})
         check_plausible(loaded, MAX_GAP_S if max_gap_s is None else max_gap_s)
         return loaded
 
@@ -328,6 +338,24 @@ def compensated_mimu(flight, cal, per_sample=False):
     return w, f, (flags if per_sample else flag_counts(flags))
 
 
+def navigate_mimu(flight, w, f):
+    """The MIMU navigated from the flight's initial state: through its mounting, or, on a
+    rotating platform (`flight.mimu_platform`), in the sensor frame itself (the IMU on the
+    axis at the vehicle origin) with the vehicle attitude q_nb = q_ns q_bs(theta)^-1 from
+    the recorded platform angle (`modulation`)."""
+    p = flight.mimu_platform
+    if p is None:
+        return navigate(flight.mimu_t, w, f, flight.mimu_mounting, flight.initial)
+    from .modulation import q_bs_recorded, vehicle_attitude
+    angle = lambda t: np.interp(t, p["t"], p["angle"])                    # noqa: E731
+    q0 = quaternion.from_float_array(np.asarray(flight.initial["q_nb"], float)) \
+        * q_bs_recorded(p["meta"], angle(flight.initial["t"]))
+    nav = navigate(flight.mimu_t, w, f, Mounting(),
+                   dict(flight.initial, q_nb=quaternion.as_float_array(q0)))
+    return Trajectory(nav.t, nav.lat, nav.lon, nav.h, nav.v_ned,
+                      vehicle_attitude(nav.q_nb, q_bs_recorded(p["meta"], angle(nav.t))))
+
+
 def navigate_fog(flight):
     return navigate(flight.fog_t, flight.fog_w, flight.fog_f, flight.fog_mounting,
                     flight.initial)
@@ -387,7 +415,7 @@ def replay(flight, cal, fog=None, check=None):
     w, f, counts = compensated_mimu(flight, cal)
     if check is not None:
         check_compensation(flight, w, f, check)
-    mimu = navigate(flight.mimu_t, w, f, flight.mimu_mounting, flight.initial)
+    mimu = navigate_mimu(flight, w, f)
     return Replay(flight, mimu, fog if fog is not None else navigate_fog(flight), counts)
 
 

@@ -98,6 +98,10 @@ class RotatingMotion(truth.Motion):
         """Platform angle theta (rad) at times t (s)."""
         return self._angle(np.asarray(t, float) - self.t0)[..., 0]
 
+    def rate(self, t):
+        """Platform rate theta' (rad/s) at times t (s)."""
+        return self._rate(np.asarray(t, float) - self.t0)[..., 0]
+
     def q_bs(self, t):
         p = self.platform
         return p.q_bp0() * _rz(self.angle(t)) * p.q_ps()
@@ -197,3 +201,22 @@ def study(profile, units=8, seed=0, duration_s=600.0, progress=False):
             free_inertial(profile, CONFIGURATIONS[config], ERRORS[source], seed + k, duration_s)
             for k in range(units)]
     return out
+
+
+def platform_metadata(platform):
+    """The `platform` object of a log's `sensor/mimu` metadata (README: rotating MIMUs):
+    what a replay needs to turn the navigated sensor attitude into the vehicle's."""
+    return {"joint": "/mimu/platform (sensor_msgs/msg/JointState, joint 'platform': angle "
+                     "rad, rate rad/s, about the platform z axis)",
+            "base_attitude_wxyz": quaternion.as_float_array(platform.q_bp0()).tolist(),
+            "imu_on_platform_wxyz": quaternion.as_float_array(platform.q_ps()).tolist(),
+            "lever_arm_m": [0.0, 0.0, 0.0], "mode": platform.mode,
+            "rate_rad_s": platform.rate_rad_s, "swing_rad": platform.swing_rad,
+            "dwell_s": platform.dwell_s, "inclination_rad": platform.inclination_rad,
+            "axis_tilt_rad": list(platform.axis_tilt_rad)}
+
+
+def q_bs_recorded(meta, angle):
+    """q_bs for recorded platform angles (rad, (N,)) and the `platform` metadata."""
+    return (quaternion.from_float_array(meta["base_attitude_wxyz"]) * _rz(angle)
+            * quaternion.from_float_array(meta["imu_on_platform_wxyz"]))

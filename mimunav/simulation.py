@@ -25,6 +25,7 @@ from .files import write_atomic
 from .flightlog import LogWriter
 from .flightlog import schemas as S
 from .sensors import FogUnit, MimuUnit, Mounting
+from .modulation import platform_metadata
 from .sensors.hidden import HiddenPhysics, HiddenSet
 from .sensors.thermal import BAY_TAU_S, ISA_LAPSE, bay_temperature
 from .errors import InputError
@@ -55,13 +56,17 @@ class FlightMotion:
     fog: tuple
     env: np.ndarray
     k_truth: np.ndarray
+    platform: dict | None = None    # rotating MIMU: {"angle", "rate"} at the MIMU's stamps
+                                    # (rad, rad/s) and the `modulation.Platform`
 
 
 def flight_motion(profile, mimu_mounting, mimu_rate, fog_mounting, fog_rate, truth_rate,
-                  ground_temperature_c=GROUND_TEMPERATURE_C):
+                  ground_temperature_c=GROUND_TEMPERATURE_C, platform=None):
     """Truth and ideal increments of `profile` for IMUs at the given mountings and rates;
     the bay follows the outside air of a day at `ground_temperature_c` (degC at the
-    profile's start height)."""
+    profile's start height). `platform` (`modulation.Platform`): the MIMU turns on it at
+    the vehicle origin (its mounting's lever arm is not used), its increments exact
+    (`modulation.RotatingMotion`)."""
     rates = [mimu_rate, fog_rate, truth_rate]
     if any(r != int(r) for r in rates):
         raise InputError(f"sample rates must be whole numbers of Hz, got {rates}")
@@ -73,19 +78,36 @@ def flight_motion(profile, mimu_mounting, mimu_rate, fog_mounting, fog_rate, tru
     t_base = np.arange(0, int(math.floor(profile.duration * base + 1e-9)) + 1) / base
     run = truth.generate(motion, t_base)
 
-    def at_rate(mounting, rate):
-        dth, dv = mounting.sensor_increments(run)
+    def at_rate(mounting, rate, source=None):
+        dth, dv = mounting.sensor_increments(run if source is None else source)
         k = base // int(rate)
         n = len(dth) // k
         dth = dth[:n * k].reshape(n, k, 3).sum(axis=1)
         dv = dv[:n * k].reshape(n, k, 3).sum(axis=1)
         t = np.arange(n + 1) / rate
         return t, np.vstack([dth[:1], dth]), np.vstack([dv[:1], dv])
-    mimu = at_rate(mimu_mounting, mimu_rate)
+    if platform is None:
+        mimu = at_rate(mimu_mounting, mimu_rate)
+        turning = None
+    else:
+        from .modulation import RotatingMotion
+        rotating = RotatingMotion(motion, platform, profile.duration)
+        sensor_run = truth.generate(rotating, t_base)
+        mimu = at_rate(_SensorFrame(), mimu_rate, sensor_run)
+        turning = {"angle": rotating.angle(mimu[0]), "rate": rotating.rate(mimu[0]),
+                   "platform": platform}
     env = bay_temperature(mimu[0], np.interp(mimu[0], t_base, run.trajectory.h),
                           ground_temperature_c, motion.h0)
     return FlightMotion(profile, run, t_base, mimu, at_rate(fog_mounting, fog_rate), env,
-                        np.arange(0, len(t_base), base // int(truth_rate)))
+                        np.arange(0, len(t_base), base // int(truth_rate)), turning)
+
+
+class _SensorFrame:
+    """The increments of a run whose body is the sensor itself (`RotatingMotion`)."""
+
+    @staticmethod
+    def sensor_increments(run):
+        return run.dtheta, run.dv
 
 
 def flight_units(seed, unit=None, fog_rate=1000.0, fog_grade="table4"):
@@ -111,13 +133,15 @@ def record_flight(fm, unit, fog, rng_mimu, rng_fog, hidden=None, warm_up_s=0.0):
 def simulate_flight(profile, out, seed, unit=None, fog_rate=1000.0, truth_rate=100.0,
                     force=False, progress=True, hidden=None, hide=(),
                     ground_temperature_c=GROUND_TEMPERATURE_C, fog_grade="table4",
-                    warm_up_s=0.0):
+                    warm_up_s=0.0, platform=None):
     """Simulate `profile` into the log `out` (.mcap) and `out` with .truth.json beside it.
     `hidden`: extra MIMU physics the log must not reveal (`MimuUnit.simulate`); its
     description goes to the truth file when it has an `as_dict`. `hide`: hidden effects as
     terms (`sensors.hidden`, e.g. from `mimunav simulate --hide`), made sensor behaviour of
     this flight's unit. `ground_temperature_c`, `fog_grade`, `warm_up_s`: see
-    `flight_motion`, `flight_units`, `record_flight`. Returns (log path, truth path)."""
+    `flight_motion`, `flight_units`, `record_flight`; `platform` (`modulation.Platform`):
+    the MIMU turns on it, its angle logged as /mimu/platform. Returns (log path, truth
+    path)."""
     truth_path = (str(out)[:-5] if str(out).endswith(".mcap") else str(out)) + ".truth.json"
     for path in (out, truth_path):
         if os.path.exists(path) and not force:
@@ -128,7 +152,7 @@ def simulate_flight(profile, out, seed, unit=None, fog_rate=1000.0, truth_rate=1
         hidden = HiddenSet(effects + ([hidden] if hidden is not None else []))
     steps = tqdm(total=3, desc="simulate", disable=not progress, unit="step")
     fm = flight_motion(profile, unit.mounting, unit.rate_hz, fog.mounting, fog.rate_hz,
-                       truth_rate, ground_temperature_c)
+                       truth_rate, ground_temperature_c, platform)
     steps.update()
     raw, fog_out = record_flight(fm, unit, fog, rng_mimu, rng_fog, hidden, warm_up_s)
     steps.update()
@@ -152,12 +176,17 @@ def simulate_flight(profile, out, seed, unit=None, fog_rate=1000.0, truth_rate=1
                 "model": model, "sample_rate_hz": str(imu.rate_hz),
                 "mounting": imu.mounting.as_dict(),
                 "range": {"gyro_rad_s": imu.range_gyro, "accel_m_s2": imu.range_accel},
-                **({"accuracy": imu.accuracy()} if name == "fog" else {})})
+                **({"accuracy": imu.accuracy()} if name == "fog" else {}),
+                **({"platform": platform_metadata(platform)} if name == "mimu" and platform
+                   else {})})
         stamp = lambda t: epoch + np.round(t * 1e9).astype(np.int64)      # noqa: E731
         log.write("/mimu/raw", S.RAW_MIMU, "mimu", stamp(t_m), sample_index=raw["sample_index"],
                   gyro_volts=raw["gyro_volts"], accel_volts=raw["accel_volts"],
                   accel_temperature=raw["accel_temperature"],
                   gyro_frequency=raw["gyro_frequency"])
+        if fm.platform is not None:
+            log.write("/mimu/platform", S.JOINT_STATE, "platform", stamp(t_m),
+                      **S.platform_fields(fm.platform["angle"], fm.platform["rate"]))
         log.write("/fog/imu", S.IMU, "fog", stamp(t_f), **S.imu_fields(
             fog_out["angular_velocity"], fog_out["linear_acceleration"]))
         log.write("/truth/state", S.NAV_STATE, "vehicle", stamp(t_base[k_truth]),

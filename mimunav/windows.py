@@ -114,6 +114,9 @@ def run_all(flight, cal=None, lengths=WINDOW_LENGTHS_S, step=START_STEP_S, time_
     `alignment.COURSE_SPEED` when the reference has no attitude, 0 when it has one) and
     max_gap (s) as `starts`.
     A recording that holds no window at all is a ValueError that says why."""
+    if flight.mimu_platform is not None:
+        raise InputError(f"{flight.path}: the MIMU turns on a platform (/mimu/platform); "
+                         "this analysis does not follow the rotation yet - replay and table do")
     if flight.truth is None:
         raise InputError(f"{flight.path}: free-inertial windows need a reference trajectory "
                          "(/truth/state)")

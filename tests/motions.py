@@ -97,3 +97,15 @@ class GreatCircle(Motion):
                                self.lat0 + 2 * self.speed * tk / earth.B + 1e-6, xtol=1e-15)
                         for tk in t])
         return lat, np.full_like(t, self.lon0), np.full_like(t, self.h0)
+
+
+def pull_roll(roll_rate_deg_s, hold_s):
+    """A 200 m/s vehicle heading 45 deg at 30 N: a 2 g pull-up by 10 deg, a full roll at
+    roll_rate_deg_s, then hold_s of straight flight."""
+    from mimunav.profile import Profile
+    return Profile.from_dict({"name": "pull-roll", "start": {
+        "latitude_deg": 30.0, "longitude_deg": 104.0, "height_m": 1000.0, "speed_m_s": 200.0,
+        "heading_deg": 45.0}, "segment": [
+            {"kind": "pull", "load_factor": 2.0, "flight_path_change_deg": 10.0},
+            {"kind": "roll", "rate_deg_s": roll_rate_deg_s, "angle_deg": 360.0},
+            {"kind": "hold", "duration_s": hold_s}]})

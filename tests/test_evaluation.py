@@ -148,12 +148,8 @@ def test_mounting_and_lever_arm_are_applied_under_rotation(tmp_path):
     arm would leave the 0.33 m offset and metres per second of velocity in the roll)."""
     from mimunav import attitude
     from mimunav.sensors import Mounting
-    prof = Profile.from_dict({"name": "pull-roll", "start": {
-        "latitude_deg": 30.0, "longitude_deg": 104.0, "height_m": 1000.0, "speed_m_s": 200.0,
-        "heading_deg": 45.0}, "segment": [
-            {"kind": "pull", "load_factor": 2.0, "flight_path_change_deg": 10.0},
-            {"kind": "roll", "rate_deg_s": 200.0, "angle_deg": 360.0},
-            {"kind": "hold", "duration_s": 3.0}]})
+    from motions import pull_roll
+    prof = pull_roll(200.0, 3.0)
     unit = perfect_unit()
     q_vs = attitude.from_euler(np.radians(30), np.radians(10), np.radians(-20))
     unit.mounting = Mounting(np.asarray(q_vs.components), [0.30, -0.10, 0.05])

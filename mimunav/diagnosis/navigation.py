@@ -2,7 +2,7 @@
 a simulation's truth, a GNSS/INS solution, RTK), not a second IMU.
 
 The compensated MIMU is navigated from the log's initial state with the project's strapdown
-navigator (`evaluation.navigate`); its velocity error against the reference, sampled every
+navigator (`evaluation.navigate_mimu`); its velocity error against the reference, sampled every
 EPOCH_S, is the observation. Every candidate term of the library (`library.candidates`)
 has an error signature on this trajectory: the velocity error its regressor, at unit
 coefficient, produces through the linearised strapdown error equations (psi-angle form,
@@ -31,7 +31,7 @@ from scipy import stats
 
 from .. import effects
 from ..effects import Conditions
-from ..evaluation import compensated_mimu, navigate, resample
+from ..evaluation import compensated_mimu, navigate_mimu, resample
 from . import inference, library, sensor
 from .inference import Tier
 from .reference import DERIVATIVE_WINDOW_S
@@ -89,7 +89,7 @@ def observed_error(flight, cal):
     if not (np.isfinite(w).all() and np.isfinite(f).all()):
         raise InputError(f"{flight.path}: the compensated MIMU has non-finite samples: the "
                          "navigation level needs an unbroken free-inertial run")
-    nav = navigate(flight.mimu_t, w, f, flight.mimu_mounting, flight.initial)
+    nav = navigate_mimu(flight, w, f)
     return nav, w, f
 
 

@@ -154,6 +154,9 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
     own errors are structured and would otherwise pass for wander (`track`); `accuracy`:
     the reference's `reference.Accuracy` (default: the
     log's metadata, else Table 4). Nothing here is random."""
+    if flight.mimu_platform is not None:
+        raise InputError(f"{flight.path}: the MIMU turns on a platform (/mimu/platform); "
+                         "this analysis does not follow the rotation yet - replay and table do")
     acc = accuracy_of(flight.fog_meta, accuracy)
     q_sf = np.conjugate(flight.mimu_mounting.q_vs) * flight.fog_mounting.q_vs
     t, res, usable, cond = residual(flight, cal)

@@ -125,6 +125,9 @@ def diagnose(flight, cal, alpha=0.05, reference=None, accuracy=None):
     reference trajectory (`reference`: a `simulated_reference(flight)` already made);
     untrusted samples and the terms of unpredicted input axes (see the module) are left out.
     The returned diagnosis carries `reference_check`."""
+    if flight.mimu_platform is not None:
+        raise InputError(f"{flight.path}: the MIMU turns on a platform (/mimu/platform); "
+                         "this analysis does not follow the rotation yet - replay and table do")
     if flight.mimu_raw is not None:
         raise InputError(f"{flight.path}: the track level takes a recorded /mimu/imu; a raw "
                          "MIMU with a reference trajectory goes to the navigation level")

@@ -24,6 +24,8 @@ NAV_STATE = "mimunav_msgs/msg/NavState"
 IMU = "sensor_msgs/msg/Imu"
 NAV_SAT_FIX = "sensor_msgs/msg/NavSatFix"
 LAB_STATE = "mimunav_msgs/msg/LabState"
+JOINT_STATE = "sensor_msgs/msg/JointState"
+PLATFORM_JOINT = "platform"      # the one joint of /mimu/platform (log contract, README)
 
 SCHEMAS = {
     RAW_MIMU: _text("std_msgs/Header header\nuint64 sample_index\nfloat64[3] gyro_volts\n"
@@ -49,6 +51,9 @@ SCHEMAS = {
                      "float64[4] fixture_attitude_wxyz\nfloat64[3] position_m\n"
                      "float64 table_angle\nfloat64 table_rate\nfloat64[6] sensor_radius_m\n"
                      "float64 chamber_temperature", _HEADER, _TIME),
+    # A rotating MIMU's platform (seed S4): one joint, its angle (rad) and rate (rad/s)
+    JOINT_STATE: _text("std_msgs/Header header\nstring[] name\nfloat64[] position\n"
+                       "float64[] velocity\nfloat64[] effort", _HEADER, _TIME),
 }
 
 # Fields after the header: (name, numpy scalar type, count). Imu vectors are 3 (x, y, z) and
@@ -65,6 +70,12 @@ BODIES = {
                 ("fixture_attitude_wxyz", "<f8", 4), ("position_m", "<f8", 3),
                 ("table_angle", "<f8", 1), ("table_rate", "<f8", 1),
                 ("sensor_radius_m", "<f8", 6), ("chamber_temperature", "<f8", 1)],
+    # one joint: sequence lengths as fields, the joint's name a fixed string (kind "string",
+    # its count is the value)
+    JOINT_STATE: [("name_count", "<u4", 1), ("name", "string", PLATFORM_JOINT),
+                  ("position_count", "<u4", 1), ("position", "<f8", 1),
+                  ("velocity_count", "<u4", 1), ("velocity", "<f8", 1),
+                  ("effort_count", "<u4", 1)],
     IMU: [("orientation", "<f8", 4), ("orientation_covariance", "<f8", 9),
           ("angular_velocity", "<f8", 3), ("angular_velocity_covariance", "<f8", 9),
           ("linear_acceleration", "<f8", 3), ("linear_acceleration_covariance", "<f8", 9)],
@@ -82,6 +93,14 @@ def cdr_dtype(schema_name, frame_id):
     offsets = [0, 4, 8, 12, 16]
     pos = 12 + len(frame)                       # relative to the end of the encapsulation
     for name, kind, count in BODIES[schema_name]:
+        if kind == "string":                  # uint32 length (with the NUL), then the bytes
+            text = count.encode() + b"\x00"
+            pos = -(-pos // 4) * 4
+            names += [f"{name}_len", name]
+            formats += ["<u4", f"S{len(text)}"]
+            offsets += [pos + 4, pos + 8]
+            pos += 4 + len(text)
+            continue
         size = np.dtype(kind).itemsize
         pos = -(-pos // min(size, 8)) * min(size, 8)
         names.append(name)
@@ -102,9 +121,20 @@ def encode(schema_name, frame_id, stamp_ns, **fields):
     out["sec"], out["nanosec"] = np.divmod(stamp_ns, 1_000_000_000)
     out["frame_len"] = len(frame_id) + 1
     out["frame_id"] = frame_id.encode()
+    for name, kind, text in BODIES[schema_name]:
+        if kind == "string":
+            out[f"{name}_len"], out[name] = len(text) + 1, text.encode()
     for name, value in fields.items():
         out[name] = value
     return out
+
+
+def platform_fields(angle, rate):
+    """/mimu/platform fields: the platform angle (rad) and rate (rad/s), (N,) each."""
+    n = len(angle)
+    return {"name_count": np.ones(n, np.uint32), "position_count": np.ones(n, np.uint32),
+            "position": angle, "velocity_count": np.ones(n, np.uint32), "velocity": rate,
+            "effort_count": np.zeros(n, np.uint32)}
 
 
 def imu_fields(angular_velocity, linear_acceleration):

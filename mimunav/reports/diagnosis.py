@@ -34,7 +34,7 @@ def navigation_gain(flight, cal, cal_found):
         if c is None:
             continue
         w, f, _ = evaluation.compensated_mimu(flight, c)
-        nav = evaluation.navigate(flight.mimu_t, w, f, flight.mimu_mounting, flight.initial)
+        nav = evaluation.navigate_mimu(flight, w, f)
         err = evaluation.resample(nav, t).position_error(ref)
         norm = np.linalg.norm(err, axis=1)
         out[name] = {"end_m": float(norm[-1]), "max_m": float(norm.max()),
