@@ -670,6 +670,9 @@ def calibrate(runs, method, unit="", propagate=True, noise=None):
         parts = (accel, gyro)
         cal = Calibration(model="linear", unit=unit,
                           procedure="hand-held orientations, ellipsoid fit (seed S4)")
+        cal.extra["frame"] = ("the accelerometers' own (z along sensor z, x in the sensor x-z "
+                              "plane); the gyro frame may differ by the triad's misalignment "
+                              "(up to about 1-2 deg), which magnitudes cannot show")
     elif method == "twelve-position":
         by = _runs_by_procedure(runs, ("twelve-position",), method)
         accel = fit_accel_triad(by["twelve-position"], None, order=1)
@@ -722,13 +725,21 @@ def fit_gyro_bias(run):
         fitted.values[f"W0[{i}]"] = float(-NOMINAL_SCALE["gyro"] * v[i])
         for j in range(3):
             fitted.values[f"W1[{i}][{j}]"] = NOMINAL_SCALE["gyro"] * (i == j)
-        # the datasheet scale is a nominal value: the unit's own differs by up to the
-        # class's tolerance (1 sigma, sensors.mimu), an error of tol x the bias itself
         fitted.errors[f"W0[{i}]"] = {
             f"twelve-gyro{i}": NOMINAL_SCALE["gyro"] * math.sqrt(var[i]),
-            f"turn-on-gyro{i}": run.turn_on("gyro"),
-            f"nominal-scale-gyro{i}": NOMINAL_SCALE_TOLERANCE * NOMINAL_SCALE["gyro"] * abs(v[i])}
+            f"turn-on-gyro{i}": run.turn_on("gyro")}
+    _nominal_gyro_scale_errors(fitted, v)
     return fitted
+
+
+def _nominal_gyro_scale_errors(fitted, v):
+    """The datasheet gyro scale N is nominal: the unit's own is N (1 + e), e ~ the class's
+    tolerance (1 sigma, sensors.mimu). Per unit e the fitted W1[i][i] is off by -N and a bias
+    W0 = ... - N v (v: the mean voltage) by +N v[i]: one source per axis, in both."""
+    k = NOMINAL_SCALE_TOLERANCE * NOMINAL_SCALE["gyro"]
+    for i in range(3):
+        _merge(fitted.errors, f"W0[{i}]", {f"nominal-scale-gyro{i}": k * float(v[i])})
+        _merge(fitted.errors, f"W1[{i}][{i}]", {f"nominal-scale-gyro{i}": -k})
 
 
 def fit_ellipsoid(run, windows=None):
@@ -739,7 +750,11 @@ def fit_ellipsoid(run, windows=None):
     nonlinear least squares (scipy), each window's magnitude weighted by its mean's white
     noise plus the unit's bias instability; the covariance is scaled by the Birge ratio
     chi^2/dof when above 1 and carries the turn-on repeatability in A0.
-    `windows`: indices of the run's windows to use (default all)."""
+    `windows`: indices of the run's windows to use (default all).
+    The calibrated frame is the accelerometers' own (z along sensor z, x in the sensor x-z
+    plane); it differs from the gyros' frame by the triad's misalignment (0.1-2 % couplings:
+    up to about 1-2 deg), which no magnitude can show - the A1 errors hold within this
+    gauge. Use a turntable method where the gyro and accelerometer frames must agree."""
     ws = run.windows if windows is None else [run.windows[k] for k in windows]
     if len(ws) < 9:
         raise FitError(f"{run.path}: {len(ws)} static orientations; the ellipsoid fit has 9 "
@@ -797,7 +812,8 @@ def fit_gyro_bias_unknown_attitude(run, accel, windows=None):
     up = f / np.linalg.norm(f, axis=1)[:, None]
     omega_up = run.site["earth_rate_rad_s"] * math.sin(run.site["latitude"])
     # w = W0 + N v must read the Earth rate at rest: W0 = Omega_up up - N v, per window
-    w0 = omega_up * up - NOMINAL_SCALE["gyro"] * slice_means(run.raw["gyro_volts"], k0, k1)
+    v = slice_means(run.raw["gyro_volts"], k0, k1)
+    w0 = omega_up * up - NOMINAL_SCALE["gyro"] * v
     mean = w0.mean(axis=0)
     sem = w0.std(axis=0, ddof=1) / math.sqrt(len(ws))
     fitted = Fitted({}, stage="hand-held gyro")
@@ -806,8 +822,8 @@ def fit_gyro_bias_unknown_attitude(run, accel, windows=None):
         for j in range(3):
             fitted.values[f"W1[{i}][{j}]"] = NOMINAL_SCALE["gyro"] * (i == j)
         fitted.errors[f"W0[{i}]"] = {
-            f"hand-held-gyro{i}": float(sem[i]), f"turn-on-gyro{i}": run.turn_on("gyro"),
-            f"nominal-scale-gyro{i}": NOMINAL_SCALE_TOLERANCE * abs(float(mean[i]))}
+            f"hand-held-gyro{i}": float(sem[i]), f"turn-on-gyro{i}": run.turn_on("gyro")}
+    _nominal_gyro_scale_errors(fitted, v.mean(axis=0))
     return fitted
 
 

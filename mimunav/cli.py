@@ -57,6 +57,16 @@ def _simulate(args):
         unit = MimuUnit.load(args.unit) if args.unit else None
         hide = [parse_term(text) for text in args.hide]
         platform = None
+        given = [o for o, v, d in (("--platform-rate-deg-s", args.platform_rate_deg_s, 10.0),
+                                   ("--platform-swing-deg", args.platform_swing_deg, 360.0),
+                                   ("--platform-dwell-s", args.platform_dwell_s, 0.0),
+                                   ("--inclination-deg", args.inclination_deg, 0.0)) if v != d]
+        if given and not args.platform:
+            raise InputError(f"{', '.join(given)} describe a platform: give --platform too")
+        if args.platform == "continuous" and any(o in given for o in ("--platform-swing-deg",
+                                                                       "--platform-dwell-s")):
+            raise InputError("--platform-swing-deg and --platform-dwell-s apply to "
+                             "back-and-forth rotation only")
         if args.platform:
             from .modulation import Platform
             platform = Platform(args.platform, np.radians(args.platform_rate_deg_s),
@@ -141,7 +151,7 @@ def _drift(args):
     from .reports.drift import write
     out = write(args.log, args.output, channel=args.channel, cal_path=args.cal,
                 static=args.static, dynamic=args.dynamic, window_s=args.window_s,
-                force=args.force)
+                max_order=args.max_order, force=args.force)
     print(f"wrote {out}/drift.md, drift.json, drift.png")
     return 0
 
@@ -196,8 +206,9 @@ def _calibrate(args):
     for stage, per_axis in rms.items():
         print(f"{stage:24s} residual rms " + ", ".join(f"{k} {v:.3g}" for k, v in
                                                         per_axis.items()))
-    print(f"wrote {args.output} ({cal.model}, {len(standard_errors(cal))} fitted terms "
-          "with standard errors and covariance)")
+    fitted = sum(1 for se in standard_errors(cal).values() if se > 0)
+    print(f"wrote {args.output} ({cal.model}, {fitted} terms with standard errors and "
+          "covariance; the others fixed at nominal values)")
     return 0
 
 
@@ -551,8 +562,8 @@ def build_parser():
                    help="platform rate, deg/s (default 10)")
     p.add_argument("--platform-swing-deg", type=_number(1.0, 36000.0), default=360.0,
                    help="back-and-forth: turn this far each way, deg (default 360)")
-    p.add_argument("--platform-dwell-s", type=_number(0.0, 3600.0), default=5.0,
-                   help="back-and-forth: pause at each end, s (default 5)")
+    p.add_argument("--platform-dwell-s", type=_number(0.0, 3600.0), default=0.0,
+                   help="back-and-forth: pause at each end, s (default 0)")
     p.add_argument("--inclination-deg", type=_number(-90.0, 90.0), default=0.0,
                    help="the IMU tilted on the platform about its x axis, deg (default 0)")
     p.add_argument("--hide", action="append", default=[], metavar="EFFECT:SENSOR:AXIS=VALUE",
@@ -601,7 +612,7 @@ def build_parser():
     p = sub.add_parser("lab", help="run a calibration-lab procedure on a unit into a log "
                        "(/mimu/raw + /lab/state; see mimunav.lab)")
     p.add_argument("procedure", help="thermal-chamber, rate-table, centrifuge, multi-position, "
-                   "single-axis-rate, twelve-position, cold-start or rotation")
+                   "single-axis-rate, twelve-position, cold-start, rotation or hand-held")
     p.add_argument("--unit", required=True, help="unit file (mimunav-unit/1 JSON)")
     p.add_argument("-o", "--output", required=True, help="run log to write (.mcap)")
     p.add_argument("--seed", type=SEED, default=0, help="draws setting errors and noise")
@@ -612,7 +623,8 @@ def build_parser():
     p.add_argument("runs", nargs="+", help="lab run logs (.mcap)")
     p.add_argument("--method", required=True,
                    help="entire: chamber + rate-table + centrifuge; traditional: "
-                   "multi-position + single-axis-rate; twelve-position; cold-start")
+                   "multi-position + single-axis-rate; twelve-position; cold-start; ellipsoid: "
+                   "a hand-held run")
     p.add_argument("-o", "--output", required=True, help="calibration file to write (.json)")
     p.add_argument("--unit-name", default="", help="unit name written to the file")
     p.add_argument("--noise", help="the unit's measured random errors (mimunav-noise/1 from "
@@ -645,6 +657,9 @@ def build_parser():
                    "the filter does there")
     p.add_argument("--window-s", type=_number(1e-3, 600.0), default=1.0,
                    help="averaging before the model, s (default 1)")
+    p.add_argument("--max-order", type=_number(1, 10, int), default=2,
+                   help="highest AR order tried (BIC chooses; default 2; the rest must hold "
+                   "50 x order averaged samples)")
     p.set_defaults(func=_drift)
     p = sub.add_parser("replay", help="compensate the MIMU, navigate MIMU and FOG-IMU with "
                        "the same navigator, compare with the truth and each other")

@@ -91,6 +91,10 @@ class Flight:
             joint = (log.read("/mimu/platform", fields=("position",))
                      if "/mimu/platform" in log.channels else None)
             platform_meta = meta.get("sensor/mimu", {}).get("platform")
+            if platform_meta is not None and np.any(platform_meta.get("lever_arm_m", [0, 0, 0])):
+                raise LogError(f"{path}: the rotating MIMU sits {platform_meta['lever_arm_m']} m "
+                               "off the vehicle origin; replay follows an IMU on the axis at the "
+                               "origin only (lever_arm_m must be 0)")
             if (joint is None) != (platform_meta is None):
                 raise LogError(f"{path}: a rotating MIMU needs both /mimu/platform and the "
                                "`platform` object of the sensor/mimu metadata (README: "
@@ -386,7 +390,8 @@ def check_compensation(flight, w, f, label="the calibration"):
         return None
     k = np.flatnonzero(quiet)[i]
     df = float(np.median(np.abs(size(mimu_f[j]) - size(fog_f[k]))))
-    dw = float(np.median(np.abs(size(mimu_w[j]) - size(fog_w[k]))))
+    dw = float(np.median(np.abs(size(mimu_w[j]) - size(fog_w[k])))) \
+        if flight.mimu_platform is None else 0.0        # a turning MIMU's |w| is not the FOG's
     if df > COMPENSATION_WARN["accel_m_s2"] or dw > COMPENSATION_WARN["gyro_rad_s"]:
         warn(f"{flight.path}: with {label}, in {len(common)} quiet seconds the MIMU's |f| "
              f"differs from the reference IMU's by {df:.3g} m/s^2 and its |w| by {dw:.3g} "

@@ -147,6 +147,12 @@ def simulate_flight(profile, out, seed, unit=None, fog_rate=1000.0, truth_rate=1
         if os.path.exists(path) and not force:
             raise FileExistsError(f"{path} exists; use --force to replace it")
     unit, fog, rng_mimu, rng_fog = flight_units(seed, unit, fog_rate, fog_grade)
+    if platform is not None and platform.mode != "fixed" and \
+            platform.rate_rad_s >= 0.5 * unit.range_gyro:
+        raise InputError(f"platform rate {math.degrees(platform.rate_rad_s):g} deg/s uses half "
+                         f"or more of the MIMU's {math.degrees(unit.range_gyro):g} deg/s range "
+                         "before the vehicle turns at all; modulation platforms turn at tens "
+                         "of deg/s")
     if hide:
         effects = [HiddenPhysics(term, unit.thermal) for term in hide]
         hidden = HiddenSet(effects + ([hidden] if hidden is not None else []))
@@ -174,7 +180,8 @@ def simulate_flight(profile, out, seed, unit=None, fog_rate=1000.0, truth_rate=1
                                  ("fog", fog, "FOG-IMU, Table 4 grade (simulated)")):
             log.metadata(f"sensor/{name}", {
                 "model": model, "sample_rate_hz": str(imu.rate_hz),
-                "mounting": imu.mounting.as_dict(),
+                "mounting": (Mounting().as_dict() if name == "mimu" and platform
+                             else imu.mounting.as_dict()),
                 "range": {"gyro_rad_s": imu.range_gyro, "accel_m_s2": imu.range_accel},
                 **({"accuracy": imu.accuracy()} if name == "fog" else {}),
                 **({"platform": platform_metadata(platform)} if name == "mimu" and platform

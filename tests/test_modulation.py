@@ -127,3 +127,12 @@ def test_a_rotating_mimu_is_logged_and_replayed_through_its_platform(tmp_path):
     cal = tmp_path / "cal.json"
     unit.coefficients.save(cal)
     assert main(["windows", str(path), "--cal", str(cal), "-o", str(tmp_path / "w")]) == 2
+    assert main(["diagnose", str(path), "--model", str(cal), "--level", "navigation"]) == 2
+    assert main(["noise", str(path), "--channel", "/mimu/raw", "--cal", str(cal),
+                 "-o", str(tmp_path / "n")]) == 2             # turning is not rest
+
+
+def test_the_inclined_mount_puts_every_axis_at_the_magic_angle():
+    q = modulation.CONFIGURATIONS["continuous, inclined"].q_ps()
+    angles = [math.degrees(math.acos(attitude.rotate(q, e)[2])) for e in np.eye(3)]
+    np.testing.assert_allclose(angles, math.degrees(math.acos(1 / math.sqrt(3))), atol=1e-9)

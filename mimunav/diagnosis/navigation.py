@@ -95,6 +95,9 @@ def observed_error(flight, cal):
 
 def error_model(flight, nav, w, f):
     """The ErrorModel on BIN_S bins after the initial state, and the bins' Conditions."""
+    if flight.mimu_platform is not None:
+        raise InputError(f"{flight.path}: the MIMU turns on a platform (/mimu/platform); "
+                         "this analysis does not follow the rotation yet - replay and table do")
     t = flight.mimu_t
     after = t > flight.initial["t"] + 1e-12
     rate = 1.0 / np.median(np.diff(t))

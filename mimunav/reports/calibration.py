@@ -199,6 +199,7 @@ def write(out_dir, n_units=20, first_seed=1000, workers=2, progress=True, force=
     png = os.path.join(out_dir, "calibration-held-out.png")
     if os.path.exists(md) and not force:
         raise FileExistsError(f"{md} exists; use --force to replace it")
+    os.makedirs(out_dir, exist_ok=True)
     seeds = list(range(first_seed, first_seed + n_units))
     with ProcessPoolExecutor(workers, initializer=one_blas_thread) as pool:
         units = list(tqdm(pool.map(_one_unit, seeds * 2, [False] * n_units + [True] * n_units),

@@ -81,15 +81,20 @@ def markdown(doc):
             f"| {axis} | {m['order']} | {', '.join(f'{a:.3g}' for a in m['ar'])} | "
             f"{m['q'] * DEG_H**2:.3g} | {m['r'] * DEG_H**2:.3g} | "
             f"{'yes' if m['converged'] else 'no'} | {st['raw_sd'] * DEG_H:.3g} | "
-            f"{st['filtered_sd'] * DEG_H:.3g} | {st['variance_ratio']:.3g} | "
+            f"{st['filtered_sd'] * DEG_H:.3g} | "
+            + (f"{st['variance_ratio']:.3g}" if m["identified"] else
+               f"not identified (AR {sum(m['ar']):.2g}: drift and noise both white)") + " | "
             + (f"{dyn['removed_sd'] * DEG_H:.3g} / {dyn['noise_sd'] * DEG_H:.3g} = "
                f"{dyn['ratio']:.3g}" if dyn else "no dynamic span given") + " |")
     lines += ["", "![drift](drift.png)", "", "What this filter can and cannot do:",
               "- It is a low-pass filter fitted to the gyro's own output at rest. At rest it "
               "removes the part of the white noise the model separates from the drift: the "
-              "variance ratio above (the seed's \"variance reduction\"). A ratio near 0 means "
-              "the model found almost no correlated drift at this averaging: the filtered "
-              "output is then nearly constant, not a better gyro.",
+              "variance ratio above (the seed's \"variance reduction\") is the filtered "
+              "estimate's variance over the raw output's - a smaller ratio is a smoother "
+              "estimate of the drift, not a smaller drift. Where the fitted AR coefficients sum "
+              "to less than 0.3 in size the drift is as white as the noise, their split is not "
+              "identified by the data, and no ratio is given. The ratio depends on the "
+              "averaging (--window-s) and the record: compare units only at equal settings.",
               "- It cannot remove a constant bias: the mean is removed before the model and the "
               "filter passes a constant unchanged. Only a calibration (or an alignment at rest) "
               "removes it.",
@@ -97,7 +102,9 @@ def markdown(doc):
               "g-sensitivity, nonlinearity): they are not in the model.",
               "- Under motion it treats the true rate changes as drift and smears them (the "
               "filtered output lags): a removed part far above the noise at rest "
-              "(\"removed / noise\" >> 1) is motion taken out of the output, i.e. new error.", ""]
+              "(\"removed / noise\" >> 1) is motion taken out of the output, i.e. new error. "
+              "The dynamic span's own mean is removed first (as at rest), so a steady turn "
+              "rate itself is not counted - only its changes.", ""]
     return "\n".join(lines)
 
 
@@ -123,7 +130,7 @@ def plot(result, png, window_s):
 
 
 def write(log, out_dir, channel="/mimu/imu", cal_path=None, static=None, dynamic=None,
-          window_s=1.0, max_order=4, force=False):
+          window_s=1.0, max_order=2, force=False):
     """Run `mimunav drift`; returns the folder."""
     if cal_path and channel != "/mimu/raw":
         raise InputError(f"--cal reads /mimu/raw; {channel} is already in SI units")

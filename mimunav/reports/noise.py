@@ -54,6 +54,8 @@ def outputs(log_path, channel, cal=None):
             raise InputError(f"{log_path}: no channel {channel}; it has "
                              f"{', '.join(sorted(log.channels))}")
         truth = log.read("/truth/state") if "/truth/state" in log.channels else None
+        joint = (log.read("/mimu/platform", fields=("velocity",))
+                 if channel.startswith("/mimu/") and "/mimu/platform" in log.channels else None)
         if channel == "/mimu/raw":
             if cal is None:
                 raise InputError("/mimu/raw is in volts: give --cal CAL.json to read it in SI "
@@ -75,6 +77,11 @@ def outputs(log_path, channel, cal=None):
     if truth is not None and len(truth):
         tt = (truth["log_time"].astype(np.int64) - t0) / 1e9
         rests = alignment.rest_intervals(tt, truth["velocity_ned"], float(t[0]), float(t[-1]))
+    if joint is not None:        # a MIMU turning on its platform is not at rest
+        tj = (joint["log_time"].astype(np.int64) - t0) / 1e9
+        turning = np.interp(t, tj, np.abs(joint["velocity"])) > 1e-9
+        w = w.copy()
+        w[turning] = np.nan       # refused by every span check (`_check_span`)
     return t, w, f, rests
 
 
@@ -131,6 +138,9 @@ def choose_span(t, w, f, rests, span=None):
 
 def _check_span(t, w, f, t0, t1, given=False):
     k = (t >= t0) & (t <= t1)
+    if np.isnan(w[k]).any():
+        raise InputError(f"span {t0:g}:{t1:g} s: the MIMU turns on its platform "
+                         "(/mimu/platform) there - not at rest")
     if t1 - t0 < MIN_SPAN_S or k.sum() < 100:
         raise InputError(f"span {t0:g}:{t1:g} s holds {k.sum()} samples over "
                          f"{t1 - t0:.0f} s; need >= {MIN_SPAN_S:g} s")
