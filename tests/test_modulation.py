@@ -94,7 +94,7 @@ def test_platform_refuses_an_unknown_mode():
         modulation.Platform("wobble")
 
 
-def test_a_rotating_mimu_is_logged_and_replayed_through_its_platform(tmp_path):
+def test_a_rotating_mimu_is_logged_and_replayed_through_its_platform(tmp_path, capsys):
     """`simulate --platform`: a perfect MIMU (exactly the model, no noise) turning at 10
     deg/s on a pull-up and roll: /mimu/platform is a sensor_msgs/msg/JointState that the
     independent ROS 2 decoder reads, and the replay - navigating the sensor frame, the
@@ -126,6 +126,9 @@ def test_a_rotating_mimu_is_logged_and_replayed_through_its_platform(tmp_path):
     assert np.abs(err["attitude"]).max() < 2e-5
     cal = tmp_path / "cal.json"
     unit.coefficients.save(cal)
+    capsys.readouterr()
+    assert main(["info", str(path)]) == 0
+    assert "on a rotation platform: continuous, 10 deg/s" in capsys.readouterr().out
     assert main(["windows", str(path), "--cal", str(cal), "-o", str(tmp_path / "w")]) == 2
     assert main(["diagnose", str(path), "--model", str(cal), "--level", "navigation"]) == 2
     assert main(["noise", str(path), "--channel", "/mimu/raw", "--cal", str(cal),

@@ -97,6 +97,12 @@ def describe(log, unreadable=None):
         lines.append(f"{name:<11} {m.get('model', '?')}, {m.get('sample_rate_hz', '?')} Hz, "
                      f"mounting {_mounting_text(m.get('mounting'))}, range "
                      f"{m.get('range') or 'not stated'}")
+        p = m.get("platform") if isinstance(m.get("platform"), dict) else None
+        if p:
+            lines.append(f"{'':<11} on a rotation platform: {p.get('mode', '?')}, "
+                         f"{np.degrees(float(p.get('rate_rad_s', np.nan))):.3g} deg/s, IMU "
+                         f"inclined {np.degrees(float(p.get('inclination_rad', 0.0))):.3g} deg; "
+                         "angle on /mimu/platform")
     lines.append("channels")
     for topic in sorted(log.channels):
         try:
