@@ -250,7 +250,9 @@ def _replay(args):
                                    else v[q][-1]).tolist() for q in v}
                            for k, v in err.items() if k != "t"},
                    "frames": "position/velocity ENU (m, m/s); attitude NED rotation vector "
-                             "(rad)"}
+                             "(rad)",
+                   "mimu_platform": (flight.mimu_platform["meta"] if flight.mimu_platform
+                                     else None)}
         (tmp / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
     end = summary["end"]
     for key, v in end.items():

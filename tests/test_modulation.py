@@ -126,6 +126,9 @@ def test_a_rotating_mimu_is_logged_and_replayed_through_its_platform(tmp_path, c
     assert np.abs(err["attitude"]).max() < 2e-5
     cal = tmp_path / "cal.json"
     unit.coefficients.save(cal)
+    assert main(["replay", str(path), "--cal", str(cal), "-o", str(tmp_path / "r")]) == 0
+    summary = json.loads((tmp_path / "r" / "summary.json").read_text())
+    assert summary["mimu_platform"]["mode"] == "continuous"
     capsys.readouterr()
     assert main(["info", str(path)]) == 0
     assert "on a rotation platform: continuous, 10 deg/s" in capsys.readouterr().out
