@@ -30,7 +30,7 @@ def decimate(x, rate_hz, window_s):
     return x[:m * k].reshape(m, k, -1).mean(axis=1)
 
 
-IDENTIFIABLE_AR = 0.3       # |sum of AR coefficients| below this: drift ~ white, not separable
+IDENTIFIABLE_AR = 0.3       # sum of AR coefficients below this: not a drift (white or oscillating)
 
 
 def _model(y, order):
@@ -68,12 +68,13 @@ def describe(model):
     fit = model.fit
     values = dict(zip(fit.model.param_names, np.asarray(fit.params, float)))
     ar = [values[n] for n in fit.model.param_names if n.startswith("ar.L")]
-    # a drift with |a_1| small is white noise like the measurement noise: their split, and
-    # any "variance reduction", is then not identified by the data
+    # a drift is positively correlated: AR coefficients summing to under IDENTIFIABLE_AR make
+    # it white like the noise (their split arbitrary), a negative sum an oscillation
+    # (vibration), and any "variance reduction" is then not a drift model's
     return {"order": len(ar), "ar": ar, "q": values["sigma2"] * model.scale**2,
             "r": values["var.measurement_error"] * model.scale**2,
             "converged": bool(fit.mle_retvals.get("converged", False)),
-            "identified": bool(abs(sum(ar)) >= IDENTIFIABLE_AR)}
+            "identified": bool(sum(ar) >= IDENTIFIABLE_AR)}
 
 
 def apply(model, y):

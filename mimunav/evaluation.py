@@ -20,7 +20,7 @@ import numpy as np
 import quaternion
 
 from . import attitude, earth, strapdown
-from .compensation import (CLIP_RUN, Calibration, CalibrationError, clipped, compensate,
+from .compensation import (CLIP_RUN, SATURATED, Calibration, CalibrationError, compensate,
                            flag_counts, poly2)
 from .effects import Conditions
 from .effects import apply as apply_effects
@@ -329,16 +329,18 @@ def compensated_mimu(flight, cal, per_sample=False):
         flags = np.zeros(len(w), dtype=np.uint8)
         return w, f, (flags if per_sample else flag_counts(flags))
     r = flight.mimu_raw
-    stuck = int((clipped(r["accel_volts"]) | clipped(r["gyro_volts"])).sum())
+    range_a = flight.mimu_range.get("accel_m_s2", np.inf)
+    range_w = flight.mimu_range.get("gyro_rad_s", np.inf)
+    f, w, flags = compensate(cal, r["accel_volts"], r["gyro_volts"], r["accel_temperature"],
+                             r["gyro_frequency"], range_a, range_w,
+                             t=flight.mimu_t - flight.mimu_t[0])
+    inside = (np.abs(f) < range_a).all(axis=1) & (np.abs(w) < range_w).all(axis=1)
+    stuck = int(np.count_nonzero((flags & SATURATED).astype(bool) & inside))
     if stuck:
         from .errors import warn
         warn(f"{flight.path}: {stuck} MIMU samples have a raw output stuck at its extreme for "
-             f">= {CLIP_RUN} samples (clipped by the ADC or amplifier, whatever the declared "
-             "range): flagged saturated; the navigation through them is wrong")
-    f, w, flags = compensate(cal, r["accel_volts"], r["gyro_volts"], r["accel_temperature"],
-                             r["gyro_frequency"], flight.mimu_range.get("accel_m_s2", np.inf),
-                             flight.mimu_range.get("gyro_rad_s", np.inf),
-                             t=flight.mimu_t - flight.mimu_t[0])
+             f">= {CLIP_RUN} samples inside the declared range (clipped by the ADC or "
+             "amplifier): flagged saturated; the navigation through them is wrong")
     return w, f, (flags if per_sample else flag_counts(flags))
 
 

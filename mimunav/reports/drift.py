@@ -83,7 +83,7 @@ def markdown(doc):
             f"{'yes' if m['converged'] else 'no'} | {st['raw_sd'] * DEG_H:.3g} | "
             f"{st['filtered_sd'] * DEG_H:.3g} | "
             + (f"{st['variance_ratio']:.3g}" if m["identified"] else
-               f"not identified (AR {sum(m['ar']):.2g}: drift and noise both white)") + " | "
+               f"not identified (AR sum {sum(m['ar']):.2g}: white or oscillating, not a drift)") + " | "
             + (f"{dyn['removed_sd'] * DEG_H:.3g} / {dyn['noise_sd'] * DEG_H:.3g} = "
                f"{dyn['ratio']:.3g}" if dyn else "no dynamic span given") + " |")
     lines += ["", "![drift](drift.png)", "", "What this filter can and cannot do:",
@@ -92,8 +92,8 @@ def markdown(doc):
               "variance ratio above (the seed's \"variance reduction\") is the filtered "
               "estimate's variance over the raw output's - a smaller ratio is a smoother "
               "estimate of the drift, not a smaller drift. Where the fitted AR coefficients sum "
-              "to less than 0.3 in size the drift is as white as the noise, their split is not "
-              "identified by the data, and no ratio is given. The ratio depends on the "
+              "to less than 0.3 the output is white (drift and noise not separable) or "
+              "oscillating (vibration), not a drift, and no ratio is given. The ratio depends on the "
               "averaging (--window-s) and the record: compare units only at equal settings.",
               "- It cannot remove a constant bias: the mean is removed before the model and the "
               "filter passes a constant unchanged. Only a calibration (or an alignment at rest) "
@@ -132,8 +132,6 @@ def plot(result, png, window_s):
 def write(log, out_dir, channel="/mimu/imu", cal_path=None, static=None, dynamic=None,
           window_s=1.0, max_order=2, force=False):
     """Run `mimunav drift`; returns the folder."""
-    if cal_path and channel != "/mimu/raw":
-        raise InputError(f"--cal reads /mimu/raw; {channel} is already in SI units")
     cal = Calibration.load(cal_path) if cal_path else None
     t, w, f, rests = outputs(log, channel, cal)
     t0, t1, _ = choose_span(t, w, f, rests, static)

@@ -49,6 +49,8 @@ DATASHEET = {("gyro", "random_walk"): (180 / math.pi * 60, "deg/sqrt(h)"),
 def outputs(log_path, channel, cal=None):
     """(t s since the channel's first sample, w rad/s, f m/s^2) of an IMU channel:
     /mimu/imu, /fog/imu (sensor_msgs/Imu) or /mimu/raw through calibration `cal`."""
+    if cal is not None and channel != "/mimu/raw":
+        raise InputError(f"--cal reads /mimu/raw; {channel} is already in SI units")
     with FlightLog(log_path) as log:
         if channel not in log.channels:
             raise InputError(f"{log_path}: no channel {channel}; it has "
@@ -302,8 +304,6 @@ def markdown(doc):
 
 def write(log_path, out_dir, channel="/mimu/imu", cal_path=None, span=None, force=False):
     """Run `mimunav noise`; returns the folder's path."""
-    if cal_path and channel != "/mimu/raw":
-        raise InputError(f"--cal reads /mimu/raw; {channel} is already in SI units")
     cal = Calibration.load(cal_path) if cal_path else None
     t, w, f, rests = outputs(log_path, channel, cal)
     t0, t1, how = choose_span(t, w, f, rests, span)
