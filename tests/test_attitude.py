@@ -37,3 +37,14 @@ def test_turn_rate_of_a_steady_rotation_is_its_rate():
     t = np.cumsum(np.r_[0.0, np.random.default_rng(1).uniform(0.01, 0.2, 50)])
     q = quaternion.from_rotation_vector(w * t[:, None] * n)
     np.testing.assert_allclose(attitude.turn_rate(t, q), w, rtol=1e-12)
+
+
+def test_pitch_at_minus_90_deg_survives_round_off():
+    """q = (sqrt(.5), 0, -sqrt(.5), 0) is pitch -90 deg; 2 (w y - x z) rounds to
+    -1.0000000000000002, which arcsin alone turns into NaN: the sine is clipped to [-1, 1]."""
+    import quaternion
+    h = np.sqrt(0.5)
+    for sign in (-1.0, 1.0):
+        q = quaternion.from_float_array([[h, 0.0, sign * h, 0.0]])
+        _, pitch, _ = attitude.as_euler(q)
+        np.testing.assert_allclose(pitch, sign * np.pi / 2, atol=1e-7)

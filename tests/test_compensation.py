@@ -199,6 +199,15 @@ def test_wild_value_filter_at_its_threshold():
             assert abs(out[pos, axis] - clean[pos, axis]) < 10 * sigma
         else:                               # at an end: the neighbouring sample's value
             assert out[pos, axis] == x[1 if pos == 0 else n - 2, axis]
+    for start in (n - 3, n - 4, 3, 4):      # three samples past a step agree with them
+        stepped = clean + rng.normal(0, sigma, (n, 3))
+        if start > n // 2:
+            stepped[start:, 2] += 10 * threshold
+        else:
+            stepped[:start, 2] += 10 * threshold
+        flags = np.zeros(n, np.uint8)
+        wild_value_filter(stepped, flags)
+        assert not flags.any(), (start, np.flatnonzero(flags))
     fast = np.stack([np.sin(2 * np.pi * k / 7.3)] * 3, -1)        # curvature, no noise
     flags = np.zeros(n, np.uint8)
     wild_value_filter(fast + rng.normal(0, 1e-9, (n, 3)), flags)
@@ -283,3 +292,12 @@ def test_outputs_clipped_below_the_declared_range_are_flagged():
     hit = (flags & SATURATED) > 0
     assert hit[over].mean() > 0.95          # all but isolated noisy crossings of 2 V
     assert not hit[~over].any()
+
+
+def test_identity_is_recognised_and_nothing_else_is():
+    cal = Calibration.identity()
+    assert cal.is_identity
+    for key in ("A0", "W0", "C"):
+        other = Calibration.from_dict(cal.as_dict())
+        getattr(other, key).flat[1] = 1e-9
+        assert not other.is_identity, key

@@ -209,7 +209,33 @@ def test_unit_checks_act_at_their_thresholds_on_every_axis(short):
         _raises("specific force", t, dth, over, start)
         strapdown.integrate(t, dth, under, start)
     up = np.zeros_like(dv)
-    up[:, 2] = -21 * 9.8 * dt                # 21 g for the whole flight
+    up[:, 2] = -20.5 * 9.8 * dt              # 20.5 g for the whole flight
     _raises("over 20 g", t, dth, up, start)
-    up[:, 2] = -19 * 9.8 * dt
+    up[:, 2] = -19.5 * 9.8 * dt
     strapdown.integrate(t, dth, up, start)
+
+
+class _YawSpin(truth.Motion):
+    """Parked, level, spinning about body z = NED down at a constant rate: q_nb = Rz(W t)."""
+
+    def __init__(self, rate, duration):
+        self.rate, self.t1, self.lat0, self.lon0, self.h0 = rate, duration, 0.7, 0.1, 50.0
+
+    def kinematics(self, t):
+        t = np.asarray(t, float)
+        zero = np.zeros((len(t), 3))
+        w = zero.copy()
+        w[:, 2] = self.rate
+        q = quaternion.from_rotation_vector(w * t[:, None])
+        return truth.Kinematics(zero, zero, q, w, zero)
+
+
+def test_large_rotation_steps_use_the_exact_rotation_vector_update():
+    """0.5 rad per step (1 rad/s at 2 Hz): the attitude update exp(phi/2) must be the exact
+    cos/sin form (a series in |phi| truncated after |phi|^4 errs 3e-7 rad per step here);
+    after 40 steps the heading (rotation about NED down) is within 1e-7 rad of the truth
+    (measured 3e-9; the tilt errs by 5e-6 rad from the Earth rate's coupling with the spin at
+    this coarse rate, second order, checked at fine rates elsewhere). The small-angle series
+    branch is checked by every other test (|phi| < 1e-3 rad)."""
+    nav, ref, _ = _fly(_YawSpin(1.0, 20.0), 2.0)
+    assert np.abs(nav.attitude_error(ref)[:, 2]).max() < 1e-7

@@ -220,3 +220,24 @@ def test_generate_refuses_a_last_time_past_the_motions_end():
     with pytest.raises(ValueError, match="at most its end"):
         truth.generate(m, np.array([0.0, 0.5, 1.0 + 1e-6]))
     truth.generate(m, np.array([0.0, 0.5, 1.0]))
+
+
+def test_quadrature_node_positions_are_exact_for_cubic_latitude_and_height():
+    """The generator's latitude and height at its quadrature nodes (cubic Hermite between
+    samples, end slopes lat' = v_N / (R_M + h), h' = -v_D) are exact for cubic lat(t), h(t):
+    checked against the polynomials at the interior of 10 s intervals of a fast climb
+    (500 m/s north, 100 m/s up), where an end slope from the wrong radius (sin lat instead of
+    sin^2 lat) or the wrong end's height errs by 1e-8 rad or more."""
+    t = np.arange(0.0, 50.1, 10.0)
+    lat_c = np.array([0.6, 7.8e-5, 2e-8, -3e-10])            # rad, rad/s, rad/s^2, rad/s^3
+    h_c = np.array([1000.0, 100.0, 0.5, -0.01])              # m, m/s, ...
+    poly = lambda c, x: c[0] + x * (c[1] + x * (c[2] + x * c[3]))            # noqa: E731
+    dpoly = lambda c, x: c[1] + x * (2 * c[2] + x * 3 * c[3])                # noqa: E731
+    lat, h = poly(lat_c, t), poly(h_c, t)
+    r_m = earth.radii(lat)[0]
+    v_ned = np.stack([dpoly(lat_c, t) * (r_m + h), np.zeros_like(t), -dpoly(h_c, t)], -1)
+    k_node = np.repeat(np.arange(len(t) - 1), 3)
+    tq = t[k_node] + np.tile([1.3, 5.0, 8.9], len(t) - 1)
+    lat_q, h_q = truth._hermite_position(t, lat, h, v_ned, k_node, tq)
+    np.testing.assert_allclose(lat_q, poly(lat_c, tq), rtol=0, atol=1e-13)
+    np.testing.assert_allclose(h_q, poly(h_c, tq), rtol=0, atol=1e-7)
