@@ -43,9 +43,13 @@ effect vocabulary, so a diagnosis can name them and a truth file lists them):
                       start's first minutes carry 0.05-0.3 mg and 10-50 deg/h
   scale_asymmetry     k |x| on each axis (IEEE Std 528 scale-factor asymmetry), |k| U(50, 200)
                       ppm, random sign; datasheet class (an odd-only cubic cannot absorb it)
-`beyond_model=False` draws a unit that is exactly the 63-coefficient model: for tests of a
-fit's recovery of known coefficients and for the diagnosis proof, whose answer keys must hold
-only the effect each log hides.
+  cross-axis          the sensing elements are simulated forward (`sensors.response`: an
+  nonlinearity        element's own nonlinearity, then the coupling), so each element's
+                      nonlinearity reaches the other outputs through the cross-coupling:
+                      up to 0.3 mg at 30 g, 4e-3 deg/s at 400 deg/s (response's module doc)
+`beyond_model=False` draws a unit that is exactly the 63-coefficient model (its outputs the
+inverse of eqs. 1-4 to round-off): for tests of a fit's recovery of known coefficients and
+for the diagnosis proof, whose answer keys must hold only the effect each log hides.
 """
 import json
 import math
@@ -56,7 +60,7 @@ import numpy as np
 from .. import compensation
 from ..compensation import Calibration
 from ..files import write_atomic
-from . import noise
+from . import noise, response
 from .hidden import HiddenPhysics, HiddenSet
 from .mounting import Mounting
 from .thermal import ThermalModel
@@ -196,9 +200,11 @@ class MimuUnit:
         `/mimu/raw` fields plus the true sensor temperatures (for the truth file).
 
         Order: interval-mean rates -> + noise (white, flicker, turn-on bias) -> saturation
-        of the sensing element at the range -> temperatures -> inverse of eqs. 1-4 (the
-        gyro's g-sensitivity driven by the true specific force) -> ADC quantization and
-        rails. The nonlinearity acts on the interval mean (its intra-interval variance term
+        of the sensing element at the range -> temperatures -> the sensing elements' forward
+        response (`sensors.response`; the gyro's g-sensitivity driven by the true specific
+        force) -> ADC quantization and rails. A unit without `beyond_model` terms is exactly
+        the model of eqs. 1-4 instead: its outputs are their inverse, solved to round-off
+        (`compensation.raw_from_physics`), for tests of the fits' algebra. The nonlinearity acts on the interval mean (its intra-interval variance term
         is below 1e-6 of full scale at >= 100 Hz for flight dynamics).
         `hidden` (optional) maps (f, w, temps) -> (f, w): extra physics the 63-coefficient
         model lacks (used by the diagnosis tests), applied before saturation after the
@@ -226,9 +232,12 @@ class MimuUnit:
         saturated = ((np.abs(f) > self.range_accel) | (np.abs(w) > self.range_gyro)).any(axis=1)
         f = np.clip(f, -self.range_accel, self.range_accel)
         w = np.clip(w, -self.range_gyro, self.range_gyro)
-        u_a, u_w = compensation.raw_from_physics(
-            self.coefficients, f, w, t_acc, freq,
-            f_gyro=np.clip(f_true, -self.range_accel, self.range_accel))
+        f_gyro = np.clip(f_true, -self.range_accel, self.range_accel)
+        if self.beyond_model:           # the sensing elements, forward (sensors.response)
+            u_a, u_w = response.raw_output(self.coefficients, f, w, t_acc, freq, f_gyro)
+        else:                           # exactly eqs. 1-4: their inverse, to round-off
+            u_a, u_w = compensation.raw_from_physics(self.coefficients, f, w, t_acc, freq,
+                                                     f_gyro=f_gyro)
         rail = self.adc_rail
         u_a = np.clip(noise.quantize(u_a, self.adc_lsb), -rail, rail)
         u_w = np.clip(noise.quantize(u_w, self.adc_lsb), -rail, rail)
