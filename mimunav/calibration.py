@@ -28,13 +28,13 @@ Methods (seed S1 section 3.1 unless stated):
 
 Estimator: generalised least squares per output axis on window means. Their covariance is
 the white noise of each mean (from second differences of its samples) plus the bias
-instability of the unit class as a flicker process (datasheet B, `sensors.mimu`; the
+instability of the unit class as a flicker process (datasheet B, `INSTABILITY`; the
 covariance of window means under a 1/f spectrum, `flicker_covariance`), so slow bias wander
 shared by neighbouring set points is not mistaken for independent scatter; the covariance
 is scaled by chi2/dof where that exceeds 1. Uncertainty is carried as a linear map
 from independent unit-variance sources to every coefficient's error: each stage's own GLS
 covariance, the lab's setting errors (`lab.EQUIPMENT`, from the log's metadata), the turn-on
-bias repeatability of the power-on a bias was fitted in (datasheet values, `sensors.mimu`),
+bias repeatability of the power-on a bias was fitted in (datasheet values, `TURN_ON`),
 and the upstream coefficients a stage depends on (chamber -> rate table and centrifuge;
 rate table -> C), each propagated by finite differences of the refit (the fits are linear
 in these perturbations to first order).
@@ -55,17 +55,22 @@ import scipy.optimize
 from .compensation import Calibration, compensate, poly2
 from .effects import temperature_change
 from .flightlog import FlightLog
-from .sensors.mimu import DEG, G0, NoiseModel
 from .errors import InputError
 
 POSITION_NAMES = ["x up", "x down", "y up", "y down", "z up", "z down"]    # lab.SIX_POSITIONS
 METHODS = ("entire", "traditional", "twelve-position", "cold-start", "ellipsoid")
 T_REF = 25.0
 AXES = "xyz"
-# Datasheet values of the unit class (`sensors.mimu`): turn-on bias repeatability and bias
-# instability B (flicker) in physical units, nominal voltage scale
-TURN_ON = {"accel": NoiseModel().accel_turn_on, "gyro": NoiseModel().gyro_turn_on}
-INSTABILITY = {"accel": NoiseModel().accel_flicker, "gyro": NoiseModel().gyro_flicker}
+G0 = 9.80665                # standard gravity, m/s^2
+DEG = math.pi / 180
+# The unit class's datasheet random errors, the fits' weights unless a measured noise file is
+# given (`calibrate --noise`, a `mimunav noise` result): seed S1 Table 1 at its bound (gyro
+# zero drift 30 deg/h, accel ~1 mg) read as the stability of 10 s means, of which the flicker
+# bias instability B is half and the turn-on repeatability a third (assumption). Stated here
+# from the seed, not read from the simulator (`sensors.mimu` states its own).
+TURN_ON = {"accel": 0.2e-3 * G0, "gyro": 10 * DEG / 3600}
+INSTABILITY = {"accel": 0.5e-3 * G0, "gyro": 15 * DEG / 3600}
+# nominal voltage scale of the class (datasheet: accel 0.1 V/g, gyro 5 mV/(deg/s))
 NOMINAL_SCALE = {"accel": G0 / 0.1, "gyro": DEG / 5e-3}     # (m/s^2)/V, (rad/s)/V
 NOMINAL_SCALE_TOLERANCE = 0.02       # 1 sigma, unit to unit (datasheet class, sensors.mimu)
 # Table 1 of seed S1: full scale (the stated minimum range) and scale-factor fit residuals
@@ -109,11 +114,11 @@ class LabRun:
     windows: list
     power_cycle: bool = False
     # the unit's random errors the fits weight with: flicker instability B and turn-on
-    # repeatability per sensor (SI); by default the unit class's (`sensors.mimu`, grade
-    # "table1"), or measured (`calibrate(noise=...)`, a `mimunav noise` file)
+    # repeatability per sensor (SI); by default the unit class's datasheet (`INSTABILITY`,
+    # `TURN_ON`), or measured (`calibrate(noise=...)`, a `mimunav noise` file)
     noise: dict = field(default_factory=lambda: {
         "instability": dict(INSTABILITY), "turn_on": dict(TURN_ON),
-        "source": "assumed: the unit class of seed S1 Table 1 (sensors.mimu, grade table1)"})
+        "source": "assumed: the datasheet class of seed S1 Table 1 (calibration.INSTABILITY, TURN_ON)"})
 
     def instability(self, sensor):
         return self.noise["instability"][sensor]

@@ -264,8 +264,8 @@ def test_track_diagnosis_recovers_a_known_mounting_misalignment(tmp_path):
     rng = np.random.default_rng(3)
     w, f = flight.mimu_imu
     per_sample = math.sqrt(100.0)                   # white density -> sigma at 100 Hz
-    noisy = (w + rng.normal(0, track.CONSUMER_NOISE.gyro_white * per_sample, w.shape),
-             f + rng.normal(0, track.CONSUMER_NOISE.accel_white * per_sample, f.shape))
+    noisy = (w + rng.normal(0, track.CONSUMER_NOISE['gyro_white'] * per_sample, w.shape),
+             f + rng.normal(0, track.CONSUMER_NOISE['accel_white'] * per_sample, f.shape))
     doc = document("synthetic", track.diagnose(replace(flight, mimu_imu=noisy),
                                                Calibration.identity()))
     assert [x["effect"] for x in doc["findings"]] == ["mounting_misalignment"]

@@ -43,7 +43,7 @@ import numpy as np
 
 from .. import truth as truth_mod
 from ..sensors import Mounting
-from ..sensors.mimu import DEG, G0, NoiseModel
+from ..sensors.mimu import DEG, G0
 from ..vehicle import TrackMotion
 from . import library, sensor
 from .reference import Accuracy
@@ -65,10 +65,12 @@ MIN_TRUSTED = 0.25          # fraction of the MIMU's samples inside the trusted 
 CHECK_WINDOW_S = 10.0       # free-inertial windows of the navigation check
 
 # Noise of the consumer part (shared/data/rtklib-drive/README: the author's settings, an
-# LSM6DSO-class device): white densities; its flicker instability is not published, the
-# datasheet class of `sensors.mimu.NoiseModel` is kept. For simulating such a part (tests);
-# the diagnosis fits the noise and wander levels from the data.
-CONSUMER_NOISE = NoiseModel(accel_white=70e-6 * G0, gyro_white=0.0038 * DEG)
+# LSM6DSO-class device): white densities, accel m/s^2/sqrt(Hz), gyro rad/s/sqrt(Hz); its
+# flicker instability B is not published: seed S1 Table 1's class (accel 0.5 mg, gyro
+# 15 deg/h, as `calibration.INSTABILITY`) is assumed. Bounds the wander level below; the
+# diagnosis fits the noise and wander levels themselves from the data.
+CONSUMER_NOISE = {"accel_white": 70e-6 * G0, "gyro_white": 0.0038 * DEG,
+                  "accel_flicker": 0.5e-3 * G0, "gyro_flicker": 15 * DEG / 3600}
 
 
 def wander_limit(noise=CONSUMER_NOISE, bin_s=0.01, span_s=100.0):
@@ -79,8 +81,8 @@ def wander_limit(noise=CONSUMER_NOISE, bin_s=0.01, span_s=100.0):
     freely fitted wander takes their level: on the RTKLIB drive it came out 10^3 times the
     part's and turned the found pitch misalignment's sign)."""
     levels = [(b * b * bin_s / span_s) / (white * white / bin_s)
-              for b, white in ((noise.accel_flicker, noise.accel_white),
-                               (noise.gyro_flicker, noise.gyro_white))]
+              for b, white in ((noise["accel_flicker"], noise["accel_white"]),
+                               (noise["gyro_flicker"], noise["gyro_white"]))]
     return max(levels)
 
 
