@@ -117,8 +117,9 @@ SOURCES = {
                     "reading); 'table2' = literally",
     "fog_grade": "seed S1 Table 4 read as medium accuracy, bounds at ~2 sigma "
                  "(sensors.fog.FOG_GRADES)",
-    "beyond_model": "scale asymmetry 50-200 ppm and seed S3's dT term (assumed magnitudes, "
-                    "sensors.mimu)",
+    "beyond_model": "sensing elements simulated forward (cross-axis nonlinearity, "
+                    "sensors.response), scale asymmetry 50-200 ppm and seed S3's dT term "
+                    "(assumed magnitudes, sensors.mimu)",
 }
 
 

@@ -273,9 +273,11 @@ def _markdown(units, checks, png_name):
              "|z| < 4). It says nothing about how well eqs. 1-4 describe a real unit.", ""]
     lines += _z_table(exact)
     lines += ["", "## The same units with physics beyond the model (the default unit)", "",
-              "The default unit also has a scale-factor asymmetry k|x| (50-200 ppm) and seed "
-              "S3's thermal-gradient term e*dT on every axis (`sensors.mimu`, module doc), which "
-              "eqs. 1-4 cannot represent. The fit absorbs what it can into the nearest terms - "
+              "The default unit is simulated as sensing elements written forward "
+              "(`sensors.response`: an element's own nonlinearity before the cross-coupling, so "
+              "each nonlinearity also reaches the other outputs) and has a scale-factor "
+              "asymmetry k|x| (50-200 ppm) and seed S3's thermal-gradient term e*dT on every "
+              "axis (`sensors.mimu`, module doc), none of which eqs. 1-4 can represent. The fit absorbs what it can into the nearest terms - "
               "the asymmetry into the even 2nd-order scale factors A2, W2 - so those "
               "coefficients move away from the truth by more than their reported uncertainty: "
               "the z-scores below are model error, not a defect of the fit, and this is what a "
