@@ -354,6 +354,10 @@ def _import(args):
     elif args.kind == "table":
         from .importers import table
         rec = table.read(args.source, mounting=mounting)
+    elif args.kind == "dataflash":
+        from .importers import dataflash
+        rec = dataflash.read(args.source, mounting=mounting, instance=args.imu_instance,
+                             reference=args.reference, reference_status=args.gps_status)
     else:
         from .importers import ulog
         rec = ulog.read(args.source, mounting=mounting)
@@ -707,21 +711,32 @@ def build_parser():
     p = sub.add_parser("import", help="turn a recording nobody here wrote into a contract log "
                        "(/mimu/imu in SI sensor axes, /truth/state, /gnss/fix, metadata of what "
                        "is real and what is assumed)")
-    p.add_argument("kind", choices=("rtklib", "ros2", "ulog", "table"),
+    p.add_argument("kind", choices=("rtklib", "ros2", "ulog", "dataflash", "table"),
                    help="rtklib: folder with imu_*.csv, its RTKLIB .tag and an RTKLIB .pos; "
                    "ros2: an MCAP with sensor_msgs/msg/Imu (+ NavSatFix); ulog: a PX4 .ulg "
-                   "(its EKF2 estimate as a reference that is not independent); table: a TOML "
-                   "spec of CSV / NumPy columns with units, axes, time base and reference "
-                   "(see mimunav/importers/table.py; example tests/data/comma2k19.toml)")
-    p.add_argument("source", help="the folder (rtklib), file (ros2, ulog) or spec (table)")
+                   "(its EKF2 estimate as a reference that is not independent); dataflash: an "
+                   "ArduPilot .bin (IMU, GPS/GPA; reference EKF3 POS/XKF1/ATT or the GPS); "
+                   "table: a TOML spec of CSV / NumPy columns with units, axes, time base and "
+                   "reference (see mimunav/importers/table.py; example tests/data/comma2k19.toml)")
+    p.add_argument("source", help="the folder (rtklib), file (ros2, ulog, dataflash) or spec "
+                   "(table)")
+    p.add_argument("--imu-instance", type=_number(0, 9, int), default=0,
+                   help="dataflash: the IMU instance (field I; IMU2 = 1), default 0")
+    p.add_argument("--reference", choices=("auto", "ekf", "gnss", "none"), default="auto",
+                   help="dataflash: the reference trajectory: ekf = the autopilot's estimate "
+                   "(POS, XKF1, ATT; not independent), gnss = the GPS fixes (independent, no "
+                   "attitude), auto = ekf when logged, else gnss")
+    p.add_argument("--gps-status", type=_number(3, 6, int), default=3,
+                   help="dataflash: the lowest GPS Status that serves as the gnss reference "
+                   "(3 3D, 4 DGPS, 5 RTK float, 6 RTK fixed), default 3")
     p.add_argument("-o", "--output", required=True, help="log to write (.mcap)")
     p.add_argument("--imu-topic", help="ros2: the sensor_msgs/msg/Imu topic (default: the only one)")
     p.add_argument("--fix-topic", help="ros2: the sensor_msgs/msg/NavSatFix topic (default: the "
                    "only one, if any)")
     p.add_argument("--mounting-rpy-deg", type=_number(-360.0, 360.0), nargs=3, metavar=("ROLL", "PITCH", "YAW"),
                    help="sensor -> vehicle (FRD) rotation, deg (default: rtklib the README's "
-                   "180 0 180; ros2 180 0 0, REP-103 x forward, y left, z up; ulog 0 0 0, "
-                   "PX4's FRD body frame; table: the spec's axes)")
+                   "180 0 180; ros2 180 0 0, REP-103 x forward, y left, z up; ulog and "
+                   "dataflash 0 0 0, the autopilot's FRD body frame; table: the spec's axes)")
     p.add_argument("--pose-topic", help="ros2: a nav_msgs/msg/Odometry or geometry_msgs/msg/"
                    "PoseStamped topic (local ENU frame) as the reference; needs --origin")
     p.add_argument("--origin", type=_number(-360.0, 1e5), nargs=3,

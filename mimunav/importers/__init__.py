@@ -3,6 +3,7 @@
     rtklib   a CSV IMU log with RTKLIB time tags and an RTKLIB position solution
     ros2     any ROS 2 MCAP with sensor_msgs/msg/Imu (+ sensor_msgs/msg/NavSatFix), by topic
     ulog     a PX4 ULog (sensor_combined + vehicle_gps_position / sensor_gps), by pyulog
+    dataflash  an ArduPilot DataFlash .bin (IMU, GPS, GPA; EKF3 POS/XKF1/ATT), by pymavlink
 
 Each reader returns a `Recording` - the IMU in SI units and its own axes, the GNSS and
 reference data it has, and what is measured and what is assumed - and `write_log` writes

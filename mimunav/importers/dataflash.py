@@ -1,0 +1,218 @@
+"""ArduPilot DataFlash logs (`.bin`, read by pymavlink's DFReader): the IMU from the `IMU`
+messages of one instance, GNSS from `GPS` (+ `GPA` accuracies), and as reference either the
+GNSS itself (independent, no attitude) or the autopilot's own estimate (`POS` position,
+`XKF1` velocity, `ATT` attitude; EKF3 fuses this very IMU: "not independent").
+
+ArduPilot conventions (libraries/AP_Logger/LogStructure.h, AP_InertialSensor, AP_GPS):
+- IMU: TimeUS (us since boot), I (instance; older logs: IMU, IMU2, IMU3 message types),
+  GyrX..Z (rad/s), AccX..Z (m/s^2, specific force), T (degC), body frame FRD (x forward,
+  y right, z down) with the board orientation applied. The logged values are the sensor's
+  *filtered* outputs at the logging rate (INS_GYRO_FILTER / INS_ACCEL_FILTER low-pass), not
+  interval means: fast motion is attenuated, which the metadata says.
+- GPS: Status (0 no GPS, 1 no fix, 2 2D, 3 3D, 4 DGPS, 5 RTK float, 6 RTK fixed), GMS
+  (ms of GPS week), GWk (GPS week), Lat, Lng (deg), Alt (m above mean sea level), Spd
+  (ground speed, m/s), GCrs (course over ground, deg from north), VZ (vertical velocity,
+  m/s, positive down: NED). GPA (when logged): HAcc, VAcc (m), SAcc (m/s), 1 sigma.
+- POS: Lat, Lng (deg), Alt (m above mean sea level); XKF1 (core C = 0): VN, VE, VD (m/s);
+  ATT: Roll, Pitch, Yaw (deg, z-y-x Euler of body FRD -> NED).
+Heights stay above mean sea level (no geoid undulation is applied; the metadata says so):
+a constant offset of tens of metres changes gravity by < 1e-5 m/s^2.
+The UNIX time of boot is the median of (GPS week time - TimeUS) over 3-D fixes, leap seconds
+removed (`gps_to_unix_s`); without fixes boot is put at the UNIX epoch and the metadata says
+so.
+"""
+import os
+
+import numpy as np
+
+from .. import attitude
+from ..sensors import Mounting
+from . import Recording, RecordingError, gps_to_unix_s
+
+GPS_STATUS = {0: "no GPS", 1: "no fix", 2: "2D", 3: "3D", 4: "DGPS", 5: "RTK float",
+              6: "RTK fixed"}
+# NavSatStatus of /gnss/fix for each ArduPilot status: FIX 0, SBAS_FIX 1, GBAS_FIX 2
+NAV_SAT_STATUS = {3: 0, 4: 1, 5: 2, 6: 2}
+TYPES = ("IMU", "IMU2", "IMU3", "GPS", "GPS2", "GPA", "POS", "XKF1", "ATT")
+
+
+def _messages(path):
+    """{type: {field: array}} of the types this importer reads (`instance` field I added
+    for the older numbered types)."""
+    from pymavlink import DFReader
+    try:
+        log = DFReader.DFReader_binary(path, zero_time_base=False)
+    except Exception as exc:            # DFReader raises its own, struct and index errors
+        raise RecordingError(f"{path}: not a readable DataFlash log ({exc})") from None
+    rows = {}
+    while True:
+        try:
+            m = log.recv_match(type=list(TYPES))
+        except Exception as exc:
+            raise RecordingError(f"{path}: damaged DataFlash message ({exc})") from None
+        if m is None:
+            break
+        kind = m.get_type()
+        d = m.to_dict()
+        if kind in ("IMU2", "IMU3", "GPS2"):
+            d["I"] = int(kind[-1]) - 1
+            kind = kind[:3]
+        rows.setdefault(kind, []).append(d)
+    return {kind: {k: np.array([r.get(k, np.nan) for r in rs]) for k in rs[0]
+                   if k != "mavpackettype"} for kind, rs in rows.items()}
+
+
+def _instance(table, instance):
+    if table is None:
+        return None
+    if "I" not in table:
+        return table if instance == 0 else None
+    keep = table["I"] == instance
+    return {k: v[keep] for k, v in table.items()} if keep.any() else None
+
+
+def read(path, mounting=None, instance=0, reference="auto", reference_status=3):
+    """The recording of an ArduPilot DataFlash log as a `Recording` (IMU in FRD body axes).
+
+    instance: the IMU (and GPS) instance; reference: "ekf" (POS + XKF1 + ATT, autopilot
+    estimate, not independent), "gnss" (fixes of status >= reference_status, velocity from
+    ground speed, course and VZ; independent, no attitude), "none", or "auto" (ekf when
+    logged, else gnss when there are fixes)."""
+    if reference not in ("auto", "ekf", "gnss", "none"):
+        raise RecordingError(f"reference must be auto, ekf, gnss or none, not {reference!r}")
+    msgs = _messages(path)
+    imu = _instance(msgs.get("IMU"), instance)
+    if imu is None or len(imu["TimeUS"]) < 2:
+        found = sorted({int(i) for i in msgs.get("IMU", {}).get("I", [])})
+        raise RecordingError(f"{path}: no IMU messages of instance {instance}"
+                             + (f" (instances logged: {found})" if found else ""))
+    boot_us = imu["TimeUS"].astype(np.int64)
+    w = np.column_stack([imu[f"Gyr{c}"] for c in "XYZ"]).astype(float)
+    f = np.column_stack([imu[f"Acc{c}"] for c in "XYZ"]).astype(float)
+    order = np.argsort(boot_us, kind="stable")
+    boot_us, w, f = boot_us[order], w[order], f[order]
+    keep = np.concatenate([[True], np.diff(boot_us) > 0])
+    gps = _instance(msgs.get("GPS"), instance) or _instance(msgs.get("GPS"), 0)
+    gpa = _instance(msgs.get("GPA"), instance) or _instance(msgs.get("GPA"), 0)
+    offset_us, assumed = 0, {}
+    fixes = None
+    if gps is not None:
+        t_gps = gps["TimeUS"].astype(np.int64)
+        status = gps["Status"].astype(int)
+        three_d = status >= 3
+        if three_d.any():
+            gps_s = gps["GWk"][three_d] * 604800.0 + gps["GMS"][three_d] / 1e3
+            unix_us = np.round(gps_to_unix_s(gps_s) * 1e6).astype(np.int64)
+            offset_us = int(np.median(unix_us - t_gps[three_d]))
+            fixes = _fixes(gps, gpa, three_d, offset_us)
+    if offset_us == 0:
+        assumed["time"] = "no 3-D GPS fix: boot placed at the UNIX epoch"
+    ref, ref_meta = _reference(msgs, fixes, reference, reference_status, offset_us, path)
+    name = os.path.splitext(os.path.basename(path))[0]
+    real = {"imu": f"IMU instance {instance} ({len(boot_us)} samples; "
+                   f"{int((~keep).sum())} repeated stamps dropped)",
+            "source": os.path.abspath(path)}
+    if "T" in imu:
+        temp = imu["T"][np.isfinite(imu["T"])]
+        if len(temp):
+            real["imu_temperature"] = f"{temp.min():.2f} to {temp.max():.2f} degC"
+    found = sorted({int(i) for i in msgs["IMU"].get("I", [0])})
+    real["imu_instances"] = ", ".join(str(i) for i in found)
+    if fixes is not None:
+        counts = {GPS_STATUS.get(s, str(s)): int((gps["Status"] == s).sum())
+                  for s in np.unique(gps["Status"].astype(int))}
+        real["gnss"] = f"GPS ({', '.join(f'{k}: {v}' for k, v in counts.items())})"
+    if ref is not None:
+        real["reference"] = f"{len(ref['ns'])} epochs: {ref_meta['source']}"
+    assumed.update(mounting="ArduPilot body frame FRD = vehicle frame" if mounting is None
+                   else "given on the command line",
+                   calibration="ArduPilot's on-board calibration, as logged",
+                   imu_values="filtered outputs at the logging rate (INS_*_FILTER low-pass), "
+                              "not interval means",
+                   height="above mean sea level (geoid undulation not applied)")
+    rate = 1e6 / np.median(np.diff(boot_us[keep]))
+    span = (boot_us[keep][-1] - boot_us[keep][0]) / 1e6
+    return Recording(name, f"ArduPilot DataFlash {os.path.basename(path)}: IMU {instance} "
+                     f"{rate:.0f} Hz, {span:.1f} s", (boot_us[keep] + offset_us) * 1000,
+                     w[keep], f[keep], mounting or Mounting(), model="ArduPilot autopilot IMU",
+                     reference=ref, reference_meta=ref_meta, fixes=fixes, real=real,
+                     assumed=assumed)
+
+
+def _fixes(gps, gpa, use, offset_us):
+    """GNSS fixes (status >= 3D) for /gnss/fix: covariance from GPA's HAcc, VAcc when
+    logged (else HDop x 5 m, a consumer receiver's UERE: assumption, said in the source)."""
+    t = gps["TimeUS"].astype(np.int64)
+    n = int(use.sum())
+    cov = np.zeros((n, 9))
+    h_sigma = v_sigma = speed_sigma = None
+    if gpa is not None and len(gpa["TimeUS"]) >= 2 and "HAcc" in gpa:
+        t_a = gpa["TimeUS"].astype(float)
+        h_sigma = np.interp(t[use], t_a, gpa["HAcc"]) / np.sqrt(2)   # per horizontal axis
+        v_sigma = np.interp(t[use], t_a, gpa["VAcc"])
+        if "SAcc" in gpa:
+            speed_sigma = np.interp(t[use], t_a, gpa["SAcc"])
+    else:
+        h_sigma = 5.0 * gps["HDop"][use] / np.sqrt(2)
+        v_sigma = 1.5 * 5.0 * gps["HDop"][use]
+    cov[:, 0] = cov[:, 4] = h_sigma ** 2
+    cov[:, 8] = v_sigma ** 2
+    course = np.radians(gps["GCrs"][use])
+    speed = gps["Spd"][use]
+    status = gps["Status"][use].astype(int)
+    return dict(ns=(t[use] + offset_us) * 1000,
+                status=np.array([NAV_SAT_STATUS.get(s, 0) for s in status], np.int8),
+                ap_status=status, lat=np.radians(gps["Lat"][use]),
+                lon=np.radians(gps["Lng"][use]), h=gps["Alt"][use].astype(float),
+                covariance=cov, speed_sigma=speed_sigma,
+                v_ned=np.column_stack([speed * np.cos(course), speed * np.sin(course),
+                                       gps["VZ"][use]]))
+
+
+def _reference(msgs, fixes, kind, min_status, offset_us, path):
+    """(reference dict or None, its metadata) of the chosen kind (`read`)."""
+    ekf = all(k in msgs for k in ("POS", "XKF1"))
+    if kind == "auto":
+        kind = "ekf" if ekf else ("gnss" if fixes is not None else "none")
+    if kind == "none":
+        return None, {}
+    if kind == "gnss":
+        if fixes is None:
+            raise RecordingError(f"{path}: a GNSS reference needs 3-D GPS fixes; the log has none")
+        use = fixes["ap_status"] >= min_status
+        if use.sum() < 3:
+            raise RecordingError(f"{path}: {int(use.sum())} GPS fixes of status >= "
+                                 f"{GPS_STATUS.get(min_status, min_status)}; a reference "
+                                 "needs at least 3")
+        sigma = np.sqrt(fixes["covariance"][use, 0] + fixes["covariance"][use, 4])
+        meta = {"source": f"GPS fixes of status >= {GPS_STATUS.get(min_status, min_status)}, "
+                          "velocity from ground speed, course and VZ",
+                "independent": "yes: GNSS only",
+                "position_sigma_m": f"{np.median(sigma):.3g}"}
+        if fixes["speed_sigma"] is not None:
+            meta["velocity_sigma_m_s"] = f"{np.median(fixes['speed_sigma'][use]):.3g}"
+        return {k: fixes[k][use] for k in ("ns", "lat", "lon", "h", "v_ned")}, meta
+    if not ekf:
+        raise RecordingError(f"{path}: an autopilot reference needs POS and XKF1 messages")
+    pos = msgs["POS"]
+    vel = _instance(msgs["XKF1"], 0) if "C" not in msgs["XKF1"] else \
+        {k: v[msgs["XKF1"]["C"] == 0] for k, v in msgs["XKF1"].items()}
+    t = pos["TimeUS"].astype(np.int64)
+    t_v = vel["TimeUS"].astype(float)
+    v = np.column_stack([np.interp(t, t_v, vel[c]) for c in ("VN", "VE", "VD")])
+    q = np.full((len(t), 4), np.nan)
+    att = msgs.get("ATT")
+    if att is not None and len(att["TimeUS"]) >= 2:
+        from scipy.spatial.transform import Rotation, Slerp
+        t_att = att["TimeUS"].astype(float)
+        q_att = attitude.from_euler(np.radians(att["Yaw"]), np.radians(att["Pitch"]),
+                                    np.radians(att["Roll"]))
+        wxyz = np.array([[x.w, x.x, x.y, x.z] for x in q_att])
+        inside = (t >= t_att[0]) & (t <= t_att[-1])
+        xyzw = Slerp(t_att, Rotation.from_quat(wxyz[:, [1, 2, 3, 0]]))(
+            t[inside].astype(float)).as_quat()
+        q[inside] = xyzw[:, [3, 0, 1, 2]]
+    meta = {"source": "autopilot estimate (ArduPilot EKF3: POS, XKF1 core 0, ATT)",
+            "independent": "no: the autopilot fuses this IMU"}
+    return dict(ns=(t + offset_us) * 1000, lat=np.radians(pos["Lat"]), lon=np.radians(pos["Lng"]),
+                h=pos["Alt"].astype(float), v_ned=v, q_nb=q), meta

@@ -1,0 +1,107 @@
+"""An ArduPilot DataFlash log written from a simulated flight, for the importer's tests: the
+record layout (0xA3 0x95, message id, packed fields; FMT records first) and the message
+formats of ArduPilot's libraries/AP_Logger/LogStructure.h (IMU, GPS, GPA, POS, XKF1, ATT),
+read back by pymavlink's DFReader - not by code of this project."""
+import struct
+
+import numpy as np
+
+from mimunav import attitude, truth
+from mimunav.importers import GPS_EPOCH_UNIX_S
+from mimunav.profile import Profile
+
+HEAD = b"\xa3\x95"
+STRUCT = {"b": "b", "B": "B", "h": "h", "H": "H", "i": "i", "I": "I", "f": "f", "n": "4s",
+          "N": "16s", "Z": "64s", "c": "h", "C": "H", "e": "i", "E": "I", "L": "i", "q": "q",
+          "Q": "Q"}
+SCALE = {"c": 100.0, "C": 100.0, "e": 100.0, "E": 100.0, "L": 1e7}
+FORMATS = {   # name: (id, format, columns) as in LogStructure.h (ArduPilot 4.x)
+    "IMU": (10, "QBffffffIIfBBHH", "TimeUS,I,GyrX,GyrY,GyrZ,AccX,AccY,AccZ,EG,EA,T,GH,AH,GHz,AHz"),
+    "GPS": (11, "QBBIHBcLLeffffB", "TimeUS,I,Status,GMS,GWk,NSats,HDop,Lat,Lng,Alt,Spd,GCrs,VZ,"
+                                   "Yaw,U"),
+    "GPA": (12, "QBCCCCfBIH", "TimeUS,I,VDop,HAcc,VAcc,SAcc,YAcc,VV,SMS,Delta"),
+    "POS": (13, "QLLfff", "TimeUS,Lat,Lng,Alt,RelHomeAlt,RelOriginAlt"),
+    "XKF1": (14, "QBccCfffffffccce", "TimeUS,C,Roll,Pitch,Yaw,VN,VE,VD,dPD,PN,PE,PD,GX,GY,GZ,OH"),
+    "ATT": (15, "QccccCCCCB", "TimeUS,DesRoll,Roll,DesPitch,Pitch,DesYaw,Yaw,ErrRP,ErrYaw,AEKF"),
+}
+LEAP_S = 18                 # GPS - UTC since 2017
+PROFILE = {"name": "copter-like", "start": {"latitude_deg": -35.36, "longitude_deg": 149.17,
+                                            "height_m": 584.0, "speed_m_s": 0.0,
+                                            "heading_deg": 70.0},
+           "segment": [{"kind": "hold", "duration_s": 12.0},
+                       {"kind": "accelerate", "to_speed_m_s": 15.0, "accel_g": 0.15},
+                       {"kind": "turn", "load_factor": 1.15, "heading_change_deg": 120.0},
+                       {"kind": "climb", "flight_path_deg": 8.0, "load_factor": 1.05,
+                        "duration_s": 10.0},
+                       {"kind": "turn", "load_factor": 1.1, "heading_change_deg": -90.0},
+                       {"kind": "hold", "duration_s": 10.0}]}
+
+
+class Writer:
+    def __init__(self):
+        self.parts = [self._fmt(128, "FMT", "BBnNZ", "Type,Length,Name,Format,Columns")]
+        for name, (mid, fmt, cols) in FORMATS.items():
+            self.parts.append(self._fmt(mid, name, fmt, cols))
+
+    @staticmethod
+    def _size(fmt):
+        return 3 + struct.calcsize("<" + "".join(STRUCT[c] for c in fmt))
+
+    def _fmt(self, mid, name, fmt, cols):
+        length = 89 if name == "FMT" else self._size(fmt)
+        return HEAD + bytes([128]) + struct.pack("<BB4s16s64s", mid, length, name.encode(),
+                                                 fmt.encode(), cols.encode())
+
+    def add(self, name, **values):
+        mid, fmt, cols = FORMATS[name]
+        packed = []
+        for c, col in zip(fmt, cols.split(",")):
+            v = values.get(col, 0)
+            packed.append(int(round(v * SCALE[c])) if c in SCALE else
+                          (float(v) if c == "f" else int(v)))
+        self.parts.append(HEAD + bytes([mid]) + struct.pack(
+            "<" + "".join(STRUCT[c] for c in fmt), *packed))
+
+    def bytes(self):
+        return b"".join(self.parts)
+
+
+def flight(rate=400.0, seed=0, unix_start_s=1714550400.0, boot_s=93.25):
+    """(DataFlash bytes, truth run, flight times t (s), UNIX time of t = 0) of PROFILE (the
+    autopilot booted boot_s before t = 0):
+    IMU instance 0 = interval means + white noise + a bias, instance 1 = the same at another
+    noise; GPS RTK fixed with GPA, POS, XKF1, ATT at 5 Hz from the truth."""
+    motion = Profile.from_dict(PROFILE).motion()
+    t = np.arange(0.0, motion.t1 - 1e-9, 1.0 / rate)
+    run = truth.generate(motion, t)
+    rng = np.random.default_rng(seed)
+    dt = np.diff(t)
+    w = run.dtheta / dt[:, None]
+    f = run.dv / dt[:, None]
+    out = Writer()
+    boot_us = np.round((boot_s + t[1:]) * 1e6).astype(np.int64)
+    for inst, (sw, sf) in enumerate(((2e-3, 2e-2), (4e-3, 4e-2))):
+        wn = w + rng.normal(0, sw, w.shape) + [1e-3, -2e-3, 5e-4]
+        fn = f + rng.normal(0, sf, f.shape) + [0.02, -0.01, 0.03]
+        for k in range(len(boot_us)):
+            out.add("IMU", TimeUS=boot_us[k], I=inst, GyrX=wn[k, 0], GyrY=wn[k, 1],
+                    GyrZ=wn[k, 2], AccX=fn[k, 0], AccY=fn[k, 1], AccZ=fn[k, 2],
+                    T=41.0 + 0.01 * t[k + 1], GHz=rate, AHz=rate)
+    tr = run.trajectory
+    yaw, pitch, roll = attitude.as_euler(tr.q_nb)
+    for k in range(0, len(t), int(rate / 5)):
+        unix = unix_start_s + t[k]
+        gps_s = unix - GPS_EPOCH_UNIX_S + LEAP_S
+        week, tow = divmod(gps_s, 604800.0)
+        vn, ve, vd = tr.v_ned[k]
+        us = int(round((boot_s + t[k]) * 1e6))
+        out.add("GPS", TimeUS=us, Status=6, GMS=int(round(tow * 1e3)), GWk=int(week), NSats=18,
+                HDop=0.7, Lat=np.degrees(tr.lat[k]), Lng=np.degrees(tr.lon[k]), Alt=tr.h[k],
+                Spd=np.hypot(vn, ve), GCrs=np.degrees(np.arctan2(ve, vn)) % 360, VZ=vd)
+        out.add("GPA", TimeUS=us, VDop=1.1, HAcc=0.02, VAcc=0.03, SAcc=0.05, SMS=0)
+        out.add("POS", TimeUS=us, Lat=np.degrees(tr.lat[k]), Lng=np.degrees(tr.lon[k]),
+                Alt=tr.h[k])
+        out.add("XKF1", TimeUS=us, C=0, Roll=np.degrees(roll[k]), VN=vn, VE=ve, VD=vd)
+        out.add("ATT", TimeUS=us, Roll=np.degrees(roll[k]), Pitch=np.degrees(pitch[k]),
+                Yaw=np.degrees(yaw[k]) % 360)
+    return out.bytes(), run, t, unix_start_s
