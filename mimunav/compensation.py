@@ -247,7 +247,8 @@ def triad(p0, p1, p2, p3, v):
 
 
 def compensate(cal, accel_volts, gyro_volts, accel_temperature, gyro_frequency,
-               range_accel=np.inf, range_gyro=np.inf, filter_outliers=True, t=None):
+               range_accel=np.inf, range_gyro=np.inf, filter_outliers=True, t=None,
+               record=None):
     """Raw MIMU samples -> specific force f (m/s^2) and rate w (rad/s), sensor axes, and a
     flag per sample (REPLACED | SATURATED | UNUSABLE bits).
 
@@ -256,7 +257,9 @@ def compensate(cal, accel_volts, gyro_volts, accel_temperature, gyro_frequency,
     on any axis reaches it are flagged SATURATED, and so are raw outputs stuck at their
     extreme (`clipped`: an ADC or amplifier limit below the declared range). t: sample
     times, s (N,), needed by the
-    cold-start model's dT window.
+    cold-start model's dT window. record: `RecordStats` of the whole record when these
+    samples are a block of it (`compensate_log`): the wild-value filter's noise level and
+    the clipping extremes are then the record's, as if it were compensated whole.
     """
     chans = [np.ascontiguousarray(x, dtype=float) for x in
              (accel_volts, gyro_volts, accel_temperature, gyro_frequency)]
@@ -266,13 +269,14 @@ def compensate(cal, accel_volts, gyro_volts, accel_temperature, gyro_frequency,
         if x.shape != (n, 3):
             raise InputError(f"{name} must have shape (N, 3) = ({n}, 3), got {x.shape}")
     flags = np.zeros(n, dtype=np.uint8)
+    sigmas, extremes = (record.sigma, record.extremes) if record else ([None] * 4, [None] * 2)
     if filter_outliers:
-        chans = [wild_value_filter(x, flags) for x in chans]
+        chans = [wild_value_filter(x, flags, sigma=sigma) for x, sigma in zip(chans, sigmas)]
     else:
         for x in chans:
             flags[~np.isfinite(x).all(axis=1)] |= UNUSABLE
     u_a, u_w, temp, freq = chans
-    flags[clipped(u_a) | clipped(u_w)] |= SATURATED
+    flags[clipped(u_a, extremes[0]) | clipped(u_w, extremes[1])] |= SATURATED
     if (cal.base_model == "cold-start" or cal.found) and t is None:
         raise CalibrationError(f"model {cal.model!r} needs the sample times t")
     if cal.base_model == "cold-start":
@@ -305,18 +309,21 @@ def _cold_start(cal, u_a, u_w, temp, freq, t):
     return out[0], out[1]
 
 
-def clipped(x):
+def clipped(x, extremes=None):
     """Samples (N,) bool where some axis of x (N, 3) sits at that axis's extreme value in a
     run of at least CLIP_RUN identical consecutive samples: an output clipped by its ADC or
     amplifier, whatever the declared range says. A live sensor's noise moves a quantized
-    output every sample; a channel that never moves (ptp 0) is left alone."""
+    output every sample; a channel that never moves (ptp 0) is left alone. extremes: the
+    (max, min) (2, 3) of the whole record's finite values when x is a block of it (NaN
+    where a column has fewer than CLIP_RUN finite values or never moves)."""
     x = np.asarray(x, dtype=float)
     out = np.zeros(len(x), dtype=bool)
-    for col in x.T:
-        finite = col[np.isfinite(col)]
-        if len(finite) < CLIP_RUN or np.ptp(finite) == 0:
+    if extremes is None:
+        extremes = column_extremes(x)
+    for col, top, bottom in zip(x.T, *extremes):
+        if not np.isfinite(top):
             continue
-        for extreme in (finite.max(), finite.min()):
+        for extreme in (top, bottom):
             at = np.concatenate([[0], (col == extreme).astype(np.int8), [0]])
             edges = np.flatnonzero(np.diff(at))
             for a, b in zip(edges[::2], edges[1::2]):
@@ -325,7 +332,76 @@ def clipped(x):
     return out
 
 
-def wild_value_filter(x, flags, n_sigma=6.0):
+def column_extremes(x):
+    """(max, min) (2, 3) of each column's finite values for `clipped`; NaN where a column
+    has fewer than CLIP_RUN finite values or never moves."""
+    out = np.full((2, x.shape[1]), np.nan)
+    for j, col in enumerate(np.asarray(x, dtype=float).T):
+        finite = col[np.isfinite(col)]
+        if len(finite) >= CLIP_RUN and np.ptp(finite) > 0:
+            out[:, j] = finite.max(), finite.min()
+    return out
+
+
+def noise_sigma(sub):
+    """The wild-value filter's noise standard deviation per column from a subsample of the
+    record (every step-th sample, step = max(1, N // 20000)): 1.4826 MAD of the second
+    difference, divided by sqrt(1.5); at least 1e-12 of the largest value; 0 for a column
+    without finite values."""
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)    # all-NaN channel: UNUSABLE later
+        d2 = np.abs(sub[1:-1] - 0.5 * (sub[:-2] + sub[2:])) if len(sub) >= 3 else np.abs(sub)
+        sigma = 1.4826 * np.nanmedian(d2, axis=0) / math.sqrt(1.5)
+        floor = 1e-12 * np.nanmax(np.abs(sub), axis=0)
+    return np.where(np.isfinite(sigma), np.maximum(sigma, floor), 0.0) + 1e-300
+
+
+def subsample_step(n):
+    """The stride of the subsample `noise_sigma` reads from a record of n samples."""
+    return max(1, n // 20000)
+
+
+@dataclass
+class RecordStats:
+    """What `compensate` needs from a whole record when it sees a block of it: the
+    wild-value filter's noise sigma of each raw channel (accel volts, gyro volts,
+    temperature, frequency; `noise_sigma`), and the (max, min) of the filtered voltages
+    (accel, gyro) for `clipped` (`column_extremes`)."""
+    sigma: list
+    extremes: list = None
+
+    @classmethod
+    def sigma_of_blocks(cls, blocks, n, names):
+        """The sigmas from blocks (structured arrays holding the fields `names`) of a record
+        of n samples, read once: the same numbers as on the whole record."""
+        step, seen = subsample_step(n), 0
+        subs = [[] for _ in names]
+        for block in blocks:
+            first = (-seen) % step
+            for k, name in enumerate(names):
+                subs[k].append(np.asarray(block[name], dtype=float)[first::step])
+            seen += len(block)
+        return cls([noise_sigma(np.concatenate(sub)) for sub in subs])
+
+    def add_extremes(self, filtered):
+        """Fold the filtered voltages of one block (accel, gyro, each (N, 3)) into the
+        record's extremes; `finish_extremes` turns them into `column_extremes`' form."""
+        if not hasattr(self, "_top"):
+            self._top, self._bottom = np.full((2, 3), -np.inf), np.full((2, 3), np.inf)
+            self._count = np.zeros((2, 3), int)
+        for k, x in enumerate(filtered):
+            finite = np.isfinite(x)
+            self._top[k] = np.maximum(self._top[k], np.where(finite, x, -np.inf).max(axis=0))
+            self._bottom[k] = np.minimum(self._bottom[k], np.where(finite, x, np.inf).min(axis=0))
+            self._count[k] += finite.sum(axis=0)
+
+    def finish_extremes(self):
+        moving = (self._count >= CLIP_RUN) & (self._top > self._bottom)
+        self.extremes = [np.where(moving[k], np.stack([self._top[k], self._bottom[k]]), np.nan)
+                         for k in range(2)]
+
+
+def wild_value_filter(x, flags, n_sigma=6.0, sigma=None):
     """Wild-value (outlier) filter, seed S1 section 3.2 step 1.
 
     A sample is wild when it is non-finite, or when it disagrees with both linear
@@ -341,17 +417,12 @@ def wild_value_filter(x, flags, n_sigma=6.0):
 
     The noise standard deviation of each channel is robust and global: 1.4826 MAD of the
     second difference x[k] - (x[k-1] + x[k+1])/2 over the record, divided by sqrt(1.5).
-    x (N, 3); returns a filtered copy; flags are updated in place."""
+    x (N, 3); returns a filtered copy; flags are updated in place. sigma: the record's
+    noise sigma (`noise_sigma`) when x is a block of it."""
     x = np.ascontiguousarray(x, dtype=float)
     out = x.copy()
-    step = max(1, len(x) // 20000)
-    sub = x[::step]
-    with np.errstate(all="ignore"), warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)    # all-NaN channel: UNUSABLE below
-        d2 = np.abs(sub[1:-1] - 0.5 * (sub[:-2] + sub[2:])) if len(sub) >= 3 else np.abs(sub)
-        sigma = 1.4826 * np.nanmedian(d2, axis=0) / math.sqrt(1.5)
-        floor = 1e-12 * np.nanmax(np.abs(sub), axis=0)
-    sigma = np.where(np.isfinite(sigma), np.maximum(sigma, floor), 0.0) + 1e-300
+    if sigma is None:
+        sigma = noise_sigma(x[::subsample_step(len(x))])
     wild = np.zeros(x.shape, dtype=np.bool_)
     _find_wild(x, n_sigma * sigma * math.sqrt(6.0), wild)
     for j in np.nonzero(wild.any(axis=0))[0]:
@@ -458,14 +529,24 @@ def _newton_triad(p0, p1, p1_inv, p2, p3, y, v):
     return worst
 
 
-def compensate_log(log_path, cal, out, force=False, skip_damaged=False):
+RAW_FIELDS = ("accel_volts", "gyro_volts", "accel_temperature", "gyro_frequency")
+BLOCK = 1 << 18             # samples per block of `compensate_log` (~100 MB of work arrays)
+
+
+def compensate_log(log_path, cal, out, force=False, skip_damaged=False, block=BLOCK):
     """Apply a calibration to a log's /mimu/raw channel and write OUT: every channel,
     metadata record and attachment of the input copied (the contract's fixed-size channels
     field by field, with CDR padding written as zeros; others byte for byte, their chunks'
     CRCs checked), plus /mimu/imu (sensor_msgs/msg/Imu, sensor axes, interval means, no
     orientation). A damaged chunk or index is a LogError; with skip_damaged its messages are
     left out and listed in the output's `damage` metadata record. Returns the flag counts
-    {REPLACED, SATURATED, UNUSABLE}."""
+    (`flag_counts`).
+
+    Memory is bounded: the log is read in blocks of `block` samples (`FlightLog.blocks`),
+    three times - the wild-value filter's noise level from a subsample of the whole record,
+    the clipping extremes of the filtered voltages, then the compensation - each block
+    with `margin_samples` of its neighbours on both sides, so every sample sees what it
+    would see in a whole-record compensation (tests/test_compensation.py checks they agree)."""
     from mcap.reader import make_reader
 
     from .flightlog import FlightLog, LayoutError, LogError, LogWriter
@@ -473,14 +554,23 @@ def compensate_log(log_path, cal, out, force=False, skip_damaged=False):
     with FlightLog(log_path, skip_damaged=skip_damaged) as log:
         if "/mimu/imu" in log.channels:
             raise LogError(f"{log_path} already has /mimu/imu")
-        raw = log.read("/mimu/raw")
-        rng = log.metadata().get("sensor/mimu", {}).get("range", {})
-    if len(raw) < 2:
-        raise LogError(f"{log_path}: /mimu/raw has {len(raw)} intact messages")
-    stamps = raw["log_time"].astype(np.int64)
-    f, w, flags = compensate(cal, raw["accel_volts"], raw["gyro_volts"], raw["accel_temperature"],
-                             raw["gyro_frequency"], rng.get("accel_m_s2", np.inf),
-                             rng.get("gyro_rad_s", np.inf), t=(stamps - stamps[0]) / 1e9)
+        meta = log.metadata()
+        rng = meta.get("sensor/mimu", {}).get("range", {})
+        n = log.count("/mimu/raw") if not skip_damaged else None   # checked as it is read
+        if n is None:
+            n = sum(len(b) for b in log.blocks("/mimu/raw", block, fields=["sample_index"]))
+        if n < 2:
+            raise LogError(f"{log_path}: /mimu/raw has {n} intact messages")
+        stats = RecordStats.sigma_of_blocks(log.blocks("/mimu/raw", block, RAW_FIELDS), n,
+                                            RAW_FIELDS)
+        rate = float(meta.get("sensor/mimu", {}).get("sample_rate_hz", 1000.0) or 1000.0)
+        margin = margin_samples(cal, rate)
+        for ext, lo, hi in _with_margins(log.blocks("/mimu/raw", block, RAW_FIELDS[:2]), margin):
+            flags = np.zeros(len(ext), np.uint8)
+            stats.add_extremes([wild_value_filter(ext[name], flags, sigma=sigma)[lo:hi]
+                                for name, sigma in zip(RAW_FIELDS[:2], stats.sigma[:2])])
+        stats.finish_extremes()
+    counts = dict.fromkeys(("replaced", "saturated", "unusable"), 0)
     with open(log_path, "rb") as fh, LogWriter(out, force=force) as dst, \
             FlightLog(log_path, skip_damaged=skip_damaged) as log:
         log.metadata()                      # a damaged metadata record is a LogError
@@ -489,17 +579,25 @@ def compensate_log(log_path, cal, out, force=False, skip_damaged=False):
             dst.metadata(record.name, record.metadata)
         for att in reader.iter_attachments():
             dst.attachment(att.name, att.data, att.media_type)
-        generic = []
+        generic, t0 = [], None
         for topic in log.channels:
             try:
-                msgs = log.read(topic)          # contract channel: copy field by field
+                for msgs in log.blocks(topic, block):   # contract channel: field by field
+                    fields = {name: msgs[name] for name, _, _ in S.BODIES[log.schema_name(topic)]}
+                    dst.write(topic, log.schema_name(topic), msgs["frame_id"][0].decode(),
+                              msgs["log_time"].astype(np.int64), **fields)
             except LayoutError:
                 generic.append(topic)
-                continue
-            if len(msgs):
-                fields = {name: msgs[name] for name, _, _ in S.BODIES[log.schema_name(topic)]}
-                dst.write(topic, log.schema_name(topic), msgs["frame_id"][0].decode(),
-                          msgs["log_time"].astype(np.int64), **fields)
+        for ext, lo, hi in _with_margins(log.blocks("/mimu/raw", block), margin):
+            stamps = ext["log_time"].astype(np.int64)
+            t0 = stamps[0] if t0 is None else t0
+            f, w, flags = compensate(cal, *(ext[name] for name in RAW_FIELDS),
+                                     rng.get("accel_m_s2", np.inf), rng.get("gyro_rad_s", np.inf),
+                                     t=(stamps - t0) / 1e9, record=stats)
+            dst.write("/mimu/imu", S.IMU, "mimu", stamps[lo:hi], **S.imu_fields(w[lo:hi],
+                                                                                f[lo:hi]))
+            for name, count in flag_counts(flags[lo:hi]).items():
+                counts[name] += count
         fh.seek(0)
         try:
             for schema, channel, message in make_reader(fh, validate_crcs=True).iter_messages(
@@ -508,12 +606,50 @@ def compensate_log(log_path, cal, out, force=False, skip_damaged=False):
         except Exception as exc:            # the mcap reader's own errors on damaged chunks
             raise LogError(f"{log_path}: damaged data in {', '.join(generic)} "
                            f"({type(exc).__name__}: {exc})") from None
-        dst.write("/mimu/imu", S.IMU, "mimu", stamps, **S.imu_fields(w, f))
         if log.damaged:
             dst.metadata("damage", {topic: [{"start_ns": a, "end_ns": b, "reason": r}
                                             for a, b, r in spans]
                                     for topic, spans in log.damaged.items()})
-    return flag_counts(flags)
+    return counts
+
+
+def margin_samples(cal, rate_hz):
+    """Samples of context a block needs on each side for `compensate` to act on its
+    samples as on the whole record: the cold-start model's dT window, the windows of found
+    terms and the derivative window of their conditions (s, at rate_hz), plus the wild-value
+    filter's and the clipping test's reach."""
+    seconds = [effects.DERIVATIVE_WINDOW_S]
+    if cal.cold_start:
+        seconds.append(cal.cold_start.get("window_s", 0.0))
+    seconds += [float(term.get("window_s", 0.0)) for term in cal.found or []]
+    return int(math.ceil(max(seconds) * rate_hz)) + 2 * CLIP_RUN + 8
+
+
+def _with_margins(blocks, margin):
+    """(block with up to `margin` samples of the previous and next blocks around it, start,
+    end of the block's own samples in it) for consecutive blocks."""
+    before, current = None, None
+    for nxt in blocks:
+        if current is not None:
+            yield _joined(before, current, nxt[:margin])
+            before = _tail(before, current, margin)
+        current = nxt
+    if current is not None:
+        yield _joined(before, current, current[:0])
+
+
+def _joined(before, current, after):
+    parts = [p for p in (before, current, after) if p is not None]
+    lo = 0 if before is None else len(before)
+    return np.concatenate(parts), lo, lo + len(current)
+
+
+def _tail(before, current, margin):
+    if margin == 0:
+        return current[:0]
+    if before is None or len(current) >= margin:
+        return current[-margin:].copy()
+    return np.concatenate([before, current])[-margin:]
 
 
 def flag_counts(flags):

@@ -164,6 +164,12 @@ def test_bad_inputs_get_clear_errors_naming_the_sample(short):
     _raises("rates", t, dth, dv * 100, start)
     _raises("in g", t, dth, dv / 9.81, start)
     _raises("must be in rad", t, dth, dv, dict(start, lat=45.0))
+    _raises("must be in rad", t, dth, dv, dict(start, lat=1.6))       # 91.7 deg
+    _raises("must be in rad", t, dth, dv, dict(start, lon=6.3))       # 361 deg
+    # the rate is reported as the rate (|dtheta| / T), not the increment
+    fast = dth.copy()
+    fast[40] = [60.0 * 0.01, 0.0, 0.0]
+    _raises(r"angular rate 60 rad/s at sample 40", t, fast, dv, start)
     _raises("not a unit quaternion", t, dth, dv, dict(start, q_nb=[1, 0.1, 0, 0]))
     _raises("not after the initial", t, dth, dv, dict(start, t=t[0]))
     _raises("initial state needs", t, dth, dv, {"t": 0.0})
@@ -239,3 +245,13 @@ def test_large_rotation_steps_use_the_exact_rotation_vector_update():
     branch is checked by every other test (|phi| < 1e-3 rad)."""
     nav, ref, _ = _fly(_YawSpin(1.0, 20.0), 2.0)
     assert np.abs(nav.attitude_error(ref)[:, 2]).max() < 1e-7
+
+
+def test_free_fall_is_not_mistaken_for_g_units(short):
+    """A median specific force below 0.3 m/s^2 (free fall, a drop test, orbit) is what it
+    is: only 0.3-3 m/s^2, where a 1 g vehicle logged in g would sit, is refused."""
+    t, dth, _, start = short
+    falling = np.zeros((len(t), 3))
+    falling[:, 2] = -0.1 * (t[1] - t[0])                 # 0.1 m/s^2
+    nav = strapdown.integrate(t, dth, falling, start)
+    assert len(nav) == len(t) + 1

@@ -115,45 +115,61 @@ class FlightLog:
         except _DAMAGE as exc:
             raise LogError(f"{self.path}: {topic}: damaged data ({type(exc).__name__}: {exc});"
                            " `mimunav info LOG --recover OUT.mcap` keeps what is intact") from exc
+        self._check_count(topic, len(out))
+        return out
+
+    def blocks(self, topic, size=1 << 20, fields=None):
+        """The messages of a channel in time order as consecutive structured arrays of
+        about `size` messages (whole chunks; the last may be shorter): a log of any length
+        in bounded memory. The same checks as `read` - a damaged chunk or index is a LogError
+        (or left out and listed in `damaged` with skip_damaged), the total is compared with
+        the statistics record at the end - and chunks whose messages go back in time across
+        a block boundary are refused (`read` sorts them; a stream cannot)."""
+        buf, pos, total, last = None, 0, 0, None
+        try:
+            for _, fill in self._pieces(topic, fields):
+                if buf is not None and fill.count > len(buf) - pos:
+                    total += pos
+                    yield buf[:pos].copy()
+                    pos = 0
+                if buf is None or fill.count > len(buf):
+                    buf = np.empty(max(size, fill.count), dtype=fill.dtype)
+                n = fill(buf[pos:])
+                piece = buf[pos:pos + n]
+                if n and np.any(np.diff(piece["log_time"].astype(np.int64)) < 0) or \
+                        last is not None and n and int(piece["log_time"][0]) < last:
+                    raise LogError(f"{self.path}: {topic}: stamps go back in time; read the "
+                                   "channel whole (FlightLog.read), which sorts them")
+                last = int(piece["log_time"][-1]) if n else last
+                pos += n
+                if pos >= size:
+                    total += pos
+                    yield buf[:pos].copy()
+                    pos = 0
+        except LogError:
+            raise
+        except _DAMAGE as exc:
+            raise LogError(f"{self.path}: {topic}: damaged data ({type(exc).__name__}: {exc});"
+                           " `mimunav info LOG --recover OUT.mcap` keeps what is intact") from exc
+        if pos:
+            total += pos
+            yield buf[:pos].copy()
+        self._check_count(topic, total)
+
+    def _check_count(self, topic, n):
         expected = self.count(topic)
-        if expected is not None and expected != len(out) and topic not in self.damaged:
-            raise LogError(f"{self.path}: {topic}: the indexes lead to {len(out)} messages, "
+        if expected is not None and expected != n and topic not in self.damaged:
+            raise LogError(f"{self.path}: {topic}: the indexes lead to {n} messages, "
                            f"the statistics record counts {expected}: an index is damaged; "
                            "`mimunav info LOG --recover OUT.mcap` rebuilds the log from its "
                            "intact chunks")
-        return out
 
     def _read(self, topic, fields=None):
-        channel = self._channel(topic)
-        chunks = [ci for ci in self.summary.chunk_indexes
-                  if channel.id in ci.message_index_offsets]
-        indexes = [self._message_index(ci, channel.id) for ci in chunks]
-        # chunk order by this channel's own first message (a chunk shared with a channel
-        # written after it starts earlier than the chunk's other messages of this one)
-        order = sorted(range(len(chunks)), key=lambda i: (
-            int(indexes[i]["log_time"].min()) if len(indexes[i]) else 0,
-            chunks[i].chunk_start_offset))
-        chunks, indexes = [chunks[i] for i in order], [indexes[i] for i in order]
         out, pos = None, 0
-        for ci, index in zip(chunks, indexes):
-            if len(index) == 0:
-                continue
-            try:
-                data = self._chunk_data(ci)
-                if out is None:
-                    dtype = self._layout(data, index, topic)
-                    out = np.empty(sum(len(i) for i in indexes),
-                                   dtype=_with_log_time(dtype, fields))
-                self._gather(data, index, dtype, out[pos:pos + len(index)], topic, ci)
-            except LayoutError:
-                raise
-            except (LogError, *_DAMAGE) as exc:
-                if not self.skip_damaged:
-                    raise
-                self.damaged.setdefault(topic, []).append(
-                    (int(ci.message_start_time), int(ci.message_end_time), str(exc)))
-                continue
-            pos += len(index)
+        for n_total, fill in self._pieces(topic, fields):
+            if out is None:
+                out = np.empty(n_total, dtype=fill.dtype)
+            pos += fill(out[pos:])
         if out is None:
             return np.zeros(0, dtype=[("log_time", "<u8")])
         out = out[:pos]
@@ -162,6 +178,57 @@ class FlightLog:
         if reversals:
             out = out[np.argsort(out["log_time"], kind="stable")]
         return out
+
+    def _pieces(self, topic, fields=None):
+        """Per chunk holding the channel, in the order of the channel's own first message
+        per chunk: (messages of the channel in all its chunks, fill) where fill(out) decodes
+        the chunk's messages into the start of `out` (a structured array with log_time, of
+        dtype `fill.dtype`) and returns how many; a damaged chunk raises or (skip_damaged)
+        is listed in `damaged` and fills nothing."""
+        channel = self._channel(topic)
+        chunks = [ci for ci in self.summary.chunk_indexes
+                  if channel.id in ci.message_index_offsets]
+        # chunk order by this channel's own first message (a chunk shared with a channel
+        # written after it starts earlier than the chunk's other messages of this one); the
+        # indexes are read again chunk by chunk below, so that a long log's are not all held
+        first, n_total = [], 0
+        for ci in chunks:
+            index = self._message_index(ci, channel.id)
+            first.append(int(index["log_time"].min()) if len(index) else 0)
+            n_total += len(index)
+        order = sorted(range(len(chunks)), key=lambda i: (first[i], chunks[i].chunk_start_offset))
+        layout = []                         # the channel's CDR dtype, from its first chunk
+        for i in order:
+            ci = chunks[i]
+            index = self._message_index(ci, channel.id)
+            if len(index) == 0:
+                continue
+            try:
+                data = self._chunk_data(ci)
+                if not layout:
+                    layout.append(self._layout(data, index, topic))
+            except LayoutError:
+                raise
+            except (LogError, *_DAMAGE) as exc:
+                if not self.skip_damaged:
+                    raise
+                self.damaged.setdefault(topic, []).append(
+                    (int(ci.message_start_time), int(ci.message_end_time), str(exc)))
+                continue
+
+            def fill(out, data=data, index=index, ci=ci):
+                try:
+                    self._gather(data, index, layout[0], out[:len(index)], topic, ci)
+                except (LogError, *_DAMAGE) as exc:
+                    if not self.skip_damaged:
+                        raise
+                    self.damaged.setdefault(topic, []).append(
+                        (int(ci.message_start_time), int(ci.message_end_time), str(exc)))
+                    return 0
+                return len(index)
+            fill.dtype = _with_log_time(layout[0], fields)
+            fill.count = len(index)
+            yield n_total, fill
 
     def _chunk_data(self, ci):
         """Decompressed records of a chunk. Chunk record layout (MCAP spec): opcode 1,

@@ -107,19 +107,21 @@ class LogWriter:
 
     # ---- messages ---------------------------------------------------------------------
     def write(self, topic, schema_name, frame_id, stamp_ns, **fields):
-        """Write a whole channel of fixed-size messages: stamp_ns integer ns since the
-        UNIX epoch (N,), increasing; fields as in `schemas.BODIES`. Encoded a chunk at a time
-        (memory and cache stay small)."""
+        """Write fixed-size messages of a channel: stamp_ns integer ns since the UNIX epoch
+        (N,), increasing; fields as in `schemas.BODIES`. Encoded a chunk at a time (memory and
+        cache stay small); a channel may be written in several calls, in time order (a
+        log written in blocks)."""
         stamp_ns = np.asarray(stamp_ns, dtype=np.int64)
         if np.any(np.diff(stamp_ns) <= 0):
             raise InputError(f"{topic}: stamps must increase")
         channel = self._channel(topic, schema_name)
         per = self._per_chunk(schemas.cdr_dtype(schema_name, frame_id).itemsize)
+        first = self._counts.get(channel, 0)        # sequence continues across calls
         for a in range(0, len(stamp_ns), per):
             piece = {k: (v[a:a + per] if np.ndim(v) and len(v) == len(stamp_ns) else v)
                      for k, v in fields.items()}
             self._messages(channel, schemas.encode(schema_name, frame_id, stamp_ns[a:a + per],
-                                                   **piece), stamp_ns[a:a + per], a)
+                                                   **piece), stamp_ns[a:a + per], first + a)
 
     def write_encoded(self, topic, schema_name, msgs, stamp_ns):
         """Messages already encoded (a structured array of CDR payloads, one size) with
@@ -127,8 +129,9 @@ class LogWriter:
         channel = self._channel(topic, schema_name)
         stamp_ns = np.asarray(stamp_ns, np.int64)
         per = self._per_chunk(msgs.dtype.itemsize)
+        first = self._counts.get(channel, 0)
         for a in range(0, len(msgs), per):
-            self._messages(channel, msgs[a:a + per], stamp_ns[a:a + per], a)
+            self._messages(channel, msgs[a:a + per], stamp_ns[a:a + per], first + a)
 
     def _per_chunk(self, payload_size):
         return max(1, self._chunk_size // (_MESSAGE_HEAD + payload_size))

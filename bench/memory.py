@@ -1,0 +1,126 @@
+"""Peak memory of the commands that read a whole flight, against the flight's length.
+
+    python bench/memory.py [--minutes 5 20] [--commands compensate replay table]
+
+A parked 1 kHz flight (MIMU raw volts of a drawn unit at rest through its true
+coefficients, FOG-IMU at rest, truth at 100 Hz; white noise) of each length is written
+block by block, then each command runs in its own process and its peak resident memory is
+read by /usr/bin/time (-f %M). The slope between the lengths is the memory per sample;
+the line extrapolates it to a 2-hour 1 kHz flight (7.2 M samples).
+"""
+import argparse
+import math
+import os
+import platform
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+from mimunav import earth                               # noqa: E402
+from mimunav.compensation import Calibration, raw_from_physics     # noqa: E402
+from mimunav.flightlog import LogWriter                 # noqa: E402
+from mimunav.flightlog import schemas as S              # noqa: E402
+from mimunav.sensors import MimuUnit                    # noqa: E402
+
+EPOCH_NS = 1_767_225_600 * 10**9
+LAT, LON, H = math.radians(45.0), math.radians(7.0), 300.0
+BLOCK = 200_000
+
+
+def parked_log(path, minutes, unit, rate=1000.0, seed=0):
+    """A parked flight (level, heading north) of `minutes` at `rate`, written in blocks."""
+    rng = np.random.default_rng(seed)
+    g = float(earth.normal_gravity(LAT, H))
+    w = np.array([earth.OMEGA * math.cos(LAT), 0.0, -earth.OMEGA * math.sin(LAT)])
+    f = np.array([0.0, 0.0, -g])
+    temp = np.full((1, 3), 25.0)
+    freq = unit.thermal.resonance_frequency(temp)
+    u_a, u_w = raw_from_physics(unit.coefficients, f[None], w[None], temp, freq)
+    n = int(minutes * 60 * rate)
+    mounting = {"attitude_wxyz": [1.0, 0, 0, 0], "lever_arm_m": [0.0, 0, 0]}
+    with LogWriter(path, force=True) as log:
+        log.metadata("flight", {"format": "mimunav-log/1", "name": "parked", "description":
+                                f"parked {minutes} min at {rate:g} Hz (bench/memory.py)",
+                                "epoch_unix_ns": EPOCH_NS, "source": "simulation",
+                                "initial_state": {"t": 0.0, "latitude": LAT, "longitude": LON,
+                                                  "height": H, "velocity_ned": [0.0, 0, 0],
+                                                  "attitude_wxyz": [1.0, 0, 0, 0]}})
+        log.metadata("sensor/mimu", {"model": "bench", "sample_rate_hz": rate,
+                                     "mounting": mounting,
+                                     "range": {"gyro_rad_s": unit.range_gyro,
+                                               "accel_m_s2": unit.range_accel}})
+        log.metadata("sensor/fog", {"model": "bench", "sample_rate_hz": rate,
+                                    "mounting": mounting})
+        for a in range(0, n, BLOCK):
+            k = np.arange(a, min(n, a + BLOCK))
+            stamps = EPOCH_NS + np.round(k * 1e9 / rate).astype(np.int64)
+            m = len(k)
+            log.write("/mimu/raw", S.RAW_MIMU, "mimu", stamps, sample_index=k.astype(np.uint64),
+                      gyro_volts=u_w + rng.normal(0, 1e-4, (m, 3)),
+                      accel_volts=u_a + rng.normal(0, 1e-4, (m, 3)),
+                      accel_temperature=np.full((m, 3), 25.0), gyro_frequency=np.tile(freq, (m, 1)))
+        for a in range(0, n, BLOCK):
+            k = np.arange(a, min(n, a + BLOCK))
+            stamps = EPOCH_NS + np.round(k * 1e9 / rate).astype(np.int64)
+            m = len(k)
+            log.write("/fog/imu", S.IMU, "fog", stamps, **S.imu_fields(
+                w + rng.normal(0, 1e-6, (m, 3)), f + rng.normal(0, 1e-4, (m, 3))))
+        n_truth = int(minutes * 60 * 100) + 1
+        stamps = EPOCH_NS + np.arange(n_truth, dtype=np.int64) * 10_000_000
+        log.write("/truth/state", S.NAV_STATE, "vehicle", stamps, latitude=np.full(n_truth, LAT),
+                  longitude=np.full(n_truth, LON), height=np.full(n_truth, H),
+                  velocity_ned=np.zeros((n_truth, 3)),
+                  attitude_wxyz=np.tile([1.0, 0, 0, 0], (n_truth, 1)))
+    return n
+
+
+def peak_mb(argv, cwd):
+    """Peak resident memory (MB) of `mimunav ARGV` in its own process."""
+    out = subprocess.run(["/usr/bin/time", "-f", "%M", sys.executable, "-m", "mimunav", *argv],
+                         cwd=cwd, capture_output=True, text=True)
+    if out.returncode != 0:
+        raise RuntimeError(f"mimunav {' '.join(argv)}: {out.stderr.strip()[-500:]}")
+    return int(out.stderr.strip().splitlines()[-1]) / 1024
+
+
+def commands(kind, log, cal, tmp):
+    out = {"compensate": ["compensate", log, "--cal", cal, "-o", f"{tmp}/out.mcap", "--force"],
+           "replay": ["replay", log, "--cal", cal, "-o", f"{tmp}/replay", "--force"],
+           "table": ["table", log, "--cal", f"c={cal}"]}
+    return out[kind]
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--minutes", type=float, nargs=2, default=[5.0, 20.0])
+    ap.add_argument("--commands", nargs="+", default=["compensate", "replay", "table"],
+                    choices=["compensate", "replay", "table"])
+    args = ap.parse_args()
+    unit = MimuUnit.draw(1, beyond_model=False)
+    results = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        cal = f"{tmp}/cal.json"
+        Calibration.from_dict(unit.coefficients.as_dict()).save(cal)
+        for minutes in args.minutes:
+            log = f"{tmp}/parked-{minutes:g}.mcap"
+            n = parked_log(log, minutes, unit)
+            for kind in args.commands:
+                results[(kind, n)] = peak_mb(commands(kind, log, cal, tmp), tmp)
+                print(f"{kind:11s} {minutes:6g} min ({n / 1e6:.2f} M samples): "
+                      f"{results[(kind, n)]:7.0f} MB", flush=True)
+    (n0, n1) = sorted({n for _, n in results})
+    load = os.getloadavg()[0]
+    print(f"machine {platform.machine()} {os.cpu_count()} cores, load {load:.1f}")
+    for kind in args.commands:
+        slope = (results[(kind, n1)] - results[(kind, n0)]) / (n1 - n0) * 1e6     # MB / M
+        print(f"{kind:11s} {slope * 1.048576:6.0f} B/sample; a 2-hour 1 kHz flight: "
+              f"{results[(kind, n0)] + slope * (7.2 - n0 / 1e6):6.0f} MB")
+
+
+if __name__ == "__main__":
+    main()
