@@ -30,6 +30,7 @@ OP = {"header": 0x01, "footer": 0x02, "schema": 0x03, "channel": 0x04, "message"
       "attachment_index": 0x0A, "statistics": 0x0B, "metadata": 0x0C, "metadata_index": 0x0D,
       "summary_offset": 0x0E, "data_end": 0x0F}
 _MESSAGE_HEAD = 31          # opcode 1 + length 8 + channel 2 + sequence 4 + log 8 + publish 8
+CHUNK_BATCH = 16            # chunks compressed together, in parallel (16 MiB of messages)
 
 # offered_qos_profiles as rosbag2 writes it (reliable, volatile, keep-last), so ROS 2 tools
 # (Foxglove, PlotJuggler, ros2 bag) take the channel as an ordinary topic
@@ -68,6 +69,8 @@ class LogWriter:
         self._counts = {}
         self._start = self._end = None
         self._pending, self._pending_bytes = [], 0  # copied messages not yet in a chunk
+        self._batch = []                            # chunks not yet compressed and written
+        self._sequence = {}                         # channel id -> next message sequence
 
     def __enter__(self):
         fd, self._tmp = temporary_beside(self.path, ".mcap")
@@ -81,6 +84,7 @@ class LogWriter:
         try:
             if exc_type is None:
                 self._flush_copies()
+                self._flush_chunks()
                 self._finish()
             self._fh.close()
             if exc_type is None:
@@ -116,7 +120,8 @@ class LogWriter:
             raise InputError(f"{topic}: stamps must increase")
         channel = self._channel(topic, schema_name)
         per = self._per_chunk(schemas.cdr_dtype(schema_name, frame_id).itemsize)
-        first = self._counts.get(channel, 0)        # sequence continues across calls
+        first = self._sequence.get(channel, 0)      # sequence continues across calls
+        self._sequence[channel] = first + len(stamp_ns)
         for a in range(0, len(stamp_ns), per):
             piece = {k: (v[a:a + per] if np.ndim(v) and len(v) == len(stamp_ns) else v)
                      for k, v in fields.items()}
@@ -129,7 +134,8 @@ class LogWriter:
         channel = self._channel(topic, schema_name)
         stamp_ns = np.asarray(stamp_ns, np.int64)
         per = self._per_chunk(msgs.dtype.itemsize)
-        first = self._counts.get(channel, 0)
+        first = self._sequence.get(channel, 0)
+        self._sequence[channel] = first + len(msgs)
         for a in range(0, len(msgs), per):
             self._messages(channel, msgs[a:a + per], stamp_ns[a:a + per], first + a)
 
@@ -183,31 +189,47 @@ class LogWriter:
     # ---- chunks and definitions --------------------------------------------------------
     def _chunk(self, cid, messages, log_times, offsets):
         """A chunk of one channel's message records (bytes) with their log times and
-        offsets (from the first message), its MessageIndex, and its ChunkIndex entry."""
+        offsets (from the first message): queued, and written with its MessageIndex and
+        ChunkIndex entry when the batch is full (`_flush_chunks`)."""
         head = b""
         if cid not in self._announced:          # definitions travel with the first chunk
             schema_id, channel_body = self._channel_records[cid]
             head = _record(OP["schema"], self._schema_records[schema_id]) + \
                 _record(OP["channel"], channel_body)
             self._announced.add(cid)
-        data = head + messages
-        compressed = self._zstd.compress(data)
-        start, end = int(log_times.min()), int(log_times.max())
-        body = struct.pack("<QQQI", start, end, len(data), zlib.crc32(data)) + _string("zstd") + \
-            struct.pack("<Q", len(compressed)) + compressed
-        chunk_start = self._fh.tell()
-        self._fh.write(_record(OP["chunk"], body))
-        chunk_length = self._fh.tell() - chunk_start
-        entries = np.empty(len(log_times), dtype=[("t", "<u8"), ("o", "<u8")])
-        entries["t"], entries["o"] = log_times, offsets + np.uint64(len(head))
-        index_start = self._fh.tell()
-        self._fh.write(_record(OP["message_index"], struct.pack("<HI", cid, entries.nbytes) +
-                               entries.tobytes()))
-        self._chunk_indexes.append((start, end, chunk_start, chunk_length, {cid: index_start},
-                                    self._fh.tell() - index_start, len(compressed), len(data)))
-        self._counts[cid] = self._counts.get(cid, 0) + len(log_times)
-        self._start = start if self._start is None else min(self._start, start)
-        self._end = end if self._end is None else max(self._end, end)
+        self._batch.append((cid, head + messages, log_times, offsets, len(head)))
+        if len(self._batch) >= CHUNK_BATCH:
+            self._flush_chunks()
+
+    def _flush_chunks(self):
+        """Compress the queued chunks in parallel (zstd's own threads, one per core), then
+        write them in order."""
+        batch, self._batch = self._batch, []
+        if not batch:
+            return
+        if len(batch) > 1:
+            result = self._zstd.multi_compress_to_buffer([b[1] for b in batch], threads=-1)
+            compressed = [result[k].tobytes() for k in range(len(batch))]
+        else:
+            compressed = [self._zstd.compress(batch[0][1])]
+        for (cid, data, log_times, offsets, head_len), comp in zip(batch, compressed):
+            start, end = int(log_times.min()), int(log_times.max())
+            body = struct.pack("<QQQI", start, end, len(data), zlib.crc32(data)) + \
+                _string("zstd") + struct.pack("<Q", len(comp)) + comp
+            chunk_start = self._fh.tell()
+            self._fh.write(_record(OP["chunk"], body))
+            chunk_length = self._fh.tell() - chunk_start
+            entries = np.empty(len(log_times), dtype=[("t", "<u8"), ("o", "<u8")])
+            entries["t"], entries["o"] = log_times, offsets + np.uint64(head_len)
+            index_start = self._fh.tell()
+            self._fh.write(_record(OP["message_index"], struct.pack("<HI", cid, entries.nbytes)
+                                   + entries.tobytes()))
+            self._chunk_indexes.append((start, end, chunk_start, chunk_length,
+                                        {cid: index_start}, self._fh.tell() - index_start,
+                                        len(comp), len(data)))
+            self._counts[cid] = self._counts.get(cid, 0) + len(log_times)
+            self._start = start if self._start is None else min(self._start, start)
+            self._end = end if self._end is None else max(self._end, end)
 
     def _schema(self, name, encoding="ros2msg", data=None):
         if name not in self._schemas:
