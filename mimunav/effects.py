@@ -24,7 +24,6 @@ vector in rad, sensor frame), and the keys a regressor needs (order, window_s, r
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.signal import savgol_filter
 from scipy.spatial.transform import Rotation
 from .errors import InputError
 
@@ -89,6 +88,7 @@ def derivative(t, x, window_s=0.0):
     dt = float(np.median(np.diff(t))) if n > 1 else 1.0
     m = int(round(window_s / dt)) // 2 * 2 + 1
     if m >= 5 and n >= m:
+        from scipy.signal import savgol_filter   # 2.6 s to import: only when needed
         return savgol_filter(x, m, 4, deriv=1, delta=dt, axis=0, mode="interp")
     lo, hi = np.maximum(np.arange(n) - 1, 0), np.minimum(np.arange(n) + 1, n - 1)
     return (x[hi] - x[lo]) / (t[hi] - t[lo])[:, None]
