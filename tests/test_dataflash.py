@@ -84,3 +84,26 @@ def test_refusals_name_the_problem(log, tmp_path, capsys):
     with pytest.raises(RecordingError):
         dataflash.read(str(foreign))
     assert not (tmp_path / "x.mcap").exists()
+
+
+def test_older_logs_number_their_instances_by_type(tmp_path):
+    """ArduPilot before 4.1 logs IMU (no I field) and IMU2: the second instance is found
+    by its type, and instance 0 is not mixed with it."""
+    w = dataflash_log.Writer()
+    fmt, cols = "QffffffIIf", "TimeUS,GyrX,GyrY,GyrZ,AccX,AccY,AccZ,EG,EA,T"
+    dataflash_log.FORMATS["IMU_OLD"] = (20, fmt, cols)
+    dataflash_log.FORMATS["IMU2"] = (21, fmt, cols)
+    try:
+        w.parts = [w._fmt(128, "FMT", "BBnNZ", "Type,Length,Name,Format,Columns"),
+                   w._fmt(20, "IMU", fmt, cols), w._fmt(21, "IMU2", fmt, cols)]
+        for k in range(200):
+            w.add("IMU_OLD", TimeUS=1000 + 2500 * k, GyrX=0.01, AccZ=-9.8)
+            w.add("IMU2", TimeUS=1000 + 2500 * k, GyrX=0.02, AccZ=-9.81)
+    finally:
+        del dataflash_log.FORMATS["IMU_OLD"], dataflash_log.FORMATS["IMU2"]
+    path = tmp_path / "old.bin"
+    path.write_bytes(w.bytes())
+    for instance, gyro in ((0, 0.01), (1, 0.02)):
+        rec = dataflash.read(str(path), instance=instance, reference="none")
+        assert len(rec.imu_ns) == 200
+        np.testing.assert_allclose(rec.w[:, 0], gyro, rtol=1e-6)

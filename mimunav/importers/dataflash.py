@@ -37,8 +37,8 @@ TYPES = ("IMU", "IMU2", "IMU3", "GPS", "GPS2", "GPA", "POS", "XKF1", "ATT")
 
 
 def _messages(path):
-    """{type: {field: array}} of the types this importer reads (`instance` field I added
-    for the older numbered types)."""
+    """{type: {field: array}} of the types this importer reads; older logs' numbered types
+    (IMU2, IMU3, GPS2) and un-numbered ones get the instance field I they lack."""
     from pymavlink import DFReader
     try:
         log = DFReader.DFReader_binary(path, zero_time_base=False)
@@ -57,6 +57,8 @@ def _messages(path):
         if kind in ("IMU2", "IMU3", "GPS2"):
             d["I"] = int(kind[-1]) - 1
             kind = kind[:3]
+        elif kind in ("IMU", "GPS", "GPA"):
+            d.setdefault("I", 0)                # older logs: instance 0 has no I field
         rows.setdefault(kind, []).append(d)
     return {kind: {k: np.array([r.get(k, np.nan) for r in rs]) for k in rs[0]
                    if k != "mavpackettype"} for kind, rs in rows.items()}
