@@ -369,19 +369,27 @@ class RecordStats:
     (accel, gyro) for `clipped` (`column_extremes`)."""
     sigma: list
     extremes: list = None
+    min_step_ns: int = 0        # the shortest sample interval of the record (margins)
 
     @classmethod
     def sigma_of_blocks(cls, blocks, n, names):
         """The sigmas from blocks (structured arrays holding the fields `names`) of a record
         of n samples, read once: the same numbers as on the whole record."""
-        step, seen = subsample_step(n), 0
+        step, seen, min_step, last = subsample_step(n), 0, None, None
         subs = [[] for _ in names]
         for block in blocks:
             first = (-seen) % step
             for k, name in enumerate(names):
                 subs[k].append(np.asarray(block[name], dtype=float)[first::step])
             seen += len(block)
-        return cls([noise_sigma(np.concatenate(sub)) for sub in subs])
+            stamps = block["log_time"].astype(np.int64)
+            steps = np.diff(stamps if last is None else np.r_[last, stamps])
+            steps = steps[steps > 0]
+            if len(steps):
+                min_step = int(steps.min()) if min_step is None else min(min_step, int(steps.min()))
+            last = int(stamps[-1])
+        return cls([noise_sigma(np.concatenate(sub)) for sub in subs],
+                   min_step_ns=min_step or 10**6)
 
     def add_extremes(self, filtered):
         """Fold the filtered voltages of one block (accel, gyro, each (N, 3)) into the
@@ -546,7 +554,30 @@ def compensate_log(log_path, cal, out, force=False, skip_damaged=False, block=BL
     three times - the wild-value filter's noise level from a subsample of the whole record,
     the clipping extremes of the filtered voltages, then the compensation - each block
     with `margin_samples` of its neighbours on both sides, so every sample sees what it
-    would see in a whole-record compensation (tests/test_compensation.py checks they agree)."""
+    would see in a whole-record compensation (tests/test_compensation.py checks they agree).
+    Where that does not hold: a run of wild or non-finite samples longer than the margin
+    across a block edge is repaired from the samples within reach (held, or UNUSABLE when
+    the whole extended block has none) instead of interpolated across - flagged either way;
+    and the derivative of found terms takes each block's median sample interval (a record
+    whose rate changes differs near the change). A channel whose stamps go back in time is
+    read whole and sorted, as before."""
+    from .flightlog.reader import TimeOrderError
+    try:
+        return _compensate_log(log_path, cal, out, force, skip_damaged, block)
+    except TimeOrderError:          # stamps going back in time: read whole, sorted (`read`)
+        return _compensate_log(log_path, cal, out, force, skip_damaged, None)
+
+
+def _channel_blocks(log, topic, block, fields=None):
+    """The channel in blocks (`FlightLog.blocks`), or whole and time-sorted (`read`) when
+    block is None."""
+    if block is None:
+        msgs = log.read(topic, fields)
+        return [msgs] if len(msgs) else []
+    return log.blocks(topic, block, fields)
+
+
+def _compensate_log(log_path, cal, out, force, skip_damaged, block):
     from mcap.reader import make_reader
 
     from .flightlog import FlightLog, LayoutError, LogError, LogWriter
@@ -558,14 +589,15 @@ def compensate_log(log_path, cal, out, force=False, skip_damaged=False, block=BL
         rng = meta.get("sensor/mimu", {}).get("range", {})
         n = log.count("/mimu/raw") if not skip_damaged else None   # checked as it is read
         if n is None:
-            n = sum(len(b) for b in log.blocks("/mimu/raw", block, fields=["sample_index"]))
+            n = sum(len(b) for b in _channel_blocks(log, "/mimu/raw", block, ["sample_index"]))
         if n < 2:
             raise LogError(f"{log_path}: /mimu/raw has {n} intact messages")
-        stats = RecordStats.sigma_of_blocks(log.blocks("/mimu/raw", block, RAW_FIELDS), n,
-                                            RAW_FIELDS)
-        rate = float(meta.get("sensor/mimu", {}).get("sample_rate_hz", 1000.0) or 1000.0)
-        margin = margin_samples(cal, rate)
-        for ext, lo, hi in _with_margins(log.blocks("/mimu/raw", block, RAW_FIELDS[:2]), margin):
+        stats = RecordStats.sigma_of_blocks(_channel_blocks(log, "/mimu/raw", block, RAW_FIELDS),
+                                            n, RAW_FIELDS)
+        margin = margin_samples(cal, 1e9 / stats.min_step_ns)
+        block = None if block is None else max(block, 2 * margin)   # a neighbour >= the margin
+        for ext, lo, hi in _with_margins(_channel_blocks(log, "/mimu/raw", block,
+                                                         RAW_FIELDS[:2]), margin):
             flags = np.zeros(len(ext), np.uint8)
             stats.add_extremes([wild_value_filter(ext[name], flags, sigma=sigma)[lo:hi]
                                 for name, sigma in zip(RAW_FIELDS[:2], stats.sigma[:2])])
@@ -582,13 +614,13 @@ def compensate_log(log_path, cal, out, force=False, skip_damaged=False, block=BL
         generic, t0 = [], None
         for topic in log.channels:
             try:
-                for msgs in log.blocks(topic, block):   # contract channel: field by field
+                for msgs in _channel_blocks(log, topic, block):   # contract: field by field
                     fields = {name: msgs[name] for name, _, _ in S.BODIES[log.schema_name(topic)]}
                     dst.write(topic, log.schema_name(topic), msgs["frame_id"][0].decode(),
                               msgs["log_time"].astype(np.int64), **fields)
             except LayoutError:
                 generic.append(topic)
-        for ext, lo, hi in _with_margins(log.blocks("/mimu/raw", block), margin):
+        for ext, lo, hi in _with_margins(_channel_blocks(log, "/mimu/raw", block), margin):
             stamps = ext["log_time"].astype(np.int64)
             t0 = stamps[0] if t0 is None else t0
             f, w, flags = compensate(cal, *(ext[name] for name in RAW_FIELDS),
@@ -621,7 +653,12 @@ def margin_samples(cal, rate_hz):
     seconds = [effects.DERIVATIVE_WINDOW_S]
     if cal.cold_start:
         seconds.append(cal.cold_start.get("window_s", 0.0))
-    seconds += [float(term.get("window_s", 0.0)) for term in cal.found or []]
+    for term in cal.found or []:
+        seconds.append(float(term.get("window_s", 0.0)))
+        if term["effect"] == "thermal_hysteresis":      # slope over a centred window
+            seconds.append(effects.HYSTERESIS_SLOPE_WINDOW_S / 2)
+        if term["effect"] == "time_skew":               # the samples shifted by tau
+            seconds.append(float(np.max(np.abs(term["coefficient"]))) + effects.DERIVATIVE_WINDOW_S)
     return int(math.ceil(max(seconds) * rate_hz)) + 2 * CLIP_RUN + 8
 
 

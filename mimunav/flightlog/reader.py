@@ -36,6 +36,10 @@ class LayoutError(LogError):
 _DAMAGE = (McapError, ValueError, IndexError, EOFError, struct.error, zstandard.ZstdError)
 
 
+class TimeOrderError(LogError):
+    """A channel whose stamps go back in time, met while streaming it (`FlightLog.blocks`)."""
+
+
 class FlightLog:
     """A log opened for reading. skip_damaged=False (default): a damaged chunk, an index
     inconsistent with the data or a count that differs from the statistics record is a
@@ -138,8 +142,8 @@ class FlightLog:
                 piece = buf[pos:pos + n]
                 if n and np.any(np.diff(piece["log_time"].astype(np.int64)) < 0) or \
                         last is not None and n and int(piece["log_time"][0]) < last:
-                    raise LogError(f"{self.path}: {topic}: stamps go back in time; read the "
-                                   "channel whole (FlightLog.read), which sorts them")
+                    raise TimeOrderError(f"{self.path}: {topic}: stamps go back in time; read "
+                                         "the channel whole (FlightLog.read), which sorts them")
                 last = int(piece["log_time"][-1]) if n else last
                 pos += n
                 if pos >= size:
@@ -155,6 +159,13 @@ class FlightLog:
             total += pos
             yield buf[:pos].copy()
         self._check_count(topic, total)
+
+    def _damage(self, topic, ci, exc):
+        """List a damaged chunk of `topic` once, however often the channel is read."""
+        span = (int(ci.message_start_time), int(ci.message_end_time), str(exc))
+        spans = self.damaged.setdefault(topic, [])
+        if span not in spans:
+            spans.append(span)
 
     def _check_count(self, topic, n):
         expected = self.count(topic)
@@ -212,8 +223,7 @@ class FlightLog:
             except (LogError, *_DAMAGE) as exc:
                 if not self.skip_damaged:
                     raise
-                self.damaged.setdefault(topic, []).append(
-                    (int(ci.message_start_time), int(ci.message_end_time), str(exc)))
+                self._damage(topic, ci, exc)
                 continue
 
             def fill(out, data=data, index=index, ci=ci):
@@ -222,8 +232,7 @@ class FlightLog:
                 except (LogError, *_DAMAGE) as exc:
                     if not self.skip_damaged:
                         raise
-                    self.damaged.setdefault(topic, []).append(
-                        (int(ci.message_start_time), int(ci.message_end_time), str(exc)))
+                    self._damage(topic, ci, exc)
                     return 0
                 return len(index)
             fill.dtype = _with_log_time(layout[0], fields)

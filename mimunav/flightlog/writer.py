@@ -71,6 +71,7 @@ class LogWriter:
         self._pending, self._pending_bytes = [], 0  # copied messages not yet in a chunk
         self._batch = []                            # chunks not yet compressed and written
         self._sequence = {}                         # channel id -> next message sequence
+        self._last_stamp = {}                       # channel id -> last stamp written (write)
 
     def __enter__(self):
         fd, self._tmp = temporary_beside(self.path, ".mcap")
@@ -116,9 +117,12 @@ class LogWriter:
         cache stay small); a channel may be written in several calls, in time order (a
         log written in blocks)."""
         stamp_ns = np.asarray(stamp_ns, dtype=np.int64)
-        if np.any(np.diff(stamp_ns) <= 0):
-            raise InputError(f"{topic}: stamps must increase")
         channel = self._channel(topic, schema_name)
+        if np.any(np.diff(stamp_ns) <= 0) or \
+                len(stamp_ns) and stamp_ns[0] <= self._last_stamp.get(channel, -2**63):
+            raise InputError(f"{topic}: stamps must increase")
+        if len(stamp_ns):
+            self._last_stamp[channel] = int(stamp_ns[-1])
         per = self._per_chunk(schemas.cdr_dtype(schema_name, frame_id).itemsize)
         first = self._sequence.get(channel, 0)      # sequence continues across calls
         self._sequence[channel] = first + len(stamp_ns)
