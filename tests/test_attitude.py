@@ -48,3 +48,12 @@ def test_pitch_at_minus_90_deg_survives_round_off():
         q = quaternion.from_float_array([[h, 0.0, sign * h, 0.0]])
         _, pitch, _ = attitude.as_euler(q)
         np.testing.assert_allclose(pitch, sign * np.pi / 2, atol=1e-7)
+
+
+def test_euler_of_a_quaternion_array_of_any_shape():
+    """as_euler works elementwise on a (2, 3) array as on its flattened copy."""
+    rng = np.random.default_rng(3)
+    q = attitude.from_euler(rng.uniform(-3, 3, 6), rng.uniform(-1.5, 1.5, 6),
+                            rng.uniform(-3, 3, 6))
+    for a, b in zip(attitude.as_euler(q.reshape(2, 3)), attitude.as_euler(q)):
+        np.testing.assert_allclose(a.ravel(), b, atol=1e-15)

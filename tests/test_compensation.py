@@ -120,6 +120,8 @@ def test_linear_and_cold_start_models(tmp_path):
     np.testing.assert_allclose(f, expected, rtol=1e-14)
     with pytest.raises(CalibrationError, match="needs the sample times"):
         compensate(cal, u, u, temp, temp)
+    again = Calibration.from_dict(json.loads(json.dumps(cal.as_dict())))   # file round trip
+    assert again.as_dict() == cal.as_dict() and again.as_dict()["window_s"] == 2.0
     with pytest.raises(CalibrationError, match="window_s"):
         Calibration.from_dict({k: v for k, v in cold.items() if k != "window_s"})
 

@@ -171,7 +171,9 @@ def test_bad_inputs_get_clear_errors_naming_the_sample(short):
     fast[40] = [60.0 * 0.01, 0.0, 0.0]
     _raises(r"angular rate 60 rad/s at sample 40", t, fast, dv, start)
     _raises("not a unit quaternion", t, dth, dv, dict(start, q_nb=[1, 0.1, 0, 0]))
-    _raises("not after the initial", t, dth, dv, dict(start, t=t[0]))
+    _raises(r"first sample time 0.01 s is not after the initial", t, dth, dv,
+            dict(start, t=t[0]))
+    _raises(r"shape|1-D|one time", t[:, None], dth, dv, start)
     _raises("initial state needs", t, dth, dv, {"t": 0.0})
     _raises("one finite height", t, dth, dv, start, h_aid=np.zeros(3))
     nav = strapdown.integrate(t, dth, dv / 9.81, start, check_units=False)
@@ -255,3 +257,24 @@ def test_free_fall_is_not_mistaken_for_g_units(short):
     falling[:, 2] = -0.1 * (t[1] - t[0])                 # 0.1 m/s^2
     nav = strapdown.integrate(t, dth, falling, start)
     assert len(nav) == len(t) + 1
+
+
+def test_unit_check_thresholds_are_the_documented_magnitudes(short):
+    """50 rad/s and 2000 m/s^2 (above any navigation IMU's range) as the docstring says:
+    50.5 rad/s and 2010 m/s^2 are refused, 49.5 rad/s and 1990 m/s^2 taken."""
+    t, dth, dv, start = short
+    dt = t[1] - t[0]
+    for value, ok in ((50.5, False), (49.5, True)):
+        x = dth.copy()
+        x[40] = [value * dt, 0.0, 0.0]
+        if ok:
+            strapdown.integrate(t, x, dv, start)
+        else:
+            _raises("angular rate", t, x, dv, start)
+    for value, ok in ((2010.0, False), (1990.0, True)):
+        x = dv.copy()
+        x[40] = [value * dt, 0.0, 0.0]
+        if ok:
+            strapdown.integrate(t, dth, x, start)
+        else:
+            _raises("specific force", t, dth, x, start)

@@ -112,6 +112,10 @@ def test_generate_rejects_times_outside_the_motion():
         truth.generate(m, np.array([0.0, 0.5, 0.4]))
     with pytest.raises(ValueError):
         truth.generate(m, np.array([0.0, 2.0]))
+    with pytest.raises(ValueError):                 # not from the motion's start
+        truth.generate(m, np.array([0.1, 0.5]))
+    with pytest.raises(ValueError):                 # a repeated time
+        truth.generate(m, np.array([0.0, 0.5, 0.5, 0.7]))
 
 
 def test_east_flight_at_45_deg_is_a_circle_about_the_earth_axis():
@@ -241,3 +245,18 @@ def test_quadrature_node_positions_are_exact_for_cubic_latitude_and_height():
     lat_q, h_q = truth._hermite_position(t, lat, h, v_ned, k_node, tq)
     np.testing.assert_allclose(lat_q, poly(lat_c, tq), rtol=0, atol=1e-13)
     np.testing.assert_allclose(h_q, poly(h_c, tq), rtol=0, atol=1e-7)
+
+
+def test_a_knot_inside_the_last_interval_is_integrated_across():
+    """The last interval (3.99, 4.005] s holds the hold -> turn knot at 4 s: its increment
+    equals the sum of the fine (1 ms) increments over it, as in every other interval (the
+    quadrature is split at the knot, where the rate's derivative jumps)."""
+    motion = _profile([{"kind": "hold", "duration_s": 4.0},
+                       {"kind": "turn", "load_factor": 3.0, "heading_change_deg": 90.0,
+                        "ramp_s": 0.2}]).motion()
+    coarse_t = np.r_[np.arange(400) * 0.01, 4.005]
+    assert np.any((motion.knots > coarse_t[-2]) & (motion.knots < coarse_t[-1]))
+    coarse = truth.generate(motion, coarse_t)
+    fine = truth.generate(motion, np.arange(4006) * 0.001)
+    np.testing.assert_allclose(coarse.dtheta[-1], fine.dtheta[3990:].sum(axis=0), atol=1e-14)
+    np.testing.assert_allclose(coarse.dv[-1], fine.dv[3990:].sum(axis=0), atol=1e-12)
