@@ -337,8 +337,12 @@ def _diagnose(args):
 def _import(args):
     """A foreign recording into a contract log."""
     from . import importers
+    from .files import refuse_inputs
     from .importers import rtklib
     from .sensors import Mounting
+    source = Path(args.source)
+    refuse_inputs([args.output], [args.source] + (sorted(map(str, source.iterdir()))
+                                                  if source.is_dir() else []))
     mounting = (Mounting.from_rpy_deg(args.mounting_rpy_deg) if args.mounting_rpy_deg
                 else None)
     if args.kind == "rtklib":

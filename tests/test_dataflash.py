@@ -107,3 +107,15 @@ def test_older_logs_number_their_instances_by_type(tmp_path):
         rec = dataflash.read(str(path), instance=instance, reference="none")
         assert len(rec.imu_ns) == 200
         np.testing.assert_allclose(rec.w[:, 0], gyro, rtol=1e-6)
+
+
+def test_import_never_writes_over_its_input(log, tmp_path, capsys):
+    """`import ... -o SOURCE --force` (or a file of a source folder) is refused and the
+    source is left as it was."""
+    copy = tmp_path / "flight.bin"
+    copy.write_bytes(log[0].read_bytes())
+    before = copy.read_bytes()
+    assert main(["import", "dataflash", str(copy), "-o", str(copy), "--force"]) == 2
+    assert "would replace the input" in capsys.readouterr().err
+    assert main(["import", "rtklib", str(tmp_path), "-o", str(copy), "--force"]) == 2
+    assert copy.read_bytes() == before
