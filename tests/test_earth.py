@@ -103,3 +103,12 @@ def test_normal_gravity_above_the_ellipsoid_follows_the_grs80_series():
             expect = -(3.087691 - 0.004398 * s2) * 1e-6 * h + 0.72125e-12 * h * h
             assert abs(got - expect) < 0.02 * (0.004398e-6 * h + 0.72125e-12 * h * h) + 1e-7, \
                 (lat_deg, h, got, expect)
+
+
+def test_gravity_vector_has_the_documented_shape_for_arrays():
+    """gravity_ned(lat, h) is (..., 3) with g along NED down, for arrays as for scalars."""
+    lat = np.radians([0.0, 30.0, 60.0, 90.0])
+    g = earth.gravity_ned(lat, np.full(4, 100.0))
+    assert g.shape == (4, 3)
+    np.testing.assert_array_equal(g[:, :2], 0.0)
+    np.testing.assert_allclose(g[:, 2], earth.normal_gravity(lat, 100.0), rtol=0, atol=0)

@@ -154,6 +154,9 @@ def test_bad_inputs_get_clear_errors_naming_the_sample(short):
     bad[7, 2] = np.inf
     _raises("dv is not finite at sample 7", t, dth, bad, start)
     tt = t.copy()
+    tt[9] = np.nan
+    _raises("time is not finite at sample 9|t is not finite at sample 9", tt, dth, dv, start)
+    tt = t.copy()
     tt[50] = tt[49]
     _raises("time does not increase at sample 50", tt, dth, dv, start)
     _raises(r"shape \(N, 3\)", t, dth[:, :2], dv, start)
