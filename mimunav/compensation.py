@@ -612,7 +612,10 @@ def _compensate_log(log_path, cal, out, force, skip_damaged, block):
         for att in reader.iter_attachments():
             dst.attachment(att.name, att.data, att.media_type)
         generic, t0 = [], None
+        raw_fields = [name for name, _, _ in S.BODIES[S.RAW_MIMU]]
         for topic in log.channels:
+            if topic == "/mimu/raw":            # copied below, from the compensation's read
+                continue
             try:
                 for msgs in _channel_blocks(log, topic, block):   # contract: field by field
                     fields = {name: msgs[name] for name, _, _ in S.BODIES[log.schema_name(topic)]}
@@ -623,6 +626,9 @@ def _compensate_log(log_path, cal, out, force, skip_damaged, block):
         for ext, lo, hi in _with_margins(_channel_blocks(log, "/mimu/raw", block), margin):
             stamps = ext["log_time"].astype(np.int64)
             t0 = stamps[0] if t0 is None else t0
+            own = ext[lo:hi]
+            dst.write("/mimu/raw", S.RAW_MIMU, own["frame_id"][0].decode(), stamps[lo:hi],
+                      **{name: own[name] for name in raw_fields})
             f, w, flags = compensate(cal, *(ext[name] for name in RAW_FIELDS),
                                      rng.get("accel_m_s2", np.inf), rng.get("gyro_rad_s", np.inf),
                                      t=(stamps - t0) / 1e9, record=stats)

@@ -267,17 +267,12 @@ def test_unit_check_thresholds_are_the_documented_magnitudes(short):
     50.5 rad/s and 2010 m/s^2 are refused, 49.5 rad/s and 1990 m/s^2 taken."""
     t, dth, dv, start = short
     dt = t[1] - t[0]
-    for value, ok in ((50.5, False), (49.5, True)):
-        x = dth.copy()
-        x[40] = [value * dt, 0.0, 0.0]
-        if ok:
-            strapdown.integrate(t, x, dv, start)
-        else:
-            _raises("angular rate", t, x, dv, start)
-    for value, ok in ((2010.0, False), (1990.0, True)):
-        x = dv.copy()
-        x[40] = [value * dt, 0.0, 0.0]
-        if ok:
-            strapdown.integrate(t, dth, x, start)
-        else:
-            _raises("specific force", t, dth, x, start)
+    for k, message, over, under in ((0, "angular rate", 50.5, 49.5),
+                                    (1, "specific force", 2010.0, 1990.0)):
+        for value in (over, under):
+            inputs = [dth.copy(), dv.copy()]
+            inputs[k][40] = [value * dt, 0.0, 0.0]
+            if value == under:
+                strapdown.integrate(t, *inputs, start)
+            else:
+                _raises(message, t, *inputs, start)

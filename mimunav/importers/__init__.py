@@ -97,6 +97,18 @@ def gps_to_unix_s(gps_s):
     return gps_s + GPS_EPOCH_UNIX_S - leaps[np.searchsorted(starts, gps_s, side="right") - 1]
 
 
+def attitude_at(t, t_att, wxyz):
+    """Attitudes (M, 4) wxyz at times t (M,) by slerp between the recorded attitudes wxyz
+    (K, 4) at increasing times t_att (K,) (same time unit); NaN outside their span."""
+    from scipy.spatial.transform import Rotation, Slerp
+    q = np.full((len(t), 4), np.nan)
+    inside = (t >= t_att[0]) & (t <= t_att[-1])
+    xyzw = Slerp(t_att, Rotation.from_quat(np.asarray(wxyz)[:, [1, 2, 3, 0]]))(
+        np.asarray(t, float)[inside]).as_quat()
+    q[inside] = xyzw[:, [3, 0, 1, 2]]
+    return q
+
+
 def check_recording(rec):
     """Refuse a recording whose IMU cannot be in the units and axes the import says: the
     median |specific force| far from 1 g (g read as m/s^2 or the reverse); with a reference

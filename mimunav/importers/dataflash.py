@@ -24,10 +24,11 @@ so.
 import os
 
 import numpy as np
+import quaternion
 
 from .. import attitude
 from ..sensors import Mounting
-from . import Recording, RecordingError, gps_to_unix_s
+from . import Recording, RecordingError, attitude_at, gps_to_unix_s
 
 GPS_STATUS = {0: "no GPS", 1: "no fix", 2: "2D", 3: "3D", 4: "DGPS", 5: "RTK float",
               6: "RTK fixed"}
@@ -196,24 +197,17 @@ def _reference(msgs, fixes, kind, min_status, offset_us, path):
         return {k: fixes[k][use] for k in ("ns", "lat", "lon", "h", "v_ned")}, meta
     if not ekf:
         raise RecordingError(f"{path}: an autopilot reference needs POS and XKF1 messages")
-    pos = msgs["POS"]
-    vel = _instance(msgs["XKF1"], 0) if "C" not in msgs["XKF1"] else \
-        {k: v[msgs["XKF1"]["C"] == 0] for k, v in msgs["XKF1"].items()}
+    pos, xkf = msgs["POS"], msgs["XKF1"]
+    vel = {k: v[xkf["C"] == 0] for k, v in xkf.items()} if "C" in xkf else xkf   # core 0
     t = pos["TimeUS"].astype(np.int64)
     t_v = vel["TimeUS"].astype(float)
     v = np.column_stack([np.interp(t, t_v, vel[c]) for c in ("VN", "VE", "VD")])
     q = np.full((len(t), 4), np.nan)
     att = msgs.get("ATT")
     if att is not None and len(att["TimeUS"]) >= 2:
-        from scipy.spatial.transform import Rotation, Slerp
-        t_att = att["TimeUS"].astype(float)
-        q_att = attitude.from_euler(np.radians(att["Yaw"]), np.radians(att["Pitch"]),
-                                    np.radians(att["Roll"]))
-        wxyz = np.array([[x.w, x.x, x.y, x.z] for x in q_att])
-        inside = (t >= t_att[0]) & (t <= t_att[-1])
-        xyzw = Slerp(t_att, Rotation.from_quat(wxyz[:, [1, 2, 3, 0]]))(
-            t[inside].astype(float)).as_quat()
-        q[inside] = xyzw[:, [3, 0, 1, 2]]
+        q = attitude_at(t, att["TimeUS"].astype(float), quaternion.as_float_array(
+            attitude.from_euler(np.radians(att["Yaw"]), np.radians(att["Pitch"]),
+                                np.radians(att["Roll"]))))
     meta = {"source": "autopilot estimate (ArduPilot EKF3: POS, XKF1 core 0, ATT)",
             "independent": "no: the autopilot fuses this IMU"}
     return dict(ns=(t + offset_us) * 1000, lat=np.radians(pos["Lat"]), lon=np.radians(pos["Lng"]),

@@ -18,7 +18,7 @@ import os
 import numpy as np
 
 from ..sensors import Mounting
-from . import RecordingError, Recording
+from . import RecordingError, Recording, attitude_at
 
 GNSS_TOPICS = ("vehicle_gps_position", "sensor_gps")
 REFERENCE_TOPICS = ("vehicle_global_position", "vehicle_local_position", "vehicle_attitude")
@@ -125,7 +125,6 @@ def autopilot_estimate(ulog, offset_us):
     h (m, ellipsoidal), v_ned (m/s, vehicle_local_position vx/vy/vz interpolated), q_nb (wxyz,
     vehicle_attitude q, body FRD -> NED, by slerp; NaN outside its span); None when the log
     has no global position or no local velocity."""
-    from scipy.spatial.transform import Rotation, Slerp
     pos, loc = _topic(ulog, "vehicle_global_position"), _topic(ulog, "vehicle_local_position")
     if pos is None or loc is None or len(pos.data["timestamp"]) < 2:
         return None
@@ -136,11 +135,7 @@ def autopilot_estimate(ulog, offset_us):
     q = np.full((len(t), 4), np.nan)
     att = _topic(ulog, "vehicle_attitude")
     if att is not None and len(att.data["timestamp"]) >= 2:
-        t_att = np.asarray(att.data["timestamp"], float)
-        wxyz = np.column_stack([_field(att, f"q[{i}]") for i in range(4)])
-        inside = (t >= t_att[0]) & (t <= t_att[-1])
-        slerp = Slerp(t_att, Rotation.from_quat(wxyz[:, [1, 2, 3, 0]]))
-        xyzw = slerp(t[inside].astype(float)).as_quat()
-        q[inside] = xyzw[:, [3, 0, 1, 2]]
+        q = attitude_at(t, np.asarray(att.data["timestamp"], float),
+                        np.column_stack([_field(att, f"q[{i}]") for i in range(4)]))
     return dict(ns=(t + offset_us) * 1000, lat=np.radians(_field(pos, "lat")),
                 lon=np.radians(_field(pos, "lon")), h=h, v_ned=v, q_nb=q)
