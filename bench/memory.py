@@ -5,7 +5,7 @@
 A parked 1 kHz flight (MIMU raw volts of a drawn unit at rest through its true
 coefficients, FOG-IMU at rest, truth at 100 Hz; white noise) of each length is written
 block by block, then each command runs in its own process and its peak resident memory is
-read by /usr/bin/time (-f %M). The slope between the lengths is the memory per sample;
+read by getrusage (ru_maxrss). The slope between the lengths is the memory per sample;
 the line extrapolates it to a 2-hour 1 kHz flight (7.2 M samples).
 """
 import argparse
@@ -79,10 +79,15 @@ def parked_log(path, minutes, unit, rate=1000.0, seed=0):
     return n
 
 
+PEAK = ("import resource, sys\nfrom mimunav.cli import main\ncode = main(sys.argv[1:])\n"
+        "print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, file=sys.stderr)\n"
+        "sys.exit(code)")
+
+
 def peak_mb(argv, cwd):
-    """Peak resident memory (MB) of `mimunav ARGV` in its own process."""
-    out = subprocess.run(["/usr/bin/time", "-f", "%M", sys.executable, "-m", "mimunav", *argv],
-                         cwd=cwd, capture_output=True, text=True)
+    """Peak resident memory (MB) of `mimunav ARGV` in its own process (getrusage)."""
+    out = subprocess.run([sys.executable, "-c", PEAK, *argv], cwd=cwd, capture_output=True,
+                         text=True)
     if out.returncode != 0:
         raise RuntimeError(f"mimunav {' '.join(argv)}: {out.stderr.strip()[-500:]}")
     return int(out.stderr.strip().splitlines()[-1]) / 1024

@@ -228,12 +228,12 @@ def _replay(args):
     refuse_inputs([out], [args.log, args.cal])
     if out.exists() and not args.force:         # before the work, not after
         raise FileExistsError(f"{out} exists; use --force to replace it")
-    flight = evaluation.Flight.load(args.log)
+    flight = evaluation.Flight.load(args.log, stream=True)      # bounded memory
     cal = Calibration.load(args.cal)
-    rep = evaluation.replay(flight, cal, check="the calibration")
     t = evaluation.comparison_times(flight, args.end)
-    err = evaluation.errors(rep, t)
     t_nav = np.append(np.arange(t[0], t[-1], 1.0 / args.nav_rate), t[-1])
+    rep = evaluation.replay(flight, cal, check="the calibration", at=np.union1d(t, t_nav))
+    err = evaluation.errors(rep, t)
     with atomic_folder(out, force=args.force, inputs=[args.log, args.cal]) as tmp:
         with LogWriter(tmp / "nav.mcap") as log:
             for topic, traj in (("/mimu/nav", evaluation.resample(rep.mimu, t_nav)),
@@ -424,7 +424,7 @@ def _table(args):
 
     from . import evaluation
     from .files import write_atomic
-    flight = evaluation.Flight.load(args.log)
+    flight = evaluation.Flight.load(args.log, stream=True)      # bounded memory
     doc = evaluation.table(flight, _variants(args.cal), args.end, check=True)
     text = evaluation.table_markdown(doc)
     if args.output:

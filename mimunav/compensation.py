@@ -22,6 +22,7 @@ contract section 3: effect, sensor, axis, input_axis, coefficient or vector, and
 window_s, reference where the regressor needs them), each removed from the output after
 eqs. 1-4 (time_skew by shifting the samples back).
 """
+import itertools
 import json
 import math
 import warnings
@@ -577,6 +578,39 @@ def _channel_blocks(log, topic, block, fields=None):
     return log.blocks(topic, block, fields)
 
 
+def compensated_blocks(log, cal, block=BLOCK):
+    """The /mimu/raw channel of an open FlightLog through `cal`, block by block in bounded
+    memory (as `compensate_log` describes): yields (raw messages of the block, f m/s^2,
+    w rad/s, flags), sensor axes; `block` None reads the channel whole and time-sorted.
+    Raises flightlog's TimeOrderError for a channel whose stamps go back in time across
+    blocks (read it with block=None)."""
+    from .flightlog import LogError
+    rng = log.metadata().get("sensor/mimu", {}).get("range", {})
+    n = log.count("/mimu/raw") if not log.skip_damaged else None   # checked as it is read
+    if n is None:
+        n = sum(len(b) for b in _channel_blocks(log, "/mimu/raw", block, ["sample_index"]))
+    if n < 2:
+        raise LogError(f"{log.path}: /mimu/raw has {n} intact messages")
+    stats = RecordStats.sigma_of_blocks(_channel_blocks(log, "/mimu/raw", block, RAW_FIELDS),
+                                        n, RAW_FIELDS)
+    margin = margin_samples(cal, 1e9 / stats.min_step_ns)
+    block = None if block is None else max(block, 2 * margin)   # a neighbour >= the margin
+    for ext, lo, hi in _with_margins(_channel_blocks(log, "/mimu/raw", block, RAW_FIELDS[:2]),
+                                     margin):
+        flags = np.zeros(len(ext), np.uint8)
+        stats.add_extremes([wild_value_filter(ext[name], flags, sigma=sigma)[lo:hi]
+                            for name, sigma in zip(RAW_FIELDS[:2], stats.sigma[:2])])
+    stats.finish_extremes()
+    t0 = None
+    for ext, lo, hi in _with_margins(_channel_blocks(log, "/mimu/raw", block), margin):
+        stamps = ext["log_time"].astype(np.int64)
+        t0 = stamps[0] if t0 is None else t0
+        f, w, flags = compensate(cal, *(ext[name] for name in RAW_FIELDS),
+                                 rng.get("accel_m_s2", np.inf), rng.get("gyro_rad_s", np.inf),
+                                 t=(stamps - t0) / 1e9, record=stats)
+        yield ext[lo:hi], f[lo:hi], w[lo:hi], flags[lo:hi]
+
+
 def _compensate_log(log_path, cal, out, force, skip_damaged, block):
     from mcap.reader import make_reader
 
@@ -585,33 +619,18 @@ def _compensate_log(log_path, cal, out, force, skip_damaged, block):
     with FlightLog(log_path, skip_damaged=skip_damaged) as log:
         if "/mimu/imu" in log.channels:
             raise LogError(f"{log_path} already has /mimu/imu")
-        meta = log.metadata()
-        rng = meta.get("sensor/mimu", {}).get("range", {})
-        n = log.count("/mimu/raw") if not skip_damaged else None   # checked as it is read
-        if n is None:
-            n = sum(len(b) for b in _channel_blocks(log, "/mimu/raw", block, ["sample_index"]))
-        if n < 2:
-            raise LogError(f"{log_path}: /mimu/raw has {n} intact messages")
-        stats = RecordStats.sigma_of_blocks(_channel_blocks(log, "/mimu/raw", block, RAW_FIELDS),
-                                            n, RAW_FIELDS)
-        margin = margin_samples(cal, 1e9 / stats.min_step_ns)
-        block = None if block is None else max(block, 2 * margin)   # a neighbour >= the margin
-        for ext, lo, hi in _with_margins(_channel_blocks(log, "/mimu/raw", block,
-                                                         RAW_FIELDS[:2]), margin):
-            flags = np.zeros(len(ext), np.uint8)
-            stats.add_extremes([wild_value_filter(ext[name], flags, sigma=sigma)[lo:hi]
-                                for name, sigma in zip(RAW_FIELDS[:2], stats.sigma[:2])])
-        stats.finish_extremes()
     counts = dict.fromkeys(("replaced", "saturated", "unusable"), 0)
     with open(log_path, "rb") as fh, LogWriter(out, force=force) as dst, \
             FlightLog(log_path, skip_damaged=skip_damaged) as log:
         log.metadata()                      # a damaged metadata record is a LogError
+        blocks = compensated_blocks(log, cal, block)
+        own = next(blocks)                  # the record's checks before anything is written
         reader = make_reader(fh)
         for record in reader.iter_metadata():
             dst.metadata(record.name, record.metadata)
         for att in reader.iter_attachments():
             dst.attachment(att.name, att.data, att.media_type)
-        generic, t0 = [], None
+        generic = []
         raw_fields = [name for name, _, _ in S.BODIES[S.RAW_MIMU]]
         for topic in log.channels:
             if topic == "/mimu/raw":            # copied below, from the compensation's read
@@ -623,18 +642,12 @@ def _compensate_log(log_path, cal, out, force, skip_damaged, block):
                               msgs["log_time"].astype(np.int64), **fields)
             except LayoutError:
                 generic.append(topic)
-        for ext, lo, hi in _with_margins(_channel_blocks(log, "/mimu/raw", block), margin):
-            stamps = ext["log_time"].astype(np.int64)
-            t0 = stamps[0] if t0 is None else t0
-            own = ext[lo:hi]
-            dst.write("/mimu/raw", S.RAW_MIMU, own["frame_id"][0].decode(), stamps[lo:hi],
-                      **{name: own[name] for name in raw_fields})
-            f, w, flags = compensate(cal, *(ext[name] for name in RAW_FIELDS),
-                                     rng.get("accel_m_s2", np.inf), rng.get("gyro_rad_s", np.inf),
-                                     t=(stamps - t0) / 1e9, record=stats)
-            dst.write("/mimu/imu", S.IMU, "mimu", stamps[lo:hi], **S.imu_fields(w[lo:hi],
-                                                                                f[lo:hi]))
-            for name, count in flag_counts(flags[lo:hi]).items():
+        for raw, f, w, flags in itertools.chain([own], blocks):
+            stamps = raw["log_time"].astype(np.int64)
+            dst.write("/mimu/raw", S.RAW_MIMU, raw["frame_id"][0].decode(), stamps,
+                      **{name: raw[name] for name in raw_fields})
+            dst.write("/mimu/imu", S.IMU, "mimu", stamps, **S.imu_fields(w, f))
+            for name, count in flag_counts(flags).items():
                 counts[name] += count
         fh.seek(0)
         try:

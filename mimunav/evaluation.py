@@ -20,8 +20,8 @@ import numpy as np
 import quaternion
 
 from . import attitude, earth, strapdown
-from .compensation import (CLIP_RUN, SATURATED, Calibration, CalibrationError, compensate,
-                           flag_counts, poly2)
+from .compensation import (BLOCK, CLIP_RUN, SATURATED, Calibration, CalibrationError,
+                           compensate, compensated_blocks, flag_counts, poly2)
 from .effects import Conditions
 from .effects import apply as apply_effects
 from .flightlog import FlightLog, LogError
@@ -55,13 +55,23 @@ class Flight:
     source: str = ""                # the flight metadata's source: "simulation", "recording"
     reference_meta: dict | None = None  # the log's `reference` metadata (a recording's)
     mimu_platform: dict | None = None   # a rotating MIMU: {"t" s, "angle" rad, "meta"}
+    stream_block: int | None = None     # streamed: the MIMU raw outputs and the reference
+                                        # IMU are read from the log in blocks of this many
+                                        # samples when navigated (mimu_raw, fog_w, fog_f None;
+                                        # the stamps are held)
+    fog_seconds: object = None          # SecondMeans of the reference IMU (f, w), when known
 
     @classmethod
-    def load(cls, path, reference_imu=True, max_gap_s=None):
+    def load(cls, path, reference_imu=True, max_gap_s=None, stream=False):
         """The flight of the log at `path`; with reference_imu=False a log without
         /fog/imu is accepted too (then fog_t, fog_w, fog_f are None). The MIMU comes from
         /mimu/raw, or when the log has none (an imported recording) from the already
-        compensated /mimu/imu, which a calibration then leaves as it is."""
+        compensated /mimu/imu, which a calibration then leaves as it is.
+
+        stream: hold only the stamps of /mimu/raw and /fog/imu (16 bytes a sample pair) and
+        read their values block by block when `replay` / `navigate_fog` need them, so a
+        flight of any length navigates in bounded memory. A log recorded as /mimu/imu, or
+        whose stamps go back in time (read whole and sorted), is held whole as without."""
         with FlightLog(path) as log:
             meta = log.metadata()
             flight = meta.get("flight", {})
@@ -78,15 +88,20 @@ class Flight:
                                    "the FOG-IMU flown with it (channels: "
                                    f"{', '.join(sorted(log.channels))})")
             epoch = int(flight["epoch_unix_ns"])
-            if mimu_topic == "/mimu/raw":
+            streamed = (_streamed(log, path, epoch, reference_imu)
+                        if stream and mimu_topic == "/mimu/raw" else None)
+            if streamed:
+                raw, imu, fog = streamed["mimu"], None, streamed["fog"]
+            elif mimu_topic == "/mimu/raw":
                 raw = log.read("/mimu/raw", fields=RAW_FIELDS)
                 imu = None
             else:
                 raw = log.read("/mimu/imu", fields=("angular_velocity", "linear_acceleration"))
                 imu = tuple(np.ascontiguousarray(raw[k], float)
                             for k in ("angular_velocity", "linear_acceleration"))
-            fog = (log.read("/fog/imu", fields=("angular_velocity", "linear_acceleration"))
-                   if "/fog/imu" in log.channels else None)
+            if not streamed:
+                fog = (log.read("/fog/imu", fields=("angular_velocity", "linear_acceleration"))
+                       if "/fog/imu" in log.channels else None)
             truth = log.read("/truth/state") if "/truth/state" in log.channels else None
             joint = (log.read("/mimu/platform", fields=("position",))
                      if "/mimu/platform" in log.channels else None)
@@ -111,18 +126,22 @@ class Flight:
             truth_traj = Trajectory(sec(truth), truth["latitude"].copy(), truth["longitude"].copy(),
                                     truth["height"].copy(), truth["velocity_ned"].copy(),
                                     quaternion.from_float_array(truth["attitude_wxyz"]))
+        values = lambda msgs, name: (None if streamed else                    # noqa: E731
+                                     np.ascontiguousarray(msgs[name], float))
         loaded = cls(str(path), flight.get("name", ""), epoch, initial, sec(raw),
-                     None if imu else {k: np.ascontiguousarray(raw[k], float)
-                                       for k in RAW_FIELDS},
+                     None if imu or streamed else {k: values(raw, k) for k in RAW_FIELDS},
                      mount("mimu"), meta.get("sensor/mimu", {}).get("range", {}),
-                     *((sec(fog), np.ascontiguousarray(fog["angular_velocity"], float),
-                        np.ascontiguousarray(fog["linear_acceleration"], float))
+                     *((sec(fog), values(fog, "angular_velocity"),
+                        values(fog, "linear_acceleration"))
                        if fog is not None else (None, None, None)), mount("fog"), truth_traj,
                      imu, meta.get("sensor/fog", {}), str(flight.get("source", "")),
                      meta.get("reference", {}),
                      None if joint is None else {"t": sec(joint), "meta": platform_meta,
-                                                 "angle": np.unwrap(joint["position"])})
-        check_plausible(loaded, MAX_GAP_S if max_gap_s is None else max_gap_s)
+                                                 "angle": np.unwrap(joint["position"])},
+                     STREAM_BLOCK if streamed else None,
+                     streamed["fog_seconds"] if streamed else None)
+        check_plausible(loaded, MAX_GAP_S if max_gap_s is None else max_gap_s,
+                        streamed["fog_sample"] if streamed else None)
         return loaded
 
     @classmethod
@@ -139,6 +158,36 @@ class Flight:
                    unit.mounting, {"accel_m_s2": unit.range_accel, "gyro_rad_s": unit.range_gyro},
                    fm.fog[0], fog_out["angular_velocity"], fog_out["linear_acceleration"],
                    fog.mounting, truth, fog_meta={"accuracy": fog.accuracy()})
+
+    def mimu_blocks(self, cal):
+        """The MIMU through `cal` (`compensated_mimu`) in time-ordered blocks of
+        (t s, w rad/s, f m/s^2, flags), sensor axes: one block when the flight is held, of
+        stream_block samples (`compensation.compensated_blocks`) when it streams."""
+        if self.stream_block is None:
+            yield (self.mimu_t, *_compensated_whole(self, cal))
+            return
+        with FlightLog(self.path) as log:
+            for raw, f, w, flags in compensated_blocks(log, cal, self.stream_block):
+                yield self._seconds(raw), w, f, flags
+
+    def fog_blocks(self):
+        """The reference IMU in time-ordered blocks of (t s, w rad/s, f m/s^2)."""
+        if self.stream_block is None:
+            yield self.fog_t, self.fog_w, self.fog_f
+            return
+        with FlightLog(self.path) as log:
+            for msgs in log.blocks("/fog/imu", self.stream_block, FOG_FIELDS):
+                yield (self._seconds(msgs), *(np.ascontiguousarray(msgs[k], float)
+                                              for k in FOG_FIELDS))
+
+    def fog_second_means(self):
+        """((f, w) 1 s means of the reference IMU, their seconds) (`SecondMeans`)."""
+        if self.fog_seconds is None:
+            self.fog_seconds = SecondMeans().add(self.fog_t, self.fog_f, self.fog_w)
+        return self.fog_seconds.means()
+
+    def _seconds(self, msgs):
+        return (msgs["log_time"].astype(np.int64) - self.epoch_ns) / 1e9
 
     def mimu_temperatures(self):
         """(accelerometer case temperatures degC, gyro resonance frequencies Hz), (N, 3)
@@ -157,16 +206,48 @@ class Flight:
 
 
 MAX_GAP_S = 0.5            # s of missing MIMU samples navigation will not bridge
+STREAM_BLOCK = BLOCK       # samples a streamed flight reads at a time (`Flight.load`)
+FOG_FIELDS = ("angular_velocity", "linear_acceleration")
+FOG_SAMPLE = 200_000       # reference-IMU samples the units check of a streamed flight takes
 
 
-def check_plausible(flight, max_gap_s=None):
+def _streamed(log, path, epoch, reference_imu):
+    """One pass over /mimu/raw's stamps and /fog/imu of a log for `Flight.load(stream=True)`:
+    {"mimu": stamps, "fog": stamps or None, "fog_seconds": SecondMeans, "fog_sample": (w, f)
+    every k-th sample for the units check}; None when a channel's stamps go back in time
+    (the flight is then read whole and sorted). A non-finite reference sample is a LogError
+    here, since the check sees only the sample."""
+    from .flightlog.reader import TimeOrderError
+    try:
+        mimu = np.concatenate(list(log.blocks("/mimu/raw", STREAM_BLOCK, fields=())))
+        if "/fog/imu" not in log.channels:
+            return {"mimu": mimu, "fog": None, "fog_seconds": None, "fog_sample": None}
+        stamps, seconds, sample = [], SecondMeans(), []
+        step = max(1, (log.count("/fog/imu") or 0) // FOG_SAMPLE)
+        for msgs in log.blocks("/fog/imu", STREAM_BLOCK, FOG_FIELDS):
+            t = (msgs["log_time"].astype(np.int64) - epoch) / 1e9
+            w, f = (np.ascontiguousarray(msgs[k], float) for k in FOG_FIELDS)
+            bad = ~(np.isfinite(w).all(axis=1) & np.isfinite(f).all(axis=1))
+            if bad.any():
+                raise LogError(f"{path}: /fog/imu is not finite at t = "
+                               f"{t[np.argmax(bad)]:.3f} s")
+            stamps.append(msgs[["log_time"]].copy())
+            seconds.add(t, f, w)
+            sample.append((w[::step], f[::step]))
+    except TimeOrderError:
+        return None
+    return {"mimu": mimu, "fog": np.concatenate(stamps), "fog_seconds": seconds,
+            "fog_sample": tuple(np.concatenate(x) for x in zip(*sample))}
+
+
+def check_plausible(flight, max_gap_s=None, fog_sample=None):
     """Refuse a log whose numbers cannot be what the contract says (LogError naming the
     channel, the time and the likely cause); warn (stderr) about missing samples shorter
     than max_gap_s (default MAX_GAP_S; a command that does not navigate across gaps, such as
     `windows`, passes inf). Checks: stamps increase; MIMU gaps; the initial state inside the MIMU's
     span; the truth finite, latitude in rad, its span overlapping the MIMU's; the reference
     IMU finite, its specific force near 1 g (not in g), its rates of the truth's attitude
-    rate's size (not deg/s)."""
+    rate's size (not deg/s); of a streamed flight, on `fog_sample` (w, f)."""
     from .errors import warn
     from .flightlog.inspect import missing_samples
     where = flight.path
@@ -213,12 +294,11 @@ def check_plausible(flight, max_gap_s=None):
                            f"MIMU ({t[0]:.1f} .. {t[-1]:.1f} s) do not overlap: their time "
                            "bases differ")
     if flight.fog_t is not None and len(flight.fog_t) > 10:
-        _check_reference_units(flight)
+        _check_reference_units(flight, *(fog_sample or (flight.fog_w, flight.fog_f)))
 
 
-def _check_reference_units(flight):
+def _check_reference_units(flight, w, f):
     """The reference IMU's specific force near 1 g and rates of the truth's size."""
-    w, f = flight.fog_w, flight.fog_f
     if not (np.isfinite(w).all() and np.isfinite(f).all()):
         k = int(np.argmax(~(np.isfinite(w).all(axis=1) & np.isfinite(f).all(axis=1))))
         raise LogError(f"{flight.path}: /fog/imu is not finite at t = {flight.fog_t[k]:.3f} s")
@@ -240,33 +320,91 @@ def _check_reference_units(flight):
 def navigate(t, w, f, mounting, initial):
     """Navigate sensor-axis rates w (rad/s) and specific forces f (m/s^2), interval means at
     stamps t (s), from the vehicle's initial state; returns the vehicle-origin Trajectory
-    at [initial t, t after it]."""
-    after = t > initial["t"] + 1e-12
-    if after.sum() < 2:
-        raise InputError("fewer than two samples after the initial state's time")
-    t, w, f = t[after], w[after], f[after]
-    dt = np.diff(t, prepend=initial["t"])
-    q_vs = mounting.q_vs
-    w_v = attitude.rotate(q_vs, w)
-    f_v = attitude.rotate(q_vs, f)
-    r = mounting.lever_arm_m
-    start = dict(initial)
-    q0 = quaternion.from_float_array(np.asarray(initial["q_nb"], float))
-    if np.any(r):
-        w_nb0 = _body_rate(w_v[:1], q0, initial)[0]
-        start["lat"], start["lon"], start["h"] = _moved(initial["lat"], initial["lon"],
-                                                        initial["h"], attitude.rotate(q0, r))
-        start["v_ned"] = initial["v_ned"] + attitude.rotate(q0, np.cross(w_nb0, r))
-    nav = strapdown.integrate(t, w_v * dt[:, None], f_v * dt[:, None], start)
-    if not np.any(r):
-        return nav
-    # back to the vehicle origin; body rate at a state ~ mean of its two adjacent intervals
-    w_at = np.vstack([w_v[:1], 0.5 * (w_v[:-1] + w_v[1:]), w_v[-1:]])
-    w_nb = _body_rate(w_at, nav.q_nb, initial)
-    d_ned = attitude.rotate(nav.q_nb, np.broadcast_to(-r, (len(nav), 3)))
-    lat, lon, h = _moved(nav.lat, nav.lon, nav.h, d_ned)
-    v = nav.v_ned - attitude.rotate(nav.q_nb, np.cross(w_nb, r))
-    return Trajectory(nav.t, lat, lon, h, v, nav.q_nb)
+    at [initial t, t after it] (`VehicleNavigator` over one block)."""
+    nav = VehicleNavigator(mounting, initial)
+    return Trajectory.concatenate([nav.feed(t, w, f), nav.finish()])
+
+
+class VehicleNavigator:
+    """`navigate` block by block, for a flight of any length in bounded memory: `feed`
+    sensor-axis interval means (t s, w rad/s, f m/s^2) in time order and get the
+    vehicle-origin states settled so far; `finish` returns the last one. The states equal
+    those of one `navigate` over the whole record: the strapdown memory is carried
+    (`strapdown.Navigator`), and a state's lever-arm velocity, which takes the mean body rate
+    of the intervals on both sides of it, waits for the next block's first sample.
+
+    On a rotating platform (`platform`: the Flight's mimu_platform, the IMU on the axis at the
+    vehicle origin) the sensor frame itself is navigated and the vehicle attitude
+    q_nb = q_ns q_bs(theta)^-1 comes from the recorded platform angle (`modulation`)."""
+
+    def __init__(self, mounting, initial, platform=None):
+        self.initial, self.platform = initial, platform
+        if platform is not None:
+            from .modulation import q_bs_recorded
+            q0 = quaternion.from_float_array(np.asarray(initial["q_nb"], float)) \
+                * q_bs_recorded(platform["meta"], self._angle(initial["t"]))
+            self.initial = dict(initial, q_nb=quaternion.as_float_array(q0))
+            mounting = Mounting()
+        self.q_vs, self.r = mounting.q_vs, mounting.lever_arm_m
+        self.nav, self.pending, self.count = None, None, 0
+
+    def feed(self, t, w, f):
+        """The states settled by the samples stamped after the initial state's time."""
+        after = t > self.initial["t"] + 1e-12
+        t, w, f = t[after], w[after], f[after]
+        if not len(t):
+            return None
+        w_v, f_v = attitude.rotate(self.q_vs, w), attitude.rotate(self.q_vs, f)
+        if self.nav is None:
+            self.nav = strapdown.Navigator(self._start(w_v[:1]))
+            self.pending = (self.nav.state(), w_v[:1])      # the start: its first interval
+        dt = np.diff(t, prepend=self.nav.t)
+        self.count += len(t)
+        states = self.nav.step(t, w_v * dt[:, None], f_v * dt[:, None])
+        held, w_held = self.pending
+        self.pending = (states[-1:], w_v[-1:])
+        before = np.vstack([w_held, w_v[:-1]])        # the interval ending at each state
+        return self._vehicle(Trajectory.concatenate([held, states[:-1]]), 0.5 * (before + w_v))
+
+    def finish(self):
+        """The last state (its body rate: the last interval's)."""
+        if self.count < 2:
+            raise InputError("fewer than two samples after the initial state's time")
+        held, w_held = self.pending
+        return self._vehicle(held, w_held)
+
+    def _start(self, w_v0):
+        """The initial state moved to the sensor's place (position + C_nb r, velocity +
+        C_nb (w_nb x r))."""
+        start, r = dict(self.initial), self.r
+        if np.any(r):
+            q0 = quaternion.from_float_array(np.asarray(self.initial["q_nb"], float))
+            w_nb0 = _body_rate(w_v0, q0, self.initial)[0]
+            start["lat"], start["lon"], start["h"] = _moved(
+                self.initial["lat"], self.initial["lon"], self.initial["h"],
+                attitude.rotate(q0, r))
+            start["v_ned"] = self.initial["v_ned"] + attitude.rotate(q0, np.cross(w_nb0, r))
+        return start
+
+    def _vehicle(self, nav, w_at):
+        """Sensor-place states back to the vehicle origin (- C_nb r, - C_nb (w_nb x r)),
+        w_at the body rate at each state (rad/s, vehicle axes); on a platform the vehicle
+        attitude."""
+        if self.platform is not None:
+            from .modulation import q_bs_recorded, vehicle_attitude
+            return Trajectory(nav.t, nav.lat, nav.lon, nav.h, nav.v_ned, vehicle_attitude(
+                nav.q_nb, q_bs_recorded(self.platform["meta"], self._angle(nav.t))))
+        r = self.r
+        if not np.any(r):
+            return nav
+        w_nb = _body_rate(w_at, nav.q_nb, self.initial)
+        d_ned = attitude.rotate(nav.q_nb, np.broadcast_to(-r, (len(nav), 3)))
+        lat, lon, h = _moved(nav.lat, nav.lon, nav.h, d_ned)
+        v = nav.v_ned - attitude.rotate(nav.q_nb, np.cross(w_nb, r))
+        return Trajectory(nav.t, lat, lon, h, v, nav.q_nb)
+
+    def _angle(self, t):
+        return np.interp(t, self.platform["t"], self.platform["angle"])
 
 
 def _body_rate(w_ib, q_nb, initial):
@@ -290,6 +428,8 @@ def resample(traj, t):
     if t[0] < traj.t[0] - 1e-9 or t[-1] > traj.t[-1] + 1e-9:
         raise InputError(f"times {t[0]:.3f}-{t[-1]:.3f} s outside the trajectory's "
                          f"{traj.t[0]:.3f}-{traj.t[-1]:.3f} s")
+    if len(traj) == 1:                          # a trajectory of one instant, at it
+        return traj[np.zeros(len(t), dtype=int)]
     k = np.clip(np.searchsorted(traj.t, t, side="right"), 1, len(traj) - 1)
     tau = (t - traj.t[k - 1]) / (traj.t[k] - traj.t[k - 1])
     lerp = lambda x: x[k - 1] + (x[k] - x[k - 1]) * (tau if x.ndim == 1 else tau[:, None])  # noqa
@@ -314,7 +454,18 @@ def compensated_mimu(flight, cal, per_sample=False):
     per_sample: the flag of every sample instead of the counts). A flight recorded as
     /mimu/imu is already compensated: `cal` must then be None or an identity base with
     found terms (`Calibration.identity`, the diagnosis's `CAL+found.json`), which are removed
-    from the recorded outputs."""
+    from the recorded outputs. Warns about outputs stuck at an extreme inside the range."""
+    w, f, flags = _compensated_whole(flight, cal)
+    stuck = _stuck_inside_range(flight, w, f, flags)
+    _warn_stuck(flight, stuck)
+    return w, f, (flags if per_sample else flag_counts(flags))
+
+
+def _compensated_whole(flight, cal):
+    """(w rad/s, f m/s^2, flags) of a flight held in memory (`compensated_mimu`)."""
+    if flight.stream_block is not None:
+        raise InputError(f"{flight.path}: the flight streams; its MIMU comes block by block "
+                         "(Flight.mimu_blocks)")
     if flight.mimu_raw is None:
         w, f = flight.mimu_imu
         if cal is not None and not cal.is_identity:
@@ -326,64 +477,98 @@ def compensated_mimu(flight, cal, per_sample=False):
             temperature, frequency = flight.mimu_temperatures()
             cond = Conditions.from_outputs(flight.mimu_t, f, w, temperature, frequency)
             f, w = apply_effects(cal.found, cond, sign=-1.0)
-        flags = np.zeros(len(w), dtype=np.uint8)
-        return w, f, (flags if per_sample else flag_counts(flags))
+        return w, f, np.zeros(len(w), dtype=np.uint8)
     r = flight.mimu_raw
-    range_a = flight.mimu_range.get("accel_m_s2", np.inf)
-    range_w = flight.mimu_range.get("gyro_rad_s", np.inf)
     f, w, flags = compensate(cal, r["accel_volts"], r["gyro_volts"], r["accel_temperature"],
-                             r["gyro_frequency"], range_a, range_w,
+                             r["gyro_frequency"], flight.mimu_range.get("accel_m_s2", np.inf),
+                             flight.mimu_range.get("gyro_rad_s", np.inf),
                              t=flight.mimu_t - flight.mimu_t[0])
-    inside = (np.abs(f) < range_a).all(axis=1) & (np.abs(w) < range_w).all(axis=1)
-    stuck = int(np.count_nonzero((flags & SATURATED).astype(bool) & inside))
+    return w, f, flags
+
+
+def _warn_stuck(flight, stuck):
     if stuck:
         from .errors import warn
         warn(f"{flight.path}: {stuck} MIMU samples have a raw output stuck at its extreme for "
              f">= {CLIP_RUN} samples inside the declared range (clipped by the ADC or "
              "amplifier): flagged saturated; the navigation through them is wrong")
-    return w, f, (flags if per_sample else flag_counts(flags))
+
+
+def _stuck_inside_range(flight, w, f, flags):
+    """Samples flagged saturated although their compensated outputs lie inside the declared
+    range: clipped by the ADC or an amplifier below it."""
+    inside = (np.abs(f) < flight.mimu_range.get("accel_m_s2", np.inf)).all(axis=1) \
+        & (np.abs(w) < flight.mimu_range.get("gyro_rad_s", np.inf)).all(axis=1)
+    return int(np.count_nonzero((flags & SATURATED).astype(bool) & inside))
 
 
 def navigate_mimu(flight, w, f):
     """The MIMU navigated from the flight's initial state: through its mounting, or, on a
-    rotating platform (`flight.mimu_platform`), in the sensor frame itself (the IMU on the
-    axis at the vehicle origin) with the vehicle attitude q_nb = q_ns q_bs(theta)^-1 from
-    the recorded platform angle (`modulation`)."""
-    p = flight.mimu_platform
-    if p is None:
-        return navigate(flight.mimu_t, w, f, flight.mimu_mounting, flight.initial)
-    from .modulation import q_bs_recorded, vehicle_attitude
-    angle = lambda t: np.interp(t, p["t"], p["angle"])                    # noqa: E731
-    q0 = quaternion.from_float_array(np.asarray(flight.initial["q_nb"], float)) \
-        * q_bs_recorded(p["meta"], angle(flight.initial["t"]))
-    nav = navigate(flight.mimu_t, w, f, Mounting(),
-                   dict(flight.initial, q_nb=quaternion.as_float_array(q0)))
-    return Trajectory(nav.t, nav.lat, nav.lon, nav.h, nav.v_ned,
-                      vehicle_attitude(nav.q_nb, q_bs_recorded(p["meta"], angle(nav.t))))
+    rotating platform (`flight.mimu_platform`), in the sensor frame (`VehicleNavigator`)."""
+    nav = _mimu_navigator(flight)
+    return Trajectory.concatenate([nav.feed(flight.mimu_t, w, f), nav.finish()])
 
 
-def navigate_fog(flight):
-    return navigate(flight.fog_t, flight.fog_w, flight.fog_f, flight.fog_mounting,
-                    flight.initial)
+def _mimu_navigator(flight):
+    return VehicleNavigator(flight.mimu_mounting, flight.initial, flight.mimu_platform)
+
+
+def navigate_fog(flight, at=None):
+    """The reference IMU navigated from the flight's initial state, at times `at` (s;
+    default every sample), block by block when the flight streams."""
+    nav, keep = VehicleNavigator(flight.fog_mounting, flight.initial), Sampler(at)
+    for t, w, f in flight.fog_blocks():
+        keep.add(nav.feed(t, w, f))
+    keep.add(nav.finish())
+    return keep.trajectory()
+
+
+class Sampler:
+    """Consecutive trajectory pieces (in time order) kept whole, or only at times `at` (s,
+    increasing, inside the pieces' span; linear/slerp between states as `resample`)."""
+
+    def __init__(self, at=None):
+        self.at, self.parts, self.last = at, [], None
+
+    def add(self, piece):
+        if piece is None or not len(piece):
+            return
+        if self.at is None:
+            self.parts.append(piece)
+            return
+        span = piece if self.last is None else Trajectory.concatenate([self.last, piece])
+        lo = np.searchsorted(self.at, span.t[0], side="left" if self.last is None else "right")
+        hi = np.searchsorted(self.at, span.t[-1], side="right")
+        if hi > lo:
+            self.parts.append(resample(span, self.at[lo:hi]))
+        self.last = piece[-1:]
+
+    def trajectory(self):
+        out = Trajectory.concatenate(self.parts)
+        if self.at is not None and len(out) != len(self.at):
+            raise InputError(f"times {self.at[0]:.3f}-{self.at[-1]:.3f} s outside the "
+                             f"navigated {self.parts[0].t[0] if self.parts else np.nan:.3f}-"
+                             f"{self.last.t[-1] if self.last else np.nan:.3f} s")
+        return out
 
 
 COMPENSATION_WARN = {"accel_m_s2": 0.2, "gyro_rad_s": 0.01}   # medians of |f|, |w| apart
 QUIET = {"gyro_rad_s": 0.05, "accel_m_s2": 0.5}   # a quiet second: |w| and ||f| - g| below
 
 
-def check_compensation(flight, w, f, label="the calibration"):
+def check_compensation(flight, mimu, label="the calibration"):
     """Warn when, in the flight's quiet seconds (the reference IMU turning slower than
     QUIET and feeling 1 g within QUIET), the compensated MIMU's and the reference IMU's
     1 s means differ in size (|f|, |w|: no mounting changes them, averaging removes the
     noise) by more than COMPENSATION_WARN (20 mg, 0.6 deg/s) in the median: a calibration
     written in other units (A0 in mg, ct scaled) gives navigation errors of 1e5 m without
-    another sign. Returns the two differences (m/s^2, rad/s), or None without a reference
-    IMU or a quiet second."""
+    another sign. `mimu`: the compensated MIMU's SecondMeans of (f, w). Returns the two
+    differences (m/s^2, rad/s), or None without a reference IMU or a quiet second."""
     from .errors import warn
     if flight.fog_t is None:
         return None
-    (fog_f, fog_w), seconds = _second_means(flight.fog_t, flight.fog_f, flight.fog_w)
-    (mimu_f, mimu_w), mimu_seconds = _second_means(flight.mimu_t, f, w)
+    (fog_f, fog_w), seconds = flight.fog_second_means()
+    (mimu_f, mimu_w), mimu_seconds = mimu.means()
     size = lambda x: np.linalg.norm(x, axis=1)                           # noqa: E731
     g = float(np.median(size(fog_f)))
     quiet = (size(fog_w) < QUIET["gyro_rad_s"]) & (np.abs(size(fog_f) - g) < QUIET["accel_m_s2"])
@@ -404,26 +589,59 @@ def check_compensation(flight, w, f, label="the calibration"):
     return df, dw
 
 
+class SecondMeans:
+    """Means of (N, 3) series over the whole seconds of t (s since the epoch), accumulated
+    block by block (`add` in time order); `means()` gives them with the seconds that hold
+    samples."""
+
+    def __init__(self):
+        self.k0, self.counts, self.sums = None, np.zeros(0), None
+
+    def add(self, t, *series):
+        if not len(t):
+            return self
+        k = np.floor(t).astype(np.int64)
+        if self.k0 is None:
+            self.k0, self.sums = k[0], [np.zeros((0, 3)) for _ in series]
+        k = k - self.k0
+        n = max(int(k[-1]) + 1, len(self.counts))
+        grow = lambda a: np.concatenate([a, np.zeros((n - len(a),) + a.shape[1:])])  # noqa
+        self.counts = grow(self.counts) + np.bincount(k, minlength=n)
+        self.sums = [grow(total) + np.stack([np.bincount(k, weights=x[:, i], minlength=n)
+                                             for i in range(3)], axis=1)
+                     for total, x in zip(self.sums, series)]
+        return self
+
+    def means(self):
+        have = self.counts > 0
+        return ([total[have] / self.counts[have, None] for total in self.sums],
+                np.flatnonzero(have) + self.k0)
+
+
 def _second_means(t, *series):
-    """Means of each (N, 3) series over the whole seconds of t (s since the epoch), and the
-    seconds that hold samples."""
-    k = np.floor(t).astype(np.int64)
-    k0 = k[0]
-    counts = np.bincount(k - k0)
-    have = counts > 0
-    means = [np.stack([np.bincount(k - k0, weights=x[:, i]) for i in range(3)], axis=1)[have]
-             / counts[have, None] for x in series]
-    return means, np.flatnonzero(have) + k0
+    """Means of each (N, 3) series over the whole seconds of t (`SecondMeans`)."""
+    return SecondMeans().add(t, *series).means()
 
 
-def replay(flight, cal, fog=None, check=None):
-    """Compensate and navigate the MIMU with `cal` and the FOG (or reuse `fog`); with a
-    `check` label, `check_compensation` warns about a calibration far off in quiet flight."""
-    w, f, counts = compensated_mimu(flight, cal)
+def replay(flight, cal, fog=None, check=None, at=None):
+    """Compensate and navigate the MIMU with `cal` and the FOG (or reuse `fog`), at times
+    `at` (s; default every sample), block by block when the flight streams; with a `check`
+    label, `check_compensation` warns about a calibration far off in quiet flight."""
+    nav, keep, seconds = _mimu_navigator(flight), Sampler(at), SecondMeans()
+    counts, stuck = dict.fromkeys(("replaced", "saturated", "unusable"), 0), 0
+    for t, w, f, flags in flight.mimu_blocks(cal):
+        if check is not None:
+            seconds.add(t, f, w)
+        for name, count in flag_counts(flags).items():
+            counts[name] += count
+        stuck += _stuck_inside_range(flight, w, f, flags)
+        keep.add(nav.feed(t, w, f))
+    keep.add(nav.finish())
+    _warn_stuck(flight, stuck)
     if check is not None:
-        check_compensation(flight, w, f, check)
-    mimu = navigate_mimu(flight, w, f)
-    return Replay(flight, mimu, fog if fog is not None else navigate_fog(flight), counts)
+        check_compensation(flight, seconds, check)
+    return Replay(flight, keep.trajectory(), fog if fog is not None else navigate_fog(flight, at),
+                  counts)
 
 
 def comparison_times(flight, end=None, rate_hz=100.0):
@@ -471,14 +689,14 @@ def table(flight, cals, end=None, check=False):
     Returns a dict (JSON-ready): end time, reference, FOG row, one row per variant with
     east/north/up errors (m), their ratio to the FOG's (when a truth exists), horizontal and
     3-D norms."""
-    fog = navigate_fog(flight)
-    t = comparison_times(flight, end)
-    t_end = t[-1:]
+    t_end = comparison_times(flight, end)[-1:]
+    fog = navigate_fog(flight, at=t_end)
     has_truth = flight.truth is not None
     ref = resample(flight.truth if has_truth else fog, t_end)
     rows = {}
     for name, cal in cals.items():
-        rep = replay(flight, cal, fog=fog, check=f"calibration {name!r}" if check else None)
+        rep = replay(flight, cal, fog=fog, check=f"calibration {name!r}" if check else None,
+                     at=t_end)
         enu = ned_to_enu(resample(rep.mimu, t_end).position_error(ref)[-1])
         rows[name] = {"enu_m": enu.tolist(), "horizontal_m": float(np.hypot(enu[0], enu[1])),
                       "norm_m": float(np.linalg.norm(enu)), "flags": rep.flags}

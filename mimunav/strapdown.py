@@ -58,27 +58,71 @@ def integrate(t, dtheta, dv, initial, *, h_aid=None, h_aid_tau=10.0, two_sample=
     check_units: refuse magnitudes no navigation IMU produces (rate > 50 rad/s: degrees
       or rates given; specific force > 2000 m/s^2 or a median over 20 g: rates
       given; a median near 1 m/s^2: g units). Degrees of motion slower than 50 deg/s cannot be told from magnitudes.
-    Returns a Trajectory at [initial t, t...] (N + 1 samples).
+    Returns a Trajectory at [initial t, t...] (N + 1 samples). `Navigator` does the same
+    block by block.
     """
-    t, dtheta, dv = _checked_inputs(t, dtheta, dv, check_units)
-    t0, lat0, lon0, h0, v0, q0 = _checked_initial(initial)
-    dt = np.diff(t, prepend=t0)
-    if dt[0] <= 0:
-        raise IncrementError(f"first sample time {float(t[0]):.9g} s is not after the initial "
-                             f"state's time {t0:.9g} s")
-    if h_aid is None:
-        h_ref, k1, k2 = np.empty(0), 0.0, 0.0
-    else:
-        h_ref = np.ascontiguousarray(h_aid, dtype=float)
-        if h_ref.shape != t.shape or not np.all(np.isfinite(h_ref)):
-            raise IncrementError("h_aid must hold one finite height (m) per sample")
-        k1, k2 = 2.0 / h_aid_tau, 1.0 / h_aid_tau**2
-    n = len(t)
-    lat, lon, h = np.empty(n + 1), np.empty(n + 1), np.empty(n + 1)
-    v, q = np.empty((n + 1, 3)), np.empty((n + 1, 4))
-    _navigate(dt, dtheta, dv, lat0, lon0, h0, v0, q0, two_sample, h_ref, k1, k2,
-              lat, lon, h, v, q)
-    return Trajectory(np.concatenate([[t0], t]), lat, lon, h, v, quaternion.as_quat_array(q))
+    nav = Navigator(initial, h_aid_tau=h_aid_tau, two_sample=two_sample,
+                    check_units=check_units)
+    return Trajectory.concatenate([nav.state(), nav.step(t, dtheta, dv, h_aid=h_aid)])
+
+
+# the kernel's memory between samples (`_navigate`): lat, lon, h, v_ned (3), q_nb (4); the
+# previous lat, h, v_ned and interval (mid-epoch extrapolation) from _PREV; the previous
+# increments dtheta, dv (coning, sculling); 1 once a sample has been navigated
+_LAT, _LON, _H, _V, _Q, _PREV, _DT_P, _STARTED, _STATE = 0, 1, 2, 3, 6, 10, 15, 22, 23
+
+
+class Navigator:
+    """The strapdown navigator of `integrate`, resumable: `step` navigates a block of
+    increments and keeps the kernel's memory (state, previous interval and increments), so
+    blocks fed one after another give exactly (bit for bit) what one `integrate` over their
+    concatenation gives - a flight of any length in bounded memory.
+
+    initial: as for `integrate`; h_aid_tau, two_sample, check_units as there."""
+
+    def __init__(self, initial, *, h_aid_tau=10.0, two_sample=True, check_units=True):
+        t0, lat0, lon0, h0, v0, q0 = _checked_initial(initial)
+        self.t = t0                         # s, time of the latest state
+        self.two_sample, self.check_units = two_sample, check_units
+        self.h_aid_tau = h_aid_tau
+        self._state = np.zeros(_STATE)
+        self._state[[_LAT, _LON, _H]] = lat0, lon0, h0
+        self._state[_V:_V + 3] = v0
+        self._state[_Q:_Q + 4] = q0
+        self._state[_PREV:_PREV + 5] = lat0, h0, *v0
+        self._state[_DT_P] = 1.0
+
+    def state(self):
+        """The latest state as a one-sample Trajectory (vehicle origin of the increments)."""
+        s = self._state
+        return Trajectory(np.array([self.t]), s[[_LAT]], s[[_LON]], s[[_H]],
+                          s[None, _V:_V + 3].copy(),
+                          quaternion.as_quat_array(s[None, _Q:_Q + 4].copy()))
+
+    def step(self, t, dtheta, dv, h_aid=None):
+        """Navigate increments over (t[k-1], t[k]] (t[-1]: the latest state's time); t s
+        (N,), dtheta rad and dv m/s (N, 3) body axes, h_aid m (N,) or None. Returns the
+        Trajectory at t (N states)."""
+        t, dtheta, dv = _checked_inputs(t, dtheta, dv, self.check_units)
+        dt = np.diff(t, prepend=self.t)
+        if dt[0] <= 0:
+            raise IncrementError(f"first sample time {float(t[0]):.9g} s is not after the "
+                                 f"{'latest' if self._state[_STARTED] else 'initial'} "
+                                 f"state's time {self.t:.9g} s")
+        if h_aid is None:
+            h_ref, k1, k2 = np.empty(0), 0.0, 0.0
+        else:
+            h_ref = np.ascontiguousarray(h_aid, dtype=float)
+            if h_ref.shape != t.shape or not np.all(np.isfinite(h_ref)):
+                raise IncrementError("h_aid must hold one finite height (m) per sample")
+            k1, k2 = 2.0 / self.h_aid_tau, 1.0 / self.h_aid_tau**2
+        n = len(t)
+        lat, lon, h = np.empty(n), np.empty(n), np.empty(n)
+        v, q = np.empty((n, 3)), np.empty((n, 4))
+        _navigate(dt, dtheta, dv, self._state, self.two_sample, h_ref, k1, k2,
+                  lat, lon, h, v, q)
+        self.t = float(t[-1])
+        return Trajectory(t, lat, lon, h, v, quaternion.as_quat_array(q))
 
 
 def _checked_inputs(t, dtheta, dv, check_units):
@@ -170,17 +214,18 @@ def _checked_initial(initial):
 
 
 @numba.njit(cache=True, nogil=True, fastmath=False)
-def _navigate(dt, dth, dvb, lat0, lon0, h0, v0, q0, two_sample, h_ref, k1, k2,
-              lat, lon, h, v, q):
-    """Scalar kernel of `integrate`; fills lat, lon, h, v, q (N + 1 rows)."""
-    la, lo, hh = lat0, lon0, h0
-    vn, ve, vd = v0[0], v0[1], v0[2]
-    qw, qx, qy, qz = q0[0], q0[1], q0[2], q0[3]
-    lat[0], lon[0], h[0] = la, lo, hh
-    v[0, 0], v[0, 1], v[0, 2] = vn, ve, vd
-    q[0, 0], q[0, 1], q[0, 2], q[0, 3] = qw, qx, qy, qz
-    la_p, hh_p, vn_p, ve_p, vd_p, dt_p = la, hh, vn, ve, vd, 1.0
-    tx_p = ty_p = tz_p = ux_p = uy_p = uz_p = 0.0
+def _navigate(dt, dth, dvb, state, two_sample, h_ref, k1, k2, lat, lon, h, v, q):
+    """Scalar kernel of `Navigator.step`; fills lat, lon, h, v, q (N rows, the states at the
+    samples) from the memory in `state` (layout at _LAT ... _STATE), which it leaves as it
+    is after the last sample."""
+    la, lo, hh = state[0], state[1], state[2]
+    vn, ve, vd = state[3], state[4], state[5]
+    qw, qx, qy, qz = state[6], state[7], state[8], state[9]
+    la_p, hh_p, vn_p, ve_p, vd_p, dt_p = state[10], state[11], state[12], state[13], \
+        state[14], state[15]
+    tx_p, ty_p, tz_p, ux_p, uy_p, uz_p = state[16], state[17], state[18], state[19], \
+        state[20], state[21]
+    started = state[22] > 0.0
     aided = h_ref.shape[0] > 0
     for k in range(dt.shape[0]):
         T = dt[k]
@@ -192,7 +237,7 @@ def _navigate(dt, dth, dvb, lat0, lon0, h0, v0, q0, two_sample, h_ref, k1, k2,
         wx = ux + 0.5 * cx_ + (ty * cz_ - tz * cy_) / 6.0
         wy = uy + 0.5 * cy_ + (tz * cx_ - tx * cz_) / 6.0
         wz = uz + 0.5 * cz_ + (tx * cy_ - ty * cx_) / 6.0
-        if two_sample and k > 0:
+        if two_sample and started:
             px += (ty_p * tz - tz_p * ty) / 12.0
             py += (tz_p * tx - tx_p * tz) / 12.0
             pz += (tx_p * ty - ty_p * tx) / 12.0
@@ -201,7 +246,8 @@ def _navigate(dt, dth, dvb, lat0, lon0, h0, v0, q0, two_sample, h_ref, k1, k2,
             wz += ((tx_p * uy - ty_p * ux) + (ux_p * ty - uy_p * tx)) / 12.0
         tx_p, ty_p, tz_p, ux_p, uy_p, uz_p = tx, ty, tz, ux, uy, uz
         # mid-epoch navigation quantities by linear extrapolation
-        r = 0.5 * T / dt_p if k > 0 else 0.0
+        r = 0.5 * T / dt_p if started else 0.0
+        started = True
         la_m = la + r * (la - la_p)
         hh_m = hh + r * (hh - hh_p)
         vn_m, ve_m, vd_m = vn + r * (vn - vn_p), ve + r * (ve - ve_p), vd + r * (vd - vd_p)
@@ -249,6 +295,13 @@ def _navigate(dt, dth, dvb, lat0, lon0, h0, v0, q0, two_sample, h_ref, k1, k2,
         qz = nw * q1z + nx * q1y - ny * q1x + nz * q1w
         norm = 1.0 / math.sqrt(qw * qw + qx * qx + qy * qy + qz * qz)
         qw, qx, qy, qz = qw * norm, qx * norm, qy * norm, qz * norm
-        lat[k + 1], lon[k + 1], h[k + 1] = la, lo, hh
-        v[k + 1, 0], v[k + 1, 1], v[k + 1, 2] = vn, ve, vd
-        q[k + 1, 0], q[k + 1, 1], q[k + 1, 2], q[k + 1, 3] = qw, qx, qy, qz
+        lat[k], lon[k], h[k] = la, lo, hh
+        v[k, 0], v[k, 1], v[k, 2] = vn, ve, vd
+        q[k, 0], q[k, 1], q[k, 2], q[k, 3] = qw, qx, qy, qz
+    state[0], state[1], state[2], state[3], state[4], state[5] = la, lo, hh, vn, ve, vd
+    state[6], state[7], state[8], state[9] = qw, qx, qy, qz
+    state[10], state[11], state[12], state[13], state[14], state[15] = \
+        la_p, hh_p, vn_p, ve_p, vd_p, dt_p
+    state[16], state[17], state[18], state[19], state[20], state[21] = \
+        tx_p, ty_p, tz_p, ux_p, uy_p, uz_p
+    state[22] = 1.0 if started else 0.0

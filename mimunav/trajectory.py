@@ -29,6 +29,18 @@ class Trajectory:
     def __len__(self):
         return len(self.t)
 
+    def __getitem__(self, index):
+        """The samples at `index` (a slice, an index array or a mask) as a Trajectory."""
+        return Trajectory(self.t[index], self.lat[index], self.lon[index], self.h[index],
+                          self.v_ned[index], self.q_nb[index])
+
+    @classmethod
+    def concatenate(cls, parts):
+        """One Trajectory of consecutive pieces (in time order)."""
+        parts = list(parts)
+        return cls(*(np.concatenate([getattr(p, name) for p in parts])
+                     for name in ("t", "lat", "lon", "h", "v_ned", "q_nb")))
+
     def state(self, k=0):
         """The state at sample k as plain floats: dict(t, lat, lon, h, v_ned, q_nb)."""
         return dict(t=float(self.t[k]), lat=float(self.lat[k]), lon=float(self.lon[k]),

@@ -141,7 +141,7 @@ def test_without_truth_the_table_says_so_and_gives_mimu_minus_fog(static_flight)
     assert "No `/truth/state`" in evaluation.table_markdown(doc)
 
 
-def test_mounting_and_lever_arm_are_applied_under_rotation(tmp_path):
+def test_mounting_and_lever_arm_are_applied_under_rotation(tmp_path, monkeypatch):
     """A perfect MIMU mounted turned (30, 10, -20 deg) and 0.33 m from the vehicle origin,
     through a 2 g pull and a 200 deg/s roll: after the mounting is undone the replayed
     vehicle trajectory matches the truth to the navigator's own accuracy (ignoring the lever
@@ -161,3 +161,25 @@ def test_mounting_and_lever_arm_are_applied_under_rotation(tmp_path):
     assert np.abs(err["position"]).max() < 5e-3
     assert np.abs(err["velocity"]).max() < 5e-3
     assert np.abs(err["attitude"]).max() < 1e-6
+    # streamed in blocks of 777 samples (and margins), sampled at the comparison times only:
+    # the same solution - the navigator's memory and the lever arm's look-ahead carried
+    monkeypatch.setattr(evaluation, "STREAM_BLOCK", 777)
+    streamed = evaluation.Flight.load(path, stream=True)
+    assert streamed.stream_block == 777 and streamed.fog_w is None and streamed.mimu_raw is None
+    t = evaluation.comparison_times(flight)
+    whole = evaluation.errors(evaluation.replay(flight, unit.coefficients), t)
+    blocks = evaluation.errors(evaluation.replay(streamed, unit.coefficients, at=t), t)
+    for pair in ("mimu-truth", "fog-truth"):
+        for quantity in ("position", "velocity", "attitude"):
+            np.testing.assert_allclose(blocks[pair][quantity], whole[pair][quantity],
+                                       rtol=0, atol=1e-9)
+    w, f, _ = evaluation.compensated_mimu(flight, unit.coefficients)
+    nav = evaluation.VehicleNavigator(flight.mimu_mounting, flight.initial)
+    edges = np.unique(np.r_[0, np.random.default_rng(1).integers(0, len(w), 40), len(w)])
+    parts = [nav.feed(flight.mimu_t[a:b], w[a:b], f[a:b]) for a, b in zip(edges, edges[1:])]
+    fed = evaluation.Trajectory.concatenate([p for p in parts if p is not None] + [nav.finish()])
+    one = evaluation.navigate(flight.mimu_t, w, f, flight.mimu_mounting, flight.initial)
+    for name in ("t", "lat", "lon", "h", "v_ned"):
+        assert np.array_equal(getattr(fed, name), getattr(one, name)), name
+    table = evaluation.table(streamed, {"unit": unit.coefficients})
+    assert table == evaluation.table(flight, {"unit": unit.coefficients})
