@@ -24,6 +24,7 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
+from publish import publish                                  # noqa: E402
 from mimunav import simulation                               # noqa: E402
 from mimunav.diagnosis import concealed                      # noqa: E402
 from mimunav.profile import Profile                          # noqa: E402
@@ -118,10 +119,22 @@ def main():
         write_atomic(out / "diagnosis-proof.json", json.dumps(
             {"summary": summary, "cases": cases, "meta": meta}, indent=1, default=float) + "\n",
             force=True)
-    for key, value in res.items():
-        print(f"{key:28s} {value:.2f}" if isinstance(value, float) else f"{key:28s} {value}")
-    if args.json:
-        Path(args.json).write_text(json.dumps(res, indent=2, default=float))
+    diag = next(k for k in res if k.startswith("diagnose_"))
+    foreign = res["foreign_flights"]
+    rows = [(f"`mimunav diagnose` of a {prof.duration:.0f} s 1 kHz flight with its report",
+             f"{res[diag]:.1f} s"),
+            (f"foreign development set ({len(foreign)} logs of an independent simulator)",
+             f"{sum(r['correct'] for r in foreign)} of {len(foreign)} correct (the hidden "
+             "effect named with its truth in the 95 % interval; an effect-free log quiet)")]
+    if "suite" in res:
+        s = res["suite"]
+        rate = lambda r: f"{r['k']}/{r['n']}"                             # noqa: E731
+        rows.append((f"concealed-data suite ({s['with_effect']} effects, {s['nulls']} nulls; "
+                     "reports/diagnosis-proof.md)",
+                     f"identified {rate(s['identified'])}, coverage "
+                     f"{rate(s['interval_coverage'])}, false alarms {rate(s['false_alarms'])}; "
+                     f"{res['suite_s']:.0f} s"))
+    publish(__file__, rows, res, args.json)
 
 
 if __name__ == "__main__":

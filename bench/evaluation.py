@@ -21,6 +21,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
+from publish import publish  # noqa: E402
 from mimunav import campaign                      # noqa: E402
 from mimunav.profile import Profile, dumps        # noqa: E402
 from mimunav.simulation import simulate_flight    # noqa: E402
@@ -63,10 +64,10 @@ def main():
         records = campaign.run_campaign(hundred, args.units, 1, os.path.join(tmp, "c.jsonl"))
         res["campaign_units"] = len(records)
         res["campaign_100s_1kHz_s"] = time.perf_counter() - t0
-    for key, value in res.items():
-        print(f"{key:24s} {value:.2f}" if isinstance(value, float) else f"{key:24s} {value}")
-    if args.json:
-        Path(args.json).write_text(json.dumps(res, indent=2))
+    publish(__file__, [
+        ("`mimunav replay` of a 600 s 1 kHz log, end to end", f"{res['replay_600s_1kHz_s']:.1f} s"),
+        (f"campaign of {res['campaign_units']} units on a 100 s 1 kHz flight",
+         f"{res['campaign_100s_1kHz_s']:.0f} s")], res, args.json)
 
 
 if __name__ == "__main__":

@@ -20,6 +20,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
 import fuzzing  # noqa: E402
+from publish import publish  # noqa: E402
 
 
 def main():
@@ -57,10 +58,14 @@ def main():
     print("|---|" + "---|" * len(outcomes))
     for k in keys:
         print(f"| {k} | " + " | ".join(str(counts[k, o]) for o in outcomes) + " |")
-    print(f"| **all** | " + " | ".join(str(sum(counts[k, o] for k in keys)) for o in outcomes)
+    print("| **all** | " + " | ".join(str(sum(counts[k, o] for k in keys)) for o in outcomes)
           + " |")
     for (k, outcome), (name, err) in examples.items():
         print(f"\n{k} {outcome} on '{name}':\n{err}")
+    total = {o: sum(counts[k, o] for k in keys) for o in outcomes}
+    publish(__file__, [(f"fuzz: {len(files)} damaged logs through {', '.join(keys)}",
+                        f"{sum(counts.values())} runs in {elapsed / 60:.1f} min: "
+                        + ", ".join(f"{total[o]} {o}" for o in outcomes))])
 
 
 if __name__ == "__main__":

@@ -7,7 +7,6 @@ Times include writing and reading the logs (a fresh process: JIT caches warm fro
 runs, as for a user's second command). Target: under 60 s on 2 cores.
 """
 import argparse
-import json
 import os
 import platform
 import sys
@@ -17,6 +16,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
+from publish import publish  # noqa: E402
 from mimunav import calibration, lab          # noqa: E402
 from mimunav.sensors import MimuUnit          # noqa: E402
 
@@ -41,11 +41,12 @@ def main():
         cal = calibration.calibrate(paths, "entire")
         res["fit_s"] = time.perf_counter() - t0
     res["total_s"] = time.perf_counter() - t_all
-    for key, value in res.items():
-        print(f"{key:28s} {value:.2f}" if isinstance(value, float) else f"{key:28s} {value}")
-    print(f"fitted {len(calibration.standard_errors(cal))} coefficients")
-    if args.json:
-        Path(args.json).write_text(json.dumps(res, indent=2))
+    samples = " + ".join(f"{res[p + '_samples'] / 1e3:.0f}k" for p in
+                         ("thermal-chamber", "rate-table", "centrifuge"))
+    publish(__file__, [
+        (f"entire lab (chamber + rate table + centrifuge: {samples} samples) simulated, "
+         f"logged and fitted ({len(calibration.standard_errors(cal))} coefficients)",
+         f"{res['total_s']:.1f} s (fit {res['fit_s']:.1f} s)")], res, args.json)
 
 
 if __name__ == "__main__":

@@ -10,8 +10,6 @@ the line extrapolates it to a 2-hour 1 kHz flight (7.2 M samples).
 """
 import argparse
 import math
-import os
-import platform
 import subprocess
 import sys
 import tempfile
@@ -21,6 +19,7 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
+from publish import publish                             # noqa: E402
 from mimunav import earth                               # noqa: E402
 from mimunav.compensation import Calibration, raw_from_physics     # noqa: E402
 from mimunav.flightlog import LogWriter                 # noqa: E402
@@ -30,6 +29,7 @@ from mimunav.sensors import MimuUnit                    # noqa: E402
 EPOCH_NS = 1_767_225_600 * 10**9
 LAT, LON, H = math.radians(45.0), math.radians(7.0), 300.0
 BLOCK = 200_000
+COMMANDS = ("compensate", "replay", "table", "simulate")
 
 
 def parked_log(path, minutes, unit, rate=1000.0, seed=0):
@@ -93,7 +93,16 @@ def peak_mb(argv, cwd):
     return int(out.stderr.strip().splitlines()[-1]) / 1024
 
 
-def commands(kind, log, cal, tmp):
+def commands(kind, log, cal, tmp, minutes):
+    """The command line of `kind` on the parked log (simulate: a parked profile of the same
+    length, written beside it)."""
+    if kind == "simulate":
+        profile = Path(tmp) / f"parked-{minutes:g}.toml"
+        profile.write_text(f'name = "parked"\n[start]\nlatitude_deg = 45.0\n'
+                           f'longitude_deg = 7.0\nheight_m = 300.0\nspeed_m_s = 0.0\n'
+                           f'heading_deg = 0.0\n[[segment]]\nkind = "hold"\n'
+                           f'duration_s = {minutes * 60.0}\n')
+        return ["simulate", str(profile), "-o", f"{tmp}/sim.mcap", "--force"]
     out = {"compensate": ["compensate", log, "--cal", cal, "-o", f"{tmp}/out.mcap", "--force"],
            "replay": ["replay", log, "--cal", cal, "-o", f"{tmp}/replay", "--force"],
            "table": ["table", log, "--cal", f"c={cal}"]}
@@ -103,8 +112,7 @@ def commands(kind, log, cal, tmp):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--minutes", type=float, nargs=2, default=[5.0, 20.0])
-    ap.add_argument("--commands", nargs="+", default=["compensate", "replay", "table"],
-                    choices=["compensate", "replay", "table"])
+    ap.add_argument("--commands", nargs="+", default=list(COMMANDS), choices=COMMANDS)
     args = ap.parse_args()
     unit = MimuUnit.draw(1, beyond_model=False)
     results = {}
@@ -115,16 +123,20 @@ def main():
             log = f"{tmp}/parked-{minutes:g}.mcap"
             n = parked_log(log, minutes, unit)
             for kind in args.commands:
-                results[(kind, n)] = peak_mb(commands(kind, log, cal, tmp), tmp)
+                results[(kind, n)] = peak_mb(commands(kind, log, cal, tmp, minutes), tmp)
                 print(f"{kind:11s} {minutes:6g} min ({n / 1e6:.2f} M samples): "
                       f"{results[(kind, n)]:7.0f} MB", flush=True)
     (n0, n1) = sorted({n for _, n in results})
-    load = os.getloadavg()[0]
-    print(f"machine {platform.machine()} {os.cpu_count()} cores, load {load:.1f}")
+    rows = []
     for kind in args.commands:
         slope = (results[(kind, n1)] - results[(kind, n0)]) / (n1 - n0) * 1e6     # MB / M
-        print(f"{kind:11s} {slope * 1.048576:6.0f} B/sample; a 2-hour 1 kHz flight: "
-              f"{results[(kind, n0)] + slope * (7.2 - n0 / 1e6):6.0f} MB")
+        rows.append((f"peak memory of `mimunav {kind}` against the flight's length (parked, "
+                     "1 kHz)",
+                     f"{results[(kind, n0)]:.0f} MB at {args.minutes[0]:g} min, "
+                     f"{results[(kind, n1)]:.0f} MB at {args.minutes[1]:g} min: "
+                     f"{slope * 1.048576:.0f} B/sample, a 2-hour 1 kHz flight "
+                     f"~{results[(kind, n0)] + slope * (7.2 - n0 / 1e6):.0f} MB"))
+    publish(__file__, rows)
 
 
 if __name__ == "__main__":

@@ -24,6 +24,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from publish import publish
+
 ROOT = Path(__file__).resolve().parent.parent
 TESTS = {
     "earth": ["tests/test_earth.py", "tests/test_truth.py", "tests/test_strapdown.py"],
@@ -93,7 +95,6 @@ def main():
     ap.add_argument("-o", "--output", default=str(ROOT / "reports" / "mutation.md"))
     args = ap.parse_args()
     from cosmic_ray.mutating import mutate_and_test
-    from cosmic_ray.work_item import TestOutcome
     from tqdm import tqdm
     started = time.time()
     with tempfile.TemporaryDirectory() as tmp:
@@ -129,6 +130,9 @@ def main():
     Path(args.output).write_text(markdown(doc))
     Path(args.output).with_suffix(".json").write_text(json.dumps(doc, indent=1) + "\n")
     print(markdown(doc).split("## Survivors")[0])
+    publish(__file__, [("mutation score of the physics core (reports/mutation.md)",
+                        f"{doc['killed']}/{doc['run']} killed, {100 * doc['score']:.0f} % "
+                        f"[{100 * doc['ci95'][0]:.0f}, {100 * doc['ci95'][1]:.0f}]")])
 
 
 def summarise(results, head, args, elapsed):

@@ -8,7 +8,6 @@ drive simulated from RTK, the library search, bootstrap, report folder), windows
 every 5 s: 260 free-inertial runs).
 """
 import argparse
-import json
 import os
 import platform
 import subprocess
@@ -16,6 +15,8 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+
+from publish import publish
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -40,10 +41,9 @@ def main():
                "windows_s": timed(["windows", log, "-o", os.path.join(tmp, "w")])}
     out.update(machine=f"{os.cpu_count()} cores, {platform.machine()}, Python "
                        f"{platform.python_version()}")
-    for key, value in out.items():
-        print(f"{key:12s} {value:.2f}" if isinstance(value, float) else f"{key:12s} {value}")
-    if args.json:
-        Path(args.json).write_text(json.dumps(out, indent=1) + "\n")
+    publish(__file__, [(f"RTKLIB car drive ({Path(args.data).name}): import, diagnose, windows",
+                        f"{out['import_s']:.1f} s, {out['diagnose_s']:.1f} s, "
+                        f"{out['windows_s']:.1f} s")], out, args.json)
 
 
 if __name__ == "__main__":

@@ -7,7 +7,6 @@ saturation, inverse of eqs. 1-4, ADC. Compensation: wild-value filter + eqs. 1-4
 Times are the best and median of repeats after JIT warm-up.
 """
 import argparse
-import json
 import os
 import platform
 import sys
@@ -18,6 +17,7 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
+from publish import publish  # noqa: E402
 from mimunav import truth                      # noqa: E402
 from mimunav.compensation import compensate    # noqa: E402
 from mimunav.profile import Profile            # noqa: E402
@@ -61,12 +61,10 @@ def main():
            "samples": n, "simulate_s_best": sim_best, "simulate_s_median": sim_med,
            "compensate_s_best": comp_best, "compensate_s_median": comp_med,
            "flagged_samples": int((flags > 0).sum())}
-    print(f"simulate    {sim_best:.3f} s best, {sim_med:.3f} s median for {n} raw samples")
-    print(f"compensate  {comp_best:.3f} s best, {comp_med:.3f} s median ({res['flagged_samples']}"
-          " samples flagged)")
-    print(f"machine     {res['machine']}")
-    if args.json:
-        Path(args.json).write_text(json.dumps(res, indent=2))
+    publish(__file__, [
+        (f"MIMU raw simulation, {n:.0e} samples", f"{sim_best:.3f} s best, {sim_med:.3f} s median"),
+        (f"compensation (wild-value filter + eqs. 1-4), {n:.0e} samples",
+         f"{comp_best:.3f} s best, {comp_med:.3f} s median")], res, args.json)
 
 
 if __name__ == "__main__":

@@ -8,7 +8,6 @@ the navigator's memory per sample (tracemalloc peak of its allocations, plus the
 same number of samples of the shipped high-dynamic flight (looped to length).
 """
 import argparse
-import json
 import os
 import platform
 import sys
@@ -19,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+from publish import publish  # noqa: E402
 from mimunav import strapdown, truth  # noqa: E402
 from mimunav.profile import Profile   # noqa: E402
 
@@ -67,16 +67,14 @@ def main():
         "truth_and_increments_s": t_truth,
         "end_position_error_m": float(err),
     }
-    print(f"navigator   {res['navigator_samples_per_s'] / 1e6:.1f} M samples/s best, "
-          f"{res['navigator_samples_per_s_median'] / 1e6:.1f} M median "
-          f"({n} samples, {args.repeats} runs)")
-    print(f"memory      {res['navigator_bytes_per_sample']:.0f} B/sample allocated "
-          f"(+56 B/sample inputs = {res['navigator_bytes_per_sample_with_inputs']:.0f})")
-    print(f"truth       {t_truth:.2f} s for trajectory + exact increments of {n} samples")
-    print(f"accuracy    end position error {err:.2e} m after {n / rate:.0f} s (ideal IMU)")
-    print(f"machine     {res['machine']}")
-    if args.json:
-        Path(args.json).write_text(json.dumps(res, indent=2))
+    publish(__file__, [
+        (f"strapdown navigator, {n:.0e} samples at {rate:g} Hz",
+         f"{res['navigator_samples_per_s'] / 1e6:.1f} M samples/s best, "
+         f"{res['navigator_samples_per_s_median'] / 1e6:.1f} M median of {args.repeats}; "
+         f"{res['navigator_bytes_per_sample']:.0f} B/sample allocated (+56 inputs)"),
+        (f"truth + exact increments, {n:.0e} samples", f"{t_truth:.2f} s"),
+        (f"ideal IMU through the navigator, {n / rate:.0f} s of the bench flight",
+         f"end position error {err:.2e} m")], res, args.json)
 
 
 if __name__ == "__main__":

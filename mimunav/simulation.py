@@ -13,6 +13,7 @@ equipment bay that lags the ISA air along the flown heights (`sensors.thermal`).
 import json
 import math
 import os
+import tempfile
 from dataclasses import dataclass
 from datetime import datetime
 
@@ -25,6 +26,8 @@ from .files import write_atomic
 from .flightlog import LogWriter
 from .flightlog import schemas as S
 from .sensors import FogUnit, MimuUnit, Mounting
+from .sensors.fog import FogRecorder
+from .sensors.mimu import MimuRecorder
 from .modulation import platform_metadata
 from .sensors.hidden import HiddenPhysics, HiddenSet
 from .sensors.thermal import BAY_TAU_S, ISA_LAPSE, bay_temperature
@@ -37,6 +40,7 @@ MIMU_MOUNTING = {"attitude_wxyz": [1.0, 0.0, 0.0, 0.0], "lever_arm_m": [0.30, -0
 FOG_MOUNTING = {"attitude_wxyz": [1.0, 0.0, 0.0, 0.0], "lever_arm_m": [0.0, 0.0, 0.0]}
 GROUND_TEMPERATURE_C = 15.0     # ISA sea-level temperature, at the profile's start height
 MAX_BASE_RATE = 4000
+BLOCK_S = 60                # s of flight `simulate_flight` makes at a time (bounded memory)
 
 
 def epoch_ns(text):
@@ -66,7 +70,29 @@ def flight_motion(profile, mimu_mounting, mimu_rate, fog_mounting, fog_rate, tru
     the bay follows the outside air of a day at `ground_temperature_c` (degC at the
     profile's start height). `platform` (`modulation.Platform`): the MIMU turns on it at
     the vehicle origin (its mounting's lever arm is not used), its increments exact
-    (`modulation.RotatingMotion`)."""
+    (`modulation.RotatingMotion`). The whole flight in memory: `flight_motion_blocks` with
+    one block."""
+    (fm,) = flight_motion_blocks(profile, mimu_mounting, mimu_rate, fog_mounting, fog_rate,
+                                 truth_rate, ground_temperature_c, platform, block_s=None)
+    return fm
+
+
+def record_length(profile, rate, imu_rates):
+    """Samples of an IMU at `rate` over the profile (`flight_motion_blocks`: the sample at
+    0 and one per whole interval of the base rate of both `imu_rates`)."""
+    base = math.lcm(*(int(r) for r in imu_rates))
+    return int(math.floor(profile.duration * base + 1e-9)) // (base // int(rate)) + 1
+
+
+def flight_motion_blocks(profile, mimu_mounting, mimu_rate, fog_mounting, fog_rate,
+                         truth_rate, ground_temperature_c=GROUND_TEMPERATURE_C, platform=None,
+                         block_s=None):
+    """`flight_motion` in consecutive pieces of block_s seconds (None: one piece), each a
+    FlightMotion of its own samples: the truth at the base rate over [start, end] of the
+    piece (the start shared with the previous piece, the position carried from it), the
+    IMU samples in (start, end] (the first piece also the sample at 0), the bay temperature
+    carried through its lag, and the truth samples to write. Concatenated, the pieces are
+    the whole flight (positions to round-off, everything else exactly)."""
     rates = [mimu_rate, fog_rate, truth_rate]
     if any(r != int(r) for r in rates):
         raise InputError(f"sample rates must be whole numbers of Hz, got {rates}")
@@ -75,31 +101,45 @@ def flight_motion(profile, mimu_mounting, mimu_rate, fog_mounting, fog_rate, tru
         raise InputError(f"rates {rates} need a common base rate of {base} Hz (at most "
                          f"{MAX_BASE_RATE}, a multiple of the truth rate)")
     motion = profile.motion()
-    t_base = np.arange(0, int(math.floor(profile.duration * base + 1e-9)) + 1) / base
-    run = truth.generate(motion, t_base)
-
-    def at_rate(mounting, rate, source=None):
-        dth, dv = mounting.sensor_increments(run if source is None else source)
-        k = base // int(rate)
-        n = len(dth) // k
-        dth = dth[:n * k].reshape(n, k, 3).sum(axis=1)
-        dv = dv[:n * k].reshape(n, k, 3).sum(axis=1)
-        t = np.arange(n + 1) / rate
-        return t, np.vstack([dth[:1], dth]), np.vstack([dv[:1], dv])
-    if platform is None:
-        mimu = at_rate(mimu_mounting, mimu_rate)
-        turning = None
-    else:
+    n_base = int(math.floor(profile.duration * base + 1e-9))
+    step = n_base if block_s is None else max(1, int(block_s)) * base   # whole seconds
+    rotating = None
+    if platform is not None:
         from .modulation import RotatingMotion
         rotating = RotatingMotion(motion, platform, profile.duration)
-        sensor_run = truth.generate(rotating, t_base)
-        mimu = at_rate(_SensorFrame(), mimu_rate, sensor_run)
-        turning = {"angle": rotating.angle(mimu[0]), "rate": rotating.rate(mimu[0]),
-                   "platform": platform}
-    env = bay_temperature(mimu[0], np.interp(mimu[0], t_base, run.trajectory.h),
-                          ground_temperature_c, motion.h0)
-    return FlightMotion(profile, run, t_base, mimu, at_rate(fog_mounting, fog_rate), env,
-                        np.arange(0, len(t_base), base // int(truth_rate)), turning)
+    k_truth = base // int(truth_rate)
+    start, bay = None, None
+    for a in range(0, max(n_base, 1), step):
+        b = min(a + step, n_base)
+        t_base = np.arange(a, b + 1) / base
+        run = truth.generate(motion, t_base, start)
+        tr = run.trajectory
+        here, start = start, (tr.lat[-1], tr.lon[-1], tr.h[-1])
+
+        def at_rate(mounting, rate, source=run):
+            dth, dv = mounting.sensor_increments(source)
+            k = base // int(rate)
+            j0, m = a // k, (b - a) // k
+            dth = dth[:m * k].reshape(m, k, 3).sum(axis=1)
+            dv = dv[:m * k].reshape(m, k, 3).sum(axis=1)
+            t = np.arange(j0 + 1, j0 + m + 1) / rate
+            if a == 0:              # the sample at 0 repeats the first interval
+                return (np.concatenate([[0.0], t]), np.vstack([dth[:1], dth]),
+                        np.vstack([dv[:1], dv]))
+            return t, dth, dv
+        if rotating is None:
+            mimu, turning = at_rate(mimu_mounting, mimu_rate), None
+        else:
+            sensor_run = truth.generate(rotating, t_base, here)       # the IMU on the axis
+            mimu = at_rate(_SensorFrame(), mimu_rate, sensor_run)
+            turning = {"angle": rotating.angle(mimu[0]), "rate": rotating.rate(mimu[0]),
+                       "platform": platform}
+        env = bay_temperature(mimu[0], np.interp(mimu[0], t_base, tr.h),
+                              ground_temperature_c, motion.h0, before=bay)
+        bay = (mimu[0][-1], env[-1])
+        first = 0 if a == 0 else 1
+        yield FlightMotion(profile, run, t_base, mimu, at_rate(fog_mounting, fog_rate), env,
+                           np.arange(first * k_truth, len(t_base), k_truth), turning)
 
 
 class _SensorFrame:
@@ -156,51 +196,43 @@ def simulate_flight(profile, out, seed, unit=None, fog_rate=1000.0, truth_rate=1
     if hide:
         effects = [HiddenPhysics(term, unit.thermal) for term in hide]
         hidden = HiddenSet(effects + ([hidden] if hidden is not None else []))
-    steps = tqdm(total=3, desc="simulate", disable=not progress, unit="step")
-    fm = flight_motion(profile, unit.mounting, unit.rate_hz, fog.mounting, fog.rate_hz,
-                       truth_rate, ground_temperature_c, platform)
-    steps.update()
-    raw, fog_out = record_flight(fm, unit, fog, rng_mimu, rng_fog, hidden, warm_up_s)
-    steps.update()
-    run, t_base, k_truth = fm.run, fm.t_base, fm.k_truth
-    t_m, t_f = fm.mimu[0], fm.fog[0]
-
+    whole = hidden is not None and (not hasattr(hidden, "reach") or hidden.reach()[2])
+    motion_blocks = flight_motion_blocks(
+        profile, unit.mounting, unit.rate_hz, fog.mounting, fog.rate_hz, truth_rate,
+        ground_temperature_c, platform, block_s=None if whole else BLOCK_S)
     epoch = epoch_ns(DEFAULT_EPOCH)
-    tr = run.trajectory
-    start = tr.state(0)
-    initial = {"t": 0.0, "latitude": start["lat"], "longitude": start["lon"],
-               "height": start["h"], "velocity_ned": start["v_ned"].tolist(),
-               "attitude_wxyz": start["q_nb"].tolist()}
-    with LogWriter(out, force=force) as log:
-        log.metadata("flight", {"format": "mimunav-log/1", "name": profile.name,
-                                "description": profile.description,
-                                "epoch_unix_ns": str(epoch), "source": "simulation",
-                                "initial_state": initial})
-        for name, imu, model in (("mimu", unit, "MEMS IMU, 63-coefficient model (simulated)"),
-                                 ("fog", fog, "FOG-IMU, Table 4 grade (simulated)")):
-            log.metadata(f"sensor/{name}", {
-                "model": model, "sample_rate_hz": str(imu.rate_hz),
-                "mounting": (Mounting().as_dict() if name == "mimu" and platform
-                             else imu.mounting.as_dict()),
-                "range": {"gyro_rad_s": imu.range_gyro, "accel_m_s2": imu.range_accel},
-                **({"accuracy": imu.accuracy()} if name == "fog" else {}),
-                **({"platform": platform_metadata(platform)} if name == "mimu" and platform
-                   else {})})
-        stamp = lambda t: epoch + np.round(t * 1e9).astype(np.int64)      # noqa: E731
-        log.write("/mimu/raw", S.RAW_MIMU, "mimu", stamp(t_m), sample_index=raw["sample_index"],
-                  gyro_volts=raw["gyro_volts"], accel_volts=raw["accel_volts"],
-                  accel_temperature=raw["accel_temperature"],
-                  gyro_frequency=raw["gyro_frequency"])
-        if fm.platform is not None:
-            log.write("/mimu/platform", S.JOINT_STATE, "platform", stamp(t_m),
-                      **S.platform_fields(fm.platform["angle"], fm.platform["rate"]))
-        log.write("/fog/imu", S.IMU, "fog", stamp(t_f), **S.imu_fields(
-            fog_out["angular_velocity"], fog_out["linear_acceleration"]))
-        log.write("/truth/state", S.NAV_STATE, "vehicle", stamp(t_base[k_truth]),
-                  latitude=tr.lat[k_truth], longitude=tr.lon[k_truth], height=tr.h[k_truth],
-                  velocity_ned=tr.v_ned[k_truth],
-                  attitude_wxyz=quaternion.as_float_array(tr.q_nb[k_truth]))
-    steps.update()
+    stamp = lambda t: epoch + np.round(t * 1e9).astype(np.int64)         # noqa: E731
+    saturated = {"mimu": 0, "fog": 0}
+    steps = tqdm(total=round(profile.duration), desc="simulate", disable=not progress,
+                 unit="s")
+    with tempfile.TemporaryDirectory() as work, LogWriter(out, force=force) as log:
+        mimu_rec = fog_rec = None
+        for fm in motion_blocks:
+            if mimu_rec is None:         # the records' lengths, for their flicker noise
+                n_mimu, n_fog = (record_length(profile, r, (unit.rate_hz, fog.rate_hz))
+                                 for r in (unit.rate_hz, fog.rate_hz))
+                mimu_rec = MimuRecorder(unit, n_mimu, rng_mimu, hidden, warm_up_s, work)
+                fog_rec = FogRecorder(fog, n_fog, rng_fog, work)
+                _write_metadata(log, profile, fm, unit, fog, platform, epoch)
+            raw = mimu_rec.record(*fm.mimu, fm.env)
+            _write_raw(log, raw, stamp)
+            saturated["mimu"] += int(raw["saturated"].sum())
+            if fm.platform is not None:
+                log.write("/mimu/platform", S.JOINT_STATE, "platform", stamp(fm.mimu[0]),
+                          **S.platform_fields(fm.platform["angle"], fm.platform["rate"]))
+            fog_out = fog_rec.record(*fm.fog)
+            saturated["fog"] += int(fog_out["saturated"].sum())
+            log.write("/fog/imu", S.IMU, "fog", stamp(fm.fog[0]), **S.imu_fields(
+                fog_out["angular_velocity"], fog_out["linear_acceleration"]))
+            tr, k = fm.run.trajectory, fm.k_truth
+            log.write("/truth/state", S.NAV_STATE, "vehicle", stamp(fm.t_base[k]),
+                      latitude=tr.lat[k], longitude=tr.lon[k], height=tr.h[k],
+                      velocity_ned=tr.v_ned[k], attitude_wxyz=quaternion.as_float_array(tr.q_nb[k]))
+            steps.update(round(fm.t_base[-1]) - steps.n)
+        raw = mimu_rec.finish()
+        _write_raw(log, raw, stamp)
+        saturated["mimu"] += int(raw["saturated"].sum())
+        del mimu_rec, fog_rec                # their flicker files, before the folder goes
     steps.close()
     write_atomic(truth_path, json.dumps({
         "format": "mimunav-truth/1", "log": str(out), "seed": seed, "profile": profile.name,
@@ -209,8 +241,36 @@ def simulate_flight(profile, out, seed, unit=None, fog_rate=1000.0, truth_rate=1
                         "mimu_warm_up_s": warm_up_s,
                         "bay_tau_s": BAY_TAU_S, "lapse_k_per_m": ISA_LAPSE},
         "hidden": hidden.as_dict() if hasattr(hidden, "as_dict") else None,
-        "saturated_samples": {"mimu": int(raw["saturated"].sum()),
-                              "fog": int(fog_out["saturated"].sum())}}, indent=1) + "\n",
+        "saturated_samples": saturated}, indent=1) + "\n",
         force=force)
     return str(out), truth_path
+
+
+def _write_metadata(log, profile, fm, unit, fog, platform, epoch):
+    start = fm.run.trajectory.state(0)
+    initial = {"t": 0.0, "latitude": start["lat"], "longitude": start["lon"],
+               "height": start["h"], "velocity_ned": start["v_ned"].tolist(),
+               "attitude_wxyz": start["q_nb"].tolist()}
+    log.metadata("flight", {"format": "mimunav-log/1", "name": profile.name,
+                            "description": profile.description,
+                            "epoch_unix_ns": str(epoch), "source": "simulation",
+                            "initial_state": initial})
+    for name, imu, model in (("mimu", unit, "MEMS IMU, 63-coefficient model (simulated)"),
+                             ("fog", fog, "FOG-IMU, Table 4 grade (simulated)")):
+        log.metadata(f"sensor/{name}", {
+            "model": model, "sample_rate_hz": str(imu.rate_hz),
+            "mounting": (Mounting().as_dict() if name == "mimu" and platform
+                         else imu.mounting.as_dict()),
+            "range": {"gyro_rad_s": imu.range_gyro, "accel_m_s2": imu.range_accel},
+            **({"accuracy": imu.accuracy()} if name == "fog" else {}),
+            **({"platform": platform_metadata(platform)} if name == "mimu" and platform
+               else {})})
+
+
+def _write_raw(log, raw, stamp):
+    if len(raw["t"]):
+        log.write("/mimu/raw", S.RAW_MIMU, "mimu", stamp(raw["t"]),
+                  sample_index=raw["sample_index"], gyro_volts=raw["gyro_volts"],
+                  accel_volts=raw["accel_volts"], accel_temperature=raw["accel_temperature"],
+                  gyro_frequency=raw["gyro_frequency"])
 

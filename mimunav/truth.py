@@ -58,8 +58,9 @@ class Motion:
         raise NotImplementedError
 
 
-def integrate_position(motion, t, kin=None):
-    """Geodetic position (lat, lon rad; h m) of `motion` at sorted times t, t[0] == motion.t0.
+def integrate_position(motion, t, kin=None, start=None):
+    """Geodetic position (lat, lon rad; h m) of `motion` at sorted times t, t[0] == motion.t0
+    (or from `start` = (lat, lon, h) at t[0], for a record made block by block).
 
     Per step, the NED displacement is the Euler-Maclaurin corrected trapezoid
     d = h/2 (v0 + v1) + h^2/12 (a0 - a1) (exact for cubic velocity), converted to
@@ -67,19 +68,20 @@ def integrate_position(motion, t, kin=None):
     the radii is resolved by fixed-point iteration (converged to round-off in 3 passes).
     """
     kin = motion.kinematics(t) if kin is None else kin
+    lat0, lon0, h0 = (motion.lat0, motion.lon0, motion.h0) if start is None else start
     dt = np.diff(t)[:, None]
     v, a = kin.v_ned, kin.a_ned
     d = 0.5 * dt * (v[1:] + v[:-1]) + dt**2 / 12 * (a[:-1] - a[1:])
-    h = motion.h0 - np.concatenate([[0.0], np.cumsum(d[:, 2])])
+    h = h0 - np.concatenate([[0.0], np.cumsum(d[:, 2])])
     h_mid = 0.5 * (h[1:] + h[:-1])
-    lat = np.full(len(t), motion.lat0)
+    lat = np.full(len(t), lat0)
     for _ in range(3):
         lat_mid = 0.5 * (lat[1:] + lat[:-1])
         r_n, r_e = earth.radii(lat_mid)
-        lat = motion.lat0 + np.concatenate([[0.0], np.cumsum(d[:, 0] / (r_n + h_mid))])
+        lat = lat0 + np.concatenate([[0.0], np.cumsum(d[:, 0] / (r_n + h_mid))])
     lat_mid = 0.5 * (lat[1:] + lat[:-1])
     r_n, r_e = earth.radii(lat_mid)
-    lon = motion.lon0 + np.concatenate(
+    lon = lon0 + np.concatenate(
         [[0.0], np.cumsum(d[:, 1] / ((r_e + h_mid) * np.cos(lat_mid)))])
     return lat, lon, h
 
@@ -134,8 +136,10 @@ class TruthRun:
         return self.dv + np.cross(np.diff(self.w_ib, axis=0), r) + centripetal
 
 
-def generate(motion, t):
-    """Sample `motion` at sorted times t (s, t[0] == motion.t0) and compute exact increments.
+def generate(motion, t, start=None):
+    """Sample `motion` at sorted times t (s, t[0] == motion.t0) and compute exact increments;
+    with `start` = (lat, lon, h) the position at t[0] (t[0] then anywhere in the motion's
+    span: one block of a longer record).
 
     Position at the quadrature nodes inside an interval comes from cubic Hermite
     interpolation of the sampled positions (position error ~ dt^4 * jerk / 384, far
@@ -143,11 +147,12 @@ def generate(motion, t):
     the nodes are evaluated exactly.
     """
     t = np.asarray(t, dtype=float)
-    if t[0] != motion.t0 or np.any(np.diff(t) <= 0) or t[-1] > motion.t1 + 1e-9:
+    if (t[0] != motion.t0 if start is None else t[0] < motion.t0) or \
+            np.any(np.diff(t) <= 0) or t[-1] > motion.t1 + 1e-9:
         raise InputError(f"sample times must increase from the motion's start {motion.t0} s "
                          f"to at most its end {motion.t1} s")
     kin = motion.kinematics(t)
-    lat, lon, h = integrate_position(motion, t, kin)
+    lat, lon, h = integrate_position(motion, t, kin, start)
     truth = Trajectory(t, lat, lon, h, kin.v_ned, kin.q_nb)
 
     # Quadrature nodes: 3 per piece; the pieces are the sample intervals cut at the

@@ -387,7 +387,7 @@ def test_ros2_rtk_fixes_as_the_reference(tmp_path):
     degraded fixes (status 0, 3 m): with --reference-status 2 only the RTK fixes become
     /truth/state, their velocity from position differences is 5 m/s north, and the reference
     says it is GNSS only with its sigma."""
-    n, rate = 3000, 100.0
+    n = 3000
     stamps = 1_700_000_000_000_000_000 + np.arange(n) * 10_000_000
     w = np.zeros((n, 3))
     f = np.tile([0.0, 0.0, 9.80], (n, 1))

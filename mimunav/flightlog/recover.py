@@ -11,7 +11,6 @@ wherever they are intact (chunks and the summary section), so the messages of a 
 channel record was in a damaged chunk are still kept. `recover` writes what was kept as a
 complete log; the report says exactly what was kept and what dropped.
 """
-import os
 import struct
 import zlib
 

@@ -104,21 +104,7 @@ class FogUnit:
         """Calibrated outputs for ideal sensor-axis increments over (t[k-1], t[k]] (rad, m/s,
         (N, 3)) at sample times t (s, uniform at rate_hz): dict with angular_velocity (rad/s)
         and linear_acceleration (m/s^2, specific force), interval means, and saturated."""
-        t = np.asarray(t, dtype=float)
-        n = len(t)
-        dt = np.diff(t, prepend=t[0] - 1 / self.rate_hz)[:, None]
-        w = (dtheta / dt) @ self.gyro_matrix.T + self.gyro_bias \
-            + noise.white(rng, n, self.rate_hz, [self.gyro_white] * 3) \
-            + noise.flicker(rng, n, self.rate_hz, [self.gyro_flicker] * 3)
-        f = (dv / dt) @ self.accel_matrix.T + self.accel_bias \
-            + noise.white(rng, n, self.rate_hz, [self.accel_white] * 3) \
-            + noise.flicker(rng, n, self.rate_hz, [self.accel_flicker] * 3)
-        saturated = ((np.abs(w) > self.range_gyro) | (np.abs(f) > self.range_accel)).any(axis=1)
-        w = np.clip(w, -self.range_gyro, self.range_gyro)
-        f = np.clip(f, -self.range_accel, self.range_accel)
-        w = noise.quantize_increments(w * dt, self.angle_quantum) / dt
-        f = noise.quantize_increments(f * dt, self.velocity_quantum) / dt
-        return dict(t=t, angular_velocity=w, linear_acceleration=f, saturated=saturated)
+        return FogRecorder(self, len(t), rng).record(t, dtheta, dv)
 
     def as_dict(self):
         doc = {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in asdict(self).items()}
@@ -133,3 +119,36 @@ class FogUnit:
         for k in ("gyro_bias", "accel_bias", "gyro_matrix", "accel_matrix"):
             doc[k] = np.asarray(doc[k], dtype=float)
         return cls(**doc)
+
+
+class FogRecorder:
+    """`FogUnit.simulate` block by block (as `sensors.mimu.MimuRecorder`): white and flicker
+    noise of each triad from its own generator (`sensors.noise.TriadNoise`), the pulse
+    counters' quantisation residual carried between blocks; `folder` keeps a long record's
+    flicker noise in a file."""
+
+    def __init__(self, fog, n, rng, folder=None):
+        gyro, accel = rng.spawn(2)
+        self.fog = fog
+        self.gyro_noise = noise.TriadNoise(gyro, n, fog.rate_hz, fog.gyro_white,
+                                           fog.gyro_flicker, folder)
+        self.accel_noise = noise.TriadNoise(accel, n, fog.rate_hz, fog.accel_white,
+                                            fog.accel_flicker, folder)
+        self.angle_counter, self.velocity_counter, self.last_t = {}, {}, None
+
+    def record(self, t, dtheta, dv):
+        """Outputs of a block of samples (the dict of `FogUnit.simulate`)."""
+        fog = self.fog
+        t = np.asarray(t, dtype=float)
+        n = len(t)
+        prev = t[0] - 1 / fog.rate_hz if self.last_t is None else self.last_t
+        self.last_t = t[-1]
+        dt = np.diff(t, prepend=prev)[:, None]
+        w = (dtheta / dt) @ fog.gyro_matrix.T + fog.gyro_bias + self.gyro_noise.take(n)
+        f = (dv / dt) @ fog.accel_matrix.T + fog.accel_bias + self.accel_noise.take(n)
+        saturated = ((np.abs(w) > fog.range_gyro) | (np.abs(f) > fog.range_accel)).any(axis=1)
+        w = np.clip(w, -fog.range_gyro, fog.range_gyro)
+        f = np.clip(f, -fog.range_accel, fog.range_accel)
+        w = noise.quantize_increments(w * dt, fog.angle_quantum, self.angle_counter) / dt
+        f = noise.quantize_increments(f * dt, fog.velocity_quantum, self.velocity_counter) / dt
+        return dict(t=t, angular_velocity=w, linear_acceleration=f, saturated=saturated)

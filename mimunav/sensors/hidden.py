@@ -114,8 +114,10 @@ class HiddenPhysics:
         if effect == "g2_sensitivity":
             return true["accel"][:, inputs[0]] * true["accel"][:, inputs[1]]
         reading = self._temperature_reading(ctx, sensor, i)
-        if effect == "temperature_bias":
-            return reading - reading[0]
+        if effect == "temperature_bias":          # from the record's first reading
+            first = ctx.get("first")
+            return reading - (reading[0] if first is None else
+                              self._temperature_reading(first, sensor, i)[0])
         if effect == "temperature_scale":        # about the flight's mean, as the contract's
             return (reading - reading.mean()) * x[:, i]     # regressor: no scale factor added
         if effect == "temperature_rate":
@@ -126,6 +128,20 @@ class HiddenPhysics:
             slope = np.interp(t + half, t, reading) - np.interp(t - half, t, reading)
             return np.sign(slope)
         raise InputError(f"hidden effect {effect!r} has no behaviour here")
+
+    def reach(self):
+        """(s before, s after, whole): how far in time the effect at a sample looks back and
+        ahead; whole: it needs a statistic of the whole record (the flight's mean
+        temperature of temperature_scale), so the record cannot be made block by block."""
+        term, effect = self.term, self.term["effect"]
+        if effect == "time_skew":
+            tau = float(term["coefficient"])
+            return max(tau, 0.0), max(-tau, 0.0), False
+        if effect == "temperature_rate":
+            return float(term["window_s"]), 0.0, False
+        if effect == "thermal_hysteresis":
+            return HYSTERESIS_WINDOW_S / 2, HYSTERESIS_WINDOW_S / 2, False
+        return 0.0, 0.0, effect == "temperature_scale"
 
     def _temperature_reading(self, ctx, sensor, i):
         """The true temperature in the contract's regressor units: degC for accelerometers;
@@ -148,6 +164,12 @@ class HiddenSet:
         for effect in self.effects:
             f, w = effect(f, w, ctx)
         return f, w
+
+    def reach(self):
+        """The widest `HiddenPhysics.reach` of the set."""
+        reaches = [e.reach() for e in self.effects] or [(0.0, 0.0, False)]
+        return (max(r[0] for r in reaches), max(r[1] for r in reaches),
+                any(r[2] for r in reaches))
 
     def as_dict(self):
         return [e.as_dict() for e in self.effects]

@@ -209,44 +209,9 @@ class MimuUnit:
         `hidden` (optional) maps (f, w, temps) -> (f, w): extra physics the 63-coefficient
         model lacks (used by the diagnosis tests), applied before saturation after the
         unit's own `beyond_model` terms."""
-        t = np.asarray(t, dtype=float)
-        n = len(t)
-        dt = np.diff(t, prepend=t[0] - 1 / self.rate_hz)
-        f_true = dv / dt[:, None]
-        w_true = dtheta / dt[:, None]
-        nz = self.noise
-        f = (f_true + noise.white(rng, n, self.rate_hz, [nz.accel_white] * 3)
-             + noise.flicker(rng, n, self.rate_hz, [nz.accel_flicker] * 3)
-             + rng.normal(0, nz.accel_turn_on, 3))
-        w = (w_true + noise.white(rng, n, self.rate_hz, [nz.gyro_white] * 3)
-             + noise.flicker(rng, n, self.rate_hz, [nz.gyro_flicker] * 3)
-             + rng.normal(0, nz.gyro_turn_on, 3))
-        t_acc, t_gyro = self.thermal.sensor_temperatures(t, t_env, warm_up_s)
-        freq = self.thermal.resonance_frequency(t_gyro)
-        if self.beyond_model:
-            own = HiddenSet([HiddenPhysics(term, self.thermal) for term in self.beyond_model])
-            hidden = own if hidden is None else HiddenSet([own, hidden])
-        if hidden is not None:
-            f, w = hidden(f, w, dict(t=t, accel_temperature=t_acc, gyro_temperature=t_gyro,
-                                     gyro_frequency=freq, f_true=f_true, w_true=w_true))
-        saturated = ((np.abs(f) > self.range_accel) | (np.abs(w) > self.range_gyro)).any(axis=1)
-        f = np.clip(f, -self.range_accel, self.range_accel)
-        w = np.clip(w, -self.range_gyro, self.range_gyro)
-        f_gyro = np.clip(f_true, -self.range_accel, self.range_accel)
-        if self.beyond_model:           # the sensing elements, forward (sensors.response)
-            u_a, u_w = response.raw_output(self.coefficients, f, w, t_acc, freq, f_gyro)
-        else:                           # exactly eqs. 1-4: their inverse, to round-off
-            u_a, u_w = compensation.raw_from_physics(self.coefficients, f, w, t_acc, freq,
-                                                     f_gyro=f_gyro)
-        rail = self.adc_rail
-        u_a = np.clip(noise.quantize(u_a, self.adc_lsb), -rail, rail)
-        u_w = np.clip(noise.quantize(u_w, self.adc_lsb), -rail, rail)
-        return dict(
-            t=t, sample_index=np.arange(n, dtype=np.uint64), accel_volts=u_a, gyro_volts=u_w,
-            accel_temperature=t_acc + rng.normal(0, self.thermal.thermistor_noise, (n, 3)),
-            gyro_frequency=freq + rng.normal(0, self.thermal.frequency_noise, (n, 3)),
-            true_accel_temperature=t_acc, true_gyro_temperature=t_gyro,
-            saturated=saturated)
+        rec = MimuRecorder(self, len(t), rng, hidden, warm_up_s)
+        parts = [rec.record(t, dtheta, dv, t_env), rec.finish()]
+        return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
 
     # ---- truth file -----------------------------------------------------------------
     def as_dict(self):
@@ -321,3 +286,134 @@ def _poly_about(s1, s2, x0, scale):
     c1 = s1 / scale - 2 * c2 * x0
     c0 = -s1 * x0 / scale + c2 * x0**2
     return np.stack([c0, c1, c2], axis=1)
+
+
+class MimuRecorder:
+    """`MimuUnit.simulate` block by block, for a record of any length in bounded memory:
+    `record` the ideal increments of consecutive blocks (t s, dtheta rad, dv m/s, t_env degC)
+    and get the raw outputs of the samples settled so far; `finish` gives the rest. Every
+    random error comes from its own generator (white noise per triad, flicker shaped over the
+    whole record of n samples once, `sensors.noise.TriadNoise`; turn-on; thermistor and
+    frequency noise), the thermal lag carries its state, and a hidden effect sees the samples
+    it reaches back and ahead (`HiddenPhysics.reach`; a sample waits for its look-ahead), so
+    the outputs do not depend on how the record is cut. `folder`: where a long record's
+    flicker noise is kept (a file) instead of memory. A hidden effect that needs a statistic
+    of the whole record (`reach` whole) is refused unless the record comes in one block."""
+
+    def __init__(self, unit, n, rng, hidden=None, warm_up_s=0.0, folder=None):
+        self.unit, self.n, self.warm_up_s = unit, n, warm_up_s
+        accel, gyro, turn_on, thermistor, frequency = rng.spawn(5)
+        nz = unit.noise
+        self.accel_noise = noise.TriadNoise(accel, n, unit.rate_hz, nz.accel_white,
+                                            nz.accel_flicker, folder)
+        self.gyro_noise = noise.TriadNoise(gyro, n, unit.rate_hz, nz.gyro_white,
+                                           nz.gyro_flicker, folder)
+        self.turn_on = (turn_on.normal(0, nz.accel_turn_on, 3),
+                        turn_on.normal(0, nz.gyro_turn_on, 3))
+        self.thermistor_rng, self.frequency_rng = thermistor, frequency
+        if unit.beyond_model:
+            own = HiddenSet([HiddenPhysics(term, unit.thermal) for term in unit.beyond_model])
+            hidden = own if hidden is None else HiddenSet([own, hidden])
+        self.hidden = hidden
+        back, ahead, whole = (hidden.reach() if hasattr(hidden, "reach") else
+                              (0.0, 0.0, hidden is not None))
+        self.whole = whole
+        # samples: the reach, plus the interpolation's and gradient's neighbours
+        self.back = int(math.ceil(back * unit.rate_hz)) + 2 if hidden is not None else 0
+        self.ahead = int(math.ceil(ahead * unit.rate_hz)) + 2 if hidden is not None else 0
+        self.history = self.pending = None     # context already settled / still waiting
+        self.last, self.first, self.done = None, None, 0
+
+    def record(self, t, dtheta, dv, t_env):
+        """Raw outputs (the `/mimu/raw` fields and truth extras) of the samples settled."""
+        t = np.asarray(t, dtype=float)
+        if self.whole and (self.done or self.pending is not None or len(t) != self.n):
+            raise InputError("a hidden effect needs the whole record's statistics "
+                             "(temperature_scale): simulate the record in one block")
+        unit = self.unit
+        prev_t = t[0] - 1 / unit.rate_hz if self.last is None else self.last[0]
+        dt = np.diff(t, prepend=prev_t)
+        f_true, w_true = dv / dt[:, None], dtheta / dt[:, None]
+        f = f_true + self.accel_noise.take(len(t)) + self.turn_on[0]
+        w = w_true + self.gyro_noise.take(len(t)) + self.turn_on[1]
+        t_acc, t_gyro = unit.thermal.sensor_temperatures(
+            t, t_env, self.warm_up_s, None if self.last is None else self.last[:2])
+        self.last = (t[-1], np.concatenate([t_acc[-1], t_gyro[-1]]))
+        block = dict(t=t, f=f, w=w, f_true=f_true, w_true=w_true, accel_temperature=t_acc,
+                     gyro_temperature=t_gyro,
+                     gyro_frequency=unit.thermal.resonance_frequency(t_gyro))
+        if self.first is None:
+            self.first = {k: block[k][:1] for k in ("accel_temperature", "gyro_temperature")}
+        waiting = block if self.pending is None else _joined(self.pending, block)
+        return self._settle(waiting, keep=self.ahead)
+
+    def finish(self):
+        """The outputs of the samples still waiting for their look-ahead."""
+        if self.pending is None:
+            return self._settle(None, keep=0)
+        return self._settle(self.pending, keep=0)
+
+    def _settle(self, waiting, keep):
+        if waiting is None:
+            return self._outputs(None)
+        n_wait = len(waiting["t"])
+        ready = max(n_wait - keep, 0)
+        if not ready:                   # all still waiting for their look-ahead
+            self.pending = waiting
+            return self._outputs(None)
+        if self.hidden is not None:
+            ext = waiting if self.history is None else _joined(self.history, waiting)
+            lead = len(ext["t"]) - n_wait
+            ctx = dict(ext, first=self.first)
+            f, w = self.hidden(ext["f"], ext["w"], ctx)
+            settled = {k: v[lead:lead + ready] for k, v in ext.items()}
+            settled["f"], settled["w"] = f[lead:lead + ready], w[lead:lead + ready]
+            done_ext = {k: v[:lead + ready] for k, v in ext.items()}
+            self.history = {k: v[-self.back:] if self.back else v[:0]
+                            for k, v in done_ext.items()}
+        else:
+            settled = {k: v[:ready] for k, v in waiting.items()}
+        self.pending = {k: v[ready:] for k, v in waiting.items()} if ready < n_wait else None
+        return self._outputs(settled)
+
+    def _outputs(self, b):
+        unit = self.unit
+        if b is None or not len(b["t"]):
+            return {k: np.empty((0, 3)) if k in _TRIADS else np.empty(0, dtype=_DTYPES.get(k, float))
+                    for k in _FIELDS}
+        k = len(b["t"])
+        f, w, f_true = b["f"], b["w"], b["f_true"]
+        saturated = ((np.abs(f) > unit.range_accel) | (np.abs(w) > unit.range_gyro)).any(axis=1)
+        f = np.clip(f, -unit.range_accel, unit.range_accel)
+        w = np.clip(w, -unit.range_gyro, unit.range_gyro)
+        f_gyro = np.clip(f_true, -unit.range_accel, unit.range_accel)
+        t_acc, freq = b["accel_temperature"], b["gyro_frequency"]
+        if unit.beyond_model:           # the sensing elements, forward (sensors.response)
+            u_a, u_w = response.raw_output(unit.coefficients, f, w, t_acc, freq, f_gyro)
+        else:                           # exactly eqs. 1-4: their inverse, to round-off
+            u_a, u_w = compensation.raw_from_physics(unit.coefficients, f, w, t_acc, freq,
+                                                     f_gyro=f_gyro)
+        rail = unit.adc_rail
+        out = dict(
+            t=b["t"], sample_index=np.arange(self.done, self.done + k, dtype=np.uint64),
+            accel_volts=np.clip(noise.quantize(u_a, unit.adc_lsb), -rail, rail),
+            gyro_volts=np.clip(noise.quantize(u_w, unit.adc_lsb), -rail, rail),
+            accel_temperature=t_acc + self.thermistor_rng.normal(
+                0, unit.thermal.thermistor_noise, (k, 3)),
+            gyro_frequency=freq + self.frequency_rng.normal(
+                0, unit.thermal.frequency_noise, (k, 3)),
+            true_accel_temperature=t_acc, true_gyro_temperature=b["gyro_temperature"],
+            saturated=saturated)
+        self.done += k
+        return out
+
+
+_FIELDS = ("t", "sample_index", "accel_volts", "gyro_volts", "accel_temperature",
+           "gyro_frequency", "true_accel_temperature", "true_gyro_temperature", "saturated")
+_TRIADS = ("accel_volts", "gyro_volts", "accel_temperature", "gyro_frequency",
+           "true_accel_temperature", "true_gyro_temperature")
+_DTYPES = {"sample_index": np.uint64, "saturated": bool}
+
+
+def _joined(a, b):
+    return {k: np.concatenate([a[k], b[k]]) for k in b}

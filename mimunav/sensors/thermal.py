@@ -26,19 +26,20 @@ BAY_TAU_S = 900.0           # s, equipment-bay lag behind the outside air (datas
 def first_order_lag(t, u, tau, y0):
     """y with tau dy/dt = u - y and y(t[0]) = y0, u held over each step (exact for that):
     y[k] = y[k-1] + (1 - exp(-(t[k] - t[k-1]) / tau)) (u[k] - y[k-1]).
-    t (n,) s; u (n,) or (n, k); tau s, scalar or (k,); returns the shape of u."""
+    t (n,) s; u (n,) or (n, k); tau s and y0, scalars or (k,); returns the shape of u."""
     u = np.asarray(u, dtype=float)
     u2 = u.reshape(len(u), -1)
     tau = np.broadcast_to(np.asarray(tau, dtype=float), (u2.shape[1],)).copy()
+    y0 = np.broadcast_to(np.asarray(y0, dtype=float), (u2.shape[1],)).copy()
     y = np.empty_like(u2)
-    _lag(np.asarray(t, dtype=float), u2, tau, float(y0), y)
+    _lag(np.asarray(t, dtype=float), u2, tau, y0, y)
     return y.reshape(u.shape)
 
 
 @numba.njit(cache=True, nogil=True)
 def _lag(t, u, tau, y0, y):
     for j in range(u.shape[1]):
-        prev = y0
+        prev = y0[j]
         for k in range(u.shape[0]):
             if k > 0:
                 prev += (1.0 - math.exp(-(t[k] - t[k - 1]) / tau[j])) * (u[k, j] - prev)
@@ -70,15 +71,21 @@ class ThermalModel:
         return {k: (list(v) if isinstance(v, (tuple, list)) else v)
                 for k, v in asdict(self).items()}
 
-    def sensor_temperatures(self, t, t_env, warm_up_s=0.0):
+    def sensor_temperatures(self, t, t_env, warm_up_s=0.0, before=None):
         """True accelerometer and gyro temperatures (degC, (n, 3) each) for a bay
         temperature history t_env (degC, (n,)), the unit powered on cold warm_up_s
-        seconds before t[0] (the bay at t_env[0] meanwhile)."""
+        seconds before t[0] (the bay at t_env[0] meanwhile). `before`: (t s, the six
+        temperatures degC) of the sample before t[0] when the record goes on from an earlier
+        block (then warm_up_s is not used)."""
         t = np.asarray(t, dtype=float)
         t_env = np.asarray(t_env, dtype=float)
-        if warm_up_s > 0:
-            t, t_env = np.insert(t, 0, t[0] - warm_up_s), np.insert(t_env, 0, t_env[0])
         u = t_env[:, None] + np.asarray(self.self_heating)
+        if before is not None:
+            temps = first_order_lag(np.insert(t, 0, before[0]), np.vstack([u[:1], u]),
+                                    np.asarray(self.tau), before[1])[1:]
+            return temps[:, :3], temps[:, 3:]
+        if warm_up_s > 0:
+            t, u = np.insert(t, 0, t[0] - warm_up_s), np.vstack([u[:1], u])
         temps = first_order_lag(t, u, np.asarray(self.tau), float(t_env[0]))
         if warm_up_s > 0:
             temps = temps[1:]
@@ -93,7 +100,12 @@ class ThermalModel:
         return 25.0 + (freq / np.asarray(self.f0) - 1) / np.asarray(self.tcf)
 
 
-def bay_temperature(t, h, t_ground, h_ground, tau=BAY_TAU_S):
-    """Equipment-bay temperature (degC) lagging the ISA outside air along height h (m)."""
+def bay_temperature(t, h, t_ground, h_ground, tau=BAY_TAU_S, before=None):
+    """Equipment-bay temperature (degC) lagging the ISA outside air along height h (m),
+    starting at t_ground; `before`: (t s, degC) of the sample before t[0] when the record
+    goes on from an earlier block."""
     outside = t_ground - ISA_LAPSE * (np.asarray(h) - h_ground)
-    return first_order_lag(t, outside, tau, t_ground)
+    if before is None:
+        return first_order_lag(t, outside, tau, t_ground)
+    return first_order_lag(np.insert(np.asarray(t, float), 0, before[0]),
+                           np.insert(outside, 0, outside[0]), tau, before[1])[1:]
