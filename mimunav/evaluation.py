@@ -68,10 +68,12 @@ class Flight:
         /mimu/raw, or when the log has none (an imported recording) from the already
         compensated /mimu/imu, which a calibration then leaves as it is.
 
-        stream: hold only the stamps of /mimu/raw and /fog/imu (16 bytes a sample pair) and
-        read their values block by block when `replay` / `navigate_fog` need them, so a
-        flight of any length navigates in bounded memory. A log recorded as /mimu/imu, or
-        whose stamps go back in time (read whole and sorted), is held whole as without."""
+        stream: for a log of more than STREAM_ABOVE MIMU samples, hold only the stamps of
+        /mimu/raw and /fog/imu (16 bytes a sample pair) and read their values block by block
+        when `replay` / `navigate_fog` need them, so a flight of any length navigates in
+        bounded memory; a shorter log is held whole (faster: one read instead of four). A
+        log recorded as /mimu/imu, or whose stamps go back in time (read whole and sorted),
+        is held whole too."""
         with FlightLog(path) as log:
             meta = log.metadata()
             flight = meta.get("flight", {})
@@ -88,8 +90,8 @@ class Flight:
                                    "the FOG-IMU flown with it (channels: "
                                    f"{', '.join(sorted(log.channels))})")
             epoch = int(flight["epoch_unix_ns"])
-            streamed = (_streamed(log, path, epoch, reference_imu)
-                        if stream and mimu_topic == "/mimu/raw" else None)
+            long_log = mimu_topic == "/mimu/raw" and (log.count("/mimu/raw") or 0) > STREAM_ABOVE
+            streamed = _streamed(log, path, epoch, reference_imu) if stream and long_log else None
             if streamed:
                 raw, imu, fog = streamed["mimu"], None, streamed["fog"]
             elif mimu_topic == "/mimu/raw":
@@ -207,6 +209,8 @@ class Flight:
 
 MAX_GAP_S = 0.5            # s of missing MIMU samples navigation will not bridge
 STREAM_BLOCK = BLOCK       # samples a streamed flight reads at a time (`Flight.load`)
+STREAM_ABOVE = 4 * BLOCK   # MIMU samples above which `Flight.load(stream=True)` streams
+                           # (~1 M: held whole, such a log needs ~0.6 GB)
 FOG_FIELDS = ("angular_velocity", "linear_acceleration")
 FOG_SAMPLE = 200_000       # reference-IMU samples the units check of a streamed flight takes
 
@@ -525,10 +529,11 @@ def navigate_fog(flight, at=None):
 
 class Sampler:
     """Consecutive trajectory pieces (in time order) kept whole, or only at times `at` (s,
-    increasing, inside the pieces' span; linear/slerp between states as `resample`)."""
+    increasing, inside the pieces' span within `resample`'s 1e-9 s; linear/slerp between
+    states as `resample`)."""
 
     def __init__(self, at=None):
-        self.at, self.parts, self.last = at, [], None
+        self.at, self.parts, self.last, self.taken = at, [], None, None
 
     def add(self, piece):
         if piece is None or not len(piece):
@@ -537,18 +542,19 @@ class Sampler:
             self.parts.append(piece)
             return
         span = piece if self.last is None else Trajectory.concatenate([self.last, piece])
-        lo = np.searchsorted(self.at, span.t[0], side="left" if self.last is None else "right")
-        hi = np.searchsorted(self.at, span.t[-1], side="right")
+        lo = (np.searchsorted(self.at, span.t[0] - 1e-9, side="left") if self.taken is None
+              else self.taken)
+        hi = max(lo, np.searchsorted(self.at, span.t[-1] + 1e-9, side="right"))
         if hi > lo:
             self.parts.append(resample(span, self.at[lo:hi]))
-        self.last = piece[-1:]
+        self.last, self.taken = piece[-1:], hi
 
     def trajectory(self):
-        out = Trajectory.concatenate(self.parts)
-        if self.at is not None and len(out) != len(self.at):
-            raise InputError(f"times {self.at[0]:.3f}-{self.at[-1]:.3f} s outside the "
-                             f"navigated {self.parts[0].t[0] if self.parts else np.nan:.3f}-"
-                             f"{self.last.t[-1] if self.last else np.nan:.3f} s")
+        out = Trajectory.concatenate(self.parts) if self.parts else None
+        if self.at is not None and (out is None or len(out) != len(self.at)):
+            raise InputError(f"times {self.at[0]:.3f}-{self.at[-1]:.3f} s lie outside the "
+                             "navigated span"
+                             + (f" {out.t[0]:.3f}-{self.last.t[-1]:.3f} s" if out else ""))
         return out
 
 

@@ -109,8 +109,12 @@ def flight_motion_blocks(profile, mimu_mounting, mimu_rate, fog_mounting, fog_ra
         rotating = RotatingMotion(motion, platform, profile.duration)
     k_truth = base // int(truth_rate)
     start, bay = None, None
-    for a in range(0, max(n_base, 1), step):
-        b = min(a + step, n_base)
+    # block starts; a remainder shorter than a block joins the last whole one, so that no
+    # piece is shorter than one sample interval of either IMU
+    starts = list(range(0, max(n_base, 1), step))
+    if len(starts) > 1 and n_base % step:
+        starts.pop()
+    for a, b in zip(starts, starts[1:] + [n_base]):
         t_base = np.arange(a, b + 1) / base
         run = truth.generate(motion, t_base, start)
         tr = run.trajectory
@@ -196,7 +200,7 @@ def simulate_flight(profile, out, seed, unit=None, fog_rate=1000.0, truth_rate=1
     if hide:
         effects = [HiddenPhysics(term, unit.thermal) for term in hide]
         hidden = HiddenSet(effects + ([hidden] if hidden is not None else []))
-    whole = hidden is not None and (not hasattr(hidden, "reach") or hidden.reach()[2])
+    whole = MimuRecorder.needs_whole_record(unit, hidden)
     motion_blocks = flight_motion_blocks(
         profile, unit.mounting, unit.rate_hz, fog.mounting, fog.rate_hz, truth_rate,
         ground_temperature_c, platform, block_s=None if whole else BLOCK_S)
@@ -205,7 +209,9 @@ def simulate_flight(profile, out, seed, unit=None, fog_rate=1000.0, truth_rate=1
     saturated = {"mimu": 0, "fog": 0}
     steps = tqdm(total=round(profile.duration), desc="simulate", disable=not progress,
                  unit="s")
-    with tempfile.TemporaryDirectory() as work, LogWriter(out, force=force) as log:
+    # flicker noise files beside the output (not a /tmp that may be memory)
+    with tempfile.TemporaryDirectory(dir=os.path.dirname(os.path.abspath(out))) as work, \
+            LogWriter(out, force=force) as log:
         mimu_rec = fog_rec = None
         for fm in motion_blocks:
             if mimu_rec is None:         # the records' lengths, for their flicker noise

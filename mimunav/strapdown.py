@@ -103,7 +103,8 @@ class Navigator:
         """Navigate increments over (t[k-1], t[k]] (t[-1]: the latest state's time); t s
         (N,), dtheta rad and dv m/s (N, 3) body axes, h_aid m (N,) or None. Returns the
         Trajectory at t (N states)."""
-        t, dtheta, dv = _checked_inputs(t, dtheta, dv, self.check_units)
+        t, dtheta, dv = _checked_inputs(t, dtheta, dv, self.check_units, t_prev=self.t,
+                                        median=not self._state[_STARTED])
         dt = np.diff(t, prepend=self.t)
         if dt[0] <= 0:
             raise IncrementError(f"first sample time {float(t[0]):.9g} s is not after the "
@@ -125,7 +126,10 @@ class Navigator:
         return Trajectory(t, lat, lon, h, v, quaternion.as_quat_array(q))
 
 
-def _checked_inputs(t, dtheta, dv, check_units):
+def _checked_inputs(t, dtheta, dv, check_units, t_prev=None, median=True):
+    """The inputs as contiguous float arrays, refused with the sample named when they cannot
+    be right; t_prev: the time before t[0] (the first sample's rate is checked over it);
+    median: the median specific-force test (once per record: a later block may be ballistic)."""
     t = np.ascontiguousarray(t, dtype=float)
     dtheta = np.ascontiguousarray(dtheta, dtype=float)
     dv = np.ascontiguousarray(dv, dtype=float)
@@ -137,6 +141,11 @@ def _checked_inputs(t, dtheta, dv, check_units):
                                  f"got {x.shape}")
     problem, k, value = _scan(t, dtheta, dv, MAX_RATE if check_units else np.inf,
                               MAX_SPECIFIC_FORCE if check_units else np.inf)
+    if not problem and check_units and t_prev is not None and t[0] > t_prev:
+        step = t[0] - t_prev
+        first = (np.linalg.norm(dtheta[0]) / step, np.linalg.norm(dv[0]) / step)
+        problem, k, value = ((5, 0, first[0]) if first[0] > MAX_RATE else
+                             (6, 0, first[1]) if first[1] > MAX_SPECIFIC_FORCE else (0, 0, 0.0))
     if problem:
         at = f"at sample {k} (t = {float(t[k]):.9g} s)"
         raise IncrementError({
@@ -148,7 +157,7 @@ def _checked_inputs(t, dtheta, dv, check_units):
                "in degrees, or rates rather than increments (rad)?",
             6: f"specific force {value:.4g} m/s^2 {at} exceeds {MAX_SPECIFIC_FORCE} m/s^2: "
                "are dv rates (m/s^2) rather than increments (m/s)?"}[problem])
-    if check_units and len(t) >= 100:
+    if check_units and median and len(t) >= 100:
         # median specific force over a subsample: near 1 g for anything flying on Earth
         step = max(1, len(t) // 1000)
         force = np.median(np.linalg.norm(dv[1::step], axis=1) / np.diff(t)[::step])

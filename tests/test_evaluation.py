@@ -164,6 +164,7 @@ def test_mounting_and_lever_arm_are_applied_under_rotation(tmp_path, monkeypatch
     # streamed in blocks of 777 samples (and margins), sampled at the comparison times only:
     # the same solution - the navigator's memory and the lever arm's look-ahead carried
     monkeypatch.setattr(evaluation, "STREAM_BLOCK", 777)
+    monkeypatch.setattr(evaluation, "STREAM_ABOVE", 777)
     streamed = evaluation.Flight.load(path, stream=True)
     assert streamed.stream_block == 777 and streamed.fog_w is None and streamed.mimu_raw is None
     t = evaluation.comparison_times(flight)
@@ -183,3 +184,21 @@ def test_mounting_and_lever_arm_are_applied_under_rotation(tmp_path, monkeypatch
         assert np.array_equal(getattr(fed, name), getattr(one, name)), name
     table = evaluation.table(streamed, {"unit": unit.coefficients})
     assert table == evaluation.table(flight, {"unit": unit.coefficients})
+
+
+def test_sampling_at_times_within_a_nanosecond_of_the_last_state():
+    """Without a truth channel the comparison grid's last time can be one ulp past the last
+    state (np.arange): it is taken, as `resample` takes it, and never twice."""
+    from mimunav.trajectory import Trajectory
+    import quaternion
+    t = np.linspace(0.0, 15.03, 1504)
+    traj = Trajectory(t, t * 0 + 0.5, t * 0, t, np.zeros((len(t), 3)),
+                      quaternion.from_rotation_vector(np.zeros((len(t), 3))))
+    at = np.append(np.arange(0.0, 15.0, 0.01), 15.03 + 1e-12)
+    keep = evaluation.Sampler(at)
+    for a, b in ((0, 700), (700, 701), (701, len(t))):
+        keep.add(traj[a:b])
+    out = keep.trajectory()
+    np.testing.assert_allclose(out.h, np.minimum(at, 15.03), atol=1e-9)
+    with pytest.raises(evaluation.InputError, match="outside the navigated"):
+        evaluation.Sampler(np.array([20.0])).trajectory()

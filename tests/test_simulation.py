@@ -166,3 +166,30 @@ def test_a_flight_made_in_blocks_equals_the_flight_made_whole(tmp_path, monkeypa
     np.testing.assert_allclose(state["height"], fm.run.trajectory.h[k], rtol=0, atol=1e-8)
     np.testing.assert_allclose(state["latitude"], fm.run.trajectory.lat[k], rtol=0, atol=1e-14)
     assert len(mimu) == len(raw["t"]) and len(state) == len(k)
+
+
+def test_block_edges_of_other_rates_and_of_hidden_physics_that_says_nothing(tmp_path):
+    """Found by a review of the block-wise simulation: a flight whose last block would be
+    shorter than a 400 Hz FOG interval (60.002 s), and hidden physics given as a bare callable
+    (it cannot say how far it looks: the record is made in one block), both simulate; a
+    unit whose own physics needs the whole record is made in one block."""
+    from mimunav import simulation
+    from mimunav.sensors import MimuUnit
+    from mimunav.sensors.mimu import MimuRecorder
+    prof = Profile.from_dict({"name": "hold", "start": PROFILE["start"] | {"speed_m_s": 0},
+                              "segment": [{"kind": "hold", "duration_s": 60.002}]})
+    log, _ = simulation.simulate_flight(prof, tmp_path / "h.mcap", 1, fog_rate=400.0,
+                                        progress=False)
+    with FlightLog(log) as lg:
+        assert lg.count("/fog/imu") == 24001 and lg.count("/mimu/raw") == 60003
+    unit = MimuUnit.draw(3)
+    t = np.arange(1, 201) / 1000.0
+    raw = unit.simulate(t, np.zeros((200, 3)), np.tile([0, 0, -9.8e-3], (200, 1)),
+                        np.full(200, 20.0), np.random.default_rng(0),
+                        hidden=lambda f, w, ctx: (f, w + 1e-3))
+    assert len(raw["gyro_volts"]) == 200
+    assert MimuRecorder.needs_whole_record(unit, lambda f, w, ctx: (f, w))
+    assert not MimuRecorder.needs_whole_record(unit, None)
+    unit.beyond_model = unit.beyond_model + [{"effect": "temperature_scale", "sensor": "accel",
+                                              "axis": "x", "coefficient": 1e-5}]
+    assert MimuRecorder.needs_whole_record(unit, None)

@@ -47,7 +47,7 @@ def claims(res):
         "tests/test_modulation.py); inclining spreads every gyro's bias over the modulated "
         "plane and the axis, so each gyro is partly modulated, but the axial sum stays and "
         "drives the heading. The medians above differ by which unit's biases project on the "
-        "axis (8 draws), not by the mounting.",
+        f"axis ({len(cb['fixed'])} draws), not by the mounting.",
         f"- Continuous rotation turns a scale-factor error into heading drift (scale x turned "
         f"angle): heading {sf['continuous']:.3g} deg continuous vs {sf['back-and-forth']:.3g} "
         f"deg back-and-forth vs {sf['fixed']:.3g} deg fixed, for a 0.1 % scale error - the "

@@ -165,12 +165,6 @@ class HiddenSet:
             f, w = effect(f, w, ctx)
         return f, w
 
-    def reach(self):
-        """The widest `HiddenPhysics.reach` of the set."""
-        reaches = [e.reach() for e in self.effects] or [(0.0, 0.0, False)]
-        return (max(r[0] for r in reaches), max(r[1] for r in reaches),
-                any(r[2] for r in reaches))
-
     def as_dict(self):
         return [e.as_dict() for e in self.effects]
 

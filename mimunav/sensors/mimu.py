@@ -311,18 +311,38 @@ class MimuRecorder:
         self.turn_on = (turn_on.normal(0, nz.accel_turn_on, 3),
                         turn_on.normal(0, nz.gyro_turn_on, 3))
         self.thermistor_rng, self.frequency_rng = thermistor, frequency
-        if unit.beyond_model:
-            own = HiddenSet([HiddenPhysics(term, unit.thermal) for term in unit.beyond_model])
-            hidden = own if hidden is None else HiddenSet([own, hidden])
-        self.hidden = hidden
-        back, ahead, whole = (hidden.reach() if hasattr(hidden, "reach") else
-                              (0.0, 0.0, hidden is not None))
-        self.whole = whole
+        self.hidden = self._with_own(unit, hidden)
+        back, ahead, self.whole = self._reach(self.hidden)
         # samples: the reach, plus the interpolation's and gradient's neighbours
         self.back = int(math.ceil(back * unit.rate_hz)) + 2 if hidden is not None else 0
         self.ahead = int(math.ceil(ahead * unit.rate_hz)) + 2 if hidden is not None else 0
         self.history = self.pending = None     # context already settled / still waiting
         self.last, self.first, self.done = None, None, 0
+
+    @staticmethod
+    def _with_own(unit, hidden):
+        """The unit's own physics beyond the model, then `hidden`."""
+        if not unit.beyond_model:
+            return hidden
+        own = HiddenSet([HiddenPhysics(term, unit.thermal) for term in unit.beyond_model])
+        return own if hidden is None else HiddenSet([own, hidden])
+
+    @staticmethod
+    def _reach(hidden):
+        """(s back, s ahead, whole record needed) of hidden physics; a callable that does
+        not say (no `reach`) needs the whole record."""
+        if hidden is None:
+            return 0.0, 0.0, False
+        if isinstance(hidden, HiddenSet):
+            reaches = [MimuRecorder._reach(e) for e in hidden.effects] or [(0.0, 0.0, False)]
+            return (max(r[0] for r in reaches), max(r[1] for r in reaches),
+                    any(r[2] for r in reaches))
+        return hidden.reach() if hasattr(hidden, "reach") else (0.0, 0.0, True)
+
+    @classmethod
+    def needs_whole_record(cls, unit, hidden):
+        """Whether the unit's and `hidden`'s physics need the record in one block."""
+        return cls._reach(cls._with_own(unit, hidden))[2]
 
     def record(self, t, dtheta, dv, t_env):
         """Raw outputs (the `/mimu/raw` fields and truth extras) of the samples settled."""

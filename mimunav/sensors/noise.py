@@ -97,7 +97,7 @@ def quantize_increments(x, step, carry=None):
         return x
     start, counted = ((np.zeros(x.shape[1]), np.zeros(x.shape[1])) if carry is None or
                       "sum" not in carry else (carry["sum"], carry["total"]))
-    running = start + np.cumsum(x, axis=0)
+    running = np.cumsum(np.vstack([start, x]), axis=0)[1:]    # the same sums as one cumsum
     total = np.floor(running / step + 0.5) * step
     if carry is not None and len(x):
         carry["sum"], carry["total"] = running[-1], total[-1]
