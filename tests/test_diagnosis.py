@@ -266,16 +266,35 @@ def test_navigation_level_names_a_g_sensitivity_and_stays_quiet_on_a_null(g_sens
     assert navigation.diagnose(null, null_unit.coefficients).findings == []
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "a known defect of the navigation level: over recordings 801-816 (the same flight and "
-    "effect) the effect is named in 10 of 16 and its estimate is biased toward zero (z = "
-    "+0.8 .. +3.5, mean +2.0); 4 of the 10 intervals miss the truth. Strict: it must be "
-    "looked at again once this passes"))
-def test_navigation_level_interval_holds_the_true_g_sensitivity(g_sensitive):
+def _navigation_g_sensitivity(seed):
+    """(named, ratio of the estimate to the truth, z against the truth) of the navigation
+    level on one recording with the g-sensitivity hidden."""
     from mimunav.diagnosis import navigation
-    (flight, unit, _, _), _ = g_sensitive
-    lo, hi = navigation.diagnose(flight, unit.coefficients).findings[0]["ci95"]
-    assert lo <= G_SENSITIVITY["coefficient"] <= hi
+    flight, unit, _, _ = concealed.recording(BLOCKS, None, seed, HiddenPhysics(dict(G_SENSITIVITY)),
+                                             calibrate=False)
+    found = [f for f in navigation.diagnose(flight, unit.coefficients).findings
+             if f["label"] == "g_sensitivity gyro.x <- f_z"]
+    if not found:
+        return False, math.nan, math.nan
+    f, truth = found[0], G_SENSITIVITY["coefficient"]
+    return True, f["coefficient"] / truth, (f["coefficient"] - truth) / ((f["ci95"][1] - f["ci95"][0]) / 3.92)
+
+
+@pytest.mark.xfail(strict=True, reason=(
+    "a known defect of the navigation level: on recordings 801-808 (the same flight and a "
+    "0.1 deg/s/g gyro g-sensitivity) its estimate is 0.83-0.94 of the truth (the Schuler, "
+    "Coriolis and vertical terms added to the error equations took it from 0.83-0.87) and "
+    "about 2 in 5 of its 95 % intervals miss the truth. Strict: look again once this passes"))
+def test_navigation_level_intervals_cover_the_true_g_sensitivity():
+    """Coverage over 8 recordings: the named intervals hold the truth in all but one, and the
+    estimates are unbiased within 5 %."""
+    from concurrent.futures import ProcessPoolExecutor
+    with ProcessPoolExecutor(2) as pool:
+        rows = list(pool.map(_navigation_g_sensitivity, range(801, 809)))
+    named = [r for r in rows if r[0]]
+    assert len(named) >= 6, rows
+    assert sum(abs(r[2]) <= 1.96 for r in named) >= len(named) - 1, rows
+    assert abs(np.mean([r[1] for r in named]) - 1) < 0.05, rows
 
 
 def test_concealed_effects_are_found_and_nulls_stay_quiet():
