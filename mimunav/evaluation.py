@@ -339,10 +339,11 @@ class VehicleNavigator:
 
     On a rotating platform (`platform`: the Flight's mimu_platform, the IMU on the axis at the
     vehicle origin) the sensor frame itself is navigated and the vehicle attitude
-    q_nb = q_ns q_bs(theta)^-1 comes from the recorded platform angle (`modulation`)."""
+    q_nb = q_ns q_bs(theta)^-1 comes from the recorded platform angle (`modulation`).
+    whole_record: False when the blocks are pieces of a longer record (`strapdown.Navigator`)."""
 
-    def __init__(self, mounting, initial, platform=None):
-        self.initial, self.platform = initial, platform
+    def __init__(self, mounting, initial, platform=None, whole_record=True):
+        self.initial, self.platform, self.whole_record = initial, platform, whole_record
         if platform is not None:
             from .modulation import q_bs_recorded
             q0 = quaternion.from_float_array(np.asarray(initial["q_nb"], float)) \
@@ -360,7 +361,8 @@ class VehicleNavigator:
             return None
         w_v, f_v = attitude.rotate(self.q_vs, w), attitude.rotate(self.q_vs, f)
         if self.nav is None:
-            self.nav = strapdown.Navigator(self._start(w_v[:1]))
+            self.nav = strapdown.Navigator(self._start(w_v[:1]),
+                                           whole_record=self.whole_record)
             self.pending = (self.nav.state(), w_v[:1])      # the start: its first interval
         dt = np.diff(t, prepend=self.nav.t)
         self.count += len(t)
@@ -514,13 +516,16 @@ def navigate_mimu(flight, w, f):
 
 
 def _mimu_navigator(flight):
-    return VehicleNavigator(flight.mimu_mounting, flight.initial, flight.mimu_platform)
+    return VehicleNavigator(flight.mimu_mounting, flight.initial, flight.mimu_platform,
+                            whole_record=flight.stream_block is None)
 
 
 def navigate_fog(flight, at=None):
     """The reference IMU navigated from the flight's initial state, at times `at` (s;
     default every sample), block by block when the flight streams."""
-    nav, keep = VehicleNavigator(flight.fog_mounting, flight.initial), Sampler(at)
+    nav = VehicleNavigator(flight.fog_mounting, flight.initial,
+                           whole_record=flight.stream_block is None)
+    keep = Sampler(at)
     for t, w, f in flight.fog_blocks():
         keep.add(nav.feed(t, w, f))
     keep.add(nav.finish())

@@ -78,12 +78,17 @@ class Navigator:
     blocks fed one after another give exactly (bit for bit) what one `integrate` over their
     concatenation gives - a flight of any length in bounded memory.
 
-    initial: as for `integrate`; h_aid_tau, two_sample, check_units as there."""
+    initial: as for `integrate`; h_aid_tau, two_sample, check_units as there; whole_record:
+    the first block is the whole record, so the median specific-force units test of
+    `integrate` applies to it (False when blocks of a longer record come: a short first
+    block may be a launch at 20 g; the per-sample limits still apply to every block)."""
 
-    def __init__(self, initial, *, h_aid_tau=10.0, two_sample=True, check_units=True):
+    def __init__(self, initial, *, h_aid_tau=10.0, two_sample=True, check_units=True,
+                 whole_record=True):
         t0, lat0, lon0, h0, v0, q0 = _checked_initial(initial)
         self.t = t0                         # s, time of the latest state
-        self.two_sample, self.check_units = two_sample, check_units
+        self.two_sample, self.check_units, self.whole_record = two_sample, check_units, \
+            whole_record
         self.h_aid_tau = h_aid_tau
         self._state = np.zeros(_STATE)
         self._state[[_LAT, _LON, _H]] = lat0, lon0, h0
@@ -104,7 +109,7 @@ class Navigator:
         (N,), dtheta rad and dv m/s (N, 3) body axes, h_aid m (N,) or None. Returns the
         Trajectory at t (N states)."""
         t, dtheta, dv = _checked_inputs(t, dtheta, dv, self.check_units, t_prev=self.t,
-                                        median=not self._state[_STARTED])
+                                        median=self.whole_record and not self._state[_STARTED])
         dt = np.diff(t, prepend=self.t)
         if dt[0] <= 0:
             raise IncrementError(f"first sample time {float(t[0]):.9g} s is not after the "

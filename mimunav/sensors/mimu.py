@@ -314,8 +314,8 @@ class MimuRecorder:
         self.hidden = self._with_own(unit, hidden)
         back, ahead, self.whole = self._reach(self.hidden)
         # samples: the reach, plus the interpolation's and gradient's neighbours
-        self.back = int(math.ceil(back * unit.rate_hz)) + 2 if hidden is not None else 0
-        self.ahead = int(math.ceil(ahead * unit.rate_hz)) + 2 if hidden is not None else 0
+        self.back = int(math.ceil(back * unit.rate_hz)) + 2 if self.hidden is not None else 0
+        self.ahead = int(math.ceil(ahead * unit.rate_hz)) + 2 if self.hidden is not None else 0
         self.history = self.pending = None     # context already settled / still waiting
         self.last, self.first, self.done = None, None, 0
 
@@ -369,8 +369,6 @@ class MimuRecorder:
 
     def finish(self):
         """The outputs of the samples still waiting for their look-ahead."""
-        if self.pending is None:
-            return self._settle(None, keep=0)
         return self._settle(self.pending, keep=0)
 
     def _settle(self, waiting, keep):
