@@ -20,7 +20,7 @@ RESULTS = ROOT / "bench" / "results"
 README = ROOT / "README.md"
 START, END = "<!-- bench:start -->", "<!-- bench:end -->"
 ORDER = ("strapdown", "sensors", "flightlog", "memory", "lab", "evaluation", "diagnosis",
-         "recordings", "fuzz", "mutation")
+         "transplant", "recordings", "fuzz", "mutation")
 
 
 def machine():

@@ -410,6 +410,9 @@ class RecordStats:
                          for k in range(2)]
 
 
+CURVE_REACH = 5      # the wild-value filter's curvature: second differences up to 5 samples away
+
+
 def wild_value_filter(x, flags, n_sigma=6.0, sigma=None):
     """Wild-value (outlier) filter, seed S1 section 3.2 step 1.
 
@@ -418,8 +421,9 @@ def wild_value_filter(x, flags, n_sigma=6.0, sigma=None):
     from the right (only the available one at the record's ends), by more than
     n_sigma * sqrt(6) noise standard deviations (the extrapolation difference of white noise
     has variance 6 sigma^2), plus twice the local curvature seen without the sample (the
-    second differences centred two samples away), so a smooth but fast-changing signal with
-    little noise is not mistaken for spikes. An isolated spike disagrees with both sides; a
+    largest second difference centred 2 to CURVE_REACH samples away on either side), so a
+    smooth but fast-changing signal with little noise - a manoeuvre, or an airframe vibration
+    sampled a few times a period - is not mistaken for spikes. An isolated spike disagrees with both sides; a
     step or a ramp agrees with one; a spike's neighbours agree with their clean side. Wild samples are
     flagged REPLACED and replaced by linear interpolation between the nearest good samples;
     a channel with no good sample is flagged UNUSABLE.
@@ -454,12 +458,15 @@ def _find_wild(x, limit, wild):
             if not math.isfinite(v):
                 wild[k, j] = True
                 continue
-            # local curvature seen without x[k]: second differences centred at k-2 and k+2
+            # local curvature seen without x[k]: second differences centred at k-2 .. k-5 and
+            # k+2 .. k+5 - half a period of a vibration at a tenth of the sample rate, so a
+            # sampled vibration's curvature is seen whatever its phase at k
             curve = 0.0
-            if k >= 3:
-                curve = max(curve, abs(x[k - 1, j] - 2.0 * x[k - 2, j] + x[k - 3, j]))
-            if k <= n - 4:
-                curve = max(curve, abs(x[k + 1, j] - 2.0 * x[k + 2, j] + x[k + 3, j]))
+            for c in range(2, CURVE_REACH + 1):
+                if k >= c + 1:
+                    curve = max(curve, abs(x[k - c + 1, j] - 2.0 * x[k - c, j] + x[k - c - 1, j]))
+                if k <= n - c - 2:
+                    curve = max(curve, abs(x[k + c - 1, j] - 2.0 * x[k + c, j] + x[k + c + 1, j]))
             tol = limit[j] + 2.0 * curve if math.isfinite(curve) else limit[j]
             if 0 < k < n - 1 and abs(v - 0.5 * (x[k - 1, j] + x[k + 1, j])) <= \
                     tol * 0.5:                # second difference small: not a candidate
@@ -678,7 +685,9 @@ def margin_samples(cal, rate_hz):
             seconds.append(effects.HYSTERESIS_SLOPE_WINDOW_S / 2)
         if term["effect"] == "time_skew":               # the samples shifted by tau
             seconds.append(float(np.max(np.abs(term["coefficient"]))) + effects.DERIVATIVE_WINDOW_S)
-    return int(math.ceil(max(seconds) * rate_hz)) + 2 * CLIP_RUN + 8
+        if term["effect"] == "vibration_rectification":  # window + the filter's settling
+            seconds.append(effects.VIBRATION_WINDOW_S / 2 + 10.0 / effects.VIBRATION_CUTOFF_HZ)
+    return int(math.ceil(max(seconds) * rate_hz)) + 2 * CLIP_RUN + 2 * CURVE_REACH + 8
 
 
 def _with_margins(blocks, margin):

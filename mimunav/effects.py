@@ -41,9 +41,17 @@ UNITS = {  # units of the coefficient per effect and sensor (per unit of the reg
     ("temperature_rate", "accel"): "(m/s^2)/degC", ("temperature_rate", "gyro"): "(rad/s)/Hz",
     ("thermal_hysteresis", "accel"): "m/s^2", ("thermal_hysteresis", "gyro"): "rad/s",
     "time_skew": "s", "size_effect": "m", "lever_arm": "m", "mounting_misalignment": "rad",
+    ("vibration_rectification", "accel"): "(m/s^2)/(m/s^2)^2",
+    ("vibration_rectification", "gyro"): "(rad/s)/(m/s^2)^2",
 }
 HYSTERESIS_SLOPE_WINDOW_S = 10.0     # dT/dt of thermal_hysteresis: slope over this window
 DERIVATIVE_WINDOW_S = 0.05           # d/dt of measured outputs when a found term is removed
+# vibration_rectification (log contract section 3): the mean square of the specific force on
+# the axis, band-passed above the flight dynamics, over a short window. The flight dynamics
+# of the profiles (rolls entered in 0.3 s, boosts, turns) lie below a few Hz; an airframe's
+# vibration lies at tens to hundreds of Hz.
+VIBRATION_CUTOFF_HZ = 10.0           # high-pass corner (4th-order Butterworth, zero phase)
+VIBRATION_WINDOW_S = 0.5             # the mean square's window (centred)
 
 
 @dataclass
@@ -55,6 +63,8 @@ class Conditions:
     w_dot: np.ndarray
     T: np.ndarray
     freq: np.ndarray
+    vibration: np.ndarray | None = None     # (N, 3) vibration power per axis, (m/s^2)^2, when
+                                            # measured elsewhere than f (`vibration_power`)
 
     @classmethod
     def from_outputs(cls, t, f, w, T, freq, window_s=DERIVATIVE_WINDOW_S):
@@ -143,6 +153,10 @@ def _scalar(term, cond, x, theta, i):
         return th * x[:, i]
     if effect == "temperature_rate":
         return temperature_change(theta[:, i:i + 1], term["window_s"], cond.t)[:, 0]
+    if effect == "vibration_rectification":
+        if cond.vibration is not None:
+            return cond.vibration[:, i]
+        return vibration_power(cond.t, cond.f[:, i])
     if effect == "thermal_hysteresis":
         k = np.searchsorted(cond.t, cond.t + HYSTERESIS_SLOPE_WINDOW_S / 2)
         k0 = np.searchsorted(cond.t, cond.t - HYSTERESIS_SLOPE_WINDOW_S / 2)
@@ -150,6 +164,21 @@ def _scalar(term, cond, x, theta, i):
         return np.sign(theta[k, i] - theta[k0, i])
     raise InputError(f"effect {effect!r} has no regressor here (vocabulary: "
                      f"{', '.join(sorted(set(k if isinstance(k, str) else k[0] for k in UNITS)))})")
+
+
+def vibration_power(t, x):
+    """(N,) or (N, k): the vibration power of x (N,) or (N, k) at uniform times t (s): the centred VIBRATION_WINDOW_S
+    mean square of x high-passed at VIBRATION_CUTOFF_HZ; zero when the sample rate cannot
+    carry that band (below 4 x the corner)."""
+    rate = 1.0 / float(np.median(np.diff(t)))
+    if rate < 4 * VIBRATION_CUTOFF_HZ or len(t) < 64:
+        return np.zeros(np.shape(x))
+    from scipy.signal import butter, sosfiltfilt
+    sos = butter(4, VIBRATION_CUTOFF_HZ, "highpass", fs=rate, output="sos")
+    from scipy.ndimage import uniform_filter1d
+    band = sosfiltfilt(sos, x, axis=0)
+    m = max(1, int(round(VIBRATION_WINDOW_S * rate)))
+    return uniform_filter1d(band ** 2, m, axis=0, mode="nearest")
 
 
 def _centripetal_matrix(w, w_dot):
@@ -167,8 +196,8 @@ def _skew(v):
 VECTOR_EFFECTS = ("size_effect", "lever_arm", "mounting_misalignment")
 EFFECTS = ("bias_shift", "scale_factor", "cross_coupling", "scale_nonlinearity",
            "scale_asymmetry", "g_sensitivity", "g2_sensitivity", "temperature_bias",
-           "temperature_scale", "temperature_rate", "thermal_hysteresis", "time_skew") \
-    + VECTOR_EFFECTS
+           "temperature_scale", "temperature_rate", "thermal_hysteresis", "time_skew",
+           "vibration_rectification") + VECTOR_EFFECTS
 
 
 def check_term(term):

@@ -6,8 +6,11 @@ it with an interval and show the fit improve on held-out data.
     navigation   navigation level: only a reference trajectory; candidates' error signatures
     track        track level: a land vehicle's trajectory simulated into a reference IMU
     library      the candidate terms;  inference  the tests and their nuisance
+    outputs      saturation, quantization, bias shift and bias instability: tests on the
+                 outputs themselves (no regressor)
     reference    the reference motion moved to the MIMU's mounting
     concealed    the proof on simulated recordings with hidden effects
+    transplant   every effect class put into the foreign flights (their own effect out)
 `diagnose_log` is what `mimunav diagnose` runs: the contract document (`mimunav-diagnosis/1`)
 and the calibration with the found terms (`CAL+found.json`).
 """
@@ -18,6 +21,7 @@ import os
 import numpy as np
 
 from ..compensation import FOUND_SUFFIX, Calibration
+from ..effects import EFFECTS as APPLICABLE
 from . import navigation, sensor
 
 FORMAT = "mimunav-diagnosis/1"
@@ -59,7 +63,9 @@ METHOD = {
                "own linear error under a prior of its stated accuracy; forward selection on "
                "alternate 0.5 s blocks with Holm's step-down thresholds over the library; "
                "the other blocks give the coefficient, its 95 % interval and the "
-               "confirmation"),
+               "confirmation; saturation, quantization, bias shift and bias instability "
+               "tested on the outputs and on 10 s means of the bias over quiet flight "
+               "against the MEMS class of seed S1 Table 1"),
     "navigation": ("navigation level (no reference IMU: the MIMU's free-inertial velocity "
                    "error against the reference trajectory is fitted to each candidate's "
                    "error signature on this trajectory, bias wander and initial attitude "
@@ -74,16 +80,21 @@ METHOD = {
 
 
 def with_found(cal, findings):
-    """A copy of calibration `cal` that also removes the found terms (model '<base>+found')."""
-    if not findings:
+    """A copy of calibration `cal` that also removes the found terms (model '<base>+found');
+    None when no finding is a term a compensation can remove."""
+    if not any(f["effect"] in APPLICABLE for f in findings):
         return None
     doc = cal.as_dict()
     doc["model"] = cal.base_model + FOUND_SUFFIX
     terms = list(cal.found)
     for f in findings:
+        if f["effect"] not in APPLICABLE:       # a clipped, quantized or wandering output
+            continue                            # is no term a compensation can remove
         term = {k: f[k] for k in ("effect", "sensor", "axis", "input_axis", "order", "window_s",
                                   "reference") if k in f}
-        term.update({"vector": f["vector"]} if "vector" in f else {"coefficient": f["coefficient"]})
+        # a lever arm is reported in the vehicle frame and removed in the sensor axes
+        vector = f.get("vector_sensor_axes", f.get("vector"))
+        term.update({"vector": vector} if vector is not None else {"coefficient": f["coefficient"]})
         terms.append(_plain(term))
     doc["found"] = terms
     doc["procedure"] = (cal.procedure + " + " if cal.procedure else "") + "mimunav diagnose"

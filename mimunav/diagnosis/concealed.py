@@ -205,12 +205,14 @@ def run_case(args):
     ambiguous = [f for f in diag.findings if any(_same(a, true) for a in f["indistinguishable_from"])]
     case["identified"] = bool(match or ambiguous)
     case["exact"] = bool(match)
-    case["others"] = [f["label"] for f in diag.findings if f not in match and f not in ambiguous]
+    case["others"] = [f["label"] for f in diag.findings if f not in match and f not in ambiguous
+                      and not _offset_of(f, true)]
     if case["others"]:      # the lab fit's own errors, or the diagnosis' (as for the nulls)?
         exact = sensor.diagnose(flight, unit.coefficients)
         case["others_true_model"] = [f["label"] for f in exact.findings if not _same(f, true)
                                      and not any(_same(a, true) for a in
-                                                 f["indistinguishable_from"])]
+                                                 f["indistinguishable_from"])
+                                     and not _offset_of(f, true)]
     if match:
         f = match[0]
         p = np.atleast_1d(true.get("vector", true.get("coefficient")))
@@ -221,6 +223,16 @@ def run_case(args):
         fit = f["fit"]
         case["heldout_rms_ratio"] = fit["heldout_rms_after"] / fit["heldout_rms_before"]
     return case
+
+
+def _offset_of(found, true):
+    """A bias shift on the channel of a hidden temperature term is that term's constant part:
+    the simulator's behaviour counts temperature from the record's first reading, the
+    contract's regressor from the log's mean, and the difference is an offset the data show
+    (named when the slope itself is too weak to be)."""
+    return (found["effect"] == "bias_shift" and true["effect"].startswith(("temperature",
+                                                                         "thermal"))
+            and (found["sensor"], found["axis"]) == (true["sensor"], true["axis"]))
 
 
 def _same(found, true):

@@ -2,10 +2,12 @@
 recorded conditions can drive, per channel and input axis, and the physical range of each.
 
 Terms the conditions cannot drive on a flight (a column with no variation) are left out by
-the diagnosis. Not in the library: saturation and quantization (visible in the raw log, not
-as a regressor), vibration_rectification (no vibration channel in mimunav's logs),
-bias_instability (a noise level, not a term; the diagnosis fits the wander's level),
-lever_arm (for an IMU-wide separation the size_effect of each axis is tested).
+the diagnosis, and so is vibration_rectification on a flight that does not vibrate
+(`vibrating`). Not in the library, because they are no regressor: saturation and
+quantization (tests on the outputs themselves, `sensor.output_limits`), bias_shift and
+bias_instability (the level and the wander of the fitted bias, `sensor.bias_tests`).
+A lever_arm (the whole unit's position, one vector for the three accelerometers) competes
+with each accelerometer's own size_effect: the data say which.
 Time skews come three ways: the whole unit against the reference (`imu`), and each triad
 alone (`accel`, `gyro`) - a lag of one triad against the other has a different signature
 from the unit lagging the reference.
@@ -44,9 +46,22 @@ def candidates():
             out += [dict(base, effect="temperature_bias"), dict(base, effect="thermal_hysteresis")]
             out += [dict(base, effect="temperature_rate", window_s=n)
                     for n in TEMPERATURE_RATE_WINDOWS_S]
+            out.append(dict(base, effect="vibration_rectification"))
     out += [{"effect": "time_skew", "sensor": s, "axis": "all"} for s in ("imu", "accel", "gyro")]
     out.append({"effect": "mounting_misalignment", "sensor": "imu", "axis": "all"})
+    out.append({"effect": "lever_arm", "sensor": "imu", "axis": "all"})
     return out
+
+
+VIBRATION_MIN_RMS_G = 0.1       # vibration_rectification is tested only on a flight whose
+VIBRATION_MIN_SHARE = 0.05      # band-passed specific force reaches this rms on some axis over
+# at least this share of the flight: below, the regressor is the reference's noise and the
+# edges of manoeuvres leaking through the filter, which no airframe vibration makes
+
+
+def vibrating(power):
+    """Whether a vibration-power column (m/s^2)^2 shows vibration worth a rectification term."""
+    return float(np.quantile(power, 1 - VIBRATION_MIN_SHARE)) > (VIBRATION_MIN_RMS_G * G0) ** 2
 
 
 def label(term):
@@ -75,6 +90,8 @@ def inputs(term):
         return {(sensor, term["input_axis"])}
     if effect in ("g_sensitivity", "g2_sensitivity"):
         return {("accel", a) for a in term["input_axis"]}
+    if effect == "vibration_rectification":
+        return {("accel", axis)}
     return None
 
 
@@ -88,6 +105,7 @@ PHYSICAL_RANGE = {
     "scale_asymmetry": 0.05,
     "mounting_misalignment": 0.35,      # rad (20 deg): a mounting, not a machining error
     "size_effect": 0.05,                # m: proof masses sit within a few cm of the origin
+    "lever_arm": 1.0,                   # m: a unit's position mis-measured in the airframe
     "time_skew": 1.0,                   # s
     "g_sensitivity": 0.1 * DEG / G0,    # Table 2: 0.01-0.04 (deg/s)/g
     "g2_sensitivity": 0.05 * DEG / G0 ** 2,   # datasheet class <= 0.01 (deg/s)/g^2
@@ -99,6 +117,9 @@ PHYSICAL_RANGE = {
     ("temperature_scale", "gyro"): 1e-2,          # 1/Hz
     ("thermal_hysteresis", "accel"): 0.01 * G0,   # 10 mg
     ("thermal_hysteresis", "gyro"): 1.0 * DEG,    # 1 deg/s
+    # 0.1 g (accel) and 5 deg/s (gyro) of DC shift from 1 g rms of vibration
+    ("vibration_rectification", "accel"): 0.1 * G0 / G0 ** 2,
+    ("vibration_rectification", "gyro"): 5 * DEG / G0 ** 2,
 }
 NONLINEARITY_OF_RANGE = 0.2     # k2 x^2 or k3 x^3 at full scale: <= 20 % of full scale
 
@@ -114,7 +135,7 @@ def physical_limit(term, full_scale):
 
 
 SECOND_ORDER = ("scale_asymmetry", "g2_sensitivity", "temperature_scale", "temperature_rate",
-                "thermal_hysteresis", "size_effect")
+                "thermal_hysteresis", "size_effect", "lever_arm", "vibration_rectification")
 
 
 def order(term):

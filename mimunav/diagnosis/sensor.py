@@ -52,14 +52,16 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
+import quaternion
 from scipy import stats
 
 from .. import effects
 from ..calibration import standard_errors
+from ..compensation import REPLACED, UNUSABLE
 from ..evaluation import compensated_mimu
-from ..effects import AXES, Conditions, derivative
+from ..effects import AXES, Conditions, derivative, vibration_power
 from ..sensors.mimu import G0, MimuUnit
-from . import library, wander
+from . import library, outputs, wander
 from .reference import DERIVATIVE_WINDOW_S, accuracy_of, predicted_mimu
 from ..errors import InputError
 
@@ -73,6 +75,11 @@ DETREND_KNOT_S = 10.0           # bias removed for display and the scan: piecewi
 LINEAR_TOLERANCE = 1e-9         # a candidate is 'linear' when the reference inputs span it
 PIN = 1e12                      # prior precision factor that holds the reference error at zero
 CHANNELS = [("accel", a) for a in AXES] + [("gyro", a) for a in AXES]
+# findings that carry an offset of their own, so a channel that has one is not tested for a
+# bias shift or wander (`outputs.bias_tests`): a clip or a lattice, and the temperature terms,
+# whose reference offset the contract leaves to the bias (T0 the log's mean)
+OWN_OFFSET = ("saturation", "quantization", "temperature_bias", "temperature_scale",
+              "temperature_rate", "thermal_hysteresis")
 DEG = math.pi / 180
 
 
@@ -92,6 +99,9 @@ class Design:
                                 # stated variance of that term (`model_allowance`)
     levels: np.ndarray = field(default_factory=lambda: wander.LAMBDA_GRID)   # wander levels
                                 # the fits may choose from
+    q_vs: np.ndarray = field(default_factory=lambda: np.array([1.0, 0, 0, 0]))   # MIMU
+                                # sensor -> vehicle (w, x, y, z): a lever arm is reported in
+                                # the vehicle frame of the metadata's lever_arm_m
 
     @property
     def channels(self):
@@ -127,17 +137,47 @@ def residual(flight, cal):
     w, f, flags = compensated_mimu(flight, cal, per_sample=True)
     f_p, w_p, inside = predicted_mimu(flight)
     t = flight.mimu_t
+    # vibration power from the MIMU's own specific force: the reference, often sampled more
+    # slowly, averages part of an airframe vibration away (an interval mean attenuates a
+    # tone by sinc(pi f dt): 17 % of the power of 117 Hz at 500 Hz)
     cond = Conditions(t, f_p, w_p, derivative(t, f_p, DERIVATIVE_WINDOW_S),
                       derivative(t, w_p, DERIVATIVE_WINDOW_S),
-                      temperature, frequency)
+                      temperature, frequency, vibration_power(t, np.nan_to_num(f)))
     res = np.hstack([f - f_p, w - w_p])
     usable = inside & (flags == 0) & np.isfinite(res).all(axis=1)
     usable[0] = False                       # the sample at the first stamp has no interval
-    return t, res, usable, cond
+    return t, res, usable, cond, {"measured": np.hstack([f, w]),
+                                  "predicted": np.hstack([f_p, w_p]), "flags": flags,
+                                  "inside": inside}
 
 
-def _bin(x, m, usable):
-    """Means of m consecutive samples; bins with any unusable sample are NaN."""
+def bins(t, t_reference):
+    """(m, start): bins of m consecutive MIMU samples from sample `start` on, FAST_BIN_S long
+    or the shortest length above it that is a whole number of reference intervals, and, where the reference IMU's stamps are a subset of the MIMU's (its
+    rate an integer fraction of the MIMU's), beginning and ending on reference stamps: the
+    bin means of both IMUs then cover the same intervals exactly, so motion faster than the
+    reference resolves (an airframe's vibration near its Nyquist rate) cancels in the
+    residual instead of being interpolated."""
+    dt = float(np.median(np.diff(t)))
+    m = max(1, round(FAST_BIN_S / dt))
+    if t_reference is None or len(t_reference) < 2:
+        return m, 0
+    ratio = float(np.median(np.diff(t_reference))) / dt
+    p = round(ratio)
+    if p < 1 or abs(ratio - p) > 1e-3:
+        return m, 0
+    m = max(p, math.ceil(FAST_BIN_S / dt / p - 1e-9) * p)     # never shorter than FAST_BIN_S
+    k = np.searchsorted(t_reference, t[:m + p + 1])
+    k = np.minimum(k, len(t_reference) - 1)
+    on = np.flatnonzero(np.abs(t_reference[k] - t[:m + p + 1]) < 1e-3 * dt)
+    return (m, int((on[0] + 1) % m)) if len(on) else (m, 0)
+
+
+def _bin(x, bins, usable):
+    """Means of `bins` = (m, start): m consecutive samples from sample `start` on; bins with
+    any unusable sample are NaN."""
+    m, start = bins
+    x, usable = x[start:], usable[start:]
     n = len(x) // m * m
     shape = (n // m, m) + x.shape[1:]
     out = x[:n].reshape(shape).mean(axis=1)
@@ -146,25 +186,34 @@ def _bin(x, m, usable):
     return out
 
 
-def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander=None):
+def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander=None,
+             output_tests=True):
     """Sensor-level diagnosis of `flight` (an `evaluation.Flight` with a reference IMU)
     against calibration `cal`. `candidates`: the library to test (default
     `library.candidates()`); `max_wander`: the largest wander level (random-walk step
     variance over the white variance of a bin) the fits may choose - for a reference whose
     own errors are structured and would otherwise pass for wander (`track`); `accuracy`:
     the reference's `reference.Accuracy` (default: the
-    log's metadata, else Table 4). Nothing here is random."""
+    log's metadata, else Table 4); `output_tests`: also test the effects that are no
+    regressor (`outputs`: saturation, quantization, the bias's wander and level against the
+    MEMS class - not for a reference made from a vehicle's track). Nothing here is random."""
     if flight.mimu_platform is not None:
         raise InputError(f"{flight.path}: the MIMU turns on a platform (/mimu/platform); "
                          "this analysis does not follow the rotation yet - replay and table do")
     acc = accuracy_of(flight.fog_meta, accuracy)
     q_sf = np.conjugate(flight.mimu_mounting.q_vs) * flight.fog_mounting.q_vs
-    t, res, usable, cond = residual(flight, cal)
-    rate = 1.0 / np.median(np.diff(t))
-    m = max(1, round(FAST_BIN_S * rate))
+    t, res, usable, cond, samples = residual(flight, cal)
+    m = bins(t, flight.fog_t)
+    full_scale = {"accel": float(flight.mimu_range.get("accel_m_s2", MimuUnit.range_accel)),
+                  "gyro": float(flight.mimu_range.get("gyro_rad_s", MimuUnit.range_gyro))}
+    on_outputs = []
+    if output_tests:
+        on_outputs, clipped = _output_findings(flight, cal, t, samples, full_scale)
+        usable = usable & ~clipped
     design = _design(t, res, usable, cond,
                      library.candidates() if candidates is None else candidates, m,
                      acc.prior(q_sf) + calibration_prior(cal), cal)
+    design.q_vs = flight.mimu_mounting.attitude_wxyz
     if max_wander is not None:
         design.levels = wander.LAMBDA_GRID[wander.LAMBDA_GRID <= max_wander]
     if len(design.t) < 4 * SPLIT_BLOCK_S / FAST_BIN_S:
@@ -174,8 +223,6 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
     block = np.floor((design.t - design.t[0]) / SPLIT_BLOCK_S).astype(int)
     train = block % 2 == 0
     held = ~train
-    full_scale = {"accel": float(flight.mimu_range.get("accel_m_s2", MimuUnit.range_accel)),
-                  "gyro": float(flight.mimu_range.get("gyro_rad_s", MimuUnit.range_gyro))}
 
     chosen, within = _select(design, train, alpha, full_scale)
     findings, rejected = _judge(design, chosen, train, held, alpha, full_scale, cond)
@@ -186,14 +233,44 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
     removed = design.residual - _reference_error(design, fit)
     for f, j in zip(findings, found):
         removed = removed - _contribution(design, j, _beta(f))
+    conds = _condition_masks(design, cond, m, usable)
+    if output_tests:
+        on_outputs += outputs.bias_tests(design, removed, conds["quiet"],
+                                         alpha / (len(design.terms) + 12), cal,
+                                         skip={(f["sensor"], f["axis"]) for f in
+                                               on_outputs + findings
+                                               if f["effect"] in OWN_OFFSET})
+    for f in on_outputs:
+        if f["effect"] == "bias_shift":
+            removed[:, CHANNELS.index((f["sensor"], f["axis"]))] -= f["coefficient"]
+    findings = findings + on_outputs
     after = _clean(design, removed)
     unexplained = _scan(design, removed, alpha)
-    conds = _condition_masks(design, cond, m, usable)
     return SensorDiagnosis(findings, unexplained, rejected, within, design, train, conds,
                            {"before": _map(design, before, conds),
                             "after": _map(design, after, conds)},
                            before, after, acc.as_dict(), len(design.terms), design.terms,
                            everything)
+
+
+def _output_findings(flight, cal, t, samples, full_scale):
+    """(saturation and quantization findings, samples clipped (N,) bool): the tests on the
+    outputs themselves (`outputs`), on every sample the compensation did not repair
+    (a sample stuck at an extreme is flagged SATURATED there and is tested here)."""
+    measured, predicted = samples["measured"], samples["predicted"]
+    repaired = (samples["flags"] & (REPLACED | UNUSABLE)) != 0
+    rows = samples["inside"] & ~repaired & np.isfinite(measured).all(axis=1) \
+        & np.isfinite(predicted).all(axis=1)
+    rows[0] = False
+    train = np.floor((t - t[0]) / SPLIT_BLOCK_S).astype(int) % 2 == 0
+    found, clipped = outputs.saturation(t, measured, predicted, rows, train, full_scale)
+    live = rows & ~clipped & (samples["flags"] == 0)
+    sigma = outputs.noise_sigma(np.where(live[:, None], measured - predicted, np.nan))
+    raw = flight.mimu_raw
+    volts = None if raw is None else np.hstack([raw["accel_volts"], raw["gyro_volts"]])
+    gains = np.abs(np.r_[np.diag(cal.A1), np.diag(cal.W1)]) if cal is not None else np.ones(6)
+    found += outputs.quantization(t, measured, volts, gains, live, sigma)
+    return found, clipped
 
 
 def calibration_prior(cal):
@@ -263,7 +340,7 @@ def verdict(diag):
 def _design(t, res, usable, cond, cands, m, prior, cal):
     """Bin the residual, the reference inputs and each candidate's regressor; drop candidates
     the flight cannot drive (no variation) and mark those the reference inputs span."""
-    if len(t) < m:
+    if len(t) < m[0] + m[1]:
         raise InputError(f"{len(t)} MIMU samples: fewer than one {FAST_BIN_S:g} s bin")
     tb, rb = _bin(t, m, usable), _bin(res, m, usable)
     ok = np.isfinite(rb).all(axis=1)
@@ -279,6 +356,9 @@ def _design(t, res, usable, cond, cands, m, prior, cal):
             cols[(0 if sensor == "accel" else 3) + i] = _bin(x, m, usable)[ok]
         if not all(np.isfinite(x).all() for x in cols.values()):
             continue                        # e.g. temperature terms of a log without them
+        if term["effect"] == "vibration_rectification" and \
+                not library.vibrating(next(iter(cols.values()))):
+            continue                        # a flight without airframe vibration
         scale = max(np.abs(x).max() for x in cols.values())
         spread = max(np.ptp(x, axis=0).max() for x in cols.values())
         if not spread > 1e-9 * max(scale, 1e-300):
@@ -344,10 +424,9 @@ class Fitter:
                           for c in range(6)]
         self.row_precision = [np.linalg.inv(p + 1e-24 * np.eye(3)) for p in self.row_prior]
 
-    def _level(self, c, cols, pinned=False):
-        """(Gram, r, log-likelihood) of channel c at the wander level of maximum marginal
-        likelihood with the candidate columns `cols` (indices into the channel's columns) in
-        the mean and the reference inputs (columns 1-3) under the reference's prior: the
+    def _profile(self, c, cols, pinned=False):
+        """(Grams, r, log-likelihood) of channel c at every wander level, with the candidate
+        columns `cols` (indices into the channel's columns) in the mean and the reference inputs (columns 1-3) under the reference's prior: the
         likelihood of y ~ N(X beta, r (wander) + R P R'), by Woodbury over the 3 prior
         columns, with r profiled (fixed-point on the penalized residual)."""
         g = self.gram[c]
@@ -366,6 +445,12 @@ class Fitter:
         _, logdet_prior = np.linalg.slogdet(np.eye(3) + self.row_prior[c] @ m[:, :3, :3]
                                             / (r[:, None, None] * (PIN if pinned else 1.0)))
         loglik = -0.5 * (self.logdet[c] + self.n * np.log(r) + logdet_prior + q / r)
+        return g, r, loglik
+
+    def _level(self, c, cols, pinned=False):
+        """(Gram, r, log-likelihood) of channel c at the wander level of maximum marginal
+        likelihood (`_profile`)."""
+        g, r, loglik = self._profile(c, cols, pinned)
         best = int(np.argmax(loglik))
         return g[best], float(r[best]), float(loglik[best])
 
@@ -507,6 +592,7 @@ def _select(design, train, alpha, full_scale):
         if not passing:
             break
         best, alternatives = _encompassing(fitter, current, passing, tests, threshold)
+        best = _whole_unit_or_one_axis(fitter, current, best, threshold)
         chosen.append(dict(j=best, alternatives=alternatives,
                            p_train=math.exp(tests[best]["logp"]), threshold=threshold,
                            b_train=tests[best]["b"],
@@ -514,6 +600,23 @@ def _select(design, train, alpha, full_scale):
         excluded |= {best, *alternatives}
     return chosen, [_within(design, j, r) for j, r in within.items()
                     if j not in {c["j"] for c in chosen}]
+
+
+def _whole_unit_or_one_axis(fitter, current, best, level):
+    """A lever arm moves all three accelerometers by one vector; a proof-mass offset moves
+    one. A lever arm is kept only when the size effect of at least two accelerometer axes
+    is significant on its own (given the current choice) - else the strongest of those axes'
+    size effect replaces it (with one axis carrying it, the lever arm's fit of the other two
+    is their small transfer errors, which a 3-channel Wald test turns into significance)."""
+    design = fitter.design
+    if design.terms[best]["effect"] != "lever_arm":
+        return best
+    axes = [j for j, term in enumerate(design.terms) if term["effect"] == "size_effect"]
+    tests = {j: _test(fitter, current + [j], j)["logp"] for j in axes}
+    alone = [j for j in axes if tests[j] <= math.log(level)]
+    if len(alone) >= 2 or not alone:
+        return best
+    return min(alone, key=tests.get)
 
 
 def _encompassing(fitter, current, passing, tests, level, contenders=10):
@@ -574,8 +677,7 @@ def _judge(design, chosen, train, held, alpha, full_scale, cond):
         term = design.terms[j]
         res = _test(held_fitter, idx, j)
         b_tr, b_ho = c["b_train"], res["b"]
-        half = 1.96 * np.sqrt(np.diag(res["cov"]))
-        finding = estimate(term, b_ho, b_ho - half, b_ho + half)
+        finding = _estimate(design, term, b_ho, res["cov"])
         where = _where_rows(_contribution(design, j, b_ho))
         finding["where"] = _spans(design, where, term, cond)
         finding["fit"] = _rms_fit(design, cleaned, j, b_tr, where, train, held, term)
@@ -618,6 +720,20 @@ def _attribution(term, beyond_reference, linear):
     return who + ("-or-reference" if linear else "-or-calibration")
 
 
+def _estimate(design, term, b, cov):
+    """`estimate` with the 95 % interval of covariance `cov`; a lever arm (fitted in the
+    sensor axes) turned into the vehicle frame of the metadata's lever_arm_m, its sensor-axes
+    vector kept for the compensation (`vector_sensor_axes`)."""
+    if term["effect"] != "lever_arm":
+        half = 1.96 * np.sqrt(np.diag(cov))
+        return estimate(term, b, b - half, b + half)
+    c_vs = quaternion.as_rotation_matrix(quaternion.from_float_array(design.q_vs))
+    b_v, cov_v = c_vs @ b, c_vs @ cov @ c_vs.T
+    half = 1.96 * np.sqrt(np.diag(cov_v))
+    return dict(estimate(term, b_v, b_v - half, b_v + half), frame="vehicle",
+                vector_sensor_axes=b.tolist())
+
+
 def estimate(term, beta, lo, hi):
     """The contract's description of a term with its held-out estimate and 95 % interval
     (a vector parameter as `vector`, its largest component as `coefficient`)."""
@@ -645,7 +761,8 @@ def _position(design, finding):
 
 
 def _beta(finding):
-    return np.asarray(finding.get("vector", [finding["coefficient"]]), float)
+    return np.asarray(finding.get("vector_sensor_axes",
+                                  finding.get("vector", [finding["coefficient"]])), float)
 
 
 def _contribution(tier, pos, beta):

@@ -144,7 +144,7 @@ def diagnose(flight, cal, alpha=0.05, reference=None, accuracy=None):
         (left_out if drivers and drivers & unpredicted else kept).append(term)
     diag = sensor.diagnose(ref, cal, alpha=alpha, candidates=kept,
                            accuracy=VEHICLE_MODEL_ACCURACY.merged(accuracy),
-                           max_wander=wander_limit())
+                           max_wander=wander_limit(), output_tests=False)
     diag.level = "track"
     diag.reference_check = {
         "correlation_1s": corr, "threshold": PREDICTED_CORRELATION,

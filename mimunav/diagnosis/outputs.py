@@ -1,0 +1,354 @@
+"""Effects of the vocabulary that are no regressor, tested on the outputs themselves (sensor
+level, log contract section 3):
+
+  saturation        the output stops following its input at a level below the declared
+                    range: where the reference says the input went well beyond anything the
+                    channel ever output, the channel stays flat (its slope against the input
+                    near zero). Coefficient: the clip level (SI, magnitude), `side` + / - /
+                    both. The clipped samples are left out of every other test.
+  quantization      the output sits on a lattice of step q: in SI (the compensated output) or
+                    in raw volts (an ADC), found from the spacing of the distinct values and
+                    confirmed by the phase coherence |mean exp(2 pi i y / q)| (1 on a
+                    lattice, ~ N^-1/2 for a continuous output). Reported when it matters:
+                    the quantization noise q^2/12 at least QUANTIZATION_SHARE of the channel's
+                    white noise. Coefficient: q in SI (a volt step times the channel's gain).
+  bias_instability  the bias wanders more than the unit class allows, and
+  bias_shift        a constant offset beyond the unit's normal bias: the fitted bias's SPAN_S
+                    means over quiet flight against a unit of the class (turn-on spread and
+                    in-run instability, `calibration.TURN_ON`, `INSTABILITY`, with the
+                    calibration's own stated A0 / W0 error and the reference's bias, Table 4:
+                    1 deg/h, 100 ug): likelihood ratios of a free constant and of a free
+                    Gauss-Markov wander (`bias_tests`), at the library's first Holm threshold.
+Each is held to the same family-wise alpha as the library; a clip must show on both halves of
+the diagnosis' split (alternate SPLIT_BLOCK_S blocks).
+"""
+import math
+
+import numpy as np
+from scipy import stats
+
+from ..calibration import (FLICKER_SPAN_FACTOR, INSTABILITY, TURN_ON, flicker_covariance,
+                           standard_errors)
+from ..effects import AXES
+
+G0 = 9.80665
+DEG = math.pi / 180
+CHANNELS = [("accel", a) for a in AXES] + [("gyro", a) for a in AXES]
+
+SATURATION_MIN_SAMPLES = 10      # samples beyond the clip level needed to call it
+SATURATION_MARGIN_SIGMA = 5.0    # "well beyond": the reference above the output's maximum by
+                                 # this many per-sample noise sigmas and 1 % of the level
+SATURATION_FLAT_SLOPE = 0.5      # slope of output on input above the level: 0 clipped, 1 live
+SATURATION_OF_RANGE = 0.98       # a level at the declared range is the model's own limit
+QUANTIZATION_SHARE = 0.1         # q^2/12 against the white noise variance
+QUANTIZATION_COHERENCE = 0.9     # |mean exp(2 pi i y/q)| on a lattice (jitter << q)
+GM_TAU_S = 100.0                 # correlation time the wander level is read with
+REFERENCE_BIAS = {"accel": 100e-6 * G0, "gyro": 1 * DEG / 3600}   # seed S1 Table 4
+
+
+def _finding(effect, sensor, axis, coefficient, ci95, where, rms, test, **extra):
+    """A finding with the keys of the library's (`sensor._judge`): rms = (before, after) on
+    the rows where it acts, test = (p_train, p_heldout, threshold) or None for a test that
+    is no p-value (a clip or a lattice is seen, not inferred)."""
+    unit = "m/s^2" if sensor == "accel" else "rad/s"
+    p_train, p_held, threshold = test or (0.0, 0.0, 0.0)
+    return {"effect": effect, "sensor": sensor, "axis": axis, "coefficient": float(coefficient),
+            "ci95": [float(ci95[0]), float(ci95[1])], "units": unit, "where": where,
+            "fit": {"train_rms_before": rms[0], "train_rms_after": rms[1],
+                    "heldout_rms_before": rms[0], "heldout_rms_after": rms[1], "units": unit,
+                    "channels": [f"{sensor}.{axis}"]},
+            "label": f"{effect} {sensor}.{axis}", "attribution": "mimu",
+            "p_train": p_train, "p_heldout": p_held, "holm_threshold": threshold,
+            "indistinguishable_from": [], **extra}
+
+
+def noise_sigma(residual):
+    """Per-sample white noise sigma of each column of a residual (N, k): 1.4826 MAD of the
+    first difference over sqrt 2 (robust to a wandering bias and to manoeuvres)."""
+    d = np.diff(residual, axis=0)
+    d = d[np.isfinite(d).all(axis=1)]
+    return 1.4826 * np.median(np.abs(d - np.median(d, axis=0)), axis=0) / math.sqrt(2)
+
+
+# ---- saturation ----------------------------------------------------------------------------
+def saturation(t, measured, predicted, rows, train, full_scale):
+    """(findings, clipped (N,) bool). measured, predicted: (N, 6) per-sample outputs
+    (accel m/s^2, gyro rad/s, MIMU axes); rows: samples fit to test (not repaired, inside
+    the reference); train: the split's training samples; full_scale {"accel", "gyro"}."""
+    sigma = noise_sigma(np.where(rows[:, None], measured - predicted, np.nan))
+    clipped = np.zeros(len(t), bool)
+    findings = []
+    for c, (sensor, axis) in enumerate(CHANNELS):
+        sides = {}
+        for sign in (1.0, -1.0):
+            side = _clip_side(sign * measured[:, c], sign * predicted[:, c], rows, train,
+                              sigma[c], full_scale[sensor])
+            if side:
+                sides["+" if sign > 0 else "-"] = side
+                clipped |= rows & (sign * predicted[:, c] > side["level"] - 5 * sigma[c])
+        if sides:
+            findings.append(_saturation_finding(t, sensor, axis, sides, measured[:, c],
+                                                predicted[:, c]))
+    return findings, clipped
+
+
+def _clip_side(y, x, rows, train, sigma, full_scale):
+    """The clip of one side: {level, half (95 %), beyond (N,) bool, slope} or None."""
+    if not rows.any():
+        return None
+    top = float(np.max(y[rows]))
+    beyond = rows & (x > top + SATURATION_MARGIN_SIGMA * sigma + 0.01 * abs(top))
+    if beyond.sum() < SATURATION_MIN_SAMPLES or top <= 0:
+        return None
+    halves = []
+    for part in (beyond & train, beyond & ~train):
+        if part.sum() < SATURATION_MIN_SAMPLES // 2:
+            return None
+        halves.append(_flat(y[part], x[part], sigma))
+    if any(h is None for h in halves):
+        return None
+    level = float(np.mean(y[beyond]))
+    if level >= SATURATION_OF_RANGE * full_scale:
+        return None
+    return {"level": level, "half": 1.96 * sigma / math.sqrt(beyond.sum()), "beyond": beyond,
+            "slope": halves[0]}
+
+
+def _flat(y, x, sigma):
+    """Slope of y on x where it is determined and below SATURATION_FLAT_SLOPE with 95 %
+    confidence (the output does not follow its input); None otherwise. An input range too
+    short to fix a slope counts as flat when the output stays at its level while the input
+    is beyond it (the caller's condition)."""
+    spread = float(np.std(x))
+    if spread * math.sqrt(len(x)) < 10 * sigma:       # slope undetermined: level test only
+        return 0.0
+    slope, _ = np.polyfit(x, y, 1)
+    se = sigma / (spread * math.sqrt(len(x)))
+    return float(slope) if slope + 1.96 * se < SATURATION_FLAT_SLOPE else None
+
+
+def _saturation_finding(t, sensor, axis, sides, y, x):
+    levels = [s["level"] for s in sides.values()]
+    level = float(np.mean(levels))
+    half = float(max(s["half"] for s in sides.values()) + np.ptp(levels) / 2)
+    beyond = np.any([s["beyond"] for s in sides.values()], axis=0)
+    clip = np.clip(x, -sides["-"]["level"] if "-" in sides else -np.inf,
+                   sides["+"]["level"] if "+" in sides else np.inf)
+    rms = (float(np.sqrt(np.mean((y - x)[beyond] ** 2))),
+           float(np.sqrt(np.mean((y - clip)[beyond] ** 2))))
+    return _finding("saturation", sensor, axis, level, (level - half, level + half),
+                    spans(t, beyond, f"{sensor}.{axis} beyond {level:.4g}: clipped"), rms, None,
+                    side="both" if len(sides) == 2 else next(iter(sides)),
+                    slope_beyond={k: s["slope"] for k, s in sides.items()},
+                    samples_clipped=int(beyond.sum()),
+                    note="where the reference is beyond the level the output stays flat "
+                         "(slope_beyond: output against input there, both halves of the "
+                         "split); 'after': the output clipped at the level")
+
+
+# ---- quantization --------------------------------------------------------------------------
+def quantization(t, measured, raw, gains, rows, sigma):
+    """Findings of channels whose output (SI) or raw volts (raw (N, 6) or None, gains (6,)
+    (SI per V)) sit on a lattice that matters against the white noise sigma (6,)."""
+    findings = []
+    for c, (sensor, axis) in enumerate(CHANNELS):
+        for domain, y, gain in (("output", measured[:, c], 1.0),
+                                ("raw volts", None if raw is None else raw[:, c], gains[c])):
+            if y is None:
+                continue
+            q = lattice_step(y[rows])
+            if q is None or (q * gain) ** 2 / 12 < QUANTIZATION_SHARE * sigma[c] ** 2:
+                continue
+            unit = "m/s^2" if sensor == "accel" else "rad/s"
+            rms = (float(sigma[c]), float(math.sqrt(max(sigma[c] ** 2 - (q * gain) ** 2 / 12,
+                                                        0.0))))
+            findings.append(_finding(
+                "quantization", sensor, axis, q * gain, (q * gain, q * gain),
+                spans(t, rows, f"{sensor}.{axis}: every sample"), rms, None,
+                domain=domain, step_in_domain=q,
+                note=f"the {domain} take only multiples of {q:.4g}"
+                     f"{'' if domain == 'output' else ' V'}: quantization noise "
+                     f"{q * gain / math.sqrt(12):.3g} {unit} rms of the white noise "
+                     f"{sigma[c]:.3g} ('after': the white noise without it)"))
+            break
+    return findings
+
+
+def lattice_step(y):
+    """The step q of a lattice the values y (n,) sit on, or None: the smallest spacing of the
+    distinct values (above round-off) refined as the mean of the spacings within 10 % of it,
+    kept when the phase coherence |mean exp(2 pi i y / q)| exceeds QUANTIZATION_COHERENCE."""
+    y = y[np.isfinite(y)]
+    if len(y) < 100:
+        return None
+    scale = float(np.max(np.abs(y))) or 1.0
+    d = np.diff(np.unique(y))
+    d = d[d > 1e-9 * scale]
+    if len(d) < 10:
+        return None
+    q0 = float(np.min(d))
+    q = float(np.mean(d[d < 1.1 * q0]))
+    if q <= 0 or len(np.unique(np.round(y / q))) > 0.5 * len(y):
+        return None         # more levels than half the samples: no lattice of this step
+    coherence = abs(np.mean(np.exp(2j * math.pi * (y - y[0]) / q)))
+    return q if coherence > QUANTIZATION_COHERENCE else None
+
+
+# ---- the bias: its wander and its level --------------------------------------------------
+def bias_tests(design, fit, quiet, alpha_level, cal, skip=()):
+    """bias_instability and bias_shift findings per channel, from the bias's SPAN_S means
+    over quiet flight. fit: residual without the fitted reference error and confirmed terms
+    (nb, 6) on the design's bins (what is left: the bias and the white noise); quiet (nb,)
+    bool: the bins of quiet flight, the only ones read - in manoeuvres whatever the model and
+    the library miss (a cross-axis nonlinearity, the reference's own dynamic errors) would
+    pass for wander or offset; alpha_level: the family-wise threshold of the library's first
+    step; skip: channels (sensor, axis) whose outputs are clipped or quantized (that makes
+    an offset and a wander of its own).
+
+    Three models of the means x (m,) at times t, each Gaussian (`_bias_models`):
+      class   x ~ N(0, B^2 F + s0^2 11' + w I): a unit of the class - an in-run wander of
+              the class's instability B as a flicker (1/f) bias (F: the covariance of its
+              window means, `calibration.flicker_covariance`, as the lab fits model it), a
+              turn-on offset of spread s0 (`calibration.TURN_ON`, the calibration's stated
+              A0 / W0 error, the reference's bias) and the white share w;
+      shift   the class's wander about a free constant mu (bias_shift);
+      wander  the class plus a Gauss-Markov wander of free sigma (R_ij =
+              exp(-|ti - tj| / tau)): bias_instability, sigma its coefficient.
+    Every model also carries the channel's temperature reading as a free linear term, so a
+    thermal drift too weak for the library to name is not read as wander or offset. Each
+    alternative has one parameter more than the class: likelihood ratio with one degree of
+    freedom; the stronger of the two is named when its p-value passes
+    alpha_level."""
+    if quiet.sum() < 100:
+        return []
+    fit = np.where(quiet[:, None], fit, np.nan)
+    t_means, means = span_means(design.t, fit)
+    thermal = _temperature_means(design, quiet)
+    se_cal = standard_errors(cal)
+    dt = float(np.median(np.diff(design.t)))
+    findings = []
+    for c, (sensor, axis) in enumerate(CHANNELS):
+        keep = np.isfinite(means[:, c])
+        if (sensor, axis) in skip or keep.sum() < 3:
+            continue
+        key = f"{'A0' if sensor == 'accel' else 'W0'}[{AXES.index(axis)}]"
+        offset = math.sqrt(TURN_ON[sensor] ** 2 + REFERENCE_BIAS[sensor] ** 2
+                           + (se_cal.get(key) or 0.0) ** 2)
+        white = float(np.nanvar(np.diff(fit[:, c])) / 2) * dt / SPAN_S
+        m = _bias_models(t_means[keep], means[keep, c], INSTABILITY[sensor], offset, white,
+                         None if thermal is None else thermal[keep, c:c + 1])
+        best = max(("shift", "wander"), key=lambda k: m[k]["lr"])
+        p = float(stats.chi2.sf(m[best]["lr"], 1))
+        if p >= alpha_level:
+            continue
+        unit = "m/s^2" if sensor == "accel" else "rad/s"
+        label = f"{sensor}.{axis}"
+        where = spans(design.t, quiet, f"{label}: quiet flight")
+        x = means[keep, c]
+        if best == "shift":
+            mu, half = m["shift"]["mu"], 1.96 * m["shift"]["se"]
+            findings.append(_finding(
+                "bias_shift", sensor, axis, mu, (mu - half, mu + half), where,
+                (float(np.sqrt(np.mean(x ** 2))), float(np.sqrt(np.mean((x - mu) ** 2)))),
+                (p, p, alpha_level), normal_offset_1sigma=offset,
+                likelihood_ratio={k: m[k]["lr"] for k in ("shift", "wander")},
+                note=f"a constant {mu:.3g} {unit} beyond the class's turn-on spread "
+                     f"{offset:.3g} and its in-run wander ({INSTABILITY[sensor]:.3g}): better "
+                     "explained as an offset than as a larger wander (likelihood ratios); "
+                     f"rms of the {SPAN_S:g} s means before and after"))
+        else:
+            sigma, lo, hi = m["wander"]["sigma"], m["wander"]["lower"], m["wander"]["upper"]
+            findings.append(_finding(
+                "bias_instability", sensor, axis, sigma, (lo, hi), where,
+                (float(np.std(x)), math.sqrt(white)), (p, p, alpha_level),
+                likelihood_ratio={k: m[k]["lr"] for k in ("shift", "wander")},
+                note=f"the bias wanders like a Gauss-Markov process of sigma {sigma:.3g} "
+                     f"{unit} (tau {GM_TAU_S:g} s) against the class's "
+                     f"{INSTABILITY[sensor]:.3g}; 'after': the white share of a "
+                     f"{SPAN_S:g} s mean"))
+    return findings
+
+
+FAST_S = 0.1        # the flicker's highest frequency in the class model, 1/FAST_S Hz (the
+                    # means' sinc makes faster terms negligible)
+def _temperature_means(design, quiet):
+    """(m, 6) SPAN_S means over quiet flight of each channel's temperature_bias regressor
+    (its temperature reading about the log's mean), or None when the library has none
+    (a log without temperatures); a channel without one is 0."""
+    cols = np.zeros((len(design.t), 6))
+    for j, term in enumerate(design.terms):
+        if term["effect"] == "temperature_bias":
+            for c, x in design.columns[j].items():
+                cols[:, c] = x[:, 0]
+    if not cols.any():
+        return None
+    return span_means(design.t, np.where(quiet[:, None], cols, np.nan))[1]
+
+
+SPAN_S = 10.0       # the bias is read from SPAN_S means of quiet flight: what is faster (a
+                    # colored noise, flicker at seconds) is no bias instability nor offset
+
+
+def span_means(t, x):
+    """(times (m,), means (m, k)) of x (n, k) over consecutive SPAN_S spans of t, NaN where
+    fewer than half a span's bins are finite."""
+    sec = np.floor((t - t[0]) / SPAN_S).astype(int)
+    n = sec.max() + 1
+    good = np.isfinite(x)
+    count = np.stack([np.bincount(sec, good[:, c], minlength=n) for c in range(x.shape[1])], 1)
+    sums = np.stack([np.bincount(sec, np.where(good[:, c], x[:, c], 0.0), minlength=n)
+                     for c in range(x.shape[1])], 1)
+    full = SPAN_S / float(np.median(np.diff(t)))
+    means = np.where(count >= 0.5 * full, sums / np.maximum(count, 1), np.nan)
+    return t[0] + (np.arange(n) + 0.5) * SPAN_S, means
+
+
+def _profiled(x, nuisance, cov):
+    """Gaussian log-likelihood of x under cov with the columns `nuisance` (m, k) at their
+    generalised-least-squares values (k = 0: none); and the fitted x."""
+    if nuisance.shape[1]:
+        inv = np.linalg.solve(cov, nuisance)
+        x = x - nuisance @ np.linalg.solve(nuisance.T @ inv, inv.T @ x)
+    _, logdet = np.linalg.slogdet(cov)
+    return -0.5 * (logdet + x @ np.linalg.solve(cov, x) + len(x) * math.log(2 * math.pi))
+
+
+def _bias_models(t, x, instability, offset, white, nuisance=None):
+    """The class, shift and wander models of `bias_tests` on the means x at times t, each
+    with the columns `nuisance` (m, k: the channel's temperature, so a slow thermal term
+    too weak for the library is not read as wander) at their best values:
+    {"shift": {"lr", "mu", "se"}, "wander": {"lr", "sigma", "lower", "upper"}}."""
+    n = len(x)
+    nuisance = np.zeros((n, 0)) if nuisance is None else nuisance
+    span = float(t[-1] - t[0]) + SPAN_S
+    flicker = instability ** 2 * flicker_covariance(
+        t - SPAN_S / 2, t + SPAN_S / 2, 1.0 / (FLICKER_SPAN_FACTOR * span), 1.0 / FAST_S)
+    corr = np.exp(-np.abs(t[:, None] - t[None, :]) / GM_TAU_S)
+    ones = np.ones((n, 1))
+    base = flicker + white * np.eye(n)
+    turn_on = offset ** 2 * (ones @ ones.T)
+    l_class = _profiled(x, nuisance, base + turn_on)
+    with_mean = np.hstack([ones, nuisance])
+    inv = np.linalg.solve(base, with_mean)
+    cov_mu = np.linalg.inv(with_mean.T @ inv)
+    mu = float((cov_mu @ inv.T @ x)[0])
+    l_shift = _profiled(x, with_mean, base)
+    grid = instability * np.geomspace(1e-2, 1e3, 301)
+    ll = np.array([_profiled(x, nuisance, s ** 2 * corr + base + turn_on) for s in grid])
+    inside = grid[ll >= ll.max() - 0.5 * stats.chi2.isf(0.05, 1)]
+    return {"shift": {"lr": max(2 * (l_shift - l_class), 0.0), "mu": mu,
+                      "se": math.sqrt(cov_mu[0, 0])},
+            "wander": {"lr": max(2 * (ll.max() - l_class), 0.0),
+                       "sigma": float(grid[int(np.argmax(ll))]), "lower": float(inside[0]),
+                       "upper": float(inside[-1])}}
+
+
+def spans(t, rows, condition, gap_s=2.0, max_spans=20):
+    """[{"t0", "t1", "condition"}] of the contiguous runs of rows (gaps below gap_s merged)."""
+    if not rows.any():
+        return []
+    idx = np.flatnonzero(rows)
+    breaks = np.flatnonzero(np.diff(t[idx]) > gap_s)
+    starts, ends = np.r_[idx[0], idx[breaks + 1]], np.r_[idx[breaks], idx[-1]]
+    return [{"t0": float(t[a]), "t1": float(t[b]), "condition": condition}
+            for a, b in list(zip(starts, ends))[:max_spans]]

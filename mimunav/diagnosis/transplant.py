@@ -1,0 +1,176 @@
+"""Transplants: the foreign development flights (`shared/data/foreign-flights`, written by an
+independent simulator) with their own hidden effect taken out and another effect of the
+contract's vocabulary put in - so the diagnosis can be tried on every effect class over
+flights, reference IMUs, noise and units this project did not write.
+
+How a transplant is made, and what it shares with the diagnosis:
+  1. the log's raw MIMU outputs are compensated with its calibration file (the unit's true
+     coefficients, so the result is the true motion plus the unit's noise and wander plus the
+     foreign hidden effect), and the foreign effect's own per-sample signal
+     (`NN.effect.npz`, SI at the MIMU's stamps) is subtracted: an effect-free carrier;
+  2. the new effect is sensor behaviour written here in a few lines each, acting on the
+     carrier's own outputs (clipping, quantizing, offsets, wander: what a sensor does to what
+     it measures) or, for the lever arm, on the rigid-body motion that scipy's RotationSpline
+     derives from the log's own /truth/state attitudes - never on the reference IMU's
+     outputs, from which the diagnosis builds its regressors (`mimunav.effects`);
+  3. the outputs go back to raw volts through the calibration (`raw_from_physics`): that
+     inverse is this project's, which is why the foreign logs themselves, not transplants, are
+     the development set's score.
+Vibration (for `vibration_rectification`) is added to both IMUs as an exact interval mean of
+a sinusoidal linear vibration of the airframe, as it would be recorded by both.
+
+A spec is `EFFECT:SENSOR:AXIS=VALUE` (the `--hide` syntax of `sensors.hidden`), with
+`saturation` VALUE the clip level (SI), `quantization` the step (SI), `bias_instability` the
+stationary sigma of an added first-order Gauss-Markov wander (tau 100 s), `lever_arm`
+(`imu:all=a/b/c`) the position error in the vehicle frame (m).
+"""
+import dataclasses
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import quaternion
+from scipy.spatial.transform import Rotation, RotationSpline
+
+from ..compensation import Calibration, compensate, raw_from_physics
+from ..evaluation import Flight
+from ..sensors.hidden import parse_term
+
+AXES = "xyz"
+GM_TAU_S = 100.0
+VIBRATION_HZ = 117.0            # airframe vibration (transplants of vibration_rectification)
+VIBRATION_G = 2.0               # its amplitude per axis, g, during the vibrating spans
+G0 = 9.80665
+
+
+def carrier(base):
+    """(Flight, Calibration, f0 m/s^2, w0 rad/s): foreign log `base` (path without .mcap)
+    compensated with its calibration, its own hidden effect removed (sensor axes)."""
+    base = str(base)
+    flight = Flight.load(base + ".mcap")
+    cal = Calibration.load(base + ".cal.json")
+    raw = flight.mimu_raw
+    f, w, _ = compensate(cal, raw["accel_volts"], raw["gyro_volts"], raw["accel_temperature"],
+                         raw["gyro_frequency"], filter_outliers=False)
+    effect = np.load(base + ".effect.npz")
+    if len(effect["t"]) != len(flight.mimu_t) or \
+            np.max(np.abs(effect["t"] - flight.mimu_t)) > 1e-6:
+        raise ValueError(f"{base}.effect.npz is not at the log's MIMU stamps")
+    return flight, cal, f - effect["d_accel"], w - effect["d_gyro"]
+
+
+def transplant(base, spec, seed=0):
+    """(Flight with the effect of `spec` hidden in its MIMU, calibration, answer key)."""
+    flight, cal, f, w = carrier(base)
+    term = _parse(spec)
+    rng = np.random.default_rng(seed)
+    out = {"accel": f.copy(), "gyro": w.copy()}
+    effect, sensor = term["effect"], term["sensor"]
+    i = AXES.index(term["axis"]) if term["axis"] in AXES else None
+    value = term.get("coefficient")
+    if effect == "lever_arm":
+        out["accel"] += lever_arm_specific_force(flight, np.asarray(term["vector"]))
+    elif effect == "vibration_rectification":
+        flight, vibration = _vibrate(flight, out)
+        m = max(1, int(round(0.5 / np.median(np.diff(flight.mimu_t)))))
+        power = np.convolve(vibration[:, i] ** 2, np.ones(m) / m, "same")
+        out[sensor][:, i] += value * power
+    elif effect == "saturation":
+        out[sensor][:, i] = np.clip(out[sensor][:, i], -value, value)
+    elif effect == "quantization":
+        out[sensor][:, i] = value * np.round(out[sensor][:, i] / value)
+    elif effect == "bias_shift":
+        out[sensor][:, i] += value
+    elif effect == "bias_instability":
+        out[sensor][:, i] += gauss_markov(flight.mimu_t, value, GM_TAU_S, rng)
+    elif effect == "scale_asymmetry":
+        out[sensor][:, i] += value * np.abs(out[sensor][:, i])
+    else:
+        raise ValueError(f"transplant has no behaviour for {effect!r}")
+    raw = dict(flight.mimu_raw)
+    raw["accel_volts"], raw["gyro_volts"] = raw_from_physics(
+        cal, out["accel"], out["gyro"], raw["accel_temperature"], raw["gyro_frequency"])
+    name = f"{Path(str(base)).name}+{spec}"
+    flight = dataclasses.replace(flight, mimu_raw=raw, name=name, path=name)
+    return flight, cal, dict(term, spec=spec, carrier=Path(str(base)).name)
+
+
+def _parse(spec):
+    effect = spec.split(":", 1)[0]
+    if effect in ("saturation", "quantization", "bias_instability", "vibration_rectification",
+                  "lever_arm"):
+        head, value = spec.split("=")
+        effect, sensor, axis = head.split(":")
+        if effect == "lever_arm":
+            return {"effect": effect, "sensor": "imu", "axis": "all",
+                    "vector": [float(v) for v in value.split("/")]}
+        return {"effect": effect, "sensor": sensor, "axis": axis, "coefficient": float(value)}
+    return parse_term(spec)
+
+
+def gauss_markov(t, sigma, tau, rng):
+    """First-order Gauss-Markov sequence at times t (s) with stationary sigma, started from
+    its stationary distribution."""
+    dt = np.diff(t, prepend=t[0])
+    phi = np.exp(-dt / tau)
+    drive = rng.standard_normal(len(t)) * sigma * np.sqrt(1 - phi ** 2)
+    drive[0] = rng.standard_normal() * sigma
+    out = np.empty(len(t))
+    acc = 0.0
+    for k in range(len(t)):
+        acc = phi[k] * acc + drive[k]
+        out[k] = acc
+    return out
+
+
+def lever_arm_specific_force(flight, r_v):
+    """(N, 3) m/s^2, sensor axes: the extra specific force of a sensor r_v (m, vehicle
+    frame) further from the vehicle origin than its metadata says, w x (w x r) + dw/dt x r,
+    with the body rate and its derivative from scipy's RotationSpline through the
+    /truth/state attitudes (Earth rate left out: < 1e-8 m/s^2 at these arms)."""
+    tr = flight.truth
+    q = quaternion.as_float_array(tr.q_nb)
+    spline = RotationSpline(tr.t, Rotation.from_quat(q[:, [1, 2, 3, 0]]))
+    t = flight.mimu_t
+    inside = (t >= tr.t[0]) & (t <= tr.t[-1])
+    w = np.zeros((len(t), 3))
+    dw = np.zeros((len(t), 3))
+    w[inside], dw[inside] = spline(t[inside], 1), spline(t[inside], 2)
+    extra_v = np.cross(w, np.cross(w, r_v)) + np.cross(dw, r_v)
+    return _to_sensor(flight.mimu_mounting, extra_v)
+
+
+def _to_sensor(mounting, x_v):
+    """Vehicle-frame vectors (N, 3) in the sensor axes of `mounting`."""
+    return Rotation.from_quat(np.roll(mounting.attitude_wxyz, -1)).inv().apply(x_v)
+
+
+def _vibrate(flight, out):
+    """(a copy of `flight` whose reference IMU carries a sinusoidal linear vibration of the
+    airframe, the vibration the MIMU feels (N, 3) m/s^2 in its axes): VIBRATION_G per vehicle
+    axis at VIBRATION_HZ (phases 0, 1, 2 rad), on during the middle third of the flight and
+    its last tenth, as interval means over each sample's own interval; the MIMU's outputs
+    `out` get it in place. Its power on an axis is the mean square of this known signal, no
+    filter needed."""
+    def interval_mean(t):
+        dt = np.diff(t, prepend=t[0] - np.median(np.diff(t)))
+        om = 2 * math.pi * VIBRATION_HZ
+        ph = np.arange(3)[None, :]
+        mean = (np.cos(om * (t - dt)[:, None] + ph) - np.cos(om * t[:, None] + ph)) \
+            / (om * dt[:, None])
+        span = t[-1] - t[0]
+        on = ((t > t[0] + span / 3) & (t < t[0] + 2 * span / 3)) | (t > t[0] + 0.9 * span)
+        return VIBRATION_G * G0 * mean * on[:, None]
+    vibration = _to_sensor(flight.mimu_mounting, interval_mean(flight.mimu_t))
+    out["accel"] += vibration
+    fog_f = flight.fog_f + _to_sensor(flight.fog_mounting, interval_mean(flight.fog_t))
+    return dataclasses.replace(flight, fog_f=fog_f), vibration
+
+
+def keys(directory):
+    """[(base path, key dict)] of the foreign development set in `directory`."""
+    out = []
+    for path in sorted(Path(directory).glob("foreign-*.key.json")):
+        out.append((str(path)[:-len(".key.json")], json.loads(path.read_text())))
+    return out

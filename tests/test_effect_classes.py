@@ -1,0 +1,121 @@
+"""The diagnosis on every class of the effect vocabulary, over flights this project did not
+write: the foreign development flights with their own effect taken out and another put in as
+sensor behaviour (`mimunav.diagnosis.transplant`: clipping, rounding, offsets and wander of
+the MIMU's own outputs, a lever arm from scipy's RotationSpline through the log's truth
+attitudes, an airframe vibration recorded by both IMUs - none of it through the regressors
+the diagnosis fits); plus closed-form checks of the pieces."""
+import math
+import os
+
+import numpy as np
+import pytest
+
+from mimunav import compensation, effects
+from mimunav.diagnosis import outputs, sensor, transplant
+
+FOREIGN = os.path.join(os.path.dirname(__file__), "..", "..", "shared", "data", "foreign-flights")
+needs_foreign = pytest.mark.skipif(not os.path.isdir(FOREIGN),
+                                   reason="shared/data/foreign-flights is not beside the repository")
+
+
+def _diagnose(carrier, spec):
+    flight, cal, key = transplant.transplant(os.path.join(FOREIGN, carrier), spec)
+    return sensor.diagnose(flight, cal), key
+
+
+@needs_foreign
+@pytest.mark.parametrize("carrier, spec", [
+    ("foreign-05", "lever_arm:imu:all=0.08/0.0/-0.05"),            # MIMU pitched 90 deg
+    ("foreign-03", "vibration_rectification:accel:z=0.001"),       # FOG at half the rate
+    ("foreign-05", "vibration_rectification:gyro:x=1e-5"),
+    ("foreign-01", "saturation:gyro:x=3.5"),
+    ("foreign-02", "saturation:accel:x=120"),            # the 26 g boost
+    ("foreign-01", "quantization:gyro:y=0.01"),
+    ("foreign-02", "bias_shift:gyro:x=0.001"),
+    ("foreign-04", "bias_shift:accel:z=-0.05"),
+    ("foreign-01", "bias_instability:gyro:z=0.0015"),
+    ("foreign-06", "bias_instability:accel:x=0.03"),
+])
+def test_every_effect_class_is_named_with_its_truth_in_the_interval(carrier, spec):
+    diag, key = _diagnose(carrier, spec)
+    named = [f for f in diag.findings
+             if (f["effect"], f["sensor"], f["axis"]) == (key["effect"], key["sensor"], key["axis"])]
+    assert named, [f["label"] for f in diag.findings]
+    f = named[0]
+    truth = np.atleast_1d(key.get("vector", key.get("coefficient")))
+    lo, hi = (np.asarray(f["vector_ci95"]).T if "vector_ci95" in f
+              else (np.atleast_1d(f["ci95"][0]), np.atleast_1d(f["ci95"][1])))
+    if key["effect"] == "quantization":               # a step is read, not estimated
+        assert f["coefficient"] == pytest.approx(truth[0], rel=1e-6)
+    else:
+        # the transplant's lever arm is as good as a cubic rotation spline through 100 Hz
+        # attitudes: 0.2 % in the rates of a 280 deg/s roll - finer than some intervals
+        slack = 2e-3 * np.abs(truth) if key["effect"] == "lever_arm" else 0.0
+        assert np.all((lo - slack <= truth) & (truth <= hi + slack)), (f, truth)
+    assert len(diag.findings) == 1, [g["label"] for g in diag.findings]
+
+
+@needs_foreign
+@pytest.mark.parametrize("carrier", ["foreign-01", "foreign-03", "foreign-04", "foreign-05"])
+def test_carriers_stay_quiet_with_and_without_airframe_vibration(carrier):
+    """Each foreign flight with its effect taken out is quiet; so is it with a 2 g vibration
+    at 117 Hz recorded by both IMUs - near the Nyquist rate of the 250 Hz reference of
+    foreign-03, where only bins that begin and end on the reference's stamps keep it out of
+    the residual (`sensor.bins`)."""
+    for spec in ("bias_shift:gyro:x=0", "vibration_rectification:accel:x=0"):
+        diag, _ = _diagnose(carrier, spec)
+        assert sensor.verdict(diag) == "no-missing-physics", (spec, diag.findings,
+                                                              diag.unexplained)
+
+
+def test_vibration_power_of_a_tone_is_half_its_squared_amplitude():
+    t = np.arange(0, 4, 1e-3)
+    a = 3.0
+    p = effects.vibration_power(t, a * np.sin(2 * math.pi * 117 * t) + 0.5 * t)   # + a ramp
+    assert np.median(p[1000:3000]) == pytest.approx(a ** 2 / 2, rel=0.02)
+    assert np.all(effects.vibration_power(t[::50], np.sin(t[::50])) == 0)   # 20 Hz: no band
+
+
+def test_wild_value_filter_keeps_a_sampled_vibration_and_still_finds_a_spike():
+    t = np.arange(0, 2, 1e-3)
+    rng = np.random.default_rng(0)
+    x = 20 * np.sin(2 * math.pi * 117 * t + 0.3)[:, None] + rng.normal(0, 0.03, (len(t), 3))
+    x[700, 1] += 500.0      # the noise level is read from second differences, which the
+                            # vibration inflates: a spike must stand well above its steps
+    flags = np.zeros(len(t), np.uint8)
+    out = compensation.wild_value_filter(x, flags)
+    assert np.flatnonzero(flags) .tolist() == [700]
+    assert abs(out[700, 1] - x[700, 1] + 500.0) < 15.0
+
+
+def test_bins_begin_and_end_on_the_reference_stamps():
+    t = 0.0007 + np.arange(1, 3001) * 1e-3               # MIMU at 1 kHz
+    t_ref = 0.0007 + np.arange(1, 751) * 4e-3 + 1e-3      # reference at 250 Hz, offset 1 ms
+    m, start = sensor.bins(t, t_ref)
+    assert m % 4 == 0 and sensor.FAST_BIN_S <= m * 1e-3 < sensor.FAST_BIN_S + 4e-3
+    edges = t[start - 1::m]
+    assert np.all(np.min(np.abs(edges[:, None] - t_ref[None, :]), axis=1) < 1e-9)
+
+
+def test_a_lattice_is_found_and_a_continuous_output_is_not():
+    rng = np.random.default_rng(1)
+    y = rng.normal(0.3, 0.05, 20000)
+    assert outputs.lattice_step(y) is None
+    q = 0.0123
+    assert outputs.lattice_step(q * np.round(y / q) + 1e-13 * rng.standard_normal(len(y))) \
+        == pytest.approx(q, rel=1e-6)
+
+
+def test_bias_models_tell_an_offset_from_a_wander():
+    """Means of 10 s windows of a 200 s flight: a constant 10x the class's spread is a
+    shift; a Gauss-Markov wander of 20x the class's instability is a wander."""
+    t = np.arange(5, 200, 10.0)
+    rng = np.random.default_rng(2)
+    b, s0, white = 1e-4, 5e-5, 1e-12
+    shift = outputs._bias_models(t, 1e-3 + rng.normal(0, 1e-6, len(t)), b, s0, white)
+    assert shift["shift"]["lr"] > shift["wander"]["lr"] and shift["shift"]["lr"] > 30
+    assert abs(shift["shift"]["mu"] - 1e-3) < 3 * shift["shift"]["se"]
+    gm = transplant.gauss_markov(t, 2e-3, outputs.GM_TAU_S, rng)
+    wander = outputs._bias_models(t, gm - gm.mean(), b, s0, white)
+    assert wander["wander"]["lr"] > wander["shift"]["lr"] and wander["wander"]["lr"] > 30
+    assert wander["wander"]["lower"] <= 2e-3 <= wander["wander"]["upper"]
