@@ -42,6 +42,8 @@ SATURATION_FLAT_SLOPE = 0.5      # slope of output on input above the level: 0 c
 SATURATION_OF_RANGE = 0.98       # a level at the declared range is the model's own limit
 QUANTIZATION_SHARE = 0.1         # q^2/12 against the white noise variance
 QUANTIZATION_COHERENCE = 0.9     # |mean exp(2 pi i y/q)| on a lattice (jitter << q)
+QUANTIZATION_RESOLUTION = 1e-6   # relative half-width of a step read off the lattice: the
+                                 # round-off of raw volts through the calibration and back
 GM_TAU_S = 100.0                 # correlation time the wander level is read with
 REFERENCE_BIAS = {"accel": 100e-6 * G0, "gyro": 1 * DEG / 3600}   # seed S1 Table 4
 
@@ -162,8 +164,9 @@ def quantization(t, measured, raw, gains, rows, sigma):
             unit = "m/s^2" if sensor == "accel" else "rad/s"
             rms = (float(sigma[c]), float(math.sqrt(max(sigma[c] ** 2 - (q * gain) ** 2 / 12,
                                                         0.0))))
+            half = QUANTIZATION_RESOLUTION * q * gain
             findings.append(_finding(
-                "quantization", sensor, axis, q * gain, (q * gain, q * gain),
+                "quantization", sensor, axis, q * gain, (q * gain - half, q * gain + half),
                 spans(t, rows, f"{sensor}.{axis}: every sample"), rms, None,
                 domain=domain, step_in_domain=q,
                 note=f"the {domain} take only multiples of {q:.4g}"
@@ -184,7 +187,7 @@ def lattice_step(y):
     scale = float(np.max(np.abs(y))) or 1.0
     d = np.diff(np.unique(y))
     d = d[d > 1e-9 * scale]
-    if len(d) < 10:
+    if len(d) < 2:                      # fewer than three levels: no lattice to speak of
         return None
     q0 = float(np.min(d))
     q = float(np.mean(d[d < 1.1 * q0]))

@@ -19,7 +19,9 @@ How a transplant is made, and what it shares with the diagnosis:
 Vibration (for `vibration_rectification`) is added to both IMUs as an exact interval mean of
 a sinusoidal linear vibration of the airframe, as it would be recorded by both.
 
-A spec is `EFFECT:SENSOR:AXIS=VALUE` (the `--hide` syntax of `sensors.hidden`), with
+Every effect of the vocabulary has a behaviour here (temperature terms on the log's own
+temperature readings, about their mean as the contract's regressors are). A spec is
+`EFFECT:SENSOR:AXIS[:INPUT]=VALUE[@KEY=VALUE]` (the `--hide` syntax of `sensors.hidden`), with
 `saturation` VALUE the clip level (SI), `quantization` the step (SI), `bias_instability` the
 stationary sigma of an added first-order Gauss-Markov wander (tau 100 s), `lever_arm`
 (`imu:all=a/b/c`) the position error in the vehicle frame (m).
@@ -84,16 +86,79 @@ def transplant(base, spec, seed=0):
         out[sensor][:, i] += value
     elif effect == "bias_instability":
         out[sensor][:, i] += gauss_markov(flight.mimu_t, value, GM_TAU_S, rng)
-    elif effect == "scale_asymmetry":
-        out[sensor][:, i] += value * np.abs(out[sensor][:, i])
+    elif effect in ("time_skew", "mounting_misalignment", "size_effect"):
+        _whole_unit(flight, term, out)
     else:
-        raise ValueError(f"transplant has no behaviour for {effect!r}")
+        out[sensor][:, i] += value * _per_unit(flight, term, out)
     raw = dict(flight.mimu_raw)
     raw["accel_volts"], raw["gyro_volts"] = raw_from_physics(
         cal, out["accel"], out["gyro"], raw["accel_temperature"], raw["gyro_frequency"])
     name = f"{Path(str(base)).name}+{spec}"
     flight = dataclasses.replace(flight, mimu_raw=raw, name=name, path=name)
     return flight, cal, dict(term, spec=spec, carrier=Path(str(base)).name)
+
+
+def _per_unit(flight, term, out):
+    """(N,) an axis effect's behaviour per unit coefficient, from the carrier's own outputs
+    `out` and temperature readings (the accelerometer case thermistors; the gyro's resonance
+    frequency), each about the log's mean where the contract says so."""
+    effect, sensor = term["effect"], term["sensor"]
+    i = AXES.index(term["axis"])
+    j = [AXES.index(a) for a in term.get("input_axis", "")]
+    x = out[sensor]
+    raw = flight.mimu_raw
+    theta = (raw["accel_temperature"] if sensor == "accel" else raw["gyro_frequency"])[:, i]
+    t = flight.mimu_t
+    if effect == "scale_asymmetry":
+        return np.abs(x[:, i])
+    if effect == "scale_factor":
+        return x[:, i].copy()
+    if effect == "cross_coupling":
+        return x[:, j[0]].copy()
+    if effect == "scale_nonlinearity":
+        return x[:, i] ** int(term["order"])
+    if effect == "g_sensitivity":
+        return out["accel"][:, j[0]].copy()
+    if effect == "g2_sensitivity":
+        return out["accel"][:, j[0]] * out["accel"][:, j[1]]
+    if effect == "temperature_bias":
+        return theta - theta.mean()
+    if effect == "temperature_scale":
+        return (theta - theta.mean()) * x[:, i]
+    if effect == "temperature_rate":                # T(t) - T(t - n), held at the start
+        return theta - np.interp(t - float(term["window_s"]), t, theta)
+    if effect == "thermal_hysteresis":              # sign of the slope over 10 s
+        slope = np.interp(t + 5.0, t, theta) - np.interp(t - 5.0, t, theta)
+        return np.sign(slope)
+    raise ValueError(f"transplant has no behaviour for {effect!r}")
+
+
+def _whole_unit(flight, term, out):
+    """Effects of a triad or the whole unit, in place on `out`: a time skew (the outputs
+    describe the motion tau earlier: their cumulative increments through a cubic spline at
+    t - tau, differenced), a mounting misalignment (every output turned by R(phi)^T, scipy's
+    Rotation), a proof-mass offset r (sensor axes) of one accelerometer (the rigid-body term
+    of `lever_arm_specific_force`, that axis only)."""
+    effect = term["effect"]
+    if effect == "time_skew":
+        from scipy.interpolate import CubicSpline
+        t = flight.mimu_t
+        dt = np.diff(t, prepend=t[0] - np.median(np.diff(t)))
+        edges = np.concatenate([[t[0] - dt[0]], t])
+        tau = float(term["coefficient"])
+        for s in (("accel", "gyro") if term["sensor"] == "imu" else (term["sensor"],)):
+            cum = np.vstack([np.zeros((1, 3)), np.cumsum(out[s] * dt[:, None], axis=0)])
+            moved = CubicSpline(edges, cum, axis=0)(np.clip(edges - tau, edges[0], edges[-1]))
+            out[s][:] = np.diff(moved, axis=0) / dt[:, None]
+    elif effect == "mounting_misalignment":
+        turn = Rotation.from_rotvec(term["vector"]).inv()
+        for s in ("accel", "gyro"):
+            out[s][:] = turn.apply(out[s])
+    else:                                   # size_effect: r in sensor axes, one accelerometer
+        i = AXES.index(term["axis"])
+        r_v = Rotation.from_quat(np.roll(flight.mimu_mounting.attitude_wxyz, -1)).apply(
+            np.asarray(term["vector"], float))
+        out["accel"][:, i] += lever_arm_specific_force(flight, r_v)[:, i]
 
 
 def _parse(spec):
