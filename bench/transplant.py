@@ -105,9 +105,9 @@ def draw(effect, rng, base):
     return f"{effect}:{sensor_}:{axis}{suffix}={value:.6g}{at}"
 
 
-def run_case(base, spec, effect):
+def run_case(base, spec, effect, seed):
     t0 = time.perf_counter()
-    flight, cal, key = transplant.transplant(base, spec)
+    flight, cal, key = transplant.transplant(base, spec, seed=seed)
     diag = sensor.diagnose(flight, cal)
     verdict = sensor.verdict(diag)
     case = {"carrier": Path(base).name, "spec": spec, "class": effect, "verdict": verdict,
@@ -200,8 +200,8 @@ def main():
     jobs = [(thermal if effect in THERMAL else bases[int(rng.integers(len(bases)))], effect)
             for effect in CLASSES for _ in range(args.per_class)]
     cases = []
-    for base, effect in tqdm(jobs, desc="transplants"):
-        cases.append(run_case(base, draw(effect, rng, base), effect))
+    for k, (base, effect) in enumerate(tqdm(jobs, desc="transplants")):
+        cases.append(run_case(base, draw(effect, rng, base), effect, args.seed * 1000 + k))
     wall = time.perf_counter() - t0
     meta = {"command": f"python bench/transplant.py --per-class {args.per_class} "
                        f"--seed {args.seed}",
