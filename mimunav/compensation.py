@@ -353,8 +353,23 @@ def noise_sigma(sub):
         warnings.simplefilter("ignore", RuntimeWarning)    # all-NaN channel: UNUSABLE later
         d2 = np.abs(sub[1:-1] - 0.5 * (sub[:-2] + sub[2:])) if len(sub) >= 3 else np.abs(sub)
         sigma = 1.4826 * np.nanmedian(d2, axis=0) / math.sqrt(1.5)
-        floor = 1e-12 * np.nanmax(np.abs(sub), axis=0)
+        floor = np.maximum(1e-12 * np.nanmax(np.abs(sub), axis=0), _step_noise(sub))
     return np.where(np.isfinite(sigma), np.maximum(sigma, floor), 0.0) + 1e-300
+
+
+def _step_noise(sub):
+    """Per column, the rms of the quantization noise q / sqrt(12) of a column whose values
+    sit on a few levels (fewer distinct values than half its samples; q the smallest
+    spacing of the distinct values), else 0: a quantized output whose noise is below its
+    step has second differences that are mostly 0, and a MAD of 0 would call every step of
+    it wild."""
+    out = np.zeros(sub.shape[1])
+    for j in range(sub.shape[1]):
+        col = sub[:, j][np.isfinite(sub[:, j])]
+        levels = np.unique(col)
+        if 3 <= len(levels) < 0.5 * len(col):
+            out[j] = float(np.min(np.diff(levels))) / math.sqrt(12.0)
+    return out
 
 
 def subsample_step(n):

@@ -94,10 +94,12 @@ def test_wild_value_filter_keeps_a_sampled_vibration_and_still_finds_a_spike():
 def test_bins_begin_and_end_on_the_reference_stamps():
     t = 0.0007 + np.arange(1, 3001) * 1e-3               # MIMU at 1 kHz
     t_ref = 0.0007 + np.arange(1, 751) * 4e-3 + 1e-3      # reference at 250 Hz, offset 1 ms
-    m, start = sensor.bins(t, t_ref)
-    assert m % 4 == 0 and sensor.FAST_BIN_S <= m * 1e-3 < sensor.FAST_BIN_S + 4e-3
-    edges = t[start - 1::m]
-    assert np.all(np.min(np.abs(edges[:, None] - t_ref[None, :]), axis=1) < 1e-9)
+    for ref in (t_ref, t_ref[t_ref > 0.5013]):          # the reference starting late too
+        m, start = sensor.bins(t, ref)
+        assert m % 4 == 0 and sensor.FAST_BIN_S <= m * 1e-3 < sensor.FAST_BIN_S + 4e-3
+        edges = t[start - 1::m]
+        edges = edges[(edges >= ref[0]) & (edges <= ref[-1])]
+        assert np.all(np.min(np.abs(edges[:, None] - ref[None, :]), axis=1) < 1e-9)
 
 
 def test_a_lattice_is_found_and_a_continuous_output_is_not():
@@ -122,3 +124,25 @@ def test_bias_models_tell_an_offset_from_a_wander():
     wander = outputs._bias_models(t, gm - gm.mean(), b, s0, white)
     assert wander["wander"]["lr"] > wander["shift"]["lr"] and wander["wander"]["lr"] > 30
     assert wander["wander"]["lower"] <= 2e-3 <= wander["wander"]["upper"]
+
+
+def test_bias_tests_hold_their_level_on_units_of_the_class():
+    """Means of a unit of the class (flicker wander at the class's zero drift, a turn-on
+    offset of its spread, white noise), drawn from the class model itself: the offset and
+    the wander tests each reject at most their nominal 1 % (binomial 3 sigma over 600)."""
+    from mimunav.calibration import FLICKER_SPAN_FACTOR, flicker_covariance
+    rng = np.random.default_rng(3)
+    t = np.arange(1.0, 120.0, outputs.SPAN_S)
+    b, s0, white = outputs.CLASS_DRIFT["gyro"], 5e-5, 1e-11
+    span = t[-1] - t[0] + outputs.SPAN_S
+    cov = b ** 2 * flicker_covariance(t - outputs.SPAN_S / 2, t + outputs.SPAN_S / 2,
+                                      1 / (FLICKER_SPAN_FACTOR * span), 1 / outputs.FAST_S) \
+        + s0 ** 2 + white * np.eye(len(t))
+    root = np.linalg.cholesky(cov)
+    trials = 600
+    p = np.array([[m[k]["p"] for k in ("shift", "wander")] for m in
+                  (outputs._bias_models(t, root @ rng.standard_normal(len(t)), b, s0, white)
+                   for _ in range(trials))])
+    limit = 0.01 + 3 * math.sqrt(0.01 * 0.99 / trials)
+    assert np.mean(p[:, 0] < 0.01) <= limit, np.mean(p[:, 0] < 0.01)
+    assert np.mean(p[:, 1] < 0.01) <= limit, np.mean(p[:, 1] < 0.01)

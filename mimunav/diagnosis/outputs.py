@@ -76,11 +76,14 @@ def noise_sigma(residual):
 
 
 # ---- saturation ----------------------------------------------------------------------------
-def saturation(t, measured, predicted, rows, train, full_scale):
+def saturation(t, measured, predicted, rows, train, full_scale, steps=None):
     """(findings, clipped (N,) bool). measured, predicted: (N, 6) per-sample outputs
     (accel m/s^2, gyro rad/s, MIMU axes); rows: samples fit to test (not repaired, inside
-    the reference); train: the split's training samples; full_scale {"accel", "gyro"}."""
+    the reference); train: the split's training samples; full_scale {"accel", "gyro"};
+    steps (6,): a quantized channel's step (SI), which widens "beyond" by a step (a
+    quantized output's maximum sits up to half a step from its input's)."""
     sigma = noise_sigma(np.where(rows[:, None], measured - predicted, np.nan))
+    sigma = sigma + (0.0 if steps is None else np.asarray(steps) / SATURATION_MARGIN_SIGMA)
     clipped = np.zeros(len(t), bool)
     findings = []
     for c, (sensor, axis) in enumerate(CHANNELS):
@@ -153,28 +156,31 @@ def _saturation_finding(t, sensor, axis, sides, y, x):
 
 # ---- quantization --------------------------------------------------------------------------
 def quantization(t, measured, raw, gains, rows, sigma):
-    """Findings of channels whose output (SI) or raw volts (raw (N, 6) or None, gains (6,)
-    (SI per V)) sit on a lattice that matters against the white noise sigma (6,)."""
+    """Findings of channels whose output (SI) or raw volts (raw (N, 6) or None) sit on a
+    lattice that matters against the white noise sigma (6,). gains (6, 3): per channel the
+    output's slope in SI per V over the samples (median, smallest, largest: eqs. 1/3 are
+    not linear, so a volt step is not one SI step over the range - the interval spans it)."""
     findings = []
     for c, (sensor, axis) in enumerate(CHANNELS):
-        for domain, y, gain in (("output", measured[:, c], 1.0),
+        for domain, y, gain in (("output", measured[:, c], (1.0, 1.0, 1.0)),
                                 ("raw volts", None if raw is None else raw[:, c], gains[c])):
             if y is None:
                 continue
             q = lattice_step(y[rows])
-            if q is None or (q * gain) ** 2 / 12 < QUANTIZATION_SHARE * sigma[c] ** 2:
+            step = None if q is None else q * gain[0]
+            if step is None or step ** 2 / 12 < QUANTIZATION_SHARE * sigma[c] ** 2:
                 continue
             unit = "m/s^2" if sensor == "accel" else "rad/s"
-            rms = (float(sigma[c]), float(math.sqrt(max(sigma[c] ** 2 - (q * gain) ** 2 / 12,
-                                                        0.0))))
-            half = QUANTIZATION_RESOLUTION * q * gain
+            rms = (float(sigma[c]), float(math.sqrt(max(sigma[c] ** 2 - step ** 2 / 12, 0.0))))
+            lo = q * gain[1] * (1 - QUANTIZATION_RESOLUTION)
+            hi = q * gain[2] * (1 + QUANTIZATION_RESOLUTION)
             findings.append(_finding(
-                "quantization", sensor, axis, q * gain, (q * gain - half, q * gain + half),
+                "quantization", sensor, axis, step, (lo, hi),
                 spans(t, rows, f"{sensor}.{axis}: every sample"), rms, None,
                 domain=domain, step_in_domain=q,
                 note=f"the {domain} take only multiples of {q:.4g}"
                      f"{'' if domain == 'output' else ' V'}: quantization noise "
-                     f"{q * gain / math.sqrt(12):.3g} {unit} rms of the white noise "
+                     f"{step / math.sqrt(12):.3g} {unit} rms of the white noise "
                      f"{sigma[c]:.3g} ('after': the white noise without it)"))
             break
     return findings
@@ -213,18 +219,20 @@ def bias_tests(design, fit, quiet, alpha_level, cal, skip=()):
 
     Three models of the means x (m,) at times t, each Gaussian (`_bias_models`):
       class   x ~ N(0, B^2 F + s0^2 11' + w I): a unit of the class - an in-run wander of
-              the class's zero drift B (`CLASS_DRIFT`) as a flicker (1/f) bias (F: the covariance of its
-              window means, `calibration.flicker_covariance`, as the lab fits model it), a
+              the class's zero drift B (`CLASS_DRIFT`) as a flicker (1/f) bias (F: the
+              covariance of its window means, `calibration.flicker_covariance`), a
               turn-on offset of spread s0 (`calibration.TURN_ON`, the calibration's stated
               A0 / W0 error, the reference's bias) and the white share w;
       shift   the class's wander about a free constant mu (bias_shift);
       wander  the class plus a Gauss-Markov wander of free sigma (R_ij =
               exp(-|ti - tj| / tau)): bias_instability, sigma its coefficient.
     Every model also carries the channel's temperature reading as a free linear term, so a
-    thermal drift too weak for the library to name is not read as wander or offset. Each
-    alternative has one parameter more than the class: likelihood ratio with one degree of
-    freedom; the stronger of the two is named when its p-value passes
-    alpha_level."""
+    thermal drift too weak for the library to name is not read as wander or offset. The
+    tests: the offset's generalised-least-squares mean against the class's spread, z^2 =
+    mu^2 / (se^2 + s0^2) ~ chi2(1); the wander's likelihood ratio against the class (nested,
+    one parameter on its boundary: chi2(1) is conservative). Each at alpha_level; when both
+    pass, the model of the higher likelihood is named, and the other listed as not told
+    apart when their likelihoods are within chi2(1)'s 95 %."""
     if quiet.sum() < 100:
         return []
     fit = np.where(quiet[:, None], fit, np.nan)
@@ -243,10 +251,11 @@ def bias_tests(design, fit, quiet, alpha_level, cal, skip=()):
         white = float(np.nanvar(np.diff(fit[:, c])) / 2) * dt / SPAN_S
         m = _bias_models(t_means[keep], means[keep, c], CLASS_DRIFT[sensor], offset, white,
                          None if thermal is None else thermal[keep, c:c + 1])
-        best = max(("shift", "wander"), key=lambda k: m[k]["lr"])
-        p = float(stats.chi2.sf(m[best]["lr"], 1))
-        if p >= alpha_level:
+        passing = [k for k in ("shift", "wander") if m[k]["p"] < alpha_level]
+        if not passing:
             continue
+        best = max(passing, key=lambda k: m[k]["lr"])      # the better fit of the two
+        p = m[best]["p"]
         unit = "m/s^2" if sensor == "accel" else "rad/s"
         label = f"{sensor}.{axis}"
         where = spans(design.t, quiet, f"{label}: quiet flight")
@@ -256,7 +265,7 @@ def bias_tests(design, fit, quiet, alpha_level, cal, skip=()):
         # the flight cannot tell them apart - named, as the library's look-alikes are
         alike = ([{"effect": EFFECT_OF[other], "sensor": sensor, "axis": axis,
                    "label": f"{EFFECT_OF[other]} {label}"}]
-                 if stats.chi2.sf(m[other]["lr"], 1) < alpha_level
+                 if other in passing
                  and m[best]["lr"] - m[other]["lr"] < stats.chi2.isf(0.05, 1) else [])
         x = means[keep, c]
         if best == "shift":
@@ -357,9 +366,14 @@ def _bias_models(t, x, instability, offset, white, nuisance=None):
     plain = np.array([_profiled(x, nuisance[:, :0], s ** 2 * corr + base + turn_on)
                       for s in grid]) if nuisance.shape[1] else ll
     inside = grid[plain >= plain.max() - 0.5 * stats.chi2.isf(0.05, 1)]
+    lr_wander = max(2 * (ll.max() - l_class), 0.0)
+    # the offset's test: its GLS mean against the class's turn-on spread added to its own
+    # variance, z^2 = mu^2 / (se^2 + s0^2) ~ chi2(1) under the class (the likelihood ratio of
+    # a free mean against a random one is not nested: its chi2 would overstate it)
+    z2 = mu ** 2 / (cov_mu[0, 0] + offset ** 2)
     return {"shift": {"lr": max(2 * (l_shift - l_class), 0.0), "mu": mu,
-                      "se": math.sqrt(cov_mu[0, 0])},
-            "wander": {"lr": max(2 * (ll.max() - l_class), 0.0),
+                      "se": math.sqrt(cov_mu[0, 0]), "p": float(stats.chi2.sf(z2, 1))},
+            "wander": {"lr": lr_wander, "p": float(stats.chi2.sf(lr_wander, 1)),
                        "sigma": float(grid[int(np.argmax(plain))]), "lower": float(inside[0]),
                        "upper": float(inside[-1])}}
 

@@ -57,7 +57,7 @@ from scipy import stats
 
 from .. import effects
 from ..calibration import standard_errors
-from ..compensation import REPLACED, UNUSABLE
+from ..compensation import REPLACED, UNUSABLE, poly2
 from ..evaluation import compensated_mimu
 from ..effects import AXES, Conditions, derivative, vibration_power
 from ..sensors.mimu import G0, MimuUnit
@@ -157,7 +157,9 @@ def bins(t, t_reference):
     rate an integer fraction of the MIMU's), beginning and ending on reference stamps: the
     bin means of both IMUs then cover the same intervals exactly, so motion faster than the
     reference resolves (an airframe's vibration near its Nyquist rate) cancels in the
-    residual instead of being interpolated."""
+    residual instead of being interpolated. The phase is the first reference stamp the MIMU
+    shares; a lost MIMU sample shifts the bins after it off the reference's stamps (the bins
+    count samples)."""
     dt = float(np.median(np.diff(t)))
     m = max(1, round(FAST_BIN_S / dt))
     if t_reference is None or len(t_reference) < 2:
@@ -167,10 +169,9 @@ def bins(t, t_reference):
     if p < 1 or abs(ratio - p) > 1e-3:
         return m, 0
     m = max(p, math.ceil(FAST_BIN_S / dt / p - 1e-9) * p)     # never shorter than FAST_BIN_S
-    k = np.searchsorted(t_reference, t[:m + p + 1])
-    k = np.minimum(k, len(t_reference) - 1)
-    on = np.flatnonzero(np.abs(t_reference[k] - t[:m + p + 1]) < 1e-3 * dt)
-    return (m, int((on[0] + 1) % m)) if len(on) else (m, 0)
+    i = np.clip(np.searchsorted(t, t_reference), 0, len(t) - 1)   # the MIMU stamp at or
+    on = np.flatnonzero(np.abs(t[i] - t_reference) < 1e-3 * dt)  # after each reference one
+    return (m, int((i[on[0]] + 1) % m)) if len(on) else (m, 0)
 
 
 def _bin(x, bins, usable):
@@ -207,11 +208,14 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
     full_scale = {"accel": float(flight.mimu_range.get("accel_m_s2", MimuUnit.range_accel)),
                   "gyro": float(flight.mimu_range.get("gyro_rad_s", MimuUnit.range_gyro))}
     on_outputs = []
+    cands = library.candidates() if candidates is None else candidates
     if output_tests:
-        on_outputs, clipped = _output_findings(flight, cal, t, samples, full_scale)
+        on_outputs, clipped, quantized = _output_findings(flight, cal, t, samples, full_scale)
         usable = usable & ~clipped
-    design = _design(t, res, usable, cond,
-                     library.candidates() if candidates is None else candidates, m,
+        # a quantized output's error depends on where its input falls between two steps:
+        # terms of that channel alone would fit the lattice, not physics
+        cands = [c for c in cands if not _on_channels_only(c, quantized)]
+    design = _design(t, res, usable, cond, cands, m,
                      acc.prior(q_sf) + calibration_prior(cal), cal)
     design.q_vs = flight.mimu_mounting.attitude_wxyz
     if max_wander is not None:
@@ -245,7 +249,10 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
             removed[:, CHANNELS.index((f["sensor"], f["axis"]))] -= f["coefficient"]
     findings = findings + on_outputs
     after = _clean(design, removed)
-    unexplained = _scan(design, removed, alpha)
+    scanned = removed.copy()
+    if output_tests:
+        scanned[:, sorted(quantized)] = 0.0     # a lattice's own error is no excursion
+    unexplained = _scan(design, scanned, alpha)
     return SensorDiagnosis(findings, unexplained, rejected, within, design, train, conds,
                            {"before": _map(design, before, conds),
                             "after": _map(design, after, conds)},
@@ -254,23 +261,50 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
 
 
 def _output_findings(flight, cal, t, samples, full_scale):
-    """(saturation and quantization findings, samples clipped (N,) bool): the tests on the
-    outputs themselves (`outputs`), on every sample the compensation did not repair
-    (a sample stuck at an extreme is flagged SATURATED there and is tested here)."""
+    """(saturation and quantization findings, samples clipped (N,) bool, quantized channels
+    {channel index}): the tests on the outputs themselves (`outputs`), on every sample the
+    compensation did not repair (a sample stuck at an extreme is flagged SATURATED there and
+    is tested here). Quantization first: a quantized channel's clip test allows its step."""
     measured, predicted = samples["measured"], samples["predicted"]
     repaired = (samples["flags"] & (REPLACED | UNUSABLE)) != 0
     rows = samples["inside"] & ~repaired & np.isfinite(measured).all(axis=1) \
         & np.isfinite(predicted).all(axis=1)
     rows[0] = False
-    train = np.floor((t - t[0]) / SPLIT_BLOCK_S).astype(int) % 2 == 0
-    found, clipped = outputs.saturation(t, measured, predicted, rows, train, full_scale)
-    live = rows & ~clipped & (samples["flags"] == 0)
+    live = rows & (samples["flags"] == 0)
     sigma = outputs.noise_sigma(np.where(live[:, None], measured - predicted, np.nan))
     raw = flight.mimu_raw
     volts = None if raw is None else np.hstack([raw["accel_volts"], raw["gyro_volts"]])
-    gains = np.abs(np.r_[np.diag(cal.A1), np.diag(cal.W1)]) if cal is not None else np.ones(6)
-    found += outputs.quantization(t, measured, volts, gains, live, sigma)
-    return found, clipped
+    found = outputs.quantization(t, measured, volts, _volt_gains(cal, raw, live), live, sigma)
+    steps = np.zeros(6)
+    for f in found:
+        steps[CHANNELS.index((f["sensor"], f["axis"]))] = f["coefficient"]
+    train = np.floor((t - t[0]) / SPLIT_BLOCK_S).astype(int) % 2 == 0
+    clips, clipped = outputs.saturation(t, measured, predicted, rows, train, full_scale, steps)
+    return clips + found, clipped, set(np.flatnonzero(steps))
+
+
+def _on_channels_only(term, channels):
+    """Whether `term` acts on one channel and it is among `channels` (indices)."""
+    if term.get("sensor") not in ("accel", "gyro") or term.get("axis") not in AXES:
+        return False
+    return CHANNELS.index((term["sensor"], term["axis"])) in channels
+
+
+def _volt_gains(cal, raw, rows):
+    """(6, 3) the slope of each channel's output in SI per V of its own raw volts over the
+    samples `rows` (median, smallest, largest magnitude): A1_ii + 2 A2_i V + 3 A3_i V^2 at
+    the temperature-compensated V (eqs. 1-4; W for the gyros); ones without raw volts."""
+    if raw is None or cal is None or cal.base_model not in ("entire-63", "linear"):
+        return np.ones((6, 3))
+    out = []
+    for (a1, a2, a3), u, temp, poly in (
+            ((cal.A1, cal.A2, cal.A3), raw["accel_volts"], raw["accel_temperature"], cal.ct),
+            ((cal.W1, cal.W2, cal.W3), raw["gyro_volts"], raw["gyro_frequency"], cal.cw)):
+        v = (u - poly2(poly, temp))[rows]
+        slope = np.abs(np.diag(a1) + 2 * a2 * v + 3 * a3 * v * v)
+        out += [(np.median(slope[:, i]), slope[:, i].min(), slope[:, i].max())
+                for i in range(3)]
+    return np.asarray(out)
 
 
 def calibration_prior(cal):
@@ -592,31 +626,33 @@ def _select(design, train, alpha, full_scale):
         if not passing:
             break
         best, alternatives = _encompassing(fitter, current, passing, tests, threshold)
-        best = _whole_unit_or_one_axis(fitter, current, best, threshold)
+        best, set_aside = _whole_unit_or_one_axis(fitter, best, tests, threshold)
+        alternatives = [j for j in alternatives if j != best]
         chosen.append(dict(j=best, alternatives=alternatives,
                            p_train=math.exp(tests[best]["logp"]), threshold=threshold,
                            b_train=tests[best]["b"],
                            implausible=[library.label(design.terms[j]) for j in implausible]))
-        excluded |= {best, *alternatives}
+        excluded |= {best, *alternatives, *set_aside}
     return chosen, [_within(design, j, r) for j, r in within.items()
                     if j not in {c["j"] for c in chosen}]
 
 
-def _whole_unit_or_one_axis(fitter, current, best, level):
-    """A lever arm moves all three accelerometers by one vector; a proof-mass offset moves
-    one. A lever arm is kept only when the size effect of at least two accelerometer axes
-    is significant on its own (given the current choice) - else the strongest of those axes'
-    size effect replaces it (with one axis carrying it, the lever arm's fit of the other two
-    is their small transfer errors, which a 3-channel Wald test turns into significance)."""
+def _whole_unit_or_one_axis(fitter, best, tests, level):
+    """(chosen, [set aside]): a lever arm moves all three accelerometers by one vector; a
+    proof-mass offset moves one. A lever arm is kept only when the size effect of at least
+    two accelerometer axes passes this step on its own (`tests`: the step's plausible
+    candidates, their p-values with the stated accuracies) - else the strongest of those
+    axes' size effect replaces it and the lever arm is set aside (with one axis carrying it,
+    the lever arm's fit of the other two is their small transfer errors, which a 3-channel
+    Wald test turns into significance)."""
     design = fitter.design
     if design.terms[best]["effect"] != "lever_arm":
-        return best
-    axes = [j for j, term in enumerate(design.terms) if term["effect"] == "size_effect"]
-    tests = {j: _test(fitter, current + [j], j)["logp"] for j in axes}
-    alone = [j for j in axes if tests[j] <= math.log(level)]
+        return best, []
+    alone = [j for j, term in enumerate(design.terms) if term["effect"] == "size_effect"
+             and j in tests and tests[j]["logp"] <= math.log(level)]
     if len(alone) >= 2 or not alone:
-        return best
-    return min(alone, key=tests.get)
+        return best, []
+    return min(alone, key=lambda j: tests[j]["logp"]), [best]
 
 
 def _encompassing(fitter, current, passing, tests, level, contenders=10):

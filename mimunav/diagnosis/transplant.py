@@ -214,20 +214,28 @@ def _to_sensor(mounting, x_v):
 def _vibrate(flight, out):
     """(a copy of `flight` whose reference IMU carries a sinusoidal linear vibration of the
     airframe, the vibration the MIMU feels (N, 3) m/s^2 in its axes): VIBRATION_G per vehicle
-    axis at VIBRATION_HZ (phases 0, 1, 2 rad), on during the middle third of the flight and
-    its last tenth, as interval means over each sample's own interval; the MIMU's outputs
-    `out` get it in place. Its power on an axis is the mean square of this known signal, no
-    filter needed."""
+    axis at VIBRATION_HZ (phases 0, 1, 2 rad), switched on over the middle third of the
+    MIMU's record and its last tenth - one airframe signal, integrated exactly over each
+    sample's own interval by either IMU (so IMUs at different rates record the same
+    switching); the MIMU's outputs `out` get it in place. Its power on an axis is the mean
+    square of this known signal, no filter needed."""
+    t_m = flight.mimu_t
+    span = t_m[-1] - t_m[0]
+    spans = [(t_m[0] + span / 3, t_m[0] + 2 * span / 3), (t_m[0] + 0.9 * span, np.inf)]
+    om = 2 * math.pi * VIBRATION_HZ
+    phase = np.arange(3)[None, :]
+
+    def integral(t):            # int_-inf^t of the switched vibration, (N, 3)
+        total = np.zeros((len(t), 3))
+        for a, b in spans:
+            upper = np.clip(t, a, b)[:, None]
+            total += (np.cos(om * a + phase) - np.cos(om * upper + phase)) / om
+        return VIBRATION_G * G0 * total
+
     def interval_mean(t):
         dt = np.diff(t, prepend=t[0] - np.median(np.diff(t)))
-        om = 2 * math.pi * VIBRATION_HZ
-        ph = np.arange(3)[None, :]
-        mean = (np.cos(om * (t - dt)[:, None] + ph) - np.cos(om * t[:, None] + ph)) \
-            / (om * dt[:, None])
-        span = t[-1] - t[0]
-        on = ((t > t[0] + span / 3) & (t < t[0] + 2 * span / 3)) | (t > t[0] + 0.9 * span)
-        return VIBRATION_G * G0 * mean * on[:, None]
-    vibration = _to_sensor(flight.mimu_mounting, interval_mean(flight.mimu_t))
+        return (integral(t) - integral(t - dt)) / dt[:, None]
+    vibration = _to_sensor(flight.mimu_mounting, interval_mean(t_m))
     out["accel"] += vibration
     fog_f = flight.fog_f + _to_sensor(flight.fog_mounting, interval_mean(flight.fog_t))
     return dataclasses.replace(flight, fog_f=fog_f), vibration
