@@ -2,7 +2,7 @@
 flights with their own hidden effect taken out and another put in
 (`mimunav.diagnosis.transplant`), plus null carriers with and without airframe vibration.
 
-    python bench/transplant.py [--per-class 6] [--seed 1] [--report reports]
+    python bench/transplant.py [--per-class 6] [--nulls 20] [--seed 1] [--report reports]
 
 Each case draws a carrier (one of the six foreign logs), an axis, a sign and a magnitude in
 the class's range below; writes REPORT/diagnosis-transplant.md and .json. A case is named
@@ -124,6 +124,9 @@ def run_case(base, spec, effect, seed):
                                                      "order", "window_s") if k in key)
     match = [f for f in diag.findings if same(f)]
     case["named"] = bool(match)
+    case["others"] = [f["label"] for f in diag.findings
+                      if f not in match and not any(same(a) for a in
+                                                    f.get("indistinguishable_from", []))]
     case["indistinguishable"] = any(same(a) for f in diag.findings
                                     for a in f.get("indistinguishable_from", []))
     if match:
@@ -158,8 +161,8 @@ def markdown(cases, meta):
              "this flight; z is the Wald z of the true term fitted alone on the whole flight "
              "(NaN for the classes tested on the outputs).", "",
              "| class | cases | named (right for nulls) | named or not told apart | "
-             "truth in 95 % interval (of named) |",
-             "|---|---|---|---|---|"]
+             "truth in 95 % interval (of named) | cases with another finding |",
+             "|---|---|---|---|---|---|"]
     for effect in CLASSES:
         cs = [c for c in cases if c["class"] == effect]
         if not cs:
@@ -167,8 +170,9 @@ def markdown(cases, meta):
         named = sum(c["right"] for c in cs)
         cov = [c["covered"] for c in cs if "covered" in c]
         apart = sum(c["right"] or c.get("indistinguishable", False) for c in cs)
+        extra = sum(bool(c.get("others")) for c in cs)
         lines.append(f"| {effect} | {len(cs)} | {named}/{len(cs)} | {apart}/{len(cs)} | "
-                     f"{f'{sum(cov)}/{len(cov)}' if cov else '-'} |")
+                     f"{f'{sum(cov)}/{len(cov)}' if cov else '-'} | {extra}/{len(cs)} |")
     strong = [c for c in cases if not c["class"].startswith("null")
               and not (c.get("z", math.nan) <= 5)]          # z > 5, or tested on the outputs
     apart = sum(c["right"] or c.get("indistinguishable", False) for c in strong)
@@ -188,6 +192,7 @@ def markdown(cases, meta):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--per-class", type=int, default=6)
+    ap.add_argument("--nulls", type=int, default=20, help="null carriers of each kind")
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--report", default=str(ROOT / "reports"))
     ap.add_argument("--json")
@@ -198,13 +203,14 @@ def main():
     t0 = time.perf_counter()
     thermal = next(b for b in bases if b.endswith(THERMAL_CARRIER))
     jobs = [(thermal if effect in THERMAL else bases[int(rng.integers(len(bases)))], effect)
-            for effect in CLASSES for _ in range(args.per_class)]
+            for effect in CLASSES
+            for _ in range(args.nulls if effect.startswith("null") else args.per_class)]
     cases = []
     for k, (base, effect) in enumerate(tqdm(jobs, desc="transplants")):
         cases.append(run_case(base, draw(effect, rng, base), effect, args.seed * 1000 + k))
     wall = time.perf_counter() - t0
     meta = {"command": f"python bench/transplant.py --per-class {args.per_class} "
-                       f"--seed {args.seed}",
+                       f"--nulls {args.nulls} --seed {args.seed}",
             "machine": f"{platform.machine()} {os.cpu_count()} cores, "
                        f"{platform.python_version()}", "wall_s": wall}
     out = Path(args.report)
@@ -220,8 +226,10 @@ def main():
         f"transplants: {len(effects)} effects of {len(CLASSES) - 2} classes and {len(nulls)} "
         "nulls on the foreign flights (reports/diagnosis-transplant.md)",
         f"named {sum(c['right'] for c in effects)}/{len(effects)}, truth in interval "
-        f"{sum(cov)}/{len(cov)}, nulls quiet {sum(c['right'] for c in nulls)}/{len(nulls)}; "
-        f"{wall:.0f} s")], {"cases": cases}, args.json)
+        f"{sum(cov)}/{len(cov)}, another finding beside in "
+        f"{sum(bool(c.get('others')) for c in effects)}; nulls quiet "
+        f"{sum(c['right'] for c in nulls)}/{len(nulls)}; {wall:.0f} s")], {"cases": cases},
+        args.json)
 
 
 if __name__ == "__main__":

@@ -116,6 +116,9 @@ def _clip_side(y, x, rows, train, sigma, full_scale):
     if any(h is None for h in halves):
         return None
     level = float(np.mean(y[beyond]))
+    if np.std(y[beyond]) > SATURATION_MARGIN_SIGMA * sigma:
+        return None         # not at a rail: an output that moves beyond is a model error
+                            # (an unmodelled lever arm in a roll), not a clip
     if level >= SATURATION_OF_RANGE * full_scale:
         return None
     return {"level": level, "half": 1.96 * sigma / math.sqrt(beyond.sum()), "beyond": beyond,

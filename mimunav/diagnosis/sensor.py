@@ -604,7 +604,7 @@ def _select(design, train, alpha, full_scale):
     fitter = Fitter(design, train)
     for step in range(MAX_TERMS):
         current = [c["j"] for c in chosen]
-        tests, implausible = {}, []
+        tests, implausible, significant = {}, [], {}
         for j in range(m):
             if j in excluded:
                 continue
@@ -616,6 +616,7 @@ def _select(design, train, alpha, full_scale):
                     within[j] = res
                 continue
             res = dict(res, logp=res["logp_ref"])
+            significant[j] = res
             ok, limit = _plausible(design, j, res["b"], full_scale)
             if not ok:
                 implausible.append(j)
@@ -626,7 +627,8 @@ def _select(design, train, alpha, full_scale):
         if not passing:
             break
         best, alternatives = _encompassing(fitter, current, passing, tests, threshold)
-        best, set_aside = _whole_unit_or_one_axis(fitter, best, tests, threshold)
+        best, set_aside = _whole_unit_or_one_axis(fitter, best, tests, significant,
+                                                  threshold)
         alternatives = [j for j in alternatives if j != best]
         chosen.append(dict(j=best, alternatives=alternatives,
                            p_train=math.exp(tests[best]["logp"]), threshold=threshold,
@@ -637,22 +639,23 @@ def _select(design, train, alpha, full_scale):
                     if j not in {c["j"] for c in chosen}]
 
 
-def _whole_unit_or_one_axis(fitter, best, tests, level):
+def _whole_unit_or_one_axis(fitter, best, tests, significant, level):
     """(chosen, [set aside]): a lever arm moves all three accelerometers by one vector; a
     proof-mass offset moves one. A lever arm is kept only when the size effect of at least
-    two accelerometer axes passes this step on its own (`tests`: the step's plausible
-    candidates, their p-values with the stated accuracies) - else the strongest of those
-    axes' size effect replaces it and the lever arm is set aside (with one axis carrying it,
+    two accelerometer axes passes this step on its own (`significant`: every candidate of
+    the step with its p-value with the stated accuracies, a size effect beyond its physical
+    range too - it still shows that its axis moves) - else the strongest plausible one
+    (`tests`) replaces it and the lever arm is set aside (with one axis carrying it,
     the lever arm's fit of the other two is their small transfer errors, which a 3-channel
     Wald test turns into significance)."""
     design = fitter.design
     if design.terms[best]["effect"] != "lever_arm":
         return best, []
     alone = [j for j, term in enumerate(design.terms) if term["effect"] == "size_effect"
-             and j in tests and tests[j]["logp"] <= math.log(level)]
-    if len(alone) >= 2 or not alone:
+             and j in significant and significant[j]["logp"] <= math.log(level)]
+    if len(alone) != 1 or alone[0] not in tests:
         return best, []
-    return min(alone, key=lambda j: tests[j]["logp"]), [best]
+    return alone[0], [best]
 
 
 def _encompassing(fitter, current, passing, tests, level, contenders=10):
