@@ -146,3 +146,17 @@ def test_bias_tests_hold_their_level_on_units_of_the_class():
     limit = 0.01 + 3 * math.sqrt(0.01 * 0.99 / trials)
     assert np.mean(p[:, 0] < 0.01) <= limit, np.mean(p[:, 0] < 0.01)
     assert np.mean(p[:, 1] < 0.01) <= limit, np.mean(p[:, 1] < 0.01)
+
+
+def test_wander_profile_by_eigenvectors_equals_the_direct_likelihood():
+    rng = np.random.default_rng(4)
+    t = np.arange(1.0, 100.0, 2.0)
+    a = rng.standard_normal((len(t), len(t)))
+    base = a @ a.T + len(t) * np.eye(len(t))
+    corr = np.exp(-np.abs(t[:, None] - t[None, :]) / outputs.GM_TAU_S)
+    x, nuisance, grid = rng.standard_normal(len(t)), rng.standard_normal((len(t), 1)), \
+        np.array([0.1, 1.0, 3.0])
+    for cols in (nuisance, nuisance[:, :0]):
+        direct = [outputs._profiled(x, cols, s * s * corr + base) for s in grid]
+        assert np.allclose(outputs._wander_profile(x, cols, base, corr, grid), direct,
+                           rtol=1e-10)

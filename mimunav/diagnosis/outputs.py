@@ -342,6 +342,27 @@ def _profiled(x, nuisance, cov):
     return -0.5 * (logdet + x @ np.linalg.solve(cov, x) + len(x) * math.log(2 * math.pi))
 
 
+def _wander_profile(x, nuisance, base, corr, grid):
+    """`_profiled` of x under s^2 corr + base for every s of `grid`, at once: with the
+    generalised eigenvectors V of (corr, base) (V' base V = I, V' corr V = diag(lam)) the
+    covariance is diagonal, diag(1 + s^2 lam), in y = V' x (scipy.linalg.eigh)."""
+    from scipy.linalg import eigh
+    lam, vec = eigh(corr, base)
+    lam = np.maximum(lam, 0.0)
+    _, logdet_base = np.linalg.slogdet(base)
+    y, z = vec.T @ x, vec.T @ nuisance
+    d = 1.0 + np.outer(grid ** 2, lam)                  # (g, m) the diagonal per s
+    if z.shape[1]:
+        a = np.einsum("mk,gm,ml->gkl", z, 1.0 / d, z)
+        b = np.einsum("mk,gm,m->gk", z, 1.0 / d, y)
+        beta = np.linalg.solve(a, b[:, :, None])[:, :, 0]
+        r = y[None, :] - beta @ z.T
+    else:
+        r = np.broadcast_to(y, d.shape)
+    quad = np.sum(r ** 2 / d, axis=1)
+    return -0.5 * (logdet_base + np.log(d).sum(axis=1) + quad + len(x) * math.log(2 * math.pi))
+
+
 def _bias_models(t, x, instability, offset, white, nuisance=None):
     """The class, shift and wander models of `bias_tests` on the means x at times t, each
     with the columns `nuisance` (m, k: the channel's temperature, so a slow thermal term
@@ -363,11 +384,11 @@ def _bias_models(t, x, instability, offset, white, nuisance=None):
     mu = float((cov_mu @ inv.T @ x)[0])
     l_shift = _profiled(x, with_mean, base)
     grid = instability * np.geomspace(1e-2, 1e3, 301)
-    ll = np.array([_profiled(x, nuisance, s ** 2 * corr + base + turn_on) for s in grid])
+    ll = _wander_profile(x, nuisance, base + turn_on, corr, grid)
     # sigma and its interval without the temperature: once the wander is called, a slow
     # temperature that happens to follow it would take part of it away (low estimates)
-    plain = np.array([_profiled(x, nuisance[:, :0], s ** 2 * corr + base + turn_on)
-                      for s in grid]) if nuisance.shape[1] else ll
+    plain = _wander_profile(x, nuisance[:, :0], base + turn_on, corr, grid) \
+        if nuisance.shape[1] else ll
     inside = grid[plain >= plain.max() - 0.5 * stats.chi2.isf(0.05, 1)]
     lr_wander = max(2 * (ll.max() - l_class), 0.0)
     # the offset's test: its GLS mean against the class's turn-on spread added to its own
