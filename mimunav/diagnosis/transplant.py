@@ -27,7 +27,6 @@ stationary sigma of an added first-order Gauss-Markov wander (tau 100 s), `lever
 (`imu:all=a/b/c`) the position error in the vehicle frame (m).
 """
 import dataclasses
-import json
 import math
 from pathlib import Path
 
@@ -239,11 +238,3 @@ def _vibrate(flight, out):
     out["accel"] += vibration
     fog_f = flight.fog_f + _to_sensor(flight.fog_mounting, interval_mean(flight.fog_t))
     return dataclasses.replace(flight, fog_f=fog_f), vibration
-
-
-def keys(directory):
-    """[(base path, key dict)] of the foreign development set in `directory`."""
-    out = []
-    for path in sorted(Path(directory).glob("foreign-*.key.json")):
-        out.append((str(path)[:-len(".key.json")], json.loads(path.read_text())))
-    return out
