@@ -167,9 +167,9 @@ def _scalar(term, cond, x, theta, i):
 
 
 def vibration_power(t, x):
-    """(N,) or (N, k): the vibration power of x (N,) or (N, k) at uniform times t (s): the centred VIBRATION_WINDOW_S
-    mean square of x high-passed at VIBRATION_CUTOFF_HZ; zero when the sample rate cannot
-    carry that band (below 4 x the corner)."""
+    """(N,) or (N, k): the vibration power of x (N,) or (N, k) at uniform times t (s): the
+    centred VIBRATION_WINDOW_S mean square of x high-passed at VIBRATION_CUTOFF_HZ; zero when
+    the sample rate cannot carry that band (below 4 x the corner)."""
     rate = 1.0 / float(np.median(np.diff(t)))
     if rate < 4 * VIBRATION_CUTOFF_HZ or len(t) < 64:
         return np.zeros(np.shape(x))

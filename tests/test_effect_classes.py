@@ -14,8 +14,8 @@ from mimunav import compensation, effects
 from mimunav.diagnosis import outputs, sensor, transplant
 
 FOREIGN = os.path.join(os.path.dirname(__file__), "..", "..", "shared", "data", "foreign-flights")
-needs_foreign = pytest.mark.skipif(not os.path.isdir(FOREIGN),
-                                   reason="shared/data/foreign-flights is not beside the repository")
+needs_foreign = pytest.mark.skipif(
+    not os.path.isdir(FOREIGN), reason="shared/data/foreign-flights is not beside the repository")
 
 
 def _diagnose(carrier, spec):
@@ -41,8 +41,8 @@ def test_every_effect_class_is_named_with_its_truth_in_the_interval(carrier, spe
     a Gauss-Markov path of 100 s can be mostly an offset, and is then named bias_shift -
     bench/transplant.py measures the classes over drawn paths, axes and magnitudes)."""
     diag, key = _diagnose(carrier, spec)
-    named = [f for f in diag.findings
-             if (f["effect"], f["sensor"], f["axis"]) == (key["effect"], key["sensor"], key["axis"])]
+    named = [f for f in diag.findings if (f["effect"], f["sensor"], f["axis"])
+             == (key["effect"], key["sensor"], key["axis"])]
     assert named, [f["label"] for f in diag.findings]
     f = named[0]
     truth = np.atleast_1d(key.get("vector", key.get("coefficient")))

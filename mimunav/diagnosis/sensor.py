@@ -153,8 +153,9 @@ def residual(flight, cal):
 
 def bins(t, t_reference):
     """(m, start): bins of m consecutive MIMU samples from sample `start` on, FAST_BIN_S long
-    or the shortest length above it that is a whole number of reference intervals, and, where the reference IMU's stamps are a subset of the MIMU's (its
-    rate an integer fraction of the MIMU's), beginning and ending on reference stamps: the
+    or the shortest length above it that is a whole number of reference intervals, and,
+    where the reference IMU's stamps are a subset of the MIMU's (its rate an integer
+    fraction of the MIMU's), beginning and ending on reference stamps: the
     bin means of both IMUs then cover the same intervals exactly, so motion faster than the
     reference resolves (an airframe's vibration near its Nyquist rate) cancels in the
     residual instead of being interpolated. The phase is the first reference stamp the MIMU
@@ -460,7 +461,8 @@ class Fitter:
 
     def _profile(self, c, cols, pinned=False):
         """(Grams, r, log-likelihood) of channel c at every wander level, with the candidate
-        columns `cols` (indices into the channel's columns) in the mean and the reference inputs (columns 1-3) under the reference's prior: the
+        columns `cols` (indices into the channel's columns) in the mean and the reference
+        inputs (columns 1-3) under the reference's prior: the
         likelihood of y ~ N(X beta, r (wander) + R P R'), by Woodbury over the 3 prior
         columns, with r profiled (fixed-point on the penalized residual)."""
         g = self.gram[c]
