@@ -22,6 +22,8 @@ Methods (seed S1 section 3.1 unless stated):
   twelve-position  seed S2: twelve statics -> A0, A1; gyro biases from the mean of all
                    twelve (Earth rate and g cancel) with the datasheet scale (5 mV/(deg/s))
   cold-start       seed S3 (see `fit_cold_start`)
+  rotation         seed S4 eqs. 4-5: the gyros' k0..k3 from the unit turning on a rotation
+                   mechanism on a level rate table (`rotation_calibration`, model rotation-cubic)
   ellipsoid        seed S4 / S1 ref [3], field calibration: static orientations nobody
                    measured (`lab` procedure hand-held) -> A0 and an upper-triangular A1
                    from |A0 + A1 u| = g alone (`fit_ellipsoid`); gyro biases as S2's
@@ -58,7 +60,7 @@ from .flightlog import FlightLog
 from .errors import InputError
 
 POSITION_NAMES = ["x up", "x down", "y up", "y down", "z up", "z down"]    # lab.SIX_POSITIONS
-METHODS = ("entire", "traditional", "twelve-position", "cold-start", "ellipsoid")
+METHODS = ("entire", "traditional", "twelve-position", "cold-start", "ellipsoid", "rotation")
 T_REF = 25.0
 AXES = "xyz"
 G0 = 9.80665                # standard gravity, m/s^2
@@ -648,6 +650,9 @@ def calibrate(runs, method, unit="", propagate=True, noise=None):
     class's), used instead of the unit class's assumed bias instability."""
     if method not in METHODS:
         raise FitError(f"unknown method {method!r}; one of {', '.join(METHODS)}")
+    if method == "rotation":            # seed S4 eqs. 4-5: its own model and file
+        from .rotation_calibration import fit
+        return fit(runs, unit=unit, noise=noise)
     runs = [r if isinstance(r, LabRun) else LabRun.load(r) for r in runs]
     for r in runs if noise else []:
         r.noise = dict(r.noise, instability={**r.noise["instability"], **noise["instability"]},

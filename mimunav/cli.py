@@ -158,10 +158,23 @@ def _drift(args):
 
 def _calibration_compare(args):
     """A fitted calibration against the unit's truth file, coefficient by coefficient."""
+    import json
+
     from .compensation import Calibration
     from .reports.calibration import compare
     from .sensors import MimuUnit
-    rows, families = compare(Calibration.load(args.fit), MimuUnit.load(args.unit))
+    from . import rotation_calibration
+    unit = MimuUnit.load(args.unit)
+    try:
+        with open(args.fit) as fh:
+            doc = json.load(fh)
+    except (OSError, ValueError) as exc:
+        raise InputError(f"{args.fit}: cannot read a calibration file ({exc})") from None
+    if isinstance(doc, dict) and doc.get("model") == rotation_calibration.MODEL:
+        rows, families = rotation_calibration.compare(
+            rotation_calibration.RotationCalibration.from_dict(doc, args.fit), unit)
+    else:
+        rows, families = compare(Calibration.load(args.fit), unit)
     print(f"{'coefficient':14s} {'fitted':>13s} {'true (fit gauge)':>17s} {'std error':>11s} "
           f"{'z':>7s}")
     for name, fitted, true, se, z in rows:
@@ -334,6 +347,24 @@ def _diagnose(args):
     return 0
 
 
+# import options -> (the importers that read them, their default): one given to another
+# importer is refused, not silently ignored
+IMPORT_OPTIONS = {
+    "imu_instance": (("dataflash",), 0), "reference": (("dataflash",), "auto"),
+    "gps_status": (("dataflash",), 3), "imu_topic": (("ros2",), None),
+    "fix_topic": (("ros2",), None), "pose_topic": (("ros2",), None), "origin": (("ros2",), None),
+    "reference_status": (("ros2",), None), "reference_sigma": (("ros2",), np.inf),
+    "solutions": (("rtklib",), ["fix"])}
+
+
+def _refuse_foreign_options(args, options):
+    given = [f"--{name.replace('_', '-')}" for name, (kinds, default) in options.items()
+             if args.kind not in kinds and getattr(args, name) != default]
+    if given:
+        raise InputError(f"{', '.join(given)}: not read by the {args.kind} importer "
+                         f"(see `mimunav import --help`: each option names its importers)")
+
+
 def _import(args):
     """A foreign recording into a contract log."""
     from . import importers
@@ -345,6 +376,7 @@ def _import(args):
                                                   if source.is_dir() else []))
     mounting = (Mounting.from_rpy_deg(args.mounting_rpy_deg) if args.mounting_rpy_deg
                 else None)
+    _refuse_foreign_options(args, IMPORT_OPTIONS)
     if args.kind == "rtklib":
         names = {v: k for k, v in rtklib.SOLUTION_NAMES.items()}
         rec = rtklib.read_drive(args.source, mounting=mounting,
@@ -530,6 +562,12 @@ def _report(args):
         md = recording.write(args.log, args.output, force=args.force, min_speed=args.min_speed)
         print(f"wrote {md}")
         return 0
+    if args.kind == "rotation-calibration":
+        from .reports import rotation_calibration
+        md, png = rotation_calibration.write(args.output, n_units=args.units,
+                                             first_seed=args.seed, force=args.force)
+        print(f"wrote {md}\nwrote {png}")
+        return 0
     if args.kind == "modulation":
         from .reports import modulation
         md = modulation.write(args.output, units=min(args.units, 50), seed=args.seed,
@@ -634,7 +672,8 @@ def build_parser():
     p.add_argument("--method", required=True,
                    help="entire: chamber + rate-table + centrifuge; traditional: "
                    "multi-position + single-axis-rate; twelve-position; cold-start; ellipsoid: "
-                   "a hand-held run")
+                   "a hand-held run; rotation: a rotation run -> the gyros' k0..k3 (seed S4, "
+                   "model rotation-cubic)")
     p.add_argument("-o", "--output", required=True, help="calibration file to write (.json)")
     p.add_argument("--unit-name", default="", help="unit name written to the file")
     p.add_argument("--noise", help="the unit's measured random errors (mimunav-noise/1 from "
@@ -644,7 +683,8 @@ def build_parser():
     p.set_defaults(func=_calibrate)
     p = sub.add_parser("calibration", help="work with calibration files: compare FIT UNIT")
     compare_sub = p.add_subparsers(dest="action", required=True)
-    q = compare_sub.add_parser("compare", help="a fitted entire-63 file against the unit's "
+    q = compare_sub.add_parser("compare", help="a fitted entire-63 (or rotation-cubic) file "
+                               "against the unit's "
                                "truth file (mimunav-unit/1), in the fit's gauge: fitted, true, "
                                "standard error and z of every coefficient, RMS z per family")
     q.add_argument("fit", help="fitted calibration (mimunav-calibration/1, entire-63)")
@@ -823,8 +863,10 @@ def build_parser():
                        "an imported recording's metadata, channels, free-inertial windows and "
                        "diagnosis; modulation: seed S4's rotation modulation measured - "
                        "platform configurations against error sources, the seed's claims "
-                       "checked)")
-    p.add_argument("kind", choices=("calibration", "recording", "modulation"),
+                       "checked; rotation-calibration: seed S4's gyro k0..k3 from the rotation "
+                       "lab on many units, z-scores and held-out check)")
+    p.add_argument("kind", choices=("calibration", "recording", "modulation",
+                                    "rotation-calibration"),
                    help="calibration; recording: LOG (a contract log with /mimu/imu and "
                    "/truth/state, e.g. from mimunav import) into the folder -o")
     p.add_argument("log", nargs="?", help="recording: the log (.mcap)")

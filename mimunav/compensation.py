@@ -115,6 +115,10 @@ class Calibration:
         model = doc.get("model")
         base = (model[:-len(FOUND_SUFFIX)] if isinstance(model, str)
                 and model.endswith(FOUND_SUFFIX) else model)
+        if base == "rotation-cubic":
+            fail("model 'rotation-cubic' is the gyros' scale factor from a rotation run (seed "
+                 "S4, `mimunav.rotation_calibration`): it has no accelerometer terms and "
+                 "cannot compensate a log; compare it with `mimunav calibration compare`")
         if base not in MODELS:
             fail(f"model {model!r} is not one of {', '.join(MODELS)} (optionally with "
                  f"{FOUND_SUFFIX!r})")

@@ -40,6 +40,20 @@ inertial-test equipment datasheets:
     radius_m            0.1 mm per position                         (centrifuge radius)
     axis_offset_m       1 mm per position, unit origin from the rate-table axis (not
                         propagated: its centripetal g-sensitivity effect is < 1e-4 deg/s)
+    mechanism_axis_rad  3 arcsec per horizontal axis, per run: the rotation mechanism's
+                        axis on the table plate (procedure `rotation`; as a fixture face)
+
+Procedure `rotation` (seed S4, Xu et al. 2011, eqs. 4-5): a rotation mechanism stands on
+the rate table with its axis horizontal along platform x and turns the unit continuously at
+MECHANISM_RATE about that axis, while the table turns at the set-point rates: a gyro
+perpendicular to the mechanism axis sees the table rate as W sin(phi) over every
+revolution (eq. 5). The mechanism frame m: z along its axis; at angle phi = 0, m -> platform
+is MECHANISM_BASE (m z = platform x). For this procedure a position is the unit's mounting
+on the mechanism (`fixture_attitude_wxyz` = sensor -> m) and the mechanism angle phi is
+logged at every MIMU sample on `/mimu/platform` (sensor_msgs/msg/JointState, joint
+'platform': position rad, read by a circular grating of ENCODER_RESOLUTION_RAD, velocity
+rad/s); the `lab` metadata carries `mechanism` {base_attitude_wxyz, rate_rad_s,
+encoder_resolution_rad}.
 """
 import json
 import math
@@ -65,7 +79,8 @@ ROOM_C = 25.0                       # lab air, degC
 ARCSEC = math.pi / 180 / 3600
 DEG = math.pi / 180
 EQUIPMENT = {"table_tilt_rad": 2 * ARCSEC, "fixture_rad": 3 * ARCSEC, "rate_rel": 1e-6,
-             "centrifuge_rate_rel": 1e-5, "radius_m": 1e-4, "axis_offset_m": 1e-3}
+             "centrifuge_rate_rel": 1e-5, "radius_m": 1e-4, "axis_offset_m": 1e-3,
+             "mechanism_axis_rad": 3 * ARCSEC}
 CENTRIFUGE_RADIUS_M = 6.5           # arm rate at 30 g is 385 deg/s: inside the gyro range and
                                     # the rate-table span, as the C fit (eqs. 9-10) needs
 CHAMBER_RAMP_C_PER_S = 2.0 / 60     # chamber air slews 2 degC/min between set points
@@ -73,6 +88,12 @@ PROCEDURES = ("thermal-chamber", "rate-table", "centrifuge", "multi-position",
               "single-axis-rate", "twelve-position", "cold-start", "rotation", "hand-held")
 HAND_HELD_POSITIONS = 24            # orientations of the hand-held procedure (seed S4)
 HAND_HELD_SEED = 2024               # draws the hand's orientations (the same every run)
+# procedure `rotation` (module doc): the mechanism's rate (one turn in 10 s, two per 20 s
+# set point) and its circular grating's resolution, 1.58 arcsec (seed S4, Xu et al. 2011)
+MECHANISM_RATE = 36 * math.pi / 180
+MECHANISM_RAMP_S = 1.0
+ENCODER_RESOLUTION_RAD = 1.58 * math.pi / 180 / 3600
+MECHANISM_BASE = (math.sqrt(0.5), 0.0, math.sqrt(0.5), 0.0)   # 90 deg about y: m z -> p x
 
 
 def _fixture(axes):
@@ -128,6 +149,7 @@ class Plan:
     power_cycle: bool = False        # each position a separate cold power-on (seed S3)
     cool_down_s: float = 0.0
     attitudes_known: bool = True     # False: /lab/state records NaN attitudes (hand-held)
+    mechanism_rate: float = 0.0      # rad/s: the unit turns on the rotation mechanism
 
 
 def plan(procedure):
@@ -188,13 +210,19 @@ def plan(procedure):
                     [Point(p, hold_s=5.0, settle_s=1.0) for p in range(HAND_HELD_POSITIONS)],
                     warm_up_s=300.0, attitudes_known=False)
     if procedure == "rotation":
-        # seed S4: the IMU turned on a level rate table about one (z) axis, both ways, for
-        # w_out = k0 + k1 w + k2 w^2 + k3 w^3
-        rates = [r * DEG for r in range(0, 401, 20)]
-        pts = [Point(4, sign * r, hold_s=10.0, ramp_s=2.0 if r else 0.0)
-               for r in rates for sign in (1, -1)]
-        return Plan(procedure, "rotation about z on a level table, 0-400 deg/s, both ways",
-                    100.0, six, pts)
+        # seed S4 eqs. 4-5: the unit on the rotation mechanism (axis horizontal), the table
+        # at 0-400 deg/s in 40 deg/s steps both ways, 20 s each; three mountings, each
+        # sensor axis along the mechanism axis once, so each gyro is swept in two
+        on_mechanism = [_fixture(a) for a in (((1, 0, 0), (0, 1, 0)),     # z along the axis
+                                              ((0, 0, 1), (1, 0, 0)),     # x along the axis
+                                              ((0, 1, 0), (0, 0, 1)))]    # y along the axis
+        rates = [r * DEG for r in range(0, 401, 40)]
+        pts = [Point(p, sign * r, hold_s=20.0, ramp_s=2.0 if r else 0.0,
+                     settle_s=5.0 if (r, sign) == (0, 1) else 0.0)
+               for p in range(3) for r in rates for sign in (1, -1)]
+        return Plan(procedure, "rotation mechanism (horizontal axis, 36 deg/s) on a level rate "
+                    "table, 0-400 deg/s in 40 deg/s steps both ways, 3 mountings", 100.0,
+                    [(q, on_axis) for q in on_mechanism], pts, mechanism_rate=MECHANISM_RATE)
     raise InputError(f"unknown lab procedure {procedure!r}; one of {', '.join(PROCEDURES)}")
 
 
@@ -246,6 +274,8 @@ class _Segment:
     dtheta: list = field(default_factory=list)
     dv: list = field(default_factory=list)
     env: list = field(default_factory=list)
+    angle: list = field(default_factory=list)      # rotation mechanism angle phi, rad
+    angle_rate: list = field(default_factory=list)  # its rate, rad/s
 
 
 def draw_setting_errors(plan_, seed, equipment=None):
@@ -257,7 +287,8 @@ def draw_setting_errors(plan_, seed, equipment=None):
             "rate_rel": rng.normal(0, eq[plan_.rate_rel_key]),
             "fixture_rad": rng.normal(0, eq["fixture_rad"], (n_pos, 3)),
             "radius_m": rng.normal(0, eq["radius_m"], n_pos),
-            "axis_offset_m": rng.normal(0, eq["axis_offset_m"], (n_pos, 2))}
+            "axis_offset_m": rng.normal(0, eq["axis_offset_m"], (n_pos, 2)),
+            "mechanism_axis_rad": rng.normal(0, eq.get("mechanism_axis_rad", 0.0), 2)}
 
 
 def lab_motion(plan_, errors, progress=False):
@@ -300,9 +331,17 @@ def lab_motion(plan_, errors, progress=False):
         n = int(round((t_pt - t_now) / dt))
         t_grid = t_now + np.arange(n + 1) * dt
         motion = TableMotion(t_now, t_grid[-1], ramps, 0.0, errors["table_tilt_rad"])
-        run_ = truth.generate(motion, t_grid)
-        dth, dv = Mounting(q_true, r_true).sensor_increments(run_)
         seg = segments[-1]
+        if plan_.mechanism_rate:
+            turning = mechanism_motion(motion, plan_, q_true, errors, t_grid[-1])
+            run_ = truth.generate(turning, t_grid)
+            dth, dv = run_.dtheta, run_.dv
+            phi = turning.angle(t_grid)
+            seg.angle.append(phi[1:] if seg.t else phi)
+            seg.angle_rate.append(turning.rate(t_grid[1:] if seg.t else t_grid))
+        else:
+            run_ = truth.generate(motion, t_grid)
+            dth, dv = Mounting(q_true, r_true).sensor_increments(run_)
         if not seg.t:                      # the power-on sample repeats the first interval
             seg.t.append(t_grid[:1]), seg.dtheta.append(dth[:1]), seg.dv.append(dv[:1])
             seg.env.append(np.array([air]))
@@ -333,8 +372,23 @@ def lab_motion(plan_, errors, progress=False):
         t_now = t_pt
         bar.update()
     bar.close()
-    return [_Segment(*(np.concatenate(x) for x in (s.t, s.dtheta, s.dv, s.env)))
+    return [_Segment(*(np.concatenate(x) if x else np.empty(0)
+                       for x in (s.t, s.dtheta, s.dv, s.env, s.angle, s.angle_rate)))
             for s in segments], states
+
+
+def mechanism_motion(table, plan_, q_ps, errors, t_end):
+    """The unit turning on the rotation mechanism (module doc) on the table motion `table`:
+    a `modulation.RotatingMotion` whose body is the sensor, its mechanism axis carrying the
+    run's setting error `mechanism_axis_rad` (platform axes) and the unit mounted at q_ps."""
+    from .modulation import Platform, RotatingMotion
+    tilt = errors["mechanism_axis_rad"]
+    base = (quaternion.from_rotation_vector([tilt[0], tilt[1], 0.0])
+            * quaternion.from_float_array(MECHANISM_BASE))
+    mechanism = Platform("continuous", plan_.mechanism_rate, ramp_s=MECHANISM_RAMP_S,
+                         base_wxyz=tuple(quaternion.as_float_array(base)),
+                         imu_wxyz=tuple(np.asarray(q_ps, float)))
+    return RotatingMotion(table, mechanism, t_end)
 
 
 def record(plan_, unit, segments, seed, hidden=None):
@@ -346,6 +400,10 @@ def record(plan_, unit, segments, seed, hidden=None):
                               warm_up_s=plan_.warm_up_s) for s in segments]
     raw = {k: np.concatenate([r[k] for r in raws]) for k in raws[0]}
     raw["sample_index"] = np.arange(len(raw["t"]), dtype=np.uint64)
+    if plan_.mechanism_rate:        # the grating reads the angle to its resolution
+        phi = np.concatenate([s.angle for s in segments])
+        raw["mechanism_angle"] = np.round(phi / ENCODER_RESOLUTION_RAD) * ENCODER_RESOLUTION_RAD
+        raw["mechanism_rate"] = np.concatenate([s.angle_rate for s in segments])
     return raw
 
 
@@ -378,7 +436,11 @@ def lab_metadata(plan_, equipment=None):
             "site": dict(SITE, gravity_m_s2=site_gravity(), earth_rate_rad_s=earth.OMEGA),
             "equipment": {**eq, "rate_rel": eq[plan_.rate_rel_key]},
             "room_temperature_c": ROOM_C, "warm_up_s": plan_.warm_up_s,
-            "power_cycle": plan_.power_cycle}
+            "power_cycle": plan_.power_cycle,
+            **({"mechanism": {"base_attitude_wxyz": list(MECHANISM_BASE),
+                              "rate_rad_s": plan_.mechanism_rate,
+                              "encoder_resolution_rad": ENCODER_RESOLUTION_RAD}}
+               if plan_.mechanism_rate else {})}
 
 
 def state_arrays(states):
@@ -409,5 +471,8 @@ def _write(out, plan_, raw, states, equipment, force):
                   sample_index=raw["sample_index"], gyro_volts=raw["gyro_volts"],
                   accel_volts=raw["accel_volts"], accel_temperature=raw["accel_temperature"],
                   gyro_frequency=raw["gyro_frequency"])
+        if "mechanism_angle" in raw:
+            log.write("/mimu/platform", S.JOINT_STATE, "platform", stamp(raw["t"]),
+                      **S.platform_fields(raw["mechanism_angle"], raw["mechanism_rate"]))
         ts, fields = state_arrays(states)
         log.write("/lab/state", S.LAB_STATE, "lab", stamp(ts), **fields)

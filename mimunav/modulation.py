@@ -41,7 +41,12 @@ class Platform:
     inclination_rad: the IMU tilted on the platform about the horizontal platform axis at
     azimuth tilt_azimuth_rad from platform x (MAGIC_INCLINATION at -45 deg puts every sensor
     axis at 54.74 deg from the turning axis); axis_tilt_rad: a small error of the axis
-    direction (rotation vector about vehicle x, y)."""
+    direction (rotation vector about vehicle x, y); base_wxyz: the axis' nominal attitude
+    in the vehicle (platform frame at angle 0 -> vehicle, identity: the axis along vehicle z);
+    imu_wxyz: the IMU's nominal mounting on the platform (sensor -> platform), before the
+    inclination; imu_deviation_rad: the installation's deviation from that design (rotation
+    vector, platform axes: the true mounting is exp(deviation) q_ps_nominal) - a log's
+    metadata states the design, the deviation is what `installation_tilt` finds."""
     mode: str = "continuous"
     rate_rad_s: float = math.radians(10.0)
     swing_rad: float = 2 * math.pi
@@ -50,6 +55,9 @@ class Platform:
     inclination_rad: float = 0.0
     axis_tilt_rad: tuple = (0.0, 0.0)
     tilt_azimuth_rad: float = 0.0
+    base_wxyz: tuple = (1.0, 0.0, 0.0, 0.0)
+    imu_wxyz: tuple = (1.0, 0.0, 0.0, 0.0)
+    imu_deviation_rad: tuple = (0.0, 0.0, 0.0)
 
     def __post_init__(self):
         if self.mode not in MODES:
@@ -73,12 +81,19 @@ class Platform:
         return rate_ppoly(ramps, max(t, t_end))
 
     def q_bp0(self):
-        return quaternion.from_rotation_vector([*self.axis_tilt_rad, 0.0])
+        return (quaternion.from_rotation_vector([*self.axis_tilt_rad, 0.0])
+                * quaternion.from_float_array(self.base_wxyz))
+
+    def q_ps_nominal(self):
+        """The designed mounting of the IMU on the platform (sensor -> platform)."""
+        a = self.tilt_azimuth_rad
+        return (quaternion.from_rotation_vector(
+            self.inclination_rad * np.array([math.cos(a), math.sin(a), 0.0]))
+            * quaternion.from_float_array(self.imu_wxyz))
 
     def q_ps(self):
-        a = self.tilt_azimuth_rad
-        return quaternion.from_rotation_vector(
-            self.inclination_rad * np.array([math.cos(a), math.sin(a), 0.0]))
+        """The true mounting: the design turned by the installation deviation."""
+        return quaternion.from_rotation_vector(self.imu_deviation_rad) * self.q_ps_nominal()
 
 
 def _rz(theta):
@@ -163,6 +178,16 @@ def free_inertial(profile, platform, errors, seed, duration_s=600.0, rate_hz=100
     (ERRORS-style keys, 1 sigma per axis) added, navigated free-inertial by the strapdown
     navigator: end-point horizontal position error (m), tilt and heading errors of the
     vehicle attitude (rad)."""
+    motion, vehicle, ref = _fly(profile, platform, errors, seed, duration_s, rate_hz)
+    pos = vehicle.position_error(ref)[-1]
+    att = vehicle.attitude_error(ref)[-1]
+    return {"horizontal_m": float(np.hypot(pos[0], pos[1])),
+            "tilt_rad": float(np.hypot(att[0], att[1])), "heading_rad": float(abs(att[2]))}
+
+
+def _fly(profile, platform, errors, seed, duration_s, rate_hz, q_bs=None):
+    """(motion, navigated vehicle trajectory, true vehicle trajectory) of `free_inertial`;
+    the navigated vehicle attitude from q_bs(motion, t) (default the true one)."""
     from . import evaluation
     from .sensors import Mounting, noise
     from .trajectory import Trajectory
@@ -184,15 +209,13 @@ def free_inertial(profile, platform, errors, seed, duration_s=600.0, rate_hz=100
     initial = {"t": 0.0, "lat": start["lat"], "lon": start["lon"], "h": start["h"],
                "v_ned": start["v_ned"], "q_nb": start["q_nb"]}
     nav = evaluation.navigate(t[1:], w, f, Mounting(), initial)
-    q_bs = motion.q_bs(nav.t)
+    q_true = motion.q_bs(nav.t)
     vehicle = Trajectory(nav.t, nav.lat, nav.lon, nav.h, nav.v_ned,
-                         vehicle_attitude(nav.q_nb, q_bs))
+                         vehicle_attitude(nav.q_nb, q_true if q_bs is None else q_bs(motion, nav.t)))
     ref = evaluation.resample(tr, nav.t)
-    ref = Trajectory(ref.t, ref.lat, ref.lon, ref.h, ref.v_ned, vehicle_attitude(ref.q_nb, q_bs))
-    pos = vehicle.position_error(ref)[-1]
-    att = vehicle.attitude_error(ref)[-1]
-    return {"horizontal_m": float(np.hypot(pos[0], pos[1])),
-            "tilt_rad": float(np.hypot(att[0], att[1])), "heading_rad": float(abs(att[2]))}
+    ref = Trajectory(ref.t, ref.lat, ref.lon, ref.h, ref.v_ned,
+                     vehicle_attitude(ref.q_nb, q_true))
+    return motion, vehicle, ref
 
 
 def study(profile, units=8, seed=0, duration_s=600.0, progress=False):
@@ -214,7 +237,7 @@ def platform_metadata(platform):
     return {"joint": "/mimu/platform (sensor_msgs/msg/JointState, joint 'platform': angle "
                      "rad, rate rad/s, about the platform z axis)",
             "base_attitude_wxyz": quaternion.as_float_array(platform.q_bp0()).tolist(),
-            "imu_on_platform_wxyz": quaternion.as_float_array(platform.q_ps()).tolist(),
+            "imu_on_platform_wxyz": quaternion.as_float_array(platform.q_ps_nominal()).tolist(),
             "lever_arm_m": [0.0, 0.0, 0.0], "mode": platform.mode,
             "rate_rad_s": platform.rate_rad_s, "swing_rad": platform.swing_rad,
             "dwell_s": platform.dwell_s, "inclination_rad": platform.inclination_rad,
@@ -226,3 +249,73 @@ def q_bs_recorded(meta, angle):
     """q_bs for recorded platform angles (rad, (N,)) and the `platform` metadata."""
     return (quaternion.from_float_array(meta["base_attitude_wxyz"]) * _rz(angle)
             * quaternion.from_float_array(meta["imu_on_platform_wxyz"]))
+
+
+# ---- installation tilt deviation (seed S4: Gao, Guan, Wang 2013) --------------------------
+def installation_tilt(theta, q_nb, q_bp0, q_nb_reference=None):
+    """The IMU's installation deviation on the platform from the vehicle attitude computed
+    with the design mounting (seed S4, Gao, Guan, Wang 2013: fit the tilt against the
+    indexing angle). A true mounting exp(delta) q_ps makes the computed attitude
+    q_nb exp(C_bp0 Rz(theta) delta): an error that turns with the platform angle theta. In
+    the platform's base frame, x and y of the error are
+        e_x = delta_x cos(theta) - delta_y sin(theta) + c_x
+        e_y = delta_x sin(theta) + delta_y cos(theta) + c_y
+    with c the vehicle's attitude against the reference (constant for a vehicle at rest);
+    delta_z, about the axis, is a constant heading offset no platform angle reveals.
+    Fitted by least squares on each whole turn of the platform (its own c, so the slow drift
+    of a free-inertial attitude stays out), delta the mean over the turns and its standard
+    error their scatter / sqrt(turns): the drift makes neighbouring epochs' errors
+    correlated, turns much less so. theta: platform angles (rad, (n,)); q_nb: the computed
+    vehicle attitude (quaternion array (n,)); q_bp0: the platform's base attitude;
+    q_nb_reference: the vehicle's attitude from a reference (default: the first computed
+    epoch, for a vehicle at rest). Returns {"delta_rad": (2,), "se_rad": (2,), "turns": n}.
+    A gyro bias perpendicular to the axis, modulated, also turns with theta (amplitude
+    b / theta'), so it is part of what this fit finds."""
+    theta = np.asarray(theta, float)
+    q_ref = (np.full(len(q_nb), q_nb[0]) if q_nb_reference is None else q_nb_reference)
+    e_n = attitude.rotation_vector_error(q_nb, q_ref)
+    e_p = attitude.rotate(np.conjugate(q_bp0), attitude.rotate(np.conjugate(q_ref), e_n))
+    travelled = np.concatenate([[0.0], np.cumsum(np.abs(np.diff(theta)))])
+    turn = np.floor(travelled / (2 * math.pi)).astype(int)
+    estimates = []
+    for k in range(turn.max()):                  # whole turns only
+        sel = turn == k
+        c, s = np.cos(theta[sel]), np.sin(theta[sel])
+        one, zero = np.ones(sel.sum()), np.zeros(sel.sum())
+        a = np.block([[c[:, None], -s[:, None], one[:, None], zero[:, None]],
+                      [s[:, None], c[:, None], zero[:, None], one[:, None]]])
+        y = np.concatenate([e_p[sel, 0], e_p[sel, 1]])
+        estimates.append(np.linalg.lstsq(a, y, rcond=None)[0][:2])
+    if len(estimates) < 3:
+        raise InputError(f"the platform made {len(estimates)} whole turns; the installation "
+                         "tilt needs at least 3 (its uncertainty comes from their scatter)")
+    est = np.array(estimates)
+    return {"delta_rad": est.mean(axis=0), "se_rad": est.std(axis=0, ddof=1) / math.sqrt(len(est)),
+            "turns": len(est)}
+
+
+def tilt_compensation(profile, platform, deviation_rad, errors, seed, duration_s=600.0,
+                      rate_hz=100.0):
+    """One unit whose true mounting on `platform` deviates by `deviation_rad` (rotation
+    vector, platform axes) from the design: the vehicle attitude computed with the design
+    mounting, the deviation fitted from it (`installation_tilt`, vehicle at rest) and
+    compensated. Returns the RMS tilt and heading deviation of the vehicle attitude (rad)
+    before and after, the fitted and true deviation."""
+    true = Platform(**{**platform.__dict__, "imu_deviation_rad": tuple(deviation_rad)})
+    def designed(motion, t):
+        return platform.q_bp0() * _rz(motion.angle(t)) * platform.q_ps_nominal()
+    motion, vehicle, ref = _fly(profile, true, errors, seed, duration_s, rate_hz, designed)
+    theta = motion.angle(vehicle.t)
+    fit = installation_tilt(theta, vehicle.q_nb, platform.q_bp0())
+    fixed = Platform(**{**platform.__dict__,
+                        "imu_deviation_rad": (*fit["delta_rad"], 0.0)})
+    q_bs = fixed.q_bp0() * _rz(theta) * fixed.q_ps()
+    q_ns = vehicle.q_nb * designed(motion, vehicle.t)
+    after = vehicle_attitude(q_ns, q_bs)
+
+    def rms(q):
+        e = attitude.rotation_vector_error(q, ref.q_nb)
+        return {"tilt_rad": float(np.sqrt(np.mean(e[:, 0] ** 2 + e[:, 1] ** 2))),
+                "heading_rad": float(np.sqrt(np.mean(e[:, 2] ** 2)))}
+    return {"before": rms(vehicle.q_nb), "after": rms(after), "fitted_rad": fit["delta_rad"],
+            "se_rad": fit["se_rad"], "true_rad": np.asarray(deviation_rad, float)}

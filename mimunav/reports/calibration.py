@@ -193,6 +193,14 @@ def plot_held_out(checks, out_png):
     save(plt, fig, out_png)
 
 
+def drawn_units(job, seeds, workers=2, progress=True):
+    """job(seed, beyond_model) for every seed drawn exactly as eqs. 1-4 and then with its
+    physics beyond them, in `workers` processes: the results in that order."""
+    with ProcessPoolExecutor(workers, initializer=one_blas_thread) as pool:
+        return list(tqdm(pool.map(job, seeds * 2, [False] * len(seeds) + [True] * len(seeds)),
+                         total=2 * len(seeds), desc="units", disable=not progress))
+
+
 def write(out_dir, n_units=20, first_seed=1000, workers=2, progress=True, force=False):
     """Run the study and write OUT_DIR/calibration.md and calibration-held-out.png."""
     md = os.path.join(out_dir, "calibration.md")
@@ -201,9 +209,7 @@ def write(out_dir, n_units=20, first_seed=1000, workers=2, progress=True, force=
         raise FileExistsError(f"{md} exists; use --force to replace it")
     os.makedirs(out_dir, exist_ok=True)
     seeds = list(range(first_seed, first_seed + n_units))
-    with ProcessPoolExecutor(workers, initializer=one_blas_thread) as pool:
-        units = list(tqdm(pool.map(_one_unit, seeds * 2, [False] * n_units + [True] * n_units),
-                          total=2 * n_units, desc="units", disable=not progress))
+    units = drawn_units(_one_unit, seeds, workers, progress)
     with tempfile.TemporaryDirectory() as tmp:
         checks = held_out(first_seed, tmp)
         study = orientations_study(seeds[:8], tmp)
@@ -238,17 +244,24 @@ def _orientations_markdown(study):
     return "\n".join(lines)
 
 
-def _z_table(units):
-    """Markdown lines: z-scores by coefficient family over `units`."""
+def z_families(units, family):
+    """{family(name): [z over units]} of the units' z-scores ({name: z} under "z")."""
     fam = collections.defaultdict(list)
     for u in units:
         for name, z in u["z"].items():
-            fam[_family(name)].append(z)
+            fam[family(name)].append(z)
+    return fam
+
+
+def z_table(units, family=_family, order=None):
+    """Markdown lines: z-scores by coefficient family over `units` (families in `order`,
+    default sorted)."""
+    fam = z_families(units, family)
     allz = np.concatenate([np.array(v) for v in fam.values()])
     lines = [f"All coefficients: n = {len(allz)}, RMS z = {np.sqrt(np.mean(allz**2)):.2f}, "
              f"max |z| = {np.abs(allz).max():.2f}, mean z = {allz.mean():+.2f}.", "",
              "| term | n | RMS z | mean z | max abs z |", "|---|---|---|---|---|"]
-    for k in sorted(fam):
+    for k in order or sorted(fam):
         v = np.array(fam[k])
         lines.append(f"| {k} | {len(v)} | {np.sqrt(np.mean(v**2)):.2f} | {v.mean():+.2f} | "
                      f"{np.abs(v).max():.2f} |")
@@ -271,7 +284,7 @@ def _markdown(units, checks, png_name):
              "The unit drawn with `beyond_model=False`: the simulated sensor is exactly eqs. "
              "1-4, so this checks the fit and its standard errors (target: RMS z 0.7-1.3, all "
              "|z| < 4). It says nothing about how well eqs. 1-4 describe a real unit.", ""]
-    lines += _z_table(exact)
+    lines += z_table(exact)
     lines += ["", "## The same units with physics beyond the model (the default unit)", "",
               "The default unit is simulated as sensing elements written forward "
               "(`sensors.response`: an element's own nonlinearity before the cross-coupling, so "
@@ -282,7 +295,7 @@ def _markdown(units, checks, png_name):
               "coefficients move away from the truth by more than their reported uncertainty: "
               "the z-scores below are model error, not a defect of the fit, and this is what a "
               "real unit's calibration looks like (the held-out check below uses this unit).", ""]
-    lines += _z_table(real)
+    lines += z_table(real)
     rms = collections.defaultdict(list)
     for u in real:
         for stage, per_axis in u["rms"].items():
