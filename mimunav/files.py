@@ -12,6 +12,8 @@ def temporary_beside(path, suffix):
     """(fd, name) of a new temporary file in path's folder with the permissions an ordinary
     new file gets (mkstemp's are 0600), for write-then-rename."""
     folder = os.path.dirname(os.path.abspath(path))
+    if not os.path.isdir(folder):
+        raise FileNotFoundError(f"{path}: the folder {folder} does not exist")
     fd, tmp = tempfile.mkstemp(dir=folder, prefix=".tmp-", suffix=suffix)
     umask = os.umask(0)
     os.umask(umask)

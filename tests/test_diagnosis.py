@@ -384,3 +384,16 @@ def test_a_term_inside_the_stated_reference_accuracy_is_listed_not_charged():
     label = "cross_coupling gyro.z <- w_x"
     assert label not in [f["label"] for f in diag.findings]
     assert label in [w["label"] for w in diag.within_reference]
+
+
+def test_navigation_level_is_inconclusive_beyond_small_angles():
+    """A velocity error growing as g phi t (a constant tilt phi, closed form): within the
+    psi-angle equations' range it is judged, beyond it the level says inconclusive."""
+    from mimunav.diagnosis.navigation import (EPOCH_S, G0, MAX_IMPLIED_TILT_RAD,
+                                              beyond_small_angles)
+    t = np.arange(0, 120, EPOCH_S)
+    for phi, reasons in ((0.5 * MAX_IMPLIED_TILT_RAD, 0), (2 * MAX_IMPLIED_TILT_RAD, 1)):
+        dv = np.zeros((len(t), 3))
+        dv[:, 0] = G0 * phi * t * 0.6
+        dv[:, 1] = -G0 * phi * t * 0.8
+        assert len(beyond_small_angles(dv)) == reasons

@@ -50,6 +50,11 @@ SEGMENTS = 10                   # contiguous segments: even ones train, odd ones
 MAX_TERMS = 4
 STABILITY = 0.5                 # share of bootstrap replicates a term must win
 BOOTSTRAP = 200
+# the psi-angle error equations are first order in the attitude error phi: their neglected
+# terms are ~phi/2 of every signature, 2.5 % at 0.05 rad (2.9 deg). A free-inertial solution
+# whose velocity error grows as a larger tilt would (|d(dv_h)/dt| / g, median over epochs)
+# is beyond them: the diagnosis is inconclusive, never "no missing physics"
+MAX_IMPLIED_TILT_RAD = 0.05
 
 
 @dataclass
@@ -64,6 +69,7 @@ class NavigationDiagnosis:
     observed: np.ndarray            # (ne, 3) velocity error at the epochs, NED m/s
     epochs: np.ndarray              # (ne,) s
     unexplained: list
+    inconclusive: list              # why the error equations cannot judge this flight
 
 
 @dataclass
@@ -222,7 +228,20 @@ def diagnose(flight, cal, alpha=0.05, seed=0, reference=None):
     chosen = _select({"navigation": tier}, cands, {"navigation": train}, alpha)
     findings, rejected = _confirm(tier, cands, chosen, train, alpha, seed, cond)
     return NavigationDiagnosis(findings, rejected, tier, train, len(cands), cands, observed,
-                               epochs, [])
+                               epochs, [], beyond_small_angles(observed))
+
+
+def beyond_small_angles(observed):
+    """[reason] when the velocity error (ne, 3) NED m/s at EPOCH_S epochs grows as a tilt
+    beyond MAX_IMPLIED_TILT_RAD would make it, else []."""
+    growth = np.linalg.norm(np.diff(observed[:, :2], axis=0), axis=1) / EPOCH_S
+    tilt = float(np.median(growth)) / G0
+    if not tilt > MAX_IMPLIED_TILT_RAD:
+        return []
+    return [f"the free-inertial velocity error grows at {np.median(growth):.2g} m/s^2 (median), "
+            f"as a {np.degrees(tilt):.1f} deg tilt would: beyond the small-angle error equations "
+            f"of the navigation level (valid to {np.degrees(MAX_IMPLIED_TILT_RAD):.1f} deg); "
+            "calibrate the MIMU first or diagnose against a reference IMU"]
 
 
 def _confirm(tier, cands, chosen, train, alpha, seed, cond):

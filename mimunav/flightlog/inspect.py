@@ -35,10 +35,11 @@ def _empty_slots(rel, period, smoothing):
     return gaps
 
 
-def channel_report(log, topic):
-    """dict: schema, count, rate_hz (median), duration_s, gaps [(t0, t1) s since the first
-    stamp, where samples are missing given the median rate - not sampling jitter; with the
-    number missing in `missing`], dropped samples (sample_index jumps)."""
+def channel_report(log, topic, origin_ns=None):
+    """dict: schema, count, rate_hz (median), duration_s, gaps [(t0, t1) s since origin_ns
+    (the log's epoch; default the channel's first stamp), where samples are missing given
+    the median rate - not sampling jitter; with the number missing in `missing`], dropped
+    samples (sample_index jumps, at s since the same origin)."""
     msgs = log.read(topic)
     t = msgs["log_time"].astype(np.int64)
     rep = {"schema": log.schema_name(topic), "count": len(t)}
@@ -47,8 +48,9 @@ def channel_report(log, topic):
     step = np.diff(t)
     med = float(np.median(step))
     gaps = missing_samples(t)
+    t0 = int(t[0]) if origin_ns is None else int(origin_ns)
     rep.update(rate_hz=1e9 / med, duration_s=(t[-1] - t[0]) / 1e9,
-               start_ns=int(t[0]), gaps=[((t[k] - t[0]) / 1e9, (t[k + 1] - t[0]) / 1e9)
+               start_ns=int(t[0]), gaps=[((t[k] - t0) / 1e9, (t[k + 1] - t0) / 1e9)
                                           for k, _ in gaps],
                missing=sum(n for _, n in gaps),
                jitter_ms=float(1.4826 * np.median(np.abs(step - med)) / 1e6),
@@ -57,7 +59,7 @@ def channel_report(log, topic):
         jumps = np.diff(msgs["sample_index"].astype(np.int64))
         bad = np.nonzero(jumps != 1)[0]
         rep["dropped"] = int(np.sum(jumps[jumps > 1] - 1))
-        rep["index_jumps"] = [((t[k] - t[0]) / 1e9, int(jumps[k])) for k in bad]
+        rep["index_jumps"] = [((t[k] - t0) / 1e9, int(jumps[k])) for k in bad]
     if "header" not in msgs.dtype.names and "sec" in msgs.dtype.names:
         rep["stamp_mismatch"] = int(np.sum(schemas.stamps_ns(msgs) != t))
     return rep
@@ -103,10 +105,15 @@ def describe(log, unreadable=None):
                          f"{np.degrees(float(p.get('rate_rad_s', np.nan))):.3g} deg/s, IMU "
                          f"inclined {np.degrees(float(p.get('inclination_rad', 0.0))):.3g} deg; "
                          "angle on /mimu/platform")
-    lines.append("channels")
+    try:
+        origin_ns = int(flight["epoch_unix_ns"])
+    except (KeyError, TypeError, ValueError):
+        origin_ns = None
+    lines.append("channels" + (" (times in s since epoch_unix_ns)" if origin_ns is not None
+                               else " (times in s since each channel's first stamp)"))
     for topic in sorted(log.channels):
         try:
-            r = channel_report(log, topic)
+            r = channel_report(log, topic, origin_ns)
         except ValueError as exc:
             lines.append(f"  {topic:<14} {log.schema_name(topic)}: {exc}")
             if unreadable is not None:

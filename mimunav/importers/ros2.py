@@ -14,9 +14,11 @@ header.stamp (the sensor's time), log_time where a stamp is zero.
 """
 import math
 import os
+import struct
 
 import numpy as np
 import quaternion
+from mcap.exceptions import McapError
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 
@@ -34,12 +36,32 @@ Q_NED_ENU = np.quaternion(0.0, math.sqrt(0.5), math.sqrt(0.5), 0.0)
 Q_FLU_FRD = np.quaternion(0.0, 1.0, 0.0, 0.0)
 
 
+# what a damaged or truncated MCAP raises from the mcap package's reader and decoders
+_DAMAGE = (McapError, EOFError, struct.error, ValueError, KeyError, IndexError)
+
+
+def _damaged(path, exc):
+    return RecordingError(f"{path}: damaged or truncated MCAP ({type(exc).__name__}: {exc}); "
+                          "`mimunav info LOG --recover OUT.mcap` keeps what is intact")
+
+
 def topics(path):
-    """{topic: schema name} of an MCAP file."""
-    with open(path, "rb") as fh:
-        summary = make_reader(fh).get_summary()
-    if summary is None:
-        raise RecordingError(f"{path}: no summary section (truncated?); `mimunav info --recover`")
+    """{topic: schema name} of an MCAP file. A mimunav contract log (mimunav-log/1, whose
+    /gnss/fix holds radians) is refused: it needs no import."""
+    try:
+        with open(path, "rb") as fh:
+            reader = make_reader(fh)
+            summary = reader.get_summary()
+            if summary is None:
+                raise RecordingError(f"{path}: no summary section (truncated?); "
+                                     "`mimunav info LOG --recover OUT.mcap`")
+            flight = [m for m in reader.iter_metadata() if m.name == "flight"]
+    except _DAMAGE as exc:
+        raise _damaged(path, exc) from None
+    if any(m.metadata.get("format") == "mimunav-log/1" for m in flight):
+        raise RecordingError(f"{path}: already a mimunav contract log (mimunav-log/1): use it "
+                             "as it is (info, windows, diagnose, report recording); the ros2 "
+                             "importer reads recordings in ROS conventions (NavSatFix in deg)")
     return {c.topic: summary.schemas[c.schema_id].name for c in summary.channels.values()}
 
 
@@ -59,7 +81,14 @@ def _pick(path, available, schema, topic, required):
 def _messages(path, topic):
     with open(path, "rb") as fh:
         reader = make_reader(fh, decoder_factories=[DecoderFactory()])
-        for _, _, message, ros in reader.iter_decoded_messages(topics=[topic]):
+        messages = reader.iter_decoded_messages(topics=[topic])
+        while True:
+            try:
+                _, _, message, ros = next(messages)
+            except StopIteration:
+                return
+            except _DAMAGE as exc:
+                raise _damaged(path, exc) from None
             stamp = ros.header.stamp.sec * 1_000_000_000 + ros.header.stamp.nanosec
             yield (stamp if stamp > 0 else message.log_time), ros
 

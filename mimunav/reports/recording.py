@@ -15,6 +15,7 @@ written at once (`files.atomic_folder`): an error leaves no half-written folder.
 number in the text is computed in this run; a part the recording cannot support (no window
 fits, nothing to diagnose against) says why instead of stopping the rest."""
 import json
+import os
 import time
 from pathlib import Path
 
@@ -39,6 +40,8 @@ def write(log_path, out_dir, force=False, progress=True, min_speed=None,
     """Run every part on the log at `log_path` and write the report folder `out_dir`;
     returns the markdown's path. min_speed (m/s) and lengths (s) as `mimunav windows`."""
     refuse_inputs([out_dir], [log_path])
+    if os.path.exists(out_dir) and not force:       # before the work, not after it
+        raise FileExistsError(f"{out_dir} exists; use --force to replace it")
     started = time.perf_counter()
     with FlightLog(log_path) as log:
         meta = log.metadata()
