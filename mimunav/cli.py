@@ -60,7 +60,9 @@ def _simulate(args):
         given = [o for o, v, d in (("--platform-rate-deg-s", args.platform_rate_deg_s, 10.0),
                                    ("--platform-swing-deg", args.platform_swing_deg, 360.0),
                                    ("--platform-dwell-s", args.platform_dwell_s, 0.0),
-                                   ("--inclination-deg", args.inclination_deg, 0.0)) if v != d]
+                                   ("--inclination-deg", args.inclination_deg, 0.0),
+                                   ("--platform-encoder-arcsec", args.platform_encoder_arcsec,
+                                    1.58)) if v != d]
         if given and not args.platform:
             raise InputError(f"{', '.join(given)} describe a platform: give --platform too")
         if args.platform == "continuous" and any(o in given for o in ("--platform-swing-deg",
@@ -72,7 +74,9 @@ def _simulate(args):
             platform = Platform(args.platform, np.radians(args.platform_rate_deg_s),
                                 swing_rad=np.radians(args.platform_swing_deg),
                                 dwell_s=args.platform_dwell_s,
-                                inclination_rad=np.radians(args.inclination_deg))
+                                inclination_rad=np.radians(args.inclination_deg),
+                                encoder_resolution_rad=np.radians(args.platform_encoder_arcsec
+                                                                  / 3600))
         log, truth_file = simulate_flight(profile, args.output, args.seed, unit=unit,
                                           fog_rate=args.fog_rate, force=args.force, hide=hide,
                                           platform=platform)
@@ -610,6 +614,9 @@ def build_parser():
                    help="platform rate, deg/s (default 10)")
     p.add_argument("--platform-swing-deg", type=_number(1.0, 36000.0), default=360.0,
                    help="back-and-forth: turn this far each way, deg (default 360)")
+    p.add_argument("--platform-encoder-arcsec", type=_number(0.0, 3600.0), default=1.58,
+                   help="resolution of the recorded platform angle, arcsec (default 1.58, the "
+                   "seed S4 circular grating; 0: exact)")
     p.add_argument("--platform-dwell-s", type=_number(0.0, 3600.0), default=0.0,
                    help="back-and-forth: pause at each end, s (default 0)")
     p.add_argument("--inclination-deg", type=_number(-90.0, 90.0), default=0.0,

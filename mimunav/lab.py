@@ -71,6 +71,7 @@ from .flightlog import LogWriter
 from .flightlog import schemas as S
 from .profile import G0, Ramp, rate_ppoly
 from .sensors import Mounting
+from .modulation import ENCODER_RESOLUTION_RAD
 from .simulation import DEFAULT_EPOCH, epoch_ns
 from .errors import InputError
 
@@ -89,10 +90,9 @@ PROCEDURES = ("thermal-chamber", "rate-table", "centrifuge", "multi-position",
 HAND_HELD_POSITIONS = 24            # orientations of the hand-held procedure (seed S4)
 HAND_HELD_SEED = 2024               # draws the hand's orientations (the same every run)
 # procedure `rotation` (module doc): the mechanism's rate (one turn in 10 s, two per 20 s
-# set point) and its circular grating's resolution, 1.58 arcsec (seed S4, Xu et al. 2011)
+# set point); its grating is `modulation.ENCODER_RESOLUTION_RAD`
 MECHANISM_RATE = 36 * math.pi / 180
 MECHANISM_RAMP_S = 1.0
-ENCODER_RESOLUTION_RAD = 1.58 * math.pi / 180 / 3600
 MECHANISM_BASE = (math.sqrt(0.5), 0.0, math.sqrt(0.5), 0.0)   # 90 deg about y: m z -> p x
 
 
@@ -274,7 +274,7 @@ class _Segment:
     dtheta: list = field(default_factory=list)
     dv: list = field(default_factory=list)
     env: list = field(default_factory=list)
-    angle: list = field(default_factory=list)      # rotation mechanism angle phi, rad
+    angle: list = field(default_factory=list)      # mechanism angle phi as recorded, rad
     angle_rate: list = field(default_factory=list)  # its rate, rad/s
 
 
@@ -336,7 +336,7 @@ def lab_motion(plan_, errors, progress=False):
             turning = mechanism_motion(motion, plan_, q_true, errors, t_grid[-1])
             run_ = truth.generate(turning, t_grid)
             dth, dv = run_.dtheta, run_.dv
-            phi = turning.angle(t_grid)
+            phi = turning.platform.encoder(turning.angle(t_grid))     # as the grating reads
             seg.angle.append(phi[1:] if seg.t else phi)
             seg.angle_rate.append(turning.rate(t_grid[1:] if seg.t else t_grid))
         else:
@@ -386,6 +386,7 @@ def mechanism_motion(table, plan_, q_ps, errors, t_end):
     base = (quaternion.from_rotation_vector([tilt[0], tilt[1], 0.0])
             * quaternion.from_float_array(MECHANISM_BASE))
     mechanism = Platform("continuous", plan_.mechanism_rate, ramp_s=MECHANISM_RAMP_S,
+                         encoder_resolution_rad=ENCODER_RESOLUTION_RAD,
                          base_wxyz=tuple(quaternion.as_float_array(base)),
                          imu_wxyz=tuple(np.asarray(q_ps, float)))
     return RotatingMotion(table, mechanism, t_end)
@@ -400,9 +401,8 @@ def record(plan_, unit, segments, seed, hidden=None):
                               warm_up_s=plan_.warm_up_s) for s in segments]
     raw = {k: np.concatenate([r[k] for r in raws]) for k in raws[0]}
     raw["sample_index"] = np.arange(len(raw["t"]), dtype=np.uint64)
-    if plan_.mechanism_rate:        # the grating reads the angle to its resolution
-        phi = np.concatenate([s.angle for s in segments])
-        raw["mechanism_angle"] = np.round(phi / ENCODER_RESOLUTION_RAD) * ENCODER_RESOLUTION_RAD
+    if plan_.mechanism_rate:
+        raw["mechanism_angle"] = np.concatenate([s.angle for s in segments])
         raw["mechanism_rate"] = np.concatenate([s.angle_rate for s in segments])
     return raw
 

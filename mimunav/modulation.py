@@ -25,6 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import quaternion
+import scipy.integrate
 
 from . import attitude, truth
 from .errors import InputError
@@ -46,7 +47,8 @@ class Platform:
     imu_wxyz: the IMU's nominal mounting on the platform (sensor -> platform), before the
     inclination; imu_deviation_rad: the installation's deviation from that design (rotation
     vector, platform axes: the true mounting is exp(deviation) q_ps_nominal) - a log's
-    metadata states the design, the deviation is what `installation_tilt` finds."""
+    metadata states the design, the deviation is what `installation_tilt` finds;
+    encoder_resolution_rad: the step of the recorded platform angle (a circular grating)."""
     mode: str = "continuous"
     rate_rad_s: float = math.radians(10.0)
     swing_rad: float = 2 * math.pi
@@ -58,6 +60,7 @@ class Platform:
     base_wxyz: tuple = (1.0, 0.0, 0.0, 0.0)
     imu_wxyz: tuple = (1.0, 0.0, 0.0, 0.0)
     imu_deviation_rad: tuple = (0.0, 0.0, 0.0)
+    encoder_resolution_rad: float = 0.0
 
     def __post_init__(self):
         if self.mode not in MODES:
@@ -79,6 +82,11 @@ class Platform:
             t += turn + self.dwell_s
             sign = -sign
         return rate_ppoly(ramps, max(t, t_end))
+
+    def encoder(self, angle):
+        """The platform angle as the encoder records it (rad): rounded to its resolution."""
+        res = self.encoder_resolution_rad
+        return np.round(np.asarray(angle) / res) * res if res > 0 else np.asarray(angle)
 
     def q_bp0(self):
         return (quaternion.from_rotation_vector([*self.axis_tilt_rad, 0.0])
@@ -154,6 +162,8 @@ def vehicle_attitude(q_ns, q_bs):
 # measured worse), with the IMU orthogonal on the platform or inclined so that its
 # three axes make equal angles (54.74 deg) with the turning axis: every axis modulated.
 MAGIC_INCLINATION = math.acos(1 / math.sqrt(3))
+# the platform angle's circular grating: 1.58 arcsec (seed S4, Xu et al. 2011)
+ENCODER_RESOLUTION_RAD = 1.58 * math.pi / 180 / 3600
 MAGIC_AZIMUTH = -math.pi / 4
 _INCLINED = {"inclination_rad": MAGIC_INCLINATION, "tilt_azimuth_rad": MAGIC_AZIMUTH}
 CONFIGURATIONS = {
@@ -242,7 +252,8 @@ def platform_metadata(platform):
             "rate_rad_s": platform.rate_rad_s, "swing_rad": platform.swing_rad,
             "dwell_s": platform.dwell_s, "inclination_rad": platform.inclination_rad,
             "tilt_azimuth_rad": platform.tilt_azimuth_rad,
-            "axis_tilt_rad": list(platform.axis_tilt_rad)}
+            "axis_tilt_rad": list(platform.axis_tilt_rad),
+            "encoder_resolution_rad": platform.encoder_resolution_rad}
 
 
 def q_bs_recorded(meta, angle):
@@ -252,46 +263,76 @@ def q_bs_recorded(meta, angle):
 
 
 # ---- installation tilt deviation (seed S4: Gao, Guan, Wang 2013) --------------------------
-def installation_tilt(theta, q_nb, q_bp0, q_nb_reference=None):
+def installation_tilt(t, theta, q_ns, platform, q_nb_reference=None, iterations=3):
+    """The installation deviation (`tilt_deviation`) by Gauss-Newton: the vehicle attitude
+    q_ns q_bs(theta)^-1 recomputed with the deviation found so far and the remainder fitted
+    again, so the fit's small-angle algebra meets only a small remainder (a 2 deg deviation
+    composed with a 1 deg heading drift is otherwise off by ~0.03 deg). q_ns: the navigated
+    sensor attitude (quaternion array (n,)); platform: the design `Platform`. Returns
+    `tilt_deviation`'s dict with the total deviation."""
+    delta = np.zeros(2)
+    for _ in range(iterations):
+        fixed = Platform(**{**platform.__dict__, "imu_deviation_rad": (*delta, 0.0)})
+        q_nb = vehicle_attitude(q_ns, fixed.q_bp0() * _rz(theta) * fixed.q_ps())
+        fit = tilt_deviation(t, theta, q_nb, platform.q_bp0(), q_nb_reference)
+        delta = delta + fit["delta_rad"]
+    return dict(fit, delta_rad=delta)
+
+
+def tilt_deviation(t, theta, q_nb, q_bp0, q_nb_reference=None):
     """The IMU's installation deviation on the platform from the vehicle attitude computed
     with the design mounting (seed S4, Gao, Guan, Wang 2013: fit the tilt against the
     indexing angle). A true mounting exp(delta) q_ps makes the computed attitude
-    q_nb exp(C_bp0 Rz(theta) delta): an error that turns with the platform angle theta. In
-    the platform's base frame, x and y of the error are
-        e_x = delta_x cos(theta) - delta_y sin(theta) + c_x
-        e_y = delta_x sin(theta) + delta_y cos(theta) + c_y
+    q_nb exp(C_bp0 Rz(theta) delta): an error that turns with the platform angle theta. A
+    gyro bias b perpendicular to the turning axis (platform axes) adds the free-inertial
+    attitude error int Rz(theta) b dt, which also turns with theta. In the platform's base
+    frame, x and y of the error are
+        e = Rz(theta) delta + J(t) b + c,   J(t) = int_0^t Rz(theta) dt'
     with c the vehicle's attitude against the reference (constant for a vehicle at rest);
     delta_z, about the axis, is a constant heading offset no platform angle reveals.
-    Fitted by least squares on each whole turn of the platform (its own c, so the slow drift
-    of a free-inertial attitude stays out), delta the mean over the turns and its standard
-    error their scatter / sqrt(turns): the drift makes neighbouring epochs' errors
-    correlated, turns much less so. theta: platform angles (rad, (n,)); q_nb: the computed
-    vehicle attitude (quaternion array (n,)); q_bp0: the platform's base attitude;
-    q_nb_reference: the vehicle's attitude from a reference (default: the first computed
-    epoch, for a vehicle at rest). Returns {"delta_rad": (2,), "se_rad": (2,), "turns": n}.
-    A gyro bias perpendicular to the axis, modulated, also turns with theta (amplitude
-    b / theta'), so it is part of what this fit finds."""
-    theta = np.asarray(theta, float)
+    Fitted by least squares on every two whole turns of travel (each with its own c, so the
+    slow drift of a free-inertial attitude stays out); delta (and b) are the means over these
+    pieces and their standard errors the pieces' scatter / sqrt(pieces): the drift makes
+    neighbouring epochs' errors correlated, pieces much less so. At a constant rate J is
+    Rz(theta - 90 deg) / theta' + const: a continuous rotation cannot tell delta from b, and
+    the fitted delta then holds the bias's b / theta' ("bias_separated": False); a
+    back-and-forth rotation reverses J and separates them.
+    t: times (s, (n,)); theta: platform angles (rad, (n,)); q_nb: the computed vehicle
+    attitude (quaternion array (n,)); q_bp0: the platform's base attitude; q_nb_reference:
+    the vehicle's attitude from a reference (default: the first computed epoch, for a
+    vehicle at rest). Returns {"delta_rad": (2,), "se_rad": (2,), "bias_rad_s": (2,) or None,
+    "bias_separated": bool, "pieces": n}."""
+    t, theta = np.asarray(t, float), np.asarray(theta, float)
     q_ref = (np.full(len(q_nb), q_nb[0]) if q_nb_reference is None else q_nb_reference)
     e_n = attitude.rotation_vector_error(q_nb, q_ref)
     e_p = attitude.rotate(np.conjugate(q_bp0), attitude.rotate(np.conjugate(q_ref), e_n))
+    c, s = np.cos(theta), np.sin(theta)
+    jc = scipy.integrate.cumulative_trapezoid(c, t, initial=0.0)
+    js = scipy.integrate.cumulative_trapezoid(s, t, initial=0.0)
     travelled = np.concatenate([[0.0], np.cumsum(np.abs(np.diff(theta)))])
-    turn = np.floor(travelled / (2 * math.pi)).astype(int)
-    estimates = []
-    for k in range(turn.max()):                  # whole turns only
-        sel = turn == k
-        c, s = np.cos(theta[sel]), np.sin(theta[sel])
+    piece = np.floor(travelled / (4 * math.pi)).astype(int)
+
+    def design(sel, with_bias):
         one, zero = np.ones(sel.sum()), np.zeros(sel.sum())
-        a = np.block([[c[:, None], -s[:, None], one[:, None], zero[:, None]],
-                      [s[:, None], c[:, None], zero[:, None], one[:, None]]])
+        cols_x = [c[sel], -s[sel]] + ([jc[sel], -js[sel]] if with_bias else []) + [one, zero]
+        cols_y = [s[sel], c[sel]] + ([js[sel], jc[sel]] if with_bias else []) + [zero, one]
+        return np.vstack([np.column_stack(cols_x), np.column_stack(cols_y)])
+    pieces = [piece == k for k in range(piece.max())]        # whole pieces only
+    if len(pieces) < 3:
+        raise InputError(f"the platform travelled {travelled[-1] / (2 * math.pi):.1f} turns; "
+                         "the installation tilt needs at least 6 (three pieces of two turns: "
+                         "its uncertainty comes from their scatter)")
+    separated = all(np.linalg.matrix_rank(design(sel, True), tol=1e-9 * len(t)) == 6
+                    for sel in pieces)
+    estimates = []
+    for sel in pieces:
         y = np.concatenate([e_p[sel, 0], e_p[sel, 1]])
-        estimates.append(np.linalg.lstsq(a, y, rcond=None)[0][:2])
-    if len(estimates) < 3:
-        raise InputError(f"the platform made {len(estimates)} whole turns; the installation "
-                         "tilt needs at least 3 (its uncertainty comes from their scatter)")
+        estimates.append(np.linalg.lstsq(design(sel, separated), y, rcond=None)[0])
     est = np.array(estimates)
-    return {"delta_rad": est.mean(axis=0), "se_rad": est.std(axis=0, ddof=1) / math.sqrt(len(est)),
-            "turns": len(est)}
+    se = est.std(axis=0, ddof=1) / math.sqrt(len(est))
+    return {"delta_rad": est[:, :2].mean(axis=0), "se_rad": se[:2],
+            "bias_rad_s": est[:, 2:4].mean(axis=0) if separated else None,
+            "bias_separated": separated, "pieces": len(est)}
 
 
 def tilt_compensation(profile, platform, deviation_rad, errors, seed, duration_s=600.0,
@@ -299,23 +340,49 @@ def tilt_compensation(profile, platform, deviation_rad, errors, seed, duration_s
     """One unit whose true mounting on `platform` deviates by `deviation_rad` (rotation
     vector, platform axes) from the design: the vehicle attitude computed with the design
     mounting, the deviation fitted from it (`installation_tilt`, vehicle at rest) and
-    compensated. Returns the RMS tilt and heading deviation of the vehicle attitude (rad)
-    before and after, the fitted and true deviation."""
+    compensated. Returns the RMS tilt and heading deviation of the vehicle attitude against
+    the truth (rad) before, after, and with the true mounting known ("floor": the unit's own
+    free-inertial error), the fitted deviation with its standard error and the true one."""
     true = Platform(**{**platform.__dict__, "imu_deviation_rad": tuple(deviation_rad)})
     def designed(motion, t):
         return platform.q_bp0() * _rz(motion.angle(t)) * platform.q_ps_nominal()
     motion, vehicle, ref = _fly(profile, true, errors, seed, duration_s, rate_hz, designed)
     theta = motion.angle(vehicle.t)
-    fit = installation_tilt(theta, vehicle.q_nb, platform.q_bp0())
+    q_ns = vehicle.q_nb * designed(motion, vehicle.t)
+    fit = installation_tilt(vehicle.t, theta, q_ns, platform)
     fixed = Platform(**{**platform.__dict__,
                         "imu_deviation_rad": (*fit["delta_rad"], 0.0)})
-    q_bs = fixed.q_bp0() * _rz(theta) * fixed.q_ps()
-    q_ns = vehicle.q_nb * designed(motion, vehicle.t)
-    after = vehicle_attitude(q_ns, q_bs)
+    after = vehicle_attitude(q_ns, fixed.q_bp0() * _rz(theta) * fixed.q_ps())
 
     def rms(q):
         e = attitude.rotation_vector_error(q, ref.q_nb)
         return {"tilt_rad": float(np.sqrt(np.mean(e[:, 0] ** 2 + e[:, 1] ** 2))),
                 "heading_rad": float(np.sqrt(np.mean(e[:, 2] ** 2)))}
-    return {"before": rms(vehicle.q_nb), "after": rms(after), "fitted_rad": fit["delta_rad"],
-            "se_rad": fit["se_rad"], "true_rad": np.asarray(deviation_rad, float)}
+    floor = vehicle_attitude(q_ns, motion.q_bs(vehicle.t))
+    return {"before": rms(vehicle.q_nb), "after": rms(after), "floor": rms(floor),
+            "fitted_rad": fit["delta_rad"], "se_rad": fit["se_rad"],
+            "bias_separated": fit["bias_separated"],
+            "true_rad": np.asarray(deviation_rad, float)}
+
+
+# The tilt study (`tilt_study`, `mimunav report modulation`): a 2 deg installation deviation
+# (the seed's uncompensated level error) in a random direction of the platform plane, the
+# unit ideal or with the class's constant bias and bias instability together.
+TILT_DEVIATION_RAD = math.radians(2.0)
+TILT_ERRORS = {"ideal IMU": {},
+               "bias + instability": {**ERRORS["constant bias"], **ERRORS["bias instability"]}}
+TILT_PLATFORMS = ("continuous", "back-and-forth")
+
+
+def tilt_study(profile, units=8, seed=0, duration_s=600.0, progress=False):
+    """{(errors, platform): [tilt_compensation result per unit]} for TILT_ERRORS x
+    TILT_PLATFORMS, each unit's deviation direction drawn from its seed."""
+    from tqdm import tqdm
+    out = {}
+    jobs = [(e, p, k) for e in TILT_ERRORS for p in TILT_PLATFORMS for k in range(units)]
+    for e, p, k in tqdm(jobs, desc="tilt", disable=not progress):
+        a = np.random.default_rng([seed, k, 7]).uniform(0, 2 * math.pi)
+        dev = TILT_DEVIATION_RAD * np.array([math.cos(a), math.sin(a), 0.0])
+        out.setdefault((e, p), []).append(tilt_compensation(
+            profile, CONFIGURATIONS[p], dev, TILT_ERRORS[e], seed + k, duration_s))
+    return out

@@ -37,7 +37,7 @@ inconclusive diagnosis keeps its findings' verdict if any survive, otherwise
 "unexplained-residual" (the reference does not explain the recording), with
 `conclusive: false` and the reasons in the document.
 """
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -160,10 +160,12 @@ def diagnose(flight, cal, alpha=0.05, reference=None, accuracy=None):
     diag.inconclusive = screen(diag, flight, cal)
     if corr["gyro.z"] >= PREDICTED_CORRELATION:
         tau, ci, segments = time_lag(replace(flight, mimu_imu=ref.mimu_imu), (ref, trusted))
-        diag.time_lag = {"tau_s": tau, "ci95": list(ci), "segments_s": segments.tolist(),
+        diag.time_lag = {"tau_s": tau, "ci95": list(ci), "segments_s": segments.values.tolist(),
+                         "segments_se_s": np.sqrt(segments.variances).tolist(),
                          "channel": "gyro.z (the vehicle's yaw rate, the model's best channel)",
                          "sign": "positive: the IMU's samples describe motion tau s earlier "
                                  "than their stamps (it lags), as time_skew"}
+        lag_finding(diag, flight, cal, segments, alpha)
     else:
         diag.time_lag = {"not_estimated": f"the yaw rate is not predicted (1 s correlation "
                                           f"{corr['gyro.z']:.2f} < {PREDICTED_CORRELATION:g})"}
@@ -190,8 +192,12 @@ def screen(diag, flight, cal):
         acts_on = {".".join(CHANNELS[ch]) for ch in diag.design.columns[j]}
         fit = finding["fit"]
         why = None
+        half_sample = 0.5 * float(np.median(np.diff(flight.mimu_t)))
         if acts_on <= unpredicted:
             why = f"acts only on channels the reference does not predict ({', '.join(sorted(acts_on))})"
+        elif finding["effect"] == "time_skew" and not abs(finding["coefficient"]) > half_sample:
+            why = (f"{finding['coefficient'] * 1e3:.2g} ms is within half a sample interval "
+                   f"({half_sample * 1e3:.2g} ms): not resolved by the stamps")
         elif not fit["heldout_rms_after"] < fit["heldout_rms_before"]:
             why = (f"does not lower the held-out residual where it acts "
                    f"({fit['heldout_rms_before']:.4g} -> {fit['heldout_rms_after']:.4g} "
@@ -236,15 +242,74 @@ LAG_STEP_S = 0.005
 LAG_SEGMENTS = 10
 
 
+def lag_finding(diag, flight, cal, segments, alpha):
+    """The yaw-rate lag as a `time_skew imu.all` finding when the data support it: its value
+    from the even segments (training), significant there and on the odd ones (held out, a
+    t test of each half's segment values against 0 at level alpha), and the
+    free-inertial windows navigate better with the IMU's stamps shifted by it (the module's
+    navigation check). The sensor level's time_skew over all channels may be rejected beside
+    it: the vehicle model predicts the other channels too poorly to show a lag."""
+    train, held = segments.part(slice(0, None, 2)), segments.part(slice(1, None, 2))
+    p_train, p_held = train.p_value(), held.p_value()
+    lag = diag.time_lag
+    if not (p_train < alpha and p_held < alpha):
+        lag["not_a_finding"] = (f"the segments' lag is not significant in both halves (p "
+                                f"{p_train:.2g} training, {p_held:.2g} held out)")
+        return
+    value, _ = train.mean_and_se()
+    _, ci = held.mean_and_interval()
+    half_sample = 0.5 * float(np.median(np.diff(flight.mimu_t)))
+    if not abs(value) > half_sample:
+        lag["not_a_finding"] = (f"{value * 1e3:.2g} ms is within half a sample interval "
+                                f"({half_sample * 1e3:.2g} ms): not resolved by the stamps")
+        return
+    finding = {"effect": "time_skew", "sensor": "imu", "axis": "all",
+               "coefficient": value, "ci95": [float(ci[0]), float(ci[1])], "units": "s",
+               "label": "time_skew imu.all", "p_train": p_train, "holm_threshold": alpha,
+               "p_heldout": p_held, "attribution": "mimu-or-reference",
+               "indistinguishable_from": [],
+               "basis": "the yaw rate against the vehicle model (time_lag): value from the even "
+                        "segments, interval and test from the odd ones (inverse-variance "
+                        "weighted)",
+               "where": [{"t0": float(flight.mimu_t[0]), "t1": float(flight.mimu_t[-1]),
+                          "condition": "every sample: a shift of the IMU's stamps"}],
+               "fit": {"channels": ["gyro.z"], "units": "s",
+                       "heldout_rms_before": float(np.sqrt(np.mean(held.values ** 2))),
+                       "heldout_rms_after": float(np.sqrt(np.mean((held.values - value) ** 2))),
+                       "basis": "rms of the held-out segments' lags about 0 and about the "
+                                "training value"}}
+    baseline = _window_ends(flight, cal, [])
+    ends = _window_ends(flight, cal, [finding])
+    if baseline is None or ends is None:
+        lag["not_a_finding"] = "no free-inertial window to check it in navigation"
+        return
+    paired = float(np.median(ends - baseline))
+    finding["navigation_check"] = {
+        "windows": len(ends), "window_s": CHECK_WINDOW_S,
+        "median_end_error_m": [float(np.median(baseline)), float(np.median(ends))],
+        "median_paired_change_m": paired}
+    if not paired < 0:
+        lag["not_a_finding"] = (f"navigates worse: the median {CHECK_WINDOW_S:g} s window end "
+                                f"error rises by {paired:.3g} m over {len(ends)} windows")
+        return
+    diag.findings = [f for f in diag.findings if f["effect"] != "time_skew"] + [finding]
+    for r in diag.rejected:
+        if r["effect"] == "time_skew" and r.get("sensor") in ("imu", "gyro"):
+            r["rejected"] += ("; the lag itself is found from the yaw rate, the channel the "
+                              "vehicle model predicts best (time_skew imu.all above)")
+
+
 def time_lag(flight, reference=None):
     """The IMU's time-stamp lag tau (s, positive: its samples describe motion tau seconds
     earlier than their stamps, as `time_skew`) from the vehicle's yaw rate alone - the
     channel the land-vehicle model predicts best: the tau minimising the rms of
     w_z,IMU(t) - w_z,model(t - tau) over trusted moving samples (grid of LAG_STEP_S, refined
-    by a parabola), per LAG_SEGMENTS contiguous segments; returns (tau, its 95 % interval
-    from the spread of the segments' values (Student t), the segments' values).
+    by a parabola), per LAG_SEGMENTS contiguous segments. A segment's lag is known to
+    var = s^2 / sum (dw_z/dt)^2 (s: its residual rms at the minimum; the lag's regressor is
+    the yaw acceleration), so a segment where the vehicle hardly turns weighs little.
+    Returns (tau: the weighted mean, its 95 % interval (Student t, the standard error
+    scaled by the segments' Birge ratio when above 1), `Segments`).
     `reference`: a `simulated_reference(flight)` already made."""
-    from scipy import stats
     from .. import attitude
     ref, trusted = reference or simulated_reference(flight)
     t = flight.mimu_t
@@ -256,13 +321,45 @@ def time_lag(flight, reference=None):
     taus = np.arange(-LAG_SEARCH_S, LAG_SEARCH_S + 1e-12, LAG_STEP_S)
     shifted = np.stack([np.interp(t[k] - tau, ref.fog_t, ref.fog_w[:, 2]) for tau in taus])
     err = (w_imu[k] - w_imu[k].mean()) - (shifted - shifted.mean(axis=1, keepdims=True))
-    values = []
+    accel = np.gradient(w_model, t)[k]
+    values, variances = [], []
     for seg in np.array_split(np.arange(len(k)), LAG_SEGMENTS):
-        values.append(_parabola_min(taus, np.mean(err[:, seg] ** 2, axis=1)))
-    values = np.asarray(values)
-    tau = _parabola_min(taus, np.mean(err ** 2, axis=1))
-    half = stats.t.ppf(0.975, LAG_SEGMENTS - 1) * values.std(ddof=1) / np.sqrt(LAG_SEGMENTS)
-    return tau, (values.mean() - half, values.mean() + half), values
+        mse = np.mean(err[:, seg] ** 2, axis=1)
+        values.append(_parabola_min(taus, mse))
+        variances.append(mse.min() / max(float(np.sum(accel[seg] ** 2)), 1e-300))
+    segments = Segments(np.asarray(values), np.asarray(variances))
+    tau, (lo, hi) = segments.mean_and_interval()
+    return tau, (lo, hi), segments
+
+
+@dataclass
+class Segments:
+    """Per-segment lags (s) and their variances (s^2)."""
+    values: np.ndarray
+    variances: np.ndarray
+
+    def part(self, sl):
+        return Segments(self.values[sl], self.variances[sl])
+
+    def mean_and_se(self):
+        """Inverse-variance mean and its standard error, scaled by sqrt(chi^2 / dof) when
+        the segments scatter more than their variances say."""
+        w = 1.0 / self.variances
+        mean = float(np.sum(w * self.values) / np.sum(w))
+        chi2 = float(np.sum(w * (self.values - mean) ** 2)) / max(len(w) - 1, 1)
+        return mean, float(np.sqrt(max(chi2, 1.0) / np.sum(w)))
+
+    def mean_and_interval(self):
+        from scipy import stats
+        mean, se = self.mean_and_se()
+        half = stats.t.ppf(0.975, len(self.values) - 1) * se
+        return mean, (mean - half, mean + half)
+
+    def p_value(self):
+        """Two-sided p of mean = 0 (Student t with the segments' dof)."""
+        from scipy import stats
+        mean, se = self.mean_and_se()
+        return float(2 * stats.t.sf(abs(mean) / se, len(self.values) - 1))
 
 
 def _parabola_min(x, y):

@@ -1,7 +1,8 @@
 """`mimunav report modulation`: what rotation modulation buys a MIMU (seed S4), measured -
 every platform configuration of `modulation.CONFIGURATIONS` against each error source of
 `modulation.ERRORS` alone, a Monte Carlo over units on a parked vehicle, free-inertial for
-10 min - and the seed's claims checked in those numbers, into OUT/modulation.md (+ .png)."""
+10 min - and the seed's claims checked in those numbers; the installation tilt deviation fitted
+and compensated (Gao, Guan, Wang 2013), into OUT/rotation-modulation.md (+ .png)."""
 import math
 
 import numpy as np
@@ -86,8 +87,65 @@ def markdown(res, units):
                 v = np.array([conv(r[key]) for r in results])
                 cells.append(f"{np.median(v):.3g} [{v.min():.3g}, {v.max():.3g}]")
             lines.append(f"| {source} | {config} | " + " | ".join(cells) + " |")
-    lines += ["", "![modulation](modulation.png)", "", "## The seed's claims in these numbers",
-              "", *claims(res), ""]
+    lines += ["", "![modulation](rotation-modulation.png)", "",
+              "## The seed's claims in these numbers", "", *claims(res), ""]
+    return "\n".join(lines)
+
+
+def tilt_markdown(tilt, units):
+    """The installation-tilt section: before, after, floor; fitted deviation against truth."""
+    def cell(values):
+        v = np.degrees(np.array(values))
+        return f"{np.median(v):.3g} [{v.min():.3g}, {v.max():.3g}]"
+    lines = ["## Installation tilt deviation: fitted and compensated (Gao, Guan, Wang 2013)", "",
+             f"The same parked vehicle; the IMU's true mounting on the platform deviates from "
+             f"the design the log states by {np.degrees(modulation.TILT_DEVIATION_RAD):.0f} deg "
+             "(a random direction in the platform plane, per unit); the vehicle attitude is "
+             "computed with the design mounting, the deviation is fitted against the platform "
+             "angle from that attitude alone (`modulation.installation_tilt`: the error "
+             "Rz(theta) delta + J(t) b + c on each two turns, c the parked vehicle's attitude, "
+             "b a modulated gyro bias; Gauss-Newton on the remainder) and compensated. RMS over the 600 s of the vehicle "
+             "attitude's deviation from the truth, deg, median [min, max] over "
+             f"{units} units; floor = the same navigation with the true mounting known (the "
+             "unit's own free-inertial error); z = fitted minus true deviation over the "
+             "fit's standard error (both axes, all units).", "",
+             "| IMU | platform | tilt before | tilt after | tilt floor | heading before | "
+             "heading after | RMS z of the fitted deviation |", "|---|---|---|---|---|---|---|---|"]
+    for (errors, platform), rs in tilt.items():
+        z = np.ravel([(r["fitted_rad"] - r["true_rad"][:2]) / r["se_rad"] for r in rs])
+        zs = f"{np.sqrt(np.mean(z ** 2)):.2f}" if errors != "ideal IMU" else "- (no scatter)"
+        lines.append(f"| {errors} | {platform} | "
+                     + " | ".join(cell([r[k]["tilt_rad"] for r in rs])
+                                  for k in ("before", "after", "floor"))
+                     + f" | {cell([r['before']['heading_rad'] for r in rs])} | "
+                     f"{cell([r['after']['heading_rad'] for r in rs])} | {zs} |")
+    ideal = tilt[("ideal IMU", "continuous")]
+    mems = tilt[("bias + instability", "back-and-forth")]
+    cont = tilt[("bias + instability", "continuous")]
+    err = lambda rs: np.degrees(np.ravel([np.abs(r["fitted_rad"] - r["true_rad"][:2])  # noqa
+                                          for r in rs]))
+    lines += ["", "What these numbers say against the seed (2 deg -> 0.05 deg level, 0.5 deg -> "
+              "0.005 deg yaw):", "",
+              f"- The fit removes the deviation: with an ideal IMU the level deviation falls "
+              f"from {np.degrees(np.median([r['before']['tilt_rad'] for r in ideal])):.2f} deg "
+              f"to {np.degrees(np.median([r['after']['tilt_rad'] for r in ideal])):.1g} deg "
+              "(round-off: the fit, iterated on the remainder, recovers it exactly).",
+              f"- On a MEMS unit (constant bias + bias instability) the fitted deviation is off by "
+              f"{np.median(err(mems)):.2g} deg (median, back-and-forth) and "
+              f"{np.median(err(cont)):.2g} deg (continuous), and the level deviation after "
+              f"compensation ({np.degrees(np.median([r['after']['tilt_rad'] for r in mems])):.2g}"
+              f" deg) is the unit's own free-inertial floor "
+              f"({np.degrees(np.median([r['floor']['tilt_rad'] for r in mems])):.2g} deg): the "
+              "seed's 0.05 deg is a statement about its IMU's floor as much as about the fit.",
+              "- A continuous rotation cannot tell the deviation from a modulated gyro bias (both "
+              "turn with the platform angle; the bias as b / rate): its RMS z above 1 is that "
+              "confusion; back-and-forth rotation reverses the bias term and separates them.",
+              "- Heading: in this geometry (the turning axis along the vehicle's vertical) a "
+              "deviation in the platform plane tilts the vehicle attitude and leaves the "
+              "heading unchanged to second order, so the table shows no heading change; the "
+              "seed's 0.5 deg yaw deviation belongs to a mechanism whose geometry it does not "
+              "give. A deviation about the turning axis itself is a constant heading offset that "
+              "no platform angle reveals (it needs an external heading).", ""]
     return "\n".join(lines)
 
 
@@ -108,11 +166,13 @@ def plot(res, png):
 
 def write(out_dir, units=8, seed=0, force=False, progress=True):
     import os
-    md = os.path.join(out_dir, "modulation.md")
+    md = os.path.join(out_dir, "rotation-modulation.md")
     if os.path.exists(md) and not force:
         raise FileExistsError(f"{md} exists; use --force to replace it")
     os.makedirs(out_dir, exist_ok=True)
-    res = modulation.study(Profile.from_dict(PARKED), units=units, seed=seed, progress=progress)
-    plot(res, os.path.join(out_dir, "modulation.png"))
-    write_atomic(md, markdown(res, units), force=True)
+    parked = Profile.from_dict(PARKED)
+    res = modulation.study(parked, units=units, seed=seed, progress=progress)
+    tilt = modulation.tilt_study(parked, units=units, seed=seed, progress=progress)
+    plot(res, os.path.join(out_dir, "rotation-modulation.png"))
+    write_atomic(md, markdown(res, units) + "\n" + tilt_markdown(tilt, units), force=True)
     return md
