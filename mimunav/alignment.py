@@ -221,9 +221,14 @@ def _biases_at_a_rest(t, w, f, mounting, track, rests):
     recording; zeros and (nan, nan) without one. The Earth rate is removed with the
     reference's attitude there when it has one; else only its vertical part (the level is
     known, the heading is not), leaving at most Omega cos(lat) = 7.3e-5 rad/s."""
+    where = "the rest"
+    if not rests:
+        rests = quiet_stretches(t, w, f)
+        where = "the IMU's quietest stretch (no reference rest; judged from the IMU alone)"
     if not rests:
         return (np.zeros(3), np.zeros(3), (math.nan, math.nan),
-                f"biases taken as 0: no rest of {MIN_STATIC_S:g} s in the recording")
+                f"biases taken as 0: no rest of {MIN_STATIC_S:g} s in the reference and no "
+                f"quiet stretch of {MIN_STATIC_S:g} s in the IMU")
     t0, t1 = max(rests, key=lambda r: r[1] - r[0])
     k = (t >= t0) & (t <= t1)
     lat, h = (float(np.interp(0.5 * (t0 + t1), track["t"], track[x])) for x in ("lat", "h"))
@@ -243,7 +248,41 @@ def _biases_at_a_rest(t, w, f, mounting, track, rests):
                                      np.array([w_n[0], w_n[1], 0.0]))
         gyro_bias = gyro_bias + horizontal
     return (gyro_bias, accel_bias, (t0, t1),
-            f"biases from the rest {t0:.2f}-{t1:.2f} s ({note})")
+            f"biases from {where} {t0:.2f}-{t1:.2f} s ({note})")
+
+
+QUIET_WINDOW_S = 0.5        # s: windows the IMU-only rest test looks at
+QUIET_RATE = math.radians(1.0)      # rad/s: a resting consumer gyro's mean rate (its bias) stays below
+QUIET_GRAVITY = 0.3         # m/s^2: |mean f| - g at rest, beyond a consumer accelerometer's bias
+G0 = 9.80665                # m/s^2, standard gravity (a resting IMU feels about this)
+
+
+def quiet_stretches(t, w, f):
+    """Rests judged from the IMU alone, [(t0, t1)] s of at least MIN_STATIC_S: runs of
+    QUIET_WINDOW_S windows whose gyro and specific-force-magnitude scatter are within twice
+    the quietest twentieth of the recording's windows, whose mean rate is below QUIET_RATE and
+    whose mean specific force is gravity's size (QUIET_GRAVITY). For the biases when the
+    reference shows no rest (it may not cover one); a straight steady drive on a smooth road
+    can pass, and serves the gyro bias and the level as well as a rest."""
+    n = max(int(round(QUIET_WINDOW_S / np.median(np.diff(t)))), 4)
+    m = len(t) // n
+    if m < 2:
+        return []
+    cut = lambda x: x[:m * n].reshape(m, n, *x.shape[1:])          # noqa: E731
+    w_s, f_norm = cut(w), np.linalg.norm(cut(f), axis=2)
+    spread_w = np.linalg.norm(w_s.std(axis=1), axis=1)
+    spread_f = f_norm.std(axis=1)
+    quiet = ((spread_w <= 2 * np.quantile(spread_w, 0.05))
+             & (spread_f <= 2 * np.quantile(spread_f, 0.05))
+             & (np.linalg.norm(w_s.mean(axis=1), axis=1) < QUIET_RATE)
+             & (np.abs(np.linalg.norm(cut(f).mean(axis=1), axis=1) - G0) < QUIET_GRAVITY))
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], quiet.astype(int), [0]])))
+    out = []
+    for a, b in zip(edges[::2], edges[1::2]):
+        t0, t1 = float(t[a * n]), float(t[b * n - 1])
+        if t1 - t0 >= MIN_STATIC_S:
+            out.append((t0, t1))
+    return out
 
 
 def moving_attitude(t, f, mounting, track, t0, half=MOVING_HALF_WINDOW_S):

@@ -204,6 +204,23 @@ def test_gyro_bias_from_a_rest_in_the_middle(tmp_path):
     assert np.abs(align.accel_bias).max() < 1e-4
 
 
+def test_quiet_stretches_found_from_the_imu_alone():
+    """Rest - motion - rest at 100 Hz with a consumer part's noise: the IMU-only test finds
+    both rests (to a window) and nothing in the motion, a turn at a steady 20 deg/s included."""
+    from mimunav import alignment
+    rng = np.random.default_rng(2)
+    t = np.arange(0, 40, 0.01)
+    moving = (t >= 10) & (t < 32)
+    w = rng.normal(0, 0.005, (len(t), 3)) + [0.002, -0.001, 0.003]
+    f = rng.normal(0, 0.02, (len(t), 3)) + [0.0, 0.0, -9.81]
+    w[moving, 2] += np.where(t[moving] < 20, 0.3 * np.sin(t[moving]), math.radians(20))
+    f[moving, 0] += 1.5 * np.sin(0.7 * t[moving]) + rng.normal(0, 0.3, moving.sum())
+    found = alignment.quiet_stretches(t, w, f)
+    assert len(found) == 2
+    (a0, a1), (b0, b1) = found
+    assert a0 == 0 and abs(a1 - 10) <= 0.5 and abs(b0 - 32) <= 0.5 and b1 > 39.4
+
+
 def test_no_initial_state_is_a_clear_error():
     """Never at rest, no attitude, never faster than the course speed: the error says all
     three."""
@@ -355,6 +372,27 @@ def test_rtklib_excerpt_import_follows_the_contract(tmp_path):
     assert np.allclose(q, Mounting.from_rpy_deg((0, 0, 90)).attitude_wxyz)
     assert "given" in meta["recording"]["assumed"]["mounting"]
     assert meta["reference"]["solutions"] == "fix/float"
+
+
+def test_an_imported_log_cut_short_keeps_its_reference_up_to_the_cut(tmp_path):
+    """Channels are written interleaved in time: half of an imported excerpt, recovered,
+    holds the reference and the fixes as far as it holds the IMU (they were written after
+    every IMU chunk before, so a cut log lost its whole reference)."""
+    from mimunav.flightlog.recover import recover
+    log = tmp_path / "drive.mcap"
+    assert main(["import", "rtklib", str(DRIVE), "-o", str(log)]) == 0
+    data = log.read_bytes()
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(data[:len(data) // 2])
+    recover(str(cut), str(tmp_path / "fixed.mcap"))
+    with FlightLog(tmp_path / "fixed.mcap") as fl:
+        imu = fl.read("/mimu/imu")["log_time"]
+        ref = fl.read("/truth/state")["log_time"]
+        fixes = fl.read("/gnss/fix")["log_time"]
+    span = (imu[-1] - imu[0]) / 1e9
+    assert span > 10
+    for stamps in (ref, fixes):
+        assert len(stamps) and (imu[-1] - stamps[-1]) / 1e9 < 0.6 * span
 
 
 def test_rtklib_bad_inputs_are_named(tmp_path):

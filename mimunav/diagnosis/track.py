@@ -37,6 +37,7 @@ inconclusive diagnosis keeps its findings' verdict if any survive, otherwise
 "unexplained-residual" (the reference does not explain the recording), with
 `conclusive: false` and the reasons in the document.
 """
+import math
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -118,8 +119,12 @@ def reference_check(ref, trusted):
     k = k[:len(k) // m * m]
     mean = lambda x: x[k].reshape(-1, m, 6).mean(axis=1)                     # noqa: E731
     meas, pred = mean(np.hstack([f, w])), mean(np.hstack([f_p, w_p]))
-    return {f"{s}.{a}": float(np.corrcoef(meas[:, c], pred[:, c])[0, 1])
-            for c, (s, a) in enumerate(CHANNELS)}
+
+    def correlation(x, y):            # nan, not a warning, when there is nothing to correlate
+        if len(x) < 3 or not (np.std(x) > 0 and np.std(y) > 0):
+            return math.nan
+        return float(np.corrcoef(x, y)[0, 1])
+    return {f"{s}.{a}": correlation(meas[:, c], pred[:, c]) for c, (s, a) in enumerate(CHANNELS)}
 
 
 def diagnose(flight, cal, alpha=0.05, reference=None, accuracy=None):

@@ -28,6 +28,7 @@ from ..errors import InputError
 
 UNKNOWN_ATTITUDE = np.full(4, np.nan)
 G0 = 9.80665                # m/s^2, standard gravity: the size a check of units compares with
+WRITE_BLOCK_S = 10.0        # s: channels are written interleaved in blocks of this much time
 GPS_EPOCH_UNIX_S = 315964800            # 1980-01-06T00:00:00Z, the start of GPS time
 # GPS - UTC, s, from the GPS time (s since the GPS epoch) at which each took effect (IERS
 # Bulletin C; none added after 2017-01-01)
@@ -179,7 +180,7 @@ def write_log(rec, path, force=False):
                                                 [float(align.static[0]), float(align.static[1])]),
                                    "observed_max": {"gyro_rad_s": float(np.abs(rec.w).max()),
                                                     "accel_m_s2": float(np.abs(rec.f).max())}})
-        log.write("/mimu/imu", S.IMU, "mimu", rec.imu_ns, **S.imu_fields(rec.w, rec.f))
+        channels = [("/mimu/imu", S.IMU, "mimu", rec.imu_ns, S.imu_fields(rec.w, rec.f))]
         if ref is not None:
             q = ref.get("q_nb")
             known = q is not None and np.isfinite(q).all(axis=1).any()
@@ -190,20 +191,35 @@ def write_log(rec, path, force=False):
                     "velocity": "given by the reference"}
             meta.update({k: str(v) for k, v in rec.reference_meta.items()})
             log.metadata("reference", meta)
-            log.write("/truth/state", S.NAV_STATE, "vehicle", ref["ns"],
-                      latitude=ref["lat"], longitude=ref["lon"], height=ref["h"],
-                      velocity_ned=ref["v_ned"],
-                      attitude_wxyz=q if known else np.tile(UNKNOWN_ATTITUDE, (len(ref["ns"]), 1)))
+            channels.append(("/truth/state", S.NAV_STATE, "vehicle", ref["ns"], dict(
+                latitude=ref["lat"], longitude=ref["lon"], height=ref["h"],
+                velocity_ned=ref["v_ned"],
+                attitude_wxyz=q if known else np.tile(UNKNOWN_ATTITUDE, (len(ref["ns"]), 1)))))
         if rec.fixes is not None:
             fx = rec.fixes
             log.metadata("gnss", {"latitude_longitude": "rad (log contract conventions)",
                                   "position_covariance": "m^2, ENU"})
-            log.write("/gnss/fix", S.NAV_SAT_FIX, "gnss", fx["ns"], status=fx["status"],
-                      service=np.ones(len(fx["ns"]), np.uint16), latitude=fx["lat"],
-                      longitude=fx["lon"], altitude=fx["h"],
-                      position_covariance=fx["covariance"],
-                      position_covariance_type=np.full(len(fx["ns"]), 2, np.uint8))
+            channels.append(("/gnss/fix", S.NAV_SAT_FIX, "gnss", fx["ns"], dict(
+                status=fx["status"], service=np.ones(len(fx["ns"]), np.uint16),
+                latitude=fx["lat"], longitude=fx["lon"], altitude=fx["h"],
+                position_covariance=fx["covariance"],
+                position_covariance_type=np.full(len(fx["ns"]), 2, np.uint8))))
+        _write_interleaved(log, channels)
     return align
+
+
+def _write_interleaved(log, channels, block_s=WRITE_BLOCK_S):
+    """Write each channel (topic, schema, frame, stamps ns, fields) block_s of time at a time,
+    all channels per block, so that a log cut short (a full disk, a copy stopped) keeps the
+    reference and fixes up to the cut, not only the IMU."""
+    lo = min(int(c[3][0]) for c in channels if len(c[3]))
+    hi = max(int(c[3][-1]) for c in channels if len(c[3]))
+    step = int(block_s * 1e9)
+    for start in range(lo, hi + 1, step):
+        for topic, schema, frame, ns, fields in channels:
+            a, b = np.searchsorted(ns, [start, start + step])
+            if b > a:
+                log.write(topic, schema, frame, ns[a:b], **{k: v[a:b] for k, v in fields.items()})
 
 
 def _track(rec, epoch):

@@ -105,6 +105,12 @@ def write(log_path, out_dir, force=False, progress=True, min_speed=None,
     return Path(out_dir) / "recording.md"
 
 
+def _sigma_m(text):
+    """A stated sigma with its unit, or what the metadata says instead of a number."""
+    text = str(text or "not stated")
+    return _cell(text + " m" if text[:1].isdigit() else text)
+
+
 def markdown(log_path, meta, channels, flight, docs, no_windows, doc, no_diagnosis, elapsed):
     fl, rec, ref = meta.get("flight", {}), meta.get("recording", {}), meta.get("reference", {})
     mimu = meta.get("sensor/mimu", {})
@@ -121,7 +127,7 @@ def markdown(log_path, meta, channels, flight, docs, no_windows, doc, no_diagnos
              f"| reference | {_cell(ref.get('source', 'none'))}; attitude "
              f"{_cell(ref.get('attitude', '?'))}; independent of this IMU: "
              f"{_cell(ref.get('independent', 'not stated'))}; position sigma "
-             f"{_cell(ref.get('position_sigma_m', 'not stated'))} m |"]
+             f"{_sigma_m(ref.get('position_sigma_m'))} |"]
     for key, value in (rec.get("real") or {}).items():
         if key != "source":
             lines.append(f"| measured: {key} | {_cell(value)} |")
