@@ -160,3 +160,36 @@ def test_wander_profile_by_eigenvectors_equals_the_direct_likelihood():
         direct = [outputs._profiled(x, cols, s * s * corr + base) for s in grid]
         assert np.allclose(outputs._wander_profile(x, cols, base, corr, grid), direct,
                            rtol=1e-10)
+
+
+def test_gauss_markov_window_means_covariance_is_the_double_integral():
+    """The closed form of the window means' covariance against a numerical double integral
+    of exp(-|s - u| / tau) over two windows (adjacent, apart, the same)."""
+    from scipy import integrate
+    span, tau = 2.0, 100.0
+    t = np.array([0.0, 2.0, 7.0])
+    closed = outputs.gm_mean_correlation(t, span, tau)
+    for i, j in ((0, 0), (0, 1), (0, 2)):
+        numeric, _ = integrate.dblquad(
+            lambda u, s: math.exp(-abs(s - u) / tau), t[i] - 1, t[i] + 1, t[j] - 1, t[j] + 1,
+            epsabs=1e-12)
+        assert closed[i, j] == pytest.approx(numeric / span ** 2, rel=1e-9)
+
+
+def test_bias_instability_sigma_recovers_a_gauss_markov_wander():
+    """2 s means of a Gauss-Markov wander (sigma 0.085 m/s^2, tau 100 s, 90 s) plus white
+    noise, 60 draws: the estimate's median is the truth within 10 % and its 95 % interval
+    covers it in at least 80 % of the draws (point correlations put it at 0.69 of the truth
+    and covered 25 %)."""
+    rng = np.random.default_rng(0)
+    t_full = np.arange(0, 90, 0.01)
+    tm = np.arange(1, 90, 2.0)
+    sigma, est, cover = 0.085, [], 0
+    for _ in range(60):
+        path = transplant.gauss_markov(t_full, sigma, 100.0, rng) + rng.normal(0, 0.01, len(t_full))
+        x = path.reshape(len(tm), -1).mean(axis=1)
+        m = outputs._bias_models(tm, x, outputs.CLASS_DRIFT["accel"], 0.002, 0.01 ** 2 / 200)
+        est.append(m["wander"]["sigma"])
+        cover += m["wander"]["lower"] <= sigma <= m["wander"]["upper"]
+    assert 0.9 < np.median(est) / sigma < 1.1
+    assert cover >= 48

@@ -363,6 +363,22 @@ def _wander_profile(x, nuisance, base, corr, grid):
     return -0.5 * (logdet_base + np.log(d).sum(axis=1) + quad + len(x) * math.log(2 * math.pi))
 
 
+def gm_mean_correlation(t, span, tau):
+    """Covariance, per unit variance, of the means over windows [t - span/2, t + span/2] of
+    a Gauss-Markov process of correlation time tau (closed form of the double integral of
+    exp(-|s - u| / tau)): for windows d >= span apart (r = span / tau)
+        (tau / span)^2 exp(-d / tau) 2 (cosh r - 1),
+    and for a window with itself 2 (tau / span)^2 (r - 1 + exp(-r)). Point values'
+    exp(-d / tau) overstate how much adjacent means differ (a random walk's mean over a
+    window differs from the next by 2/3 of its point difference's variance) and so
+    understated sigma by a fifth."""
+    r = span / tau
+    d = np.abs(t[:, None] - t[None, :])
+    out = (tau / span) ** 2 * np.exp(-d / tau) * 2 * (math.cosh(r) - 1)
+    np.fill_diagonal(out, 2 * (tau / span) ** 2 * (r - 1 + math.exp(-r)))
+    return out
+
+
 def _bias_models(t, x, instability, offset, white, nuisance=None):
     """The class, shift and wander models of `bias_tests` on the means x at times t, each
     with the columns `nuisance` (m, k: the channel's temperature, so a slow thermal term
@@ -373,7 +389,7 @@ def _bias_models(t, x, instability, offset, white, nuisance=None):
     span = float(t[-1] - t[0]) + SPAN_S
     flicker = instability ** 2 * flicker_covariance(
         t - SPAN_S / 2, t + SPAN_S / 2, 1.0 / (FLICKER_SPAN_FACTOR * span), 1.0 / FAST_S)
-    corr = np.exp(-np.abs(t[:, None] - t[None, :]) / GM_TAU_S)
+    corr = gm_mean_correlation(t, SPAN_S, GM_TAU_S)
     ones = np.ones((n, 1))
     base = flicker + white * np.eye(n)
     turn_on = offset ** 2 * (ones @ ones.T)
@@ -385,10 +401,12 @@ def _bias_models(t, x, instability, offset, white, nuisance=None):
     l_shift = _profiled(x, with_mean, base)
     grid = instability * np.geomspace(1e-2, 1e3, 301)
     ll = _wander_profile(x, nuisance, base + turn_on, corr, grid)
-    # sigma and its interval without the temperature: once the wander is called, a slow
-    # temperature that happens to follow it would take part of it away (low estimates)
-    plain = _wander_profile(x, nuisance[:, :0], base + turn_on, corr, grid) \
-        if nuisance.shape[1] else ll
+    # sigma and its interval: the whole wander, read without the class's flicker and the
+    # temperature. The class's flicker is the test's null, but a unit wanders as much as it
+    # does, not as the class allows: sharing the wander with it put the estimate at 0.79 of a
+    # Gauss-Markov truth; and once the wander is called, a slow temperature that happens to
+    # follow it would take part of it away
+    plain = _wander_profile(x, nuisance[:, :0], white * np.eye(n) + turn_on, corr, grid)
     inside = grid[plain >= plain.max() - 0.5 * stats.chi2.isf(0.05, 1)]
     lr_wander = max(2 * (ll.max() - l_class), 0.0)
     # the offset's test: its GLS mean against the class's turn-on spread added to its own
