@@ -62,7 +62,9 @@ def _simulate(args):
                                    ("--platform-dwell-s", args.platform_dwell_s, 0.0),
                                    ("--inclination-deg", args.inclination_deg, 0.0),
                                    ("--platform-encoder-arcsec", args.platform_encoder_arcsec,
-                                    1.58)) if v != d]
+                                    1.58),
+                                   ("--platform-encoder-noise-arcsec",
+                                    args.platform_encoder_noise_arcsec, 0.0)) if v != d]
         if given and not args.platform:
             raise InputError(f"{', '.join(given)} describe a platform: give --platform too")
         if args.platform == "continuous" and any(o in given for o in ("--platform-swing-deg",
@@ -76,7 +78,10 @@ def _simulate(args):
                                 dwell_s=args.platform_dwell_s,
                                 inclination_rad=np.radians(args.inclination_deg),
                                 encoder_resolution_rad=np.radians(args.platform_encoder_arcsec
-                                                                  / 3600))
+                                                                  / 3600),
+                                encoder_noise_rad=np.radians(args.platform_encoder_noise_arcsec
+                                                             / 3600),
+                                encoder_seed=args.seed)
         log, truth_file = simulate_flight(profile, args.output, args.seed, unit=unit,
                                           fog_rate=args.fog_rate, force=args.force, hide=hide,
                                           platform=platform)
@@ -617,6 +622,8 @@ def build_parser():
     p.add_argument("--platform-encoder-arcsec", type=_number(0.0, 3600.0), default=1.58,
                    help="resolution of the recorded platform angle, arcsec (default 1.58, the "
                    "seed S4 circular grating; 0: exact)")
+    p.add_argument("--platform-encoder-noise-arcsec", type=_number(0.0, 3600.0), default=0.0,
+                   help="white read-out noise of the platform angle, arcsec 1 sigma (default 0)")
     p.add_argument("--platform-dwell-s", type=_number(0.0, 3600.0), default=0.0,
                    help="back-and-forth: pause at each end, s (default 0)")
     p.add_argument("--inclination-deg", type=_number(-90.0, 90.0), default=0.0,

@@ -48,7 +48,9 @@ class Platform:
     inclination; imu_deviation_rad: the installation's deviation from that design (rotation
     vector, platform axes: the true mounting is exp(deviation) q_ps_nominal) - a log's
     metadata states the design, the deviation is what `installation_tilt` finds;
-    encoder_resolution_rad: the step of the recorded platform angle (a circular grating)."""
+    encoder_resolution_rad: the step of the recorded platform angle (a circular grating);
+    encoder_noise_rad: its white read-out noise (1 sigma), drawn per sample index from
+    encoder_seed (`counter_normal`), so a record made in blocks reads the same angles."""
     mode: str = "continuous"
     rate_rad_s: float = math.radians(10.0)
     swing_rad: float = 2 * math.pi
@@ -61,6 +63,8 @@ class Platform:
     imu_wxyz: tuple = (1.0, 0.0, 0.0, 0.0)
     imu_deviation_rad: tuple = (0.0, 0.0, 0.0)
     encoder_resolution_rad: float = 0.0
+    encoder_noise_rad: float = 0.0
+    encoder_seed: int = 0
 
     def __post_init__(self):
         if self.mode not in MODES:
@@ -83,10 +87,14 @@ class Platform:
             sign = -sign
         return rate_ppoly(ramps, max(t, t_end))
 
-    def encoder(self, angle):
-        """The platform angle as the encoder records it (rad): rounded to its resolution."""
+    def encoder(self, angle, first_index=0):
+        """The platform angle as the encoder records it (rad): read with its noise, rounded to
+        its resolution. first_index: the sample index of angle[0] (the noise's counter)."""
+        x = np.asarray(angle, float)
+        if self.encoder_noise_rad > 0:
+            x = x + self.encoder_noise_rad * counter_normal(self.encoder_seed, first_index, len(x))
         res = self.encoder_resolution_rad
-        return np.round(np.asarray(angle) / res) * res if res > 0 else np.asarray(angle)
+        return np.round(x / res) * res if res > 0 else x
 
     def q_bp0(self):
         return (quaternion.from_rotation_vector([*self.axis_tilt_rad, 0.0])
@@ -102,6 +110,18 @@ class Platform:
     def q_ps(self):
         """The true mounting: the design turned by the installation deviation."""
         return quaternion.from_rotation_vector(self.imu_deviation_rad) * self.q_ps_nominal()
+
+
+def counter_normal(seed, first, n):
+    """n standard normal numbers for the sample indices first .. first + n - 1, the same
+    for an index however the record is cut into blocks: a counter-based generator (Philox)
+    advanced to the index, one counter step (four 64-bit words) per sample, by the inverse
+    normal CDF of its first uniform."""
+    from scipy.special import ndtri
+    bits = np.random.Philox(key=seed)
+    bits.advance(int(first))
+    u = np.random.Generator(bits).random((n, 4))[:, 0]
+    return ndtri(np.clip(u, 1e-300, 1.0))
 
 
 def _rz(theta):
@@ -253,7 +273,8 @@ def platform_metadata(platform):
             "dwell_s": platform.dwell_s, "inclination_rad": platform.inclination_rad,
             "tilt_azimuth_rad": platform.tilt_azimuth_rad,
             "axis_tilt_rad": list(platform.axis_tilt_rad),
-            "encoder_resolution_rad": platform.encoder_resolution_rad}
+            "encoder_resolution_rad": platform.encoder_resolution_rad,
+            "encoder_noise_rad": platform.encoder_noise_rad}
 
 
 def q_bs_recorded(meta, angle):

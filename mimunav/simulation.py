@@ -136,7 +136,8 @@ def flight_motion_blocks(profile, mimu_mounting, mimu_rate, fog_mounting, fog_ra
         else:
             sensor_run = truth.generate(rotating, t_base, here)       # the IMU on the axis
             mimu = at_rate(_SensorFrame(), mimu_rate, sensor_run)
-            turning = {"angle": platform.encoder(rotating.angle(mimu[0])),
+            turning = {"angle": platform.encoder(rotating.angle(mimu[0]),
+                                                 int(round(mimu[0][0] * mimu_rate))),
                        "rate": rotating.rate(mimu[0]),
                        "platform": platform}
         env = bay_temperature(mimu[0], np.interp(mimu[0], t_base, tr.h),

@@ -167,3 +167,21 @@ def test_installation_tilt_fitted_and_compensated():
     r = modulation.tilt_compensation(prof, modulation.CONFIGURATIONS["continuous"], dev,
                                      errors, seed=3)
     assert not r["bias_separated"]
+
+
+def test_encoder_reads_the_same_angles_however_the_record_is_cut():
+    """The platform angle's read-out noise is drawn per sample index (a counter-based
+    generator), so blocks of any size read what the whole record reads; its spread is the
+    stated noise, and the grating's resolution rounds it."""
+    p = modulation.Platform("continuous", encoder_noise_rad=1e-4, encoder_seed=9,
+                            encoder_resolution_rad=modulation.ENCODER_RESOLUTION_RAD)
+    angle = np.linspace(0.0, 50.0, 20001)
+    whole = p.encoder(angle)
+    cut = np.concatenate([p.encoder(angle[:777]), p.encoder(angle[777:5000], 777),
+                          p.encoder(angle[5000:], 5000)])
+    np.testing.assert_array_equal(whole, cut)
+    assert np.std(whole - angle) == pytest.approx(1e-4, rel=0.03)
+    steps = whole / modulation.ENCODER_RESOLUTION_RAD
+    np.testing.assert_allclose(steps, np.round(steps), atol=1e-6)
+    other = modulation.Platform("continuous", encoder_noise_rad=1e-4, encoder_seed=10)
+    assert not np.allclose(other.encoder(angle), p.encoder(angle))
