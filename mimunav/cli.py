@@ -1,11 +1,18 @@
 """Command-line interface: `mimunav <command> ...` (also `python -m mimunav`)."""
 import argparse
+import os
 import sys
 import time
 from pathlib import Path
 
-import numpy as np
-from .errors import InputError
+# One BLAS thread unless the user chose (before numpy loads OpenBLAS): its worker threads
+# spin when the cores are busy - beside one other busy process a diagnosis ran 5x slower
+# and a 24000 x 100 Gram matrix 50x (bench/blas.py); the work is many mid-size products
+if not any(v in os.environ for v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS")):
+    os.environ["OPENBLAS_NUM_THREADS"] = "1"
+
+import numpy as np                                    # noqa: E402
+from .errors import InputError                        # noqa: E402
 
 FLIGHTS = Path(__file__).resolve().parent.parent / "flights"
 DEMO_MAX_SAMPLES = 20_000_000      # ~150 bytes per sample held (truth, increments, navigation)
