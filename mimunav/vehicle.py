@@ -41,9 +41,10 @@ class TrackMotion(Motion):
         yaw, pitch = _yaw_pitch(v)
         moving = np.hypot(v[:, 0], v[:, 1]) >= HOLD_SPEED
         if not moving.any():
-            raise InputError(f"the reference never moves faster than {HOLD_SPEED:g} m/s: the "
-                             "track level takes the vehicle's attitude from its course, and "
-                             "there is none")
+            raise InputError(f"the reference never moves faster than {HOLD_SPEED:g} m/s (peak "
+                             f"{np.hypot(v[:, 0], v[:, 1]).max():.2g} m/s): the track level "
+                             "models a land vehicle whose attitude follows its course, so it "
+                             "does not apply here (it does not read a reference's own attitude)")
         first = np.argmax(moving)
         last = np.maximum.accumulate(np.where(moving, np.arange(len(t)), first))
         self._t, self._yaw_hold, self._pitch_hold = t, yaw[last], pitch[last]
