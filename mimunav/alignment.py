@@ -223,7 +223,7 @@ def _biases_at_a_rest(t, w, f, mounting, track, rests):
     known, the heading is not), leaving at most Omega cos(lat) = 7.3e-5 rad/s."""
     where = "the rest"
     if not rests:
-        rests = quiet_stretches(t, w, f)
+        rests = quiet_stretches(t, w, f, track)
         where = "the IMU's quietest stretch (no reference rest; judged from the IMU alone)"
     if not rests:
         return (np.zeros(3), np.zeros(3), (math.nan, math.nan),
@@ -257,13 +257,14 @@ QUIET_GRAVITY = 0.3         # m/s^2: |mean f| - g at rest, beyond a consumer acc
 G0 = 9.80665                # m/s^2, standard gravity (a resting IMU feels about this)
 
 
-def quiet_stretches(t, w, f):
-    """Rests judged from the IMU alone, [(t0, t1)] s of at least MIN_STATIC_S: runs of
+def quiet_stretches(t, w, f, track=None):
+    """Rests judged from the IMU, [(t0, t1)] s of at least MIN_STATIC_S: runs of
     QUIET_WINDOW_S windows whose gyro and specific-force-magnitude scatter are within twice
     the quietest twentieth of the recording's windows, whose mean rate is below QUIET_RATE and
-    whose mean specific force is gravity's size (QUIET_GRAVITY). For the biases when the
-    reference shows no rest (it may not cover one); a straight steady drive on a smooth road
-    can pass, and serves the gyro bias and the level as well as a rest."""
+    whose mean specific force is gravity's size (QUIET_GRAVITY), and which the reference
+    `track` (when it covers them) shows below STATIC_SPEED. For the biases when the reference
+    shows no rest (it may not cover one); outside the reference, a drive that never stops can
+    pass the relative test, so the note says the rest was judged from the IMU alone."""
     n = max(int(round(QUIET_WINDOW_S / np.median(np.diff(t)))), 4)
     m = len(t) // n
     if m < 2:
@@ -276,6 +277,11 @@ def quiet_stretches(t, w, f):
              & (spread_f <= 2 * np.quantile(spread_f, 0.05))
              & (np.linalg.norm(w_s.mean(axis=1), axis=1) < QUIET_RATE)
              & (np.abs(np.linalg.norm(cut(f).mean(axis=1), axis=1) - G0) < QUIET_GRAVITY))
+    if track is not None and len(track["t"]) >= 2:
+        mid = cut(t).mean(axis=1)
+        covered = (mid >= track["t"][0]) & (mid <= track["t"][-1])
+        speed = np.interp(mid, track["t"], np.linalg.norm(track["v_ned"], axis=1))
+        quiet &= ~covered | (speed <= STATIC_SPEED)
     edges = np.flatnonzero(np.diff(np.concatenate([[0], quiet.astype(int), [0]])))
     out = []
     for a, b in zip(edges[::2], edges[1::2]):

@@ -300,7 +300,13 @@ def installation_tilt(t, theta, q_ns, platform, q_nb_reference=None, iterations=
     return dict(fit, delta_rad=delta)
 
 
-def tilt_deviation(t, theta, q_nb, q_bp0, q_nb_reference=None):
+# a continuous rotation's tilt fit holds the modulated gyro bias b / rate: its uncertainty
+# takes the class's turn-on bias (seed S1 Table 1 as read in `calibration.TURN_ON`)
+TILT_GYRO_BIAS_RAD_S = math.radians(10 / 3600)
+
+
+def tilt_deviation(t, theta, q_nb, q_bp0, q_nb_reference=None,
+                   gyro_bias_rad_s=TILT_GYRO_BIAS_RAD_S):
     """The IMU's installation deviation on the platform from the vehicle attitude computed
     with the design mounting (seed S4, Gao, Guan, Wang 2013: fit the tilt against the
     indexing angle). A true mounting exp(delta) q_ps makes the computed attitude
@@ -316,8 +322,9 @@ def tilt_deviation(t, theta, q_nb, q_bp0, q_nb_reference=None):
     pieces and their standard errors the pieces' scatter / sqrt(pieces): the drift makes
     neighbouring epochs' errors correlated, pieces much less so. At a constant rate J is
     Rz(theta - 90 deg) / theta' + const: a continuous rotation cannot tell delta from b, and
-    the fitted delta then holds the bias's b / theta' ("bias_separated": False); a
-    back-and-forth rotation reverses J and separates them.
+    the fitted delta then holds the bias's b / theta' ("bias_separated": False; its standard
+    error then adds gyro_bias_rad_s / theta', the size of that confusion); a back-and-forth
+    rotation reverses J and separates them. "dof": the pieces less one (the scatter's).
     t: times (s, (n,)); theta: platform angles (rad, (n,)); q_nb: the computed vehicle
     attitude (quaternion array (n,)); q_bp0: the platform's base attitude; q_nb_reference:
     the vehicle's attitude from a reference (default: the first computed epoch, for a
@@ -350,8 +357,11 @@ def tilt_deviation(t, theta, q_nb, q_bp0, q_nb_reference=None):
         y = np.concatenate([e_p[sel, 0], e_p[sel, 1]])
         estimates.append(np.linalg.lstsq(design(sel, separated), y, rcond=None)[0])
     est = np.array(estimates)
-    se = est.std(axis=0, ddof=1) / math.sqrt(len(est))
-    return {"delta_rad": est[:, :2].mean(axis=0), "se_rad": se[:2],
+    se = est.std(axis=0, ddof=1)[:2] / math.sqrt(len(est))
+    if not separated:       # the same b / rate in every piece: no scatter shows it
+        rate = float(np.median(np.abs(np.diff(theta) / np.diff(t))))
+        se = np.hypot(se, gyro_bias_rad_s / rate)
+    return {"delta_rad": est[:, :2].mean(axis=0), "se_rad": se, "dof": len(est) - 1,
             "bias_rad_s": est[:, 2:4].mean(axis=0) if separated else None,
             "bias_separated": separated, "pieces": len(est)}
 

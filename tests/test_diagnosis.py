@@ -388,7 +388,8 @@ def test_a_term_inside_the_stated_reference_accuracy_is_listed_not_charged():
 
 def test_navigation_level_is_inconclusive_beyond_small_angles():
     """A velocity error growing as g phi t (a constant tilt phi, closed form): within the
-    psi-angle equations' range it is judged, beyond it the level says inconclusive."""
+    psi-angle equations' range it is judged, beyond it the level says inconclusive; white
+    velocity noise of 0.3 m/s with no growth is no tilt."""
     from mimunav.diagnosis.navigation import (EPOCH_S, G0, MAX_IMPLIED_TILT_RAD,
                                               beyond_small_angles)
     t = np.arange(0, 120, EPOCH_S)
@@ -397,3 +398,5 @@ def test_navigation_level_is_inconclusive_beyond_small_angles():
         dv[:, 0] = G0 * phi * t * 0.6
         dv[:, 1] = -G0 * phi * t * 0.8
         assert len(beyond_small_angles(dv)) == reasons
+    noise = np.random.default_rng(1).normal(0, 0.3, (len(t), 3))
+    assert beyond_small_angles(noise) == []

@@ -363,6 +363,9 @@ def _wander_profile(x, nuisance, base, corr, grid):
     return -0.5 * (logdet_base + np.log(d).sum(axis=1) + quad + len(x) * math.log(2 * math.pi))
 
 
+FLICKER_LEVELS = (0.0, 0.25, 0.5, 0.75, 1.0)     # the unit's flicker, fractions of the class's
+
+
 def gm_mean_correlation(t, span, tau):
     """Covariance, per unit variance, of the means over windows [t - span/2, t + span/2] of
     a Gauss-Markov process of correlation time tau (closed form of the double integral of
@@ -401,12 +404,14 @@ def _bias_models(t, x, instability, offset, white, nuisance=None):
     l_shift = _profiled(x, with_mean, base)
     grid = instability * np.geomspace(1e-2, 1e3, 301)
     ll = _wander_profile(x, nuisance, base + turn_on, corr, grid)
-    # sigma and its interval: the whole wander, read without the class's flicker and the
-    # temperature. The class's flicker is the test's null, but a unit wanders as much as it
-    # does, not as the class allows: sharing the wander with it put the estimate at 0.79 of a
-    # Gauss-Markov truth; and once the wander is called, a slow temperature that happens to
-    # follow it would take part of it away
-    plain = _wander_profile(x, nuisance[:, :0], white * np.eye(n) + turn_on, corr, grid)
+    # sigma and its interval with the unit's own flicker level b a nuisance within the class
+    # (0 <= b <= B, profiled on FLICKER_LEVELS): the class's flicker is the test's null, but a
+    # unit wanders as much as it does - fixed at B it took a fifth of a Gauss-Markov truth,
+    # left out it read a flicker unit's 1/f as a wander three times too large; and without
+    # the temperature, which once the wander is called would take part of it away
+    ridge = max(white, 1e-12 * (float(np.var(x)) + offset ** 2)) * np.eye(n)  # white ~ 0
+    plain = np.max([_wander_profile(x, nuisance[:, :0], b ** 2 * flicker + ridge + turn_on,
+                                    corr, grid) for b in FLICKER_LEVELS], axis=0)
     inside = grid[plain >= plain.max() - 0.5 * stats.chi2.isf(0.05, 1)]
     lr_wander = max(2 * (ll.max() - l_class), 0.0)
     # the offset's test: its GLS mean against the class's turn-on spread added to its own

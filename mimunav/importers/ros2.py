@@ -56,6 +56,8 @@ def topics(path):
                 raise RecordingError(f"{path}: no summary section (truncated?); "
                                      "`mimunav info LOG --recover OUT.mcap`")
             flight = [m for m in reader.iter_metadata() if m.name == "flight"]
+    except RecordingError:
+        raise
     except _DAMAGE as exc:
         raise _damaged(path, exc) from None
     if any(m.metadata.get("format") == "mimunav-log/1" for m in flight):

@@ -2,6 +2,7 @@
 error against its reported standard error, fit residuals, and the held-out check of
 `entire` vs `traditional` against seed S1 Table 1 (`mimunav report calibration`)."""
 import collections
+import math
 import os
 import re
 import tempfile
@@ -107,12 +108,28 @@ def offset_z(unit, cal, run):
     freq = run.means(run.raw["gyro_frequency"]).mean(axis=0)
     u_a, u_w = raw_from_physics(unit.coefficients, np.zeros((1, 3)), np.zeros((1, 3)),
                                 temp[None], freq[None], f_gyro=np.zeros((1, 3)))
-    se = calibration.standard_errors(cal)
     c = unit.coefficients
-    z_a = c.A1 @ (-np.linalg.solve(cal.A1, cal.A0) - u_a[0]) / np.array(
-        [se[f"A0[{i}]"] for i in range(3)])
-    z_w = (cal.W0 + cal.W1 @ u_w[0]) / np.array([se[f"W0[{i}]"] for i in range(3)])
+    u0_fit = -np.linalg.solve(cal.A1, cal.A0)
+    z_a = c.A1 @ (u0_fit - u_a[0]) / _offset_se(cal, "A", u0_fit)
+    z_w = (cal.W0 + cal.W1 @ u_w[0]) / _offset_se(cal, "W", u_w[0])
     return {"zero-g offset": z_a.tolist(), "zero-rate offset": z_w.tolist()}
+
+
+def _offset_se(cal, triad, u):
+    """Standard error (3,) of X0 + X1 @ u per axis (X = A or W) from the file's covariance:
+    the offset at voltages u, where a nominal scale's error and the offset's it made cancel."""
+    names = cal.covariance["names"]
+    cov = np.asarray(cal.covariance["matrix"], float)
+    where = {n: k for k, n in enumerate(names)}
+    out = []
+    for i in range(3):
+        g = np.zeros(len(names))
+        g[where[f"{triad}0[{i}]"]] = 1.0
+        for j in range(3):
+            if f"{triad}1[{i}][{j}]" in where:
+                g[where[f"{triad}1[{i}][{j}]"]] = u[j]
+        out.append(math.sqrt(float(g @ cov @ g)))
+    return np.array(out)
 
 
 def methods_unit(seed, beyond_model=False):
@@ -133,7 +150,8 @@ def _methods_markdown(results):
              f"The reduced methods on the same {len(results)} units exactly eqs. 1-4 "
              "(`mimunav report calibration`, `reports.calibration.offset_z`): their linear "
              "models' coefficients are not the unit's, so the comparison is gauge-free - the "
-             "fitted output at the truth's zero-input voltage over the stated standard error "
+             "fitted output at the truth's zero-input voltage over its standard error from the "
+             "file's covariance "
              "(accelerometers rotation-invariant: A1_true (u0_fit - u0_true)). Target RMS z "
              "0.7-1.4. `entire` is above, `rotation` in reports/rotation-calibration.md; "
              "`cold-start` fits S3's warm-up model, whose terms have no eqs. 1-4 counterpart "

@@ -138,8 +138,10 @@ def tilt_markdown(tilt, units):
               f"({np.degrees(np.median([r['floor']['tilt_rad'] for r in mems])):.2g} deg): the "
               "seed's 0.05 deg is a statement about its IMU's floor as much as about the fit.",
               "- A continuous rotation cannot tell the deviation from a modulated gyro bias (both "
-              "turn with the platform angle; the bias as b / rate): its RMS z above 1 is that "
-              "confusion; back-and-forth rotation reverses the bias term and separates them.",
+              "turn with the platform angle; the bias as b / rate): its fitted deviation holds "
+              "that term, and its standard error carries the class's bias over the rate "
+              "(10 deg/h at 10 deg/s: 0.016 deg); back-and-forth rotation reverses the bias "
+              "term and separates them.",
               "- Heading: in this geometry (the turning axis along the vehicle's vertical) a "
               "deviation in the platform plane tilts the vehicle attitude and leaves the "
               "heading unchanged to second order, so the table shows no heading change; the "
