@@ -2,7 +2,7 @@
 flight in a fresh process with one OpenBLAS thread and with OpenBLAS's default (one per
 core), each while the machine is idle and while N other processes keep cores busy.
 
-    python bench/blas.py [--log ../shared/data/foreign-flights/foreign-02] [--busy 0 1]
+    python bench/blas.py [--log ../shared/data/foreign-flights/foreign-02] [--busy 0 1 3]
 
 The CLI uses one thread unless OPENBLAS_NUM_THREADS or OMP_NUM_THREADS is set.
 """
@@ -39,7 +39,7 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--log", default=str(ROOT.parent / "shared" / "data" / "foreign-flights"
                                          / "foreign-02"))
-    ap.add_argument("--busy", type=int, nargs="+", default=[0, 1])
+    ap.add_argument("--busy", type=int, nargs="+", default=[0, 1, 3])
     ap.add_argument("--json")
     args = ap.parse_args()
     res, rows = {"machine": f"{platform.machine()} {os.cpu_count()} cores"}, []

@@ -5,9 +5,10 @@ import sys
 import time
 from pathlib import Path
 
-# One BLAS thread unless the user chose (before numpy loads OpenBLAS): its worker threads
-# spin when the cores are busy - beside one other busy process a diagnosis ran 5x slower
-# and a 24000 x 100 Gram matrix 50x (bench/blas.py); the work is many mid-size products
+# One BLAS thread unless the user chose (before numpy loads OpenBLAS): processes that each
+# run OpenBLAS's threads on a small machine spin against each other (a 24000 x 100 Gram
+# matrix 50x slower beside two such scripts); alone, one thread costs nothing measurable on
+# this work of many mid-size products (bench/blas.py)
 if not any(v in os.environ for v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS")):
     os.environ["OPENBLAS_NUM_THREADS"] = "1"
 
