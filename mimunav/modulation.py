@@ -25,7 +25,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import quaternion
-import scipy.integrate
 
 from . import attitude, truth
 from .errors import InputError
@@ -330,13 +329,14 @@ def tilt_deviation(t, theta, q_nb, q_bp0, q_nb_reference=None,
     the vehicle's attitude from a reference (default: the first computed epoch, for a
     vehicle at rest). Returns {"delta_rad": (2,), "se_rad": (2,), "bias_rad_s": (2,) or None,
     "bias_separated": bool, "pieces": n}."""
+    from scipy.integrate import cumulative_trapezoid
     t, theta = np.asarray(t, float), np.asarray(theta, float)
     q_ref = (np.full(len(q_nb), q_nb[0]) if q_nb_reference is None else q_nb_reference)
     e_n = attitude.rotation_vector_error(q_nb, q_ref)
     e_p = attitude.rotate(np.conjugate(q_bp0), attitude.rotate(np.conjugate(q_ref), e_n))
     c, s = np.cos(theta), np.sin(theta)
-    jc = scipy.integrate.cumulative_trapezoid(c, t, initial=0.0)
-    js = scipy.integrate.cumulative_trapezoid(s, t, initial=0.0)
+    jc = cumulative_trapezoid(c, t, initial=0.0)
+    js = cumulative_trapezoid(s, t, initial=0.0)
     travelled = np.concatenate([[0.0], np.cumsum(np.abs(np.diff(theta)))])
     piece = np.floor(travelled / (4 * math.pi)).astype(int)
 
