@@ -12,10 +12,9 @@ import platform
 import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
 
-from publish import publish
+from publish import publish, timed_cli
 
 ROOT = Path(__file__).resolve().parent.parent
 BUSY = "import time\nt = time.time()\nwhile time.time() - t < 600: pass\n"
@@ -28,11 +27,8 @@ def diagnose(log, threads, out):
         env["OPENBLAS_NUM_THREADS"] = str(threads)
     else:                                  # the library's default: a thread per core
         env["OPENBLAS_NUM_THREADS"] = str(os.cpu_count())
-    t0 = time.perf_counter()
-    subprocess.run([sys.executable, "-m", "mimunav", "diagnose", log + ".mcap", "--model",
-                    log + ".cal.json", "-o", out, "--force"], check=True, env=env,
-                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    return time.perf_counter() - t0
+    return timed_cli(["diagnose", log + ".mcap", "--model", log + ".cal.json", "-o", out,
+                      "--force"], env)
 
 
 def main():

@@ -23,6 +23,17 @@ ORDER = ("strapdown", "sensors", "flightlog", "memory", "lab", "evaluation", "di
          "transplant", "recordings", "fuzz", "mutation")
 
 
+def timed_cli(args, env=None):
+    """Wall time (s) of `python -m mimunav ARGS` in a fresh process from the repository root
+    (output discarded; `env`: the process's environment, default this one's)."""
+    import subprocess
+    t0 = time.perf_counter()
+    subprocess.run([sys.executable, "-m", "mimunav", *args], check=True,
+                   cwd=Path(__file__).resolve().parent.parent, env=env,
+                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    return time.perf_counter() - t0
+
+
 def machine():
     return f"{platform.machine()} {os.cpu_count()} cores, Python {platform.python_version()}"
 

@@ -10,22 +10,12 @@ every 5 s: 260 free-inertial runs).
 import argparse
 import os
 import platform
-import subprocess
-import sys
 import tempfile
-import time
 from pathlib import Path
 
-from publish import publish
+from publish import publish, timed_cli as timed
 
 ROOT = Path(__file__).resolve().parent.parent
-
-
-def timed(args):
-    t0 = time.perf_counter()
-    subprocess.run([sys.executable, "-m", "mimunav", *args], check=True, cwd=ROOT,
-                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    return time.perf_counter() - t0
 
 
 def main():
