@@ -51,7 +51,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import quaternion
 
-from .calibration import AXES, FitError, LabRun, gls
+from .calibration import AXES, FitError, Fitted, LabRun, _add_cov_sources, _merge, gls
 from .compensation import poly2
 from .files import write_atomic
 from .flightlog import FlightLog
@@ -172,6 +172,8 @@ class _Projection:
 def _project_outputs(rr):
     run, out = rr.lab, _Projection()
     u = run.raw["gyro_volts"]
+    counts = np.array([[w.k1 - w.k0] for w in run.windows])
+    out.white = list(run.mean_variances(u) * counts)        # per sample, second differences
     for w in run.windows:
         k = np.arange(w.k0, w.k1)
         h = harmonics(0.5 * (rr.phi[k - 1] + rr.phi[k]))
@@ -179,7 +181,6 @@ def _project_outputs(rr):
         a = hh_inv @ h.T
         out.a.append(a), out.hh_inv.append(hh_inv)
         out.amplitudes.append(a @ u[k])
-        out.white.append(np.diff(u[k], n=2, axis=0).var(axis=0) / 6.0)
     return out
 
 
@@ -305,57 +306,48 @@ def fit(runs, unit="", noise=None):
     proj = _project_outputs(rr)
     designs = _designs(rr, proj)
     perturbed = [(src, _designs(rr, proj, **kw)) for src, kw in _settings(rr)]
-    names, values, errors, rms, chi2 = [], [], [], {}, {}
+    fitted, vectors, rms, chi2 = Fitted({}), [], {}, {}
     nominal = 1.0 / (math.pi / 180 / 5e-3)          # datasheet 5 mV/(deg/s), V per rad/s
     for i in range(3):
         x = designs[i]
         y = np.concatenate([a[:, i] for a in proj.amplitudes])
         cov = _covariance(rr, proj, i, nominal)
-        b, cov_b, ratio, rms_i = gls(x, y, cov)
+        b, *_ = gls(x, y, cov)
         cov = _covariance(rr, proj, i, abs(b[1]))          # the unit's own scale
-        b, cov_b, ratio, rms_i = gls(x, y, cov)
-        sens = {}
-        vals, vecs = np.linalg.eigh(cov_b)
-        cols = vecs * np.sqrt(np.clip(vals, 0, None))
-        for n in range(N_COEF):
-            sens[f"rotation-gls-gyro{i}:{n}"] = cols[:, n]
+        b, cov_b, chi2[AXES[i]], rms[AXES[i]] = gls(x, y, cov)
+        names = coefficient_names(i)
+        fitted.values.update(zip(names, b))
+        _add_cov_sources(fitted, names, cov_b, f"rotation-gls-gyro{i}")
         for src, x_s in perturbed:
             b_s, *_ = gls(x_s[i], y, cov)
-            sens[src] = b_s - b
-        turn_on = np.zeros(N_COEF)
-        turn_on[0] = abs(b[1]) * rr.lab.turn_on("gyro")
-        sens[f"turn-on-gyro{i}"] = turn_on
-        names += coefficient_names(i)
-        values.append(b)
-        errors.append(sens)
-        rms[AXES[i]] = rms_i
-        chi2[AXES[i]] = ratio
-    sources = sorted({s for e in errors for s in e})
-    e = np.zeros((3 * N_COEF, len(sources)))
-    for i, sens in enumerate(errors):
-        for c, s in enumerate(sources):
-            if s in sens:
-                e[i * N_COEF:(i + 1) * N_COEF, c] = sens[s]
-    cov_all = e @ e.T
-    values = np.concatenate(values)
-    k = np.array([values[i * N_COEF:i * N_COEF + 4] for i in range(3)])
-    m, q = np.zeros((3, 3)), np.zeros((3, 3))
-    for i in range(3):
-        j, l2 = [a for a in range(3) if a != i]
-        b = values[i * N_COEF:(i + 1) * N_COEF]
-        m[i, i] = k[i, 1]
-        m[i, j], m[i, l2], q[i, j], q[i, l2] = b[4:8]
-    g = np.array([values[i * N_COEF + 8:i * N_COEF + 11] for i in range(3)])
+            for name, d in zip(names, b_s - b):
+                _merge(fitted.errors, name, {src: d})
+        _merge(fitted.errors, names[0], {f"turn-on-gyro{i}": abs(b[1]) * rr.lab.turn_on("gyro")})
+        vectors.append(b)
+    names = list(fitted.values)
+    cov_all = fitted.covariance(names)
     run = rr.lab
     freq = run.means(run.raw["gyro_frequency"]).mean(axis=0)
     return RotationCalibration(
-        k, m, q, g, {"gyro_frequency_hz": freq.tolist()},
+        *_from_vectors(vectors), {"gyro_frequency_hz": freq.tolist()},
         {"names": names, "standard_error": np.sqrt(np.diag(cov_all)).tolist(),
          "matrix": cov_all.tolist(), "residual_rms": {"rotation gyro amplitudes (V)": rms},
          "chi2_per_dof": chi2,
          "note": "two-stage harmonic GLS + setting errors + turn-on repeatability, first-order "
                  "propagation (mimunav.rotation_calibration)",
          "noise_model": run.noise}, unit)
+
+
+def _from_vectors(vectors):
+    """(k, M, Q, G) from each axis' coefficient vector (`coefficient_names` order); the
+    inverse of `_vector`."""
+    k, m, q, g = np.zeros((3, 4)), np.zeros((3, 3)), np.zeros((3, 3)), np.zeros((3, 3))
+    for i, b in enumerate(vectors):
+        j, l2 = [a for a in range(3) if a != i]
+        k[i], g[i] = b[:4], b[8:11]
+        m[i, i] = b[1]
+        m[i, j], m[i, l2], q[i, j], q[i, l2] = b[4:8]
+    return k, m, q, g
 
 
 def held_out(cal, run):
