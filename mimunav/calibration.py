@@ -218,8 +218,8 @@ class WindowDesign:
     come without touching the samples again."""
 
     def __init__(self, run, v, order):
-        cols = [np.ones((len(v), 1)), v] + ([v * v, v * v * v] if order == 3 else [])
-        x = np.concatenate(cols, axis=1)
+        # the cubic columns always (an order-1 fit states what it leaves out: `omitted`)
+        x = np.concatenate([np.ones((len(v), 1)), v, v * v, v * v * v], axis=1)
         self.order = order
         self.mean = run.means(x)
         self.cov = np.array([_second_difference_cov(x[w.k0:w.k1]) for w in run.windows])
@@ -231,6 +231,20 @@ class WindowDesign:
         """(n_rows, p) regressors of output axis i averaged over each row's windows."""
         m = self.mean[:, self.columns(i)]
         return np.array([m[list(r)].mean(axis=0) for r in rows])
+
+    def omitted(self, i, rows, sensor):
+        """(n_rows, 2) for an order-1 fit: the nonlinearity shapes it leaves out,
+        (x / FS)^2 and (x / FS)^3 with x = N V_i (N the nominal scale), each times its prior
+        1-sigma at full scale. Seed S1 Table 1 bounds the scale-factor nonlinearity to
+        TABLE1_RESIDUAL of full scale; each shape's full-scale value is taken uniform within
+        that bound (1 sigma = bound / sqrt 3). None for an order-3 fit (it models them)."""
+        if self.order == 3:
+            return None
+        fs = TABLE1_FULL_SCALE[sensor]
+        x = NOMINAL_SCALE[sensor] / fs
+        m = self.mean[:, [4 + i, 7 + i]] * [x**2, x**3]
+        sigma = TABLE1_RESIDUAL[sensor] * fs / math.sqrt(3.0)
+        return sigma * np.array([m[list(r)].mean(axis=0) for r in rows])
 
     def variances(self, i, b):
         """White variance of each window's mean model output b . regressors."""
@@ -304,10 +318,15 @@ def setting_perturbations(run):
 
 
 # ---- estimator -----------------------------------------------------------------------------
-def gls(x, y, cov):
+def gls(x, y, cov, omitted=None):
     """Generalised least squares y = x b + e, Cov(e) = cov (n, n). Returns (b, Cov(b),
     chi2 / dof, rms residual); Cov(b) is scaled by chi2 / dof when that exceeds 1 (scatter
-    beyond the noise model is reported, never hidden)."""
+    beyond the noise model is reported, never hidden).
+
+    `omitted` (n, k): shapes the model leaves out, each column scaled to its 1-sigma prior
+    size (a random effect). The estimate is unchanged (weights from `cov` alone); Cov(b)
+    adds their projection P P^T, P = (x' cov^-1 x)^-1 x' cov^-1 omitted, and chi2 is taken
+    against cov + omitted omitted^T, so scatter they explain does not inflate twice."""
     n, p = x.shape
     if n <= p:
         raise FitError(f"{n} data points for {p} coefficients")
@@ -322,8 +341,15 @@ def gls(x, y, cov):
         raise FitError(f"the design cannot separate the {p} coefficients (condition number "
                        f"{cond:.2g})")
     b, *_ = np.linalg.lstsq(a, yw, rcond=None)
-    ratio = float(np.sum((yw - a @ b) ** 2)) / (n - p)
-    cov_b = np.linalg.inv(a.T @ a) * max(1.0, ratio)
+    inv = np.linalg.inv(a.T @ a)
+    if omitted is None:
+        ratio = float(np.sum((yw - a @ b) ** 2)) / (n - p)
+        cov_b = inv * max(1.0, ratio)
+    else:
+        r = y - xs @ b
+        ratio = float(r @ np.linalg.solve(cov + omitted @ omitted.T, r)) / (n - p)
+        proj = inv @ a.T @ scipy.linalg.solve_triangular(chol, omitted, lower=True)
+        cov_b = inv * max(1.0, ratio) + proj @ proj.T
     rms = float(np.sqrt(np.mean((y - xs @ b) ** 2)))
     return b / scale, cov_b / np.outer(scale, scale), ratio, rms
 
@@ -470,13 +496,14 @@ def _pairs(run):
 def _fit_triad_blocks(run, design, y_rows, rows, sensor):
     """GLS of every output axis on the design's regressors; returns (values (3, p), covs,
     rms residuals). Row covariance: white variance of each window's mean model output
-    (from a first OLS pass) plus the datasheet bias instability as flicker."""
+    (from a first OLS pass) plus the datasheet bias instability as flicker; an order-1 fit's
+    covariance also carries the nonlinearity it leaves out (`WindowDesign.omitted`)."""
     out, covs, rms = [], [], []
     for i in range(3):
         x = design.regressors(i, rows)
         b, *_ = np.linalg.lstsq(x, y_rows[:, i], rcond=None)
         cov = run.row_covariance(design.variances(i, b), run.instability(sensor), rows)
-        b, cov, _, r = gls(x, y_rows[:, i], cov)
+        b, cov, _, r = gls(x, y_rows[:, i], cov, design.omitted(i, rows, sensor))
         out.append(b), covs.append(cov), rms.append(r)
     return np.array(out), covs, rms
 
