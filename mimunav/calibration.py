@@ -84,6 +84,18 @@ TABLE1_FULL_SCALE = {"accel": 30 * G0, "gyro": 400 * DEG}
 TABLE1_RESIDUAL = {"accel": 0.05e-2, "gyro": 0.2e-2}       # fraction of full scale
 
 
+def _uniform_rms(lo, hi):
+    """RMS of a magnitude uniform in [lo, hi] with a random sign."""
+    return math.sqrt((hi**3 - lo**3) / (3.0 * (hi - lo)))
+
+
+# Seed S1 Table 2's class ranges of the terms a reduced model leaves out, as the 1-sigma of
+# random effects (magnitude uniform in the range, random sign): the accelerometers' cross-
+# coupling (relative to the diagonal) and the gyros' acceleration effect C, (rad/s)/(m/s^2)
+CLASS_CROSS_COUPLING = {"accel": _uniform_rms(0.001, 0.02), "gyro": _uniform_rms(0.001, 0.005)}
+CLASS_G_SENSITIVITY = _uniform_rms(0.01, 0.04) * DEG / G0
+
+
 class FitError(InputError):
     """Lab data that cannot give the requested coefficients, saying what is missing."""
 
@@ -907,10 +919,11 @@ def fit_cold_start(run, unit=""):
         e_t = run.raw[volts] * NOMINAL_SCALE[sensor]
         temp = run.raw[reading]
         cov_base = (run.instability(sensor) ** 2 * flick + run.turn_on(sensor) ** 2 * same)
+        covs = [cov_base + _cold_start_omitted(sensor, i, f_in[power_on]) for i in range(3)]
         for n in (None,) + COLD_START_WINDOWS_S:
             d_t = bins(_power_on_temperature_change(run, temp, n or 60.0))
             fit = [_fit_cold_axis(bins(e_t[:, i]), bins(temp[:, i]), d_t[:, i],
-                                  truth_in[power_on, i], cov_base, sensor == "accel",
+                                  truth_in[power_on, i], covs[i], sensor == "accel",
                                   n is not None) for i in range(3)]
             fits[sensor, n] = fit
             label = "basic" if n is None else f"{n:g}"
@@ -925,10 +938,24 @@ def fit_cold_start(run, unit=""):
         cal.cold_start[sensor] = {k: np.array([f["values"][j] for f in fit])
                                   for j, k in enumerate("abcde")}
         cal.covariance[sensor] = {k: [f["se"][j] for f in fit] for j, k in enumerate("abcde")}
+        cal.covariance[sensor]["matrix"] = [f["cov"] for f in fit]      # per axis, a..e
     cal.cold_start["window_s"] = best or 60.0
     cal.extra["selection"] = {"chosen": "basic" if best is None else f"{best:g} s",
                               "criterion": "BIC (GLS chi2 + k ln N)", "candidates": selection}
     return cal
+
+
+def _cold_start_omitted(sensor, i, f_bins):
+    """Covariance (bins x bins) of what seed S3's per-axis model leaves out of axis i, each
+    power-on's gravity f_bins (m/s^2, sensor axes, per bin) through terms of seed S1 Table 2's
+    class as random effects: the accelerometer's cross-coupling to the other axes, the gyro's
+    acceleration effect C on all three (a per-power-on offset the turn-on term alone
+    understated: zero-g offsets came out at z up to 24, zero-rate at 12)."""
+    if sensor == "accel":
+        shapes = CLASS_CROSS_COUPLING["accel"] * np.delete(f_bins, i, axis=1)
+    else:
+        shapes = CLASS_G_SENSITIVITY * f_bins
+    return shapes @ shapes.T
 
 
 def _power_on_temperature_change(run, temp, window):
@@ -964,26 +991,17 @@ def _fit_cold_axis(e_t, temp, d_t, known, cov, scale_free, with_rate):
     # covariance says: scale by the Birge ratio chi^2/dof (never shrink)
     birge = max(chi2 / max(len(known) - int(free.sum()), 1), 1.0)
     cov_q = birge * np.linalg.inv(jac.T @ jac)
-    se = np.zeros(5)
-    se[free] = np.sqrt(np.diag(cov_q))
+    cov_p = np.zeros((5, 5))                        # all five parameters, 0 for fixed ones
+    cov_p[np.ix_(free, free)] = cov_q
     # back from centred temperature: a + b (T - Tm) = (a - b Tm) + b T, likewise c + d T
     tm = temp.mean()
-    values = np.array([p[0] - p[1] * tm, p[1], p[2] - p[3] * tm, p[3], p[4]])
-    se_abs = se.copy()
-    se_abs[0] = math.sqrt(max(_cov_entry(cov_q, free, 0, 0) + tm**2 * _cov_entry(
-        cov_q, free, 1, 1) - 2 * tm * _cov_entry(cov_q, free, 0, 1), 0.0))
-    se_abs[2] = math.sqrt(max(_cov_entry(cov_q, free, 2, 2) + tm**2 * _cov_entry(
-        cov_q, free, 3, 3) - 2 * tm * _cov_entry(cov_q, free, 2, 3), 0.0))
-    return {"values": values.tolist(), "se": se_abs.tolist(), "chi2": chi2, "birge": birge,
+    jac_abs = np.eye(5)
+    jac_abs[0, 1] = jac_abs[2, 3] = -tm
+    values = jac_abs @ p
+    cov_abs = jac_abs @ cov_p @ jac_abs.T
+    return {"values": values.tolist(), "se": np.sqrt(np.diag(cov_abs)).tolist(),
+            "cov": cov_abs.tolist(), "chi2": chi2, "birge": birge,
             "bic": chi2 + int(free.sum()) * math.log(len(known))}
-
-
-def _cov_entry(cov_q, free, i, j):
-    """Entry (i, j) of the covariance of all five parameters (0 for fixed ones)."""
-    if not (free[i] and free[j]):
-        return 0.0
-    idx = np.cumsum(free) - 1
-    return float(cov_q[idx[i], idx[j]])
 
 
 def check(cal, run):
