@@ -305,7 +305,7 @@ def _diagnose(args):
     from .files import refuse_inputs, write_atomic
     from .flightlog import LogError
     from .reports import diagnosis as report
-    refuse_inputs([args.json, args.output], [args.log, args.model])
+    refuse_inputs([args.json, args.output], [args.log, args.model, args.noise])
     inside = args.json and args.output and \
         Path(args.output).resolve() in Path(args.json).resolve().parents
     if inside:
@@ -329,11 +329,20 @@ def _diagnose(args):
         raise LogError(f"{args.log}: neither /fog/imu (sensor level) nor /truth/state "
                        f"({level} level): nothing to diagnose against")
     accuracy = Accuracy.parse(args.reference_accuracy) if args.reference_accuracy else None
+    noise = None
+    if args.noise:
+        if level != "sensor":
+            raise InputError(f"--noise sets the bias tests of the sensor level; {args.log} is "
+                             f"diagnosed at the {level} level, which has none")
+        from .reports.noise import load
+        noise = load(args.noise)
+        print(f"bias tests' normal wander: {noise['source']}")
     if level == "navigation":
         diag = navigation.diagnose(flight, cal, alpha=args.alpha, seed=args.seed)
+    elif level == "sensor":
+        diag = sensor.diagnose(flight, cal, alpha=args.alpha, accuracy=accuracy, noise=noise)
     else:
-        run = sensor.diagnose if level == "sensor" else track.diagnose
-        diag = run(flight, cal, alpha=args.alpha, accuracy=accuracy)
+        diag = track.diagnose(flight, cal, alpha=args.alpha, accuracy=accuracy)
     doc = diagnosis.document(args.log, diag, args.alpha)
     found = diagnosis.with_found(cal, doc["findings"])
     if args.output:
@@ -770,6 +779,11 @@ def build_parser():
                    "4: scale 2.5e-4; "
                    "misalignment 1e-4 rad, assumed): gyro_scale, accel_scale (1), "
                    "gyro_misalignment_rad, accel_misalignment_rad (rad)")
+    p.add_argument("--noise", metavar="NOISE.json",
+                   help="the unit's measured random errors (a `mimunav noise` file of its "
+                   "/mimu/raw or /mimu/imu at rest): its bias instability B (SI) replaces the "
+                   "class's zero drift as the wander the sensor level's bias tests take as "
+                   "normal")
     p.add_argument("--seed", type=SEED, default=0, help="seed of the navigation level's block "
                    "bootstrap (the sensor and track levels draw nothing)")
     p.add_argument("--force", action="store_true", help="replace existing outputs")

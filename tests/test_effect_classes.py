@@ -202,3 +202,21 @@ def test_bias_instability_sigma_recovers_a_gauss_markov_wander():
         assert cover >= 32, (sigma, cover)
     x = transplant.gauss_markov(tm, 0.085, 100.0, rng)
     assert np.isfinite(outputs._bias_models(tm, x, b, 0.002, 0.0)["wander"]["sigma"])
+
+
+@needs_foreign
+def test_a_measured_noise_file_sets_the_wander_the_bias_tests_take_as_normal():
+    """`diagnose --noise`: the unit's measured B replaces the class's zero drift in the
+    bias tests' null (`outputs.bias_null`). A 1.5e-3 rad/s wander is found against the class
+    (30 deg/h) and is normal for a unit measured at 1e-2 rad/s; the document says which."""
+    flight, cal, _ = transplant.transplant(os.path.join(FOREIGN, "foreign-01"),
+                                           "bias_instability:gyro:z=0.0015")
+    noisy = {"source": "test", "instability": {"gyro": 1e-2}}
+    found = {f["effect"] for f in sensor.diagnose(flight, cal, noise=noisy).findings}
+    assert "bias_instability" not in found
+    diag = sensor.diagnose(flight, cal)
+    assert "bias_instability" in {f["effect"] for f in diag.findings}
+    assert diag.bias_null["instability"]["gyro"] == outputs.CLASS_DRIFT["gyro"]
+    null = outputs.bias_null(noisy)
+    assert null["instability"] == {"accel": outputs.CLASS_DRIFT["accel"], "gyro": 1e-2}
+    assert "measured (gyro): test" in null["source"] and "class" in null["source"]

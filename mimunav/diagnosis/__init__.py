@@ -42,6 +42,8 @@ def document(log_path, diag, alpha=0.05):
            "method": METHOD[diag.level]}
     if diag.level in ("sensor", "track"):
         doc["reference_accuracy"] = _plain(diag.accuracy)
+        if getattr(diag, "bias_null", None):
+            doc["bias_null"] = _plain(diag.bias_null)
         doc["within_reference_accuracy"] = _plain(diag.within_reference)
     if getattr(diag, "reference_check", None):
         doc["reference_check"] = _plain(diag.reference_check)

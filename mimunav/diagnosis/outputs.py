@@ -210,7 +210,19 @@ def lattice_step(y):
 
 
 # ---- the bias: its wander and its level --------------------------------------------------
-def bias_tests(design, fit, quiet, alpha_level, cal, skip=()):
+def bias_null(noise=None):
+    """{"instability": {sensor: B (SI)}, "source"}: the in-run wander `bias_tests` takes as
+    normal - the unit's measured B where `noise` has it, else the class's zero drift."""
+    measured = (noise or {}).get("instability", {})
+    source = noise["source"] if measured else ""
+    return {"instability": {**CLASS_DRIFT, **measured},
+            "source": "; ".join(filter(None, [
+                source and f"measured ({', '.join(sorted(measured))}): {source}",
+                len(measured) < 2 and "class: seed S1 Table 1's zero drift bound "
+                "(diagnosis.outputs.CLASS_DRIFT)"]))}
+
+
+def bias_tests(design, fit, quiet, alpha_level, cal, skip=(), noise=None):
     """bias_instability and bias_shift findings per channel, from the bias's SPAN_S means
     over quiet flight. fit: residual without the fitted reference error and confirmed terms
     (nb, 6) on the design's bins (what is left: the bias and the white noise); quiet (nb,)
@@ -218,7 +230,10 @@ def bias_tests(design, fit, quiet, alpha_level, cal, skip=()):
     the library miss (a cross-axis nonlinearity, the reference's own dynamic errors) would
     pass for wander or offset; alpha_level: the family-wise threshold of the library's first
     step; skip: channels (sensor, axis) whose outputs are clipped or quantized (that makes
-    an offset and a wander of its own).
+    an offset and a wander of its own); noise: the unit's measured random errors
+    ({"source", "instability": {sensor: B}}, `reports.noise.load` of a `mimunav noise`
+    file): a sensor's measured B replaces the class's zero drift as the null's wander, so
+    the question becomes "more than this unit wanders at rest".
 
     Three models of the means x (m,) at times t, each Gaussian (`_bias_models`):
       class   x ~ N(0, B^2 F + s0^2 11' + w I): a unit of the class - an in-run wander of
@@ -242,6 +257,9 @@ def bias_tests(design, fit, quiet, alpha_level, cal, skip=()):
     t_means, means = span_means(design.t, fit)
     thermal = _temperature_means(design, quiet)
     se_cal = standard_errors(cal)
+    measured = (noise or {}).get("instability", {})
+    drift = {**CLASS_DRIFT, **measured}
+    whose = {s: "the unit's measured" if s in measured else "the class's" for s in drift}
     dt = float(np.median(np.diff(design.t)))
     findings = []
     for c, (sensor, axis) in enumerate(CHANNELS):
@@ -252,7 +270,7 @@ def bias_tests(design, fit, quiet, alpha_level, cal, skip=()):
         offset = math.sqrt(TURN_ON[sensor] ** 2 + REFERENCE_BIAS[sensor] ** 2
                            + (se_cal.get(key) or 0.0) ** 2)
         white = float(np.nanvar(np.diff(fit[:, c])) / 2) * dt / SPAN_S
-        m = _bias_models(t_means[keep], means[keep, c], CLASS_DRIFT[sensor], offset, white,
+        m = _bias_models(t_means[keep], means[keep, c], drift[sensor], offset, white,
                          None if thermal is None else thermal[keep, c:c + 1])
         passing = [k for k in ("shift", "wander") if m[k]["p"] < alpha_level]
         if not passing:
@@ -280,7 +298,8 @@ def bias_tests(design, fit, quiet, alpha_level, cal, skip=()):
                 likelihood_ratio={k: m[k]["lr"] for k in ("shift", "wander")},
                 indistinguishable_from=alike,
                 note=f"a constant {mu:.3g} {unit} beyond the class's turn-on spread "
-                     f"{offset:.3g} and its in-run wander ({CLASS_DRIFT[sensor]:.3g}): better "
+                     f"{offset:.3g} and {whose[sensor]} in-run wander ({drift[sensor]:.3g}): "
+                     "better "
                      "explained as an offset than as a larger wander (likelihood ratios); "
                      f"rms of the {SPAN_S:g} s means before and after"))
         else:
@@ -291,8 +310,8 @@ def bias_tests(design, fit, quiet, alpha_level, cal, skip=()):
                 likelihood_ratio={k: m[k]["lr"] for k in ("shift", "wander")},
                 indistinguishable_from=alike,
                 note=f"the bias wanders like a Gauss-Markov process of sigma {sigma:.3g} "
-                     f"{unit} (tau {GM_TAU_S:g} s) against the class's "
-                     f"{CLASS_DRIFT[sensor]:.3g}; 'after': the white share of a "
+                     f"{unit} (tau {GM_TAU_S:g} s) against {whose[sensor]} "
+                     f"{drift[sensor]:.3g}; 'after': the white share of a "
                      f"{SPAN_S:g} s mean"))
     return findings
 

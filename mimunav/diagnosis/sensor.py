@@ -129,6 +129,7 @@ class SensorDiagnosis:
     candidates: int
     candidates_list: list       # [term]
     fitter: object = None       # the all-rows `Fitter` (for `term_z`)
+    bias_null: dict = None      # the wander the bias tests take as normal, and its source
 
 
 def residual(flight, cal):
@@ -189,7 +190,7 @@ def _bin(x, bins, usable):
 
 
 def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander=None,
-             output_tests=True):
+             output_tests=True, noise=None):
     """Sensor-level diagnosis of `flight` (an `evaluation.Flight` with a reference IMU)
     against calibration `cal`. `candidates`: the library to test (default
     `library.candidates()`); `max_wander`: the largest wander level (random-walk step
@@ -198,7 +199,9 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
     the reference's `reference.Accuracy` (default: the
     log's metadata, else Table 4); `output_tests`: also test the effects that are no
     regressor (`outputs`: saturation, quantization, the bias's wander and level against the
-    MEMS class - not for a reference made from a vehicle's track). Nothing here is random."""
+    MEMS class - not for a reference made from a vehicle's track); `noise`: the unit's
+    measured random errors for those bias tests (`outputs.bias_tests`). Nothing here is
+    random."""
     if flight.mimu_platform is not None:
         raise InputError(f"{flight.path}: the MIMU turns on a platform (/mimu/platform); "
                          "this analysis does not follow the rotation yet - replay and table do")
@@ -244,7 +247,7 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
                                          alpha / (len(design.terms) + 12), cal,
                                          skip={(f["sensor"], f["axis"]) for f in
                                                on_outputs + findings
-                                               if f["effect"] in OWN_OFFSET})
+                                               if f["effect"] in OWN_OFFSET}, noise=noise)
     for f in on_outputs:
         if f["effect"] == "bias_shift":
             removed[:, CHANNELS.index((f["sensor"], f["axis"]))] -= f["coefficient"]
@@ -258,7 +261,7 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
                            {"before": _map(design, before, conds),
                             "after": _map(design, after, conds)},
                            before, after, acc.as_dict(), len(design.terms), design.terms,
-                           everything)
+                           everything, outputs.bias_null(noise) if output_tests else None)
 
 
 def _output_findings(flight, cal, t, samples, full_scale):

@@ -53,8 +53,10 @@ def outputs(log_path, channel, cal=None):
         raise InputError(f"--cal reads /mimu/raw; {channel} is already in SI units")
     with FlightLog(log_path) as log:
         if channel not in log.channels:
+            hint = ("; the MIMU's raw output: --channel /mimu/raw --cal CAL.json"
+                    if channel == "/mimu/imu" and "/mimu/raw" in log.channels else "")
             raise InputError(f"{log_path}: no channel {channel}; it has "
-                             f"{', '.join(sorted(log.channels))}")
+                             f"{', '.join(sorted(log.channels))}{hint}")
         truth = log.read("/truth/state") if "/truth/state" in log.channels else None
         joint = (log.read("/mimu/platform", fields=("velocity",))
                  if channel.startswith("/mimu/") and "/mimu/platform" in log.channels else None)
