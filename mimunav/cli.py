@@ -72,7 +72,9 @@ def _simulate(args):
                                    ("--platform-encoder-arcsec", args.platform_encoder_arcsec,
                                     1.58),
                                    ("--platform-encoder-noise-arcsec",
-                                    args.platform_encoder_noise_arcsec, 0.0)) if v != d]
+                                    args.platform_encoder_noise_arcsec, 0.0),
+                                   ("--platform-lever-arm-m", args.platform_lever_arm_m,
+                                    None)) if v != d]
         if given and not args.platform:
             raise InputError(f"{', '.join(given)} describe a platform: give --platform too")
         if args.platform == "continuous" and any(o in given for o in ("--platform-swing-deg",
@@ -89,7 +91,8 @@ def _simulate(args):
                                                                   / 3600),
                                 encoder_noise_rad=np.radians(args.platform_encoder_noise_arcsec
                                                              / 3600),
-                                encoder_seed=args.seed)
+                                encoder_seed=args.seed,
+                                lever_arm_m=tuple(args.platform_lever_arm_m or (0.0,) * 3))
         log, truth_file = simulate_flight(profile, args.output, args.seed, unit=unit,
                                           fog_rate=args.fog_rate, force=args.force, hide=hide,
                                           platform=platform)
@@ -641,6 +644,9 @@ def build_parser():
                    "seed S4 circular grating; 0: exact)")
     p.add_argument("--platform-encoder-noise-arcsec", type=_number(0.0, 3600.0), default=0.0,
                    help="white read-out noise of the platform angle, arcsec 1 sigma (default 0)")
+    p.add_argument("--platform-lever-arm-m", type=_number(-10.0, 10.0), nargs=3,
+                   metavar=("X", "Y", "Z"), help="the IMU's origin from the platform axis "
+                   "point (the vehicle origin), m, platform axes turning with it (default 0)")
     p.add_argument("--platform-dwell-s", type=_number(0.0, 3600.0), default=0.0,
                    help="back-and-forth: pause at each end, s (default 0)")
     p.add_argument("--inclination-deg", type=_number(-90.0, 90.0), default=0.0,

@@ -105,13 +105,9 @@ class Flight:
                 fog = (log.read("/fog/imu", fields=("angular_velocity", "linear_acceleration"))
                        if "/fog/imu" in log.channels else None)
             truth = log.read("/truth/state") if "/truth/state" in log.channels else None
-            joint = (log.read("/mimu/platform", fields=("position",))
+            joint = (log.read("/mimu/platform", fields=("position", "velocity"))
                      if "/mimu/platform" in log.channels else None)
             platform_meta = meta.get("sensor/mimu", {}).get("platform")
-            if platform_meta is not None and np.any(platform_meta.get("lever_arm_m", [0, 0, 0])):
-                raise LogError(f"{path}: the rotating MIMU sits {platform_meta['lever_arm_m']} m "
-                               "off the vehicle origin; replay follows an IMU on the axis at the "
-                               "origin only (lever_arm_m must be 0)")
             if (joint is None) != (platform_meta is None):
                 raise LogError(f"{path}: a rotating MIMU needs both /mimu/platform and the "
                                "`platform` object of the sensor/mimu metadata (README: "
@@ -138,8 +134,7 @@ class Flight:
                        if fog is not None else (None, None, None)), mount("fog"), truth_traj,
                      imu, meta.get("sensor/fog", {}), str(flight.get("source", "")),
                      meta.get("reference", {}),
-                     None if joint is None else {"t": sec(joint), "meta": platform_meta,
-                                                 "angle": np.unwrap(joint["position"])},
+                     None if joint is None else _platform(sec(joint), joint, platform_meta),
                      STREAM_BLOCK if streamed else None,
                      streamed["fog_seconds"] if streamed else None)
         check_plausible(loaded, MAX_GAP_S if max_gap_s is None else max_gap_s,
@@ -337,20 +332,21 @@ class VehicleNavigator:
     (`strapdown.Navigator`), and a state's lever-arm velocity, which takes the mean body rate
     of the intervals on both sides of it, waits for the next block's first sample.
 
-    On a rotating platform (`platform`: the Flight's mimu_platform, the IMU on the axis at the
-    vehicle origin) the sensor frame itself is navigated and the vehicle attitude
-    q_nb = q_ns q_bs(theta)^-1 comes from the recorded platform angle (`modulation`).
+    On a rotating platform (`platform`: the Flight's mimu_platform; its axis through the
+    vehicle origin, the IMU at the metadata's lever_arm_m from it in platform axes) the
+    sensor frame itself is navigated at the IMU's point, the vehicle attitude
+    q_nb = q_ns q_bs(theta)^-1 comes from the recorded platform angle (`modulation`), and
+    the point's lever arm r = C_bp0 Rz(theta) r_p turns with it (its velocity theta' a x r,
+    a the axis in vehicle axes, from the recorded rate).
     whole_record: False when the blocks are pieces of a longer record (`strapdown.Navigator`)."""
 
     def __init__(self, mounting, initial, platform=None, whole_record=True):
         self.initial, self.platform, self.whole_record = initial, platform, whole_record
-        if platform is not None:
-            from .modulation import q_bs_recorded
-            q0 = quaternion.from_float_array(np.asarray(initial["q_nb"], float)) \
-                * q_bs_recorded(platform["meta"], self._angle(initial["t"]))
-            self.initial = dict(initial, q_nb=quaternion.as_float_array(q0))
-            mounting = Mounting()
         self.q_vs, self.r = mounting.q_vs, mounting.lever_arm_m
+        if platform is not None:
+            self.q_vs, self.r = Mounting().q_vs, np.zeros(3)
+            self.r_p = np.asarray(platform["meta"].get("lever_arm_m", [0.0] * 3), float)
+            self.q_bp0 = quaternion.from_float_array(platform["meta"]["base_attitude_wxyz"])
         self.nav, self.pending, self.count = None, None, 0
 
     def feed(self, t, w, f):
@@ -381,7 +377,9 @@ class VehicleNavigator:
 
     def _start(self, w_v0):
         """The initial state moved to the sensor's place (position + C_nb r, velocity +
-        C_nb (w_nb x r))."""
+        C_nb (w_nb x r)); on a platform that of the turning IMU, in the sensor frame."""
+        if self.platform is not None:
+            return self._platform_start(w_v0)
         start, r = dict(self.initial), self.r
         if np.any(r):
             q0 = quaternion.from_float_array(np.asarray(self.initial["q_nb"], float))
@@ -397,9 +395,7 @@ class VehicleNavigator:
         w_at the body rate at each state (rad/s, vehicle axes); on a platform the vehicle
         attitude."""
         if self.platform is not None:
-            from .modulation import q_bs_recorded, vehicle_attitude
-            return Trajectory(nav.t, nav.lat, nav.lon, nav.h, nav.v_ned, vehicle_attitude(
-                nav.q_nb, q_bs_recorded(self.platform["meta"], self._angle(nav.t))))
+            return self._platform_vehicle(nav, w_at)
         r = self.r
         if not np.any(r):
             return nav
@@ -409,8 +405,58 @@ class VehicleNavigator:
         v = nav.v_ned - attitude.rotate(nav.q_nb, np.cross(w_nb, r))
         return Trajectory(nav.t, lat, lon, h, v, nav.q_nb)
 
-    def _angle(self, t):
-        return np.interp(t, self.platform["t"], self.platform["angle"])
+    def _turning(self, t, q_nb, w_s):
+        """(q_bs, the IMU point's lever arm r and d_ned = C_nb r, its velocity relative to
+        the vehicle origin C_nb (w_nb x r + r')) at times t for a vehicle attitude q_nb and
+        the sensor's rate w_s (rad/s, sensor axes, w_ib)."""
+        from .modulation import _rz, q_bs_recorded
+        p = self.platform
+        angle = np.interp(t, p["t"], p["angle"])
+        q_bs = q_bs_recorded(p["meta"], angle)
+        if not np.any(self.r_p):
+            return q_bs, np.zeros((len(t), 3)), np.zeros((len(t), 3))
+        axis = attitude.rotate(self.q_bp0, np.array([0.0, 0.0, 1.0]))
+        rate = np.interp(t, p["t"], p["rate"])[:, None]
+        r = attitude.rotate(self.q_bp0 * _rz(angle), np.broadcast_to(self.r_p, (len(t), 3)))
+        # w_nb^b = C_bs w_ib^s - theta' a - C_bn w_ie^n
+        w_nb = _body_rate(attitude.rotate(q_bs, w_s) - rate * axis, q_nb, self.initial)
+        return (q_bs, attitude.rotate(q_nb, r),
+                attitude.rotate(q_nb, np.cross(w_nb, r) + rate * np.cross(axis, r)))
+
+    def _platform_start(self, w_s0):
+        from .modulation import q_bs_recorded
+        start = dict(self.initial)
+        q_nb = quaternion.from_float_array(np.asarray(start["q_nb"], float))
+        t0 = np.array([float(start["t"])])
+        q_bs, d_ned, v_rel = self._turning(t0, np.atleast_1d(q_nb), w_s0)
+        start["q_nb"] = quaternion.as_float_array(q_nb * q_bs_recorded(
+            self.platform["meta"], np.interp(t0, self.platform["t"], self.platform["angle"]))[0])
+        if np.any(d_ned):
+            start["lat"], start["lon"], start["h"] = _moved(
+                start["lat"], start["lon"], start["h"], d_ned[0])
+            start["v_ned"] = np.asarray(start["v_ned"], float) + v_rel[0]
+        return start
+
+    def _platform_vehicle(self, nav, w_s):
+        """Sensor-frame states at the turning IMU's point -> the vehicle origin's."""
+        from .modulation import q_bs_recorded, vehicle_attitude
+        angle = np.interp(nav.t, self.platform["t"], self.platform["angle"])
+        q_nb = vehicle_attitude(nav.q_nb, q_bs_recorded(self.platform["meta"], angle))
+        _, d_ned, v_rel = self._turning(nav.t, q_nb, w_s)
+        if not np.any(d_ned):
+            return Trajectory(nav.t, nav.lat, nav.lon, nav.h, nav.v_ned, q_nb)
+        lat, lon, h = _moved(nav.lat, nav.lon, nav.h, -d_ned)
+        return Trajectory(nav.t, lat, lon, h, nav.v_ned - v_rel, q_nb)
+
+
+def _platform(t, joint, meta):
+    """A Flight's mimu_platform: {"t" s, "angle" rad (unwrapped), "rate" rad/s (the joint's
+    velocity; where not recorded, the angle's central differences), "meta"}."""
+    angle = np.unwrap(np.asarray(joint["position"], float))
+    rate = np.asarray(joint["velocity"], float)
+    if not np.all(np.isfinite(rate)):
+        rate = np.gradient(angle, t) if len(t) > 1 else np.zeros(len(t))
+    return {"t": t, "angle": angle, "rate": rate, "meta": meta}
 
 
 def _body_rate(w_ib, q_nb, initial):

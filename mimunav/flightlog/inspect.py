@@ -65,6 +65,16 @@ def channel_report(log, topic, origin_ns=None):
     return rep
 
 
+def _lever_text(arm):
+    """The turning IMU's place: on the axis, or its lever arm (m, platform axes)."""
+    try:
+        arm = [float(x) for x in arm]
+    except (TypeError, ValueError):
+        return "place not stated"
+    return ("on the axis" if not any(arm) else
+            "at " + ", ".join(f"{x:.3g}" for x in arm) + " m from the axis (platform axes)")
+
+
 def _mounting_text(doc):
     """A mounting as roll/pitch/yaw (deg, sensor -> vehicle) and lever arm (m)."""
     from .. import attitude
@@ -103,8 +113,8 @@ def describe(log, unreadable=None):
         if p:
             lines.append(f"{'':<11} on a rotation platform: {p.get('mode', '?')}, "
                          f"{np.degrees(float(p.get('rate_rad_s', np.nan))):.3g} deg/s, IMU "
-                         f"inclined {np.degrees(float(p.get('inclination_rad', 0.0))):.3g} deg; "
-                         "angle on /mimu/platform")
+                         f"inclined {np.degrees(float(p.get('inclination_rad', 0.0))):.3g} deg, "
+                         f"{_lever_text(p.get('lever_arm_m'))}; angle on /mimu/platform")
     try:
         origin_ns = int(flight["epoch_unix_ns"])
     except (KeyError, TypeError, ValueError):
