@@ -59,14 +59,16 @@ def starts(truth, length, step=START_STEP_S, first=0.0, min_speed=alignment.COUR
     half = alignment.MOVING_HALF_WINDOW_S
     grid = np.arange(max(first, truth.t[0] + half), truth.t[-1] - length, step)
     speed = np.hypot(truth.v_ned[:, 0], truth.v_ned[:, 1])
-    gap_end = truth.t[1:][np.diff(truth.t) > max_gap]
-    if t_imu is not None:
-        gap_end = np.concatenate([gap_end, t_imu[1:][np.diff(t_imu) > max_gap]])
+    gaps = [truth.t] + ([] if t_imu is None else [t_imu])
+    wide = [np.diff(t) > max_gap for t in gaps]
+    gap_start = np.concatenate([t[:-1][w] for t, w in zip(gaps, wide)])
+    gap_end = np.concatenate([t[1:][w] for t, w in zip(gaps, wide)])
     out = []
     for t0 in grid:
         if np.interp(t0, truth.t, speed) < min_speed:
             continue
-        if np.any((gap_end > t0 - half) & (gap_end - max_gap < t0 + length)):
+        # a gap [start, end] that meets the window with its alignment interval
+        if np.any((gap_end > t0 - half) & (gap_start < t0 + length)):
             continue
         out.append(float(t0))
     return np.asarray(out)

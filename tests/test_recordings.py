@@ -716,3 +716,72 @@ def test_reference_floor_of_a_window_from_the_stated_sigmas():
     assert only_p == {"horizontal_m": pytest.approx(0.5 * math.sqrt(2)),
                       "not_stated": ["velocity"]}
     assert windows.reference_floor({"position_sigma_m": "unknown"}, 10.0)["horizontal_m"] is None
+
+
+def test_imu_and_reference_on_different_time_bases_are_refused():
+    """IMU stamped from boot, fixes in UNIX time (a new user's ROS bag): refused in one line
+    naming both spans (the import once stepped 10 s blocks across 55 years)."""
+    t_tr, lat, lon, h, v = _track(60.0)
+    t = np.arange(0.0, 60.0, 0.01)
+    ref = dict(ns=1_700_000_000_000_000_000 + np.round(t_tr * 1e9).astype(np.int64), lat=lat,
+               lon=lon, h=h, v_ned=v)
+    rec = Recording("boot", "", np.round((t + 12.0) * 1e9).astype(np.int64),
+                    np.zeros((len(t), 3)), np.tile([0.0, 0.0, -9.8], (len(t), 1)), Mounting(),
+                    reference=ref)
+    with pytest.raises(RecordingError, match="1970-01-01T00:00:12Z.*do not overlap"):
+        write_log(rec, "/nonexistent/never-written.mcap")
+
+
+def test_windows_leave_out_every_window_an_imu_gap_meets(tmp_path):
+    """A 5 s IMU gap in the middle of the synthetic drive: no 10 s window (with its
+    alignment interval before it) may meet the gap; windows far from it remain."""
+    t_tr, lat, lon, h, v = _track()
+    from mimunav.trajectory import Trajectory
+    truth_traj = Trajectory(t_tr, lat, lon, h, v, quaternion.from_float_array(
+        np.tile([1.0, 0.0, 0.0, 0.0], (len(t_tr), 1))))
+    t_imu = np.arange(0.0, 120.0, 0.01)
+    t_imu = t_imu[(t_imu < 60.0) | (t_imu > 65.0)]
+    got = windows.starts(truth_traj, 10.0, step=0.5, t_imu=t_imu, max_gap=0.5)
+    half = alignment.MOVING_HALF_WINDOW_S
+    assert len(got) and not np.any((got + 10.0 > 60.0) & (got - half < 65.0)), got
+    assert got.max() > 65.0 and got.min() < 50.0
+
+
+def test_rtklib_pos_without_velocity_or_without_fix_epochs(tmp_path):
+    """RTKLIB's default .pos has no velocity columns: the reference velocity comes from the
+    positions' central differences (not an empty reference); a .pos with no epoch of the
+    chosen kinds is refused naming --solutions."""
+    import shutil
+    for f in DRIVE.iterdir():
+        shutil.copy(f, tmp_path / f.name)
+    pos = next(tmp_path.glob("*.pos"))
+    lines = pos.read_text().splitlines()
+    cut = [ln if ln.startswith("%") else " ".join(ln.split()[:15]) for ln in lines]
+    pos.write_text("\n".join(cut) + "\n")
+    rec = rtklib.read_drive(tmp_path)
+    full = rtklib.read_pos(DRIVE / pos.name)
+    assert len(rec.reference["ns"]) > 0.9 * int((full["quality"] == 1).sum())
+    at = np.searchsorted(full["ns"], rec.reference["ns"])
+    speed = np.linalg.norm(full["v_ned"][at], axis=1)
+    err = np.linalg.norm(rec.reference["v_ned"] - full["v_ned"][at], axis=1)
+    assert np.median(err) < 0.1 * max(np.median(speed), 1.0)
+    float_only = [ln if ln.startswith("%") else " ".join(
+        ln.split()[:5] + ["2"] + ln.split()[6:]) for ln in lines]
+    pos.write_text("\n".join(float_only) + "\n")
+    with pytest.raises(RecordingError, match="--solutions"):
+        rtklib.read_drive(tmp_path)
+
+
+def test_a_csv_cut_mid_line_loses_only_that_line(tmp_path):
+    """A logger stopped mid-write leaves a partial last line: it is left out and said; a
+    short line anywhere else is refused with its line number."""
+    from mimunav.importers import table
+    good = "t,wx,wy\n0.0,1,2\n0.1,3,4\n"
+    (tmp_path / "cut.csv").write_text(good + "0.2,5")
+    notes = {}
+    data = table._load(str(tmp_path / "cut.csv"), None, notes)
+    assert data.tolist() == [[0.0, 1, 2], [0.1, 3, 4]]
+    assert "last line (#4) was cut short" in notes["cut.csv"]
+    (tmp_path / "bad.csv").write_text("t,wx,wy\n0.0,1\n0.1,3,4\n0.2,5,6\n")
+    with pytest.raises(RecordingError, match="line\\(s\\) 2 have another column count"):
+        table._load(str(tmp_path / "bad.csv"), None, {})

@@ -29,6 +29,9 @@ from ..errors import InputError
 UNKNOWN_ATTITUDE = np.full(4, np.nan)
 G0 = 9.80665                # m/s^2, standard gravity: the size a check of units compares with
 WRITE_BLOCK_S = 10.0        # s: channels are written interleaved in blocks of this much time
+# a position difference across a longer gap is no velocity (a car turns in 2 s; a few lost
+# epochs at 4-10 Hz still difference well)
+VELOCITY_GAP_EPOCHS, VELOCITY_GAP_S = 5, 2.0
 GPS_EPOCH_UNIX_S = 315964800            # 1980-01-06T00:00:00Z, the start of GPS time
 # GPS - UTC, s, from the GPS time (s since the GPS epoch) at which each took effect (IERS
 # Bulletin C; none added after 2017-01-01)
@@ -116,6 +119,7 @@ def check_recording(rec):
     attitude, the 1 s mean specific force turned into NED by the mounting and that attitude
     not pointing up (axes, mounting or quaternion convention wrong), or the gyro's rates a
     factor of ten or more from the attitude's own rate (deg/s read as rad/s)."""
+    _check_overlap(rec)
     g = float(np.median(np.linalg.norm(rec.f, axis=1)))
     if not 0.5 * G0 < g < 2 * G0:
         raise RecordingError(f"{rec.name}: the median |specific force| is {g:.3g} m/s^2; a "
@@ -142,6 +146,39 @@ def check_recording(rec):
         raise RecordingError(f"{rec.name}: the gyro's rates reach {imu_rate:.3g}, the reference "
                              f"attitude turns at up to {ref_rate:.3g} rad/s: is the gyro's unit "
                              "(deg/s or rad/s) right?")
+
+
+def _utc(ns):
+    return np.datetime_as_string(np.datetime64(int(ns), "ns"), unit="s") + "Z"
+
+
+def _check_overlap(rec):
+    """Refuse a reference or GNSS fixes whose time span does not overlap the IMU's: two
+    time bases (boot time, GPS week seconds, UNIX time) read as one."""
+    lo, hi = int(rec.imu_ns[0]), int(rec.imu_ns[-1])
+    for what, src in (("reference's", rec.reference), ("GNSS fixes'", rec.fixes)):
+        if src is None or not len(src["ns"]):
+            continue
+        a, b = int(np.min(src["ns"])), int(np.max(src["ns"]))
+        if b < lo or a > hi:
+            raise RecordingError(
+                f"{rec.name}: the IMU's stamps span {_utc(lo)} - {_utc(hi)}, the {what} "
+                f"{_utc(a)} - {_utc(b)}: they do not overlap, so the two are on different time "
+                "bases (time since boot, GPS week seconds, UNIX time): give both the same")
+
+
+def velocity_from_positions(ns, lat, lon, h):
+    """NED velocity (m/s, (M, 3)) of geodetic positions (rad, rad, m) at stamps ns (int ns)
+    by central differences over the neighbouring epochs (one-sided at the ends); NaN where a
+    neighbour lies more than VELOCITY_GAP_EPOCHS median epoch intervals and VELOCITY_GAP_S
+    away (no velocity across a gap: the rows to leave out of a reference)."""
+    t = (np.asarray(ns, np.int64) - int(ns[0])) / 1e9
+    ned = earth.ned_difference(lat, lon, h, lat[0], lon[0], h[0])
+    v = np.gradient(ned, t, axis=0)
+    dt = np.diff(t)
+    wide = dt > max(VELOCITY_GAP_EPOCHS * np.median(dt), VELOCITY_GAP_S)
+    v[np.concatenate([[False], wide]) | np.concatenate([wide, [False]])] = np.nan
+    return v
 
 
 def _local_mean(x, k, half=5):
@@ -213,9 +250,11 @@ def _write_interleaved(log, channels, block_s=WRITE_BLOCK_S):
     all channels per block, so that a log cut short (a full disk, a copy stopped) keeps the
     reference and fixes up to the cut, not only the IMU."""
     lo = min(int(c[3][0]) for c in channels if len(c[3]))
-    hi = max(int(c[3][-1]) for c in channels if len(c[3]))
     step = int(block_s * 1e9)
-    for start in range(lo, hi + 1, step):
+    # only the blocks that hold a sample (channels far apart in time leave long empty spans)
+    blocks = np.unique(np.concatenate([(np.asarray(c[3], np.int64) - lo) // step
+                                       for c in channels]))
+    for start in (lo + blocks * step).tolist():
         for topic, schema, frame, ns, fields in channels:
             a, b = np.searchsorted(ns, [start, start + step])
             if b > a:
@@ -226,7 +265,9 @@ def _track(rec, epoch):
     """The trajectory the alignment takes heading from (t s since epoch, lat, lon, h,
     v_ned): the reference, else the GNSS fixes (their velocity when recorded, else central
     differences of their positions), else None."""
-    src = rec.reference if rec.reference is not None else rec.fixes
+    src = rec.reference
+    if src is None or len(src["ns"]) < 3:
+        src = rec.fixes
     if src is None or len(src["ns"]) < 3:
         return None
     t = (np.asarray(src["ns"], np.int64) - epoch) / 1e9

@@ -23,7 +23,7 @@ from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 
 from ..sensors import Mounting
-from . import RecordingError, Recording
+from . import RecordingError, Recording, velocity_from_positions
 
 IMU = "sensor_msgs/msg/Imu"
 NAV_SAT_FIX = "sensor_msgs/msg/NavSatFix"
@@ -108,11 +108,21 @@ def read(path, imu_topic=None, fix_topic=None, mounting=None, reference_status=N
     imu_topic = _pick(path, available, IMU, imu_topic, required=True)
     fix_topic = _pick(path, available, NAV_SAT_FIX, fix_topic, required=False)
     rows = [(ns, m.angular_velocity.x, m.angular_velocity.y, m.angular_velocity.z,
-             m.linear_acceleration.x, m.linear_acceleration.y, m.linear_acceleration.z)
+             m.linear_acceleration.x, m.linear_acceleration.y, m.linear_acceleration.z,
+             m.angular_velocity_covariance[0], m.linear_acceleration_covariance[0])
             for ns, m in _messages(path, imu_topic)]
     if len(rows) < 2:
         raise RecordingError(f"{path}: {imu_topic} has {len(rows)} messages")
     a = np.asarray(rows, dtype=object)
+    # REP-145 / sensor_msgs: covariance[0] = -1 says the quantity is not measured
+    for column, name in ((7, "angular_velocity"), (8, "linear_acceleration")):
+        absent = a[:, column].astype(float) == -1
+        if absent.mean() > 0.5:
+            raise RecordingError(f"{path}: {imu_topic}'s {name}_covariance[0] = -1 in "
+                                 f"{int(absent.sum())} of {len(a)} messages: the recorder says "
+                                 f"it has no {name}; an inertial analysis needs both the gyro "
+                                 "and the accelerometer")
+    a = a[:, :7]
     ns = a[:, 0].astype(np.int64)
     order = np.argsort(ns, kind="stable")
     ns, data = ns[order], a[order, 1:].astype(float)
@@ -124,6 +134,8 @@ def read(path, imu_topic=None, fix_topic=None, mounting=None, reference_status=N
         fx = np.asarray(fx, dtype=float)
         good = np.isfinite(fx[:, 2:5]).all(axis=1) & (fx[:, 1] >= 0)
         fx = fx[good][np.argsort(fx[good, 0], kind="stable")]
+        repeated = np.concatenate([[False], np.diff(fx[:, 0]) <= 0]) if len(fx) else []
+        fx = fx[~np.asarray(repeated, bool)]           # a repeated stamp: keep the first
         if len(fx):
             fixes = dict(ns=fx[:, 0].astype(np.int64), status=fx[:, 1].astype(np.int8),
                          lat=fx[:, 2], lon=fx[:, 3], h=fx[:, 4], covariance=fx[:, 5:14])
@@ -142,7 +154,8 @@ def read(path, imu_topic=None, fix_topic=None, mounting=None, reference_status=N
     real = {"imu": f"{imu_topic} ({len(rows)} messages; {int((~keep).sum())} repeated stamps "
                    "dropped)", "source": os.path.basename(path)}
     if fixes is not None:
-        real["gnss"] = f"{fix_topic} ({len(fixes['ns'])} fixes with status >= 0)"
+        real["gnss"] = (f"{fix_topic} ({len(fixes['ns'])} fixes with status >= 0; "
+                        f"{int(np.sum(repeated))} repeated stamps dropped)")
     assumed = {"mounting": "REP-103 body axes (x forward, y left, z up) -> FRD" if mounting is None
                else "given on the command line",
                "calibration": "none: the Imu messages are used as recorded"}
@@ -169,14 +182,15 @@ def _fix_reference(fixes, status, sigma_m, topic):
     ns = fixes["ns"][use]
     lat, lon, h = fixes["lat"][use], fixes["lon"][use], fixes["h"][use]
     t = (ns - ns[0]) / 1e9
-    ned = earth.ned_difference(lat, lon, h, lat[0], lon[0], h[0])
     meta = {"source": f"NavSatFix {topic}, status >= {status}, velocity from position "
                       "differences",
             "independent": "yes: GNSS only",
             "position_sigma_m": f"{np.median(sigma[use]):.3g}" if np.any(sigma[use] > 0)
                                 else "not stated"}
     meta.update(_difference_velocity_sigma(sigma[use], t))
-    return dict(ns=ns, lat=lat, lon=lon, h=h, v_ned=np.gradient(ned, t, axis=0)), meta
+    v = velocity_from_positions(ns, lat, lon, h)
+    ok = np.isfinite(v).all(axis=1)              # no velocity across a gap of the fixes
+    return dict(ns=ns[ok], lat=lat[ok], lon=lon[ok], h=h[ok], v_ned=v[ok]), meta
 
 
 def _pose_reference(path, available, topic, origin):

@@ -28,7 +28,7 @@ import struct
 import numpy as np
 
 from ..sensors import Mounting
-from . import RecordingError, Recording
+from . import RecordingError, Recording, velocity_from_positions
 
 G_UNIT = 9.80665            # m/s^2 per g: the standard gravity an accelerometer's g means
 GPS_UTC_LEAP_S = 18         # GPST - UTC since 2017-01-01 (IERS Bulletin C: none added since)
@@ -141,7 +141,20 @@ def read_drive(folder, mounting=None, name=None, solutions=(1,)):
     ns = imu_stamps_ns(ticks, start, tag_ticks)
     keep = np.concatenate([[True], np.diff(ns) > 0])       # repeated ticks: keep the first
     sol = read_pos(pos)
-    good = np.isfinite(sol["v_ned"]).all(axis=1) & np.isin(sol["quality"], solutions)
+    chosen = np.isin(sol["quality"], solutions)
+    counts = ", ".join(f"{SOLUTION_NAMES.get(q, q)} {int((sol['quality'] == q).sum())}"
+                       for q in np.unique(sol["quality"]))
+    kinds = "/".join(SOLUTION_NAMES.get(q, str(q)) for q in solutions)
+    if chosen.sum() < 3:
+        raise RecordingError(f"{pos}: {int(chosen.sum())} {kinds} epochs ({counts}); choose the "
+                             "solution kinds that serve as reference with --solutions (e.g. "
+                             "--solutions fix float)")
+    velocity = "RTKLIB's velocity columns"
+    if not np.isfinite(sol["v_ned"][chosen]).all():      # RTKLIB's default output has none
+        sol["v_ned"][chosen] = velocity_from_positions(sol["ns"][chosen], sol["lat"][chosen],
+                                                 sol["lon"][chosen], sol["h"][chosen])
+        velocity = "central differences of the positions (the .pos has no velocity columns)"
+    good = chosen & np.isfinite(sol["v_ned"]).all(axis=1)
     reference = {k: sol[k][good] for k in ("ns", "lat", "lon", "h", "v_ned")}
     sd = sol["sd"]
     cov = np.zeros((len(sol["ns"]), 9))
@@ -150,9 +163,6 @@ def read_drive(folder, mounting=None, name=None, solutions=(1,)):
                  status=np.where(sol["quality"] == 1, 2, 0).astype(np.int8), covariance=cov)
     given = mounting is not None
     mounting = mounting or Mounting.from_rpy_deg(NOMINAL_RPY_DEG)
-    kinds = "/".join(SOLUTION_NAMES.get(q, str(q)) for q in solutions)
-    counts = ", ".join(f"{SOLUTION_NAMES.get(q, q)} {int((sol['quality'] == q).sum())}"
-                       for q in np.unique(sol["quality"]))
     rate = 1e9 / np.median(np.diff(ns[keep]))
     span = (ns[keep][-1] - ns[keep][0]) / 1e9
     real = {"imu": f"{os.path.basename(csv)}: {len(ticks)} complete lines "
@@ -162,7 +172,8 @@ def read_drive(folder, mounting=None, name=None, solutions=(1,)):
                         f"tags (arrival times) of {os.path.basename(tag)}, GPST - "
                         f"{GPS_UTC_LEAP_S} s = UTC; the stream's latency is not removed",
             "reference": f"RTK solution {os.path.basename(pos)}: {int(good.sum())} {kinds} "
-                         f"epochs with velocity of {len(good)} ({counts})",
+                         f"epochs with velocity of {len(good)} ({counts}); velocity from "
+                         f"{velocity}",
             "source": os.path.abspath(folder)}
     assumed = {"mounting": ("given on the command line" if given else
                             f"sensor -> vehicle roll/pitch/yaw {list(NOMINAL_RPY_DEG)} deg (the "

@@ -40,7 +40,7 @@ import quaternion
 
 from .. import earth
 from ..sensors import Mounting
-from . import RecordingError, Recording, gps_to_unix_s
+from . import RecordingError, Recording, gps_to_unix_s, velocity_from_positions
 
 G_UNIT = 9.80665
 UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9, "rad/s": 1.0,
@@ -66,6 +66,7 @@ class Spec:
             raise RecordingError(f"{path}: not a valid TOML spec ({exc})") from None
         root = self.doc.get("root", ".")
         self.root = os.path.normpath(os.path.join(os.path.dirname(self.path), root))
+        self.notes = {}             # what reading the files left out, for the metadata
         for section in ("imu", "time"):
             if not isinstance(self.doc.get(section), dict):
                 raise RecordingError(f"{path}: no [{section}] section")
@@ -93,7 +94,7 @@ class Spec:
         if unit not in KINDS[kind]:
             raise RecordingError(f"{self.path}: {where} unit {unit!r}: one of "
                                  f"{', '.join(KINDS[kind])}")
-        x = _load(os.path.join(self.root, source["file"]), source.get("columns"))
+        x = _load(os.path.join(self.root, source["file"]), source.get("columns"), self.notes)
         width = WIDTH.get(kind, 1)
         if width == 1 and x.ndim == 2 and x.shape[1] == 1:
             x = x[:, 0]
@@ -114,17 +115,18 @@ class Spec:
         return self.column(section, "time")
 
 
-def _load(path, columns):
+def _load(path, columns, notes=None):
     """A numeric array from a CSV (header row optional) or a NumPy file (.npy, .npz with one
-    array, or an extension-less .npy as comma2k19 stores them)."""
+    array, or an extension-less .npy as comma2k19 stores them). A CSV's last line cut short
+    (a logger stopped mid-write) is left out and said in `notes`; any other line whose column
+    count differs is refused."""
     if not os.path.exists(path):
         raise RecordingError(f"{path}: no such file")
     if path.endswith((".csv", ".txt")):
         with open(path) as fh:
             first = fh.readline()
         header = any(c.isalpha() for c in first.replace("e", "").replace("E", ""))
-        data = np.genfromtxt(path, delimiter=",", names=True if header else None,
-                             dtype=float, invalid_raise=True)
+        data = _read_csv(path, header, notes)
         if header:
             names = list(data.dtype.names)
             data = np.column_stack([data[n] for n in names])
@@ -148,6 +150,27 @@ def _load(path, columns):
             raise RecordingError(f"{path}: columns by name need a CSV header")
         data = data.reshape(len(data), -1)[:, list(columns)]
     return data
+
+
+def _read_csv(path, header, notes):
+    import re
+    read = lambda **kw: np.genfromtxt(path, delimiter=",", names=True if header else None,  # noqa: E731
+                                      dtype=float, invalid_raise=True, **kw)
+    try:
+        return read()
+    except ValueError as exc:
+        bad = [int(n) for n in re.findall(r"Line #(\d+)", str(exc))]
+        if not bad:
+            raise RecordingError(f"{path}: not a numeric CSV ({str(exc).strip()[:120]})") from None
+        with open(path, "rb") as fh:
+            last = sum(1 for line in fh if line.strip())
+        if bad != [last]:
+            raise RecordingError(f"{path}: line(s) {', '.join(map(str, bad[:5]))} have another "
+                                 "column count than the first; a table needs the same columns "
+                                 "on every line") from None
+    if notes is not None:
+        notes[f"{os.path.basename(path)}"] = f"its last line (#{last}) was cut short: left out"
+    return read(skip_footer=1)
 
 
 def unix_offset_s(spec):
@@ -189,22 +212,29 @@ def _reference(spec, offset):
     else:
         lat, lon = spec.column("reference", "latitude"), spec.column("reference", "longitude")
         h = spec.column("reference", "height")
+    v = None
     if spec.has("reference", "velocity_ned"):
         v = spec.column("reference", "velocity_ned")
     elif spec.has("reference", "velocity_ecef"):
         v = np.einsum("kji,kj->ki", earth.ned_to_ecef_matrix(lat, lon),
                       spec.column("reference", "velocity_ecef"))
-    else:
-        ned = earth.ned_difference(lat, lon, h, lat[0], lon[0], h[0])
-        v = np.gradient(ned, t, axis=0)
-    ref = dict(ns=np.round((t + offset) * 1e9).astype(np.int64), lat=lat, lon=lon, h=h, v_ned=v)
+    ns = np.round((t + offset) * 1e9).astype(np.int64)
+    back = np.flatnonzero(np.diff(ns) <= 0)
+    if len(back):
+        raise RecordingError(f"{spec.path}: [reference] time does not increase at data row "
+                             f"{back[0] + 1} (0-based, after the header; {len(back)} such rows):"
+                             " sort the reference by time or drop its repeated rows")
+    if not (spec.has("reference", "velocity_ned") or spec.has("reference", "velocity_ecef")):
+        v = velocity_from_positions(ns, lat, lon, h)
+    ref = dict(ns=ns, lat=lat, lon=lon, h=h, v_ned=v)
     if spec.has("reference", "attitude_wxyz"):
         ref["q_nb"] = _attitude_ned(spec, lat, lon)
     n = len(t)
     for key, x in ref.items():
         if len(x) != n:
             raise RecordingError(f"{spec.path}: [reference] {key} has {len(x)} rows, time {n}")
-    return ref
+    ok = np.isfinite(ref["v_ned"]).all(axis=1)      # differenced velocity: none across a gap
+    return {k: x[ok] for k, x in ref.items()}
 
 
 def _attitude_ned(spec, lat, lon):
@@ -233,7 +263,7 @@ def read(path, mounting=None):
     for name, t, x in (("specific_force", t_f, f), ("angular_rate", t_w, w)):
         if len(t) != len(x):
             raise RecordingError(f"{path}: [imu] {name} has {len(x)} rows, its time {len(t)}")
-    notes = {}
+    notes = spec.notes
     if len(t_w) != len(t_f) or np.any(t_w != t_f):
         if np.any(np.diff(t_w) <= 0):
             raise RecordingError(f"{path}: angular_rate times do not increase")

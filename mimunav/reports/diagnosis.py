@@ -79,7 +79,8 @@ def markdown(doc, diag, cal_label):
                   f"samples; {check['usable_s']:.0f} s usable); below {check['threshold']:g} a "
                   "channel is not predicted and the terms it drives are not tested.", "",
                   "| " + " | ".join(corr) + " |", "|" + "---|" * len(corr),
-                  "| " + " | ".join(f"{v:.3f}" for v in corr.values()) + " |", ""]
+                  "| " + " | ".join("n/a" if v is None else f"{v:.3f}"
+                                    for v in corr.values()) + " |", ""]
         lag = doc.get("time_lag", {})
         lines += [(f"Time lag of the IMU from the yaw rate: **{lag['tau_s'] * 1e3:.1f} ms** "
                    f"(95 % interval {lag['ci95'][0] * 1e3:.1f} to {lag['ci95'][1] * 1e3:.1f} ms "
