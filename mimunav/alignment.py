@@ -226,9 +226,19 @@ def _biases_at_a_rest(t, w, f, mounting, track, rests):
         rests = quiet_stretches(t, w, f, track)
         where = "the IMU's quietest stretch (no reference rest; judged from the IMU alone)"
     if not rests:
-        return (np.zeros(3), np.zeros(3), (math.nan, math.nan),
-                f"biases taken as 0: no rest of {MIN_STATIC_S:g} s in the reference and no "
-                f"quiet stretch of {MIN_STATIC_S:g} s in the IMU")
+        none = f"no rest of {MIN_STATIC_S:g} s in the reference and no quiet stretch of " \
+               f"{MIN_STATIC_S:g} s in the IMU"
+        moving = gyro_bias_from_attitude(t, w, mounting, track)
+        if moving is None:
+            return (np.zeros(3), np.zeros(3), (math.nan, math.nan),
+                    f"biases taken as 0: {none}")
+        bias, se, n = moving
+        return (bias, np.zeros(3), (math.nan, math.nan),
+                f"{none}: gyro bias from the reference attitude's rate, the median of {n} "
+                f"{ATTITUDE_BIAS_WINDOW_S:g} s windows' differences (standard error "
+                + ", ".join(f"{math.degrees(x) * 3600:.0f}" for x in se)
+                + " deg/h; the reference's own errors and any time lag in it); accelerometer "
+                "bias taken as 0")
     t0, t1 = max(rests, key=lambda r: r[1] - r[0])
     k = (t >= t0) & (t <= t1)
     lat, h = (float(np.interp(0.5 * (t0 + t1), track["t"], track[x])) for x in ("lat", "h"))
@@ -249,6 +259,55 @@ def _biases_at_a_rest(t, w, f, mounting, track, rests):
         gyro_bias = gyro_bias + horizontal
     return (gyro_bias, accel_bias, (t0, t1),
             f"biases from {where} {t0:.2f}-{t1:.2f} s ({note})")
+
+
+ATTITUDE_BIAS_WINDOW_S = 1.0    # s: windows of the gyro bias from a reference attitude
+MIN_ATTITUDE_BIAS_WINDOWS = 10
+
+
+def gyro_bias_from_attitude(t, w, mounting, track, window=ATTITUDE_BIAS_WINDOW_S):
+    """The gyro bias (rad/s, sensor axes) of a recording without a rest whose reference
+    carries the vehicle attitude (a fused pose, an autopilot's estimate): per window [a, b]
+    between the reference's own epochs (about `window` s), the IMU's mean rate w (rad/s,
+    sensor axes, stamps t s: the samples ending in (a, b]) less the rate the reference's
+    attitude turned through, C_sb (rotvec(q_nb(a)^-1 q_nb(b)) / (b - a) + C_bn (w_ie^n +
+    w_en^n)), C_bn at mid-window; the median over the windows and its standard error
+    (1.2533 x the MAD-based sigma / sqrt n).
+    Returns (bias (3,), se (3,), windows) or None without MIN_ATTITUDE_BIAS_WINDOWS
+    windows of known attitude."""
+    q = track.get("q_nb")
+    if q is None:
+        return None
+    ok = np.isfinite(q).all(axis=1)
+    if ok.sum() < 2:
+        return None
+    inside = ok & (track["t"] >= t[0]) & (track["t"] <= t[-1])
+    t_q = track["t"][inside]
+    if len(t_q) < 2:
+        return None
+    # windows between the reference's own epochs (no interpolated attitude)
+    step = max(1, int(round(window / np.median(np.diff(t_q)))))
+    a, b = slice(0, len(t_q) - step, step), slice(step, len(t_q), step)
+    rot = Rotation.from_quat(np.asarray(q)[inside][:, [1, 2, 3, 0]])
+    r_a, span = rot[a], t_q[b] - t_q[a]
+    w_nb = (r_a.inv() * rot[b]).as_rotvec() / span[:, None]      # vehicle axes
+    edges = t_q[a]
+    mid = 0.5 * (edges + t_q[b])
+    lat, h = (np.interp(mid, track["t"], track[k]) for k in ("lat", "h"))
+    v = np.column_stack([np.interp(mid, track["t"], track["v_ned"][:, i]) for i in range(3)])
+    w_in = earth.earth_rate_ned(lat) + earth.transport_rate_ned(lat, h, v)
+    w_in_b = (r_a.inv() * Rotation.from_rotvec(0.5 * w_nb * span[:, None])).apply(w_in)
+    predicted = attitude.rotate(np.conjugate(mounting.q_vs), w_nb + w_in_b)
+    k0, k1 = np.searchsorted(t, edges, side="right"), np.searchsorted(t, t_q[b], side="right")
+    use = k1 - k0 >= 2
+    c = np.vstack([np.zeros((1, 3)), np.cumsum(w, axis=0)])
+    measured = (c[k1[use]] - c[k0[use]]) / (k1[use] - k0[use])[:, None]
+    d = measured - predicted[use]
+    if len(d) < MIN_ATTITUDE_BIAS_WINDOWS:
+        return None
+    bias = np.median(d, axis=0)
+    sigma = 1.4826 * np.median(np.abs(d - bias), axis=0)
+    return bias, 1.2533 * sigma / math.sqrt(len(d)), int(len(d))
 
 
 QUIET_WINDOW_S = 0.5        # s: windows the IMU-only rest test looks at

@@ -431,7 +431,10 @@ def _import(args):
           + (f", {len(rec.reference['ns'])} reference epochs" if rec.reference else "")
           + (f", {len(rec.fixes['ns'])} GNSS fixes" if rec.fixes else ""))
     print(f"initial state at t = {align.t:.3f} s: {align.method}")
-    if np.isnan(align.static[0]):
+    if np.isnan(align.static[0]) and np.any(align.gyro_bias):
+        print("gyro bias from the reference attitude (sensor axes) "
+              + ", ".join(f"{np.degrees(b):+.4f}" for b in align.gyro_bias) + " deg/s")
+    elif np.isnan(align.static[0]):
         print("gyro bias: not observed (no rest of 2 s in the recording)")
     else:
         print(f"gyro bias at rest {align.static[0]:.1f}-{align.static[1]:.1f} s (sensor axes) "

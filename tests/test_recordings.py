@@ -177,12 +177,19 @@ def test_alignment_in_motion_without_a_rest(tmp_path):
     assert meta["static_s"] is None and meta["gyro_bias_static_rad_s"] == [0.0, 0.0, 0.0]
 
     path, motion, _ = _ideal_flight(tmp_path / "attitude", MOUNT, track=track,
-                                    with_attitude=True)
+                                    with_attitude=True, gyro_bias=bias)
     flight = Flight.load(path, reference_imu=False)
     t0 = flight.initial["t"]            # the first reference epoch after the first IMU stamp
     assert t0 == pytest.approx(40.25 - 40.01, abs=1e-6)
     assert np.allclose(flight.initial["q_nb"], quaternion.as_float_array(
         motion.kinematics(np.array([40.25])).q_nb[0]), atol=1e-9)
+    # no rest, but the reference's attitude: the gyro bias from its rate (a phone's of
+    # several deg/s went unnoticed before), to a fraction of a deg/h on this ideal IMU
+    with FlightLog(path) as log:
+        meta = log.metadata()["recording"]
+    assert "gyro bias from the reference attitude's rate" in meta["assumed"]["initial_state"]
+    got = np.array(meta["gyro_bias_static_rad_s"])
+    assert np.abs(got - bias).max() < 1e-6, got - bias
 
 
 def test_gyro_bias_from_a_rest_in_the_middle(tmp_path):

@@ -64,6 +64,7 @@ CHECK_BIN_S = 1.0
 MIN_PREDICTED = 3           # of six channels: fewer, and the reference cannot carry a verdict
 MIN_TRUSTED = 0.25          # fraction of the MIMU's samples inside the trusted motion
 CHECK_WINDOW_S = 10.0       # free-inertial windows of the navigation check
+MIN_CHECK_WINDOWS = 5       # fewer windows cannot confirm a term in navigation
 
 # Noise of the consumer part (shared/data/rtklib-drive/README: the author's settings, an
 # LSM6DSO-class device): white densities, accel m/s^2/sqrt(Hz), gyro rad/s/sqrt(Hz); its
@@ -162,7 +163,7 @@ def diagnose(flight, cal, alpha=0.05, reference=None, accuracy=None):
         "not_tested": [library.label(term) for term in left_out],
         "trusted_fraction": float(trusted.mean()),
         "usable_s": float(len(diag.design.t) * np.median(np.diff(diag.design.t)))}
-    diag.inconclusive = screen(diag, flight, cal)
+    reasons, demoted = screen(diag, flight, cal)
     if corr["gyro.z"] >= PREDICTED_CORRELATION:
         tau, ci, segments = time_lag(replace(flight, mimu_imu=ref.mimu_imu), (ref, trusted))
         diag.time_lag = {"tau_s": tau, "ci95": list(ci), "segments_s": segments.values.tolist(),
@@ -174,12 +175,15 @@ def diagnose(flight, cal, alpha=0.05, reference=None, accuracy=None):
     else:
         diag.time_lag = {"not_estimated": f"the yaw rate is not predicted (1 s correlation "
                                           f"{corr['gyro.z']:.2f} < {PREDICTED_CORRELATION:g})"}
+    # terms that failed the checks make the diagnosis inconclusive only when nothing held
+    diag.inconclusive = reasons + (demoted if not diag.findings else [])
     return diag
 
 
 def screen(diag, flight, cal):
-    """Move the findings that fail the module's checks to `diag.rejected`; returns the
-    reasons the diagnosis is inconclusive ([] when it is not)."""
+    """Move the findings that fail the module's checks to `diag.rejected`; returns (the
+    reasons the diagnosis is inconclusive whatever it finds, the demoted findings with
+    why)."""
     check = diag.reference_check
     unpredicted = set(check["unpredicted_inputs"])
     reasons = []
@@ -212,23 +216,37 @@ def screen(diag, flight, cal):
         else:
             if baseline is None:
                 baseline = _window_ends(flight, cal, [])
-            ends = _window_ends(flight, cal, [finding])
-            if baseline is not None and ends is not None:
-                paired = float(np.median(ends - baseline))
-                finding["navigation_check"] = {
-                    "windows": len(ends), "window_s": CHECK_WINDOW_S,
-                    "median_end_error_m": [float(np.median(baseline)), float(np.median(ends))],
-                    "median_paired_change_m": paired}
-                if paired > 0:
-                    why = (f"navigates worse: the median {CHECK_WINDOW_S:g} s window end error "
-                           f"rises by {paired:.3g} m over {len(ends)} windows")
+            why = navigation_check(flight, cal, finding, baseline)
         if why is None:
             kept.append(finding)
         else:
             diag.rejected.append(dict(finding, rejected=why))
             demoted.append(f"{finding['label']} {why}")
     diag.findings = kept
-    return reasons + (demoted if not kept else [])
+    return reasons, demoted
+
+
+def navigation_check(flight, cal, finding, baseline):
+    """Why `finding` is not confirmed in navigation, or None when it is: the CHECK_WINDOW_S
+    free-inertial windows with it removed must end nearer the reference - the median of the
+    paired changes below 0 and the median end error not up - over at least
+    MIN_CHECK_WINDOWS windows (fewer cannot say; a 20 s recording confirmed a term that
+    tripled its navigation error). Writes finding["navigation_check"] when it ran.
+    baseline: `_window_ends` without it."""
+    ends = _window_ends(flight, cal, [finding])
+    n = 0 if ends is None or baseline is None else len(ends)
+    if n < MIN_CHECK_WINDOWS:
+        return (f"cannot be checked in navigation: {n} free-inertial {CHECK_WINDOW_S:g} s "
+                f"windows (need {MIN_CHECK_WINDOWS})")
+    paired = float(np.median(ends - baseline))
+    before, after = float(np.median(baseline)), float(np.median(ends))
+    finding["navigation_check"] = {
+        "windows": n, "window_s": CHECK_WINDOW_S, "median_end_error_m": [before, after],
+        "median_paired_change_m": paired}
+    if not (paired < 0 and after <= before):
+        return (f"navigates worse: over {n} {CHECK_WINDOW_S:g} s windows the median end error "
+                f"goes {before:.3g} -> {after:.3g} m (median paired change {paired:+.3g} m)")
+    return None
 
 
 def _window_ends(flight, cal, findings):
@@ -276,24 +294,19 @@ def lag_finding(diag, flight, cal, segments, alpha):
                "where": [{"t0": float(flight.mimu_t[0]), "t1": float(flight.mimu_t[-1]),
                           "condition": "every sample: a shift of the IMU's stamps"}],
                "fit": {"channels": ["gyro.z"], "units": "s",
-                       "heldout_rms_before": float(np.sqrt(np.mean(held.values ** 2))),
-                       "heldout_rms_after": float(np.sqrt(np.mean(
-                           (held.values - train.mean_and_se()[0]) ** 2))),
-                       "basis": "rms of the held-out segments' lags about 0 and about the "
-                                "training value"}}
-    baseline = _window_ends(flight, cal, [])
-    ends = _window_ends(flight, cal, [finding])
-    if baseline is None or ends is None:
-        lag["not_a_finding"] = "no free-inertial window to check it in navigation"
+                       "heldout_rms_before": held.weighted_rms(0.0),
+                       "heldout_rms_after": held.weighted_rms(train.mean_and_se()[0]),
+                       "basis": "inverse-variance weighted rms of the held-out segments' lags "
+                                "about 0 and about the training value"}}
+    fit = finding["fit"]
+    if not fit["heldout_rms_after"] < fit["heldout_rms_before"]:
+        lag["not_a_finding"] = (f"the held-out segments' lags lie nearer 0 than the training "
+                                f"value (rms {fit['heldout_rms_before']:.3g} -> "
+                                f"{fit['heldout_rms_after']:.3g} s)")
         return
-    paired = float(np.median(ends - baseline))
-    finding["navigation_check"] = {
-        "windows": len(ends), "window_s": CHECK_WINDOW_S,
-        "median_end_error_m": [float(np.median(baseline)), float(np.median(ends))],
-        "median_paired_change_m": paired}
-    if not paired < 0:
-        lag["not_a_finding"] = (f"navigates worse: the median {CHECK_WINDOW_S:g} s window end "
-                                f"error rises by {paired:.3g} m over {len(ends)} windows")
+    why = navigation_check(flight, cal, finding, _window_ends(flight, cal, []))
+    if why is not None:
+        lag["not_a_finding"] = why
         return
     diag.findings = [f for f in diag.findings if f["effect"] != "time_skew"] + [finding]
     for r in diag.rejected:
@@ -351,6 +364,12 @@ class Segments:
         mean = float(np.sum(w * self.values) / np.sum(w))
         chi2 = float(np.sum(w * (self.values - mean) ** 2)) / max(len(w) - 1, 1)
         return mean, float(np.sqrt(max(chi2, 1.0) / np.sum(w)))
+
+    def weighted_rms(self, about):
+        """Inverse-variance weighted rms of the lags about `about` (s): a segment where the
+        vehicle hardly turns (its lag known to seconds) weighs nothing."""
+        w = 1.0 / self.variances
+        return float(np.sqrt(np.sum(w * (self.values - about) ** 2) / np.sum(w)))
 
     def mean_and_interval(self):
         from scipy import stats
