@@ -378,14 +378,17 @@ def test_rtklib_excerpt_import_follows_the_contract(tmp_path):
     assert main(["import", "rtklib", str(DRIVE), "-o", str(out)]) == 2       # never overwrite
     # a mounting given on the command line is the one written; float epochs on request
     given = tmp_path / "given.mcap"
-    assert main(["import", "rtklib", str(DRIVE), "-o", str(given), "--mounting-rpy-deg", "0", "0",
-                 "90", "--solutions", "fix", "float"]) == 0
+    assert main(["import", "rtklib", str(DRIVE), "-o", str(given), "--mounting-rpy-deg", "180",
+                 "0", "175", "--solutions", "fix", "float"]) == 0
     with FlightLog(given) as log:
         meta = log.metadata()
     q = Mounting.from_dict(meta["sensor/mimu"]["mounting"]).attitude_wxyz
-    assert np.allclose(q, Mounting.from_rpy_deg((0, 0, 90)).attitude_wxyz)
+    assert np.allclose(q, Mounting.from_rpy_deg((180, 0, 175)).attitude_wxyz)
     assert "given" in meta["recording"]["assumed"]["mounting"]
     assert meta["reference"]["solutions"] == "fix/float"
+    # a mounting that turns the forward axis sideways is refused: the GNSS track shows it
+    assert main(["import", "rtklib", str(DRIVE), "-o", str(tmp_path / "side.mcap"),
+                 "--mounting-rpy-deg", "180", "0", "90"]) == 2
 
 
 def test_an_imported_log_cut_short_keeps_its_reference_up_to_the_cut(tmp_path):
@@ -792,3 +795,32 @@ def test_a_csv_cut_mid_line_loses_only_that_line(tmp_path):
     (tmp_path / "bad.csv").write_text("t,wx,wy\n0.0,1\n0.1,3,4\n0.2,5,6\n")
     with pytest.raises(RecordingError, match="line\\(s\\) 2 have another column count"):
         table._load(str(tmp_path / "bad.csv"), None, {})
+
+
+@pytest.mark.parametrize("wrong, message", [
+    ("deg/s", "5[67].[0-9] times its size.*unit"),
+    ("yaw 90", "turned [+-]90 deg in yaw"),
+])
+def test_the_gnss_course_judges_units_and_axes_without_a_reference_attitude(tmp_path, wrong,
+                                                                            message):
+    """The weaving synthetic drive, GNSS track only: a gyro logged in deg/s but declared
+    rad/s follows the course rate 57.3 times too large, and a mounting whose yaw is 90 deg
+    off puts the track's acceleration on the wrong axes - both refused at import, naming
+    what to check (they imported and then 'diagnosed' a misalignment before)."""
+    t_tr, lat, lon, h, v = _track()
+    motion = TrackMotion(t_tr, lat, lon, h, v)
+    t = np.arange(t_tr[0], t_tr[-1] + 1e-9, 0.01)
+    run = truth.generate(motion, t)
+    dth, dv = MOUNT.sensor_increments(run)
+    w, f, mounting = dth * 100.0, dv * 100.0, MOUNT
+    if wrong == "deg/s":
+        w = np.degrees(w)
+    else:
+        mounting = Mounting.from_rpy_deg((180.0, 0.0, 270.0))
+    epoch = 1_700_000_000_000_000_000
+    ref = dict(ns=epoch + np.round(t_tr * 1e9).astype(np.int64), lat=lat, lon=lon, h=h, v_ned=v)
+    rec = Recording("wrong", "", epoch + np.round(t[1:] * 1e9).astype(np.int64), w, f,
+                    mounting, reference=ref)
+    with pytest.raises(RecordingError, match=message):
+        write_log(rec, tmp_path / "never.mcap")
+    assert not (tmp_path / "never.mcap").exists()

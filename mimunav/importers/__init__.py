@@ -15,6 +15,7 @@ an `initial_state` from `alignment.initial_alignment`, `sensor/mimu`, and `recor
 real, what was assumed).
 """
 import json
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -128,6 +129,7 @@ def check_recording(rec):
     ref = rec.reference
     q = None if ref is None else ref.get("q_nb")
     if q is None or np.isfinite(q).all(axis=1).sum() < 10:
+        _check_against_course(rec)
         return
     ok = np.isfinite(q).all(axis=1)
     t_ref = ref["ns"][ok]
@@ -179,6 +181,63 @@ def velocity_from_positions(ns, lat, lon, h):
     wide = dt > max(VELOCITY_GAP_EPOCHS * np.median(dt), VELOCITY_GAP_S)
     v[np.concatenate([[False], wide]) | np.concatenate([wide, [False]])] = np.nan
     return v
+
+
+COURSE_CHECK_RATE = 0.02       # rad/s: the course must turn this much (std) to judge a gyro
+COURSE_CHECK_ACCEL = 0.3        # m/s^2: horizontal acceleration (std) to judge the axes
+COURSE_CHECK_YAW = math.radians(45.0)   # a forward axis this far off is a wrong mounting
+
+
+def _check_against_course(rec):
+    """Without a reference attitude, the GNSS track of a land vehicle still judges the IMU
+    (epochs faster than alignment.COURSE_SPEED, the IMU's 1 s means turned into the vehicle
+    frame by the mounting): its yaw rate (FRD z) must follow the course rate with a ratio
+    within 0.1-10 (deg/s read as rad/s is 57) and the same sense, and its horizontal specific
+    force the track's acceleration (along: d speed/dt, across: speed x course rate) within
+    45 deg of yaw (a forward axis that points sideways). Judged only where the track turns
+    and accelerates enough to show it, and the two agree in shape (correlation, coherence)."""
+    epoch = int(rec.imu_ns[0])
+    track = _track(rec, epoch)
+    if track is None:
+        return
+    t, v = track["t"], np.asarray(track["v_ned"], float)
+    speed = np.hypot(v[:, 0], v[:, 1])
+    course = np.unwrap(np.arctan2(v[:, 1], v[:, 0]))
+    course_rate, along = np.gradient(course, t), np.gradient(speed, t)
+    t_imu = (rec.imu_ns - epoch) / 1e9
+    sel = (speed > alignment.COURSE_SPEED) & (t > t_imu[0] + 0.5) & (t < t_imu[-1] - 0.5) \
+        & np.isfinite(course_rate) & np.isfinite(along)
+    if sel.sum() < 20:
+        return
+    k = np.searchsorted(t_imu, t[sel])
+    half = max(1, int(round(0.5 * rec.sample_rate_hz)))
+    w_v = attitude.rotate(rec.mounting.q_vs, _local_mean(rec.w, k, half))
+    f_v = attitude.rotate(rec.mounting.q_vs, _local_mean(rec.f, k, half))
+    rate = course_rate[sel]
+    if np.std(rate) > COURSE_CHECK_RATE:
+        corr = float(np.corrcoef(w_v[:, 2], rate)[0, 1])
+        ratio = float(np.std(w_v[:, 2]) / np.std(rate))
+        if abs(corr) > 0.7 and not (corr > 0 and 0.1 < ratio < 10):
+            raise RecordingError(
+                f"{rec.name}: the gyro's yaw rate (vehicle z by the mounting) follows the GNSS "
+                f"course rate {'reversed, ' if corr < 0 else ''}at {ratio:.3g} times its size "
+                f"(correlation {corr:+.2f}): " + ("is the gyro's unit (deg/s or rad/s) right?"
+                                                  if not 0.1 < ratio < 10 else
+                                                  "the sensor axes or the mounting turn the "
+                                                  "yaw axis upside down"))
+    z_ref = along[sel] + 1j * speed[sel] * rate
+    z_imu = f_v[:, 0] + 1j * f_v[:, 1]
+    z_ref, z_imu = z_ref - z_ref.mean(), z_imu - z_imu.mean()    # the level's gravity leak
+    if np.std(z_ref) > COURSE_CHECK_ACCEL:
+        cross = np.sum(z_imu * np.conj(z_ref))
+        coherence = abs(cross) / math.sqrt(np.sum(abs(z_imu) ** 2) * np.sum(abs(z_ref) ** 2))
+        yaw = float(np.angle(cross))
+        if coherence > 0.5 and abs(yaw) > COURSE_CHECK_YAW:
+            raise RecordingError(
+                f"{rec.name}: the accelerometers' horizontal specific force matches the GNSS "
+                f"track's acceleration turned {math.degrees(yaw):+.0f} deg in yaw (coherence "
+                f"{coherence:.2f}): the sensor axes or the mounting's yaw are off by that much "
+                "(--mounting-rpy-deg, or the axes of the import)")
 
 
 def _local_mean(x, k, half=5):
