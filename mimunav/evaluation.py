@@ -77,6 +77,10 @@ class Flight:
         with FlightLog(path) as log:
             meta = log.metadata()
             flight = meta.get("flight", {})
+            schemas = {log.summary.schemas[c.schema_id].name for c in log.channels.values()}
+            if not flight and "sensor_msgs/msg/Imu" in schemas:
+                raise LogError(f"{path}: a ROS 2 recording, not a mimunav log (no `flight` "
+                               "metadata): `mimunav import ros2 FILE -o LOG.mcap` makes one")
             for key in ("epoch_unix_ns", "initial_state"):
                 if key not in flight:
                     raise LogError(f"{path}: the `flight` metadata lacks {key!r} (log contract "
@@ -447,6 +451,17 @@ class VehicleNavigator:
             return Trajectory(nav.t, nav.lat, nav.lon, nav.h, nav.v_ned, q_nb)
         lat, lon, h = _moved(nav.lat, nav.lon, nav.h, -d_ned)
         return Trajectory(nav.t, lat, lon, h, nav.v_ned - v_rel, q_nb)
+
+
+def no_reference(path, what):
+    """The InputError for `what` on a log without /truth/state, saying how its GNSS fixes
+    could serve as one when it has /gnss/fix."""
+    with FlightLog(path) as log:
+        fixes = "/gnss/fix" in log.channels
+    hint = ("; its /gnss/fix can serve when the import takes it as the reference: ros2 "
+            "--reference-status 2 (RTK grade), rtklib --solutions, dataflash --reference gnss, "
+            "table a [reference] section" if fixes else "")
+    return InputError(f"{path}: no reference trajectory (/truth/state) for {what}{hint}")
 
 
 def _platform(t, joint, meta):

@@ -22,7 +22,7 @@ import numpy as np
 import quaternion
 
 from . import alignment
-from .evaluation import compensated_mimu, navigate, resample
+from .evaluation import compensated_mimu, navigate, no_reference, resample
 from .errors import InputError
 
 WINDOW_LENGTHS_S = (10.0, 30.0, 60.0)
@@ -120,8 +120,7 @@ def run_all(flight, cal=None, lengths=WINDOW_LENGTHS_S, step=START_STEP_S, time_
         raise InputError(f"{flight.path}: the MIMU turns on a platform (/mimu/platform); "
                          "this analysis does not follow the rotation yet - replay and table do")
     if flight.truth is None:
-        raise InputError(f"{flight.path}: free-inertial windows need a reference trajectory "
-                         "(/truth/state)")
+        raise no_reference(flight.path, "the free-inertial windows")
     w, f, _ = compensated_mimu(flight, cal)
     t = flight.mimu_t + time_shift_s
     rest = alignment.initial_alignment(t, w, f, flight.mimu_mounting, track_of(flight.truth))

@@ -254,6 +254,13 @@ def test_gaps_are_missing_samples_not_jitter():
     assert missing_samples(holed) == [(1999, 3)]
     assert missing_samples(np.delete(nominal, [10])) == [(9, 1)]
     assert missing_samples((jittered * 1.0001).astype(np.int64)) == []
+    # a logger switched from 100 to 50 Hz: a new rate, not 2500 missing samples; a gap in
+    # the 50 Hz part counts in its own period
+    from mimunav.flightlog.inspect import rate_segments
+    switched = np.concatenate([jittered[:2500], jittered[2499] + 20_000_000 * np.arange(1, 2501)])
+    assert [round(1e9 / p) for _, _, p in rate_segments(switched)] == [100, 50]
+    assert missing_samples(switched) == []
+    assert missing_samples(np.delete(switched, [4000, 4001])) == [(3999, 2)]
 
 
 def test_the_bulk_writer_makes_mcap_the_mcap_package_validates(tmp_path):

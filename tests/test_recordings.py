@@ -824,3 +824,21 @@ def test_the_gnss_course_judges_units_and_axes_without_a_reference_attitude(tmp_
     with pytest.raises(RecordingError, match=message):
         write_log(rec, tmp_path / "never.mcap")
     assert not (tmp_path / "never.mcap").exists()
+
+
+def test_a_foreign_recording_given_where_a_log_belongs_is_told_how_to_import(tmp_path, capsys):
+    """A ULog or DataFlash file given to info, a ROS 2 bag given to windows: the refusal says
+    which import makes a mimunav log of it."""
+    (tmp_path / "x.ulg").write_bytes(b"ULog\x01\x12\x35\x01" + bytes(64))
+    (tmp_path / "x.bin").write_bytes(b"\xa3\x95\x80" + bytes(64))
+    assert main(["info", str(tmp_path / "x.ulg")]) == 2
+    assert "mimunav import ulog" in capsys.readouterr().err
+    assert main(["info", str(tmp_path / "x.bin")]) == 2
+    assert "mimunav import dataflash" in capsys.readouterr().err
+    n = 300
+    stamps = 1_700_000_000_000_000_000 + np.arange(n) * 10_000_000
+    with LogWriter(tmp_path / "bag.mcap") as log:
+        log.write("/imu", S.IMU, "imu_link", stamps,
+                  **S.imu_fields(np.zeros((n, 3)), np.tile([0.0, 0.0, 9.8], (n, 1))))
+    assert main(["windows", str(tmp_path / "bag.mcap"), "-o", str(tmp_path / "w")]) == 2
+    assert "mimunav import ros2" in capsys.readouterr().err

@@ -1,25 +1,78 @@
 """`mimunav info`: a log's channels, rates, gaps, dropped samples and metadata."""
+import math
+
 import numba
 import numpy as np
 
 from . import schemas
 
 
+RATE_RUN = 200          # steps: a different sampling period held this long is a new rate
+RATE_CHANGE = 0.2       # relative change of the period that makes a new rate
+
+
+def rate_segments(t):
+    """[(first stamp index, last stamp index, period ns)] of a channel whose sampling rate
+    may change (a logger switched from 100 to 50 Hz): runs of at least RATE_RUN steps whose
+    running-median period differs from the previous run's by more than RATE_CHANGE. One
+    segment when the rate holds (jitter and gaps do not make a new rate)."""
+    step = np.diff(np.asarray(t, np.int64)).astype(float)
+    n = len(step)
+    if n < 2 * RATE_RUN:
+        return [(0, n, _period(step))]
+    size = RATE_RUN // 2                      # medians of blocks of steps: jitter-proof
+    blocks = np.median(step[:n // size * size].reshape(-1, size), axis=1)
+    bounds, ref = [0], blocks[0]
+    for j in range(1, len(blocks)):
+        if abs(blocks[j] / ref - 1) > RATE_CHANGE and j * size - bounds[-1] >= RATE_RUN:
+            bounds.append(j * size)
+            ref = blocks[j]
+    bounds.append(n)
+    # a block astride a change holds both rates: merge runs of one rate, then put each
+    # change where the steps fit the two rates best
+    merged = list(bounds)
+    while len(merged) > 2:
+        periods = [_period(step[a:b]) for a, b in zip(merged[:-1], merged[1:])]
+        alike = [i for i in range(1, len(merged) - 1)
+                 if abs(periods[i] / periods[i - 1] - 1) <= RATE_CHANGE]
+        if not alike:
+            break
+        del merged[alike[0]]
+    log_step = np.log(np.maximum(step, 1.0))
+    for i in range(1, len(merged) - 1):
+        a, c, b = merged[i - 1], merged[i], merged[i + 1]
+        la, lb = math.log(_period(step[a:c])), math.log(_period(step[c:b]))
+        lo, hi = max(a + 1, c - RATE_RUN), min(b - 1, c + RATE_RUN)
+        cost = [np.abs(log_step[lo:k] - la).sum() + np.abs(log_step[k:hi] - lb).sum()
+                for k in range(lo, hi + 1)]
+        merged[i] = lo + int(np.argmin(cost))
+    return [(a, b, _period(step[a:b])) for a, b in zip(merged[:-1], merged[1:])]
+
+
+def _period(step):
+    """Median step over many samples (jitter averages out), ns."""
+    rel = np.concatenate([[0.0], np.cumsum(step)])
+    span = max(1, min(100, len(step) // 10))
+    return float(np.median((rel[span:] - rel[:-span]) / span))
+
+
 def missing_samples(t, smoothing=0.02):
     """Gaps of a channel sampled at a nominal period T with jitter: [(index k, samples
-    missing between stamps k and k + 1)]. T is the median step over many samples (jitter
-    averages out); each stamp is put in the next free slot of the sampling grid, whose phase
-    is tracked as a running mean (weight `smoothing`) of the stamps' offsets from it, so a
-    late stamp followed by an early one (jitter of 6-9 ms on a 10 ms period) stays in its
-    slot and a clock slightly off is followed; slots left empty are the missing samples."""
-    rel = (np.asarray(t, np.int64) - int(t[0])).astype(float)
-    n = len(rel)
-    span = max(1, min(100, n // 10))
-    period = float(np.median((rel[span:] - rel[:-span]) / span))
-    if period <= 0:
-        return []
-    gaps = _empty_slots(rel, period, smoothing)
-    return [(int(k), int(gaps[k])) for k in np.flatnonzero(gaps)]
+    missing between stamps k and k + 1)]. T is the median step over many samples of each
+    `rate_segments` run (a change of rate is no gap); each stamp is put in the next free
+    slot of the sampling grid, whose phase is tracked as a running mean (weight
+    `smoothing`) of the stamps' offsets from it, so a late stamp followed by an early one
+    (jitter of 6-9 ms on a 10 ms period) stays in its slot and a clock slightly off is
+    followed; slots left empty are the missing samples."""
+    t = np.asarray(t, np.int64)
+    out = []
+    for a, b, period in rate_segments(t):
+        if period <= 0:
+            continue
+        rel = (t[a:b + 1] - int(t[a])).astype(float)
+        gaps = _empty_slots(rel, period, smoothing)
+        out += [(int(a + k), int(gaps[k])) for k in np.flatnonzero(gaps)]
+    return out
 
 
 @numba.njit(cache=True)
@@ -49,11 +102,15 @@ def channel_report(log, topic, origin_ns=None):
     med = float(np.median(step))
     gaps = missing_samples(t)
     t0 = int(t[0]) if origin_ns is None else int(origin_ns)
+    segments = rate_segments(t)
+    if len(segments) > 1:
+        rep["rates"] = [((t[a] - t0) / 1e9, 1e9 / period) for a, _, period in segments]
+    nominal = np.concatenate([np.full(b - a, period) for a, b, period in segments])
     rep.update(rate_hz=1e9 / med, duration_s=(t[-1] - t[0]) / 1e9,
                start_ns=int(t[0]), gaps=[((t[k] - t0) / 1e9, (t[k + 1] - t0) / 1e9)
                                           for k, _ in gaps],
                missing=sum(n for _, n in gaps),
-               jitter_ms=float(1.4826 * np.median(np.abs(step - med)) / 1e6),
+               jitter_ms=float(1.4826 * np.median(np.abs(step - nominal)) / 1e6),
                backwards=log.time_reversals.get(topic, 0), duplicates=int(np.sum(step == 0)))
     if "sample_index" in msgs.dtype.names:
         jumps = np.diff(msgs["sample_index"].astype(np.int64))
@@ -133,6 +190,9 @@ def describe(log, unreadable=None):
         if "rate_hz" in r:
             text += f"  {r['rate_hz']:9.3f} Hz  {r['duration_s']:9.3f} s"
             problems = []
+            if r.get("rates"):
+                problems.append("the rate changes: " + ", ".join(
+                    f"{hz:.4g} Hz from {t_s:.3f} s" for t_s, hz in r["rates"]))
             if r["gaps"]:
                 problems.append(f"{len(r['gaps'])} gaps, {r['missing']} samples missing "
                                 f"(first {r['gaps'][0][0]:.3f}-{r['gaps'][0][1]:.3f} s)")

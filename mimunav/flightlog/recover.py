@@ -27,6 +27,21 @@ _COMPRESSIONS = (b"zstd", b"lz4", b"")
 _DECODE_ERRORS = (McapError, EOFError, ValueError, KeyError, struct.error, IndexError)
 
 
+# first bytes of the recordings `mimunav import` reads, and the command for each
+FOREIGN_MAGIC = ((b"ULog\x01\x12\x35", "a PX4 ULog: `mimunav import ulog FILE -o LOG.mcap`"),
+                 (b"\xa3\x95", "an ArduPilot DataFlash log: `mimunav import dataflash FILE -o "
+                               "LOG.mcap`"))
+
+
+def foreign_hint(head):
+    """'; it looks like ...: import it' for the first bytes of a recording mimunav imports,
+    else ''."""
+    for magic, what in FOREIGN_MAGIC:
+        if head.startswith(magic):
+            return f"; it looks like {what}"
+    return ""
+
+
 class DamagedLog(InputError):
     """A file that is not an MCAP log at all (no magic, empty)."""
 
@@ -40,7 +55,7 @@ def scan(path, writer=None):
     data = open(path, "rb").read()
     if not data.startswith(MAGIC):
         raise DamagedLog(f"{path}: not an MCAP file (no MCAP magic at its start"
-                         + ("; the file is empty)" if not data else ")"))
+                         + ("; the file is empty)" if not data else ")") + foreign_hint(data))
     chunks, tops, damaged = _walk(data)
     schemas, channels = {}, {}
     decoded = []

@@ -51,8 +51,7 @@ def write(log_path, out_dir, force=False, progress=True, min_speed=None,
         raise InputError(f"{log_path}: a raw /mimu/raw needs its calibration; the recording "
                          "report takes a recorded /mimu/imu (mimunav import ...)")
     if flight.truth is None:
-        raise InputError(f"{log_path}: no reference trajectory (/truth/state): nothing to "
-                         "report the IMU against")
+        raise evaluation.no_reference(log_path, "the recording report")
     cal = Calibration.identity()
     diag = doc = no_diagnosis = None
     gap = np.diff(flight.mimu_t)
