@@ -230,11 +230,16 @@ CONFIGURATIONS = {
 }
 # Error sources, 1 sigma per axis, drawn per unit (the unit class of seed S1 Table 1,
 # `sensors.mimu` grade table1): constant biases (turn-on), bias instability (flicker),
-# scale factor (the datasheet tolerance after calibration is assumed 0.1 %).
+# scale factor (the datasheet tolerance after calibration is assumed 0.1 %), and a periodic
+# bias synchronous with the rotation, A sin(theta + phi) per sensor axis (phi uniform; the
+# constant bias's size, assumed: a platform motor's field, a slip ring, the g-sensitivity of
+# an axis that is not vertical - seed S4 names periodic bias terms as a limit of modulation).
 ERRORS = {"constant bias": {"gyro_bias": math.radians(10 / 3600), "accel_bias": 0.2e-3 * 9.80665},
           "bias instability": {"gyro_flicker": math.radians(15 / 3600),
                                "accel_flicker": 0.5e-3 * 9.80665},
-          "scale factor": {"gyro_scale": 1e-3, "accel_scale": 1e-3}}
+          "scale factor": {"gyro_scale": 1e-3, "accel_scale": 1e-3},
+          "periodic bias": {"gyro_periodic": math.radians(10 / 3600),
+                            "accel_periodic": 0.2e-3 * 9.80665}}
 
 
 def free_inertial(profile, platform, errors, seed, duration_s=600.0, rate_hz=100.0):
@@ -269,6 +274,9 @@ def _fly(profile, platform, errors, seed, duration_s, rate_hz, q_bs=None):
     f = f * (1 + rng.normal(0, errors.get("accel_scale", 0.0), 3)) \
         + rng.normal(0, errors.get("accel_bias", 0.0), 3) \
         + noise.flicker(rng, n, rate_hz, [errors.get("accel_flicker", 0.0)] * 3)
+    if "gyro_periodic" in errors:
+        w = w + _periodic_bias(rng, motion.angle(t), errors["gyro_periodic"])
+        f = f + _periodic_bias(rng, motion.angle(t), errors["accel_periodic"])
     tr = run.trajectory
     start = tr.state(0)
     initial = {"t": 0.0, "lat": start["lat"], "lon": start["lon"], "h": start["h"],
@@ -281,6 +289,18 @@ def _fly(profile, platform, errors, seed, duration_s, rate_hz, q_bs=None):
     ref = Trajectory(ref.t, ref.lat, ref.lon, ref.h, ref.v_ned,
                      vehicle_attitude(ref.q_nb, q_true))
     return motion, vehicle, ref
+
+
+def _periodic_bias(rng, theta, sigma):
+    """Interval means (N-1, 3) of A sin(theta + phi) per axis over the platform angles theta
+    (N,) at the sample times: A ~ N(0, sigma), phi uniform; the closed-form mean of the sine
+    over each interval's angle change (a constant A sin phi on a platform at rest)."""
+    amp, phi = rng.normal(0, sigma, 3), rng.uniform(0, 2 * math.pi, 3)
+    a, b = theta[:-1, None] + phi, theta[1:, None] + phi
+    d = b - a
+    still = np.abs(d) < 1e-9
+    mean = np.where(still, np.sin(a), (np.cos(a) - np.cos(b)) / np.where(still, 1.0, d))
+    return amp * mean
 
 
 def study(profile, units=8, seed=0, duration_s=600.0, progress=False):

@@ -106,6 +106,25 @@ def test_a_bias_along_the_axis_is_never_modulated_a_horizontal_one_is():
     assert np.hypot(*turning[:2]) < 0.1 * np.hypot(*fixed[:2])
 
 
+def test_a_bias_that_follows_the_platform_angle_is_not_modulated():
+    """Seed S4's periodic bias terms: A sin(theta) on the sensor x gyro turns with the IMU
+    into C_bs (A sin theta, 0, 0) = A sin(theta) (cos theta, sin theta, 0), whose mean is
+    (0, A/2, 0) in the vehicle frame - a constant, so the tilt grows as A/2 T (closed form),
+    where a constant A on that axis is averaged away (`modulation._periodic_bias` draws such
+    terms for the report)."""
+    b, duration = math.radians(10 / 3600), 120.0
+    p = modulation.Platform("continuous", RATE)
+    m = modulation.RotatingMotion(_parked(duration).motion(), p, duration)
+    theta = m.angle(np.arange(0, int(duration * 100) + 1) / 100.0)
+    a, c = theta[:-1], theta[1:]
+    periodic = lambda w, f: (w + np.column_stack([                          # noqa: E731
+        b * (np.cos(a) - np.cos(c)) / (c - a), np.zeros((len(a), 2))]), f)
+    err, _ = _navigate(p, duration, periodic)
+    assert np.hypot(*err[:2]) == pytest.approx(0.5 * b * (duration - 1.0), rel=0.05)
+    constant, _ = _navigate(p, duration, lambda w, f: (w + [b, 0, 0], f))
+    assert np.hypot(*constant[:2]) < 0.1 * np.hypot(*err[:2])
+
+
 def test_platform_refuses_an_unknown_mode():
     from mimunav.errors import InputError
     with pytest.raises(InputError, match="platform mode"):
