@@ -103,8 +103,9 @@ class Spec:
                                  f"{x.shape}, expected {width} column(s)")
         if not np.isfinite(x).all():
             raise RecordingError(f"{self.path}: {where} from {source['file']} holds values that "
-                                 f"are not finite (first at row "
-                                 f"{int(np.argmax(~np.isfinite(x.reshape(len(x), -1)).all(1)))})")
+                                 f"are not finite (first at data row "
+                                 f"{int(np.argmax(~np.isfinite(x.reshape(len(x), -1)).all(1)))}"
+                                 ", counted from 0 after any header line)")
         return x * UNITS[unit]
 
     def time_of(self, section, key):
