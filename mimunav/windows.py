@@ -57,7 +57,8 @@ def starts(truth, length, step=START_STEP_S, first=0.0, min_speed=alignment.COUR
     (m/s, horizontal), the whole window (and the alignment interval before it) covered
     without a gap longer than max_gap (s) in the reference or in the IMU's stamps t_imu."""
     half = alignment.MOVING_HALF_WINDOW_S
-    grid = np.arange(max(first, truth.t[0] + half), truth.t[-1] - length, step)
+    end = truth.t[-1] if t_imu is None else min(truth.t[-1], t_imu[-1])    # both must cover it
+    grid = np.arange(max(first, truth.t[0] + half), end - length, step)
     speed = np.hypot(truth.v_ned[:, 0], truth.v_ned[:, 1])
     gaps = [truth.t] + ([] if t_imu is None else [t_imu])
     wide = [np.diff(t) > max_gap for t in gaps]

@@ -755,6 +755,9 @@ def test_windows_leave_out_every_window_an_imu_gap_meets(tmp_path):
     half = alignment.MOVING_HALF_WINDOW_S
     assert len(got) and not np.any((got + 10.0 > 60.0) & (got - half < 65.0)), got
     assert got.max() > 65.0 and got.min() < 50.0
+    # an IMU that stops before the reference: windows up to the IMU's end (there were none)
+    early = windows.starts(truth_traj, 10.0, step=0.5, t_imu=t_imu[t_imu < 100.0], max_gap=0.5)
+    assert len(early) and early.max() + 10.0 <= 100.0 and early.max() > 85.0
 
 
 def test_rtklib_pos_without_velocity_or_without_fix_epochs(tmp_path):
@@ -800,27 +803,34 @@ def test_a_csv_cut_mid_line_loses_only_that_line(tmp_path):
 @pytest.mark.parametrize("wrong, message", [
     ("deg/s", "5[67].[0-9] times its size.*unit"),
     ("yaw 90", "turned [+-]90 deg in yaw"),
+    ("5 s", "shifted by .* time bases differ"),
 ])
 def test_the_gnss_course_judges_units_and_axes_without_a_reference_attitude(tmp_path, wrong,
                                                                             message):
     """The weaving synthetic drive, GNSS track only: a gyro logged in deg/s but declared
-    rad/s follows the course rate 57.3 times too large, and a mounting whose yaw is 90 deg
-    off puts the track's acceleration on the wrong axes - both refused at import, naming
-    what to check (they imported and then 'diagnosed' a misalignment before)."""
+    rad/s follows the course rate 57.3 times too large, a mounting whose yaw is 90 deg off
+    puts the track's acceleration on the wrong axes, and IMU stamps 5 s off the reference's
+    make the yaw rate follow the course only shifted (the weave's period makes the shift's
+    value ambiguous here; the helper's drive gave 18.0 s exactly) - each refused at
+    import, naming what to check (they imported and then 'diagnosed' a misalignment, or
+    every window was wrong)."""
     t_tr, lat, lon, h, v = _track()
     motion = TrackMotion(t_tr, lat, lon, h, v)
     t = np.arange(t_tr[0], t_tr[-1] + 1e-9, 0.01)
     run = truth.generate(motion, t)
     dth, dv = MOUNT.sensor_increments(run)
     w, f, mounting = dth * 100.0, dv * 100.0, MOUNT
+    shift = 0.0
     if wrong == "deg/s":
         w = np.degrees(w)
-    else:
+    elif wrong == "yaw 90":
         mounting = Mounting.from_rpy_deg((180.0, 0.0, 270.0))
+    else:           # two time bases 5 s apart (a quarter of the weave: 18 s aliases to 2)
+        shift = 5.0
     epoch = 1_700_000_000_000_000_000
     ref = dict(ns=epoch + np.round(t_tr * 1e9).astype(np.int64), lat=lat, lon=lon, h=h, v_ned=v)
-    rec = Recording("wrong", "", epoch + np.round(t[1:] * 1e9).astype(np.int64), w, f,
-                    mounting, reference=ref)
+    rec = Recording("wrong", "", epoch + np.round((t[1:] + shift) * 1e9).astype(np.int64), w,
+                    f, mounting, reference=ref)
     with pytest.raises(RecordingError, match=message):
         write_log(rec, tmp_path / "never.mcap")
     assert not (tmp_path / "never.mcap").exists()
@@ -842,3 +852,17 @@ def test_a_foreign_recording_given_where_a_log_belongs_is_told_how_to_import(tmp
                   **S.imu_fields(np.zeros((n, 3)), np.tile([0.0, 0.0, 9.8], (n, 1))))
     assert main(["windows", str(tmp_path / "bag.mcap"), "-o", str(tmp_path / "w")]) == 2
     assert "mimunav import ros2" in capsys.readouterr().err
+
+
+def test_one_segment_that_looks_exact_cannot_carry_the_lag():
+    """Nine segments agree on 0.1 s (1 ms each), one says 0.58 s with a 1 us standard error:
+    inverse-variance weights would give 0.58 s [0.578, 0.582]; the random-effects mean
+    (DerSimonian-Laird) shares the excess scatter between them, so its interval holds
+    the majority's 0.1 s. Consistent segments keep their inverse-variance mean."""
+    from mimunav.diagnosis.track import Segments
+    values = np.array([0.10, 0.12, 0.09, 0.11, 0.10, 0.13, 0.08, 0.11, 0.10, 0.58])
+    var = np.array([1e-3] * 9 + [1e-6]) ** 2
+    mean, (lo, hi) = Segments(values, var).mean_and_interval()
+    assert lo < 0.1 < hi and mean < 0.2
+    same = Segments(np.full(10, 0.1) + np.linspace(-1e-3, 1e-3, 10), np.full(10, 1e-6))
+    assert same.mean_and_se()[0] == pytest.approx(0.1, abs=1e-9)

@@ -225,6 +225,8 @@ def _check_against_course(rec):
                                                   if not 0.1 < ratio < 10 else
                                                   "the sensor axes or the mounting turn the "
                                                   "yaw axis upside down"))
+        if abs(corr) < 0.5:
+            _check_time_offset(rec, t_imu, t[sel], rate, corr, half)
     z_ref = along[sel] + 1j * speed[sel] * rate
     z_imu = f_v[:, 0] + 1j * f_v[:, 1]
     z_ref, z_imu = z_ref - z_ref.mean(), z_imu - z_imu.mean()    # the level's gravity leak
@@ -238,6 +240,34 @@ def _check_against_course(rec):
                 f"track's acceleration turned {math.degrees(yaw):+.0f} deg in yaw (coherence "
                 f"{coherence:.2f}): the sensor axes or the mounting's yaw are off by that much "
                 "(--mounting-rpy-deg, or the axes of the import)")
+
+
+TIME_OFFSET_SEARCH_S = 60.0     # s: the yaw rate is looked for this far either side
+
+
+def _check_time_offset(rec, t_imu, t_ref, rate, corr0, half):
+    """The course turns but the gyro's yaw rate does not follow it at the stamps given: if it
+    follows it well (correlation > 0.7) at a shift of the IMU's stamps of 1 s or more within
+    +-TIME_OFFSET_SEARCH_S, the two time bases differ by that shift (GPS time read as UTC is
+    18 s): refused, naming it. No shift that fits: left to the other checks and the
+    diagnosis (a noisy course)."""
+    w_z = attitude.rotate(rec.mounting.q_vs, rec.w)[:, 2]
+    best, best_lag = -1.0, 0.0
+    for lag in np.arange(-TIME_OFFSET_SEARCH_S, TIME_OFFSET_SEARCH_S + 1e-9, 0.5):
+        at = t_ref + lag
+        inside = (at > t_imu[0] + 0.5) & (at < t_imu[-1] - 0.5)
+        if inside.sum() < 20:
+            continue
+        k = np.searchsorted(t_imu, at[inside])
+        c = np.corrcoef(_local_mean(w_z[:, None], k, half)[:, 0], rate[inside])[0, 1]
+        if c > best:
+            best, best_lag = float(c), float(lag)
+    if best > 0.7 and abs(best_lag) >= 1.0:
+        raise RecordingError(
+            f"{rec.name}: the gyro's yaw rate follows the GNSS course rate only with the IMU's "
+            f"stamps shifted by {-best_lag:+.1f} s (correlation {best:.2f}, {corr0:+.2f} as "
+            "stamped): the IMU's and the reference's time bases differ by that much (GPS time "
+            "read as UTC is 18 s off)")
 
 
 def _local_mean(x, k, half=5):

@@ -76,7 +76,7 @@ def write(log_path, out_dir, force=False, progress=True, min_speed=None,
     step = min(windows.START_STEP_S, min(lengths) / 2)
     lag = (doc or {}).get("time_lag", {})
     shifts = {"as recorded": 0.0}
-    if "tau_s" in lag and (lag["ci95"][0] > 0 or lag["ci95"][1] < 0):
+    if "tau_s" in lag and "not_a_finding" not in lag:       # only a lag the diagnosis kept
         shifts[f"the yaw-rate lag {lag['tau_s'] * 1e3:.0f} ms removed"] = -lag["tau_s"]
     results, docs, no_windows = {}, {}, None
     try:
