@@ -329,8 +329,8 @@ def _diagnose(args):
                  (flight.source == "recording" or np.isnan(flight.truth.q_nb[0].w))
                  else "navigation")
     if level in ("navigation", "track") and flight.truth is None:
-        raise LogError(f"{args.log}: neither /fog/imu (sensor level) nor /truth/state "
-                       f"({level} level): nothing to diagnose against")
+        raise evaluation.no_reference(args.log, f"the {level} level (and no /fog/imu for the "
+                                      "sensor level): nothing to diagnose against")
     accuracy = Accuracy.parse(args.reference_accuracy) if args.reference_accuracy else None
     noise = None
     if args.noise:

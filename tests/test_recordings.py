@@ -845,6 +845,8 @@ def test_a_foreign_recording_given_where_a_log_belongs_is_told_how_to_import(tmp
     assert "mimunav import ulog" in capsys.readouterr().err
     assert main(["info", str(tmp_path / "x.bin")]) == 2
     assert "mimunav import dataflash" in capsys.readouterr().err
+    assert main(["windows", str(tmp_path / "x.ulg"), "-o", str(tmp_path / "u")]) == 2
+    assert "mimunav import ulog" in capsys.readouterr().err
     n = 300
     stamps = 1_700_000_000_000_000_000 + np.arange(n) * 10_000_000
     with LogWriter(tmp_path / "bag.mcap") as log:

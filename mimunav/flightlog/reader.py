@@ -18,6 +18,7 @@ from mcap.exceptions import McapError
 from mcap.reader import make_reader
 
 from . import schemas
+from .writer import MAGIC
 from ..errors import InputError
 
 _MSG_HEADER = 31        # opcode 1 + length 8 + channel 2 + sequence 4 + log_time 8 + publish 8
@@ -51,6 +52,13 @@ class FlightLog:
         self.skip_damaged = skip_damaged
         self.damaged = {}
         self._fh = open(self.path, "rb")
+        head = self._fh.read(len(MAGIC))
+        self._fh.seek(0)
+        if head != MAGIC:
+            from .recover import foreign_hint
+            self._fh.close()
+            raise LogError(f"{self.path}: not an MCAP file (no MCAP magic at its start"
+                           + ("; the file is empty)" if not head else ")") + foreign_hint(head))
         try:
             self.summary = make_reader(self._fh).get_summary()
         except (*_DAMAGE, KeyError, OSError) as exc:

@@ -20,8 +20,8 @@ from mcap.records import Attachment, Channel, Message, Metadata, Schema
 from mcap.stream_reader import StreamReader
 
 from ..errors import InputError
+from .writer import MAGIC
 
-MAGIC = b"\x89MCAP0\r\n"
 CHUNK, DATA_END, FOOTER = 0x06, 0x0F, 0x02
 _COMPRESSIONS = (b"zstd", b"lz4", b"")
 _DECODE_ERRORS = (McapError, EOFError, ValueError, KeyError, struct.error, IndexError)
