@@ -90,10 +90,28 @@ def temperature_change(temperature, window_s, t):
 
 
 def derivative(t, x, window_s=0.0):
-    """d x / dt of samples at uniform times t, (N, k): a Savitzky-Golay derivative (local
-    quartic fit, exact for motion up to 4th order in time) over about window_s, which smooths
-    the noise a point derivative would amplify without lagging; central differences when
-    the window holds fewer than 5 samples."""
+    """d x / dt of samples at times t, (N, k): a Savitzky-Golay derivative (local quartic
+    fit, exact for motion up to 4th order in time) over about window_s, which smooths the
+    noise a point derivative would amplify without lagging; central differences when the
+    window holds fewer than 5 samples. Uniform sampling is assumed within each run of one
+    rate (`flightlog.inspect.rate_segments`): a recording whose rate changes (a logger
+    switched from 100 to 50 Hz) is differentiated run by run, each at its own step (with
+    the median step, the 50 Hz part came out at twice its derivative)."""
+    t = np.asarray(t, float)
+    if len(t) > 2:
+        step = np.diff(t)
+        if np.mean(np.abs(step / np.median(step) - 1) > 0.25) > 0.01:     # not one rate?
+            from .flightlog.inspect import rate_segments
+            runs = rate_segments(np.round((t - t[0]) * 1e9).astype(np.int64))
+            if len(runs) > 1:
+                out = np.empty(np.shape(x), float)
+                for a, b, _ in runs:                      # stamps a .. b of each run
+                    out[a:b + 1] = _uniform_derivative(t[a:b + 1], x[a:b + 1], window_s)
+                return out
+    return _uniform_derivative(t, x, window_s)
+
+
+def _uniform_derivative(t, x, window_s):
     n = len(t)
     dt = float(np.median(np.diff(t))) if n > 1 else 1.0
     m = int(round(window_s / dt)) // 2 * 2 + 1

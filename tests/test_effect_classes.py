@@ -220,3 +220,12 @@ def test_a_measured_noise_file_sets_the_wander_the_bias_tests_take_as_normal():
     null = outputs.bias_null(noisy)
     assert null["instability"] == {"accel": outputs.CLASS_DRIFT["accel"], "gyro": 1e-2}
     assert "measured (gyro): test" in null["source"] and "class" in null["source"]
+
+
+def test_derivative_follows_a_change_of_sampling_rate():
+    """A recording at 100 Hz, then 50 Hz (a logger switched rate): the Savitzky-Golay
+    derivative of sin(0.3 t) matches 0.3 cos(0.3 t) in both runs (with the median step the
+    50 Hz half came out at twice its slope, and the diagnosis read it as a time skew)."""
+    t = np.concatenate([np.arange(0, 90, 0.01), 90 + np.arange(0, 90, 0.02)])
+    d = effects.derivative(t, np.sin(0.3 * t)[:, None], 0.5)[:, 0]
+    assert np.abs(d - 0.3 * np.cos(0.3 * t)).max() < 1e-5
