@@ -868,3 +868,24 @@ def test_one_segment_that_looks_exact_cannot_carry_the_lag():
     assert lo < 0.1 < hi and mean < 0.2
     same = Segments(np.full(10, 0.1) + np.linspace(-1e-3, 1e-3, 10), np.full(10, 1e-6))
     assert same.mean_and_se()[0] == pytest.approx(0.1, abs=1e-9)
+
+
+def test_track_level_says_when_a_channel_records_far_more_than_predicted(tmp_path):
+    """The synthetic drive with its gyro outputs doubled (a scale or unit slip of 2x: inside
+    the import's 0.1-10 course check): the track level says the yaw rate records twice what
+    the reference predicts and the diagnosis is inconclusive (the term was beyond the
+    library's physical range and vanished without a word)."""
+    from dataclasses import replace
+
+    from mimunav.compensation import Calibration
+    from mimunav.diagnosis import document, track
+    path, _, _ = _ideal_flight(tmp_path, MOUNT)
+    flight = Flight.load(path, reference_imu=False)
+    w, f = flight.mimu_imu
+    doc = document("doubled", track.diagnose(replace(flight, mimu_imu=(2.0 * w, f)),
+                                             Calibration.identity()))
+    assert doc["reference_check"]["slope_1s"]["gyro.z"] == pytest.approx(2.0, rel=0.02)
+    assert not doc["conclusive"]
+    assert any("gyro.z records 2" in r for r in doc["inconclusive_reasons"])
+    plain = document("plain", track.diagnose(flight, Calibration.identity()))
+    assert abs(plain["reference_check"]["slope_1s"]["gyro.z"] - 1.0) < 0.02

@@ -65,6 +65,9 @@ MIN_PREDICTED = 3           # of six channels: fewer, and the reference cannot c
 MIN_TRUSTED = 0.25          # fraction of the MIMU's samples inside the trusted motion
 CHECK_WINDOW_S = 10.0       # free-inertial windows of the navigation check
 MIN_CHECK_WINDOWS = 5       # fewer windows cannot confirm a term in navigation
+SCALE_CHECK = 0.2           # a predicted channel recording 20 % more or less than the reference
+                            # predicts: beyond any MEMS scale error (about 1-3 %, seed S1) and
+                            # the vehicle model's own
 
 # Noise of the consumer part (shared/data/rtklib-drive/README: the author's settings, an
 # LSM6DSO-class device): white densities, accel m/s^2/sqrt(Hz), gyro rad/s/sqrt(Hz); its
@@ -109,8 +112,9 @@ def simulated_reference(flight):
 
 
 def reference_check(ref, trusted):
-    """{channel label: correlation of the CHECK_BIN_S means of the recorded and the
-    simulated output over trusted samples} (channels in `sensor.CHANNELS` order)."""
+    """({channel label: correlation of the CHECK_BIN_S means of the recorded and the
+    simulated output over trusted samples}, {channel label: the recorded means' slope on the
+    simulated ones}) (channels in `sensor.CHANNELS` order)."""
     from .reference import predicted_mimu
     f_p, w_p, _ = predicted_mimu(ref)
     w, f = ref.mimu_imu
@@ -125,7 +129,14 @@ def reference_check(ref, trusted):
         if len(x) < 3 or not (np.std(x) > 0 and np.std(y) > 0):
             return math.nan
         return float(np.corrcoef(x, y)[0, 1])
-    return {f"{s}.{a}": correlation(meas[:, c], pred[:, c]) for c, (s, a) in enumerate(CHANNELS)}
+
+    def slope(x, y):
+        if len(x) < 3 or not np.std(y) > 0:
+            return math.nan
+        return float(np.cov(x, y)[0, 1] / np.var(y, ddof=1))
+    labels = [f"{s}.{a}" for s, a in CHANNELS]
+    return ({n: correlation(meas[:, c], pred[:, c]) for c, n in enumerate(labels)},
+            {n: slope(meas[:, c], pred[:, c]) for c, n in enumerate(labels)})
 
 
 def diagnose(flight, cal, alpha=0.05, reference=None, accuracy=None):
@@ -142,7 +153,7 @@ def diagnose(flight, cal, alpha=0.05, reference=None, accuracy=None):
     ref, trusted = reference or simulated_reference(flight)
     w, f = (np.where(trusted[:, None], x, np.nan) for x in flight.mimu_imu)
     ref = replace(ref, mimu_imu=(w, f))
-    corr = reference_check(replace(ref, mimu_imu=flight.mimu_imu), trusted)
+    corr, slopes = reference_check(replace(ref, mimu_imu=flight.mimu_imu), trusted)
     unpredicted = {tuple(c.split(".")) for c, r in corr.items() if not r >= PREDICTED_CORRELATION}
     kept, left_out = [], []
     for term in library.candidates():
@@ -158,7 +169,7 @@ def diagnose(flight, cal, alpha=0.05, reference=None, accuracy=None):
                            max_wander=wander_limit(), output_tests=False)
     diag.level = "track"
     diag.reference_check = {
-        "correlation_1s": corr, "threshold": PREDICTED_CORRELATION,
+        "correlation_1s": corr, "threshold": PREDICTED_CORRELATION, "slope_1s": slopes,
         "unpredicted_inputs": sorted(".".join(c) for c in unpredicted),
         "not_tested": [library.label(term) for term in left_out],
         "trusted_fraction": float(trusted.mean()),
@@ -191,6 +202,11 @@ def screen(diag, flight, cal):
     if predicted < MIN_PREDICTED:
         reasons.append(f"the reference predicts {predicted} of 6 channels (1 s correlation >= "
                        f"{PREDICTED_CORRELATION:g}; not: {', '.join(sorted(unpredicted))})")
+    for name, s in check["slope_1s"].items():
+        if name not in unpredicted and abs(s - 1) > SCALE_CHECK:
+            reasons.append(f"{name} records {s:.3g} times what the reference predicts (1 s "
+                           f"means, correlation {check['correlation_1s'][name]:.3f}): a unit, "
+                           "scale or axis error far beyond any term of the model")
     if check["trusted_fraction"] < MIN_TRUSTED:
         reasons.append(f"{100 * check['trusted_fraction']:.0f} % of the samples are in trusted "
                        f"motion (need {100 * MIN_TRUSTED:.0f} %)")
