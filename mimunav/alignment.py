@@ -128,6 +128,14 @@ def initial_alignment(t, w, f, mounting, track=None):
     rests = rest_intervals(track["t"], track["v_ned"], float(t[0]), float(t[-1]))
     if rests and rests[0][0] <= t[0]:
         return _from_rest(t, w, f, mounting, track, rests[0])
+    # a noisy fix's differenced speed can hide a rest the IMU and the fix's positions show
+    quiet = quiet_stretches(t, w, f, track)
+    if quiet and quiet[0][0] <= t[0] + QUIET_WINDOW_S:
+        align = _from_rest(t, w, f, mounting, track, quiet[0])
+        align.method = (f"a rest {quiet[0][0]:.2f}-{quiet[0][1]:.2f} s judged from the IMU "
+                        "and the reference's positions (its differenced speed is too noisy "
+                        "to show it); " + align.method)
+        return align
     notes = [f"no rest of {MIN_STATIC_S:g} s starts the recording"]
     q_ref, t_ref = reference_attitude(track, float(t[0]))
     speed = np.hypot(track["v_ned"][:, 0], track["v_ned"][:, 1])
@@ -183,7 +191,7 @@ def _from_rest(t, w, f, mounting, track, interval):
     notes = [f"level from the mean specific force over the rest {t[0]:.2f}-{t_end:.2f} s"]
     lat, lon, h = (float(np.interp(t[0], track["t"], track[k])) for k in ("lat", "lon", "h"))
     speed = np.hypot(track["v_ned"][:, 0], track["v_ned"][:, 1])
-    fast = np.flatnonzero(speed >= COURSE_SPEED)
+    fast = np.flatnonzero((speed >= COURSE_SPEED) & (track["t"] > t_end))
     q_ref, t_ref = reference_attitude(track, float(t[0]))
     if len(fast):
         k = fast[0]
@@ -321,9 +329,13 @@ def quiet_stretches(t, w, f, track=None):
     QUIET_WINDOW_S windows whose gyro and specific-force-magnitude scatter are within twice
     the quietest twentieth of the recording's windows, whose mean rate is below QUIET_RATE and
     whose mean specific force is gravity's size (QUIET_GRAVITY), and which the reference
-    `track` (when it covers them) shows below STATIC_SPEED. For the biases when the reference
-    shows no rest (it may not cover one); outside the reference, a drive that never stops can
-    pass the relative test, so the note says the rest was judged from the IMU alone."""
+    `track` (when it covers them) does not show moving: a run whose reference positions'
+    straight-line fit moves slower than STATIC_SPEED within 2 standard errors (a noisy plain
+    GNSS fix, metres apart epoch to epoch, hid a 33 s rest behind its differenced speed),
+    else its windows where the reference's speed is below STATIC_SPEED. For the biases when
+    the reference shows no rest (it may not cover one); outside the reference, a drive that
+    never stops can pass the relative test, so the note says the rest was judged from the
+    IMU alone."""
     n = max(int(round(QUIET_WINDOW_S / np.median(np.diff(t)))), 4)
     m = len(t) // n
     if m < 2:
@@ -340,7 +352,11 @@ def quiet_stretches(t, w, f, track=None):
         mid = cut(t).mean(axis=1)
         covered = (mid >= track["t"][0]) & (mid <= track["t"][-1])
         speed = np.interp(mid, track["t"], np.linalg.norm(track["v_ned"], axis=1))
-        quiet &= ~covered | (speed <= STATIC_SPEED)
+        slow = ~covered | (speed <= STATIC_SPEED)
+        edges = np.flatnonzero(np.diff(np.concatenate([[0], quiet.astype(int), [0]])))
+        for a, b in zip(edges[::2], edges[1::2]):
+            if not _track_still(track, float(t[a * n]), float(t[b * n - 1])):
+                quiet[a:b] &= slow[a:b]
     edges = np.flatnonzero(np.diff(np.concatenate([[0], quiet.astype(int), [0]])))
     out = []
     for a, b in zip(edges[::2], edges[1::2]):
@@ -348,6 +364,29 @@ def quiet_stretches(t, w, f, track=None):
         if t1 - t0 >= MIN_STATIC_S:
             out.append((t0, t1))
     return out
+
+
+def _track_still(track, t0, t1):
+    """Whether the reference over [t0, t1] s (at least 5 epochs) shows a vehicle at rest
+    under noise: its mean horizontal velocity, and the slope of a straight line through its
+    positions (when it has them), each slower than STATIC_SPEED within 2 of its standard
+    errors (from their own scatter)."""
+    k = (track["t"] >= t0) & (track["t"] <= t1)
+    if k.sum() < 5:
+        return False
+    v = np.asarray(track["v_ned"], float)[k, :2]
+    se_v = np.hypot(*(v.std(axis=0, ddof=1) / math.sqrt(len(v))))
+    if float(np.hypot(*v.mean(axis=0))) - 2 * float(se_v) > STATIC_SPEED:
+        return False
+    if "lat" not in track:
+        return True
+    lat, lon, h = track["lat"][k], track["lon"][k], track["h"][k]
+    ned = earth.ned_difference(lat, lon, h, lat[0], lon[0], h[0])[:, :2]
+    x = np.column_stack([np.ones(k.sum()), track["t"][k] - track["t"][k].mean()])
+    coef, *_ = np.linalg.lstsq(x, ned, rcond=None)
+    resid = ned - x @ coef
+    se = np.sqrt(np.sum(resid ** 2, axis=0) / (len(x) - 2) / np.sum(x[:, 1] ** 2))
+    return float(np.hypot(*coef[1])) - 2 * float(np.hypot(*se)) <= STATIC_SPEED
 
 
 def moving_attitude(t, f, mounting, track, t0, half=MOVING_HALF_WINDOW_S):

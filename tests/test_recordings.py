@@ -889,3 +889,39 @@ def test_track_level_says_when_a_channel_records_far_more_than_predicted(tmp_pat
     assert any("gyro.z records 2" in r for r in doc["inconclusive_reasons"])
     plain = document("plain", track.diagnose(flight, Calibration.identity()))
     assert abs(plain["reference_check"]["slope_1s"]["gyro.z"] - 1.0) < 0.02
+
+
+def test_a_rest_under_a_noisy_fix_is_found_from_the_imu_and_the_positions(tmp_path):
+    """The synthetic drive's 20 s start at rest (a consumer IMU's noise) under a plain 1 Hz
+    fix with 1.5 m of position noise (velocity by differences: about 2 m/s of noise, no
+    epoch below 0.2 m/s): the rest is judged from the quiet IMU and the positions' straight-
+    line fit, and the state starts at rest with the gyro bias from it (it was a 'moving
+    alignment' while parked, biases 0)."""
+    from mimunav.importers import velocity_from_positions
+    bias = np.array([0.001, -0.002, 0.003])
+    t_tr, lat, lon, h, v = _track()
+    motion = TrackMotion(t_tr, lat, lon, h, v)
+    t = np.arange(t_tr[0], t_tr[-1] + 1e-9, 0.01)
+    dth, dv = MOUNT.sensor_increments(truth.generate(motion, t))
+    rng = np.random.default_rng(7)
+    w = dth * 100.0 + bias + rng.normal(0, 0.005, dth.shape)
+    f = dv * 100.0 + rng.normal(0, 0.02, dv.shape)
+    k = slice(0, None, 4)                                       # 4 Hz -> 1 Hz
+    r_n, r_e = earth.radii(LAT0)
+    lat_n = lat[k] + rng.normal(0, 1.5, len(lat[k])) / (r_n + H0)
+    lon_n = lon[k] + rng.normal(0, 1.5, len(lon[k])) / ((r_e + H0) * math.cos(LAT0))
+    epoch = 1_700_000_000_000_000_000
+    ns = epoch + np.round(t_tr[k] * 1e9).astype(np.int64)
+    v_n = velocity_from_positions(ns, lat_n, lon_n, h[k])
+    rests = alignment.rest_intervals(t_tr[k], v_n, 0.0, 120.0)   # the fix shows no rest
+    assert not rests or rests[0][0] > 0.0
+    rec = Recording("noisy", "", epoch + np.round(t[1:] * 1e9).astype(np.int64), w, f, MOUNT,
+                    reference=dict(ns=ns, lat=lat_n, lon=lon_n, h=h[k], v_ned=v_n))
+    write_log(rec, tmp_path / "noisy.mcap")
+    with FlightLog(tmp_path / "noisy.mcap") as log:
+        meta = log.metadata()["recording"]
+    assert "judged from the IMU and the reference's positions" in meta["assumed"]["initial_state"]
+    assert meta["static_s"][0] < 0.1 and meta["static_s"][1] > 10
+    # 0.005 rad/s white noise over ~2000 samples: 1.1e-4 per axis, plus up to 5e-5 of the
+    # horizontal Earth rate the rest's unknown heading leaves
+    assert np.abs(np.array(meta["gyro_bias_static_rad_s"]) - bias).max() < 4.5e-4
