@@ -41,9 +41,11 @@ MOVING_HALF_WINDOW_S = 0.25     # s: half the interval of the moving two-vector 
 class Alignment:
     """An initial state (contract `initial_state` in SI: t s, rad, m, m/s, q_nb wxyz) and
     what the alignment learnt: the gyro bias (rad/s, sensor axes) and the accelerometer bias
-    along gravity (m/s^2, sensor axes) of the rest `static` (t0, t1) s they came from ((nan,
-    nan): no rest, biases 0), `at_rest_start` (the state is that of a rest that starts the
-    recording), and `method` (how each part was obtained, for the log's metadata)."""
+    (m/s^2, sensor axes: its part along gravity at a rest, whole from a reference's attitude
+    and velocity) of the rest `static` (t0, t1) s they came from ((nan, nan): no rest - the
+    biases from the reference's attitude and velocity when it has them, else 0),
+    `at_rest_start` (the state is that of a rest that starts the recording), and `method`
+    (how each part was obtained, for the log's metadata)."""
     t: float
     lat: float
     lon: float
@@ -236,17 +238,17 @@ def _biases_at_a_rest(t, w, f, mounting, track, rests):
     if not rests:
         none = f"no rest of {MIN_STATIC_S:g} s in the reference and no quiet stretch of " \
                f"{MIN_STATIC_S:g} s in the IMU"
-        moving = gyro_bias_from_attitude(t, w, mounting, track)
+        moving = biases_from_attitude(t, w, f, mounting, track)
         if moving is None:
             return (np.zeros(3), np.zeros(3), (math.nan, math.nan),
                     f"biases taken as 0: {none}")
-        bias, se, n = moving
-        return (bias, np.zeros(3), (math.nan, math.nan),
-                f"{none}: gyro bias from the reference attitude's rate, the median of {n} "
-                f"{ATTITUDE_BIAS_WINDOW_S:g} s windows' differences (standard error "
-                + ", ".join(f"{math.degrees(x) * 3600:.0f}" for x in se)
-                + " deg/h; the reference's own errors and any time lag in it); accelerometer "
-                "bias taken as 0")
+        gyro, accel, n = moving
+        return (gyro[0], accel[0], (math.nan, math.nan),
+                f"{none}: biases from the reference's attitude and velocity, the medians of "
+                f"{n} {ATTITUDE_BIAS_WINDOW_S:g} s windows' differences (standard errors: gyro "
+                + ", ".join(f"{math.degrees(x) * 3600:.0f}" for x in gyro[1])
+                + " deg/h, accelerometer " + ", ".join(f"{x / G0 * 1e3:.2g}" for x in accel[1])
+                + " mg; the reference's own errors and any time lag in it)")
     t0, t1 = max(rests, key=lambda r: r[1] - r[0])
     k = (t >= t0) & (t <= t1)
     lat, h = (float(np.interp(0.5 * (t0 + t1), track["t"], track[x])) for x in ("lat", "h"))
@@ -273,16 +275,18 @@ ATTITUDE_BIAS_WINDOW_S = 1.0    # s: windows of the gyro bias from a reference a
 MIN_ATTITUDE_BIAS_WINDOWS = 10
 
 
-def gyro_bias_from_attitude(t, w, mounting, track, window=ATTITUDE_BIAS_WINDOW_S):
-    """The gyro bias (rad/s, sensor axes) of a recording without a rest whose reference
-    carries the vehicle attitude (a fused pose, an autopilot's estimate): per window [a, b]
-    between the reference's own epochs (about `window` s), the IMU's mean rate w (rad/s,
-    sensor axes, stamps t s: the samples ending in (a, b]) less the rate the reference's
-    attitude turned through, C_sb (rotvec(q_nb(a)^-1 q_nb(b)) / (b - a) + C_bn (w_ie^n +
-    w_en^n)), C_bn at mid-window; the median over the windows and its standard error
+def biases_from_attitude(t, w, f, mounting, track, window=ATTITUDE_BIAS_WINDOW_S):
+    """The gyro and accelerometer biases (rad/s, m/s^2, sensor axes) of a recording without
+    a rest whose reference carries the vehicle attitude (a fused pose, an autopilot's
+    estimate): per window [a, b] between the reference's own epochs (about `window` s), the
+    IMU's mean rate w and specific force f (sensor axes, stamps t s: the samples ending in
+    (a, b]) less what the reference says they were:
+        rate   C_sb (rotvec(q_nb(a)^-1 q_nb(b)) / (b - a) + C_bn (w_ie^n + w_en^n))
+        force  C_sb C_bn ((v(b) - v(a)) / (b - a) + (2 w_ie^n + w_en^n) x v - g^n)
+    (T&W eq. 3.70; C_bn at mid-window); the median over the windows and its standard error
     (1.2533 x the MAD-based sigma / sqrt n).
-    Returns (bias (3,), se (3,), windows) or None without MIN_ATTITUDE_BIAS_WINDOWS
-    windows of known attitude."""
+    Returns ((gyro bias, se), (accel bias, se), windows) or None without
+    MIN_ATTITUDE_BIAS_WINDOWS windows of known attitude."""
     q = track.get("q_nb")
     if q is None:
         return None
@@ -303,19 +307,27 @@ def gyro_bias_from_attitude(t, w, mounting, track, window=ATTITUDE_BIAS_WINDOW_S
     mid = 0.5 * (edges + t_q[b])
     lat, h = (np.interp(mid, track["t"], track[k]) for k in ("lat", "h"))
     v = np.column_stack([np.interp(mid, track["t"], track["v_ned"][:, i]) for i in range(3)])
-    w_in = earth.earth_rate_ned(lat) + earth.transport_rate_ned(lat, h, v)
-    w_in_b = (r_a.inv() * Rotation.from_rotvec(0.5 * w_nb * span[:, None])).apply(w_in)
-    predicted = attitude.rotate(np.conjugate(mounting.q_vs), w_nb + w_in_b)
+    w_ie, w_en = earth.earth_rate_ned(lat), earth.transport_rate_ned(lat, h, v)
+    # C_nb(mid) = C_nb(a) R(w_nb span / 2) (body-frame turn), so C_bn(mid) = R(-..) C_bn(a)
+    c_bn_mid = Rotation.from_rotvec(-0.5 * w_nb * span[:, None]) * r_a.inv()
+    rate = w_nb + c_bn_mid.apply(w_ie + w_en)
+    v_ref = np.asarray(track["v_ned"], float)[inside]
+    force = c_bn_mid.apply((v_ref[b] - v_ref[a]) / span[:, None]
+                           + np.cross(2 * w_ie + w_en, v) - earth.gravity_ned(lat, h))
     k0, k1 = np.searchsorted(t, edges, side="right"), np.searchsorted(t, t_q[b], side="right")
     use = k1 - k0 >= 2
-    c = np.vstack([np.zeros((1, 3)), np.cumsum(w, axis=0)])
-    measured = (c[k1[use]] - c[k0[use]]) / (k1[use] - k0[use])[:, None]
-    d = measured - predicted[use]
-    if len(d) < MIN_ATTITUDE_BIAS_WINDOWS:
+    if use.sum() < MIN_ATTITUDE_BIAS_WINDOWS:
         return None
-    bias = np.median(d, axis=0)
-    sigma = 1.4826 * np.median(np.abs(d - bias), axis=0)
-    return bias, 1.2533 * sigma / math.sqrt(len(d)), int(len(d))
+    q_sv = np.conjugate(mounting.q_vs)
+
+    def median_difference(x, predicted):
+        c = np.vstack([np.zeros((1, 3)), np.cumsum(x, axis=0)])
+        d = (c[k1[use]] - c[k0[use]]) / (k1[use] - k0[use])[:, None] \
+            - attitude.rotate(q_sv, predicted[use])
+        bias = np.median(d, axis=0)
+        sigma = 1.4826 * np.median(np.abs(d - bias), axis=0)
+        return bias, 1.2533 * sigma / math.sqrt(len(d))
+    return median_difference(w, rate), median_difference(f, force), int(use.sum())
 
 
 QUIET_WINDOW_S = 0.5        # s: windows the IMU-only rest test looks at

@@ -432,8 +432,9 @@ def _import(args):
           + (f", {len(rec.fixes['ns'])} GNSS fixes" if rec.fixes else ""))
     print(f"initial state at t = {align.t:.3f} s: {align.method}")
     if np.isnan(align.static[0]) and np.any(align.gyro_bias):
-        print("gyro bias from the reference attitude (sensor axes) "
-              + ", ".join(f"{np.degrees(b):+.4f}" for b in align.gyro_bias) + " deg/s")
+        print("biases from the reference's attitude and velocity (sensor axes): gyro "
+              + ", ".join(f"{np.degrees(b):+.4f}" for b in align.gyro_bias) + " deg/s, "
+              "accelerometer " + ", ".join(f"{b:+.4f}" for b in align.accel_bias) + " m/s^2")
     elif np.isnan(align.static[0]):
         print("gyro bias: not observed (no rest of 2 s in the recording)")
     else:

@@ -187,9 +187,13 @@ def test_alignment_in_motion_without_a_rest(tmp_path):
     # several deg/s went unnoticed before), to a fraction of a deg/h on this ideal IMU
     with FlightLog(path) as log:
         meta = log.metadata()["recording"]
-    assert "gyro bias from the reference attitude's rate" in meta["assumed"]["initial_state"]
+    assert "biases from the reference's attitude and velocity" in \
+        meta["assumed"]["initial_state"]
     got = np.array(meta["gyro_bias_static_rad_s"])
     assert np.abs(got - bias).max() < 1e-6, got - bias
+    # and the accelerometers' (none here): the specific force the reference's velocity and
+    # attitude imply, T&W eq. 3.70, matches the ideal IMU's
+    assert np.abs(meta["accel_bias_m_s2"]).max() < 1e-5
 
 
 def test_gyro_bias_from_a_rest_in_the_middle(tmp_path):

@@ -300,7 +300,7 @@ def write_log(rec, path, force=False):
             "mounting": rec.mounting.as_dict()})      # range: unknown, not written
         log.metadata("recording", {"real": json.dumps(rec.real), "assumed": json.dumps(assumed),
                                    "gyro_bias_static_rad_s": list(map(float, align.gyro_bias)),
-                                   "accel_bias_along_gravity_m_s2":
+                                   "accel_bias_m_s2":
                                        list(map(float, align.accel_bias)),
                                    "static_s": (None if np.isnan(align.static[0]) else
                                                 [float(align.static[0]), float(align.static[1])]),

@@ -16,7 +16,7 @@ def document(flight, results, rest, cal_label, time_shift_s):
             "time_shift_s": time_shift_s,
             "rest": {"t0_s": static[0], "t1_s": static[1], "alignment": rest.method,
                      "gyro_bias_rad_s": rest.gyro_bias.tolist(),
-                     "accel_bias_along_gravity_m_s2": rest.accel_bias.tolist()},
+                     "accel_bias_m_s2": rest.accel_bias.tolist()},
             "summary": {f"{length:g}": row for length, row in
                         windows.summary(results, span, flight.reference_meta).items()},
             "windows": {f"{length:g}": [{"t0_s": w.t0, "end_ned_m": w.error_ned[-1].tolist()}
