@@ -806,7 +806,7 @@ def test_a_csv_cut_mid_line_loses_only_that_line(tmp_path):
 
 @pytest.mark.parametrize("wrong, message", [
     ("deg/s", "5[67].[0-9] times its size.*unit"),
-    ("yaw 90", "turned [+-]90 deg in yaw"),
+    ("yaw 90", "turned [+-]90 deg in yaw.*--mounting-rpy-deg -?180 0 -?180"),
     ("5 s", "shifted by .* time bases differ"),
 ])
 def test_the_gnss_course_judges_units_and_axes_without_a_reference_attitude(tmp_path, wrong,

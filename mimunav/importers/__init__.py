@@ -238,8 +238,18 @@ def _check_against_course(rec):
             raise RecordingError(
                 f"{rec.name}: the accelerometers' horizontal specific force matches the GNSS "
                 f"track's acceleration turned {math.degrees(yaw):+.0f} deg in yaw (coherence "
-                f"{coherence:.2f}): the sensor axes or the mounting's yaw are off by that much "
-                "(--mounting-rpy-deg, or the axes of the import)")
+                f"{coherence:.2f}): the sensor axes or the mounting's yaw are off by that much; "
+                f"the mounting turned back would be --mounting-rpy-deg {_turned_back(rec, yaw)}")
+
+
+def _turned_back(rec, yaw):
+    """'R P Y' (deg) of the recording's mounting turned by -yaw about the vehicle's down axis,
+    yaw rounded to a quarter turn when within 15 deg of one (mountings are made square)."""
+    quarter = round(math.degrees(yaw) / 90.0) * 90.0
+    turn = quarter if abs(math.degrees(yaw) - quarter) < 15.0 else math.degrees(yaw)
+    q = quaternion.from_rotation_vector([0.0, 0.0, -math.radians(turn)]) * rec.mounting.q_vs
+    z, y, x = (float(np.degrees(a)) + 0.0 for a in attitude.as_euler(q))
+    return f"{x:.0f} {y:.0f} {z:.0f}"
 
 
 TIME_OFFSET_SEARCH_S = 60.0     # s: the yaw rate is looked for this far either side
