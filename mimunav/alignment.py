@@ -35,6 +35,9 @@ MIN_STATIC_S = 2.0          # s: a shorter rest cannot give a level and a gyro b
 COURSE_SPEED = 3.0          # m/s: horizontal speed from which the GNSS course gives heading
                             # (1 cm/s RTK velocity noise -> 0.2 deg course noise)
 MOVING_HALF_WINDOW_S = 0.25     # s: half the interval of the moving two-vector alignment
+COURSE_SPAN_S = 5.0         # s of fast epochs whose courses give the heading at a rest's end
+STILL_TOLERANCE = 0.5       # m/s: a noisy reference shows rest when its speed's 2-sigma upper
+                            # bound over a stretch is below this
 
 
 @dataclass
@@ -133,11 +136,14 @@ def initial_alignment(t, w, f, mounting, track=None):
     # a noisy fix's differenced speed can hide a rest the IMU and the fix's positions show
     quiet = quiet_stretches(t, w, f, track)
     if quiet and quiet[0][0] <= t[0] + QUIET_WINDOW_S:
-        align = _from_rest(t, w, f, mounting, track, quiet[0])
-        align.method = (f"a rest {quiet[0][0]:.2f}-{quiet[0][1]:.2f} s judged from the IMU "
-                        "and the reference's positions (its differenced speed is too noisy "
-                        "to show it); " + align.method)
-        return align
+        q0, q1 = quiet[0][0], quiet[0][1] - STATIC_MARGIN_S       # the car starts to roll
+        covered = (min(q1, track["t"][-1]) - max(q0, track["t"][0])) / max(q1 - q0, 1e-9)
+        if q1 - q0 >= MIN_STATIC_S and covered >= 0.8 and _track_still(track, q0, q1):
+            align = _from_rest(t, w, f, mounting, track, (q0, q1))
+            align.method = (f"a rest {q0:.2f}-{q1:.2f} s judged from the IMU and the "
+                            "reference's positions (its differenced speed is too noisy to "
+                            "show it); " + align.method)
+            return align
     notes = [f"no rest of {MIN_STATIC_S:g} s starts the recording"]
     q_ref, t_ref = reference_attitude(track, float(t[0]))
     speed = np.hypot(track["v_ned"][:, 0], track["v_ned"][:, 1])
@@ -196,13 +202,19 @@ def _from_rest(t, w, f, mounting, track, interval):
     fast = np.flatnonzero((speed >= COURSE_SPEED) & (track["t"] > t_end))
     q_ref, t_ref = reference_attitude(track, float(t[0]))
     if len(fast):
-        k = fast[0]
-        course = math.atan2(track["v_ned"][k, 1], track["v_ned"][k, 0])
+        # each fast epoch of the first COURSE_SPAN_S gives the heading at rest (its course
+        # less the gyro's yaw since): their circular mean weighted by speed^2, so one noisy
+        # course (a plain fix's differenced velocity, ~1 m/s of noise) does not set it
+        k = fast[track["t"][fast] <= track["t"][fast[0]] + COURSE_SPAN_S]
+        course = np.arctan2(track["v_ned"][k, 1], track["v_ned"][k, 0])
         w_v = attitude.rotate(q_vs, w - w[rest].mean(axis=0))
-        yaw = course - yaw_turned(t, w_v, t_end, float(track["t"][k]))
-        notes.append(f"heading from the GNSS course at t = {track['t'][k]:.2f} s "
-                     f"({speed[k]:.1f} m/s) less the gyro's yaw since the rest "
-                     "(non-holonomic: no side slip)")
+        at_rest = course - np.array([yaw_turned(t, w_v, t_end, float(x))
+                                     for x in track["t"][k]])
+        weight = speed[k] ** 2          # a course's noise falls as the speed rises
+        yaw = math.atan2(np.sum(weight * np.sin(at_rest)), np.sum(weight * np.cos(at_rest)))
+        notes.append(f"heading from the GNSS course over {len(k)} epoch(s) from t = "
+                     f"{track['t'][k[0]]:.2f} s ({speed[k[0]]:.1f} m/s) less the gyro's yaw "
+                     "since the rest (non-holonomic: no side slip)")
     elif q_ref is not None:
         yaw = float(attitude.as_euler(quaternion.from_float_array(q_ref))[0])
         notes.append(f"heading from the reference's attitude at t = {t_ref:.2f} s")
@@ -341,10 +353,10 @@ def quiet_stretches(t, w, f, track=None):
     QUIET_WINDOW_S windows whose gyro and specific-force-magnitude scatter are within twice
     the quietest twentieth of the recording's windows, whose mean rate is below QUIET_RATE and
     whose mean specific force is gravity's size (QUIET_GRAVITY), and which the reference
-    `track` (when it covers them) does not show moving: a run whose reference positions'
-    straight-line fit moves slower than STATIC_SPEED within 2 standard errors (a noisy plain
-    GNSS fix, metres apart epoch to epoch, hid a 33 s rest behind its differenced speed),
-    else its windows where the reference's speed is below STATIC_SPEED. For the biases when
+    `track` (when it covers them) does not show moving: a run the reference shows at rest
+    (`_track_still`: a noisy plain GNSS fix, metres apart epoch to epoch, hid a 33 s rest
+    behind its differenced speed), else its windows where the reference's speed is below
+    STATIC_SPEED. For the biases when
     the reference shows no rest (it may not cover one); outside the reference, a drive that
     never stops can pass the relative test, so the note says the rest was judged from the
     IMU alone."""
@@ -379,26 +391,24 @@ def quiet_stretches(t, w, f, track=None):
 
 
 def _track_still(track, t0, t1):
-    """Whether the reference over [t0, t1] s (at least 5 epochs) shows a vehicle at rest
-    under noise: its mean horizontal velocity, and the slope of a straight line through its
-    positions (when it has them), each slower than STATIC_SPEED within 2 of its standard
-    errors (from their own scatter)."""
+    """Whether the reference over [t0, t1] s (at least 5 epochs) shows, positively, a vehicle
+    at rest under noise: the slope of a straight line through its positions (its mean
+    velocity when it has none) plus 2 of its standard errors (from the fit's own residuals)
+    at most STILL_TOLERANCE - a short or noisy stretch that cannot show rest is not one."""
     k = (track["t"] >= t0) & (track["t"] <= t1)
     if k.sum() < 5:
         return False
-    v = np.asarray(track["v_ned"], float)[k, :2]
-    se_v = np.hypot(*(v.std(axis=0, ddof=1) / math.sqrt(len(v))))
-    if float(np.hypot(*v.mean(axis=0))) - 2 * float(se_v) > STATIC_SPEED:
-        return False
     if "lat" not in track:
-        return True
+        v = np.asarray(track["v_ned"], float)[k, :2]
+        se_v = np.hypot(*(v.std(axis=0, ddof=1) / math.sqrt(len(v))))
+        return float(np.hypot(*v.mean(axis=0))) + 2 * float(se_v) <= STILL_TOLERANCE
     lat, lon, h = track["lat"][k], track["lon"][k], track["h"][k]
     ned = earth.ned_difference(lat, lon, h, lat[0], lon[0], h[0])[:, :2]
     x = np.column_stack([np.ones(k.sum()), track["t"][k] - track["t"][k].mean()])
     coef, *_ = np.linalg.lstsq(x, ned, rcond=None)
     resid = ned - x @ coef
     se = np.sqrt(np.sum(resid ** 2, axis=0) / (len(x) - 2) / np.sum(x[:, 1] ** 2))
-    return float(np.hypot(*coef[1])) - 2 * float(np.hypot(*se)) <= STATIC_SPEED
+    return float(np.hypot(*coef[1])) + 2 * float(np.hypot(*se)) <= STILL_TOLERANCE
 
 
 def moving_attitude(t, f, mounting, track, t0, half=MOVING_HALF_WINDOW_S):

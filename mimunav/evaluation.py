@@ -54,7 +54,7 @@ class Flight:
     fog_meta: dict | None = None    # the log's `sensor/fog` metadata (model, accuracy, ...)
     source: str = ""                # the flight metadata's source: "simulation", "recording"
     reference_meta: dict | None = None  # the log's `reference` metadata (a recording's)
-    mimu_platform: dict | None = None   # a rotating MIMU: {"t" s, "angle" rad, "meta"}
+    mimu_platform: dict | None = None   # a rotating MIMU: {"t" s, "angle" rad, "rate" rad/s, "meta"}
     stream_block: int | None = None     # streamed: the MIMU raw outputs and the reference
                                         # IMU are read from the log in blocks of this many
                                         # samples when navigated (mimu_raw, fog_w, fog_f None;

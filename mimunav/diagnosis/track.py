@@ -113,8 +113,10 @@ def simulated_reference(flight):
 
 def reference_check(ref, trusted):
     """({channel label: correlation of the CHECK_BIN_S means of the recorded and the
-    simulated output over trusted samples}, {channel label: the recorded means' slope on the
-    simulated ones}) (channels in `sensor.CHANNELS` order)."""
+    simulated output over trusted samples}, {channel label: [cov / var(simulated),
+    var(recorded) / cov], the two least-squares slopes of the recorded means on the
+    simulated ones, between which the true one lies when both carry noise}) (channels in
+    `sensor.CHANNELS` order)."""
     from .reference import predicted_mimu
     f_p, w_p, _ = predicted_mimu(ref)
     w, f = ref.mimu_imu
@@ -131,9 +133,10 @@ def reference_check(ref, trusted):
         return float(np.corrcoef(x, y)[0, 1])
 
     def slope(x, y):
-        if len(x) < 3 or not np.std(y) > 0:
-            return math.nan
-        return float(np.cov(x, y)[0, 1] / np.var(y, ddof=1))
+        if len(x) < 3 or not (np.std(x) > 0 and np.std(y) > 0):
+            return [math.nan, math.nan]
+        c = float(np.cov(x, y)[0, 1])
+        return [c / float(np.var(y, ddof=1)), float(np.var(x, ddof=1)) / c if c else math.nan]
     labels = [f"{s}.{a}" for s, a in CHANNELS]
     return ({n: correlation(meas[:, c], pred[:, c]) for c, n in enumerate(labels)},
             {n: slope(meas[:, c], pred[:, c]) for c, n in enumerate(labels)})
@@ -202,11 +205,14 @@ def screen(diag, flight, cal):
     if predicted < MIN_PREDICTED:
         reasons.append(f"the reference predicts {predicted} of 6 channels (1 s correlation >= "
                        f"{PREDICTED_CORRELATION:g}; not: {', '.join(sorted(unpredicted))})")
-    for name, s in check["slope_1s"].items():
-        if name not in unpredicted and abs(s - 1) > SCALE_CHECK:
-            reasons.append(f"{name} records {s:.3g} times what the reference predicts (1 s "
-                           f"means, correlation {check['correlation_1s'][name]:.3f}): a unit, "
-                           "scale or axis error far beyond any term of the model")
+    for name, (low, high) in check["slope_1s"].items():
+        if name in unpredicted:
+            continue
+        if min(low, high) > 1 + SCALE_CHECK or max(low, high) < 1 - SCALE_CHECK:
+            reasons.append(f"{name} records {math.sqrt(low * high):.3g} times what the "
+                           f"reference predicts (1 s means, correlation "
+                           f"{check['correlation_1s'][name]:.3f}): a unit, scale or axis "
+                           "error far beyond any term of the model")
     if check["trusted_fraction"] < MIN_TRUSTED:
         reasons.append(f"{100 * check['trusted_fraction']:.0f} % of the samples are in trusted "
                        f"motion (need {100 * MIN_TRUSTED:.0f} %)")
@@ -305,8 +311,8 @@ def lag_finding(diag, flight, cal, segments, alpha):
                "p_heldout": p_held, "attribution": "mimu-or-reference",
                "indistinguishable_from": [],
                "basis": "the yaw rate against the vehicle model (time_lag): value and interval "
-                        "from all segments (inverse-variance weighted), significant in the even "
-                        "and in the odd ones alone",
+                        "from all segments (random-effects weighted, Segments.mean_and_se), "
+                        "significant in the even and in the odd ones alone",
                "where": [{"t0": float(flight.mimu_t[0]), "t1": float(flight.mimu_t[-1]),
                           "condition": "every sample: a shift of the IMU's stamps"}],
                "fit": {"channels": ["gyro.z"], "units": "s",

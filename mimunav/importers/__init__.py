@@ -372,8 +372,9 @@ def _track(rec, epoch):
     t = (np.asarray(src["ns"], np.int64) - epoch) / 1e9
     v = src.get("v_ned")
     if v is None:
-        ned = earth.ned_difference(src["lat"], src["lon"], src["h"], src["lat"][0],
-                                   src["lon"][0], src["h"][0])
-        v = np.gradient(ned, t, axis=0)
-    return dict(t=t, lat=src["lat"], lon=src["lon"], h=src["h"], v_ned=v, q_nb=src.get("q_nb"),
+        v = velocity_from_positions(src["ns"], src["lat"], src["lon"], src["h"])
+    ok = np.isfinite(v).all(axis=1)                 # no differenced velocity across a gap
+    q = src.get("q_nb")
+    return dict(t=t[ok], lat=src["lat"][ok], lon=src["lon"][ok], h=src["h"][ok], v_ned=v[ok],
+                q_nb=None if q is None else np.asarray(q)[ok],
                 attitude_source=rec.reference_meta.get("source", "the reference"))
