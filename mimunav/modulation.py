@@ -154,10 +154,8 @@ class RotatingMotion(truth.Motion):
         if np.any(platform.lever_arm_m):
             t0 = np.array([self.t0])
             d = attitude.rotate(base.kinematics(t0).q_nb, self._lever_arm(t0)[0])[0]
-            r_n, r_e = earth.radii(base.lat0)
-            self.lat0 = base.lat0 + d[0] / (r_n + base.h0)
-            self.lon0 = base.lon0 + d[1] / ((r_e + base.h0) * math.cos(base.lat0))
-            self.h0 = base.h0 - d[2]
+            self.lat0, self.lon0, self.h0 = (float(x) for x in earth.ned_offset_to_geodetic(
+                d, base.lat0, base.lon0, base.h0))
 
     def _lever_arm(self, t):
         """(r, r', r'') of the IMU's point, vehicle axes (m, m/s, m/s^2; (N, 3) each)."""
