@@ -387,21 +387,26 @@ class Segments:
         (a 120 s drive's lag came out 474 [343, 606] ms with its segments at 5-580 ms); with
         consistent segments, the inverse-variance mean. The standard error also takes the
         Birge ratio of the re-weighted scatter when above 1."""
-        w = 1.0 / self.variances
+        w = self._weights()
         k = len(w)
-        mean = float(np.sum(w * self.values) / np.sum(w))
-        q = float(np.sum(w * (self.values - mean) ** 2))
-        tau2 = max(0.0, (q - (k - 1)) / max(np.sum(w) - np.sum(w ** 2) / np.sum(w), 1e-300))
-        w = 1.0 / (self.variances + tau2)
         mean = float(np.sum(w * self.values) / np.sum(w))
         # and the Birge ratio of what is left (the moment estimate of tau^2 can fall short)
         birge = float(np.sum(w * (self.values - mean) ** 2)) / max(k - 1, 1)
         return mean, float(np.sqrt(max(birge, 1.0) / np.sum(w)))
 
-    def weighted_rms(self, about):
-        """Inverse-variance weighted rms of the lags about `about` (s): a segment where the
-        vehicle hardly turns (its lag known to seconds) weighs nothing."""
+    def _weights(self):
+        """1 / (var + tau^2), tau^2 the DerSimonian-Laird excess of the segments' scatter."""
         w = 1.0 / self.variances
+        mean = float(np.sum(w * self.values) / np.sum(w))
+        q = float(np.sum(w * (self.values - mean) ** 2))
+        tau2 = max(0.0, (q - (len(w) - 1)) / max(np.sum(w) - np.sum(w ** 2) / np.sum(w),
+                                                 1e-300))
+        return 1.0 / (self.variances + tau2)
+
+    def weighted_rms(self, about):
+        """Weighted rms of the lags about `about` (s), the mean's random-effects weights: a
+        segment where the vehicle hardly turns (its lag known to seconds) weighs nothing."""
+        w = self._weights()
         return float(np.sqrt(np.sum(w * (self.values - about) ** 2) / np.sum(w)))
 
     def mean_and_interval(self):
