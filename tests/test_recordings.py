@@ -938,3 +938,23 @@ def test_a_rest_under_a_noisy_fix_is_found_from_the_imu_and_the_positions(tmp_pa
     # 0.005 rad/s white noise over ~2000 samples: 1.1e-4 per axis, plus up to 5e-5 of the
     # horizontal Earth rate the rest's unknown heading leaves
     assert np.abs(np.array(meta["gyro_bias_static_rad_s"]) - bias).max() < 4.5e-4
+
+
+def test_a_wrapped_counter_and_a_wrong_time_unit_are_named():
+    """A logger's 32-bit microsecond counter wraps (stamps fall back by 4294.967296 s): the
+    refusal says so and how to unwrap; IMU stamps in us declared as ms span 1000x the
+    reference: the refusal asks about the time unit."""
+    n = 200
+    w, f = np.zeros((n, 3)), np.tile([0.0, 0.0, -9.8], (n, 1))
+    ns = 10**18 + np.arange(n) * 10_000_000
+    ns[100:] -= 2**32 * 1000
+    with pytest.raises(RecordingError, match="32-bit microsecond counter wrapped"):
+        Recording("wrap", "", ns, w, f, Mounting())
+    t_tr, lat, lon, h, v = _track(60.0)
+    ref = dict(ns=10**18 + np.round(t_tr * 1e9).astype(np.int64), lat=lat, lon=lon, h=h, v_ned=v)
+    m = 6000                               # 60 s at 100 Hz, its us read as ms: 60000 s
+    slow = Recording("unit", "", 10**18 + 200 * 10**9 + np.arange(m) * 10**10,
+                     np.zeros((m, 3)), np.tile([0.0, 0.0, -9.8], (m, 1)), Mounting(),
+                     reference=ref)
+    with pytest.raises(RecordingError, match="time unit right"):
+        write_log(slow, "/nonexistent/never.mcap")

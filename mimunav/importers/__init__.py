@@ -83,7 +83,8 @@ class Recording:
             raise RecordingError(f"{self.name}: fewer than two IMU samples")
         if np.any(np.diff(self.imu_ns) <= 0):
             k = int(np.argmax(np.diff(self.imu_ns) <= 0))
-            raise RecordingError(f"{self.name}: IMU stamps do not increase at sample {k + 1}")
+            raise RecordingError(f"{self.name}: IMU stamps do not increase at sample {k + 1}"
+                                 + _wrap_hint(self.imu_ns[k + 1] - self.imu_ns[k]))
         bad = ~np.isfinite(np.hstack([self.w, self.f])).all(axis=1)
         if bad.any():
             raise RecordingError(f"{self.name}: {bad.sum()} IMU samples are not finite (first at "
@@ -92,6 +93,20 @@ class Recording:
     @property
     def sample_rate_hz(self):
         return float(1e9 / np.median(np.diff(self.imu_ns)))
+
+
+# counters that loggers stamp with, and the jump back their wrap makes (ns)
+COUNTER_WRAPS = {"a 32-bit microsecond counter": 2**32 * 1000, "a 32-bit millisecond counter":
+                 2**32 * 1_000_000, "a 16-bit millisecond counter": 2**16 * 1_000_000}
+
+
+def _wrap_hint(step_ns):
+    """': ... wrapped' when a step back of step_ns (< 0) is a known counter's wrap, else ''."""
+    for what, span in COUNTER_WRAPS.items():
+        if abs(-int(step_ns) - span) < 0.01 * span:
+            return (f" (back by {-int(step_ns) / 1e9:.6g} s: {what} wrapped there; unwrap the "
+                    f"time column by adding {span / 1e9:.6g} s after each wrap)")
+    return ""
 
 
 def gps_to_unix_s(gps_s):
@@ -163,10 +178,15 @@ def _check_overlap(rec):
             continue
         a, b = int(np.min(src["ns"])), int(np.max(src["ns"]))
         if b < lo or a > hi:
+            ratio = (hi - lo) / max(b - a, 1)
+            unit = (f"; the IMU's span is {ratio:.3g} times the {what}: is the IMU's time "
+                    "unit right (s, ms, us)?"
+                    if ratio > 300 or ratio < 1 / 300 else "")
             raise RecordingError(
                 f"{rec.name}: the IMU's stamps span {_utc(lo)} - {_utc(hi)}, the {what} "
                 f"{_utc(a)} - {_utc(b)}: they do not overlap, so the two are on different time "
-                "bases (time since boot, GPS week seconds, UNIX time): give both the same")
+                "bases (time since boot, GPS week seconds, UNIX time): give both the same"
+                + unit)
 
 
 def velocity_from_positions(ns, lat, lon, h):
