@@ -167,7 +167,8 @@ def initial_alignment(t, w, f, mounting, track=None):
             f"(peak {speed.max():.2f} m/s) for a moving alignment")
     lat, lon, h = (float(np.interp(t0, track["t"], track[k])) for k in ("lat", "lon", "h"))
     v0 = np.array([np.interp(t0, track["t"], track["v_ned"][:, i]) for i in range(3)])
-    gyro_bias, accel_bias, static, bias_note = _biases_at_a_rest(t, w, f, mounting, track, rests)
+    gyro_bias, accel_bias, static, bias_note = _biases_at_a_rest(t, w, f, mounting, track, rests,
+                                                                 quiet)
     notes.append(bias_note)
     return Alignment(t0, lat, lon, h, v0, q_nb, gyro_bias, accel_bias, static,
                      "; ".join(notes), at_rest_start=False)
@@ -238,14 +239,14 @@ def _rest_biases(w, f, q_ns, lat, h):
             (norm - float(earth.normal_gravity(lat, h))) * f_rest / norm)
 
 
-def _biases_at_a_rest(t, w, f, mounting, track, rests):
+def _biases_at_a_rest(t, w, f, mounting, track, rests, quiet=None):
     """(gyro bias, accel bias, (t0, t1), note) of the longest rest anywhere in the
     recording; zeros and (nan, nan) without one. The Earth rate is removed with the
     reference's attitude there when it has one; else only its vertical part (the level is
     known, the heading is not), leaving at most Omega cos(lat) = 7.3e-5 rad/s."""
     where = "the rest"
-    if not rests:
-        rests = quiet_stretches(t, w, f, track)
+    if not rests:           # `quiet`: the IMU's quiet stretches when already found
+        rests = quiet_stretches(t, w, f, track) if quiet is None else quiet
         where = "the IMU's quietest stretch (no reference rest; judged from the IMU alone)"
     if not rests:
         none = f"no rest of {MIN_STATIC_S:g} s in the reference and no quiet stretch of " \
@@ -302,10 +303,7 @@ def biases_from_attitude(t, w, f, mounting, track, window=ATTITUDE_BIAS_WINDOW_S
     q = track.get("q_nb")
     if q is None:
         return None
-    ok = np.isfinite(q).all(axis=1)
-    if ok.sum() < 2:
-        return None
-    inside = ok & (track["t"] >= t[0]) & (track["t"] <= t[-1])
+    inside = np.isfinite(q).all(axis=1) & (track["t"] >= t[0]) & (track["t"] <= t[-1])
     t_q = track["t"][inside]
     if len(t_q) < 2:
         return None

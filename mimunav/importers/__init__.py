@@ -281,7 +281,8 @@ def _check_time_offset(rec, t_imu, t_ref, rate, corr0, half):
     +-TIME_OFFSET_SEARCH_S, the two time bases differ by that shift (GPS time read as UTC is
     18 s): refused, naming it. No shift that fits: left to the other checks and the
     diagnosis (a noisy course)."""
-    w_z = attitude.rotate(rec.mounting.q_vs, rec.w)[:, 2]
+    w_z = attitude.rotate(rec.mounting.q_vs, rec.w)[:, 2:]
+    smooth = _local_mean(w_z, np.arange(len(w_z)), half)[:, 0]     # once, not per shift
     best, best_lag = -1.0, 0.0
     for lag in np.arange(-TIME_OFFSET_SEARCH_S, TIME_OFFSET_SEARCH_S + 1e-9, 0.5):
         at = t_ref + lag
@@ -289,7 +290,7 @@ def _check_time_offset(rec, t_imu, t_ref, rate, corr0, half):
         if inside.sum() < 20:
             continue
         k = np.searchsorted(t_imu, at[inside])
-        c = np.corrcoef(_local_mean(w_z[:, None], k, half)[:, 0], rate[inside])[0, 1]
+        c = np.corrcoef(smooth[k], rate[inside])[0, 1]
         if c > best:
             best, best_lag = float(c), float(lag)
     if best > 0.7 and abs(best_lag) >= 1.0:
