@@ -317,7 +317,10 @@ def _diagnose(args):
     for out in (args.json, args.output):           # refuse before the work, not after
         if out and Path(out).exists() and not args.force:
             raise FileExistsError(f"{out} exists; use --force to replace it")
-    flight = evaluation.Flight.load(args.log, reference_imu=args.level == "sensor")
+    # gaps are refused below unless the track level takes the log: it leaves their
+    # surroundings out (`track.near_gaps`) instead of navigating across them
+    flight = evaluation.Flight.load(args.log, reference_imu=args.level == "sensor",
+                                    max_gap_s=np.inf)
     recorded = flight.mimu_raw is None          # an imported /mimu/imu: already compensated
     if args.model is None and not recorded:
         raise InputError(f"{args.log}: the log has /mimu/raw; --model CAL is required")
@@ -328,6 +331,8 @@ def _diagnose(args):
                  "track" if recorded and flight.truth is not None and
                  (flight.source == "recording" or np.isnan(flight.truth.q_nb[0].w))
                  else "navigation")
+    if level != "track":
+        evaluation.refuse_gaps(flight)
     if level in ("navigation", "track") and flight.truth is None:
         raise evaluation.no_reference(args.log, f"the {level} level (and no /fog/imu for the "
                                       "sensor level): nothing to diagnose against")

@@ -243,6 +243,29 @@ def _streamed(log, path, epoch, reference_imu):
             "fog_sample": tuple(np.concatenate(x) for x in zip(*sample))}
 
 
+def refuse_gaps(flight, max_gap_s=MAX_GAP_S, warn_shorter=False):
+    """LogError when the MIMU misses samples for longer than max_gap_s (s) anywhere: the
+    navigation would bridge the gap with one sample. With warn_shorter, the shorter gaps are
+    reported on stderr."""
+    from .errors import warn
+    from .flightlog.inspect import missing_samples
+    t = flight.mimu_t
+    if len(t) <= 10:
+        return
+    gaps = missing_samples(np.round(t * 1e9).astype(np.int64))
+    if not gaps:
+        return
+    k, n = max(gaps, key=lambda g: t[g[0] + 1] - t[g[0]])
+    if t[k + 1] - t[k] > max_gap_s:
+        raise LogError(f"{flight.path}: the MIMU misses {n} samples between t = {t[k]:.3f} "
+                       f"and {t[k + 1]:.3f} s ({sum(m for _, m in gaps)} in all): "
+                       f"navigation would bridge {t[k + 1] - t[k]:.3g} s with one "
+                       "sample; cut the log at the gap")
+    if warn_shorter:
+        warn(f"{flight.path}: the MIMU misses {sum(m for _, m in gaps)} samples in "
+             f"{len(gaps)} gaps (longest {t[k + 1] - t[k]:.3g} s at t = {t[k]:.3f} s)")
+
+
 def check_plausible(flight, max_gap_s=None, fog_sample=None):
     """Refuse a log whose numbers cannot be what the contract says (LogError naming the
     channel, the time and the likely cause); warn (stderr) about missing samples shorter
@@ -251,8 +274,6 @@ def check_plausible(flight, max_gap_s=None, fog_sample=None):
     span; the truth finite, latitude in rad, its span overlapping the MIMU's; the reference
     IMU finite, its specific force near 1 g (not in g), its rates of the truth's attitude
     rate's size (not deg/s); of a streamed flight, on `fog_sample` (w, f)."""
-    from .errors import warn
-    from .flightlog.inspect import missing_samples
     where = flight.path
     for name, t in (("MIMU", flight.mimu_t), ("/fog/imu", flight.fog_t),
                     ("/truth/state", None if flight.truth is None else flight.truth.t)):
@@ -265,18 +286,7 @@ def check_plausible(flight, max_gap_s=None, fog_sample=None):
                            f"({'a duplicate' if step[k] == 0 else 'backwards'}): the log is "
                            "not a time series the navigator can integrate")
     t = flight.mimu_t
-    if len(t) > 10:
-        gaps = missing_samples(np.round(t * 1e9).astype(np.int64))
-        if gaps:
-            longest = max(gaps, key=lambda g: t[g[0] + 1] - t[g[0]])
-            k, n = longest
-            if t[k + 1] - t[k] > (MAX_GAP_S if max_gap_s is None else max_gap_s):
-                raise LogError(f"{where}: the MIMU misses {n} samples between t = {t[k]:.3f} "
-                               f"and {t[k + 1]:.3f} s ({sum(m for _, m in gaps)} in all): "
-                               f"navigation would bridge {t[k + 1] - t[k]:.3g} s with one "
-                               "sample; cut the log at the gap")
-            warn(f"{where}: the MIMU misses {sum(m for _, m in gaps)} samples in "
-                 f"{len(gaps)} gaps (longest {t[k + 1] - t[k]:.3g} s at t = {t[k]:.3f} s)")
+    refuse_gaps(flight, MAX_GAP_S if max_gap_s is None else max_gap_s, warn_shorter=True)
     if not t[0] - 1e-6 <= flight.initial["t"] <= t[-1]:
         raise LogError(f"{where}: the initial state's t = {flight.initial['t']:.3f} s lies "
                        f"outside the MIMU's stamps {t[0]:.3f} .. {t[-1]:.3f} s (epoch_unix_ns "

@@ -60,6 +60,7 @@ def test_a_log_with_wrong_numbers_is_refused_by_name(good, tmp_path, what, chang
     with pytest.raises(LogError, match=message):
         evaluation.Flight.load(bad)
     assert main(["table", str(bad), "--cal", f"true={cal}"]) == 2
+    assert main(["diagnose", str(bad), "--model", str(cal)]) == 2     # the sensor level too
 
 
 def _scaled(m, topic, want, field, k):

@@ -65,6 +65,10 @@ MIN_PREDICTED = 3           # of six channels: fewer, and the reference cannot c
 MIN_TRUSTED = 0.25          # fraction of the MIMU's samples inside the trusted motion
 CHECK_WINDOW_S = 10.0       # free-inertial windows of the navigation check
 MIN_CHECK_WINDOWS = 5       # fewer windows cannot confirm a term in navigation
+IMU_GAP_S = 0.1            # an IMU step this long is a gap (a car moves ~3 m): not interpolated
+REFERENCE_GAP_S = 2.0      # a reference step this long is an outage (1 Hz fixes are not)
+GAP_MARGIN_S = 2.0         # s left out on each side of a gap: the 1 s bins, the 0.5 s lag
+                           # search and the derivative filters reach no farther
 SCALE_CHECK = 0.2           # a predicted channel recording 20 % more or less than the reference
                             # predicts: beyond any MEMS scale error (about 1-3 %, seed S1) and
                             # the vehicle model's own
@@ -107,8 +111,26 @@ def simulated_reference(flight):
     dt = np.diff(stamps)[:, None]
     ref = replace(flight, fog_t=t[inside], fog_w=run.dtheta / dt, fog_f=run.dv / dt,
                   fog_mounting=Mounting())
-    trusted = inside & motion.trusted(t)
+    trusted = inside & motion.trusted(t) & ~near_gaps(t, tr.t)
     return ref, trusted
+
+
+def near_gaps(t, t_reference):
+    """(N,) bool over the MIMU's stamps t (s): within GAP_MARGIN_S of a gap - an IMU step
+    longer than IMU_GAP_S or a reference step longer than REFERENCE_GAP_S. Across a gap the
+    simulated reference IMU is an interval mean over the whole gap and the derivative
+    filters, the lag search and the 1 s bins would mix its two sides (a 5 s IMU gap turned
+    a clear 80 ms lag into an inconclusive one), so those samples are left out instead of
+    the recording being refused."""
+    t = np.asarray(t, float)
+    step, ref_step = np.diff(t), np.diff(t_reference)
+    edges = [(t[k], t[k + 1]) for k in np.flatnonzero(step > IMU_GAP_S)]
+    edges += [(t_reference[k], t_reference[k + 1])
+              for k in np.flatnonzero(ref_step > REFERENCE_GAP_S)]
+    near = np.zeros(len(t), bool)
+    for a, b in edges:
+        near |= (t > a - GAP_MARGIN_S) & (t < b + GAP_MARGIN_S)
+    return near
 
 
 def reference_check(ref, trusted):

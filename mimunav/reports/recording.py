@@ -54,22 +54,16 @@ def write(log_path, out_dir, force=False, progress=True, min_speed=None,
         raise evaluation.no_reference(log_path, "the recording report")
     cal = Calibration.identity()
     diag = doc = no_diagnosis = None
-    gap = np.diff(flight.mimu_t)
-    if gap.max() > evaluation.MAX_GAP_S:
-        k = int(np.argmax(gap))
-        no_diagnosis = (f"the IMU's stamps jump by {gap[k]:.3g} s at t = {flight.mimu_t[k]:.2f} s "
-                        "(lost samples): the diagnosis and its navigation would bridge the gap; "
-                        "the windows above avoid it")
-    else:
-        try:
-            if flight.fog_t is None:
-                diag = track.diagnose(flight, cal)
-            else:           # a recording with a reference IMU: the sensor level
-                from ..diagnosis import sensor
-                diag = sensor.diagnose(flight, cal)
-            doc = document(Path(log_path).name, diag)
-        except InputError as exc:
-            no_diagnosis = str(exc)
+    try:
+        if flight.fog_t is None:        # the track level leaves the gaps' surroundings out
+            diag = track.diagnose(flight, cal)
+        else:           # a recording with a reference IMU: the sensor level, which navigates
+            from ..diagnosis import sensor
+            evaluation.refuse_gaps(flight)
+            diag = sensor.diagnose(flight, cal)
+        doc = document(Path(log_path).name, diag)
+    except InputError as exc:
+        no_diagnosis = str(exc)
     span = float(flight.truth.t[-1] - flight.truth.t[0])
     shortened = not any(x < span for x in lengths)
     lengths = tuple(x for x in lengths if x < span) or (max(0.1, round(span / 2, 1)),)
