@@ -34,6 +34,9 @@ STATIC_MARGIN_S = 1.0       # s cut from the end of the rest period (the car sta
 MIN_STATIC_S = 2.0          # s: a shorter rest cannot give a level and a gyro bias
 COURSE_SPEED = 3.0          # m/s: horizontal speed from which the GNSS course gives heading
                             # (1 cm/s RTK velocity noise -> 0.2 deg course noise)
+DIRECTION_SPAN_S = 5.0      # s either side: the track's acceleration that tells reversing
+DIRECTION_ACCEL = 0.1       # m/s^2: horizontal acceleration (std) that can tell it (a gentle
+                            # weave: 0.2; IMU noise in 1 s means: ~0.01)
 MOVING_HALF_WINDOW_S = 0.25     # s: half the interval of the moving two-vector alignment
 COURSE_SPAN_S = 5.0         # s of fast epochs whose courses give the heading at a rest's end
 STILL_TOLERANCE = 0.5       # m/s: a noisy reference shows rest when its speed's 2-sigma upper
@@ -208,6 +211,10 @@ def _from_rest(t, w, f, mounting, track, interval):
         # course (a plain fix's differenced velocity, ~1 m/s of noise) does not set it
         k = fast[track["t"][fast] <= track["t"][fast[0]] + COURSE_SPAN_S]
         course = np.arctan2(track["v_ned"][k, 1], track["v_ned"][k, 0])
+        if travel_sign(t, f, mounting, track, float(track["t"][k[0]])) < 0:
+            course = course + math.pi               # it drives off in reverse
+            notes.append("reversing (the specific force follows the track's acceleration "
+                         "turned half a turn)")
         w_v = attitude.rotate(q_vs, w - w[rest].mean(axis=0))
         at_rest = course - np.array([yaw_turned(t, w_v, t_end, float(x))
                                      for x in track["t"][k]])
@@ -409,11 +416,59 @@ def _track_still(track, t0, t1):
     return float(np.hypot(*coef[1])) + 2 * float(np.hypot(*se)) <= STILL_TOLERANCE
 
 
+def track_acceleration(t, v_ned):
+    """(horizontal speed m/s, course rate rad/s, horizontal acceleration in the direction of
+    travel as along + 1j * across m/s^2 - along = d speed/dt, across = speed x course rate,
+    positive to the right) of a track at epochs t (s) with velocity v_ned (m/s)."""
+    v = np.asarray(v_ned, float)
+    speed = np.hypot(v[:, 0], v[:, 1])
+    course = np.unwrap(np.arctan2(v[:, 1], v[:, 0]))
+    course_rate = np.gradient(course, t)
+    return speed, course_rate, np.gradient(speed, t) + 1j * speed * course_rate
+
+
+def yaw_between(z_imu, z_track):
+    """(yaw rad, coherence 0..1) that turns the track's horizontal acceleration z_track into
+    the vehicle-frame horizontal specific force z_imu (both x + 1j y, `track_acceleration`),
+    each less its mean (the tilt's gravity leak): the angle of their complex cross-product."""
+    z_imu, z_track = z_imu - z_imu.mean(), z_track - z_track.mean()
+    cross = np.sum(z_imu * np.conj(z_track))
+    power = math.sqrt(np.sum(abs(z_imu) ** 2) * np.sum(abs(z_track) ** 2))
+    return float(np.angle(cross)), float(abs(cross) / power) if power > 0 else 0.0
+
+
+def travel_sign(t, f, mounting, track, t0, span=DIRECTION_SPAN_S):
+    """+1 when the vehicle moves forward at t0 (s), -1 when it reverses: over t0 +- span the
+    IMU's horizontal specific force (vehicle frame) follows the track's acceleration turned
+    by about 180 deg in yaw (speed changes and corners both flip: reversing, the course is
+    the heading + 180 deg and the centripetal force points the other way). Forward unless
+    the track accelerates enough (DIRECTION_ACCEL) and the two agree (coherence > 0.5)."""
+    k = np.flatnonzero((track["t"] >= t0 - span) & (track["t"] <= t0 + span))
+    if len(k) < 5:
+        return 1.0
+    _, _, z_track = track_acceleration(track["t"][k], track["v_ned"][k])
+    step = float(np.median(np.diff(track["t"][k])))
+    f_v = attitude.rotate(mounting.q_vs, _means_at(t, f, track["t"][k], step / 2))
+    if not np.isfinite(f_v).all() or np.std(z_track) < DIRECTION_ACCEL:
+        return 1.0
+    yaw, coherence = yaw_between(f_v[:, 0] + 1j * f_v[:, 1], z_track)
+    return -1.0 if coherence > 0.5 and abs(yaw) > math.pi / 2 else 1.0
+
+
+def _means_at(t, x, epochs, half):
+    """Means of the samples x (stamps t) within +-half s of each epoch (nan where none)."""
+    c = np.vstack([np.zeros((1, x.shape[1])), np.cumsum(x, axis=0)])
+    lo, hi = np.searchsorted(t, epochs - half), np.searchsorted(t, epochs + half)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return (c[hi] - c[lo]) / (hi - lo)[:, None]
+
+
 def moving_attitude(t, f, mounting, track, t0, half=MOVING_HALF_WINDOW_S):
     """q_nb (wxyz) of a moving vehicle at t0 (s): the mean specific force of the IMU over
     (t0 - half, t0 + half] (f m/s^2 sensor axes at stamps t) matched exactly to the
     track's (its velocity's difference over the same interval, Coriolis and gravity), the
-    forward axis to the track's velocity direction. See the module's docstring."""
+    forward axis to the track's velocity direction - against it when the vehicle reverses
+    (`travel_sign`). See the module's docstring."""
     k = (t > t0 - half) & (t <= t0 + half)
     if k.sum() < 2:
         raise InputError(f"no IMU samples around t = {t0:.2f} s")
@@ -426,7 +481,8 @@ def moving_attitude(t, f, mounting, track, t0, half=MOVING_HALF_WINDOW_S):
     a_n = (v(t0 + half) - v(t0 - half)) / (2 * half)
     coriolis = np.cross(2 * earth.earth_rate_ned(lat) + earth.transport_rate_ned(lat, h, v0), v0)
     f_n = a_n + coriolis - earth.gravity_ned(lat, h)
-    rot, _ = Rotation.align_vectors([f_n, v0 / np.linalg.norm(v0)], [f_b, [1.0, 0, 0]],
+    forward = travel_sign(t, f, mounting, track, t0) * v0 / np.linalg.norm(v0)
+    rot, _ = Rotation.align_vectors([f_n, forward], [f_b, [1.0, 0, 0]],
                                     weights=[np.inf, 1.0])
     x, y, z, w = rot.as_quat()
     return np.array([w, x, y, z])

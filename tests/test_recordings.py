@@ -964,3 +964,26 @@ def test_a_wrapped_counter_and_a_wrong_time_unit_are_named():
                      reference=ref)
     with pytest.raises(RecordingError, match="time unit right"):
         write_log(slow, "/nonexistent/never.mcap")
+
+
+def test_windows_of_a_reversing_vehicle_face_backwards(tmp_path):
+    """The synthetic drive driven in reverse (the vehicle faces 180 deg from its course;
+    its ideal IMU is that of the track's motion mounted turned half a turn in yaw): each
+    window's moving alignment must face the vehicle against its velocity. Taking heading =
+    course, the 10 s windows end 31-37 m off; facing backwards, within the
+    forward drive's 0.05 m."""
+    t, lat, lon, h, v = _track()
+    back = -v
+    d = np.vstack([np.zeros(3), np.cumsum(0.5 * (back[1:] + back[:-1]) * np.diff(t)[:, None],
+                                          axis=0)])
+    r_n, r_e = earth.radii(LAT0)
+    track = (t, LAT0 + d[:, 0] / (r_n + H0), LON0 + d[:, 1] / ((r_e + H0) * math.cos(LAT0)),
+             H0 - d[:, 2], back)
+    half_turn = quaternion.from_rotation_vector([0.0, 0.0, math.pi])
+    from dataclasses import replace
+    as_moved = replace(MOUNT, attitude_wxyz=quaternion.as_float_array(half_turn * MOUNT.q_vs))
+    path, _, _ = _ideal_flight(tmp_path, as_moved, track=track)
+    flight = replace(Flight.load(path, reference_imu=False), mimu_mounting=MOUNT)
+    results, _ = windows.run_all(flight, lengths=(10.0,), step=10.0)
+    ends = [w.horizontal[-1] for w in results[10.0]]
+    assert len(ends) >= 8 and max(ends) < 0.05, ends

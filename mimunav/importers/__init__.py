@@ -220,13 +220,11 @@ def _check_against_course(rec):
     track = _track(rec, epoch)
     if track is None:
         return
-    t, v = track["t"], np.asarray(track["v_ned"], float)
-    speed = np.hypot(v[:, 0], v[:, 1])
-    course = np.unwrap(np.arctan2(v[:, 1], v[:, 0]))
-    course_rate, along = np.gradient(course, t), np.gradient(speed, t)
+    t = track["t"]
+    speed, course_rate, z_track = alignment.track_acceleration(t, track["v_ned"])
     t_imu = (rec.imu_ns - epoch) / 1e9
     sel = (speed > alignment.COURSE_SPEED) & (t > t_imu[0] + 0.5) & (t < t_imu[-1] - 0.5) \
-        & np.isfinite(course_rate) & np.isfinite(along)
+        & np.isfinite(course_rate) & np.isfinite(z_track)
     if sel.sum() < 20:
         return
     k = np.searchsorted(t_imu, t[sel])
@@ -247,13 +245,9 @@ def _check_against_course(rec):
                                                   "yaw axis upside down"))
         if abs(corr) < 0.5:
             _check_time_offset(rec, t_imu, t[sel], rate, corr, half)
-    z_ref = along[sel] + 1j * speed[sel] * rate
-    z_imu = f_v[:, 0] + 1j * f_v[:, 1]
-    z_ref, z_imu = z_ref - z_ref.mean(), z_imu - z_imu.mean()    # the level's gravity leak
+    z_ref = z_track[sel]
     if np.std(z_ref) > COURSE_CHECK_ACCEL:
-        cross = np.sum(z_imu * np.conj(z_ref))
-        coherence = abs(cross) / math.sqrt(np.sum(abs(z_imu) ** 2) * np.sum(abs(z_ref) ** 2))
-        yaw = float(np.angle(cross))
+        yaw, coherence = alignment.yaw_between(f_v[:, 0] + 1j * f_v[:, 1], z_ref)
         if coherence > 0.5 and abs(yaw) > COURSE_CHECK_YAW:
             raise RecordingError(
                 f"{rec.name}: the accelerometers' horizontal specific force matches the GNSS "
