@@ -52,10 +52,13 @@ def track_of(truth):
 
 
 def starts(truth, length, step=START_STEP_S, first=0.0, min_speed=alignment.COURSE_SPEED,
-           max_gap=MAX_GAP_S, t_imu=None):
+           max_gap=MAX_GAP_S, t_imu=None, parked=()):
     """Window starts (s) on a grid of `step` from `first`: moving faster than min_speed
     (m/s, horizontal), the whole window (and the alignment interval before it) covered
-    without a gap longer than max_gap (s) in the reference or in the IMU's stamps t_imu."""
+    without a gap longer than max_gap (s) in the reference or in the IMU's stamps t_imu,
+    the alignment interval outside the rests `parked` [(t0, t1) s] (a noisy fix's
+    differenced speed passes the speed gate while the car stands: its course, and so the
+    window's heading, is noise)."""
     half = alignment.MOVING_HALF_WINDOW_S
     end = truth.t[-1] if t_imu is None else min(truth.t[-1], t_imu[-1])    # both must cover it
     grid = np.arange(max(first, truth.t[0] + half), end - length, step)
@@ -70,6 +73,8 @@ def starts(truth, length, step=START_STEP_S, first=0.0, min_speed=alignment.COUR
             continue
         # a gap [start, end] that meets the window with its alignment interval
         if np.any((gap_end > t0 - half) & (gap_start < t0 + length)):
+            continue
+        if any(a - half < t0 < b + half for a, b in parked):
             continue
         out.append(float(t0))
     return np.asarray(out)
@@ -131,8 +136,9 @@ def run_all(flight, cal=None, lengths=WINDOW_LENGTHS_S, step=START_STEP_S, time_
         has_attitude = np.isfinite(quaternion.as_float_array(flight.truth.q_nb)).all()
         min_speed = 0.0 if has_attitude else alignment.COURSE_SPEED
     first = rest.navigable_from
+    parked = alignment.quiet_stretches(t, w, f, track_of(flight.truth))
     todo = [(length, t0) for length in lengths
-            for t0 in starts(flight.truth, length, step, first, min_speed, max_gap, t)]
+            for t0 in starts(flight.truth, length, step, first, min_speed, max_gap, t, parked)]
     if not todo:
         raise InputError(f"{flight.path}: " + _no_windows(flight.truth, lengths, first,
                                                            min_speed, max_gap))

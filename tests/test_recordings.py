@@ -904,20 +904,15 @@ def test_track_level_says_when_a_channel_records_far_more_than_predicted(tmp_pat
     assert np.allclose(plain["reference_check"]["slope_1s"]["gyro.z"], 1.0, atol=0.02)
 
 
-def test_a_rest_under_a_noisy_fix_is_found_from_the_imu_and_the_positions(tmp_path):
-    """The synthetic drive's 20 s start at rest (a consumer IMU's noise) under a plain 1 Hz
-    fix with 1.5 m of position noise (velocity by differences: about 2 m/s of noise, no
-    epoch below 0.2 m/s): the rest is judged from the quiet IMU and the positions' straight-
-    line fit, and the state starts at rest with the gyro bias from it (it was a 'moving
-    alignment' while parked, biases 0)."""
+def _under_a_noisy_fix(track, rng, gyro_bias=np.zeros(3)):
+    """A Recording of `track`'s ideal IMU at 100 Hz (MOUNT) with a consumer part's noise
+    and a gyro bias, its reference a plain 1 Hz fix with 1.5 m of position noise and the
+    velocity by differences (about 1-2 m/s of noise)."""
     from mimunav.importers import velocity_from_positions
-    bias = np.array([0.001, -0.002, 0.003])
-    t_tr, lat, lon, h, v = _track()
-    motion = TrackMotion(t_tr, lat, lon, h, v)
+    t_tr, lat, lon, h, v = track
     t = np.arange(t_tr[0], t_tr[-1] + 1e-9, 0.01)
-    dth, dv = MOUNT.sensor_increments(truth.generate(motion, t))
-    rng = np.random.default_rng(7)
-    w = dth * 100.0 + bias + rng.normal(0, 0.005, dth.shape)
+    dth, dv = MOUNT.sensor_increments(truth.generate(TrackMotion(t_tr, lat, lon, h, v), t))
+    w = dth * 100.0 + gyro_bias + rng.normal(0, 0.005, dth.shape)
     f = dv * 100.0 + rng.normal(0, 0.02, dv.shape)
     k = slice(0, None, 4)                                       # 4 Hz -> 1 Hz
     r_n, r_e = earth.radii(LAT0)
@@ -925,11 +920,22 @@ def test_a_rest_under_a_noisy_fix_is_found_from_the_imu_and_the_positions(tmp_pa
     lon_n = lon[k] + rng.normal(0, 1.5, len(lon[k])) / ((r_e + H0) * math.cos(LAT0))
     epoch = 1_700_000_000_000_000_000
     ns = epoch + np.round(t_tr[k] * 1e9).astype(np.int64)
-    v_n = velocity_from_positions(ns, lat_n, lon_n, h[k])
-    rests = alignment.rest_intervals(t_tr[k], v_n, 0.0, 120.0)   # the fix shows no rest
-    assert not rests or rests[0][0] > 0.0
-    rec = Recording("noisy", "", epoch + np.round(t[1:] * 1e9).astype(np.int64), w, f, MOUNT,
-                    reference=dict(ns=ns, lat=lat_n, lon=lon_n, h=h[k], v_ned=v_n))
+    return Recording("noisy", "", epoch + np.round(t[1:] * 1e9).astype(np.int64), w, f, MOUNT,
+                     reference=dict(ns=ns, lat=lat_n, lon=lon_n, h=h[k],
+                                    v_ned=velocity_from_positions(ns, lat_n, lon_n, h[k])))
+
+
+def test_a_rest_under_a_noisy_fix_is_found_from_the_imu_and_the_positions(tmp_path):
+    """The synthetic drive's 20 s start at rest (a consumer IMU's noise) under a plain 1 Hz
+    fix with 1.5 m of position noise (velocity by differences: about 2 m/s of noise, no
+    epoch below 0.2 m/s): the rest is judged from the quiet IMU and the positions' straight-
+    line fit, and the state starts at rest with the gyro bias from it (it was a 'moving
+    alignment' while parked, biases 0)."""
+    bias = np.array([0.001, -0.002, 0.003])
+    rec = _under_a_noisy_fix(_track(), np.random.default_rng(7), bias)
+    rests = alignment.rest_intervals((rec.reference["ns"] - rec.reference["ns"][0]) / 1e9,
+                                     rec.reference["v_ned"], 0.0, 120.0)
+    assert not rests or rests[0][0] > 0.0                           # the fix shows no rest
     write_log(rec, tmp_path / "noisy.mcap")
     with FlightLog(tmp_path / "noisy.mcap") as log:
         meta = log.metadata()["recording"]
@@ -987,3 +993,19 @@ def test_windows_of_a_reversing_vehicle_face_backwards(tmp_path):
     results, _ = windows.run_all(flight, lengths=(10.0,), step=10.0)
     ends = [w.horizontal[-1] for w in results[10.0]]
     assert len(ends) >= 8 and max(ends) < 0.05, ends
+
+
+def test_no_window_starts_while_parked_under_a_noisy_fix(tmp_path):
+    """The stop-and-go drive (at rest 25-45 s) under a plain 1 Hz fix with 1.5 m of
+    position noise: its differenced speed passes a 2 m/s gate (--min-speed) at rest, but no
+    window may start (align on a course of noise) inside the rest the IMU and the positions
+    show."""
+    rec = _under_a_noisy_fix(_stop_track(), np.random.default_rng(11))
+    t_fix, v_n = (rec.reference["ns"] - rec.reference["ns"][0]) / 1e9, rec.reference["v_ned"]
+    at_rest = (t_fix > 26.0) & (t_fix < 44.0)
+    assert np.any(np.hypot(v_n[at_rest, 0], v_n[at_rest, 1]) > 2.0)     # the gate is fooled
+    write_log(rec, tmp_path / "noisy.mcap")
+    flight = Flight.load(tmp_path / "noisy.mcap", reference_imu=False)
+    results, _ = windows.run_all(flight, lengths=(5.0,), step=0.5, min_speed=2.0)
+    first = np.array([x.t0 for x in results[5.0]])
+    assert len(first) and not np.any((first > 26.0) & (first < 44.0)), first
