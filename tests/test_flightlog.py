@@ -261,6 +261,12 @@ def test_gaps_are_missing_samples_not_jitter():
     assert [round(1e9 / p) for _, _, p in rate_segments(switched)] == [100, 50]
     assert missing_samples(switched) == []
     assert missing_samples(np.delete(switched, [4000, 4001])) == [(3999, 2)]
+    # a switch by 15 % (100 -> 118 Hz, +-0.5 ms of jitter) is a new rate too, not gaps
+    fine = nominal + rng.uniform(-5e5, 5e5, len(nominal)).astype(np.int64)
+    near = np.concatenate([fine[:2500], fine[2499] + np.round(1e9 / 118 * np.arange(1, 2501))
+                           .astype(np.int64)])
+    assert [round(1e9 / p) for _, _, p in rate_segments(near)] == [100, 118]
+    assert missing_samples(near) == []
 
 
 def test_the_bulk_writer_makes_mcap_the_mcap_package_validates(tmp_path):

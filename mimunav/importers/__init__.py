@@ -247,7 +247,8 @@ def _check_against_course(rec):
             _check_time_offset(rec, t_imu, t[sel], rate, corr, half)
     z_ref = z_track[sel]
     if np.std(z_ref) > COURSE_CHECK_ACCEL:
-        yaw, coherence = alignment.yaw_between(f_v[:, 0] + 1j * f_v[:, 1], z_ref)
+        gain, coherence = alignment.acceleration_match(f_v[:, 0] + 1j * f_v[:, 1], z_ref)
+        yaw = float(np.angle(gain))
         if coherence > 0.5 and abs(yaw) > COURSE_CHECK_YAW:
             raise RecordingError(
                 f"{rec.name}: the accelerometers' horizontal specific force matches the GNSS "
