@@ -1009,3 +1009,60 @@ def test_no_window_starts_while_parked_under_a_noisy_fix(tmp_path):
     results, _ = windows.run_all(flight, lengths=(5.0,), step=0.5, min_speed=2.0)
     first = np.array([x.t0 for x in results[5.0]])
     assert len(first) and not np.any((first > 26.0) & (first < 44.0)), first
+
+
+def _pos_lines(pos, n=200):
+    return [x.split() for x in Path(pos).read_text().splitlines()
+            if x.strip() and not x.startswith("%")][:n]
+
+
+@pytest.mark.parametrize("layout", ["week_tow", "utc", "dms", "ecef"])
+def test_rtklib_pos_in_its_other_output_layouts(tmp_path, layout):
+    """The excerpt's solution written as RTKLIB's other output options would write it (GPS
+    week and seconds of week; UTC dates; degrees, minutes, seconds; ECEF x, y, z with ECEF
+    velocity) reads back to the same epochs (to the ns), positions (1e-9 rad, 1 mm) and
+    velocities; an ENU baseline is refused naming out-solformat."""
+    import calendar
+    import time
+    pos = rtklib.find_files(DRIVE)[2]
+    ref = rtklib.read_pos(pos)
+    rows, head = [], "%  GPST      latitude(deg) longitude(deg)  height(m)"
+    for i, p in enumerate(_pos_lines(pos)):
+        d, c = p[0].split("/"), p[1].split(":")
+        gpst = calendar.timegm((int(d[0]), int(d[1]), int(d[2]), int(c[0]), int(c[1]), 0)) \
+            + float(c[2])
+        if layout == "week_tow":
+            week, tow = divmod(gpst - 315964800, 604800)
+            p = [str(int(week)), f"{tow:.3f}"] + p[2:]
+        elif layout == "utc":            # GPST - 18 s in 2025
+            whole = math.floor(gpst - 18)
+            p = [time.strftime("%Y/%m/%d", time.gmtime(whole)),
+                 time.strftime("%H:%M:", time.gmtime(whole)) + f"{whole % 60 + (gpst % 1):06.3f}"] \
+                + p[2:]
+            head = "%  UTC       latitude(deg) longitude(deg)  height(m)"
+        elif layout == "dms":
+            def dms(x):
+                a = abs(x)
+                return [("-" if x < 0 else "") + str(int(a)), str(int(a * 60 % 60)),
+                        f"{a * 3600 % 60:.7f}"]
+            p = p[:2] + dms(float(p[2])) + dms(float(p[3])) + p[4:]
+            head = "%  GPST      latitude(d'\")  longitude(d'\")  height(m)"
+        else:
+            r = earth.geodetic_to_ecef(ref["lat"][i], ref["lon"][i], ref["h"][i])
+            v = earth.ned_to_ecef_matrix(ref["lat"][i], ref["lon"][i]) @ ref["v_ned"][i]
+            p = p[:2] + [f"{x:.4f}" for x in np.ravel(r)] + p[5:15] + [f"{x:.5f}" for x in v] \
+                + p[18:]
+            head = "%  GPST      x-ecef(m)      y-ecef(m)      z-ecef(m)   Q  ns"
+        rows.append(" ".join(p))
+    out = tmp_path / "other.pos"
+    out.write_text("\n".join(["% program   : RTKPOST ver.2.4.3", head] + rows) + "\n")
+    got = rtklib.read_pos(out)
+    n = len(rows)
+    assert np.array_equal(got["ns"], ref["ns"][:n])
+    assert np.abs(got["lat"] - ref["lat"][:n]).max() < 1e-9
+    assert np.abs(got["lon"] - ref["lon"][:n]).max() < 1e-9
+    assert np.abs(got["h"] - ref["h"][:n]).max() < 1e-3
+    assert np.abs(got["v_ned"] - ref["v_ned"][:n]).max() < 1e-4
+    out.write_text("%  GPST      e-baseline(m)  n-baseline(m)  u-baseline(m)\n")
+    with pytest.raises(RecordingError, match="out-solformat"):
+        rtklib.read_pos(out)

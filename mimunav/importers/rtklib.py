@@ -16,7 +16,8 @@
                     arrival times the stamps carry the stream's latency as a constant lag.)
     *.pos           RTKLIB solution: GPST date and time, lat, lon [deg], height [m,
                     ellipsoidal], Q (1 fix, 2 float), ns, sdn, sde, sdu, sdne, sdeu, sdun [m],
-                    age, ratio, vn, ve, vu [m/s], then velocity sigmas
+                    age, ratio, vn, ve, vu [m/s], then velocity sigmas (RTKLIB's other time
+                    and position layouts too: `read_pos`)
 Times go from GPST to the UNIX (UTC) scale of the log contract by the leap seconds in force.
 """
 import calendar
@@ -28,7 +29,8 @@ import struct
 import numpy as np
 
 from ..sensors import Mounting
-from . import RecordingError, Recording, velocity_from_positions
+from . import (GPS_EPOCH_UNIX_S, RecordingError, Recording, gps_to_unix_s,
+                velocity_from_positions)
 
 G_UNIT = 9.80665            # m/s^2 per g: the standard gravity an accelerometer's g means
 GPS_UTC_LEAP_S = 18         # GPST - UTC since 2017-01-01 (IERS Bulletin C: none added since)
@@ -86,35 +88,89 @@ def imu_stamps_ns(ticks, start_gpst, tag_ticks):
 
 def read_pos(path):
     """RTKLIB solution as arrays: ns (UNIX), lat, lon (rad), h (m), Q, sd (M, 3) n/e/u m,
-    v_ned (M, 3) m/s (NaN where the file has no velocity columns)."""
+    v_ned (M, 3) m/s (NaN where the file has no velocity columns).
+
+    RTKLIB's output options (rtkpost / rnx2rtkp, `out-solformat`, `out-timeform`,
+    `out-timesys`, `out-degform`), read from the column header line (the last '%' line
+    before the data, its first word the time system):
+      time:     'yyyy/mm/dd hh:mm:ss.sss' or 'week tow' (GPS week, seconds of week), in GPST
+                (the leap seconds of the date removed), UTC or JST (UTC + 9 h);
+      position: latitude/longitude in deg or d m s, height m; or ECEF x, y, z m (the
+                velocity then ECEF too; the sigmas' diagonal turned into n, e, u);
+      an ENU baseline (relative to an unstated base) is refused."""
+    system, layout = "GPST", "deg"
     rows = []
     with open(path) as fh:
         for number, line in enumerate(fh, 1):
-            if not line.strip() or line.startswith("%"):
+            if line.startswith("%"):
+                head = line[1:].split()
+                if head and head[0] in TIME_SYSTEMS:
+                    system, layout = head[0], _position_layout(path, line)
                 continue
-            parts = line.split()
-            if len(parts) < 15:
-                raise RecordingError(f"{path}:{number}: {len(parts)} columns, an RTKLIB solution "
-                                   "line has at least 15 (date, time, lat, lon, height, Q, ns, "
-                                   "6 sigmas, age, ratio)")
-            date, clock = parts[0].split("/"), parts[1].split(":")
-            try:
-                sec = float(clock[2])
-                whole = calendar.timegm((int(date[0]), int(date[1]), int(date[2]),
-                                         int(clock[0]), int(clock[1]), int(sec)))
-                vals = [float(x) for x in parts[2:]]
-            except (ValueError, IndexError):
-                raise RecordingError(f"{path}:{number}: cannot read {line.strip()[:60]!r}") from None
-            t = whole + (sec - int(sec)) - GPS_UTC_LEAP_S
-            vel = vals[13:16] if len(vals) >= 16 else [math.nan] * 3
-            rows.append([t] + vals[:13] + vel)
+            if not line.strip():
+                continue
+            rows.append(_solution_row(path, number, line, system, layout))
     if not rows:
         raise RecordingError(f"{path}: no solution lines")
     a = np.asarray(rows)
-    vn, ve, vu = a[:, 14], a[:, 15], a[:, 16]
-    return dict(ns=np.round(a[:, 0] * 1e9).astype(np.int64), lat=np.radians(a[:, 1]),
-                lon=np.radians(a[:, 2]), h=a[:, 3], quality=a[:, 4].astype(int),
-                sd=a[:, 6:9], v_ned=np.column_stack([vn, ve, -vu]))
+    if layout == "xyz":
+        from .. import earth
+        lat, lon, h = earth.ecef_to_geodetic(a[:, 1:4])
+        c_en = earth.ned_to_ecef_matrix(lat, lon)
+        v_ned = np.einsum("kji,kj->ki", c_en, a[:, 14:17])
+        sd = np.sqrt(np.einsum("kji,kj->ki", c_en ** 2, a[:, 6:9] ** 2))     # n, e, d
+    else:
+        lat, lon, h = np.radians(a[:, 1]), np.radians(a[:, 2]), a[:, 3]
+        v_ned = np.column_stack([a[:, 14], a[:, 15], -a[:, 16]])
+        sd = a[:, 6:9]
+    return dict(ns=np.round(a[:, 0] * 1e9).astype(np.int64), lat=lat, lon=lon, h=h,
+                quality=a[:, 4].astype(int), sd=sd, v_ned=v_ned)
+
+
+TIME_SYSTEMS = {"GPST": None, "UTC": 0.0, "JST": -9 * 3600.0}   # s to add for UTC (GPST: leaps)
+
+
+def _position_layout(path, header):
+    """'deg', 'dms' or 'xyz' from a .pos column header line; an ENU baseline is refused."""
+    if "x-ecef" in header:
+        return "xyz"
+    if "e-baseline" in header:
+        raise RecordingError(f"{path}: an ENU baseline solution (relative to its base station, "
+                             "whose position the file does not give): write the solution as "
+                             "latitude/longitude/height (RTKLIB out-solformat=llh) or ECEF xyz")
+    return "dms" if "latitude(d'" in header else "deg"
+
+
+def _solution_row(path, number, line, system, layout):
+    """[UNIX time s, lat deg | x, lon deg | y, h | z, Q, ns, 6 sigmas, age, ratio, 3
+    velocities (nan when absent)] of one .pos data line."""
+    parts = line.split()
+    need = 15 + (4 if layout == "dms" else 0)
+    if len(parts) < need:
+        raise RecordingError(f"{path}:{number}: {len(parts)} columns, an RTKLIB solution line "
+                             f"has at least {need} (time (2), position, Q, ns, 6 sigmas, age, "
+                             "ratio)")
+    try:
+        if "/" in parts[0]:                             # yyyy/mm/dd hh:mm:ss.sss
+            date, clock = parts[0].split("/"), parts[1].split(":")
+            sec = float(clock[2])
+            t = calendar.timegm((int(date[0]), int(date[1]), int(date[2]), int(clock[0]),
+                                 int(clock[1]), 0)) + sec
+            gps_s = t - GPS_EPOCH_UNIX_S
+        else:                                           # GPS week, seconds of week
+            gps_s = int(parts[0]) * 604800.0 + float(parts[1])
+            t = gps_s + GPS_EPOCH_UNIX_S
+        vals = [float(x) for x in parts[2:]]
+    except (ValueError, IndexError):
+        raise RecordingError(f"{path}:{number}: cannot read {line.strip()[:60]!r}: the time "
+                             "is neither 'yyyy/mm/dd hh:mm:ss' nor 'week tow'") from None
+    t = float(gps_to_unix_s(gps_s)) if system == "GPST" else t + TIME_SYSTEMS[system]
+    if layout == "dms":                  # d m s, the sign on the degrees ("-0 30 0.0")
+        angle = lambda k: math.copysign(abs(vals[k]) + vals[k + 1] / 60 + vals[k + 2] / 3600,
+                                        -1.0 if parts[2 + k].startswith("-") else 1.0)
+        vals = [angle(0), angle(3)] + vals[6:]
+    vel = vals[13:16] if len(vals) >= 16 else [math.nan] * 3
+    return [t] + vals[:13] + vel
 
 
 def find_files(folder):
