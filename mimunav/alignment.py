@@ -152,7 +152,8 @@ def initial_alignment(t, w, f, mounting, track=None):
     speed = np.hypot(track["v_ned"][:, 0], track["v_ned"][:, 1])
     parked = np.zeros(len(track["t"]), bool)      # a noisy fix "fast" while the car stands
     for a, b in quiet:
-        parked |= (track["t"] > a - MOVING_HALF_WINDOW_S) & (track["t"] < b + MOVING_HALF_WINDOW_S)
+        parked |= (track["t"] > a - MOVING_HALF_WINDOW_S) & \
+            (track["t"] < b + MOVING_HALF_WINDOW_S)
     fast = np.flatnonzero((speed >= COURSE_SPEED) & ~parked
                           & (track["t"] >= t[0] + MOVING_HALF_WINDOW_S)
                           & (track["t"] <= t[-1] - MOVING_HALF_WINDOW_S))

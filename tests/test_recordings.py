@@ -1066,3 +1066,53 @@ def test_rtklib_pos_in_its_other_output_layouts(tmp_path, layout):
     out.write_text("%  GPST      e-baseline(m)  n-baseline(m)  u-baseline(m)\n")
     with pytest.raises(RecordingError, match="out-solformat"):
         rtklib.read_pos(out)
+
+
+def test_a_table_with_empty_cells_is_refused_or_its_rows_left_out(tmp_path):
+    """The synthetic drive's ideal IMU (100 Hz) and its 4 Hz track as CSV tables, a few IMU
+    cells and one reference cell empty (a logger's missed reading): refused by default,
+    naming the spec key; with `nonfinite = "drop"` those rows are left out and counted, and
+    every value kept is the one written."""
+    from mimunav.importers import table
+    t_tr, lat, lon, h, v = _track()
+    motion = TrackMotion(t_tr, lat, lon, h, v)
+    t = np.arange(t_tr[0], t_tr[-1] + 1e-9, 0.01)
+    dth, dv = MOUNT.sensor_increments(truth.generate(motion, t))
+    imu = np.column_stack([t[1:], dth * 100.0, dv * 100.0])
+    lines = ["t,gx,gy,gz,ax,ay,az"] + [",".join(f"{x:.12g}" for x in row) for row in imu]
+    for k, col in ((1001, 2), (4000, 5), (7000, 0)):            # empty cells, data rows k
+        cells = lines[k + 1].split(",")
+        cells[col] = ""
+        lines[k + 1] = ",".join(cells)
+    (tmp_path / "imu.csv").write_text("\n".join(lines) + "\n")
+    ref = ["t,lat,lon,h"] + [f"{a:.6f},{np.degrees(b):.12f},{np.degrees(c):.12f},{d:.4f}"
+                             for a, b, c, d in zip(t_tr, lat, lon, h)]
+    ref[301] = ref[301].replace(ref[301].split(",")[3], "nan")
+    (tmp_path / "ref.csv").write_text("\n".join(ref) + "\n")
+    spec = """name = "gappy"
+[imu]
+time = {file = "imu.csv", columns = ["t"]}
+angular_rate = {file = "imu.csv", columns = ["gx", "gy", "gz"]}
+specific_force = {file = "imu.csv", columns = ["ax", "ay", "az"]}
+mounting_rpy_deg = [180.0, 0.0, 180.0]
+[time]
+unix_offset_s = 1700000000.0
+[reference]
+time = {file = "ref.csv", columns = ["t"]}
+latitude = {file = "ref.csv", columns = ["lat"], unit = "deg"}
+longitude = {file = "ref.csv", columns = ["lon"], unit = "deg"}
+height = {file = "ref.csv", columns = ["h"]}
+"""
+    (tmp_path / "spec.toml").write_text(spec)
+    with pytest.raises(RecordingError,
+                       match='time from imu.csv .* not finite .* row 7000.*nonfinite = "drop"'):
+        table.read(tmp_path / "spec.toml")
+    (tmp_path / "spec.toml").write_text('nonfinite = "drop"\n' + spec)
+    rec = table.read(tmp_path / "spec.toml")
+    assert len(rec.imu_ns) == len(imu) - 3 and len(rec.reference["ns"]) < len(t_tr)
+    kept = np.delete(imu, [1001, 4000, 7000], axis=0)
+    assert np.array_equal(rec.imu_ns, np.round((kept[:, 0] + 1.7e9) * 1e9).astype(np.int64))
+    assert np.abs(rec.w - kept[:, 1:4]).max() < 1e-9
+    assert "3 of 12000 rows not finite" in rec.real["nonfinite [imu]"]
+    assert "1 of 481 rows" in rec.real["nonfinite [reference]"]
+    write_log(rec, tmp_path / "gappy.mcap")

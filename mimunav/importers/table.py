@@ -14,6 +14,8 @@ clock: it is interpolated linearly onto the specific force's stamps, and the met
 
     name, description, model     text
     root                         folder of the data files
+    nonfinite = "refuse"         or "drop": rows with a NaN/inf cell are left out and counted
+                                 (a logger's missed reading), instead of refusing the table
     [imu]     time               device time of the samples
               angular_rate       rad/s | deg/s                      (N, 3), sensor axes
               specific_force     m/s^2 | g                          (N, 3), sensor axes
@@ -101,12 +103,25 @@ class Spec:
         if (x.ndim == 1 and width != 1) or (x.ndim == 2 and x.shape[1] != width) or x.ndim > 2:
             raise RecordingError(f"{self.path}: {where} from {source['file']} has shape "
                                  f"{x.shape}, expected {width} column(s)")
-        if not np.isfinite(x).all():
+        if not np.isfinite(x).all() and self.doc.get("nonfinite", "refuse") != "drop":
             raise RecordingError(f"{self.path}: {where} from {source['file']} holds values that "
                                  f"are not finite (first at data row "
                                  f"{int(np.argmax(~np.isfinite(x.reshape(len(x), -1)).all(1)))}"
-                                 ", counted from 0 after any header line)")
+                                 ", counted from 0 after any header line); `nonfinite = "
+                                 "\"drop\"` in the spec leaves such rows out (and counts them)")
         return x * UNITS[unit]
+
+    def finite_rows(self, where, *columns):
+        """The columns (equal lengths) with every row that is not finite in any of them left
+        out, and counted in `notes` (only `nonfinite = "drop"` lets such values through
+        `load`)."""
+        ok = np.ones(len(columns[0]), bool)
+        for x in columns:
+            ok &= np.isfinite(np.reshape(x, (len(x), -1))).all(axis=1)
+        if not ok.all():
+            self.notes[f"nonfinite {where}"] = (f"{int((~ok).sum())} of {len(ok)} rows not "
+                                                "finite: left out (nonfinite = \"drop\")")
+        return tuple(x[ok] for x in columns)
 
     def time_of(self, section, key):
         """Device time (s) of quantity `key`: its own `time`, else its section's."""
@@ -206,41 +221,45 @@ def _reference(spec, offset):
     """The [reference] section as a Recording's reference dict, or None."""
     if not spec.section("reference"):
         return None
-    t = spec.column("reference", "time")
-    if spec.has("reference", "position_ecef"):
-        r_e = spec.column("reference", "position_ecef")
-        lat, lon, h = earth.ecef_to_geodetic(r_e)
+    keys = ["time"] + [k for k in ("position_ecef", "latitude", "longitude", "height",
+                                   "velocity_ned", "velocity_ecef", "attitude_wxyz")
+                       if spec.has("reference", k)]
+    if "position_ecef" in keys:
+        keys = [k for k in keys if k not in ("latitude", "longitude", "height")]
+    columns = [spec.column("reference", k) for k in keys]
+    n = len(columns[0])
+    for key, x in zip(keys, columns):
+        if len(x) != n:
+            raise RecordingError(f"{spec.path}: [reference] {key} has {len(x)} rows, time {n}")
+    col = dict(zip(keys, spec.finite_rows("[reference]", *columns)))
+    t = col["time"]
+    if "position_ecef" in col:
+        lat, lon, h = earth.ecef_to_geodetic(col["position_ecef"])
     else:
-        lat, lon = spec.column("reference", "latitude"), spec.column("reference", "longitude")
-        h = spec.column("reference", "height")
+        lat, lon, h = col["latitude"], col["longitude"], col["height"]
     v = None
-    if spec.has("reference", "velocity_ned"):
-        v = spec.column("reference", "velocity_ned")
-    elif spec.has("reference", "velocity_ecef"):
-        v = np.einsum("kji,kj->ki", earth.ned_to_ecef_matrix(lat, lon),
-                      spec.column("reference", "velocity_ecef"))
+    if "velocity_ned" in col:
+        v = col["velocity_ned"]
+    elif "velocity_ecef" in col:
+        v = np.einsum("kji,kj->ki", earth.ned_to_ecef_matrix(lat, lon), col["velocity_ecef"])
     ns = np.round((t + offset) * 1e9).astype(np.int64)
     back = np.flatnonzero(np.diff(ns) <= 0)
     if len(back):
         raise RecordingError(f"{spec.path}: [reference] time does not increase at data row "
                              f"{back[0] + 1} (0-based, after the header; {len(back)} such rows):"
                              " sort the reference by time or drop its repeated rows")
-    if not (spec.has("reference", "velocity_ned") or spec.has("reference", "velocity_ecef")):
+    if v is None:
         v = velocity_from_positions(ns, lat, lon, h)
     ref = dict(ns=ns, lat=lat, lon=lon, h=h, v_ned=v)
-    if spec.has("reference", "attitude_wxyz"):
-        ref["q_nb"] = _attitude_ned(spec, lat, lon)
-    n = len(t)
-    for key, x in ref.items():
-        if len(x) != n:
-            raise RecordingError(f"{spec.path}: [reference] {key} has {len(x)} rows, time {n}")
+    if "attitude_wxyz" in col:
+        ref["q_nb"] = _attitude_ned(spec, col["attitude_wxyz"], lat, lon)
     ok = np.isfinite(ref["v_ned"]).all(axis=1)      # differenced velocity: none across a gap
     return {k: x[ok] for k, x in ref.items()}
 
 
-def _attitude_ned(spec, lat, lon):
-    """The reference attitude as q_nb (body -> NED, wxyz)."""
-    q = quaternion.from_float_array(spec.column("reference", "attitude_wxyz"))
+def _attitude_ned(spec, wxyz, lat, lon):
+    """The reference attitude `wxyz` (its spec's `rotates`) as q_nb (body -> NED, wxyz)."""
+    q = quaternion.from_float_array(wxyz)
     rotates = spec.section("reference")["attitude_wxyz"].get("rotates", "body_to_ned")
     if rotates == "body_to_ned":
         q_nb = q
@@ -264,6 +283,12 @@ def read(path, mounting=None):
     for name, t, x in (("specific_force", t_f, f), ("angular_rate", t_w, w)):
         if len(t) != len(x):
             raise RecordingError(f"{path}: [imu] {name} has {len(x)} rows, its time {len(t)}")
+    if len(t_w) == len(t_f) and np.array_equal(t_w, t_f, equal_nan=True):     # one clock
+        t_f, f, w = spec.finite_rows("[imu]", t_f, f, w)
+        t_w = t_f
+    else:
+        t_f, f = spec.finite_rows("[imu] specific_force", t_f, f)
+        t_w, w = spec.finite_rows("[imu] angular_rate", t_w, w)
     notes = spec.notes
     if len(t_w) != len(t_f) or np.any(t_w != t_f):
         if np.any(np.diff(t_w) <= 0):
