@@ -50,6 +50,7 @@ Procedure:
 """
 import math
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 import quaternion
@@ -110,6 +111,15 @@ class Design:
     def ref_columns(self, c):
         """(nb, 3) the reference input of channel c's triad."""
         return self.inputs[:, :3] if c < 3 else self.inputs[:, 3:]
+
+    @cached_property
+    def detrend_q(self):
+        """(nb, knots) orthonormal basis of the piecewise-linear bias (hat functions with
+        knots every DETREND_KNOT_S) that `_clean` removes: one QR per design, not per call."""
+        knots = np.arange(self.t[0], self.t[-1] + DETREND_KNOT_S, DETREND_KNOT_S)
+        basis = np.clip(1 - np.abs((self.t[:, None] - knots[None, :]) / DETREND_KNOT_S), 0,
+                        None)
+        return np.linalg.qr(basis[:, basis.sum(axis=0) > 0.5])[0]
 
 
 @dataclass
@@ -835,10 +845,7 @@ def _where_rows(contribution):
 def _clean(design, resid):
     """Residual with a piecewise-linear bias (knots every DETREND_KNOT_S) removed per
     channel: for display, the rms figures and the scan."""
-    t = design.t
-    knots = np.arange(t[0], t[-1] + DETREND_KNOT_S, DETREND_KNOT_S)
-    basis = np.clip(1 - np.abs((t[:, None] - knots[None, :]) / DETREND_KNOT_S), 0, None)
-    q = np.linalg.qr(basis[:, basis.sum(axis=0) > 0.5])[0]
+    q = design.detrend_q
     return resid - q @ (q.T @ resid)
 
 
