@@ -127,6 +127,14 @@ def test_px4_sample_without_gnss(tmp_path):
     assert "reference" not in meta
     assert float(meta["sensor/mimu"]["sample_rate_hz"]) == pytest.approx(250.0, abs=0.5)
     assert n == 17070                   # every sensor_combined sample (the README's count)
+    assert "file" not in meta["recording"]["real"]
+    # the same file cut at 60 % (power lost): imported up to its last whole message, and the
+    # metadata says the file was cut short (pyulog reads it silently)
+    cut = tmp_path / "cut.ulg"
+    data = path.read_bytes()
+    cut.write_bytes(data[:int(0.6 * len(data))])
+    rec = ulog.read(str(cut))
+    assert "was cut short" in rec.real["file"] and len(rec.imu_ns) < 0.65 * n
 
 
 @pytest.mark.parametrize("old, new, message", [

@@ -38,8 +38,9 @@ TYPES = ("IMU", "IMU2", "IMU3", "GPS", "GPS2", "GPA", "POS", "XKF1", "ATT")
 
 
 def _messages(path):
-    """{type: {field: array}} of the types this importer reads; older logs' numbered types
-    (IMU2, IMU3, GPS2) and un-numbered ones get the instance field I they lack."""
+    """({type: {field: array}} of the types this importer reads, '' or a note that the file
+    ends inside a record); older logs' numbered types (IMU2, IMU3, GPS2) and un-numbered
+    ones get the instance field I they lack."""
     from pymavlink import DFReader
     try:
         log = DFReader.DFReader_binary(path, zero_time_base=False)
@@ -61,8 +62,12 @@ def _messages(path):
         elif kind in ("IMU", "GPS", "GPA"):
             d.setdefault("I", 0)                # older logs: instance 0 has no I field
         rows.setdefault(kind, []).append(d)
-    return {kind: {k: np.array([r.get(k, np.nan) for r in rs]) for k in rs[0]
-                   if k != "mavpackettype"} for kind, rs in rows.items()}
+    out = {kind: {k: np.array([r.get(k, np.nan) for r in rs]) for k in rs[0]
+                  if k != "mavpackettype"} for kind, rs in rows.items()}
+    left = int(log.data_len - log.offset)       # DFReader stops before a partial record
+    return out, (f"the file ends inside a record at byte {log.offset} of {log.data_len} "
+                 f"({left} bytes left out): the log was cut short, and ends at its last "
+                 "whole record") if left > 0 else ""
 
 
 def _instance(table, instance):
@@ -83,7 +88,7 @@ def read(path, mounting=None, instance=0, reference="auto", reference_status=3):
     logged, else gnss when there are fixes)."""
     if reference not in ("auto", "ekf", "gnss", "none"):
         raise RecordingError(f"reference must be auto, ekf, gnss or none, not {reference!r}")
-    msgs = _messages(path)
+    msgs, cut = _messages(path)
     imu = _instance(msgs.get("IMU"), instance)
     if imu is None or len(imu["TimeUS"]) < 2:
         found = sorted({int(i) for i in msgs.get("IMU", {}).get("I", [])})
@@ -115,6 +120,8 @@ def read(path, mounting=None, instance=0, reference="auto", reference_status=3):
     real = {"imu": f"IMU instance {instance} ({len(boot_us)} samples; "
                    f"{int((~keep).sum())} repeated stamps dropped)",
             "source": os.path.abspath(path)}
+    if cut:
+        real["file"] = cut
     if "T" in imu:
         temp = imu["T"][np.isfinite(imu["T"])]
         if len(temp):

@@ -81,6 +81,9 @@ def read(path, mounting=None):
     name = os.path.splitext(os.path.basename(path))[0]
     real = {"imu": f"sensor_combined ({len(boot_us)} samples)", "source": os.path.abspath(path),
             "imu_instances": instances(ulog)}
+    cut = cut_short(path)
+    if cut:
+        real["file"] = cut
     if fixes is not None:
         real["gnss"] = f"{gps.name} ({len(fixes['ns'])} 3-D fixes)"
     reference = autopilot_estimate(ulog, offset_us)
@@ -100,6 +103,27 @@ def read(path, mounting=None):
                                       "independent": "no: the autopilot fuses this IMU"}
                                      if reference is not None else {}),
                      fixes=fixes, real=real, assumed=assumed)
+
+
+def cut_short(path):
+    """'' when the ULog's messages fill the file exactly, else what is missing: the file
+    ends inside a message (a logger that lost power or a copy cut short). pyulog reads such
+    a file silently up to its last whole message. Format (PX4 docs, ULog File Format): a
+    16-byte header (magic 'ULog' 0x01 0x12 0x35, version, uint64 timestamp), then messages of
+    uint16 size, uint8 type and `size` bytes; a walk over the headers, no payload decoded."""
+    with open(path, "rb") as fh:
+        data = fh.read()
+    k, n = 16, len(data)
+    while k + 3 <= n:
+        size = data[k] | data[k + 1] << 8
+        if k + 3 + size > n:
+            break
+        k += 3 + size
+    if k == n:
+        return ""
+    return (f"the file ends inside a message at byte {k} of {n} ({n - k} bytes of a "
+            "partial message left out): the log was cut short, and ends at its last whole "
+            "message")
 
 
 def instances(ulog):
