@@ -458,15 +458,16 @@ def travel_sign(t, f, mounting, track, t0, span=DIRECTION_SPAN_S):
         return 1.0
     _, _, z_track = track_acceleration(track["t"][k], track["v_ned"][k])
     step = float(np.median(np.diff(track["t"][k])))
-    f_v = attitude.rotate(mounting.q_vs, _means_at(t, f, track["t"][k], step / 2))
+    f_v = attitude.rotate(mounting.q_vs, means_around(t, f, track["t"][k], step / 2))
     if not np.isfinite(f_v).all() or np.std(z_track) < DIRECTION_ACCEL:
         return 1.0
     gain, coherence = acceleration_match(f_v[:, 0] + 1j * f_v[:, 1], z_track)
     return -1.0 if gain.real < -0.5 and coherence > 0.5 else 1.0
 
 
-def _means_at(t, x, epochs, half):
-    """Means of the samples x (stamps t) within +-half s of each epoch (nan where none)."""
+def means_around(t, x, epochs, half):
+    """Means of the samples x (N, k) at stamps t (s, increasing) within +-half s of each
+    epoch (nan where none)."""
     c = np.vstack([np.zeros((1, x.shape[1])), np.cumsum(x, axis=0)])
     lo, hi = np.searchsorted(t, epochs - half), np.searchsorted(t, epochs + half)
     with np.errstate(invalid="ignore", divide="ignore"):

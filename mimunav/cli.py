@@ -388,6 +388,7 @@ IMPORT_OPTIONS = {
     "gps_status": (("dataflash",), 3), "imu_topic": (("ros2",), None),
     "fix_topic": (("ros2",), None), "pose_topic": (("ros2",), None), "origin": (("ros2",), None),
     "reference_status": (("ros2",), None), "reference_sigma": (("ros2",), np.inf),
+    "reference_imu_topic": (("ros2",), None), "reference_imu_rpy_deg": (("ros2",), None),
     "solutions": (("rtklib",), ["fix"])}
 
 
@@ -420,7 +421,9 @@ def _import(args):
         rec = ros2.read(args.source, args.imu_topic, args.fix_topic, mounting=mounting,
                         reference_status=args.reference_status,
                         reference_sigma_m=args.reference_sigma, pose_topic=args.pose_topic,
-                        origin=args.origin)
+                        origin=args.origin, reference_imu_topic=args.reference_imu_topic,
+                        reference_imu_mounting=(Mounting.from_rpy_deg(args.reference_imu_rpy_deg)
+                                                if args.reference_imu_rpy_deg else None))
     elif args.kind == "table":
         from .importers import table
         rec = table.read(args.source, mounting=mounting)
@@ -832,6 +835,12 @@ def build_parser():
                    help="sensor -> vehicle (FRD) rotation, deg (default: rtklib the README's "
                    "180 0 180; ros2 180 0 0, REP-103 x forward, y left, z up; ulog and "
                    "dataflash 0 0 0, the autopilot's FRD body frame; table: the spec's axes)")
+    p.add_argument("--reference-imu-topic", help="ros2: a second sensor_msgs/msg/Imu topic, a "
+                   "better IMU flown with it, as the reference IMU (/fog/imu: `diagnose` then "
+                   "works at the sensor level)")
+    p.add_argument("--reference-imu-rpy-deg", type=_number(-360.0, 360.0), nargs=3,
+                   metavar=("ROLL", "PITCH", "YAW"), help="ros2: the reference IMU's sensor -> "
+                   "vehicle (FRD) rotation, deg (default 180 0 0, REP-103)")
     p.add_argument("--pose-topic", help="ros2: a nav_msgs/msg/Odometry or geometry_msgs/msg/"
                    "PoseStamped topic (local ENU frame) as the reference; needs --origin")
     p.add_argument("--origin", type=_number(-360.0, 1e5), nargs=3,

@@ -1116,3 +1116,97 @@ height = {file = "ref.csv", columns = ["h"]}
     assert "3 of 12000 rows not finite" in rec.real["nonfinite [imu]"]
     assert "1 of 481 rows" in rec.real["nonfinite [reference]"]
     write_log(rec, tmp_path / "gappy.mcap")
+
+
+def test_a_ros2_bag_with_a_reference_imu_is_diagnosed_at_the_sensor_level(tmp_path):
+    """A MEMS IMU and a better IMU flown together (the diagnosis proof flight, 200 Hz, both
+    from the exact increments of one motion, each in its own axes: the MEMS in FLU, the
+    reference turned 90 deg in yaw), written as a foreign recorder's ROS 2 bag: imported with
+    --reference-imu-topic, `diagnose` works at the sensor level and names the MEMS gyro's
+    x scale-factor error of 3000 ppm within its interval, and nothing else. A reference
+    topic whose gyro is in deg/s is refused at import."""
+    from mimunav.profile import Profile
+    motion = Profile.load(Path(__file__).parent.parent / "flights" / "diagnosis-proof.toml") \
+        .motion()
+    rate = 200.0
+    t = np.arange(0.0, min(motion.t1, 150.0), 1.0 / rate)
+    run = truth.generate(motion, t)
+    rng = np.random.default_rng(8)
+    mems, ref = Mounting.from_axes("FLU"), Mounting.from_rpy_deg((180.0, 0.0, 90.0))
+    dth, dv = mems.sensor_increments(run)
+    w = dth * rate * [1.003, 1.0, 1.0] + rng.normal(0, 1e-3, dth.shape)
+    f = dv * rate + rng.normal(0, 1e-2, dv.shape)
+    dth_r, dv_r = ref.sensor_increments(run)
+    w_r = dth_r * rate + rng.normal(0, 1e-5, dth_r.shape)
+    f_r = dv_r * rate + rng.normal(0, 1e-4, dv_r.shape)
+    stamps = 1_700_000_000_000_000_000 + np.round(t[1:] * 1e9).astype(np.int64)
+    bag = tmp_path / "pair.mcap"
+    with LogWriter(bag) as log:
+        log.write("/mems/imu", S.IMU, "mems_link", stamps, **S.imu_fields(w, f))
+        log.write("/nav/imu", S.IMU, "nav_link", stamps, **S.imu_fields(w_r, f_r))
+        log.write("/nav/imu_deg", S.IMU, "nav_link", stamps,
+                  **S.imu_fields(np.degrees(w_r), f_r))
+    out = tmp_path / "pair.log.mcap"
+    assert main(["import", "ros2", str(bag), "--imu-topic", "/mems/imu", "--reference-imu-topic",
+                 "/nav/imu_deg", "--reference-imu-rpy-deg", "180", "0", "90", "-o",
+                 str(out)]) == 2
+    assert not out.exists()
+    assert main(["import", "ros2", str(bag), "--imu-topic", "/mems/imu", "--reference-imu-topic",
+                 "/nav/imu", "--reference-imu-rpy-deg", "180", "0", "90", "-o", str(out)]) == 0
+    doc_path = tmp_path / "d.json"
+    assert main(["diagnose", str(out), "--json", str(doc_path)]) == 0
+    doc = json.loads(doc_path.read_text())
+    assert doc["level"] == "sensor"
+    scale = [x for x in doc["findings"] if (x["effect"], x["sensor"], x["axis"]) ==
+             ("scale_factor", "gyro", "x")]
+    assert [x["label"] for x in doc["findings"]] == ["scale_factor gyro.x"]
+    assert scale[0]["ci95"][0] <= 0.003 <= scale[0]["ci95"][1], scale
+
+
+def test_a_table_reference_imu_becomes_the_logs_reference_imu(tmp_path):
+    """A [reference_imu] section (its own file, clock and axes, a stated accuracy) comes
+    back as /fog/imu with sensor/fog metadata: values as written, its mounting, its
+    accuracy; a reference IMU in g instead of m/s^2 is refused."""
+    from mimunav.importers import table
+    n = 3000
+    t = np.arange(n) * 0.01
+    w = 0.1 * np.sin(2 * math.pi * 0.2 * t[:, None] + [0.0, 1.0, 2.0])      # smooth rates
+    f = np.tile([0.0, 0.0, -9.8], (n, 1))                                   # FRD, level
+    np.savetxt(tmp_path / "imu.csv", np.column_stack([t, w, f]), delimiter=",",
+               header="t,gx,gy,gz,ax,ay,az", comments="")
+    t_r = np.arange(2 * n) * 0.005 + 0.002                        # 200 Hz, its own clock
+    w_r = np.column_stack([np.interp(t_r, t, w[:, i]) for i in range(3)])[:, [1, 0, 2]] * \
+        [1, 1, -1]                                                # FRD -> RFU (x right, y fwd)
+    f_r = np.tile([0.0, 0.0, 9.8], (len(t_r), 1))
+    np.savetxt(tmp_path / "nav.csv", np.column_stack([t_r, w_r, f_r]), delimiter=",",
+               header="t,gx,gy,gz,ax,ay,az", comments="")
+    spec = """[imu]
+time = {file = "imu.csv", columns = ["t"]}
+angular_rate = {file = "imu.csv", columns = ["gx", "gy", "gz"]}
+specific_force = {file = "imu.csv", columns = ["ax", "ay", "az"]}
+axes = "FRD"
+[time]
+unix_offset_s = 1700000000.0
+[reference_imu]
+time = {file = "nav.csv", columns = ["t"]}
+angular_rate = {file = "nav.csv", columns = ["gx", "gy", "gz"]}
+specific_force = {file = "nav.csv", columns = ["ax", "ay", "az"], unit = "UNIT"}
+axes = "RFU"
+model = "navigation-grade IMU"
+accuracy = {gyro_scale = 5e-5, gyro_misalignment_rad = 2e-5}
+"""
+    (tmp_path / "g.toml").write_text(spec.replace("UNIT", "g"))
+    with pytest.raises(RecordingError, match="reference IMU's median .specific force"):
+        write_log(table.read(tmp_path / "g.toml"), tmp_path / "never.mcap")
+    (tmp_path / "spec.toml").write_text(spec.replace("UNIT", "m/s^2"))
+    write_log(table.read(tmp_path / "spec.toml"), tmp_path / "pair.mcap")
+    flight = Flight.load(tmp_path / "pair.mcap")
+    assert len(flight.fog_t) == len(t_r)
+    assert np.allclose(flight.fog_t, t_r + 1.7e9 - (1.7e9 + t[0]), atol=1e-6)
+    assert np.allclose(flight.fog_w, w_r)
+    # both IMUs' rates in the vehicle frame agree: the mountings are what the axes say
+    w_v = attitude.rotate(flight.fog_mounting.q_vs, flight.fog_w)
+    assert np.allclose(w_v, np.column_stack([np.interp(t_r, t, w[:, i]) for i in range(3)]),
+                       atol=1e-9)
+    assert flight.fog_meta["model"] == "navigation-grade IMU"
+    assert flight.fog_meta["accuracy"] == {"gyro_scale": 5e-5, "gyro_misalignment_rad": 2e-5}

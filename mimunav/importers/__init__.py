@@ -56,7 +56,10 @@ class Recording:
       `reference_meta` {source, independent ("yes"/"no: why"), position_sigma_m, ...};
     fixes: optional GNSS fixes {ns, lat, lon, h, status (int8 as
       in NavSatStatus), covariance (M, 9) m^2 ENU}; real / assumed: what the metadata says
-      is measured and what this import assumed."""
+      is measured and what this import assumed;
+    reference_imu: optional second IMU flown with it that serves as the reference IMU
+      (/fog/imu: the sensor level of the diagnosis) {ns, w rad/s, f m/s^2 (its sensor axes),
+      mounting (`Mounting`), model, optional accuracy (`diagnosis.reference.Accuracy` keys)}."""
     name: str
     description: str
     imu_ns: np.ndarray
@@ -69,6 +72,7 @@ class Recording:
     fixes: dict | None = None
     real: dict = field(default_factory=dict)
     assumed: dict = field(default_factory=dict)
+    reference_imu: dict | None = None
 
     def __post_init__(self):
         self.imu_ns = np.asarray(self.imu_ns, dtype=np.int64)
@@ -89,10 +93,33 @@ class Recording:
         if bad.any():
             raise RecordingError(f"{self.name}: {bad.sum()} IMU samples are not finite (first at "
                                f"sample {int(np.argmax(bad))}); a log must not carry them")
+        if self.reference_imu is not None:
+            self.reference_imu = _checked_reference_imu(self.name, self.reference_imu)
 
     @property
     def sample_rate_hz(self):
         return float(1e9 / np.median(np.diff(self.imu_ns)))
+
+
+def _checked_reference_imu(name, ref):
+    """The reference IMU dict with ns int64, w and f (N, 3) float, its stamps increasing and
+    its values finite - else a RecordingError naming it."""
+    ref = dict(ref)
+    ref["ns"] = np.asarray(ref["ns"], dtype=np.int64)
+    n = len(ref["ns"])
+    for key in ("w", "f"):
+        ref[key] = np.asarray(ref[key], dtype=float)
+        if ref[key].shape != (n, 3):
+            raise RecordingError(f"{name}: reference IMU {key} has shape {ref[key].shape}, "
+                                 f"expected ({n}, 3)")
+    if n < 2 or np.any(np.diff(ref["ns"]) <= 0):
+        raise RecordingError(f"{name}: the reference IMU's stamps do not increase (or fewer "
+                             "than two samples)")
+    bad = ~np.isfinite(np.hstack([ref["w"], ref["f"]])).all(axis=1)
+    if bad.any():
+        raise RecordingError(f"{name}: {bad.sum()} reference IMU samples are not finite (first "
+                             f"at sample {int(np.argmax(bad))})")
+    return ref
 
 
 # counters that loggers stamp with, and the jump back their wrap makes (ns)
@@ -136,6 +163,8 @@ def check_recording(rec):
     not pointing up (axes, mounting or quaternion convention wrong), or the gyro's rates a
     factor of ten or more from the attitude's own rate (deg/s read as rad/s)."""
     _check_overlap(rec)
+    if rec.reference_imu is not None:
+        _check_reference_imu(rec)
     g = float(np.median(np.linalg.norm(rec.f, axis=1)))
     if not 0.5 * G0 < g < 2 * G0:
         raise RecordingError(f"{rec.name}: the median |specific force| is {g:.3g} m/s^2; a "
@@ -163,6 +192,37 @@ def check_recording(rec):
         raise RecordingError(f"{rec.name}: the gyro's rates reach {imu_rate:.3g}, the reference "
                              f"attitude turns at up to {ref_rate:.3g} rad/s: is the gyro's unit "
                              "(deg/s or rad/s) right?")
+
+
+def _check_reference_imu(rec):
+    """The reference IMU must feel 1 g, overlap the IMU in time over at least half the IMU's
+    span, and - where the vehicle turns - see the same size of rotation in its 1 s means
+    (|w| does not depend on the mounting): a ratio beyond 0.5-2 is a unit (deg/s read as
+    rad/s: 57) or the wrong topic."""
+    ref = rec.reference_imu
+    g = float(np.median(np.linalg.norm(ref["f"], axis=1)))
+    if not 0.5 * G0 < g < 2 * G0:
+        raise RecordingError(f"{rec.name}: the reference IMU's median |specific force| is "
+                             f"{g:.3g} m/s^2, not about 9.8: is its accelerometer's unit right?")
+    lo, hi = max(rec.imu_ns[0], ref["ns"][0]), min(rec.imu_ns[-1], ref["ns"][-1])
+    if hi - lo < 0.5 * (rec.imu_ns[-1] - rec.imu_ns[0]):
+        raise RecordingError(f"{rec.name}: the reference IMU ({_utc(ref['ns'][0])} .. "
+                             f"{_utc(ref['ns'][-1])}) covers less than half of the IMU's span "
+                             f"({_utc(rec.imu_ns[0])} .. {_utc(rec.imu_ns[-1])}): do the two "
+                             "share a time base?")
+    mids = np.arange(lo + 500_000_000, hi - 500_000_000, 1_000_000_000) / 1e9
+    if len(mids) < 10:
+        return
+    means = [np.linalg.norm(alignment.means_around(ns / 1e9, w, mids, 0.5), axis=1)
+             for ns, w in ((rec.imu_ns, rec.w), (ref["ns"], ref["w"]))]
+    ok = np.isfinite(means[0]) & np.isfinite(means[1])
+    if ok.sum() >= 10 and np.std(means[1][ok]) > COURSE_CHECK_RATE:
+        ratio = float(np.std(means[0][ok]) / np.std(means[1][ok]))
+        if not 0.5 < ratio < 2.0:
+            raise RecordingError(f"{rec.name}: the IMU's rotation rate varies {ratio:.3g} times "
+                                 "as much as the reference IMU's (1 s means of |w|): is one "
+                                 "gyro's unit (deg/s or rad/s) wrong, or the topic another "
+                                 "vehicle's?")
 
 
 def _utc(ns):
@@ -333,6 +393,16 @@ def write_log(rec, path, force=False):
                                    "observed_max": {"gyro_rad_s": float(np.abs(rec.w).max()),
                                                     "accel_m_s2": float(np.abs(rec.f).max())}})
         channels = [("/mimu/imu", S.IMU, "mimu", rec.imu_ns, S.imu_fields(rec.w, rec.f))]
+        if rec.reference_imu is not None:
+            ref_imu = rec.reference_imu
+            fog = {"model": ref_imu.get("model", "unknown"),
+                   "sample_rate_hz": f"{1e9 / np.median(np.diff(ref_imu['ns'])):.6g}",
+                   "mounting": ref_imu["mounting"].as_dict()}
+            if ref_imu.get("accuracy"):
+                fog["accuracy"] = ref_imu["accuracy"]
+            log.metadata("sensor/fog", fog)
+            channels.append(("/fog/imu", S.IMU, "fog", ref_imu["ns"],
+                             S.imu_fields(ref_imu["w"], ref_imu["f"])))
         if ref is not None:
             q = ref.get("q_nb")
             known = q is not None and np.isfinite(q).all(axis=1).any()

@@ -96,37 +96,20 @@ def _messages(path, topic):
 
 
 def read(path, imu_topic=None, fix_topic=None, mounting=None, reference_status=None,
-         reference_sigma_m=np.inf, pose_topic=None, origin=None):
+         reference_sigma_m=np.inf, pose_topic=None, origin=None, reference_imu_topic=None,
+         reference_imu_mounting=None):
     """The recording of a ROS 2 MCAP as a `Recording`. With `reference_status` (the lowest
     NavSatStatus that counts: 2 = GBAS_FIX, RTK-grade) the fixes of at least that status
     whose horizontal sigma (from position_covariance, when known) is at most
     reference_sigma_m serve as the reference trajectory too, velocity from central
     differences of their positions. With `pose_topic` (Odometry or PoseStamped) and
     `origin` (lat deg, lon deg, h m of the pose frame's origin) the poses are the reference
-    instead (`_pose_reference`)."""
+    instead (`_pose_reference`). With `reference_imu_topic` a second Imu topic (a better IMU
+    flown with it; `reference_imu_mounting`, default REP-103 FLU) is the reference IMU."""
     available = topics(path)
     imu_topic = _pick(path, available, IMU, imu_topic, required=True)
     fix_topic = _pick(path, available, NAV_SAT_FIX, fix_topic, required=False)
-    rows = [(ns, m.angular_velocity.x, m.angular_velocity.y, m.angular_velocity.z,
-             m.linear_acceleration.x, m.linear_acceleration.y, m.linear_acceleration.z,
-             m.angular_velocity_covariance[0], m.linear_acceleration_covariance[0])
-            for ns, m in _messages(path, imu_topic)]
-    if len(rows) < 2:
-        raise RecordingError(f"{path}: {imu_topic} has {len(rows)} messages")
-    a = np.asarray(rows, dtype=object)
-    # REP-145 / sensor_msgs: covariance[0] = -1 says the quantity is not measured
-    for column, name in ((7, "angular_velocity"), (8, "linear_acceleration")):
-        absent = a[:, column].astype(float) == -1
-        if absent.mean() > 0.5:
-            raise RecordingError(f"{path}: {imu_topic}'s {name}_covariance[0] = -1 in "
-                                 f"{int(absent.sum())} of {len(a)} messages: the recorder says "
-                                 f"it has no {name}; an inertial analysis needs both the gyro "
-                                 "and the accelerometer")
-    a = a[:, :7]
-    ns = a[:, 0].astype(np.int64)
-    order = np.argsort(ns, kind="stable")
-    ns, data = ns[order], a[order, 1:].astype(float)
-    keep = np.concatenate([[True], np.diff(ns) > 0])
+    ns, w, f, dropped = _imu(path, imu_topic)
     fixes = None
     if fix_topic:
         fx = [(ns_f, m.status.status, np.radians(m.latitude), np.radians(m.longitude), m.altitude,
@@ -151,7 +134,7 @@ def read(path, imu_topic=None, fix_topic=None, mounting=None, reference_status=N
         reference, reference_meta = _fix_reference(fixes, reference_status, reference_sigma_m,
                                                    fix_topic)
     name = os.path.splitext(os.path.basename(path))[0]
-    real = {"imu": f"{imu_topic} ({len(rows)} messages; {int((~keep).sum())} repeated stamps "
+    real = {"imu": f"{imu_topic} ({len(ns) + dropped} messages; {dropped} repeated stamps "
                    "dropped)", "source": os.path.basename(path)}
     if fixes is not None:
         real["gnss"] = (f"{fix_topic} ({len(fixes['ns'])} fixes with status >= 0; "
@@ -161,12 +144,49 @@ def read(path, imu_topic=None, fix_topic=None, mounting=None, reference_status=N
                "calibration": "none: the Imu messages are used as recorded"}
     if reference is not None:
         real["reference"] = f"{len(reference['ns'])} epochs: {reference_meta['source']}"
-    rate = 1e9 / np.median(np.diff(ns[keep]))
+    second = None
+    if reference_imu_topic is not None:
+        topic = _pick(path, available, IMU, reference_imu_topic, required=True)
+        if topic == imu_topic:
+            raise RecordingError(f"{path}: the reference IMU's topic is the IMU's own ({topic})")
+        r_ns, r_w, r_f, r_dropped = _imu(path, topic)
+        second = dict(ns=r_ns, w=r_w, f=r_f, mounting=reference_imu_mounting or FLU_TO_FRD,
+                      model=f"reference IMU of {topic}")
+        real["reference_imu"] = (f"{topic} ({len(r_ns) + r_dropped} messages; {r_dropped} "
+                                 "repeated stamps dropped)")
+        assumed["reference_imu_mounting"] = ("REP-103 body axes -> FRD" if
+                                             reference_imu_mounting is None else
+                                             "given on the command line")
+    rate = 1e9 / np.median(np.diff(ns))
     return Recording(name, f"ROS 2 recording {os.path.basename(path)}: {imu_topic} {rate:.0f} Hz, "
-                     f"{(ns[keep][-1] - ns[keep][0]) / 1e9:.1f} s", ns[keep],
-                     data[keep, :3], data[keep, 3:], mounting or FLU_TO_FRD, fixes=fixes,
-                     reference=reference, reference_meta=reference_meta,
-                     real=real, assumed=assumed)
+                     f"{(ns[-1] - ns[0]) / 1e9:.1f} s", ns, w, f, mounting or FLU_TO_FRD,
+                     fixes=fixes, reference=reference, reference_meta=reference_meta,
+                     real=real, assumed=assumed, reference_imu=second)
+
+
+def _imu(path, topic):
+    """(stamps ns, w rad/s, f m/s^2 (N, 3) in the message frame, repeated stamps dropped) of
+    an Imu topic, sorted by stamp; a topic whose covariance[0] = -1 (REP-145: not measured)
+    says it lacks a gyro or an accelerometer is refused."""
+    rows = [(ns, m.angular_velocity.x, m.angular_velocity.y, m.angular_velocity.z,
+             m.linear_acceleration.x, m.linear_acceleration.y, m.linear_acceleration.z,
+             m.angular_velocity_covariance[0], m.linear_acceleration_covariance[0])
+            for ns, m in _messages(path, topic)]
+    if len(rows) < 2:
+        raise RecordingError(f"{path}: {topic} has {len(rows)} messages")
+    a = np.asarray(rows, dtype=object)
+    for column, name in ((7, "angular_velocity"), (8, "linear_acceleration")):
+        absent = a[:, column].astype(float) == -1
+        if absent.mean() > 0.5:
+            raise RecordingError(f"{path}: {topic}'s {name}_covariance[0] = -1 in "
+                                 f"{int(absent.sum())} of {len(a)} messages: the recorder says "
+                                 f"it has no {name}; an inertial analysis needs both the gyro "
+                                 "and the accelerometer")
+    ns = a[:, 0].astype(np.int64)
+    order = np.argsort(ns, kind="stable")
+    ns, data = ns[order], a[order, 1:7].astype(float)
+    keep = np.concatenate([[True], np.diff(ns) > 0])
+    return ns[keep], data[keep, :3], data[keep, 3:], int((~keep).sum())
 
 
 def _fix_reference(fixes, status, sigma_m, topic):

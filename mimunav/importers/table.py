@@ -25,6 +25,11 @@ clock: it is interpolated linearly onto the specific force's stamps, and the met
               gps_week_tow       {file, time}: rows of (GPS week, time of week s) stamped in
                                  device time; the offset is their median difference, the GPS -
                                  UTC leap seconds of that date removed
+    [reference_imu] (optional)   a better IMU flown with it, the reference IMU (/fog/imu: the
+              diagnosis' sensor level): time, angular_rate, specific_force, axes or
+              mounting_rpy_deg as [imu]; model text; accuracy = {gyro_scale = 1e-4, ...}
+              (1-sigma, keys of `diagnosis.reference.Accuracy`: gyro_scale, accel_scale,
+              gyro_misalignment_rad, accel_misalignment_rad; default: seed Table 4's FOG-IMU)
     [reference] (optional)
               time               device time of the epochs
               latitude, longitude  deg | rad;  height  m (ellipsoidal)   or  position_ecef m
@@ -206,15 +211,16 @@ def unix_offset_s(spec):
     raise RecordingError(f"{spec.path}: [time] needs unix_offset_s or gps_week_tow")
 
 
-def _mounting(spec):
-    imu = spec.section("imu")
+def _mounting(spec, section="imu"):
+    imu = spec.section(section)
     lever = imu.get("lever_arm_m", (0.0, 0.0, 0.0))
     if "mounting_rpy_deg" in imu:
         return Mounting.from_rpy_deg(imu["mounting_rpy_deg"], lever), \
             f"roll/pitch/yaw {imu['mounting_rpy_deg']} deg (spec)"
     if "axes" in imu:
         return Mounting.from_axes(imu["axes"], lever), f"sensor axes {imu['axes']} (spec)"
-    raise RecordingError(f"{spec.path}: [imu] needs axes (e.g. \"FRD\") or mounting_rpy_deg")
+    raise RecordingError(f"{spec.path}: [{section}] needs axes (e.g. \"FRD\") or "
+                         "mounting_rpy_deg")
 
 
 def _reference(spec, offset):
@@ -272,35 +278,46 @@ def _attitude_ned(spec, wxyz, lat, lon):
     return quaternion.as_float_array(q_nb)
 
 
+def _imu(spec, section):
+    """(device time s, w rad/s, f m/s^2) of an IMU section ([imu] or [reference_imu]): the
+    angular rate on its own clock interpolated onto the specific force's stamps."""
+    path = spec.path
+    t_f = spec.time_of(section, "specific_force")
+    f = spec.column(section, "specific_force")
+    t_w = spec.time_of(section, "angular_rate")
+    w = spec.column(section, "angular_rate")
+    for name, t, x in (("specific_force", t_f, f), ("angular_rate", t_w, w)):
+        if len(t) != len(x):
+            raise RecordingError(f"{path}: [{section}] {name} has {len(x)} rows, its time "
+                                 f"{len(t)}")
+    if len(t_w) == len(t_f) and np.array_equal(t_w, t_f, equal_nan=True):     # one clock
+        t_f, f, w = spec.finite_rows(f"[{section}]", t_f, f, w)
+        t_w = t_f
+    else:
+        t_f, f = spec.finite_rows(f"[{section}] specific_force", t_f, f)
+        t_w, w = spec.finite_rows(f"[{section}] angular_rate", t_w, w)
+    if len(t_w) != len(t_f) or np.any(t_w != t_f):
+        if np.any(np.diff(t_w) <= 0):
+            raise RecordingError(f"{path}: [{section}] angular_rate times do not increase")
+        inside = (t_f >= t_w[0]) & (t_f <= t_w[-1])
+        if inside.sum() < 2:
+            raise RecordingError(f"{path}: the angular rate's times ({t_w[0]:.6g} .. "
+                                 f"{t_w[-1]:.6g} s) and the specific force's ({t_f[0]:.6g} .. "
+                                 f"{t_f[-1]:.6g} s) of [{section}] do not overlap: are both "
+                                 "time units right?")
+        t_f, f = t_f[inside], f[inside]
+        w = np.column_stack([np.interp(t_f, t_w, w[:, i]) for i in range(3)])
+        spec.notes[f"{section}_time"] = ("angular rate interpolated linearly onto the specific "
+                                         "force's stamps")
+    return t_f, w, f
+
+
 def read(path, mounting=None):
     """The recording a table spec describes, as a `Recording`."""
     spec = Spec(path)
     offset = unix_offset_s(spec)
-    t_f = spec.time_of("imu", "specific_force")
-    f = spec.column("imu", "specific_force")
-    t_w = spec.time_of("imu", "angular_rate")
-    w = spec.column("imu", "angular_rate")
-    for name, t, x in (("specific_force", t_f, f), ("angular_rate", t_w, w)):
-        if len(t) != len(x):
-            raise RecordingError(f"{path}: [imu] {name} has {len(x)} rows, its time {len(t)}")
-    if len(t_w) == len(t_f) and np.array_equal(t_w, t_f, equal_nan=True):     # one clock
-        t_f, f, w = spec.finite_rows("[imu]", t_f, f, w)
-        t_w = t_f
-    else:
-        t_f, f = spec.finite_rows("[imu] specific_force", t_f, f)
-        t_w, w = spec.finite_rows("[imu] angular_rate", t_w, w)
+    t_f, w, f = _imu(spec, "imu")
     notes = spec.notes
-    if len(t_w) != len(t_f) or np.any(t_w != t_f):
-        if np.any(np.diff(t_w) <= 0):
-            raise RecordingError(f"{path}: angular_rate times do not increase")
-        inside = (t_f >= t_w[0]) & (t_f <= t_w[-1])
-        if inside.sum() < 2:
-            raise RecordingError(f"{path}: the angular rate's times ({t_w[0]:.6g} .. {t_w[-1]:.6g} "
-                                 f"s) and the specific force's ({t_f[0]:.6g} .. {t_f[-1]:.6g} s) "
-                                 "do not overlap: are both time units right?")
-        t_f, f = t_f[inside], f[inside]
-        w = np.column_stack([np.interp(t_f, t_w, w[:, i]) for i in range(3)])
-        notes["imu_time"] = "angular rate interpolated linearly onto the specific force's stamps"
     given = mounting is not None
     spec_mounting, how = _mounting(spec)
     mounting = mounting or spec_mounting
@@ -317,7 +334,18 @@ def read(path, mounting=None):
     assumed = {"mounting": "given on the command line" if given else how,
                "time": spec.section("time").get("note", "as the spec's [time] says"),
                "calibration": "none: the outputs are used as recorded"}
+    second = None
+    if spec.section("reference_imu"):
+        t_r, w_r, f_r = _imu(spec, "reference_imu")
+        ref_mounting, ref_how = _mounting(spec, "reference_imu")
+        section = spec.section("reference_imu")
+        second = dict(ns=np.round((t_r + offset) * 1e9).astype(np.int64), w=w_r, f=f_r,
+                      mounting=ref_mounting, model=section.get("model", "unknown"),
+                      accuracy=section.get("accuracy"))
+        real["reference_imu"] = (f"{len(t_r)} samples at {1.0 / np.median(np.diff(t_r)):.4g} "
+                                 f"Hz ({section.get('model', 'model not stated')})")
+        assumed["reference_imu_mounting"] = ref_how
     return Recording(name, spec.doc.get("description", f"table import of {spec.path}"),
                      np.round((t_f + offset) * 1e9).astype(np.int64), w, f, mounting,
                      model=spec.doc.get("model", "unknown"), reference=reference,
-                     reference_meta=meta, real=real, assumed=assumed)
+                     reference_meta=meta, real=real, assumed=assumed, reference_imu=second)
