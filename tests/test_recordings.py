@@ -438,6 +438,17 @@ def test_rtklib_bad_inputs_are_named(tmp_path):
         rtklib.read_pos(tmp_path / "a.pos")
     with pytest.raises(RecordingError, match="not finite"):
         Recording("x", "", [1, 2], [[0, 0, 0], [np.nan, 0, 0]], np.zeros((2, 3)), Mounting())
+    # binary bytes where text belongs (a damaged or wrong file): named, no traceback
+    (tmp_path / "b.pos").write_bytes(b"\x89MCAP0\r\n" + bytes(range(256)))
+    with pytest.raises(RecordingError, match="b.pos: not a text file"):
+        rtklib.read_pos(tmp_path / "b.pos")
+    from mimunav.importers import table
+    (tmp_path / "b.toml").write_bytes(b"\x89\xff\xfe")
+    with pytest.raises(RecordingError, match="b.toml: not a text file"):
+        table.read(tmp_path / "b.toml")
+    # a headerless CSV whose first row has a missing reading is data, not a header
+    (tmp_path / "n.csv").write_text("0.0,nan,2\n0.1,3,4\n")
+    assert table._load(str(tmp_path / "n.csv"), None, {}).shape == (2, 3)
 
 
 def test_ros2_import_by_topic(tmp_path):

@@ -532,12 +532,25 @@ class Fitter:
             a[np.ix_(slots, slots)] += g[np.ix_(cols, cols)] / r
             h[slots] += g[cols, 0] / r
         a[:18, :18] += self.precision * (PIN if pinned else 1.0)
-        try:
-            cov = np.linalg.inv(a)
-        except np.linalg.LinAlgError:
-            cov = np.linalg.pinv(a)
+        cov = _covariance(a)
         beta = cov @ h
         return Fit(beta, cov, [slice(o, o + kj) for o, kj in zip(offsets, k)], list(terms))
+
+
+def _covariance(a):
+    """The inverse of the normal matrix `a`: a near-singular one (terms that the flight
+    cannot tell apart, a channel recording twice its input) is inverted over its eigenvalues
+    floored at 1e-15 of the largest, so the unresolved directions get a huge variance - a
+    wide interval - instead of a negative one from round-off (whose square root was NaN)."""
+    try:
+        cov = np.linalg.inv(a)
+        if np.all(np.diag(cov) > 0):
+            return cov
+    except np.linalg.LinAlgError:
+        pass
+    lam, vec = np.linalg.eigh(0.5 * (a + a.T))
+    lam = np.maximum(lam, 1e-15 * max(float(lam.max()), 1e-300))
+    return (vec / lam) @ vec.T
 
 
 @dataclass

@@ -84,6 +84,15 @@ def missing_samples(t, smoothing=0.02):
             continue
         rel = (t[a:b + 1] - int(t[a])).astype(float)
         gaps = _empty_slots(rel, period, smoothing)
+        # the period again as the span over its slots, until the slots hold: the median of
+        # 100-step means takes lost samples into the period (2 % lost: 10.2 ms for 10, and
+        # half of them missed); the span's steps cancel each other's jitter
+        for _ in range(5):
+            slots = len(rel) - 1 + int(gaps.sum())
+            again = _empty_slots(rel, rel[-1] / slots, smoothing)
+            if np.array_equal(again, gaps):
+                break
+            gaps = again
         out += [(int(a + k), int(gaps[k])) for k in np.flatnonzero(gaps)]
     return out
 

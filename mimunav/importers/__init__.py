@@ -14,6 +14,7 @@ rad as the contract's conventions say - not ROS's degrees - and position_covaria
 an `initial_state` from `alignment.initial_alignment`, `sensor/mimu`, and `recording` (what is
 real, what was assumed).
 """
+import contextlib
 import json
 import math
 from dataclasses import dataclass, field
@@ -99,6 +100,18 @@ class Recording:
     @property
     def sample_rate_hz(self):
         return float(1e9 / np.median(np.diff(self.imu_ns)))
+
+
+@contextlib.contextmanager
+def text_file(path):
+    """Turn a UnicodeDecodeError while reading `path` as text into a RecordingError naming
+    the file (a binary or damaged file where a text one belongs)."""
+    try:
+        yield
+    except UnicodeDecodeError as exc:
+        raise RecordingError(f"{path}: not a text file (byte {exc.object[exc.start]:#04x} at "
+                             f"offset {exc.start} is not UTF-8): is it the right file, or "
+                             "damaged?") from None
 
 
 def _checked_reference_imu(name, ref):
@@ -314,7 +327,9 @@ def _check_against_course(rec):
                 f"{rec.name}: the accelerometers' horizontal specific force matches the GNSS "
                 f"track's acceleration turned {math.degrees(yaw):+.0f} deg in yaw (coherence "
                 f"{coherence:.2f}): the sensor axes or the mounting's yaw are off by that much; "
-                f"the mounting turned back would be --mounting-rpy-deg {_turned_back(rec, yaw)}")
+                f"the mounting turned back would be --mounting-rpy-deg {_turned_back(rec, yaw)}"
+                + (" - unless the vehicle drives in reverse most of the time (then import a "
+                   "forward stretch)" if abs(yaw) > math.radians(135.0) else ""))
 
 
 def _turned_back(rec, yaw):

@@ -29,7 +29,7 @@ import struct
 import numpy as np
 
 from ..sensors import Mounting
-from . import (GPS_EPOCH_UNIX_S, RecordingError, Recording, gps_to_unix_s,
+from . import (GPS_EPOCH_UNIX_S, RecordingError, Recording, gps_to_unix_s, text_file,
                 velocity_from_positions)
 
 G_UNIT = 9.80665            # m/s^2 per g: the standard gravity an accelerometer's g means
@@ -44,7 +44,7 @@ NOMINAL_RPY_DEG = (180.0, 0.0, 180.0)
 def read_imu_csv(path):
     """(ticks ms (N,) int64, f m/s^2 (N, 3), w rad/s (N, 3), dropped line numbers)."""
     rows, dropped = [], []
-    with open(path) as fh:
+    with open(path) as fh, text_file(path):
         for number, line in enumerate(fh, 1):
             parts = line.strip().split(",")
             try:
@@ -100,7 +100,7 @@ def read_pos(path):
       an ENU baseline (relative to an unstated base) is refused."""
     system, layout = "GPST", "deg"
     rows = []
-    with open(path) as fh:
+    with open(path) as fh, text_file(path):
         for number, line in enumerate(fh, 1):
             if line.startswith("%"):
                 head = line[1:].split()
@@ -195,7 +195,14 @@ def read_drive(folder, mounting=None, name=None, solutions=(1,)):
     ticks, f, w, dropped = read_imu_csv(csv)
     start, tag_ticks, _ = read_time_tags(tag)
     ns = imu_stamps_ns(ticks, start, tag_ticks)
-    keep = np.concatenate([[True], np.diff(ns) > 0])       # repeated ticks: keep the first
+    # a repeated tick (or one behind a sample already kept): keep the first
+    keep = np.concatenate([[True], ns[1:] > np.maximum.accumulate(ns)[:-1]])
+    if (~keep).mean() > 0.01:
+        k = int(np.argmax(~keep))
+        raise RecordingError(f"{csv}: {int((~keep).sum())} of {len(ns)} IMU ticks repeat or go "
+                             f"back (first at complete line {k + 1}: {ticks[k - 1]} then "
+                             f"{ticks[k]} ms): the tick is not the sampling clock (jittered "
+                             "or reordered); the samples cannot be placed in time")
     sol = read_pos(pos)
     chosen = np.isin(sol["quality"], solutions)
     counts = ", ".join(f"{SOLUTION_NAMES.get(q, q)} {int((sol['quality'] == q).sum())}"
@@ -221,9 +228,12 @@ def read_drive(folder, mounting=None, name=None, solutions=(1,)):
     mounting = mounting or Mounting.from_rpy_deg(NOMINAL_RPY_DEG)
     rate = 1e9 / np.median(np.diff(ns[keep]))
     span = (ns[keep][-1] - ns[keep][0]) / 1e9
+    back = int((~keep).sum())
     real = {"imu": f"{os.path.basename(csv)}: {len(ticks)} complete lines "
-                   f"({len(dropped)} partial dropped: lines {dropped[:5]}); g -> m/s^2 by "
-                   f"{G_UNIT}, deg/s -> rad/s; no temperature channel",
+                   f"({len(dropped)} partial dropped: lines {dropped[:5]}"
+                   + (f"; {back} whose tick repeats or goes back dropped, first at line "
+                      f"{int(np.argmax(~keep)) + 1} of the complete ones" if back else "")
+                   + f"); g -> m/s^2 by {G_UNIT}, deg/s -> rad/s; no temperature channel",
             "imu_time": f"first and last IMU ticks mapped onto the first and last RTKLIB time "
                         f"tags (arrival times) of {os.path.basename(tag)}, GPST - "
                         f"{GPS_UTC_LEAP_S} s = UTC; the stream's latency is not removed",

@@ -47,7 +47,7 @@ import quaternion
 
 from .. import earth
 from ..sensors import Mounting
-from . import RecordingError, Recording, gps_to_unix_s, velocity_from_positions
+from . import RecordingError, Recording, gps_to_unix_s, text_file, velocity_from_positions
 
 G_UNIT = 9.80665
 UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9, "rad/s": 1.0,
@@ -67,7 +67,7 @@ class Spec:
     def __init__(self, path):
         self.path = os.path.abspath(path)
         try:
-            with open(path, "rb") as fh:
+            with open(path, "rb") as fh, text_file(path):
                 self.doc = tomllib.load(fh)
         except tomllib.TOMLDecodeError as exc:
             raise RecordingError(f"{path}: not a valid TOML spec ({exc})") from None
@@ -144,9 +144,9 @@ def _load(path, columns, notes=None):
     if not os.path.exists(path):
         raise RecordingError(f"{path}: no such file")
     if path.endswith((".csv", ".txt")):
-        with open(path) as fh:
+        with open(path) as fh, text_file(path):
             first = fh.readline()
-        header = any(c.isalpha() for c in first.replace("e", "").replace("E", ""))
+        header = not all(_number(x) for x in first.strip().split(","))
         data = _read_csv(path, header, notes)
         if header:
             names = list(data.dtype.names)
@@ -171,6 +171,16 @@ def _load(path, columns, notes=None):
             raise RecordingError(f"{path}: columns by name need a CSV header")
         data = data.reshape(len(data), -1)[:, list(columns)]
     return data
+
+
+def _number(text):
+    """Whether a CSV cell reads as a number ('nan', 'inf' and empty do: a first row of data
+    with a missing reading is no header)."""
+    try:
+        float(text or "nan")
+        return True
+    except ValueError:
+        return False
 
 
 def _read_csv(path, header, notes):
