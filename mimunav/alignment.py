@@ -37,6 +37,9 @@ COURSE_SPEED = 3.0          # m/s: horizontal speed from which the GNSS course g
 DIRECTION_SPAN_S = 5.0      # s either side: the track's acceleration that tells reversing
 DIRECTION_ACCEL = 0.1       # m/s^2: horizontal acceleration (std) that can tell it (a gentle
                             # weave: 0.2; IMU noise in 1 s means: ~0.01)
+MOVING_HALF_WINDOW_MAX_S = 5.0  # s: the longest (the gyro's bias turns the increment by
+                                # b x 5 s: 0.1 deg for 0.02 deg/s left after the rest)
+MOVING_ACCEL_ERROR = 0.02       # m/s^2: the interval's acceleration error aimed at (0.1 deg)
 MOVING_HALF_WINDOW_S = 0.25     # s: half the interval of the moving two-vector alignment
 COURSE_SPAN_S = 5.0         # s of fast epochs whose courses give the heading at a rest's end
 STILL_TOLERANCE = 0.5       # m/s: a noisy reference shows rest when its speed's 2-sigma upper
@@ -150,22 +153,24 @@ def initial_alignment(t, w, f, mounting, track=None):
     notes = [f"no rest of {MIN_STATIC_S:g} s starts the recording"]
     q_ref, t_ref = reference_attitude(track, float(t[0]))
     speed = np.hypot(track["v_ned"][:, 0], track["v_ned"][:, 1])
+    half = moving_half_window(track)
     parked = np.zeros(len(track["t"]), bool)      # a noisy fix "fast" while the car stands
     for a, b in quiet:
-        parked |= (track["t"] > a - MOVING_HALF_WINDOW_S) & \
-            (track["t"] < b + MOVING_HALF_WINDOW_S)
-    fast = np.flatnonzero((speed >= COURSE_SPEED) & ~parked
-                          & (track["t"] >= t[0] + MOVING_HALF_WINDOW_S)
-                          & (track["t"] <= t[-1] - MOVING_HALF_WINDOW_S))
+        parked |= (track["t"] > a - half) & (track["t"] < b + half)
+    fast = np.flatnonzero((speed >= COURSE_SPEED) & ~parked & (track["t"] >= t[0] + half)
+                          & (track["t"] <= t[-1] - half))
+    gyro_bias, accel_bias, static, bias_note = _biases_at_a_rest(t, w, f, mounting, track, rests,
+                                                                 quiet)
     if q_ref is not None:
         t0, q_nb = t_ref, q_ref
         notes.append(f"whole state from the reference at t = {t0:.2f} s (its attitude: "
                      f"{track.get('attitude_source', 'the reference')})")
     elif len(fast):
         t0 = float(track["t"][fast[0]])
-        q_nb = moving_attitude(t, f, mounting, track, t0)
-        notes.append(f"moving alignment at t = {t0:.2f} s ({speed[fast[0]]:.1f} m/s): mean "
-                     "specific force matched to the reference's, forward axis to its velocity")
+        q_nb = moving_attitude(t, w - gyro_bias, f - accel_bias, mounting, track, t0, half)
+        notes.append(f"moving alignment at t = {t0:.2f} s ({speed[fast[0]]:.1f} m/s): the "
+                     f"IMU's velocity increment over {2 * half:.1f} s (turned by its gyro) "
+                     "matched to the reference's, forward axis to its velocity")
     else:
         raise InputError(
             "no initial state can be found: the recording does not start with a rest of "
@@ -174,8 +179,6 @@ def initial_alignment(t, w, f, mounting, track=None):
             f"(peak {speed.max():.2f} m/s) for a moving alignment")
     lat, lon, h = (float(np.interp(t0, track["t"], track[k])) for k in ("lat", "lon", "h"))
     v0 = np.array([np.interp(t0, track["t"], track["v_ned"][:, i]) for i in range(3)])
-    gyro_bias, accel_bias, static, bias_note = _biases_at_a_rest(t, w, f, mounting, track, rests,
-                                                                 quiet)
     notes.append(bias_note)
     return Alignment(t0, lat, lon, h, v0, q_nb, gyro_bias, accel_bias, static,
                      "; ".join(notes), at_rest_start=False)
@@ -474,26 +477,64 @@ def means_around(t, x, epochs, half):
         return (c[hi] - c[lo]) / (hi - lo)[:, None]
 
 
-def moving_attitude(t, f, mounting, track, t0, half=MOVING_HALF_WINDOW_S):
-    """q_nb (wxyz) of a moving vehicle at t0 (s): the mean specific force of the IMU over
-    (t0 - half, t0 + half] (f m/s^2 sensor axes at stamps t) matched exactly to the
-    track's (its velocity's difference over the same interval, Coriolis and gravity), the
-    forward axis to the track's velocity direction - against it when the vehicle reverses
-    (`travel_sign`). See the module's docstring."""
-    k = (t > t0 - half) & (t <= t0 + half)
-    if k.sum() < 2:
+def moving_attitude(t, w, f, mounting, track, t0, half=MOVING_HALF_WINDOW_S):
+    """q_nb (wxyz) of a moving vehicle at t0 (s), by velocity matching over (t0 - half,
+    t0 + half]: the IMU's velocity increment over the interval expressed in the body axes
+    at t0 (each sample's specific force f m/s^2 turned by the gyro's rotation w rad/s since
+    t0, sensor axes at stamps t, biases removed), matched exactly to the track's (its
+    velocity's change less gravity and Coriolis over the interval), the forward axis to the
+    track's velocity direction - against it when the vehicle reverses (`travel_sign`). With
+    the rotation followed, the interval may be long enough to average a noisy reference's
+    velocity (`moving_half_window`); a mean specific force over a turning interval had an
+    error second order in the angle turned. See the module's docstring."""
+    k = np.flatnonzero((t > t0 - half) & (t <= t0 + half))
+    if len(k) < 2 or k[0] == 0:
         raise InputError(f"no IMU samples around t = {t0:.2f} s")
-    f_b = attitude.rotate(mounting.q_vs, f[k].mean(axis=0))
+    dt = t[k] - t[k - 1]                               # each sample: the mean over its interval
+    w_b = attitude.rotate(mounting.q_vs, w[k])
+    f_b = attitude.rotate(mounting.q_vs, f[k])
+    steps = quaternion.from_rotation_vector(w_b * dt[:, None])
+    q = np.multiply.accumulate(steps)                  # body at the interval's start -> each
+    i0 = int(np.argmin(np.abs(t[k] - t0)))
+    q_mid = np.conjugate(q[i0]) * q * quaternion.from_rotation_vector(-0.5 * w_b * dt[:, None])
+    dv_b = np.sum(attitude.rotate(q_mid, f_b * dt[:, None]), axis=0)     # body axes at t0
+    t_a, t_b = float(t[k[0] - 1]), float(t[k[-1]])
     v = lambda s: np.array([np.interp(s, track["t"], track["v_ned"][:, i])  # noqa: E731
                             for i in range(3)])
     v0 = v(t0)
     lat, h = float(np.interp(t0, track["t"], track["lat"])), float(np.interp(t0, track["t"],
                                                                                 track["h"]))
-    a_n = (v(t0 + half) - v(t0 - half)) / (2 * half)
     coriolis = np.cross(2 * earth.earth_rate_ned(lat) + earth.transport_rate_ned(lat, h, v0), v0)
-    f_n = a_n + coriolis - earth.gravity_ned(lat, h)
+    dv_n = v(t_b) - v(t_a) + (coriolis - earth.gravity_ned(lat, h)) * (t_b - t_a)
     forward = travel_sign(t, f, mounting, track, t0) * v0 / np.linalg.norm(v0)
-    rot, _ = Rotation.align_vectors([f_n, forward], [f_b, [1.0, 0, 0]],
+    rot, _ = Rotation.align_vectors([dv_n, forward], [dv_b, [1.0, 0, 0]],
                                     weights=[np.inf, 1.0])
     x, y, z, w = rot.as_quat()
     return np.array([w, x, y, z])
+
+
+def moving_half_window(track, accel_error=MOVING_ACCEL_ERROR):
+    """Half the moving alignment's interval (s) for a reference track: long enough that its
+    velocity noise sigma_v (from the second differences of its velocities, robustly:
+    MAD / 0.6745 / sqrt(6)) makes an error of at most `accel_error` (m/s^2, a tilt of
+    accel_error / g) in the interval's mean acceleration, sqrt(2) sigma_v / (2 half), within
+    MOVING_HALF_WINDOW_S .. MOVING_HALF_WINDOW_MAX_S. An RTK track (1-2 cm/s) keeps the
+    shortest; a plain fix's differenced velocity (about 1 m/s) the longest, where its tilt
+    error is still about 1 deg (`moving_tilt_sigma`)."""
+    sigma_v = velocity_noise(track)
+    if sigma_v is None:
+        return MOVING_HALF_WINDOW_S
+    half = math.sqrt(2) * sigma_v / (2 * accel_error)
+    return float(np.clip(half, MOVING_HALF_WINDOW_S, MOVING_HALF_WINDOW_MAX_S))
+
+
+def velocity_noise(track):
+    """The reference velocity's white noise per horizontal axis (m/s), from the second
+    differences of its north and east velocities (MAD / 0.6745 / sqrt(6): a second
+    difference of white noise has 6 times its variance); the vehicle's own motion between
+    epochs adds to it, so it is an upper bound. None for fewer than 5 epochs."""
+    v = np.asarray(track["v_ned"], float)[:, :2]
+    if len(v) < 5:
+        return None
+    d2 = v[2:] - 2 * v[1:-1] + v[:-2]
+    return float(np.median(np.abs(d2 - np.median(d2, axis=0)))) / 0.6745 / math.sqrt(6)

@@ -52,14 +52,13 @@ def track_of(truth):
 
 
 def starts(truth, length, step=START_STEP_S, first=0.0, min_speed=alignment.COURSE_SPEED,
-           max_gap=MAX_GAP_S, t_imu=None, parked=()):
+           max_gap=MAX_GAP_S, t_imu=None, parked=(), half=alignment.MOVING_HALF_WINDOW_S):
     """Window starts (s) on a grid of `step` from `first`: moving faster than min_speed
     (m/s, horizontal), the whole window (and the alignment interval before it) covered
     without a gap longer than max_gap (s) in the reference or in the IMU's stamps t_imu,
-    the alignment interval outside the rests `parked` [(t0, t1) s] (a noisy fix's
-    differenced speed passes the speed gate while the car stands: its course, and so the
-    window's heading, is noise)."""
-    half = alignment.MOVING_HALF_WINDOW_S
+    the alignment interval (t0 +- half s) outside the rests `parked` [(t0, t1) s] (a noisy
+    fix's differenced speed passes the speed gate while the car stands: its course, and so
+    the window's heading, is noise)."""
     end = truth.t[-1] if t_imu is None else min(truth.t[-1], t_imu[-1])    # both must cover it
     grid = np.arange(max(first, truth.t[0] + half), end - length, step)
     speed = np.hypot(truth.v_ned[:, 0], truth.v_ned[:, 1])
@@ -92,10 +91,11 @@ def _no_windows(truth, lengths, first, min_speed, max_gap):
             f"of reference after the rest ({span:.1f} s: --lengths)")
 
 
-def run(flight, t0, length, w, f, t_imu=None):
+def run(flight, t0, length, w, f, t_imu=None, half=alignment.MOVING_HALF_WINDOW_S):
     """One window from reference start t0 (moved to the IMU stamp at or before it) over
     `length` s; w rad/s, f m/s^2 sensor axes at stamps t_imu (default flight.mimu_t), the
-    biases already removed."""
+    biases already removed; `half`: the moving alignment's half interval (s) when the
+    reference has no attitude."""
     t = flight.mimu_t if t_imu is None else t_imu
     truth = flight.truth
     k0 = int(np.searchsorted(t, t0, side="right")) - 1
@@ -103,7 +103,8 @@ def run(flight, t0, length, w, f, t_imu=None):
     start = resample(truth, np.array([t_start]))
     q_nb = quaternion.as_float_array(start.q_nb[0])
     if not np.isfinite(q_nb).all():         # the reference has no attitude: align moving
-        q_nb = alignment.moving_attitude(t, f, flight.mimu_mounting, track_of(truth), t_start)
+        q_nb = alignment.moving_attitude(t, w, f, flight.mimu_mounting, track_of(truth),
+                                         t_start, half)
     initial = dict(t=t_start, lat=float(start.lat[0]), lon=float(start.lon[0]),
                    h=float(start.h[0]), v_ned=start.v_ned[0].copy(), q_nb=q_nb)
     sel = slice(k0, int(np.searchsorted(t, t_start + length, side="right")) + 1)
@@ -136,9 +137,12 @@ def run_all(flight, cal=None, lengths=WINDOW_LENGTHS_S, step=START_STEP_S, time_
         has_attitude = np.isfinite(quaternion.as_float_array(flight.truth.q_nb)).all()
         min_speed = 0.0 if has_attitude else alignment.COURSE_SPEED
     first = rest.navigable_from
-    parked = alignment.quiet_stretches(t, w, f, track_of(flight.truth))
+    track = track_of(flight.truth)
+    parked = alignment.quiet_stretches(t, w, f, track)
+    half = alignment.moving_half_window(track)
     todo = [(length, t0) for length in lengths
-            for t0 in starts(flight.truth, length, step, first, min_speed, max_gap, t, parked)]
+            for t0 in starts(flight.truth, length, step, first, min_speed, max_gap, t, parked,
+                             half)]
     if not todo:
         raise InputError(f"{flight.path}: " + _no_windows(flight.truth, lengths, first,
                                                            min_speed, max_gap))
@@ -146,15 +150,18 @@ def run_all(flight, cal=None, lengths=WINDOW_LENGTHS_S, step=START_STEP_S, time_
         from tqdm import tqdm
         todo = tqdm(todo, desc="windows", unit="window")
     for length, t0 in todo:
-        out.setdefault(length, []).append(run(flight, t0, length, w, f, t))
+        out.setdefault(length, []).append(run(flight, t0, length, w, f, t, half))
     return out, rest
 
 
-def summary(results, span_s, reference_meta=None):
+def summary(results, span_s, reference_meta=None, track=None, half=None):
     """Per length: number of windows, disjoint windows the span holds, and percentiles
     (50, 68, 95, max) of the end-point horizontal and vertical errors (m), the median
     drift rate (horizontal end error / length, m/s), and the part of the end error the
-    reference alone explains (`reference_floor`)."""
+    reference alone explains (`reference_floor`; `track` and `half`: the reference track
+    whose velocity noise stands in for an unstated velocity sigma, and the moving
+    alignment's half interval when the windows were aligned on it)."""
+    sigma_v = None if track is None else alignment.velocity_noise(track)
     rows = {}
     for length, wins in sorted(results.items()):
         hor = np.array([w.horizontal[-1] for w in wins])
@@ -162,18 +169,23 @@ def summary(results, span_s, reference_meta=None):
         rows[length] = {"windows": len(wins), "disjoint": int(span_s // length),
                         "horizontal_m": _percentiles(hor), "vertical_m": _percentiles(up),
                         "median_rate_m_s": float(np.median(hor) / length),
-                        "reference_floor": reference_floor(reference_meta or {}, length)}
+                        "reference_floor": reference_floor(reference_meta or {}, length,
+                                                           sigma_v, half)}
     return rows
 
 
-def reference_floor(meta, length):
+def reference_floor(meta, length, measured_sigma_v=None, half=None):
     """The horizontal end error (m, rms of the 2-D norm) a window of `length` s shows from
     the reference's own errors alone, from its stated sigmas (`reference` metadata:
     position_sigma_m horizontal, velocity_sigma_m_s horizontal): the start position (taken
     from the reference) and the end position it is compared with each carry sigma_p, the
     start velocity sigma_v grows as sigma_v * length; independent, so
-    floor = sqrt(2 sigma_p^2 + (sigma_v length)^2). Unstated sigmas are left out and named;
-    a reference attitude's own error (g sigma_tilt length^2 / 2) is not included: no source
+    floor = sqrt(2 sigma_p^2 + (sigma_v length)^2). An unstated velocity sigma is taken from
+    `measured_sigma_v` (per axis, `alignment.velocity_noise`: 2-D sqrt(2) times it) when
+    given, and said ("estimated"). With `half` (s, a moving alignment on the reference's
+    velocity) its tilt adds sqrt(2) a length^2 / 2, a = sqrt(2) sigma_axis / (2 half) the
+    error of the interval's mean acceleration. Unstated sigmas are left out and named; a
+    reference attitude's own error (g sigma_tilt length^2 / 2) is not included: no source
     states it."""
     def number(key):
         try:
@@ -182,11 +194,17 @@ def reference_floor(meta, length):
             return None
         return value if np.isfinite(value) and value >= 0 else None
     sigma_p, sigma_v = number("position_sigma_m"), number("velocity_sigma_m_s")
+    estimated = []
+    if sigma_v is None and measured_sigma_v is not None:
+        sigma_v = math.sqrt(2) * measured_sigma_v
+        estimated.append("velocity")
     missing = [k for k, v in (("position", sigma_p), ("velocity", sigma_v)) if v is None]
     if sigma_p is None and sigma_v is None:
-        return {"horizontal_m": None, "not_stated": missing}
-    floor = math.sqrt(2 * (sigma_p or 0.0) ** 2 + ((sigma_v or 0.0) * length) ** 2)
-    return {"horizontal_m": floor, "not_stated": missing}
+        return {"horizontal_m": None, "not_stated": missing, "estimated": estimated}
+    terms = 2 * (sigma_p or 0.0) ** 2 + ((sigma_v or 0.0) * length) ** 2
+    if half and sigma_v:
+        terms += (sigma_v / (2 * half) * length ** 2 / 2) ** 2      # sigma_v is 2-D already
+    return {"horizontal_m": math.sqrt(terms), "not_stated": missing, "estimated": estimated}
 
 
 def _percentiles(x):

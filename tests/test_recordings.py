@@ -125,14 +125,17 @@ def test_alignment_recovers_attitude_and_bias_of_a_synthetic_drive(tmp_path):
                                        windows.track_of(flight.truth))
     assert np.allclose(rest.gyro_bias, bias, atol=1e-7)
     assert np.allclose(rest.accel_bias, 0.0, atol=1e-4)
-    for t0 in (40.0, 77.3, 101.0):
-        q = alignment.moving_attitude(flight.mimu_t, f, flight.mimu_mounting,
-                                      windows.track_of(flight.truth), t0)
+    for t0, half in ((40.0, 0.25), (77.3, 0.25), (101.0, 0.25), (77.3, 5.0), (101.0, 5.0)):
+        q = alignment.moving_attitude(flight.mimu_t, w - rest.gyro_bias, f, flight.mimu_mounting,
+                                      windows.track_of(flight.truth), t0, half)
         q_true = motion.kinematics(np.array([t0])).q_nb[0]
         err = attitude.rotation_vector_error(quaternion.from_float_array(q), q_true)
-        # averaging over a turning interval: second order in the angle turned, (w half)^2
-        # = (0.11 rad/s x 0.25 s)^2 = 8e-4 rad at the weave's peak rate
-        assert np.linalg.norm(err) < 0.1 * DEG, (t0, np.degrees(err))
+        # velocity matching with the gyro's rotation followed: the level exact up to the
+        # sampling, also over 10 s of weaving (a mean specific force over the turning
+        # interval had 8e-4 rad at 0.25 s); the heading is the 4 Hz track's interpolated
+        # velocity direction's (0.02 deg)
+        assert np.abs(err[:2]).max() < 0.005 * DEG, (t0, half, np.degrees(err))
+        assert abs(err[2]) < 0.1 * DEG, (t0, half, np.degrees(err))
 
 
 def _cut(track, t0):
@@ -748,7 +751,14 @@ def test_reference_floor_of_a_window_from_the_stated_sigmas():
     assert floor["not_stated"] == []
     only_p = windows.reference_floor({"position_sigma_m": "0.5"}, 60.0)
     assert only_p == {"horizontal_m": pytest.approx(0.5 * math.sqrt(2)),
-                      "not_stated": ["velocity"]}
+                      "not_stated": ["velocity"], "estimated": []}
+    # an unstated velocity sigma from the track's noise (0.3 m/s per axis), said; with a
+    # moving alignment over +-2 s its tilt: sqrt(2) 0.3 / (2 x 2) m/s^2 over 10^2 / 2 s^2
+    est = windows.reference_floor({"position_sigma_m": "0.5"}, 10.0, 0.3, 2.0)
+    sigma_v = math.sqrt(2) * 0.3
+    assert est["estimated"] == ["velocity"] and est["not_stated"] == []
+    assert est["horizontal_m"] == pytest.approx(math.sqrt(
+        2 * 0.25 + (sigma_v * 10) ** 2 + (sigma_v / 4 * 50) ** 2))
     assert windows.reference_floor({"position_sigma_m": "unknown"}, 10.0)["horizontal_m"] is None
 
 
@@ -1221,3 +1231,23 @@ accuracy = {gyro_scale = 5e-5, gyro_misalignment_rad = 2e-5}
                        atol=1e-9)
     assert flight.fog_meta["model"] == "navigation-grade IMU"
     assert flight.fog_meta["accuracy"] == {"gyro_scale": 5e-5, "gyro_misalignment_rad": 2e-5}
+
+
+def test_windows_under_a_noisy_fix_align_over_a_longer_interval(tmp_path):
+    """The weaving drive under a plain 1 Hz fix (1.5 m of position noise, velocity by
+    differences: about 1 m/s of noise): the moving alignment follows the gyro over +-5 s
+    (`moving_half_window`) instead of differencing a noisy velocity over 0.5 s, which had
+    tilted every window by degrees (10 s windows: 69 m p50); now the 10 s windows end
+    within the reference's own floor (its start velocity alone: ~10 m), which the summary
+    estimates from the track and says so."""
+    rec = _under_a_noisy_fix(_track(), np.random.default_rng(7))
+    write_log(rec, tmp_path / "noisy.mcap")
+    flight = Flight.load(tmp_path / "noisy.mcap", reference_imu=False)
+    track = windows.track_of(flight.truth)
+    half = alignment.moving_half_window(track)
+    assert half == alignment.MOVING_HALF_WINDOW_MAX_S
+    results, _ = windows.run_all(flight, lengths=(10.0,), step=5.0)
+    row = windows.summary(results, 100.0, flight.reference_meta, track, half)[10.0]
+    floor = row["reference_floor"]
+    assert floor["estimated"] == ["velocity"] and 5.0 < floor["horizontal_m"] < 30.0
+    assert row["windows"] >= 10 and row["horizontal_m"]["p50"] < floor["horizontal_m"], row

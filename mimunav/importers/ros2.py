@@ -18,6 +18,7 @@ import struct
 
 import numpy as np
 import quaternion
+import zstandard
 from mcap.exceptions import McapError
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
@@ -37,7 +38,8 @@ Q_FLU_FRD = np.quaternion(0.0, 1.0, 0.0, 0.0)
 
 
 # what a damaged or truncated MCAP raises from the mcap package's reader and decoders
-_DAMAGE = (McapError, EOFError, struct.error, ValueError, KeyError, IndexError)
+_DAMAGE = (McapError, EOFError, struct.error, ValueError, KeyError, IndexError,
+           zstandard.ZstdError)
 
 
 def _damaged(path, exc):

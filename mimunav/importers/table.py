@@ -166,6 +166,8 @@ def _load(path, columns, notes=None):
                 raise RecordingError(f"{path}: {len(data.files)} arrays; store one per file")
             data = data[data.files[0]]
     data = np.asarray(data, dtype=float)
+    if data.size == 0:
+        raise RecordingError(f"{path}: no data rows")
     if columns is not None:
         if any(isinstance(c, str) for c in columns):
             raise RecordingError(f"{path}: columns by name need a CSV header")

@@ -4,13 +4,16 @@
   cdf     the distribution of the end-point horizontal error per length and variant."""
 import numpy as np
 
-from .. import windows
+from .. import alignment, windows
 from .plots import figure, save
 
 
 def document(flight, results, rest, cal_label, time_shift_s):
     """JSON-ready: the summary table, the alignment at rest and every window's end error."""
     span = float(flight.truth.t[-1] - rest.navigable_from)
+    track = windows.track_of(flight.truth)
+    moving = not np.isfinite(track["q_nb"]).all()        # windows aligned on its velocity
+    half = alignment.moving_half_window(track) if moving else None
     static = [None if np.isnan(x) else x for x in rest.static]
     return {"format": "mimunav-windows/1", "log": flight.path, "calibration": cal_label,
             "time_shift_s": time_shift_s,
@@ -18,7 +21,8 @@ def document(flight, results, rest, cal_label, time_shift_s):
                      "gyro_bias_rad_s": rest.gyro_bias.tolist(),
                      "accel_bias_m_s2": rest.accel_bias.tolist()},
             "summary": {f"{length:g}": row for length, row in
-                        windows.summary(results, span, flight.reference_meta).items()},
+                        windows.summary(results, span, flight.reference_meta, track,
+                                        half).items()},
             "windows": {f"{length:g}": [{"t0_s": w.t0, "end_ned_m": w.error_ned[-1].tolist()}
                                         for w in wins] for length, wins in results.items()},
             "frames": "errors NED m, window navigated minus reference; t0 s since the epoch"}
@@ -33,9 +37,10 @@ def markdown_table(doc, label=None):
     for length, row in doc["summary"].items():
         h, v = row["horizontal_m"], row["vertical_m"]
         floor = row.get("reference_floor", {})
+        notes = [f"{k} sigma not stated" for k in floor.get("not_stated", [])] + \
+            [f"{k} sigma estimated from the track" for k in floor.get("estimated", [])]
         cell = ("not stated" if floor.get("horizontal_m") is None else
-                f"{floor['horizontal_m']:.3g}" + (f" ({', '.join(floor['not_stated'])} sigma "
-                                                  "not stated)" if floor["not_stated"] else ""))
+                f"{floor['horizontal_m']:.3g}" + (f" ({'; '.join(notes)})" if notes else ""))
         lines.append((f"| {label} " if label else "") +
                      f"| {length} | {row['windows']} ({row['disjoint']}) | {h['p50']:.3g} / "
                      f"{h['p68']:.3g} / {h['p95']:.3g} / {h['max']:.3g} | {v['p50']:.3g} / "
