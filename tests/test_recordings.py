@@ -1251,3 +1251,42 @@ def test_windows_under_a_noisy_fix_align_over_a_longer_interval(tmp_path):
     floor = row["reference_floor"]
     assert floor["estimated"] == ["velocity"] and 5.0 < floor["horizontal_m"] < 30.0
     assert row["windows"] >= 10 and row["horizontal_m"]["p50"] < floor["horizontal_m"], row
+
+
+def test_the_yaw_rate_lag_holds_when_the_imu_changes_rate(tmp_path):
+    """IMU stamps 80 ms late on the synthetic drive (40 ms over 40-60 s), the logger
+    switched from 100 to 50 Hz (20 ms means) at 70 s: the lag's segments are equal shares of
+    the moving time, each sample weighing its interval, so the estimate is the one-rate
+    record's (segments cut by sample count fall elsewhere once the rate changes; on the
+    RTKLIB drive that gave 0.078 s for 0.102)."""
+    from dataclasses import replace
+
+    from mimunav.diagnosis import track
+    path, _, _ = _ideal_flight(tmp_path, MOUNT, lag=0.08)
+    flight = Flight.load(path, reference_imu=False)
+    t = flight.mimu_t
+    stretch = np.flatnonzero((t > 40.0) & (t < 60.0))
+    w, f = (x.copy() for x in flight.mimu_imu)
+    w[stretch], f[stretch] = w[stretch + 4], f[stretch + 4]        # 40 ms less late there
+    uniform = replace(flight, mimu_imu=(w, f))
+    k = int(np.searchsorted(t, 70.0))
+    k += (len(t) - k) % 2                                # whole pairs after the switch
+    pairs = lambda x: 0.5 * (x[k::2] + x[k + 1::2])     # noqa: E731 - 20 ms interval means
+    switched = replace(flight, mimu_t=np.concatenate([t[:k], t[k + 1::2]]),
+                       mimu_imu=tuple(np.vstack([x[:k], pairs(x)]) for x in (w, f)))
+    tau_one, _, _ = track.time_lag(uniform)
+    tau, (lo, hi), _ = track.time_lag(switched)
+    assert abs(tau - tau_one) < 1e-3 and 0.04 < tau < 0.08, (tau, tau_one, lo, hi)
+
+
+def test_a_one_hertz_track_does_not_place_the_lag(tmp_path):
+    """The same 80 ms lag under a 1 Hz track: the yaw-rate lag is reported with why it is
+    not a finding (the track's epochs are 1 s apart), and no time_skew is confirmed on the
+    other channels in its place."""
+    from mimunav.compensation import Calibration
+    from mimunav.diagnosis import document, track
+    path, _, _ = _ideal_flight(tmp_path, MOUNT, lag=0.08, track=_track(rate=1.0))
+    doc = document("slow", track.diagnose(Flight.load(path, reference_imu=False),
+                                          Calibration.identity()))
+    assert "epochs are 1 s apart" in doc["time_lag"]["not_a_finding"]
+    assert not [f for f in doc["findings"] if f["effect"] == "time_skew"]
