@@ -373,6 +373,9 @@ def test_rtklib_excerpt_import_follows_the_contract(tmp_path):
         assert meta["flight"]["source"] == "recording"
         assert meta["reference"]["attitude"] == "unknown"
         assert meta["reference"]["independent"].startswith("yes")
+        # RTKLIB's velocity (a filter state) lags the solution's positions: ~127 ms here
+        # (the helper's independent estimate on the whole drive: 128 ms)
+        assert 0.10 < float(meta["reference"]["velocity_lag_s"]) < 0.15
         # the source's facts, not a constant description: rate and span from the data
         assert meta["flight"]["description"].startswith("MEMS IMU 100 Hz")
         assert meta["recording"]["real"]["source"] == str(DRIVE.resolve())
@@ -1316,3 +1319,15 @@ def test_the_real_excerpts_idling_rest_is_found_under_a_noisy_fix(tmp_path):
         meta = log.metadata()["recording"]
     assert "judged from the IMU and the reference's positions" in meta["assumed"]["initial_state"]
     assert meta["static_s"][0] < 0.5 and meta["static_s"][1] > 25.0, meta["static_s"]
+
+
+def test_a_reference_velocity_late_on_its_positions_is_measured():
+    """The synthetic weave's track with its velocity column delayed by 100 ms (a filter
+    state), and not delayed: velocity_lag_s finds 0.100 and 0.000 s within 5 ms."""
+    from mimunav.importers import velocity_lag_s
+    t, lat, lon, h, v = _track(duration=200.0)
+    ns = np.round(t * 1e9).astype(np.int64)
+    late = np.column_stack([np.interp(t - 0.1, t, v[:, i]) for i in range(3)])
+    for vel, want in ((late, 0.1), (v, 0.0)):
+        got = velocity_lag_s(dict(ns=ns, lat=lat, lon=lon, h=h, v_ned=vel))
+        assert abs(got - want) < 5e-3, (got, want)

@@ -207,6 +207,13 @@ def diagnose(flight, cal, alpha=0.05, reference=None, accuracy=None):
                          "channel": "gyro.z (the vehicle's yaw rate, the model's best channel)",
                          "sign": "positive: the IMU's samples describe motion tau s earlier "
                                  "than their stamps (it lags), as time_skew"}
+        late = _velocity_lag(flight)
+        if late is not None and abs(late) >= VELOCITY_LAG_NOTE_S:
+            diag.time_lag["reference_velocity_lag_s"] = late
+            diag.time_lag["relative_to"] = (
+                f"the reference's velocity, which lags its own positions by {late * 1e3:.0f} "
+                f"ms (reference metadata velocity_lag_s, a filtered velocity): against the "
+                f"positions the IMU lags by about {(tau + late) * 1e3:.0f} ms")
         demoted += lag_finding(diag, flight, cal, segments, alpha)
     else:
         diag.time_lag = {"not_estimated": f"the yaw rate is not predicted (1 s correlation "
@@ -307,6 +314,7 @@ def _window_ends(flight, cal, findings):
 
 
 LAG_SEARCH_S = 0.5
+VELOCITY_LAG_NOTE_S = 0.02      # s: a reference velocity this late is named beside the lag
 LAG_REFERENCE_STEP_S = 0.5      # s: a track with sparser epochs cannot place the lag (its
                                 # bandwidth shifts the yaw rate's phase by tens of ms)
 LAG_STEP_S = 0.005
@@ -364,6 +372,15 @@ def lag_finding(diag, flight, cal, segments, alpha):
             r["rejected"] += ("; the lag itself is found from the yaw rate, the channel the "
                               "vehicle model predicts best (time_skew imu.all above)")
     return []
+
+
+def _velocity_lag(flight):
+    """The reference's velocity lag behind its positions (s) from the log's `reference`
+    metadata (written at import, `importers.velocity_lag_s`), or None."""
+    try:
+        return float((flight.reference_meta or {})["velocity_lag_s"])
+    except (KeyError, TypeError, ValueError):
+        return None
 
 
 def _no_lag(diag, why):

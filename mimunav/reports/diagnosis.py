@@ -87,6 +87,10 @@ def markdown(doc, diag, cal_label):
                    f"from {len(lag['segments_s'])} segments; positive: the IMU lags)")
                   if "tau_s" in lag else f"Time lag not estimated: {lag.get('not_estimated')}",
                   ""]
+        if "relative_to" in lag:
+            lines += [f"The lag is relative to {lag['relative_to']}.", ""]
+        if "not_a_finding" in lag:
+            lines += [f"The lag is not a finding: {lag['not_a_finding']}.", ""]
     if doc["findings"]:
         lines += ["## Found terms (coefficient and 95 % interval from the held-out segments)", "",
                   "| term | coefficient | 95 % interval | units | p train / Holm limit | "
