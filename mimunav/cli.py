@@ -435,7 +435,11 @@ def _import(args):
         from .importers import ulog
         rec = ulog.read(args.source, mounting=mounting)
     align = importers.write_log(rec, args.output, force=args.force)
-    print(f"wrote {args.output}: {len(rec.imu_ns)} IMU samples at {rec.sample_rate_hz:.1f} Hz"
+    from .flightlog.inspect import rate_segments
+    runs = rate_segments(rec.imu_ns - rec.imu_ns[0])
+    rates = " then ".join(f"{1e9 / p:.1f}" for _, _, p in runs) if len(runs) > 1 else \
+        f"{rec.sample_rate_hz:.1f}"
+    print(f"wrote {args.output}: {len(rec.imu_ns)} IMU samples at {rates} Hz"
           + (f", {len(rec.reference['ns'])} reference epochs" if rec.reference else "")
           + (f", {len(rec.fixes['ns'])} GNSS fixes" if rec.fixes else ""))
     print(f"initial state at t = {align.t:.3f} s: {align.method}")

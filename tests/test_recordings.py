@@ -452,6 +452,17 @@ def test_rtklib_bad_inputs_are_named(tmp_path):
     (tmp_path / "b.toml").write_bytes(b"\x89\xff\xfe")
     with pytest.raises(RecordingError, match="b.toml: not a text file"):
         table.read(tmp_path / "b.toml")
+    # a reference without its height is named (a KeyError before)
+    (tmp_path / "a.csv").write_text("1\n2\n")
+    (tmp_path / "h.toml").write_text('[imu]\ntime = "a.csv"\n[time]\nunix_offset_s = 0\n'
+                                     '[reference]\ntime = "a.csv"\nlatitude = "a.csv"\n')
+    with pytest.raises(RecordingError, match="has no longitude, height"):
+        table._reference(table.Spec(tmp_path / "h.toml"), 0.0)
+    # ns read as s: named, not an int64 overflow
+    (tmp_path / "big.csv").write_text("1.7e18\n1.7000000001e18\n")
+    with pytest.raises(RecordingError, match="outside 1970-2100: is the time column's unit"):
+        table._unix_ns(table.Spec(tmp_path / "h.toml"),
+                       table._load(str(tmp_path / "big.csv"), None, {}), 0.0, "[imu] time")
     # a headerless CSV whose first row has a missing reading is data, not a header
     (tmp_path / "n.csv").write_text("0.0,nan,2\n0.1,3,4\n")
     assert table._load(str(tmp_path / "n.csv"), None, {}).shape == (2, 3)

@@ -223,6 +223,17 @@ def unix_offset_s(spec):
     raise RecordingError(f"{spec.path}: [time] needs unix_offset_s or gps_week_tow")
 
 
+def _unix_ns(spec, t, offset, where):
+    """UNIX ns of device times t (s) + offset; refused beyond 1970-2100 (a time column in ns
+    or us declared as s, or an offset in the wrong unit) instead of overflowing int64."""
+    unix = np.asarray(t, float) + offset
+    if len(unix) and not (0.0 <= unix.min() and unix.max() < 4.1e9):
+        raise RecordingError(f"{spec.path}: {where} + the [time] offset reaches "
+                             f"{unix.min():.4g} .. {unix.max():.4g} s since 1970, outside "
+                             "1970-2100: is the time column's unit (s, ms, us, ns) right?")
+    return np.round(unix * 1e9).astype(np.int64)
+
+
 def _mounting(spec, section="imu"):
     imu = spec.section(section)
     lever = imu.get("lever_arm_m", (0.0, 0.0, 0.0))
@@ -244,6 +255,11 @@ def _reference(spec, offset):
                        if spec.has("reference", k)]
     if "position_ecef" in keys:
         keys = [k for k in keys if k not in ("latitude", "longitude", "height")]
+    else:
+        missing = [k for k in ("latitude", "longitude", "height") if k not in keys]
+        if missing:
+            raise RecordingError(f"{spec.path}: [reference] has no {', '.join(missing)} "
+                                 "(give latitude, longitude and height, or position_ecef)")
     columns = [spec.column("reference", k) for k in keys]
     n = len(columns[0])
     for key, x in zip(keys, columns):
@@ -260,7 +276,7 @@ def _reference(spec, offset):
         v = col["velocity_ned"]
     elif "velocity_ecef" in col:
         v = np.einsum("kji,kj->ki", earth.ned_to_ecef_matrix(lat, lon), col["velocity_ecef"])
-    ns = np.round((t + offset) * 1e9).astype(np.int64)
+    ns = _unix_ns(spec, t, offset, "[reference] time")
     back = np.flatnonzero(np.diff(ns) <= 0)
     if len(back):
         raise RecordingError(f"{spec.path}: [reference] time does not increase at data row "
@@ -351,13 +367,13 @@ def read(path, mounting=None):
         t_r, w_r, f_r = _imu(spec, "reference_imu")
         ref_mounting, ref_how = _mounting(spec, "reference_imu")
         section = spec.section("reference_imu")
-        second = dict(ns=np.round((t_r + offset) * 1e9).astype(np.int64), w=w_r, f=f_r,
+        second = dict(ns=_unix_ns(spec, t_r, offset, "[reference_imu] time"), w=w_r, f=f_r,
                       mounting=ref_mounting, model=section.get("model", "unknown"),
                       accuracy=section.get("accuracy"))
         real["reference_imu"] = (f"{len(t_r)} samples at {1.0 / np.median(np.diff(t_r)):.4g} "
                                  f"Hz ({section.get('model', 'model not stated')})")
         assumed["reference_imu_mounting"] = ref_how
     return Recording(name, spec.doc.get("description", f"table import of {spec.path}"),
-                     np.round((t_f + offset) * 1e9).astype(np.int64), w, f, mounting,
+                     _unix_ns(spec, t_f, offset, "[imu] time"), w, f, mounting,
                      model=spec.doc.get("model", "unknown"), reference=reference,
                      reference_meta=meta, real=real, assumed=assumed, reference_imu=second)
