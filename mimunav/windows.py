@@ -138,8 +138,9 @@ def run_all(flight, cal=None, lengths=WINDOW_LENGTHS_S, step=START_STEP_S, time_
         min_speed = 0.0 if has_attitude else alignment.COURSE_SPEED
     first = rest.navigable_from
     track = track_of(flight.truth)
-    parked = alignment.quiet_stretches(t, w, f, track)
-    half = alignment.moving_half_window(track)
+    moving = not np.isfinite(track["q_nb"]).all()        # windows aligned on its velocity
+    parked = alignment.quiet_stretches(t, w, f, track) if moving else ()
+    half = alignment.moving_half_window(track) if moving else alignment.MOVING_HALF_WINDOW_S
     todo = [(length, t0) for length in lengths
             for t0 in starts(flight.truth, length, step, first, min_speed, max_gap, t, parked,
                              half)]
@@ -202,8 +203,8 @@ def reference_floor(meta, length, measured_sigma_v=None, half=None):
     if sigma_p is None and sigma_v is None:
         return {"horizontal_m": None, "not_stated": missing, "estimated": estimated}
     terms = 2 * (sigma_p or 0.0) ** 2 + ((sigma_v or 0.0) * length) ** 2
-    if half and sigma_v:
-        terms += (sigma_v / (2 * half) * length ** 2 / 2) ** 2      # sigma_v is 2-D already
+    if half and sigma_v:        # a difference of two velocities: sqrt(2) sigma_v, 2-D already
+        terms += (math.sqrt(2) * sigma_v / (2 * half) * length ** 2 / 2) ** 2
     return {"horizontal_m": math.sqrt(terms), "not_stated": missing, "estimated": estimated}
 
 

@@ -767,12 +767,15 @@ def test_reference_floor_of_a_window_from_the_stated_sigmas():
     assert only_p == {"horizontal_m": pytest.approx(0.5 * math.sqrt(2)),
                       "not_stated": ["velocity"], "estimated": []}
     # an unstated velocity sigma from the track's noise (0.3 m/s per axis), said; with a
-    # moving alignment over +-2 s its tilt: sqrt(2) 0.3 / (2 x 2) m/s^2 over 10^2 / 2 s^2
+    # moving alignment over +-2 s its tilt, checked by a Monte Carlo of the alignment's
+    # velocity difference: (v(t0 + 2) - v(t0 - 2)) / 4 s per axis, over 10^2 / 2 s^2
     est = windows.reference_floor({"position_sigma_m": "0.5"}, 10.0, 0.3, 2.0)
-    sigma_v = math.sqrt(2) * 0.3
     assert est["estimated"] == ["velocity"] and est["not_stated"] == []
-    assert est["horizontal_m"] == pytest.approx(math.sqrt(
-        2 * 0.25 + (sigma_v * 10) ** 2 + (sigma_v / 4 * 50) ** 2))
+    tilt = (rng.normal(0, 0.3, (n, 2)) - rng.normal(0, 0.3, (n, 2))) / 4.0 * 50.0
+    start_v = rng.normal(0, 0.3, (n, 2)) * 10.0
+    ends = rng.normal(0, 0.5 / math.sqrt(2), (n, 2)) - rng.normal(0, 0.5 / math.sqrt(2), (n, 2))
+    assert est["horizontal_m"] == pytest.approx(
+        np.sqrt(np.mean(np.sum((tilt + start_v + ends) ** 2, axis=1))), rel=0.01)
     assert windows.reference_floor({"position_sigma_m": "unknown"}, 10.0)["horizontal_m"] is None
 
 
@@ -975,7 +978,10 @@ def test_a_rest_under_a_noisy_fix_is_found_from_the_imu_and_the_positions(tmp_pa
     with FlightLog(tmp_path / "noisy.mcap") as log:
         meta = log.metadata()["recording"]
     assert "judged from the IMU and the reference's positions" in meta["assumed"]["initial_state"]
-    assert meta["static_s"][0] < 0.1 and 10 < meta["static_s"][1] < 20.0
+    # the rest's end may take in the first half second of the smooth start (under 0.1 m/s,
+    # the level's mean then off by 0.006 m/s^2, 0.04 deg): the louder windows of an idling
+    # engine are taken in too (QUIET_SPREAD_TRACKED, QUIET_HOLE)
+    assert meta["static_s"][0] < 0.1 and 10 < meta["static_s"][1] < 20.5
     # the heading from the courses of the first 2 s of fast epochs (one noisy course was
     # 6-22 deg off): the drive leaves heading 30 deg
     with FlightLog(tmp_path / "noisy.mcap") as log:
@@ -1342,3 +1348,23 @@ def test_a_reference_velocity_late_on_its_positions_is_measured():
     for vel, want in ((late, 0.1), (v, 0.0)):
         got = velocity_lag_s(dict(ns=ns, lat=lat, lon=lon, h=h, v_ned=vel))
         assert abs(got - want) < 5e-3, (got, want)
+
+
+def test_a_turn_on_the_spot_inside_a_rest_is_not_rest():
+    """30 s standing under a noisy 1 Hz fix with a 1 s turn of 30 deg/s on the spot at 10 s
+    (a steady rate: its spread is small): the rest the IMU shows starts after the turn,
+    and the gyro bias taken from it is the truth's (0) within the noise - filling short
+    louder moments inside a rest must not fill in a turn (review: 1.004 deg/s of bias)."""
+    rng = np.random.default_rng(2)
+    t = np.arange(0.0, 30.0, 0.01)
+    w = 0.003 * rng.standard_normal((len(t), 3))
+    f = np.column_stack([0 * t, 0 * t, -9.80665 + 0 * t]) + 0.02 * rng.standard_normal((len(t), 3))
+    w[(t >= 10.0) & (t < 11.0), 2] += math.radians(30.0)
+    tt = np.arange(0.0, 30.0, 1.0)
+    track = dict(t=tt, lat=LAT0 + 1.5 * rng.standard_normal(len(tt)) / 6.37e6,
+                 lon=LON0 + 1.5 * rng.standard_normal(len(tt)) / 4.9e6, h=H0 + 0 * tt,
+                 v_ned=1.5 * rng.standard_normal((len(tt), 3)) * [1, 1, 0])
+    rests = alignment.quiet_stretches(t, w, f, track)
+    assert rests and all(a >= 11.0 or b <= 10.0 for a, b in rests), rests
+    bias = alignment._biases_at_a_rest(t, w, f, Mounting(), track, [], None)[0]
+    assert np.abs(np.degrees(bias)).max() < 0.05, np.degrees(bias)
