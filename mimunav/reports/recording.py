@@ -168,7 +168,10 @@ def markdown(log_path, meta, channels, flight, docs, no_windows, doc, no_diagnos
     lag = doc.get("time_lag", {})
     if "tau_s" in lag:
         lines.append(f"- time lag of the IMU from the yaw rate: {lag['tau_s'] * 1e3:.1f} ms "
-                     f"[{lag['ci95'][0] * 1e3:.1f}, {lag['ci95'][1] * 1e3:.1f}]")
+                     f"[{lag['ci95'][0] * 1e3:.1f}, {lag['ci95'][1] * 1e3:.1f}]"
+                     + (f", relative to {lag['relative_to']}" if "relative_to" in lag else "")
+                     + (f"; not a finding: {lag['not_a_finding']}" if "not_a_finding" in lag
+                        else ""))
     lines += ["", "The diagnosis's own report: `diagnosis/diagnosis.md` (what the reference "
               "predicts, residual map, timeline, contract JSON)."]
     return "\n".join(lines) + "\n"
