@@ -384,7 +384,8 @@ def _diagnose(args):
 # import options -> (the importers that read them, their default): one given to another
 # importer is refused, not silently ignored
 IMPORT_OPTIONS = {
-    "imu_instance": (("dataflash",), 0), "reference": (("dataflash",), "auto"),
+    "imu_instance": (("dataflash", "ulog"), None), "reference": (("dataflash",), "auto"),
+    "reference_imu_instance": (("ulog",), None),
     "gps_status": (("dataflash",), 3), "imu_topic": (("ros2",), None),
     "fix_topic": (("ros2",), None), "pose_topic": (("ros2",), None), "origin": (("ros2",), None),
     "reference_status": (("ros2",), None), "reference_sigma": (("ros2",), np.inf),
@@ -429,11 +430,12 @@ def _import(args):
         rec = table.read(args.source, mounting=mounting)
     elif args.kind == "dataflash":
         from .importers import dataflash
-        rec = dataflash.read(args.source, mounting=mounting, instance=args.imu_instance,
+        rec = dataflash.read(args.source, mounting=mounting, instance=args.imu_instance or 0,
                              reference=args.reference, reference_status=args.gps_status)
     else:
         from .importers import ulog
-        rec = ulog.read(args.source, mounting=mounting)
+        rec = ulog.read(args.source, mounting=mounting, instance=args.imu_instance,
+                        reference_instance=args.reference_imu_instance)
     align = importers.write_log(rec, args.output, force=args.force)
     from .flightlog.inspect import rate_segments
     runs = rate_segments(rec.imu_ns - rec.imu_ns[0])
@@ -822,8 +824,12 @@ def build_parser():
                    "reference (see mimunav/importers/table.py; example tests/data/comma2k19.toml)")
     p.add_argument("source", help="the folder (rtklib), file (ros2, ulog, dataflash) or spec "
                    "(table)")
-    p.add_argument("--imu-instance", type=_number(0, 9, int), default=0,
-                   help="dataflash: the IMU instance (field I; IMU2 = 1), default 0")
+    p.add_argument("--imu-instance", type=_number(0, 9, int),
+                   help="dataflash: the IMU instance (field I; IMU2 = 1), default 0; ulog: "
+                   "the sensor_accel/sensor_gyro instance instead of sensor_combined")
+    p.add_argument("--reference-imu-instance", type=_number(0, 9, int),
+                   help="ulog: another sensor_accel/sensor_gyro instance as the reference IMU "
+                   "(/fog/imu: diagnose then works at the sensor level)")
     p.add_argument("--reference", choices=("auto", "ekf", "gnss", "none"), default="auto",
                    help="dataflash: the reference trajectory: ekf = the autopilot's estimate "
                    "(POS, XKF1, ATT; not independent), gnss = the GPS fixes (independent, no "

@@ -551,8 +551,9 @@ def _ulog_bytes(formats, topics, rows, info_utc=True):
     out += msg("B", bytes(8) + bytes(8) + bytes(24))           # flag bits: none set
     for name, fields in formats.items():
         out += msg("F", f"{name}:{''.join(f'{t} {n};' for t, n in fields)}".encode())
-    for msg_id, name in enumerate(topics):
-        out += msg("A", struct.pack("<BH", 0, msg_id) + name.encode())
+    for msg_id, topic in enumerate(topics):
+        name, multi = (topic, 0) if isinstance(topic, str) else topic     # (name, multi_id)
+        out += msg("A", struct.pack("<BH", multi, msg_id) + name.encode())
     for msg_id, fmt, values in rows:
         out += msg("D", struct.pack("<H", msg_id) + struct.pack(fmt, *values))
     return out
@@ -588,6 +589,38 @@ def test_ulog_import(tmp_path):
     (tmp_path / "junk.ulg").write_bytes(b"not a ulog")
     with pytest.raises(RecordingError, match="not a readable ULog"):
         ulog.read(str(tmp_path / "junk.ulg"))
+
+
+def test_ulog_imu_instances_as_the_imu_and_as_the_reference_imu(tmp_path):
+    """Two IMU instances (sensor_accel / sensor_gyro, multi_id 0 and 1, the gyros on their
+    own clock 1 ms after the accelerometers, rates linear in time so interpolation is
+    exact): --imu-instance 1 takes instance 1's outputs with its gyro interpolated onto its
+    accelerometer's stamps, its temperature said; --reference-imu-instance 0 makes instance
+    0 the reference IMU; an instance not logged is named."""
+    acc = [("uint64_t", "timestamp"), ("uint64_t", "timestamp_sample"), ("float", "x"),
+           ("float", "y"), ("float", "z"), ("float", "temperature")]
+    formats = {"sensor_accel": acc, "sensor_gyro": acc}
+    topics = [("sensor_accel", 0), ("sensor_gyro", 0), ("sensor_accel", 1), ("sensor_gyro", 1)]
+    rows, n = [], 2000
+    for k in range(n):
+        t_us = 5_000_000 + k * 2500
+        for inst in (0, 1):
+            s = 1.0 + inst
+            rows.append((2 * inst, "<QQ4f", (t_us, t_us, 0.1 * s, 0.2, -9.8, 30.0 + inst)))
+            g = t_us + 1000                                     # the gyro's own clock
+            rows.append((2 * inst + 1, "<QQ4f", (g, g, s * g * 1e-8, -0.01, 0.02, 31.0)))
+    path = tmp_path / "two.ulg"
+    path.write_bytes(_ulog_bytes(formats, topics, rows))
+    rec = ulog.read(str(path), instance=1, reference_instance=0)
+    t_us = (rec.imu_ns / 1000).astype(np.int64)
+    assert np.allclose(rec.w[:, 0], 2.0 * t_us * 1e-8, rtol=1e-6)      # interpolated at the
+    assert np.allclose(rec.f[:, 0], 0.2)                              # accelerometer stamps
+    assert "temperature 31.00 to 31.00 degC" in rec.real["imu"]
+    ref = rec.reference_imu
+    assert np.allclose(ref["f"][:, 0], 0.1) and np.allclose(ref["w"][:, 0],
+                                                            (ref["ns"] / 1000) * 1e-8, rtol=1e-6)
+    with pytest.raises(RecordingError, match=r"instance 3 \(instances logged: \[0, 1\]\)"):
+        ulog.read(str(path), instance=3)
 
 
 def test_track_diagnosis_of_the_excerpt_writes_the_contract(tmp_path):

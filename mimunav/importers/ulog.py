@@ -4,7 +4,8 @@ autopilot's own estimate (`vehicle_global_position` with the velocity of
 `vehicle_local_position` and the attitude of `vehicle_attitude`) - labelled "autopilot
 estimate, not independent": EKF2 fuses this very IMU, so it cannot show that IMU's errors
 beyond what the filter leaves. Every `sensor_accel` / `sensor_gyro` instance is listed in the
-metadata with its rate and temperature range.
+metadata with its rate and temperature range; one may be imported as the IMU instead of
+sensor_combined, another as the reference IMU.
 
 PX4 conventions: sensor_combined holds gyro_rad (rad/s) and accelerometer_m_s2 (specific
 force, m/s^2) in the vehicle body frame FRD (the board rotation applied), each the mean
@@ -39,20 +40,59 @@ def _field(data, *names, scales=None):
     raise RecordingError(f"ULog topic {data.name} lacks {' / '.join(names)}")
 
 
-def read(path, mounting=None):
-    """The recording of a PX4 ULog as a `Recording` (IMU in FRD body axes)."""
+def _instance(ulog, path, n):
+    """(boot us (N,), w rad/s, f m/s^2 (N, 3) FRD, temperature text) of IMU instance n: its
+    sensor_accel samples (timestamp_sample when logged), the sensor_gyro of the same instance
+    interpolated linearly onto them (PX4 publishes the two on their own clocks). These are
+    the board-rotated outputs before PX4's calibration (sensor_combined holds the calibrated
+    ones of the instance the estimator uses)."""
+    found = {d.name: d for d in ulog.data_list if d.name in INSTANCE_TOPICS and d.multi_id == n}
+    if len(found) < 2:
+        have = sorted({d.multi_id for d in ulog.data_list if d.name in INSTANCE_TOPICS})
+        raise RecordingError(f"{path}: no sensor_accel and sensor_gyro of instance {n} "
+                             f"(instances logged: {have})")
+    stamp = lambda d: np.asarray(d.data.get("timestamp_sample", d.data["timestamp"]),  # noqa
+                                 np.int64)
+    acc, gyr = found["sensor_accel"], found["sensor_gyro"]
+    t_a, t_g = stamp(acc), stamp(gyr)
+    inside = (t_a >= t_g[0]) & (t_a <= t_g[-1])
+    if inside.sum() < 2:
+        raise RecordingError(f"{path}: sensor_accel and sensor_gyro of instance {n} do not "
+                             "overlap in time")
+    f = np.column_stack([_field(acc, c) for c in "xyz"])[inside]
+    w = np.column_stack([np.interp(t_a[inside], t_g, _field(gyr, c)) for c in "xyz"])
+    temps = [np.asarray(d.data["temperature"], float) for d in (acc, gyr)
+             if "temperature" in d.data]
+    temps = np.concatenate(temps) if temps else np.array([])
+    temps = temps[np.isfinite(temps)]
+    text = (f"temperature {temps.min():.2f} to {temps.max():.2f} degC" if len(temps)
+            else "no temperature")
+    return t_a[inside], w, f, text
+
+
+def read(path, mounting=None, instance=None, reference_instance=None):
+    """The recording of a PX4 ULog as a `Recording` (IMU in FRD body axes): the IMU from
+    sensor_combined, or with `instance` from that sensor_accel / sensor_gyro instance
+    (`_instance`); with `reference_instance` another instance is the reference IMU (two
+    autopilot IMUs against each other: the sensor level of the diagnosis)."""
     from pyulog import ULog
     try:
         ulog = ULog(path, message_name_filter_list=["sensor_combined", *GNSS_TOPICS,
                                                     *REFERENCE_TOPICS, *INSTANCE_TOPICS])
     except Exception as exc:            # pyulog raises its own and struct errors
         raise RecordingError(f"{path}: not a readable ULog ({exc})") from None
-    imu = _topic(ulog, "sensor_combined")
-    if imu is None:
-        raise RecordingError(f"{path}: no sensor_combined topic")
-    boot_us = np.asarray(imu.data["timestamp"], dtype=np.int64)
-    w = np.column_stack([_field(imu, f"gyro_rad[{i}]") for i in range(3)])
-    f = np.column_stack([_field(imu, f"accelerometer_m_s2[{i}]") for i in range(3)])
+    if instance is None:
+        imu = _topic(ulog, "sensor_combined")
+        if imu is None:
+            raise RecordingError(f"{path}: no sensor_combined topic")
+        boot_us = np.asarray(imu.data["timestamp"], dtype=np.int64)
+        w = np.column_stack([_field(imu, f"gyro_rad[{i}]") for i in range(3)])
+        f = np.column_stack([_field(imu, f"accelerometer_m_s2[{i}]") for i in range(3)])
+        source = f"sensor_combined ({len(boot_us)} samples)"
+    else:
+        boot_us, w, f, temp = _instance(ulog, path, instance)
+        source = (f"sensor_accel:{instance} with sensor_gyro:{instance} interpolated onto it "
+                  f"({len(boot_us)} samples, {temp}; before PX4's calibration)")
     gps = next((g for g in (_topic(ulog, n) for n in GNSS_TOPICS) if g is not None), None)
     offset_us, assumed = 0, {}
     fixes = None
@@ -79,8 +119,17 @@ def read(path, mounting=None):
         assumed["time"] = "no GNSS UTC time: boot placed at the UNIX epoch"
     keep = np.concatenate([[True], np.diff(boot_us) > 0])
     name = os.path.splitext(os.path.basename(path))[0]
-    real = {"imu": f"sensor_combined ({len(boot_us)} samples)", "source": os.path.abspath(path),
-            "imu_instances": instances(ulog)}
+    real = {"imu": source, "source": os.path.abspath(path), "imu_instances": instances(ulog)}
+    second = None
+    if reference_instance is not None:
+        if reference_instance == instance:
+            raise RecordingError(f"{path}: the reference IMU instance is the IMU's own")
+        r_us, r_w, r_f, r_temp = _instance(ulog, path, reference_instance)
+        r_keep = np.concatenate([[True], np.diff(r_us) > 0])
+        second = dict(ns=(r_us[r_keep] + offset_us) * 1000, w=r_w[r_keep], f=r_f[r_keep],
+                      mounting=Mounting(), model=f"PX4 IMU instance {reference_instance}")
+        real["reference_imu"] = (f"sensor_accel:{reference_instance} with sensor_gyro:"
+                                 f"{reference_instance} ({int(r_keep.sum())} samples, {r_temp})")
     cut = cut_short(path)
     if cut:
         real["file"] = cut
@@ -102,7 +151,7 @@ def read(path, mounting=None):
                      reference_meta=({"source": "autopilot estimate (PX4 EKF2)",
                                       "independent": "no: the autopilot fuses this IMU"}
                                      if reference is not None else {}),
-                     fixes=fixes, real=real, assumed=assumed)
+                     fixes=fixes, real=real, assumed=assumed, reference_imu=second)
 
 
 def cut_short(path):
