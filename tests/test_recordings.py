@@ -1067,6 +1067,13 @@ def test_windows_of_a_reversing_vehicle_face_backwards(tmp_path):
     results, _ = windows.run_all(flight, lengths=(10.0,), step=10.0)
     ends = [w.horizontal[-1] for w in results[10.0]]
     assert len(ends) >= 8 and max(ends) < 0.05, ends
+    # the track level leaves the reversing move out (its vehicle model would face the
+    # wrong way), and nothing of the same drive driven forward
+    from mimunav.diagnosis import track as track_level
+    moving = flight.mimu_t > 21.0
+    assert track_level.reversing(flight)[moving].all()
+    forward, _, _ = _ideal_flight(tmp_path / "forward", MOUNT)
+    assert not track_level.reversing(Flight.load(forward, reference_imu=False)).any()
 
 
 def test_no_window_starts_while_parked_under_a_noisy_fix(tmp_path):

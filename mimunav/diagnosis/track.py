@@ -111,8 +111,36 @@ def simulated_reference(flight):
     dt = np.diff(stamps)[:, None]
     ref = replace(flight, fog_t=t[inside], fog_w=run.dtheta / dt, fog_f=run.dv / dt,
                   fog_mounting=Mounting())
-    trusted = inside & motion.trusted(t) & ~near_gaps(t, tr.t)
+    trusted = inside & motion.trusted(t) & ~near_gaps(t, tr.t) & ~reversing(flight)
     return ref, trusted
+
+
+def reversing(flight, step_s=1.0):
+    """(N,) bool over the MIMU's stamps: where the vehicle drives in reverse. A vehicle
+    changes its direction of travel only through a stop, so the track is cut into moves
+    between rests (speed below vehicle.REST_SPEED) and each move is judged whole: reversing
+    when most of the `alignment.travel_sign` verdicts on a step_s grid of its epochs faster
+    than alignment.COURSE_SPEED say so. The vehicle model takes the attitude from the
+    velocity, so reversing it faces the wrong way and predicts nothing: those samples are
+    left out (a drive that reversed over 150 s had been inconclusive, '1 of 6 channels
+    predicted', and its lag averaged with the reversed stretch's)."""
+    from .. import alignment
+    from ..vehicle import REST_SPEED
+    from ..windows import track_of
+    t, tr = flight.mimu_t, flight.truth
+    track = track_of(tr)
+    speed = np.hypot(tr.v_ned[:, 0], tr.v_ned[:, 1])
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], (speed > REST_SPEED).astype(int), [0]])))
+    out = np.zeros(len(t), bool)
+    for a, b in zip(edges[::2], edges[1::2]):                 # epochs a .. b - 1 move
+        grid = np.arange(tr.t[a], tr.t[b - 1], step_s)
+        fast = grid[np.interp(grid, tr.t, speed) >= alignment.COURSE_SPEED]
+        fast = fast[(fast > t[0]) & (fast < t[-1])]
+        signs = [alignment.travel_sign(t, flight.mimu_imu[1], flight.mimu_mounting, track, x)
+                 for x in fast]
+        if signs and np.mean(signs) < 0:
+            out |= (t >= tr.t[a]) & (t <= tr.t[b - 1])
+    return out
 
 
 def near_gaps(t, t_reference):
@@ -176,6 +204,8 @@ def diagnose(flight, cal, alpha=0.05, reference=None, accuracy=None):
         raise InputError(f"{flight.path}: the track level takes a recorded /mimu/imu; a raw "
                          "MIMU with a reference trajectory goes to the navigation level")
     ref, trusted = reference or simulated_reference(flight)
+    back = reversing(flight)
+    reversing_s = float(np.sum(np.diff(flight.mimu_t, prepend=flight.mimu_t[0])[back]))
     w, f = (np.where(trusted[:, None], x, np.nan) for x in flight.mimu_imu)
     ref = replace(ref, mimu_imu=(w, f))
     corr, slopes = reference_check(replace(ref, mimu_imu=flight.mimu_imu), trusted)
@@ -198,6 +228,7 @@ def diagnose(flight, cal, alpha=0.05, reference=None, accuracy=None):
         "unpredicted_inputs": sorted(".".join(c) for c in unpredicted),
         "not_tested": [library.label(term) for term in left_out],
         "trusted_fraction": float(trusted.mean()),
+        "reversing_s": float(reversing_s),
         "usable_s": float(len(diag.design.t) * np.median(np.diff(diag.design.t)))}
     reasons, demoted = screen(diag, flight, cal)
     if corr["gyro.z"] >= PREDICTED_CORRELATION:

@@ -76,7 +76,10 @@ def markdown(doc, diag, cal_label):
         lines += ["## What the reference predicts", "",
                   "Correlation of the 1 s means of the recorded and the reference-predicted "
                   f"output over trusted samples ({100 * check['trusted_fraction']:.0f} % of the "
-                  f"samples; {check['usable_s']:.0f} s usable); below {check['threshold']:g} a "
+                  f"samples; {check['usable_s']:.0f} s usable"
+                  + (f"; {check['reversing_s']:.0f} s driven in reverse left out: the vehicle "
+                     "model faces along the velocity" if check.get("reversing_s") else "")
+                  + f"); below {check['threshold']:g} a "
                   "channel is not predicted and the terms it drives are not tested.", "",
                   "| " + " | ".join(corr) + " |", "|" + "---|" * len(corr),
                   "| " + " | ".join("n/a" if v is None else f"{v:.3f}"
