@@ -386,6 +386,7 @@ def _diagnose(args):
 IMPORT_OPTIONS = {
     "imu_instance": (("dataflash", "ulog"), None), "reference": (("dataflash",), "auto"),
     "reference_imu_instance": (("ulog",), None),
+    "reference_imu_time_offset": (("ros2", "table", "ulog"), 0.0),
     "gps_status": (("dataflash",), 3), "imu_topic": (("ros2",), None),
     "fix_topic": (("ros2",), None), "pose_topic": (("ros2",), None), "origin": (("ros2",), None),
     "reference_status": (("ros2",), None), "reference_sigma": (("ros2",), np.inf),
@@ -436,6 +437,15 @@ def _import(args):
         from .importers import ulog
         rec = ulog.read(args.source, mounting=mounting, instance=args.imu_instance,
                         reference_instance=args.reference_imu_instance)
+    if args.reference_imu_time_offset:
+        if rec.reference_imu is None:
+            raise InputError("--reference-imu-time-offset: the recording has no reference IMU "
+                             "(--reference-imu-topic, [reference_imu], --reference-imu-instance)")
+        rec.reference_imu["ns"] = rec.reference_imu["ns"] + \
+            int(round(args.reference_imu_time_offset * 1e9))
+        rec.assumed["reference_imu_time"] = (f"its stamps shifted by "
+                                             f"{args.reference_imu_time_offset:+.4f} s "
+                                             "(command line)")
     align = importers.write_log(rec, args.output, force=args.force)
     from .flightlog.inspect import rate_segments
     runs = rate_segments(rec.imu_ns - rec.imu_ns[0])
@@ -848,6 +858,9 @@ def build_parser():
     p.add_argument("--reference-imu-topic", help="ros2: a second sensor_msgs/msg/Imu topic, a "
                    "better IMU flown with it, as the reference IMU (/fog/imu: `diagnose` then "
                    "works at the sensor level)")
+    p.add_argument("--reference-imu-time-offset", type=_number(-60.0, 60.0), default=0.0,
+                   metavar="S", help="ros2, table, ulog: added to the reference IMU's stamps, "
+                   "s (the import measures the two IMUs' offset and refuses one beyond 10 ms)")
     p.add_argument("--reference-imu-rpy-deg", type=_number(-360.0, 360.0), nargs=3,
                    metavar=("ROLL", "PITCH", "YAW"), help="ros2: the reference IMU's sensor -> "
                    "vehicle (FRD) rotation, deg (default 180 0 0, REP-103)")

@@ -1227,11 +1227,27 @@ def test_a_ros2_bag_with_a_reference_imu_is_diagnosed_at_the_sensor_level(tmp_pa
         log.write("/nav/imu", S.IMU, "nav_link", stamps, **S.imu_fields(w_r, f_r))
         log.write("/nav/imu_deg", S.IMU, "nav_link", stamps,
                   **S.imu_fields(np.degrees(w_r), f_r))
+        log.write("/nav/imu_late", S.IMU, "nav_link", stamps + 50_000_000,
+                  **S.imu_fields(w_r, f_r))
     out = tmp_path / "pair.log.mcap"
-    assert main(["import", "ros2", str(bag), "--imu-topic", "/mems/imu", "--reference-imu-topic",
-                 "/nav/imu_deg", "--reference-imu-rpy-deg", "180", "0", "90", "-o",
-                 str(out)]) == 2
+    pair = ["import", "ros2", str(bag), "--imu-topic", "/mems/imu", "-o", str(out)]
+    assert main(pair + ["--reference-imu-topic", "/nav/imu_deg", "--reference-imu-rpy-deg",
+                        "180", "0", "90"]) == 2
     assert not out.exists()
+    # the reference's mounting 10 deg off (beyond the small-angle misalignment term) and its
+    # clock 50 ms late (beyond the linear time_skew term): refused, naming what matches
+    with pytest.raises(RecordingError, match="lie 10.0 deg from the IMU's.*rpy-deg 180.0 0.0 90.0"):
+        rec = ros2.read(bag, "/mems/imu", reference_imu_topic="/nav/imu",
+                        reference_imu_mounting=Mounting.from_rpy_deg((180.0, 0.0, 80.0)))
+        write_log(rec, tmp_path / "never.mcap")
+    late = pair + ["--reference-imu-topic", "/nav/imu_late", "--reference-imu-rpy-deg", "180",
+                   "0", "90"]
+    with pytest.raises(RecordingError, match=r"\+50.0 ms off.*--reference-imu-time-offset -0.0500"):
+        write_log(ros2.read(bag, "/mems/imu", reference_imu_topic="/nav/imu_late",
+                            reference_imu_mounting=Mounting.from_rpy_deg((180.0, 0.0, 90.0))),
+                  tmp_path / "never.mcap")
+    assert main(late + ["--reference-imu-time-offset", "-0.05"]) == 0
+    out.unlink()
     assert main(["import", "ros2", str(bag), "--imu-topic", "/mems/imu", "--reference-imu-topic",
                  "/nav/imu", "--reference-imu-rpy-deg", "180", "0", "90", "-o", str(out)]) == 0
     doc_path = tmp_path / "d.json"
