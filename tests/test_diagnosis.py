@@ -400,3 +400,15 @@ def test_navigation_level_is_inconclusive_beyond_small_angles():
         assert len(beyond_small_angles(dv)) == reasons
     noise = np.random.default_rng(1).normal(0, 0.3, (len(t), 3))
     assert beyond_small_angles(noise) == []
+
+
+def test_stamps_that_jitter_make_the_sensor_level_inconclusive():
+    """+-5 ms of uniform jitter on 100 Hz stamps (a robust sigma of 4 ms on a 10 ms period)
+    cannot carry a sample-by-sample comparison with a reference IMU (a trial's recording
+    gave spurious accelerometer scale terms): named; +-1 ms is not; exact stamps are not."""
+    from mimunav.diagnosis import sensor
+    rng = np.random.default_rng(1)
+    t = np.arange(20000) * 0.01
+    assert "jitter by 4" in sensor._jitter(t + rng.uniform(-5e-3, 5e-3, len(t)), "the MIMU's")
+    assert sensor._jitter(t + rng.uniform(-1e-3, 1e-3, len(t)), "the MIMU's") == ""
+    assert sensor._jitter(t, "the MIMU's") == ""

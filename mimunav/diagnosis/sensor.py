@@ -267,11 +267,34 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
     if output_tests:
         scanned[:, sorted(quantized)] = 0.0     # a lattice's own error is no excursion
     unexplained = _scan(design, scanned, alpha)
-    return SensorDiagnosis(findings, unexplained, rejected, within, design, train, conds,
+    diag = SensorDiagnosis(findings, unexplained, rejected, within, design, train, conds,
                            {"before": _map(design, before, conds),
                             "after": _map(design, after, conds)},
                            before, after, acc.as_dict(), len(design.terms), design.terms,
                            everything, outputs.bias_null(noise) if output_tests else None)
+    diag.inconclusive = [why for why in (_jitter(flight.mimu_t, "the MIMU's"),
+                                         _jitter(flight.fog_t, "the reference IMU's")) if why]
+    return diag
+
+
+STAMP_JITTER = 0.25     # robust sigma of the sampling steps over the period: beyond it a
+                        # stamp does not say which interval its sample is the mean of
+
+
+def _jitter(t, whose):
+    """Why the stamps `t` (s) cannot carry a sample-by-sample comparison, or '': their steps
+    scatter (robust sigma, MAD / 0.6745) by more than STAMP_JITTER of the median step (a
+    recording stamped +-5 ms at 100 Hz gave spurious scale terms on the accelerometers)."""
+    if t is None or len(t) < 10:
+        return ""
+    step = np.diff(t)
+    period = float(np.median(step))
+    sigma = float(np.median(np.abs(step - period))) / 0.6745
+    if period > 0 and sigma > STAMP_JITTER * period:
+        return (f"{whose} stamps jitter by {sigma * 1e3:.2g} ms (robust sigma of their steps) on "
+                f"a {period * 1e3:.3g} ms period: a stamp does not say which interval its sample "
+                "averages, and terms driven by fast motion may be that jitter")
+    return ""
 
 
 def _output_findings(flight, cal, t, samples, full_scale):
