@@ -306,7 +306,6 @@ def _diagnose(args):
     from .diagnosis import navigation, sensor, track
     from .diagnosis.reference import Accuracy
     from .files import refuse_inputs, write_atomic
-    from .flightlog import LogError
     from .reports import diagnosis as report
     refuse_inputs([args.json, args.output], [args.log, args.model, args.noise])
     inside = args.json and args.output and \

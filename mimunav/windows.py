@@ -130,20 +130,18 @@ def run_all(flight, cal=None, lengths=WINDOW_LENGTHS_S, step=START_STEP_S, time_
         raise no_reference(flight.path, "the free-inertial windows")
     w, f, _ = compensated_mimu(flight, cal)
     t = flight.mimu_t + time_shift_s
-    rest = alignment.initial_alignment(t, w, f, flight.mimu_mounting, track_of(flight.truth))
+    track = track_of(flight.truth)
+    rest = alignment.initial_alignment(t, w, f, flight.mimu_mounting, track)
     w, f = w - rest.gyro_bias, f - rest.accel_bias
     out = {}
+    half = moving_half(track)
     if min_speed is None:
-        has_attitude = np.isfinite(quaternion.as_float_array(flight.truth.q_nb)).all()
-        min_speed = 0.0 if has_attitude else alignment.COURSE_SPEED
+        min_speed = alignment.COURSE_SPEED if half else 0.0
     first = rest.navigable_from
-    track = track_of(flight.truth)
-    moving = not np.isfinite(track["q_nb"]).all()        # windows aligned on its velocity
-    parked = alignment.quiet_stretches(t, w, f, track) if moving else ()
-    half = alignment.moving_half_window(track) if moving else alignment.MOVING_HALF_WINDOW_S
+    parked = alignment.quiet_stretches(t, w, f, track) if half else ()
     todo = [(length, t0) for length in lengths
             for t0 in starts(flight.truth, length, step, first, min_speed, max_gap, t, parked,
-                             half)]
+                             half or alignment.MOVING_HALF_WINDOW_S)]
     if not todo:
         raise InputError(f"{flight.path}: " + _no_windows(flight.truth, lengths, first,
                                                            min_speed, max_gap))
@@ -151,8 +149,17 @@ def run_all(flight, cal=None, lengths=WINDOW_LENGTHS_S, step=START_STEP_S, time_
         from tqdm import tqdm
         todo = tqdm(todo, desc="windows", unit="window")
     for length, t0 in todo:
-        out.setdefault(length, []).append(run(flight, t0, length, w, f, t, half))
+        out.setdefault(length, []).append(run(flight, t0, length, w, f, t,
+                                              half or alignment.MOVING_HALF_WINDOW_S))
     return out, rest
+
+
+def moving_half(track):
+    """The moving alignment's half interval (s, `alignment.moving_half_window`) when the
+    windows align on the reference's velocity (it has no attitude), else None."""
+    if np.isfinite(track["q_nb"]).all():
+        return None
+    return alignment.moving_half_window(track)
 
 
 def summary(results, span_s, reference_meta=None, track=None, half=None):

@@ -95,9 +95,10 @@ def wander_limit(noise=CONSUMER_NOISE, bin_s=0.01, span_s=100.0):
     return max(levels)
 
 
-def simulated_reference(flight):
+def simulated_reference(flight, backward=None):
     """(flight with the ideal IMU simulated from its /truth/state as the reference IMU at
-    the vehicle origin, trusted (N,) bool over the MIMU's samples)."""
+    the vehicle origin, trusted (N,) bool over the MIMU's samples). `backward`: the
+    `reversing` mask when already made."""
     tr = flight.truth
     if tr is None:
         raise InputError(f"{flight.path}: no /truth/state to simulate the reference IMU from")
@@ -111,7 +112,8 @@ def simulated_reference(flight):
     dt = np.diff(stamps)[:, None]
     ref = replace(flight, fog_t=t[inside], fog_w=run.dtheta / dt, fog_f=run.dv / dt,
                   fog_mounting=Mounting())
-    trusted = inside & motion.trusted(t) & ~near_gaps(t, tr.t) & ~reversing(flight)
+    backward = reversing(flight) if backward is None else backward
+    trusted = inside & motion.trusted(t) & ~near_gaps(t, tr.t) & ~backward
     return ref, trusted
 
 
@@ -203,9 +205,9 @@ def diagnose(flight, cal, alpha=0.05, reference=None, accuracy=None):
     if flight.mimu_raw is not None:
         raise InputError(f"{flight.path}: the track level takes a recorded /mimu/imu; a raw "
                          "MIMU with a reference trajectory goes to the navigation level")
-    ref, trusted = reference or simulated_reference(flight)
     back = reversing(flight)
     reversing_s = float(np.sum(np.diff(flight.mimu_t, prepend=flight.mimu_t[0])[back]))
+    ref, trusted = reference or simulated_reference(flight, back)
     w, f = (np.where(trusted[:, None], x, np.nan) for x in flight.mimu_imu)
     ref = replace(ref, mimu_imu=(w, f))
     corr, slopes = reference_check(replace(ref, mimu_imu=flight.mimu_imu), trusted)
@@ -363,7 +365,6 @@ def lag_finding(diag, flight, cal, segments, alpha):
     descriptions of the findings it demoted (`_no_lag`)."""
     train, held = segments.part(slice(0, None, 2)), segments.part(slice(1, None, 2))
     p_train, p_held = train.p_value(), held.p_value()
-    lag = diag.time_lag
     step = float(np.median(np.diff(flight.truth.t)))
     if step > LAG_REFERENCE_STEP_S:
         return _no_lag(diag, f"the reference's epochs are {step:.2g} s apart: its track "

@@ -194,7 +194,6 @@ def _imu(path, topic):
 def _fix_reference(fixes, status, sigma_m, topic):
     """The fixes of at least `status` and horizontal sigma <= sigma_m as a reference
     (velocity by central differences of the positions), and its metadata."""
-    from .. import earth
     cov = fixes["covariance"]
     sigma = np.sqrt(np.maximum(cov[:, 0], 0) + np.maximum(cov[:, 4], 0))
     use = (fixes["status"] >= status) & ((sigma <= sigma_m) | ~(sigma > 0))

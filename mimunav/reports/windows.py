@@ -4,7 +4,7 @@
   cdf     the distribution of the end-point horizontal error per length and variant."""
 import numpy as np
 
-from .. import alignment, windows
+from .. import windows
 from .plots import figure, save
 
 
@@ -12,8 +12,7 @@ def document(flight, results, rest, cal_label, time_shift_s):
     """JSON-ready: the summary table, the alignment at rest and every window's end error."""
     span = float(flight.truth.t[-1] - rest.navigable_from)
     track = windows.track_of(flight.truth)
-    moving = not np.isfinite(track["q_nb"]).all()        # windows aligned on its velocity
-    half = alignment.moving_half_window(track) if moving else None
+    half = windows.moving_half(track)
     static = [None if np.isnan(x) else x for x in rest.static]
     return {"format": "mimunav-windows/1", "log": flight.path, "calibration": cal_label,
             "time_shift_s": time_shift_s,
