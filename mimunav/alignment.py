@@ -499,8 +499,13 @@ def travel_sign(t, f, mounting, track, t0, span=DIRECTION_SPAN_S):
 def means_around(t, x, epochs, half):
     """Means of the samples x (N, k) at stamps t (s, increasing) within +-half s of each
     epoch (nan where none)."""
+    return span_means(x, np.searchsorted(t, epochs - half), np.searchsorted(t, epochs + half))
+
+
+def span_means(x, lo, hi):
+    """Means of the rows lo[i] .. hi[i] - 1 of x (N, k) by one cumulative sum (nan where a
+    span is empty)."""
     c = np.vstack([np.zeros((1, x.shape[1])), np.cumsum(x, axis=0)])
-    lo, hi = np.searchsorted(t, epochs - half), np.searchsorted(t, epochs + half)
     with np.errstate(invalid="ignore", divide="ignore"):
         return (c[hi] - c[lo]) / (hi - lo)[:, None]
 

@@ -459,9 +459,8 @@ def _check_time_offset(rec, t_imu, t_ref, rate, corr0, half):
 
 def _local_mean(x, k, half=5):
     """Means of x over the samples k - half .. k + half (noise averaged, motion kept)."""
-    c = np.vstack([np.zeros((1, x.shape[1])), np.cumsum(x, axis=0)])
-    lo, hi = np.clip(k - half, 0, len(x)), np.clip(k + half + 1, 0, len(x))
-    return (c[hi] - c[lo]) / (hi - lo)[:, None]
+    return alignment.span_means(x, np.clip(k - half, 0, len(x)),
+                                np.clip(k + half + 1, 0, len(x)))
 
 
 def write_log(rec, path, force=False):
