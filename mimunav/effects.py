@@ -21,7 +21,7 @@ axis ("x" | "y" | "z" | "all"), optional input_axis, coefficient (SI, multiplies
 regressor) or vector (size_effect, lever_arm: r in m; mounting_misalignment: small rotation
 vector in rad, sensor frame), and the keys a regressor needs (order, window_s, reference).
 """
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -65,6 +65,9 @@ class Conditions:
     freq: np.ndarray
     vibration: np.ndarray | None = None     # (N, 3) vibration power per axis, (m/s^2)^2, when
                                             # measured elsewhere than f (`vibration_power`)
+    # what several terms' regressors share, made once per Conditions (the arrays above are
+    # not changed after it is built): the centripetal matrix, sample indices a window back
+    _shared: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
     @classmethod
     def from_outputs(cls, t, f, w, T, freq, window_s=DERIVATIVE_WINDOW_S):
@@ -81,11 +84,27 @@ class Conditions:
     def __len__(self):
         return len(self.t)
 
+    def centripetal(self):
+        """K (N, 3, 3) with K r = w x (w x r) + w_dot x r (`_centripetal_matrix`), kept."""
+        if "centripetal" not in self._shared:
+            self._shared["centripetal"] = _centripetal_matrix(self.w, self.w_dot)
+        return self._shared["centripetal"]
 
-def temperature_change(temperature, window_s, t):
+    def index_at(self, offset_s):
+        """(N,) index of the first sample at or after t + offset_s (s) for every sample,
+        kept per offset (`np.searchsorted`, side left)."""
+        key = ("index_at", offset_s)
+        if key not in self._shared:
+            self._shared[key] = np.searchsorted(self.t, self.t + offset_s, side="left")
+        return self._shared[key]
+
+
+def temperature_change(temperature, window_s, t, idx=None):
     """dT = T(t) - T(t - window_s) per axis, T(t[0]) until the window is full; t (N,) s,
-    temperature (N, 3)."""
-    idx = np.searchsorted(t, t - window_s, side="left")
+    temperature (N, 3); idx: the first sample at or after t - window_s, when known
+    (`Conditions.index_at`)."""
+    if idx is None:
+        idx = np.searchsorted(t, t - window_s, side="left")
     return temperature - temperature[idx]
 
 
@@ -131,16 +150,15 @@ def regressor(term, cond):
         sensors = SENSORS if sensor == "imu" else (sensor,)
         return {(s, i): -cond.of(s)[1][:, i:i + 1] for s in sensors for i in range(3)}
     if effect in ("size_effect", "lever_arm"):        # w x (w x r) + dw/dt x r, row i
-        k = _centripetal_matrix(cond.w, cond.w_dot)
+        k = cond.centripetal()
         axes = range(3) if effect == "lever_arm" else [AXES.index(term["axis"])]
         return {("accel", i): k[:, i, :] for i in axes}
-    if effect == "mounting_misalignment":             # C(phi) x - x = x x phi
-        out = {}
+    if effect == "mounting_misalignment":             # C(phi) x - x = x x phi = [x x] phi
+        cols = {}
         for s in SENSORS:
-            x = cond.of(s)[0]
-            cols = np.stack([np.cross(x, e) for e in np.eye(3)], axis=2)   # (N, 3 out, 3 phi)
-            out.update({(s, i): cols[:, i, :] for i in range(3)})
-        return out
+            x = _skew(cond.of(s)[0])                  # (N, 3 out, 3 phi)
+            cols.update({(s, i): x[:, i, :] for i in range(3)})
+        return cols
     i = AXES.index(term["axis"])
     x, _, theta = cond.of(sensor)
     col = _scalar(term, cond, x, theta, i)
@@ -170,15 +188,15 @@ def _scalar(term, cond, x, theta, i):
     if effect == "temperature_scale":
         return th * x[:, i]
     if effect == "temperature_rate":
-        return temperature_change(theta[:, i:i + 1], term["window_s"], cond.t)[:, 0]
+        return temperature_change(theta[:, i:i + 1], term["window_s"], cond.t,
+                                  cond.index_at(-term["window_s"]))[:, 0]
     if effect == "vibration_rectification":
         if cond.vibration is not None:
             return cond.vibration[:, i]
         return vibration_power(cond.t, cond.f[:, i])
     if effect == "thermal_hysteresis":
-        k = np.searchsorted(cond.t, cond.t + HYSTERESIS_SLOPE_WINDOW_S / 2)
-        k0 = np.searchsorted(cond.t, cond.t - HYSTERESIS_SLOPE_WINDOW_S / 2)
-        k = np.minimum(k, len(cond.t) - 1)
+        k = np.minimum(cond.index_at(HYSTERESIS_SLOPE_WINDOW_S / 2), len(cond.t) - 1)
+        k0 = cond.index_at(-HYSTERESIS_SLOPE_WINDOW_S / 2)
         return np.sign(theta[k, i] - theta[k0, i])
     raise InputError(f"effect {effect!r} has no regressor here (vocabulary: "
                      f"{', '.join(sorted(set(k if isinstance(k, str) else k[0] for k in UNITS)))})")
@@ -200,15 +218,19 @@ def vibration_power(t, x):
 
 
 def _centripetal_matrix(w, w_dot):
-    """K (N, 3, 3) with K r = w x (w x r) + w_dot x r."""
-    wx, wd = _skew(w), _skew(w_dot)
-    return wx @ wx + wd
+    """K (N, 3, 3) with K r = w x (w x r) + w_dot x r = (w w' - |w|^2 I + [w_dot x]) r."""
+    k = w[:, :, None] * w[:, None, :] + _skew(w_dot)
+    k[:, np.arange(3), np.arange(3)] -= np.einsum("ni,ni->n", w, w)[:, None]
+    return k
 
 
 def _skew(v):
-    z = np.zeros(len(v))
-    return np.stack([np.stack([z, -v[:, 2], v[:, 1]], -1), np.stack([v[:, 2], z, -v[:, 0]], -1),
-                     np.stack([-v[:, 1], v[:, 0], z], -1)], axis=1)
+    """[v x] (N, 3, 3) of v (N, 3): [v x] r = v x r."""
+    out = np.zeros((len(v), 3, 3))
+    out[:, 0, 1], out[:, 0, 2] = -v[:, 2], v[:, 1]
+    out[:, 1, 0], out[:, 1, 2] = v[:, 2], -v[:, 0]
+    out[:, 2, 0], out[:, 2, 1] = -v[:, 1], v[:, 0]
+    return out
 
 
 VECTOR_EFFECTS = ("size_effect", "lever_arm", "mounting_misalignment")

@@ -193,7 +193,10 @@ def _bin(x, bins, usable):
     x, usable = x[start:], usable[start:]
     n = len(x) // m * m
     shape = (n // m, m) + x.shape[1:]
-    out = x[:n].reshape(shape).mean(axis=1)
+    # the mean over axis 1, by einsum where samples have columns (5x faster, the same sums);
+    # times keep numpy's pairwise mean (a bin time on a SPLIT_BLOCK_S boundary decides its half)
+    out = (x[:n].reshape(shape).mean(axis=1) if x.ndim == 1 else
+           np.einsum("ij...->i...", x[:n].reshape(shape)) / m)
     bad = ~usable[:n].reshape(n // m, m).all(axis=1)
     out[bad] = np.nan
     return out
@@ -472,6 +475,7 @@ class Fitter:
     def __init__(self, design, rows):
         self.design, self.rows = design, rows
         self.gram, self.logdet, self.slot = [], [], []
+        self._levels = {}
         for c in range(6):
             cols = [design.residual[:, c:c + 1], design.ref_columns(c)]
             slot, start = {}, 4
@@ -521,10 +525,15 @@ class Fitter:
 
     def _level(self, c, cols, pinned=False):
         """(Gram, r, log-likelihood) of channel c at the wander level of maximum marginal
-        likelihood (`_profile`)."""
-        g, r, loglik = self._profile(c, cols, pinned)
-        best = int(np.argmax(loglik))
-        return g[best], float(r[best]), float(loglik[best])
+        likelihood (`_profile`); kept per (channel, columns in their order, pinned): a
+        selection step fits every candidate with the same chosen terms on the channels the
+        candidate does not touch, and the likelihood ratio refits the fit's own model."""
+        key = (c, tuple(cols), pinned)
+        if key not in self._levels:
+            g, r, loglik = self._profile(c, cols, pinned)
+            best = int(np.argmax(loglik))
+            self._levels[key] = g[best], float(r[best]), float(loglik[best])
+        return self._levels[key]
 
     def _columns(self, c, terms):
         return [i for j in terms if j in self.slot[c] for i in self.slot[c][j]]
