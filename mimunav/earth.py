@@ -25,46 +25,50 @@ M_RATIO = OMEGA**2 * A**2 * B / GM   # m = w^2 a^2 b / GM                  (tab 
 
 @numba.njit(cache=True, inline="always")
 def gravity_from_sin2(s2, h):
-    """Normal gravity, m/s^2, from sin^2(lat) and h (m): the scalar core of `normal_gravity`."""
-    g0 = GAMMA_E * (1.0 + K_SOMIGLIANA * s2) / math.sqrt(1.0 - E2 * s2)
+    """Normal gravity, m/s^2, from sin^2(lat) and h (m): the core of `normal_gravity`, for
+    scalars in the navigator's kernel (numba) and arrays through its `py_func` (numpy)."""
+    g0 = GAMMA_E * (1.0 + K_SOMIGLIANA * s2) / np.sqrt(1.0 - E2 * s2)
     return g0 * (1.0 - 2.0 / A * (1.0 + F + M_RATIO - 2.0 * F * s2) * h + 3.0 * h * h / (A * A))
 
 
 @numba.njit(cache=True, inline="always")
 def radii_from_sin2(s2):
-    """(R_N, R_E), m, from sin^2(lat): the scalar core of `radii`."""
+    """(R_N, R_E), m, from sin^2(lat): the core of `radii` (scalars in numba, arrays through
+    its `py_func`)."""
     w2 = 1.0 - E2 * s2
-    r_e = A / math.sqrt(w2)
+    r_e = A / np.sqrt(w2)
     return r_e * (1.0 - E2) / w2, r_e
 
 
-@numba.vectorize(["float64(float64, float64)"], cache=True)
+def _sin2(lat):
+    return np.sin(np.asarray(lat, dtype=float)) ** 2
+
+
 def normal_gravity(lat, h):
-    """Magnitude of normal gravity (gravitation + centrifugal), m/s^2; lat rad, h m.
+    """Magnitude of normal gravity (gravitation + centrifugal), m/s^2; lat rad, h m (scalars
+    or arrays that broadcast).
 
     Somigliana's closed formula on the ellipsoid (TR8350.2 eq. 4-1) with the second-order
     Taylor expansion in height above it (TR8350.2 eq. 4-3):
         g(lat, h) = g0(lat) * (1 - 2/a (1 + f + m - 2 f sin^2 lat) h + 3 h^2 / a^2)
     It acts along the ellipsoid normal (NED +z, down).
     """
-    return gravity_from_sin2(math.sin(lat) ** 2, h)
+    return gravity_from_sin2.py_func(_sin2(lat), np.asarray(h, dtype=float))
 
 
-@numba.vectorize(["float64(float64)"], cache=True)
 def meridian_radius(lat):
     """Meridian (north-south) radius of curvature R_N = a (1 - e^2) / (1 - e^2 sin^2)^1.5, m."""
-    return radii_from_sin2(math.sin(lat) ** 2)[0]
+    return radii_from_sin2.py_func(_sin2(lat))[0]
 
 
-@numba.vectorize(["float64(float64)"], cache=True)
 def prime_vertical_radius(lat):
     """Prime-vertical (east-west) radius of curvature R_E = a / (1 - e^2 sin^2)^0.5, m."""
-    return radii_from_sin2(math.sin(lat) ** 2)[1]
+    return radii_from_sin2.py_func(_sin2(lat))[1]
 
 
 def radii(lat):
     """(R_N, R_E): meridian and prime-vertical radii of curvature, m."""
-    return meridian_radius(lat), prime_vertical_radius(lat)
+    return radii_from_sin2.py_func(_sin2(lat))
 
 
 @numba.njit(cache=True, inline="always")

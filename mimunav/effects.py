@@ -156,8 +156,11 @@ def regressor(term, cond):
     if effect == "mounting_misalignment":             # C(phi) x - x = x x phi = [x x] phi
         cols = {}
         for s in SENSORS:
-            x = _skew(cond.of(s)[0])                  # (N, 3 out, 3 phi)
-            cols.update({(s, i): x[:, i, :] for i in range(3)})
+            x = cond.of(s)[0]
+            zero = np.zeros(len(x))
+            cols.update({(s, 0): np.column_stack([zero, -x[:, 2], x[:, 1]]),   # rows of [x x]
+                         (s, 1): np.column_stack([x[:, 2], zero, -x[:, 0]]),
+                         (s, 2): np.column_stack([-x[:, 1], x[:, 0], zero])})
         return cols
     i = AXES.index(term["axis"])
     x, _, theta = cond.of(sensor)

@@ -23,6 +23,7 @@ Each is held to the same family-wise alpha as the library; a clip must show on b
 the diagnosis' split (alternate SPLIT_BLOCK_S blocks).
 """
 import math
+from functools import lru_cache
 
 import numpy as np
 from scipy import stats
@@ -401,6 +402,20 @@ def gm_mean_correlation(t, span, tau):
     return out
 
 
+@lru_cache(maxsize=4)
+def _mean_correlations(t_bytes):
+    """(flicker covariance of unit instability, Gauss-Markov correlation) of the SPAN_S means
+    at the times t (s, float64 bytes): the same for every channel whose quiet means are at the
+    same times, so made once (read-only arrays)."""
+    t = np.frombuffer(t_bytes)
+    span = float(t[-1] - t[0]) + SPAN_S
+    flicker = flicker_covariance(t - SPAN_S / 2, t + SPAN_S / 2,
+                                 1.0 / (FLICKER_SPAN_FACTOR * span), 1.0 / FAST_S)
+    corr = gm_mean_correlation(t, SPAN_S, GM_TAU_S)
+    flicker.flags.writeable = corr.flags.writeable = False
+    return flicker, corr
+
+
 def _bias_models(t, x, instability, offset, white, nuisance=None):
     """The class, shift and wander models of `bias_tests` on the means x at times t, each
     with the columns `nuisance` (m, k: the channel's temperature, so a slow thermal term
@@ -408,10 +423,8 @@ def _bias_models(t, x, instability, offset, white, nuisance=None):
     {"shift": {"lr", "mu", "se"}, "wander": {"lr", "sigma", "lower", "upper"}}."""
     n = len(x)
     nuisance = np.zeros((n, 0)) if nuisance is None else nuisance
-    span = float(t[-1] - t[0]) + SPAN_S
-    flicker = instability ** 2 * flicker_covariance(
-        t - SPAN_S / 2, t + SPAN_S / 2, 1.0 / (FLICKER_SPAN_FACTOR * span), 1.0 / FAST_S)
-    corr = gm_mean_correlation(t, SPAN_S, GM_TAU_S)
+    unit_flicker, corr = _mean_correlations(np.ascontiguousarray(t, float).tobytes())
+    flicker = instability ** 2 * unit_flicker
     ones = np.ones((n, 1))
     base = flicker + white * np.eye(n)
     turn_on = offset ** 2 * (ones @ ones.T)

@@ -113,6 +113,22 @@ class Design:
         return self.inputs[:, :3] if c < 3 else self.inputs[:, 3:]
 
     @cached_property
+    def channel_columns(self):
+        """Per channel c: ((nb, 4 + sum k) [residual, reference inputs, every candidate's
+        columns on c], {candidate: its column indices}) - what every `Fitter` filters."""
+        out = []
+        for c in range(6):
+            cols = [self.residual[:, c:c + 1], self.ref_columns(c)]
+            slot, start = {}, 4
+            for j in range(len(self.terms)):
+                if c in self.columns[j]:
+                    cols.append(self.columns[j][c])
+                    slot[j] = np.arange(start, start + self.k[j])
+                    start += self.k[j]
+            out.append((np.hstack(cols), slot))
+        return out
+
+    @cached_property
     def detrend_q(self):
         """(nb, knots) orthonormal basis of the piecewise-linear bias (hat functions with
         knots every DETREND_KNOT_S) that `_clean` removes: one QR per design, not per call."""
@@ -140,6 +156,8 @@ class SensorDiagnosis:
     candidates_list: list       # [term]
     fitter: object = None       # the all-rows `Fitter` (for `term_z`)
     bias_null: dict = None      # the wander the bias tests take as normal, and its source
+    compensated: tuple = None   # (w rad/s, f m/s^2) (N, 3) sensor axes: the MIMU through the
+                                # model, every sample (the report navigates them)
 
 
 def residual(flight, cal):
@@ -159,7 +177,7 @@ def residual(flight, cal):
     usable[0] = False                       # the sample at the first stamp has no interval
     return t, res, usable, cond, {"measured": np.hstack([f, w]),
                                   "predicted": np.hstack([f_p, w_p]), "flags": flags,
-                                  "inside": inside}
+                                  "inside": inside, "compensated": (w, f)}
 
 
 def bins(t, t_reference):
@@ -274,7 +292,8 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
                            {"before": _map(design, before, conds),
                             "after": _map(design, after, conds)},
                            before, after, acc.as_dict(), len(design.terms), design.terms,
-                           everything, outputs.bias_null(noise) if output_tests else None)
+                           everything, outputs.bias_null(noise) if output_tests else None,
+                           samples["compensated"])
     diag.inconclusive = [why for why in (_jitter(flight.mimu_t, "the MIMU's"),
                                          _jitter(flight.fog_t, "the reference IMU's")) if why]
     return diag
@@ -477,23 +496,11 @@ class Fitter:
         self.gram, self.logdet, self.slot = [], [], []
         self._levels = {}
         for c in range(6):
-            cols = [design.residual[:, c:c + 1], design.ref_columns(c)]
-            slot, start = {}, 4
-            for j in range(len(design.terms)):
-                if c in design.columns[j]:
-                    cols.append(design.columns[j][c])
-                    slot[j] = np.arange(start, start + design.k[j])
-                    start += design.k[j]
-            x = np.hstack(cols)
-            grams, logdets = [], []
-            for lam in design.levels:
-                z, logdet = wander.innovations(x, rows, lam)
-                grams.append(z.T @ z)
-                logdets.append(logdet)
-            self.gram.append(np.stack(grams))
-            self.logdet.append(np.asarray(logdets))
+            x, slot = design.channel_columns[c]
+            gram, logdet, self.n = wander.grams(x, rows, design.levels)
+            self.gram.append(gram)
+            self.logdet.append(logdet)
             self.slot.append(slot)
-            self.n = len(z)
         self.precision = np.linalg.inv(design.prior + 1e-24 * np.eye(18))
         self.row_prior = [design.prior[np.ix_(_gamma_slots(c), _gamma_slots(c))]
                           for c in range(6)]

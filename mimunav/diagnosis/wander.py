@@ -17,6 +17,8 @@ slow term (a temperature bias) competes with a wander of the level the data show
 arbitrary piecewise-linear nuisance that would absorb it.
 """
 import math
+import os
+from concurrent.futures import ThreadPoolExecutor
 
 import numba
 import numpy as np
@@ -25,15 +27,20 @@ LAMBDA_GRID = np.geomspace(1e-9, 1e-1, 17)   # q / r per bin, searched by profil
 DIFFUSE = 1e8                                  # initial bias variance over r (diffuse start)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _innovations(cols, present, lam):
-    """Standardized innovations (n, k) of every column (absent rows 0) and the innovation
-    variances over r (n,) (absent rows 1) of the random-walk-bias filter."""
+    """Standardized innovations (m - 1, k) of every column at the present rows after the
+    first (the diffuse start's) and their innovation variances over r (m - 1,), m the number
+    of present rows; absent rows are predicted across."""
     n, k = cols.shape
-    out = np.zeros((n, k))
-    s = np.ones(n)
+    m = 0
+    for i in range(n):
+        m += 1 if present[i] else 0
+    out = np.empty((max(m - 1, 0), k))
+    s = np.empty(max(m - 1, 0))
     b = np.zeros(k)
     p = DIFFUSE
+    row = -1                        # the output row of the present row being filtered
     for i in range(n):
         p += lam
         if present[i]:
@@ -42,10 +49,13 @@ def _innovations(cols, present, lam):
             root = math.sqrt(si)
             for j in range(k):
                 e = cols[i, j] - b[j]
-                out[i, j] = e / root
+                if row >= 0:
+                    out[row, j] = e / root
                 b[j] += g * e
+            if row >= 0:
+                s[row] = si
+            row += 1
             p = p / si
-            s[i] = si
     return out, s
 
 
@@ -55,5 +65,19 @@ def innovations(cols, present, lam):
     regressors, one column each; present (n,) bool; lam the random walk's step variance
     over the white variance, per row."""
     z, s = _innovations(np.ascontiguousarray(cols, float), np.ascontiguousarray(present), lam)
-    idx = np.flatnonzero(present)
-    return z[idx[1:]], float(np.log(s[idx[1:]]).sum())
+    return z, float(np.log(s).sum())
+
+THREADS = min(2, os.cpu_count() or 1)   # levels filtered side by side: the filter (numba, no
+                                        # GIL) and the Gram (BLAS) release the interpreter
+
+
+def grams(cols, present, levels):
+    """(Grams (L, k, k) of the standardized innovations at every level of `levels` (L,), their
+    log-determinant terms (L,), the number of innovations): `innovations` level by level,
+    THREADS at a time; each level's result is the same whatever the number of threads."""
+    def one(lam):
+        z, logdet = innovations(cols, present, lam)
+        return z.T @ z, logdet, len(z)
+    with ThreadPoolExecutor(THREADS) as pool:
+        out = list(pool.map(one, levels))
+    return np.stack([g for g, _, _ in out]), np.array([d for _, d, _ in out]), out[0][2]

@@ -10,6 +10,7 @@
 The folder is built beside its final place and renamed into it (nothing half-written).
 """
 import math
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
@@ -23,19 +24,27 @@ from .plots import figure, save
 CHANNEL_NAMES = [f"{s}.{a}" for s, a in CHANNELS]
 
 
-def navigation_gain(flight, cal, cal_found):
+def navigation_gain(flight, cal, cal_found, compensated=None):
     """Position error (m, 3-D) against the truth (else the FOG-IMU) at the end and its
-    maximum, for the model and the model with the found terms; and the series to plot."""
+    maximum, for the model and the model with the found terms; and the series to plot.
+    compensated: the MIMU's (w rad/s, f m/s^2) through `cal` when already at hand (the
+    sensor level's). The two are compensated and navigated side by side (threads: the
+    compensation's numpy and the navigator's kernel release the interpreter)."""
     t = evaluation.comparison_times(flight)
     ref = evaluation.resample(flight.truth, t) if flight.truth is not None else \
         evaluation.resample(evaluation.navigate_fog(flight), t)
-    out, series = {"reference": "truth" if flight.truth is not None else "FOG-IMU"}, {}
-    for name, c in (("model", cal), ("model+found", cal_found)):
-        if c is None:
-            continue
-        w, f, _ = evaluation.compensated_mimu(flight, c)
+
+    def error(c, outputs):
+        w, f = outputs if outputs is not None else evaluation.compensated_mimu(flight, c)[:2]
         nav = evaluation.navigate_mimu(flight, w, f)
-        err = evaluation.resample(nav, t).position_error(ref)
+        return evaluation.resample(nav, t).position_error(ref)
+
+    variants = [(name, c, outputs) for name, c, outputs in
+                (("model", cal, compensated), ("model+found", cal_found, None)) if c is not None]
+    with ThreadPoolExecutor(len(variants)) as pool:
+        errors = list(pool.map(lambda v: error(*v[1:]), variants))
+    out, series = {"reference": "truth" if flight.truth is not None else "FOG-IMU"}, {}
+    for (name, _, _), err in zip(variants, errors):
         norm = np.linalg.norm(err, axis=1)
         out[name] = {"end_m": float(norm[-1]), "max_m": float(norm.max()),
                      "end_enu_m": evaluation.ned_to_enu(err[-1]).tolist()}
@@ -45,7 +54,8 @@ def navigation_gain(flight, cal, cal_found):
 
 def write(out_dir, doc, diag, flight, cal, cal_found, cal_label, force=False):
     with atomic_folder(out_dir, force=force) as tmp:
-        nav, t_nav, series = navigation_gain(flight, cal, cal_found)
+        nav, t_nav, series = navigation_gain(flight, cal, cal_found,
+                                             getattr(diag, "compensated", None))
         doc["navigation"] = nav
         (tmp / "diagnosis.json").write_text(dumps(doc))
         if cal_found is not None:
