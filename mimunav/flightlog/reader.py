@@ -10,7 +10,10 @@ through the generic `mcap_ros2` decoder instead.
 import json
 import os
 import struct
+import threading
 import zlib
+from collections import deque
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 import zstandard
@@ -76,7 +79,6 @@ class FlightLog:
                                f"{c.schema_id}, which the log does not define (a damaged "
                                "summary); `mimunav info LOG --recover OUT.mcap` rebuilds it")
         self.time_reversals = {}    # topic -> times a stamp went backwards (file order)
-        self._dctx = zstandard.ZstdDecompressor()
 
     def close(self):
         self._fh.close()
@@ -217,13 +219,11 @@ class FlightLog:
             n_total += len(index)
         order = sorted(range(len(chunks)), key=lambda i: (first[i], chunks[i].chunk_start_offset))
         layout = []                         # the channel's CDR dtype, from its first chunk
-        for i in order:
-            ci = chunks[i]
-            index = self._message_index(ci, channel.id)
+        for ci, index, data in self._decoded_ahead([chunks[i] for i in order], channel.id):
             if len(index) == 0:
                 continue
             try:
-                data = self._chunk_data(ci)
+                data = data.result()
                 if not layout:
                     layout.append(self._layout(data, index, topic))
             except LayoutError:
@@ -247,12 +247,34 @@ class FlightLog:
             fill.count = len(index)
             yield n_total, fill
 
+    def _decoded_ahead(self, chunks, channel_id):
+        """(chunk index, the channel's message index in it, future of its decompressed
+        records) per chunk, in order: the file is read here, one chunk at a time; the
+        decompression and CRC (zstd and zlib release the interpreter) run DECODE_THREADS at a
+        time, at most DECODE_AHEAD chunks ahead of the consumer; a chunk's damage is raised
+        by its future's result()."""
+        pending = deque()
+        with ThreadPoolExecutor(DECODE_THREADS) as pool:
+            for ci in chunks:
+                index = self._message_index(ci, channel_id)
+                self._fh.seek(ci.chunk_start_offset)
+                record = self._fh.read(ci.chunk_length) if len(index) else b""
+                pending.append((ci, index, pool.submit(self._decompressed, ci, record)))
+                if len(pending) > DECODE_AHEAD:
+                    yield pending.popleft()
+            while pending:
+                yield pending.popleft()
+
     def _chunk_data(self, ci):
-        """Decompressed records of a chunk. Chunk record layout (MCAP spec): opcode 1,
-        length 8, start 8, end 8, uncompressed size 8, crc 4, compression string (4 + n),
-        records length 8, records."""
+        """Decompressed records of a chunk (`_decompressed`)."""
         self._fh.seek(ci.chunk_start_offset)
-        rec = memoryview(self._fh.read(ci.chunk_length))
+        return self._decompressed(ci, self._fh.read(ci.chunk_length))
+
+    def _decompressed(self, ci, record):
+        """Decompressed records of a chunk from its record's bytes. Chunk record layout (MCAP
+        spec): opcode 1, length 8, start 8, end 8, uncompressed size 8, crc 4, compression
+        string (4 + n), records length 8, records."""
+        rec = memoryview(record)
         size = int.from_bytes(rec[25:33], "little")
         n = int.from_bytes(rec[37:41], "little")
         compression = bytes(rec[41:41 + n]).decode()
@@ -260,7 +282,7 @@ class FlightLog:
         if len(body) < int.from_bytes(rec[41 + n:49 + n], "little"):
             raise LogError(f"{self.path}: chunk at byte {ci.chunk_start_offset} is cut short")
         if compression == "zstd":
-            data = self._dctx.decompress(body, max_output_size=size)
+            data = _decompressor().decompress(body, max_output_size=size)
         elif compression == "":
             data = bytes(body)
         elif compression == "lz4":
@@ -327,6 +349,18 @@ class FlightLog:
         reader = make_reader(self._fh, decoder_factories=[DecoderFactory()])
         return [(m.log_time, d) for _, _, m, d in
                 reader.iter_decoded_messages(topics=[self._channel(topic).topic])]
+
+
+DECODE_THREADS = min(2, os.cpu_count() or 1)
+DECODE_AHEAD = 4            # chunks decompressed ahead of the one being gathered
+_local = threading.local()
+
+
+def _decompressor():
+    """This thread's zstd decompressor (one may not serve two threads at once)."""
+    if not hasattr(_local, "dctx"):
+        _local.dctx = zstandard.ZstdDecompressor()
+    return _local.dctx
 
 
 def _rows(data, starts, size):
