@@ -256,11 +256,12 @@ def _replay(args):
     from .files import atomic_folder, refuse_inputs
     from .flightlog import LogWriter
     from .flightlog import schemas as S
-    from .reports.plots import navigation_errors
+    from .reports.plots import navigation_errors, preload
     out = Path(args.output)
     refuse_inputs([out], [args.log, args.cal])
     if out.exists() and not args.force:         # before the work, not after
         raise FileExistsError(f"{out} exists; use --force to replace it")
+    preload()
     flight = evaluation.Flight.load(args.log, stream=True)      # bounded memory
     cal = Calibration.load(args.cal)
     t = evaluation.comparison_times(flight, args.end)
@@ -316,6 +317,9 @@ def _diagnose(args):
     for out in (args.json, args.output):           # refuse before the work, not after
         if out and Path(out).exists() and not args.force:
             raise FileExistsError(f"{out} exists; use --force to replace it")
+    if args.output:
+        from .reports.plots import preload
+        preload()
     # gaps are refused below unless the track level takes the log: it leaves their
     # surroundings out (`track.near_gaps`) instead of navigating across them
     flight = evaluation.Flight.load(args.log, reference_imu=args.level == "sensor",

@@ -1,16 +1,30 @@
 """Figures a person would rather look at than tables: navigation errors against time,
 distributions of a campaign. Written with matplotlib (Agg) atomically."""
 import os
+import threading
 
 import numpy as np
 
 from ..evaluation import ned_to_enu
 
 
-def figure(rows, cols, size):
+def _pyplot():
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    return plt
+
+
+def preload():
+    """Import matplotlib's pyplot (0.5-0.8 s) on a background thread, for a command that
+    will plot after reading and navigating a log: that work runs mostly outside the
+    interpreter (zstd, numpy, numba), so the import costs it little; `figure` then finds
+    pyplot imported (or waits on the import lock for the rest)."""
+    threading.Thread(target=_pyplot, daemon=True).start()
+
+
+def figure(rows, cols, size):
+    plt = _pyplot()
     return plt, *plt.subplots(rows, cols, figsize=size, squeeze=False)
 
 
