@@ -157,9 +157,9 @@ def main():
         print(f"\n{name} {outcome} ({case}):\n{err}")
     fail = sum(v for (_, o), v in counts.items() if o not in ("ok", "refused"))
     total = sum(counts.values())
-    publish(__file__, [(f"importer fuzz: {len(todo)} damaged foreign recordings (rtklib, "
-                        "ros2, ulog, dataflash, table) through `mimunav import`",
-                        f"{total} runs in {elapsed / 60:.1f} min: "
+    publish(__file__, [("importer fuzz: damaged foreign recordings (rtklib, ros2, ulog, "
+                        "dataflash, table) through `mimunav import`",
+                        f"{len(todo)} recordings, {total} runs in {elapsed / 60:.1f} min: "
                         f"{sum(v for (_, o), v in counts.items() if o == 'ok')} ok, "
                         f"{sum(v for (_, o), v in counts.items() if o == 'refused')} refused, "
                         f"{fail} traceback/hang/input modified")],

@@ -156,8 +156,9 @@ class SensorDiagnosis:
     candidates_list: list       # [term]
     fitter: object = None       # the all-rows `Fitter` (for `term_z`)
     bias_null: dict = None      # the wander the bias tests take as normal, and its source
-    compensated: tuple = None   # (w rad/s, f m/s^2) (N, 3) sensor axes: the MIMU through the
-                                # model, every sample (the report navigates them)
+    compensated: tuple = None   # (flight, w rad/s, f m/s^2 (N, 3) sensor axes): the MIMU of
+                                # the flight diagnosed through the model, every sample (the
+                                # report navigates them when it reports on that flight)
 
 
 def residual(flight, cal):
@@ -293,7 +294,7 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
                             "after": _map(design, after, conds)},
                            before, after, acc.as_dict(), len(design.terms), design.terms,
                            everything, outputs.bias_null(noise) if output_tests else None,
-                           samples["compensated"])
+                           (flight, *samples["compensated"]))
     diag.inconclusive = [why for why in (_jitter(flight.mimu_t, "the MIMU's"),
                                          _jitter(flight.fog_t, "the reference IMU's")) if why]
     return diag

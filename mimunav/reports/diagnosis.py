@@ -54,8 +54,9 @@ def navigation_gain(flight, cal, cal_found, compensated=None):
 
 def write(out_dir, doc, diag, flight, cal, cal_found, cal_label, force=False):
     with atomic_folder(out_dir, force=force) as tmp:
+        own = getattr(diag, "compensated", None)     # the sensor level's, of this flight
         nav, t_nav, series = navigation_gain(flight, cal, cal_found,
-                                             getattr(diag, "compensated", None))
+                                             own[1:] if own and own[0] is flight else None)
         doc["navigation"] = nav
         (tmp / "diagnosis.json").write_text(dumps(doc))
         if cal_found is not None:
