@@ -412,3 +412,20 @@ def test_stamps_that_jitter_make_the_sensor_level_inconclusive():
     assert "jitter by 4" in sensor._jitter(t + rng.uniform(-5e-3, 5e-3, len(t)), "the MIMU's")
     assert sensor._jitter(t + rng.uniform(-1e-3, 1e-3, len(t)), "the MIMU's") == ""
     assert sensor._jitter(t, "the MIMU's") == ""
+
+
+def test_split_blocks_do_not_depend_on_the_last_bit_of_a_stamp():
+    """The training / held-out split (alternate 0.5 s blocks) puts a bin whose time falls on
+    a block boundary in the block it opens, whatever rounding the bin time carries: stamps
+    of a 1 kHz flight and their 10-sample means, each moved by +-2 ulp, keep their blocks
+    (a plain floor of (t - t0) / 0.5 had sent about half of the boundary bins either way)."""
+    from mimunav.diagnosis.outputs import block_index
+    from mimunav.diagnosis.sensor import SPLIT_BLOCK_S
+    rng = np.random.default_rng(5)
+    stamps = 1000.0 + np.arange(200_000) / 1000.0
+    for t in (stamps, stamps.reshape(-1, 10).mean(axis=1)):
+        exact = np.round((t - t[0]) * 1000).astype(np.int64) // 500      # ms, integer blocks
+        for _ in range(3):
+            nudged = t + rng.integers(-2, 3, len(t)) * np.spacing(t)
+            nudged[0] = t[0]
+            assert np.array_equal(block_index(nudged, SPLIT_BLOCK_S), exact)

@@ -15,6 +15,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import stats
 
+from .outputs import block_index
+
 BLOCK_S = 5.0       # HAC blocks
 
 
@@ -50,7 +52,7 @@ class Tier:
                  for c in range(self.channels)]
         project = lambda v, c: v - bases[c] @ (bases[c].T @ v)  # noqa
         scale = [np.std(project(self.residual[rows, c], c)) or 1.0 for c in range(self.channels)]
-        blocks = np.floor((t - t[0]) / self.block_s).astype(int)
+        blocks = block_index(t, self.block_s)
         # a gap (held-out segment) starts a new block
         blocks += np.concatenate([[0], np.cumsum(np.diff(t) > 1.5 * np.median(np.diff(t)))])
         return (lambda v, c: project(v, c) / scale[c]), _renumber(blocks), np.asarray(scale)

@@ -338,10 +338,22 @@ SPAN_S = 2.0        # the bias is read from SPAN_S means of quiet flight: what i
                     # colored noise, flicker at seconds) is no bias instability nor offset
 
 
+def block_index(t, length_s):
+    """(n,) int: the consecutive length_s blocks of t (s, increasing) from t[0], each stamp
+    in the block it opens when it falls on a boundary. The boundaries fall on samples (a
+    1 kHz flight's 0.5 s split, bin times that are means of stamps), where a plain floor
+    put a stamp on either side by its last bit: a rounding of 1e-14 s had moved bins
+    between the training and held-out halves and changed a finding's interval by 1 %."""
+    return np.floor((t - t[0]) / length_s + BOUNDARY_TOLERANCE).astype(int)
+
+
+BOUNDARY_TOLERANCE = 1e-6   # of a block: far above rounding (1e-14 s), below any sample step
+
+
 def span_means(t, x):
     """(times (m,), means (m, k)) of x (n, k) over consecutive SPAN_S spans of t, NaN where
     fewer than half a span's bins are finite."""
-    sec = np.floor((t - t[0]) / SPAN_S).astype(int)
+    sec = block_index(t, SPAN_S)
     n = sec.max() + 1
     good = np.isfinite(x)
     count = np.stack([np.bincount(sec, good[:, c], minlength=n) for c in range(x.shape[1])], 1)

@@ -260,7 +260,7 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
         raise InputError(f"{flight.path}: {len(design.t) * FAST_BIN_S:.1f} s of usable MIMU "
                          f"samples inside the reference IMU's span; the sensor level needs "
                          f"at least {4 * SPLIT_BLOCK_S:g} s")
-    block = np.floor((design.t - design.t[0]) / SPLIT_BLOCK_S).astype(int)
+    block = outputs.block_index(design.t, SPLIT_BLOCK_S)
     train = block % 2 == 0
     held = ~train
 
@@ -338,7 +338,7 @@ def _output_findings(flight, cal, t, samples, full_scale):
     steps = np.zeros(6)
     for f in found:
         steps[CHANNELS.index((f["sensor"], f["axis"]))] = f["coefficient"]
-    train = np.floor((t - t[0]) / SPLIT_BLOCK_S).astype(int) % 2 == 0
+    train = outputs.block_index(t, SPLIT_BLOCK_S) % 2 == 0
     clips, clipped = outputs.saturation(t, measured, predicted, rows, train, full_scale, steps)
     return clips + found, clipped, set(np.flatnonzero(steps))
 
@@ -984,7 +984,7 @@ def _scan(design, x, alpha):
     channels with Student-t tails of SCAN_DOF degrees of freedom. Returns spans
     [{"t0", "t1", "channel", "z"}] (overlapping windows merged)."""
     t = design.t
-    sec = np.floor(t - t[0]).astype(int)
+    sec = outputs.block_index(t, 1.0)
     n = sec.max() + 1
     counts = np.bincount(sec, minlength=n).astype(float)
     length = int(round(SCAN_WINDOW_S))
@@ -1058,7 +1058,7 @@ def _map(design, x, conds, seconds=MAP_SECONDS):
     terms stand out of the white noise) in each condition (a majority of its bins) over the
     same in quiet flight; NaN where a condition has fewer than 10 such averages."""
     t = design.t
-    sec = np.floor((t - t[0]) / seconds).astype(int)
+    sec = outputs.block_index(t, seconds)
     n = sec.max() + 1
     count = np.maximum(np.bincount(sec, minlength=n), 1)
     means = np.column_stack([np.bincount(sec, x[:, c], minlength=n) / count for c in range(6)])
