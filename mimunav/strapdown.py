@@ -37,6 +37,7 @@ from . import attitude, earth
 from .trajectory import Trajectory
 from .errors import InputError
 
+_PER_OMEGA = 1.0 / earth.OMEGA   # s/rad: cos(lat) from the Earth rate's north component
 MAX_RATE = 50.0          # rad/s (2865 deg/s): above any navigation gyro's range
 MAX_SPECIFIC_FORCE = 2000.0   # m/s^2 (~200 g): above any navigation accelerometer's range
 
@@ -279,7 +280,8 @@ def _navigate(dt, dth, dvb, state, two_sample, h_ref, k1, k2, lat, lon, h, v, q)
         la_p, hh_p, vn_p, ve_p, vd_p, dt_p = la, hh, vn, ve, vd, T
         hh = hh - 0.5 * (vd + vd_new) * T
         la = la + 0.5 * (vn + vn_new) * T / (r_n + hh_m)
-        lo = lo + 0.5 * (ve + ve_new) * T / ((r_e + hh_m) * math.cos(la_m))
+        # cos(la_m) = ien / OMEGA: nav_rates has it already (one cosine less per step)
+        lo = lo + 0.5 * (ve + ve_new) * T / ((r_e + hh_m) * (ien * _PER_OMEGA))
         vn, ve, vd = vn_new, ve_new, vd_new
         if aided:
             err = hh - h_ref[k]
