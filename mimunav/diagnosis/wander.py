@@ -67,6 +67,7 @@ def innovations(cols, present, lam):
     z, s = _innovations(np.ascontiguousarray(cols, float), np.ascontiguousarray(present), lam)
     return z, float(np.log(s).sum())
 
+
 THREADS = min(2, os.cpu_count() or 1)   # levels filtered side by side: the filter (numba, no
                                         # GIL) and the Gram (BLAS) release the interpreter
 
