@@ -57,9 +57,9 @@ def main():
         cal = os.path.join(tmp, "cal.json")
         from mimunav.compensation import Calibration
         Calibration.from_dict(json.load(open(truth))["mimu"]["coefficients"]).save(cal)
-        for name, args in (("replay", ["replay", log, "--cal", cal, "-o"]),
-                           ("compensate", ["compensate", log, "--cal", cal, "-o"])):
-            runs = [timed_cli(args + [os.path.join(tmp, f"{name}{k}" + (
+        for name, cmd in (("replay", ["replay", log, "--cal", cal, "-o"]),
+                          ("compensate", ["compensate", log, "--cal", cal, "-o"])):
+            runs = [timed_cli(cmd + [os.path.join(tmp, f"{name}{k}" + (
                 ".mcap" if name == "compensate" else ""))]) for k in range(args.repeats)]
             res[f"{name}_600s_1kHz_s"] = min(runs)
             res[f"{name}_600s_1kHz_s_median"] = float(sorted(runs)[len(runs) // 2])
