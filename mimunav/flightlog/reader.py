@@ -139,14 +139,14 @@ class FlightLog:
         (or left out and listed in `damaged` with skip_damaged), the total is compared with
         the statistics record at the end - and chunks whose messages go back in time across
         a block boundary are refused (`read` sorts them; a stream cannot)."""
-        buf, pos, total, last = None, 0, 0, None
-        try:
+        buf, pos, total, last = None, 0, 0, None     # a new buffer after each yield: the
+        try:                                        # block handed out is never written again
             for _, fill in self._pieces(topic, fields):
                 if buf is not None and fill.count > len(buf) - pos:
                     total += pos
-                    yield buf[:pos].copy()
-                    pos = 0
-                if buf is None or fill.count > len(buf):
+                    yield buf[:pos]
+                    buf, pos = None, 0
+                if buf is None or fill.count > len(buf) - pos:
                     buf = np.empty(max(size, fill.count), dtype=fill.dtype)
                 n = fill(buf[pos:])
                 piece = buf[pos:pos + n]
@@ -158,8 +158,8 @@ class FlightLog:
                 pos += n
                 if pos >= size:
                     total += pos
-                    yield buf[:pos].copy()
-                    pos = 0
+                    yield buf[:pos]
+                    buf, pos = None, 0
         except LogError:
             raise
         except _DAMAGE as exc:
@@ -167,7 +167,7 @@ class FlightLog:
                            " `mimunav info LOG --recover OUT.mcap` keeps what is intact") from exc
         if pos:
             total += pos
-            yield buf[:pos].copy()
+            yield buf[:pos]
         self._check_count(topic, total)
 
     def _damage(self, topic, ci, exc):
