@@ -170,6 +170,42 @@ def test_corrupt_chunk_is_named_by_its_time_range(flight_file, tmp_path):
             log.read(topic)
 
 
+def test_only_the_reading_thread_touches_the_file(flight_file, tmp_path):
+    """Chunks are decompressed on worker threads (`FlightLog._decoded_ahead`); the file is
+    read by the consumer alone, also when a worker meets a corrupt chunk and names its time
+    range (that name once read the metadata on the worker, moving the consumer's file
+    position: messages of intact chunks were then dropped as damaged, run to run)."""
+    import threading
+    path, _, _ = flight_file
+    data = bytearray(path.read_bytes())
+    with FlightLog(path) as log:
+        ci = sorted(log.summary.chunk_indexes, key=lambda c: c.chunk_start_offset)[3]
+    data[ci.chunk_start_offset + ci.chunk_length // 2] ^= 0xFF
+    bad = tmp_path / "bad.mcap"
+    bad.write_bytes(bytes(data))
+    threads = set()
+
+    class Watched:
+        def __init__(self, fh):
+            self.fh = fh
+
+        def __getattr__(self, name):
+            if name in ("seek", "read", "tell"):
+                threads.add(threading.get_ident())
+            return getattr(self.fh, name)
+
+    for skip in (False, True):
+        with FlightLog(bad, skip_damaged=skip) as log:
+            log._fh = Watched(log._fh)
+            try:
+                for topic in log.channels:
+                    log.read(topic)
+            except LogError as exc:
+                assert not skip and "corrupt chunk" in str(exc)
+            assert skip == bool(log.damaged)
+        assert threads == {threading.get_ident()}
+
+
 def test_other_schemas_and_irregular_time_are_reported(tmp_path, capsys):
     from mcap.writer import Writer as McapWriter
 

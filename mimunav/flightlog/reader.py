@@ -110,6 +110,17 @@ class FlightLog:
                            "`mimunav info LOG --recover OUT.mcap` keeps what is intact") from None
         return out
 
+    def epoch_ns(self):
+        """The flight's epoch (ns since 1970) from the `flight` metadata record, or None when
+        the log has none or its metadata cannot be read; read once."""
+        if not hasattr(self, "_epoch_ns"):
+            try:
+                epoch = int(self.metadata().get("flight", {}).get("epoch_unix_ns"))
+            except (LogError, TypeError, ValueError):
+                epoch = None
+            self._epoch_ns = epoch
+        return self._epoch_ns
+
     def _channel(self, topic):
         if topic not in self.channels:
             raise LogError(f"{self.path}: no channel {topic!r}; the log has "
@@ -254,6 +265,7 @@ class FlightLog:
         time, at most DECODE_AHEAD chunks ahead of the consumer; a chunk's damage is raised
         by its future's result()."""
         pending = deque()
+        self.epoch_ns()                 # read here: a worker's error message must not seek
         with ThreadPoolExecutor(DECODE_THREADS) as pool:
             for ci in chunks:
                 index = self._message_index(ci, channel_id)
@@ -264,11 +276,6 @@ class FlightLog:
                     yield pending.popleft()
             while pending:
                 yield pending.popleft()
-
-    def _chunk_data(self, ci):
-        """Decompressed records of a chunk (`_decompressed`)."""
-        self._fh.seek(ci.chunk_start_offset)
-        return self._decompressed(ci, self._fh.read(ci.chunk_length))
 
     def _decompressed(self, ci, record):
         """Decompressed records of a chunk from its record's bytes. Chunk record layout (MCAP
@@ -376,8 +383,8 @@ def _rows(data, starts, size):
 
 def _since_epoch(log, ns):
     """A message time for people: s since the flight's epoch (absolute ns if unknown)."""
-    epoch = log.metadata().get("flight", {}).get("epoch_unix_ns")
-    return f"t = {(ns - int(epoch)) / 1e9:.3f} s" if epoch is not None else f"{ns} ns"
+    epoch = log.epoch_ns()
+    return f"t = {(ns - epoch) / 1e9:.3f} s" if epoch is not None else f"{ns} ns"
 
 
 def _u64(data, offsets):
