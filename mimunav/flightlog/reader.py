@@ -260,7 +260,7 @@ class FlightLog:
 
     def _decoded_ahead(self, chunks, channel_id):
         """(chunk index, the channel's message index in it, future of its decompressed
-        records) per chunk, in order: the file is read here, one chunk at a time; the
+        records, None when the index is empty) per chunk, in order: the file is read here, one chunk at a time; the
         decompression and CRC (zstd and zlib release the interpreter) run DECODE_THREADS at a
         time, at most DECODE_AHEAD chunks ahead of the consumer; a chunk's damage is raised
         by its future's result()."""
@@ -269,9 +269,12 @@ class FlightLog:
         with ThreadPoolExecutor(DECODE_THREADS) as pool:
             for ci in chunks:
                 index = self._message_index(ci, channel_id)
-                self._fh.seek(ci.chunk_start_offset)
-                record = self._fh.read(ci.chunk_length) if len(index) else b""
-                pending.append((ci, index, pool.submit(self._decompressed, ci, record)))
+                if len(index) == 0:                 # nothing of the channel: not decoded
+                    pending.append((ci, index, None))
+                else:
+                    self._fh.seek(ci.chunk_start_offset)
+                    record = self._fh.read(ci.chunk_length)
+                    pending.append((ci, index, pool.submit(self._decompressed, ci, record)))
                 if len(pending) > DECODE_AHEAD:
                     yield pending.popleft()
             while pending:

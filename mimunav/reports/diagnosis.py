@@ -18,6 +18,7 @@ from .. import evaluation
 from ..files import atomic_folder
 from ..diagnosis import dumps, sensor
 from ..diagnosis import library
+from ..diagnosis.outputs import block_index
 from ..diagnosis.sensor import CHANNELS, CONDITIONS
 from .plots import figure, save
 
@@ -223,7 +224,7 @@ def _timeline(diag, doc, png):
     located spans (green) and unexplained excursions (red)."""
     t = diag.design.t
     before, after = diag.before, diag.after
-    sec = np.floor(t - t[0]).astype(int)
+    sec = block_index(t, 1.0)                 # the seconds of `sensor._map` and `_scan`
     n = sec.max() + 1
     count = np.maximum(np.bincount(sec, minlength=n), 1)
     t_s = t[0] + np.arange(n) + 0.5
