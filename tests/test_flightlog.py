@@ -120,6 +120,36 @@ def test_missing_channel_lists_what_is_there_and_writing_is_safe(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["f.mcap"]   # no temporary left
 
 
+def test_a_failed_chunk_write_raises_and_leaves_nothing(tmp_path, monkeypatch):
+    """Chunks are compressed and written on a thread while the next are encoded: a write
+    that fails there (a full disk) is raised to the writer's caller, and a failure of the
+    caller's own while a batch is being written; either way no log and no temporary file
+    are left and nothing hangs."""
+    from mimunav.flightlog import writer
+    rng = np.random.default_rng(5)
+    t, raw, _, _ = _channels(40_000, rng)         # ~110 chunks of 64 KiB: several batches
+    calls = []
+    real = writer.LogWriter._write_chunks
+
+    def full_disk(self, batch):
+        calls.append(len(batch))
+        if len(calls) == 2:
+            raise OSError(28, "No space left on device")
+        return real(self, batch)
+
+    monkeypatch.setattr(writer.LogWriter, "_write_chunks", full_disk)
+    with pytest.raises(OSError, match="No space left"):
+        with LogWriter(tmp_path / "full.mcap", chunk_size=1 << 16) as log:
+            log.write("/mimu/raw", S.RAW_MIMU, "mimu", t, **raw)
+    assert len(calls) >= 2 and list(tmp_path.iterdir()) == []
+    monkeypatch.setattr(writer.LogWriter, "_write_chunks", real)
+    with pytest.raises(KeyboardInterrupt):
+        with LogWriter(tmp_path / "stopped.mcap", chunk_size=1 << 16) as log:
+            log.write("/mimu/raw", S.RAW_MIMU, "mimu", t, **raw)
+            raise KeyboardInterrupt
+    assert list(tmp_path.iterdir()) == []
+
+
 @pytest.fixture
 def flight_file(tmp_path):
     rng = np.random.default_rng(4)

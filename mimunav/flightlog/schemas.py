@@ -111,12 +111,13 @@ def cdr_dtype(schema_name, frame_id):
                      "itemsize": pos + 4})
 
 
-def encode(schema_name, frame_id, stamp_ns, **fields):
+def encode(schema_name, frame_id, stamp_ns, out=None, **fields):
     """Messages as one structured array (N,): stamps in integer ns since the epoch; each
-    body field an array (N,) or (N, count)."""
+    body field an array (N,) or (N, count); out: a zeroed array of `cdr_dtype` (N,) to
+    fill (a view into Message records), else a new one."""
     stamp_ns = np.asarray(stamp_ns, dtype=np.int64)
-    dt = cdr_dtype(schema_name, frame_id)
-    out = np.zeros(len(stamp_ns), dtype=dt)
+    if out is None:
+        out = np.zeros(len(stamp_ns), dtype=cdr_dtype(schema_name, frame_id))
     out["encap"] = np.frombuffer(ENCAPSULATION, dtype="V4")[0]
     out["sec"], out["nanosec"] = np.divmod(stamp_ns, 1_000_000_000)
     out["frame_len"] = len(frame_id) + 1

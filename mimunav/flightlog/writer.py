@@ -6,6 +6,9 @@ structured array (opcode, length, channel, sequence, log_time, publish_time, CDR
 cut into chunks of about `chunk_size` uncompressed bytes, each compressed by zstd with its
 CRC-32 and followed by its MessageIndex - no per-message Python work (the `mcap` package's
 `Writer.add_message` costs about 11 us a message; a 1 kHz hour of three channels is 10^7).
+A batch of chunks is compressed and written on a writing thread while the caller encodes
+the next; records outside chunks (metadata, attachments, the summary) wait for it, so the
+file's order is the order of the calls.
 The record layouts are those of the MCAP specification (mcap.dev/spec); the files are read
 back by the `mcap` package's reader with CRC validation, by mcap_ros2 and by this project's
 reader in the tests. Messages copied from other files (`copy`) go through the same chunks.
@@ -16,6 +19,7 @@ import json
 import os
 import struct
 import zlib
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 import zstandard
@@ -70,6 +74,7 @@ class LogWriter:
         self._start = self._end = None
         self._pending, self._pending_bytes = [], 0  # copied messages not yet in a chunk
         self._batch = []                            # chunks not yet compressed and written
+        self._writing = None                        # Future: a batch being written
         self._sequence = {}                         # channel id -> next message sequence
         self._last_stamp = {}                       # channel id -> last stamp written (write)
 
@@ -79,15 +84,20 @@ class LogWriter:
         self._fh.write(MAGIC)
         self._fh.write(_record(OP["header"], _string("ros2") + _string("mimunav")))
         self._zstd = zstandard.ZstdCompressor(level=1)     # as small as 3 on IMU data, 1.6x faster
+        self._writer = ThreadPoolExecutor(1, thread_name_prefix="mcap-writer")
         return self
 
     def __exit__(self, exc_type, exc, tb):
         try:
-            if exc_type is None:
-                self._flush_copies()
-                self._flush_chunks()
-                self._finish()
-            self._fh.close()
+            try:
+                if exc_type is None:
+                    self._flush_copies()
+                    self._flush_chunks()
+                    self._wait()
+                    self._finish()
+            finally:
+                self._writer.shutdown(wait=True)     # the writing thread is done with the file
+                self._fh.close()
             if exc_type is None:
                 os.replace(self._tmp, self.path)
         finally:
@@ -100,6 +110,7 @@ class LogWriter:
         """A Metadata record; structured values are stored as JSON strings."""
         pairs = [(k, v if isinstance(v, str) else json.dumps(v)) for k, v in values.items()]
         rec = _record(OP["metadata"], _string(name) + _map(pairs))
+        self._wait()                            # the writing thread is done with the file
         self._metadata_indexes.append((self._fh.tell(), len(rec), name))
         self._fh.write(rec)
 
@@ -107,6 +118,7 @@ class LogWriter:
         body = struct.pack("<QQ", 0, 0) + _string(name) + _string(media_type) + \
             struct.pack("<Q", len(data)) + bytes(data)
         rec = _record(OP["attachment"], body + struct.pack("<I", zlib.crc32(body)))
+        self._wait()
         self._attachment_indexes.append((self._fh.tell(), len(rec), len(data), name, media_type))
         self._fh.write(rec)
 
@@ -129,8 +141,11 @@ class LogWriter:
         for a in range(0, len(stamp_ns), per):
             piece = {k: (v[a:a + per] if np.ndim(v) and len(v) == len(stamp_ns) else v)
                      for k, v in fields.items()}
-            self._messages(channel, schemas.encode(schema_name, frame_id, stamp_ns[a:a + per],
-                                                   **piece), stamp_ns[a:a + per], first + a)
+            records = self._records(channel, schemas.cdr_dtype(schema_name, frame_id),
+                                    stamp_ns[a:a + per], first + a)
+            schemas.encode(schema_name, frame_id, stamp_ns[a:a + per], out=records["data"],
+                           **piece)
+            self._chunk(channel, records.view(np.uint8), records["log_time"])
 
     def write_encoded(self, topic, schema_name, msgs, stamp_ns):
         """Messages already encoded (a structured array of CDR payloads, one size) with
@@ -141,26 +156,29 @@ class LogWriter:
         first = self._sequence.get(channel, 0)
         self._sequence[channel] = first + len(msgs)
         for a in range(0, len(msgs), per):
-            self._messages(channel, msgs[a:a + per], stamp_ns[a:a + per], first + a)
+            records = self._records(channel, np.dtype(f"V{msgs.dtype.itemsize}"),
+                                    stamp_ns[a:a + per], first + a)
+            records["data"] = np.ascontiguousarray(msgs[a:a + per]).view(records.dtype["data"])
+            self._chunk(channel, records.view(np.uint8), records["log_time"])
 
     def _per_chunk(self, payload_size):
         return max(1, self._chunk_size // (_MESSAGE_HEAD + payload_size))
 
-    def _messages(self, channel, msgs, stamp_ns, first_sequence):
-        """One chunk of Message records built as a numpy structured array."""
-        size = msgs.dtype.itemsize
-        n = len(msgs)
-        records = np.empty(n, dtype=np.dtype([("op", "u1"), ("length", "<u8"), ("channel", "<u2"),
-                                              ("sequence", "<u4"), ("log_time", "<u8"),
-                                              ("publish_time", "<u8"), ("data", f"V{size}")]))
+    @staticmethod
+    def _records(channel, payload, stamp_ns, first_sequence):
+        """Zeroed Message records of one chunk as a numpy structured array (opcode, length,
+        channel, sequence, log_time, publish_time, then the CDR payload of dtype `payload`,
+        filled by the caller); the padding bytes stay zero."""
+        n = len(stamp_ns)
+        records = np.zeros(n, dtype=np.dtype([
+            ("op", "u1"), ("length", "<u8"), ("channel", "<u2"), ("sequence", "<u4"),
+            ("log_time", "<u8"), ("publish_time", "<u8"), ("data", payload)]))
         records["op"] = OP["message"]
-        records["length"] = _MESSAGE_HEAD - 9 + size
+        records["length"] = _MESSAGE_HEAD - 9 + payload.itemsize
         records["channel"] = channel
         records["sequence"] = np.arange(first_sequence, first_sequence + n, dtype=np.uint32)
         records["log_time"] = records["publish_time"] = stamp_ns
-        records["data"] = np.ascontiguousarray(msgs).view(f"V{size}").ravel()
-        self._chunk(channel, records.tobytes(), records["log_time"],
-                    np.arange(n, dtype=np.uint64) * np.uint64(records.itemsize))
+        return records
 
     def copy(self, schema, channel, message):
         """Copy a message read from another MCAP (mcap.records objects) unchanged."""
@@ -187,49 +205,69 @@ class LogWriter:
                 parts.append(rec)
                 offsets.append(pos)
                 pos += len(rec)
-            self._chunk(cid, b"".join(parts), np.array([m.log_time for m in msgs], np.uint64),
+            self._chunk(cid, np.frombuffer(b"".join(parts), np.uint8),
+                        np.array([m.log_time for m in msgs], np.uint64),
                         np.array(offsets, np.uint64))
 
     # ---- chunks and definitions --------------------------------------------------------
-    def _chunk(self, cid, messages, log_times, offsets):
-        """A chunk of one channel's message records (bytes) with their log times and
-        offsets (from the first message): queued, and written with its MessageIndex and
-        ChunkIndex entry when the batch is full (`_flush_chunks`)."""
+    def _chunk(self, cid, messages, log_times, offsets=None):
+        """A chunk of one channel's message records (uint8 array) with their log times and
+        offsets from the first message (None: records of one size): queued, and written
+        with its MessageIndex and ChunkIndex entry when the batch is full (`_flush_chunks`)."""
+        if offsets is None:
+            offsets = np.arange(len(log_times), dtype=np.uint64) * \
+                np.uint64(len(messages) // max(1, len(log_times)))
         head = b""
         if cid not in self._announced:          # definitions travel with the first chunk
             schema_id, channel_body = self._channel_records[cid]
             head = _record(OP["schema"], self._schema_records[schema_id]) + \
                 _record(OP["channel"], channel_body)
+            messages = np.concatenate([np.frombuffer(head, np.uint8), messages])
             self._announced.add(cid)
-        self._batch.append((cid, head + messages, log_times, offsets, len(head)))
+        self._batch.append((cid, messages, log_times, offsets, len(head)))
         if len(self._batch) >= CHUNK_BATCH:
             self._flush_chunks()
 
     def _flush_chunks(self):
-        """Compress the queued chunks in parallel (zstd's own threads, one per core), then
-        write them in order."""
+        """Hand the queued chunks to the writing thread (`_write_chunks`), after the batch
+        before them is written: the next batch is encoded while this one is compressed."""
         batch, self._batch = self._batch, []
-        if not batch:
-            return
+        self._wait()
+        if batch:
+            self._writing = self._writer.submit(self._write_chunks, batch)
+
+    def _wait(self):
+        """Block until the writing thread has written what it was given (its error, if
+        any, is raised here)."""
+        writing, self._writing = self._writing, None
+        if writing is not None:
+            writing.result()
+
+    def _write_chunks(self, batch):
+        """Compress chunks in parallel (zstd's own threads, one per core), then write them
+        in order, each with its CRC-32, MessageIndex and ChunkIndex entry."""
         if len(batch) > 1:
             result = self._zstd.multi_compress_to_buffer([b[1] for b in batch], threads=-1)
-            compressed = [result[k].tobytes() for k in range(len(batch))]
+            compressed = [result[k] for k in range(len(batch))]
         else:
             compressed = [self._zstd.compress(batch[0][1])]
+        fh = self._fh
         for (cid, data, log_times, offsets, head_len), comp in zip(batch, compressed):
             start, end = int(log_times.min()), int(log_times.max())
-            body = struct.pack("<QQQI", start, end, len(data), zlib.crc32(data)) + \
-                _string("zstd") + struct.pack("<Q", len(comp)) + comp
-            chunk_start = self._fh.tell()
-            self._fh.write(_record(OP["chunk"], body))
-            chunk_length = self._fh.tell() - chunk_start
+            head = struct.pack("<QQQI", start, end, len(data), zlib.crc32(data)) + \
+                _string("zstd") + struct.pack("<Q", len(comp))
+            chunk_start = fh.tell()
+            fh.write(struct.pack("<BQ", OP["chunk"], len(head) + len(comp)) + head)
+            fh.write(comp)
+            chunk_length = fh.tell() - chunk_start
             entries = np.empty(len(log_times), dtype=[("t", "<u8"), ("o", "<u8")])
             entries["t"], entries["o"] = log_times, offsets + np.uint64(head_len)
-            index_start = self._fh.tell()
-            self._fh.write(_record(OP["message_index"], struct.pack("<HI", cid, entries.nbytes)
-                                   + entries.tobytes()))
+            index_start = fh.tell()
+            fh.write(struct.pack("<BQHI", OP["message_index"], 6 + entries.nbytes, cid,
+                                 entries.nbytes))
+            fh.write(entries)
             self._chunk_indexes.append((start, end, chunk_start, chunk_length,
-                                        {cid: index_start}, self._fh.tell() - index_start,
+                                        {cid: index_start}, fh.tell() - index_start,
                                         len(comp), len(data)))
             self._counts[cid] = self._counts.get(cid, 0) + len(log_times)
             self._start = start if self._start is None else min(self._start, start)
