@@ -24,7 +24,6 @@ vector in rad, sensor frame), and the keys a regressor needs (order, window_s, r
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 from .errors import InputError
 
 
@@ -304,6 +303,7 @@ def apply(terms, cond, sign=1.0):
                 out[s][:] = shift(cond.t, out[s], tau)
             continue
         if term["effect"] == "mounting_misalignment":
+            from scipy.spatial.transform import Rotation   # 0.4 s of import: only here
             rotation = Rotation.from_rotvec(-sign * parameter(term))
             for s in SENSORS:
                 out[s][:] = rotation.apply(out[s])

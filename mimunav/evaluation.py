@@ -376,11 +376,11 @@ class VehicleNavigator:
             self.pending = (self.nav.state(), w_v[:1])      # the start: its first interval
         dt = np.diff(t, prepend=self.nav.t)
         self.count += len(t)
-        states = self.nav.step(t, w_v * dt[:, None], f_v * dt[:, None])
         held, w_held = self.pending
+        states = self.nav.step(t, w_v * dt[:, None], f_v * dt[:, None], before=held)
         self.pending = (states[-1:], w_v[-1:])
         before = np.vstack([w_held, w_v[:-1]])        # the interval ending at each state
-        return self._vehicle(Trajectory.concatenate([held, states[:-1]]), 0.5 * (before + w_v))
+        return self._vehicle(states[:-1], 0.5 * (before + w_v))
 
     def finish(self):
         """The last state (its body rate: the last interval's)."""

@@ -64,7 +64,7 @@ def integrate(t, dtheta, dv, initial, *, h_aid=None, h_aid_tau=10.0, two_sample=
     """
     nav = Navigator(initial, h_aid_tau=h_aid_tau, two_sample=two_sample,
                     check_units=check_units)
-    return Trajectory.concatenate([nav.state(), nav.step(t, dtheta, dv, h_aid=h_aid)])
+    return nav.step(t, dtheta, dv, h_aid=h_aid, before=nav.state())
 
 
 # the kernel's memory between samples (`_navigate`): lat, lon, h, v_ned (3), q_nb (4); the
@@ -105,10 +105,11 @@ class Navigator:
                           s[None, _V:_V + 3].copy(),
                           quaternion.as_quat_array(s[None, _Q:_Q + 4].copy()))
 
-    def step(self, t, dtheta, dv, h_aid=None):
+    def step(self, t, dtheta, dv, h_aid=None, before=None):
         """Navigate increments over (t[k-1], t[k]] (t[-1]: the latest state's time); t s
         (N,), dtheta rad and dv m/s (N, 3) body axes, h_aid m (N,) or None. Returns the
-        Trajectory at t (N states)."""
+        Trajectory at t (N states); before: a one-sample Trajectory to place ahead of them
+        (N + 1 samples, the states written after it: no concatenation's copy)."""
         t, dtheta, dv = _checked_inputs(t, dtheta, dv, self.check_units, t_prev=self.t,
                                         median=self.whole_record and not self._state[_STARTED])
         dt = np.diff(t, prepend=self.t)
@@ -123,11 +124,17 @@ class Navigator:
             if h_ref.shape != t.shape or not np.all(np.isfinite(h_ref)):
                 raise IncrementError("h_aid must hold one finite height (m) per sample")
             k1, k2 = 2.0 / self.h_aid_tau, 1.0 / self.h_aid_tau**2
-        n = len(t)
+        lead = 0 if before is None else 1
+        n = len(t) + lead
         lat, lon, h = np.empty(n), np.empty(n), np.empty(n)
         v, q = np.empty((n, 3)), np.empty((n, 4))
+        if lead:
+            lat[0], lon[0], h[0], v[0] = before.lat[0], before.lon[0], before.h[0], \
+                before.v_ned[0]
+            q[0] = quaternion.as_float_array(before.q_nb[0])
+            t = np.concatenate([before.t[:1], t])
         _navigate(dt, dtheta, dv, self._state, self.two_sample, h_ref, k1, k2,
-                  lat, lon, h, v, q)
+                  lat[lead:], lon[lead:], h[lead:], v[lead:], q[lead:])
         self.t = float(t[-1])
         return Trajectory(t, lat, lon, h, v, quaternion.as_quat_array(q))
 

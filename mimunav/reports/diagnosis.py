@@ -54,19 +54,23 @@ def navigation_gain(flight, cal, cal_found, compensated=None):
 
 
 def write(out_dir, doc, diag, flight, cal, cal_found, cal_label, force=False):
-    with atomic_folder(out_dir, force=force) as tmp:
+    """The report folder: diagnosis.json (with the navigation gain), CAL+found.json, the
+    figures and diagnosis.md. The two navigations run on threads while the figures that
+    do not need them are drawn (matplotlib holds the interpreter; the navigator does not)."""
+    with atomic_folder(out_dir, force=force) as tmp, ThreadPoolExecutor(1) as pool:
         own = getattr(diag, "compensated", None)     # the sensor level's, of this flight
-        nav, t_nav, series = navigation_gain(flight, cal, cal_found,
-                                             own[1:] if own and own[0] is flight else None)
-        doc["navigation"] = nav
-        (tmp / "diagnosis.json").write_text(dumps(doc))
-        if cal_found is not None:
-            cal_found.save(str(tmp / "CAL+found.json"))
+        gain = pool.submit(navigation_gain, flight, cal, cal_found,
+                           own[1:] if own and own[0] is flight else None)
         if diag.level in ("sensor", "track"):
             _residual_map(diag, str(tmp / "residual-map.png"))
             _timeline(diag, doc, str(tmp / "timeline.png"))
         else:
             _velocity_timeline(diag, doc, str(tmp / "timeline.png"))
+        nav, t_nav, series = gain.result()
+        doc["navigation"] = nav
+        (tmp / "diagnosis.json").write_text(dumps(doc))
+        if cal_found is not None:
+            cal_found.save(str(tmp / "CAL+found.json"))
         _navigation(t_nav, series, nav, str(tmp / "navigation.png"))
         (tmp / "diagnosis.md").write_text(markdown(doc, diag, cal_label))
     return out_dir
