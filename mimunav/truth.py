@@ -11,9 +11,11 @@ navigator):
     w_ib^b = w_nb^b + C_bn (w_ie^n + w_en^n)                  (Titterton & Weston 3.4)
     f^b    = C_bn (dv^n/dt + (2 w_ie^n + w_en^n) x v^n - g^n)  (T&W eq. 3.70 solved for f)
 """
-from dataclasses import dataclass
-
 import math
+import os
+from collections import deque
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
 
 import numba
 import numpy as np
@@ -27,6 +29,7 @@ from .errors import InputError
 _GL_X = 0.5 + 0.5 * np.array([-np.sqrt(0.6), 0.0, np.sqrt(0.6)])
 _GL_W = np.array([5.0, 8.0, 5.0]) / 18.0
 _CHUNK = 1 << 16       # intervals per batch of quadrature nodes
+THREADS = min(2, os.cpu_count() or 1)   # batches of nodes evaluated side by side
 
 
 @dataclass
@@ -165,14 +168,29 @@ def generate(motion, t, start=None):
     t_lo = t[:-1]
     dtheta, dv = np.zeros((len(t_lo), 3)), np.zeros((len(t_lo), 3))
     ww = np.zeros((len(t_lo), 3, 3))
-    for c in range(0, len(a), _CHUNK):        # bounded memory: node arrays ~ 10 MB
+
+    def node_signals(c):
+        """Nodes of the pieces c ... c + _CHUNK (node arrays ~ 10 MB: bounded memory): their
+        intervals, quadrature weights (s), w_ib (rad/s) and f_b (m/s^2)."""
         width = b[c:c + _CHUNK] - a[c:c + _CHUNK]
         nodes = (a[c:c + _CHUNK, None] + width[:, None] * _GL_X).ravel()
         k_node = np.repeat(k_of[c:c + _CHUNK], 3)
         lat_n, h_n = _hermite_position(t, lat, h, kin.v_ned, k_node, nodes)
         w_ib, f_b = body_rate_and_specific_force(lat_n, h_n, motion.kinematics(nodes))
-        _accumulate(k_node, (width[:, None] * _GL_W).ravel(), w_ib, f_b, dtheta, dv, ww)
-    w_samples, _ = body_rate_and_specific_force(lat, h, kin)
+        return k_node, (width[:, None] * _GL_W).ravel(), w_ib, f_b
+
+    # the batches' signals on THREADS threads (numba kernels and numpy release the
+    # interpreter), summed here in order: the same sums whatever the number of threads
+    with ThreadPoolExecutor(THREADS) as pool:
+        at_samples = pool.submit(body_rate_and_specific_force, lat, h, kin)
+        pending = deque()
+        for c in range(0, len(a), _CHUNK):
+            pending.append(pool.submit(node_signals, c))
+            if len(pending) > THREADS:
+                _accumulate(*pending.popleft().result(), dtheta, dv, ww)
+        while pending:
+            _accumulate(*pending.popleft().result(), dtheta, dv, ww)
+        w_samples, _ = at_samples.result()
     return TruthRun(truth, dtheta, dv, w_samples, ww)
 
 
