@@ -14,6 +14,7 @@ axis (|e_MIMU| / |e_FOG|, FOG = 1). Without a truth channel the FOG is the refer
 table gives MIMU-vs-FOG differences in metres (no normalisation is possible).
 """
 import math
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -708,22 +709,26 @@ def _second_means(t, *series):
 def replay(flight, cal, fog=None, check=None, at=None):
     """Compensate and navigate the MIMU with `cal` and the FOG (or reuse `fog`), at times
     `at` (s; default every sample), block by block when the flight streams; with a `check`
-    label, `check_compensation` warns about a calibration far off in quiet flight."""
+    label, `check_compensation` warns about a calibration far off in quiet flight. The FOG
+    is navigated on a thread meanwhile (reading, numpy and the navigator release the
+    interpreter; the two read the log through their own handles)."""
     nav, keep, seconds = _mimu_navigator(flight), Sampler(at), SecondMeans()
     counts, stuck = dict.fromkeys(("replaced", "saturated", "unusable"), 0), 0
-    for t, w, f, flags in flight.mimu_blocks(cal):
-        if check is not None:
-            seconds.add(t, f, w)
-        for name, count in flag_counts(flags).items():
-            counts[name] += count
-        stuck += _stuck_inside_range(flight, w, f, flags)
-        keep.add(nav.feed(t, w, f))
-    keep.add(nav.finish())
+    with ThreadPoolExecutor(1) as pool:
+        fog_nav = pool.submit(navigate_fog, flight, at) if fog is None else None
+        for t, w, f, flags in flight.mimu_blocks(cal):
+            if check is not None:
+                seconds.add(t, f, w)
+            for name, count in flag_counts(flags).items():
+                counts[name] += count
+            stuck += _stuck_inside_range(flight, w, f, flags)
+            keep.add(nav.feed(t, w, f))
+        keep.add(nav.finish())
+        fog = fog if fog_nav is None else fog_nav.result()
     _warn_stuck(flight, stuck)
     if check is not None:
         check_compensation(flight, seconds, check)
-    return Replay(flight, keep.trajectory(), fog if fog is not None else navigate_fog(flight, at),
-                  counts)
+    return Replay(flight, keep.trajectory(), fog, counts)
 
 
 def comparison_times(flight, end=None, rate_hz=100.0):
