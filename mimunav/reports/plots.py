@@ -28,9 +28,15 @@ def figure(rows, cols, size):
     return plt, *plt.subplots(rows, cols, figsize=size, squeeze=False)
 
 
-def save(plt, fig, png):
+def save(plt, fig, png, margins=None):
+    """Write the figure to png atomically; margins: fixed `subplots_adjust` fractions for a
+    grid whose labels are known (one drawing), else tight_layout (a drawing to measure the
+    labels, then the one saved)."""
     tmp = png + ".tmp.png"
-    fig.tight_layout()
+    if margins:
+        fig.subplots_adjust(**margins)
+    else:
+        fig.tight_layout()
     fig.savefig(tmp, dpi=100)
     plt.close(fig)
     os.replace(tmp, png)
@@ -62,7 +68,9 @@ def navigation_errors(series, png, title=""):
             ax.grid(True, alpha=0.3)
     axes[0, 0].legend(fontsize=8)
     fig.suptitle(title)
-    save(plt, fig, png)
+    # room for a symlog tick label (-10^4) and a two-word label on the left of each column
+    save(plt, fig, png, margins=dict(left=0.07, right=0.99, bottom=0.06, top=0.95,
+                                     wspace=0.3, hspace=0.2))
 
 
 def campaign_distributions(results, variants, png):
