@@ -184,7 +184,8 @@ def initial_alignment(t, w, f, mounting, track=None):
                 f"it never moves faster than {COURSE_SPEED:g} m/s (peak {speed.max():.2f} m/s) "
                 f"with {half:g} s of IMU and reference on both sides") +
             " for a moving alignment")
-    lat, lon, h = (float(np.interp(t0, track["t"], track[k])) for k in ("lat", "lon", "h"))
+    lat, lon, h = (float(np.interp(t0, track["t"], x)) for x in (
+        track["lat"], np.unwrap(track["lon"]), track["h"]))   # across the antimeridian
     v0 = np.array([np.interp(t0, track["t"], track["v_ned"][:, i]) for i in range(3)])
     notes.append(bias_note)
     return Alignment(t0, lat, lon, h, v0, q_nb, gyro_bias, accel_bias, static,
@@ -215,7 +216,8 @@ def _from_rest(t, w, f, mounting, track, interval):
         raise InputError(f"fewer than 10 IMU samples in the rest {t[0]:.2f}-{t_end:.2f} s")
     roll, pitch = level(attitude.rotate(q_vs, f[rest].mean(axis=0)))
     notes = [f"level from the mean specific force over the rest {t[0]:.2f}-{t_end:.2f} s"]
-    lat, lon, h = (float(np.interp(t[0], track["t"], track[k])) for k in ("lat", "lon", "h"))
+    lat, lon, h = (float(np.interp(t[0], track["t"], x)) for x in (
+        track["lat"], np.unwrap(track["lon"]), track["h"]))   # across the antimeridian
     speed = np.hypot(track["v_ned"][:, 0], track["v_ned"][:, 1])
     fast = np.flatnonzero((speed >= COURSE_SPEED) & (track["t"] > t_end))
     q_ref, t_ref = reference_attitude(track, float(t[0]))

@@ -55,16 +55,26 @@ def _rotate(q, v, out):
             q[k, 0] * n, q[k, 1] * n, q[k, 2] * n, q[k, 3] * n, v[k, 0], v[k, 1], v[k, 2])
 
 
+def short_way(q):
+    """q (quaternion array) with the sign that makes w >= 0: the same rotations (q and -q
+    are one), as the turn of angle <= pi - the form a rotation vector or a slerp needs
+    (a reference written with w >= 0 flips sign against a navigator's continuous q)."""
+    q = np.array(q, copy=True)
+    q[quaternion.as_float_array(q)[..., 0] < 0] *= -1
+    return q
+
+
 def rotation_vector_error(q, q_ref):
-    """Small-angle error phi (rad, shape (..., 3)) with q = exp(phi/2) * q_ref: the rotation
-    that takes the reference attitude to q, expressed in the first frame (NED for q_nb)."""
-    return quaternion.as_rotation_vector(q * np.conjugate(q_ref))
+    """Small-angle error phi (rad, shape (..., 3), |phi| <= pi) with q = exp(phi/2) * q_ref:
+    the rotation that takes the reference attitude to q, expressed in the first frame (NED
+    for q_nb); the same for either sign of q or q_ref."""
+    return quaternion.as_rotation_vector(short_way(q * np.conjugate(q_ref)))
 
 
 def turn_rate(t, q):
     """Mean rotation rate (rad/s, (N-1,)) between successive attitudes q (quaternion array)
-    at times t (s): the angle of conj(q_k) q_k+1 over the step."""
-    return np.linalg.norm(quaternion.as_rotation_vector(np.conjugate(q[:-1]) * q[1:]),
+    at times t (s): the angle (<= pi) of conj(q_k) q_k+1 over the step."""
+    return np.linalg.norm(quaternion.as_rotation_vector(short_way(np.conjugate(q[:-1]) * q[1:])),
                           axis=1) / np.diff(t)
 
 

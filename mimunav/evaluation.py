@@ -502,7 +502,9 @@ def _moved(lat, lon, h, d_ned):
 
 def resample(traj, t):
     """Trajectory at times t (s) inside its span: linear in position and velocity, slerp
-    in attitude."""
+    in attitude. Longitude goes the short way across the antimeridian (a reference written
+    in (-pi, pi] jumps by 2 pi there), attitude the short way between q and -q (one
+    rotation: a writer may keep w >= 0)."""
     if t[0] < traj.t[0] - 1e-9 or t[-1] > traj.t[-1] + 1e-9:
         raise InputError(f"times {t[0]:.3f}-{t[-1]:.3f} s outside the trajectory's "
                          f"{traj.t[0]:.3f}-{traj.t[-1]:.3f} s")
@@ -510,12 +512,16 @@ def resample(traj, t):
         return traj[np.zeros(len(t), dtype=int)]
     k = np.clip(np.searchsorted(traj.t, t, side="right"), 1, len(traj) - 1)
     tau = (t - traj.t[k - 1]) / (traj.t[k] - traj.t[k - 1])
-    lerp = lambda x: x[k - 1] + (x[k] - x[k - 1]) * (tau if x.ndim == 1 else tau[:, None])  # noqa
-    q0, q1 = traj.q_nb[k - 1], traj.q_nb[k]
+    step = lambda x: x[k] - x[k - 1]                                # noqa: E731
+    lerp = lambda x, d: x[k - 1] + d * (tau if x.ndim == 1 else tau[:, None])  # noqa: E731
+    d_lon = step(traj.lon) - 2 * np.pi * np.round(step(traj.lon) / (2 * np.pi))   # exact below pi
+    q0 = traj.q_nb[k - 1]
+    turn = attitude.short_way(np.conjugate(q0) * traj.q_nb[k])
     with np.errstate(invalid="ignore"):     # a reference without attitude: NaN stays NaN
-        q = q0 * np.exp(np.log(np.conjugate(q0) * q1) * tau)          # slerp
-    return Trajectory(np.asarray(t, float), lerp(traj.lat), lerp(traj.lon), lerp(traj.h),
-                      lerp(traj.v_ned), q)
+        q = q0 * np.exp(np.log(turn) * tau)                             # slerp
+    return Trajectory(np.asarray(t, float), lerp(traj.lat, step(traj.lat)),
+                      lerp(traj.lon, d_lon), lerp(traj.h, step(traj.h)),
+                      lerp(traj.v_ned, step(traj.v_ned)), q)
 
 
 @dataclass

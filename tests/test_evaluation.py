@@ -202,3 +202,30 @@ def test_sampling_at_times_within_a_nanosecond_of_the_last_state():
     np.testing.assert_allclose(out.h, np.minimum(at, 15.03), atol=1e-9)
     with pytest.raises(evaluation.InputError, match="outside the navigated"):
         evaluation.Sampler(np.array([20.0])).trajectory()
+
+
+def test_resampling_goes_the_short_way_across_the_antimeridian_and_between_q_and_minus_q():
+    """A reference written with longitude in (-pi, pi] and attitudes kept at w >= 0 (both the
+    same positions and rotations as continuous ones) resamples to the same states: between
+    two samples astride the antimeridian the point lies between them, not half a world away,
+    and between q and the next sample written as -q the attitude turns the small angle."""
+    from mimunav import attitude, earth
+    from mimunav.trajectory import Trajectory
+    import quaternion
+    t = np.arange(0.0, 10.0, 1.0)
+    lon = np.pi - 0.003 + 0.001 * t                           # crosses +pi at t = 3
+    yaw = np.pi - 0.3 + 0.1 * t                               # crosses 180 deg: w changes sign
+    q = quaternion.from_rotation_vector(np.column_stack([0 * t, 0 * t, yaw]))
+    smooth = Trajectory(t, 0.5 + 1e-5 * t, lon, 100 + t, np.ones((len(t), 3)), q)
+    written = Trajectory(t, smooth.lat, np.remainder(lon + np.pi, 2 * np.pi) - np.pi,
+                         smooth.h, smooth.v_ned, q * np.sign(quaternion.as_float_array(q)[:, 0]))
+    assert np.ptp(written.lon) > 6 and (quaternion.as_float_array(written.q_nb)[:, 0] >= 0).all()
+    at = np.arange(0.0, 9.0, 0.25) + 0.125
+    a, b = evaluation.resample(smooth, at), evaluation.resample(written, at)
+    gap = earth.ned_difference(b.lat, b.lon, b.h, a.lat, a.lon, a.h)
+    assert np.abs(gap).max() < 1e-6                                       # m
+    assert np.abs(b.attitude_error(a)).max() < 1e-12                      # rad
+    yaw_at = quaternion.from_rotation_vector(np.column_stack([0 * at, 0 * at,
+                                                            np.pi - 0.3 + 0.1 * at]))
+    assert np.abs(attitude.rotation_vector_error(b.q_nb, yaw_at)).max() < 1e-12  # the turn
+    assert np.abs(attitude.rotation_vector_error(yaw_at, -yaw_at)).max() == 0.0  # q vs -q
