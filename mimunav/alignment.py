@@ -74,6 +74,15 @@ class Alignment:
         return self.static[1] if self.at_rest_start else self.t
 
 
+def unwrapped_longitude(lon):
+    """Longitudes (rad) made continuous across the antimeridian (a track written in
+    (-pi, pi] jumps 2 pi there), for interpolation; a NaN stays a NaN of its own sample."""
+    lon = np.array(lon, dtype=float)
+    ok = np.isfinite(lon)
+    lon[ok] = np.unwrap(lon[ok])
+    return lon
+
+
 def level(f_v):
     """(roll, pitch) rad of a vehicle at rest from its mean specific force f_v (m/s^2,
     vehicle FRD axes)."""
@@ -185,7 +194,7 @@ def initial_alignment(t, w, f, mounting, track=None):
                 f"with {half:g} s of IMU and reference on both sides") +
             " for a moving alignment")
     lat, lon, h = (float(np.interp(t0, track["t"], x)) for x in (
-        track["lat"], np.unwrap(track["lon"]), track["h"]))   # across the antimeridian
+        track["lat"], unwrapped_longitude(track["lon"]), track["h"]))
     v0 = np.array([np.interp(t0, track["t"], track["v_ned"][:, i]) for i in range(3)])
     notes.append(bias_note)
     return Alignment(t0, lat, lon, h, v0, q_nb, gyro_bias, accel_bias, static,
@@ -217,7 +226,7 @@ def _from_rest(t, w, f, mounting, track, interval):
     roll, pitch = level(attitude.rotate(q_vs, f[rest].mean(axis=0)))
     notes = [f"level from the mean specific force over the rest {t[0]:.2f}-{t_end:.2f} s"]
     lat, lon, h = (float(np.interp(t[0], track["t"], x)) for x in (
-        track["lat"], np.unwrap(track["lon"]), track["h"]))   # across the antimeridian
+        track["lat"], unwrapped_longitude(track["lon"]), track["h"]))
     speed = np.hypot(track["v_ned"][:, 0], track["v_ned"][:, 1])
     fast = np.flatnonzero((speed >= COURSE_SPEED) & (track["t"] > t_end))
     q_ref, t_ref = reference_attitude(track, float(t[0]))

@@ -229,3 +229,8 @@ def test_resampling_goes_the_short_way_across_the_antimeridian_and_between_q_and
                                                             np.pi - 0.3 + 0.1 * at]))
     assert np.abs(attitude.rotation_vector_error(b.q_nb, yaw_at)).max() < 1e-12  # the turn
     assert np.abs(attitude.rotation_vector_error(yaw_at, -yaw_at)).max() == 0.0  # q vs -q
+    # the alignment's interpolation of a track: continuous across, a NaN stays its own
+    from mimunav.alignment import unwrapped_longitude
+    lon_u = unwrapped_longitude(np.r_[written.lon[:2], np.nan, written.lon[2:]])
+    assert np.isnan(lon_u[2]) and np.isnan(lon_u).sum() == 1
+    np.testing.assert_allclose(np.delete(lon_u, 2), lon, rtol=0, atol=1e-12)

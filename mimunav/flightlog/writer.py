@@ -7,8 +7,8 @@ cut into chunks of about `chunk_size` uncompressed bytes, each compressed by zst
 CRC-32 and followed by its MessageIndex - no per-message Python work (the `mcap` package's
 `Writer.add_message` costs about 11 us a message; a 1 kHz hour of three channels is 10^7).
 A batch of chunks is compressed and written on a writing thread while the caller encodes
-the next; records outside chunks (metadata, attachments, the summary) wait for it, so the
-file's order is the order of the calls.
+the next; a record outside chunks (metadata, attachment, the summary) waits for the batch
+being written, and goes before chunks still queued (as when the writer had no thread).
 The record layouts are those of the MCAP specification (mcap.dev/spec); the files are read
 back by the `mcap` package's reader with CRC validation, by mcap_ros2 and by this project's
 reader in the tests. Messages copied from other files (`copy`) go through the same chunks.
