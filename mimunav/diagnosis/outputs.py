@@ -72,8 +72,8 @@ def noise_sigma(residual):
     """Per-sample white noise sigma of each column of a residual (N, k): 1.4826 MAD of the
     first difference over sqrt 2 (robust to a wandering bias and to manoeuvres)."""
     d = np.diff(residual, axis=0)
-    d = d[np.isfinite(d).all(axis=1)]
-    return 1.4826 * np.median(np.abs(d - np.median(d, axis=0)), axis=0) / math.sqrt(2)
+    d = np.ascontiguousarray(d[np.isfinite(d).all(axis=1)].T)   # a column's samples together
+    return 1.4826 * np.median(np.abs(d - np.median(d, axis=1)[:, None]), axis=1) / math.sqrt(2)
 
 
 # ---- saturation ----------------------------------------------------------------------------
