@@ -356,6 +356,65 @@ def test_foreign_flights_are_diagnosed_right():
     assert named >= 4, named
 
 
+def test_a_truth_written_in_another_convention_gives_the_same_answers(tmp_path):
+    """foreign-02 with its truth rewritten as another writer might keep it - the flight moved
+    20.4 deg west so that it crosses the antimeridian, longitudes wrapped into (-pi, pi],
+    attitudes negated on alternate 10 s spans (q and -q: one rotation) - is the same flight:
+    the replay's errors against the truth and the sensor level's findings are the original's
+    (the resampling's longitude lerp had put a state half a world away, and the attitude
+    error of q against -q had read 2 pi)."""
+    from mimunav import evaluation
+    from mimunav.diagnosis import sensor
+    from mimunav.evaluation import Flight
+    from mimunav.flightlog import FlightLog, LogWriter
+    from mimunav.flightlog import schemas as S
+    from mcap.reader import make_reader
+    if not os.path.isdir(FOREIGN):
+        pytest.skip("shared/data/foreign-flights is not beside the repository")
+    base = os.path.join(FOREIGN, "foreign-02")
+    shift, wrap = np.radians(-20.4), lambda x: np.remainder(x + np.pi, 2 * np.pi) - np.pi
+    with open(base + ".mcap", "rb") as fh:
+        meta = {m.name: dict(m.metadata) for m in make_reader(fh).iter_metadata()}
+    init = json.loads(meta["flight"]["initial_state"])
+    meta["flight"]["initial_state"] = json.dumps(dict(init, longitude=wrap(init["longitude"]
+                                                                           + shift)))
+    moved = tmp_path / "moved.mcap"
+    with FlightLog(base + ".mcap") as log, LogWriter(moved) as out:
+        for name, values in meta.items():
+            out.metadata(name, values)
+        for topic in log.channels:
+            msgs, schema = log.read(topic), log.schema_name(topic)
+            fields = {n: msgs[n].copy() for n, _, _ in S.BODIES[schema]}
+            if topic == "/truth/state":
+                fields["longitude"] = wrap(fields["longitude"] + shift)
+                span = (msgs["log_time"] - msgs["log_time"][0]) // 10_000_000_000
+                fields["attitude_wxyz"][span % 2 == 1] *= -1
+                assert np.ptp(fields["longitude"]) > 6           # it does cross
+            out.write(topic, schema, msgs["frame_id"][0].decode(),
+                      msgs["log_time"].astype(np.int64), **fields)
+    cal = Calibration.load(base + ".cal.json")
+    answers = []
+    for path in (base + ".mcap", str(moved)):
+        flight = Flight.load(path)
+        t = evaluation.comparison_times(flight)
+        err = evaluation.errors(evaluation.replay(flight, cal), t)
+        at_imu = evaluation.resample(flight.truth, flight.mimu_t[flight.mimu_t < t[-1]])
+        answers.append((err, sensor.diagnose(flight, cal).findings, at_imu))
+    (err0, found0, at0), (err1, found1, at1) = answers
+    from mimunav import earth            # the truth between its samples, as windows take it
+    moved_back = earth.ned_difference(at1.lat, at1.lon - shift, at1.h, at0.lat, at0.lon, at0.h)
+    assert np.abs(moved_back).max() < 1e-6                                       # m
+    assert np.abs(at1.attitude_error(at0)).max() < 1e-12                          # rad
+    for pair in ("mimu-truth", "fog-truth", "mimu-fog"):
+        np.testing.assert_allclose(err1[pair]["position"], err0[pair]["position"], rtol=0,
+                                   atol=1e-6)                                    # m
+        np.testing.assert_allclose(err1[pair]["attitude"], err0[pair]["attitude"], rtol=0,
+                                   atol=1e-12)                                   # rad
+    assert [f["label"] for f in found1] == [f["label"] for f in found0] != []
+    np.testing.assert_allclose([f["coefficient"] for f in found1],
+                               [f["coefficient"] for f in found0], rtol=1e-9)
+
+
 def test_effective_blocks_count_the_blocks_a_regressor_lives_in():
     """Satterthwaite's df in closed form: a regressor spread evenly over 40 blocks has 40;
     one that is non-zero in 3 blocks of equal weight has 3 (whatever the others hold)."""
