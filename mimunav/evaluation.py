@@ -514,7 +514,8 @@ def resample(traj, t):
     tau = (t - traj.t[k - 1]) / (traj.t[k] - traj.t[k - 1])
     step = lambda x: x[k] - x[k - 1]                                # noqa: E731
     lerp = lambda x, d: x[k - 1] + d * (tau if x.ndim == 1 else tau[:, None])  # noqa: E731
-    d_lon = step(traj.lon) - 2 * np.pi * np.round(step(traj.lon) / (2 * np.pi))   # exact below pi
+    d_lon = step(traj.lon)
+    d_lon -= 2 * np.pi * np.round(d_lon / (2 * np.pi))     # the short way; exact below pi
     q0 = traj.q_nb[k - 1]
     turn = attitude.short_way(np.conjugate(q0) * traj.q_nb[k])
     with np.errstate(invalid="ignore"):     # a reference without attitude: NaN stays NaN
