@@ -220,7 +220,8 @@ def _residual_map(diag, png):
             ax.text(c, r, "n/a" if not np.isfinite(v) else f"{v:.2f}", ha="center", va="center",
                     fontsize=8, color="grey")
         fig.colorbar(im, ax=ax, shrink=0.8)
-    save(plt, fig, png)
+    # room for the longest condition label (|dT/dt| > 0.5 degC/min) left of each panel
+    save(plt, fig, png, margins=dict(left=0.14, right=0.98, bottom=0.15, top=0.92, wspace=0.45))
 
 
 def _timeline(diag, doc, png):
@@ -251,7 +252,7 @@ def _timeline(diag, doc, png):
     axes[0, 0].set_title("residual, 1 s means (bias wander removed); green: where a found term "
                          "acts, red: unexplained")
     axes[-1, 0].set_xlabel("time since the log epoch, s")
-    save(plt, fig, png)
+    save(plt, fig, png, margins=dict(left=0.07, right=0.99, bottom=0.05, top=0.97, hspace=0.3))
 
 
 def _velocity_timeline(diag, doc, png):
@@ -289,7 +290,7 @@ def _navigation(t, series, nav, png):
     ax.set_xlabel("time since the initial state, s")
     ax.set_ylabel(f"3-D position error vs {nav['reference']}, m")
     ax.legend()
-    save(plt, fig, png)
+    save(plt, fig, png, margins=dict(left=0.1, right=0.98, bottom=0.12, top=0.96))
 
 
 def proof_markdown(cases, summary, meta):
