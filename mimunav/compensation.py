@@ -25,7 +25,6 @@ eqs. 1-4 (time_skew by shifting the samples back).
 import itertools
 import json
 import math
-import warnings
 from dataclasses import dataclass, field
 
 import numba
@@ -353,11 +352,16 @@ def noise_sigma(sub):
     record (every step-th sample, step = max(1, N // 20000)): 1.4826 MAD of the second
     difference, divided by sqrt(1.5); at least 1e-12 of the largest value; 0 for a column
     without finite values."""
-    with np.errstate(all="ignore"), warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)    # all-NaN channel: UNUSABLE later
+    # an all-NaN channel (UNUSABLE later) gets sigma 0 without nanmedian's warning: a
+    # process-wide warnings filter would also silence the threads navigating meanwhile
+    with np.errstate(all="ignore"):
         d2 = np.abs(sub[1:-1] - 0.5 * (sub[:-2] + sub[2:])) if len(sub) >= 3 else np.abs(sub)
-        sigma = 1.4826 * np.nanmedian(d2, axis=0) / math.sqrt(1.5)
-        floor = np.maximum(1e-12 * np.nanmax(np.abs(sub), axis=0), _step_noise(sub))
+        sigma, top = np.full(sub.shape[1], np.nan), np.full(sub.shape[1], np.nan)
+        some = np.isfinite(d2).any(axis=0)
+        sigma[some] = 1.4826 * np.nanmedian(d2[:, some], axis=0) / math.sqrt(1.5)
+        some = np.isfinite(sub).any(axis=0)
+        top[some] = np.nanmax(np.abs(sub[:, some]), axis=0)
+        floor = np.maximum(1e-12 * top, _step_noise(sub))
     return np.where(np.isfinite(sigma), np.maximum(sigma, floor), 0.0) + 1e-300
 
 

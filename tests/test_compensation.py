@@ -1,5 +1,6 @@
 """Compensation equations (seed S1 eqs. 1-4) and the calibration-file contract."""
 import json
+import warnings
 
 import numpy as np
 import pytest
@@ -147,7 +148,14 @@ def test_bad_raw_samples_are_flagged_never_silent():
     assert not flags[good].any()
     np.testing.assert_allclose(f2[good], f[good], atol=1e-9)
     u_w[:, 1] = np.nan                     # a whole channel missing
-    _, _, flags = compensate(unit.coefficients, u_a, u_w, temp, freq)
+    changed = []                           # the filters are process-wide: one set here
+    with warnings.catch_warnings():        # would silence the FOG's navigation thread too
+        warnings.simplefilter("error")     # and no warning is raised
+        with pytest.MonkeyPatch.context() as mp:
+            for name in ("simplefilter", "filterwarnings", "resetwarnings"):
+                mp.setattr(warnings, name, lambda *a, name=name, **k: changed.append(name))
+            _, _, flags = compensate(unit.coefficients, u_a, u_w, temp, freq)
+    assert not changed
     assert np.all(flags & UNUSABLE)
     with pytest.raises(ValueError, match=r"gyro_volts must have shape \(N, 3\)"):
         compensate(unit.coefficients, u_a, u_w[:, :2], temp, freq)
