@@ -369,10 +369,7 @@ def _diagnose(args):
         for reason in doc["inconclusive_reasons"]:
             print(f"  because {reason}")
     for f in doc["findings"]:
-        units = "" if f["units"] == "1" else f" {f['units']}"
-        print(f"  {f['label']}: {f['coefficient']:.4g}{units} "
-              f"[{f['ci95'][0]:.4g}, {f['ci95'][1]:.4g}] (held-out p {f['p_heldout']:.2g}; "
-              f"{f.get('attribution', 'navigation level')})")
+        print(finding_line(f))
     lag = doc.get("time_lag", {})
     if "tau_s" in lag:
         print(f"  time lag from the yaw rate: {lag['tau_s'] * 1e3:.1f} ms "
@@ -382,6 +379,20 @@ def _diagnose(args):
     if args.output:
         print(f"wrote {args.output}/diagnosis.md" + (" and CAL+found.json" if found else ""))
     return 0
+
+
+def finding_line(f):
+    """A finding for the terminal: term, coefficient and units, 95 % interval, held-out p,
+    attribution, and the terms this flight cannot tell it from (they explain the same
+    residual: the name is the likelier of them, not a certainty)."""
+    units = "" if f["units"] == "1" else f" {f['units']}"
+    line = (f"  {f['label']}: {f['coefficient']:.4g}{units} "
+            f"[{f['ci95'][0]:.4g}, {f['ci95'][1]:.4g}] (held-out p {f['p_heldout']:.2g}; "
+            f"{f.get('attribution', 'navigation level')})")
+    alike = [a["label"] for a in f.get("indistinguishable_from", [])]
+    if alike:
+        line += "\n    not told apart on this flight from " + ", ".join(alike)
+    return line
 
 
 # import options -> (the importers that read them, their default): one given to another

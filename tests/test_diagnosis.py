@@ -12,7 +12,7 @@ import quaternion
 import pytest
 
 from mimunav import attitude, effects, simulation
-from mimunav.cli import main
+from mimunav.cli import finding_line, main
 from mimunav.compensation import Calibration, CalibrationError, compensate
 from mimunav.diagnosis import concealed
 from mimunav.diagnosis.reference import predicted_mimu
@@ -190,6 +190,19 @@ def test_diagnose_command_writes_the_contract_and_a_report(skewed_log, capsys):
     assert main(["diagnose", str(log), "--model", str(d / "model.json"), "--json",
                  str(d / "out.json")]) == 2
     assert "exists" in capsys.readouterr().err
+
+
+def test_the_terminal_names_what_a_finding_is_not_told_apart_from():
+    f = {"label": "scale_nonlinearity gyro.x (x^2)", "coefficient": 5.35e-5,
+         "units": "1/(rad/s)", "ci95": [3.0e-5, 7.7e-5], "p_heldout": 9.8e-6,
+         "attribution": "mimu", "indistinguishable_from": [
+             {"effect": "scale_asymmetry", "sensor": "gyro", "axis": "x",
+              "label": "scale_asymmetry gyro.x"}]}
+    first, second = finding_line(f).splitlines()
+    assert first.startswith("  scale_nonlinearity gyro.x (x^2): 5.35e-05 1/(rad/s) [3e-05, 7.7e-05]")
+    assert second == "    not told apart on this flight from scale_asymmetry gyro.x"
+    f["indistinguishable_from"] = []
+    assert len(finding_line(f).splitlines()) == 1
 
 
 def test_diagnose_refuses_a_log_without_a_reference(tmp_path, capsys):
