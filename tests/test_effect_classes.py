@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from mimunav import compensation, effects
-from mimunav.diagnosis import outputs, sensor, transplant
+from mimunav.sensors import MimuUnit
+from mimunav.diagnosis import library, outputs, sensor, transplant
 
 FOREIGN = os.path.join(os.path.dirname(__file__), "..", "..", "shared", "data", "foreign-flights")
 needs_foreign = pytest.mark.skipif(
@@ -69,6 +70,22 @@ def test_carriers_stay_quiet_with_and_without_airframe_vibration(carrier):
         diag, _ = _diagnose(carrier, spec)
         assert sensor.verdict(diag) == "no-missing-physics", (spec, diag.findings,
                                                               diag.unexplained)
+
+
+@needs_foreign
+def test_look_alikes_the_training_half_cannot_part_are_told_apart_on_the_whole_flight():
+    """A g^2 term of gyro x in f_z^2 on foreign-03: in a pull-up at constant speed f_z^2
+    follows the pitch rate, so on the training half alone a cross-coupling to w_y explains it
+    away (and, of lower order, was named); the whole flight tells them apart and names the
+    g^2 term, its truth inside the interval, the cross-coupling no longer listed."""
+    diag, key = _diagnose("foreign-03", "g2_sensitivity:gyro:x:zz=3.69e-07")
+    full_scale = {"accel": MimuUnit.range_accel, "gyro": MimuUnit.range_gyro}
+    train_only, _ = sensor._select(diag.design, diag.train, 0.05, full_scale)
+    assert library.label(diag.design.terms[train_only[0]["j"]]) == "cross_coupling gyro.x <- w_y"
+    (f,) = diag.findings
+    assert f["label"] == "g2_sensitivity gyro.x <- f_zz"
+    assert f["ci95"][0] <= key["coefficient"] <= f["ci95"][1]
+    assert f["indistinguishable_from"] == []
 
 
 def test_vibration_power_of_a_tone_is_half_its_squared_amplitude():

@@ -24,7 +24,9 @@ Procedure:
     threshold over the library (family-wise error alpha). A candidate whose estimate lies
     outside its physical range (`library.physical_limit`) is a look-alike absorbing another
     term's signature and is not chosen. Candidates that fit as well as the chosen one and
-    explain each other away are named with it (`indistinguishable_from`);
+    explain each other away are compared again on the whole flight (twice the evidence, by
+    the same rule): one that still tells itself apart there is named, the rest are named
+    with it (`indistinguishable_from`);
  3. terms linear in the sensor's own input (scale factor, cross-coupling, mounting
     misalignment: exactly what the reference's own error, or the calibration's own fit
     error, looks like) must pass the same threshold with the stated accuracies of both
@@ -50,7 +52,7 @@ Procedure:
 """
 import math
 from dataclasses import dataclass, field
-from functools import cached_property
+from functools import cache, cached_property
 
 import numpy as np
 import quaternion
@@ -265,9 +267,12 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
     train = block % 2 == 0
     held = ~train
 
-    chosen, within = _select(design, train, alpha, full_scale)
+    # the all-rows fit, made when first needed (look-alikes during the selection; its Grams
+    # cost about a second on a 10-minute flight)
+    whole = cache(lambda: Fitter(design, np.ones(len(design.t), bool)))
+    chosen, within = _select(design, train, alpha, full_scale, whole)
     findings, rejected = _judge(design, chosen, train, held, alpha, full_scale, cond)
-    everything = Fitter(design, np.ones(len(design.t), bool))
+    everything = whole()
     before = _clean(design, design.residual - _reference_error(design, everything.fit([])))
     found = [_position(design, f) for f in findings]
     fit = everything.fit(found)
@@ -679,9 +684,11 @@ def _plausible(design, j, b, full_scale):
 
 
 # ---- selection on training rows ----------------------------------------------------------
-def _select(design, train, alpha, full_scale):
-    """Forward selection with Holm's step-down thresholds over the library. Returns (chosen:
-    [dict], within: linear terms significant but inside the reference's accuracy)."""
+def _select(design, train, alpha, full_scale, whole=None):
+    """Forward selection with Holm's step-down thresholds over the library; `whole`: a
+    callable giving the all-rows `Fitter` (look-alikes the training rows cannot tell apart
+    are compared on it, `_told_apart`). Returns (chosen: [dict], within: linear terms
+    significant but inside the reference's accuracy)."""
     m = len(design.terms)
     chosen, excluded, within = [], set(), {}
     fitter = Fitter(design, train)
@@ -710,6 +717,9 @@ def _select(design, train, alpha, full_scale):
         if not passing:
             break
         best, alternatives = _encompassing(fitter, current, passing, tests, threshold)
+        group = [best, *alternatives]
+        if alternatives and whole is not None:
+            best, alternatives = _told_apart(whole(), current, best, alternatives, threshold)
         best, set_aside = _whole_unit_or_one_axis(fitter, best, tests, significant,
                                                   threshold)
         alternatives = [j for j in alternatives if j != best]
@@ -717,7 +727,7 @@ def _select(design, train, alpha, full_scale):
                            p_train=math.exp(tests[best]["logp"]), threshold=threshold,
                            b_train=tests[best]["b"],
                            implausible=[library.label(design.terms[j]) for j in implausible]))
-        excluded |= {best, *alternatives, *set_aside}
+        excluded |= {*group, *set_aside}
     return chosen, [_within(design, j, r) for j, r in within.items()
                     if j not in {c["j"] for c in chosen}]
 
@@ -756,7 +766,7 @@ def _encompassing(fitter, current, passing, tests, level, contenders=10):
     log_level = math.log(level)
 
     def adds(j, given):
-        return _test(fitter, current + [given, j], j)["logp_ref"] <= log_level
+        return _adds(fitter, current, j, given, log_level)
     best = ranked[0]
     for j in ranked[1:]:
         if adds(j, best) and not adds(best, j):
@@ -765,6 +775,31 @@ def _encompassing(fitter, current, passing, tests, level, contenders=10):
     group = [best] + alike
     named = min(group, key=lambda j: (library.order(design.terms[j]), tests[j]["logp"]))
     return named, [j for j in group if j != named]
+
+
+def _told_apart(whole, current, named, alike, level):
+    """(named, the look-alikes it still cannot be told from) after comparing the group again
+    on the whole flight (`whole`: the all-rows `Fitter`) by `_encompassing`'s rule at the
+    same level: a look-alike that adds to the named term while the named adds nothing to
+    it encompasses it and is named instead (of several, the one adding most); a look-alike
+    the named one encompasses there is no longer listed. Half the flight may hold too
+    little of what tells two terms apart - a g^2 term and a cross-coupling to the pitch
+    rate coincide in a pull-up at constant speed and part only where the speed differs."""
+    log_level = math.log(level)
+
+    def encompasses(j, other):
+        return (_adds(whole, current, j, other, log_level)
+                and not _adds(whole, current, other, j, log_level))
+    better = [j for j in alike if encompasses(j, named)]
+    chosen = min(better, key=lambda j: _test(whole, current + [named, j], j)["logp_ref"],
+                 default=named)
+    return chosen, [j for j in [named, *alike] if j != chosen and not encompasses(chosen, j)]
+
+
+def _adds(fitter, current, j, given, log_level):
+    """Candidate j is significant at log_level (its p with the stated accuracies) given the
+    terms `current` and `given`."""
+    return _test(fitter, current + [given, j], j)["logp_ref"] <= log_level
 
 
 def _within(design, j, res):
