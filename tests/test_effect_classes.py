@@ -88,6 +88,20 @@ def test_look_alikes_the_training_half_cannot_part_are_told_apart_on_the_whole_f
     assert f["indistinguishable_from"] == []
 
 
+@needs_foreign
+def test_a_feature_too_large_for_its_physics_is_not_charged_beside_a_true_term():
+    """foreign-03's lateral accelerometer holds a 0.2 mg feature that follows |f_y| (a few
+    0.01 m/s^2 in this flight: likelihood ratio about 22 on the whole flight, below the
+    selection's threshold on the training half alone). With a temperature_rate term of
+    that axis explained, it passed as a 3.8 % scale asymmetry - beyond any MEMS part's
+    (`library.PHYSICAL_RANGE`) - and pulled the true term's interval off its value."""
+    diag, key = _diagnose("foreign-03", "temperature_rate:accel:y=-0.0025@window_s=120")
+    (f,) = diag.findings
+    assert f["label"] == "temperature_rate accel.y (n = 120 s)"
+    assert f["ci95"][0] <= key["coefficient"] <= f["ci95"][1]
+    assert "scale_asymmetry accel.y" in f["not_chosen_as_implausible"]
+
+
 def test_vibration_power_of_a_tone_is_half_its_squared_amplitude():
     t = np.arange(0, 4, 1e-3)
     a = 3.0
