@@ -78,12 +78,15 @@ def test_look_alikes_the_training_half_cannot_part_are_told_apart_on_the_whole_f
     follows the pitch rate, so on the training half alone a cross-coupling to w_y explains it
     away (and, of lower order, was named); the whole flight tells them apart and names the
     g^2 term, its truth inside the interval, the cross-coupling no longer listed."""
-    diag, key = _diagnose("foreign-03", "g2_sensitivity:gyro:x:zz=3.69e-07")
-    full_scale = {"accel": MimuUnit.range_accel, "gyro": MimuUnit.range_gyro}
+    flight, cal, key = transplant.transplant(os.path.join(FOREIGN, "foreign-03"),
+                                             "g2_sensitivity:gyro:x:zz=3.69e-07")
+    diag = sensor.diagnose(flight, cal)
+    full_scale = {"accel": float(flight.mimu_range.get("accel_m_s2", MimuUnit.range_accel)),
+                  "gyro": float(flight.mimu_range.get("gyro_rad_s", MimuUnit.range_gyro))}
     train_only, _ = sensor._select(diag.design, diag.train, 0.05, full_scale)
     assert library.label(diag.design.terms[train_only[0]["j"]]) == "cross_coupling gyro.x <- w_y"
     (f,) = diag.findings
-    assert f["label"] == "g2_sensitivity gyro.x <- f_zz"
+    assert f["label"] == "g2_sensitivity gyro.x <- f_zz" and f["named_on"] == "whole flight"
     assert f["ci95"][0] <= key["coefficient"] <= f["ci95"][1]
     assert f["indistinguishable_from"] == []
 
@@ -93,13 +96,50 @@ def test_a_feature_too_large_for_its_physics_is_not_charged_beside_a_true_term()
     """foreign-03's lateral accelerometer holds a 0.2 mg feature that follows |f_y| (a few
     0.01 m/s^2 in this flight: likelihood ratio about 22 on the whole flight, below the
     selection's threshold on the training half alone). With a temperature_rate term of
-    that axis explained, it passed as a 3.8 % scale asymmetry - beyond any MEMS part's
-    (`library.PHYSICAL_RANGE`) - and pulled the true term's interval off its value."""
+    that axis explained, it passed as a 3.8 % scale asymmetry - beyond the bound of
+    `library.PHYSICAL_RANGE` - and pulled the true term's interval off its value; now it is
+    listed as not chosen for its size."""
     diag, key = _diagnose("foreign-03", "temperature_rate:accel:y=-0.0025@window_s=120")
     (f,) = diag.findings
     assert f["label"] == "temperature_rate accel.y (n = 120 s)"
     assert f["ci95"][0] <= key["coefficient"] <= f["ci95"][1]
     assert "scale_asymmetry accel.y" in f["not_chosen_as_implausible"]
+
+
+def test_a_size_effect_that_replaces_a_lever_arm_is_chosen_once(monkeypatch):
+    """The selection's bookkeeping, with the fits stubbed: a lever arm is strongest, but only
+    one accelerometer's size effect passes on its own, so the size effect replaces it
+    (`_whole_unit_or_one_axis`); the next step must not choose it again (its test given
+    itself is as strong as alone: the likelihood ratio drops a repeated term)."""
+    from types import SimpleNamespace
+    terms = [{"effect": "lever_arm", "sensor": "imu", "axis": "all"},
+             {"effect": "size_effect", "sensor": "accel", "axis": "x"},
+             {"effect": "bias_shift", "sensor": "accel", "axis": "y"}]
+    design = SimpleNamespace(terms=terms)
+
+    def test(fitter, chosen, j):
+        others = [i for i in chosen if i != j]
+        logp = {0: -20.0 if 1 in others else -60.0, 1: -50.0}.get(j, 0.0)
+        return {"b": np.array([0.01]), "cov": np.eye(1), "stat": -logp, "logp": logp,
+                "logp_ref": logp, "linear": False}
+    monkeypatch.setattr(sensor, "Fitter", lambda design, rows: SimpleNamespace(design=design))
+    monkeypatch.setattr(sensor, "_test", test)
+    monkeypatch.setattr(sensor, "_plausible", lambda design, j, b, full_scale: (True, 1.0))
+    chosen, _ = sensor._select(design, np.ones(10, bool), 0.05, {},
+                               whole=lambda: SimpleNamespace(design=design))
+    assert [c["j"] for c in chosen] == [1]
+
+
+def test_the_whole_flight_names_the_look_alike_that_encompasses_the_others(monkeypatch):
+    """`_told_apart` with the fits stubbed by who adds to whom on the whole flight: 1 and 2
+    each add to 0 (0 adding nothing to them), 2 adds to 1 and 1 nothing to 2, 3 and 2
+    explain each other away, 4 and 2 each add given the other (told apart, both act).
+    Named: 2; listed as not told apart: 3 only; encompassed: 0 and 1."""
+    adds = {(1, 0), (2, 0), (2, 1), (4, 2), (2, 4)}       # (j, given): j adds given `given`
+    monkeypatch.setattr(sensor, "_adds", lambda fitter, current, j, given, log_level:
+                        (j, given) in adds)
+    named, still, encompassed = sensor._told_apart(None, [], 0, [1, 3, 2, 4], 1e-3)
+    assert (named, still, sorted(encompassed)) == (2, [3], [0, 1])
 
 
 def test_vibration_power_of_a_tone_is_half_its_squared_amplitude():

@@ -24,9 +24,9 @@ Procedure:
     threshold over the library (family-wise error alpha). A candidate whose estimate lies
     outside its physical range (`library.physical_limit`) is a look-alike absorbing another
     term's signature and is not chosen. Candidates that fit as well as the chosen one and
-    explain each other away are compared again on the whole flight (twice the evidence, by
-    the same rule): one that still tells itself apart there is named, the rest are named
-    with it (`indistinguishable_from`);
+    explain each other away are compared again on the whole flight (the same rule, on the
+    held-out rows too): one that encompasses the others there is named (`named_on`), and
+    those still explaining each other away are named with it (`indistinguishable_from`);
  3. terms linear in the sensor's own input (scale factor, cross-coupling, mounting
     misalignment: exactly what the reference's own error, or the calibration's own fit
     error, looks like) must pass the same threshold with the stated accuracies of both
@@ -45,7 +45,9 @@ Procedure:
     random-walk model misdescribes; forward selection with recomputed p-values follows
     Holm's thresholds but is not Holm's procedure, so the family-wise rate is not guaranteed
     - the false-alarm rates measured on null recordings (reports/diagnosis-proof.md) are
-    the evidence;
+    the evidence; where the whole flight chose among look-alikes the training half could not
+    tell apart (`named_on` "whole flight"), the held-out rows confirm the group's signal,
+    not the name, and the held-out interval is mildly optimistic;
  5. the residual left after the confirmed terms and the fitted reference error is scanned
     for localized excursions (2 s windows, robust z, Bonferroni): an unexplained residual
     with its place.
@@ -717,17 +719,22 @@ def _select(design, train, alpha, full_scale, whole=None):
         if not passing:
             break
         best, alternatives = _encompassing(fitter, current, passing, tests, threshold)
-        group = [best, *alternatives]
+        encompassed, named_on = [], "training half"
         if alternatives and whole is not None:
-            best, alternatives = _told_apart(whole(), current, best, alternatives, threshold)
+            before = best
+            best, alternatives, encompassed = _told_apart(whole(), current, best,
+                                                          alternatives, threshold)
+            named_on = "whole flight" if best != before else named_on
         best, set_aside = _whole_unit_or_one_axis(fitter, best, tests, significant,
                                                   threshold)
         alternatives = [j for j in alternatives if j != best]
-        chosen.append(dict(j=best, alternatives=alternatives,
+        chosen.append(dict(j=best, alternatives=alternatives, named_on=named_on,
                            p_train=math.exp(tests[best]["logp"]), threshold=threshold,
                            b_train=tests[best]["b"],
                            implausible=[library.label(design.terms[j]) for j in implausible]))
-        excluded |= {*group, *set_aside}
+        # a look-alike the whole flight tells apart without either explaining the other
+        # away stays a candidate of the next step
+        excluded |= {best, *alternatives, *encompassed, *set_aside}
     return chosen, [_within(design, j, r) for j, r in within.items()
                     if j not in {c["j"] for c in chosen}]
 
@@ -758,9 +765,10 @@ def _encompassing(fitter, current, passing, tests, level, contenders=10):
     current choice while the choice adds nothing given it (it encompasses the choice), both
     at the selection's own `level` (Holm's threshold of the step: telling look-alikes apart
     needs the same evidence as finding a term).
-    Candidates that explain each other away are indistinguishable on this flight; among them
-    the one of lowest order is named (`library.order`: a g-sensitivity before a g^2 term
-    that mimics it at constant f_z), the others listed."""
+    Candidates that explain each other away are indistinguishable on the training half;
+    among them the one of lowest order is named (`library.order`: a g-sensitivity before a
+    g^2 term that mimics it at constant f_z), the others listed - until the whole flight
+    tells them apart (`_told_apart`)."""
     design = fitter.design
     ranked = sorted(passing, key=lambda j: (tests[j]["logp"], -tests[j]["stat"]))[:contenders]
     log_level = math.log(level)
@@ -778,22 +786,26 @@ def _encompassing(fitter, current, passing, tests, level, contenders=10):
 
 
 def _told_apart(whole, current, named, alike, level):
-    """(named, the look-alikes it still cannot be told from) after comparing the group again
-    on the whole flight (`whole`: the all-rows `Fitter`) by `_encompassing`'s rule at the
-    same level: a look-alike that adds to the named term while the named adds nothing to
-    it encompasses it and is named instead (of several, the one adding most); a look-alike
-    the named one encompasses there is no longer listed. Half the flight may hold too
-    little of what tells two terms apart - a g^2 term and a cross-coupling to the pitch
-    rate coincide in a pull-up at constant speed and part only where the speed differs."""
+    """(named, the look-alikes it still cannot be told from, those it encompasses) after the
+    group is compared again on the whole flight (`whole`: the all-rows `Fitter`) by
+    `_encompassing`'s pass at the same level: a member that adds to the named term while
+    the named adds nothing to it replaces it; listed are the members where neither adds
+    given the other. Half the flight may hold too little of what tells two terms apart - a
+    g^2 term and a cross-coupling to the pitch rate coincide in a pull-up at constant speed
+    and part only where the speed differs. The held-out rows take part in this choice, so
+    their confirmation (`_judge`) confirms the group's signal, not which member is named:
+    such a finding says so (`named_on`)."""
     log_level = math.log(level)
 
-    def encompasses(j, other):
-        return (_adds(whole, current, j, other, log_level)
-                and not _adds(whole, current, other, j, log_level))
-    better = [j for j in alike if encompasses(j, named)]
-    chosen = min(better, key=lambda j: _test(whole, current + [named, j], j)["logp_ref"],
-                 default=named)
-    return chosen, [j for j in [named, *alike] if j != chosen and not encompasses(chosen, j)]
+    def adds(j, given):
+        return _adds(whole, current, j, given, log_level)
+    best = named
+    for j in alike:
+        if adds(j, best) and not adds(best, j):
+            best = j
+    others = [j for j in [named, *alike] if j != best]
+    still = [j for j in others if not adds(j, best) and not adds(best, j)]
+    return best, still, [j for j in others if adds(best, j) and not adds(j, best)]
 
 
 def _adds(fitter, current, j, given, log_level):
@@ -846,6 +858,7 @@ def _judge(design, chosen, train, held, alpha, full_scale, cond):
             label=library.label(term), p_train=c["p_train"], holm_threshold=c["threshold"],
             p_heldout=p_ho, train_coefficient=b_tr.tolist() if len(b_tr) > 1 else float(b_tr[0]),
             attribution=_attribution(term, p_ref < level, res["linear"]),
+            named_on=c.get("named_on", "training half"),
             indistinguishable_from=[_alternative(design.terms[a]) for a in c["alternatives"]],
             not_chosen_as_implausible=c["implausible"])
         if res["linear"]:
