@@ -22,12 +22,12 @@ contract section 3: effect, sensor, axis, input_axis, coefficient or vector, and
 window_s, reference where the regressor needs them), each removed from the output after
 eqs. 1-4 (time_skew by shifting the samples back).
 """
+import functools
 import itertools
 import json
 import math
 from dataclasses import dataclass, field
 
-import numba
 import numpy as np
 
 from . import effects
@@ -459,8 +459,7 @@ def wild_value_filter(x, flags, n_sigma=6.0, sigma=None):
     out = x.copy()
     if sigma is None:
         sigma = noise_sigma(x[::subsample_step(len(x))])
-    wild = np.zeros(x.shape, dtype=np.bool_)
-    _find_wild(x, n_sigma * sigma * math.sqrt(6.0), wild)
+    wild = _find_wild(x, n_sigma * sigma * math.sqrt(6.0))
     for j in np.nonzero(wild.any(axis=0))[0]:
         good = ~wild[:, j]
         if not good.any():
@@ -472,38 +471,41 @@ def wild_value_filter(x, flags, n_sigma=6.0, sigma=None):
     return out
 
 
-@numba.njit(cache=True, nogil=True)
-def _find_wild(x, limit, wild):
-    n = x.shape[0]
-    for j in range(x.shape[1]):
-        for k in range(n):
-            v = x[k, j]
-            if not math.isfinite(v):
-                wild[k, j] = True
-                continue
-            # local curvature seen without x[k]: second differences centred at k-2 .. k-5 and
-            # k+2 .. k+5 - half a period of a vibration at a tenth of the sample rate, so a
-            # sampled vibration's curvature is seen whatever its phase at k
-            curve = 0.0
-            for c in range(2, CURVE_REACH + 1):
-                if k >= c + 1:
-                    curve = max(curve, abs(x[k - c + 1, j] - 2.0 * x[k - c, j] + x[k - c - 1, j]))
-                if k <= n - c - 2:
-                    curve = max(curve, abs(x[k + c - 1, j] - 2.0 * x[k + c, j] + x[k + c + 1, j]))
-            tol = limit[j] + 2.0 * curve if math.isfinite(curve) else limit[j]
-            if 0 < k < n - 1 and abs(v - 0.5 * (x[k - 1, j] + x[k + 1, j])) <= \
-                    tol * 0.5:                # second difference small: not a candidate
-                continue
-            left = 2.0 * x[k - 1, j] - x[k - 2, j] if k >= 2 else math.nan
-            right = 2.0 * x[k + 1, j] - x[k + 2, j] if k <= n - 3 else math.nan
-            agree = False
-            sides = 0
-            for p in (left, right):
-                if math.isfinite(p):
-                    sides += 1
-                    if abs(v - p) <= tol:
-                        agree = True
-            wild[k, j] = sides > 0 and not agree
+def _find_wild(x, limit):
+    """The wild samples of x (N, k) as `wild_value_filter` defines them, (N, k) bool, for
+    per-column limits (k,): n_sigma * sqrt(6) noise sigmas. Plain numpy, so that `compensate`
+    does not pay numba's start-up (about 1 s a process): the rule is evaluated only at the
+    candidates - samples whose second difference |x[k] - (x[k-1] + x[k+1]) / 2| exceeds
+    limit / 2 (the tolerance is at least the limit), the record's ends, non-finite samples -
+    from the 2 * CURVE_REACH + 3 samples around each. Non-finite second differences of the
+    curvature are left out of its maximum (NaN) or make it infinite (inf), and an infinite
+    curvature leaves the tolerance at the limit."""
+    n, cols = x.shape
+    limit = np.broadcast_to(np.asarray(limit, dtype=float), (cols,))
+    wild = ~np.isfinite(x)
+    with np.errstate(invalid="ignore", over="ignore"):
+        mid = np.full(x.shape, np.inf)                  # the ends are never quiet
+        mid[1:-1] = np.abs(x[1:-1] - 0.5 * (x[:-2] + x[2:]))
+        k, j = np.nonzero(~(mid <= 0.5 * limit) & ~wild)
+        r = CURVE_REACH + 1                             # near[:, r] is the candidate x[k, j]
+        near = x.ravel()[np.clip(k[:, None] + np.arange(-r, r + 1), 0, n - 1) * cols + j[:, None]]
+        # local curvature seen without x[k]: second differences centred at k-2 .. k-5 and
+        # k+2 .. k+5 - half a period of a vibration at a tenth of the sample rate, so a
+        # sampled vibration's curvature is seen whatever its phase at k
+        c = np.arange(2, CURVE_REACH + 1)
+        left = np.abs(near[:, r + 1 - c] - 2.0 * near[:, r - c] + near[:, r - 1 - c])
+        right = np.abs(near[:, r - 1 + c] - 2.0 * near[:, r + c] + near[:, r + 1 + c])
+        left[k[:, None] < c + 1] = np.nan               # centres outside the record
+        right[k[:, None] > n - c - 2] = np.nan
+        curve = np.fmax.reduce(np.fmax(left, right), axis=1, initial=0.0)
+        tol = np.where(np.isfinite(curve), limit[j] + 2.0 * curve, limit[j])
+        v = near[:, r]
+        from_left = np.where(k >= 2, 2.0 * near[:, r - 1] - near[:, r - 2], np.nan)
+        from_right = np.where(k <= n - 3, 2.0 * near[:, r + 1] - near[:, r + 2], np.nan)
+        agree = (np.abs(v - from_left) <= tol) | (np.abs(v - from_right) <= tol)
+        some_side = np.isfinite(from_left) | np.isfinite(from_right)
+        wild[k, j] = ~(mid[k, j] <= 0.5 * tol) & some_side & ~agree
+    return wild
 
 
 def raw_from_physics(cal, f, w, accel_temperature, gyro_frequency, f_gyro=None):
@@ -525,14 +527,21 @@ def raw_from_physics(cal, f, w, accel_temperature, gyro_frequency, f_gyro=None):
 
 def _invert_triad(p0, p1, p2, p3, y):
     v = np.empty_like(y)
-    worst = _newton_triad(p0, p1, np.linalg.inv(p1), p2, p3, y, v)
+    worst = _newton_kernel()(p0, p1, np.linalg.inv(p1), p2, p3, y, v)
     if not worst < 1e-12:
         raise CalibrationError(f"inverse of the triad model did not converge (relative "
                                f"residual {worst:.3g}): input beyond the model's monotonic range")
     return v
 
 
-@numba.njit(cache=True, nogil=True)
+@functools.cache
+def _newton_kernel():
+    """`_newton_triad` compiled by numba on first use: only the simulation and the tests
+    invert the compensation, and `compensate` need not import numba."""
+    import numba
+    return numba.njit(cache=True, nogil=True)(_newton_triad)
+
+
 def _newton_triad(p0, p1, p1_inv, p2, p3, y, v):
     """Solve p0 + p1 v + p2 v^2 + p3 v^3 = y per row (Newton, 3x3 steps by Cramer's rule);
     returns the worst relative residual."""
@@ -570,6 +579,7 @@ def _newton_triad(p0, p1, p1_inv, p2, p3, y, v):
 
 RAW_FIELDS = ("accel_volts", "gyro_volts", "accel_temperature", "gyro_frequency")
 BLOCK = 1 << 18             # samples per block of `compensate_log` (~100 MB of work arrays)
+HELD_SAMPLES = 1 << 20      # a record up to this long (~140 MB) is read once for the 3 passes
 
 
 def compensate_log(log_path, cal, out, force=False, skip_damaged=False, block=BLOCK):
@@ -621,18 +631,25 @@ def compensated_blocks(log, cal, block=BLOCK):
         n = sum(len(b) for b in _channel_blocks(log, "/mimu/raw", block, ["sample_index"]))
     if n < 2:
         raise LogError(f"{log.path}: /mimu/raw has {n} intact messages")
-    stats = RecordStats.sigma_of_blocks(_channel_blocks(log, "/mimu/raw", block, RAW_FIELDS),
-                                        n, RAW_FIELDS)
+    # a short record (or one whose stamps go back: block None) is read once, time-sorted,
+    # and its blocks are views of it; a long one is read from the file for each pass
+    whole = log.read("/mimu/raw") if block is None or n <= HELD_SAMPLES else None
+
+    def with_margins(fields, margin):
+        if whole is None:
+            return _with_margins(log.blocks("/mimu/raw", max(block, 2 * margin), fields), margin)
+        return _margin_views(whole, block or len(whole), margin)
+    stats = RecordStats.sigma_of_blocks(
+        [whole] if whole is not None else log.blocks("/mimu/raw", block, RAW_FIELDS),
+        n, RAW_FIELDS)
     margin = margin_samples(cal, 1e9 / stats.min_step_ns)
-    block = None if block is None else max(block, 2 * margin)   # a neighbour >= the margin
-    for ext, lo, hi in _with_margins(_channel_blocks(log, "/mimu/raw", block, RAW_FIELDS[:2]),
-                                     margin):
+    for ext, lo, hi in with_margins(RAW_FIELDS[:2], margin):
         flags = np.zeros(len(ext), np.uint8)
         stats.add_extremes([wild_value_filter(ext[name], flags, sigma=sigma)[lo:hi]
                             for name, sigma in zip(RAW_FIELDS[:2], stats.sigma[:2])])
     stats.finish_extremes()
     t0 = None
-    for ext, lo, hi in _with_margins(_channel_blocks(log, "/mimu/raw", block), margin):
+    for ext, lo, hi in with_margins(None, margin):
         stamps = ext["log_time"].astype(np.int64)
         t0 = stamps[0] if t0 is None else t0
         f, w, flags = compensate(cal, *(ext[name] for name in RAW_FIELDS),
@@ -711,6 +728,14 @@ def margin_samples(cal, rate_hz):
         if term["effect"] == "vibration_rectification":  # window + the filter's settling
             seconds.append(effects.VIBRATION_WINDOW_S / 2 + 10.0 / effects.VIBRATION_CUTOFF_HZ)
     return int(math.ceil(max(seconds) * rate_hz)) + 2 * CLIP_RUN + 2 * CURVE_REACH + 8
+
+
+def _margin_views(whole, block, margin):
+    """`_with_margins` of a record held whole: views of blocks of `block` samples with up to
+    `margin` samples of their neighbours."""
+    for start in range(0, len(whole), block):
+        lo, end = max(0, start - margin), min(len(whole), start + block)
+        yield whole[lo:min(len(whole), end + margin)], start - lo, end - lo
 
 
 def _with_margins(blocks, margin):

@@ -1,5 +1,6 @@
 """Compensation equations (seed S1 eqs. 1-4) and the calibration-file contract."""
 import json
+import math
 import warnings
 
 import numpy as np
@@ -224,6 +225,61 @@ def test_wild_value_filter_at_its_threshold():
     assert not flags.any()
 
 
+def _wild_by_the_rule(x, limit):
+    """The wild-value rule of `wild_value_filter`'s docstring, sample by sample in plain
+    Python (its former numba kernel): the oracle of the vectorised `_find_wild`."""
+    n, wild = len(x), np.zeros(x.shape, bool)
+    for j in range(x.shape[1]):
+        for k in range(n):
+            v = x[k, j]
+            if not math.isfinite(v):
+                wild[k, j] = True
+                continue
+            curve = 0.0
+            for c in range(2, 6):
+                for lo, ok in ((k - c - 1, k >= c + 1), (k + c + 1, k <= n - c - 2)):
+                    if ok:      # summed from the sample nearest k outwards, as before
+                        near, centre = (k - c + 1, k - c) if lo < k else (k + c - 1, k + c)
+                        curve = max(curve, abs(x[near, j] - 2.0 * x[centre, j] + x[lo, j]))
+            tol = limit[j] + 2.0 * curve if math.isfinite(curve) else limit[j]
+            if 0 < k < n - 1 and abs(v - 0.5 * (x[k - 1, j] + x[k + 1, j])) <= tol * 0.5:
+                continue
+            sides = [p for p in (2.0 * x[k - 1, j] - x[k - 2, j] if k >= 2 else math.nan,
+                                 2.0 * x[k + 1, j] - x[k + 2, j] if k <= n - 3 else math.nan)
+                     if math.isfinite(p)]
+            wild[k, j] = bool(sides) and not any(abs(v - p) <= tol for p in sides)
+    return wild
+
+
+def test_wild_samples_are_found_by_the_rule_sample_by_sample():
+    """The vectorised `_find_wild` equals the rule written sample by sample, bit for bit, on
+    short and long records with spikes, steps, quantised values, NaN and +-inf, zero limits
+    and records of 1 to 5 samples (edges, where the curvature's windows are cut short)."""
+    from mimunav.compensation import _find_wild
+    rng = np.random.default_rng(5)
+    with_wild = 0
+    for trial in range(120):
+        n = int(rng.integers(1, 40)) if trial % 2 else int(rng.integers(200, 600))
+        t = np.arange(n) / 1000.0
+        x = np.column_stack([np.sin(2 * np.pi * rng.uniform(1, 300) * t),
+                             rng.normal(0, 1e-3, n), np.cumsum(rng.normal(0, 1e-3, n))])
+        x += rng.normal(0, 1e-3, x.shape)
+        hit = rng.integers(0, n, max(1, n // 30))
+        x[hit, rng.integers(0, 3, len(hit))] += rng.normal(0, 0.05, len(hit))
+        for bad in (np.nan, np.inf, -np.inf):
+            if rng.random() < 0.5:
+                hit = rng.integers(0, n, max(1, n // 50))
+                x[hit, rng.integers(0, 3, len(hit))] = bad
+        if rng.random() < 0.25:
+            x = np.round(x * 300) / 300
+        limit = rng.uniform(1e-4, 1e-2, 3) * (rng.random() < 0.85)
+        with np.errstate(invalid="ignore", over="ignore"):
+            expected = _wild_by_the_rule(x, limit)
+        with_wild += expected.any()
+        np.testing.assert_array_equal(_find_wild(x, limit), expected, err_msg=f"trial {trial}")
+    assert with_wild > 80
+
+
 def test_found_terms_are_removed_not_added():
     """A calibration with a found gyro.x scale factor k = 0.01 (model 'linear+found') on an
     identity base: the output is (1 - k) x the reading (removed to first order), not
@@ -313,14 +369,18 @@ def test_identity_is_recognised_and_nothing_else_is():
         assert not other.is_identity, key
 
 
-def test_compensating_a_log_in_blocks_equals_compensating_it_whole(tmp_path):
+@pytest.mark.parametrize("held", [True, False])
+def test_compensating_a_log_in_blocks_equals_compensating_it_whole(tmp_path, monkeypatch, held):
     """compensate_log reads the log in blocks (bounded memory): with blocks of 1000 samples
     and a spike, a NaN and a clipped run near block edges, found terms (a 1.5 s dT window;
     a hysteresis slope over +-5 s and a 0.2 s time skew, which reach ahead) and a
     cold-start model (2 s dT window), /mimu/imu equals the whole-record compensation of the
-    same samples."""
+    same samples - whether the record is held for the three passes (a short one) or read
+    from the file for each (a long one)."""
     import fuzzing
+    from mimunav import compensation
     from mimunav.compensation import compensate_log, flag_counts
+    monkeypatch.setattr(compensation, "HELD_SAMPLES", 10**9 if held else 0)
     from mimunav.flightlog import FlightLog, LogWriter
     from mimunav.flightlog import schemas as S
     log, cal_path = fuzzing.corpus_log(tmp_path)
