@@ -5,3 +5,29 @@ evaluation -> report. Conventions (see shared/spec/log-format.md): SI units, NED
 navigation frame, body FRD, Hamilton quaternions scalar-first, q_nb maps body to NED.
 """
 __version__ = "0.1.0"
+
+
+def _import_quaternion():
+    """Import numpy-quaternion without the scipy.interpolate import it makes only to pick
+    spline rather than finite-difference calculus for its derivative and integral helpers
+    (0.6-0.8 s of every command's start here, and mimunav uses neither); the spline versions
+    it would have picked are put back, and they import scipy.interpolate when called."""
+    import sys
+    if "quaternion" in sys.modules or "scipy.interpolate" in sys.modules:
+        return
+    sys.modules["scipy.interpolate"] = None         # `from scipy.interpolate import` fails
+    try:
+        import quaternion
+        from quaternion import calculus
+    finally:
+        if sys.modules.get("scipy.interpolate", 0) is None:
+            del sys.modules["scipy.interpolate"]
+    for name, spline in (("spline", "spline_evaluation"), ("derivative", "spline_derivative"),
+                         ("antiderivative", "spline_indefinite_integral"),
+                         ("indefinite_integral", "spline_indefinite_integral"),
+                         ("definite_integral", "spline_definite_integral")):
+        for module in (calculus, quaternion):
+            setattr(module, name, getattr(calculus, spline))
+
+
+_import_quaternion()

@@ -32,7 +32,6 @@ Syntax of `--hide` (units: the contract's SI units of the coefficient):
 import math
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 from ..errors import InputError
 
 AXES = "xyz"
@@ -76,6 +75,7 @@ class HiddenPhysics:
                 out[s] += delayed(t, true[s], term["coefficient"]) - true[s]
             return out["accel"], out["gyro"]
         if effect == "mounting_misalignment":      # sensor frame turned by phi: x' = R(phi)' x
+            from scipy.spatial.transform import Rotation    # an independent rotation oracle
             turn = Rotation.from_rotvec(term["vector"]).inv()
             for s in ("accel", "gyro"):
                 out[s] += turn.apply(true[s]) - true[s]
