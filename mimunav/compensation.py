@@ -591,17 +591,18 @@ def compensate_log(log_path, cal, out, force=False, skip_damaged=False, block=BL
     left out and listed in the output's `damage` metadata record. Returns the flag counts
     (`flag_counts`).
 
-    Memory is bounded: the log is read in blocks of `block` samples (`FlightLog.blocks`),
-    three times - the wild-value filter's noise level from a subsample of the whole record,
-    the clipping extremes of the filtered voltages, then the compensation - each block
-    with `margin_samples` of its neighbours on both sides, so every sample sees what it
+    Memory is bounded: the record is worked in blocks of `block` samples, in three passes -
+    the wild-value filter's noise level from a subsample of the whole record, the clipping
+    extremes of the filtered voltages, then the compensation - each block with
+    `margin_samples` of its neighbours on both sides, so every sample sees what it
     would see in a whole-record compensation (tests/test_compensation.py checks they agree).
     Where that does not hold: a run of wild or non-finite samples longer than the margin
     across a block edge is repaired from the samples within reach (held, or UNUSABLE when
     the whole extended block has none) instead of interpolated across - flagged either way;
     and the derivative of found terms takes each block's median sample interval (a record
-    whose rate changes differs near the change). A channel whose stamps go back in time is
-    read whole and sorted, as before."""
+    whose rate changes differs near the change). A record of up to HELD_SAMPLES samples is
+    read once and held for the three passes; a longer one is read from the file in each
+    (`FlightLog.blocks`), and if its stamps go back in time, read whole and sorted."""
     from .flightlog.reader import TimeOrderError
     try:
         return _compensate_log(log_path, cal, out, force, skip_damaged, block)
@@ -621,9 +622,10 @@ def _channel_blocks(log, topic, block, fields=None):
 def compensated_blocks(log, cal, block=BLOCK):
     """The /mimu/raw channel of an open FlightLog through `cal`, block by block in bounded
     memory (as `compensate_log` describes): yields (raw messages of the block, f m/s^2,
-    w rad/s, flags), sensor axes; `block` None reads the channel whole and time-sorted.
-    Raises flightlog's TimeOrderError for a channel whose stamps go back in time across
-    blocks (read it with block=None)."""
+    w rad/s, flags), sensor axes; `block` None works the channel whole, time-sorted. A
+    channel of more than HELD_SAMPLES samples streams from the file, and then raises
+    flightlog's TimeOrderError if its stamps go back in time across blocks (read it with
+    block=None)."""
     from .flightlog import LogError
     rng = log.metadata().get("sensor/mimu", {}).get("range", {})
     n = log.count("/mimu/raw") if not log.skip_damaged else None   # checked as it is read
