@@ -324,3 +324,37 @@ def test_a_transplanted_lever_arm_is_the_interval_mean_of_the_rigid_body_terms()
     np.testing.assert_allclose(extra[:, 1], a * r, rtol=0, atol=1e-6)
     np.testing.assert_allclose(extra[:, 2], 0.0, atol=1e-9)
     assert np.max(np.abs(-(a * t) ** 2 * r - centripetal)) > 100 * 1e-6   # stamps differ
+
+
+@needs_foreign
+def test_a_slow_terms_interval_is_the_likelihood_ratio_tests_against_the_wander():
+    """foreign-03 (a 240 s cold start) with nothing put in: gyro x's bias wander follows the
+    temperature ramp enough that a temperature_bias term fitted at the wander level chosen
+    with it looks 8 Wald sigmas from zero, while the likelihood ratio that profiles the
+    wander level with and without it is 4.1. The interval reported is the test's:
+    `Fitter.profile_interval` at the statistic itself ends exactly at zero (its duality
+    with the test), at chi2(0.95) = 3.84 it just excludes zero, and it is more than 2.5
+    times as wide as the Wald interval (which takes the level as known)."""
+    diag, _ = _diagnose("foreign-03", "bias_shift:gyro:x=0")
+    labels = [library.label(t) for t in diag.design.terms]
+    j = labels.index("temperature_bias gyro.x")
+    b, cov = diag.fitter.fit([j]).of(j)
+    b, sd = float(b[0]), float(np.sqrt(cov[0, 0]))
+    stat = diag.fitter.likelihood_ratio([], j)
+    assert 3.84 < stat < 5 and b / sd > 6
+    lo, hi = diag.fitter.profile_interval([j], j, b, sd, chi2=stat)
+    assert abs(lo) < 1e-3 * b
+    lo, hi = diag.fitter.profile_interval([j], j, b, sd)
+    assert 0 < lo < b < hi and hi - lo > 2.5 * (2 * 1.96 * sd)
+    # at the upper end, the residual y - hi x filtered afresh (not the Grams' algebra)
+    from mimunav.diagnosis import wander
+    fitter = diag.fitter
+    (c,) = diag.design.columns[j]
+    (x,) = fitter._columns(c, [j])
+    cols = np.array(diag.design.channel_columns[c][0], dtype=float)
+    cols[:, 0] -= hi * cols[:, x]
+    gram = wander.grams(cols, fitter.rows, diag.design.levels)[0]
+    held = np.max(fitter._profile(c, [i for i in fitter._columns(c, [j]) if i != x],
+                                  gram=gram)[2])
+    top = fitter._level(c, fitter._columns(c, [j]))[2]
+    assert abs(2 * (top - held) - 3.841) < 1e-3

@@ -58,7 +58,7 @@ from functools import cache, cached_property
 
 import numpy as np
 import quaternion
-from scipy import stats
+from scipy import optimize, stats
 
 from .. import effects
 from ..calibration import standard_errors
@@ -79,6 +79,7 @@ MAP_SECONDS = 1.0
 DETREND_KNOT_S = 10.0           # bias removed for display and the scan: piecewise linear
 LINEAR_TOLERANCE = 1e-9         # a candidate is 'linear' when the reference inputs span it
 PIN = 1e12                      # prior precision factor that holds the reference error at zero
+CHI2_95_1DOF = float(stats.chi2.isf(0.05, 1))   # 3.84: a 95 % profile-likelihood interval
 CHANNELS = [("accel", a) for a in AXES] + [("gyro", a) for a in AXES]
 # findings that carry an offset of their own, so a channel that has one is not tested for a
 # bias shift or wander (`outputs.bias_tests`): a clip or a lattice, and the temperature terms,
@@ -529,13 +530,14 @@ class Fitter:
                           for c in range(6)]
         self.row_precision = [np.linalg.inv(p + 1e-24 * np.eye(3)) for p in self.row_prior]
 
-    def _profile(self, c, cols, pinned=False):
+    def _profile(self, c, cols, pinned=False, gram=None):
         """(Grams, r, log-likelihood) of channel c at every wander level, with the candidate
         columns `cols` (indices into the channel's columns) in the mean and the reference
         inputs (columns 1-3) under the reference's prior: the
         likelihood of y ~ N(X beta, r (wander) + R P R'), by Woodbury over the 3 prior
-        columns, with r profiled (fixed-point on the penalized residual)."""
-        g = self.gram[c]
+        columns, with r profiled (fixed-point on the penalized residual). `gram`: the
+        channel's Grams with another residual (`profile_interval`)."""
+        g = self.gram[c] if gram is None else gram
         every = [1, 2, 3] + list(cols)
         m = g[:, every][:, :, every]
         h = g[:, every, 0]
@@ -575,6 +577,39 @@ class Fitter:
         return 2 * sum(self._level(c, self._columns(c, terms + [j]))[2]
                        - self._level(c, self._columns(c, terms))[2]
                        for c in self.design.columns[j])
+
+    def profile_interval(self, terms, j, b, sd, chi2=CHI2_95_1DOF):
+        """95 % profile-likelihood interval of the one-parameter candidate j of one channel,
+        fitted with `terms` (which hold j; estimate b, Wald sd): the values beta at which
+        2 (max log-likelihood - log-likelihood with j held at beta) = chi2, the wander level,
+        its scale and the other columns profiled at each beta. It is the interval of the
+        likelihood-ratio test that named the term (beta = 0 lies outside it exactly when the
+        test's statistic exceeds chi2), and wider than the Wald interval at the fitted
+        level where a slow term and the wander can stand in for each other (a temperature
+        ramp on a cold start): the Wald interval takes the level as known."""
+        (c,) = self.design.columns[j]
+        cols = self._columns(c, terms)
+        (x,) = self._columns(c, [j])
+        others = [i for i in cols if i != x]
+        g = self.gram[c]
+        top = self._level(c, cols)[2]
+
+        def deficit(beta):                  # 2 (max - profile at beta) - chi2
+            held = g.copy()                 # the Grams of the residual y - beta x
+            held[:, 0, :] -= beta * g[:, x, :]
+            held[:, :, 0] = held[:, 0, :]
+            held[:, 0, 0] = g[:, 0, 0] - 2 * beta * g[:, 0, x] + beta ** 2 * g[:, x, x]
+            return 2 * (top - float(np.max(self._profile(c, others, gram=held)[2]))) - chi2
+
+        def edge(direction):
+            step = 2.0 * max(sd, 1e-12 * max(abs(b), 1e-300))
+            for _ in range(60):
+                if deficit(b + direction * step) > 0:
+                    return optimize.brentq(lambda d: deficit(b + direction * d), 0.0, step,
+                                           xtol=1e-6 * step)
+                step *= 2.0
+            return math.inf
+        return b - edge(-1.0), b + edge(1.0)
 
     def fit(self, terms, pinned=False):
         """`Fit` of the candidates `terms` (indices) with the reference error gamma under its
@@ -846,7 +881,13 @@ def _judge(design, chosen, train, held, alpha, full_scale, cond):
         term = design.terms[j]
         res = _test(held_fitter, idx, j)
         b_tr, b_ho = c["b_train"], res["b"]
-        finding = _estimate(design, term, b_ho, res["cov"])
+        interval = None
+        if not res["linear"] and len(design.columns[j]) == 1 and design.k[j] == 1:
+            interval = held_fitter.profile_interval(idx, j, float(b_ho[0]),
+                                                    float(np.sqrt(res["cov"][0, 0])))
+            if not np.all(np.isfinite(interval)):       # unbounded: the Wald interval
+                interval = None
+        finding = _estimate(design, term, b_ho, res["cov"], interval)
         where = _where_rows(_contribution(design, j, b_ho))
         finding["where"] = _spans(design, where, term, cond)
         finding["fit"] = _rms_fit(design, cleaned, j, b_tr, where, train, held, term)
@@ -890,10 +931,13 @@ def _attribution(term, beyond_reference, linear):
     return who + ("-or-reference" if linear else "-or-calibration")
 
 
-def _estimate(design, term, b, cov):
-    """`estimate` with the 95 % interval of covariance `cov`; a lever arm (fitted in the
-    sensor axes) turned into the vehicle frame of the metadata's lever_arm_m, its sensor-axes
-    vector kept for the compensation (`vector_sensor_axes`)."""
+def _estimate(design, term, b, cov, interval=None):
+    """`estimate` with the 95 % interval of covariance `cov` (or `interval`, (lo, hi) of a
+    scalar: `Fitter.profile_interval`); a lever arm (fitted in the sensor axes) turned into
+    the vehicle frame of the metadata's lever_arm_m, its sensor-axes vector kept for the
+    compensation (`vector_sensor_axes`)."""
+    if interval is not None:
+        return estimate(term, b, np.array([interval[0]]), np.array([interval[1]]))
     if term["effect"] != "lever_arm":
         half = 1.96 * np.sqrt(np.diag(cov))
         return estimate(term, b, b - half, b + half)
