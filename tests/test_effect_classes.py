@@ -342,9 +342,9 @@ def test_a_slow_terms_interval_is_the_likelihood_ratio_tests_against_the_wander(
     b, sd = float(b[0]), float(np.sqrt(cov[0, 0]))
     stat = diag.fitter.likelihood_ratio([], j)
     assert 3.84 < stat < 5 and b / sd > 6
-    lo, hi = diag.fitter.profile_interval([j], j, b, sd, chi2=stat)
+    lo, hi = diag.fitter.profile_interval([j], j, sd, chi2=stat)
     assert abs(lo) < 1e-3 * b
-    lo, hi = diag.fitter.profile_interval([j], j, b, sd)
+    lo, hi = diag.fitter.profile_interval([j], j, sd)
     assert 0 < lo < b < hi and hi - lo > 2.5 * (2 * 1.96 * sd)
     # at the upper end, the residual y - hi x filtered afresh (not the Grams' algebra)
     from mimunav.diagnosis import wander

@@ -36,7 +36,10 @@ Procedure:
     (`model_allowance`); those significant against the noise alone are listed as
     `within_reference_accuracy`, never dropped silently;
  4. the chosen terms are refitted on the held-out rows alone: coefficient and 95 % interval
-    (for linear terms including those accuracies); confirmed when p < alpha / (number
+    (for linear terms including those accuracies; for a one-parameter term of one channel,
+    tested by the likelihood ratio, the profile-likelihood interval of that test, the wander
+    level profiled at each value - `Fitter.profile_interval`; else Wald's at the fitted
+    level); confirmed when p < alpha / (number
     chosen) with the training sign. Attribution: `mimu`, or where the stated accuracies
     could still explain it on the held-out rows, `mimu-or-reference` (a linear term) or
     `mimu-or-calibration` (a term the model carries);
@@ -535,7 +538,8 @@ class Fitter:
         columns `cols` (indices into the channel's columns) in the mean and the reference
         inputs (columns 1-3) under the reference's prior: the
         likelihood of y ~ N(X beta, r (wander) + R P R'), by Woodbury over the 3 prior
-        columns, with r profiled (fixed-point on the penalized residual). `gram`: the
+        columns, with r profiled (fixed-point on the penalized residual); and the
+        coefficients of the reference inputs and `cols` at every level. `gram`: the
         channel's Grams with another residual (`profile_interval`)."""
         g = self.gram[c] if gram is None else gram
         every = [1, 2, 3] + list(cols)
@@ -553,7 +557,7 @@ class Fitter:
         _, logdet_prior = np.linalg.slogdet(np.eye(3) + self.row_prior[c] @ m[:, :3, :3]
                                             / (r[:, None, None] * (PIN if pinned else 1.0)))
         loglik = -0.5 * (self.logdet[c] + self.n * np.log(r) + logdet_prior + q / r)
-        return g, r, loglik
+        return g, r, loglik, theta
 
     def _level(self, c, cols, pinned=False):
         """(Gram, r, log-likelihood) of channel c at the wander level of maximum marginal
@@ -562,7 +566,7 @@ class Fitter:
         candidate does not touch, and the likelihood ratio refits the fit's own model."""
         key = (c, tuple(cols), pinned)
         if key not in self._levels:
-            g, r, loglik = self._profile(c, cols, pinned)
+            g, r, loglik, _ = self._profile(c, cols, pinned)
             best = int(np.argmax(loglik))
             self._levels[key] = g[best], float(r[best]), float(loglik[best])
         return self._levels[key]
@@ -578,21 +582,24 @@ class Fitter:
                        - self._level(c, self._columns(c, terms))[2]
                        for c in self.design.columns[j])
 
-    def profile_interval(self, terms, j, b, sd, chi2=CHI2_95_1DOF):
+    def profile_interval(self, terms, j, sd, chi2=CHI2_95_1DOF):
         """95 % profile-likelihood interval of the one-parameter candidate j of one channel,
-        fitted with `terms` (which hold j; estimate b, Wald sd): the values beta at which
-        2 (max log-likelihood - log-likelihood with j held at beta) = chi2, the wander level,
-        its scale and the other columns profiled at each beta. It is the interval of the
-        likelihood-ratio test that named the term (beta = 0 lies outside it exactly when the
-        test's statistic exceeds chi2), and wider than the Wald interval at the fitted
-        level where a slow term and the wander can stand in for each other (a temperature
-        ramp on a cold start): the Wald interval takes the level as known."""
+        fitted with `terms` (which hold j; sd: its Wald standard deviation, the search's
+        step): the values beta at which 2 (max log-likelihood - log-likelihood with j held
+        at beta) = chi2, the wander level, its scale and the other columns of the channel
+        profiled at each beta. It is the interval of the likelihood-ratio test that named
+        the term (beta = 0 lies outside it exactly when the test's statistic exceeds chi2),
+        and wider than the Wald interval at the fitted level where a slow term and the
+        wander can stand in for each other (a temperature ramp on a cold start): the Wald
+        interval takes the level as known."""
         (c,) = self.design.columns[j]
         cols = self._columns(c, terms)
         (x,) = self._columns(c, [j])
         others = [i for i in cols if i != x]
         g = self.gram[c]
-        top = self._level(c, cols)[2]
+        _, _, loglik, theta = self._profile(c, cols)
+        best = int(np.argmax(loglik))
+        top, centre = float(loglik[best]), float(theta[best, 3 + cols.index(x)])
 
         def deficit(beta):                  # 2 (max - profile at beta) - chi2
             held = g.copy()                 # the Grams of the residual y - beta x
@@ -602,14 +609,16 @@ class Fitter:
             return 2 * (top - float(np.max(self._profile(c, others, gram=held)[2]))) - chi2
 
         def edge(direction):
-            step = 2.0 * max(sd, 1e-12 * max(abs(b), 1e-300))
+            step = 2.0 * max(sd, 1e-12 * max(abs(centre), 1e-300))
             for _ in range(60):
-                if deficit(b + direction * step) > 0:
-                    return optimize.brentq(lambda d: deficit(b + direction * d), 0.0, step,
-                                           xtol=1e-6 * step)
+                if deficit(centre + direction * step) > 0:
+                    return optimize.brentq(lambda d: deficit(centre + direction * d), 0.0,
+                                           step, xtol=1e-6 * step)
                 step *= 2.0
             return math.inf
-        return b - edge(-1.0), b + edge(1.0)
+        if not deficit(centre) < 0:         # the profile's top not resolved (its scale's
+            return -math.inf, math.inf      # fixed point): unbounded, the caller keeps Wald's
+        return centre - edge(-1.0), centre + edge(1.0)
 
     def fit(self, terms, pinned=False):
         """`Fit` of the candidates `terms` (indices) with the reference error gamma under its
@@ -883,10 +892,9 @@ def _judge(design, chosen, train, held, alpha, full_scale, cond):
         b_tr, b_ho = c["b_train"], res["b"]
         interval = None
         if not res["linear"] and len(design.columns[j]) == 1 and design.k[j] == 1:
-            interval = held_fitter.profile_interval(idx, j, float(b_ho[0]),
-                                                    float(np.sqrt(res["cov"][0, 0])))
-            if not np.all(np.isfinite(interval)):       # unbounded: the Wald interval
-                interval = None
+            interval = held_fitter.profile_interval(idx, j, float(np.sqrt(res["cov"][0, 0])))
+            if not (np.all(np.isfinite(interval)) and interval[0] <= b_ho[0] <= interval[1]):
+                interval = None     # unbounded, or the joint fit off the channel's: Wald's
         finding = _estimate(design, term, b_ho, res["cov"], interval)
         where = _where_rows(_contribution(design, j, b_ho))
         finding["where"] = _spans(design, where, term, cond)
