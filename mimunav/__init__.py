@@ -11,7 +11,8 @@ def _import_quaternion():
     """Import numpy-quaternion without the scipy.interpolate import it makes only to pick
     spline rather than finite-difference calculus for its derivative and integral helpers
     (0.6-0.8 s of every command's start here, and mimunav uses neither); the spline versions
-    it would have picked are put back, and they import scipy.interpolate when called."""
+    it would have picked are put back, and they import scipy.interpolate when called. A
+    version that cannot be imported so is imported plainly."""
     import sys
     if "quaternion" in sys.modules or "scipy.interpolate" in sys.modules:
         return
@@ -19,6 +20,8 @@ def _import_quaternion():
     try:
         import quaternion
         from quaternion import calculus
+    except ImportError:
+        return
     finally:
         if sys.modules.get("scipy.interpolate", 0) is None:
             del sys.modules["scipy.interpolate"]
@@ -26,8 +29,9 @@ def _import_quaternion():
                          ("antiderivative", "spline_indefinite_integral"),
                          ("indefinite_integral", "spline_indefinite_integral"),
                          ("definite_integral", "spline_definite_integral")):
-        for module in (calculus, quaternion):
-            setattr(module, name, getattr(calculus, spline))
+        if hasattr(calculus, spline):
+            for module in (calculus, quaternion):
+                setattr(module, name, getattr(calculus, spline))
 
 
 _import_quaternion()
