@@ -7,12 +7,14 @@ navigation frame, body FRD, Hamilton quaternions scalar-first, q_nb maps body to
 __version__ = "0.1.0"
 
 
-def _import_quaternion():
+def import_quaternion():
     """Import numpy-quaternion without the scipy.interpolate import it makes only to pick
     spline rather than finite-difference calculus for its derivative and integral helpers
-    (0.6-0.8 s of every command's start here, and mimunav uses neither); the spline versions
-    it would have picked are put back, and they import scipy.interpolate when called. A
-    version that cannot be imported so is imported plainly."""
+    (0.6-0.8 s of a command's start, and mimunav uses neither); the spline versions it would
+    have picked are put back, and they import scipy.interpolate when called. A version that
+    cannot be imported so is left to be imported plainly. Called by the CLI before a command
+    that works with attitudes (the sys.modules entry it sets for the import's duration is
+    process-wide: call it before starting threads)."""
     import sys
     if "quaternion" in sys.modules or "scipy.interpolate" in sys.modules:
         return
@@ -21,6 +23,8 @@ def _import_quaternion():
         import quaternion
         from quaternion import calculus
     except ImportError:
+        for name in [m for m in sys.modules if m == "quaternion" or m.startswith("quaternion.")]:
+            del sys.modules[name]
         return
     finally:
         if sys.modules.get("scipy.interpolate", 0) is None:
@@ -33,5 +37,3 @@ def _import_quaternion():
             for module in (calculus, quaternion):
                 setattr(module, name, getattr(calculus, spline))
 
-
-_import_quaternion()

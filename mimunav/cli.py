@@ -13,6 +13,7 @@ if not any(v in os.environ for v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS"))
     os.environ["OPENBLAS_NUM_THREADS"] = "1"
 
 import numpy as np                                    # noqa: E402
+from . import import_quaternion                        # noqa: E402
 from .errors import InputError                        # noqa: E402
 
 FLIGHTS = Path(__file__).resolve().parent.parent / "flights"
@@ -1018,6 +1019,8 @@ def main(argv=None):
     mimunav error type, and the operating system's file errors) end with one line naming the
     command and exit status 2; anything else is a bug and shows its traceback."""
     args = build_parser().parse_args(argv)
+    if args.func not in (_compensate, _info):       # the commands that never turn attitudes
+        import_quaternion()
     try:
         return args.func(args)
     except (OSError, InputError) as exc:

@@ -476,10 +476,9 @@ def _find_wild(x, limit):
     per-column limits (k,): n_sigma * sqrt(6) noise sigmas. Plain numpy, so that `compensate`
     does not pay numba's start-up (about 1 s a process): the rule is evaluated only at the
     candidates - samples whose second difference |x[k] - (x[k-1] + x[k+1]) / 2| exceeds
-    limit / 2 (the tolerance is at least the limit), the record's ends, non-finite samples -
-    from the 2 * CURVE_REACH + 3 samples around each. Non-finite second differences of the
-    curvature are left out of its maximum (NaN) or make it infinite (inf), and an infinite
-    curvature leaves the tolerance at the limit."""
+    limit / 2 (the tolerance is at least the limit), the record's ends, non-finite samples.
+    Non-finite second differences of the curvature are left out of its maximum (NaN) or
+    make it infinite (inf), and an infinite curvature leaves the tolerance at the limit."""
     n, cols = x.shape
     limit = np.broadcast_to(np.asarray(limit, dtype=float), (cols,))
     wild = ~np.isfinite(x)
@@ -487,25 +486,59 @@ def _find_wild(x, limit):
         mid = np.full(x.shape, np.inf)                  # the ends are never quiet
         mid[1:-1] = np.abs(x[1:-1] - 0.5 * (x[:-2] + x[2:]))
         k, j = np.nonzero(~(mid <= 0.5 * limit) & ~wild)
-        r = CURVE_REACH + 1                             # near[:, r] is the candidate x[k, j]
-        near = x.ravel()[np.clip(k[:, None] + np.arange(-r, r + 1), 0, n - 1) * cols + j[:, None]]
-        # local curvature seen without x[k]: second differences centred at k-2 .. k-5 and
-        # k+2 .. k+5 - half a period of a vibration at a tenth of the sample rate, so a
-        # sampled vibration's curvature is seen whatever its phase at k
-        c = np.arange(2, CURVE_REACH + 1)
-        left = np.abs(near[:, r + 1 - c] - 2.0 * near[:, r - c] + near[:, r - 1 - c])
-        right = np.abs(near[:, r - 1 + c] - 2.0 * near[:, r + c] + near[:, r + 1 + c])
-        left[k[:, None] < c + 1] = np.nan               # centres outside the record
-        right[k[:, None] > n - c - 2] = np.nan
-        curve = np.fmax.reduce(np.fmax(left, right), axis=1, initial=0.0)
+        curvature = _curvature_of_all if len(k) > DENSE_CANDIDATES * x.size else _curvature_at
+        curve = curvature(x, k, j)
         tol = np.where(np.isfinite(curve), limit[j] + 2.0 * curve, limit[j])
-        v = near[:, r]
-        from_left = np.where(k >= 2, 2.0 * near[:, r - 1] - near[:, r - 2], np.nan)
-        from_right = np.where(k <= n - 3, 2.0 * near[:, r + 1] - near[:, r + 2], np.nan)
+
+        def at(d):                                      # x[k + d, j], clipped to the record
+            return x[np.clip(k + d, 0, n - 1), j]
+        v = x[k, j]
+        from_left = np.where(k >= 2, 2.0 * at(-1) - at(-2), np.nan)
+        from_right = np.where(k <= n - 3, 2.0 * at(1) - at(2), np.nan)
         agree = (np.abs(v - from_left) <= tol) | (np.abs(v - from_right) <= tol)
         some_side = np.isfinite(from_left) | np.isfinite(from_right)
         wild[k, j] = ~(mid[k, j] <= 0.5 * tol) & some_side & ~agree
     return wild
+
+
+DENSE_CANDIDATES = 1 / 16   # above this share of samples, the curvature of every sample
+
+
+def _curvature_at(x, k, j):
+    """Local curvature seen without x[k, j], at the candidates (k, j): the largest second
+    difference centred at k-2 .. k-CURVE_REACH and k+2 .. k+CURVE_REACH - half a period of a
+    vibration at a tenth of the sample rate, so a sampled vibration's curvature is seen
+    whatever its phase at k - each summed from the sample nearer k outwards; 0 when none
+    is finite. From the 2 CURVE_REACH + 3 samples around each candidate."""
+    n, cols = x.shape
+    r = CURVE_REACH + 1                                 # near[:, r] is the candidate
+    near = x.ravel()[np.clip(k[:, None] + np.arange(-r, r + 1), 0, n - 1) * cols + j[:, None]]
+    c = np.arange(2, CURVE_REACH + 1)
+    left = np.abs(near[:, r + 1 - c] - 2.0 * near[:, r - c] + near[:, r - 1 - c])
+    right = np.abs(near[:, r - 1 + c] - 2.0 * near[:, r + c] + near[:, r + 1 + c])
+    left[k[:, None] < c + 1] = np.nan                   # centres outside the record
+    right[k[:, None] > n - c - 2] = np.nan
+    return np.fmax.reduce(np.fmax(left, right), axis=1, initial=0.0)
+
+
+def _curvature_of_all(x, k, j):
+    """`_curvature_at`, from the second differences of the whole record (a record where
+    most samples are candidates: a vibrating one), padded with NaN beyond its ends."""
+    pad = np.full((CURVE_REACH + 1, x.shape[1]), np.nan)
+    inward = np.concatenate([pad, np.abs(x[2:] - 2.0 * x[1:-1] + x[:-2]), pad])
+    outward = np.concatenate([pad, np.abs(x[:-2] - 2.0 * x[1:-1] + x[2:]), pad])
+    # centre i sits at row i + CURVE_REACH; the window of CURVE_REACH - 1 centres starting
+    # at k - CURVE_REACH (left) or k + 2 (right)
+    w = CURVE_REACH - 1
+
+    def window_max(d):
+        m = d[:len(d) - w + 1]
+        for i in range(1, w):
+            m = np.fmax(m, d[i:len(d) - w + 1 + i])
+        return m
+    left = window_max(inward)[k, j]
+    right = window_max(outward)[k + CURVE_REACH + 2, j]
+    return np.fmax(np.fmax(left, right), 0.0)
 
 
 def raw_from_physics(cal, f, w, accel_temperature, gyro_frequency, f_gyro=None):

@@ -60,23 +60,25 @@ def test_euler_of_a_quaternion_array_of_any_shape():
 
 
 def test_quaternion_is_imported_without_scipy_interpolate_and_keeps_its_spline_calculus():
-    """mimunav imports numpy-quaternion without the scipy.interpolate import (0.6-0.8 s) it
-    makes only to choose its calculus helpers (`mimunav._import_quaternion`): a fresh
-    process that replays has not imported it, yet quaternion's derivative is still the
-    spline one a plain import picks, and it differentiates a uniform rotation about z,
-    q(t) = exp(w t z / 2), to dq/dt = q (0, 0, 0, w / 2)."""
+    """The CLI imports numpy-quaternion without the scipy.interpolate import (0.6-0.8 s) it
+    makes only to choose its calculus helpers (`mimunav.import_quaternion`): a fresh process
+    that does so and then loads the evaluation has not imported scipy.interpolate, yet
+    quaternion's derivative is still the spline one a plain import picks, and it
+    differentiates a uniform rotation about z, q(t) = exp(w t z / 2), to
+    dq/dt = q (0, 0, 0, w / 2)."""
     import subprocess
     import sys
-
-    import quaternion
-    probe = "import sys, mimunav.evaluation; print('scipy.interpolate' in sys.modules)"
+    probe = ("import sys, numpy as np, mimunav; mimunav.import_quaternion(); "
+             "import mimunav.evaluation, quaternion; "
+             "print('scipy.interpolate' in sys.modules, "
+             "quaternion.derivative is quaternion.calculus.spline_derivative, "
+             "quaternion.definite_integral is quaternion.calculus.spline_definite_integral); "
+             "w, t = 0.7, np.linspace(0.0, 2.0, 401); "
+             "q = quaternion.from_rotation_vector(np.outer(w * t, [0.0, 0.0, 1.0])); "
+             "dq = quaternion.derivative(quaternion.as_float_array(q), t); "
+             "e = quaternion.as_float_array(q * quaternion.quaternion(0, 0, 0, w / 2)); "
+             "print(float(np.abs(dq[5:-5] - e[5:-5]).max()))")
     out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True,
-                         check=True)
-    assert out.stdout.strip() == "False"
-    assert quaternion.derivative is quaternion.calculus.spline_derivative
-    assert quaternion.definite_integral is quaternion.calculus.spline_definite_integral
-    w, t = 0.7, np.linspace(0.0, 2.0, 401)
-    q = quaternion.from_rotation_vector(np.outer(w * t, [0.0, 0.0, 1.0]))
-    dq = quaternion.derivative(quaternion.as_float_array(q), t)
-    expected = quaternion.as_float_array(q * quaternion.quaternion(0, 0, 0, w / 2))
-    np.testing.assert_allclose(dq[5:-5], expected[5:-5], atol=1e-8)
+                         check=True).stdout.split("\n")
+    assert out[0] == "False True True"
+    assert float(out[1]) < 1e-8

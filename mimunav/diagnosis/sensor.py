@@ -608,17 +608,20 @@ class Fitter:
             held[:, 0, 0] = g[:, 0, 0] - 2 * beta * g[:, 0, x] + beta ** 2 * g[:, x, x]
             return 2 * (top - float(np.max(self._profile(c, others, gram=held)[2]))) - chi2
 
-        def edge(direction):
-            step = 2.0 * max(sd, 1e-12 * max(abs(centre), 1e-300))
-            for _ in range(60):
+        def edge(direction):                # the first crossing, stepping out by sd / 2
+            inside, step = 0.0, 0.5 * max(sd, 1e-12 * max(abs(centre), 1e-300))
+            for _ in range(200):
                 if deficit(centre + direction * step) > 0:
-                    return optimize.brentq(lambda d: deficit(centre + direction * d), 0.0,
+                    return optimize.brentq(lambda d: deficit(centre + direction * d), inside,
                                            step, xtol=1e-6 * step)
-                step *= 2.0
+                inside, step = step, step * 1.25
             return math.inf
         if not deficit(centre) < 0:         # the profile's top not resolved (its scale's
             return -math.inf, math.inf      # fixed point): unbounded, the caller keeps Wald's
-        return centre - edge(-1.0), centre + edge(1.0)
+        lo, hi = centre - edge(-1.0), centre + edge(1.0)
+        if deficit(0.0) <= 0:               # the test does not reject zero: neither does the
+            lo, hi = min(lo, 0.0), max(hi, 0.0)     # interval (a profile of several tops)
+        return lo, hi
 
     def fit(self, terms, pinned=False):
         """`Fit` of the candidates `terms` (indices) with the reference error gamma under its
@@ -896,6 +899,7 @@ def _judge(design, chosen, train, held, alpha, full_scale, cond):
             if not (np.all(np.isfinite(interval)) and interval[0] <= b_ho[0] <= interval[1]):
                 interval = None     # unbounded, or the joint fit off the channel's: Wald's
         finding = _estimate(design, term, b_ho, res["cov"], interval)
+        finding["ci95_method"] = "profile-likelihood" if interval is not None else "wald"
         where = _where_rows(_contribution(design, j, b_ho))
         finding["where"] = _spans(design, where, term, cond)
         finding["fit"] = _rms_fit(design, cleaned, j, b_tr, where, train, held, term)

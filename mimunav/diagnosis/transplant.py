@@ -201,14 +201,14 @@ def lever_arm_specific_force(flight, r_v):
     q = quaternion.as_float_array(tr.q_nb)
     spline = RotationSpline(tr.t, Rotation.from_quat(q[:, [1, 2, 3, 0]]))
     t = flight.mimu_t
-    dt = np.diff(t, prepend=t[0] - np.median(np.diff(t)))
+    dt = np.diff(t, prepend=t[0] - np.median(np.diff(t))) if len(t) > 1 else np.zeros(len(t))
 
-    def rigid_body(s):                  # at times s, (N, 3) vehicle frame; 0 outside truth
-        inside = (s >= tr.t[0]) & (s <= tr.t[-1])
-        w, dw = np.zeros((len(s), 3)), np.zeros((len(s), 3))
-        w[inside], dw[inside] = spline(s[inside], 1), spline(s[inside], 2)
+    def rigid_body(s):                  # at times s (held at the truth's ends), vehicle frame
+        s = np.clip(s, tr.t[0], tr.t[-1])
+        w, dw = spline(s, 1), spline(s, 2)
         return np.cross(w, np.cross(w, r_v)) + np.cross(dw, r_v)
     extra_v = (rigid_body(t - dt) + 4 * rigid_body(t - dt / 2) + rigid_body(t)) / 6
+    extra_v[(t < tr.t[0]) | (t > tr.t[-1])] = 0.0       # samples beyond the truth: none
     return _to_sensor(flight.mimu_mounting, extra_v)
 
 
