@@ -358,3 +358,18 @@ def test_a_slow_terms_interval_is_the_likelihood_ratio_tests_against_the_wander(
                                   gram=gram)[2])
     top = fitter._level(c, fitter._columns(c, [j]))[2]
     assert abs(2 * (top - held) - 3.841) < 1e-3
+
+
+@needs_foreign
+@pytest.mark.parametrize("carrier, spec, method", [
+    ("foreign-03", "temperature_bias:gyro:x=0.0005", "profile-likelihood"),
+    ("foreign-02", "bias_shift:gyro:x=0.001", "wald"),
+    ("foreign-05", "lever_arm:imu:all=0.08/0.0/-0.05", "wald"),
+])
+def test_every_finding_says_how_its_interval_was_made(carrier, spec, method):
+    """A finding carries ci95_method (an extra key the contract allows): the profile
+    likelihood of a slow one-channel term, Wald's for a bias shift tested on the outputs and
+    for a vector term of several channels."""
+    diag, key = _diagnose(carrier, spec)
+    (f,) = diag.findings
+    assert f["effect"] == key["effect"] and f["ci95_method"] == method

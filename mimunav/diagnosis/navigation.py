@@ -270,7 +270,7 @@ def _confirm(tier, cands, chosen, train, alpha, seed, cond):
         _, p_ho = fit_ho.test(pos)
         lo, hi = fit_ho.interval(pos)
         stability = _stability(tier, cands, c, train, rng)
-        finding = sensor.estimate(term, b_ho, lo, hi)
+        finding = dict(sensor.estimate(term, b_ho, lo, hi), ci95_method="student-t")
         finding.update({k: term[k] for k in ("order", "window_s", "reference") if k in term})
         contribution = sensor._contribution(tier, col, b_tr)
         rows = sensor._where_rows(contribution)

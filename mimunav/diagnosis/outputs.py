@@ -150,6 +150,7 @@ def _saturation_finding(t, sensor, axis, sides, y, x):
            float(np.sqrt(np.mean((y - clip)[beyond] ** 2))))
     return _finding("saturation", sensor, axis, level, (level - half, level + half),
                     spans(t, beyond, f"{sensor}.{axis} beyond {level:.4g}: clipped"), rms, None,
+                    ci95_method="the sides' levels and their spread",
                     side="both" if len(sides) == 2 else next(iter(sides)),
                     slope_beyond={k: s["slope"] for k, s in sides.items()},
                     samples_clipped=int(beyond.sum()),
@@ -181,7 +182,7 @@ def quantization(t, measured, raw, gains, rows, sigma):
             findings.append(_finding(
                 "quantization", sensor, axis, step, (lo, hi),
                 spans(t, rows, f"{sensor}.{axis}: every sample"), rms, None,
-                domain=domain, step_in_domain=q,
+                domain=domain, step_in_domain=q, ci95_method="the lattice's resolution",
                 note=f"the {domain} take only multiples of {q:.4g}"
                      f"{'' if domain == 'output' else ' V'}: quantization noise "
                      f"{step / math.sqrt(12):.3g} {unit} rms of the white noise "
@@ -295,7 +296,7 @@ def bias_tests(design, fit, quiet, alpha_level, cal, skip=(), noise=None):
             findings.append(_finding(
                 "bias_shift", sensor, axis, mu, (mu - half, mu + half), where,
                 (float(np.sqrt(np.mean(x ** 2))), float(np.sqrt(np.mean((x - mu) ** 2)))),
-                (p, p, alpha_level), normal_offset_1sigma=offset,
+                (p, p, alpha_level), normal_offset_1sigma=offset, ci95_method="wald",
                 likelihood_ratio={k: m[k]["lr"] for k in ("shift", "wander")},
                 indistinguishable_from=alike,
                 note=f"a constant {mu:.3g} {unit} beyond the class's turn-on spread "
@@ -308,6 +309,7 @@ def bias_tests(design, fit, quiet, alpha_level, cal, skip=(), noise=None):
             findings.append(_finding(
                 "bias_instability", sensor, axis, sigma, (lo, hi), where,
                 (float(np.std(x)), math.sqrt(white)), (p, p, alpha_level),
+                ci95_method="profile-likelihood",
                 likelihood_ratio={k: m[k]["lr"] for k in ("shift", "wander")},
                 indistinguishable_from=alike,
                 note=f"the bias wanders like a Gauss-Markov process of sigma {sigma:.3g} "

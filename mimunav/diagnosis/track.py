@@ -376,6 +376,7 @@ def lag_finding(diag, flight, cal, segments, alpha):
     value, ci = segments.mean_and_interval()      # all segments; the halves: replication
     finding = {"effect": "time_skew", "sensor": "imu", "axis": "all",
                "coefficient": value, "ci95": [float(ci[0]), float(ci[1])], "units": "s",
+               "ci95_method": "student-t over segments",
                "label": "time_skew imu.all", "p_train": p_train,
                "holm_threshold": alpha,               # one test: Holm's limit is alpha
                "p_heldout": p_held, "attribution": "mimu-or-reference",
