@@ -370,7 +370,27 @@ def flicker_covariance(t0, t1, f_min, f_max, n_freq=4000):
     """Covariance of the means over windows [t0_k, t1_k] (s) of a flicker process of unit
     instability (one-sided PSD 1 / (pi f), `sensors.noise`) between f_min and f_max (Hz):
     C_jk = int S(f) cos(2 pi f (c_j - c_k)) sinc(f T_j) sinc(f T_k) df, c the window
-    centres, T the lengths (numerical, log-spaced frequencies)."""
+    centres, T the lengths (numerical, log-spaced frequencies). Read-only; up to
+    KEPT_WINDOWS windows kept for the process's later calls with the same windows (every
+    unit of a campaign has its lab's)."""
+    t0, t1 = np.asarray(t0, dtype=float), np.asarray(t1, dtype=float)
+    key = (t0.tobytes(), t1.tobytes(), float(f_min), float(f_max), int(n_freq))
+    cov = _FLICKER_COVARIANCES.get(key)
+    if cov is None:
+        cov = _flicker_covariance(t0, t1, f_min, f_max, n_freq)
+        cov.flags.writeable = False
+        if len(t0) <= KEPT_WINDOWS:
+            if len(_FLICKER_COVARIANCES) >= 32:
+                _FLICKER_COVARIANCES.pop(next(iter(_FLICKER_COVARIANCES)))
+            _FLICKER_COVARIANCES[key] = cov
+    return cov
+
+
+KEPT_WINDOWS = 512                # a lab run's (the rate table has 252): at most 2 MiB each
+_FLICKER_COVARIANCES = {}         # (windows, band, grid) -> covariance, oldest first
+
+
+def _flicker_covariance(t0, t1, f_min, f_max, n_freq):
     f = np.geomspace(f_min, f_max, n_freq)
     weight = np.gradient(np.log(f)) * f / (math.pi * f)          # S(f) df on a log grid
     c, length = 0.5 * (t0 + t1), t1 - t0
@@ -660,10 +680,10 @@ def fit_g_sensitivity(run, temp, gyro, propagate=True):
         upstream.errors[n] = gyro.errors.get(n, {})
 
     def refit(delta):
-        moved = cw + np.array([[delta.get(f"cw[{i}][{j}]", 0.0) for j in range(3)]
-                               for i in range(3)])
+        dcw = np.array([[delta.get(f"cw[{i}][{j}]", 0.0) for j in range(3)] for i in range(3)])
         g_vals = {n: gyro.values[n] + delta.get(n, 0.0) for n in w_names}
-        return solve(moved, g_vals)[0].ravel()
+        # a source of W alone leaves the compensated voltages, so their design, as they are
+        return solve(cw + dcw if dcw.any() else None, g_vals)[0].ravel()
     _propagate(fitted, names, refit, base, upstream, parents + w_names)
     fitted.rms = dict(zip(AXES, rms))
     fitted.stage = "centrifuge C"

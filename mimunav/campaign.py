@@ -13,6 +13,7 @@ given a scheduler address (`dask[distributed]`, optional).
 import hashlib
 import json
 import os
+from concurrent.futures import as_completed
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -201,10 +202,11 @@ def done_indices(path):
 
 
 def run_campaign(scenario, n_units, seed, results, workers=2, scheduler=None,
-                 progress=True):
+                 progress=True, futures=None):
     """Run (or resume) a campaign of `scenario` (a `Scenario`, or a profile path for the
     default scenario on that flight) into the JSON-lines file `results`; returns the
-    records of units 0..n_units-1 in index order."""
+    records of units 0..n_units-1 in index order. `futures`: the units already submitted
+    to a pool of the caller's (`submit_units`, all of them; `results` then starts empty)."""
     if not isinstance(scenario, Scenario):
         scenario = Scenario(flight=str(Path(scenario).resolve()))
     done = done_indices(results)
@@ -213,13 +215,18 @@ def run_campaign(scenario, n_units, seed, results, workers=2, scheduler=None,
         raise InputError(f"{results} holds units of another campaign ({done[wrong[0]].get('campaign')}"
                          f", this one is {_identity(scenario, seed)}); use another file")
     todo = [i for i in range(n_units) if i not in done]
+    if futures is not None and (done or len(futures) != n_units):
+        raise ValueError("units submitted beforehand need an empty results file and all "
+                         f"{n_units} units ({len(futures)} submitted, {len(done)} done)")
     with open(results, "w") as fh:                   # rewrite intact lines, drop a torn one
         for rec in done.values():
             fh.write(json.dumps(rec) + "\n")
     bar = tqdm(total=n_units, initial=n_units - len(todo), desc="campaign units",
                disable=not progress)
+    records = _execute(scenario, seed, todo, workers, scheduler) if futures is None else \
+        (f.result() for f in as_completed(futures))
     with open(results, "a") as fh:
-        for rec in _execute(scenario, seed, todo, workers, scheduler):
+        for rec in records:
             fh.write(json.dumps(rec) + "\n")
             fh.flush()
             done[rec["index"]] = rec
@@ -233,18 +240,23 @@ def _execute(scenario, seed, indices, workers, scheduler):
     if not indices:
         return
     if scheduler:
-        from dask.distributed import Client, as_completed
+        from dask.distributed import Client, as_completed as dask_completed
         with Client(scheduler) as client:
             futures = client.map(run_unit, [scenario] * len(indices), [seed] * len(indices),
                                  indices, pure=False)
-            for future in as_completed(futures):
+            for future in dask_completed(futures):
                 yield future.result()
         return
-    from concurrent.futures import ProcessPoolExecutor, as_completed
+    from concurrent.futures import ProcessPoolExecutor
     with ProcessPoolExecutor(workers, initializer=one_blas_thread) as pool:
-        futures = [pool.submit(run_unit, scenario, seed, i) for i in indices]
-        for future in as_completed(futures):
+        for future in as_completed(submit_units(pool, scenario, seed, indices)):
             yield future.result()
+
+
+def submit_units(pool, scenario, seed, indices):
+    """Futures of `run_unit` for the units `indices` on `pool` (an executor whose workers
+    ran `one_blas_thread`)."""
+    return [pool.submit(run_unit, scenario, seed, i) for i in indices]
 
 
 def summary(records, variants=tuple(VARIANTS)):

@@ -2,6 +2,7 @@
 and on a (local) Dask cluster, refusing a results file of another campaign."""
 import dataclasses
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -76,7 +77,7 @@ def test_campaign_resumes_and_is_reproducible(profile, tmp_path):
     assert set(stats) == {"traditional", "entire", "FOG-IMU"}
 
 
-def test_campaign_on_a_local_dask_cluster_matches_local_processes(profile, tmp_path):
+def test_campaign_on_a_local_dask_cluster_and_a_callers_pool_matches_local_processes(profile, tmp_path):
     from dask.distributed import LocalCluster
     local = campaign.run_campaign(profile, 2, 3, str(tmp_path / "l.jsonl"), workers=2,
                                   progress=False)
@@ -85,6 +86,18 @@ def test_campaign_on_a_local_dask_cluster_matches_local_processes(profile, tmp_p
         remote = campaign.run_campaign(profile, 2, 3, str(tmp_path / "d.jsonl"),
                                        scheduler=cluster.scheduler_address, progress=False)
     assert remote == local
+    # units submitted to the caller's pool beside its own work (`mimunav reproduce`)
+    from concurrent.futures import ProcessPoolExecutor
+    scenario = campaign.Scenario(flight=str(Path(profile).resolve()))
+    with ProcessPoolExecutor(2, initializer=campaign.one_blas_thread) as pool:
+        futures = campaign.submit_units(pool, scenario, 3, range(2))
+        with pytest.raises(ValueError, match="submitted beforehand"):
+            campaign.run_campaign(scenario, 3, 3, str(tmp_path / "x.jsonl"), futures=futures,
+                                  progress=False)
+        shared = campaign.run_campaign(scenario, 2, 3, str(tmp_path / "p.jsonl"),
+                                       futures=futures, progress=False)
+    assert shared == local
+    assert [r["index"] for r in _lines(tmp_path / "p.jsonl")] in ([0, 1], [1, 0])
 
 
 def test_in_memory_flight_equals_the_logged_one(profile, tmp_path):

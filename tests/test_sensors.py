@@ -8,6 +8,7 @@ import pytest
 from mimunav import attitude, earth, truth
 from mimunav.compensation import compensate
 from mimunav.sensors import FogUnit, MimuUnit, Mounting
+from mimunav.sensors import noise
 from mimunav.sensors.noise import FLICKER_ADEV
 from mimunav.sensors.thermal import ISA_LAPSE, bay_temperature, first_order_lag
 from mimunav.truth import Kinematics, Motion
@@ -163,6 +164,27 @@ def test_allan_deviation_shows_the_configured_random_walk_and_bias_instability()
             assert slope == pytest.approx(math.log(model[1] / model[0]) / math.log(10.0),
                                           abs=0.05)
             assert np.mean(adev[2:] / model[2:]) == pytest.approx(1.0, rel=0.1)
+
+
+def test_flicker_noise_has_the_two_sided_psd_b2_over_2_pi_f_in_every_band():
+    """A record of exactly one synthesis period (n a power of two): the mean periodogram of
+    300 realisations, |X_k|^2 / (n fs), against IEEE 952's two-sided b^2 / (2 pi f) in octave
+    bands from 1/(n dt) to below Nyquist within 4 standard errors, and at the Nyquist bin
+    (real: chi2 with one degree of freedom); zero mean."""
+    n, rate, b = 1024, 50.0, 0.3
+    rng = np.random.default_rng(11)
+    x = np.stack([noise.flicker(rng, n, rate, [b])[:, 0] for _ in range(300)])
+    freq = np.fft.rfftfreq(n, 1 / rate)
+    ratio = (np.abs(np.fft.rfft(x, axis=1)[:, 1:]) ** 2 / (n * rate)
+             / (b**2 / (2 * math.pi * freq[1:])))          # mean 1 in every bin
+    edges = 2 ** np.arange(0, int(math.log2(n // 2)) + 1)
+    for lo, hi in zip(edges[:-1], edges[1:]):
+        band = ratio[:, lo - 1:hi - 1]
+        se = band.std() / math.sqrt(band.size)
+        assert abs(band.mean() - 1) < 4 * se, (lo, hi, band.mean(), se)
+    nyquist = ratio[:, -1]
+    assert abs(nyquist.mean() - 1) < 4 * nyquist.std() / math.sqrt(len(nyquist))
+    assert abs(x.mean(axis=1)).max() < 1e-12                # no power at f = 0
 
 
 def test_fog_output_is_within_table_4_grade():

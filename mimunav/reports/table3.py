@@ -9,6 +9,7 @@ import json
 import os
 import tempfile
 import time
+from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 from tqdm import tqdm
@@ -24,7 +25,9 @@ PAPER = {"traditional": (3.6, 24.1, 9.07), "entire": (2.78, 0.3, 6.69)}   # seed
 def reproduce(out_dir="reports", seed=1, mc_units=16, workers=2, progress=True, force=False,
               scenario=None):
     """Run the main job for `scenario` (`campaign.Scenario`, default: every sourced
-    default); returns the path of table3.md."""
+    default); returns the path of table3.md. The drawn unit's lab runs and flight and the
+    Monte Carlo's units share one pool of `workers` processes (the unit's tasks first: its
+    evaluation in this process overlaps the campaign)."""
     scenario = scenario or campaign.Scenario()
     out_dir = Path(out_dir)
     md = out_dir / "table3.md"
@@ -35,38 +38,34 @@ def reproduce(out_dir="reports", seed=1, mc_units=16, workers=2, progress=True, 
     steps = tqdm(total=5, desc="reproduce", disable=not progress, unit="step")
     unit = scenario.draw_unit(seed, f"MIMU-{seed:04d}")
     profile = scenario.profile()
-    with tempfile.TemporaryDirectory() as tmp:
-        cals = {}
-        for variant, procedures in campaign.VARIANTS.items():
-            paths = [lab.run(lab.plan(p), unit, os.path.join(tmp, f"{p}.mcap"), seed + k,
-                             progress=False)[0] for k, p in enumerate(procedures)]
-            cals[variant] = calibration.calibrate(paths, variant, unit.name)
-            cals[variant].save(out_dir / f"table3-{variant}.json", force=True)
-        steps.update()
-        log, _ = simulate_flight(profile, os.path.join(tmp, "flight.mcap"), seed, unit=unit,
-                                 progress=False, fog_grade=scenario.fog_grade,
-                                 ground_temperature_c=scenario.ground_temperature_c,
-                                 warm_up_s=scenario.warm_up_s)
-        flight = evaluation.Flight.load(log)
-        steps.update()
-        floor = {"true coefficients": unit.coefficients}
-        doc = evaluation.table(flight, cals | floor)
-        budget = evaluation.error_budget(flight, cals["entire"])
-        fog = evaluation.navigate_fog(flight)
-        t = evaluation.comparison_times(flight)
-        series = {}
-        for variant, cal in cals.items():
-            err = evaluation.errors(evaluation.replay(flight, cal, fog=fog), t)
-            series[f"MIMU {variant} - truth"] = dict(err["mimu-truth"], t=t)
-        series["FOG-IMU - truth"] = dict(err["fog-truth"], t=t)
-        navigation_errors(series, str(out_dir / "table3-errors.png"),
-                          f"{profile.name} flight, unit {unit.name}")
-        steps.update()
     results = out_dir / "table3-campaign.jsonl"
     if results.exists():
         results.unlink()                 # a fresh main job, not a resumed campaign
-    records = campaign.run_campaign(scenario, mc_units, seed, str(results), workers=workers,
-                                    progress=progress)
+    with tempfile.TemporaryDirectory() as tmp, \
+            ProcessPoolExecutor(workers, initializer=campaign.one_blas_thread) as pool:
+        try:
+            # the slowest first: the entire variant's three lab runs and its fit
+            cal_jobs = {variant: pool.submit(_lab_calibration, unit, variant, tmp, seed)
+                        for variant in sorted(campaign.VARIANTS, key=lambda v: v != "entire")}
+            log_job = pool.submit(simulate_flight, profile, os.path.join(tmp, "flight.mcap"),
+                                  seed, unit=unit, progress=False,
+                                  fog_grade=scenario.fog_grade,
+                                  ground_temperature_c=scenario.ground_temperature_c,
+                                  warm_up_s=scenario.warm_up_s)
+            units = campaign.submit_units(pool, scenario, seed, range(mc_units))
+            cals = {variant: cal_jobs[variant].result() for variant in campaign.VARIANTS}
+            for variant, cal in cals.items():
+                cal.save(out_dir / f"table3-{variant}.json", force=True)
+            steps.update()
+            flight = evaluation.Flight.load(log_job.result()[0])
+            steps.update()
+            doc, budget = _flight_results(flight, cals, unit, profile, out_dir)
+            steps.update()
+            records = campaign.run_campaign(scenario, mc_units, seed, str(results),
+                                            progress=progress, futures=units)
+        except BaseException:
+            pool.shutdown(wait=False, cancel_futures=True)
+            raise
     campaign_distributions(records, list(campaign.VARIANTS), str(out_dir / "table3-campaign.png"))
     stats = campaign.summary(records)
     steps.update()
@@ -79,6 +78,31 @@ def reproduce(out_dir="reports", seed=1, mc_units=16, workers=2, progress=True, 
     steps.update()
     steps.close()
     return md
+
+
+def _lab_calibration(unit, variant, folder, seed):
+    """`unit` through the lab procedures of `variant` as logs in `folder` (seeds seed + k)
+    and their fit, with its covariance."""
+    paths = [lab.run(lab.plan(p), unit, os.path.join(folder, f"{p}.mcap"), seed + k,
+                     progress=False)[0] for k, p in enumerate(campaign.VARIANTS[variant])]
+    return calibration.calibrate(paths, variant, unit.name)
+
+
+def _flight_results(flight, cals, unit, profile, out_dir):
+    """Table 3 of the flight for the calibrations `cals` and the unit's true coefficients,
+    the entire calibration's error budget, and the error figure; returns (table, budget)."""
+    doc = evaluation.table(flight, cals | {"true coefficients": unit.coefficients})
+    budget = evaluation.error_budget(flight, cals["entire"])
+    fog = evaluation.navigate_fog(flight)
+    t = evaluation.comparison_times(flight)
+    series = {}
+    for variant, cal in cals.items():
+        err = evaluation.errors(evaluation.replay(flight, cal, fog=fog), t)
+        series[f"MIMU {variant} - truth"] = dict(err["mimu-truth"], t=t)
+    series["FOG-IMU - truth"] = dict(err["fog-truth"], t=t)
+    navigation_errors(series, str(out_dir / "table3-errors.png"),
+                      f"{profile.name} flight, unit {unit.name}")
+    return doc, budget
 
 
 def assumptions_markdown(scenario):

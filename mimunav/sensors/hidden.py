@@ -66,30 +66,35 @@ class HiddenPhysics:
         return out
 
     def __call__(self, f, w, ctx):
+        """The outputs f (m/s^2), w (rad/s), (N, 3) sensor axes, with the effect added (new
+        arrays; ctx: the record's truth, `MimuRecorder`)."""
+        f, w = f.copy(), w.copy()
+        self.add_to(f, w, ctx)
+        return f, w
+
+    def add_to(self, f, w, ctx):
+        """Add the effect to the outputs f, w in place."""
         t, f_true, w_true = ctx["t"], ctx["f_true"], ctx["w_true"]
         term, effect = self.term, self.term["effect"]
-        out = {"accel": f.copy(), "gyro": w.copy()}
+        out = {"accel": f, "gyro": w}
         true = {"accel": f_true, "gyro": w_true}
         if effect == "time_skew":
             for s in (("accel", "gyro") if term["sensor"] == "imu" else (term["sensor"],)):
                 out[s] += delayed(t, true[s], term["coefficient"]) - true[s]
-            return out["accel"], out["gyro"]
-        if effect == "mounting_misalignment":      # sensor frame turned by phi: x' = R(phi)' x
+        elif effect == "mounting_misalignment":    # sensor frame turned by phi: x' = R(phi)' x
             from scipy.spatial.transform import Rotation    # an independent rotation oracle
             turn = Rotation.from_rotvec(term["vector"]).inv()
             for s in ("accel", "gyro"):
                 out[s] += turn.apply(true[s]) - true[s]
-            return out["accel"], out["gyro"]
-        if effect == "size_effect":                # proof mass at r: rigid-body acceleration
+        elif effect == "size_effect":              # proof mass at r: rigid-body acceleration
             r = np.asarray(term["vector"], float)
             w_dot = np.gradient(w_true, t, axis=0)
             i = AXES.index(term["axis"])
             extra = np.cross(w_true, np.cross(w_true, r)) + np.cross(w_dot, r)
-            out["accel"][:, i] += extra[:, i]
-            return out["accel"], out["gyro"]
-        i = AXES.index(term["axis"])
-        out[term["sensor"]][:, i] += self._scalar(t, true, ctx) * term["coefficient"]
-        return out["accel"], out["gyro"]
+            f[:, i] += extra[:, i]
+        else:
+            i = AXES.index(term["axis"])
+            out[term["sensor"]][:, i] += self._scalar(t, true, ctx) * term["coefficient"]
 
     def _scalar(self, t, true, ctx):
         """The effect's signal per unit coefficient on the named axis."""
@@ -161,9 +166,17 @@ class HiddenSet:
         self.effects = list(effects)
 
     def __call__(self, f, w, ctx):
-        for effect in self.effects:
-            f, w = effect(f, w, ctx)
+        f, w = f.copy(), w.copy()
+        self.add_to(f, w, ctx)
         return f, w
+
+    def add_to(self, f, w, ctx):
+        """Add the effects to f, w in place (a plain callable's result is written back)."""
+        for effect in self.effects:
+            if hasattr(effect, "add_to"):
+                effect.add_to(f, w, ctx)
+            else:
+                f[...], w[...] = effect(f, w, ctx)
 
     def as_dict(self):
         return [e.as_dict() for e in self.effects]

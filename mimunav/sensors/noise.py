@@ -19,7 +19,10 @@ FLICKER_ADEV = math.sqrt(2 * math.log(2) / math.pi)     # 0.664: ADEV floor / B
 def white(rng, n, rate_hz, density):
     """Interval means of white noise, shape (n, len(density)); density per sqrt(Hz)."""
     density = np.atleast_1d(np.asarray(density, dtype=float))
-    return rng.standard_normal((n, len(density))) * density * math.sqrt(rate_hz)
+    x = rng.standard_normal((n, len(density)))
+    x *= density
+    x *= math.sqrt(rate_hz)
+    return x
 
 
 def flicker(rng, n, rate_hz, b):
@@ -27,8 +30,10 @@ def flicker(rng, n, rate_hz, b):
 
     Two-sided PSD b^2 / (2 pi f), i.e. one-sided b^2 / (pi f), for 1/(n dt) <= f <= fs/2."""
     b = np.atleast_1d(np.asarray(b, dtype=float))
-    return np.column_stack([x for x in flicker_axes(rng, n, rate_hz, b)]) if len(b) else \
-        np.empty((n, 0))
+    out = np.empty((n, len(b)))
+    for i, x in enumerate(flicker_axes(rng, n, rate_hz, b)):
+        out[:, i] = x
+    return out
 
 
 def flicker_axes(rng, n, rate_hz, b):
@@ -41,7 +46,10 @@ def flicker_axes(rng, n, rate_hz, b):
     for b_i in np.atleast_1d(np.asarray(b, dtype=float)):
         # white noise of unit one-sided PSD (variance fs/2 per sample) shaped by sqrt(S)
         spec = np.fft.rfft(rng.standard_normal(m) * math.sqrt(rate_hz / 2))
-        yield np.fft.irfft(spec * amp, n=m)[:n] * b_i
+        spec *= amp
+        x = np.fft.irfft(spec, n=m)[:n]
+        x *= b_i
+        yield x
 
 
 class TriadNoise:
@@ -59,12 +67,11 @@ class TriadNoise:
         self.pos, self.flicker, self.files = 0, None, None
         if not flicker_b:
             return
-        axes = flicker_axes(flicker_rng, n, rate_hz, [flicker_b] * 3)
         if folder is None:
-            self.flicker = np.column_stack(list(axes))
+            self.flicker = flicker(flicker_rng, n, rate_hz, [flicker_b] * 3)
             return
         self.files = []
-        for i, x in enumerate(axes):
+        for i, x in enumerate(flicker_axes(flicker_rng, n, rate_hz, [flicker_b] * 3)):
             path = os.path.join(folder, f"flicker-{id(self)}-{i}.f64")
             x.tofile(path)
             self.files.append(path)

@@ -35,6 +35,7 @@ and misses, by construction of a real sensor rather than of the model:
 """
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 
@@ -64,10 +65,12 @@ class TriadResponse:
     def volts(self, x, temperature):
         """Output voltage u (V, (N, 3)) for input x ((N, 3), input units) at the elements'
         temperature readings ((N, 3))."""
-        z = (np.asarray(x, dtype=float) - self.null) @ self.sensitivity.T
-        b = self.thermal
-        temp = np.asarray(temperature, dtype=float)
-        return z + z * z * (self.n2 + self.n3 * z) + (b[:, 0] + temp * (b[:, 1] + temp * b[:, 2]))
+        x = np.ascontiguousarray(x, dtype=float)
+        temp = np.ascontiguousarray(temperature, dtype=float)
+        if x.ndim != 2 or x.shape[1] != 3 or temp.shape != x.shape:
+            raise ValueError(f"inputs {x.shape} and temperatures {temp.shape} must be (N, 3)")
+        return _volts(x, temp, self.null, np.ascontiguousarray(self.sensitivity), self.n2,
+                      self.n3, np.ascontiguousarray(self.thermal))
 
 
 def raw_output(coefficients, f, w, accel_temperature, gyro_frequency, f_gyro):
@@ -81,3 +84,17 @@ def raw_output(coefficients, f, w, accel_temperature, gyro_frequency, f_gyro):
     gyro = TriadResponse.from_model(c.W0, c.W1, c.W2, c.W3, c.cw)
     sensed_rate = np.asarray(w, dtype=float) - np.asarray(f_gyro, dtype=float) @ c.C.T
     return accel.volts(f, accel_temperature), gyro.volts(sensed_rate, gyro_frequency)
+
+
+@numba.njit(cache=True, nogil=True)
+def _volts(x, temp, null, sens, n2, n3, thermal):
+    """`TriadResponse.volts` sample by sample (one pass, no temporaries)."""
+    u = np.empty_like(x)
+    for k in range(x.shape[0]):
+        d0, d1, d2 = x[k, 0] - null[0], x[k, 1] - null[1], x[k, 2] - null[2]
+        for i in range(3):
+            z = sens[i, 0] * d0 + sens[i, 1] * d1 + sens[i, 2] * d2     # linear response
+            tk = temp[k, i]
+            u[k, i] = z + z * z * (n2[i] + n3[i] * z) + (
+                thermal[i, 0] + tk * (thermal[i, 1] + tk * thermal[i, 2]))
+    return u

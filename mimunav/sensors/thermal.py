@@ -38,12 +38,18 @@ def first_order_lag(t, u, tau, y0):
 
 @numba.njit(cache=True, nogil=True)
 def _lag(t, u, tau, y0, y):
-    for j in range(u.shape[1]):
-        prev = y0[j]
-        for k in range(u.shape[0]):
-            if k > 0:
-                prev += (1.0 - math.exp(-(t[k] - t[k - 1]) / tau[j])) * (u[k, j] - prev)
-            y[k, j] = prev
+    m = u.shape[1]
+    gain = np.empty(m)
+    step = -1.0
+    if u.shape[0]:
+        y[0] = y0
+    for k in range(1, u.shape[0]):
+        if t[k] - t[k - 1] != step:             # a uniform record: one exp per axis
+            step = t[k] - t[k - 1]
+            for j in range(m):
+                gain[j] = 1.0 - math.exp(-step / tau[j])
+        for j in range(m):                      # the axes' recursions side by side
+            y[k, j] = y[k - 1, j] + gain[j] * (u[k, j] - y[k - 1, j])
 
 
 @dataclass
