@@ -55,6 +55,7 @@ import json
 import math
 from dataclasses import dataclass, field
 
+import numba
 import numpy as np
 
 from .. import compensation
@@ -210,8 +211,10 @@ class MimuUnit:
         model lacks (used by the diagnosis tests), applied before saturation after the
         unit's own `beyond_model` terms."""
         rec = MimuRecorder(self, len(t), rng, hidden, warm_up_s)
-        parts = [rec.record(t, dtheta, dv, t_env), rec.finish()]
-        return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
+        settled, rest = rec.record(t, dtheta, dv, t_env), rec.finish()
+        if not len(rest["t"]):
+            return settled
+        return {k: np.concatenate([settled[k], rest[k]]) for k in settled}
 
     # ---- truth file -----------------------------------------------------------------
     def as_dict(self):
@@ -365,7 +368,8 @@ class MimuRecorder:
         if self.first is None:
             self.first = {k: block[k][:1] for k in ("accel_temperature", "gyro_temperature")}
         waiting = block if self.pending is None else _joined(self.pending, block)
-        return self._settle(waiting, keep=self.ahead)
+        last = self.done + len(waiting["t"]) >= self.n    # the record's end: none to wait for
+        return self._settle(waiting, keep=0 if last else self.ahead)
 
     def finish(self):
         """The outputs of the samples still waiting for their look-ahead."""
@@ -400,26 +404,25 @@ class MimuRecorder:
             return {k: np.empty((0, 3)) if k in _TRIADS else np.empty(0, dtype=_DTYPES.get(k, float))
                     for k in _FIELDS}
         k = len(b["t"])
-        f, w, f_true = b["f"], b["w"], b["f_true"]
-        saturated = ((np.abs(f) > unit.range_accel) | (np.abs(w) > unit.range_gyro)).any(axis=1)
-        f = np.clip(f, -unit.range_accel, unit.range_accel)
-        w = np.clip(w, -unit.range_gyro, unit.range_gyro)
-        f_gyro = np.clip(f_true, -unit.range_accel, unit.range_accel)
+        f, saturated = _saturated(b["f"], unit.range_accel)
+        w, saturated_w = _saturated(b["w"], unit.range_gyro)
+        saturated |= saturated_w
+        f_gyro = _saturated(b["f_true"], unit.range_accel)[0]
         t_acc, freq = b["accel_temperature"], b["gyro_frequency"]
         if unit.beyond_model:           # the sensing elements, forward (sensors.response)
             u_a, u_w = response.raw_output(unit.coefficients, f, w, t_acc, freq, f_gyro)
         else:                           # exactly eqs. 1-4: their inverse, to round-off
             u_a, u_w = compensation.raw_from_physics(unit.coefficients, f, w, t_acc, freq,
                                                      f_gyro=f_gyro)
-        rail = unit.adc_rail
+        thermistor = self.thermistor_rng.normal(0, unit.thermal.thermistor_noise, (k, 3))
+        thermistor += t_acc
+        frequency = self.frequency_rng.normal(0, unit.thermal.frequency_noise, (k, 3))
+        frequency += freq
         out = dict(
             t=b["t"], sample_index=np.arange(self.done, self.done + k, dtype=np.uint64),
-            accel_volts=np.clip(noise.quantize(u_a, unit.adc_lsb), -rail, rail),
-            gyro_volts=np.clip(noise.quantize(u_w, unit.adc_lsb), -rail, rail),
-            accel_temperature=t_acc + self.thermistor_rng.normal(
-                0, unit.thermal.thermistor_noise, (k, 3)),
-            gyro_frequency=freq + self.frequency_rng.normal(
-                0, unit.thermal.frequency_noise, (k, 3)),
+            accel_volts=_adc(u_a, unit.adc_lsb, unit.adc_rail),
+            gyro_volts=_adc(u_w, unit.adc_lsb, unit.adc_rail),
+            accel_temperature=thermistor, gyro_frequency=frequency,
             true_accel_temperature=t_acc, true_gyro_temperature=b["gyro_temperature"],
             saturated=saturated)
         self.done += k
@@ -431,6 +434,33 @@ _FIELDS = ("t", "sample_index", "accel_volts", "gyro_volts", "accel_temperature"
 _TRIADS = ("accel_volts", "gyro_volts", "accel_temperature", "gyro_frequency",
            "true_accel_temperature", "true_gyro_temperature")
 _DTYPES = {"sample_index": np.uint64, "saturated": bool}
+
+
+@numba.njit(cache=True, nogil=True)
+def _saturated(x, limit):
+    """(x clipped to +-limit, whether a sample had an axis beyond it); x (N, 3). NaN stays."""
+    out = np.empty_like(x)
+    beyond = np.zeros(x.shape[0], dtype=np.bool_)
+    for k in range(x.shape[0]):
+        for i in range(x.shape[1]):
+            v = x[k, i]
+            if v > limit:
+                out[k, i], beyond[k] = limit, True
+            elif v < -limit:
+                out[k, i], beyond[k] = -limit, True
+            else:
+                out[k, i] = v
+    return out, beyond
+
+
+def _adc(u, lsb, rail):
+    """The ADC's reading of u (V, a fresh array, changed in place): `noise.quantize` to the
+    step lsb (V), then the rails +-rail (V)."""
+    if lsb:
+        u /= lsb
+        np.rint(u, out=u)
+        u *= lsb
+    return np.clip(u, -rail, rail, out=u)
 
 
 def _joined(a, b):
