@@ -171,3 +171,30 @@ def test_the_report_names_each_values_source_and_the_command_that_gives_it():
     assert "given" in rows["warm_up_s"] and "not the default" not in rows["severity"]
     assert command_line(s, 3, 8) == ("mimunav reproduce --seed 3 --units 8 --warm-up-s 0.0 "
                                      "--mimu-grade stim300 --fog-grade navigation")
+
+
+def _broken_flight(*args, **kwargs):
+    raise RuntimeError("the flight simulation broke")
+
+
+def test_reproduce_shares_one_pool_and_its_units_are_the_campaigns(profile, tmp_path,
+                                                                    monkeypatch):
+    """`mimunav reproduce` runs the drawn unit's lab and flight and the Monte Carlo's units on
+    one pool: its units are those `run_unit` gives alone, written once each; the table's rows
+    are there; a task that fails stops it with that error and no report."""
+    from mimunav.reports import table3
+    scenario = campaign.Scenario(flight=str(Path(profile).resolve()))
+    md = table3.reproduce(tmp_path / "r", seed=5, mc_units=2, progress=False, force=True,
+                          scenario=scenario)
+    alone = [campaign.run_unit(scenario, 5, i) for i in range(2)]
+    lines = sorted(_lines(tmp_path / "r" / "table3-campaign.jsonl"), key=lambda r: r["index"])
+    assert lines == alone
+    doc = json.load(open(tmp_path / "r" / "table3.json"))
+    assert doc["campaign"] == json.loads(json.dumps(campaign.summary(alone)))
+    assert set(doc["table"]["variants"]) == {"traditional", "entire", "true coefficients"}
+    assert md.exists() and (tmp_path / "r" / "table3-entire.json").exists()
+    monkeypatch.setattr(table3, "simulate_flight", _broken_flight)     # forked workers see it
+    with pytest.raises(RuntimeError, match="flight simulation broke"):
+        table3.reproduce(tmp_path / "broken", seed=5, mc_units=2, progress=False,
+                         scenario=scenario)
+    assert not (tmp_path / "broken" / "table3.md").exists()

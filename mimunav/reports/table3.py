@@ -41,6 +41,8 @@ def reproduce(out_dir="reports", seed=1, mc_units=16, workers=2, progress=True, 
     results = out_dir / "table3-campaign.jsonl"
     if results.exists():
         results.unlink()                 # a fresh main job, not a resumed campaign
+    if mc_units:
+        campaign.prepare(scenario, seed)    # before the pool's processes fork
     with tempfile.TemporaryDirectory() as tmp, \
             ProcessPoolExecutor(workers, initializer=campaign.one_blas_thread) as pool:
         try:
@@ -53,6 +55,7 @@ def reproduce(out_dir="reports", seed=1, mc_units=16, workers=2, progress=True, 
                                   ground_temperature_c=scenario.ground_temperature_c,
                                   warm_up_s=scenario.warm_up_s)
             units = campaign.submit_units(pool, scenario, seed, range(mc_units))
+            campaign.forget()
             cals = {variant: cal_jobs[variant].result() for variant in campaign.VARIANTS}
             for variant, cal in cals.items():
                 cal.save(out_dir / f"table3-{variant}.json", force=True)

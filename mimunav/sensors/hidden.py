@@ -175,8 +175,9 @@ class HiddenSet:
         for effect in self.effects:
             if hasattr(effect, "add_to"):
                 effect.add_to(f, w, ctx)
-            else:
-                f[...], w[...] = effect(f, w, ctx)
+            else:                       # on copies: it may return its inputs, crosswise
+                f_new, w_new = effect(f.copy(), w.copy(), ctx)
+                f[...], w[...] = f_new, w_new
 
     def as_dict(self):
         return [e.as_dict() for e in self.effects]

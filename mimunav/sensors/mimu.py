@@ -213,7 +213,7 @@ class MimuUnit:
         rec = MimuRecorder(self, len(t), rng, hidden, warm_up_s)
         settled, rest = rec.record(t, dtheta, dv, t_env), rec.finish()
         if not len(rest["t"]):
-            return settled
+            return dict(settled, t=settled["t"].copy())      # not a view of the caller's t
         return {k: np.concatenate([settled[k], rest[k]]) for k in settled}
 
     # ---- truth file -----------------------------------------------------------------
@@ -298,8 +298,10 @@ class MimuRecorder:
     random error comes from its own generator (white noise per triad, flicker shaped over the
     whole record of n samples once, `sensors.noise.TriadNoise`; turn-on; thermistor and
     frequency noise), the thermal lag carries its state, and a hidden effect sees the samples
-    it reaches back and ahead (`HiddenPhysics.reach`; a sample waits for its look-ahead), so
-    the outputs do not depend on how the record is cut. `folder`: where a long record's
+    it reaches back and ahead (`HiddenPhysics.reach`; a sample waits for its look-ahead
+    until the block that completes the record's n samples settles them all), so the outputs
+    do not depend on how the record is cut (to round-off where an effect sums over its
+    context: time_skew's interpolation). `folder`: where a long record's
     flicker noise is kept (a file) instead of memory. A hidden effect that needs a statistic
     of the whole record (`reach` whole) is refused unless the record comes in one block."""
 

@@ -40,11 +40,11 @@ def first_order_lag(t, u, tau, y0):
 def _lag(t, u, tau, y0, y):
     m = u.shape[1]
     gain = np.empty(m)
-    step = -1.0
+    step = 0.0
     if u.shape[0]:
         y[0] = y0
     for k in range(1, u.shape[0]):
-        if t[k] - t[k - 1] != step:             # a uniform record: one exp per axis
+        if k == 1 or t[k] - t[k - 1] != step:   # a uniform record: one exp per axis
             step = t[k] - t[k - 1]
             for j in range(m):
                 gain[j] = 1.0 - math.exp(-step / tau[j])
