@@ -698,6 +698,7 @@ def _compensate_log(log_path, cal, out, force, skip_damaged, block):
 
     from .flightlog import FlightLog, LayoutError, LogError, LogWriter
     from .flightlog import schemas as S
+    from .flightlog.reader import PAYLOAD
     with FlightLog(log_path, skip_damaged=skip_damaged) as log:
         if "/mimu/imu" in log.channels:
             raise LogError(f"{log_path} already has /mimu/imu")
@@ -717,11 +718,10 @@ def _compensate_log(log_path, cal, out, force, skip_damaged, block):
         for topic in log.channels:
             if topic == "/mimu/raw":            # copied below, from the compensation's read
                 continue
-            try:
-                for msgs in _channel_blocks(log, topic, block):   # contract: field by field
-                    fields = {name: msgs[name] for name, _, _ in S.BODIES[log.schema_name(topic)]}
-                    dst.write(topic, log.schema_name(topic), msgs["frame_id"][0].decode(),
-                              msgs["log_time"].astype(np.int64), **fields)
+            try:        # a channel of the contract's layouts: its payloads as they are
+                for msgs in _channel_blocks(log, topic, block, PAYLOAD):
+                    dst.write_encoded(topic, log.schema_name(topic), msgs["payload"],
+                                      msgs["log_time"].astype(np.int64), increasing=True)
             except LayoutError:
                 generic.append(topic)
         for raw, f, w, flags in itertools.chain([own], blocks):

@@ -435,6 +435,24 @@ def test_compensating_a_log_in_blocks_equals_compensating_it_whole(tmp_path, mon
         np.testing.assert_allclose(imu["linear_acceleration"], f, rtol=0, atol=1e-10)
 
 
+def test_compensate_log_copies_the_other_channels_byte_for_byte(tmp_path):
+    """Every channel but /mimu/imu leaves compensate_log with the CDR bytes and stamps it
+    came with (a simulated flight: /mimu/raw, /fog/imu, /truth/state), whole or in blocks."""
+    import fuzzing
+    from mimunav.compensation import compensate_log
+    from mimunav.flightlog import FlightLog
+    from mimunav.flightlog.reader import PAYLOAD
+    log, cal_path = fuzzing.corpus_log(tmp_path)
+    for block in (None, 1000):
+        out = tmp_path / f"out-{block}.mcap"
+        compensate_log(log, Calibration.load(cal_path), out, block=block)
+        with FlightLog(log) as src, FlightLog(out) as got:
+            assert set(got.channels) == set(src.channels) | {"/mimu/imu"}
+            assert {"/mimu/raw", "/fog/imu", "/truth/state"} <= set(src.channels)
+            for topic in src.channels:
+                assert np.array_equal(got.read(topic, PAYLOAD), src.read(topic, PAYLOAD)), topic
+
+
 def test_triad_inverse_converges_where_coupling_and_nonlinearity_are_strong():
     """Newton's method on p0 + p1 v + p2 v^2 + p3 v^3 = y with off-diagonal couplings of
     30-40 % and nonlinearity of 10-20 % at |v| = 0.8 (far beyond any unit, still one root,

@@ -77,11 +77,11 @@ def test_generic_ros2_decoder_reads_what_mimunav_writes(tmp_path):
         assert list(raw_msgs[7][1].gyro_frequency) == list(raw["gyro_frequency"][7])
 
 
-def test_a_log_from_another_writer_following_the_contract_reads_back(tmp_path):
-    """The plain mcap writer with CDR packed by hand with struct, as a user's recorder
-    would do it."""
-    path = tmp_path / "other.mcap"
-    n = 100
+def _other_writer_log(path, n, padding):
+    """A /mimu/raw log of n messages by the plain mcap writer, CDR packed by hand with struct
+    as a user's recorder would do it; padding(k): the 7 bytes after message k's frame_id.
+    Returns the payloads."""
+    payloads = []
     with open(path, "wb") as fh:
         w = Writer(fh)
         w.start(profile="ros2", library="someone-else")
@@ -90,17 +90,54 @@ def test_a_log_from_another_writer_following_the_contract_reads_back(tmp_path):
         for k in range(n):
             stamp = EPOCH + k * 2_000_000
             sec, nsec = divmod(stamp, 10**9)
-            payload = (b"\x00\x01\x00\x00" + struct.pack("<iII", sec, nsec, 5) + b"mimu\x00"
-                       + b"\x00" * 7 + struct.pack("<Q", k)
-                       + struct.pack("<12d", *([0.1 * k] * 3 + [0.2] * 3 + [25.0] * 3
-                                               + [9000.0] * 3)))
-            w.add_message(cid, log_time=stamp, publish_time=stamp, data=payload, sequence=k)
+            payloads.append(b"\x00\x01\x00\x00" + struct.pack("<iII", sec, nsec, 5) + b"mimu\x00"
+                            + padding(k) + struct.pack("<Q", k)
+                            + struct.pack("<12d", *([0.1 * k] * 3 + [0.2] * 3 + [25.0] * 3
+                                                    + [9000.0] * 3)))
+            w.add_message(cid, log_time=stamp, publish_time=stamp, data=payloads[-1],
+                          sequence=k)
         w.finish()
+    return payloads
+
+
+def test_a_log_from_another_writer_following_the_contract_reads_back(tmp_path):
+    """The plain mcap writer with CDR packed by hand with struct, as a user's recorder
+    would do it."""
+    path, n = tmp_path / "other.mcap", 100
+    _other_writer_log(path, n, lambda k: b"\x00" * 7)
     with FlightLog(path) as lg:
         msgs = lg.read("/mimu/raw")
     assert np.array_equal(msgs["sample_index"], np.arange(n))
     np.testing.assert_array_equal(msgs["gyro_volts"][:, 0], 0.1 * np.arange(n))
     np.testing.assert_array_equal(msgs["gyro_frequency"], 9000.0)
+
+
+def test_payloads_pass_through_byte_for_byte(tmp_path):
+    """`read(topic, PAYLOAD)` gives each message's CDR bytes as another writer wrote them
+    (its padding bytes not zero), block by block too; `write_encoded` writes them back byte
+    for byte, decoding to the same fields (with increasing=True, refusing a stamp that does
+    not increase across calls, as `write` does)."""
+    from mimunav.errors import InputError
+    from mimunav.flightlog.reader import PAYLOAD
+    path, n = tmp_path / "other.mcap", 100
+    payloads = _other_writer_log(path, n, lambda k: bytes([0xA5 + k % 7] * 7))
+    with FlightLog(path) as lg:
+        got = lg.read("/mimu/raw", PAYLOAD)
+        fields = lg.read("/mimu/raw")
+        assert [bytes(p) for p in got["payload"]] == payloads
+        assert np.array_equal(np.concatenate(list(lg.blocks("/mimu/raw", 30, PAYLOAD))), got)
+    copy = tmp_path / "copy.mcap"
+    with LogWriter(copy) as dst:
+        dst.write_encoded("/mimu/raw", S.RAW_MIMU, got["payload"][:60],
+                          got["log_time"][:60].astype(np.int64), increasing=True)
+        with pytest.raises(InputError, match="stamps must increase"):
+            dst.write_encoded("/mimu/raw", S.RAW_MIMU, got["payload"][59:60],
+                              got["log_time"][59:60].astype(np.int64), increasing=True)
+        dst.write_encoded("/mimu/raw", S.RAW_MIMU, got["payload"][60:],
+                          got["log_time"][60:].astype(np.int64), increasing=True)
+    with FlightLog(copy) as lg:
+        assert np.array_equal(lg.read("/mimu/raw", PAYLOAD), got)
+        assert np.array_equal(lg.read("/mimu/raw"), fields)
 
 
 def test_missing_channel_lists_what_is_there_and_writing_is_safe(tmp_path):

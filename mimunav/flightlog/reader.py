@@ -131,7 +131,8 @@ class FlightLog:
     def read(self, topic, fields=None):
         """All messages of a channel as a structured array with a log_time (ns) field,
         in time order (the number of backward steps in file order goes to
-        `time_reversals[topic]`); `fields` (names) limits the copy to those fields. Data that
+        `time_reversals[topic]`); `fields` (names) limits the copy to those fields, or
+        `PAYLOAD` gives each message's CDR payload unparsed (field "payload", bytes). Data that
         cannot be decoded (a damaged chunk or index) is a `LogError` naming the channel."""
         try:
             out = self._read(topic, fields)
@@ -347,8 +348,11 @@ class FlightLog:
                            f" to {_since_epoch(self, ci.message_end_time)}) does not point at "
                            "its messages (damaged index); `mimunav info LOG --recover OUT.mcap` "
                            "rebuilds the log from its intact chunks")
-        for name in out.dtype.names[:-1]:
-            out[name] = msgs[name]
+        if out.dtype.names[0] == "payload":             # fields=PAYLOAD: the CDR bytes
+            out["payload"] = rows.view(out.dtype["payload"]).ravel()
+        else:
+            for name in out.dtype.names[:-1]:
+                out[name] = msgs[name]
         out["log_time"] = log_time
 
     def read_generic(self, topic):
@@ -361,6 +365,7 @@ class FlightLog:
                 reader.iter_decoded_messages(topics=[self._channel(topic).topic])]
 
 
+PAYLOAD = ("payload",)      # fields= of read/blocks: each message's CDR payload, unparsed
 DECODE_THREADS = min(2, os.cpu_count() or 1)
 DECODE_AHEAD = 4            # chunks decompressed ahead of the one being gathered
 _local = threading.local()
@@ -400,6 +405,8 @@ def _frame_id(data, payload_start):
 
 
 def _with_log_time(dtype, fields=None):
+    if fields is not None and tuple(fields) == PAYLOAD:
+        return np.dtype([("payload", f"V{dtype.itemsize}"), ("log_time", "<u8")])
     names = [n for n in dtype.names if n != "encap" and (fields is None or n in fields)]
     if fields is not None and len(names) != len(fields):
         raise LogError(f"fields {sorted(set(fields) - set(names))} are not in the message")

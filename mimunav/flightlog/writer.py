@@ -130,11 +130,7 @@ class LogWriter:
         log written in blocks)."""
         stamp_ns = np.asarray(stamp_ns, dtype=np.int64)
         channel = self._channel(topic, schema_name)
-        if np.any(np.diff(stamp_ns) <= 0) or \
-                len(stamp_ns) and stamp_ns[0] <= self._last_stamp.get(channel, -2**63):
-            raise InputError(f"{topic}: stamps must increase")
-        if len(stamp_ns):
-            self._last_stamp[channel] = int(stamp_ns[-1])
+        self._check_stamps(topic, channel, stamp_ns)
         per = self._per_chunk(schemas.cdr_dtype(schema_name, frame_id).itemsize)
         first = self._sequence.get(channel, 0)      # sequence continues across calls
         self._sequence[channel] = first + len(stamp_ns)
@@ -147,11 +143,22 @@ class LogWriter:
                            **piece)
             self._chunk(channel, records.view(np.uint8), records["log_time"])
 
-    def write_encoded(self, topic, schema_name, msgs, stamp_ns):
-        """Messages already encoded (a structured array of CDR payloads, one size) with
-        their log times (ns), in bulk."""
+    def _check_stamps(self, topic, channel, stamp_ns):
+        if np.any(np.diff(stamp_ns) <= 0) or \
+                len(stamp_ns) and stamp_ns[0] <= self._last_stamp.get(channel, -2**63):
+            raise InputError(f"{topic}: stamps must increase")
+        if len(stamp_ns):
+            self._last_stamp[channel] = int(stamp_ns[-1])
+
+    def write_encoded(self, topic, schema_name, msgs, stamp_ns, increasing=False):
+        """Messages already encoded (an array of CDR payloads of one size, e.g. `payload`
+        rows read by `FlightLog.blocks(topic, fields=PAYLOAD)`) with their log times (ns),
+        in bulk, as they are (a recorder's stamps in any order); increasing: refuse stamps
+        that do not increase, as `write` does."""
         channel = self._channel(topic, schema_name)
         stamp_ns = np.asarray(stamp_ns, np.int64)
+        if increasing:
+            self._check_stamps(topic, channel, stamp_ns)
         per = self._per_chunk(msgs.dtype.itemsize)
         first = self._sequence.get(channel, 0)
         self._sequence[channel] = first + len(msgs)
