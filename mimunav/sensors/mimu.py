@@ -456,13 +456,9 @@ def _saturated(x, limit):
 
 
 def _adc(u, lsb, rail):
-    """The ADC's reading of u (V, a fresh array, changed in place): `noise.quantize` to the
-    step lsb (V), then the rails +-rail (V)."""
-    if lsb:
-        u /= lsb
-        np.rint(u, out=u)
-        u *= lsb
-    return np.clip(u, -rail, rail, out=u)
+    """The ADC's reading of u (V, a fresh array, changed in place): quantised to the step
+    lsb (V), then the rails +-rail (V)."""
+    return np.clip(noise.quantize(u, lsb, out=u), -rail, rail, out=u)
 
 
 def _joined(a, b):

@@ -90,9 +90,15 @@ class TriadNoise:
         return x
 
 
-def quantize(x, step):
-    """Round to a multiple of step (no-op for step 0)."""
-    return x if step == 0 else np.round(x / step) * step
+def quantize(x, step, out=None):
+    """Round x to a multiple of step (no-op for step 0); out: the array to write (may be
+    x itself), else a new one."""
+    if step == 0:
+        return x if out is None else np.copyto(out, x) or out
+    q = np.divide(x, step, out=out)
+    np.rint(q, out=q)                   # numpy's round to 0 decimals
+    q *= step
+    return q
 
 
 def quantize_increments(x, step, carry=None):
