@@ -231,21 +231,18 @@ G_SENSITIVITY = {"effect": "g_sensitivity", "sensor": "gyro", "axis": "x", "inpu
 
 
 @pytest.fixture(scope="module")
-def g_sensitive():
-    """The proof flight with an uncompensated 0.1 deg/s/g gyro g-sensitivity (a MEMS gyro's
-    raw class) and a null recording, both in memory."""
-    return (concealed.recording(BLOCKS, None, 801, HiddenPhysics(dict(G_SENSITIVITY)),
-                                calibrate=False),
-            concealed.recording(BLOCKS, None, 901, calibrate=False))
+def null_recording():
+    """The proof flight, nothing hidden and no calibration fitted, in memory."""
+    return concealed.recording(BLOCKS, None, 901, calibrate=False)
 
 
-def test_navigation_signature_matches_the_strapdown_navigator(g_sensitive):
+def test_navigation_signature_matches_the_strapdown_navigator(null_recording):
     """The linearised error equations of the navigation level against the full strapdown
     navigator: the same outputs navigated with and without a g-sensitivity and an
     accelerometer bias; the velocity difference equals the signature to 1 % over 2 min."""
     from mimunav.diagnosis import navigation
     from mimunav.evaluation import navigate, resample
-    flight, unit, _, _ = g_sensitive[1]
+    flight, unit, _, _ = null_recording
     nav, w, f = navigation.observed_error(flight, unit.coefficients)
     model, cond = navigation.error_model(flight, nav, w, f)
     term = dict(G_SENSITIVITY, coefficient=2e-5)
@@ -268,29 +265,51 @@ def test_navigation_signature_matches_the_strapdown_navigator(g_sensitive):
         assert np.linalg.norm(sig[k] - true[0]) < 0.01 * np.linalg.norm(true[0]), span
 
 
-def test_navigation_level_names_a_g_sensitivity_and_stays_quiet_on_a_null(g_sensitive):
-    """Without the FOG-IMU, from the velocity error against the truth alone."""
-    from mimunav.diagnosis import navigation
-    (flight, unit, _, _), (null, null_unit, _, _) = g_sensitive
-    diag = navigation.diagnose(flight, unit.coefficients)
-    labels = [f["label"] for f in diag.findings]
-    assert labels == ["g_sensitivity gyro.x <- f_z"], labels
-    assert diag.findings[0]["fit"]["heldout_rms_after"] < diag.findings[0]["fit"]["heldout_rms_before"]
-    assert navigation.diagnose(null, null_unit.coefficients).findings == []
+NAVIGATION_SEEDS = range(801, 809)
 
 
 def _navigation_g_sensitivity(seed):
-    """(named, ratio of the estimate to the truth, z against the truth) of the navigation
-    level on one recording with the g-sensitivity hidden."""
+    """The navigation level on one recording with the g-sensitivity hidden: (labels named,
+    ratio of the estimate to the truth, z against the truth, held-out rms improved) - the
+    last three nan / False when it is not named."""
     from mimunav.diagnosis import navigation
     flight, unit, _, _ = concealed.recording(BLOCKS, None, seed, HiddenPhysics(dict(G_SENSITIVITY)),
                                              calibrate=False)
-    found = [f for f in navigation.diagnose(flight, unit.coefficients).findings
-             if f["label"] == "g_sensitivity gyro.x <- f_z"]
+    findings = navigation.diagnose(flight, unit.coefficients).findings
+    labels = [f["label"] for f in findings]
+    found = [f for f in findings if f["label"] == "g_sensitivity gyro.x <- f_z"]
     if not found:
-        return False, math.nan, math.nan
+        return labels, math.nan, math.nan, False
     f, truth = found[0], G_SENSITIVITY["coefficient"]
-    return True, f["coefficient"] / truth, (f["coefficient"] - truth) / ((f["ci95"][1] - f["ci95"][0]) / 3.92)
+    return (labels, f["coefficient"] / truth,
+            (f["coefficient"] - truth) / ((f["ci95"][1] - f["ci95"][0]) / 3.92),
+            f["fit"]["heldout_rms_after"] < f["fit"]["heldout_rms_before"])
+
+
+@pytest.fixture(scope="module")
+def navigation_g_runs():
+    """`_navigation_g_sensitivity` on recordings 801-808 (the proof flight with an
+    uncompensated 0.1 deg/s/g gyro g-sensitivity, a MEMS gyro's raw class), two at a time."""
+    from concurrent.futures import ProcessPoolExecutor
+    with ProcessPoolExecutor(2) as pool:
+        return list(pool.map(_navigation_g_sensitivity, NAVIGATION_SEEDS))
+
+
+def test_navigation_level_names_a_g_sensitivity_and_stays_quiet_on_a_null(null_recording,
+                                                                          navigation_g_runs):
+    """Without the FOG-IMU, from the velocity error against the truth alone. Its power on
+    this 0.1 deg/s/g effect is about 3 in 4 recordings (801-806: 5 of 6 with one noise
+    realisation, 4 of 6 with another), so one recording proves nothing either way: over 8,
+    named in at least 3 (a chance failure at power 3/4: 0.4 %), with a held-out improvement
+    each time, nothing else ever named, and the null recording quiet."""
+    from mimunav.diagnosis import navigation
+    null, null_unit, _, _ = null_recording
+    named = [r for r in navigation_g_runs if r[0]]
+    assert len(named) >= 3, navigation_g_runs
+    assert all(r[0] in ([], ["g_sensitivity gyro.x <- f_z"]) for r in navigation_g_runs), \
+        navigation_g_runs
+    assert all(r[3] for r in navigation_g_runs if r[0]), navigation_g_runs
+    assert navigation.diagnose(null, null_unit.coefficients).findings == []
 
 
 @pytest.mark.xfail(strict=True, reason=(
@@ -298,16 +317,13 @@ def _navigation_g_sensitivity(seed):
     "0.1 deg/s/g gyro g-sensitivity) its estimate is 0.83-0.94 of the truth (the Schuler, "
     "Coriolis and vertical terms added to the error equations took it from 0.83-0.87) and "
     "about 2 in 5 of its 95 % intervals miss the truth. Strict: look again once this passes"))
-def test_navigation_level_intervals_cover_the_true_g_sensitivity():
+def test_navigation_level_intervals_cover_the_true_g_sensitivity(navigation_g_runs):
     """Coverage over 8 recordings: the named intervals hold the truth in all but one, and the
     estimates are unbiased within 5 %."""
-    from concurrent.futures import ProcessPoolExecutor
-    with ProcessPoolExecutor(2) as pool:
-        rows = list(pool.map(_navigation_g_sensitivity, range(801, 809)))
-    named = [r for r in rows if r[0]]
-    assert len(named) >= 6, rows
-    assert sum(abs(r[2]) <= 1.96 for r in named) >= len(named) - 1, rows
-    assert abs(np.mean([r[1] for r in named]) - 1) < 0.05, rows
+    named = [r for r in navigation_g_runs if r[0]]
+    assert len(named) >= 6, navigation_g_runs
+    assert sum(abs(r[2]) <= 1.96 for r in named) >= len(named) - 1, navigation_g_runs
+    assert abs(np.mean([r[1] for r in named]) - 1) < 0.05, navigation_g_runs
 
 
 def test_concealed_effects_are_found_and_nulls_stay_quiet():

@@ -146,12 +146,16 @@ def _static_output(unit, hours, rate_hz, seed):
 
 def test_allan_deviation_shows_the_configured_random_walk_and_bias_instability():
     """ADEV of the static output against the configured model sqrt((N/sqrt(tau))^2 +
-    (0.664 B)^2) (IEEE 952): levels and slope at 0.1-1 s (white dominated for the gyro) and
-    the flicker floor at 300-3000 s, within 10 %."""
+    (0.664 B)^2) (IEEE 952): levels and slope at 0.1-1 s (white dominated for the gyro)
+    within 10 %; the flicker floor at 300, 1000 and 3000 s inside each estimate's 99.9 %
+    chi-square interval (Greenhall's equivalent degrees of freedom for flicker FM, allantools:
+    843, 252 and 83 on 60 h - a 10 % band at 3000 s is 1.3 sigma), and the six channels'
+    mean at 300 s within 4 standard errors of the model (about 4 %)."""
     unit = MimuUnit.draw(8)
     nz = unit.noise
     rate = 10.0
     f_err, w_err = _static_output(unit, 60.0, rate, seed=1)
+    floor_ratio, floor_edf = [], None
     for err, white, flick in ((w_err, nz.gyro_white, nz.gyro_flicker),
                               (f_err, nz.accel_white, nz.accel_flicker)):
         floor = FLICKER_ADEV * flick
@@ -163,7 +167,15 @@ def test_allan_deviation_shows_the_configured_random_walk_and_bias_instability()
             slope = math.log(adev[1] / adev[0]) / math.log(10.0)
             assert slope == pytest.approx(math.log(model[1] / model[0]) / math.log(10.0),
                                           abs=0.05)
-            assert np.mean(adev[2:] / model[2:]) == pytest.approx(1.0, rel=0.1)
+            for tau, got, want in zip(taus[2:], adev[2:], model[2:]):
+                edf = allantools.edf_greenhall(alpha=-1, d=2, m=int(round(tau * rate)),
+                                               N=len(err), overlapping=True)
+                lo, hi = allantools.confidence_interval(got, edf, ci=0.999)
+                assert lo <= want <= hi, (axis, tau, got / want, edf)
+                floor_edf = edf if tau == taus[2] else floor_edf
+            floor_ratio.append(adev[2] / model[2])
+    se = 1 / math.sqrt(2 * floor_edf) / math.sqrt(len(floor_ratio))
+    assert abs(np.mean(floor_ratio) - 1) < 4 * se, (floor_ratio, se)
 
 
 def test_flicker_noise_has_the_two_sided_psd_b2_over_2_pi_f_in_every_band():
@@ -184,7 +196,8 @@ def test_flicker_noise_has_the_two_sided_psd_b2_over_2_pi_f_in_every_band():
         assert abs(band.mean() - 1) < 4 * se, (lo, hi, band.mean(), se)
     nyquist = ratio[:, -1]
     assert abs(nyquist.mean() - 1) < 4 * nyquist.std() / math.sqrt(len(nyquist))
-    assert abs(x.mean(axis=1)).max() < 1e-12                # no power at f = 0
+    assert abs(x.mean(axis=1)).max() < 1e-6 * x.std()     # no power at f = 0 (single
+                                                            # precision synthesis)
 
 
 def test_fog_output_is_within_table_4_grade():
