@@ -68,3 +68,30 @@ class _Fixed:
 
     def parse_args(self, argv):
         return self.args
+
+
+def test_the_program_ends_with_its_output_and_status(tmp_path, capsys):
+    """`python -m mimunav` ends the process without the interpreter's teardown
+    (`cli.end_process`): what the command printed still reaches a pipe whole, its outputs are
+    on disk, and the exit status is the command's (0; 2 for an input error)."""
+    import subprocess
+    import sys
+
+    import fuzzing
+    log, cal = fuzzing.corpus_log(tmp_path)
+    assert main(["info", str(log)]) == 0
+    expected = capsys.readouterr().out
+
+    buffered = {k: v for k, v in os.environ.items() if k != "PYTHONUNBUFFERED"}
+
+    def program(*args):       # stdout a pipe, block-buffered: lost unless flushed
+        return subprocess.run([sys.executable, "-m", "mimunav", *args], capture_output=True,
+                              text=True, cwd=str(tmp_path), env=buffered)
+    done = program("info", str(log))
+    assert (done.returncode, done.stdout) == (0, expected)
+    done = program("replay", str(log), "--cal", str(cal), "-o", str(tmp_path / "rp"))
+    assert done.returncode == 0 and done.stdout.endswith("summary.json, errors.png\n")
+    assert sorted(p.name for p in (tmp_path / "rp").iterdir()) == \
+        ["errors.png", "nav.mcap", "summary.json"]
+    done = program("info", str(tmp_path / "missing.mcap"))
+    assert done.returncode == 2 and "missing.mcap" in done.stderr and not done.stdout
