@@ -257,38 +257,41 @@ def _replay(args):
     from .files import atomic_folder, refuse_inputs
     from .flightlog import LogWriter
     from .flightlog import schemas as S
-    from .reports.plots import navigation_errors, preload
+    from .reports.plots import Painter, navigation_errors
     out = Path(args.output)
     refuse_inputs([out], [args.log, args.cal])
     if out.exists() and not args.force:         # before the work, not after
         raise FileExistsError(f"{out} exists; use --force to replace it")
-    preload()
-    flight = evaluation.Flight.load(args.log, stream=True)      # bounded memory
-    cal = Calibration.load(args.cal)
-    t = evaluation.comparison_times(flight, args.end)
-    t_nav = np.append(np.arange(t[0], t[-1], 1.0 / args.nav_rate), t[-1])
-    rep = evaluation.replay(flight, cal, check="the calibration", at=np.union1d(t, t_nav))
-    err = evaluation.errors(rep, t)
-    with atomic_folder(out, force=args.force, inputs=[args.log, args.cal]) as tmp:
-        with LogWriter(tmp / "nav.mcap") as log:
-            for topic, traj in (("/mimu/nav", evaluation.resample(rep.mimu, t_nav)),
-                                ("/fog/nav", evaluation.resample(rep.fog, t_nav))):
-                log.write(topic, S.NAV_STATE, "vehicle",
-                          flight.epoch_ns + np.round(traj.t * 1e9).astype(np.int64),
-                          latitude=traj.lat, longitude=traj.lon, height=traj.h,
-                          velocity_ned=traj.v_ned, attitude_wxyz=quaternion.as_float_array(traj.q_nb))
-        series = {k: dict(v, t=t) for k, v in err.items() if k != "t"}
-        navigation_errors(series, str(tmp / "errors.png"), f"{flight.name}: {args.cal}")
-        summary = {"format": "mimunav-replay/1", "log": args.log, "calibration": args.cal,
-                   "end_t_s": float(t[-1]), "flags": rep.flags,
-                   "end": {k: {q: (evaluation.ned_to_enu(v[q][-1]) if q != "attitude"
-                                   else v[q][-1]).tolist() for q in v}
-                           for k, v in err.items() if k != "t"},
-                   "frames": "position/velocity ENU (m, m/s); attitude NED rotation vector "
-                             "(rad)",
-                   "mimu_platform": (flight.mimu_platform["meta"] if flight.mimu_platform
-                                     else None)}
-        (tmp / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
+    with Painter() as painter:                  # forked now: matplotlib loads beside the work
+        flight = evaluation.Flight.load(args.log, stream=True)      # bounded memory
+        cal = Calibration.load(args.cal)
+        t = evaluation.comparison_times(flight, args.end)
+        t_nav = np.append(np.arange(t[0], t[-1], 1.0 / args.nav_rate), t[-1])
+        rep = evaluation.replay(flight, cal, check="the calibration", at=np.union1d(t, t_nav))
+        err = evaluation.errors(rep, t)
+        with atomic_folder(out, force=args.force, inputs=[args.log, args.cal]) as tmp:
+            series = {k: dict(v, t=t) for k, v in err.items() if k != "t"}
+            navigation_errors(series, str(tmp / "errors.png"), f"{flight.name}: {args.cal}",
+                              painter)
+            with LogWriter(tmp / "nav.mcap") as log:
+                for topic, traj in (("/mimu/nav", evaluation.resample(rep.mimu, t_nav)),
+                                    ("/fog/nav", evaluation.resample(rep.fog, t_nav))):
+                    log.write(topic, S.NAV_STATE, "vehicle",
+                              flight.epoch_ns + np.round(traj.t * 1e9).astype(np.int64),
+                              latitude=traj.lat, longitude=traj.lon, height=traj.h,
+                              velocity_ned=traj.v_ned,
+                              attitude_wxyz=quaternion.as_float_array(traj.q_nb))
+            summary = {"format": "mimunav-replay/1", "log": args.log, "calibration": args.cal,
+                       "end_t_s": float(t[-1]), "flags": rep.flags,
+                       "end": {k: {q: (evaluation.ned_to_enu(v[q][-1]) if q != "attitude"
+                                       else v[q][-1]).tolist() for q in v}
+                               for k, v in err.items() if k != "t"},
+                       "frames": "position/velocity ENU (m, m/s); attitude NED rotation "
+                                 "vector (rad)",
+                       "mimu_platform": (flight.mimu_platform["meta"] if flight.mimu_platform
+                                         else None)}
+            (tmp / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
+            painter.wait()                      # errors.png drawn before the folder commits
     end = summary["end"]
     for key, v in end.items():
         e = v["position"]
@@ -303,12 +306,7 @@ def _replay(args):
 def _diagnose(args):
     """Diagnosis of a log against a calibration (sensor level with a reference IMU,
     navigation level with only a reference trajectory); JSON and report."""
-    from . import diagnosis, evaluation
-    from .compensation import Calibration
-    from .diagnosis import navigation, sensor, track
-    from .diagnosis.reference import Accuracy
-    from .files import refuse_inputs, write_atomic
-    from .reports import diagnosis as report
+    from .files import refuse_inputs
     refuse_inputs([args.json, args.output], [args.log, args.model, args.noise])
     inside = args.json and args.output and \
         Path(args.output).resolve() in Path(args.json).resolve().parents
@@ -318,9 +316,21 @@ def _diagnose(args):
     for out in (args.json, args.output):           # refuse before the work, not after
         if out and Path(out).exists() and not args.force:
             raise FileExistsError(f"{out} exists; use --force to replace it")
-    if args.output:
-        from .reports.plots import preload
-        preload()
+    if not args.output:
+        return _diagnosed(args, None)
+    from .reports.plots import Painter
+    with Painter() as painter:              # forked now: matplotlib loads beside the work
+        return _diagnosed(args, painter)
+
+
+def _diagnosed(args, painter):
+    """`_diagnose` once its arguments are checked; the report's figures by `painter`."""
+    from . import diagnosis, evaluation
+    from .compensation import Calibration
+    from .diagnosis import navigation, sensor, track
+    from .diagnosis.reference import Accuracy
+    from .files import write_atomic
+    from .reports import diagnosis as report
     # gaps are refused below unless the track level takes the log: it leaves their
     # surroundings out (`track.near_gaps`) instead of navigating across them
     flight = evaluation.Flight.load(args.log, reference_imu=args.level == "sensor",
@@ -359,7 +369,8 @@ def _diagnose(args):
     found = diagnosis.with_found(cal, doc["findings"])
     if args.output:
         report.write(args.output, doc, diag, flight, cal, found,
-                     args.model or "identity (the log's /mimu/imu as recorded)", force=args.force)
+                     args.model or "identity (the log's /mimu/imu as recorded)", force=args.force,
+                     painter=painter)
     if args.json:
         write_atomic(args.json, diagnosis.dumps(doc), force=args.force)
     if doc["conclusive"]:

@@ -95,3 +95,49 @@ def test_the_program_ends_with_its_output_and_status(tmp_path, capsys):
         ["errors.png", "nav.mcap", "summary.json"]
     done = program("info", str(tmp_path / "missing.mcap"))
     assert done.returncode == 2 and "missing.mcap" in done.stderr and not done.stdout
+
+
+def _drawn(png):
+    """Stands for a figure function: writes its file."""
+    with open(png, "w") as fh:
+        fh.write("drawn")
+
+
+def _fails(png):
+    raise ValueError(f"no figure for {png}")
+
+
+def test_figures_drawn_by_a_child_arrive_before_the_commit_or_raise(tmp_path, monkeypatch):
+    """`plots.Painter`: every figure sent is written by the forked child when `wait` returns
+    (replay and diagnose call it inside their output folder, before it commits); a figure that
+    failed raises there with the child's traceback; the child ends on every path."""
+    import threading
+
+    from mimunav.reports.plots import Painter
+    # a thread other tests leave (tqdm's sleeping monitor) would make it draw here instead
+    monkeypatch.setattr(threading, "active_count", lambda: 1)
+    with Painter() as painter:
+        child = painter.process
+        assert child is not None and child.pid != os.getpid()      # one thread here: forked
+        painter.draw(_drawn, str(tmp_path / "a.png"))
+        painter.draw(_drawn, str(tmp_path / "b.png"))
+        painter.wait()
+        assert (tmp_path / "a.png").read_text() == (tmp_path / "b.png").read_text() == "drawn"
+        assert not child.is_alive()
+    painter = Painter()
+    child = painter.process
+    painter.draw(_fails, "x.png")
+    painter.draw(_drawn, str(tmp_path / "c.png"))
+    with pytest.raises(RuntimeError, match="ValueError: no figure for x.png"):
+        painter.wait()
+    assert (tmp_path / "c.png").read_text() == "drawn" and not child.is_alive()
+    with pytest.raises(KeyError, match="the command's own error"):
+        with Painter() as painter:
+            child = painter.process
+            painter.draw(_fails, "y.png")
+            raise KeyError("the command's own error")
+    assert not child.is_alive()
+    here = Painter(fork=False)
+    assert here.process is None
+    with pytest.raises(ValueError):
+        here.draw(_fails, "z.png")

@@ -20,7 +20,7 @@ from ..diagnosis import dumps, sensor
 from ..diagnosis import library
 from ..diagnosis.outputs import block_index
 from ..diagnosis.sensor import CHANNELS, CONDITIONS
-from .plots import figure, save
+from .plots import Painter, figure, save
 
 CHANNEL_NAMES = [f"{s}.{a}" for s, a in CHANNELS]
 
@@ -53,26 +53,30 @@ def navigation_gain(flight, cal, cal_found, compensated=None):
     return out, t, series
 
 
-def write(out_dir, doc, diag, flight, cal, cal_found, cal_label, force=False):
+def write(out_dir, doc, diag, flight, cal, cal_found, cal_label, force=False, painter=None):
     """The report folder: diagnosis.json (with the navigation gain), CAL+found.json, the
-    figures and diagnosis.md. The two navigations run on threads while the figures that
-    do not need them are drawn (matplotlib holds the interpreter; the navigator does not)."""
+    figures and diagnosis.md. The figures are drawn by `painter` (a `plots.Painter`, else
+    here) while the two navigations run on threads (matplotlib holds the interpreter; the
+    navigator does not)."""
+    painter = painter or Painter(fork=False)
     with atomic_folder(out_dir, force=force) as tmp, ThreadPoolExecutor(1) as pool:
         own = getattr(diag, "compensated", None)     # the sensor level's, of this flight
         gain = pool.submit(navigation_gain, flight, cal, cal_found,
                            own[1:] if own and own[0] is flight else None)
         if diag.level in ("sensor", "track"):
-            _residual_map(diag, str(tmp / "residual-map.png"))
-            _timeline(diag, doc, str(tmp / "timeline.png"))
+            painter.draw(_residual_map, diag.residual_map, str(tmp / "residual-map.png"))
+            painter.draw(_timeline, _timeline_lines(diag, doc), str(tmp / "timeline.png"))
         else:
-            _velocity_timeline(diag, doc, str(tmp / "timeline.png"))
+            painter.draw(_velocity_timeline, _velocity_lines(diag, doc),
+                         str(tmp / "timeline.png"))
         nav, t_nav, series = gain.result()
         doc["navigation"] = nav
         (tmp / "diagnosis.json").write_text(dumps(doc))
         if cal_found is not None:
             cal_found.save(str(tmp / "CAL+found.json"))
-        _navigation(t_nav, series, nav, str(tmp / "navigation.png"))
+        painter.draw(_navigation, t_nav, series, nav, str(tmp / "navigation.png"))
         (tmp / "diagnosis.md").write_text(markdown(doc, diag, cal_label))
+        painter.wait()                      # every figure drawn before the folder commits
     return out_dir
 
 
@@ -207,9 +211,10 @@ def _vec(v):
     return "[" + ", ".join(f"{x:.3g}" for x in v) + "]"
 
 
-def _residual_map(diag, png):
+def _residual_map(residual_map, png):
+    """The condition x channel map (`diag.residual_map`: "before", "after")."""
     plt, fig, axes = figure(1, 2, (13, 4.2))
-    before, after = diag.residual_map["before"], diag.residual_map["after"]
+    before, after = residual_map["before"], residual_map["after"]
     top = np.nanmax(np.r_[before.ravel(), after.ravel(), 1.5]) if np.isfinite(before).any() else 2
     for ax, data, title in ((axes[0, 0], before, "before"), (axes[0, 1], after, "after found terms")):
         im = ax.imshow(data, cmap="magma_r", vmin=1.0 if top > 1 else 0, vmax=top, aspect="auto")
@@ -224,30 +229,39 @@ def _residual_map(diag, png):
     save(plt, fig, png, margins=dict(left=0.14, right=0.98, bottom=0.15, top=0.92, wspace=0.45))
 
 
-def _timeline(diag, doc, png):
-    """Per channel: 1 s means of the cleaned fast residual, before and after, with the
-    located spans (green) and unexplained excursions (red)."""
+def _timeline_lines(diag, doc):
+    """What `_timeline` draws: per channel the 1 s means of the cleaned fast residual before
+    and after the found terms (mg, deg/s), with the located spans (green) and unexplained
+    excursions (red), as (t_s, [(channel, unit, before, after, found spans, unexplained
+    spans)])."""
     t = diag.design.t
-    before, after = diag.before, diag.after
     sec = block_index(t, 1.0)                 # the seconds of `sensor._map` and `_scan`
     n = sec.max() + 1
     count = np.maximum(np.bincount(sec, minlength=n), 1)
     t_s = t[0] + np.arange(n) + 0.5
-    plt, fig, axes = figure(6, 1, (13, 11))
-    for c in range(6):
-        ax = axes[c, 0]
+    channels = []
+    for c, name in enumerate(CHANNEL_NAMES):
         unit, scale = ("mg", 1e3 / 9.80665) if c < 3 else ("deg/s", 180 / math.pi)
-        for x, label in ((before, "before"), (after, "after")):
-            ax.plot(t_s, np.bincount(sec, x[:, c], minlength=n) / count * scale, lw=0.8,
-                    label=label)
-        for f in doc["findings"]:
-            if CHANNEL_NAMES[c] in f["fit"]["channels"] or f["sensor"] == "imu":
-                for w in f["where"]:
-                    ax.axvspan(w["t0"], w["t1"], color="tab:green", alpha=0.15)
-        for u in doc["unexplained"]:
-            if u["channel"] == CHANNEL_NAMES[c]:
-                ax.axvspan(u["t0"], u["t1"], color="tab:red", alpha=0.3)
-        ax.set_ylabel(f"{CHANNEL_NAMES[c]}\n{unit}")
+        means = [np.bincount(sec, x[:, c], minlength=n) / count * scale
+                 for x in (diag.before, diag.after)]
+        found = [(w["t0"], w["t1"]) for f in doc["findings"]
+                 if name in f["fit"]["channels"] or f["sensor"] == "imu" for w in f["where"]]
+        unexplained = [(u["t0"], u["t1"]) for u in doc["unexplained"] if u["channel"] == name]
+        channels.append((name, unit, *means, found, unexplained))
+    return t_s, channels
+
+
+def _timeline(lines, png):
+    t_s, channels = lines
+    plt, fig, axes = figure(6, 1, (13, 11))
+    for ax, (name, unit, before, after, found, unexplained) in zip(axes[:, 0], channels):
+        ax.plot(t_s, before, lw=0.8, label="before")
+        ax.plot(t_s, after, lw=0.8, label="after")
+        for t0, t1 in found:
+            ax.axvspan(t0, t1, color="tab:green", alpha=0.15)
+        for t0, t1 in unexplained:
+            ax.axvspan(t0, t1, color="tab:red", alpha=0.3)
+        ax.set_ylabel(f"{name}\n{unit}")
     axes[0, 0].legend(loc="upper right")
     axes[0, 0].set_title("residual, 1 s means (bias wander removed); green: where a found term "
                          "acts, red: unexplained")
@@ -255,11 +269,11 @@ def _timeline(diag, doc, png):
     save(plt, fig, png, margins=dict(left=0.07, right=0.99, bottom=0.05, top=0.97, hspace=0.3))
 
 
-def _velocity_timeline(diag, doc, png):
-    """Navigation level: velocity error against the reference per NED axis, and what the
-    found terms (training coefficients) account for, with their located spans."""
-    from ..diagnosis.navigation import CHANNELS as NED
-    plt, fig, axes = figure(3, 1, (13, 8))
+def _velocity_lines(diag, doc):
+    """What `_velocity_timeline` draws (navigation level): the velocity error against the
+    reference per NED axis (m/s) and what the found terms (training coefficients) account
+    for, with their located spans, as (t s since the first epoch, observed, explained or
+    None, spans)."""
     t = diag.epochs - diag.epochs[0]
     explained = np.zeros_like(diag.observed)
     by_label = {library.label(term): pos for _, term, pos in diag.candidates_list}
@@ -267,15 +281,22 @@ def _velocity_timeline(diag, doc, png):
         beta = np.atleast_1d(np.asarray(f["train_coefficient"], float))
         inc = sensor._contribution(diag.tier, by_label[f["label"]], beta)
         explained[1:] += np.cumsum(inc, axis=0)
+    spans = [(w["t0"] - diag.epochs[0], w["t1"] - diag.epochs[0])
+             for f in doc["findings"] for w in f["where"]]
+    return t, diag.observed, explained if doc["findings"] else None, spans
+
+
+def _velocity_timeline(lines, png):
+    from ..diagnosis.navigation import CHANNELS as NED
+    t, observed, explained, spans = lines
+    plt, fig, axes = figure(3, 1, (13, 8))
     for c in range(3):
         ax = axes[c, 0]
-        ax.plot(t, diag.observed[:, c], label="MIMU - reference")
-        if doc["findings"]:
+        ax.plot(t, observed[:, c], label="MIMU - reference")
+        if explained is not None:
             ax.plot(t, explained[:, c], label="found terms (signature)")
-        for f in doc["findings"]:
-            for w in f["where"]:
-                ax.axvspan(w["t0"] - diag.epochs[0], w["t1"] - diag.epochs[0], color="green",
-                           alpha=0.15, lw=0)
+        for t0, t1 in spans:
+            ax.axvspan(t0, t1, color="green", alpha=0.15, lw=0)
         ax.set_ylabel(f"v error {NED[c]}, m/s")
     axes[0, 0].legend(fontsize=8)
     axes[-1, 0].set_xlabel("time since the first epoch, s")

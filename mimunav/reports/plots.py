@@ -2,6 +2,7 @@
 distributions of a campaign. Written with matplotlib (Agg) atomically."""
 import os
 import threading
+import traceback
 
 import numpy as np
 
@@ -15,12 +16,87 @@ def _pyplot():
     return plt
 
 
-def preload():
-    """Import matplotlib's pyplot (0.5-0.8 s) on a background thread, for a command that
-    will plot after reading and navigating a log: that work runs mostly outside the
-    interpreter (zstd, numpy, numba), so the import costs it little; `figure` then finds
-    pyplot imported (or waits on the import lock for the rest)."""
-    threading.Thread(target=_pyplot, daemon=True).start()
+class Painter:
+    """Figures drawn by a child process, for a command that plots after reading and
+    navigating a log: the child is forked before the command's work (POSIX; no other thread
+    alive), imports matplotlib (0.5-0.8 s of interpreter time) beside the parent's reading
+    instead of inside it, and draws what `draw` sends while the parent writes its other
+    outputs. With fork=False, without fork, or with other threads alive, figures are drawn
+    in this process.
+    A context manager: `wait` (before the caller's outputs commit) or leaving it waits for
+    every figure and ends the child. `process`: the child (multiprocessing.Process), None
+    when drawing here."""
+
+    def __init__(self, fork=True):
+        import multiprocessing
+        self._conn, self.process, self._sent = None, None, 0
+        if fork and "fork" in multiprocessing.get_all_start_methods() and \
+                threading.active_count() == 1:
+            context = multiprocessing.get_context("fork")
+            self._conn, end = context.Pipe()
+            self.process = context.Process(target=_paint, args=(end,), daemon=True)
+            self.process.start()
+            end.close()
+
+    def draw(self, function, *args):
+        """function(*args) (a module-level figure function writing its png) drawn by the
+        child, or here without one; the arguments travel pickled: keep them small."""
+        if self.process is None:
+            function(*args)
+            return
+        self._conn.send((function, args))
+        self._sent += 1
+
+    def wait(self):
+        """Block until every figure sent is drawn and end the child; a figure that failed
+        raises here (RuntimeError with the child's traceback)."""
+        if self.process is None:
+            return
+        conn, child, self.process = self._conn, self.process, None
+        try:
+            conn.send(None)
+            failures = [conn.recv() for _ in range(self._sent)]     # None: drawn
+        except (EOFError, OSError) as err:
+            failures = [f"the drawing process ended early ({err!r})"]
+        finally:
+            conn.close()
+            child.join()
+        failures = [f for f in failures if f]
+        if failures:
+            raise RuntimeError(f"a figure could not be drawn:\n{failures[0]}")
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, exc_type, exc, tb):
+        """The child ended whatever happened; its failure raised unless another error is
+        already on its way."""
+        try:
+            self.wait()
+        except RuntimeError:
+            if exc_type is None:
+                raise
+
+
+def _paint(conn):
+    """The drawing child: matplotlib imported first, then each (function, args) received
+    drawn, answered with None or the traceback, until None or the parent's end."""
+    import signal
+    signal.signal(signal.SIGINT, signal.SIG_IGN)      # the parent's Ctrl-C ends it via EOF
+    _pyplot()
+    while True:
+        try:
+            job = conn.recv()
+        except (EOFError, OSError):
+            break
+        if job is None:
+            break
+        try:
+            job[0](*job[1])
+            conn.send(None)
+        except Exception:
+            conn.send(traceback.format_exc())
+    conn.close()
 
 
 def figure(rows, cols, size):
@@ -42,17 +118,26 @@ def save(plt, fig, png, margins=None):
     os.replace(tmp, png)
 
 
-def navigation_errors(series, png, title=""):
+def navigation_errors(series, png, title="", painter=None):
     """series: {label: errors dict of `evaluation.errors` entries (position NED m, velocity
     NED m/s, attitude rad) with "t"}. East/north/up position and velocity errors and the
-    attitude error (deg) against time, one line style per label."""
-    plt, fig, axes = figure(3, 3, (14, 9))
-    comps = ("east", "north", "up")
+    attitude error (deg) against time, one line style per label; drawn by `painter` (a
+    `Painter`) when given, else here."""
+    lines = {}
     for label, err in series.items():
         step = max(1, len(err["t"]) // 1500)          # a screen's worth of points per line
-        t = err["t"][::step] - err["t"][0]
-        pos, vel = ned_to_enu(err["position"][::step]), ned_to_enu(err["velocity"][::step])
-        att = np.degrees(ned_to_enu(err["attitude"][::step]))
+        lines[label] = (err["t"][::step] - err["t"][0], ned_to_enu(err["position"][::step]),
+                        ned_to_enu(err["velocity"][::step]),
+                        np.degrees(ned_to_enu(err["attitude"][::step])))
+    (painter or Painter(fork=False)).draw(_navigation_errors, lines, png, title)
+
+
+def _navigation_errors(lines, png, title):
+    """The figure of `navigation_errors` from {label: (t s, position ENU m, velocity ENU
+    m/s, attitude deg)}."""
+    plt, fig, axes = figure(3, 3, (14, 9))
+    comps = ("east", "north", "up")
+    for label, (t, pos, vel, att) in lines.items():
         for j in range(3):
             axes[0, j].plot(t, pos[:, j], label=label)
             axes[1, j].plot(t, vel[:, j], label=label)
