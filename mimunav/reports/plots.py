@@ -1,6 +1,8 @@
 """Figures a person would rather look at than tables: navigation errors against time,
 distributions of a campaign. Written with matplotlib (Agg) atomically."""
 import os
+import signal
+import sys
 import threading
 import traceback
 
@@ -18,11 +20,10 @@ def _pyplot():
 
 class Painter:
     """Figures drawn by a child process, for a command that plots after reading and
-    navigating a log: the child is forked before the command's work (POSIX; no other thread
-    alive), imports matplotlib (0.5-0.8 s of interpreter time) beside the parent's reading
-    instead of inside it, and draws what `draw` sends while the parent writes its other
-    outputs. With fork=False, without fork, or with other threads alive, figures are drawn
-    in this process.
+    navigating a log: the child is forked before the command's work, imports matplotlib
+    (0.5-0.8 s of interpreter time) beside the parent's reading instead of inside it, and
+    draws what `draw` sends while the parent writes its other outputs. With fork=False, on a system other than Linux (fork is unsafe beside macOS's
+    frameworks), or with other threads alive, figures are drawn in this process.
     A context manager: `wait` (before the caller's outputs commit) or leaving it waits for
     every figure and ends the child. `process`: the child (multiprocessing.Process), None
     when drawing here."""
@@ -30,8 +31,7 @@ class Painter:
     def __init__(self, fork=True):
         import multiprocessing
         self._conn, self.process, self._sent = None, None, 0
-        if fork and "fork" in multiprocessing.get_all_start_methods() and \
-                threading.active_count() == 1:
+        if fork and sys.platform.startswith("linux") and threading.active_count() == 1:
             context = multiprocessing.get_context("fork")
             self._conn, end = context.Pipe()
             self.process = context.Process(target=_paint, args=(end,), daemon=True)
@@ -62,26 +62,23 @@ class Painter:
             conn.close()
             child.join()
         failures = [f for f in failures if f]
-        if failures:
+        if failures and child.exitcode != -signal.SIGTERM:
             raise RuntimeError(f"a figure could not be drawn:\n{failures[0]}")
 
     def __enter__(self):
         return self
 
     def __exit__(self, exc_type, exc, tb):
-        """The child ended whatever happened; its failure raised unless another error is
-        already on its way."""
-        try:
-            self.wait()
-        except RuntimeError:
-            if exc_type is None:
-                raise
+        """The child ended whatever happened: waited for (its failure raised), or on the
+        way out of an error stopped at once (SIGTERM), so the error is not delayed."""
+        if exc_type is not None and self.process is not None:
+            self.process.terminate()
+        self.wait()
 
 
 def _paint(conn):
     """The drawing child: matplotlib imported first, then each (function, args) received
     drawn, answered with None or the traceback, until None or the parent's end."""
-    import signal
     signal.signal(signal.SIGINT, signal.SIG_IGN)      # the parent's Ctrl-C ends it via EOF
     _pyplot()
     while True:
