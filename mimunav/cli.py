@@ -269,7 +269,9 @@ def _replay(args):
         t_nav = np.append(np.arange(t[0], t[-1], 1.0 / args.nav_rate), t[-1])
         rep = evaluation.replay(flight, cal, check="the calibration", at=np.union1d(t, t_nav))
         err = evaluation.errors(rep, t)
-        with atomic_folder(out, force=args.force, inputs=[args.log, args.cal]) as tmp:
+        # the painter left first: the figure drawn before the folder commits, or the child
+        # stopped before a failed folder is removed
+        with atomic_folder(out, force=args.force, inputs=[args.log, args.cal]) as tmp, painter:
             series = {k: dict(v, t=t) for k, v in err.items() if k != "t"}
             navigation_errors(series, str(tmp / "errors.png"), f"{flight.name}: {args.cal}",
                               painter)
@@ -291,7 +293,6 @@ def _replay(args):
                        "mimu_platform": (flight.mimu_platform["meta"] if flight.mimu_platform
                                          else None)}
             (tmp / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
-            painter.wait()                      # errors.png drawn before the folder commits
     end = summary["end"]
     for key, v in end.items():
         e = v["position"]
@@ -1036,17 +1037,21 @@ def end_process(status):
     its outputs: the atexit handlers run (logging, matplotlib, numba, multiprocessing) and
     the standard streams are flushed, but the interpreter's teardown of every module object
     by object - 0.3-0.6 s after a command that loaded numba's type registries and
-    matplotlib - is skipped. With any other thread alive (it would be cut off), a status
-    that is no number, or a stream that cannot be flushed (a closed pipe): the ordinary
-    exit instead."""
+    matplotlib - is skipped. With any other thread alive (it would be cut off), a tracer or
+    profiler watching (it writes its results at the ordinary exit), a status that is no
+    number, or a stream that cannot be flushed (a closed pipe): the ordinary exit instead."""
     import atexit
     import threading
-    if threading.active_count() == 1 and (status is None or isinstance(status, int)):
+    # cProfile, pdb, trace, coverage: they write their results at the ordinary exit
+    watched = sys.gettrace() is not None or sys.getprofile() is not None
+    if threading.active_count() == 1 and not watched and \
+            (status is None or isinstance(status, int)):
         atexit._run_exitfuncs()
         try:
-            sys.stdout.flush()
-            sys.stderr.flush()
-        except OSError:
+            for stream in (sys.stdout, sys.stderr):
+                if stream is not None:          # None: the descriptor was closed at start
+                    stream.flush()
+        except (OSError, ValueError):           # a closed pipe or stream
             raise SystemExit(status)
         os._exit(status or 0)
     raise SystemExit(status)

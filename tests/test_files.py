@@ -95,6 +95,10 @@ def test_the_program_ends_with_its_output_and_status(tmp_path, capsys):
         ["errors.png", "nav.mcap", "summary.json"]
     done = program("info", str(tmp_path / "missing.mcap"))
     assert done.returncode == 2 and "missing.mcap" in done.stderr and not done.stdout
+    closed = subprocess.run([sys.executable, "-m", "mimunav", "info", str(log)],   # >&-
+                            stderr=subprocess.PIPE, text=True, env=buffered,
+                            preexec_fn=lambda: os.close(1))
+    assert (closed.returncode, closed.stderr) == (0, "")
 
 
 def _drawn(png):
@@ -141,3 +145,41 @@ def test_figures_drawn_by_a_child_arrive_before_the_commit_or_raise(tmp_path, mo
     assert here.process is None
     with pytest.raises(ValueError):
         here.draw(_fails, "z.png")
+    # a figure's OSError (a full disk, no permission) stays an OSError: the command's
+    # one-line input error, status 2, as when drawn in-process
+    with pytest.raises(FileNotFoundError, match="no-such-folder"):
+        with Painter() as painter:
+            painter.draw(_drawn, str(tmp_path / "no-such-folder" / "d.png"))
+    # a child stopped by somebody else is a failure, not a figure drawn
+    painter = Painter()
+    painter.process.terminate()
+    painter.process.join()
+    with pytest.raises(RuntimeError, match="ended early"):
+        painter.wait()
+
+
+def test_the_drawing_child_ends_with_its_parent(tmp_path):
+    """A parent killed outright (no cleanup) leaves no drawing child behind: the child holds
+    no copy of the parent's end of the pipe, so it reads EOF and ends."""
+    import subprocess
+    import sys
+    import time
+    probe = ("import os, sys\n"
+             "from mimunav.reports.plots import Painter\n"
+             "p = Painter()\n"
+             "print(p.process.pid, flush=True)\n"
+             "os._exit(0)\n")
+    done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True,
+                          timeout=60, check=True)
+    child = int(done.stdout.split()[0])
+    deadline = time.monotonic() + 20            # its matplotlib import, then EOF
+
+    def running():                  # a zombie nobody reaps has ended too
+        try:
+            with open(f"/proc/{child}/stat") as fh:
+                return fh.read().rsplit(")", 1)[1].split()[0] != "Z"
+        except FileNotFoundError:
+            return False
+    while time.monotonic() < deadline and running():
+        time.sleep(0.1)
+    assert not running()

@@ -59,7 +59,9 @@ def write(out_dir, doc, diag, flight, cal, cal_found, cal_label, force=False, pa
     here) while the two navigations run on threads (matplotlib holds the interpreter; the
     navigator does not)."""
     painter = painter or Painter(fork=False)
-    with atomic_folder(out_dir, force=force) as tmp, ThreadPoolExecutor(1) as pool:
+    # left in reverse: the navigations joined, then the figures drawn (or the child stopped
+    # on an error), then the folder committed (or removed)
+    with atomic_folder(out_dir, force=force) as tmp, painter, ThreadPoolExecutor(1) as pool:
         own = getattr(diag, "compensated", None)     # the sensor level's, of this flight
         gain = pool.submit(navigation_gain, flight, cal, cal_found,
                            own[1:] if own and own[0] is flight else None)
@@ -76,7 +78,6 @@ def write(out_dir, doc, diag, flight, cal, cal_found, cal_label, force=False, pa
             cal_found.save(str(tmp / "CAL+found.json"))
         painter.draw(_navigation, t_nav, series, nav, str(tmp / "navigation.png"))
         (tmp / "diagnosis.md").write_text(markdown(doc, diag, cal_label))
-        painter.wait()                      # every figure drawn before the folder commits
     return out_dir
 
 

@@ -22,19 +22,25 @@ class Painter:
     """Figures drawn by a child process, for a command that plots after reading and
     navigating a log: the child is forked before the command's work, imports matplotlib
     (0.5-0.8 s of interpreter time) beside the parent's reading instead of inside it, and
-    draws what `draw` sends while the parent writes its other outputs. With fork=False, on a system other than Linux (fork is unsafe beside macOS's
-    frameworks), or with other threads alive, figures are drawn in this process.
-    A context manager: `wait` (before the caller's outputs commit) or leaving it waits for
-    every figure and ends the child. `process`: the child (multiprocessing.Process), None
-    when drawing here."""
+    draws what `draw` sends while the parent writes its other outputs. With fork=False, on
+    a system other than Linux (fork beside macOS's frameworks is unsafe), or with other
+    threads alive, figures are drawn in this process.
+
+    A context manager, entered again around the output folder (`with atomic_folder(...),
+    painter:`): leaving it waits for every figure (a figure's OSError raised as itself,
+    anything else as RuntimeError with the child's traceback) before the folder commits, or
+    on the way out of an error stops the child at once (SIGTERM), before the folder is
+    removed. The child's replies are read only then: meant for a few figures, not many
+    failing ones. `process`: the child (multiprocessing.Process), None when drawing here."""
 
     def __init__(self, fork=True):
         import multiprocessing
-        self._conn, self.process, self._sent = None, None, 0
+        self._conn, self.process, self._sent, self._stopped = None, None, 0, False
         if fork and sys.platform.startswith("linux") and threading.active_count() == 1:
             context = multiprocessing.get_context("fork")
             self._conn, end = context.Pipe()
-            self.process = context.Process(target=_paint, args=(end,), daemon=True)
+            self.process = context.Process(target=_paint, args=(end, self._conn),
+                                           daemon=True)
             self.process.start()
             end.close()
 
@@ -48,38 +54,47 @@ class Painter:
         self._sent += 1
 
     def wait(self):
-        """Block until every figure sent is drawn and end the child; a figure that failed
-        raises here (RuntimeError with the child's traceback)."""
+        """Block until every figure sent is drawn and end the child; raise a figure's
+        failure (see the class)."""
         if self.process is None:
             return
-        conn, child, self.process = self._conn, self.process, None
+        child = self.process
         try:
-            conn.send(None)
-            failures = [conn.recv() for _ in range(self._sent)]     # None: drawn
+            self._conn.send(None)
+            failures = [self._conn.recv() for _ in range(self._sent)]     # None: drawn
         except (EOFError, OSError) as err:
-            failures = [f"the drawing process ended early ({err!r})"]
+            failures = [("RuntimeError", f"the drawing process ended early ({err!r})")]
+        except BaseException:                   # Ctrl-C while waiting: stop it at once
+            child.terminate()
+            raise
         finally:
-            conn.close()
+            self.process = None
+            self._conn.close()
             child.join()
         failures = [f for f in failures if f]
-        if failures and child.exitcode != -signal.SIGTERM:
-            raise RuntimeError(f"a figure could not be drawn:\n{failures[0]}")
+        if failures and not self._stopped:
+            kind, detail = failures[0]
+            if kind == "OSError":               # a full disk, a permission: an input error
+                raise OSError(*detail)
+            raise RuntimeError(f"a figure could not be drawn:\n{detail}")
 
     def __enter__(self):
         return self
 
     def __exit__(self, exc_type, exc, tb):
-        """The child ended whatever happened: waited for (its failure raised), or on the
-        way out of an error stopped at once (SIGTERM), so the error is not delayed."""
         if exc_type is not None and self.process is not None:
+            self._stopped = True
             self.process.terminate()
         self.wait()
 
 
-def _paint(conn):
+def _paint(conn, parent_end):
     """The drawing child: matplotlib imported first, then each (function, args) received
-    drawn, answered with None or the traceback, until None or the parent's end."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)      # the parent's Ctrl-C ends it via EOF
+    drawn and answered (None, or the failure: ("OSError", its arguments) or
+    ("RuntimeError", traceback)), until None or the parent's end (EOF: the parent's copy of
+    the pipe is its only one)."""
+    parent_end.close()
+    signal.signal(signal.SIGINT, signal.SIG_IGN)      # Ctrl-C is the parent's to handle
     _pyplot()
     while True:
         try:
@@ -91,8 +106,11 @@ def _paint(conn):
         try:
             job[0](*job[1])
             conn.send(None)
+        except OSError as err:
+            conn.send(("OSError", err.args if err.errno is None else
+                       (err.errno, err.strerror, err.filename)))
         except Exception:
-            conn.send(traceback.format_exc())
+            conn.send(("RuntimeError", traceback.format_exc()))
     conn.close()
 
 
