@@ -114,6 +114,12 @@ def _info(args):
         report = recover(args.log, args.recover, force=args.force)
         print(describe_scan(report))
         print(f"wrote the intact part to {args.recover}")
+        with FlightLog(args.recover) as log:
+            if "flight" not in log.metadata():
+                print(f"mimunav info: the intact part holds no `flight` metadata (its writer put "
+                      f"it in the lost part): {args.recover} keeps the channels for inspection, "
+                      "but replay, table and diagnose cannot place its navigation start",
+                      file=sys.stderr)
         return 0
     unreadable = []
     try:
@@ -1051,7 +1057,9 @@ def end_process(status):
             for stream in (sys.stdout, sys.stderr):
                 if stream is not None:          # None: the descriptor was closed at start
                     stream.flush()
-        except (OSError, ValueError):           # a closed pipe or stream
+        except BrokenPipeError:                 # the reader left before the last lines
+            os._exit(141)                       # quietly, as `main` ends on one
+        except (OSError, ValueError):           # a closed stream
             raise SystemExit(status)
         os._exit(status or 0)
     raise SystemExit(status)
@@ -1060,12 +1068,20 @@ def end_process(status):
 def main(argv=None):
     """Run a command; input errors (the project's `errors.InputError`, the base of every
     mimunav error type, and the operating system's file errors) end with one line naming the
-    command and exit status 2; anything else is a bug and shows its traceback."""
+    command and exit status 2, Ctrl-C with one line and 130, a closed stdout pipe quietly
+    with 141; anything else is a bug and shows its traceback."""
     args = build_parser().parse_args(argv)
     if args.func not in (_compensate, _info):       # the commands that never turn attitudes
         import_quaternion()
     try:
         return args.func(args)
+    except KeyboardInterrupt:           # outputs are written whole or not at all
+        print(f"mimunav {args.command}: interrupted", file=sys.stderr)
+        return 130
+    except BrokenPipeError:             # the reader of stdout left (| head): nothing to say
+        if sys.stdout is not None:
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 141                      # as a process ended by SIGPIPE
     except (OSError, InputError) as exc:
         print(f"mimunav {args.command}: {exc}", file=sys.stderr)
         return 2

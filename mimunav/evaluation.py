@@ -79,6 +79,11 @@ class Flight:
             meta = log.metadata()
             flight = meta.get("flight", {})
             schemas = {log.summary.schemas[c.schema_id].name for c in log.channels.values()}
+            if not flight and {"/mimu/raw", "/mimu/imu"} & set(log.channels):
+                raise LogError(f"{path}: the log contract's channels but no `flight` metadata "
+                               "(section 1), so nothing places the navigation start: a log "
+                               "whose writer put its metadata at the end keeps none once cut "
+                               "short (`mimunav info LOG --recover` saves only what is intact)")
             if not flight and "sensor_msgs/msg/Imu" in schemas:
                 raise LogError(f"{path}: a ROS 2 recording, not a mimunav log (no `flight` "
                                "metadata): `mimunav import ros2 FILE -o LOG.mcap` makes one")

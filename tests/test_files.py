@@ -99,6 +99,13 @@ def test_the_program_ends_with_its_output_and_status(tmp_path, capsys):
                             stderr=subprocess.PIPE, text=True, env=buffered,
                             preexec_fn=lambda: os.close(1))
     assert (closed.returncode, closed.stderr) == (0, "")
+    for args in (["info", str(log)],                      # the reader gone: `| head -0`
+                 ["replay", str(log), "--cal", str(cal), "-o", str(tmp_path / "rp2"), "--json"]):
+        left = subprocess.Popen([sys.executable, "-m", "mimunav", *args], env=buffered,
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        left.stdout.close()
+        assert (left.wait(), left.stderr.read()) == (141, ""), args   # quiet, as SIGPIPE
+    assert (tmp_path / "rp2" / "summary.json").exists()
 
 
 def _drawn(png):
@@ -183,3 +190,44 @@ def test_the_drawing_child_ends_with_its_parent(tmp_path):
     while time.monotonic() < deadline and running():
         time.sleep(0.1)
     assert not running()
+
+
+def test_an_interrupted_command_says_so_in_one_line_and_writes_nothing(tmp_path, capsys,
+                                                                       monkeypatch):
+    """Ctrl-C during the work: one line, status 130, no output folder (nor its temporary)."""
+    import fuzzing
+    from mimunav import evaluation
+    log, cal = fuzzing.corpus_log(tmp_path)
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+    monkeypatch.setattr(evaluation.Flight, "load", interrupted)
+    out = tmp_path / "rp"
+    assert main(["replay", str(log), "--cal", str(cal), "-o", str(out)]) == 130
+    assert capsys.readouterr().err == "mimunav replay: interrupted\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["cal.json", "flight.mcap",
+                                                          "flight.truth.json"]
+
+
+def test_a_log_that_lost_its_flight_metadata_is_named_for_what_it_is(tmp_path, capsys):
+    """A contract log without its `flight` metadata (a foreign writer puts it at the end; a
+    truncated copy keeps none after --recover): `info --recover` warns, replay says what is
+    missing instead of calling it a ROS 2 recording."""
+    import numpy as np
+    from mimunav.flightlog import LogWriter
+    from mimunav.flightlog import schemas as S
+    log = tmp_path / "headless.mcap"
+    n = 200
+    with LogWriter(log) as w:
+        stamps = 10**18 + np.arange(n, dtype=np.int64) * 1_000_000
+        w.write("/mimu/raw", S.RAW_MIMU, "mimu", stamps, sample_index=np.arange(n),
+                gyro_volts=np.zeros((n, 3)), accel_volts=np.zeros((n, 3)),
+                accel_temperature=np.full((n, 3), 25.0), gyro_frequency=np.full((n, 3), 1e4))
+        w.write("/fog/imu", S.IMU, "fog", stamps, **S.imu_fields(np.zeros((n, 3)),
+                                                                  np.zeros((n, 3))))
+    assert main(["info", str(log), "--recover", str(tmp_path / "rec.mcap")]) == 0
+    assert "holds no `flight` metadata" in capsys.readouterr().err
+    assert main(["replay", str(log), "--cal", str(tmp_path / "none.json"), "-o",
+                 str(tmp_path / "rp")]) == 2
+    err = capsys.readouterr().err
+    assert "no `flight` metadata" in err and "ROS 2" not in err

@@ -35,7 +35,8 @@ class Painter:
 
     def __init__(self, fork=True):
         import multiprocessing
-        self._conn, self.process, self._sent, self._stopped = None, None, 0, False
+        self._conn, self.process, self._sent = None, None, 0
+        self._stopped, self._lost = False, None       # stopped by us; a send that failed
         if fork and sys.platform.startswith("linux") and threading.active_count() == 1:
             context = multiprocessing.get_context("fork")
             self._conn, end = context.Pipe()
@@ -50,8 +51,11 @@ class Painter:
         if self.process is None:
             function(*args)
             return
-        self._conn.send((function, args))
-        self._sent += 1
+        try:
+            self._conn.send((function, args))
+            self._sent += 1
+        except OSError as err:          # the child is gone: `wait` says so (not stdout's pipe)
+            self._lost = err
 
     def wait(self):
         """Block until every figure sent is drawn and end the child; raise a figure's
@@ -72,6 +76,8 @@ class Painter:
             self._conn.close()
             child.join()
         failures = [f for f in failures if f]
+        if self._lost is not None:
+            failures.append(("RuntimeError", f"the drawing process ended early ({self._lost!r})"))
         if failures and not self._stopped:
             kind, detail = failures[0]
             if kind == "OSError":               # a full disk, a permission: an input error
