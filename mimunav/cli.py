@@ -1,7 +1,10 @@
 """Command-line interface: `mimunav <command> ...` (also `python -m mimunav`)."""
 import argparse
+import contextlib
 import os
+import signal
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -400,13 +403,36 @@ def _diagnosed(args, painter):
     return 0
 
 
+@contextlib.contextmanager
+def _remembered_interrupts():
+    """Ctrl-C raises KeyboardInterrupt as usual and is also remembered (the list yielded):
+    one raised inside a callback from C - numba loading its cache through llvmlite's ctypes
+    callback - is swallowed there ("Exception ignored"), and the command would end as if it
+    had never been interrupted. Only in the main thread, and only over Python's own handler."""
+    caught = []
+    if threading.current_thread() is not threading.main_thread() or \
+            signal.getsignal(signal.SIGINT) is not signal.default_int_handler:
+        yield caught
+        return
+
+    def remember(signum, frame):
+        caught.append(signum)
+        raise KeyboardInterrupt
+    signal.signal(signal.SIGINT, remember)
+    try:
+        yield caught
+    finally:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+
+
 def finding_line(f):
     """A finding for the terminal: term, coefficient and units, 95 % interval, held-out p,
     attribution, and the terms this flight cannot tell it from (they explain the same
     residual: the name is the likelier of them, not a certainty)."""
+    from .diagnosis.inference import p_text
     units = "" if f["units"] == "1" else f" {f['units']}"
     line = (f"  {f['label']}: {f['coefficient']:.4g}{units} "
-            f"[{f['ci95'][0]:.4g}, {f['ci95'][1]:.4g}] (held-out p {f['p_heldout']:.2g}; "
+            f"[{f['ci95'][0]:.4g}, {f['ci95'][1]:.4g}] (held-out p {p_text(f['p_heldout'])}; "
             f"{f.get('attribution', 'navigation level')})")
     alike = [a["label"] for a in f.get("indistinguishable_from", [])]
     if alike:
@@ -1047,7 +1073,6 @@ def end_process(status):
     profiler watching (it writes its results at the ordinary exit), a status that is no
     number, or a stream that cannot be flushed (a closed pipe): the ordinary exit instead."""
     import atexit
-    import threading
     # cProfile, pdb, trace, coverage: they write their results at the ordinary exit
     watched = sys.gettrace() is not None or sys.getprofile() is not None
     if threading.active_count() == 1 and not watched and \
@@ -1074,7 +1099,13 @@ def main(argv=None):
     if args.func not in (_compensate, _info):       # the commands that never turn attitudes
         import_quaternion()
     try:
-        return args.func(args)
+        with _remembered_interrupts() as interrupted:
+            status = args.func(args)
+        if interrupted:
+            print(f"mimunav {args.command}: interrupted too late to stop (inside numba's "
+                  "cache loading); the outputs are written whole", file=sys.stderr)
+            return 130
+        return status
     except KeyboardInterrupt:           # outputs are written whole or not at all
         print(f"mimunav {args.command}: interrupted", file=sys.stderr)
         return 130

@@ -231,3 +231,23 @@ def test_a_log_that_lost_its_flight_metadata_is_named_for_what_it_is(tmp_path, c
                  str(tmp_path / "rp")]) == 2
     err = capsys.readouterr().err
     assert "no `flight` metadata" in err and "ROS 2" not in err
+
+
+def test_a_swallowed_interrupt_is_still_reported(tmp_path, capsys, monkeypatch):
+    """A Ctrl-C swallowed inside a callback from C (llvmlite's, while numba loads its cache:
+    "Exception ignored on calling ctypes callback function") lets the command finish; it
+    must not then end as if never interrupted."""
+    import signal
+
+    from mimunav import cli
+
+    def swallowing(args):
+        try:
+            signal.raise_signal(signal.SIGINT)
+        except KeyboardInterrupt:
+            pass                                # as the ctypes callback does
+        return 0
+    monkeypatch.setattr(cli, "_info", swallowing)
+    assert main(["info", str(tmp_path / "any.mcap")]) == 130
+    assert "interrupted too late to stop" in capsys.readouterr().err
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler

@@ -100,6 +100,11 @@ class Fit:
         return self.beta[s] - q * se, self.beta[s] + q * se
 
 
+def p_text(p):
+    """A p-value for people: two digits, or "< 1e-300" where it underflowed to 0."""
+    return f"{p:.2g}" if p > 0 else "< 1e-300"
+
+
 def design(tier, terms, rows):
     """Stacked, nuisance-free, scaled response and design over the chosen rows for the
     candidate indices `terms`: (y, X, block ids, slices)."""

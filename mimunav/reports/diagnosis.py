@@ -18,6 +18,7 @@ from .. import evaluation
 from ..files import atomic_folder
 from ..diagnosis import dumps, sensor
 from ..diagnosis import library
+from ..diagnosis.inference import p_text
 from ..diagnosis.outputs import block_index
 from ..diagnosis.sensor import CHANNELS, CONDITIONS
 from .plots import Painter, figure, save
@@ -126,8 +127,8 @@ def markdown(doc, diag, cal_label):
             vec = f" (vector {_vec(f['vector'])})" if "vector" in f else ""
             lines.append(
                 f"| {f['label']} | {f['coefficient']:.4g}{vec} | [{f['ci95'][0]:.4g}, "
-                f"{f['ci95'][1]:.4g}] | {f['units']} | {f['p_train']:.2g} / "
-                f"{f['holm_threshold']:.2g} | {f['p_heldout']:.2g} | "
+                f"{f['ci95'][1]:.4g}] | {f['units']} | {p_text(f['p_train'])} / "
+                f"{f['holm_threshold']:.2g} | {p_text(f['p_heldout'])} | "
                 f"{_support(f)} | {fit['heldout_rms_before']:.4g} -> "
                 f"{fit['heldout_rms_after']:.4g} {fit['units']} | {alt} |")
         lines += ["", "Where each term acts (first spans; all in diagnosis.json):", ""]
