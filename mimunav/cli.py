@@ -1102,8 +1102,8 @@ def main(argv=None):
         with _remembered_interrupts() as interrupted:
             status = args.func(args)
         if interrupted:
-            print(f"mimunav {args.command}: interrupted too late to stop (inside numba's "
-                  "cache loading); the outputs are written whole", file=sys.stderr)
+            print(f"mimunav {args.command}: interrupted too late to stop (a library's "
+                  "callback swallowed it); the outputs are written whole", file=sys.stderr)
             return 130
         return status
     except KeyboardInterrupt:           # outputs are written whole or not at all
