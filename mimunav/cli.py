@@ -263,14 +263,13 @@ def _replay(args):
 
     from . import evaluation
     from .compensation import Calibration
-    from .files import atomic_folder, refuse_inputs
+    from .files import atomic_folder, refuse_folder_early, refuse_inputs
     from .flightlog import LogWriter
     from .flightlog import schemas as S
     from .reports.plots import Painter, navigation_errors
     out = Path(args.output)
     refuse_inputs([out], [args.log, args.cal])
-    if out.exists() and not args.force:         # before the work, not after
-        raise FileExistsError(f"{out} exists; use --force to replace it")
+    refuse_folder_early(out, args.force, ("nav.mcap", "summary.json", "errors.png"))
     with Painter() as painter:                  # forked now: matplotlib loads beside the work
         flight = evaluation.Flight.load(args.log, stream=True)      # bounded memory
         cal = Calibration.load(args.cal)
@@ -316,16 +315,18 @@ def _replay(args):
 def _diagnose(args):
     """Diagnosis of a log against a calibration (sensor level with a reference IMU,
     navigation level with only a reference trajectory); JSON and report."""
-    from .files import refuse_inputs
+    from .files import refuse_folder_early, refuse_inputs
     refuse_inputs([args.json, args.output], [args.log, args.model, args.noise])
     inside = args.json and args.output and \
         Path(args.output).resolve() in Path(args.json).resolve().parents
     if inside:
         raise InputError(f"--json {args.json} lies inside the report folder {args.output}, which "
                          "gets its own diagnosis.json: give -o alone, or --json elsewhere")
-    for out in (args.json, args.output):           # refuse before the work, not after
-        if out and Path(out).exists() and not args.force:
-            raise FileExistsError(f"{out} exists; use --force to replace it")
+    if args.json and Path(args.json).exists() and not args.force:   # before the work
+        raise FileExistsError(f"{args.json} exists; use --force to replace it")
+    if args.output:
+        from .reports.diagnosis import FILES
+        refuse_folder_early(args.output, args.force, FILES)
     if not args.output:
         return _diagnosed(args, None)
     from .reports.plots import Painter

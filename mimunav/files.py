@@ -50,6 +50,27 @@ def refuse_inputs(outputs, inputs):
                                       "output")
 
 
+def refuse_folder_early(path, force, writes):
+    """Before a command's work, the refusals `atomic_folder` would make only after it, for a
+    command that writes the file names `writes` (all it may write) into the folder `path`."""
+    out = Path(path)
+    if out.exists() and not out.is_dir():
+        raise FileExistsError(f"{out} exists and is not a folder; not replaced")
+    if out.exists() and not force:
+        raise FileExistsError(f"{out} exists; use --force to replace it")
+    if out.exists():
+        _refuse_foreign(out, writes)
+
+
+def _refuse_foreign(out, writes):
+    foreign = sorted(set(os.listdir(out)) - set(writes))
+    if foreign:
+        raise FileExistsError(
+            f"{out} holds {', '.join(foreign[:5])}{' ...' if len(foreign) > 5 else ''}"
+            ", which this command does not write: not replaced (move them, or choose "
+            "another folder)")
+
+
 @contextmanager
 def atomic_folder(path, force=False, inputs=()):
     """Build a folder in a temporary folder beside `path` (yielded, a Path) and rename it
@@ -71,12 +92,7 @@ def atomic_folder(path, force=False, inputs=()):
     try:
         yield tmp
         if out.exists():
-            foreign = sorted(set(os.listdir(out)) - set(os.listdir(tmp)))
-            if foreign:
-                raise FileExistsError(
-                    f"{out} holds {', '.join(foreign[:5])}{' ...' if len(foreign) > 5 else ''}"
-                    ", which this command does not write: not replaced (move them, or choose "
-                    "another folder)")
+            _refuse_foreign(out, os.listdir(tmp))
             shutil.rmtree(out)
         tmp.rename(out)
     except BaseException:

@@ -251,3 +251,26 @@ def test_a_swallowed_interrupt_is_still_reported(tmp_path, capsys, monkeypatch):
     assert main(["info", str(tmp_path / "any.mcap")]) == 130
     assert "interrupted too late to stop" in capsys.readouterr().err
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+def test_a_folder_that_would_be_refused_is_refused_before_the_work(tmp_path, capsys,
+                                                                    monkeypatch):
+    """replay / diagnose -o onto a file, or with --force onto a folder of other files: the
+    refusal `atomic_folder` makes at the end comes before the work (nothing is read)."""
+    from mimunav import evaluation
+
+    def no_work(*args, **kwargs):
+        raise AssertionError("the work started")
+    monkeypatch.setattr(evaluation.Flight, "load", no_work)
+    (tmp_path / "afile").write_text("mine")
+    notes = tmp_path / "notes"
+    notes.mkdir()
+    (notes / "mynote.txt").write_text("mine")
+    (notes / "summary.json").write_text("{}")
+    log, cal = tmp_path / "f.mcap", tmp_path / "cal.json"
+    for out, expected in (("afile", "is not a folder"), ("notes", "holds mynote.txt")):
+        for cmd in (["replay", str(log), "--cal", str(cal)],
+                    ["diagnose", str(log), "--model", str(cal)]):
+            assert main(cmd + ["-o", str(tmp_path / out), "--force"]) == 2
+            assert expected in capsys.readouterr().err
+    assert (notes / "mynote.txt").read_text() == "mine" and (tmp_path / "afile").exists()

@@ -24,6 +24,8 @@ from ..diagnosis.sensor import CHANNELS, CONDITIONS
 from .plots import Painter, figure, save
 
 CHANNEL_NAMES = [f"{s}.{a}" for s, a in CHANNELS]
+FILES = ("diagnosis.md", "diagnosis.json", "CAL+found.json", "residual-map.png",
+         "timeline.png", "navigation.png")          # all the report may write (module doc)
 
 
 def navigation_gain(flight, cal, cal_found, compensated=None):
