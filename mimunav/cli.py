@@ -315,7 +315,7 @@ def _replay(args):
 def _diagnose(args):
     """Diagnosis of a log against a calibration (sensor level with a reference IMU,
     navigation level with only a reference trajectory); JSON and report."""
-    from .files import refuse_folder_early, refuse_inputs
+    from .files import refuse_inputs
     refuse_inputs([args.json, args.output], [args.log, args.model, args.noise])
     inside = args.json and args.output and \
         Path(args.output).resolve() in Path(args.json).resolve().parents
@@ -324,9 +324,6 @@ def _diagnose(args):
                          "gets its own diagnosis.json: give -o alone, or --json elsewhere")
     if args.json and Path(args.json).exists() and not args.force:   # before the work
         raise FileExistsError(f"{args.json} exists; use --force to replace it")
-    if args.output:
-        from .reports.diagnosis import FILES
-        refuse_folder_early(args.output, args.force, FILES)
     if not args.output:
         return _diagnosed(args, None)
     from .reports.plots import Painter
@@ -340,8 +337,10 @@ def _diagnosed(args, painter):
     from .compensation import Calibration
     from .diagnosis import navigation, sensor, track
     from .diagnosis.reference import Accuracy
-    from .files import write_atomic
+    from .files import refuse_folder_early, write_atomic
     from .reports import diagnosis as report
+    if args.output:                 # here, after the fork: the child's import runs beside these
+        refuse_folder_early(args.output, args.force, report.FILES)
     # gaps are refused below unless the track level takes the log: it leaves their
     # surroundings out (`track.near_gaps`) instead of navigating across them
     flight = evaluation.Flight.load(args.log, reference_imu=args.level == "sensor",
