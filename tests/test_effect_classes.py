@@ -302,6 +302,30 @@ def test_derivative_follows_a_change_of_sampling_rate():
     assert np.abs(d - 0.3 * np.cos(0.3 * t)).max() < 1e-5
 
 
+def test_a_long_derivative_window_by_fft_is_the_direct_savitzky_golay_filter():
+    """A window of SAVGOL_FFT_TAPS samples or more is applied by FFT convolution: it equals
+    scipy's direct savgol_filter (mode 'interp', the edges its quartic fits) to round-off on
+    a signal with a 1 g offset, noise and both ends, and the derivative of a quartic exactly
+    (the filter's own guarantee, in the interior and at the edges)."""
+    from scipy.signal import savgol_filter
+    rng = np.random.default_rng(3)
+    dt = 1e-3
+    t = np.arange(20000) * dt
+    x = np.column_stack([9.8 + 0.3 * np.sin(2 * np.pi * 0.7 * t) + 0.01 * rng.standard_normal(len(t)),
+                         rng.standard_normal(len(t))])
+    for window_s in (0.1, 3.0):                 # 101 and 3001 taps
+        m = int(round(window_s / dt)) // 2 * 2 + 1
+        assert m >= effects.SAVGOL_FFT_TAPS
+        direct = savgol_filter(x, m, 4, deriv=1, delta=dt, axis=0, mode="interp")
+        got = effects.derivative(t, x, window_s)
+        np.testing.assert_allclose(got, direct, rtol=0, atol=1e-9 * np.abs(direct).max())
+        assert np.abs(got[:m] - direct[:m]).max() < 1e-9 * np.abs(direct).max()   # edges
+    u = t - 10.0
+    quartic = (0.5 * u ** 4 - u ** 3 + 2 * u)[:, None]
+    exact = (2 * u ** 3 - 3 * u ** 2 + 2)[:, None]
+    np.testing.assert_allclose(effects.derivative(t, quartic, 0.5), exact, rtol=0, atol=1e-6)
+
+
 def test_a_transplanted_lever_arm_is_the_interval_mean_of_the_rigid_body_terms():
     """A yaw at constant angular acceleration a, psi = a t^2 / 2 (w_z = a t, dw_z/dt = a),
     with an arm r along x: the MIMU records, over each interval (t - dt, t], the mean of the

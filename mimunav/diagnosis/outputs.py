@@ -77,13 +77,15 @@ def noise_sigma(residual):
 
 
 # ---- saturation ----------------------------------------------------------------------------
-def saturation(t, measured, predicted, rows, train, full_scale, steps=None):
+def saturation(t, measured, predicted, rows, train, full_scale, steps=None, sigma=None):
     """(findings, clipped (N,) bool). measured, predicted: (N, 6) per-sample outputs
     (accel m/s^2, gyro rad/s, MIMU axes); rows: samples fit to test (not repaired, inside
     the reference); train: the split's training samples; full_scale {"accel", "gyro"};
     steps (6,): a quantized channel's step (SI), which widens "beyond" by a step (a
-    quantized output's maximum sits up to half a step from its input's)."""
-    sigma = noise_sigma(np.where(rows[:, None], measured - predicted, np.nan))
+    quantized output's maximum sits up to half a step from its input's); sigma (6,): the
+    `noise_sigma` of measured - predicted over `rows` when the caller has it."""
+    if sigma is None:
+        sigma = noise_sigma(np.where(rows[:, None], measured - predicted, np.nan))
     sigma = sigma + (0.0 if steps is None else np.asarray(steps) / SATURATION_MARGIN_SIGMA)
     clipped = np.zeros(len(t), bool)
     findings = []
@@ -199,13 +201,16 @@ def lattice_step(y):
     if len(y) < 100:
         return None
     scale = float(np.max(np.abs(y))) or 1.0
-    d = np.diff(np.unique(y))
+    levels = np.unique(y)
+    d = np.diff(levels)
     d = d[d > 1e-9 * scale]
     if len(d) < 2:                      # fewer than three levels: no lattice to speak of
         return None
     q0 = float(np.min(d))
     q = float(np.mean(d[d < 1.1 * q0]))
-    if q <= 0 or len(np.unique(np.round(y / q))) > 0.5 * len(y):
+    # the distinct multiples of q the values round to (round(y / q) is monotonic in y: the
+    # distinct values' rounded, in order, need no second sort)
+    if q <= 0 or np.count_nonzero(np.diff(np.round(levels / q))) + 1 > 0.5 * len(y):
         return None         # more levels than half the samples: no lattice of this step
     coherence = abs(np.mean(np.exp(2j * math.pi * (y - y[0]) / q)))
     return q if coherence > QUANTIZATION_COHERENCE else None

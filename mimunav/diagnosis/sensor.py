@@ -61,7 +61,7 @@ from functools import cache, cached_property
 
 import numpy as np
 import quaternion
-from scipy import optimize, stats
+from scipy import linalg, optimize, stats
 
 from .. import effects
 from ..calibration import standard_errors
@@ -120,6 +120,15 @@ class Design:
         """(nb, 3) the reference input of channel c's triad."""
         return self.inputs[:, :3] if c < 3 else self.inputs[:, 3:]
 
+    def ref_pinv(self, c):
+        """(3, nb) the pseudo-inverse of `ref_columns(c)` (lstsq's cutoff: singular values
+        below eps max(shape) of the largest), one per triad."""
+        key = "_pinv_gyro" if c >= 3 else "_pinv_accel"
+        if key not in self.__dict__:
+            ref = self.ref_columns(c)
+            self.__dict__[key] = np.linalg.pinv(ref, rcond=np.finfo(float).eps * max(ref.shape))
+        return self.__dict__[key]
+
     @cached_property
     def channel_columns(self):
         """Per channel c: ((nb, 4 + sum k) [residual, reference inputs, every candidate's
@@ -139,11 +148,19 @@ class Design:
     @cached_property
     def detrend_q(self):
         """(nb, knots) orthonormal basis of the piecewise-linear bias (hat functions with
-        knots every DETREND_KNOT_S) that `_clean` removes: one QR per design, not per call."""
+        knots every DETREND_KNOT_S) that `_clean` removes: one per design, not per call. By
+        Cholesky (Q = B L'^-1, B'B = L L'): the hats' Gram is tridiagonal and well
+        conditioned, and Householder QR of the 68,000 x 70 basis of a 10-minute flight took
+        0.35 s against 0.03 s; the projection Q Q' is the same."""
         knots = np.arange(self.t[0], self.t[-1] + DETREND_KNOT_S, DETREND_KNOT_S)
         basis = np.clip(1 - np.abs((self.t[:, None] - knots[None, :]) / DETREND_KNOT_S), 0,
                         None)
-        return np.linalg.qr(basis[:, basis.sum(axis=0) > 0.5])[0]
+        basis = basis[:, basis.sum(axis=0) > 0.5]
+        try:
+            lower = np.linalg.cholesky(basis.T @ basis)
+        except np.linalg.LinAlgError:       # hats that see the same few bins across a gap
+            return np.linalg.qr(basis)[0]
+        return linalg.solve_triangular(lower, basis.T, lower=True).T
 
 
 @dataclass
@@ -213,21 +230,28 @@ def bins(t, t_reference):
     return (m, int((i[on[0]] + 1) % m)) if len(on) else (m, 0)
 
 
-def _bin(x, bins, usable):
-    """Means of `bins` = (m, start): m consecutive samples from sample `start` on; bins with
-    any unusable sample are NaN."""
-    m, start = bins
-    x, usable = x[start:], usable[start:]
-    n = len(x) // m * m
-    shape = (n // m, m) + x.shape[1:]
-    # the mean over axis 1, by einsum where samples have columns (5x faster; a single column's
-    # means differ from numpy's by an ulp in about a third of the bins); times keep numpy's
-    # pairwise mean
-    out = (x[:n].reshape(shape).mean(axis=1) if x.ndim == 1 else
-           np.einsum("ij...->i...", x[:n].reshape(shape)) / m)
-    bad = ~usable[:n].reshape(n // m, m).all(axis=1)
-    out[bad] = np.nan
-    return out
+class Binning:
+    """Means of bins = (m, start): m consecutive samples from sample `start` on; bins with
+    any unusable sample (`usable` (N,) bool) are NaN. Which bins those are is found once,
+    for every series binned alike."""
+
+    def __init__(self, bins, usable):
+        self.m, self.start = bins
+        self.n = (len(usable) - self.start) // self.m * self.m
+        self.bad = ~usable[self.start:self.start + self.n].reshape(-1, self.m).all(axis=1)
+
+    def __call__(self, x):
+        """(nb,) or (nb, k...) bin means of x (N,) or (N, k...)."""
+        m, n = self.m, self.n
+        x = x[self.start:self.start + n]
+        shape = (n // m, m) + x.shape[1:]
+        # the mean over axis 1, by einsum where samples have columns (5x faster; a single
+        # column's means differ from numpy's by an ulp in about a third of the bins); times
+        # keep numpy's pairwise mean
+        out = (x.reshape(shape).mean(axis=1) if x.ndim == 1 else
+               np.einsum("ij...->i...", x.reshape(shape)) / m)
+        out[self.bad] = np.nan
+        return out
 
 
 def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander=None,
@@ -365,7 +389,8 @@ def _output_findings(flight, cal, t, samples, full_scale):
     for f in found:
         steps[CHANNELS.index((f["sensor"], f["axis"]))] = f["coefficient"]
     train = outputs.block_index(t, SPLIT_BLOCK_S) % 2 == 0
-    clips, clipped = outputs.saturation(t, measured, predicted, rows, train, full_scale, steps)
+    clips, clipped = outputs.saturation(t, measured, predicted, rows, train, full_scale, steps,
+                                        sigma if np.array_equal(live, rows) else None)
     return clips + found, clipped, set(np.flatnonzero(steps))
 
 
@@ -462,9 +487,10 @@ def _design(t, res, usable, cond, cands, m, prior, cal):
     the flight cannot drive (no variation) and mark those the reference inputs span."""
     if len(t) < m[0] + m[1]:
         raise InputError(f"{len(t)} MIMU samples: fewer than one {FAST_BIN_S:g} s bin")
-    tb, rb = _bin(t, m, usable), _bin(res, m, usable)
+    mean = Binning(m, usable)
+    tb, rb = mean(t), mean(res)
     ok = np.isfinite(rb).all(axis=1)
-    inputs = _bin(np.hstack([cond.f, cond.w]), m, usable)[ok]
+    inputs = mean(np.hstack([cond.f, cond.w]))[ok]
     design = Design(tb[ok], rb[ok], inputs, [], [], [], ok, prior, [])
     means = {"accel": cond.T[usable].mean(axis=0), "gyro": cond.freq[usable].mean(axis=0)}
     for term in cands:
@@ -473,7 +499,7 @@ def _design(t, res, usable, cond, cands, m, prior, cal):
             term["reference"] = float(means[term["sensor"]][AXES.index(term["axis"])])
         cols = {}
         for (sensor, i), x in effects.regressor(term, cond).items():
-            cols[(0 if sensor == "accel" else 3) + i] = _bin(x, m, usable)[ok]
+            cols[(0 if sensor == "accel" else 3) + i] = mean(x)[ok]
         if not all(np.isfinite(x).all() for x in cols.values()):
             continue                        # e.g. temperature terms of a log without them
         if term["effect"] == "vibration_rectification" and \
@@ -503,7 +529,7 @@ def _along(design, cols):
     v = np.zeros((18, k))
     for c, x in cols.items():
         ref = design.ref_columns(c)
-        coef, *_ = np.linalg.lstsq(ref, x, rcond=None)
+        coef = design.ref_pinv(c) @ x         # least squares, as np.linalg.lstsq
         if np.linalg.norm(x - ref @ coef) > LINEAR_TOLERANCE * max(np.linalg.norm(x), 1e-300):
             return None
         v[_gamma_slots(c)] = coef
@@ -1071,8 +1097,9 @@ def _spans(tier, rows, term, cond, gap_s=2.0, max_spans=20):
 
 def _condition(cond, t0, t1, term):
     """What the flight did in [t0, t1]: peak |f| (g), |w| (deg/s), temperature range."""
-    k = (cond.t >= t0) & (cond.t <= t1)
-    if not k.any():
+    a, b = int(np.searchsorted(cond.t, t0, "left")), int(np.searchsorted(cond.t, t1, "right"))
+    k = slice(a, b)                     # the samples t0 <= t <= t1 (the times increase)
+    if a >= b:
         return library.label(term)
     f = np.linalg.norm(cond.f[k], axis=1).max() / G0
     w = np.linalg.norm(cond.w[k], axis=1).max() / DEG
@@ -1157,11 +1184,11 @@ CONDITIONS = ("quiet", "|f| > 2 g", "|w| > 60 deg/s", "|dw/dt| > 300 deg/s^2",
 
 def _condition_masks(design, cond, m, usable):
     """Bin masks of the flight conditions of the residual map."""
-    ok = design.kept
-    f = _bin(np.linalg.norm(cond.f, axis=1)[:, None], m, usable)[ok, 0] / G0
-    w = _bin(np.linalg.norm(cond.w, axis=1)[:, None], m, usable)[ok, 0] / DEG
-    wd = _bin(np.linalg.norm(cond.w_dot, axis=1)[:, None], m, usable)[ok, 0] / DEG
-    temperature = _bin(cond.T.mean(axis=1)[:, None], m, usable)[ok]     # slope on the bins
+    mean, ok = Binning(m, usable), design.kept
+    f = mean(np.linalg.norm(cond.f, axis=1)[:, None])[ok, 0] / G0
+    w = mean(np.linalg.norm(cond.w, axis=1)[:, None])[ok, 0] / DEG
+    wd = mean(np.linalg.norm(cond.w_dot, axis=1)[:, None])[ok, 0] / DEG
+    temperature = mean(cond.T.mean(axis=1)[:, None])[ok]     # slope on the bins
     dT = (np.abs(derivative(design.t, temperature, 30.0)[:, 0] * 60)
           if np.isfinite(temperature).all() else np.zeros(ok.sum()))   # none recorded
     masks = {"|f| > 2 g": f > 2, "|w| > 60 deg/s": w > 60, "|dw/dt| > 300 deg/s^2": wd > 300,
