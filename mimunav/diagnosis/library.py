@@ -95,6 +95,27 @@ def inputs(term):
     return None
 
 
+def channel_inputs(term):
+    """For a term of the whole motion fitted on several output channels: {output channel
+    (sensor, axis): the reference inputs its column is made of}; None for the others.
+    mounting_misalignment: the rows of [x x] (channel i of a triad from the triad's two other
+    inputs); time_skew: each channel from its own input's derivative. (size_effect and
+    lever_arm take every rate of the gyros on every accelerometer channel.)"""
+    effect, sensor = term["effect"], term["sensor"]
+    triads = ("accel", "gyro") if sensor in ("imu", "all") else (sensor,)
+    if effect == "mounting_misalignment":
+        return {(s, a): {(s, b) for b in AXES if b != a} for s in triads for a in AXES}
+    if effect == "time_skew":
+        return {(s, a): {(s, a)} for s in triads for a in AXES}
+    return None
+
+
+def on_channels(term, channels):
+    """`term` restricted to the output channels `channels` [(sensor, axis)] (its `channels`
+    key, "sensor.axis" names, which the design honours); the others' columns are not fitted."""
+    return dict(term, channels=sorted(f"{s}.{a}" for s, a in channels))
+
+
 # The physical range of each term for a MEMS unit (magnitude, SI units of the coefficient).
 # Generous on purpose - several times the seeds' largest figure - so that a real term is never
 # refused; a fitted value beyond it is a sign that a look-alike term is absorbing another's

@@ -499,7 +499,11 @@ def _design(t, res, usable, cond, cands, m, prior, cal):
             term["reference"] = float(means[term["sensor"]][AXES.index(term["axis"])])
         cols = {}
         for (sensor, i), x in effects.regressor(term, cond).items():
+            if "channels" in term and f"{sensor}.{AXES[i]}" not in term["channels"]:
+                continue                    # a channel the reference cannot carry (`track`)
             cols[(0 if sensor == "accel" else 3) + i] = mean(x)[ok]
+        if not cols:
+            continue
         if not all(np.isfinite(x).all() for x in cols.values()):
             continue                        # e.g. temperature terms of a log without them
         if term["effect"] == "vibration_rectification" and \

@@ -105,9 +105,21 @@ def markdown(doc, diag, cal_label):
                      "model faces along the velocity" if check.get("reversing_s") else "")
                   + f"); below {check['threshold']:g} a "
                   "channel is not predicted and the terms it drives are not tested.", "",
-                  "| " + " | ".join(corr) + " |", "|" + "---|" * len(corr),
-                  "| " + " | ".join("n/a" if v is None else f"{v:.3f}"
-                                    for v in corr.values()) + " |", ""]
+                  "| 1 s means | " + " | ".join(corr) + " |", "|" + "---|" * (len(corr) + 1),
+                  "| correlation | " + " | ".join("n/a" if v is None else f"{v:.3f}"
+                                                  for v in corr.values()) + " |"]
+        error = check.get("model_error_1s")
+        if error:
+            lines += ["| model error / size | " + " | ".join(
+                "n/a" if v is None else f"{v:.3f}" for v in error.values()) + " |", "",
+                f"A term of the whole motion is fitted only on channels whose model error (the "
+                f"spread of recorded minus predicted) is below {check['model_error_threshold']:.2f}"
+                " of their size, with columns made of such inputs:"]
+            lines += [f"- {label}: on {', '.join(chans)}"
+                      for label, chans in check.get("fitted_on_channels", {}).items()]
+            lines += [f"- not tested: {', '.join(check['not_tested'])}"
+                      if check.get("not_tested") else "- every other term: on all its channels"]
+        lines += [""]
         lag = doc.get("time_lag", {})
         lines += [(f"Time lag of the IMU from the yaw rate: **{lag['tau_s'] * 1e3:.1f} ms** "
                    f"(95 % interval {lag['ci95'][0] * 1e3:.1f} to {lag['ci95'][1] * 1e3:.1f} ms "
