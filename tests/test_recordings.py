@@ -436,6 +436,20 @@ def test_rtklib_bad_inputs_are_named(tmp_path):
                                         "0.1,0.0,1.0,0.1,0.2,0.3,20\n0.1,0.0,1.0,0.1")
     ticks, _, _, dropped = rtklib.read_imu_csv(tmp_path / "imu_1.csv")
     assert list(ticks) == [10, 20] and dropped == [1, 4]
+    # a CSV cut short beside its whole .tag: the tags do not time it (it was stretched over
+    # the tags' 549 s, at 57.6 Hz, without a word); cut by 0.5 s it was stretched by 9e-4
+    tags = np.arange(100, 548701, 16)                   # a piece of the stream every 16 ms
+    for imu_s in (316.0, 548.09):
+        with pytest.raises(RecordingError, match=f"ticks span {imu_s:.3f} s but its time tags "
+                                                 "548.592 s.*one of them is cut"):
+            rtklib.imu_stamps_ns(np.array([1000, 1000 + round(imu_s * 1e3)]), 1.4e9, tags)
+    # a whole one, and a 5 s excerpt whose ends are each a piece of the stream late, are not
+    for ticks, tag in (([1000, 549582], tags), ([1000, 6001], tags[tags <= 5100])):
+        stamps = rtklib.imu_stamps_ns(np.array(ticks), 1.4e9, tag)
+        assert abs(np.ptp(stamps) - (tag[-1] - tag[0]) * 1e6) < 1e3
+    # a tick counter that wraps (uint32 ms, 49.7 days) counts on
+    wrapped = (np.array([2 ** 32 - 2000, 2 ** 32 - 1000, 500]), np.array([2 ** 32 - 2010, 490]))
+    assert np.diff(rtklib.imu_stamps_ns(*wrapped[:1], 1.4e9, wrapped[1])).min() > 0
     (tmp_path / "imu_1.csv.tag").write_bytes(b"NOT A TAG FILE" + b"\0" * 80)
     with pytest.raises(RecordingError, match="TIMETAG"):
         rtklib.read_time_tags(tmp_path / "imu_1.csv.tag")

@@ -75,12 +75,37 @@ def read_time_tags(path):
     return start + fraction, records[:, 0].astype(np.int64), records[:, 1].astype(np.int64)
 
 
+CLOCK_PPM = 50e-6     # the IMU's tick clock against the computer's: crystals hold +-20-50 ppm
+# (the shared drive's 548.590 s of ticks took 548.600 s of tags: 18 ppm with its ends)
+TICK_WRAP = 2 ** 32   # both tick counters are uint32 ms: they wrap after 49.7 days
+
+
+def _unwrapped(ticks):
+    """uint32 ms ticks made monotonic across a wrap of the counter."""
+    ticks = np.asarray(ticks, np.int64)
+    return ticks + TICK_WRAP * np.concatenate([[0], np.cumsum(np.diff(ticks) < -TICK_WRAP // 2)])
+
+
 def imu_stamps_ns(ticks, start_gpst, tag_ticks):
     """UNIX ns of each IMU tick: the first and last ticks on the first and last tag ticks
-    after `start` (GPST), linear in between, then GPST -> UTC."""
+    after `start` (GPST), linear in between, then GPST -> UTC. The two spans must agree to
+    the clocks' CLOCK_PPM plus two of the tags' longest interval (a tag is the arrival of
+    a piece of the stream: each end may be a piece late); else the CSV and its .tag are
+    not of one recording, or one of them is cut (a CSV cut short was stretched over the
+    whole .tag's span)."""
+    ticks, tag_ticks = _unwrapped(ticks), _unwrapped(tag_ticks)
     if ticks[-1] == ticks[0]:
         raise RecordingError("the IMU ticks do not advance")
     first, last = tag_ticks[0] / 1e3, tag_ticks[-1] / 1e3
+    imu_span = (ticks[-1] - ticks[0]) / 1e3
+    step = float(np.max(np.diff(tag_ticks))) / 1e3 if len(tag_ticks) > 1 else 0.0
+    allowed = CLOCK_PPM * imu_span + 2 * step
+    if not abs(last - first - imu_span) <= allowed:
+        raise RecordingError(
+            f"the IMU's ticks span {imu_span:.3f} s but its time tags {last - first:.3f} s "
+            f"(they may differ by {allowed:.3f} s: {CLOCK_PPM * 1e6:.0f} ppm of clock and two "
+            f"tag intervals of {step * 1e3:.0f} ms): the CSV and its .tag are not of one "
+            "recording, or one of them is cut; cut both at the same place, or neither")
     s = start_gpst - GPS_UTC_LEAP_S + first + (ticks - ticks[0]) / (ticks[-1] - ticks[0]) * \
         (last - first)
     return np.round(s * 1e9).astype(np.int64)

@@ -110,15 +110,18 @@ def markdown(doc, diag, cal_label):
                                                   for v in corr.values()) + " |"]
         error = check.get("model_error_1s")
         if error:
+            narrowed = check.get("fitted_on_channels", {})
             lines += ["| model error / size | " + " | ".join(
                 "n/a" if v is None else f"{v:.3f}" for v in error.values()) + " |", "",
-                f"A term of the whole motion is fitted only on channels whose model error (the "
-                f"spread of recorded minus predicted) is below {check['model_error_threshold']:.2f}"
-                " of their size, with columns made of such inputs:"]
-            lines += [f"- {label}: on {', '.join(chans)}"
-                      for label, chans in check.get("fitted_on_channels", {}).items()]
-            lines += [f"- not tested: {', '.join(check['not_tested'])}"
-                      if check.get("not_tested") else "- every other term: on all its channels"]
+                "A term of the whole motion is fitted only on channels whose model error (the "
+                "spread of the recorded minus the predicted means over the predicted ones' rms) "
+                f"is below {check['model_error_threshold']:.2f}, with columns made of such inputs"
+                + (":" if narrowed else "; here each keeps all its channels.")]
+            lines += [f"- {label}: on {', '.join(chans)}" for label, chans in narrowed.items()]
+        if check.get("not_tested"):
+            lines += ["", "Not tested on this recording (driven by an input, or acting on "
+                      "channels, the reference does not predict): "
+                      f"{', '.join(check['not_tested'])}."]
         lines += [""]
         lag = doc.get("time_lag", {})
         lines += [(f"Time lag of the IMU from the yaw rate: **{lag['tau_s'] * 1e3:.1f} ms** "
