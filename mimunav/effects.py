@@ -140,13 +140,14 @@ def _uniform_derivative(t, x, window_s):
     m = int(round(window_s / dt)) // 2 * 2 + 1
     if m >= 5 and n >= m:
         from scipy.signal import savgol_filter   # 0.5-1 s to import: only when needed
-        if m < SAVGOL_FFT_TAPS or n < 2 * m:
+        x = np.asarray(x, float)
+        if m < SAVGOL_FFT_TAPS or n < 2 * m or not np.isfinite(x).all():
             return savgol_filter(x, m, 4, deriv=1, delta=dt, axis=0, mode="interp")
         # the same filter by FFT convolution (a direct one costs m products a sample; they
         # differ by round-off, 1e-13 of 1 g over 1 ms), savgol_filter's 'interp' edges: the
-        # quartic fitted to the first and the last window
+        # quartic fitted to the first and the last window. Not with a NaN: the transform
+        # would spread it over the whole series, the direct filter over its window.
         from scipy.signal import fftconvolve, savgol_coeffs
-        x = np.asarray(x, float)
         kernel = savgol_coeffs(m, 4, deriv=1, delta=dt).reshape((m,) + (1,) * (x.ndim - 1))
         out = fftconvolve(x, kernel, mode="same", axes=0)
         h = m // 2

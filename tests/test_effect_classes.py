@@ -306,7 +306,8 @@ def test_a_long_derivative_window_by_fft_is_the_direct_savitzky_golay_filter():
     """A window of SAVGOL_FFT_TAPS samples or more is applied by FFT convolution: it equals
     scipy's direct savgol_filter (mode 'interp', the edges its quartic fits) to round-off on
     a signal with a 1 g offset, noise and both ends, and the derivative of a quartic exactly
-    (the filter's own guarantee, in the interior and at the edges)."""
+    (the filter's own guarantee, in the interior and at the edges); a NaN stays inside its
+    window, as in the direct filter."""
     from scipy.signal import savgol_filter
     rng = np.random.default_rng(3)
     dt = 1e-3
@@ -320,6 +321,9 @@ def test_a_long_derivative_window_by_fft_is_the_direct_savitzky_golay_filter():
         got = effects.derivative(t, x, window_s)
         np.testing.assert_allclose(got, direct, rtol=0, atol=1e-9 * np.abs(direct).max())
         assert np.abs(got[:m] - direct[:m]).max() < 1e-9 * np.abs(direct).max()   # edges
+    gap = x.copy()
+    gap[5000, 0] = np.nan               # a NaN reaches no farther than the window
+    assert np.isnan(effects.derivative(t, gap, 0.1)[:, 0]).sum() == 101
     u = t - 10.0
     quartic = (0.5 * u ** 4 - u ** 3 + 2 * u)[:, None]
     exact = (2 * u ** 3 - 3 * u ** 2 + 2)[:, None]
