@@ -123,11 +123,12 @@ class Design:
     def ref_pinv(self, c):
         """(3, nb) the pseudo-inverse of `ref_columns(c)` (lstsq's cutoff: singular values
         below eps max(shape) of the largest), one per triad."""
-        key = "_pinv_gyro" if c >= 3 else "_pinv_accel"
-        if key not in self.__dict__:
-            ref = self.ref_columns(c)
-            self.__dict__[key] = np.linalg.pinv(ref, rcond=np.finfo(float).eps * max(ref.shape))
-        return self.__dict__[key]
+        return self._ref_pinvs[int(c >= 3)]
+
+    @cached_property
+    def _ref_pinvs(self):
+        return tuple(np.linalg.pinv(ref, rcond=np.finfo(float).eps * max(ref.shape))
+                     for ref in (self.inputs[:, :3], self.inputs[:, 3:]))
 
     @cached_property
     def channel_columns(self):

@@ -23,10 +23,11 @@ by that axis alone (`library.inputs`) are left out of the library: their regress
 mostly the reference's own error (errors in variables: a scale factor fitted against a noisy
 input tends to -1). They are reported as not resolvable on this recording. A term of the
 whole motion (mounting misalignment, time skew) is fitted only on the channels whose
-recorded 1 s means differ from the simulated ones by less than MODEL_ERROR_SHARE of their
-size, with columns made of such inputs (`_carried_channels`; `fitted_on_channels`): the
-gyros' roll and pitch rates, which the model lacks, are left out, and gravity on accel.z,
-which it predicts though it hardly varies, is kept. A term with no such channel is not tested.
+recorded 1 s means the simulated ones explain, up to the unit's own linear errors, to within
+MODEL_ERROR_SHARE of their size, with columns made of such inputs (`_carried_channels`;
+`fitted_on_channels`): the gyros' roll and pitch rates, which the model lacks, are left out,
+and gravity on accel.z, which it predicts though it hardly varies, is kept. A term with no
+such channel is not tested.
 
 After the search every finding must also hold where the reference is weakest (`screen`):
   - it acts on at least one output channel the reference predicts (else its residual is
@@ -296,8 +297,9 @@ def diagnose(flight, cal, alpha=0.05, reference=None, accuracy=None):
 def _carried_channels(term, loose):
     """The output channels [(sensor, axis)] a term of the whole motion is fitted on here:
     those not in `loose` (the channels whose model error, what no linear error of the unit
-    explains, exceeds MODEL_ERROR_SHARE of their predicted size), whose column is made of inputs not in it either
-    (`library.channel_inputs`); None when the term is not such a term or keeps them all.
+    explains, exceeds MODEL_ERROR_SHARE of their predicted size), whose column is made of
+    inputs not in it either (`library.channel_inputs`); None when the term is not such a
+    term or keeps them all.
     Elsewhere a column is the vehicle model's own error - the roll and pitch rates it does
     not have (zero roll, pitch from the grade): on the RTKLIB drive the gyros' columns of
     mounting_misalignment (gyro.y <- w_z phi_x: the body's roll in corners) carried its
