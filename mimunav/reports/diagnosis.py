@@ -114,8 +114,9 @@ def markdown(doc, diag, cal_label):
             lines += ["| model error / size | " + " | ".join(
                 "n/a" if v is None else f"{v:.3f}" for v in error.values()) + " |", "",
                 "A term of the whole motion is fitted only on channels whose model error (the "
-                "spread of the recorded minus the predicted means over the predicted ones' rms) "
-                f"is below {check['model_error_threshold']:.2f}, with columns made of such inputs"
+                "rms of the recorded means that no bias, scale or misalignment of the unit "
+                "explains, over the predicted means' rms) is below "
+                f"{check['model_error_threshold']:.2f}, with columns made of such inputs"
                 + (":" if narrowed else "; here each keeps all its channels.")]
             lines += [f"- {label}: on {', '.join(chans)}" for label, chans in narrowed.items()]
         if check.get("not_tested"):
