@@ -539,15 +539,16 @@ class Replay:
     flags: dict
 
 
-def compensated_mimu(flight, cal, per_sample=False):
+def compensated_mimu(flight, cal, per_sample=False, warn=True):
     """(w rad/s, f m/s^2, flag counts) of the flight's raw MIMU through `cal` (with
     per_sample: the flag of every sample instead of the counts). A flight recorded as
     /mimu/imu is already compensated: `cal` must then be None or an identity base with
     found terms (`Calibration.identity`, the diagnosis's `CAL+found.json`), which are removed
-    from the recorded outputs. Warns about outputs stuck at an extreme inside the range."""
+    from the recorded outputs. Warns (unless warn=False: a second pass over a flight already
+    warned about) about outputs stuck at an extreme inside the range."""
     w, f, flags = _compensated_whole(flight, cal)
-    stuck = _stuck_inside_range(flight, w, f, flags)
-    _warn_stuck(flight, stuck)
+    if warn:
+        _warn_stuck(flight, _stuck_inside_range(flight, w, f, flags))
     return w, f, (flags if per_sample else flag_counts(flags))
 
 

@@ -28,27 +28,37 @@ FILES = ("diagnosis.md", "diagnosis.json", "CAL+found.json", "residual-map.png",
          "timeline.png", "navigation.png")          # all the report may write (module doc)
 
 
-def navigation_gain(flight, cal, cal_found, compensated=None):
-    """Position error (m, 3-D) against the truth (else the FOG-IMU) at the end and its
-    maximum, for the model and the model with the found terms; and the series to plot.
-    compensated: the MIMU's (w rad/s, f m/s^2) through `cal` when already at hand (the
-    sensor level's). The two are compensated and navigated side by side (threads: the
-    compensation's numpy and the navigator's kernel release the interpreter)."""
+def model_navigation(flight, cal, compensated=None):
+    """(comparison times t (s), the reference's trajectory at t, the position error (t, 3) m
+    NED of the MIMU through `cal` at t): the truth, else the FOG-IMU navigated, is the
+    reference. compensated: the MIMU's (w rad/s, f m/s^2) through `cal` when already at
+    hand. Needs nothing a diagnosis finds: `mimunav diagnose` runs it on a thread beside
+    the diagnosis (the compensation's numpy and the navigator's kernel release the
+    interpreter)."""
     t = evaluation.comparison_times(flight)
     ref = evaluation.resample(flight.truth, t) if flight.truth is not None else \
         evaluation.resample(evaluation.navigate_fog(flight), t)
+    return t, ref, evaluation.resample(_navigated(flight, cal, compensated), t).position_error(ref)
 
-    def error(c, outputs):
-        w, f = outputs if outputs is not None else evaluation.compensated_mimu(flight, c)[:2]
-        nav = evaluation.navigate_mimu(flight, w, f)
-        return evaluation.resample(nav, t).position_error(ref)
 
-    variants = [(name, c, outputs) for name, c, outputs in
-                (("model", cal, compensated), ("model+found", cal_found, None)) if c is not None]
-    with ThreadPoolExecutor(len(variants)) as pool:
-        errors = list(pool.map(lambda v: error(*v[1:]), variants))
+def _navigated(flight, cal, outputs=None):
+    w, f = outputs if outputs is not None else \
+        evaluation.compensated_mimu(flight, cal, warn=False)[:2]    # the diagnosis warned
+    return evaluation.navigate_mimu(flight, w, f)
+
+
+def navigation_gain(flight, cal_found, model):
+    """Position error (m, 3-D) against the truth (else the FOG-IMU) at the end and its
+    maximum, for the model (`model`: a Future of what `model_navigation` returns, awaited
+    once the found terms' navigation is done) and the model with the found terms
+    (`cal_found`, None: no found terms); and the series to plot."""
+    found = _navigated(flight, cal_found) if cal_found is not None else None
+    t, ref, err = model.result()
+    errors = {"model": err}
+    if found is not None:
+        errors["model+found"] = evaluation.resample(found, t).position_error(ref)
     out, series = {"reference": "truth" if flight.truth is not None else "FOG-IMU"}, {}
-    for (name, _, _), err in zip(variants, errors):
+    for name, err in errors.items():
         norm = np.linalg.norm(err, axis=1)
         out[name] = {"end_m": float(norm[-1]), "max_m": float(norm.max()),
                      "end_enu_m": evaluation.ned_to_enu(err[-1]).tolist()}
@@ -56,18 +66,22 @@ def navigation_gain(flight, cal, cal_found, compensated=None):
     return out, t, series
 
 
-def write(out_dir, doc, diag, flight, cal, cal_found, cal_label, force=False, painter=None):
+def write(out_dir, doc, diag, flight, cal, cal_found, cal_label, force=False, painter=None,
+          model=None):
     """The report folder: diagnosis.json (with the navigation gain), CAL+found.json, the
     figures and diagnosis.md. The figures are drawn by `painter` (a `plots.Painter`, else
-    here) while the two navigations run on threads (matplotlib holds the interpreter; the
-    navigator does not)."""
+    here) while the navigations run on threads (matplotlib holds the interpreter; the
+    navigator does not). model: a Future of `model_navigation(flight, cal)` started beside
+    the diagnosis, else it is run here beside the navigation with the found terms."""
     painter = painter or Painter(fork=False)
     # left in reverse: the navigations joined, then the figures drawn (or the child stopped
     # on an error), then the folder committed (or removed)
-    with atomic_folder(out_dir, force=force) as tmp, painter, ThreadPoolExecutor(1) as pool:
-        own = getattr(diag, "compensated", None)     # the sensor level's, of this flight
-        gain = pool.submit(navigation_gain, flight, cal, cal_found,
-                           own[1:] if own and own[0] is flight else None)
+    with atomic_folder(out_dir, force=force) as tmp, painter, ThreadPoolExecutor(2) as pool:
+        if model is None:
+            own = getattr(diag, "compensated", None)     # the sensor level's, of this flight
+            model = pool.submit(model_navigation, flight, cal,
+                                own[1:] if own and own[0] is flight else None)
+        gain = pool.submit(navigation_gain, flight, cal_found, model)
         if diag.level in ("sensor", "track"):
             painter.draw(_residual_map, diag.residual_map, str(tmp / "residual-map.png"))
             painter.draw(_timeline, _timeline_lines(diag, doc), str(tmp / "timeline.png"))
