@@ -35,7 +35,17 @@ def timed_cli(args, env=None):
 
 
 def machine():
-    return f"{platform.machine()} {os.cpu_count()} cores, Python {platform.python_version()}"
+    """The machine of a run, with its processor's model: rows measured on different
+    processors (this workplace's machines differ from session to session) are told apart."""
+    cpu = ""
+    try:
+        with open("/proc/cpuinfo") as fh:
+            cpu = next((line.split(":", 1)[1].strip() for line in fh
+                        if line.startswith("model name")), "")
+    except OSError:
+        pass
+    return (f"{platform.machine()} {os.cpu_count()} cores{f' ({cpu})' if cpu else ''}, "
+            f"Python {platform.python_version()}")
 
 
 def publish(script, rows, res=None, json_path=None):
@@ -63,13 +73,21 @@ def publish(script, rows, res=None, json_path=None):
 def table():
     """The README table (markdown) from bench/results/*.json."""
     docs = {p.stem: json.loads(p.read_text()) for p in RESULTS.glob("*.json")}
-    lines = ["| what | measured | command, date, load (1 min) |", "|---|---|---|"]
+    machines = sorted({r["machine"] for d in docs.values() for r in d["rows"]})
+    lines = ["| what | measured | command, date, load (1 min)"
+             + (", machine" if len(machines) > 1 else "") + " |", "|---|---|---|"]
     for name in sorted(docs, key=lambda n: (ORDER.index(n) if n in ORDER else len(ORDER), n)):
         for row in docs[name]["rows"]:
+            which = f", {machines.index(row['machine']) + 1}" if len(machines) > 1 else ""
             lines.append(f"| {row['what']} | {row['measured']} | `{row['command']}`, "
-                         f"{row['date']}, load {row['load']} |")
-    machines = sorted({r["machine"] for d in docs.values() for r in d["rows"]})
-    return "\n".join([f"Machine: {'; '.join(machines)}.", ""] + lines) + "\n"
+                         f"{row['date']}, load {row['load']}{which} |")
+    if len(machines) == 1:
+        head = f"Machine: {machines[0]}."
+    else:
+        head = "Machines (the last column's number; a row without the processor's model was " \
+               "measured before it was recorded): " + \
+               "; ".join(f"{k + 1}: {m}" for k, m in enumerate(machines)) + "."
+    return "\n".join([head, ""] + lines) + "\n"
 
 
 def render():
