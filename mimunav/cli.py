@@ -333,7 +333,6 @@ def _diagnose(args):
 
 def _diagnosed(args, painter):
     """`_diagnose` once its arguments are checked; the report's figures by `painter`."""
-    from concurrent.futures import ThreadPoolExecutor
     from . import diagnosis, evaluation
     from .compensation import Calibration
     from .diagnosis import navigation, sensor, track
@@ -372,21 +371,19 @@ def _diagnosed(args, painter):
         print(f"bias tests' normal wander: {noise['source']}")
     # the report's navigation of the model needs nothing the diagnosis finds: it runs on
     # the other core beside the diagnosis
-    with ThreadPoolExecutor(1, thread_name_prefix="model-navigation") as pool:
-        model = pool.submit(report.model_navigation, flight, cal) if args.output else None
-        if level == "navigation":
-            diag = navigation.diagnose(flight, cal, alpha=args.alpha, seed=args.seed)
-        elif level == "sensor":
-            diag = sensor.diagnose(flight, cal, alpha=args.alpha, accuracy=accuracy,
-                                   noise=noise)
-        else:
-            diag = track.diagnose(flight, cal, alpha=args.alpha, accuracy=accuracy)
-        doc = diagnosis.document(args.log, diag, args.alpha)
-        found = diagnosis.with_found(cal, doc["findings"])
-        if args.output:
-            report.write(args.output, doc, diag, flight, cal, found,
-                         args.model or "identity (the log's /mimu/imu as recorded)",
-                         force=args.force, painter=painter, model=model)
+    model = report.model_navigation_beside(flight, cal) if args.output else None
+    if level == "navigation":
+        diag = navigation.diagnose(flight, cal, alpha=args.alpha, seed=args.seed)
+    elif level == "sensor":
+        diag = sensor.diagnose(flight, cal, alpha=args.alpha, accuracy=accuracy, noise=noise)
+    else:
+        diag = track.diagnose(flight, cal, alpha=args.alpha, accuracy=accuracy)
+    doc = diagnosis.document(args.log, diag, args.alpha)
+    found = diagnosis.with_found(cal, doc["findings"])
+    if args.output:
+        report.write(args.output, doc, diag, flight, cal, found,
+                     args.model or "identity (the log's /mimu/imu as recorded)", force=args.force,
+                     painter=painter, model=model)
     if args.json:
         write_atomic(args.json, diagnosis.dumps(doc), force=args.force)
     if doc["conclusive"]:

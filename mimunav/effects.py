@@ -142,20 +142,37 @@ def _uniform_derivative(t, x, window_s):
         from scipy.signal import savgol_filter   # 0.5-1 s to import: only when needed
         x = np.asarray(x, float)
         if m < SAVGOL_FFT_TAPS or n < 2 * m or not np.isfinite(x).all():
-            return savgol_filter(x, m, 4, deriv=1, delta=dt, axis=0, mode="interp")
-        # the same filter by FFT convolution (a direct one costs m products a sample; they
-        # differ by round-off, 1e-13 of 1 g over 1 ms), savgol_filter's 'interp' edges: the
-        # quartic fitted to the first and the last window. Not with a NaN: the transform
-        # would spread it over the whole series, the direct filter over its window.
-        from scipy.signal import fftconvolve, savgol_coeffs
-        kernel = savgol_coeffs(m, 4, deriv=1, delta=dt).reshape((m,) + (1,) * (x.ndim - 1))
-        out = fftconvolve(x, kernel, mode="same", axes=0)
-        h = m // 2
-        out[:h] = savgol_filter(x[:m], m, 4, deriv=1, delta=dt, axis=0, mode="interp")[:h]
-        out[-h:] = savgol_filter(x[-m:], m, 4, deriv=1, delta=dt, axis=0, mode="interp")[-h:]
+            # the direct filter: a NaN reaches its window only
+            out = savgol_filter(x, m, 4, deriv=1, delta=dt, axis=0, mode="constant")
+        else:
+            # the same filter by FFT convolution (a direct one costs m products a sample;
+            # they differ by round-off, 1e-13 of 1 g over 1 ms). Not with a NaN: the
+            # transform would spread it over the whole series.
+            from scipy.signal import fftconvolve, savgol_coeffs
+            kernel = savgol_coeffs(m, 4, deriv=1, delta=dt).reshape((m,) + (1,) * (x.ndim - 1))
+            out = fftconvolve(x, kernel, mode="same", axes=0)
+        _interp_edges(x, m, dt, out)
         return out
     lo, hi = np.maximum(np.arange(n) - 1, 0), np.minimum(np.arange(n) + 1, n - 1)
     return (x[hi] - x[lo]) / (t[hi] - t[lo])[:, None]
+
+
+def _interp_edges(x, m, dt, out):
+    """savgol_filter's 'interp' edges of the derivative, into out: the quartic fitted to the
+    first and to the last window of m samples (step dt s); a column whose edge window holds
+    a NaN gets NaN there, as a NaN inside the series gives NaN over its window (the fit's
+    least squares refuses it: a track-level recording with lost samples at its start had
+    crashed the compensation of its own found terms)."""
+    from scipy.signal import savgol_filter
+    h = m // 2
+    for rows, window in ((slice(None, h), x[:m]), (slice(-h, None), x[-m:])):
+        cols = window.reshape(m, -1)
+        finite = np.isfinite(cols).all(axis=0)
+        edge = np.full((h, cols.shape[1]), np.nan)
+        if finite.any():
+            edge[:, finite] = savgol_filter(cols[:, finite], m, 4, deriv=1, delta=dt, axis=0,
+                                            mode="interp")[rows]
+        out[rows] = edge.reshape(out[rows].shape)
 
 
 def regressor(term, cond):

@@ -330,6 +330,27 @@ def test_a_long_derivative_window_by_fft_is_the_direct_savitzky_golay_filter():
     np.testing.assert_allclose(effects.derivative(t, quartic, 0.5), exact, rtol=0, atol=1e-6)
 
 
+def test_a_nan_in_an_edge_window_stays_in_its_window():
+    """A NaN within the first window of a series (a recording's lost samples at its start,
+    then its found terms compensated): the derivative is NaN over the edge the window's
+    quartic serves and the NaN's own window, and exact for a quartic everywhere else, its
+    other column and both of its ends included (savgol_filter's edge fit refused the NaN
+    with a ValueError that crashed `diagnose --model CAL+found.json` of the RTKLIB drive)."""
+    dt, m = 0.01, 31                            # 0.3 s: the direct filter
+    t = np.arange(1000) * dt
+    u = t - 3.0
+    x = np.column_stack([0.5 * u ** 4 - u ** 3 + 2 * u] * 2)
+    exact = 2 * u ** 3 - 3 * u ** 2 + 2
+    x[3, 0] = x[-2, 0] = np.nan
+    d = effects.derivative(t, x, m * dt)
+    np.testing.assert_allclose(d[:, 1], exact, rtol=0, atol=1e-6)
+    lost = np.isnan(d[:, 0])
+    h = m // 2
+    assert lost[:3 + h + 1].all() and lost[-(h + 2):].all()
+    assert lost.sum() == (3 + h + 1) + (h + 2)
+    np.testing.assert_allclose(d[~lost, 0], exact[~lost], rtol=0, atol=1e-6)
+
+
 def test_a_transplanted_lever_arm_is_the_interval_mean_of_the_rigid_body_terms():
     """A yaw at constant angular acceleration a, psi = a t^2 / 2 (w_z = a t, dw_z/dt = a),
     with an arm r along x: the MIMU records, over each interval (t - dt, t], the mean of the

@@ -10,7 +10,8 @@
 The folder is built beside its final place and renamed into it (nothing half-written).
 """
 import math
-from concurrent.futures import ThreadPoolExecutor
+import threading
+from concurrent.futures import Future, ThreadPoolExecutor
 
 import numpy as np
 
@@ -39,6 +40,22 @@ def model_navigation(flight, cal, compensated=None):
     ref = evaluation.resample(flight.truth, t) if flight.truth is not None else \
         evaluation.resample(evaluation.navigate_fog(flight), t)
     return t, ref, evaluation.resample(_navigated(flight, cal, compensated), t).position_error(ref)
+
+
+def model_navigation_beside(flight, cal):
+    """A Future of `model_navigation(flight, cal)` computed on a daemon thread started now:
+    unlike an executor's worker, it is not waited for when the command fails or is
+    interrupted before asking for it (a 2-hour flight's navigation would hold up Ctrl-C or an
+    input error by half a minute)."""
+    future = Future()
+
+    def run():
+        try:
+            future.set_result(model_navigation(flight, cal))
+        except BaseException as exc:            # raised where the result is asked for
+            future.set_exception(exc)
+    threading.Thread(target=run, name="model-navigation", daemon=True).start()
+    return future
 
 
 def _navigated(flight, cal, outputs=None):
