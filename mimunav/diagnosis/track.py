@@ -56,6 +56,7 @@ from . import library, sensor
 from .reference import Accuracy
 from .sensor import CHANNELS
 from ..errors import InputError
+from ..evaluation import compensated_mimu
 
 # The reference here is a vehicle model, not a FOG-IMU: its attitude comes from the velocity
 # under no side slip and zero roll, so its own "scale and misalignment" are those of the
@@ -233,9 +234,15 @@ def diagnose(flight, cal, alpha=0.05, reference=None, accuracy=None):
     back = reversing(flight)
     reversing_s = float(np.sum(np.diff(flight.mimu_t, prepend=flight.mimu_t[0])[back]))
     ref, trusted = reference or simulated_reference(flight, back)
-    w, f = (np.where(trusted[:, None], x, np.nan) for x in flight.mimu_imu)
+    # the outputs through the model (a CAL+found.json's terms removed) on the whole record,
+    # before the untrusted samples are blanked: a found time skew's derivative window would
+    # spread each blank over its neighbours (re-diagnosing the RTKLIB drive with its own
+    # found terms kept 34 of 522 s), and the reference check and the lag judge what the
+    # model leaves (the lag had been found again on the outputs as recorded)
+    outputs = compensated_mimu(flight, cal, warn=False)[:2]
+    w, f = (np.where(trusted[:, None], x, np.nan) for x in outputs)
     ref = replace(ref, mimu_imu=(w, f))
-    corr, slopes, spread = reference_check(replace(ref, mimu_imu=flight.mimu_imu), trusted)
+    corr, slopes, spread = reference_check(replace(ref, mimu_imu=outputs), trusted)
     unpredicted = {tuple(c.split(".")) for c, r in corr.items() if not r >= PREDICTED_CORRELATION}
     loose = {tuple(c.split(".")) for c, r in spread.items() if not r <= MODEL_ERROR_SHARE}
     kept, left_out, narrowed = [], [], {}
@@ -257,7 +264,8 @@ def diagnose(flight, cal, alpha=0.05, reference=None, accuracy=None):
             term = library.on_channels(term, carried)
             narrowed[library.label(term)] = term["channels"]
         kept.append(term)
-    diag = sensor.diagnose(ref, cal, alpha=alpha, candidates=kept,
+    diag = sensor.diagnose(ref, replace(cal, model=cal.base_model, found=[]), alpha=alpha,
+                           candidates=kept,
                            accuracy=VEHICLE_MODEL_ACCURACY.merged(accuracy),
                            max_wander=wander_limit(), output_tests=False)
     diag.level = "track"
