@@ -27,17 +27,19 @@ M_RATIO = OMEGA**2 * A**2 * B / GM   # m = w^2 a^2 b / GM                  (tab 
 def gravity_from_sin2(s2, h):
     """Normal gravity, m/s^2, from sin^2(lat) and h (m): the core of `normal_gravity`, for
     scalars in the navigator's kernel (numba) and arrays through its `py_func` (numpy)."""
-    g0 = GAMMA_E * (1.0 + K_SOMIGLIANA * s2) / np.sqrt(1.0 - E2 * s2)
+    g0 = GAMMA_E * (1.0 + K_SOMIGLIANA * s2) * (1.0 / np.sqrt(1.0 - E2 * s2))
     return g0 * (1.0 - 2.0 / A * (1.0 + F + M_RATIO - 2.0 * F * s2) * h + 3.0 * h * h / (A * A))
 
 
 @numba.njit(cache=True, inline="always")
 def radii_from_sin2(s2):
     """(R_N, R_E), m, from sin^2(lat): the core of `radii` (scalars in numba, arrays through
-    its `py_func`)."""
+    its `py_func`). One division: 1/sqrt(w2), which is also gravity's (`gravity_from_sin2`)
+    and is computed once where both are inlined in one kernel."""
     w2 = 1.0 - E2 * s2
-    r_e = A / np.sqrt(w2)
-    return r_e * (1.0 - E2) / w2, r_e
+    per_w = 1.0 / np.sqrt(w2)
+    r_e = A * per_w
+    return r_e * (1.0 - E2) * (per_w * per_w), r_e
 
 
 def _sin2(lat):
@@ -73,14 +75,27 @@ def radii(lat):
 
 @numba.njit(cache=True, inline="always")
 def nav_rates(lat, h, vn, ve):
+    """Scalar core: `nav_rates_at` at latitude lat (rad)."""
+    return nav_rates_at(math.sin(lat), math.cos(lat), h, vn, ve)
+
+
+@numba.njit(cache=True, inline="always")
+def nav_rates_at(sl, cl, h, vn, ve):
     """Scalar core: Earth rate w_ie^n and transport rate w_en^n in NED (rad/s), gravity
-    (m/s^2, down) and the radii R_N, R_E (m), at (lat rad, h m) moving with NED velocity
-    (vn, ve) m/s. Returns (ie_n, ie_d, en_n, en_e, en_d, g, r_n, r_e); ie_e is zero."""
-    sl, cl = math.sin(lat), math.cos(lat)
-    r_n, r_e = radii_from_sin2(sl * sl)
-    en_n = ve / (r_e + h)
-    return (OMEGA * cl, -OMEGA * sl, en_n, -vn / (r_n + h), -en_n * sl / cl,
-            gravity_from_sin2(sl * sl, h), r_n, r_e)
+    (m/s^2, down) and the position rates per unit velocity, at the latitude whose sine and
+    cosine are sl, cl, at height h (m), moving with NED velocity (vn, ve) m/s.
+    Returns (ie_n, ie_d, en_n, en_e, en_d, g, per_n, per_e); ie_e is zero;
+    per_n = 1/(R_N + h) (rad/m: dlat/dt = vn per_n), per_e = 1/((R_E + h) cos lat)
+    (dlon/dt = ve per_e). Four divisions in all, radii and gravity included (the divider's
+    throughput bounds the navigator's kernel)."""
+    s2 = sl * sl
+    r_n, r_e = radii_from_sin2(s2)
+    per_n = 1.0 / (r_n + h)
+    per_re = 1.0 / (r_e + h)
+    per_cl = 1.0 / cl
+    en_n = ve * per_re
+    return (OMEGA * cl, -OMEGA * sl, en_n, -vn * per_n, -en_n * sl * per_cl,
+            gravity_from_sin2(s2, h), per_n, per_re * per_cl)
 
 
 def earth_rate_ned(lat):

@@ -359,25 +359,28 @@ class ProfileMotion(Motion):
 
     def kinematics(self, t):
         t = np.ascontiguousarray(t, dtype=float)
-        idx = np.clip(np.searchsorted(self.knots, t, side="right") - 1, 0, len(self.knots) - 2)
         n = len(t)
         v, a, q = np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 4))
         w, dw = np.empty((n, 3)), np.empty((n, 3))
-        _euler_kinematics(t, idx, self.knots, self._c, v, a, q, w, dw)
+        _euler_kinematics(t, self.knots, self._c, v, a, q, w, dw)
         return Kinematics(v, a, quaternion.as_quat_array(q), w, dw)
 
 
-@numba.njit(cache=True, nogil=True)
-def _euler_kinematics(t, idx, knots, c, v_ned, a_ned, q_nb, w_nb, dw_nb):
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _euler_kinematics(t, knots, c, v_ned, a_ned, q_nb, w_nb, dw_nb):
     """Channels (V, gamma, chi, phi) and two derivatives by Horner's rule on the piecewise
-    polynomial, then NED velocity, its rate, q_nb (z-y-x Euler: chi, gamma, phi), and the
+    polynomial (its interval: the previous time's when it holds t, else found by bisection;
+    the first or last beyond the knots), then NED velocity, its rate, q_nb (z-y-x Euler: chi, gamma, phi), and the
     body rate from the Euler-angle rates with its derivative (T&W eq. 3.29 inverted):
         p = phi' - chi' sin g,  q = g' cos phi + chi' cos g sin phi,
         r = -g' sin phi + chi' cos g cos phi."""
     deg = c.shape[0] - 1
+    last = knots.shape[0] - 2
     y, dy, ddy = np.empty(4), np.empty(4), np.empty(4)
+    i = 0
     for k in range(t.shape[0]):
-        i = idx[k]
+        if not knots[i] <= t[k] < knots[i + 1]:
+            i = min(max(np.searchsorted(knots, t[k], side="right") - 1, 0), last)
         u = t[k] - knots[i]
         for ch in range(4):
             p0, p1, p2 = c[0, i, ch], 0.0, 0.0
@@ -390,8 +393,13 @@ def _euler_kinematics(t, idx, knots, c, v_ned, a_ned, q_nb, w_nb, dw_nb):
         g, dg, ddg = y[1], dy[1], ddy[1]
         x, dx, ddx = y[2], dy[2], ddy[2]
         p, dp, ddp = y[3], dy[3], ddy[3]
-        sg, cg, sx, cx, sp, cp = math.sin(g), math.cos(g), math.sin(x), math.cos(x), \
-            math.sin(p), math.cos(p)
+        # half angles for q_nb, the full angles' sines and cosines from them (6 calls, not 12)
+        chy, shy = math.cos(0.5 * x), math.sin(0.5 * x)
+        chp, shp = math.cos(0.5 * g), math.sin(0.5 * g)
+        chr_, shr = math.cos(0.5 * p), math.sin(0.5 * p)
+        sg, cg = 2.0 * shp * chp, (chp - shp) * (chp + shp)
+        sx, cx = 2.0 * shy * chy, (chy - shy) * (chy + shy)
+        sp, cp = 2.0 * shr * chr_, (chr_ - shr) * (chr_ + shr)
         ux, uy, uz = cg * cx, cg * sx, -sg
         dux = -sg * cx * dg - cg * sx * dx
         duy = -sg * sx * dg + cg * cx * dx
@@ -400,9 +408,6 @@ def _euler_kinematics(t, idx, knots, c, v_ned, a_ned, q_nb, w_nb, dw_nb):
         a_ned[k, 0] = dV * ux + V * dux
         a_ned[k, 1] = dV * uy + V * duy
         a_ned[k, 2] = dV * uz + V * duz
-        chy, shy = math.cos(0.5 * x), math.sin(0.5 * x)
-        chp, shp = math.cos(0.5 * g), math.sin(0.5 * g)
-        chr_, shr = math.cos(0.5 * p), math.sin(0.5 * p)
         q_nb[k, 0] = chy * chp * chr_ + shy * shp * shr
         q_nb[k, 1] = chy * chp * shr - shy * shp * chr_
         q_nb[k, 2] = chy * shp * chr_ + shy * chp * shr

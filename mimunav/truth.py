@@ -68,7 +68,8 @@ def integrate_position(motion, t, kin=None, start=None):
     Per step, the NED displacement is the Euler-Maclaurin corrected trapezoid
     d = h/2 (v0 + v1) + h^2/12 (a0 - a1) (exact for cubic velocity), converted to
     latitude/longitude with the radii at the step's mid-point; the latitude dependence of
-    the radii is resolved by fixed-point iteration (converged to round-off in 3 passes).
+    the radii is resolved per step by fixed-point iteration from the previous step's
+    (converged to round-off).
     """
     kin = motion.kinematics(t) if kin is None else kin
     lat0, lon0, h0 = (motion.lat0, motion.lon0, motion.h0) if start is None else start
@@ -76,17 +77,40 @@ def integrate_position(motion, t, kin=None, start=None):
     v, a = kin.v_ned, kin.a_ned
     d = 0.5 * dt * (v[1:] + v[:-1]) + dt**2 / 12 * (a[:-1] - a[1:])
     h = h0 - np.concatenate([[0.0], np.cumsum(d[:, 2])])
-    h_mid = 0.5 * (h[1:] + h[:-1])
-    lat = np.full(len(t), lat0)
-    for _ in range(3):
-        lat_mid = 0.5 * (lat[1:] + lat[:-1])
-        r_n, r_e = earth.radii(lat_mid)
-        lat = lat0 + np.concatenate([[0.0], np.cumsum(d[:, 0] / (r_n + h_mid))])
-    lat_mid = 0.5 * (lat[1:] + lat[:-1])
-    r_n, r_e = earth.radii(lat_mid)
-    lon = lon0 + np.concatenate(
-        [[0.0], np.cumsum(d[:, 1] / ((r_e + h_mid) * np.cos(lat_mid)))])
+    lat, lon = np.empty(len(t)), np.empty(len(t))
+    _geodetic_steps(np.ascontiguousarray(d), h, float(lat0), float(lon0), lat, lon)
     return lat, lon, h
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _geodetic_steps(d, h, lat0, lon0, lat, lon):
+    """lat, lon (rad) at the steps' ends from lat0, lon0 and the NED displacements d (m,
+    (N-1, 3)) at heights h (m, N): dlat = d_N / (R_N + h), dlon = d_E / ((R_E + h) cos lat)
+    at the step's mid-point, the mid-point latitude iterated to a fixed point (at most 4
+    passes; 2 where the step is like the previous one). The steps are summed from zero and
+    added to lat0, lon0 (a running sum near lat0 would lose its last bits)."""
+    lat[0], lon[0] = lat0, lon0
+    step, north, east = 0.0, 0.0, 0.0
+    for k in range(d.shape[0]):
+        h_mid = 0.5 * (h[k] + h[k + 1])
+        for _ in range(4):
+            s = math.sin(lat[k] + 0.5 * step)
+            new = d[k, 0] / (earth.radii_from_sin2(s * s)[0] + h_mid)
+            if new == step:
+                break
+            step = new
+        lat_mid = lat[k] + 0.5 * step
+        north += step
+        lat[k + 1] = lat0 + north
+        s = math.sin(lat_mid)
+        east += d[k, 1] / ((earth.radii_from_sin2(s * s)[1] + h_mid) * math.cos(lat_mid))
+        lon[k + 1] = lon0 + east
+
+
+def latitude_rate(lat, h, v_ned):
+    """dlat/dt = v_N / (R_N + h), rad/s, at latitudes lat (rad), heights h (m) and NED
+    velocities v_ned (m/s, (N, 3))."""
+    return v_ned[:, 0] / (earth.meridian_radius(lat) + h)
 
 
 def body_rate_and_specific_force(lat, h, kin):
@@ -157,6 +181,7 @@ def generate(motion, t, start=None):
     kin = motion.kinematics(t)
     lat, lon, h = integrate_position(motion, t, kin, start)
     truth = Trajectory(t, lat, lon, h, kin.v_ned, kin.q_nb)
+    lat_rate = latitude_rate(lat, h, kin.v_ned)
 
     # Quadrature nodes: 3 per piece; the pieces are the sample intervals cut at the
     # motion's knots (where its higher derivatives jump), each piece tagged with its interval.
@@ -175,7 +200,7 @@ def generate(motion, t, start=None):
         width = b[c:c + _CHUNK] - a[c:c + _CHUNK]
         nodes = (a[c:c + _CHUNK, None] + width[:, None] * _GL_X).ravel()
         k_node = np.repeat(k_of[c:c + _CHUNK], 3)
-        lat_n, h_n = _hermite_position(t, lat, h, kin.v_ned, k_node, nodes)
+        lat_n, h_n = _hermite_position(t, lat, lat_rate, h, kin.v_ned, k_node, nodes)
         w_ib, f_b = body_rate_and_specific_force(lat_n, h_n, motion.kinematics(nodes))
         return k_node, (width[:, None] * _GL_W).ravel(), w_ib, f_b
 
@@ -208,9 +233,10 @@ def _accumulate(k_node, weights, w_ib, f_b, dtheta, dv, ww):
 
 
 @numba.njit(cache=True, nogil=True)
-def _hermite_position(t, lat, h, v_ned, k_node, tq):
+def _hermite_position(t, lat, lat_rate, h, v_ned, k_node, tq):
     """Latitude and height at times tq inside intervals k_node, by cubic Hermite
-    interpolation with the exact rates lat' = v_N / (R_N + h), h' = -v_D at the ends."""
+    interpolation with the exact rates lat' = v_N / (R_N + h) (lat_rate, rad/s, at t),
+    h' = -v_D at the ends."""
     lat_q, h_q = np.empty(tq.shape[0]), np.empty(tq.shape[0])
     for j in range(tq.shape[0]):
         k = k_node[j]
@@ -218,8 +244,7 @@ def _hermite_position(t, lat, h, v_ned, k_node, tq):
         s = (tq[j] - t[k]) / w
         h00, h10 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s
         h01, h11 = -2 * s**3 + 3 * s**2, s**3 - s**2
-        dlat0 = v_ned[k, 0] / (earth.radii_from_sin2(math.sin(lat[k]) ** 2)[0] + h[k])
-        dlat1 = v_ned[k + 1, 0] / (earth.radii_from_sin2(math.sin(lat[k + 1]) ** 2)[0] + h[k + 1])
-        lat_q[j] = h00 * lat[k] + h10 * w * dlat0 + h01 * lat[k + 1] + h11 * w * dlat1
+        lat_q[j] = (h00 * lat[k] + h10 * w * lat_rate[k] + h01 * lat[k + 1]
+                    + h11 * w * lat_rate[k + 1])
         h_q[j] = h00 * h[k] - h10 * w * v_ned[k, 2] + h01 * h[k + 1] - h11 * w * v_ned[k + 1, 2]
     return lat_q, h_q

@@ -242,7 +242,8 @@ def test_quadrature_node_positions_are_exact_for_cubic_latitude_and_height():
     v_ned = np.stack([dpoly(lat_c, t) * (r_m + h), np.zeros_like(t), -dpoly(h_c, t)], -1)
     k_node = np.repeat(np.arange(len(t) - 1), 3)
     tq = t[k_node] + np.tile([1.3, 5.0, 8.9], len(t) - 1)
-    lat_q, h_q = truth._hermite_position(t, lat, h, v_ned, k_node, tq)
+    lat_q, h_q = truth._hermite_position(t, lat, truth.latitude_rate(lat, h, v_ned), h, v_ned,
+                                         k_node, tq)
     np.testing.assert_allclose(lat_q, poly(lat_c, tq), rtol=0, atol=1e-13)
     np.testing.assert_allclose(h_q, poly(h_c, tq), rtol=0, atol=1e-7)
 
