@@ -75,7 +75,8 @@ def radii(lat):
 
 @numba.njit(cache=True, inline="always")
 def nav_rates(lat, h, vn, ve):
-    """Scalar core: `nav_rates_at` at latitude lat (rad)."""
+    """Scalar core: `nav_rates_at` at latitude lat (rad) - its last two values are the
+    position rates per unit velocity, not the radii (`radii` gives those)."""
     return nav_rates_at(math.sin(lat), math.cos(lat), h, vn, ve)
 
 

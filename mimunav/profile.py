@@ -370,8 +370,9 @@ class ProfileMotion(Motion):
 def _euler_kinematics(t, knots, c, v_ned, a_ned, q_nb, w_nb, dw_nb):
     """Channels (V, gamma, chi, phi) and two derivatives by Horner's rule on the piecewise
     polynomial (its interval: the previous time's when it holds t, else found by bisection;
-    the first or last beyond the knots), then NED velocity, its rate, q_nb (z-y-x Euler: chi, gamma, phi), and the
-    body rate from the Euler-angle rates with its derivative (T&W eq. 3.29 inverted):
+    the first or last beyond the knots), then NED velocity, its rate, q_nb (z-y-x Euler:
+    chi, gamma, phi), and the body rate from the Euler-angle rates with its derivative
+    (T&W eq. 3.29 inverted):
         p = phi' - chi' sin g,  q = g' cos phi + chi' cos g sin phi,
         r = -g' sin phi + chi' cos g cos phi."""
     deg = c.shape[0] - 1
@@ -393,7 +394,7 @@ def _euler_kinematics(t, knots, c, v_ned, a_ned, q_nb, w_nb, dw_nb):
         g, dg, ddg = y[1], dy[1], ddy[1]
         x, dx, ddx = y[2], dy[2], ddy[2]
         p, dp, ddp = y[3], dy[3], ddy[3]
-        # half angles for q_nb, the full angles' sines and cosines from them (6 calls, not 12)
+        # half angles for q_nb, the full angles' sin and cos from them (6 calls, not 12)
         chy, shy = math.cos(0.5 * x), math.sin(0.5 * x)
         chp, shp = math.cos(0.5 * g), math.sin(0.5 * g)
         chr_, shr = math.cos(0.5 * p), math.sin(0.5 * p)

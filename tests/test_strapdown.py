@@ -92,7 +92,10 @@ def test_convergence_order_when_the_rate_doubles():
 
 def test_great_circle_flights_follow_the_closed_form():
     for motion in (GreatCircle(250.0, "east", duration=600.0),
-                   GreatCircle(250.0, "north", lat=np.radians(20.0), duration=600.0)):
+                   GreatCircle(250.0, "north", lat=np.radians(20.0), duration=600.0),
+                   # southern, 1 deg from the pole: the kernel's latitude sine and cosine
+                   # (angle addition from a grid) where cos lat = 0.017
+                   GreatCircle(250.0, "north", lat=np.radians(-89.0), duration=600.0)):
         nav, ref, _ = _fly(motion, 100.0)
         lat, lon, h = motion.exact_position(nav.t[-1:])
         end = earth.ned_difference(nav.lat[-1], nav.lon[-1], nav.h[-1], lat[0], lon[0], h[0])
@@ -246,10 +249,20 @@ def test_large_rotation_steps_use_the_exact_rotation_vector_update():
     cos/sin form (a series in |phi| truncated after |phi|^4 errs 3e-7 rad per step here);
     after 40 steps the heading (rotation about NED down) is within 1e-7 rad of the truth
     (measured 3e-9; the tilt errs by 5e-6 rad from the Earth rate's coupling with the spin at
-    this coarse rate, second order, checked at fine rates elsewhere). The small-angle series
-    branch is checked by every other test (|phi| < 1e-3 rad)."""
+    this coarse rate, second order, checked at fine rates elsewhere). The series branch
+    (|phi| < 0.1 rad) is checked by the next test and every other one."""
     nav, ref, _ = _fly(_YawSpin(1.0, 20.0), 2.0)
     assert np.abs(nav.attitude_error(ref)[:, 2]).max() < 1e-7
+
+
+def test_rotation_steps_below_0_1_rad_take_the_half_angle_series_to_phi_8():
+    """0.09 rad per step (0.9 rad/s at 10 Hz) is inside the kernel's series branch of
+    exp(phi/2) (|phi| < 0.1 rad, terms to |phi|^8): after 200 steps the heading is within
+    1e-9 rad of the truth (measured 2e-11; a slip in a |phi|^4 coefficient, 1/348 for
+    1/384, turns it red). Its |phi|^6 and |phi|^8 terms move the heading by less than
+    1e-12 rad per step here: below what this test, or a navigation, can show."""
+    nav, ref, _ = _fly(_YawSpin(0.9, 20.0), 10.0)
+    assert np.abs(nav.attitude_error(ref)[:, 2]).max() < 1e-9
 
 
 def test_free_fall_is_not_mistaken_for_g_units(short):

@@ -150,7 +150,8 @@ def test_east_flight_at_45_deg_is_a_circle_about_the_earth_axis():
 def test_transport_rate_is_the_turn_rate_of_the_ned_frame():
     """w_en^n from the NED->ECEF matrix differentiated along a path (north-east, 45 deg):
     Omega = C_ne dC_en/dt, skew-symmetric, against `earth.transport_rate_ned` and the
-    navigator's kernel `earth.nav_rates`."""
+    Earth-rate kernel of the navigator and the truth generator (`earth.nav_rates_at`), whose
+    position rates per unit velocity are dlat/dvN and dlon/dvE of the same path."""
     lat0, lon0, h = np.radians(45.0), 0.2, 800.0
     vn, ve = 150.0, 220.0
     r_m, r_n = earth.radii(lat0)
@@ -164,6 +165,7 @@ def test_transport_rate_is_the_turn_rate_of_the_ned_frame():
     np.testing.assert_allclose(w_en, expected, rtol=1e-6, atol=1e-12)
     rates = earth.nav_rates(lat0, h, vn, ve)
     np.testing.assert_allclose([rates[2], rates[3], rates[4]], expected, rtol=1e-12)
+    np.testing.assert_allclose([rates[6] * vn, rates[7] * ve], [dlat, dlon], rtol=1e-12)
 
 
 class _CubicClimb(truth.Motion):
