@@ -1,5 +1,6 @@
 """Attitude conventions against independent geometry."""
 import numpy as np
+import quaternion
 
 from mimunav import attitude
 
@@ -82,3 +83,34 @@ def test_quaternion_is_imported_without_scipy_interpolate_and_keeps_its_spline_c
                          check=True).stdout.split("\n")
     assert out[0] == "False True True"
     assert float(out[1]) < 1e-8
+
+
+def _unit(x):
+    return x / np.linalg.norm(x, axis=-1, keepdims=True)
+
+
+def test_short_way_takes_w_nonnegative_and_keeps_the_rotation():
+    """short_way flips q to -q where w < 0 (the same rotation) and leaves the others: the
+    rotation vector of the result is the turn of angle <= pi."""
+    rng = np.random.default_rng(3)
+    q = quaternion.as_quat_array(_unit(rng.normal(size=(500, 4))))
+    s = attitude.short_way(q)
+    qa, sa = quaternion.as_float_array(q), quaternion.as_float_array(s)
+    assert np.all(sa[:, 0] >= 0) and np.any(qa[:, 0] < 0)
+    np.testing.assert_array_equal(sa, np.where(qa[:, :1] < 0, -qa, qa))
+    assert np.all(np.linalg.norm(quaternion.as_rotation_vector(s), axis=1) <= np.pi + 1e-12)
+
+
+def test_rotate_broadcasts_one_attitude_over_many_vectors_and_back():
+    """rotate of one quaternion over (4, 5, 3) vectors equals the rotation matrix applied to
+    each, and of (4, 5) quaternions over one vector the same per quaternion."""
+    rng = np.random.default_rng(4)
+    q = quaternion.as_quat_array(_unit(rng.normal(size=4)))
+    v = rng.normal(size=(4, 5, 3))
+    np.testing.assert_allclose(attitude.rotate(q, v), v @ quaternion.as_rotation_matrix(q).T,
+                               atol=1e-12)
+    qs = quaternion.as_quat_array(_unit(rng.normal(size=(4, 5, 4))))
+    one = rng.normal(size=3)
+    np.testing.assert_allclose(attitude.rotate(qs, one),
+                               np.einsum("...ij,j->...i", quaternion.as_rotation_matrix(qs), one),
+                               atol=1e-12)
