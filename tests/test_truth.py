@@ -165,7 +165,13 @@ def test_transport_rate_is_the_turn_rate_of_the_ned_frame():
     np.testing.assert_allclose(w_en, expected, rtol=1e-6, atol=1e-12)
     rates = earth.nav_rates(lat0, h, vn, ve)
     np.testing.assert_allclose([rates[2], rates[3], rates[4]], expected, rtol=1e-12)
-    np.testing.assert_allclose([rates[6] * vn, rates[7] * ve], [dlat, dlon], rtol=1e-12)
+    # the position rates against the radii written out here (WGS-84, not earth.radii, which
+    # shares its core with the kernel): R_N = a (1 - e^2) / w^3, R_E = a / w
+    w = np.sqrt(1 - earth.E2 * np.sin(lat0) ** 2)
+    r_north, r_east = earth.A * (1 - earth.E2) / w**3, earth.A / w
+    np.testing.assert_allclose([rates[6] * vn, rates[7] * ve],
+                               [vn / (r_north + h), ve / ((r_east + h) * np.cos(lat0))],
+                               rtol=1e-12)
 
 
 class _CubicClimb(truth.Motion):
