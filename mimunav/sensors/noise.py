@@ -47,8 +47,9 @@ def flicker_axes(rng, n, rate_hz, b):
     tenth to its last by 0.61 of what the PSD says (tests/test_sensors.py, the wander test),
     while the Allan deviation at tau = n/3 lost only 9 %. The spectrum so starts at
     fs/m <= 1/(2 x record length); with m = 4n or 8n instead the same statistics moved by
-    less than their 3 % scatter. m is the least even length >= 2n the FFT takes fast
-    (`scipy.fft.next_fast_len`)."""
+    less than their 3 % scatter. What lies below fs/m is nearly constant over the record:
+    an offset, which the sensor models draw as the turn-on bias. m is the least even length
+    >= 2n the FFT takes fast (`scipy.fft.next_fast_len`)."""
     from scipy import fft           # here: 0.6 s of import that commands without noise skip
     m = fft.next_fast_len(2 * max(n, 1), real=True)
     for x in flicker_periods(rng, m + m % 2, b):
