@@ -9,7 +9,13 @@ The flight is simulated in memory (`simulation.flight_motion` once per process, 
 unit's outputs) exactly as `mimunav simulate` would write it. Results stream to a JSON-lines file, one unit per line as it finishes, so an interrupted
 campaign resumes where it stopped. Units run on local processes, or on a Dask cluster when
 given a scheduler address (`dask[distributed]`, optional).
+
+Each unit's record carries the version of the code that made it (`code_version`): a campaign
+resumed after the simulator changed computes its earlier units again rather than mix two
+simulators' draws in one distribution, and a unit made by a worker running other code is
+refused.
 """
+import functools
 import hashlib
 import json
 import multiprocessing
@@ -25,7 +31,7 @@ from . import calibration, evaluation, lab, simulation
 from .profile import Profile
 from .sensors import MimuUnit, Mounting
 from .simulation import GROUND_TEMPERATURE_C, MIMU_MOUNTING
-from .errors import InputError
+from .errors import InputError, warn
 from .sensors.fog import FOG_GRADE_SOURCES, FOG_GRADES
 from .sensors.mimu import MIMU_GRADE_SOURCES, MIMU_GRADES, NONLINEARITY, NONLINEARITY_SOURCES
 
@@ -141,6 +147,19 @@ def one_blas_thread():
     threadpool_limits(1)
 
 
+@functools.lru_cache(maxsize=1)
+def code_version():
+    """16 hex digits of the SHA-256 of this package's Python sources (each file's path
+    relative to the package, then its bytes, in path order): units made by code that
+    differs anywhere differ here."""
+    root = Path(__file__).resolve().parent
+    digest = hashlib.sha256()
+    for path in sorted(root.rglob("*.py")):
+        digest.update(path.relative_to(root).as_posix().encode() + b"\0")
+        digest.update(path.read_bytes())
+    return digest.hexdigest()[:16]
+
+
 def unit_seed(seed, index):
     return int(np.random.SeedSequence(seed).spawn(index + 1)[index].generate_state(1)[0])
 
@@ -157,7 +176,8 @@ def run_unit(scenario, seed, index):
                                             warm_up_s=scenario.warm_up_s)
     doc = evaluation.table(evaluation.Flight.from_simulation(fm, unit, fog, raw, fog_out), cals)
     doc.pop("log")
-    return {"index": index, "unit_seed": useed, "campaign": _identity(scenario, seed), **doc}
+    return {"index": index, "unit_seed": useed, "campaign": _identity(scenario, seed),
+            "code": code_version(), **doc}
 
 
 def _flight_motion(scenario, unit, fog):
@@ -236,6 +256,13 @@ def run_campaign(scenario, n_units, seed, results, workers=2, scheduler=None,
     if wrong:
         raise InputError(f"{results} holds units of another campaign ({done[wrong[0]].get('campaign')}"
                          f", this one is {_identity(scenario, seed)}); use another file")
+    stale = sorted(i for i, r in done.items() if r.get("code") != code_version())
+    if stale:
+        warn(f"{results}: {len(stale)} unit(s) were made by other code than this mimunav's "
+             f"({done[stale[0]].get('code', 'unrecorded')}, now {code_version()}): computed "
+             "again, so that the campaign holds one simulator's draws")
+        for i in stale:
+            del done[i]
     todo = [i for i in range(n_units) if i not in done]
     if futures is not None and (done or len(futures) != n_units):
         raise ValueError("units submitted beforehand need an empty results file and all "
@@ -249,6 +276,10 @@ def run_campaign(scenario, n_units, seed, results, workers=2, scheduler=None,
         (f.result() for f in as_completed(futures))
     with open(results, "a") as fh:
         for rec in records:
+            if rec.get("code") != code_version():
+                raise InputError(f"unit {rec['index']} was made by other code "
+                                 f"({rec.get('code', 'unrecorded')}) than this mimunav's "
+                                 f"({code_version()}): run the same version on every worker")
             fh.write(json.dumps(rec) + "\n")
             fh.flush()
             done[rec["index"]] = rec

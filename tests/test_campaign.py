@@ -77,6 +77,30 @@ def test_campaign_resumes_and_is_reproducible(profile, tmp_path):
     assert set(stats) == {"traditional", "entire", "FOG-IMU"}
 
 
+def test_campaign_computes_again_the_units_of_other_code_and_refuses_a_workers(profile, tmp_path,
+                                                                             capsys):
+    """A results file resumed after the simulator changed: its units made by other code
+    (their `code` differs from `campaign.code_version()`) are computed again, with a
+    warning, not mixed with this code's; a unit handed back by a worker running other code
+    is refused before it is written."""
+    out = tmp_path / "a.jsonl"
+    first = campaign.run_campaign(profile, 1, 7, str(out), workers=1, progress=False)
+    assert first[0]["code"] == campaign.code_version()
+    old = dict(first[0], code="0123456789abcdef")
+    old["variants"] = {v: dict(r, norm_m=-1.0) for v, r in old["variants"].items()}
+    out.write_text(json.dumps(old) + "\n")
+    again = campaign.run_campaign(profile, 1, 7, str(out), workers=1, progress=False)
+    assert again == first and _lines(out) == first
+    assert "1 unit(s) were made by other code" in capsys.readouterr().err
+    from concurrent.futures import Future
+    foreign = Future()
+    foreign.set_result(dict(first[0], code="0123456789abcdef"))
+    with pytest.raises(ValueError, match="other code"):
+        campaign.run_campaign(profile, 1, 7, str(tmp_path / "b.jsonl"), progress=False,
+                              futures=[foreign])
+    assert _lines(tmp_path / "b.jsonl") == []
+
+
 def test_campaign_on_a_local_dask_cluster_and_a_callers_pool_matches_local_processes(profile, tmp_path):
     from dask.distributed import LocalCluster
     local = campaign.run_campaign(profile, 2, 3, str(tmp_path / "l.jsonl"), workers=2,
