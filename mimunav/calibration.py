@@ -57,6 +57,7 @@ import scipy.optimize
 from .compensation import Calibration, compensate, poly2
 from .effects import temperature_change
 from .flightlog import FlightLog
+from .sensors.noise import FLICKER_SPAN
 from .errors import InputError
 
 POSITION_NAMES = ["x up", "x down", "y up", "y down", "z up", "z down"]    # lab.SIX_POSITIONS
@@ -77,9 +78,9 @@ NOMINAL_SCALE = {"accel": G0 / 0.1, "gyro": DEG / 5e-3}     # (m/s^2)/V, (rad/s)
 NOMINAL_SCALE_TOLERANCE = 0.02       # 1 sigma, unit to unit (datasheet class, sensors.mimu)
 # Table 1 of seed S1: full scale (the stated minimum range) and scale-factor fit residuals
 # 1/f bias wander extends below any record: the covariance model integrates from
-# 1 / (FLICKER_SPAN_FACTOR x run length); slower wander is a near-constant offset that the
-# fitted bias absorbs, faster is modelled
-FLICKER_SPAN_FACTOR = 4.0
+# 1 / (FLICKER_SPAN_FACTOR x run length), as the noise models make it (sensors.noise.
+# FLICKER_SPAN); slower wander is a near-constant offset that the fitted bias absorbs
+FLICKER_SPAN_FACTOR = float(FLICKER_SPAN)
 TABLE1_FULL_SCALE = {"accel": 30 * G0, "gyro": 400 * DEG}
 TABLE1_RESIDUAL = {"accel": 0.05e-2, "gyro": 0.2e-2}       # fraction of full scale
 

@@ -6,7 +6,7 @@ N / sqrt(tau).
 flicker(B): bias instability with two-sided PSD S(f) = B^2 / (2 pi f) (IEEE 952 PSDs are
 two-sided: white noise S = N^2 gives sigma(tau) = N / sqrt(tau)), whose Allan deviation is
 flat at B sqrt(2 ln 2 / pi) = 0.664 B; generated in the frequency domain as shaped white
-noise (`flicker_axes`; exact PSD from below 1/(2 x record length) to Nyquist).
+noise (`flicker_axes`; the PSD from 1/(4 x record length) to Nyquist, FLICKER_SPAN).
 """
 import math
 import os
@@ -28,7 +28,8 @@ def white(rng, n, rate_hz, density):
 def flicker(rng, n, rate_hz, b):
     """Flicker (1/f) bias of instability coefficient b (per axis), shape (n, len(b)).
 
-    Two-sided PSD b^2 / (2 pi f), i.e. one-sided b^2 / (pi f), for 1/(n dt) <= f <= fs/2."""
+    Two-sided PSD b^2 / (2 pi f), i.e. one-sided b^2 / (pi f), for 1/(FLICKER_SPAN n dt)
+    <= f <= fs/2 (`flicker_axes`)."""
     b = np.atleast_1d(np.asarray(b, dtype=float))
     out = np.empty((n, len(b)))
     for i, x in enumerate(flicker_axes(rng, n, rate_hz, b)):
@@ -36,23 +37,40 @@ def flicker(rng, n, rate_hz, b):
     return out
 
 
-def flicker_axes(rng, n, rate_hz, b):
-    """`flicker`, one axis at a time (an iterator of (n,) arrays): a long record needs
-    about 5 x 8 n bytes of work memory per axis, not per triad.
+# 1/f wander extends below any record; a record's flicker is made from 1 / (FLICKER_SPAN x
+# its length) up: slower wander is a near-constant offset over it, which the sensor models
+# draw as the turn-on bias and the calibration's fits absorb in their bias (their flicker
+# covariance, `calibration.flicker_covariance`, starts at the same frequency)
+FLICKER_SPAN = 4
 
-    The first n samples of `flicker_periods` of m >= 2n samples. The synthesis makes a
-    process of period m; with m >= 2n the record is at most half a period, so its end is not
-    drawn back towards its start: with m = n, or the next power of two >= n used before
-    (1.006 n for 16 284 samples, 1.05 n for 10^6), the bias wandered from the record's first
-    tenth to its last by 0.61 of what the PSD says (tests/test_sensors.py, the wander test),
-    while the Allan deviation at tau = n/3 lost only 9 %. The spectrum so starts at
-    fs/m <= 1/(2 x record length); with m = 4n or 8n instead the same statistics moved by
-    less than their 3 % scatter. What lies below fs/m is nearly constant over the record:
-    an offset, which the sensor models draw as the turn-on bias. m is the least even length
-    >= 2n the FFT takes fast (`scipy.fft.next_fast_len`)."""
+
+def synthesis_length(n):
+    """The period m of the synthesis behind a record of n samples (`flicker_axes`): the
+    least even length >= 2n that the FFT takes fast (`scipy.fft.next_fast_len`: no prime
+    factor above 5)."""
     from scipy import fft           # here: 0.6 s of import that commands without noise skip
     m = fft.next_fast_len(2 * max(n, 1), real=True)
-    for x in flicker_periods(rng, m + m % 2, b):
+    while m % 2:
+        m = fft.next_fast_len(m + 1, real=True)
+    return m
+
+
+def flicker_axes(rng, n, rate_hz, b):
+    """`flicker`, one axis at a time (an iterator of (n,) arrays): a long record needs
+    about 4 x 8 n bytes of work memory per axis, not per triad.
+
+    The first n samples of `flicker_periods` over m = `synthesis_length(n)` >= 2n samples:
+    a line spectrum whose lowest line, at fs/m ~ 1/(2 T) for a record of length T, stands
+    for the band from 1/(FLICKER_SPAN T) = 1/(4 T) (the midpoint rule: the line spacing is
+    1/(2 T)). Why m >= 2n: the synthesis makes a process of period m, and a record that is
+    nearly a whole period has its end drawn back to its start - with m = n, or the next
+    power of two >= n used before (1.006 n for 16 284 samples), the bias wandered from the
+    record's first tenth to its last by 0.61 of what the PSD says. With m ~ 2n: 1.025 of
+    the PSD from 1/(4 T) (expected, from the line spectrum; 0.95 of the PSD extended to 0,
+    whose rest is the offset that FLICKER_SPAN leaves to the turn-on bias);
+    tests/test_sensors.py checks it."""
+    m = synthesis_length(n)
+    for x in flicker_periods(rng, m, b):
         yield x[:n].astype(float)
 
 
@@ -68,7 +86,8 @@ def flicker_periods(rng, m, b):
     single precision (relative error ~1e-7 of a noise, far below any ADC step)."""
     if m % 2:
         raise ValueError(f"flicker_periods: m = {m} must be even (a real Nyquist bin)")
-    # per part, sqrt(m fs/2 x S / b^2 / 2) at f_k = k fs / m: m / sqrt(4 pi k), fs cancels
+    # per part of bin k (f_k = k fs / m): sqrt(m fs/2 x S1(f_k) / 2) with the one-sided
+    # S1 = b^2 / (pi f) = 2 x the two-sided PSD: m b / sqrt(4 pi k), fs cancels
     amp = np.arange(m // 2 + 1, dtype=np.float32)
     amp[0] = np.inf                                             # no power at f = 0
     np.divide(np.float32(m), np.sqrt(np.float32(4 * math.pi) * amp), out=amp)
