@@ -65,10 +65,10 @@ def flicker_axes(rng, n, rate_hz, b):
     1/(2 T)). Why m >= 2n: the synthesis makes a process of period m, and a record that is
     nearly a whole period has its end drawn back to its start - with m = n, or the next
     power of two >= n used before (1.006 n for 16 284 samples), the bias wandered from the
-    record's first tenth to its last by 0.61 of what the PSD says. With m ~ 2n: 1.025 of
-    the PSD from 1/(4 T) (expected, from the line spectrum; 0.95 of the PSD extended to 0,
-    whose rest is the offset that FLICKER_SPAN leaves to the turn-on bias);
-    tests/test_sensors.py checks it."""
+    record's first tenth to its last by 0.67 of what the PSD from 1/(4 T) says (0.61 of the
+    PSD extended to 0). With m ~ 2n: 1.025 of the PSD from 1/(4 T) (expected, from the line
+    spectrum; 0.95 of the PSD extended to 0, whose rest is what FLICKER_SPAN leaves to the
+    turn-on bias); tests/test_sensors.py checks it."""
     m = synthesis_length(n)
     for x in flicker_periods(rng, m, b):
         yield x[:n].astype(float)
