@@ -77,10 +77,6 @@ INSTABILITY = {"accel": 0.5e-3 * G0, "gyro": 15 * DEG / 3600}
 NOMINAL_SCALE = {"accel": G0 / 0.1, "gyro": DEG / 5e-3}     # (m/s^2)/V, (rad/s)/V
 NOMINAL_SCALE_TOLERANCE = 0.02       # 1 sigma, unit to unit (datasheet class, sensors.mimu)
 # Table 1 of seed S1: full scale (the stated minimum range) and scale-factor fit residuals
-# 1/f bias wander extends below any record: the covariance model integrates from
-# 1 / (FLICKER_SPAN_FACTOR x run length), as the noise models make it (sensors.noise.
-# FLICKER_SPAN); slower wander is a near-constant offset that the fitted bias absorbs
-FLICKER_SPAN_FACTOR = float(FLICKER_SPAN)
 TABLE1_FULL_SCALE = {"accel": 30 * G0, "gyro": 400 * DEG}
 TABLE1_RESIDUAL = {"accel": 0.05e-2, "gyro": 0.2e-2}       # fraction of full scale
 
@@ -188,13 +184,14 @@ class LabRun:
                            np.array([w.k1 for w in self.windows]))
 
     def flicker(self):
-        """`flicker_covariance` of this run's windows, from 1 / (run length) to Nyquist
+        """`flicker_covariance` of this run's windows, from 1 / (FLICKER_SPAN x run length)
+        - slower wander is a near-constant offset that the fitted bias absorbs - to Nyquist
         (cached)."""
         if getattr(self, "_flicker", None) is None:
             t0 = np.array([w.t0 for w in self.windows])
             t1 = np.array([w.t1 for w in self.windows])
             rate = 1.0 / np.median(np.diff(self.t))
-            f_low = 1.0 / (FLICKER_SPAN_FACTOR * (self.t[-1] - self.t[0]))
+            f_low = 1.0 / (FLICKER_SPAN * (self.t[-1] - self.t[0]))
             self._flicker = flicker_covariance(t0, t1, f_low, rate / 2)
         return self._flicker
 
@@ -929,7 +926,7 @@ def fit_cold_start(run, unit=""):
 
     def bins(x):
         return slice_means(x, k0, k1)
-    flick = flicker_covariance(t0, t1, 1.0 / (FLICKER_SPAN_FACTOR * (run.t[-1] - run.t[0])),
+    flick = flicker_covariance(t0, t1, 1.0 / (FLICKER_SPAN * (run.t[-1] - run.t[0])),
                                0.5 / np.median(np.diff(run.t)))
     cal = Calibration(model="cold-start", unit=unit, procedure="cold-start (seed S3)",
                       A1=np.diag([NOMINAL_SCALE["accel"]] * 3),

@@ -201,13 +201,14 @@ def test_bias_tests_hold_their_level_on_units_of_the_class():
     """Means of a unit of the class (flicker wander at the class's zero drift, a turn-on
     offset of its spread, white noise), drawn from the class model itself: the offset and
     the wander tests each reject at most their nominal 1 % (binomial 3 sigma over 600)."""
-    from mimunav.calibration import FLICKER_SPAN_FACTOR, flicker_covariance
+    from mimunav.calibration import flicker_covariance
+    from mimunav.sensors.noise import FLICKER_SPAN
     rng = np.random.default_rng(3)
     t = np.arange(1.0, 120.0, outputs.SPAN_S)
     b, s0, white = outputs.CLASS_DRIFT["gyro"], 5e-5, 1e-11
     span = t[-1] - t[0] + outputs.SPAN_S
     cov = b ** 2 * flicker_covariance(t - outputs.SPAN_S / 2, t + outputs.SPAN_S / 2,
-                                      1 / (FLICKER_SPAN_FACTOR * span), 1 / outputs.FAST_S) \
+                                      1 / (FLICKER_SPAN * span), 1 / outputs.FAST_S) \
         + s0 ** 2 + white * np.eye(len(t))
     root = np.linalg.cholesky(cov)
     trials = 600

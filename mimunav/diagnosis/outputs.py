@@ -28,7 +28,8 @@ from functools import lru_cache
 import numpy as np
 from scipy import stats
 
-from ..calibration import FLICKER_SPAN_FACTOR, TURN_ON, flicker_covariance, standard_errors
+from ..calibration import TURN_ON, flicker_covariance, standard_errors
+from ..sensors.noise import FLICKER_SPAN
 from ..effects import AXES
 
 G0 = 9.80665
@@ -429,7 +430,7 @@ def _mean_correlations(t_bytes):
     t = np.frombuffer(t_bytes)
     span = float(t[-1] - t[0]) + SPAN_S
     flicker = flicker_covariance(t - SPAN_S / 2, t + SPAN_S / 2,
-                                 1.0 / (FLICKER_SPAN_FACTOR * span), 1.0 / FAST_S)
+                                 1.0 / (FLICKER_SPAN * span), 1.0 / FAST_S)
     corr = gm_mean_correlation(t, SPAN_S, GM_TAU_S)
     flicker.flags.writeable = corr.flags.writeable = False
     return flicker, corr
