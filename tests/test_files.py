@@ -2,6 +2,7 @@
 command did not write."""
 import os
 
+import numpy as np
 import pytest
 
 from mimunav.cli import main
@@ -163,6 +164,22 @@ def test_figures_drawn_by_a_child_arrive_before_the_commit_or_raise(tmp_path, mo
     painter.process.join()
     with pytest.raises(RuntimeError, match="ended early"):
         painter.wait()
+
+
+def test_a_figure_draws_a_screen_of_samples_with_the_last():
+    """`plots.on_screen`: what a line of n samples draws (and sends to the drawing process)
+    is every sample up to SCREEN_POINTS, else evenly strided samples - never more than twice
+    SCREEN_POINTS - from the first to the last (an error plot's end is its end-point
+    error)."""
+    from mimunav.reports.plots import SCREEN_POINTS, on_screen
+    assert len(on_screen(0)) == 0
+    for n in (1, 2, SCREEN_POINTS - 1, SCREEN_POINTS, SCREEN_POINTS + 1, 2 * SCREEN_POINTS + 7,
+              600_000, 682_001):
+        k = on_screen(n)
+        assert k[0] == 0 and k[-1] == n - 1 and np.all(np.diff(k) > 0)
+        assert len(k) == n if n <= SCREEN_POINTS else SCREEN_POINTS <= len(k) <= 2 * SCREEN_POINTS
+        step = np.diff(k[:-1])
+        assert len(step) == 0 or np.all(step == step[0])
 
 
 def test_the_drawing_child_ends_with_its_parent(tmp_path):

@@ -22,7 +22,7 @@ from ..diagnosis import library
 from ..diagnosis.inference import p_text
 from ..diagnosis.outputs import block_index
 from ..diagnosis.sensor import CHANNELS, CONDITIONS
-from .plots import Painter, figure, save
+from .plots import Painter, figure, on_screen, save
 
 CHANNEL_NAMES = [f"{s}.{a}" for s, a in CHANNELS]
 FILES = ("diagnosis.md", "diagnosis.json", "CAL+found.json", "residual-map.png",
@@ -68,19 +68,21 @@ def navigation_gain(flight, cal_found, model):
     """Position error (m, 3-D) against the truth (else the FOG-IMU) at the end and its
     maximum, for the model (`model`: a Future of what `model_navigation` returns, awaited
     once the found terms' navigation is done) and the model with the found terms
-    (`cal_found`, None: no found terms); and the series to plot."""
+    (`cal_found`, None: no found terms); and the series to plot, `plots.on_screen`'s
+    samples of them (time s since the first epoch, {name: 3-D error m})."""
     found = _navigated(flight, cal_found) if cal_found is not None else None
     t, ref, err = model.result()
     errors = {"model": err}
     if found is not None:
         errors["model+found"] = evaluation.resample(found, t).position_error(ref)
     out, series = {"reference": "truth" if flight.truth is not None else "FOG-IMU"}, {}
+    k = on_screen(len(t))
     for name, err in errors.items():
         norm = np.linalg.norm(err, axis=1)
         out[name] = {"end_m": float(norm[-1]), "max_m": float(norm.max()),
                      "end_enu_m": evaluation.ned_to_enu(err[-1]).tolist()}
-        series[name] = norm
-    return out, t, series
+        series[name] = norm[k]
+    return out, t[k] - t[0], series
 
 
 def write(out_dir, doc, diag, flight, cal, cal_found, cal_label, force=False, painter=None,
@@ -358,7 +360,7 @@ def _navigation(t, series, nav, png):
     plt, fig, axes = figure(1, 1, (9, 4))
     ax = axes[0, 0]
     for name, norm in series.items():
-        ax.plot(t - t[0], norm, label=name)
+        ax.plot(t, norm, label=name)
     ax.set_xlabel("time since the initial state, s")
     ax.set_ylabel(f"3-D position error vs {nav['reference']}, m")
     ax.legend()

@@ -139,6 +139,19 @@ def save(plt, fig, png, margins=None):
     os.replace(tmp, png)
 
 
+SCREEN_POINTS = 1500    # samples per line: about a figure's width in pixels (dpi 100)
+
+
+def on_screen(n):
+    """Indices of about SCREEN_POINTS of n samples, evenly strided, the last one included
+    (a line's end is its end-point error): what a figure of n samples draws, and what
+    travels to the drawing process, instead of every sample (a 10-minute 1 kHz flight's
+    600 000)."""
+    step = max(1, n // SCREEN_POINTS)
+    k = np.arange(0, n, step)
+    return k if n == 0 or k[-1] == n - 1 else np.append(k, n - 1)
+
+
 def navigation_errors(series, png, title="", painter=None):
     """series: {label: errors dict of `evaluation.errors` entries (position NED m, velocity
     NED m/s, attitude rad) with "t"}. East/north/up position and velocity errors and the
@@ -146,10 +159,9 @@ def navigation_errors(series, png, title="", painter=None):
     `Painter`) when given, else here."""
     lines = {}
     for label, err in series.items():
-        step = max(1, len(err["t"]) // 1500)          # a screen's worth of points per line
-        lines[label] = (err["t"][::step] - err["t"][0], ned_to_enu(err["position"][::step]),
-                        ned_to_enu(err["velocity"][::step]),
-                        np.degrees(ned_to_enu(err["attitude"][::step])))
+        k = on_screen(len(err["t"]))
+        lines[label] = (err["t"][k] - err["t"][0], ned_to_enu(err["position"][k]),
+                        ned_to_enu(err["velocity"][k]), np.degrees(ned_to_enu(err["attitude"][k])))
     (painter or Painter(fork=False)).draw(_navigation_errors, lines, png, title)
 
 
