@@ -80,6 +80,8 @@ def _cal_doc(**changes):
 
 @pytest.mark.parametrize("changes, message", [
     (dict(format="other/1"), "format is 'other/1'"),
+    (dict(format="mimunav-calibration/0"), "format is 'mimunav-calibration/0'"),  # older
+    (dict(format=None), "format is None"),
     (dict(model="quadratic"), "model 'quadratic' is not one of"),
     (dict(accel__A1=[[1, 0], [0, 1]]), r"accel.A1 has shape \(2, 2\), expected \(3, 3\)"),
     (dict(gyro__W0=[0, float("nan"), 0]), "gyro.W0 has non-finite values"),
