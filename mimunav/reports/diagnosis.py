@@ -69,7 +69,7 @@ def navigation_gain(flight, cal_found, model):
     maximum, for the model (`model`: a Future of what `model_navigation` returns, awaited
     once the found terms' navigation is done) and the model with the found terms
     (`cal_found`, None: no found terms); and the series to plot, `plots.on_screen`'s
-    samples of them (time s since the first epoch, {name: 3-D error m})."""
+    samples of them (time s since the initial state, {name: 3-D error m})."""
     found = _navigated(flight, cal_found) if cal_found is not None else None
     t, ref, err = model.result()
     errors = {"model": err}

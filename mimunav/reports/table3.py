@@ -63,10 +63,11 @@ def reproduce(out_dir="reports", seed=1, mc_units=16, workers=2, progress=True, 
             flight = evaluation.Flight.load(log_job.result()[0])
             steps.update()
             doc, budget = _flight_results(flight, cals, unit, profile, out_dir)
-            # the log lived in a folder removed below: say what it was, not where
+            # the log lived in a folder removed below: no path to it, but what it was
             for part in (doc, budget):
-                part["log"] = (f"{profile.name} flight simulated for unit {unit.name} (seed "
-                               f"{seed}) in a temporary folder, not kept")
+                part["log"] = None
+                part["log_note"] = (f"{profile.name} flight simulated for unit {unit.name} "
+                                    f"(seed {seed}) in a temporary folder, not kept")
             steps.update()
             records = campaign.run_campaign(scenario, mc_units, seed, str(results),
                                             progress=progress, futures=units)
