@@ -53,13 +53,13 @@ def zstd_alone(path, repeats=3):
         d = zstandard.ZstdDecompressor()
         return [d.decompress(c, max_output_size=len(r)) for c, r in part]
 
+    pairs = list(zip(packed, raw))
     times = {"compress": [], "decompress": []}
     with ThreadPoolExecutor(2) as pool:
         for _ in range(repeats):
             t0 = time.perf_counter()
             compressor.multi_compress_to_buffer(raw, threads=2)
             times["compress"].append(time.perf_counter() - t0)
-            pairs = list(zip(packed, raw))
             t0 = time.perf_counter()
             list(pool.map(unpack, (pairs[0::2], pairs[1::2])))
             times["decompress"].append(time.perf_counter() - t0)
