@@ -6,9 +6,10 @@ new right axis, roll about the new forward axis, giving q_nb for a body FRD fram
 """
 import math
 
-import numba
 import numpy as np
 import quaternion
+
+from .kernels import njit
 
 
 def from_euler(yaw, pitch, roll):
@@ -47,7 +48,7 @@ def rotate(q_ab, v_a):
     return out.reshape(shape + (3,))
 
 
-@numba.njit(cache=True, nogil=True)
+@njit(nogil=True)
 def _rotate(q, v, out):
     for k in range(v.shape[0]):
         n = 1.0 / math.sqrt(q[k, 0] ** 2 + q[k, 1] ** 2 + q[k, 2] ** 2 + q[k, 3] ** 2)
@@ -78,7 +79,7 @@ def turn_rate(t, q):
                           axis=1) / np.diff(t)
 
 
-@numba.njit(cache=True, inline="always")
+@njit(inline="always")
 def rotate_scalar(qw, qx, qy, qz, x, y, z):
     """Scalar core of `rotate` for compiled kernels: q * (x, y, z) * conj(q), q unit.
     v' = v + 2 w (u x v) + 2 u x (u x v), u = (qx, qy, qz)."""

@@ -15,7 +15,6 @@ resumed after the simulator changed computes its earlier units again rather than
 simulators' draws in one distribution, and a unit made by a worker running other code is
 refused.
 """
-import functools
 import hashlib
 import json
 import multiprocessing
@@ -28,6 +27,7 @@ import numpy as np
 from tqdm import tqdm
 
 from . import calibration, evaluation, lab, simulation
+from .kernels import code_version
 from .profile import Profile
 from .sensors import MimuUnit, Mounting
 from .simulation import GROUND_TEMPERATURE_C, MIMU_MOUNTING
@@ -145,19 +145,6 @@ def one_blas_thread():
     2 cores (the concealed-data suite: 33 s per recording against 9 s)."""
     from threadpoolctl import threadpool_limits
     threadpool_limits(1)
-
-
-@functools.lru_cache(maxsize=1)
-def code_version():
-    """16 hex digits of the SHA-256 of this package's Python sources (each file's path
-    relative to the package, then its bytes, in path order): units made by code that
-    differs anywhere differ here."""
-    root = Path(__file__).resolve().parent
-    digest = hashlib.sha256()
-    for path in sorted(root.rglob("*.py")):
-        digest.update(path.relative_to(root).as_posix().encode() + b"\0")
-        digest.update(path.read_bytes())
-    return digest.hexdigest()[:16]
 
 
 def unit_seed(seed, index):

@@ -571,8 +571,8 @@ def _invert_triad(p0, p1, p2, p3, y):
 def _newton_kernel():
     """`_newton_triad` compiled by numba on first use: only the simulation and the tests
     invert the compensation, and `compensate` need not import numba."""
-    import numba
-    return numba.njit(cache=True, nogil=True)(_newton_triad)
+    from .kernels import njit
+    return njit(nogil=True)(_newton_triad)
 
 
 def _newton_triad(p0, p1, p1_inv, p2, p3, y, v):

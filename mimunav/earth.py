@@ -9,8 +9,9 @@ Constants and the normal-gravity formulas are those of NIMA TR8350.2 (3rd ed., 2
 """
 import math
 
-import numba
 import numpy as np
+
+from .kernels import njit
 
 A = 6378137.0                        # semi-major axis, m                 (TR8350.2 tab 3.1)
 F = 1 / 298.257223563                # flattening                          (tab 3.1)
@@ -23,7 +24,7 @@ K_SOMIGLIANA = 0.00193185265241      # Somigliana constant                 (tab 
 M_RATIO = OMEGA**2 * A**2 * B / GM   # m = w^2 a^2 b / GM                  (tab 3.4)
 
 
-@numba.njit(cache=True, inline="always")
+@njit(inline="always")
 def gravity_from_sin2(s2, h):
     """Normal gravity, m/s^2, from sin^2(lat) and h (m): the core of `normal_gravity`, for
     scalars in the navigator's kernel (numba) and arrays through its `py_func` (numpy)."""
@@ -31,7 +32,7 @@ def gravity_from_sin2(s2, h):
     return g0 * (1.0 - 2.0 / A * (1.0 + F + M_RATIO - 2.0 * F * s2) * h + 3.0 * h * h / (A * A))
 
 
-@numba.njit(cache=True, inline="always")
+@njit(inline="always")
 def radii_from_sin2(s2):
     """(R_N, R_E), m, from sin^2(lat): the core of `radii` (scalars in numba, arrays through
     its `py_func`). One division: 1/sqrt(w2), which is also gravity's (`gravity_from_sin2`)
@@ -73,14 +74,14 @@ def radii(lat):
     return radii_from_sin2.py_func(_sin2(lat))
 
 
-@numba.njit(cache=True, inline="always")
+@njit(inline="always")
 def nav_rates(lat, h, vn, ve):
     """Scalar core: `nav_rates_at` at latitude lat (rad) - its last two values are the
     position rates per unit velocity, not the radii (`radii` gives those)."""
     return nav_rates_at(math.sin(lat), math.cos(lat), h, vn, ve)
 
 
-@numba.njit(cache=True, inline="always")
+@njit(inline="always")
 def nav_rates_at(sl, cl, h, vn, ve):
     """Scalar core: Earth rate w_ie^n and transport rate w_en^n in NED (rad/s), gravity
     (m/s^2, down) and the position rates per unit velocity, at the latitude whose sine and

@@ -29,12 +29,12 @@ import math
 import tomllib
 from dataclasses import dataclass, field
 
-import numba
 import numpy as np
 import quaternion
 from scipy.interpolate import PPoly
 
 from .truth import Kinematics, Motion
+from .kernels import njit
 from .errors import InputError
 
 G0 = 9.80665        # standard gravity, m/s^2: the unit of load factors and accel_g
@@ -366,7 +366,7 @@ class ProfileMotion(Motion):
         return Kinematics(v, a, quaternion.as_quat_array(q), w, dw)
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@njit(nogil=True, error_model="numpy")
 def _euler_kinematics(t, knots, c, v_ned, a_ned, q_nb, w_nb, dw_nb):
     """Channels (V, gamma, chi, phi) and two derivatives by Horner's rule on the piecewise
     polynomial (its interval: the previous time's when it holds t, else found by bisection;

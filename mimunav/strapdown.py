@@ -29,11 +29,11 @@ channel with a critically damped second-order loop of time constant `h_aid_tau` 
 """
 import math
 
-import numba
 import numpy as np
 import quaternion
 
 from . import attitude, earth
+from .kernels import njit
 from .trajectory import Trajectory
 from .errors import InputError
 
@@ -185,7 +185,7 @@ def _checked_inputs(t, dtheta, dv, check_units, t_prev=None, median=True):
     return t, dtheta, dv
 
 
-@numba.njit(cache=True, nogil=True)
+@njit(nogil=True)
 def _scan(t, dth, dv, max_rate, max_force):
     """First problem in the inputs: (code, sample, value); code 0 = none.
     Codes: 1 t not finite, 2 dtheta not finite, 3 dv not finite, 4 time not increasing,
@@ -248,7 +248,7 @@ _LAT_CELLS = 2048.0
 # latitude sine and cosine series rather than library calls: the divider's and the calls'
 # throughput bounded the kernel (alone, on 1e6 samples of bench/strapdown.py's flight at
 # 1 kHz: 8.7 -> 13.3 M samples/s; with the Earth model replaced by constants, 18).
-@numba.njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract"})
+@njit(nogil=True, error_model="numpy", fastmath={"contract"})
 def _navigate(t, t_prev, dth, dvb, state, two_sample, h_ref, k1, k2, lat, lon, h, v, q):
     """Scalar kernel of `Navigator.step`; fills lat, lon, h, v, q (N rows, the states at the
     samples t, s; t_prev: the time of the state in `state`) from the memory in `state`

@@ -17,11 +17,11 @@ from collections import deque
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 import quaternion
 
 from . import attitude, earth
+from .kernels import njit
 from .trajectory import Trajectory
 from .errors import InputError
 
@@ -82,7 +82,7 @@ def integrate_position(motion, t, kin=None, start=None):
     return lat, lon, h
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@njit(nogil=True, error_model="numpy")
 def _geodetic_steps(d, h, lat0, lon0, lat, lon):
     """lat, lon (rad) at the steps' ends from lat0, lon0 and the NED displacements d (m,
     (N-1, 3)) at heights h (m, N): dlat = d_N / (R_N + h), dlon = d_E / ((R_E + h) cos lat)
@@ -124,7 +124,7 @@ def body_rate_and_specific_force(lat, h, kin):
     return w_ib, f_b
 
 
-@numba.njit(cache=True, nogil=True)
+@njit(nogil=True)
 def _imu_signals(lat, h, v, a, q, w_nb, w_ib, f_b):
     for k in range(lat.shape[0]):
         ie_n, ie_d, en_n, en_e, en_d, g, _, _ = earth.nav_rates(lat[k], h[k], v[k, 0],
@@ -219,7 +219,7 @@ def generate(motion, t, start=None):
     return TruthRun(truth, dtheta, dv, w_samples, ww)
 
 
-@numba.njit(cache=True, nogil=True)
+@njit(nogil=True)
 def _accumulate(k_node, weights, w_ib, f_b, dtheta, dv, ww):
     """Quadrature sums over the nodes of interval k: dtheta[k] += c w_ib, dv[k] += c f_b,
     ww[k] += c w_ib w_ib^T (c the node's weight)."""
@@ -232,7 +232,7 @@ def _accumulate(k_node, weights, w_ib, f_b, dtheta, dv, ww):
                 ww[k, i, m] += c * w_ib[j, i] * w_ib[j, m]
 
 
-@numba.njit(cache=True, nogil=True)
+@njit(nogil=True)
 def _hermite_position(t, lat, lat_rate, h, v_ned, k_node, tq):
     """Latitude and height at times tq inside intervals k_node, by cubic Hermite
     interpolation with the exact rates lat' = v_N / (R_N + h) (lat_rate, rad/s, at t),

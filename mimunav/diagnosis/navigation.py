@@ -25,7 +25,6 @@ confirmation and block-bootstrap stability are those of the sensor level (`senso
 """
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 import quaternion
 from scipy import stats
@@ -33,6 +32,7 @@ from scipy import stats
 from .. import earth, effects
 from ..effects import Conditions
 from ..evaluation import compensated_mimu, navigate_mimu, resample
+from ..kernels import njit
 from . import inference, library, sensor
 from .inference import Tier
 from .reference import DERIVATIVE_WINDOW_S
@@ -105,7 +105,7 @@ class ErrorModel:
         return out
 
 
-@numba.njit(cache=True, nogil=True)
+@njit(nogil=True)
 def _schuler(drive_phi, drive_v, f_n, dt, radius, w_ie, out):
     """The phi-angle error equations of `ErrorModel.velocity`, bin by bin: phi and dv carry
     each other (transport-rate error, f x phi), the down error its gravity gradient; out

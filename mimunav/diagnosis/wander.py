@@ -20,14 +20,15 @@ import math
 import os
 from concurrent.futures import ThreadPoolExecutor
 
-import numba
 import numpy as np
+
+from ..kernels import njit
 
 LAMBDA_GRID = np.geomspace(1e-9, 1e-1, 17)   # q / r per bin, searched by profile likelihood
 DIFFUSE = 1e8                                  # initial bias variance over r (diffuse start)
 
 
-@numba.njit(cache=True, nogil=True)
+@njit(nogil=True)
 def _innovations(cols, present, lam):
     """Standardized innovations (m - 1, k) of every column at the present rows after the
     first (the diffuse start's) and their innovation variances over r (m - 1,), m the number

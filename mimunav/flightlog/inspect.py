@@ -1,10 +1,10 @@
 """`mimunav info`: a log's channels, rates, gaps, dropped samples and metadata."""
 import math
 
-import numba
 import numpy as np
 
 from . import schemas
+from ..kernels import njit
 
 
 RATE_RUN = 200          # steps: a different sampling period held this long is a new rate
@@ -97,7 +97,7 @@ def missing_samples(t, smoothing=0.02):
     return out
 
 
-@numba.njit(cache=True)
+@njit()
 def _empty_slots(rel, period, smoothing):
     """Per step k -> k + 1, the empty grid slots between the two stamps."""
     gaps = np.zeros(len(rel) - 1, np.int64)

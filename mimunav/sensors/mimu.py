@@ -55,12 +55,12 @@ import json
 import math
 from dataclasses import dataclass, field
 
-import numba
 import numpy as np
 
 from .. import compensation
 from ..compensation import Calibration
 from ..files import write_atomic
+from ..kernels import njit
 from . import noise, response
 from .hidden import HiddenPhysics, HiddenSet
 from .mounting import Mounting
@@ -438,7 +438,7 @@ _TRIADS = ("accel_volts", "gyro_volts", "accel_temperature", "gyro_frequency",
 _DTYPES = {"sample_index": np.uint64, "saturated": bool}
 
 
-@numba.njit(cache=True, nogil=True)
+@njit(nogil=True)
 def _saturated(x, limit):
     """(x clipped to +-limit, whether a sample had an axis beyond it); x (N, 3). NaN stays."""
     out = np.empty_like(x)

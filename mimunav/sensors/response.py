@@ -35,8 +35,9 @@ and misses, by construction of a real sensor rather than of the model:
 """
 from dataclasses import dataclass
 
-import numba
 import numpy as np
+
+from ..kernels import njit
 
 
 @dataclass(frozen=True)
@@ -86,7 +87,7 @@ def raw_output(coefficients, f, w, accel_temperature, gyro_frequency, f_gyro):
     return accel.volts(f, accel_temperature), gyro.volts(sensed_rate, gyro_frequency)
 
 
-@numba.njit(cache=True, nogil=True)
+@njit(nogil=True)
 def _volts(x, temp, null, sens, n2, n3, thermal):
     """`TriadResponse.volts` sample by sample (one pass, no temporaries)."""
     u = np.empty_like(x)

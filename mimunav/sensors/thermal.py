@@ -16,8 +16,9 @@ from dataclasses import asdict, dataclass
 
 import math
 
-import numba
 import numpy as np
+
+from ..kernels import njit
 
 ISA_LAPSE = 0.0065          # K/m, ISA troposphere
 BAY_TAU_S = 900.0           # s, equipment-bay lag behind the outside air (datasheet class)
@@ -36,7 +37,7 @@ def first_order_lag(t, u, tau, y0):
     return y.reshape(u.shape)
 
 
-@numba.njit(cache=True, nogil=True)
+@njit(nogil=True)
 def _lag(t, u, tau, y0, y):
     m = u.shape[1]
     gain = np.empty(m)

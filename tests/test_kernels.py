@@ -1,0 +1,66 @@
+"""Compiled kernels and their on-disk cache (`mimunav.kernels`)."""
+import os
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import mimunav
+from mimunav import kernels
+
+# the height after T s at rest from 100 m up, through the navigator (strapdown._navigate
+# inlines earth.nav_rates_at, whose gravity takes GAMMA_E as a compile-time constant)
+AT_REST = """
+import numpy as np
+from mimunav import strapdown
+n, rate = 1000, 100.0
+t = np.arange(1, n + 1) / rate
+dv = np.zeros((n, 3))
+dv[:, 2] = -9.80 / rate
+nav = strapdown.integrate(t, np.zeros((n, 3)), dv, dict(t=0.0, lat=0.7, lon=0.1, h=100.0,
+                          v_ned=[0.0, 0.0, 0.0], q_nb=[1.0, 0.0, 0.0, 0.0]))
+print(repr(float(nav.h[-1])))
+"""
+
+
+def _height_at_rest(package_parent):
+    env = {k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"}   # the in-tree cache
+    env["PYTHONPATH"] = str(package_parent)
+    out = subprocess.run([sys.executable, "-c", AT_REST], env=env, capture_output=True,
+                         text=True, check=True, cwd=package_parent)
+    return float(out.stdout)
+
+
+def test_an_edit_of_an_inlined_callee_compiles_its_caller_again(tmp_path):
+    """numba checks a cached kernel against its own file: with earth.py edited and
+    strapdown.py not, the navigator kept the old gravity from its cache. The kernels are
+    cached per version of the whole package: the edit takes effect at once, as the closed
+    form says (free fall from rest under g + dg: h drops by dg T^2 / 2 more)."""
+    copy = tmp_path / "mimunav"
+    shutil.copytree(Path(mimunav.__file__).parent, copy,
+                    ignore=shutil.ignore_patterns("__pycache__"))
+    before = _height_at_rest(tmp_path)
+    earth = copy / "earth.py"
+    source = earth.read_text()
+    line = "GAMMA_E = 9.7803253359"
+    assert source.count(line) == 1
+    earth.write_text(source.replace(line, "GAMMA_E = 9.8803253359"))     # 0.1 m/s^2 more
+    after = _height_at_rest(tmp_path)
+    dg, duration = 0.1, 10.0     # m/s^2 (x 1.002, normal gravity's factor at 40 deg), s
+    assert abs((before - after) - dg * duration**2 / 2) < 0.01 * dg * duration**2 / 2
+    assert len(list((copy / "__pycache__").glob(kernels.PREFIX + "*"))) == 2
+
+
+def test_only_versions_unused_for_a_week_are_removed(tmp_path):
+    current = tmp_path / (kernels.PREFIX + "now")
+    old, recent, other = (tmp_path / (kernels.PREFIX + "old"),
+                          tmp_path / (kernels.PREFIX + "recent"), tmp_path / "old-other")
+    for folder, days in ((current, 30), (old, kernels.STALE_DAYS + 1), (recent, 1), (other, 30)):
+        folder.mkdir()
+        (folder / "kernel.nbc").write_bytes(b"x")
+        stamp = time.time() - days * 86400.0
+        os.utime(folder, (stamp, stamp))
+    kernels._prune(current)
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(
+        p.name for p in (current, recent, other))
