@@ -63,8 +63,10 @@ def _simulate(args):
     from .profile import Profile
     from .sensors import MimuUnit
     from .sensors.hidden import parse_term
-    from .simulation import simulate_flight
+    from .files import refuse_inputs
+    from .simulation import simulate_flight, truth_file
     try:
+        refuse_inputs([args.output, truth_file(args.output)], [args.profile, args.unit])
         profile = Profile.load(args.profile)
         unit = MimuUnit.load(args.unit) if args.unit else None
         hide = [parse_term(text) for text in args.hide]
@@ -97,13 +99,13 @@ def _simulate(args):
                                                              / 3600),
                                 encoder_seed=args.seed,
                                 lever_arm_m=tuple(args.platform_lever_arm_m or (0.0,) * 3))
-        log, truth_file = simulate_flight(profile, args.output, args.seed, unit=unit,
-                                          fog_rate=args.fog_rate, force=args.force, hide=hide,
-                                          platform=platform)
+        log, truth = simulate_flight(profile, args.output, args.seed, unit=unit,
+                                     fog_rate=args.fog_rate, force=args.force, hide=hide,
+                                     platform=platform)
     except (OSError, InputError) as exc:
         print(f"mimunav simulate: {exc}", file=sys.stderr)
         return 2
-    print(f"wrote {log}\nwrote {truth_file} (the unit's true coefficients: keep it apart "
+    print(f"wrote {log}\nwrote {truth} (the unit's true coefficients: keep it apart "
           "from the log to diagnose blind)")
     return 0
 
@@ -169,10 +171,13 @@ def _unit(args):
 def _lab(args):
     """Run a calibration-lab procedure on a unit and record it as a log."""
     from . import lab
+    from .files import refuse_inputs
     from .sensors import MimuUnit
-    log, truth_file = lab.run(lab.plan(args.procedure), MimuUnit.load(args.unit), args.output,
+    from .simulation import truth_file
+    refuse_inputs([args.output, truth_file(args.output)], [args.unit])
+    log, truth = lab.run(lab.plan(args.procedure), MimuUnit.load(args.unit), args.output,
                               args.seed, force=args.force)
-    print(f"wrote {log}\nwrote {truth_file} (unit and drawn setting errors)")
+    print(f"wrote {log}\nwrote {truth} (unit and drawn setting errors)")
     return 0
 
 
@@ -188,18 +193,13 @@ def _drift(args):
 
 def _calibration_compare(args):
     """A fitted calibration against the unit's truth file, coefficient by coefficient."""
-    import json
-
     from .compensation import Calibration
+    from .files import read_json
     from .reports.calibration import compare
     from .sensors import MimuUnit
     from . import rotation_calibration
     unit = MimuUnit.load(args.unit)
-    try:
-        with open(args.fit) as fh:
-            doc = json.load(fh)
-    except (OSError, ValueError) as exc:
-        raise InputError(f"{args.fit}: cannot read a calibration file ({exc})") from None
+    doc = read_json(args.fit, "calibration file")
     if isinstance(doc, dict) and doc.get("model") == rotation_calibration.MODEL:
         rows, families = rotation_calibration.compare(
             rotation_calibration.RotationCalibration.from_dict(doc, args.fit), unit)
@@ -238,6 +238,8 @@ def _span(text):
 def _calibrate(args):
     """Fit a calibration method to lab runs and write the calibration file."""
     from .calibration import calibrate, standard_errors
+    from .files import refuse_inputs
+    refuse_inputs([args.output], [*args.runs, args.noise])
     noise = None
     if args.noise:
         from .reports.noise import load
@@ -453,7 +455,7 @@ IMPORT_OPTIONS = {
     "fix_topic": (("ros2",), None), "pose_topic": (("ros2",), None), "origin": (("ros2",), None),
     "reference_status": (("ros2",), None), "reference_sigma": (("ros2",), np.inf),
     "reference_imu_topic": (("ros2",), None), "reference_imu_rpy_deg": (("ros2",), None),
-    "solutions": (("rtklib",), ["fix"])}
+    "solutions": (("rtklib",), ["fix"]), "root": (("table",), None)}
 
 
 def _refuse_foreign_options(args, options):
@@ -490,7 +492,7 @@ def _import(args):
                                                 if args.reference_imu_rpy_deg else None))
     elif args.kind == "table":
         from .importers import table
-        rec = table.read(args.source, mounting=mounting)
+        rec = table.read(args.source, mounting=mounting, root=args.root)
     elif args.kind == "dataflash":
         from .importers import dataflash
         rec = dataflash.read(args.source, mounting=mounting, instance=args.imu_instance or 0,
@@ -516,6 +518,8 @@ def _import(args):
     print(f"wrote {args.output}: {len(rec.imu_ns)} IMU samples at {rates} Hz"
           + (f", {len(rec.reference['ns'])} reference epochs" if rec.reference else "")
           + (f", {len(rec.fixes['ns'])} GNSS fixes" if rec.fixes else ""))
+    for key, value in rec.assumed.items():      # what is not measured, said where it is made
+        print(f"assumed {key}: {value}")
     print(f"initial state at t = {align.t:.3f} s: {align.method}")
     if np.isnan(align.static[0]) and np.any(align.gyro_bias):
         print("biases from the reference's attitude and velocity (sensor axes): gyro "
@@ -555,18 +559,23 @@ def _windows(args):
     return 0
 
 
-def _variants(specs):
-    from .compensation import Calibration
-    cals = {}
+def _variant_paths(specs):
+    """{label: calibration path} of --cal LABEL=FILE (or FILE, labelled by its stem)."""
+    paths = {}
     for spec in specs:
         name, sep, path = spec.partition("=")
         if not sep:
             name, path = Path(spec).stem, spec
-        if name in cals:
+        if name in paths:
             raise InputError(f"two calibrations are labelled {name!r}: give each its own "
                              "label (--cal LABEL=FILE)")
-        cals[name] = Calibration.load(path)
-    return cals
+        paths[name] = path
+    return paths
+
+
+def _variants(specs):
+    from .compensation import Calibration
+    return {name: Calibration.load(path) for name, path in _variant_paths(specs).items()}
 
 
 def _table(args):
@@ -574,16 +583,18 @@ def _table(args):
     import json
 
     from . import evaluation
-    from .files import write_atomic
+    from .files import refuse_inputs, write_atomic
+    written = [args.output + ext for ext in (".md", ".csv", ".json")] if args.output else []
+    refuse_inputs(written, [args.log, *_variant_paths(args.cal).values()])
+    for path in written:                                        # before the work
+        if Path(path).exists() and not args.force:
+            raise FileExistsError(f"{path} exists; use --force")
     flight = evaluation.Flight.load(args.log, stream=True)      # bounded memory
     doc = evaluation.table(flight, _variants(args.cal), args.end, check=True)
     text = evaluation.table_markdown(doc)
     if args.output:
         outputs = {".md": text, ".csv": evaluation.table_csv(doc),
                    ".json": json.dumps(doc, indent=1) + "\n"}
-        for ext in outputs:
-            if Path(args.output + ext).exists() and not args.force:
-                raise FileExistsError(f"{args.output + ext} exists; use --force")
         for ext, content in outputs.items():
             write_atomic(args.output + ext, content, force=args.force)
     print(text, end="")
@@ -941,6 +952,8 @@ def build_parser():
                    choices=("fix", "float", "sbas", "dgps", "single", "ppp"),
                    help="rtklib: the solution kinds (RTKLIB Q) that serve as the reference "
                    "(default fix; every epoch is kept in /gnss/fix with its sigmas)")
+    p.add_argument("--root", metavar="DIR", help="table: the folder of the spec's data files "
+                   "(default: the spec's `root`, relative to the spec file)")
     p.add_argument("--force", action="store_true", help="replace an existing output")
     p.set_defaults(func=_import)
     p = sub.add_parser("windows", help="free-inertial windows of 10/30/60 s restarted from the "

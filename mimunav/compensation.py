@@ -33,7 +33,7 @@ import numpy as np
 from . import effects
 from .effects import Conditions, temperature_change
 from .effects import apply as apply_effects
-from .files import write_atomic
+from .files import read_json, write_atomic
 from .errors import InputError
 
 FORMAT = "mimunav-calibration/1"
@@ -178,12 +178,8 @@ class Calibration:
 
     @classmethod
     def load(cls, path):
-        try:
-            with open(path) as fh:
-                doc = json.load(fh)
-        except json.JSONDecodeError as exc:
-            raise CalibrationError(f"{path}: not valid JSON ({exc})") from None
-        return cls.from_dict(doc, source=str(path))
+        return cls.from_dict(read_json(path, "calibration file", CalibrationError),
+                             source=str(path))
 
     def as_dict(self):
         doc = {"format": FORMAT, "model": self.model, "unit": self.unit,
@@ -229,7 +225,10 @@ class Calibration:
 
 def _array(value, shape, where):
     try:
-        arr = np.asarray(value, dtype=float)
+        arr = np.asarray(value)
+        if arr.dtype.kind not in "iuf":         # JSON numbers only: "0.1" is text, not 0.1
+            raise TypeError
+        arr = arr.astype(float)
     except (TypeError, ValueError):
         raise CalibrationError(f"{where} is not numeric: {value!r}") from None
     if arr.shape != shape:
@@ -265,6 +264,9 @@ def compensate(cal, accel_volts, gyro_volts, accel_temperature, gyro_frequency,
     samples are a block of it (`compensate_log`): the wild-value filter's noise level and
     the clipping extremes are then the record's, as if it were compensated whole.
     """
+    if cal is None:
+        raise CalibrationError("the MIMU is recorded raw (/mimu/raw: volts and frequencies); "
+                               "its calibration is needed to compensate it (--cal CAL.json)")
     chans = [np.ascontiguousarray(x, dtype=float) for x in
              (accel_volts, gyro_volts, accel_temperature, gyro_frequency)]
     n = len(chans[0])

@@ -96,8 +96,9 @@ class Flight:
             needed = (mimu_topic, "/fog/imu") if reference_imu else (mimu_topic,)
             for topic in needed:
                 if topic not in log.channels:
-                    raise LogError(f"{path}: no {topic} channel; replay compares the MIMU with "
-                                   "the FOG-IMU flown with it (channels: "
+                    what = "the MIMU's outputs" if topic == mimu_topic else \
+                        "the FOG-IMU flown with the MIMU (the reference IMU)"
+                    raise LogError(f"{path}: no {topic} channel, which holds {what} (channels: "
                                    f"{', '.join(sorted(log.channels))})")
             epoch = int(flight["epoch_unix_ns"])
             long_log = mimu_topic == "/mimu/raw" and (log.count("/mimu/raw") or 0) > STREAM_ABOVE
@@ -895,7 +896,11 @@ def error_budget(flight, cal, end=None):
 
 
 def budget_markdown(doc):
-    lines = ["| calibration | east m | north m | up m | 3-D m | group worth (3-D, m) |",
+    against = ("the truth (/truth/state)" if doc["reference"] == "truth" else
+               "the FOG-IMU's own solution (no /truth/state in this log)")
+    lines = [f"End-point error of the MIMU at t = {doc['end_t_s']:.2f} s against {against}, "
+             "east/north/up:", "",
+             "| calibration | east m | north m | up m | 3-D m | group worth (3-D, m) |",
              "|---|---|---|---|---|---|"]
     for name, row in doc["variants"].items():
         e = row["enu_m"]

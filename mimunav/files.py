@@ -1,11 +1,28 @@
 """Output files written atomically: a temporary file beside the target, renamed over it on
 success, so a crash or an error never leaves a half-written file, and an existing file is
 never replaced unless the caller forces it."""
+import json
 import os
 import shutil
 import tempfile
 from contextlib import contextmanager
 from pathlib import Path
+
+from .errors import InputError
+
+
+def read_json(path, what, error=InputError):
+    """The JSON document in the file at path, or `error` (an InputError) in one line naming
+    what the file should have been ("calibration file"): unreadable, not UTF-8 text (an
+    MCAP or other binary file given in its place), or not JSON."""
+    try:
+        with open(path, encoding="utf-8") as fh:
+            return json.load(fh)
+    except UnicodeDecodeError:
+        raise error(f"{path}: not a {what} - not text, let alone JSON (a binary file such "
+                    "as a log given in its place?)") from None
+    except (OSError, json.JSONDecodeError) as exc:
+        raise error(f"{path}: cannot read a {what} ({exc})") from None
 
 
 def temporary_beside(path, suffix):

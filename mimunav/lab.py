@@ -72,7 +72,7 @@ from .flightlog import schemas as S
 from .profile import G0, Ramp, rate_ppoly
 from .sensors import Mounting
 from .modulation import ENCODER_RESOLUTION_RAD
-from .simulation import DEFAULT_EPOCH, epoch_ns
+from .simulation import DEFAULT_EPOCH, epoch_ns, new_outputs
 from .errors import InputError
 
 SITE = {"latitude": math.radians(31.47), "longitude": math.radians(104.68), "height": 480.0}
@@ -412,10 +412,7 @@ def run(plan_, unit, out, seed, force=False, progress=True, equipment=None, hidd
     .truth.json beside it: the unit and the drawn setting errors). `equipment` replaces
     the setting-error specification `EQUIPMENT` (1 sigma); `hidden` is passed to
     `MimuUnit.simulate` (physics the 63-coefficient model lacks). Returns (log, truth)."""
-    truth_path = (str(out)[:-5] if str(out).endswith(".mcap") else str(out)) + ".truth.json"
-    for path in (out, truth_path):
-        if os.path.exists(path) and not force:
-            raise FileExistsError(f"{path} exists; use --force to replace it")
+    truth_path = new_outputs(out, force)
     eq = EQUIPMENT if equipment is None else equipment
     errors = draw_setting_errors(plan_, seed, eq)
     segments, states = lab_motion(plan_, errors, progress)

@@ -176,6 +176,21 @@ def record_flight(fm, unit, fog, rng_mimu, rng_fog, hidden=None, warm_up_s=0.0):
     return raw, fog.simulate(*fm.fog, rng_fog)
 
 
+def truth_file(log):
+    """The truth file written beside a simulated log: LOG.mcap -> LOG.truth.json."""
+    log = str(log)
+    return (log[:-5] if log.endswith(".mcap") else log) + ".truth.json"
+
+
+def new_outputs(log, force):
+    """The truth file's path (`truth_file`) of a log about to be written, both refused when
+    they exist unless force."""
+    for path in (log, truth_file(log)):
+        if os.path.exists(path) and not force:
+            raise FileExistsError(f"{path} exists; use --force to replace it")
+    return truth_file(log)
+
+
 def simulate_flight(profile, out, seed, unit=None, fog_rate=1000.0, truth_rate=100.0,
                     force=False, progress=True, hidden=None, hide=(),
                     ground_temperature_c=GROUND_TEMPERATURE_C, fog_grade="table4",
@@ -188,10 +203,7 @@ def simulate_flight(profile, out, seed, unit=None, fog_rate=1000.0, truth_rate=1
     `flight_motion`, `flight_units`, `record_flight`; `platform` (`modulation.Platform`):
     the MIMU turns on it, its angle logged as /mimu/platform. Returns (log path, truth
     path)."""
-    truth_path = (str(out)[:-5] if str(out).endswith(".mcap") else str(out)) + ".truth.json"
-    for path in (out, truth_path):
-        if os.path.exists(path) and not force:
-            raise FileExistsError(f"{path} exists; use --force to replace it")
+    truth_path = new_outputs(out, force)
     unit, fog, rng_mimu, rng_fog = flight_units(seed, unit, fog_rate, fog_grade)
     if platform is not None and platform.mode != "fixed" and \
             platform.rate_rad_s >= 0.5 * unit.range_gyro:

@@ -41,8 +41,10 @@ class TrackMotion(Motion):
         yaw, pitch = _yaw_pitch(v)
         moving = np.hypot(v[:, 0], v[:, 1]) >= HOLD_SPEED
         if not moving.any():
-            raise InputError(f"the reference never moves faster than {HOLD_SPEED:g} m/s (peak "
-                             f"{np.hypot(v[:, 0], v[:, 1]).max():.2g} m/s): the track level "
+            raise InputError(f"the reference never moves faster than {HOLD_SPEED:g} m/s "
+                             f"horizontally in its smoothed velocity (peak "
+                             f"{np.hypot(v[:, 0], v[:, 1]).max():.2g} m/s; recorded "
+                             f"{np.hypot(v_ned[:, 0], v_ned[:, 1]).max():.2g}): the track level "
                              "models a land vehicle whose attitude follows its course, so it "
                              "does not apply here (it does not read a reference's own attitude)")
         first = np.argmax(moving)

@@ -88,6 +88,7 @@ def _cal_doc(**changes):
     (dict(gyro__W1=[[1, 2, 3], [2, 4, 6], [0, 0, 1]]), "W1 is singular"),
     (dict(accel__A7=[0, 0, 0]), r"keys \['A7'\]"),
     (dict(accel__ct="hot"), "accel.ct is not numeric|accel.ct has shape"),
+    (dict(gyro__W0=["0.1", "0", "0"]), "gyro.W0 is not numeric"),   # text, read as 0.1 before
     (dict(accel=None), "accel.A1 is required"),
 ])
 def test_malformed_calibration_files_say_what_is_wrong(changes, message):

@@ -473,6 +473,31 @@ def test_a_term_inside_the_stated_reference_accuracy_is_listed_not_charged():
     assert label in [w["label"] for w in diag.within_reference]
 
 
+def test_navigation_level_claims_nothing_it_could_not_test():
+    """The foreign flights without their reference IMU, at the navigation level (a new
+    user's trial): foreign-02's g-sensitivity acts in the one boost, whose training segment
+    chose a term that the held-out segments can neither confirm nor refute; foreign-01's
+    holds on the held-out segments but the bootstrap does not choose it. Both said
+    'no-missing-physics' and conclusive; both are inconclusive now (contract verdict
+    unexplained-residual) with the reason, while the effect-free foreign-05 keeps its clean
+    bill."""
+    from mimunav.diagnosis import navigation, sensor
+    from mimunav.evaluation import Flight
+    if not os.path.isdir(FOREIGN):
+        pytest.skip("shared/data/foreign-flights is not beside the repository")
+    verdicts = {}
+    for n in (1, 2, 5):
+        base = os.path.join(FOREIGN, f"foreign-{n:02d}")
+        diag = navigation.diagnose(Flight.load(base + ".mcap", reference_imu=False),
+                                   Calibration.load(base + ".cal.json"))
+        verdicts[n] = (sensor.verdict(diag), diag.findings, " ".join(diag.inconclusive))
+    assert verdicts[5] == ("no-missing-physics", [], ""), verdicts[5]
+    for n, words in ((1, "cannot name"), (2, "cannot test")):
+        verdict, findings, why = verdicts[n]
+        assert verdict != "no-missing-physics", verdicts[n]
+        assert findings or words in why, verdicts[n]       # named one day, or said why not
+
+
 def test_navigation_level_is_inconclusive_beyond_small_angles():
     """A velocity error growing as g phi t (a constant tilt phi, closed form): within the
     psi-angle equations' range it is judged, beyond it the level says inconclusive; white

@@ -145,3 +145,29 @@ def test_demo_at_any_rate_ends_inside_the_profile(capsys):
     for rate in ("100", "50", "400"):
         assert main(["demo", "flights/high-dynamic.toml", "--rate", rate]) == 0
     assert capsys.readouterr().out.count("end error") == 3
+
+
+def test_a_new_users_slips_get_one_line_and_lose_nothing(good, tmp_path, capsys):
+    """What a new user did on the foreign flights (exit 1 with a traceback, or a calibration
+    overwritten): a log given where the calibration goes, a raw log's windows without
+    --cal, an output stem that names an input, a run written over by its own fit."""
+    good = str(good[0])
+    cal = tmp_path / "x.cal.json"
+    Calibration.identity().save(cal)
+    kept = cal.read_bytes(), open(good, "rb").read()
+    for argv, words in (
+            (["replay", good, "--cal", good, "-o", str(tmp_path / "r")], "not a calibration"),
+            (["diagnose", good, "--model", good], "not a calibration"),
+            (["windows", good, "-o", str(tmp_path / "w")], "--cal CAL.json"),
+            (["table", good, "--cal", f"a={cal}", "-o", str(cal)[:-5], "--force"],
+             "would replace the input"),
+            (["calibrate", good, "--method", "entire", "-o", good, "--force"],
+             "would replace the input"),
+            (["import", "rtklib", str(tmp_path / "nowhere"), "-o", str(tmp_path / "i.mcap")],
+             "no such folder")):
+        capsys.readouterr()
+        assert main(argv) == 2, argv
+        err = capsys.readouterr().err
+        assert words in err and len(err.strip().splitlines()) == 1, (argv, err)
+    assert (cal.read_bytes(), open(good, "rb").read()) == kept
+    assert not (tmp_path / "r").exists() and not (tmp_path / "w").exists()

@@ -15,7 +15,8 @@ from mimunav import attitude, earth
 from mimunav.cli import main
 from mimunav.evaluation import Flight
 from mimunav.flightlog import FlightLog
-from mimunav.importers import RecordingError, gps_to_unix_s, table, ulog, write_log
+from mimunav.importers import (RecordingError, check_recording, gps_to_unix_s, table, ulog,
+                               write_log)
 
 SHARED = Path(__file__).resolve().parent.parent.parent / "shared" / "data"
 COMMA_SPEC = Path(__file__).parent / "data" / "comma2k19.toml"
@@ -79,6 +80,13 @@ def test_comma2k19_through_the_table_importer(tmp_path):
     if not diag["conclusive"]:
         assert diag["verdict"] in ("unexplained-residual", "missing-physics")
         assert diag["inconclusive_reasons"]
+    # the phone's roll-rate gyro is not predicted by a vehicle model without roll (1 s
+    # correlation -0.12): 'no-missing-physics' would speak for terms never tested
+    unpredicted = diag["reference_check"]["unpredicted_inputs"]
+    assert "gyro.x" in unpredicted
+    assert diag["verdict"] != "no-missing-physics" and not diag["conclusive"]
+    assert diag["findings"] or any(r.startswith("nothing was tested on") and "gyro.x" in r
+                                   for r in diag["inconclusive_reasons"])
 
 
 def test_px4_v6c_autopilot_reference_and_imu_instances(tmp_path):
@@ -111,6 +119,10 @@ def test_px4_v6c_autopilot_reference_and_imu_instances(tmp_path):
     assert abs(pitch) < 10 and abs(roll) < 10
     assert main(["windows", str(log), "-o", str(tmp_path / "w"), "--min-speed", "0",
                  "--lengths", "3", "--step", "1"]) == 0
+    # its sensor_accel / sensor_gyro instances are logged at 1 Hz (status snapshots): a new
+    # user imported one as the IMU without a word and diagnosed 5 samples
+    with pytest.raises(RecordingError, match="5 samples at 1 Hz"):
+        check_recording(ulog.read(str(path), instance=1))
 
 
 def test_px4_sample_without_gnss(tmp_path):
@@ -128,6 +140,13 @@ def test_px4_sample_without_gnss(tmp_path):
     assert float(meta["sensor/mimu"]["sample_rate_hz"]) == pytest.approx(250.0, abs=0.5)
     assert n == 17070                   # every sensor_combined sample (the README's count)
     assert "file" not in meta["recording"]["real"]
+    # no reference at all: the recording report still says what it is, and why there are
+    # no windows and no diagnosis (it refused the whole report before)
+    assert main(["report", "recording", str(log), "-o", str(tmp_path / "report")]) == 0
+    text = (tmp_path / "report" / "recording.md").read_text()
+    assert "## Channels" in text and "/mimu/imu" in text
+    assert "No window: " in text and "no reference trajectory" in text
+    assert "Not run: " in text and "no reference IMU" in text
     # the same file cut at 60 % (power lost): imported up to its last whole message, and the
     # metadata says the file was cut short (pyulog reads it silently)
     cut = tmp_path / "cut.ulg"
@@ -207,3 +226,19 @@ def test_the_rtklib_drives_mounting_is_one_angle_in_every_window(tmp_path):
     _, whole = mounting(flight)
     for _, ci in parts:
         assert np.all((whole[:, 0] <= ci[:, 1]) & (ci[:, 0] <= whole[:, 1])), (whole, ci)
+
+
+def test_a_table_spec_copied_elsewhere_names_its_data_folder(tmp_path, capsys):
+    """The README's comma2k19 example run from a clone in another folder: the spec's relative
+    root then points nowhere - refused with the folder it tried and the option that gives
+    the right one (`--root`), which imports it."""
+    _need(SHARED / "comma2k19")
+    spec = tmp_path / "comma2k19.toml"
+    spec.write_text(COMMA_SPEC.read_text())
+    assert main(["import", "table", str(spec), "-o", str(tmp_path / "a.mcap")]) == 2
+    err = capsys.readouterr().err
+    assert "does not exist: give the folder with --root" in err, err
+    assert main(["import", "table", str(spec), "--root", str(SHARED / "comma2k19"),
+                 "-o", str(tmp_path / "b.mcap")]) == 0
+    assert main(["import", "ulog", str(PX4 / "pyulog_sample.ulg"), "--root", str(tmp_path),
+                 "-o", str(tmp_path / "c.mcap")]) == 2        # not read by that importer

@@ -384,6 +384,8 @@ def test_track_diagnosis_recovers_a_known_mounting_misalignment(tmp_path):
     assert [x["effect"] for x in doc["findings"]] == ["mounting_misalignment"]
     assert np.abs(np.asarray(doc["findings"][0]["vector"]) - phi).max() < \
         0.5 * np.linalg.norm(phi) ** 2
+    # phi turned the sensor frame (q_vs * q(phi)): the finding says in which frame it is
+    assert doc["findings"][0]["frame"] == "sensor"
 
 
 def test_rtklib_excerpt_reader_units_and_times():
@@ -698,7 +700,7 @@ def test_track_diagnosis_of_the_excerpt_writes_the_contract(tmp_path):
 
 def test_report_recording_of_the_excerpt_and_its_refusals(tmp_path):
     """`mimunav report recording`: one folder with the metadata table, the channels, the
-    windows and the diagnosis; a log it cannot report on leaves no folder behind."""
+    windows and the diagnosis (or why not); a log it cannot read leaves no folder behind."""
     log = tmp_path / "drive.mcap"
     assert main(["import", "rtklib", str(DRIVE), "-o", str(log)]) == 0
     out = tmp_path / "report"
@@ -716,7 +718,15 @@ def test_report_recording_of_the_excerpt_and_its_refusals(tmp_path):
     rec = Recording("bare", "", flight.epoch_ns + np.round(flight.mimu_t * 1e9).astype(np.int64),
                     *flight.mimu_imu, flight.mimu_mounting)
     write_log(rec, bare)
-    assert main(["report", "recording", str(bare), "-o", str(tmp_path / "none")]) == 2
+    # without a reference the report still says what the recording is, and why it has no
+    # windows and no diagnosis (the README's "diagnosis (or why not)")
+    assert main(["report", "recording", str(bare), "-o", str(tmp_path / "why")]) == 0
+    text = (tmp_path / "why" / "recording.md").read_text()
+    assert "No window: " in text and "Not run: " in text
+    assert sorted(p.name for p in (tmp_path / "why").iterdir()) == ["recording.md"]
+    cut = tmp_path / "cut.mcap"                          # a log it cannot read at all
+    cut.write_bytes(bare.read_bytes()[:4000])
+    assert main(["report", "recording", str(cut), "-o", str(tmp_path / "none")]) == 2
     assert not (tmp_path / "none").exists()
 
 

@@ -205,7 +205,31 @@ def diagnose(flight, cal, alpha=0.05, seed=0, reference=None):
     findings, rejected = _confirm(tier, cands, chosen, train, alpha, seed, cond)
     findings = _relinearized(flight, cal, reference, findings, ~train)
     return NavigationDiagnosis(findings, rejected, tier, train, len(cands), cands, observed,
-                               epochs, [], beyond_small_angles(observed))
+                               epochs, [], beyond_small_angles(observed)
+                               + ([] if findings else unsettled(rejected)))
+
+
+def unsettled(rejected):
+    """Why 'nothing found' cannot be said although no term was confirmed: a term chosen on
+    the training segments whose held-out interval holds the training coefficient (not
+    refuted there, only not testable: an effect excited once, by a boost in a training
+    segment), or one the held-out segments confirm but the block bootstrap does not choose
+    (something is missing that this flight cannot name)."""
+    reasons = []
+    for r in rejected:
+        train = ", ".join(f"{b:.3g}" for b in np.ravel(r["train_coefficient"]))
+        if r.get("heldout_untestable"):
+            reasons.append(f"{r['label']} was chosen on the training segments (p "
+                           f"{r['p_train']:.2g}) and the held-out ones cannot test it: their "
+                           f"95 % interval holds the training coefficient ({train} "
+                           f"{r['units']}; held-out {r['coefficient']:.3g}, p "
+                           f"{r['p_heldout']:.2g}) - not refuted there, only not confirmed")
+        elif r.get("confirmed_unnamed"):
+            reasons.append(f"{r['label']} holds on the held-out segments (p {r['p_heldout']:.2g}, "
+                           f"{r['coefficient']:.3g} {r['units']}) but is chosen in only "
+                           f"{r['bootstrap_stability']:.0%} of the block-bootstrap replicates: "
+                           "something is missing that this flight cannot name")
+    return reasons
 
 
 def _tier(flight, cal, reference, terms=None):
@@ -350,10 +374,14 @@ def _confirm(tier, cands, chosen, train, alpha, seed, cond):
         why = None
         if p_ho >= alpha / len(chosen):
             why = f"held-out p = {p_ho:.2g}, needs < {alpha / len(chosen):.2g}"
+            # the held-out interval holds the training coefficient: those segments can
+            # neither confirm nor refute the term (it acts where they have little of it)
+            finding["heldout_untestable"] = bool(np.all((lo <= b_tr) & (b_tr <= hi)))
         elif float(b_tr @ b_ho) <= 0:
             why = "the held-out coefficient has the other sign"
         elif stability < STABILITY:
             why = f"chosen in {stability:.0%} of the block-bootstrap replicates"
+            finding["confirmed_unnamed"] = True     # held out, it holds: something is there
         (findings if why is None else rejected).append(
             finding if why is None else dict(finding, rejected=why))
     return findings, rejected

@@ -993,14 +993,16 @@ def _estimate(design, term, b, cov, interval=None):
 
 def estimate(term, beta, lo, hi):
     """The contract's description of a term with its held-out estimate and 95 % interval
-    (a vector parameter as `vector`, its largest component as `coefficient`)."""
+    (a vector parameter as `vector`, its largest component as `coefficient`, and the frame
+    of its components: the MIMU's sensor axes here)."""
     finding = {k: v for k, v in term.items() if k in ("effect", "sensor", "axis", "input_axis")}
     if len(beta) == 1:
         finding.update(coefficient=float(beta[0]), ci95=[float(lo[0]), float(hi[0])])
     else:
         big = int(np.argmax(np.abs(beta)))
         finding.update(coefficient=float(beta[big]), ci95=[float(lo[big]), float(hi[big])],
-                       vector=beta.tolist(), vector_ci95=np.column_stack([lo, hi]).tolist())
+                       vector=beta.tolist(), vector_ci95=np.column_stack([lo, hi]).tolist(),
+                       frame="sensor")
     finding["units"] = effects.units(term)
     return finding
 

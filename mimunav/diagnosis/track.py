@@ -38,7 +38,8 @@ After the search every finding must also hold where the reference is weakest (`s
     positive.
 A finding that fails one is not confirmed; when none survives, the diagnosis is then
 **inconclusive** (something was seen that this reference cannot support); so it is when the reference predicts fewer than MIN_PREDICTED of the six channels or fewer than
-MIN_TRUSTED of the samples are usable. The contract's verdict has no such word: an
+MIN_TRUSTED of the samples are usable, and when nothing is found while a channel is not
+predicted (its terms were never tested: 'nothing is missing' cannot be said of it). The contract's verdict has no such word: an
 inconclusive diagnosis keeps its findings' verdict if any survive, otherwise
 "unexplained-residual" (the reference does not explain the recording), with
 `conclusive: false` and the reasons in the document.
@@ -297,9 +298,23 @@ def diagnose(flight, cal, alpha=0.05, reference=None, accuracy=None):
     else:
         diag.time_lag = {"not_estimated": f"the yaw rate is not predicted (1 s correlation "
                                           f"{corr['gyro.z']:.2f} < {PREDICTED_CORRELATION:g})"}
-    # terms that failed the checks make the diagnosis inconclusive only when nothing held
-    diag.inconclusive = reasons + (demoted if not diag.findings else [])
+    # terms that failed the checks, and channels never looked at, make the diagnosis
+    # inconclusive only when nothing held: a finding stands on its own tests, 'nothing is
+    # missing' needs every channel tested
+    diag.inconclusive = reasons + ([] if diag.findings else demoted + untested(diag))
     return diag
+
+
+def untested(diag):
+    """Why 'nothing found' says nothing of some channels: those the reference does not
+    predict, whose candidate terms were left out (`reference_check`'s not_tested)."""
+    check = diag.reference_check
+    if not check["unpredicted_inputs"]:
+        return []
+    return [f"nothing was tested on {', '.join(check['unpredicted_inputs'])}: the reference "
+            f"does not predict them (1 s correlation < {PREDICTED_CORRELATION:g}), so "
+            f"{len(check['not_tested'])} candidate terms were left out and nothing found "
+            "among the others says nothing of them"]
 
 
 def _carried_channels(term, loose):

@@ -169,14 +169,33 @@ def attitude_at(t, t_att, wxyz):
     return q
 
 
+# Hz: an IMU stream read slower than this is a status snapshot (PX4's sensor_accel and
+# sensor_gyro topics logged at 1 Hz), not the interval means a strapdown navigator needs -
+# a vehicle turns and vibrates faster; consumer IMUs are logged at 50-1000 Hz
+MIN_IMU_RATE_HZ = 10.0
+
+
+def _check_rate(name, which, ns):
+    """Refuse an IMU whose median sample rate is below MIN_IMU_RATE_HZ."""
+    rate = 1e9 / float(np.median(np.diff(ns)))
+    if rate < MIN_IMU_RATE_HZ:
+        raise RecordingError(f"{name}: the {which} has {len(ns)} samples at {rate:.3g} Hz (median "
+                             f"interval); below {MIN_IMU_RATE_HZ:g} Hz they are status snapshots, "
+                             "not increments a navigator can integrate: choose the IMU's "
+                             "full-rate stream (or check the stamps' time unit)")
+
+
 def check_recording(rec):
-    """Refuse a recording whose IMU cannot be in the units and axes the import says: the
+    """Refuse a recording whose IMU cannot be in the units and axes the import says: a
+    rate below MIN_IMU_RATE_HZ (either IMU); the
     median |specific force| far from 1 g (g read as m/s^2 or the reverse); with a reference
     attitude, the 1 s mean specific force turned into NED by the mounting and that attitude
     not pointing up (axes, mounting or quaternion convention wrong), or the gyro's rates a
     factor of ten or more from the attitude's own rate (deg/s read as rad/s)."""
-    _check_overlap(rec)
+    _check_overlap(rec)             # first: stamps in the wrong unit fail it, and it says so
+    _check_rate(rec.name, "IMU", rec.imu_ns)
     if rec.reference_imu is not None:
+        _check_rate(rec.name, "reference IMU", rec.reference_imu["ns"])
         _check_reference_imu(rec)
     g = float(np.median(np.linalg.norm(rec.f, axis=1)))
     if not 0.5 * G0 < g < 2 * G0:

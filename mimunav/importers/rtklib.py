@@ -200,6 +200,10 @@ def _solution_row(path, number, line, system, layout):
 
 def find_files(folder):
     """(csv, tag, pos) of a drive folder: one imu_*.csv, its .tag, one *.pos."""
+    if not os.path.isdir(folder):
+        raise RecordingError(f"{folder}: no such folder (an RTKLIB drive is a folder holding "
+                             "imu_*.csv, its .tag and a .pos)")
+
     def one(pattern):
         found = sorted(glob.glob(os.path.join(folder, pattern)))
         if len(found) != 1:

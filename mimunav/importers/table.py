@@ -3,7 +3,8 @@
     mimunav import table SPEC.toml -o OUT.mcap
 
 The spec names each quantity's file (and columns), its unit and its time base; nothing is
-guessed. Paths are relative to `root` (default: the spec's folder). A column source is either
+guessed. Paths are relative to `root` (default: the spec's folder; `mimunav import table
+--root DIR` overrides it). A column source is either
 a path string or a table:
 
     { file = "imu.csv", columns = ["gx", "gy", "gz"], unit = "deg/s", time = <column source> }
@@ -64,15 +65,23 @@ WIDTH = {"angular_rate": 3, "specific_force": 3, "position_ecef": 3, "velocity_n
 class Spec:
     """A parsed table spec: `column(section, key)` loads a quantity in SI units."""
 
-    def __init__(self, path):
+    def __init__(self, path, root=None):
         self.path = os.path.abspath(path)
         try:
             with open(path, "rb") as fh, text_file(path):
                 self.doc = tomllib.load(fh)
         except tomllib.TOMLDecodeError as exc:
             raise RecordingError(f"{path}: not a valid TOML spec ({exc})") from None
-        root = self.doc.get("root", ".")
-        self.root = os.path.normpath(os.path.join(os.path.dirname(self.path), root))
+        if root is None:
+            root = os.path.join(os.path.dirname(self.path), self.doc.get("root", "."))
+            if not os.path.isdir(root):
+                raise RecordingError(f"{path}: its data folder (root = "
+                                     f"{self.doc.get('root', '.')!r}, relative to the spec) "
+                                     f"is {os.path.normpath(root)}, which does not exist: "
+                                     "give the folder with --root")
+        elif not os.path.isdir(root):
+            raise RecordingError(f"--root {root}: no such folder")
+        self.root = os.path.normpath(os.path.abspath(root))
         self.notes = {}             # what reading the files left out, for the metadata
         for section in ("imu", "time"):
             if not isinstance(self.doc.get(section), dict):
@@ -340,9 +349,10 @@ def _imu(spec, section):
     return t_f, w, f
 
 
-def read(path, mounting=None):
-    """The recording a table spec describes, as a `Recording`."""
-    spec = Spec(path)
+def read(path, mounting=None, root=None):
+    """The recording a table spec describes, as a `Recording`; root: the folder of its data
+    files instead of the spec's `root`."""
+    spec = Spec(path, root)
     offset = unix_offset_s(spec)
     t_f, w, f = _imu(spec, "imu")
     notes = spec.notes

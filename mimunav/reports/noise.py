@@ -22,7 +22,7 @@ import numpy as np
 from .. import alignment, allan
 from ..compensation import Calibration, compensate
 from ..errors import InputError
-from ..files import atomic_folder
+from ..files import atomic_folder, read_json
 from ..flightlog import FlightLog
 from .plots import figure, save
 
@@ -226,12 +226,8 @@ def load(path):
     {"source": text, "instability": {sensor: B (SI, RMS over the axes that measured it)}};
     a sensor whose axes all report B = 0 (an upper bound only) or an approximate fit is left
     out (the fits then keep the unit class's), and the source says so."""
-    try:
-        with open(path) as fh:
-            doc = json.load(fh)
-    except (OSError, json.JSONDecodeError) as exc:
-        raise InputError(f"{path}: cannot read a noise file ({exc})") from None
-    if doc.get("format") != FORMAT:
+    doc = read_json(path, "noise file")
+    if not isinstance(doc, dict) or doc.get("format") != FORMAT:
         raise InputError(f"{path}: format is {doc.get('format')!r}, expected {FORMAT!r}")
     if doc.get("channel") not in ("/mimu/raw", "/mimu/imu"):
         raise InputError(f"{path}: measured on {doc.get('channel')!r}, not the MIMU "

@@ -1,5 +1,7 @@
 """The report of any recording: a contract log with /mimu/imu and a reference trajectory
-(`mimunav import ...` of a drive, a flight, a walk), read as an engineer would:
+(`mimunav import ...` of a drive, a flight, a walk), read as an engineer would (without a
+reference trajectory: what it is, its channels, the sensor level when it has a reference IMU,
+and why the rest cannot be made):
 
     what it is      the import's metadata: source, rate, span, reference and whether it is
                     independent, what was measured and what assumed, the alignment
@@ -50,11 +52,12 @@ def write(log_path, out_dir, force=False, progress=True, min_speed=None,
     if flight.mimu_raw is not None:
         raise InputError(f"{log_path}: a raw /mimu/raw needs its calibration; the recording "
                          "report takes a recorded /mimu/imu (mimunav import ...)")
-    if flight.truth is None:
-        raise evaluation.no_reference(log_path, "the recording report")
     cal = Calibration.identity()
     diag = doc = no_diagnosis = None
     try:
+        if flight.truth is None and flight.fog_t is None:
+            raise evaluation.no_reference(log_path, "the track level, and no reference IMU "
+                                          "(/fog/imu) for the sensor level")
         if flight.fog_t is None:        # the track level leaves the gaps' surroundings out
             diag = track.diagnose(flight, cal)
         else:           # a recording with a reference IMU: the sensor level, which navigates
@@ -64,6 +67,28 @@ def write(log_path, out_dir, force=False, progress=True, min_speed=None,
         doc = document(Path(log_path).name, diag)
     except InputError as exc:
         no_diagnosis = str(exc)
+    results, docs, no_windows = {}, {}, None
+    if flight.truth is None:
+        no_windows = str(evaluation.no_reference(log_path, "the windows to restart from"))
+    else:
+        results, docs, no_windows = _windows(flight, doc, lengths, min_speed, progress)
+    with atomic_folder(out_dir, force=force, inputs=[log_path]) as tmp:
+        if results:
+            windows_report.plot(results, str(tmp / "windows.png"))
+            (tmp / "windows.json").write_text(json.dumps(docs, indent=1) + "\n")
+        if doc is not None:
+            diagnosis_report.write(tmp / "diagnosis", doc, diag, flight, cal,
+                                   with_found(cal, doc["findings"]), IDENTITY)
+        text = markdown(log_path, meta, channels, flight, docs, no_windows, doc,
+                        no_diagnosis, time.perf_counter() - started)
+        (tmp / "recording.md").write_text(text)
+    return Path(out_dir) / "recording.md"
+
+
+def _windows(flight, doc, lengths, min_speed, progress):
+    """(results, documents per time shift, why there are none or what changed) of the
+    free-inertial windows: as recorded, and with a yaw-rate lag the diagnosis `doc` kept
+    removed."""
     span = float(flight.truth.t[-1] - flight.truth.t[0])
     shortened = not any(x < span for x in lengths)
     lengths = tuple(x for x in lengths if x < span) or (max(0.1, round(span / 2, 1)),)
@@ -85,17 +110,7 @@ def write(log_path, out_dir, force=False, progress=True, min_speed=None,
         no_windows = (f"the reference spans {span:.1f} s, shorter than every default window "
                       f"length: one length of {lengths[0]:g} s (half the span), windows every "
                       f"{step:g} s")
-    with atomic_folder(out_dir, force=force, inputs=[log_path]) as tmp:
-        if results:
-            windows_report.plot(results, str(tmp / "windows.png"))
-            (tmp / "windows.json").write_text(json.dumps(docs, indent=1) + "\n")
-        if doc is not None:
-            diagnosis_report.write(tmp / "diagnosis", doc, diag, flight, cal,
-                                   with_found(cal, doc["findings"]), IDENTITY)
-        text = markdown(log_path, meta, channels, flight, docs, no_windows, doc,
-                        no_diagnosis, time.perf_counter() - started)
-        (tmp / "recording.md").write_text(text)
-    return Path(out_dir) / "recording.md"
+    return results, docs, no_windows
 
 
 def _sigma_m(text):

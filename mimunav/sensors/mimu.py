@@ -59,7 +59,7 @@ import numpy as np
 
 from .. import compensation
 from ..compensation import Calibration
-from ..files import write_atomic
+from ..files import read_json, write_atomic
 from ..kernels import njit
 from . import noise, response
 from .hidden import HiddenPhysics, HiddenSet
@@ -246,12 +246,7 @@ class MimuUnit:
 
     @classmethod
     def load(cls, path):
-        with open(path) as fh:
-            try:
-                doc = json.load(fh)
-            except json.JSONDecodeError as exc:
-                raise InputError(f"{path}: not valid JSON ({exc})") from None
-        return cls.from_dict(doc, str(path))
+        return cls.from_dict(read_json(path, "unit file"), str(path))
 
     def save(self, path, force=False):
         write_atomic(path, json.dumps(self.as_dict(), indent=1) + "\n", force=force)
