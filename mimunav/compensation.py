@@ -33,7 +33,7 @@ import numpy as np
 from . import effects
 from .effects import Conditions, temperature_change
 from .effects import apply as apply_effects
-from .files import read_json, write_atomic
+from .files import check_format, read_json, write_atomic
 from .errors import InputError
 
 FORMAT = "mimunav-calibration/1"
@@ -107,10 +107,7 @@ class Calibration:
         """Validate a parsed `mimunav-calibration/1` document and build the object."""
         def fail(msg):
             raise CalibrationError(f"{source}: {msg}")
-        if not isinstance(doc, dict):
-            fail("the top level must be a JSON object")
-        if doc.get("format") != FORMAT:
-            fail(f"format is {doc.get('format')!r}, expected {FORMAT!r}")
+        check_format(doc, FORMAT, source, CalibrationError)
         model = doc.get("model")
         base = (model[:-len(FOUND_SUFFIX)] if isinstance(model, str)
                 and model.endswith(FOUND_SUFFIX) else model)

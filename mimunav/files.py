@@ -25,6 +25,15 @@ def read_json(path, what, error=InputError):
         raise error(f"{path}: cannot read a {what} ({exc})") from None
 
 
+def check_format(doc, expected, source, error=InputError):
+    """Refuse a parsed JSON document that is not an object whose "format" is `expected`."""
+    if not isinstance(doc, dict):
+        raise error(f"{source}: the top level must be a JSON object, not a "
+                    f"{type(doc).__name__}")
+    if doc.get("format") != expected:
+        raise error(f"{source}: format is {doc.get('format')!r}, expected {expected!r}")
+
+
 def temporary_beside(path, suffix):
     """(fd, name) of a new temporary file in path's folder with the permissions an ordinary
     new file gets (mkstemp's are 0600), for write-then-rename."""

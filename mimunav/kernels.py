@@ -16,6 +16,7 @@ import functools
 import hashlib
 import os
 import shutil
+import threading
 import time
 from pathlib import Path
 
@@ -26,6 +27,7 @@ from numba.misc.appdirs import AppDirs
 PACKAGE = Path(__file__).resolve().parent
 STALE_DAYS = 7
 PREFIX = "mimunav-kernels-"
+_SWAP = threading.Lock()        # numba's CACHE_DIR is process-wide while it is swapped
 
 
 @functools.lru_cache(maxsize=1)
@@ -77,10 +79,11 @@ def njit(**options):
         folder = cache_dir()
         if folder is None:
             return numba.njit(**options)(function)
-        before = config.CACHE_DIR
-        config.CACHE_DIR = folder
-        try:
-            return numba.njit(cache=True, **options)(function)
-        finally:
-            config.CACHE_DIR = before
+        with _SWAP:
+            before = config.CACHE_DIR
+            config.CACHE_DIR = folder
+            try:
+                return numba.njit(cache=True, **options)(function)
+            finally:
+                config.CACHE_DIR = before
     return compile_cached

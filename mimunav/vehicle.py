@@ -44,7 +44,7 @@ class TrackMotion(Motion):
             raise InputError(f"the reference never moves faster than {HOLD_SPEED:g} m/s "
                              f"horizontally in its smoothed velocity (peak "
                              f"{np.hypot(v[:, 0], v[:, 1]).max():.2g} m/s; recorded "
-                             f"{np.hypot(v_ned[:, 0], v_ned[:, 1]).max():.2g}): the track level "
+                             f"{np.nanmax(np.hypot(v_ned[:, 0], v_ned[:, 1])):.2g}): the track level "
                              "models a land vehicle whose attitude follows its course, so it "
                              "does not apply here (it does not read a reference's own attitude)")
         first = np.argmax(moving)

@@ -473,14 +473,15 @@ def test_a_term_inside_the_stated_reference_accuracy_is_listed_not_charged():
     assert label in [w["label"] for w in diag.within_reference]
 
 
-def test_navigation_level_claims_nothing_it_could_not_test():
+def test_navigation_level_says_why_a_chosen_term_is_unsettled():
     """The foreign flights without their reference IMU, at the navigation level (a new
     user's trial): foreign-02's g-sensitivity acts in the one boost, whose training segment
     chose a term that the held-out segments can neither confirm nor refute; foreign-01's
     holds on the held-out segments but the bootstrap does not choose it. Both said
     'no-missing-physics' and conclusive; both are inconclusive now (contract verdict
     unexplained-residual) with the reason, while the effect-free foreign-05 keeps its clean
-    bill."""
+    bill. (An effect never chosen still gets 'no-missing-physics': nothing detected, no
+    statement of power - foreign-03 and -06 at this level.)"""
     from mimunav.diagnosis import navigation, sensor
     from mimunav.evaluation import Flight
     if not os.path.isdir(FOREIGN):
@@ -492,7 +493,7 @@ def test_navigation_level_claims_nothing_it_could_not_test():
                                    Calibration.load(base + ".cal.json"))
         verdicts[n] = (sensor.verdict(diag), diag.findings, " ".join(diag.inconclusive))
     assert verdicts[5] == ("no-missing-physics", [], ""), verdicts[5]
-    for n, words in ((1, "cannot name"), (2, "cannot test")):
+    for n, words in ((1, "cannot name"), (2, "cannot confirm")):
         verdict, findings, why = verdicts[n]
         assert verdict != "no-missing-physics", verdicts[n]
         assert findings or words in why, verdicts[n]       # named one day, or said why not

@@ -64,3 +64,26 @@ def test_only_versions_unused_for_a_week_are_removed(tmp_path):
     kernels._prune(current)
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted(
         p.name for p in (current, recent, other))
+
+
+def test_numba_is_left_as_found_and_the_version_marked_used(tmp_path):
+    """numba's own cache setting is swapped only while mimunav's kernels are decorated
+    (another package's kernels keep their folders), and the version's folder is marked used
+    each time a process loads kernels (what the pruning of others goes by)."""
+    env = {k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"}
+    env["PYTHONPATH"] = str(Path(mimunav.__file__).parent.parent)
+    out = subprocess.run([sys.executable, "-c", "import numba.core.config as c; "
+                          "import mimunav.strapdown, mimunav.truth; print(repr(c.CACHE_DIR))"],
+                         env=env, capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == repr("")
+    env["NUMBA_CACHE_DIR"] = str(tmp_path)
+    script = ("from mimunav import kernels; import os; "
+              "print(kernels.cache_dir(), os.stat(kernels.cache_dir()).st_mtime)")
+    first = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True,
+                           text=True, check=True).stdout.split()
+    assert Path(first[0]).parent == tmp_path and Path(first[0]).name.startswith(kernels.PREFIX)
+    stale = time.time() - 30 * 86400.0
+    os.utime(first[0], (stale, stale))
+    again = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True,
+                           text=True, check=True).stdout.split()
+    assert again[0] == first[0] and float(again[1]) > stale + 29 * 86400.0

@@ -388,6 +388,34 @@ def test_track_diagnosis_recovers_a_known_mounting_misalignment(tmp_path):
     assert doc["findings"][0]["frame"] == "sensor"
 
 
+def test_track_level_gives_a_null_drive_its_clean_bill(tmp_path):
+    """The synthetic drive's ideal IMU with the consumer part's white noise, nothing hidden:
+    'no-missing-physics', conclusive. Its level road leaves accel.z and the pitch rate
+    nearly still (1 s correlations 0.46 and -0.09: noise against noise), which the first
+    rule for untested channels read as channels the reference does not predict and called
+    the drive inconclusive; a channel counts as untested only when the model leaves its
+    1 s means unexplained beyond NOT_FOLLOWED times the part's noise."""
+    from dataclasses import replace
+
+    from mimunav.compensation import Calibration
+    from mimunav.diagnosis import document, track
+    path, _, _ = _ideal_flight(tmp_path, MOUNT)
+    flight = Flight.load(path, reference_imu=False)
+    rng = np.random.default_rng(3)
+    w, f = flight.mimu_imu
+    per_sample = math.sqrt(100.0)                   # white density -> sigma at 100 Hz
+    noisy = (w + rng.normal(0, track.CONSUMER_NOISE['gyro_white'] * per_sample, w.shape),
+             f + rng.normal(0, track.CONSUMER_NOISE['accel_white'] * per_sample, f.shape))
+    doc = document("null", track.diagnose(replace(flight, mimu_imu=noisy),
+                                          Calibration.identity()))
+    check = doc["reference_check"]
+    assert doc["verdict"] == "no-missing-physics" and doc["conclusive"], \
+        (doc["verdict"], doc.get("inconclusive_reasons"))
+    assert check["unpredicted_inputs"]                  # the still channels are there ...
+    assert all(check["unexplained_1s"][c] <= track.NOT_FOLLOWED * check["noise_1s"][c]
+               for c in check["unpredicted_inputs"])    # ... and followed to their noise
+
+
 def test_rtklib_excerpt_reader_units_and_times():
     csv, tag, pos = rtklib.find_files(DRIVE)
     ticks, f, w, dropped = rtklib.read_imu_csv(csv)
@@ -831,13 +859,22 @@ def test_ros2_pose_topic_in_a_local_enu_frame_as_the_reference(tmp_path, schema)
         ref = log.read("/truth/state")
         meta = log.metadata()["reference"]
     assert len(ref) == n // 10
+    # each epoch's NED is the origin's turned by the transport rate's integral,
+    # theta = (dlon cos lat, -dlat, -dlon sin lat) (first order; (200 m / R)^2 ~ 1e-9 rad
+    # left): a vector fixed in the pose frame reads u - theta x u there, and a heading
+    # grows by dlon sin lat (meridian convergence, 0.0016 deg here)
+    d_lat, d_lon = ref["latitude"] - np.radians(45.0), ref["longitude"] - np.radians(10.0)
+    theta = np.column_stack([d_lon * np.cos(ref["latitude"]), -d_lat,
+                             -d_lon * np.sin(ref["latitude"])])
+    u = np.array([5.0, 10 * math.sin(np.radians(60)), 0.0])
     inner = slice(1, -1)                                           # central differences
-    np.testing.assert_allclose(ref["velocity_ned"][inner],
-                               np.tile([5.0, 10 * math.sin(np.radians(60)), 0.0],
-                                       (len(ref) - 2, 1)), atol=2e-4)
+    np.testing.assert_allclose(ref["velocity_ned"][inner], (u - np.cross(theta, u))[inner],
+                               atol=2e-5)
     heading, pitch, roll = attitude.as_euler(quaternion.from_float_array(ref["attitude_wxyz"]))
-    np.testing.assert_allclose(np.degrees(heading), 60.0, atol=1e-9)
-    np.testing.assert_allclose([pitch, roll], 0.0, atol=1e-12)
+    np.testing.assert_allclose(np.degrees(heading), 60.0 + np.degrees(-theta[:, 2]), atol=1e-7)
+    # level in the pose frame, tilted in each epoch's own by the arc's horizontal angle
+    np.testing.assert_allclose(np.hypot(pitch, roll), np.hypot(theta[:, 0], theta[:, 1]),
+                               atol=1e-9)
     d = earth.ned_difference(ref["latitude"], ref["longitude"], ref["height"],
                              np.radians(45.0), np.radians(10.0), 100.0)
     t = np.arange(len(ref)) / 10.0
@@ -1018,6 +1055,22 @@ def test_one_segment_that_looks_exact_cannot_carry_the_lag():
     assert lo < 0.1 < hi and mean < 0.2
     same = Segments(np.full(10, 0.1) + np.linspace(-1e-3, 1e-3, 10), np.full(10, 1e-6))
     assert same.mean_and_se()[0] == pytest.approx(0.1, abs=1e-9)
+
+
+def test_reference_velocity_is_in_each_epochs_own_ned():
+    """Closed form (an independent user's oracle): a drive due east along the 48.1 deg N
+    parallel at 25 m/s for 50 km, fixes at 5 Hz, has velocity (0, 25, 0) in every epoch's
+    NED. Differences taken in the first fix's NED tilted it by the arc travelled: 0.2 m/s
+    north and down at 50 km, twice the sigma the import states."""
+    from mimunav import earth
+    from mimunav.importers import velocity_from_positions
+    lat, h = math.radians(48.1), 520.0
+    t = np.arange(0.0, 2000.0, 0.2)
+    _, r_e = earth.radii(lat)
+    lon = math.radians(11.5) + 25.0 * t / ((r_e + h) * math.cos(lat))
+    v = velocity_from_positions((1.7e18 + t * 1e9).astype(np.int64), np.full_like(t, lat),
+                                lon, np.full_like(t, h))
+    assert np.abs(v - [0.0, 25.0, 0.0]).max() < 1e-4          # m/s (one-sided ends: 2e-5)
 
 
 def test_track_level_says_when_a_channel_records_far_more_than_predicted(tmp_path):

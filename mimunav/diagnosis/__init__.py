@@ -72,7 +72,10 @@ METHOD = {
                    "error against the reference trajectory is fitted to each candidate's "
                    "error signature on this trajectory, bias wander and initial attitude "
                    "error as nuisance): the same selection, held-out confirmation and "
-                   "bootstrap as the sensor level"),
+                   "bootstrap as the sensor level; inconclusive when a chosen term is neither "
+                   "confirmed nor refuted on the held-out segments, or holds there but not in "
+                   "the bootstrap; 'no-missing-physics' means none detected, not a statement "
+                   "of power"),
     "track": ("track level (no reference IMU; a vehicle's reference trajectory, whose own "
               "attitude, if any, is not used): the ideal IMU simulated along the trajectory "
               "(attitude from the velocity: no side slip, roll 0) is the reference of the "

@@ -22,6 +22,10 @@ from ..effects import AXES
 TEMPERATURE_RATE_WINDOWS_S = (60.0, 120.0, 300.0)
 G0 = 9.80665
 DEG = math.pi / 180
+# effects of the temperature, slower than the diagnosis' blocks: tested against the bias
+# wander by their likelihood, which a residual rms with the bias taken out does not show
+SLOW_EFFECTS = ("temperature_bias", "temperature_rate", "temperature_scale",
+                "thermal_hysteresis")
 
 
 def candidates():

@@ -218,15 +218,16 @@ def unsettled(rejected):
     reasons = []
     for r in rejected:
         train = ", ".join(f"{b:.3g}" for b in np.ravel(r["train_coefficient"]))
+        held = ", ".join(f"{b:.3g}" for b in r.get("vector", [r["coefficient"]]))
         if r.get("heldout_untestable"):
             reasons.append(f"{r['label']} was chosen on the training segments (p "
-                           f"{r['p_train']:.2g}) and the held-out ones cannot test it: their "
-                           f"95 % interval holds the training coefficient ({train} "
-                           f"{r['units']}; held-out {r['coefficient']:.3g}, p "
+                           f"{r['p_train']:.2g}) and the held-out ones cannot confirm it at "
+                           f"the Holm limit: their 95 % interval holds the training "
+                           f"coefficient ({train} {r['units']}; held-out {held}, p "
                            f"{r['p_heldout']:.2g}) - not refuted there, only not confirmed")
         elif r.get("confirmed_unnamed"):
             reasons.append(f"{r['label']} holds on the held-out segments (p {r['p_heldout']:.2g}, "
-                           f"{r['coefficient']:.3g} {r['units']}) but is chosen in only "
+                           f"{held} {r['units']}) but is chosen in only "
                            f"{r['bootstrap_stability']:.0%} of the block-bootstrap replicates: "
                            "something is missing that this flight cannot name")
     return reasons

@@ -180,8 +180,9 @@ def reference_check(ref, trusted):
     """({channel label: correlation of the CHECK_BIN_S means of the recorded and the
     simulated output over trusted samples}, {channel label: [cov / var(simulated),
     var(recorded) / cov], the two least-squares slopes of the recorded means on the
-    simulated ones, between which the true one lies when both carry noise}) (channels in
-    `sensor.CHANNELS` order)."""
+    simulated ones, between which the true one lies when both carry noise}, {label: the
+    model error (below)}, {label: the rms of the recorded means no linear error of the unit
+    explains, SI units}) (channels in `sensor.CHANNELS` order)."""
     from .reference import predicted_mimu
     f_p, w_p, _ = predicted_mimu(ref)
     w, f = ref.mimu_imu
@@ -208,17 +209,23 @@ def reference_check(ref, trusted):
         # predicted means' rms (the recording's rms would count the sensor's own bias:
         # comma2k19's 0.6 deg/s on gyro.x passed a channel the model does not predict; and
         # the unexplained spread without the triad, the mounting's own yaw on accel.x)
-        triad = pred[:, :3] if c < 3 else pred[:, 3:]
         size = float(np.sqrt(np.mean(pred[:, c] ** 2))) if len(pred) >= 5 else 0.0
         if not size > 0:
             return math.nan
+        return unexplained(c) / size
+
+    def unexplained(c):
+        if len(pred) < 5:
+            return math.nan
+        triad = pred[:, :3] if c < 3 else pred[:, 3:]
         x = np.column_stack([triad, np.ones(len(triad))])
         rest = meas[:, c] - x @ np.linalg.lstsq(x, meas[:, c], rcond=None)[0]
-        return float(np.sqrt(np.mean(rest ** 2))) / size
+        return float(np.sqrt(np.mean(rest ** 2)))
     labels = [f"{s}.{a}" for s, a in CHANNELS]
     return ({n: correlation(meas[:, c], pred[:, c]) for c, n in enumerate(labels)},
             {n: slope(meas[:, c], pred[:, c]) for c, n in enumerate(labels)},
-            {n: model_error(c) for c, n in enumerate(labels)})
+            {n: model_error(c) for c, n in enumerate(labels)},
+            {n: unexplained(c) for c, n in enumerate(labels)})
 
 
 def diagnose(flight, cal, alpha=0.05, reference=None, accuracy=None):
@@ -243,10 +250,11 @@ def diagnose(flight, cal, alpha=0.05, reference=None, accuracy=None):
     outputs = compensated_mimu(flight, cal, warn=False)[:2]
     w, f = (np.where(trusted[:, None], x, np.nan) for x in outputs)
     ref = replace(ref, mimu_imu=(w, f))
-    corr, slopes, spread = reference_check(replace(ref, mimu_imu=outputs), trusted)
+    corr, slopes, spread, rest = reference_check(replace(ref, mimu_imu=outputs), trusted)
     unpredicted = {tuple(c.split(".")) for c, r in corr.items() if not r >= PREDICTED_CORRELATION}
     loose = {tuple(c.split(".")) for c, r in spread.items() if not r <= MODEL_ERROR_SHARE}
     kept, left_out, narrowed = [], [], {}
+    because = {}                # label of a left-out term: the channels it was left out for
     for term in library.candidates():
         drivers = library.inputs(term)
         # a lever arm is the antenna's and the reference point's business here: the vehicle
@@ -256,10 +264,12 @@ def diagnose(flight, cal, alpha=0.05, reference=None, accuracy=None):
         unknowable = term["effect"] == "lever_arm"
         if unknowable or drivers and drivers & unpredicted:
             left_out.append(term)
+            because[library.label(term)] = set() if unknowable else drivers & unpredicted
             continue
         carried = _carried_channels(term, loose)
         if carried is not None and not carried:
             left_out.append(term)
+            because[library.label(term)] = loose
             continue
         if carried is not None:
             term = library.on_channels(term, carried)
@@ -273,8 +283,11 @@ def diagnose(flight, cal, alpha=0.05, reference=None, accuracy=None):
     diag.reference_check = {
         "correlation_1s": corr, "threshold": PREDICTED_CORRELATION, "slope_1s": slopes,
         "model_error_1s": spread, "model_error_threshold": MODEL_ERROR_SHARE,
+        "unexplained_1s": rest, "noise_1s": noise_floor(),
         "unpredicted_inputs": sorted(".".join(c) for c in unpredicted),
         "not_tested": [library.label(term) for term in left_out],
+        "not_tested_for": {label: sorted(".".join(c) for c in chans)
+                           for label, chans in because.items()},
         "fitted_on_channels": narrowed,
         "trusted_fraction": float(trusted.mean()),
         "reversing_s": float(reversing_s),
@@ -305,16 +318,36 @@ def diagnose(flight, cal, alpha=0.05, reference=None, accuracy=None):
     return diag
 
 
+# a channel whose 1 s means the model leaves more than this many times the part's own noise
+# unexplained is not followed by the model (a channel that merely hardly moves - accel.z on a
+# level road, the pitch rate - is followed: its correlation is noise's, its residual too)
+NOT_FOLLOWED = 3.0
+
+
+def noise_floor(noise=CONSUMER_NOISE, bin_s=CHECK_BIN_S):
+    """{channel label: the part's own noise in a CHECK_BIN_S mean, SI}: white noise of the
+    mean and the bias instability B, which a constant does not remove over a drive."""
+    return {f"{s}.{a}": math.hypot(noise[f"{s}_white"] / math.sqrt(bin_s),
+                                   noise[f"{s}_flicker"]) for s, a in CHANNELS}
+
+
 def untested(diag):
-    """Why 'nothing found' says nothing of some channels: those the reference does not
-    predict, whose candidate terms were left out (`reference_check`'s not_tested)."""
+    """Why 'nothing found' says nothing of some channels: those the model does not follow
+    (their 1 s means unexplained beyond NOT_FOLLOWED times the noise), whose driven terms
+    were left out (`reference_check`'s not_tested_for)."""
     check = diag.reference_check
-    if not check["unpredicted_inputs"]:
+    rest, floor = check["unexplained_1s"], check["noise_1s"]
+    lost = sorted(c for c in set(check["unpredicted_inputs"]) | {
+        c for chans in check["not_tested_for"].values() for c in chans}
+        if not rest[c] <= NOT_FOLLOWED * floor[c])
+    terms = [label for label, chans in check["not_tested_for"].items() if set(chans) & set(lost)]
+    if not terms:
         return []
-    return [f"nothing was tested on {', '.join(check['unpredicted_inputs'])}: the reference "
-            f"does not predict them (1 s correlation < {PREDICTED_CORRELATION:g}), so "
-            f"{len(check['not_tested'])} candidate terms were left out and nothing found "
-            "among the others says nothing of them"]
+    said = ", ".join(f"{c} {rest[c]:.3g} against {floor[c]:.3g}" for c in lost)
+    return [f"no term driven by {', '.join(lost)} was tested: the reference does not follow "
+            f"them (rms of their 1 s means that no linear error of the unit explains, against "
+            f"the part's own noise, m/s^2 or rad/s: {said}), so {len(terms)} candidate terms "
+            "were left out, and nothing found among the others says nothing of them"]
 
 
 def _carried_channels(term, loose):

@@ -22,7 +22,7 @@ import numpy as np
 from .. import alignment, allan
 from ..compensation import Calibration, compensate
 from ..errors import InputError
-from ..files import atomic_folder, read_json
+from ..files import atomic_folder, check_format, read_json
 from ..flightlog import FlightLog
 from .plots import figure, save
 
@@ -227,8 +227,7 @@ def load(path):
     a sensor whose axes all report B = 0 (an upper bound only) or an approximate fit is left
     out (the fits then keep the unit class's), and the source says so."""
     doc = read_json(path, "noise file")
-    if not isinstance(doc, dict) or doc.get("format") != FORMAT:
-        raise InputError(f"{path}: format is {doc.get('format')!r}, expected {FORMAT!r}")
+    check_format(doc, FORMAT, path)
     if doc.get("channel") not in ("/mimu/raw", "/mimu/imu"):
         raise InputError(f"{path}: measured on {doc.get('channel')!r}, not the MIMU "
                          "(/mimu/raw or /mimu/imu): not this unit's noise")

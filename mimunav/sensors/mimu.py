@@ -59,7 +59,7 @@ import numpy as np
 
 from .. import compensation
 from ..compensation import Calibration
-from ..files import read_json, write_atomic
+from ..files import check_format, read_json, write_atomic
 from ..kernels import njit
 from . import noise, response
 from .hidden import HiddenPhysics, HiddenSet
@@ -228,8 +228,7 @@ class MimuUnit:
 
     @classmethod
     def from_dict(cls, doc, source="unit"):
-        if doc.get("format") != UNIT_FORMAT:
-            raise InputError(f"{source}: format is {doc.get('format')!r}, expected {UNIT_FORMAT!r}")
+        check_format(doc, UNIT_FORMAT, source)
         try:
             return cls(name=doc["name"], seed=doc.get("seed"),
                        coefficients=Calibration.from_dict(doc["coefficients"], source),
