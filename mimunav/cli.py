@@ -213,6 +213,11 @@ def _calibration_compare(args):
     all_z = np.array([r[4] for r in rows])
     print(f"all: n = {len(all_z)}, RMS z {np.sqrt(np.mean(all_z**2)):.2f}, max |z| "
           f"{np.abs(all_z).max():.2f}")
+    if unit.beyond_model:
+        print(f"note: {args.unit} has {len(unit.beyond_model)} terms of physics beyond the "
+              "63-coefficient model (its `beyond_model`), which the fit absorbs where it can: "
+              "z above 1 is expected there (reports/calibration.md); `mimunav unit "
+              "--exact-model` draws a unit without them")
     return 0
 
 

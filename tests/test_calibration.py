@@ -339,6 +339,9 @@ def test_calibration_compare_prints_the_reports_z_scores(entire_lab, tmp_path, c
                if line[:2] in ("A0", "A1", "A2", "A3", "W0", "W1", "W2", "W3", "C[", "ct", "cw")}
     assert len(printed) == 63
     assert all(abs(printed[k] - z[k]) < 0.006 for k in z)
+    # a unit with physics beyond the model says so beside its z-scores (a new user read
+    # RMS z 3.65 on the default unit without a hint why)
+    assert ("beyond the 63-coefficient model" in out) == bool(units[0].beyond_model)
     trad.save(tmp_path / "trad.json")
     assert main(["calibration", "compare", str(tmp_path / "trad.json"),
                  str(tmp_path / "unit.json")]) == 2

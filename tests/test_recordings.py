@@ -360,6 +360,17 @@ def test_a_gyro_bias_does_not_make_a_channel_the_model_predicts(tmp_path):
         assert "gyro.x" not in channels, (label, channels)
 
 
+def _with_consumer_noise(flight, seed):
+    """The flight's recorded (w, f) with the track level's consumer part's white noise at
+    the drive's 100 Hz."""
+    from mimunav.diagnosis import track
+    rng = np.random.default_rng(seed)
+    w, f = flight.mimu_imu
+    per_sample = math.sqrt(100.0)                   # white density -> sigma at 100 Hz
+    return (w + rng.normal(0, track.CONSUMER_NOISE['gyro_white'] * per_sample, w.shape),
+            f + rng.normal(0, track.CONSUMER_NOISE['accel_white'] * per_sample, f.shape))
+
+
 def test_track_diagnosis_recovers_a_known_mounting_misalignment(tmp_path):
     """The synthetic drive's ideal IMU mounted [0, -3, 2] deg off the nominal mounting, with
     the consumer part's white noise at 100 Hz: the track level names the mounting
@@ -374,11 +385,7 @@ def test_track_diagnosis_recovers_a_known_mounting_misalignment(tmp_path):
         MOUNT.q_vs * quaternion.from_rotation_vector(phi)))
     path, _, _ = _ideal_flight(tmp_path, moved)
     flight = replace(Flight.load(path, reference_imu=False), mimu_mounting=MOUNT)
-    rng = np.random.default_rng(3)
-    w, f = flight.mimu_imu
-    per_sample = math.sqrt(100.0)                   # white density -> sigma at 100 Hz
-    noisy = (w + rng.normal(0, track.CONSUMER_NOISE['gyro_white'] * per_sample, w.shape),
-             f + rng.normal(0, track.CONSUMER_NOISE['accel_white'] * per_sample, f.shape))
+    noisy = _with_consumer_noise(flight, seed=3)
     doc = document("synthetic", track.diagnose(replace(flight, mimu_imu=noisy),
                                                Calibration.identity()))
     assert [x["effect"] for x in doc["findings"]] == ["mounting_misalignment"]
@@ -401,11 +408,7 @@ def test_track_level_gives_a_null_drive_its_clean_bill(tmp_path):
     from mimunav.diagnosis import document, track
     path, _, _ = _ideal_flight(tmp_path, MOUNT)
     flight = Flight.load(path, reference_imu=False)
-    rng = np.random.default_rng(3)
-    w, f = flight.mimu_imu
-    per_sample = math.sqrt(100.0)                   # white density -> sigma at 100 Hz
-    noisy = (w + rng.normal(0, track.CONSUMER_NOISE['gyro_white'] * per_sample, w.shape),
-             f + rng.normal(0, track.CONSUMER_NOISE['accel_white'] * per_sample, f.shape))
+    noisy = _with_consumer_noise(flight, seed=3)
     doc = document("null", track.diagnose(replace(flight, mimu_imu=noisy),
                                           Calibration.identity()))
     check = doc["reference_check"]
