@@ -38,8 +38,10 @@ After the search every finding must also hold where the reference is weakest (`s
     positive.
 A finding that fails one is not confirmed; when none survives, the diagnosis is then
 **inconclusive** (something was seen that this reference cannot support); so it is when the reference predicts fewer than MIN_PREDICTED of the six channels or fewer than
-MIN_TRUSTED of the samples are usable, and when nothing is found while a channel is not
-predicted (its terms were never tested: 'nothing is missing' cannot be said of it). The contract's verdict has no such word: an
+MIN_TRUSTED of the samples are usable, and when nothing is found while the model does not
+follow a channel (`untested`: its 1 s means unexplained beyond NOT_FOLLOWED times the part's
+noise - the terms it drives were never tested, and 'nothing is missing' cannot be said of
+them). The contract's verdict has no such word: an
 inconclusive diagnosis keeps its findings' verdict if any survive, otherwise
 "unexplained-residual" (the reference does not explain the recording), with
 `conclusive: false` and the reasons in the document.
@@ -311,9 +313,9 @@ def diagnose(flight, cal, alpha=0.05, reference=None, accuracy=None):
     else:
         diag.time_lag = {"not_estimated": f"the yaw rate is not predicted (1 s correlation "
                                           f"{corr['gyro.z']:.2f} < {PREDICTED_CORRELATION:g})"}
-    # terms that failed the checks, and channels never looked at, make the diagnosis
-    # inconclusive only when nothing held: a finding stands on its own tests, 'nothing is
-    # missing' needs every channel tested
+    # terms that failed the checks, and channels the model does not follow, make the
+    # diagnosis inconclusive only when nothing held: a finding stands on its own tests,
+    # 'nothing is missing' needs the terms of every channel the recording moves tested
     diag.inconclusive = reasons + ([] if diag.findings else demoted + untested(diag))
     return diag
 
