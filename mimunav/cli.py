@@ -405,7 +405,10 @@ def _diagnosed(args, painter):
     lag = doc.get("time_lag", {})
     if "tau_s" in lag:
         print(f"  time lag from the yaw rate: {lag['tau_s'] * 1e3:.1f} ms "
-              f"[{lag['ci95'][0] * 1e3:.1f}, {lag['ci95'][1] * 1e3:.1f}] (positive: the IMU lags)")
+              f"[{lag['ci95'][0] * 1e3:.1f}, {lag['ci95'][1] * 1e3:.1f}] (positive: the IMU lags)"
+              + (f"; not a finding: {lag['not_a_finding']}" if "not_a_finding" in lag else ""))
+    elif "not_estimated" in lag:
+        print(f"  time lag from the yaw rate not estimated: {lag['not_estimated']}")
     for u in doc["unexplained"][:10]:
         print(f"  unexplained residual {u['channel']} {u['t0']:.1f}-{u['t1']:.1f} s (z {u['z']:.1f})")
     if args.output:

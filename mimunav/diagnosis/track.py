@@ -299,11 +299,15 @@ def diagnose(flight, cal, alpha=0.05, reference=None, accuracy=None):
         tau, ci, segments = time_lag(replace(flight, mimu_imu=ref.mimu_imu), (ref, trusted))
         diag.time_lag = {"tau_s": tau, "ci95": list(ci), "segments_s": segments.values.tolist(),
                          "segments_se_s": np.sqrt(segments.variances).tolist(),
+                         "segments_unplaced": segments.unplaced,
                          "channel": "gyro.z (the vehicle's yaw rate, the model's best channel)",
                          "sign": "positive: the IMU's samples describe motion tau s earlier "
                                  "than their stamps (it lags), as time_skew"}
         late = _velocity_lag(flight)
-        if late is not None and abs(late) >= VELOCITY_LAG_NOTE_S:
+        if not math.isfinite(tau):
+            del diag.time_lag["tau_s"], diag.time_lag["ci95"]
+            diag.time_lag["not_estimated"] = _unplaced(segments)
+        elif late is not None and abs(late) >= VELOCITY_LAG_NOTE_S:
             diag.time_lag["reference_velocity_lag_s"] = late
             diag.time_lag["relative_to"] = (
                 f"the reference's velocity, which lags its own positions by {late * 1e3:.0f} "
@@ -468,24 +472,29 @@ LAG_REFERENCE_STEP_S = 0.5      # s: a track with sparser epochs cannot place th
                                 # bandwidth shifts the yaw rate's phase by tens of ms)
 LAG_STEP_S = 0.005
 LAG_SEGMENTS = 10
+MIN_HALF_SEGMENTS = 2           # placed segments in each half (a t test needs 2)
 
 
 def lag_finding(diag, flight, cal, segments, alpha):
     """The yaw-rate lag as a `time_skew imu.all` finding when the data support it: its value
-    and interval from all segments (`time_lag`), significant in the even segments and in the
-    odd ones alone (a t test of each half against 0 at level alpha: replicated), and the
+    and interval from all segments (`time_lag`), significant in each half alone (alternate
+    segments among those that place a lag, at least MIN_HALF_SEGMENTS each; a t test of each
+    half against 0 at level alpha: replicated), and the
     free-inertial windows navigate better with the IMU's stamps shifted by it (the module's
     navigation check). The sensor level's time_skew over all channels may be rejected beside
     it: the vehicle model predicts the other channels too poorly to show a lag. A track
     whose epochs are more than LAG_REFERENCE_STEP_S apart cannot place the lag. Returns the
     descriptions of the findings it demoted (`_no_lag`)."""
-    train, held = segments.part(slice(0, None, 2)), segments.part(slice(1, None, 2))
-    p_train, p_held = train.p_value(), held.p_value()
     step = float(np.median(np.diff(flight.truth.t)))
     if step > LAG_REFERENCE_STEP_S:
         return _no_lag(diag, f"the reference's epochs are {step:.2g} s apart: its track "
                              "cannot place a lag of tens of ms (the RTKLIB drive's 1 Hz "
                              "subset moved the lag by 17-54 ms, beyond its interval)")
+    if len(segments.values) < 2 * MIN_HALF_SEGMENTS:
+        return _no_lag(diag, _unplaced(segments) + f": each half needs {MIN_HALF_SEGMENTS} "
+                             "to replicate it")
+    train, held = segments.part(slice(0, None, 2)), segments.part(slice(1, None, 2))
+    p_train, p_held = train.p_value(), held.p_value()
     if not (p_train < alpha and p_held < alpha):
         return _no_lag(diag, f"the segments' lag is not significant in both halves (p "
                              f"{p_train:.2g} training, {p_held:.2g} held out)")
@@ -523,6 +532,13 @@ def lag_finding(diag, flight, cal, segments, alpha):
     return []
 
 
+def _unplaced(segments):
+    """What `segments` left of the lag's search, in words."""
+    return (f"{len(segments.values)} of {LAG_SEGMENTS} segments place a lag within "
+            f"+-{LAG_SEARCH_S:g} s (in the other {segments.unplaced} the yaw rate's rms is "
+            "least at the search's edge: the vehicle hardly turns there)")
+
+
 def _velocity_lag(flight):
     """The reference's velocity lag behind its positions (s) from the log's `reference`
     metadata (written at import, `importers.velocity_lag_s`), or None."""
@@ -555,9 +571,14 @@ def time_lag(flight, reference=None):
     w_z,IMU(t) - w_z,model(t - tau) over trusted moving samples (grid of LAG_STEP_S, refined
     by a parabola), per LAG_SEGMENTS contiguous segments. A segment's lag is known to
     var = s^2 / sum (dw_z/dt)^2 (s: its residual rms at the minimum; the lag's regressor is
-    the yaw acceleration), so a segment where the vehicle hardly turns weighs little.
+    the yaw acceleration), so a segment where the vehicle hardly turns weighs little; one
+    whose rms is least at the search's edge places no lag and is left out (`Segments.
+    unplaced`): on a noise-free drive with one sharp turn the straight segments' model error
+    sloped the rms across the whole search, their end parabolas said -14.6 and +28 s, and
+    the mean came out 2.5 s [-3.7, 8.8] for a 0.1 s lag (the turn's two segments: 0.100).
     Returns (tau: the weighted mean, its 95 % interval (Student t, the standard error
-    scaled by the segments' Birge ratio when above 1), `Segments`).
+    scaled by the segments' Birge ratio when above 1), `Segments`); NaN and a NaN interval
+    when fewer than 2 segments place a lag.
     `reference`: a `simulated_reference(flight)` already made."""
     from .. import attitude
     ref, trusted = reference or simulated_reference(flight)
@@ -577,25 +598,37 @@ def time_lag(flight, reference=None):
     step = np.diff(t, prepend=t[0] - np.median(np.diff(t)))[k]
     weight = np.minimum(step, 2 * np.median(step)) / np.median(step)
     share = np.cumsum(weight) / np.sum(weight)
+    # a residual below the part's own white noise is the vehicle model's error, not a
+    # precision: on a noise-free drive the straight segments' residual (the track spline's
+    # transport-rate wiggles, 1e-6 rad/s) had put their lags at 0.16 +- 0.0002 s
+    white = CONSUMER_NOISE["gyro_white"] ** 2 / np.median(step)
     part = np.minimum((share * LAG_SEGMENTS).astype(int), LAG_SEGMENTS - 1)
     values, variances = [], []
     for i in range(LAG_SEGMENTS):
         seg = part == i
         mse = np.sum(weight[seg] * err[:, seg] ** 2, axis=1) / max(np.sum(weight[seg]), 1e-300)
         values.append(_parabola_min(taus, mse))
-        variances.append(mse.min() / max(float(np.sum(weight[seg] * accel[seg] ** 2)), 1e-300))
-    segments = Segments(np.asarray(values), np.asarray(variances))
+        variances.append(max(mse.min(), white) /
+                         max(float(np.sum(weight[seg] * accel[seg] ** 2)), 1e-300))
+    values, variances = np.asarray(values), np.asarray(variances)
+    placed = np.isfinite(values)
+    segments = Segments(values[placed], variances[placed], unplaced=int(np.sum(~placed)))
+    if len(segments.values) < 2:
+        return math.nan, (math.nan, math.nan), segments
     tau, (lo, hi) = segments.mean_and_interval()
     return tau, (lo, hi), segments
 
 
 @dataclass
 class Segments:
-    """Per-segment lags (s) and their variances (s^2)."""
+    """Per-segment lags (s) and their variances (s^2) of the segments that place a lag inside
+    the search; `unplaced`: how many did not (their rms least at the search's edge)."""
     values: np.ndarray
     variances: np.ndarray
+    unplaced: int = 0
 
     def part(self, sl):
+        """The segments `sl` of those placed (the halves alternate among them)."""
         return Segments(self.values[sl], self.variances[sl])
 
     def mean_and_se(self):
@@ -643,8 +676,12 @@ class Segments:
 
 def _parabola_min(x, y):
     """Abscissa of the minimum of y(x) on a uniform grid, refined by a parabola through the
-    smallest value and its neighbours."""
-    j = int(np.clip(np.argmin(y), 1, len(y) - 2))
+    smallest value and its neighbours; NaN when the smallest value is at either end of the
+    grid (the minimum is not bracketed: a parabola through the end and its two neighbours had
+    put a straight stretch's lag at -14.6 s for a +-0.5 s search)."""
+    j = int(np.argmin(y))
+    if j in (0, len(y) - 1):
+        return math.nan
     a, b, c = y[j - 1], y[j], y[j + 1]
     den = a - 2 * b + c
     return float(x[j] + (0.5 * (a - c) / den if den > 0 else 0.0) * (x[1] - x[0]))
