@@ -528,6 +528,9 @@ def _import(args):
           + (f", {len(rec.fixes['ns'])} GNSS fixes" if rec.fixes else ""))
     for key, value in rec.assumed.items():      # what is not measured, said where it is made
         print(f"assumed {key}: {value}")
+    if "mounting_yaw_against_course" in rec.real:
+        print(f"measured mounting yaw against the course: "
+              f"{rec.real['mounting_yaw_against_course']}")
     print(f"initial state at t = {align.t:.3f} s: {align.method}")
     if np.isnan(align.static[0]) and np.any(align.gyro_bias):
         print("biases from the reference's attitude and velocity (sensor axes): gyro "

@@ -7,6 +7,7 @@ here. The real excerpt (tests/data/rtklib-drive, BSD-3-Clause) checks the reader
 times and the contract of the log it becomes."""
 import json
 import math
+import re
 import struct
 from pathlib import Path
 
@@ -30,19 +31,30 @@ LAT0, LON0, H0 = 40.1 * DEG, -105.1 * DEG, 1600.0
 
 
 # ---- a synthetic drive: rest, then a winding road with a climb --------------------------
+def _smoothstep(x):
+    """0 before 0, 1 after 1, C2 between (the quintic smoothstep)."""
+    x = np.clip(x, 0.0, 1.0)
+    return x ** 3 * (10 - 15 * x + 6 * x ** 2)
+
+
+def _from_velocity(t, v):
+    """(t, lat, lon, h, v_ned) of a track from LAT0, LON0, H0 with NED velocity v (m/s),
+    positions by the trapezoid rule (flat over the drive's few km)."""
+    d = np.vstack([np.zeros(3), np.cumsum(0.5 * (v[1:] + v[:-1]) * np.diff(t)[:, None], axis=0)])
+    r_n, r_e = earth.radii(LAT0)
+    return t, LAT0 + d[:, 0] / (r_n + H0), LON0 + d[:, 1] / ((r_e + H0) * math.cos(LAT0)), \
+        H0 - d[:, 2], v
+
+
 def _track(duration=120.0, rate=4.0):
     """A GNSS-like track (t, lat, lon, h, v_ned): 20 s at rest, a 5 s smooth start to 10 m/s
     heading 30 deg, then weaving smoothly from t = 30 s (yaw 30-50 deg, 0.05 Hz) and climbing
     2 %."""
     t = np.arange(0.0, duration + 1e-9, 1.0 / rate)
-    s = np.clip((t - 20.0) / 5.0, 0.0, 1.0)
-    speed = 10.0 * s ** 3 * (10 - 15 * s + 6 * s ** 2)               # smoothstep, C2
+    speed = 10.0 * _smoothstep((t - 20.0) / 5.0)
     yaw = 30 * DEG + 10 * DEG * (1 - np.cos(2 * math.pi * 0.05 * np.maximum(t - 30.0, 0.0)))
     v = np.column_stack([speed * np.cos(yaw), speed * np.sin(yaw), -0.02 * speed])
-    d = np.vstack([np.zeros(3), np.cumsum(0.5 * (v[1:] + v[:-1]) * np.diff(t)[:, None], axis=0)])
-    r_n, r_e = earth.radii(LAT0)
-    return t, LAT0 + d[:, 0] / (r_n + H0), LON0 + d[:, 1] / ((r_e + H0) * math.cos(LAT0)), \
-        H0 - d[:, 2], v
+    return _from_velocity(t, v)
 
 
 def _one_turn(edge_s, rate=10.0, duration=120.0):
@@ -50,17 +62,14 @@ def _one_turn(edge_s, rate=10.0, duration=120.0):
     of yaw over 60-69 s, its yaw-rate edges smoothsteps of edge_s seconds (track as `_track`,
     level)."""
     t = np.arange(0.0, duration + 1e-9, 1.0 / rate)
-    step = lambda x: np.clip(x, 0, 1) ** 3 * (10 - 15 * np.clip(x, 0, 1) + 6 * np.clip(x, 0, 1) ** 2)  # noqa: E731
-    speed = 10.0 * step((t - 20.0) / 5.0)
+    speed = 10.0 * _smoothstep((t - 20.0) / 5.0)
     fine = np.arange(0.0, duration + 1e-9, 1e-3)
-    yaw_rate = 10 * DEG * (step((fine - 60.0) / edge_s) - step((fine - 69.0) / edge_s))
+    yaw_rate = 10 * DEG * (_smoothstep((fine - 60.0) / edge_s) -
+                           _smoothstep((fine - 69.0) / edge_s))
     yaw = np.interp(t, fine, 30 * DEG + np.concatenate(
         [[0.0], np.cumsum(0.5 * (yaw_rate[1:] + yaw_rate[:-1]) * 1e-3)]))
     v = np.column_stack([speed * np.cos(yaw), speed * np.sin(yaw), np.zeros_like(t)])
-    d = np.vstack([np.zeros(3), np.cumsum(0.5 * (v[1:] + v[:-1]) * np.diff(t)[:, None], axis=0)])
-    r_n, r_e = earth.radii(LAT0)
-    return t, LAT0 + d[:, 0] / (r_n + H0), LON0 + d[:, 1] / ((r_e + H0) * math.cos(LAT0)), \
-        H0 - d[:, 2], v
+    return _from_velocity(t, v)
 
 
 def _ideal_flight(tmp_path, mounting, gyro_bias=np.zeros(3), rate=100.0, lag=0.0, track=None,
@@ -166,16 +175,10 @@ def _stop_track(rate=4.0):
     """Driving at 10 m/s heading 30 deg, a smooth stop at 20-25 s, 20 s at rest, a smooth
     start at 45-50 s and on to 80 s."""
     t = np.arange(0.0, 80.0 + 1e-9, 1.0 / rate)
-    down = np.clip((t - 20.0) / 5.0, 0.0, 1.0)
-    up = np.clip((t - 45.0) / 5.0, 0.0, 1.0)
-    smooth = lambda s: s ** 3 * (10 - 15 * s + 6 * s ** 2)           # noqa: E731
-    speed = 10.0 * (1 - smooth(down) + smooth(up))
+    speed = 10.0 * (1 - _smoothstep((t - 20.0) / 5.0) + _smoothstep((t - 45.0) / 5.0))
     yaw = np.full_like(t, 30 * DEG)
     v = np.column_stack([speed * np.cos(yaw), speed * np.sin(yaw), np.zeros_like(t)])
-    d = np.vstack([np.zeros(3), np.cumsum(0.5 * (v[1:] + v[:-1]) * np.diff(t)[:, None], axis=0)])
-    r_n, r_e = earth.radii(LAT0)
-    return t, LAT0 + d[:, 0] / (r_n + H0), LON0 + d[:, 1] / ((r_e + H0) * math.cos(LAT0)), \
-        H0 - d[:, 2], v
+    return _from_velocity(t, v)
 
 
 def test_alignment_in_motion_without_a_rest(tmp_path):
@@ -460,9 +463,13 @@ def test_rtklib_excerpt_reader_units_and_times():
     assert np.allclose(sol["v_ned"][0], [0.010, -0.002, -0.009])
 
 
-def test_rtklib_excerpt_import_follows_the_contract(tmp_path):
+def test_rtklib_excerpt_import_follows_the_contract(tmp_path, capsys):
     out = tmp_path / "drive.mcap"
     assert main(["import", "rtklib", str(DRIVE), "-o", str(out)]) == 0
+    # the mounting's yaw against the course, measured and said (-2.0 deg on the excerpt,
+    # -6.1 on the whole drive, whose diagnosis finds -6.7 [-7.7, -5.8])
+    assert re.search(r"measured mounting yaw against the course: [-+]\d+\.\d deg",
+                     capsys.readouterr().out)
     with FlightLog(out) as log:
         meta = log.metadata()
         assert meta["flight"]["source"] == "recording"
@@ -1046,6 +1053,44 @@ def test_the_gnss_course_judges_units_and_axes_without_a_reference_attitude(tmp_
     assert not (tmp_path / "never.mcap").exists()
 
 
+def test_the_import_measures_the_mountings_yaw_against_the_course(tmp_path, capsys):
+    """The ideal IMU of a level drive that turns once (`_one_turn`) declared with its
+    mounting right and 10 deg off in yaw (within the 45 deg a refusal takes): the import measures the yaw between the
+    accelerometers' horizontal specific force and the track's acceleration, writes it in the
+    log's metadata, prints it and the mounting that turns it back (a 10 deg yaw had passed
+    silently; the diagnosis later called gyro.x 1.22 times the prediction)."""
+    t_tr, lat, lon, h, v = _one_turn(1.0, rate=4.0)
+    t = np.arange(t_tr[0], t_tr[-1] + 1e-9, 0.01)
+    dth, dv = MOUNT.sensor_increments(truth.generate(TrackMotion(t_tr, lat, lon, h, v), t))
+    epoch = 1_700_000_000_000_000_000
+    ref = dict(ns=epoch + np.round(t_tr * 1e9).astype(np.int64), lat=lat, lon=lon, h=h, v_ned=v)
+    for declared, yaw in (((180.0, 0.0, 180.0), 0.0), ((180.0, 0.0, 170.0), -10.0)):
+        rec = Recording("turned", "", epoch + np.round(t[1:] * 1e9).astype(np.int64),
+                        dth * 100.0, dv * 100.0, Mounting.from_rpy_deg(declared), reference=ref)
+        write_log(rec, tmp_path / f"{yaw}.mcap")
+        said = rec.real["mounting_yaw_against_course"]
+        assert abs(float(said.split(" deg")[0]) - yaw) < 0.5, said
+        with FlightLog(tmp_path / f"{yaw}.mcap") as log:
+            assert log.metadata()["recording"]["real"]["mounting_yaw_against_course"] == said
+    assert re.search("--mounting-rpy-deg -?180 0 -?180 would turn it back", said), said
+    # diagnosed as recorded (noise-free), the roll and pitch rates' Earth-rate means (0.2
+    # times the part's noise) are too still to call their 1.22 and 0.87 times the prediction
+    # a scale error beyond the model (it made the diagnosis inconclusive); with the part's
+    # noise, the yaw is a mounting misalignment of sin 10 deg (the regressor is linear)
+    from dataclasses import replace
+
+    from mimunav.compensation import Calibration
+    from mimunav.diagnosis import track
+    flight = Flight.load(tmp_path / "-10.0.mcap", reference_imu=False)
+    diag = track.diagnose(flight, Calibration.identity())
+    assert not [r for r in diag.inconclusive if "times what the reference predicts" in r]
+    diag = track.diagnose(replace(flight, mimu_imu=_with_consumer_noise(flight, 3)),
+                          Calibration.identity())
+    assert [f["label"] for f in diag.findings] == ["mounting_misalignment imu.all"]
+    (lo, hi), phi = diag.findings[0]["ci95"], -math.sin(10 * DEG)
+    assert lo <= phi <= hi and hi - lo < 0.05, diag.findings[0]
+
+
 def test_a_foreign_recording_given_where_a_log_belongs_is_told_how_to_import(tmp_path, capsys):
     """A ULog or DataFlash file given to info, a ROS 2 bag given to windows: the refusal says
     which import makes a mimunav log of it."""
@@ -1194,13 +1239,8 @@ def test_windows_of_a_reversing_vehicle_face_backwards(tmp_path):
     window's moving alignment must face the vehicle against its velocity. Taking heading =
     course, the 10 s windows end 31-37 m off; facing backwards, within the
     forward drive's 0.05 m."""
-    t, lat, lon, h, v = _track()
-    back = -v
-    d = np.vstack([np.zeros(3), np.cumsum(0.5 * (back[1:] + back[:-1]) * np.diff(t)[:, None],
-                                          axis=0)])
-    r_n, r_e = earth.radii(LAT0)
-    track = (t, LAT0 + d[:, 0] / (r_n + H0), LON0 + d[:, 1] / ((r_e + H0) * math.cos(LAT0)),
-             H0 - d[:, 2], back)
+    t, _, _, _, v = _track()
+    track = _from_velocity(t, -v)
     half_turn = quaternion.from_rotation_vector([0.0, 0.0, math.pi])
     from dataclasses import replace
     as_moved = replace(MOUNT, attitude_wxyz=quaternion.as_float_array(half_turn * MOUNT.q_vs))
@@ -1514,11 +1554,12 @@ def test_the_yaw_rate_lag_of_a_drive_that_turns_once(tmp_path):
     """IMU stamps 100 ms late on a drive straight but for one turn, the IMU from the motion
     of a 10 Hz track and the reference its 5 Hz subsample (the vehicle model's spline is not
     the IMU's). Noise-free, yaw-rate edges of 20 ms: the lag comes from the turn's edges,
-    within 10 ms of 0.1 s (a 5 Hz track places a 20 ms edge to about 5 ms) - the straight
-    segments' residual is the model's 1e-6 rad/s, not a precision (before: 0.068 s [-0.259,
-    0.394], those segments at 0.29 +- 0.0002 s). With the consumer part's gyro noise and
-    0.1 s edges: a segment whose rms is least at the search's edge places no lag (before:
-    segments at -2732 to +3571 s), and two placed segments cannot replicate a finding."""
+    within 10 ms of 0.1 s (a 5 Hz track places a 20 ms edge to a few ms) - the straight
+    segments' residual is the model's 1e-6 rad/s, not a precision (before: 0.065 s [-0.252,
+    0.383], two of them at 0.28 +- 0.003 and -0.33 +- 0.0005 s). With the consumer part's
+    gyro noise and 0.1 s edges: a segment whose rms is least at the search's edge places no
+    lag (before: segments 'placed' at -2587 to +232 s by a parabola through the search's
+    end), and too few placed segments cannot replicate a finding."""
     from dataclasses import replace
 
     from mimunav.compensation import Calibration

@@ -430,6 +430,16 @@ def _check_against_course(rec):
     if np.std(z_ref) > COURSE_CHECK_ACCEL:
         gain, coherence = alignment.acceleration_match(f_v[:, 0] + 1j * f_v[:, 1], z_ref)
         yaw = float(np.angle(gain))
+        if coherence > 0.5:
+            # said even when small: the RTKLIB drive reads -6.1 deg here and its diagnosis
+            # finds the mounting's yaw at -6.7 deg [-7.7, -5.8]
+            rec.real["mounting_yaw_against_course"] = (
+                f"{math.degrees(yaw):+.1f} deg (the accelerometers' horizontal specific force "
+                f"against the GNSS track's acceleration: coherence {coherence:.2f}, size ratio "
+                f"{abs(gain):.2f}; a car's body slip and lean take a few degrees): beyond "
+                f"{math.degrees(COURSE_CHECK_YAW):.0f} deg it is refused, a smaller one "
+                "`mimunav diagnose` measures with its interval (mounting_misalignment); "
+                f"--mounting-rpy-deg {_turned_back(rec, yaw, square=False)} would turn it back")
         if coherence > 0.5 and abs(yaw) > COURSE_CHECK_YAW:
             raise RecordingError(
                 f"{rec.name}: the accelerometers' horizontal specific force matches the GNSS "
@@ -440,14 +450,15 @@ def _check_against_course(rec):
                    "forward stretch)" if abs(yaw) > math.radians(135.0) else ""))
 
 
-def _turned_back(rec, yaw):
+def _turned_back(rec, yaw, square=True):
     """'R P Y' (deg) of the recording's mounting turned by -yaw about the vehicle's down axis,
-    yaw rounded to a quarter turn when within 15 deg of one (mountings are made square)."""
+    yaw rounded to a quarter turn when within 15 deg of one and `square` (mountings are made
+    square)."""
     quarter = round(math.degrees(yaw) / 90.0) * 90.0
-    turn = quarter if abs(math.degrees(yaw) - quarter) < 15.0 else math.degrees(yaw)
+    turn = quarter if square and abs(math.degrees(yaw) - quarter) < 15.0 else math.degrees(yaw)
     q = quaternion.from_rotation_vector([0.0, 0.0, -math.radians(turn)]) * rec.mounting.q_vs
-    z, y, x = (float(np.degrees(a)) + 0.0 for a in attitude.as_euler(q))
-    return f"{x:.0f} {y:.0f} {z:.0f}"
+    z, y, x = (round(float(np.degrees(a))) + 0 for a in attitude.as_euler(q))
+    return f"{x} {y} {z}"
 
 
 TIME_OFFSET_SEARCH_S = 60.0     # s: the yaw rate is looked for this far either side
