@@ -475,6 +475,7 @@ def _window_ends(flight, cal, findings):
 
 
 LAG_SEARCH_S = 0.5
+LAG_SEARCH_MAX_S = GAP_MARGIN_S     # s: a segment least at +-LAG_SEARCH_S is searched on to here
 VELOCITY_LAG_NOTE_S = 0.02      # s: a reference velocity this late is named beside the lag
 LAG_REFERENCE_STEP_S = 0.5      # s: a track with sparser epochs cannot place the lag (its
                                 # bandwidth shifts the yaw rate's phase by tens of ms)
@@ -499,8 +500,7 @@ def lag_finding(diag, flight, cal, segments, alpha):
                              "cannot place a lag of tens of ms (the RTKLIB drive's 1 Hz "
                              "subset moved the lag by 17-54 ms, beyond its interval)")
     if len(segments.values) < 2 * MIN_HALF_SEGMENTS:
-        return _no_lag(diag, _unplaced(segments) + f": each half needs {MIN_HALF_SEGMENTS} "
-                             "to replicate it")
+        return _no_lag(diag, _unplaced(segments))
     train, held = segments.part(slice(0, None, 2)), segments.part(slice(1, None, 2))
     p_train, p_held = train.p_value(), held.p_value()
     if not (p_train < alpha and p_held < alpha):
@@ -541,10 +541,13 @@ def lag_finding(diag, flight, cal, segments, alpha):
 
 
 def _unplaced(segments):
-    """What `segments` left of the lag's search, in words."""
+    """Why `segments` (fewer than 2 x MIN_HALF_SEGMENTS placed) give no lag, in words."""
+    at = ", ".join(f"{v:.3f}" for v in segments.values)
     return (f"{len(segments.values)} of {LAG_SEGMENTS} segments place a lag within "
-            f"+-{LAG_SEARCH_S:g} s (in the other {segments.unplaced} the yaw rate's rms is "
-            "least at the search's edge: the vehicle hardly turns there)")
+            f"+-{LAG_SEARCH_MAX_S:g} s" + (f" (at {at} s)" if at else "") +
+            f"; in the other {segments.unplaced} the yaw rate's rms is least at the search's "
+            "edge (the vehicle hardly turns there, or the lag is larger): "
+            f"{2 * MIN_HALF_SEGMENTS} are needed to bound it and replicate it in two halves")
 
 
 def _velocity_lag(flight):
@@ -581,26 +584,26 @@ def time_lag(flight, reference=None):
     by a parabola), per LAG_SEGMENTS contiguous segments. A segment's lag is known to
     var = s^2 / sum (dw_z/dt)^2 (s: its residual rms at the minimum; the lag's regressor is
     the yaw acceleration; s at least the part's white noise, CONSUMER_NOISE), so a segment
-    where the vehicle hardly turns weighs little; one
-    whose rms is least at the search's edge places no lag and is left out (`Segments.
+    where the vehicle hardly turns weighs little. A segment whose rms is least at the edge of
+    the +-LAG_SEARCH_S search is searched on to +-LAG_SEARCH_MAX_S (a lag beyond the first
+    search); one still least at that edge places no lag and is left out (`Segments.
     unplaced`): on a noise-free drive with one sharp turn the straight segments' model error
     sloped the rms across the whole search, their end parabolas said -14.6 and +28 s, and
     the mean came out 2.5 s [-3.7, 8.8] for a 0.1 s lag (the turn's two segments: 0.100).
     Returns (tau: the weighted mean, its 95 % interval (Student t, the standard error
     scaled by the segments' Birge ratio when above 1), `Segments`); NaN and a NaN interval
-    when fewer than 2 segments place a lag.
+    when fewer than 2 x MIN_HALF_SEGMENTS segments place a lag (two agreeing halves of one
+    turn gave 117 ms [110, 124] for 100: the track's own phase error, which only the
+    scatter of more segments shows).
     `reference`: a `simulated_reference(flight)` already made."""
     from .. import attitude
     ref, trusted = reference or simulated_reference(flight)
     t = flight.mimu_t
     w_imu = attitude.rotate(flight.mimu_mounting.q_vs, flight.mimu_imu[0])[:, 2]
     w_model = np.interp(t, ref.fog_t, ref.fog_w[:, 2])
-    moving = trusted & (np.abs(w_model) > 0) & (t > ref.fog_t[0] + LAG_SEARCH_S) & \
-        (t < ref.fog_t[-1] - LAG_SEARCH_S)
+    moving = trusted & (np.abs(w_model) > 0) & (t > ref.fog_t[0] + LAG_SEARCH_MAX_S) & \
+        (t < ref.fog_t[-1] - LAG_SEARCH_MAX_S)
     k = np.flatnonzero(moving)
-    taus = np.arange(-LAG_SEARCH_S, LAG_SEARCH_S + 1e-12, LAG_STEP_S)
-    shifted = np.stack([np.interp(t[k] - tau, ref.fog_t, ref.fog_w[:, 2]) for tau in taus])
-    err = (w_imu[k] - w_imu[k].mean()) - (shifted - shifted.mean(axis=1, keepdims=True))
     accel = np.gradient(w_model, t)[k]
     # each sample weighs its own interval and the segments are equal shares of the moving
     # time, not of the samples: a logger switched from 100 to 50 Hz had put its segment
@@ -608,23 +611,41 @@ def time_lag(flight, reference=None):
     step = np.diff(t, prepend=t[0] - np.median(np.diff(t)))[k]
     weight = np.minimum(step, 2 * np.median(step)) / np.median(step)
     share = np.cumsum(weight) / np.sum(weight)
+    part = np.minimum((share * LAG_SEGMENTS).astype(int), LAG_SEGMENTS - 1)
+
+    def curves(taus):           # (len(taus), LAG_SEGMENTS): each segment's weighted mse
+        imu = w_imu[k] - w_imu[k].mean()
+        out = np.empty((len(taus), LAG_SEGMENTS))
+        total = np.bincount(part, weight, LAG_SEGMENTS)
+        for j, tau in enumerate(taus):
+            model = np.interp(t[k] - tau, ref.fog_t, ref.fog_w[:, 2])
+            err = imu - (model - model.mean())
+            out[j] = np.bincount(part, weight * err * err, LAG_SEGMENTS) / np.maximum(total,
+                                                                                     1e-300)
+        return out
+    taus = np.arange(-LAG_SEARCH_S, LAG_SEARCH_S + 1e-12, LAG_STEP_S)
+    mse = curves(taus)
+    values = np.array([_parabola_min(taus, mse[:, i]) for i in range(LAG_SEGMENTS)])
+    lowest = mse.min(axis=0)
+    if not np.isfinite(values).all():
+        # a segment least at the search's edge is searched on to LAG_SEARCH_MAX_S: a lag
+        # beyond the first search is a lag (0.7 s on the weaving drive), not a straight road
+        side = np.arange(LAG_SEARCH_S + LAG_STEP_S, LAG_SEARCH_MAX_S + 1e-12, LAG_STEP_S)
+        wide = np.concatenate([-side[::-1], taus, side])
+        wide_mse = np.concatenate([curves(-side[::-1]), mse, curves(side)])
+        for i in np.flatnonzero(~np.isfinite(values)):
+            values[i] = _parabola_min(wide, wide_mse[:, i])
+            lowest[i] = wide_mse[:, i].min()
     # a residual below the part's own white noise is the vehicle model's error, not a
     # precision: on a noise-free drive, straight segments (a yaw rate of the Earth's and the
     # transport rate, 5e-5 rad/s; the model's residual 1e-6) had put their lags at 0.28 +-
     # 0.003 and -0.33 +- 0.0005 s, and the mean at 0.065 s [-0.25, 0.38] for 0.1 s
     white = CONSUMER_NOISE["gyro_white"] ** 2 / np.median(step)
-    part = np.minimum((share * LAG_SEGMENTS).astype(int), LAG_SEGMENTS - 1)
-    values, variances = [], []
-    for i in range(LAG_SEGMENTS):
-        seg = part == i
-        mse = np.sum(weight[seg] * err[:, seg] ** 2, axis=1) / max(np.sum(weight[seg]), 1e-300)
-        values.append(_parabola_min(taus, mse))
-        variances.append(max(mse.min(), white) /
-                         max(float(np.sum(weight[seg] * accel[seg] ** 2)), 1e-300))
-    values, variances = np.asarray(values), np.asarray(variances)
+    info = np.bincount(part, weight * accel * accel, LAG_SEGMENTS)
+    variances = np.maximum(lowest, white) / np.maximum(info, 1e-300)
     placed = np.isfinite(values)
     segments = Segments(values[placed], variances[placed], unplaced=int(np.sum(~placed)))
-    if len(segments.values) < 2:
+    if len(segments.values) < 2 * MIN_HALF_SEGMENTS:
         return math.nan, (math.nan, math.nan), segments
     tau, (lo, hi) = segments.mean_and_interval()
     return tau, (lo, hi), segments
