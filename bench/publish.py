@@ -20,7 +20,7 @@ RESULTS = ROOT / "bench" / "results"
 README = ROOT / "README.md"
 START, END = "<!-- bench:start -->", "<!-- bench:end -->"
 ORDER = ("strapdown", "sensors", "flightlog", "memory", "lab", "evaluation", "diagnosis",
-         "transplant", "recordings", "fuzz", "fuzz_import", "mutation")
+         "transplant", "recordings", "track_drive", "fuzz", "fuzz_import", "mutation")
 
 
 def timed_cli(args, env=None):
