@@ -769,6 +769,8 @@ def test_report_recording_of_the_excerpt_and_its_refusals(tmp_path):
     assert "| 10 |" in text                              # the 10 s windows' row
     doc = json.loads((out / "diagnosis" / "diagnosis.json").read_text())
     assert doc["level"] == "track" and "conclusive" in doc
+    # the excursions that set the contract verdict are listed (11 on the excerpt)
+    assert text.count("- unexplained residual ") == len(doc["unexplained"]) > 0
     assert (out / "windows.png").stat().st_size > 0
     assert main(["report", "recording", str(log), "-o", str(out)]) == 2      # no --force
     bare = tmp_path / "bare.mcap"                        # no /truth/state

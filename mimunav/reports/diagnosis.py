@@ -238,6 +238,9 @@ def markdown(doc, diag, cal_label):
                   + " m/s.", ""]
     nav = doc["navigation"]
     lines += ["", f"## Navigation error against the {nav['reference']} (navigation.png)", "",
+              "Free-inertial over the whole record from the initial state, the MIMU's outputs "
+              "through the model alone: a bias the model does not hold (on an imported "
+              "recording, the gyro bias the import measured at rest) grows into it.", "",
               "| compensation | end 3-D error, m | max 3-D error, m |", "|---|---|---|"]
     for name in ("model", "model+found"):
         if name in nav:

@@ -187,6 +187,12 @@ def markdown(log_path, meta, channels, flight, docs, no_windows, doc, no_diagnos
                      + (f", relative to {lag['relative_to']}" if "relative_to" in lag else "")
                      + (f"; not a finding: {lag['not_a_finding']}" if "not_a_finding" in lag
                         else ""))
+    elif "not_estimated" in lag:
+        lines.append(f"- time lag of the IMU from the yaw rate not estimated: "
+                     f"{lag['not_estimated']}")
+    # the excursions the model leaves set the contract verdict: said here too
+    lines += [f"- unexplained residual {u['channel']} {u['t0']:.1f}-{u['t1']:.1f} s "
+              f"(robust z {u['z']:.1f})" for u in doc["unexplained"]]
     lines += ["", "The diagnosis's own report: `diagnosis/diagnosis.md` (what the reference "
               "predicts, residual map, timeline, contract JSON)."]
     return "\n".join(lines) + "\n"
