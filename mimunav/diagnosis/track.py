@@ -300,17 +300,17 @@ def diagnose(flight, cal, alpha=0.05, reference=None, accuracy=None):
     reasons, demoted = screen(diag, flight, cal)
     if corr["gyro.z"] >= PREDICTED_CORRELATION:
         tau, ci, segments = time_lag(replace(flight, mimu_imu=ref.mimu_imu), (ref, trusted))
-        diag.time_lag = {"tau_s": tau, "ci95": list(ci), "segments_s": segments.values.tolist(),
-                         "segments_se_s": np.sqrt(segments.variances).tolist(),
-                         "segments_unplaced": segments.unplaced,
-                         "channel": "gyro.z (the vehicle's yaw rate, the model's best channel)",
-                         "sign": "positive: the IMU's samples describe motion tau s earlier "
-                                 "than their stamps (it lags), as time_skew"}
+        diag.time_lag = ({"tau_s": tau, "ci95": list(ci)} if math.isfinite(tau) else
+                         {"not_estimated": _unplaced(segments)})
+        diag.time_lag.update({
+            "segments_s": segments.values.tolist(),
+            "segments_se_s": np.sqrt(segments.variances).tolist(),
+            "segments_unplaced": segments.unplaced,
+            "channel": "gyro.z (the vehicle's yaw rate, the model's best channel)",
+            "sign": "positive: the IMU's samples describe motion tau s earlier than their "
+                    "stamps (it lags), as time_skew"})
         late = _velocity_lag(flight)
-        if not math.isfinite(tau):
-            del diag.time_lag["tau_s"], diag.time_lag["ci95"]
-            diag.time_lag["not_estimated"] = _unplaced(segments)
-        elif late is not None and abs(late) >= VELOCITY_LAG_NOTE_S:
+        if math.isfinite(tau) and late is not None and abs(late) >= VELOCITY_LAG_NOTE_S:
             diag.time_lag["reference_velocity_lag_s"] = late
             diag.time_lag["relative_to"] = (
                 f"the reference's velocity, which lags its own positions by {late * 1e3:.0f} "
@@ -613,15 +613,15 @@ def time_lag(flight, reference=None):
     share = np.cumsum(weight) / np.sum(weight)
     part = np.minimum((share * LAG_SEGMENTS).astype(int), LAG_SEGMENTS - 1)
 
+    imu = w_imu[k] - w_imu[k].mean()
+    total = np.maximum(np.bincount(part, weight, LAG_SEGMENTS), 1e-300)
+
     def curves(taus):           # (len(taus), LAG_SEGMENTS): each segment's weighted mse
-        imu = w_imu[k] - w_imu[k].mean()
         out = np.empty((len(taus), LAG_SEGMENTS))
-        total = np.bincount(part, weight, LAG_SEGMENTS)
         for j, tau in enumerate(taus):
             model = np.interp(t[k] - tau, ref.fog_t, ref.fog_w[:, 2])
             err = imu - (model - model.mean())
-            out[j] = np.bincount(part, weight * err * err, LAG_SEGMENTS) / np.maximum(total,
-                                                                                     1e-300)
+            out[j] = np.bincount(part, weight * err * err, LAG_SEGMENTS) / total
         return out
     taus = np.arange(-LAG_SEARCH_S, LAG_SEARCH_S + 1e-12, LAG_STEP_S)
     mse = curves(taus)
