@@ -1057,11 +1057,12 @@ def test_the_gnss_course_judges_units_and_axes_without_a_reference_attitude(tmp_
 
 def test_the_import_measures_the_mountings_yaw_against_the_course(tmp_path, capsys):
     """The ideal IMU of a level drive that turns once (`_one_turn`) declared with its
-    mounting right and 10 deg off in yaw (within the 45 deg a refusal takes): the import measures the yaw between the
-    accelerometers' horizontal specific force and the track's acceleration, writes it in the
-    log's metadata, prints it and the mounting that turns it back (a 10 deg yaw had passed
-    silently; the diagnosis later called gyro.x 1.22 times the prediction: a still channel
-    is not judged for scale, a yaw rate 30 % too large still is)."""
+    mounting right and 10 deg off in yaw (within the 45 deg a refusal takes): the import
+    measures the yaw between the accelerometers' horizontal specific force and the track's
+    acceleration, writes it in the log's metadata, prints it and the mounting that turns it
+    back (a 10 deg yaw had passed silently; the diagnosis later called gyro.x 1.22 times the
+    prediction: a still channel is not judged for scale, a yaw rate 30 % too large still
+    is)."""
     t_tr, lat, lon, h, v = _one_turn(1.0, rate=4.0)
     t = np.arange(t_tr[0], t_tr[-1] + 1e-9, 0.01)
     dth, dv = MOUNT.sensor_increments(truth.generate(TrackMotion(t_tr, lat, lon, h, v), t))
