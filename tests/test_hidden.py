@@ -148,6 +148,33 @@ def test_wander_gls_equals_the_explicit_covariance():
     assert 1e-3 <= wander.LAMBDA_GRID[int(np.argmax(loglik))] <= 1e-1
 
 
+def test_wander_gls_with_a_varying_white_variance_equals_the_explicit_covariance():
+    """The same with each row's white variance r s_k (a reference whose error grows as 1/v):
+    Kalman-innovation least squares against GLS with diag(s) + the random walk explicitly,
+    and not the estimate of a constant white variance."""
+    rng = np.random.default_rng(8)
+    n, lam = 300, 0.01
+    shape = 1.0 + 99.0 * (np.arange(n) // 50 % 2)           # 1 and 100, in stretches of 50
+    x = np.column_stack([np.sin(np.arange(n) / 9.0), (np.arange(n) % 37) / 37.0])
+    y = x @ [0.8, -1.5] + np.cumsum(rng.normal(0, math.sqrt(lam), n)) + \
+        rng.normal(0, 1, n) * np.sqrt(shape) + 4
+    present = rng.random(n) > 0.3
+    cols = np.column_stack([y, x])
+    z, logdet = wander.innovations(cols, present, lam, shape)
+    beta_kf = np.linalg.lstsq(z[:, 1:], z[:, 0], rcond=None)[0]
+    idx = np.flatnonzero(present)
+    steps = np.arange(1, n + 1)[idx]
+    cov = np.diag(shape[idx]) + lam * np.minimum.outer(steps, steps)
+    design = np.column_stack([np.ones(len(idx)), x[idx]])
+    ci = np.linalg.inv(cov)
+    beta_gls = np.linalg.solve(design.T @ ci @ design, design.T @ ci @ y[idx])[1:]
+    assert np.allclose(beta_kf, beta_gls, rtol=1e-6, atol=1e-8)
+    z1, logdet1 = wander.innovations(cols, present, lam)
+    beta_flat = np.linalg.lstsq(z1[:, 1:], z1[:, 0], rcond=None)[0]
+    assert not np.allclose(beta_flat, beta_gls, rtol=1e-3)
+    assert logdet > logdet1 + 100          # the noisy stretches' variance is in the likelihood
+
+
 def test_reference_accuracy_prior_turns_with_the_mounting_and_parses():
     acc = Accuracy(gyro_scale=1e-4, accel_scale=2e-4, gyro_misalignment_rad=1e-5,
                    accel_misalignment_rad=3e-5)

@@ -2,7 +2,8 @@
 what the reference motion says it should have read (`reference.predicted_mimu`).
 
 Model of the residual (6 channels: accel x y z in m/s^2, gyro x y z in rad/s, on 10 ms bin
-means), per channel c:
+means - longer where the reference's own error is correlated longer, `diagnose`'s bin_s),
+per channel c:
     r_c = sum_j X_cj beta_j  +  x_ref,c' gamma  +  b_c(t)  +  white noise
   - X_cj: the candidate terms of the library (`library`, regressors `effects.regressor`);
   - gamma: the reference IMU's own linear error (scale factor and axis misalignment of each
@@ -108,6 +109,9 @@ class Design:
                                 # stated variance of that term (`model_allowance`)
     levels: np.ndarray = field(default_factory=lambda: wander.LAMBDA_GRID)   # wander levels
                                 # the fits may choose from
+    bin_s: float = FAST_BIN_S   # the bins' length, s
+    shape: np.ndarray | None = None     # (nb, 6) each bin's white variance over its channel's
+                                # (`diagnose`'s noise_shape; None: constant)
     q_vs: np.ndarray = field(default_factory=lambda: np.array([1.0, 0, 0, 0]))   # MIMU
                                 # sensor -> vehicle (w, x, y, z): a lever arm is reported in
                                 # the vehicle frame of the metadata's lever_arm_m
@@ -187,8 +191,10 @@ class SensorDiagnosis:
                                 # report navigates them when it reports on that flight)
 
 
-def residual(flight, cal):
-    """(t s, residual (N, 6) accel m/s^2 then gyro rad/s, usable (N,), Conditions)."""
+def residual(flight, cal, vibration=None):
+    """(t s, residual (N, 6) accel m/s^2 then gyro rad/s, usable (N,), Conditions).
+    vibration: (N, 3) the MIMU's vibration power, (m/s^2)^2, when its outputs in `flight`
+    were filtered (`diagnose`); else from them."""
     temperature, frequency = flight.mimu_temperatures()
     w, f, flags = compensated_mimu(flight, cal, per_sample=True)
     f_p, w_p, inside = predicted_mimu(flight)
@@ -198,7 +204,8 @@ def residual(flight, cal):
     # tone by sinc(pi f dt): 17 % of the power of 117 Hz at 500 Hz)
     cond = Conditions(t, f_p, w_p, derivative(t, f_p, DERIVATIVE_WINDOW_S),
                       derivative(t, w_p, DERIVATIVE_WINDOW_S),
-                      temperature, frequency, vibration_power(t, np.nan_to_num(f)))
+                      temperature, frequency,
+                      vibration_power(t, np.nan_to_num(f)) if vibration is None else vibration)
     res = np.hstack([f - f_p, w - w_p])
     usable = inside & (flags == 0) & np.isfinite(res).all(axis=1)
     usable[0] = False                       # the sample at the first stamp has no interval
@@ -207,8 +214,8 @@ def residual(flight, cal):
                                   "inside": inside, "compensated": (w, f)}
 
 
-def bins(t, t_reference):
-    """(m, start): bins of m consecutive MIMU samples from sample `start` on, FAST_BIN_S long
+def bins(t, t_reference, bin_s=FAST_BIN_S):
+    """(m, start): bins of m consecutive MIMU samples from sample `start` on, bin_s long
     or the shortest length above it that is a whole number of reference intervals, and,
     where the reference IMU's stamps are a subset of the MIMU's (its rate an integer
     fraction of the MIMU's), beginning and ending on reference stamps: the
@@ -218,14 +225,14 @@ def bins(t, t_reference):
     shares; a lost MIMU sample shifts the bins after it off the reference's stamps (the bins
     count samples)."""
     dt = float(np.median(np.diff(t)))
-    m = max(1, round(FAST_BIN_S / dt))
+    m = max(1, round(bin_s / dt))
     if t_reference is None or len(t_reference) < 2:
         return m, 0
     ratio = float(np.median(np.diff(t_reference))) / dt
     p = round(ratio)
     if p < 1 or abs(ratio - p) > 1e-3:
         return m, 0
-    m = max(p, math.ceil(FAST_BIN_S / dt / p - 1e-9) * p)     # never shorter than FAST_BIN_S
+    m = max(p, math.ceil(bin_s / dt / p - 1e-9) * p)     # never shorter than bin_s
     i = np.clip(np.searchsorted(t, t_reference), 0, len(t) - 1)   # the MIMU stamp at or
     on = np.flatnonzero(np.abs(t[i] - t_reference) < 1e-3 * dt)  # after each reference one
     return (m, int((i[on[0]] + 1) % m)) if len(on) else (m, 0)
@@ -256,7 +263,8 @@ class Binning:
 
 
 def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander=None,
-             output_tests=True, noise=None):
+             output_tests=True, noise=None, vibration=None, bin_s=FAST_BIN_S,
+             block_s=SPLIT_BLOCK_S, noise_shape=None):
     """Sensor-level diagnosis of `flight` (an `evaluation.Flight` with a reference IMU)
     against calibration `cal`. `candidates`: the library to test (default
     `library.candidates()`); `max_wander`: the largest wander level (random-walk step
@@ -266,15 +274,23 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
     log's metadata, else Table 4); `output_tests`: also test the effects that are no
     regressor (`outputs`: saturation, quantization, the bias's wander and level against the
     MEMS class - not for a reference made from a vehicle's track); `noise`: the unit's
-    measured random errors for those bias tests (`outputs.bias_tests`). Nothing here is
+    measured random errors for those bias tests (`outputs.bias_tests`); `vibration`: (N, 3)
+    the MIMU's vibration power, (m/s^2)^2, when its outputs in `flight` were filtered into
+    the reference's band (`track`: a smoothed track's); `bin_s`, `block_s`: the bins' and
+    the split blocks' lengths (s) - longer where the reference's own error is correlated
+    over more than a bin (`track`: a smoothed track's rates), so that bins are independent
+    as the fit assumes and the held-out blocks do not share the training blocks' noise;
+    `noise_shape`: (N, 6) each sample's white variance relative to its channel's, where the
+    reference's own error varies along the record (`track`: a yaw rate from the course
+    errs as 1/speed): the fit weighs and the scan judges each bin by it. Nothing here is
     random."""
     if flight.mimu_platform is not None:
         raise InputError(f"{flight.path}: the MIMU turns on a platform (/mimu/platform); "
                          "this analysis does not follow the rotation yet - replay and table do")
     acc = accuracy_of(flight.fog_meta, accuracy)
     q_sf = np.conjugate(flight.mimu_mounting.q_vs) * flight.fog_mounting.q_vs
-    t, res, usable, cond, samples = residual(flight, cal)
-    m = bins(t, flight.fog_t)
+    t, res, usable, cond, samples = residual(flight, cal, vibration)
+    m = bins(t, flight.fog_t, bin_s)
     full_scale = {"accel": float(flight.mimu_range.get("accel_m_s2", MimuUnit.range_accel)),
                   "gyro": float(flight.mimu_range.get("gyro_rad_s", MimuUnit.range_gyro))}
     on_outputs = []
@@ -288,13 +304,16 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
     design = _design(t, res, usable, cond, cands, m,
                      acc.prior(q_sf) + calibration_prior(cal), cal)
     design.q_vs = flight.mimu_mounting.attitude_wxyz
+    design.bin_s = bin_s
+    if noise_shape is not None:
+        design.shape = Binning(m, usable)(np.asarray(noise_shape, float))[design.kept]
     if max_wander is not None:
         design.levels = wander.LAMBDA_GRID[wander.LAMBDA_GRID <= max_wander]
-    if len(design.t) < 4 * SPLIT_BLOCK_S / FAST_BIN_S:
-        raise InputError(f"{flight.path}: {len(design.t) * FAST_BIN_S:.1f} s of usable MIMU "
+    if len(design.t) < 4 * block_s / bin_s:
+        raise InputError(f"{flight.path}: {len(design.t) * bin_s:.1f} s of usable MIMU "
                          f"samples inside the reference IMU's span; the sensor level needs "
-                         f"at least {4 * SPLIT_BLOCK_S:g} s")
-    block = outputs.block_index(design.t, SPLIT_BLOCK_S)
+                         f"at least {4 * block_s:g} s")
+    block = outputs.block_index(design.t, block_s)
     train = block % 2 == 0
     held = ~train
 
@@ -555,7 +574,8 @@ class Fitter:
         self._levels = {}
         for c in range(6):
             x, slot = design.channel_columns[c]
-            gram, logdet, self.n = wander.grams(x, rows, design.levels)
+            gram, logdet, self.n = wander.grams(
+                x, rows, design.levels, None if design.shape is None else design.shape[:, c])
             self.gram.append(gram)
             self.logdet.append(logdet)
             self.slot.append(slot)
@@ -1074,7 +1094,7 @@ def _rms_fit(design, before, j, b_tr, where, train, held, term):
         out[f"{part}_rms_after"] = _rms(after, where & rows, chans)
     out["units"] = "m/s^2" if sensor == "accel" else "rad/s"
     out["channels"] = [f"{CHANNELS[ch][0]}.{CHANNELS[ch][1]}" for ch in chans]
-    out["basis"] = (f"bin means ({FAST_BIN_S:g} s), piecewise-linear bias removed, rows where "
+    out["basis"] = (f"bin means ({design.bin_s:.3g} s), piecewise-linear bias removed, rows where "
                     "the term acts; 'after' uses the training coefficient")
     return out
 
@@ -1134,8 +1154,12 @@ def _scan(design, x, alpha):
     windows started every second against its local baseline (the windows starting 4 and 5 s
     before and after, so a slow wander cancels and an excursion of a few seconds does not
     hide in its own baseline); robust z across the windows (MAD), Bonferroni over windows x
-    channels with Student-t tails of SCAN_DOF degrees of freedom. Returns spans
-    [{"t0", "t1", "channel", "z"}] (overlapping windows merged)."""
+    channels with Student-t tails of SCAN_DOF degrees of freedom. Where the bins' white
+    variance varies (`design.shape`) each window's step is first divided by its own standard
+    deviation under that shape, so the MAD compares like with like (a vehicle model's yaw
+    rate at 2 m/s errs ten times more than at 20 m/s: departures from stops had stood out at
+    z 10-25 on null drives). Returns spans [{"t0", "t1", "channel", "z"}] (overlapping
+    windows merged)."""
     t = design.t
     sec = outputs.block_index(t, 1.0)
     n = sec.max() + 1
@@ -1147,14 +1171,22 @@ def _scan(design, x, alpha):
     nwin = len(win_counts)
     z_limit = stats.t.isf(alpha / (2 * nwin * 6), SCAN_DOF)
     spans = []
+    def around(w):                  # (4, nwin): the baseline windows of each window
+        pad = np.concatenate([np.full(5, np.nan), w, np.full(5, np.nan)])
+        return np.stack([pad[5 + d:5 + d + nwin] for d in (-5, -4, 4, 5)])
     for ch in range(6):
         sums = np.convolve(np.bincount(sec, x[:, ch], minlength=n), kernel, "valid")
         means = np.where(full, sums / np.maximum(win_counts, 1), np.nan)
-        pad = np.concatenate([np.full(5, np.nan), means, np.full(5, np.nan)])
-        around = np.stack([pad[5 + d:5 + d + nwin] for d in (-5, -4, 4, 5)])
-        count = np.isfinite(around).sum(axis=0)
-        base = np.nansum(around, axis=0) / np.maximum(count, 1)
+        base_windows = around(means)
+        count = np.isfinite(base_windows).sum(axis=0)
+        base = np.nansum(base_windows, axis=0) / np.maximum(count, 1)
         step = np.where(count >= 2, means - base, np.nan)
+        if design.shape is not None:            # each step over its own sd (the shape's)
+            var = np.convolve(np.bincount(sec, design.shape[:, ch], minlength=n), kernel,
+                              "valid") / np.maximum(win_counts, 1) ** 2
+            var = np.where(full, var, np.nan)
+            step = step / np.sqrt(var + np.nansum(around(var), axis=0) /
+                                  np.maximum(count, 1) ** 2)
         good = np.isfinite(step)
         if good.sum() < 10:
             continue
@@ -1215,7 +1247,7 @@ def _map(design, x, conds, seconds=MAP_SECONDS):
     n = sec.max() + 1
     count = np.maximum(np.bincount(sec, minlength=n), 1)
     means = np.column_stack([np.bincount(sec, x[:, c], minlength=n) / count for c in range(6)])
-    full = np.bincount(sec, minlength=n) >= 0.5 * seconds / FAST_BIN_S
+    full = np.bincount(sec, minlength=n) >= 0.5 * seconds / design.bin_s
     share = {k: np.bincount(sec, m.astype(float), minlength=n) / count for k, m in conds.items()}
     quiet = full & (share["quiet"] > 0.5)
     quiet = quiet if quiet.sum() >= 10 else full
