@@ -411,6 +411,13 @@ def _diagnosed(args, painter):
         print(f"  time lag from the yaw rate not estimated: {lag['not_estimated']}")
     for u in doc["unexplained"][:10]:
         print(f"  unexplained residual {u['channel']} {u['t0']:.1f}-{u['t1']:.1f} s (z {u['z']:.1f})")
+    for w in doc.get("within_reference_accuracy", []):
+        value = w.get("coefficient", w.get("vector"))
+        said = (f"{value:.4g}" if isinstance(value, float) else
+                "[" + ", ".join(f"{v:.3g}" for v in value) + "]")
+        print(f"  set aside: {w['label']} {said}, significant against the noise but within the "
+              f"reference's stated accuracy (1 sigma "
+              f"{', '.join(f'{v:.3g}' for v in w['reference_1sigma'])})")
     if args.output:
         print(f"wrote {args.output}/diagnosis.md" + (" and CAL+found.json" if found else ""))
     return 0

@@ -86,10 +86,14 @@ class TrackMotion(Motion):
         first zero of the autocorrelation of white velocity noise smoothed by the spline and
         differentiated, 1.84 / w_c, with w_c = (lambda dt)^(-1/4) rad/s the spline's
         half-power frequency (its transfer function 1 / (1 + lambda dt w^4), dt the median
-        epoch step). Velocities differenced from positions decorrelate sooner (1.28 / w_c: an
-        independent 10 Hz drive with 2 cm fixes, w_c 2.40 rad/s, crossed zero at 0.55 s)."""
+        epoch step); and at least two epoch steps, over which a (nearly) interpolating
+        spline's error between its knots is one function of the same few knots (a 1 Hz track
+        chose lambda 3.5e-6: 0.08 s, and a null drive's correlated bins gave an accel.x scale
+        [0.028, 0.069]). Velocities differenced from positions decorrelate sooner (1.28 /
+        w_c: an independent 10 Hz drive with 2 cm fixes, w_c 2.40 rad/s, crossed zero at
+        0.55 s)."""
         dt = float(np.median(np.diff(self._t)))
-        return 1.84 * (self.lam_horizontal * dt) ** 0.25
+        return max(1.84 * (self.lam_horizontal * dt) ** 0.25, 2 * dt)
 
     def in_band(self, t, x):
         """x (N, k) - an IMU's outputs, any units and axes, each the mean over its own sample

@@ -1756,3 +1756,57 @@ def test_the_track_level_on_an_independent_drive_with_a_yaw_gyro_scale(tmp_path)
     lo, hi = result["findings"][0]["ci95"]
     assert lo <= 0.02 <= hi and hi - lo < 0.03
     assert result["unexplained"] == []
+
+
+def test_a_rest_under_a_ten_hertz_rtk_fix_is_found_from_the_track():
+    """The synthetic drive at 10 Hz under 2 cm RTK fixes, the velocity by central differences
+    (0.14 m/s of noise per axis and epoch: half its resting epochs read above STATIC_SPEED):
+    the 20 s start rest had broken into pieces (here 4.2-7.8 and 15.7-19.7 s, the state then
+    not at rest at the start; on an independent drive without engine vibration into none,
+    the biases taken as 0 and 10 s windows ending 5.1 m off instead of 2.1). Averaged over
+    STATIC_AVERAGE_S the track shows the rest whole."""
+    t, lat, lon, h, v = _under_two_cm(_track(rate=10.0), seed=11)
+    assert max(b - a for a, b in _runs(np.linalg.norm(v, axis=1) <= alignment.STATIC_SPEED,
+                                       t)) < alignment.MIN_STATIC_S     # epoch by epoch: none
+    rests = alignment.rest_intervals(t, v, 0.0, 120.0)
+    assert rests and rests[0][0] == 0.0 and 18.0 < rests[0][1] < 20.0, rests
+    assert len(rests) == 1                  # and no rest where it moves
+
+
+def _runs(mask, t):
+    """[(t0, t1)] of the runs of True in mask (at the epochs t)."""
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], mask.astype(int), [0]])))
+    return [(t[a], t[b - 1]) for a, b in zip(edges[::2], edges[1::2])] or [(0.0, 0.0)]
+
+
+def test_the_yaw_rates_error_law_is_measured_with_the_parts_floor():
+    """`track.yaw_error_law` on bins whose variance is F + s u exactly (u = 1/v^2 from 2 to
+    30 m/s): F and s recovered within their sampling error; with no floor in the data (the
+    RTKLIB drive's line met u = 0 below zero) F is the part's own variance, not 0 (else a
+    moving bin's weight against a resting one is unbounded); a variance that does not grow
+    with u gives no law."""
+    from mimunav.diagnosis import track
+    rng = np.random.default_rng(4)
+    speed = rng.uniform(2.0, 30.0, 4000)
+    u = speed ** -2
+    for floor, slope in ((1e-6, 4e-4), (0.0, 4e-4)):
+        error = rng.normal(0.0, np.sqrt(floor + slope * u))
+        got_slope, got_floor = track.yaw_error_law(error, u, 1e-8)
+        assert got_slope == pytest.approx(slope, rel=0.15)
+        assert got_floor == pytest.approx(floor, rel=0.2) if floor else got_floor == 1e-8
+    assert track.yaw_error_law(rng.normal(0.0, 1e-3, 4000), u, 1e-8) is None
+
+
+def test_the_scan_judges_each_window_against_its_own_and_its_baselines_noise():
+    """`sensor._scan` with a varying white variance (`design.shape`): a null residual, quiet
+    (variance 1) for 2 s in every 12 and noisy (100) between, shows no excursion - a quiet
+    window's step against its noisy baseline carries the baseline's noise (judged by its own
+    alone, the quiet windows had stood out)."""
+    from types import SimpleNamespace
+    from mimunav.diagnosis import sensor
+    rng = np.random.default_rng(6)
+    t = np.arange(0.0, 600.0, 0.25)
+    shape = np.where((t % 12.0) < 2.0, 1.0, 100.0)
+    x = rng.normal(0.0, 1.0, (len(t), 6)) * np.sqrt(shape)[:, None]
+    design = SimpleNamespace(t=t, shape=np.repeat(shape[:, None], 6, axis=1))
+    assert sensor._scan(design, x, 0.05) == []

@@ -80,8 +80,10 @@ METHOD = {
               "attitude, if any, is not used): the ideal IMU simulated along the trajectory "
               "(attitude from the velocity: no side slip, roll 0) is the reference of the "
               "sensor level - residual, "
-              "Holm selection on alternate 0.5 s blocks, held-out confirmation on the others; "
-              "samples below 2 m/s in motion left out")}
+              "Holm selection on alternate blocks, held-out confirmation on the others, the "
+              "IMU in the track's band, bins as long as the track's errors stay correlated and "
+              "blocks of two bins (reference_check: bin_s, block_s), the yaw rate weighted by "
+              "its 1/speed error law; samples below 2 m/s in motion left out")}
 
 
 def with_found(cal, findings):

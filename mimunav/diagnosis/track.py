@@ -284,6 +284,7 @@ def diagnose(flight, cal, alpha=0.05, reference=None, accuracy=None):
     vibration = vibration_power(flight.mimu_t, np.nan_to_num(outputs[1]))
     ref = replace(ref, mimu_imu=(w, f))
     bin_s = max(sensor.FAST_BIN_S, motion.error_time_s)
+    block_s = max(sensor.SPLIT_BLOCK_S, 2 * bin_s)
     corr, slopes, spread, rest, moves = reference_check(replace(ref, mimu_imu=banded), trusted)
     unpredicted = {tuple(c.split(".")) for c, r in corr.items() if not r >= PREDICTED_CORRELATION}
     loose = {tuple(c.split(".")) for c, r in spread.items() if not r <= MODEL_ERROR_SHARE}
@@ -313,8 +314,7 @@ def diagnose(flight, cal, alpha=0.05, reference=None, accuracy=None):
                            candidates=kept,
                            accuracy=VEHICLE_MODEL_ACCURACY.merged(accuracy),
                            max_wander=wander_limit(bin_s=bin_s), output_tests=False,
-                           vibration=vibration, bin_s=bin_s,
-                           block_s=max(sensor.SPLIT_BLOCK_S, 2 * bin_s),
+                           vibration=vibration, bin_s=bin_s, block_s=block_s,
                            noise_shape=rate_noise_shape(ref, trusted, motion, bin_s))
     diag.level = "track"
     diag.reference_check = {
@@ -327,6 +327,7 @@ def diagnose(flight, cal, alpha=0.05, reference=None, accuracy=None):
                            for label, chans in because.items()},
         "fitted_on_channels": narrowed,
         "trusted_fraction": float(trusted.mean()),
+        "bin_s": bin_s, "block_s": block_s,
         "reversing_s": float(reversing_s),
         "usable_s": float(len(diag.design.t) * np.median(np.diff(diag.design.t)))}
     reasons, demoted = screen(diag, flight, cal)
@@ -395,20 +396,38 @@ def rate_noise_shape(ref, trusted, motion, bin_s):
     full = count >= 0.5 * np.max(count, initial=0)
     error = (np.bincount(k, yaw_error[fast]) / np.maximum(count, 1))[full]
     inverse = (np.bincount(k, speed[fast] ** -2) / np.maximum(count, 1))[full]
-    bands = min(SPEED_BANDS, len(error) // 20)
-    if bands < 2:
+    law = yaw_error_law(error, inverse, noise_floor(bin_s=bin_s)["gyro.z"] ** 2)
+    if law is None:
         return shape
-    order = np.array_split(np.argsort(inverse), bands)
-    variance = [(1.4826 * float(np.median(np.abs(error[i] - np.median(error[i]))))) ** 2
-                for i in order]
-    slope, floor = np.polyfit([float(np.mean(inverse[i])) for i in order], variance, 1)
-    floor = max(floor, noise_floor(bin_s=bin_s)["gyro.z"] ** 2)
-    if not slope > 0:
-        return shape
+    slope, floor = law
     along = quaternion.as_rotation_matrix(q_vs)[2] ** 2     # vehicle down in sensor axes
     modelled = speed >= HOLD_SPEED
     shape[modelled, 3:] += (slope / floor) * along / speed[modelled, None] ** 2
     return shape
+
+
+def yaw_error_law(error, inverse, part):
+    """(sigma_a^2 (m/s^2)^2, F (rad/s)^2) of the yaw-rate residual's variance F + sigma_a^2 u
+    in bins (`rate_noise_shape`): error (n,) the bins' residual (rad/s), inverse (n,) their
+    mean 1/v^2 (s^2/m^2); a line through the robust variances (MAD^2) of SPEED_BANDS bands
+    of u, F at least `part` (the part's own variance in a bin: the RTKLIB drive's line met
+    u = 0 below zero). None when there are fewer than 40 bins or the variance does not grow
+    with 1/v^2."""
+    bands = min(SPEED_BANDS, len(error) // 20)
+    if bands < 2:
+        return None
+    order = np.array_split(np.argsort(inverse), bands)
+    u = [float(np.mean(inverse[i])) for i in order]
+    law = np.ones(len(error))           # the law so far: a band's MAD is taken of the errors
+    for _ in range(4):                  # over it, so that its spread of 1/v^2 in the band
+        scaled = error / np.sqrt(law)   # does not bias it (a mixture's MAD is no mean)
+        variance = [(1.4826 * float(np.median(np.abs(scaled[i] - np.median(scaled[i]))))) ** 2
+                    * float(np.mean(law[i])) for i in order]
+        slope, floor = np.polyfit(u, variance, 1)
+        if not slope > 0:
+            return None
+        law = max(floor, part) + slope * inverse
+    return float(slope), max(float(floor), part)
 
 
 # a channel whose 1 s means the model leaves more than this many times the part's own noise
