@@ -691,9 +691,10 @@ def time_lag(flight, reference=None):
     where the vehicle hardly turns weighs little. A segment whose rms is least at the edge of
     the +-LAG_SEARCH_S search is searched on to +-LAG_SEARCH_MAX_S (a lag beyond the first
     search); one still least at that edge, or known no better than +-LAG_SEARCH_MAX_S,
-    places no lag and is left out (`Segments.unplaced`): on a noise-free drive with one sharp turn the straight segments' model error
-    sloped the rms across the whole search, their end parabolas said -14.6 and +28 s, and
-    the mean came out 2.5 s [-3.7, 8.8] for a 0.1 s lag (the turn's two segments: 0.100).
+    places no lag and is left out (`Segments.unplaced`): on a noise-free drive with one
+    sharp turn the straight segments' model error sloped the rms across the whole search,
+    their end parabolas said -14.6 and +28 s, and the mean came out 2.5 s [-3.7, 8.8] for a
+    0.1 s lag (the turn's two segments: 0.100).
     Returns (tau: the weighted mean, its 95 % interval (Student t, the standard error
     scaled by the segments' Birge ratio when above 1), `Segments`); NaN and a NaN interval
     when fewer than 2 x MIN_HALF_SEGMENTS segments place a lag (two agreeing halves of one
