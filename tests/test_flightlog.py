@@ -158,28 +158,37 @@ def test_missing_channel_lists_what_is_there_and_writing_is_safe(tmp_path):
 
 
 def test_a_failed_chunk_write_raises_and_leaves_nothing(tmp_path, monkeypatch):
-    """Chunks are compressed and written on a thread while the next are encoded: a write
-    that fails there (a full disk) is raised to the writer's caller, and a failure of the
-    caller's own while a batch is being written; either way no log and no temporary file
-    are left and nothing hangs."""
+    """Chunks are compressed on a pool of threads while the next are encoded: a write that
+    fails (a full disk), a compression that fails on a pool thread, and a failure of the
+    caller's own while chunks are in flight are each raised to the writer's caller; no log
+    and no temporary file are left and nothing hangs."""
     from mimunav.flightlog import writer
     rng = np.random.default_rng(5)
-    t, raw, _, _ = _channels(40_000, rng)         # ~110 chunks of 64 KiB: several batches
+    t, raw, _, _ = _channels(40_000, rng)         # ~110 chunks of 64 KiB: many in flight
     calls = []
-    real = writer.LogWriter._write_chunks
+    real_write, real_pack = writer.LogWriter._write_chunk, writer.LogWriter._pack
 
-    def full_disk(self, batch):
-        calls.append(len(batch))
-        if len(calls) == 2:
+    def full_disk(self, *chunk):
+        calls.append(1)
+        if len(calls) == 20:
             raise OSError(28, "No space left on device")
-        return real(self, batch)
+        return real_write(self, *chunk)
 
-    monkeypatch.setattr(writer.LogWriter, "_write_chunks", full_disk)
-    with pytest.raises(OSError, match="No space left"):
-        with LogWriter(tmp_path / "full.mcap", chunk_size=1 << 16) as log:
-            log.write("/mimu/raw", S.RAW_MIMU, "mimu", t, **raw)
-    assert len(calls) >= 2 and list(tmp_path.iterdir()) == []
-    monkeypatch.setattr(writer.LogWriter, "_write_chunks", real)
+    def no_memory(self, data):
+        calls.append(1)
+        if len(calls) == 30:
+            raise MemoryError("zstd: out of memory")
+        return real_pack(self, data)
+
+    for name, fault, error in [("_write_chunk", full_disk, "No space left"),
+                               ("_pack", no_memory, "out of memory")]:
+        calls.clear()
+        monkeypatch.setattr(writer.LogWriter, name, fault)
+        with pytest.raises((OSError, MemoryError), match=error):
+            with LogWriter(tmp_path / "full.mcap", chunk_size=1 << 16) as log:
+                log.write("/mimu/raw", S.RAW_MIMU, "mimu", t, **raw)
+        assert len(calls) >= 20 and list(tmp_path.iterdir()) == []
+        monkeypatch.undo()
     with pytest.raises(KeyboardInterrupt):
         with LogWriter(tmp_path / "stopped.mcap", chunk_size=1 << 16) as log:
             log.write("/mimu/raw", S.RAW_MIMU, "mimu", t, **raw)

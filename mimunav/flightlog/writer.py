@@ -6,18 +6,22 @@ structured array (opcode, length, channel, sequence, log_time, publish_time, CDR
 cut into chunks of about `chunk_size` uncompressed bytes, each compressed by zstd with its
 CRC-32 and followed by its MessageIndex - no per-message Python work (the `mcap` package's
 `Writer.add_message` costs about 11 us a message; a 1 kHz hour of three channels is 10^7).
-A batch of chunks is compressed and written on a writing thread while the caller encodes
-the next; a record outside chunks (metadata, attachment, the summary) waits for the batch
-being written, and goes before chunks still queued (as when the writer had no thread).
+Each chunk's CRC and compression run on a pool of threads (one per core; zlib and zstd
+release the GIL) while the caller encodes the next chunks; finished chunks are written in
+their order by the caller's thread, at most `IN_FLIGHT` chunks behind. A record outside
+chunks (metadata, attachment, the summary) first writes every chunk before it, so the
+file holds the records in the order they were given.
 The record layouts are those of the MCAP specification (mcap.dev/spec); the files are read
 back by the `mcap` package's reader with CRC validation, by mcap_ros2 and by this project's
 reader in the tests. Messages copied from other files (`copy`) go through the same chunks.
 
 Writes to a temporary file beside the target and renames it on success, so a failed or
 interrupted write leaves nothing behind and never replaces an existing log unless forced."""
+import collections
 import json
 import os
 import struct
+import threading
 import zlib
 from concurrent.futures import ThreadPoolExecutor
 
@@ -34,7 +38,8 @@ OP = {"header": 0x01, "footer": 0x02, "schema": 0x03, "channel": 0x04, "message"
       "attachment_index": 0x0A, "statistics": 0x0B, "metadata": 0x0C, "metadata_index": 0x0D,
       "summary_offset": 0x0E, "data_end": 0x0F}
 _MESSAGE_HEAD = 31          # opcode 1 + length 8 + channel 2 + sequence 4 + log 8 + publish 8
-CHUNK_BATCH = 16            # chunks compressed together, in parallel (16 MiB of messages)
+IN_FLIGHT = 8               # chunks being compressed or waiting to be written (8 MiB of
+                            # messages at the default chunk size)
 ZSTD_LEVEL = 1              # as small as level 3 on IMU data and 1.6x faster; level -1 is
                             # 1.1x faster again for files 4 % larger (bench/flightlog.py
                             # prints zstd's own rate on a log's chunks: the writer's ceiling)
@@ -76,8 +81,7 @@ class LogWriter:
         self._counts = {}
         self._start = self._end = None
         self._pending, self._pending_bytes = [], 0  # copied messages not yet in a chunk
-        self._batch = []                            # chunks not yet compressed and written
-        self._writing = None                        # Future: a batch being written
+        self._in_flight = collections.deque()       # chunks handed to the pool, in order
         self._sequence = {}                         # channel id -> next message sequence
         self._last_stamp = {}                       # channel id -> last stamp written (write)
 
@@ -86,8 +90,8 @@ class LogWriter:
         self._fh = os.fdopen(fd, "wb")
         self._fh.write(MAGIC)
         self._fh.write(_record(OP["header"], _string("ros2") + _string("mimunav")))
-        self._zstd = zstandard.ZstdCompressor(level=ZSTD_LEVEL)
-        self._writer = ThreadPoolExecutor(1, thread_name_prefix="mcap-writer")
+        self._compressors = threading.local()       # a zstd context per pool thread
+        self._pool = ThreadPoolExecutor(os.cpu_count() or 1, thread_name_prefix="mcap-zstd")
         return self
 
     def __exit__(self, exc_type, exc, tb):
@@ -95,11 +99,10 @@ class LogWriter:
             try:
                 if exc_type is None:
                     self._flush_copies()
-                    self._flush_chunks()
                     self._wait()
                     self._finish()
             finally:
-                self._writer.shutdown(wait=True)     # the writing thread is done with the file
+                self._pool.shutdown(wait=True, cancel_futures=True)
                 self._fh.close()
             if exc_type is None:
                 os.replace(self._tmp, self.path)
@@ -113,7 +116,7 @@ class LogWriter:
         """A Metadata record; structured values are stored as JSON strings."""
         pairs = [(k, v if isinstance(v, str) else json.dumps(v)) for k, v in values.items()]
         rec = _record(OP["metadata"], _string(name) + _map(pairs))
-        self._wait()                            # the writing thread is done with the file
+        self._wait()                            # the chunks given before it go first
         self._metadata_indexes.append((self._fh.tell(), len(rec), name))
         self._fh.write(rec)
 
@@ -222,9 +225,9 @@ class LogWriter:
     # ---- chunks and definitions --------------------------------------------------------
     def _chunk(self, cid, messages, log_times, offsets=None):
         """A chunk of one channel's message records (uint8 array) with their log times and
-        offsets from the first message (None: records of one size): its CRC-32 taken here
-        (on the encoding thread, which waits for the writing one), queued, and written
-        with its MessageIndex and ChunkIndex entry when the batch is full (`_flush_chunks`)."""
+        offsets from the first message (None: records of one size): its CRC-32 and zstd
+        compression handed to the pool (`_pack`), and written with its MessageIndex and
+        ChunkIndex entry once the chunks before it are (`_write_chunk`)."""
         if offsets is None:
             offsets = np.arange(len(log_times), dtype=np.uint64) * \
                 np.uint64(len(messages) // max(1, len(log_times)))
@@ -235,54 +238,47 @@ class LogWriter:
                 _record(OP["channel"], channel_body)
             messages = np.concatenate([np.frombuffer(head, np.uint8), messages])
             self._announced.add(cid)
-        self._batch.append((cid, messages, zlib.crc32(messages), log_times, offsets, len(head)))
-        if len(self._batch) >= CHUNK_BATCH:
-            self._flush_chunks()
+        self._in_flight.append((self._pool.submit(self._pack, messages), cid, len(messages),
+                                log_times, offsets, len(head)))
+        while len(self._in_flight) > IN_FLIGHT:
+            self._write_chunk(*self._in_flight.popleft())
 
-    def _flush_chunks(self):
-        """Hand the queued chunks to the writing thread (`_write_chunks`), after the batch
-        before them is written: the next batch is encoded while this one is compressed."""
-        batch, self._batch = self._batch, []
-        self._wait()
-        if batch:
-            self._writing = self._writer.submit(self._write_chunks, batch)
+    def _pack(self, data):
+        """(CRC-32, zstd frame) of a chunk's records, on a pool thread."""
+        zstd = getattr(self._compressors, "zstd", None)
+        if zstd is None:
+            zstd = self._compressors.zstd = zstandard.ZstdCompressor(level=ZSTD_LEVEL)
+        return zlib.crc32(data), zstd.compress(data)
 
     def _wait(self):
-        """Block until the writing thread has written what it was given (its error, if
-        any, is raised here)."""
-        writing, self._writing = self._writing, None
-        if writing is not None:
-            writing.result()
+        """Write every chunk handed to the pool (a compression's error is raised here)."""
+        while self._in_flight:
+            self._write_chunk(*self._in_flight.popleft())
 
-    def _write_chunks(self, batch):
-        """Compress chunks in parallel (zstd's own threads, one per core), then write them
-        in order, each with its CRC-32, MessageIndex and ChunkIndex entry."""
-        if len(batch) > 1:
-            result = self._zstd.multi_compress_to_buffer([b[1] for b in batch], threads=-1)
-            compressed = [result[k] for k in range(len(batch))]
-        else:
-            compressed = [self._zstd.compress(batch[0][1])]
+    def _write_chunk(self, packing, cid, size, log_times, offsets, head_len):
+        """Write a chunk (once compressed) with its CRC-32, its MessageIndex and its
+        ChunkIndex entry."""
+        crc, comp = packing.result()
         fh = self._fh
-        for (cid, data, crc, log_times, offsets, head_len), comp in zip(batch, compressed):
-            start, end = int(log_times.min()), int(log_times.max())
-            head = struct.pack("<QQQI", start, end, len(data), crc) + \
-                _string("zstd") + struct.pack("<Q", len(comp))
-            chunk_start = fh.tell()
-            fh.write(struct.pack("<BQ", OP["chunk"], len(head) + len(comp)) + head)
-            fh.write(comp)
-            chunk_length = fh.tell() - chunk_start
-            entries = np.empty(len(log_times), dtype=[("t", "<u8"), ("o", "<u8")])
-            entries["t"], entries["o"] = log_times, offsets + np.uint64(head_len)
-            index_start = fh.tell()
-            fh.write(struct.pack("<BQHI", OP["message_index"], 6 + entries.nbytes, cid,
-                                 entries.nbytes))
-            fh.write(entries)
-            self._chunk_indexes.append((start, end, chunk_start, chunk_length,
-                                        {cid: index_start}, fh.tell() - index_start,
-                                        len(comp), len(data)))
-            self._counts[cid] = self._counts.get(cid, 0) + len(log_times)
-            self._start = start if self._start is None else min(self._start, start)
-            self._end = end if self._end is None else max(self._end, end)
+        start, end = int(log_times.min()), int(log_times.max())
+        head = struct.pack("<QQQI", start, end, size, crc) + \
+            _string("zstd") + struct.pack("<Q", len(comp))
+        chunk_start = fh.tell()
+        fh.write(struct.pack("<BQ", OP["chunk"], len(head) + len(comp)) + head)
+        fh.write(comp)
+        chunk_length = fh.tell() - chunk_start
+        entries = np.empty(len(log_times), dtype=[("t", "<u8"), ("o", "<u8")])
+        entries["t"], entries["o"] = log_times, offsets + np.uint64(head_len)
+        index_start = fh.tell()
+        fh.write(struct.pack("<BQHI", OP["message_index"], 6 + entries.nbytes, cid,
+                             entries.nbytes))
+        fh.write(entries)
+        self._chunk_indexes.append((start, end, chunk_start, chunk_length,
+                                    {cid: index_start}, fh.tell() - index_start,
+                                    len(comp), size))
+        self._counts[cid] = self._counts.get(cid, 0) + len(log_times)
+        self._start = start if self._start is None else min(self._start, start)
+        self._end = end if self._end is None else max(self._end, end)
 
     def _schema(self, name, encoding="ros2msg", data=None):
         if name not in self._schemas:
