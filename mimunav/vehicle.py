@@ -10,8 +10,8 @@ its velocity under two assumptions, stated wherever the result is used:
 Below HOLD_SPEED the course is noise: yaw and pitch hold their last value (the first
 moving one for a rest that starts the track) and the rates are zero. Velocity and its
 derivative come from a smoothing spline per NED component (scipy `make_smoothing_spline`,
-smoothing chosen by generalised cross-validation; north and east share one smoothing, the
-geometric mean of their two choices, since the course mixes them). The rates follow
+smoothing chosen by generalised cross-validation, `gcv_smoothing`; north and east share one
+smoothing, the geometric mean of their two choices, since the course mixes them). The rates follow
 analytically:
     yaw' = (v_N a_E - v_E a_N) / v_H^2,   pitch' = (v_D v_H' - a_D v_H) / (v_H^2 + v_D^2),
     w_nb^b = (-yaw' sin(pitch), pitch', yaw' cos(pitch))      (roll = 0, T&W eq. 3.19)
@@ -27,9 +27,11 @@ same spline and differentiated, carries the same blunting (0.10 deg/s rms, scale
 import math
 
 import numpy as np
+from scipy import optimize
 from scipy.interpolate import make_smoothing_spline
 
 from . import attitude
+from .kernels import njit
 from .truth import Kinematics, Motion
 from .errors import InputError
 
@@ -46,12 +48,11 @@ class TrackMotion(Motion):
         self.t0, self.t1 = float(t[0]), float(t[-1])
         self.lat0, self.lon0, self.h0 = float(lat[0]), float(lon[0]), float(h[0])
         v_ned = np.asarray(v_ned, float)
-        chosen = [make_smoothing_spline(t, v_ned[:, i]) for i in range(3)]
-        lam = [_smoothing_of(s, t, v_ned[:, i]) for i, s in enumerate(chosen)]
+        lam = [gcv_smoothing(t, v_ned[:, i]) for i in range(3)]
         self.lam_horizontal = math.sqrt(lam[0] * lam[1])       # s^3: the spline's lambda
         self.lam_vertical = lam[2]
-        self._v = [make_smoothing_spline(t, v_ned[:, i], lam=self.lam_horizontal)
-                   for i in range(2)] + chosen[2:]
+        self._v = [make_smoothing_spline(t, v_ned[:, i], lam=lam)
+                   for i, lam in enumerate([self.lam_horizontal] * 2 + lam[2:])]
         self._a = [s.derivative() for s in self._v]
         self._j = [s.derivative(2) for s in self._v]
         v = self._velocity(t)
@@ -166,20 +167,82 @@ class TrackMotion(Motion):
         return Kinematics(v, a, q, w, dw)
 
 
-def _smoothing_of(spline, t, y):
-    """lambda (s^3 for a velocity in m/s over t in s) of a cubic smoothing spline through (t,
-    y) with unit weights - `make_smoothing_spline` chooses it by GCV and does not return it -
-    from the spline's defining conditions (Reinsch 1967): at each interior knot the jump of
-    the third derivative is the residual over lambda, lambda [f^(3)]_i = y_i - f(t_i); the
-    least-squares lambda over the knots (exact up to rounding). 0 for an interpolating
-    spline, capped at 1e12 for one that is a straight line."""
-    third = spline.derivative(3)(0.5 * (t[1:] + t[:-1]))       # constant between knots
-    jump = np.diff(third)
-    residual = (y - spline(t))[1:-1]
-    power = float(np.sum(jump * jump))
-    if not power > 0:
-        return 0.0 if not np.any(residual) else 1e12
-    return float(np.clip(np.sum(residual * jump) / power, 0.0, 1e12))
+def gcv_smoothing(t, y):
+    """lambda (s^3 for a velocity in m/s over t in s) of the cubic smoothing spline through
+    (t, y), unit weights, chosen by generalised cross-validation: the minimum of `_gcv`
+    over (0, N), N = len(t), by the bounded Brent search - the criterion, bounds and search
+    of scipy's `make_smoothing_spline(t, y)` (which does not return its lambda), evaluated
+    in O(N) compiled code instead of scipy's Python loops (6000 epochs: 3.7 s there, 11 ms
+    here). Its curve is flat at the minimum: the two choices agree to 2e-4 with GCV scores
+    equal to 1e-8."""
+    t, y = np.asarray(t, float), np.asarray(y, float)
+    return float(optimize.minimize_scalar(_gcv, bounds=(0, len(t)), method="bounded",
+                                          args=(np.diff(t), y)).x)
+
+
+@njit(nogil=True)
+def _gcv(lam, h, y):
+    """GCV score N |y - f|^2 / tr(I - A)^2 of the cubic smoothing spline f = A y with
+    smoothing lam through knots spaced h (N - 1,) (Wahba 1990 eq. 4.3.1), in Reinsch's form
+    (Green and Silverman 1994 sec. 2.3): the second derivatives gamma at the interior knots
+    solve M gamma = Q'y with M = R + lam Q'Q (pentadiagonal, by LDL'), y - f = lam Q gamma,
+    and tr(I - A) = lam tr(M^-1 Q'Q) from the central bands of M^-1 (Hutchinson and de Hoog
+    1985). Q: column j has 1/h_j, -(1/h_j + 1/h_(j+1)), 1/h_(j+1) at rows j, j+1, j+2;
+    R: tridiagonal, (h_j + h_(j+1))/3 on the diagonal, h_(j+1)/6 beside it."""
+    n = y.shape[0]
+    m = n - 2
+    qa, qb, qc = 1.0 / h[:m], np.empty(m), 1.0 / h[1:m + 1]
+    qb[:] = -(qa + qc)
+    c1, c2 = np.zeros(m), np.zeros(m)          # bands 1 and 2 of Q'Q (band 0: c0)
+    c0 = qa * qa + qb * qb + qc * qc
+    c1[:m - 1] = qb[:m - 1] * qa[1:] + qc[:m - 1] * qb[1:]
+    c2[:m - 2] = qc[:m - 2] * qa[2:]
+    d, l1, l2 = np.empty(m), np.zeros(m), np.zeros(m)   # M = L D L', L unit lower
+    for i in range(m):
+        v = (h[i] + h[i + 1]) / 3.0 + lam * c0[i]
+        if i >= 1:
+            v -= l1[i - 1] * l1[i - 1] * d[i - 1]
+        if i >= 2:
+            v -= l2[i - 2] * l2[i - 2] * d[i - 2]
+        d[i] = v
+        if i + 1 < m:
+            w = h[i + 1] / 6.0 + lam * c1[i]
+            if i >= 1:
+                w -= l1[i - 1] * l2[i - 1] * d[i - 1]
+            l1[i] = w / v
+        if i + 2 < m:
+            l2[i] = lam * c2[i] / v
+    z = qa * y[:m] + qb * y[1:m + 1] + qc * y[2:]       # Q'y, then gamma
+    for i in range(m):
+        if i >= 1:
+            z[i] -= l1[i - 1] * z[i - 1]
+        if i >= 2:
+            z[i] -= l2[i - 2] * z[i - 2]
+    z /= d
+    for i in range(m - 1, -1, -1):
+        if i + 1 < m:
+            z[i] -= l1[i] * z[i + 1]
+        if i + 2 < m:
+            z[i] -= l2[i] * z[i + 2]
+    rss = 0.0
+    for k in range(n):                          # (y - f)_k = lam (Q gamma)_k
+        e = 0.0
+        if k < m:
+            e += qa[k] * z[k]
+        if 1 <= k <= m:
+            e += qb[k - 1] * z[k - 1]
+        if k >= 2:
+            e += qc[k - 2] * z[k - 2]
+        rss += (lam * e) ** 2
+    s0, s1, s2 = np.zeros(m + 2), np.zeros(m + 2), np.zeros(m + 2)   # S = M^-1: S_ii,
+    trace = 0.0                                                    # S_(i+1)i, S_(i+2)i
+    for i in range(m - 1, -1, -1):
+        s1[i] = -(l1[i] * s0[i + 1] + l2[i] * s1[i + 1])
+        s2[i] = -(l1[i] * s1[i + 1] + l2[i] * s0[i + 2])
+        s0[i] = 1.0 / d[i] - l1[i] * s1[i] - l2[i] * s2[i]
+        trace += s0[i] * c0[i] + 2.0 * (s1[i] * c1[i] + s2[i] * c2[i])
+    trace *= lam
+    return n * rss / (trace * trace) if trace > 0.0 else np.inf
 
 
 def _yaw_pitch(v):

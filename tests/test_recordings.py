@@ -139,20 +139,26 @@ def test_track_motion_rate_derivative_matches_a_difference_of_its_rates():
     assert np.abs(dw - numeric).max() < 1e-6 * max(1.0, np.abs(dw).max() * 1e3)
 
 
-def test_the_smoothing_of_a_spline_is_read_back_from_its_knots():
-    """`vehicle._smoothing_of` against a lambda given to scipy (Reinsch's conditions, exact up
-    to rounding), and the GCV spline refitted with the lambda read back from it."""
+def test_the_track_smoothing_is_scipys_gcv_choice():
+    """`vehicle._gcv` against the GCV score of the smoother matrix built column by column
+    from scipy's own spline (N |y - A y|^2 / tr(I - A)^2), and `gcv_smoothing`'s spline
+    against scipy's `make_smoothing_spline(t, y)` (its own GCV search) on uneven knots."""
     from scipy.interpolate import make_smoothing_spline
-    from mimunav.vehicle import _smoothing_of
+    from mimunav.vehicle import _gcv, gcv_smoothing
     rng = np.random.default_rng(3)
+    t = np.sort(rng.uniform(0.0, 12.0, 120))
+    y = np.sin(t) + rng.normal(0.0, 0.2, len(t))
+    for lam in (1e-4, 0.02, 0.7, 40.0):
+        a = np.column_stack([make_smoothing_spline(t, e, lam=lam)(t) for e in np.eye(len(t))])
+        r = y - a @ y
+        dense = len(t) * (r @ r) / np.trace(np.eye(len(t)) - a) ** 2
+        assert _gcv(lam, np.diff(t), y) == pytest.approx(dense, rel=1e-7)
     t = np.sort(rng.uniform(0.0, 60.0, 400))
     y = np.sin(t / 3.0) + rng.normal(0.0, 0.1, len(t))
-    for lam in (1e-3, 0.7, 40.0):
-        assert _smoothing_of(make_smoothing_spline(t, y, lam=lam), t, y) == \
-            pytest.approx(lam, rel=1e-6)
+    lam = gcv_smoothing(t, y)
+    assert 0.1 < lam < 100
     chosen = make_smoothing_spline(t, y)
-    again = make_smoothing_spline(t, y, lam=_smoothing_of(chosen, t, y))
-    assert np.abs(again(t) - chosen(t)).max() < 1e-9
+    assert np.abs(make_smoothing_spline(t, y, lam=lam)(t) - chosen(t)).max() < 1e-4
 
 
 def _under_two_cm(track, seed=5, sigma_m=0.02):

@@ -119,7 +119,8 @@ def encode(schema_name, frame_id, stamp_ns, out=None, **fields):
     if out is None:
         out = np.zeros(len(stamp_ns), dtype=cdr_dtype(schema_name, frame_id))
     out["encap"] = np.frombuffer(ENCAPSULATION, dtype="V4")[0]
-    out["sec"], out["nanosec"] = np.divmod(stamp_ns, 1_000_000_000)
+    sec = stamp_ns // 1_000_000_000                # floor: a stamp before 1970 has
+    out["sec"], out["nanosec"] = sec, stamp_ns - sec * 1_000_000_000   # nanosec >= 0
     out["frame_len"] = len(frame_id) + 1
     out["frame_id"] = frame_id.encode()
     for name, kind, text in BODIES[schema_name]:
