@@ -41,10 +41,15 @@ REST_SPEED = 0.05           # m/s: at rest
 
 
 class TrackMotion(Motion):
-    """Land-vehicle motion through the GNSS track (t s, lat, lon rad, h m, v_ned m/s)."""
+    """Land-vehicle motion through the GNSS track (t s, lat, lon rad, h m, v_ned m/s);
+    differenced: the velocities are central differences of the positions (an importer's
+    `velocity_from_positions`), each the mean velocity from the epoch before to the epoch
+    after (one-sided at the ends), not a point sample - `in_band` then takes the IMU's
+    integral over the same spans."""
 
-    def __init__(self, t, lat, lon, h, v_ned):
+    def __init__(self, t, lat, lon, h, v_ned, differenced=False):
         t = np.asarray(t, float)
+        self.differenced = bool(differenced)
         self.t0, self.t1 = float(t[0]), float(t[-1])
         self.lat0, self.lon0, self.h0 = float(lat[0]), float(lon[0]), float(h[0])
         v_ned = np.asarray(v_ned, float)
@@ -102,12 +107,16 @@ class TrackMotion(Motion):
         form. The model's rates and accelerations are the derivative of a smoothing spline
         through point samples of the velocity; the IMU's outputs are put through the same
         operation: their running integral (exact at the stamps), sampled at the track's
-        epochs, smoothed by the horizontal velocity's spline (the same lambda) and
+        epochs - or, of a `differenced` track, averaged over each epoch's differencing span
+        as its velocity is (a 2 s boxcar at 1 Hz: without it a null drive's sharp turns read
+        as excursions of accel.y and gyro.z at z 9-11 and a yaw scale 'set aside' at 1.3 %)
+        - smoothed by the horizontal velocity's spline (the same lambda) and
         differentiated - as each output's mean over its own interval. (A mean over each
-        epoch instead, a 0.25 s boxcar at 4 Hz, is a filter the model does not have: a
-        smooth start's longitudinal acceleration differed by 0.01 m/s^2, z 7 against the
-        part's noise.) An output whose interval is a gap, or that is not finite, counts as
-        its neighbours' (linear in time) in the integral; NaN where x is not finite."""
+        epoch of a point-sampled track, a 0.25 s boxcar at 4 Hz, is a filter the model does
+        not have: a smooth start's longitudinal acceleration differed by 0.01 m/s^2, z 7
+        against the part's noise.) An output whose interval is a gap, or that is not
+        finite, counts as its neighbours' (linear in time) in the integral; NaN where x is
+        not finite."""
         t, x = np.asarray(t, float), np.asarray(x, float)
         epochs = self._t
         step = np.diff(t, prepend=t[0] - float(np.median(np.diff(t))))
@@ -119,17 +128,21 @@ class TrackMotion(Motion):
             raise InputError("fewer than 2 finite IMU outputs: nothing to compare with the track")
         filled = np.column_stack([np.interp(t, t[finite], x[finite, c])
                                   for c in range(x.shape[1])])
-        # the running integral at the intervals' edges: 0 where the first one starts
         edges = np.concatenate([[t[0] - step[0]], t])
-        area = np.vstack([np.zeros(x.shape[1]), np.cumsum(filled * step[:, None], axis=0)])
-        rate = area[-1] / (edges[-1] - edges[0])
-        sampled = np.column_stack([np.interp(epochs, edges, area[:, c])
-                                   for c in range(x.shape[1])])
-        # epochs beyond the outputs: the integral goes on at the first and last output
-        before, after = epochs < edges[0], epochs > edges[-1]
-        sampled[before] = (epochs[before] - edges[0])[:, None] * filled[0]
-        sampled[after] = area[-1] + (epochs[after] - edges[-1])[:, None] * filled[-1]
-        sampled -= (epochs - edges[0])[:, None] * rate          # the mean rate, for the fit
+        integral = _RunningIntegral(edges, filled)
+        rate = integral.area[-1] / (edges[-1] - edges[0])
+        if self.differenced:
+            # interior epochs: the mean over (epoch before, epoch after); the two end epochs,
+            # differenced one-sidedly, as points - a constant output (gravity, a bias at a
+            # starting rest) would otherwise be read half a step off there, a kink the
+            # spline turns into a rate (gyro.z z 17 at a 1 Hz track's start)
+            lo, hi, centre = epochs[:-2], epochs[2:], 0.5 * (epochs[:-2] + epochs[2:])
+            sampled = integral.once(epochs)
+            sampled[1:-1] = (integral.twice(hi) - integral.twice(lo)) / (hi - lo)[:, None]
+            centre = np.concatenate([epochs[:1], centre, epochs[-1:]])
+        else:
+            sampled, centre = integral.once(epochs), epochs
+        sampled -= (centre - edges[0])[:, None] * rate      # the mean rate, for the fit
         spline = make_smoothing_spline(epochs, sampled, lam=self.lam_horizontal)
         out = (spline(t) - spline(t - span)) / span[:, None] + rate
         out[~finite] = np.nan
@@ -165,6 +178,35 @@ class TrackMotion(Motion):
         dw = np.column_stack([-ydd * s_p - yd * pd * c_p, pdd, ydd * c_p - yd * pd * s_p])
         q = attitude.from_euler(yaw, pitch, np.zeros_like(yaw))
         return Kinematics(v, a, q, w, dw)
+
+
+class _RunningIntegral:
+    """The running integral of piecewise-constant outputs x (N, k), x[j] over (edges[j],
+    edges[j + 1]], from 0 at edges[0], exactly: `once` (piecewise linear) and `twice` (its
+    own integral, piecewise quadratic) at any times; beyond the edges the first and the last
+    output go on."""
+
+    def __init__(self, edges, x):
+        self.edges, self.x = edges, x
+        step = np.diff(edges)[:, None]
+        self.area = np.vstack([np.zeros(x.shape[1]), np.cumsum(x * step, axis=0)])
+        self.volume = np.vstack([np.zeros(x.shape[1]), np.cumsum(
+            0.5 * (self.area[:-1] + self.area[1:]) * step, axis=0)])
+
+    def _at(self, times):
+        """(segment start index j, time s since edges[j], output over the segment)."""
+        j = np.clip(np.searchsorted(self.edges, times, side="right") - 1, 0,
+                    len(self.edges) - 1)
+        x = self.x[np.minimum(j, len(self.x) - 1)]
+        return j, (times - self.edges[j])[:, None], x
+
+    def once(self, times):
+        j, s, x = self._at(times)
+        return self.area[j] + x * s
+
+    def twice(self, times):
+        j, s, x = self._at(times)
+        return self.volume[j] + self.area[j] * s + 0.5 * x * s * s
 
 
 def gcv_smoothing(t, y):

@@ -135,7 +135,8 @@ def simulated_reference(flight, backward=None):
     tr = flight.truth
     if tr is None:
         raise InputError(f"{flight.path}: no /truth/state to simulate the reference IMU from")
-    motion = TrackMotion(tr.t, tr.lat, tr.lon, tr.h, tr.v_ned)
+    motion = TrackMotion(tr.t, tr.lat, tr.lon, tr.h, tr.v_ned,
+                         differenced=velocity_is_differenced(tr))
     t = flight.mimu_t
     inside = (t > motion.t0) & (t <= motion.t1)
     if inside.sum() < 2:
@@ -148,6 +149,25 @@ def simulated_reference(flight, backward=None):
     backward = reversing(flight) if backward is None else backward
     trusted = inside & motion.trusted(t) & ~near_gaps(t, tr.t) & ~backward
     return ref, trusted, motion
+
+
+def velocity_is_differenced(tr):
+    """True when the reference trajectory's velocities (a Trajectory: t s, lat, lon rad, h
+    m, v_ned m/s) are central differences of its positions, as an importer makes them from
+    fixes without velocity (`importers.velocity_from_positions`, computed again here): at
+    least DIFFERENCED_SHARE of the epochs agree within 1e-6 m/s (the rest: epochs beside
+    a gap or a dropped fix, differenced over other neighbours). A receiver's own velocity
+    (Doppler, a filter's state) is a point sample and never agrees so closely."""
+    from ..importers import velocity_from_positions
+    if len(tr.t) < 3:
+        return False
+    again = velocity_from_positions(np.round((tr.t - tr.t[0]) * 1e9).astype(np.int64),
+                                    tr.lat, tr.lon, tr.h)
+    agree = np.all(np.abs(again - tr.v_ned) < 1e-6, axis=1)
+    return bool(agree.mean() >= DIFFERENCED_SHARE)
+
+
+DIFFERENCED_SHARE = 0.9
 
 
 def in_band(motion, t, outputs):
