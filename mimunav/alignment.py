@@ -508,7 +508,9 @@ def travel_sign(t, f, mounting, track, t0, span=DIRECTION_SPAN_S):
         return 1.0
     _, _, z_track = track_acceleration(track["t"][k], track["v_ned"][k])
     step = float(np.median(np.diff(track["t"][k])))
-    f_v = attitude.rotate(mounting.q_vs, means_around(t, f, track["t"][k], step / 2))
+    near = slice(*np.searchsorted(t, [t0 - span - step, t0 + span + step]))   # the IMU
+    f_v = attitude.rotate(mounting.q_vs, means_around(t[near], f[near], track["t"][k],
+                                                      step / 2))          # samples it needs
     if not np.isfinite(f_v).all() or np.std(z_track) < DIRECTION_ACCEL:
         return 1.0
     gain, coherence = acceleration_match(f_v[:, 0] + 1j * f_v[:, 1], z_track)

@@ -141,10 +141,11 @@ def test_track_motion_rate_derivative_matches_a_difference_of_its_rates():
 
 def test_the_track_smoothing_is_scipys_gcv_choice():
     """`vehicle._gcv` against the GCV score of the smoother matrix built column by column
-    from scipy's own spline (N |y - A y|^2 / tr(I - A)^2), and `gcv_smoothing`'s spline
-    against scipy's `make_smoothing_spline(t, y)` (its own GCV search) on uneven knots."""
+    from scipy's own spline (N |y - A y|^2 / tr(I - A)^2), `gcv_smoothing`'s spline
+    against scipy's `make_smoothing_spline(t, y)` (its own GCV search) on uneven knots, and
+    `smoothing_spline` against scipy's with the same lambda."""
     from scipy.interpolate import make_smoothing_spline
-    from mimunav.vehicle import _gcv, gcv_smoothing
+    from mimunav.vehicle import _gcv, gcv_smoothing, smoothing_spline
     rng = np.random.default_rng(3)
     t = np.sort(rng.uniform(0.0, 12.0, 120))
     y = np.sin(t) + rng.normal(0.0, 0.2, len(t))
@@ -159,6 +160,16 @@ def test_the_track_smoothing_is_scipys_gcv_choice():
     assert 0.1 < lam < 100
     chosen = make_smoothing_spline(t, y)
     assert np.abs(make_smoothing_spline(t, y, lam=lam)(t) - chosen(t)).max() < 1e-4
+    # the spline itself against scipy's, on epochs as a receiver gives them (10 Hz, 10 us
+    # of jitter), two columns at once, up to the second derivative (the model's jerk)
+    t = np.arange(3000) * 0.1 + rng.normal(0.0, 1e-5, 3000)
+    y = np.column_stack([10 * np.sin(t / 5), np.cos(t / 3)]) + rng.normal(0.0, 0.02, (3000, 2))
+    at = np.linspace(t[0], t[-1], 7000)
+    for lam in (1e-5, 0.7, 3000.0):
+        mine, theirs = smoothing_spline(t, y, lam), make_smoothing_spline(t, y, lam=lam)
+        for nu in (0, 1, 2):
+            assert np.abs(mine(at, nu) - theirs.derivative(nu)(at) if nu else
+                          mine(at) - theirs(at)).max() < 1e-8, (lam, nu)
 
 
 def _under_two_cm(track, seed=5, sigma_m=0.02):
