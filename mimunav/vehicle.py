@@ -10,10 +10,9 @@ its velocity under two assumptions, stated wherever the result is used:
 Below HOLD_SPEED the course is noise: yaw and pitch hold their last value (the first
 moving one for a rest that starts the track) and the rates are zero. Velocity and its
 derivative come from a cubic smoothing spline per NED component (`smoothing_spline`,
-scipy's `make_smoothing_spline` in compiled code; smoothing chosen by generalised
-cross-validation, `gcv_smoothing`; north and east share one
-smoothing, the geometric mean of their two choices, since the course mixes them). The rates follow
-analytically:
+scipy's `make_smoothing_spline` in compiled code), its smoothing chosen by generalised
+cross-validation (`gcv_smoothing`); north and east share one smoothing, the geometric mean
+of their two choices, since the course mixes them. The rates follow analytically:
     yaw' = (v_N a_E - v_E a_N) / v_H^2,   pitch' = (v_D v_H' - a_D v_H) / (v_H^2 + v_D^2),
     w_nb^b = (-yaw' sin(pitch), pitch', yaw' cos(pitch))      (roll = 0, T&W eq. 3.19)
 and their derivatives from the spline's second derivative (jerk) in the same way.

@@ -151,13 +151,18 @@ def simulated_reference(flight, backward=None):
     return ref, trusted, motion
 
 
+DIFFERENCED_SHARE = 0.9     # epochs that must agree for a track to count as differenced
+
+
 def velocity_is_differenced(tr):
     """True when the reference trajectory's velocities (a Trajectory: t s, lat, lon rad, h
     m, v_ned m/s) are central differences of its positions, as an importer makes them from
     fixes without velocity (`importers.velocity_from_positions`, computed again here): at
-    least DIFFERENCED_SHARE of the epochs agree within 1e-6 m/s (the rest: epochs beside
-    a gap or a dropped fix, differenced over other neighbours). A receiver's own velocity
-    (Doppler, a filter's state) is a point sample and never agrees so closely."""
+    least DIFFERENCED_SHARE of the epochs agree within 1e-6 m/s (the rest: epochs beside a
+    gap, whose neighbours across it were left out after the differencing; fixes dropped
+    before it, as an importer drops float fixes, leave uneven steps that agree). A
+    receiver's own velocity (Doppler, a filter's state) is a point sample and agrees at
+    7-17 % of the epochs."""
     from ..importers import velocity_from_positions
     if len(tr.t) < 3:
         return False
@@ -165,9 +170,6 @@ def velocity_is_differenced(tr):
                                     tr.lat, tr.lon, tr.h)
     agree = np.all(np.abs(again - tr.v_ned) < 1e-6, axis=1)
     return bool(agree.mean() >= DIFFERENCED_SHARE)
-
-
-DIFFERENCED_SHARE = 0.9
 
 
 def in_band(motion, t, outputs):
