@@ -220,8 +220,15 @@ def gcv_smoothing(t, y):
     of scipy's `make_smoothing_spline(t, y)` (which does not return its lambda), evaluated
     in O(N) compiled code instead of scipy's Python loops (6000 epochs: 3.7 s there, 11 ms
     here). Its curve is flat at the minimum: the two choices agree to 2e-4 with GCV scores
-    equal to 1e-8."""
+    equal to 1e-8. Refuses (InputError) fewer than 5 epochs, times that do not increase
+    and values that are not finite - scipy's checks, which the compiled score lacks (a NaN
+    had returned a lambda)."""
     t, y = np.asarray(t, float), np.asarray(y, float)
+    if t.ndim != 1 or y.shape != t.shape or len(t) < 5:
+        raise InputError(f"a smoothing spline needs 5 or more epochs with one value each "
+                         f"(t {t.shape}, values {y.shape})")
+    if not (np.all(np.isfinite(t)) and np.all(np.isfinite(y)) and np.all(np.diff(t) > 0)):
+        raise InputError("a smoothing spline needs finite values at finite, increasing times")
     return float(optimize.minimize_scalar(_gcv, bounds=(0, len(t)), method="bounded",
                                           args=(np.diff(t), y)).x)
 

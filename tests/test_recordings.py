@@ -158,6 +158,10 @@ def test_the_track_smoothing_is_scipys_gcv_choice():
     y = np.sin(t / 3.0) + rng.normal(0.0, 0.1, len(t))
     lam = gcv_smoothing(t, y)
     assert 0.1 < lam < 100
+    for bad_t, bad_y in ((t[:4], y[:4]), (t, np.where(t > 30, np.nan, y)),
+                         (t[::-1], y), (t, y[:-1])):
+        with pytest.raises(InputError, match="smoothing spline"):
+            gcv_smoothing(bad_t, bad_y)
     chosen = make_smoothing_spline(t, y)
     assert np.abs(make_smoothing_spline(t, y, lam=lam)(t) - chosen(t)).max() < 1e-4
     # the spline itself against scipy's, on epochs as a receiver gives them (10 Hz, 10 us
