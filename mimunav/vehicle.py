@@ -57,8 +57,8 @@ class TrackMotion(Motion):
         lam = [gcv_smoothing(t, v_ned[:, i]) for i in range(3)]
         self.lam_horizontal = math.sqrt(lam[0] * lam[1])       # s^3: the spline's lambda
         self.lam_vertical = lam[2]
-        self._v = [smoothing_spline(t, v_ned[:, i], lam)
-                   for i, lam in enumerate([self.lam_horizontal] * 2 + lam[2:])]
+        self._v = [smoothing_spline(t, v_ned[:, i], smoothing)
+                   for i, smoothing in enumerate([self.lam_horizontal] * 2 + lam[2:])]
         self._a = [s.derivative() for s in self._v]
         self._j = [s.derivative(2) for s in self._v]
         v = self._velocity(t)
@@ -95,7 +95,8 @@ class TrackMotion(Motion):
         half-power frequency (its transfer function 1 / (1 + lambda dt w^4), dt the median
         epoch step); and at least two epoch steps, over which a (nearly) interpolating
         spline's error between its knots is one function of the same few knots (a 1 Hz track
-        chose lambda 3.5e-6: 0.08 s, and a null drive's correlated bins gave an accel.x scale
+        chose lambda 3.5e-6 - the bounded search's floor: its GCV falls towards
+        interpolation - 0.08 s, and a null drive's correlated bins gave an accel.x scale
         [0.028, 0.069]). Velocities differenced from positions decorrelate sooner (1.28 /
         w_c: an independent 10 Hz drive with 2 cm fixes, w_c 2.40 rad/s, crossed zero at
         0.55 s)."""

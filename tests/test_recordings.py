@@ -224,6 +224,29 @@ def test_an_imu_in_the_tracks_band_meets_the_models_yaw_rate():
     assert 0.5 * motion.error_time_s < first_zero <= 1.05 * motion.error_time_s
 
 
+def test_the_running_integral_of_piecewise_constant_outputs_is_exact():
+    """`vehicle._RunningIntegral` against quadrature on a grid holding every edge and query
+    time (midpoint values of x: exact for its integral; trapezoids of that: exact for the
+    second), before, between and beyond uneven edges."""
+    from mimunav.vehicle import _RunningIntegral
+    rng = np.random.default_rng(1)
+    edges = np.cumsum(rng.uniform(0.5, 1.5, 50))
+    x = rng.normal(size=(49, 2))
+    times = np.sort(rng.uniform(edges[0] - 3, edges[-1] + 3, 300))
+    grid = np.union1d(np.union1d(edges, times), np.linspace(edges[0] - 3, edges[-1] + 3, 1001))
+    mid = 0.5 * (grid[1:] + grid[:-1])
+    x_mid = x[np.clip(np.searchsorted(edges, mid) - 1, 0, 48)]
+    step = np.diff(grid)[:, None]
+    once = np.vstack([np.zeros(2), np.cumsum(x_mid * step, axis=0)])
+    once -= once[np.searchsorted(grid, edges[0])]
+    twice = np.vstack([np.zeros(2), np.cumsum(0.5 * (once[1:] + once[:-1]) * step, axis=0)])
+    twice -= twice[np.searchsorted(grid, edges[0])]
+    at = np.searchsorted(grid, times)
+    integral = _RunningIntegral(edges, x)
+    assert np.abs(integral.once(times) - once[at]).max() < 1e-12
+    assert np.abs(integral.twice(times) - twice[at]).max() < 1e-11
+
+
 def test_a_differenced_track_bands_the_imu_over_its_differencing_spans():
     """A 1 Hz track whose velocities are central differences of its fixes (2 cm): each is
     the mean velocity over 2 s, and the model's yaw rate through a 10 deg/s turn entered in
