@@ -103,7 +103,16 @@ class TrackMotion(Motion):
         dt = float(np.median(np.diff(self._t)))
         return max(1.84 * (self.lam_horizontal * dt) ** 0.25, 2 * dt)
 
-    def in_band(self, t, x):
+    @property
+    def edge_s(self):
+        """s: how far from the track's ends its smoothing is one-sided - twice the equivalent
+        kernel's width (lambda dt)^(1/4) of the wider of its two smoothers (the vertical's,
+        on a level road all noise: 4.9 s at 10 Hz, whose derivative drifted 0.006 m/s^2 over
+        the first 8 s of a rest, z 17 against the part's noise)."""
+        dt = float(np.median(np.diff(self._t)))
+        return 2 * (max(self.lam_horizontal, self.lam_vertical) * dt) ** 0.25
+
+    def in_band(self, t, x, lam=None):
         """x (N, k) - an IMU's outputs, any units and axes, each the mean over its own sample
         interval ending at its stamp t (s) - through the track's own smoothing, in the same
         form. The model's rates and accelerations are the derivative of a smoothing spline
@@ -118,40 +127,77 @@ class TrackMotion(Motion):
         not have: a smooth start's longitudinal acceleration differed by 0.01 m/s^2, z 7
         against the part's noise.) An output whose interval is a gap, or that is not
         finite, counts as its neighbours' (linear in time) in the integral; NaN where x is
-        not finite."""
+        not finite. `lam`: another smoothing than the horizontal velocity's (the vertical's,
+        `lam_vertical`)."""
         t, x = np.asarray(t, float), np.asarray(x, float)
-        epochs = self._t
-        step = np.diff(t, prepend=t[0] - float(np.median(np.diff(t))))
-        around = np.maximum(np.concatenate([step[1:2], step[:-1]]),
-                            np.concatenate([step[1:], step[-1:]]))
-        span = np.minimum(step, around)         # a gap's length is no output's interval
+        _, span, edges = _intervals(t)
         finite = np.isfinite(x).all(axis=1)
         if finite.sum() < 2:
             raise InputError("fewer than 2 finite IMU outputs: nothing to compare with the track")
         filled = np.column_stack([np.interp(t, t[finite], x[finite, c])
                                   for c in range(x.shape[1])])
-        edges = np.concatenate([[t[0] - step[0]], t])
         integral = _RunningIntegral(edges, filled)
         rate = integral.area[-1] / (edges[-1] - edges[0])
-        sampled = integral.once(epochs)
+        # the velocity the outputs make, sampled as the track's (differenced: `_as_sampled`)
+        sampled = self._as_sampled(integral.once, integral.twice)
+        sampled -= (self._t - edges[0])[:, None] * rate     # the mean rate, for the fit
+        spline = smoothing_spline(self._t, sampled, self.lam_horizontal if lam is None else lam)
+        out = (spline(t) - spline(t - span)) / span[:, None] + rate
+        out[~finite] = np.nan
+        return out
+
+    def _as_sampled(self, value, integral):
+        """(M, k): a quantity at the track's epochs as the track samples its velocity, from
+        callables of times (s): value (the quantity) and integral (its running integral).
+        At the epochs; of a `differenced` track, interior epochs as np.gradient differences
+        them: the means over the steps behind (h_b) and ahead (h_f), weighted h_f and h_b
+        over their sum - exact for a quadratic, so a constant output (gravity, a rest's
+        bias) keeps its epoch (an even mean over both steps had moved it a quarter of a
+        dropped fix's gap: z 131 on a 1 Hz null drive with 3 % of its fixes dropped). The
+        two end epochs, differenced one-sidedly, as points: their span's constant would be
+        read half a step off, a kink the spline turns into a rate (gyro.z z 17 at a start)."""
+        epochs = self._t
+        sampled = value(epochs)
         if self.differenced:
-            # interior epochs as np.gradient differences them: the means over the steps
-            # behind (h_b) and ahead (h_f), weighted h_f and h_b over their sum - exact for a
-            # quadratic, so a constant output (gravity, a rest's bias) keeps its epoch (an
-            # even mean over both steps had moved it a quarter of a dropped fix's gap: z 131
-            # on a 1 Hz null drive with 3 % of its fixes dropped). The two end epochs,
-            # differenced one-sidedly, as points: their span's constant would be read half
-            # a step off, a kink the spline turns into a rate (gyro.z z 17 at a start).
-            volume = integral.twice(epochs)
+            volume = integral(epochs)
             h_b, h_f = np.diff(epochs)[:-1, None], np.diff(epochs)[1:, None]
             behind = (volume[1:-1] - volume[:-2]) / h_b
             ahead = (volume[2:] - volume[1:-1]) / h_f
             sampled[1:-1] = (h_f * behind + h_b * ahead) / (h_b + h_f)
-        sampled -= (epochs - edges[0])[:, None] * rate      # the mean rate, for the fit
-        spline = smoothing_spline(epochs, sampled, self.lam_horizontal)
-        out = (spline(t) - spline(t - span)) / span[:, None] + rate
-        out[~finite] = np.nan
-        return out
+        return sampled
+
+    def course_rate_in_band(self, t, yaw_rate):
+        """(N,) rad/s: an IMU's yaw rate about down (rad/s, (N,), each the mean over its
+        interval ending at its stamp t s) as the model makes its own yaw rate - the rate of
+        the course of the smoothed velocity: a velocity of the model's speed along the IMU's
+        heading (its yaw rate integrated from the model's first course; a constant offset
+        turns the velocity and leaves its course's rate), sampled as the track's velocity
+        (`_as_sampled`), smoothed by the horizontal spline, its course differenced over each
+        output's interval. A yaw rate smoothed on its own is not the model's: the course of
+        a smoothed velocity is not the smoothed course where the speed changes or the course
+        turns fast (under 5 cm fixes, lambda 1.3, 0.3 deg/s at sharp turns). A non-finite
+        rate counts as its neighbours'."""
+        t, yaw_rate = np.asarray(t, float), np.asarray(yaw_rate, float)
+        step, span, edges = _intervals(t)
+        finite = np.isfinite(yaw_rate)
+        rate = np.interp(t, t[finite], yaw_rate[finite])
+        v0 = self._velocity(self._t[:1])[0]
+        # each interval's mean heading and velocity: at its middle
+        heading = math.atan2(v0[1], v0[0]) + np.cumsum(rate * step) - 0.5 * rate * step
+        middle = t - 0.5 * step
+        speed = self.speed(middle)
+        v = np.column_stack([speed * np.cos(heading), speed * np.sin(heading)])
+        velocity = _RunningIntegral(edges, v)
+
+        def at(times):                  # the velocity at times, between the middles
+            return np.column_stack([np.interp(times, middle, v[:, c]) for c in range(2)])
+        spline = smoothing_spline(self._t, self._as_sampled(at, velocity.once),
+                                  self.lam_horizontal)
+
+        def course(x):
+            v = spline(x)
+            return np.arctan2(v[:, 1], v[:, 0])
+        return np.angle(np.exp(1j * (course(t) - course(t - span)))) / span
 
     def kinematics(self, t):
         t = np.asarray(t, float)
@@ -183,6 +229,16 @@ class TrackMotion(Motion):
         dw = np.column_stack([-ydd * s_p - yd * pd * c_p, pdd, ydd * c_p - yd * pd * s_p])
         q = attitude.from_euler(yaw, pitch, np.zeros_like(yaw))
         return Kinematics(v, a, q, w, dw)
+
+
+def _intervals(t):
+    """Of an IMU's stamps t (s, (N,)): each output's interval (s; the first as the median
+    step), its span in the integral (the interval, but no longer than a neighbour's: a
+    gap's length is no output's interval) and the intervals' edges (N + 1,)."""
+    step = np.diff(t, prepend=t[0] - float(np.median(np.diff(t))))
+    around = np.maximum(np.concatenate([step[1:2], step[:-1]]),
+                        np.concatenate([step[1:], step[-1:]]))
+    return step, np.minimum(step, around), np.concatenate([[t[0] - step[0]], t])
 
 
 class _RunningIntegral:
