@@ -38,6 +38,7 @@ from .errors import InputError
 HOLD_SPEED = 0.5            # m/s: below it the attitude holds and the rates are zero
 TRUSTED_SPEED = 2.0         # m/s: above it (or at rest) the attitude model is taken as valid
 REST_SPEED = 0.05           # m/s: at rest
+EDGE_EPOCHS = 5             # epoch steps at least in `TrackMotion.edge_s`: 0.27^5 = 1.4e-3
 
 
 class TrackMotion(Motion):
@@ -106,11 +107,16 @@ class TrackMotion(Motion):
     @property
     def edge_s(self):
         """s: how far from the track's ends its smoothing is one-sided - twice the equivalent
-        kernel's width (lambda dt)^(1/4) of the wider of its two smoothers (the vertical's,
-        on a level road all noise: 4.9 s at 10 Hz, whose derivative drifted 0.006 m/s^2 over
-        the first 8 s of a rest, z 17 against the part's noise)."""
+        kernel's width (lambda dt)^(1/4) of the wider of its two smoothers, dt the median
+        epoch step (on a level road the vertical's: all noise, its GCV lambda at the search's
+        bound N, so 2 (N dt)^(1/4) = 2 T^(1/4) for a track of T s - 9.9 s for 600 s; its
+        derivative had drifted 0.006 m/s^2 over the first 8 s of a rest, z 17 against the
+        part's noise) - and at least EDGE_EPOCHS epoch steps, over which a (nearly)
+        interpolating spline's end condition fades (by 2 - sqrt 3 = 0.27 per knot: a 1 Hz
+        track with lambda 3.5e-6 was 4.7 deg/s off over its first 2.5 s)."""
         dt = float(np.median(np.diff(self._t)))
-        return 2 * (max(self.lam_horizontal, self.lam_vertical) * dt) ** 0.25
+        return max(2 * (max(self.lam_horizontal, self.lam_vertical) * dt) ** 0.25,
+                   EDGE_EPOCHS * dt)
 
     def in_band(self, t, x, lam=None):
         """x (N, k) - an IMU's outputs, any units and axes, each the mean over its own sample
@@ -125,9 +131,9 @@ class TrackMotion(Motion):
         differentiated - as each output's mean over its own interval. (A mean over each
         epoch of a point-sampled track, a 0.25 s boxcar at 4 Hz, is a filter the model does
         not have: a smooth start's longitudinal acceleration differed by 0.01 m/s^2, z 7
-        against the part's noise.) An output whose interval is a gap, or that is not
-        finite, counts as its neighbours' (linear in time) in the integral; NaN where x is
-        not finite. `lam`: another smoothing than the horizontal velocity's (the vertical's,
+        against the part's noise.) An output that is not finite counts as its neighbours'
+        (linear in time) in the integral, NaN in the result; across a gap in the stamps
+        the output after it is held over the gap. `lam`: another smoothing than the horizontal velocity's (the vertical's,
         `lam_vertical`)."""
         t, x = np.asarray(t, float), np.asarray(x, float)
         _, span, edges = _intervals(t)
