@@ -432,7 +432,7 @@ def _check_against_course(rec):
         yaw = float(np.angle(gain))
         if coherence > 0.5:
             # said even when small: the RTKLIB drive reads -6.1 deg here and its diagnosis
-            # finds the mounting's yaw at -6.7 deg [-7.7, -5.6]
+            # finds the mounting's yaw at -6.1 deg [-7.1, -5.0]
             rec.real["mounting_yaw_against_course"] = (
                 f"{math.degrees(yaw):+.1f} deg (the accelerometers' horizontal specific force "
                 f"against the GNSS track's acceleration: coherence {coherence:.2f}, size ratio "
