@@ -39,6 +39,7 @@ MIN_STATIC_S = 2.0          # s: a shorter rest cannot give a level and a gyro b
 COURSE_SPEED = 3.0          # m/s: horizontal speed from which the GNSS course gives heading
                             # (1 cm/s RTK velocity noise -> 0.2 deg course noise)
 DIRECTION_SPAN_S = 5.0      # s either side: the track's acceleration that tells reversing
+DIRECTION_STEP_S = 1.0      # s: the means it is compared in (`travel_sign`)
 DIRECTION_ACCEL = 0.1       # m/s^2: horizontal acceleration (std) that can tell it (a gentle
                             # weave: 0.2; IMU noise in 1 s means: ~0.01)
 MOVING_HALF_WINDOW_MAX_S = 5.0  # s: the longest (the gyro's bias turns the increment by
@@ -493,28 +494,39 @@ def acceleration_match(z_imu, z_track):
     return complex(cross / np.sum(abs(z_track) ** 2)), float(abs(cross) / power) if power else 0.0
 
 
-def travel_sign(t, f, mounting, track, t0, span=DIRECTION_SPAN_S):
+def travel_sign(t, f, mounting, track, t0, span=DIRECTION_SPAN_S, undecided=1.0):
     """+1 when the vehicle moves forward at t0 (s), -1 when it reverses: over t0 +- span the
     IMU's horizontal specific force (vehicle x + 1j y, each less its mean) regressed on the
     track's acceleration (along + 1j across, `track_acceleration`) gives a complex gain
     near +1 driving forward and near -1 reversing (the course is the heading + 180 deg:
     speed changes and the centripetal force both act the other way in the vehicle frame).
-    Reversing needs the gain's real part below -0.5 with coherence above 0.5 and the track
+    Either needs the gain's real part beyond +-0.5 with coherence above 0.5 and the track
     accelerating by DIRECTION_ACCEL: an aircraft's coordinated turns put almost none of the
     centripetal acceleration into its lateral axis (gain -0.03 to -0.24 on a simulated
-    copter-like flight) and stay forward."""
+    copter-like flight) and stay forward. `undecided` where the data cannot tell (a
+    constant speed on a straight road; fewer than 5 epochs): forward (1) for an alignment,
+    which must face somewhere; 0 for a vote (`diagnosis.track.reversing`)."""
     k = np.flatnonzero((track["t"] >= t0 - span) & (track["t"] <= t0 + span))
     if len(k) < 5:
-        return 1.0
-    _, _, z_track = track_acceleration(track["t"][k], track["v_ned"][k])
-    step = float(np.median(np.diff(track["t"][k])))
+        return undecided
+    # both sides as means over steps of at least DIRECTION_STEP_S: a 10 Hz track with 5 cm
+    # fixes differenced has 3-5 m/s^2 of acceleration noise epoch to epoch, and no move of
+    # a car was ever coherent with it
+    step = max(float(np.median(np.diff(track["t"][k]))), DIRECTION_STEP_S)
+    grid = np.arange(t0 - span, t0 + span + 1e-9, step)
+    v = means_around(track["t"], track["v_ned"], grid, step / 2)
+    grid, v = grid[np.isfinite(v).all(axis=1)], v[np.isfinite(v).all(axis=1)]
+    if len(grid) < 5:
+        return undecided
+    _, _, z_track = track_acceleration(grid, v)
     near = slice(*np.searchsorted(t, [t0 - span - step, t0 + span + step]))   # the IMU
-    f_v = attitude.rotate(mounting.q_vs, means_around(t[near], f[near], track["t"][k],
-                                                      step / 2))          # samples it needs
+    f_v = attitude.rotate(mounting.q_vs, means_around(t[near], f[near], grid, step / 2))
     if not np.isfinite(f_v).all() or np.std(z_track) < DIRECTION_ACCEL:
-        return 1.0
+        return undecided
     gain, coherence = acceleration_match(f_v[:, 0] + 1j * f_v[:, 1], z_track)
-    return -1.0 if gain.real < -0.5 and coherence > 0.5 else 1.0
+    if coherence > 0.5 and abs(gain.real) > 0.5:
+        return float(np.sign(gain.real))
+    return undecided
 
 
 def means_around(t, x, epochs, half):

@@ -1550,6 +1550,63 @@ def test_windows_of_a_reversing_vehicle_face_backwards(tmp_path):
     assert not track_level.reversing(Flight.load(forward, reference_imu=False)).any()
 
 
+def test_a_reversing_move_is_found_under_a_noisy_rtk_fix(tmp_path):
+    """Forward at 8 m/s along 30 deg, a stop, then backwards at 5 m/s along the same line
+    (the vehicle still facing 30 deg: its ideal IMU that of the track's motion turned half
+    a turn where the track's course is 210 deg), under 5 cm fixes at 10 Hz differenced:
+    their speed at rest is noise of about 0.3 m/s and rarely below REST_SPEED, so moves
+    split where the raw speed stops had found no stop and judged the whole drive forward -
+    the reversing stretch trusted, its model facing the wrong way. Split where the track's
+    mean velocity over STATIC_AVERAGE_S stops (as the alignment finds rests), with the
+    direction told from 1 s means (`alignment.travel_sign`: the fixes' epoch-to-epoch
+    acceleration is 3-5 m/s^2 of noise, which no IMU was coherent with) and the verdicts
+    that cannot tell (a constant speed on a straight line) not counted as forward, the
+    reversing move is found and nothing of the forward one."""
+    from mimunav import vehicle
+    from mimunav.diagnosis import track as track_level
+    from mimunav.truth import Kinematics
+    rate = 10.0
+    t_tr = np.arange(0.0, 90.0 + 1e-9, 1.0 / rate)
+    speed = 8.0 * (_smoothstep((t_tr - 5.0) / 4.0) - _smoothstep((t_tr - 36.0) / 4.0)) - \
+        5.0 * (_smoothstep((t_tr - 46.0) / 4.0) - _smoothstep((t_tr - 80.0) / 4.0))
+    heading = np.array([math.cos(30 * DEG), math.sin(30 * DEG), 0.0])
+    exact = _from_velocity(t_tr, speed[:, None] * heading)
+    half_turn = quaternion.from_rotation_vector([0.0, 0.0, math.pi])
+
+    class Facing(TrackMotion):          # the vehicle faces 30 deg whichever way it moves
+        def kinematics(self, t):
+            kin = super().kinematics(t)
+            yaw = attitude.as_euler(kin.q_nb)[0]
+            back = np.cos(yaw - 30 * DEG) < 0
+            q = kin.q_nb.copy()
+            q[back] = q[back] * half_turn
+            flip = np.where(back[:, None], [-1.0, -1.0, 1.0], 1.0)
+            return Kinematics(kin.v_ned, kin.a_ned, q, kin.w_nb_b * flip, kin.dw_nb_b * flip)
+
+    t = np.arange(0.0, 90.0 + 1e-9, 0.01)
+    dth, dv = MOUNT.sensor_increments(truth.generate(Facing(*exact), t))
+    fixes = _under_two_cm(exact, sigma_m=0.05)
+    epoch = 1_700_000_000_000_000_000
+    reference = dict(ns=epoch + np.round(fixes[0] * 1e9).astype(np.int64), lat=fixes[1],
+                     lon=fixes[2], h=fixes[3], v_ned=fixes[4])
+    rec = Recording("synthetic", "forward, stop, backwards",
+                    epoch + np.round(t[1:] * 1e9).astype(np.int64), dth / 0.01, dv / 0.01,
+                    MOUNT, reference=reference)
+    path = tmp_path / "reversing.mcap"
+    write_log(rec, path)
+    flight = Flight.load(path, reference_imu=False)
+    raw_speed = np.hypot(fixes[4][:, 0], fixes[4][:, 1])
+    at_rest = (fixes[0] > 41.0) & (fixes[0] < 45.0)
+    assert np.mean(raw_speed[at_rest] < vehicle.REST_SPEED) < 0.2     # noise, not a stop
+    back = track_level.reversing(flight)
+    tt = flight.mimu_t
+    assert back[(tt > 50.0) & (tt < 78.0)].all()
+    assert not back[(tt > 8.0) & (tt < 36.0)].any()
+    # the trusted samples leave it out
+    _, trusted, _ = track_level.simulated_reference(flight)
+    assert not trusted[(tt > 50.0) & (tt < 78.0)].any()
+
+
 def test_no_window_starts_while_parked_under_a_noisy_fix(tmp_path):
     """The stop-and-go drive (at rest 25-45 s) under a plain 1 Hz fix with 1.5 m of
     position noise: its differenced speed passes a 2 m/s gate (--min-speed) at rest, but no

@@ -229,27 +229,32 @@ def in_band(motion, t, outputs, q_vs):
 def reversing(flight, step_s=1.0):
     """(N,) bool over the MIMU's stamps: where the vehicle drives in reverse. A vehicle
     changes its direction of travel only through a stop, so the track is cut into moves
-    between rests (speed below vehicle.REST_SPEED) and each move is judged whole: reversing
-    when most of the `alignment.travel_sign` verdicts on a step_s grid of its epochs faster
-    than alignment.COURSE_SPEED say so. The vehicle model takes the attitude from the
-    velocity, so reversing it faces the wrong way and predicts nothing: those samples are
-    left out (a drive that reversed over 150 s had been inconclusive, '1 of 6 channels
-    predicted', and its lag averaged with the reversed stretch's)."""
+    between stops - epochs whose mean velocity over alignment.STATIC_AVERAGE_S is below
+    alignment.STATIC_SPEED, as the alignment finds rests (a differenced RTK fix's speed at
+    rest is noise of tenths of m/s, rarely below vehicle.REST_SPEED: a drive forward, a
+    stop and backwards had been one move, judged forward) - and each move is judged whole:
+    reversing when most of the `alignment.travel_sign` verdicts that decide on a step_s grid
+    of its epochs faster than alignment.COURSE_SPEED say so (at a constant speed on a
+    straight road none decides: such verdicts had counted as forward). The vehicle model takes the attitude
+    from the velocity, so reversing it faces the wrong way and predicts nothing: those
+    samples are left out (a drive that reversed over 150 s had been inconclusive, '1 of 6
+    channels predicted', and its lag averaged with the reversed stretch's)."""
     from .. import alignment
-    from ..vehicle import REST_SPEED
     from ..windows import track_of
     t, tr = flight.mimu_t, flight.truth
     track = track_of(tr)
     speed = np.hypot(tr.v_ned[:, 0], tr.v_ned[:, 1])
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], (speed > REST_SPEED).astype(int), [0]])))
+    mean = alignment.means_around(tr.t, tr.v_ned[:, :2], tr.t, alignment.STATIC_AVERAGE_S / 2)
+    moving = np.linalg.norm(mean, axis=1) > alignment.STATIC_SPEED
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], moving.astype(int), [0]])))
     out = np.zeros(len(t), bool)
     for a, b in zip(edges[::2], edges[1::2]):                 # epochs a .. b - 1 move
         grid = np.arange(tr.t[a], tr.t[b - 1], step_s)
         fast = grid[np.interp(grid, tr.t, speed) >= alignment.COURSE_SPEED]
         fast = fast[(fast > t[0]) & (fast < t[-1])]
-        signs = [alignment.travel_sign(t, flight.mimu_imu[1], flight.mimu_mounting, track, x)
-                 for x in fast]
-        if signs and np.mean(signs) < 0:
+        signs = [alignment.travel_sign(t, flight.mimu_imu[1], flight.mimu_mounting, track, x,
+                                       undecided=0.0) for x in fast]
+        if np.sum(signs) < 0:           # the decided verdicts (a straight cruise: none)
             out |= (t >= tr.t[a]) & (t <= tr.t[b - 1])
     return out
 
