@@ -133,8 +133,8 @@ class TrackMotion(Motion):
         not have: a smooth start's longitudinal acceleration differed by 0.01 m/s^2, z 7
         against the part's noise.) An output that is not finite counts as its neighbours'
         (linear in time) in the integral, NaN in the result; across a gap in the stamps
-        the output after it is held over the gap. `lam`: another smoothing than the horizontal velocity's (the vertical's,
-        `lam_vertical`)."""
+        the output after it is held over the gap. `lam`: another smoothing than the
+        horizontal velocity's (the vertical's, `lam_vertical`)."""
         t, x = np.asarray(t, float), np.asarray(x, float)
         _, span, edges = _intervals(t)
         finite = np.isfinite(x).all(axis=1)
@@ -201,8 +201,8 @@ class TrackMotion(Motion):
                                   self.lam_horizontal)
 
         def course(x):
-            v = spline(x)
-            return np.arctan2(v[:, 1], v[:, 0])
+            smoothed = spline(x)
+            return np.arctan2(smoothed[:, 1], smoothed[:, 0])
         return np.angle(np.exp(1j * (course(t) - course(t - span)))) / span
 
     def kinematics(self, t):

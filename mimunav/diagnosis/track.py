@@ -235,10 +235,11 @@ def reversing(flight, step_s=1.0):
     stop and backwards had been one move, judged forward) - and each move is judged whole:
     reversing when most of the `alignment.travel_sign` verdicts that decide on a step_s grid
     of its epochs faster than alignment.COURSE_SPEED say so (at a constant speed on a
-    straight road none decides: such verdicts had counted as forward). The vehicle model takes the attitude
-    from the velocity, so reversing it faces the wrong way and predicts nothing: those
-    samples are left out (a drive that reversed over 150 s had been inconclusive, '1 of 6
-    channels predicted', and its lag averaged with the reversed stretch's)."""
+    straight road none decides: such verdicts had counted as forward). The vehicle model
+    takes the attitude from the velocity, so reversing it faces the wrong way and predicts
+    nothing: those samples are left out (a drive that reversed over 150 s had been
+    inconclusive, '1 of 6 channels predicted', and its lag averaged with the reversed
+    stretch's)."""
     from .. import alignment
     from ..windows import track_of
     t, tr = flight.mimu_t, flight.truth
