@@ -515,7 +515,8 @@ def travel_sign(t, f, mounting, track, t0, span=DIRECTION_SPAN_S, undecided=1.0)
     step = max(float(np.median(np.diff(track["t"][k]))), DIRECTION_STEP_S)
     grid = np.arange(t0 - span, t0 + span + 1e-9, step)
     v = means_around(track["t"], track["v_ned"], grid, step / 2)
-    grid, v = grid[np.isfinite(v).all(axis=1)], v[np.isfinite(v).all(axis=1)]
+    known = np.isfinite(v).all(axis=1)
+    grid, v = grid[known], v[known]
     if len(grid) < 5:
         return undecided
     _, _, z_track = track_acceleration(grid, v)

@@ -365,15 +365,8 @@ def test_the_tracks_ends_where_its_smoothing_is_one_sided_are_not_trusted(tmp_pa
     are left out of the samples the track level trusts (without it null drives with 5 cm
     fixes showed accel.z excursions in their first and last seconds, z 9-17)."""
     from mimunav.diagnosis import track
-    from mimunav.importers import velocity_from_positions
-    r_n, r_e = earth.radii(LAT0)
     for seed in (1, 2, 3, 4):
-        t, lat, lon, h, _ = _track(rate=10.0)
-        rng = np.random.default_rng(seed)
-        lat = lat + rng.normal(0.0, 0.05, len(t)) / (r_n + H0)
-        lon = lon + rng.normal(0.0, 0.05, len(t)) / ((r_e + H0) * math.cos(LAT0))
-        h = h + rng.normal(0.0, 0.05, len(t))
-        v = velocity_from_positions(np.round(t * 1e9).astype(np.int64), lat, lon, h)
+        t, lat, lon, h, v = _under_two_cm(_track(rate=10.0), seed, 0.05, sigma_h_m=0.05)
         motion = TrackMotion(t, lat, lon, h, v, differenced=True)
         fine = np.arange(t[0], t[-1], 0.01)
         vertical = motion.kinematics(fine).a_ned[:, 2]
