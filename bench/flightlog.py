@@ -32,14 +32,14 @@ from publish import publish  # noqa: E402
 from mimunav import truth                               # noqa: E402
 from mimunav.flightlog import FlightLog, LogWriter      # noqa: E402
 from mimunav.flightlog import schemas as S              # noqa: E402
-from mimunav.flightlog.writer import ZSTD_LEVEL         # noqa: E402
+from mimunav.flightlog.writer import ZSTD_PARAMETERS    # noqa: E402
 from mimunav.profile import Profile                     # noqa: E402
 from mimunav.sensors import MimuUnit                    # noqa: E402
 
 
 def zstd_alone(path, repeats=3):
     """(compress s, decompress s, bytes of records), best of `repeats`: the log's chunks,
-    uncompressed, compressed again at the writer's level on 2 threads (as the writer does)
+    uncompressed, compressed again with the writer's parameters on 2 threads (as the writer does)
     and decompressed on 2 threads (as the reader does)."""
     from concurrent.futures import ThreadPoolExecutor
     with open(path, "rb") as fh:
@@ -47,7 +47,8 @@ def zstd_alone(path, repeats=3):
     raw = [zstandard.ZstdDecompressor().decompress(c.data, max_output_size=c.uncompressed_size)
            for c in chunks]
     packed = [c.data for c in chunks]
-    compressor = zstandard.ZstdCompressor(level=ZSTD_LEVEL)
+    compressor = zstandard.ZstdCompressor(
+        compression_params=zstandard.ZstdCompressionParameters(**ZSTD_PARAMETERS))
 
     def unpack(part):
         d = zstandard.ZstdDecompressor()
@@ -123,7 +124,7 @@ def main():
         (f"log read, {n:.0e} /mimu/raw samples", f"{n / reads[0] / 1e6:.1f} M samples/s first, "
          f"{n / min(reads) / 1e6:.1f} M best of 3; {res['speedup_first']:.0f}x the mcap "
          "package's iter_decoded_messages (chunks decompressed on 2 threads)"),
-        (f"zstd alone on that log's chunks (level {ZSTD_LEVEL}, 2 threads): the writer's "
+        (f"zstd alone on that log's chunks (the writer's parameters, 2 threads): the writer's "
          "and the reader's ceiling", f"compress {n / t_pack / 1e6:.2f} M msg/s, decompress "
          f"{n / t_unpack / 1e6:.2f} M msg/s ({records / 1e6:.0f} MB of records)")],
         res, args.json)

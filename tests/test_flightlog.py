@@ -232,18 +232,27 @@ def test_truncated_log_reports_and_recovers_its_intact_chunks(flight_file, tmp_p
 
 
 def test_corrupt_chunk_is_named_by_its_time_range(flight_file, tmp_path):
+    """Bits flipped anywhere in a chunk's compressed data: the decompressor refuses some
+    (a broken zstd frame), others decompress to wrong records that the CRC catches; both are
+    the same damage to a user - the chunk named by its time range."""
     path, _, _ = flight_file
-    data = bytearray(path.read_bytes())
+    data = bytes(path.read_bytes())
     with FlightLog(path) as log:
         ci = sorted(log.summary.chunk_indexes, key=lambda c: c.chunk_start_offset)[3]
-    data[ci.chunk_start_offset + ci.chunk_length // 2] ^= 0xFF           # flip bits inside
-    bad = tmp_path / "bad.mcap"
-    bad.write_bytes(bytes(data))
     start = (ci.message_start_time - EPOCH) / 1e9
-    with FlightLog(bad) as log, pytest.raises(LogError, match=rf"corrupt chunk .* from "
-                                                              rf"t = {start:.3f} s"):
-        for topic in log.channels:
-            log.read(topic)
+    reasons = set()
+    for k in range(1, 12):
+        bad_data = bytearray(data)
+        bad_data[ci.chunk_start_offset + ci.chunk_length * k // 12] ^= 0xFF    # flip bits
+        bad = tmp_path / f"bad{k}.mcap"
+        bad.write_bytes(bytes(bad_data))
+        with FlightLog(bad) as log, pytest.raises(LogError, match=rf"corrupt chunk .* from "
+                                                                  rf"t = {start:.3f} s") as err:
+            for topic in log.channels:
+                log.read(topic)
+        reasons.add("CRC" if "CRC mismatch" in str(err.value) else
+                    "zstd" if "the decompressor" in str(err.value) else str(err.value))
+    assert reasons == {"CRC", "zstd"}
 
 
 def test_only_the_reading_thread_touches_the_file(flight_file, tmp_path):

@@ -292,21 +292,27 @@ class FlightLog:
         body = rec[49 + n:]
         if len(body) < int.from_bytes(rec[41 + n:49 + n], "little"):
             raise LogError(f"{self.path}: chunk at byte {ci.chunk_start_offset} is cut short")
-        if compression == "zstd":
-            data = _decompressor().decompress(body, max_output_size=size)
-        elif compression == "":
-            data = bytes(body)
-        elif compression == "lz4":
-            import lz4.frame
-            data = lz4.frame.decompress(body)
-        else:
+        if compression not in ("zstd", "", "lz4"):
             raise LogError(f"{self.path}: unknown chunk compression {compression!r}")
-        crc = int.from_bytes(rec[33:37], "little")
-        if len(data) != size or (crc and zlib.crc32(data) != crc):
+        try:
+            if compression == "zstd":
+                data = _decompressor().decompress(body, max_output_size=size)
+            elif compression == "lz4":
+                import lz4.frame
+                data = lz4.frame.decompress(body)
+            else:
+                data = bytes(body)
+        except (zstandard.ZstdError, RuntimeError) as exc:    # lz4's errors are RuntimeErrors
+            data, why = None, f"the decompressor: {exc}"
+        else:
+            crc = int.from_bytes(rec[33:37], "little")
+            why = "size mismatch" if len(data) != size else \
+                "CRC mismatch" if crc and zlib.crc32(data) != crc else None
+        if why:
             raise LogError(f"{self.path}: corrupt chunk at byte {ci.chunk_start_offset} "
                            f"holding messages from {_since_epoch(self, ci.message_start_time)}"
-                           f" to {_since_epoch(self, ci.message_end_time)} (CRC or size "
-                           "mismatch); `mimunav info LOG --recover OUT.mcap` keeps the rest")
+                           f" to {_since_epoch(self, ci.message_end_time)} ({why}); "
+                           "`mimunav info LOG --recover OUT.mcap` keeps the rest")
         return np.frombuffer(data, dtype=np.uint8)
 
     def _message_index(self, ci, channel_id):

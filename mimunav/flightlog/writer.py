@@ -37,12 +37,19 @@ OP = {"header": 0x01, "footer": 0x02, "schema": 0x03, "channel": 0x04, "message"
       "chunk": 0x06, "message_index": 0x07, "chunk_index": 0x08, "attachment": 0x09,
       "attachment_index": 0x0A, "statistics": 0x0B, "metadata": 0x0C, "metadata_index": 0x0D,
       "summary_offset": 0x0E, "data_end": 0x0F}
+_INDEX_ENTRY = np.dtype([("t", "<u8"), ("o", "<u8")])     # a MessageIndex entry: log time, offset
 _MESSAGE_HEAD = 31          # opcode 1 + length 8 + channel 2 + sequence 4 + log 8 + publish 8
 IN_FLIGHT = 8               # chunks being compressed or waiting to be written (8 MiB of
                             # messages at the default chunk size)
-ZSTD_LEVEL = 1              # as small as level 3 on IMU data and 1.6x faster; level -1 is
-                            # 1.1x faster again for files 4 % larger (bench/flightlog.py
-                            # prints zstd's own rate on a log's chunks: the writer's ceiling)
+# zstd's fast strategy with 4-byte matches and a 4096-entry hash table (it stays in the
+# L1/L2 cache): on IMU records (8-byte fields of noisy samples, repeating headers) files 1-2 %
+# smaller than level 1 and compression 1.3-1.6x faster, decompression 1.1-1.3x (level 1's
+# 7-byte matches miss the 4-6 byte repeats of the stamps and headers; level -1 is as fast for
+# files 5-7 % larger). Measured on the chunks of a 10^6-sample /mimu/raw log and a 600 s
+# flight, 2 threads, interleaved: bench/flightlog.py prints zstd's own rate on a log's chunks
+# with these parameters, the writer's ceiling.
+ZSTD_PARAMETERS = dict(window_log=19, hash_log=12, chain_log=13, search_log=1, min_match=4,
+                       target_length=1, strategy=zstandard.STRATEGY_FAST)
 
 # offered_qos_profiles as rosbag2 writes it (reliable, volatile, keep-last), so ROS 2 tools
 # (Foxglove, PlotJuggler, ros2 bag) take the channel as an ordinary topic
@@ -238,8 +245,10 @@ class LogWriter:
                 _record(OP["channel"], channel_body)
             messages = np.concatenate([np.frombuffer(head, np.uint8), messages])
             self._announced.add(cid)
+        entries = np.empty(len(log_times), dtype=_INDEX_ENTRY)     # the MessageIndex's, made
+        entries["t"], entries["o"] = log_times, offsets + np.uint64(len(head))  # while cached
         self._in_flight.append((self._pool.submit(self._pack, messages), cid, len(messages),
-                                log_times, offsets, len(head)))
+                                entries))
         while len(self._in_flight) > IN_FLIGHT:
             self._write_chunk(*self._in_flight.popleft())
 
@@ -247,7 +256,8 @@ class LogWriter:
         """(CRC-32, zstd frame) of a chunk's records, on a pool thread."""
         zstd = getattr(self._compressors, "zstd", None)
         if zstd is None:
-            zstd = self._compressors.zstd = zstandard.ZstdCompressor(level=ZSTD_LEVEL)
+            zstd = self._compressors.zstd = zstandard.ZstdCompressor(
+                compression_params=zstandard.ZstdCompressionParameters(**ZSTD_PARAMETERS))
         return zlib.crc32(data), zstd.compress(data)
 
     def _wait(self):
@@ -255,20 +265,18 @@ class LogWriter:
         while self._in_flight:
             self._write_chunk(*self._in_flight.popleft())
 
-    def _write_chunk(self, packing, cid, size, log_times, offsets, head_len):
-        """Write a chunk (once compressed) with its CRC-32, its MessageIndex and its
-        ChunkIndex entry."""
+    def _write_chunk(self, packing, cid, size, entries):
+        """Write a chunk (once compressed) with its CRC-32, its MessageIndex (`entries`: log
+        time and offset per message) and its ChunkIndex entry."""
         crc, comp = packing.result()
         fh = self._fh
-        start, end = int(log_times.min()), int(log_times.max())
+        start, end = int(entries["t"].min()), int(entries["t"].max())
         head = struct.pack("<QQQI", start, end, size, crc) + \
             _string("zstd") + struct.pack("<Q", len(comp))
         chunk_start = fh.tell()
         fh.write(struct.pack("<BQ", OP["chunk"], len(head) + len(comp)) + head)
         fh.write(comp)
         chunk_length = fh.tell() - chunk_start
-        entries = np.empty(len(log_times), dtype=[("t", "<u8"), ("o", "<u8")])
-        entries["t"], entries["o"] = log_times, offsets + np.uint64(head_len)
         index_start = fh.tell()
         fh.write(struct.pack("<BQHI", OP["message_index"], 6 + entries.nbytes, cid,
                              entries.nbytes))
@@ -276,7 +284,7 @@ class LogWriter:
         self._chunk_indexes.append((start, end, chunk_start, chunk_length,
                                     {cid: index_start}, fh.tell() - index_start,
                                     len(comp), size))
-        self._counts[cid] = self._counts.get(cid, 0) + len(log_times)
+        self._counts[cid] = self._counts.get(cid, 0) + len(entries)
         self._start = start if self._start is None else min(self._start, start)
         self._end = end if self._end is None else max(self._end, end)
 
