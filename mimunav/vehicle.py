@@ -34,6 +34,7 @@ from . import attitude
 from .kernels import njit
 from .truth import Kinematics, Motion
 from .errors import InputError
+from .intervals import RunningIntegral, intervals
 
 HOLD_SPEED = 0.5            # m/s: below it the attitude holds and the rates are zero
 TRUSTED_SPEED = 2.0         # m/s: above it (or at rest) the attitude model is taken as valid
@@ -136,13 +137,13 @@ class TrackMotion(Motion):
         the output after it is held over the gap. `lam`: another smoothing than the
         horizontal velocity's (the vertical's, `lam_vertical`)."""
         t, x = np.asarray(t, float), np.asarray(x, float)
-        _, span, edges = _intervals(t)
+        _, span, edges = intervals(t)
         finite = np.isfinite(x).all(axis=1)
         if finite.sum() < 2:
             raise InputError("fewer than 2 finite IMU outputs: nothing to compare with the track")
         filled = np.column_stack([np.interp(t, t[finite], x[finite, c])
                                   for c in range(x.shape[1])])
-        integral = _RunningIntegral(edges, filled)
+        integral = RunningIntegral(edges, filled)
         rate = integral.area[-1] / (edges[-1] - edges[0])
         # the velocity the outputs make, sampled as the track's (differenced: `_as_sampled`)
         sampled = self._as_sampled(integral.once, integral.twice)
@@ -184,7 +185,7 @@ class TrackMotion(Motion):
         turns fast (under 5 cm fixes, lambda 1.3, 0.3 deg/s at sharp turns). A non-finite
         rate counts as its neighbours'."""
         t, yaw_rate = np.asarray(t, float), np.asarray(yaw_rate, float)
-        step, span, edges = _intervals(t)
+        step, span, edges = intervals(t)
         finite = np.isfinite(yaw_rate)
         rate = np.interp(t, t[finite], yaw_rate[finite])
         v0 = self._velocity(self._t[:1])[0]
@@ -193,7 +194,7 @@ class TrackMotion(Motion):
         middle = t - 0.5 * step
         speed = self.speed(middle)
         v = np.column_stack([speed * np.cos(heading), speed * np.sin(heading)])
-        velocity = _RunningIntegral(edges, v)
+        velocity = RunningIntegral(edges, v)
 
         def at(times):                  # the velocity at times, between the middles
             return np.column_stack([np.interp(times, middle, v[:, c]) for c in range(2)])
@@ -235,45 +236,6 @@ class TrackMotion(Motion):
         dw = np.column_stack([-ydd * s_p - yd * pd * c_p, pdd, ydd * c_p - yd * pd * s_p])
         q = attitude.from_euler(yaw, pitch, np.zeros_like(yaw))
         return Kinematics(v, a, q, w, dw)
-
-
-def _intervals(t):
-    """Of an IMU's stamps t (s, (N,)): each output's interval (s; the first as the median
-    step), its span in the integral (the interval, but no longer than a neighbour's: a
-    gap's length is no output's interval) and the intervals' edges (N + 1,)."""
-    step = np.diff(t, prepend=t[0] - float(np.median(np.diff(t))))
-    around = np.maximum(np.concatenate([step[1:2], step[:-1]]),
-                        np.concatenate([step[1:], step[-1:]]))
-    return step, np.minimum(step, around), np.concatenate([[t[0] - step[0]], t])
-
-
-class _RunningIntegral:
-    """The running integral of piecewise-constant outputs x (N, k), x[j] over (edges[j],
-    edges[j + 1]], from 0 at edges[0], exactly: `once` (piecewise linear) and `twice` (its
-    own integral, piecewise quadratic) at any times; beyond the edges the first and the last
-    output go on."""
-
-    def __init__(self, edges, x):
-        self.edges, self.x = edges, x
-        step = np.diff(edges)[:, None]
-        self.area = np.vstack([np.zeros(x.shape[1]), np.cumsum(x * step, axis=0)])
-        self.volume = np.vstack([np.zeros(x.shape[1]), np.cumsum(
-            0.5 * (self.area[:-1] + self.area[1:]) * step, axis=0)])
-
-    def _at(self, times):
-        """(segment start index j, time s since edges[j], output over the segment)."""
-        j = np.clip(np.searchsorted(self.edges, times, side="right") - 1, 0,
-                    len(self.edges) - 1)
-        x = self.x[np.minimum(j, len(self.x) - 1)]
-        return j, (times - self.edges[j])[:, None], x
-
-    def once(self, times):
-        j, s, x = self._at(times)
-        return self.area[j] + x * s
-
-    def twice(self, times):
-        j, s, x = self._at(times)
-        return self.volume[j] + self.area[j] * s + 0.5 * x * s * s
 
 
 def gcv_smoothing(t, y):
