@@ -333,29 +333,32 @@ class FlightLog:
         return schemas.cdr_dtype(schema, frame)
 
     def _gather(self, data, index, dtype, out, topic, ci):
-        """Fill out (structured, with log_time) from the messages at the index offsets."""
+        """Fill out (structured, with log_time) from the messages at the index offsets: read
+        through one view of the records (`_records`), copying only the fields asked for."""
         off = index["offset"].astype(np.int64)
         size = dtype.itemsize
-        lengths = _u64(data, off + 1) - 22
-        rows = _rows(data, off + _MSG_HEADER, size)
-        msgs = rows.view(dtype).ravel()
-        if np.any(lengths != size) or np.any(msgs["frame_len"] != msgs["frame_len"][0]) or \
-                np.any(rows[:, :2] != np.frombuffer(schemas.ENCAPSULATION[:2], np.uint8)):
+        if len(off) and (off.min() < 0 or off.max() + _MSG_HEADER + size > len(data)):
+            raise LogError(f"{self.path}: {topic}: the message index of the chunk at byte "
+                           f"{ci.chunk_start_offset} points past its records (damaged index)")
+        msgs = _records(data, off, dtype)
+        if np.any(msgs["_length"] != size + _MSG_HEADER - 9) or \
+                np.any(msgs["frame_len"] != msgs["frame_len"][0]) or \
+                np.any(msgs["_encapsulation"] != np.frombuffer(schemas.ENCAPSULATION[:2], np.uint8)):
             raise LogError(f"{self.path}: {topic} changes message size, frame_id or CDR "
                            f"encapsulation within the chunk starting at "
                            f"{ci.message_start_time} ns; read it with read_generic()")
-        log_time = _u64(data, off + 15)
-        channel = _rows(data, off + 9, 2).view("<u2").ravel()
+        log_time = msgs["_log_time"]
         if np.any(log_time != index["log_time"]) or \
-                np.any(channel != self._channel(topic).id) or \
-                np.any(_rows(data, off, 1).ravel() != 0x05):
+                np.any(msgs["_channel"] != self._channel(topic).id) or \
+                np.any(msgs["_opcode"] != 0x05):
             raise LogError(f"{self.path}: {topic}: the message index of the chunk at byte "
                            f"{ci.chunk_start_offset} ({_since_epoch(self, ci.message_start_time)}"
                            f" to {_since_epoch(self, ci.message_end_time)}) does not point at "
                            "its messages (damaged index); `mimunav info LOG --recover OUT.mcap` "
                            "rebuilds the log from its intact chunks")
         if out.dtype.names[0] == "payload":             # fields=PAYLOAD: the CDR bytes
-            out["payload"] = rows.view(out.dtype["payload"]).ravel()
+            out["payload"] = _rows(data, off + _MSG_HEADER, size).view(
+                out.dtype["payload"]).ravel()
         else:
             for name in out.dtype.names[:-1]:
                 out[name] = msgs[name]
@@ -393,6 +396,30 @@ def _rows(data, starts, size):
         return np.lib.stride_tricks.as_strided(data[starts[0]:], (len(starts), size),
                                                (step, 1), writeable=False).copy()
     return data[starts[:, None] + np.arange(size)]
+
+
+def _records(data, offsets, payload):
+    """The Message records starting at the given offsets of a chunk's records (bytes as
+    uint8) as one structured array: the record's opcode, length, channel and log time
+    (fields _opcode, _length, _channel, _log_time), the first two bytes of its CDR
+    encapsulation (_encapsulation) and the payload's fields (`payload`, a `cdr_dtype`). A
+    read-only view when the offsets are equally spaced (one channel written in order): a
+    field is copied only when asked for - else gathered. Offsets inside the data."""
+    names = ["_opcode", "_length", "_channel", "_log_time", "_encapsulation"]
+    formats = ["u1", "<u8", "<u2", "<u8", ("u1", 2)]
+    places = [0, 1, 9, 15, _MSG_HEADER]
+    for name in payload.names:
+        if name != "encap":
+            names.append(name)
+            formats.append(payload.fields[name][0])
+            places.append(_MSG_HEADER + payload.fields[name][1])
+    record = np.dtype({"names": names, "formats": formats, "offsets": places,
+                       "itemsize": _MSG_HEADER + payload.itemsize})
+    step = int(offsets[1] - offsets[0]) if len(offsets) > 1 else record.itemsize
+    if len(offsets) and step >= record.itemsize and np.all(np.diff(offsets) == step):
+        return np.ndarray((len(offsets),), record, buffer=data, offset=int(offsets[0]),
+                          strides=(step,))
+    return data[offsets[:, None] + np.arange(record.itemsize)].view(record).ravel()
 
 
 def _since_epoch(log, ns):
