@@ -298,19 +298,22 @@ def _replay(args):
                               latitude=traj.lat, longitude=traj.lon, height=traj.h,
                               velocity_ned=traj.v_ned,
                               attitude_wxyz=quaternion.as_float_array(traj.q_nb))
-            summary = {"format": "mimunav-replay/1", "log": args.log, "calibration": args.cal,
+            summary = {"format": "mimunav-replay/2", "log": args.log, "calibration": args.cal,
                        "end_t_s": float(t[-1]), "flags": rep.flags,
-                       "end": {k: {q: (evaluation.ned_to_enu(v[q][-1]) if q != "attitude"
-                                       else v[q][-1]).tolist() for q in v}
+                       "end": {k: {"position_enu_m": evaluation.ned_to_enu(
+                                       v["position"][-1]).tolist(),
+                                   "velocity_enu_m_s": evaluation.ned_to_enu(
+                                       v["velocity"][-1]).tolist(),
+                                   "attitude_ned_rad": v["attitude"][-1].tolist()}
                                for k, v in err.items() if k != "t"},
-                       "frames": "position/velocity ENU (m, m/s); attitude NED rotation "
-                                 "vector (rad)",
+                       "frames": "_enu: east, north, up; attitude_ned_rad: the attitude "
+                                 "error's rotation vector about north, east, down",
                        "mimu_platform": (flight.mimu_platform["meta"] if flight.mimu_platform
                                          else None)}
             (tmp / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
     end = summary["end"]
     for key, v in end.items():
-        e = v["position"]
+        e = v["position_enu_m"]
         print(f"{key:11s} end position error east {e[0]:+.3g} m, north {e[1]:+.3g} m, "
               f"up {e[2]:+.3g} m")
     if args.json:
@@ -412,12 +415,7 @@ def _diagnosed(args, painter):
     for u in doc["unexplained"][:10]:
         print(f"  unexplained residual {u['channel']} {u['t0']:.1f}-{u['t1']:.1f} s (z {u['z']:.1f})")
     for w in doc.get("within_reference_accuracy", []):
-        value = w.get("coefficient", w.get("vector"))
-        said = (f"{value:.4g}" if isinstance(value, float) else
-                "[" + ", ".join(f"{v:.3g}" for v in value) + "]")
-        print(f"  set aside: {w['label']} {said}, significant against the noise but within the "
-              f"reference's stated accuracy (1 sigma "
-              f"{', '.join(f'{v:.3g}' for v in w['reference_1sigma'])})")
+        print(set_aside_line(w))
     if args.output:
         print(f"wrote {args.output}/diagnosis.md" + (" and CAL+found.json" if found else ""))
     return 0
@@ -447,17 +445,43 @@ def _remembered_interrupts():
 
 def finding_line(f):
     """A finding for the terminal: term, coefficient and units, 95 % interval, held-out p,
-    attribution, and the terms this flight cannot tell it from (they explain the same
-    residual: the name is the likelier of them, not a certainty)."""
+    attribution, a vector's components with the axes they are about (a mounting's turn also
+    about the vehicle's axes, in degrees), and the terms this flight cannot tell it from
+    (they explain the same residual: the name is the likelier of them, not a certainty)."""
     from .diagnosis.inference import p_text
     units = "" if f["units"] == "1" else f" {f['units']}"
     line = (f"  {f['label']}: {f['coefficient']:.4g}{units} "
             f"[{f['ci95'][0]:.4g}, {f['ci95'][1]:.4g}] (held-out p {p_text(f['p_heldout'])}; "
             f"{f.get('attribution', 'navigation level')})")
+    if "vector" in f:
+        line += (f"\n    vector ({f['units']}, {f.get('frame', 'sensor')} axes x, y, z) "
+                 + ", ".join(f"{v:.4g} [{lo:.4g}, {hi:.4g}]"
+                             for v, (lo, hi) in zip(f["vector"], f["vector_ci95"])))
+    if "vector_vehicle" in f:           # the mounting's turn: about the vehicle's x, y, z
+        line += ("\n    the sensor turned about the vehicle's forward, right, down axes "
+                 + ", ".join(f"{np.degrees(v):+.2f} deg [{np.degrees(lo):+.2f}, "
+                             f"{np.degrees(hi):+.2f}]"
+                             for v, (lo, hi) in zip(f["vector_vehicle"],
+                                                    f["vector_vehicle_ci95"])))
     alike = [a["label"] for a in f.get("indistinguishable_from", [])]
     if alike:
         line += "\n    not told apart on this flight from " + ", ".join(alike)
     return line
+
+
+def set_aside_line(w):
+    """A term set aside as within the stated accuracies (`within_reference_accuracy`), for
+    the terminal: its value, its p against the noise alone, the reference's stated 1 sigma
+    along it and the 1 sigma the test used - the estimate's with the reference's and the
+    calibration's stated errors as priors, which can exceed both."""
+    value = w.get("coefficient", w.get("vector"))
+    said = (f"{value:.4g}" if isinstance(value, float) else
+            "[" + ", ".join(f"{v:.3g}" for v in value) + "]")
+    return (f"  set aside: {w['label']} {said}: significant against the noise alone (p "
+            f"{w['p_train']:.2g}), not once the stated errors that may share it - the "
+            f"reference's (1 sigma {', '.join(f'{v:.3g}' for v in w['reference_1sigma'])}) "
+            "and the calibration's - are allowed: with them its 1 sigma is "
+            f"{', '.join(f'{v:.3g}' for v in w['total_1sigma'])}")
 
 
 # import options -> (the importers that read them, their default): one given to another
@@ -536,8 +560,7 @@ def _import(args):
     for key, value in rec.assumed.items():      # what is not measured, said where it is made
         print(f"assumed {key}: {value}")
     if "mounting_yaw_against_course" in rec.real:
-        print(f"measured mounting yaw against the course: "
-              f"{rec.real['mounting_yaw_against_course']}")
+        print(f"measured mounting yaw: {rec.real['mounting_yaw_against_course']}")
     print(f"initial state at t = {align.t:.3f} s: {align.method}")
     if np.isnan(align.static[0]) and np.any(align.gyro_bias):
         print("biases from the reference's attitude and velocity (sensor axes): gyro "
@@ -892,7 +915,9 @@ def build_parser():
                    "/mimu/imu with such a reference, else navigation")
     p.add_argument("--model", help="the calibration the user believes (mimunav-calibration/1); "
                    "required for /mimu/raw, optional for a recorded /mimu/imu (identity)")
-    p.add_argument("--json", help="write the mimunav-diagnosis/1 document here")
+    p.add_argument("--json", help="write the mimunav-diagnosis/1 document here (with -o: the "
+                   "report's diagnosis.json, whose `navigation` section - the MIMU navigated "
+                   "with and without the found terms - only a report computes)")
     p.add_argument("-o", "--output", help="report folder: diagnosis.md, plots, diagnosis.json, "
                    "CAL+found.json (the model with the found terms)")
     p.add_argument("--alpha", type=_probability, default=0.05,

@@ -39,6 +39,11 @@ from .errors import InputError
 FORMAT = "mimunav-calibration/1"
 MODELS = ("entire-63", "linear", "cold-start")
 FOUND_SUFFIX = "+found"     # a model plus the terms a diagnosis found ("found": [terms])
+MAX_CONDITION = 100.0   # of A1 and W1: a triad's scale factors alike (one part, one range)
+# and its axes within a few degrees of orthogonal make it 1.0-1.1 (the six foreign flights'
+# files 1.01-1.05, the lab fits 1.03-1.04); 100 is a scale factor 1 % of the others' or two
+# axes 0.6 deg apart - no triad, a typing error (a zeroed diagonal: 3674, compensated
+# without a word into a confident 'saturation' and a g-sensitivity 3.5 times the truth)
 _TRIAD_KEYS = {"accel": ("A0", "A1", "A2", "A3", "ct"), "gyro": ("W0", "W1", "W2", "W3", "C", "cw")}
 _SHAPES = {"A0": (3,), "A1": (3, 3), "A2": (3,), "A3": (3,), "ct": (3, 3),
            "W0": (3,), "W1": (3, 3), "W2": (3,), "W3": (3,), "C": (3, 3), "cw": (3, 3)}
@@ -155,9 +160,12 @@ class Calibration:
                     fail(f"cold-start {triad}.a has a zero (scale factor a + b T must not vanish)")
         for name in ("A1", "W1"):
             m = getattr(cal, name)
-            if np.linalg.cond(m) > 1e8:
+            if np.linalg.cond(m) > MAX_CONDITION:
                 fail(f"{name} is singular or nearly so (condition number "
-                     f"{np.linalg.cond(m):.3g}): the raw voltages cannot be inverted")
+                     f"{np.linalg.cond(m):.3g}, above {MAX_CONDITION:g}; a calibrated triad's "
+                     "is near 1): a scale factor of zero or near it, or two axes nearly "
+                     "parallel - the compensated triad would be blind along an axis and the "
+                     "raw outputs could not be inverted")
         if model != base:
             found = doc.get("found")
             if not isinstance(found, list) or not found:

@@ -80,15 +80,29 @@ def starts(truth, length, step=START_STEP_S, first=0.0, min_speed=alignment.COUR
 
 
 def _no_windows(truth, lengths, first, min_speed, max_gap):
-    """Why a recording holds no window: the reference's speed, span and gaps."""
+    """Why a recording holds no window: the conditions of `starts` the reference fails,
+    named as such, then those it meets - all of them met, they never hold together in one
+    window (nor away from the IMU's gaps and the rests at standstill)."""
     speed = np.hypot(truth.v_ned[:, 0], truth.v_ned[:, 1])
     span = truth.t[-1] - max(first, truth.t[0])
     gaps = np.diff(truth.t)
-    return (f"no free-inertial window fits this recording: windows of {min(lengths):g} s need "
-            f"a horizontal speed above {min_speed:g} m/s at their start (the reference peaks "
-            f"at {speed.max():.2f} m/s: --min-speed), no reference gap above {max_gap:g} s "
-            f"(largest {gaps.max() if len(gaps) else 0:.2f} s: --max-gap) and {min(lengths):g} s "
-            f"of reference after the rest ({span:.1f} s: --lengths)")
+    largest, length = (gaps.max() if len(gaps) else 0.0), min(lengths)
+    conditions = [
+        (speed.max() > min_speed, f"a horizontal speed above {min_speed:g} m/s at a window's "
+                                  f"start (the reference peaks at {speed.max():.2f} m/s: "
+                                  "--min-speed)"),
+        (largest <= max_gap, f"no reference gap above {max_gap:g} s (largest {largest:.2f} "
+                             "s: --max-gap)"),
+        (span >= length, f"{length:g} s of reference after the rest ({span:.1f} s: "
+                         "--lengths)")]
+    failed = [text for ok, text in conditions if not ok]
+    met = [text for ok, text in conditions if ok]
+    head = f"no free-inertial window of {length:g} s fits this recording: "
+    if failed:
+        return head + "it lacks " + "; ".join(failed) + \
+            (f" (it has {'; '.join(met)})" if met else "")
+    return head + f"it has {'; '.join(met)}, but never all in one window (nor away from the " \
+        "IMU's gaps and the rests at standstill)"
 
 
 def run(flight, t0, length, w, f, t_imu=None, half=alignment.MOVING_HALF_WINDOW_S):

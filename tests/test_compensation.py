@@ -86,6 +86,8 @@ def _cal_doc(**changes):
     (dict(accel__A1=[[1, 0], [0, 1]]), r"accel.A1 has shape \(2, 2\), expected \(3, 3\)"),
     (dict(gyro__W0=[0, float("nan"), 0]), "gyro.W0 has non-finite values"),
     (dict(gyro__W1=[[1, 2, 3], [2, 4, 6], [0, 0, 1]]), "W1 is singular"),
+    (dict(accel__A1=[[1, 0.002, 0], [0, 1, 0.001], [0.001, 0.003, 0]]),   # a zeroed diagonal
+     r"A1 is singular or nearly so \(condition number [0-9.e+]+, above 100"),
     (dict(accel__A7=[0, 0, 0]), r"keys \['A7'\]"),
     (dict(accel__ct="hot"), "accel.ct is not numeric|accel.ct has shape"),
     (dict(gyro__W0=["0.1", "0", "0"]), "gyro.W0 is not numeric"),   # text, read as 0.1 before

@@ -12,7 +12,7 @@ import quaternion
 import pytest
 
 from mimunav import attitude, effects, simulation
-from mimunav.cli import finding_line, main
+from mimunav.cli import finding_line, main, set_aside_line
 from mimunav.compensation import Calibration, CalibrationError, compensate
 from mimunav.diagnosis import concealed
 from mimunav.diagnosis.reference import predicted_mimu
@@ -96,6 +96,43 @@ def test_mounting_misalignment_is_the_exact_rotation_of_the_mounting():
     first = f0 + np.column_stack([effects.regressor(term, cond)[("accel", i)] @ phi
                                   for i in range(3)])
     assert np.abs(first - f1).max() < 0.6 * np.linalg.norm(phi) ** 2 * np.abs(f0).max()
+
+
+def test_a_mounting_finding_gives_its_turn_about_the_vehicle_axes_too():
+    """A sensor turned by phi about its own axes (q_vs exp(phi/2), the contract's vector) is
+    the vehicle's axes turned by C_vs phi (exp(phi_v/2) q_vs): the finding carries both, the
+    vehicle's with its interval by the same covariance turned, computed here by quaternion
+    composition on a mounting with no symmetry (3, -2, 95 deg: C_vs and its transpose
+    differ), and the terminal line says which axes each is about."""
+    from mimunav.diagnosis.sensor import _estimate
+    q_vs = Mounting.from_rpy_deg((3.0, -2.0, 95.0)).q_vs
+    phi = np.radians([0.4, -1.1, 2.3])
+    term = {"effect": "mounting_misalignment", "sensor": "imu", "axis": "all"}
+    cov = np.diag(np.radians([0.1, 0.2, 0.3]) ** 2)
+    found = _estimate(SimpleNamespace(q_vs=quaternion.as_float_array(q_vs)), term, phi, cov)
+    phi_v = quaternion.as_rotation_vector(q_vs * quaternion.from_rotation_vector(phi)
+                                          * q_vs.conjugate())
+    assert found["frame"] == "sensor" and np.allclose(found["vector"], phi)
+    assert np.abs(np.asarray(found["vector_vehicle"]) - phi_v).max() < 1e-12
+    half = np.diff(np.asarray(found["vector_vehicle_ci95"]), axis=1)[:, 0] / 2
+    c_vs = quaternion.as_rotation_matrix(q_vs)
+    assert np.allclose(half, 1.96 * np.sqrt(np.diag(c_vs @ cov @ c_vs.T)))
+    line = finding_line(dict(found, label="mounting_misalignment imu.all", p_heldout=1e-9))
+    assert "(rad, sensor axes x, y, z)" in line
+    assert f"forward, right, down axes {np.degrees(phi_v[0]):+.2f} deg" in line
+
+
+def test_a_set_aside_term_is_said_with_the_sigma_its_test_used():
+    """foreign-06's gyro.z scale, set aside at -0.0018: the reference's stated 1 sigma along it
+    is 0.00025 (7 times smaller), the test's 1 sigma with the reference's and the
+    calibration's priors 0.00131 - the line must quote the latter, which decided it (it had
+    quoted only the former: 'within the reference's stated accuracy (1 sigma 0.00025)')."""
+    w = {"label": "scale_factor gyro.z", "coefficient": -0.001794855749895373,
+         "reference_1sigma": [0.00025], "total_1sigma": [0.0013103030530459633],
+         "p_train": 0.0002312278746599149}
+    line = set_aside_line(w)
+    assert "-0.001795" in line and "p 0.00023" in line
+    assert "1 sigma 0.00025" in line and line.endswith("its 1 sigma is 0.00131")
 
 
 def test_time_shift_is_exact_for_linear_motion_and_has_the_contract_sign():

@@ -1,5 +1,6 @@
 """Output files and folders: atomic, and never at the cost of an input or of files the
 command did not write."""
+import json
 import os
 
 import numpy as np
@@ -94,6 +95,12 @@ def test_the_program_ends_with_its_output_and_status(tmp_path, capsys):
     assert done.returncode == 0 and done.stdout.endswith("summary.json, errors.png\n")
     assert sorted(p.name for p in (tmp_path / "rp").iterdir()) == \
         ["errors.png", "nav.mcap", "summary.json"]
+    # every end error names its frame and units in its key, and the terminal line is it
+    end = json.loads((tmp_path / "rp" / "summary.json").read_text())["end"]
+    assert all(sorted(v) == ["attitude_ned_rad", "position_enu_m", "velocity_enu_m_s"]
+               for v in end.values()) and set(end) == {"mimu-fog", "mimu-truth", "fog-truth"}
+    east = end["mimu-fog"]["position_enu_m"][0]
+    assert f"mimu-fog    end position error east {east:+.3g} m" in done.stdout
     done = program("info", str(tmp_path / "missing.mcap"))
     assert done.returncode == 2 and "missing.mcap" in done.stderr and not done.stdout
     closed = subprocess.run([sys.executable, "-m", "mimunav", "info", str(log)],   # >&-

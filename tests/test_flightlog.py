@@ -208,6 +208,18 @@ def flight_file(tmp_path):
     return path, t, raw
 
 
+def test_a_cut_log_without_its_epoch_says_its_spans_as_utc():
+    """A log whose writer put its metadata at the end (the foreign simulator's) keeps no
+    epoch once cut: its intact spans are said as UTC times to the millisecond, not as
+    19-digit nanosecond counts."""
+    from mimunav.flightlog.recover import describe_scan
+    report = {"epoch_ns": None, "expected": {}, "complete": False, "damaged": [],
+              "channels": {"/mimu/raw": (14006, 1760475200001000000, 1760475214006000000)}}
+    line = describe_scan(report).splitlines()[0]
+    assert line.endswith("14006 intact messages, 2025-10-14 20:53:20.001 UTC .. "
+                         "2025-10-14 20:53:34.006 UTC"), line
+
+
 def test_truncated_log_reports_and_recovers_its_intact_chunks(flight_file, tmp_path, capsys):
     from mimunav.cli import main
     path, t, raw = flight_file

@@ -164,7 +164,9 @@ def test_a_new_users_slips_get_one_line_and_lose_nothing(good, tmp_path, capsys)
             (["calibrate", good, "--method", "entire", "-o", good, "--force"],
              "would replace the input"),
             (["import", "rtklib", str(tmp_path / "nowhere"), "-o", str(tmp_path / "i.mcap")],
-             "no such folder")):
+             "no such folder"),
+            (["import", "rtklib", good, "-o", str(tmp_path / "i.mcap")],   # a file given
+             "a file, not a folder")):
         capsys.readouterr()
         assert main(argv) == 2, argv
         err = capsys.readouterr().err

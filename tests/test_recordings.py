@@ -228,10 +228,10 @@ def test_an_imu_in_the_tracks_band_meets_the_models_yaw_rate():
 
 
 def test_the_running_integral_of_piecewise_constant_outputs_is_exact():
-    """`vehicle._RunningIntegral` against quadrature on a grid holding every edge and query
+    """`intervals.RunningIntegral` against quadrature on a grid holding every edge and query
     time (midpoint values of x: exact for its integral; trapezoids of that: exact for the
-    second), before, between and beyond uneven edges."""
-    from mimunav.vehicle import _RunningIntegral
+    second), before, between and beyond uneven edges; its means over other intervals."""
+    from mimunav.intervals import RunningIntegral
     rng = np.random.default_rng(1)
     edges = np.cumsum(rng.uniform(0.5, 1.5, 50))
     x = rng.normal(size=(49, 2))
@@ -245,9 +245,11 @@ def test_the_running_integral_of_piecewise_constant_outputs_is_exact():
     twice = np.vstack([np.zeros(2), np.cumsum(0.5 * (once[1:] + once[:-1]) * step, axis=0)])
     twice -= twice[np.searchsorted(grid, edges[0])]
     at = np.searchsorted(grid, times)
-    integral = _RunningIntegral(edges, x)
+    integral = RunningIntegral(edges, x)
     assert np.abs(integral.once(times) - once[at]).max() < 1e-12
     assert np.abs(integral.twice(times) - twice[at]).max() < 1e-11
+    means = np.diff(once[at], axis=0) / np.diff(times)[:, None]    # over (times[k-1], times[k]]
+    assert np.abs(integral.means(times) - np.vstack([means[:1], means])).max() < 1e-11
 
 
 def test_a_differenced_track_bands_the_imu_over_its_differencing_spans():
@@ -692,8 +694,14 @@ def test_track_diagnosis_recovers_a_known_mounting_misalignment(tmp_path):
     assert [x["effect"] for x in doc["findings"]] == ["mounting_misalignment"]
     assert np.abs(np.asarray(doc["findings"][0]["vector"]) - phi).max() < \
         0.5 * np.linalg.norm(phi) ** 2
-    # phi turned the sensor frame (q_vs * q(phi)): the finding says in which frame it is
+    # phi turned the sensor frame (q_vs * q(phi)): the finding says in which frame it is,
+    # and gives the same turn about the vehicle's axes (q(phi_v) * q_vs, by quaternions)
     assert doc["findings"][0]["frame"] == "sensor"
+    phi_v = quaternion.as_rotation_vector(moved.q_vs * MOUNT.q_vs.conjugate())
+    assert np.abs(np.asarray(doc["findings"][0]["vector_vehicle"]) - phi_v).max() < \
+        0.5 * np.linalg.norm(phi) ** 2
+    ci = np.asarray(doc["findings"][0]["vector_vehicle_ci95"])
+    assert np.all((ci[:, 0] <= phi_v) & (phi_v <= ci[:, 1])), (ci, phi_v)
 
 
 def test_track_level_gives_a_null_drive_its_clean_bill(tmp_path):
@@ -744,9 +752,9 @@ def test_rtklib_excerpt_reader_units_and_times():
 def test_rtklib_excerpt_import_follows_the_contract(tmp_path, capsys):
     out = tmp_path / "drive.mcap"
     assert main(["import", "rtklib", str(DRIVE), "-o", str(out)]) == 0
-    # the mounting's yaw against the course, measured and said (-2.0 deg on the excerpt,
-    # -6.1 on the whole drive, whose diagnosis finds -6.7 [-7.7, -5.8])
-    assert re.search(r"measured mounting yaw against the course: [-+]\d+\.\d deg",
+    # the mounting's yaw against the course, measured and said (+2.0 deg on the excerpt,
+    # +6.1 on the whole drive, whose diagnosis finds +6.06 [5.05, 7.07] about down)
+    assert re.search(r"measured mounting yaw: [-+]\d+\.\d deg about the vehicle's down axis",
                      capsys.readouterr().out)
     with FlightLog(out) as log:
         meta = log.metadata()
@@ -1239,6 +1247,24 @@ def test_imu_and_reference_on_different_time_bases_are_refused():
         write_log(rec, "/nonexistent/never-written.mcap")
 
 
+def test_no_window_says_which_condition_the_recording_fails():
+    """A reference that moves (0.85 m/s at most, above a 0 m/s gate) without gaps but spans
+    6.4 s after its rest, for 10 s windows (the Pixhawk log): the refusal names the span as
+    what it lacks and the speed and gaps as met - it had listed all three as needs, the
+    speed first, as if the speed had failed."""
+    from types import SimpleNamespace
+
+    from mimunav.windows import _no_windows
+    t = np.arange(0.0, 8.4, 0.2)
+    truth = SimpleNamespace(t=t, v_ned=np.column_stack([0.85 * np.sin(t / 3), 0 * t, 0 * t]))
+    said = _no_windows(truth, [10.0, 30.0], 1.8, 0.0, 1.0)
+    lacks, has = said.split("it lacks ")[1].split(" (it has ")
+    assert lacks.startswith("10 s of reference after the rest (6.4 s")
+    assert "speed" in has and "gap" in has and "speed" not in lacks
+    moving = _no_windows(truth, [5.0], 1.8, 0.0, 1.0)
+    assert "it lacks" not in moving and "never all in one window" in moving
+
+
 def test_windows_leave_out_every_window_an_imu_gap_meets(tmp_path):
     """A 5 s IMU gap in the middle of the synthetic drive: no 10 s window (with its
     alignment interval before it) may meet the gap; windows far from it remain."""
@@ -1346,7 +1372,7 @@ def test_the_import_measures_the_mountings_yaw_against_the_course(tmp_path, caps
     dth, dv = MOUNT.sensor_increments(truth.generate(TrackMotion(t_tr, lat, lon, h, v), t))
     epoch = 1_700_000_000_000_000_000
     ref = dict(ns=epoch + np.round(t_tr * 1e9).astype(np.int64), lat=lat, lon=lon, h=h, v_ned=v)
-    for declared, yaw in (((180.0, 0.0, 180.0), 0.0), ((180.0, 0.0, 170.0), -10.0)):
+    for declared, yaw in (((180.0, 0.0, 180.0), 0.0), ((180.0, 0.0, 170.0), 10.0)):
         rec = Recording("turned", "", epoch + np.round(t[1:] * 1e9).astype(np.int64),
                         dth * 100.0, dv * 100.0, Mounting.from_rpy_deg(declared), reference=ref)
         write_log(rec, tmp_path / f"{yaw}.mcap")
@@ -1363,7 +1389,7 @@ def test_the_import_measures_the_mountings_yaw_against_the_course(tmp_path, caps
 
     from mimunav.compensation import Calibration
     from mimunav.diagnosis import track
-    flight = Flight.load(tmp_path / "-10.0.mcap", reference_imu=False)
+    flight = Flight.load(tmp_path / "10.0.mcap", reference_imu=False)
     diag = track.diagnose(flight, Calibration.identity())
     assert not [r for r in diag.inconclusive if "times what the reference predicts" in r]
     w, acc = _with_consumer_noise(flight, 3)
@@ -1374,6 +1400,10 @@ def test_the_import_measures_the_mountings_yaw_against_the_course(tmp_path, caps
     assert [f["label"] for f in diag.findings] == ["mounting_misalignment imu.all"]
     (lo, hi), phi = diag.findings[0]["ci95"], -math.sin(10 * DEG)
     assert lo <= phi <= hi and hi - lo < 0.05, diag.findings[0]
+    # the sensor's z axis points up here: -phi about it is +10 deg about the vehicle's down
+    # axis, what the import said - the sign both give in the vehicle's axes
+    (lo, hi) = diag.findings[0]["vector_vehicle_ci95"][2]
+    assert lo <= math.sin(10 * DEG) <= hi and diag.findings[0]["vector_vehicle"][2] > 0
 
 
 def test_a_foreign_recording_given_where_a_log_belongs_is_told_how_to_import(tmp_path, capsys):

@@ -219,11 +219,13 @@ def lattice_step(y):
 
 # ---- the bias: its wander and its level --------------------------------------------------
 def bias_null(noise=None):
-    """{"instability": {sensor: B (SI)}, "source"}: the in-run wander `bias_tests` takes as
-    normal - the unit's measured B where `noise` has it, else the class's zero drift."""
+    """{"instability": {sensor: B (SI)}, "units", "source"}: the in-run wander `bias_tests`
+    takes as normal - the unit's measured B where `noise` has it, else the class's zero
+    drift."""
     measured = (noise or {}).get("instability", {})
     source = noise["source"] if measured else ""
     return {"instability": {**CLASS_DRIFT, **measured},
+            "units": {"accel": "m/s^2", "gyro": "rad/s"},
             "source": "; ".join(filter(None, [
                 source and f"measured ({', '.join(sorted(measured))}): {source}",
                 len(measured) < 2 and "class: seed S1 Table 1's zero drift bound "

@@ -998,16 +998,24 @@ def _estimate(design, term, b, cov, interval=None):
     """`estimate` with the 95 % interval of covariance `cov` (or `interval`, (lo, hi) of a
     scalar: `Fitter.profile_interval`); a lever arm (fitted in the sensor axes) turned into
     the vehicle frame of the metadata's lever_arm_m, its sensor-axes vector kept for the
-    compensation (`vector_sensor_axes`)."""
+    compensation (`vector_sensor_axes`); a mounting misalignment (a rotation vector of the
+    sensor axes, as the contract's `vector`) also as the same turn about the vehicle's
+    axes (`vector_vehicle`, FRD, with `vector_vehicle_ci95`): a mounting that turns the
+    sensor's z axis up reverses the sign of a yaw read off the sensor axes."""
     if interval is not None:
         return estimate(term, b, np.array([interval[0]]), np.array([interval[1]]))
-    if term["effect"] != "lever_arm":
+    if term["effect"] not in ("lever_arm", "mounting_misalignment"):
         half = 1.96 * np.sqrt(np.diag(cov))
         return estimate(term, b, b - half, b + half)
     c_vs = quaternion.as_rotation_matrix(quaternion.from_float_array(design.q_vs))
     b_v, cov_v = c_vs @ b, c_vs @ cov @ c_vs.T
-    half = 1.96 * np.sqrt(np.diag(cov_v))
-    return dict(estimate(term, b_v, b_v - half, b_v + half), frame="vehicle",
+    half_v = 1.96 * np.sqrt(np.diag(cov_v))
+    if term["effect"] == "mounting_misalignment":    # the sensor axes' turn phi (q_vs q(phi))
+        half = 1.96 * np.sqrt(np.diag(cov))          # is the turn C_vs phi of the vehicle
+        return dict(estimate(term, b, b - half, b + half),  # axes (q(C_vs phi) q_vs)
+                    vector_vehicle=b_v.tolist(),
+                    vector_vehicle_ci95=np.column_stack([b_v - half_v, b_v + half_v]).tolist())
+    return dict(estimate(term, b_v, b_v - half_v, b_v + half_v), frame="vehicle",
                 vector_sensor_axes=b.tolist())
 
 

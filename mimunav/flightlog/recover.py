@@ -256,11 +256,19 @@ class _Bytes:
         return self._pos
 
 
+def _utc(ns):
+    """A stamp (ns since 1970) for people when the log's epoch is lost with its metadata:
+    UTC to the millisecond (the stamps' own time base, GPS or UTC, is the writer's)."""
+    import datetime
+    stamp = datetime.datetime.fromtimestamp(ns // 10**9, datetime.timezone.utc)
+    return f"{stamp:%Y-%m-%d %H:%M:%S}.{ns % 10**9 // 10**6:03d} UTC"
+
+
 def describe_scan(report):
     lines = []
     epoch = report["epoch_ns"]
     when = lambda ns: ("?" if ns is None else f"t = {(ns - epoch) / 1e9:.3f} s"   # noqa: E731
-                       if epoch is not None else f"{ns} ns")
+                       if epoch is not None else _utc(ns))
     expected = report["expected"]
     for topic, (n, first, last) in sorted(report["channels"].items()):
         of = f" of {expected[topic]}" if topic in expected else ""

@@ -431,11 +431,15 @@ def _check_against_course(rec):
         gain, coherence = alignment.acceleration_match(f_v[:, 0] + 1j * f_v[:, 1], z_ref)
         yaw = float(np.angle(gain))
         if coherence > 0.5:
-            # said even when small: the RTKLIB drive reads -6.1 deg here and its diagnosis
-            # finds the mounting's yaw at -6.1 deg [-7.1, -5.0]
+            # said even when small. The specific force seen turned by yaw is the IMU turned
+            # by -yaw about the vehicle's down axis from the mounting given, the sign the
+            # diagnosis' `vector_vehicle` z gives (the RTKLIB drive: +6.1 deg here, +6.06
+            # [5.05, 7.07] there)
             rec.real["mounting_yaw_against_course"] = (
-                f"{math.degrees(yaw):+.1f} deg (the accelerometers' horizontal specific force "
-                f"against the GNSS track's acceleration: coherence {coherence:.2f}, size ratio "
+                f"{-math.degrees(yaw):+.1f} deg about the vehicle's down axis: the IMU turned "
+                "so from the mounting given (positive: its forward axis to the right of the "
+                "vehicle's), from the accelerometers' horizontal specific force against the "
+                f"GNSS track's acceleration (coherence {coherence:.2f}, size ratio "
                 f"{abs(gain):.2f}; a car's body slip and lean take a few degrees): beyond "
                 f"{math.degrees(COURSE_CHECK_YAW):.0f} deg it is refused, a smaller one "
                 "`mimunav diagnose` measures with its interval (mounting_misalignment); "

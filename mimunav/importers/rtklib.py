@@ -201,8 +201,9 @@ def _solution_row(path, number, line, system, layout):
 def find_files(folder):
     """(csv, tag, pos) of a drive folder: one imu_*.csv, its .tag, one *.pos."""
     if not os.path.isdir(folder):
-        raise RecordingError(f"{folder}: no such folder (an RTKLIB drive is a folder holding "
-                             "imu_*.csv, its .tag and a .pos)")
+        what = "a file, not a folder" if os.path.exists(folder) else "no such folder"
+        raise RecordingError(f"{folder}: {what} (an RTKLIB drive is a folder holding "
+                             "imu_*.csv, its .tag and a .pos: give the folder)")
 
     def one(pattern):
         found = sorted(glob.glob(os.path.join(folder, pattern)))

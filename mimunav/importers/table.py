@@ -80,7 +80,9 @@ class Spec:
                                      f"is {os.path.normpath(root)}, which does not exist: "
                                      "give the folder with --root")
         elif not os.path.isdir(root):
-            raise RecordingError(f"--root {root}: no such folder")
+            raise RecordingError(f"--root {root}: "
+                                 + ("a file, not a folder" if os.path.exists(root) else
+                                    "no such folder"))
         self.root = os.path.normpath(os.path.abspath(root))
         self.notes = {}             # what reading the files left out, for the metadata
         for section in ("imu", "time"):

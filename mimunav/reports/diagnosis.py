@@ -175,7 +175,10 @@ def markdown(doc, diag, cal_label):
         for f in doc["findings"]:
             fit = f["fit"]
             alt = ", ".join(a["label"] for a in f["indistinguishable_from"]) or "-"
-            vec = f" (vector {_vec(f['vector'])})" if "vector" in f else ""
+            vec = f" (vector {_vec(f['vector'])}, {f.get('frame', 'sensor')} axes" + (
+                f"; turned {_vec(np.degrees(f['vector_vehicle']))} deg about the vehicle's "
+                "forward, right, down axes" if "vector_vehicle" in f else "") + ")" \
+                if "vector" in f else ""
             lines.append(
                 f"| {f['label']} | {f['coefficient']:.4g}{vec} | [{f['ci95'][0]:.4g}, "
                 f"{f['ci95'][1]:.4g}] | {f['units']} | {p_text(f['p_train'])} / "
