@@ -88,9 +88,9 @@ def _no_windows(truth, lengths, first, min_speed, max_gap):
     gaps = np.diff(truth.t)
     largest, length = (gaps.max() if len(gaps) else 0.0), min(lengths)
     conditions = [
-        (speed.max() > min_speed, f"a horizontal speed above {min_speed:g} m/s at a window's "
-                                  f"start (the reference peaks at {speed.max():.2f} m/s: "
-                                  "--min-speed)"),
+        (speed.max() >= min_speed, f"a horizontal speed of {min_speed:g} m/s at a window's "
+                                   f"start (the reference peaks at {speed.max():.2f} m/s: "
+                                   "--min-speed)"),
         (largest <= max_gap, f"no reference gap above {max_gap:g} s (largest {largest:.2f} "
                              "s: --max-gap)"),
         (span >= length, f"{length:g} s of reference after the rest ({span:.1f} s: "

@@ -248,7 +248,7 @@ def test_corrupt_chunk_is_named_by_its_time_range(flight_file, tmp_path):
     (a broken zstd frame), others decompress to wrong records that the CRC catches; both are
     the same damage to a user - the chunk named by its time range."""
     path, _, _ = flight_file
-    data = bytes(path.read_bytes())
+    data = path.read_bytes()
     with FlightLog(path) as log:
         ci = sorted(log.summary.chunk_indexes, key=lambda c: c.chunk_start_offset)[3]
     start = (ci.message_start_time - EPOCH) / 1e9

@@ -341,9 +341,10 @@ class FlightLog:
             raise LogError(f"{self.path}: {topic}: the message index of the chunk at byte "
                            f"{ci.chunk_start_offset} points past its records (damaged index)")
         msgs = _records(data, off, dtype)
+        cdr = np.frombuffer(schemas.ENCAPSULATION[:2], np.uint8)
         if np.any(msgs["_length"] != size + _MSG_HEADER - 9) or \
                 np.any(msgs["frame_len"] != msgs["frame_len"][0]) or \
-                np.any(msgs["_encapsulation"] != np.frombuffer(schemas.ENCAPSULATION[:2], np.uint8)):
+                np.any(msgs["_encapsulation"] != cdr):
             raise LogError(f"{self.path}: {topic} changes message size, frame_id or CDR "
                            f"encapsulation within the chunk starting at "
                            f"{ci.message_start_time} ns; read it with read_generic()")

@@ -43,9 +43,9 @@ IN_FLIGHT = 8               # chunks being compressed or waiting to be written (
                             # messages at the default chunk size)
 # zstd's fast strategy with 4-byte matches and a 4096-entry hash table (it stays in the
 # L1/L2 cache): on IMU records (8-byte fields of noisy samples, repeating headers) files 1-2 %
-# smaller than level 1 and compression 1.3-1.6x faster, decompression 1.1-1.3x (level 1's
-# 7-byte matches miss the 4-6 byte repeats of the stamps and headers; level -1 is as fast for
-# files 5-7 % larger). Measured on the chunks of a 10^6-sample /mimu/raw log and a 600 s
+# smaller than level 1 (which looks for matches of 7 bytes or more) and compression
+# 1.3-1.6x faster, decompression 1.1-1.3x (level -1 is as fast for files 5-7 % larger; the
+# whole writer 1.1-1.2x). Measured on the chunks of a 10^6-sample /mimu/raw log and a 600 s
 # flight, 2 threads, interleaved: bench/flightlog.py prints zstd's own rate on a log's chunks
 # with these parameters, the writer's ceiling.
 ZSTD_PARAMETERS = dict(window_log=19, hash_log=12, chain_log=13, search_log=1, min_match=4,
