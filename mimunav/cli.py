@@ -477,11 +477,13 @@ def set_aside_line(w):
     value = w.get("coefficient", w.get("vector"))
     said = (f"{value:.4g}" if isinstance(value, float) else
             "[" + ", ".join(f"{v:.3g}" for v in value) + "]")
+    sigmas = lambda key: ", ".join(f"{v:.3g}" for v in w[key])     # noqa: E731
+    stated = (f"the reference's (1 sigma {sigmas('reference_1sigma')}) and the calibration's"
+              if "reference_1sigma" in w else
+              f"the calibration's stated covariance (1 sigma {sigmas('calibration_1sigma')})")
     return (f"  set aside: {w['label']} {said}: significant against the noise alone (p "
-            f"{w['p_train']:.2g}), not once the stated errors that may share it - the "
-            f"reference's (1 sigma {', '.join(f'{v:.3g}' for v in w['reference_1sigma'])}) "
-            "and the calibration's - are allowed: with them its 1 sigma is "
-            f"{', '.join(f'{v:.3g}' for v in w['total_1sigma'])}")
+            f"{w['p_train']:.2g}), not once the stated errors that may share it - {stated} - "
+            f"are allowed: with them its 1 sigma is {sigmas('total_1sigma')}")
 
 
 # import options -> (the importers that read them, their default): one given to another

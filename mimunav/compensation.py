@@ -42,7 +42,7 @@ FOUND_SUFFIX = "+found"     # a model plus the terms a diagnosis found ("found":
 MAX_CONDITION = 100.0   # of A1 and W1: a triad's scale factors alike (one part, one range)
 # and its axes within a few degrees of orthogonal make it 1.0-1.1 (the six foreign flights'
 # files 1.01-1.05, the lab fits 1.03-1.04); 100 is a scale factor 1 % of the others' or two
-# axes 0.6 deg apart - no triad, a typing error (a zeroed diagonal: 3674, compensated
+# axes 1.1 deg apart - no triad, a typing error (a zeroed diagonal: 3674, compensated
 # without a word into a confident 'saturation' and a g-sensitivity 3.5 times the truth)
 _TRIAD_KEYS = {"accel": ("A0", "A1", "A2", "A3", "ct"), "gyro": ("W0", "W1", "W2", "W3", "C", "cw")}
 _SHAPES = {"A0": (3,), "A1": (3, 3), "A2": (3,), "A3": (3,), "ct": (3, 3),

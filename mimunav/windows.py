@@ -79,30 +79,33 @@ def starts(truth, length, step=START_STEP_S, first=0.0, min_speed=alignment.COUR
     return np.asarray(out)
 
 
-def _no_windows(truth, lengths, first, min_speed, max_gap):
-    """Why a recording holds no window: the conditions of `starts` the reference fails,
-    named as such, then those it meets - all of them met, they never hold together in one
-    window (nor away from the IMU's gaps and the rests at standstill)."""
+def _no_windows(truth, lengths, first, min_speed, max_gap, half):
+    """Why a recording holds no window: the conditions of `starts` the reference fails as a
+    whole (its speed never reaching min_speed; too short a span after the rest for the
+    shortest window and its alignment interval of +-half s), named as such, then those it
+    meets; a reference gap above max_gap only leaves out the windows it meets, so it is said
+    as such, not as the cause. All met: the windows' other conditions (the gaps, the IMU's,
+    the rests at standstill) leave none."""
     speed = np.hypot(truth.v_ned[:, 0], truth.v_ned[:, 1])
-    span = truth.t[-1] - max(first, truth.t[0])
+    span = truth.t[-1] - max(first, truth.t[0] + half)
     gaps = np.diff(truth.t)
     largest, length = (gaps.max() if len(gaps) else 0.0), min(lengths)
     conditions = [
         (speed.max() >= min_speed, f"a horizontal speed of {min_speed:g} m/s at a window's "
                                    f"start (the reference peaks at {speed.max():.2f} m/s: "
                                    "--min-speed)"),
-        (largest <= max_gap, f"no reference gap above {max_gap:g} s (largest {largest:.2f} "
-                             "s: --max-gap)"),
-        (span >= length, f"{length:g} s of reference after the rest ({span:.1f} s: "
-                         "--lengths)")]
+        (span > length, f"{length:g} s of reference after the rest and the alignment's "
+                        f"{half:g} s ({span:.1f} s: --lengths)")]
     failed = [text for ok, text in conditions if not ok]
     met = [text for ok, text in conditions if ok]
     head = f"no free-inertial window of {length:g} s fits this recording: "
+    gap = (f"; the reference's gaps above {max_gap:g} s (the largest {largest:.2f} s: "
+           "--max-gap) leave out the windows they meet" if largest > max_gap else "")
     if failed:
         return head + "it lacks " + "; ".join(failed) + \
-            (f" (it has {'; '.join(met)})" if met else "")
-    return head + f"it has {'; '.join(met)}, but never all in one window (nor away from the " \
-        "IMU's gaps and the rests at standstill)"
+            (f" (it has {'; '.join(met)}{gap})" if met else gap)
+    return head + f"it has {'; '.join(met)}, but the gaps (the reference's and the IMU's) " \
+        f"and the rests at standstill leave no window{gap}"
 
 
 def run(flight, t0, length, w, f, t_imu=None, half=alignment.MOVING_HALF_WINDOW_S):
@@ -157,8 +160,9 @@ def run_all(flight, cal=None, lengths=WINDOW_LENGTHS_S, step=START_STEP_S, time_
             for t0 in starts(flight.truth, length, step, first, min_speed, max_gap, t, parked,
                              half or alignment.MOVING_HALF_WINDOW_S)]
     if not todo:
-        raise InputError(f"{flight.path}: " + _no_windows(flight.truth, lengths, first,
-                                                           min_speed, max_gap))
+        raise InputError(f"{flight.path}: " + _no_windows(
+            flight.truth, lengths, first, min_speed, max_gap,
+            half or alignment.MOVING_HALF_WINDOW_S))
     if progress:
         from tqdm import tqdm
         todo = tqdm(todo, desc="windows", unit="window")

@@ -132,7 +132,13 @@ def test_a_set_aside_term_is_said_with_the_sigma_its_test_used():
          "p_train": 0.0002312278746599149}
     line = set_aside_line(w)
     assert "-0.001795" in line and "p 0.00023" in line
-    assert "1 sigma 0.00025" in line and line.endswith("its 1 sigma is 0.00131")
+    assert "the reference's (1 sigma 0.00025)" in line and line.endswith("its 1 sigma is 0.00131")
+    # a term the model carries (g-sensitivity), set aside against the calibration's own
+    # covariance: that is the stated sigma, not the reference's
+    line = set_aside_line({"label": "g_sensitivity gyro.x <- f_z", "coefficient": 2e-5,
+                           "calibration_1sigma": [1e-5], "total_1sigma": [1.2e-5],
+                           "p_train": 1e-4})
+    assert "reference" not in line and "covariance (1 sigma 1e-05)" in line
 
 
 def test_time_shift_is_exact_for_linear_motion_and_has_the_contract_sign():

@@ -1248,21 +1248,33 @@ def test_imu_and_reference_on_different_time_bases_are_refused():
 
 
 def test_no_window_says_which_condition_the_recording_fails():
-    """A reference that moves (0.85 m/s at most, above a 0 m/s gate) without gaps but spans
-    6.4 s after its rest, for 10 s windows (the Pixhawk log): the refusal names the span as
-    what it lacks and the speed and gaps as met - it had listed all three as needs, the
-    speed first, as if the speed had failed."""
+    """A reference that moves (0.85 m/s at most, above a 0 m/s gate) but spans 6.4 s after
+    its rest, for 10 s windows (the Pixhawk log): the refusal names the span as what it
+    lacks and the speed as met - it had listed speed, gaps and span as needs, the speed
+    first, as if the speed had failed; a reference gap leaves out only the windows it meets,
+    so it is said as that, not as a lack."""
     from types import SimpleNamespace
 
     from mimunav.windows import _no_windows
     t = np.arange(0.0, 8.4, 0.2)
     truth = SimpleNamespace(t=t, v_ned=np.column_stack([0.85 * np.sin(t / 3), 0 * t, 0 * t]))
-    said = _no_windows(truth, [10.0, 30.0], 1.8, 0.0, 1.0)
+    said = _no_windows(truth, [10.0, 30.0], 1.8, 0.0, 1.0, 0.25)
     lacks, has = said.split("it lacks ")[1].split(" (it has ")
-    assert lacks.startswith("10 s of reference after the rest (6.4 s")
-    assert "speed" in has and "gap" in has and "speed" not in lacks
-    moving = _no_windows(truth, [5.0], 1.8, 0.0, 1.0)
-    assert "it lacks" not in moving and "never all in one window" in moving
+    assert lacks.startswith("10 s of reference after the rest and the alignment's 0.25 s "
+                            "(6.4 s")
+    assert "speed" in has and "gap" not in said and "speed" not in lacks
+    # 10.2 s of reference: not enough for 10 s windows and the alignment's 0.25 s before them
+    t10 = np.arange(0.0, 10.21, 0.2)
+    short = SimpleNamespace(t=t10, v_ned=np.column_stack([0 * t10 + 5.0, 0 * t10, 0 * t10]))
+    assert "it lacks 10 s of reference" in _no_windows(short, [10.0], 0.0, 0.0, 1.0, 0.25)
+    moving = _no_windows(truth, [5.0], 1.8, 0.0, 1.0, 0.25)
+    assert "it lacks" not in moving and "leave no window" in moving
+    # a gap leaves out the windows it meets: said, never as what the recording lacks
+    gappy = SimpleNamespace(t=np.delete(t, range(20, 30)), v_ned=np.delete(truth.v_ned,
+                                                                          range(20, 30), 0))
+    said = _no_windows(gappy, [10.0], 1.8, 0.0, 1.0, 0.25)
+    assert "lacks" in said and "gap" not in said.split(" (it has ")[0]
+    assert "gaps above 1 s (the largest 2.20 s: --max-gap) leave out" in said
 
 
 def test_windows_leave_out_every_window_an_imu_gap_meets(tmp_path):
@@ -1325,7 +1337,8 @@ def test_a_csv_cut_mid_line_loses_only_that_line(tmp_path):
 
 @pytest.mark.parametrize("wrong, message", [
     ("deg/s", "5[67].[0-9] times its size.*unit"),
-    ("yaw 90", "turned [+-]90 deg in yaw.*--mounting-rpy-deg -?180 0 -?180"),
+    ("yaw 90", "turned -90 deg about the vehicle's down axis.*--mounting-rpy-deg -?180 0 "
+               "-?180"),
     ("5 s", "shifted by .* time bases differ"),
 ])
 def test_the_gnss_course_judges_units_and_axes_without_a_reference_attitude(tmp_path, wrong,

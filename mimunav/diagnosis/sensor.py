@@ -913,12 +913,20 @@ def _adds(fitter, current, j, given, log_level):
 
 
 def _within(design, j, res):
+    """A term set aside (`_test`'s logp_ref above the threshold): the stated 1 sigma along it
+    - the reference's linear error (with the calibration's) for a term it can make
+    (`reference_1sigma`), else the calibration's own (`calibration_1sigma`, a term the model
+    carries) - and the 1 sigma the test used (`total_1sigma`: the estimate's with the
+    reference's prior, or the noise's plus the calibration's allowance, as `_test` takes it)."""
     ref = _reference_dir(design, j)
-    sigma = (np.sqrt(np.diag(ref)) if ref is not None
-             else np.full(len(res["b"]), math.sqrt(design.allowance[j])))
-    return {"label": library.label(design.terms[j]), **_describe_b(res["b"]),
-            "reference_1sigma": sigma.tolist(),
-            "total_1sigma": np.sqrt(np.diag(res["cov"])).tolist(),
+    if ref is not None:
+        stated = {"reference_1sigma": np.sqrt(np.diag(ref)).tolist()}
+        total = np.sqrt(np.diag(res["cov"]))
+    else:
+        stated = {"calibration_1sigma": [math.sqrt(design.allowance[j])] * len(res["b"])}
+        total = np.sqrt(np.diag(res["cov"]) + design.allowance[j])
+    return {"label": library.label(design.terms[j]), **_describe_b(res["b"]), **stated,
+            "total_1sigma": total.tolist(),
             "p_train": math.exp(res["logp"]),
             "note": "significant against the noise alone, but not once the reference's and "
                     "the calibration's stated errors may share it: the data cannot tell it "

@@ -295,6 +295,9 @@ class FlightLog:
         if compression not in ("zstd", "", "lz4"):
             raise LogError(f"{self.path}: unknown chunk compression {compression!r}")
         try:
+            if size != ci.uncompressed_size:        # a flipped bit: 2^63 overflowed zstd's
+                raise ValueError(f"its uncompressed size, {size} bytes, is not the chunk "
+                                 f"index's {ci.uncompressed_size}")      # size argument
             if compression == "zstd":
                 data = _decompressor().decompress(body, max_output_size=size)
             elif compression == "lz4":
@@ -302,8 +305,10 @@ class FlightLog:
                 data = lz4.frame.decompress(body)
             else:
                 data = bytes(body)
-        except (zstandard.ZstdError, RuntimeError) as exc:    # lz4's errors are RuntimeErrors
-            data, why = None, f"the decompressor: {exc}"
+        except ValueError as exc:
+            data, why = None, str(exc)
+        except (zstandard.ZstdError, RuntimeError, OverflowError, MemoryError) as exc:
+            data, why = None, f"the decompressor: {exc}"     # lz4's errors are RuntimeErrors
         else:
             crc = int.from_bytes(rec[33:37], "little")
             why = "size mismatch" if len(data) != size else \
@@ -337,26 +342,32 @@ class FlightLog:
         through one view of the records (`_records`), copying only the fields asked for."""
         off = index["offset"].astype(np.int64)
         size = dtype.itemsize
-        if len(off) and (off.min() < 0 or off.max() + _MSG_HEADER + size > len(data)):
-            raise LogError(f"{self.path}: {topic}: the message index of the chunk at byte "
-                           f"{ci.chunk_start_offset} points past its records (damaged index)")
-        msgs = _records(data, off, dtype)
-        cdr = np.frombuffer(schemas.ENCAPSULATION[:2], np.uint8)
-        if np.any(msgs["_length"] != size + _MSG_HEADER - 9) or \
-                np.any(msgs["frame_len"] != msgs["frame_len"][0]) or \
-                np.any(msgs["_encapsulation"] != cdr):
-            raise LogError(f"{self.path}: {topic} changes message size, frame_id or CDR "
-                           f"encapsulation within the chunk starting at "
-                           f"{ci.message_start_time} ns; read it with read_generic()")
-        log_time = msgs["_log_time"]
-        if np.any(log_time != index["log_time"]) or \
-                np.any(msgs["_channel"] != self._channel(topic).id) or \
-                np.any(msgs["_opcode"] != 0x05):
-            raise LogError(f"{self.path}: {topic}: the message index of the chunk at byte "
+        damaged = LogError(f"{self.path}: {topic}: the message index of the chunk at byte "
                            f"{ci.chunk_start_offset} ({_since_epoch(self, ci.message_start_time)}"
                            f" to {_since_epoch(self, ci.message_end_time)}) does not point at "
                            "its messages (damaged index); `mimunav info LOG --recover OUT.mcap` "
                            "rebuilds the log from its intact chunks")
+        # each entry at a record's header inside the records, no two at one record (entries
+        # repeated had read one message twice and lost another, silently)
+        if len(off) and (off.min() < 0 or off.max() > len(data) - _MSG_HEADER or
+                         np.any(np.diff(np.sort(off)) < _MSG_HEADER)):
+            raise damaged
+        channel = _rows(data, off + 9, 2).view("<u2").ravel()
+        if np.any(_u64(data, off + 15) != index["log_time"]) or \
+                np.any(channel != self._channel(topic).id) or \
+                np.any(_rows(data, off, 1).ravel() != 0x05):
+            raise damaged
+        changed = LogError(f"{self.path}: {topic} changes message size, frame_id or CDR "
+                           f"encapsulation within the chunk starting at "
+                           f"{ci.message_start_time} ns; read it with read_generic()")
+        if np.any(_u64(data, off + 1) != size + _MSG_HEADER - 9) or \
+                off.max() > len(data) - _MSG_HEADER - size:
+            raise changed
+        msgs = _records(data, off, dtype)
+        if np.any(msgs["frame_len"] != msgs["frame_len"][0]) or np.any(
+                msgs["_encapsulation"] != np.frombuffer(schemas.ENCAPSULATION[:2], np.uint8)):
+            raise changed
+        log_time = msgs["_log_time"]
         if out.dtype.names[0] == "payload":             # fields=PAYLOAD: the CDR bytes
             out["payload"] = _rows(data, off + _MSG_HEADER, size).view(
                 out.dtype["payload"]).ravel()

@@ -201,7 +201,8 @@ def _chunk_records(data, offset, length):
             raw = lz4.frame.decompress(body)
         else:
             raw = body
-    except (struct.error, ValueError, zstandard.ZstdError) as exc:
+    except (struct.error, ValueError, zstandard.ZstdError, OverflowError, MemoryError,
+            RuntimeError) as exc:           # a size beyond 2^63: Overflow; lz4's: RuntimeError
         return None, f"chunk does not decompress ({type(exc).__name__}: {exc})", (None, None)
     if len(raw) != size or (crc and zlib.crc32(raw) != crc):
         return None, "chunk fails its CRC (its bytes changed)", (start, end)

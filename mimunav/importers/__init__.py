@@ -447,8 +447,9 @@ def _check_against_course(rec):
         if coherence > 0.5 and abs(yaw) > COURSE_CHECK_YAW:
             raise RecordingError(
                 f"{rec.name}: the accelerometers' horizontal specific force matches the GNSS "
-                f"track's acceleration turned {math.degrees(yaw):+.0f} deg in yaw (coherence "
-                f"{coherence:.2f}): the sensor axes or the mounting's yaw are off by that much; "
+                f"track's acceleration with the IMU turned {-math.degrees(yaw):+.0f} deg about "
+                f"the vehicle's down axis from the mounting given (coherence {coherence:.2f}): "
+                "the sensor axes or the mounting's yaw are off by that much; "
                 f"the mounting turned back would be --mounting-rpy-deg {_turned_back(rec, yaw)}"
                 + (" - unless the vehicle drives in reverse most of the time (then import a "
                    "forward stretch)" if abs(yaw) > math.radians(135.0) else ""))

@@ -223,9 +223,12 @@ def markdown(doc, diag, cal_label):
                   "large at the selection's threshold - the data cannot tell the term from "
                   "them, so it is not charged to physics the model lacks.", ""]
         lines += [f"- {w['label']}: {_vec(w.get('vector', [w.get('coefficient')]))}, total "
-                  f"1 sigma {_vec(w.get('total_1sigma', []))} (the reference's stated 1 sigma "
-                  f"{_vec(w['reference_1sigma'])}; p train against the noise alone "
-                  f"{w['p_train']:.2g})" for w in doc["within_reference_accuracy"]]
+                  f"1 sigma {_vec(w.get('total_1sigma', []))} ("
+                  + (f"the reference's stated 1 sigma {_vec(w['reference_1sigma'])}"
+                     if "reference_1sigma" in w else
+                     f"the calibration's stated 1 sigma {_vec(w['calibration_1sigma'])}")
+                  + f"; p train against the noise alone {w['p_train']:.2g})"
+                  for w in doc["within_reference_accuracy"]]
         lines.append("")
     if doc["not_confirmed"]:
         lines += ["## Chosen on the training segments, not confirmed", ""]
