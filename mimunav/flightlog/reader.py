@@ -353,7 +353,8 @@ class FlightLog:
                          np.any(np.diff(np.sort(off)) < _MSG_HEADER)):
             raise damaged
         channel = _rows(data, off + 9, 2).view("<u2").ravel()
-        if np.any(_u64(data, off + 15) != index["log_time"]) or \
+        log_time = _u64(data, off + 15)
+        if np.any(log_time != index["log_time"]) or \
                 np.any(channel != self._channel(topic).id) or \
                 np.any(_rows(data, off, 1).ravel() != 0x05):
             raise damaged
@@ -367,7 +368,6 @@ class FlightLog:
         if np.any(msgs["frame_len"] != msgs["frame_len"][0]) or np.any(
                 msgs["_encapsulation"] != np.frombuffer(schemas.ENCAPSULATION[:2], np.uint8)):
             raise changed
-        log_time = msgs["_log_time"]
         if out.dtype.names[0] == "payload":             # fields=PAYLOAD: the CDR bytes
             out["payload"] = _rows(data, off + _MSG_HEADER, size).view(
                 out.dtype["payload"]).ravel()
@@ -412,14 +412,11 @@ def _rows(data, starts, size):
 
 def _records(data, offsets, payload):
     """The Message records starting at the given offsets of a chunk's records (bytes as
-    uint8) as one structured array: the record's opcode, length, channel and log time
-    (fields _opcode, _length, _channel, _log_time), the first two bytes of its CDR
-    encapsulation (_encapsulation) and the payload's fields (`payload`, a `cdr_dtype`). A
-    read-only view when the offsets are equally spaced (one channel written in order): a
-    field is copied only when asked for - else gathered. Offsets inside the data."""
-    names = ["_opcode", "_length", "_channel", "_log_time", "_encapsulation"]
-    formats = ["u1", "<u8", "<u2", "<u8", ("u1", 2)]
-    places = [0, 1, 9, 15, _MSG_HEADER]
+    uint8) as one structured array: the first two bytes of each one's CDR encapsulation
+    (_encapsulation) and the payload's fields (`payload`, a `cdr_dtype`). A read-only view
+    when the offsets are equally spaced (one channel written in order): a field is copied
+    only when asked for - else gathered. Offsets of whole records inside the data."""
+    names, formats, places = ["_encapsulation"], [("u1", 2)], [_MSG_HEADER]
     for name in payload.names:
         if name != "encap":
             names.append(name)
