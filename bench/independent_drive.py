@@ -18,8 +18,9 @@ Physics (NED, WGS-84):
   f^b    = C_bn f^n
   IMU sample k stamped t_k = mean over (t_k - T, t_k] of the true quantity at time (t - skew),
   by 5-point Gauss-Legendre quadrature; then sensor axes: x_s = C_sv x_b, with
-  C_vs = Rz(mount_yaw) Rx(180 deg) (REP-103 FLU sensor -> FRD vehicle, yawed by mount_yaw about
-  the vehicle's down axis: mimunav's --mounting-rpy-deg 180 0 mount_yaw), scale factor on
+  C_vs = Rz(mount_yaw) Ry(mount_pitch) Rx(180 deg) (REP-103 FLU sensor -> FRD vehicle, pitched by
+  mount_pitch about the vehicle's right axis and yawed by mount_yaw about its down axis:
+  mimunav's --mounting-rpy-deg 180 mount_pitch mount_yaw), scale factor on
   sensor z gyro, constant biases (sensor axes), white noise.
 """
 import argparse
@@ -216,6 +217,11 @@ def rot_z(a):
     return np.array([[c, -s, 0], [s, c, 0], [0, 0, 1.0]])
 
 
+def rot_y(a):
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[c, 0, s], [0, 1.0, 0], [-s, 0, c]])
+
+
 RX180 = np.diag([1.0, -1.0, -1.0])
 
 
@@ -300,6 +306,7 @@ def main():
     ap.add_argument("--gnss-rate", type=float, default=10.0)
     ap.add_argument("--skew", type=float, default=0.0, help="IMU stamps late by this (s)")
     ap.add_argument("--mount-yaw-deg", type=float, default=0.0)
+    ap.add_argument("--mount-pitch-deg", type=float, default=0.0)
     ap.add_argument("--gyro-sf-z", type=float, default=0.0, help="sensor z gyro scale error")
     ap.add_argument("--gyro-bias-dps", type=float, nargs=3, default=[0.08, -0.15, 0.25])
     ap.add_argument("--accel-bias-mg", type=float, nargs=3, default=[4.0, -3.0, 6.0])
@@ -318,7 +325,8 @@ def main():
     n = int(round(T_END * args.rate))
     t_imu = np.arange(1, n + 1) * dt
     W, Fb = imu_ideal(t_imu, dt, possol, skew=args.skew)
-    C_vs = rot_z(math.radians(args.mount_yaw_deg)) @ RX180
+    C_vs = rot_z(math.radians(args.mount_yaw_deg)) @ rot_y(math.radians(args.mount_pitch_deg)) \
+        @ RX180
     C_sv = C_vs.T
     w_s = W @ C_sv.T
     f_s = Fb @ C_sv.T
@@ -382,7 +390,9 @@ def main():
         wr.finish()
     os.replace(tmp, args.output)
     truth = dict(seed=args.seed, skew_s=args.skew, mount_yaw_deg=args.mount_yaw_deg,
-                 mounting_rpy_deg_true=[180, 0, args.mount_yaw_deg], gyro_sf_z=args.gyro_sf_z,
+                 mount_pitch_deg=args.mount_pitch_deg,
+                 mounting_rpy_deg_true=[180, args.mount_pitch_deg, args.mount_yaw_deg],
+                 gyro_sf_z=args.gyro_sf_z,
                  gyro_bias_dps_sensor=args.gyro_bias_dps, accel_bias_mg_sensor=args.accel_bias_mg,
                  gyro_arw=args.gyro_arw, accel_vrw_ug=args.accel_vrw, gnss_sigma=args.gnss_sigma,
                  rate=args.rate, gnss_rate=args.gnss_rate)

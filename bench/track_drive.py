@@ -7,7 +7,9 @@ Cases: null drives (one per seed; right: `no-missing-physics`), the same with a 
 reference, IMU stamps 60 ms late (right: time_skew imu.all covering 0.06 s), the mounting
 3 deg off in yaw (mounting_misalignment covering sin 3 deg), the yaw gyro's scale 2 % off
 (scale_factor gyro.z covering 0.02); then a null drive and the yaw scale with fixes at
-1 Hz (velocities differenced over 2 s); two null drives and the mounting with 5 cm fixes.
+1 Hz (velocities differenced over 2 s); two null drives and the mounting with 5 cm fixes;
+the mounting pitched 6.8 deg nose down (the RTKLIB drive author's pitch) and 3 deg nose up
+(mounting_misalignment covering sin 6.8 / sin 3 deg).
 """
 import argparse
 import json
@@ -41,6 +43,10 @@ def cases(seeds):
             ("null, 5 cm fixes, seed 31", ["--seed", "31", "--gnss-sigma", "0.05"], None),
             ("mounting 3 deg off in yaw, 5 cm fixes", ["--seed", "13", "--gnss-sigma", "0.05",
                                                        "--mount-yaw-deg", "3"],
+             ("mounting_misalignment imu.all", math.sin(math.radians(3.0)))),
+            ("mounting 6.8 deg down in pitch", ["--seed", "15", "--mount-pitch-deg", "-6.8"],
+             ("mounting_misalignment imu.all", math.sin(math.radians(6.8)))),
+            ("mounting 3 deg up in pitch", ["--seed", "16", "--mount-pitch-deg", "3"],
              ("mounting_misalignment imu.all", math.sin(math.radians(3.0))))]
     return out
 

@@ -119,7 +119,7 @@ class TrackMotion(Motion):
         return max(2 * (max(self.lam_horizontal, self.lam_vertical) * dt) ** 0.25,
                    EDGE_EPOCHS * dt)
 
-    def in_band(self, t, x, lam=None):
+    def in_band(self, t, x):
         """x (N, k) - an IMU's outputs, any units and axes, each the mean over its own sample
         interval ending at its stamp t (s) - through the track's own smoothing, in the same
         form. The model's rates and accelerations are the derivative of a smoothing spline
@@ -134,8 +134,7 @@ class TrackMotion(Motion):
         not have: a smooth start's longitudinal acceleration differed by 0.01 m/s^2, z 7
         against the part's noise.) An output that is not finite counts as its neighbours'
         (linear in time) in the integral, NaN in the result; across a gap in the stamps
-        the output after it is held over the gap. `lam`: another smoothing than the
-        horizontal velocity's (the vertical's, `lam_vertical`)."""
+        the output after it is held over the gap."""
         t, x = np.asarray(t, float), np.asarray(x, float)
         _, span, edges = intervals(t)
         finite = np.isfinite(x).all(axis=1)
@@ -148,7 +147,7 @@ class TrackMotion(Motion):
         # the velocity the outputs make, sampled as the track's (differenced: `_as_sampled`)
         sampled = self._as_sampled(integral.once, integral.twice)
         sampled -= (self._t - edges[0])[:, None] * rate     # the mean rate, for the fit
-        spline = smoothing_spline(self._t, sampled, self.lam_horizontal if lam is None else lam)
+        spline = smoothing_spline(self._t, sampled, self.lam_horizontal)
         out = (spline(t) - spline(t - span)) / span[:, None] + rate
         out[~finite] = np.nan
         return out

@@ -313,14 +313,15 @@ def test_the_imu_banded_in_ned_meets_the_model_where_the_vehicle_turns_and_speed
     turn entered in 1 s while the speed doubles, over 2 m hills: the model's yaw rate is 1.6
     deg/s rms off the ideal IMU's over the manoeuvre, its horizontal specific force 0.1-0.5
     m/s^2. The ideal IMU (of the noise-free track, at a mounting turned on every axis) put
-    through the model's own operations (`track.in_band`: specific force smoothed in NED -
-    down by the vertical velocity's smoothing - the yaw rate as the course rate of the
+    through the model's own operations (`track.in_band`: specific force smoothed in NED by
+    the horizontal velocity's smoothing, the yaw rate as the course rate of the
     smoothed velocity) meets the model about three times closer than smoothed in sensor
     axes (gyro.z 0.11 against 0.31 deg/s, accel.x/y 0.03-0.04 against 0.08-0.09 m/s^2): the
     body-frame band does not commute with the turning, which had made false excursions at
     z 8-9 on null drives with 5 cm fixes (sharp turns, departures). The vertical specific
-    force over the hills: 0.0016 m/s^2 rms off, through the horizontal smoothing instead
-    0.0043."""
+    force over the hills, in the horizontal band against the model's vertical smoothing:
+    0.0043 m/s^2 rms off (0.0016 in the vertical's band, which erased a tilted mounting's
+    leak: `track.in_band`)."""
     from mimunav.diagnosis import track
     fixes = _turn_speeding_up(hill_m=2.0)
     model = TrackMotion(*_under_two_cm(fixes, sigma_m=0.05, sigma_h_m=0.05), differenced=True)
@@ -350,10 +351,7 @@ def test_the_imu_banded_in_ned_meets_the_model_where_the_vehicle_turns_and_speed
     hills = (t[k] > 30.0) & (t[k] < 110.0)
     rms = lambda x: float(np.sqrt(np.mean(x[hills] ** 2)))          # noqa: E731
     vertical = rms(down(f_ned) - down(predicted[1]))
-    model.lam_vertical, lam = model.lam_horizontal, model.lam_vertical
-    horizontally = rms(down(track.in_band(model, t, imu, mount.q_vs)[1][k]) - down(predicted[1]))
-    model.lam_vertical = lam
-    assert vertical < 0.002 < 2 * vertical < horizontally, (vertical, horizontally)
+    assert vertical < 0.006, vertical
 
 
 def test_the_tracks_ends_where_its_smoothing_is_one_sided_are_not_trusted(tmp_path):
@@ -2070,6 +2068,37 @@ def test_the_track_level_on_an_independent_drive_with_a_yaw_gyro_scale(tmp_path)
     lo, hi = result["findings"][0]["ci95"]
     assert lo <= 0.02 <= hi and hi - lo < 0.03
     assert result["unexplained"] == []
+
+
+@pytest.mark.parametrize("pitch, yaw, seed", [(-6.8, 6.0, 13), (3.0, 0.0, 16)])
+def test_the_track_level_finds_an_imus_pitch_on_an_independent_drive(tmp_path, pitch, yaw,
+                                                                     seed):
+    """The independent level drive (`bench/independent_drive.py`) with the IMU pitched 6.8
+    deg nose down on the car and turned 6 deg to the right (the RTKLIB drive's author
+    measured [0, -6.79, 5.35] deg on his car), and pitched 3 deg nose up alone: the mounting
+    is found with its angles inside their intervals. The pitch shows where the car's forward
+    acceleration leaks into accel.z; that channel had been compared in the vertical
+    velocity's band - on a level road all noise, so smoothed to a straight line - while the
+    leak's regressor (the model's forward acceleration) was in the horizontal's: the 6.8 deg
+    pitch came out -1.7 deg [-2.8, -0.5] and the 3 deg one was set aside. The IMU's vertical
+    specific force is now compared in the horizontal band. Then the 3 deg pitch, found at
+    its truth, was not confirmed by the free-inertial windows - which level themselves on
+    the IMU's own specific force and cannot see a tilt (`track._tilt`)."""
+    import subprocess
+    import sys
+    bench = Path(__file__).parent.parent / "bench" / "independent_drive.py"
+    bag, log, doc = tmp_path / "drive.bag.mcap", tmp_path / "drive.mcap", tmp_path / "d.json"
+    subprocess.run([sys.executable, str(bench), "-o", str(bag), "--seed", str(seed),
+                    "--mount-pitch-deg", str(pitch), "--mount-yaw-deg", str(yaw)],
+                   check=True, capture_output=True)
+    assert main(["import", "ros2", str(bag), "-o", str(log), "--imu-topic", "/imu/data",
+                 "--fix-topic", "/gnss/fix", "--reference-status", "2"]) == 0
+    main(["diagnose", str(log), "--json", str(doc)])
+    found = {f["label"]: f for f in json.loads(doc.read_text())["findings"]}
+    mounting = found["mounting_misalignment imu.all"]
+    (_, _), (p_lo, p_hi), (y_lo, y_hi) = np.degrees(mounting["vector_vehicle_ci95"])
+    assert p_lo <= pitch <= p_hi and p_hi - p_lo < 3.0
+    assert y_lo <= yaw <= y_hi
 
 
 def test_a_rest_under_a_ten_hertz_rtk_fix_is_found_from_the_track():
