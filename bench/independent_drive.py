@@ -1,6 +1,7 @@
 #!/usr/bin/env python3
-"""Independent generator of a car drive on a level road and its consumer-grade IMU + RTK fixes,
-written as a ROS 2 MCAP bag (sensor_msgs/msg/Imu, sensor_msgs/msg/NavSatFix).
+"""Independent generator of a car drive on a level (or, with --hills-m, hilly) road and its
+consumer-grade IMU + RTK fixes, written as a ROS 2 MCAP bag (sensor_msgs/msg/Imu,
+sensor_msgs/msg/NavSatFix).
 
 Written by a helper session trying mimunav as a new user (2026-11-27), from the physics alone:
 numpy/scipy and the mcap_ros2 writer, NOT mimunav's code - an oracle for the import and the
@@ -8,20 +9,38 @@ track level (`bench/track_drive.py`). Validated there against its own checks: at
 gyro reads the Earth rate and the accelerometers -gamma exactly; two integrations of the
 position agree to 1.3e-8 m; a plain strapdown of its noise-free IMU ends 3.4 mm off after
 600 s.
+Hills added by a later helper (2026-11-27), same rules (nothing from mimunav); checked by its
+own script: a plain NED strapdown (coning, rotation compensation, midpoint gravity/Coriolis)
+over the noise-free IMU ends 2.9/3.9/0.05 mm (N/E/D) off after 600 s on the level road and
+2.8/4.3/6.3 mm (A 5 m, L 300 m), 3.4/3.5/1.9 mm (5, 400), 2.2/4.3/0.6 mm (15, 1000); the
+velocity agrees with the position's central differences to 1e-6 m/s, h'' and theta' with
+theirs to 4e-7 m/s^2 and 3e-9 rad/s; pitch = atan(-v_D / v_H) to 3e-17 rad; at rest on a
+grade f^b = C_bn [0, 0, -gamma] with |f^b| = gamma exactly. --hills-m 0 writes the very
+bytes (.mcap and .truth.json) it wrote before the hills.
 
 Physics (NED, WGS-84):
-  vehicle body = FRD, roll = pitch = 0 (level road, height constant above the ellipsoid),
-  heading psi(t) and speed v(t) in closed form (raised-cosine edged pulses of yaw rate and
-  acceleration); lat/lon by integrating v_N/(R_N+h), v_E/((R_E+h) cos lat) (Gauss-Legendre per 10 ms).
-  w_ib^b = C_bn (w_ie^n + w_en^n) + [0, 0, psi_dot]
-  f^n    = dv^n/dt + (2 w_ie^n + w_en^n) x v^n - g^n,   g^n = [0, 0, gamma(lat, h)] (Somigliana)
+  vehicle body = FRD, roll 0; heading psi(t) and horizontal speed v(t) in closed form
+  (raised-cosine edged pulses of yaw rate and acceleration), the distance s(t) = int v dt in
+  closed form too (`pulse_distance`). Height above the ellipsoid h = H0 + A sin(2 pi s / L)
+  (--hills-m A, default 0: level, h = H0; --hill-length-m L, default 300 m; the grade
+  dh/ds = A 2 pi / L cos(.) peaks at A 2 pi / L: keep it under ~0.1, e.g. A 5 m with L 400 m,
+  A 15 m with L 1000 m). v_D = -h' = -(dh/ds) v, a_D = -h'' = -((dh/ds) a - A (2 pi/L)^2
+  sin(.) v^2). The body pitches with the road: theta = atan(dh/ds) (nose up climbing; the
+  body's x axis along the velocity), theta' = -A (2 pi/L)^2 sin(.) v / (1 + (dh/ds)^2); a car
+  at rest on a grade stays pitched. C_nb = Rz(psi) Ry(theta).
+  lat/lon by integrating v_N/(R_N+h), v_E/((R_E+h) cos lat) (Gauss-Legendre per 10 ms).
+  w_ib^b = C_bn (w_ie^n + w_en^n) + w_nb^b,  w_nb^b = [-psi_dot sin theta, theta_dot,
+           psi_dot cos theta]   (w_en^n with R + h(t))
+  f^n    = dv^n/dt + (2 w_ie^n + w_en^n) x v^n - g^n,   g^n = [0, 0, gamma(lat, h(t))] (Somigliana),
+           dv^n/dt = [a cos psi - v psi' sin psi, a sin psi + v psi' cos psi, -h'']
   f^b    = C_bn f^n
   IMU sample k stamped t_k = mean over (t_k - T, t_k] of the true quantity at time (t - skew),
   by 5-point Gauss-Legendre quadrature; then sensor axes: x_s = C_sv x_b, with
   C_vs = Rz(mount_yaw) Ry(mount_pitch) Rx(180 deg) (REP-103 FLU sensor -> FRD vehicle, pitched by
   mount_pitch about the vehicle's right axis and yawed by mount_yaw about its down axis:
   mimunav's --mounting-rpy-deg 180 mount_pitch mount_yaw), scale factor on
-  sensor z gyro, constant biases (sensor axes), white noise.
+  sensor z gyro, constant biases (sensor axes), white noise. GNSS fixes at the true lat, lon,
+  h(t) plus white noise.
 """
 import argparse
 import json
@@ -149,6 +168,36 @@ def schedule():
 PULSES = schedule()
 
 
+def pulse_distance(t, t0, amp, te, tp):
+    """the second integral from t0 of `pulse` (closed form): the distance its speed covers."""
+    t = np.asarray(t, float)
+    t1 = t0 + te + tp
+    t2 = t1 + te
+    q = te ** 2 / np.pi ** 2
+    s_rise = amp / 2 * (te ** 2 / 2 - 2 * q)
+    s_top = s_rise + amp * te / 2 * tp + amp * tp ** 2 / 2
+    s_fall = s_top + (amp * te / 2 + amp * tp) * te + amp / 2 * (te ** 2 / 2 + 2 * q)
+    out = np.zeros_like(t)
+    r = (t >= t0) & (t < t0 + te)
+    x = t[r] - t0
+    out[r] = amp / 2 * (x ** 2 / 2 + q * (np.cos(np.pi * x / te) - 1))
+    p = (t >= t0 + te) & (t < t1)
+    x = t[p] - t0 - te
+    out[p] = s_rise + amp * te / 2 * x + amp * x ** 2 / 2
+    fall = (t >= t1) & (t < t2)
+    x = t[fall] - t1
+    out[fall] = s_top + (amp * te / 2 + amp * tp) * x + amp / 2 * (
+        x ** 2 / 2 - q * (np.cos(np.pi * x / te) - 1))
+    after = t >= t2
+    out[after] = s_fall + amp * (te + tp) * (t[after] - t2)
+    return out
+
+
+# hills (--hills-m, --hill-length-m): h(s) = H0 + HILL_A sin(2 pi s / HILL_L) of the horizontal
+# distance s travelled; 0 = the level road
+HILL_A, HILL_L = 0.0, 300.0
+
+
 def motion(t):
     """speed v, accel a, heading psi, yaw rate r at times t (closed form)."""
     t = np.asarray(t, float)
@@ -163,6 +212,28 @@ def motion(t):
     return v, a, psi, r
 
 
+def road(t):
+    """height h above the ellipsoid, climb rate h', its rate h'', pitch theta and pitch rate
+    theta' at times t (closed form; v is the horizontal speed, s its integral)."""
+    t = np.asarray(t, float)
+    if HILL_A == 0.0:
+        z = np.zeros_like(t)
+        return np.full_like(t, H0), z, z, z, z
+    v, a, _, _ = motion(t)
+    s = np.zeros_like(t)
+    for p in PULSES["v"]:
+        s += pulse_distance(t, *p)
+    k = 2 * np.pi / HILL_L
+    sn, cs = np.sin(k * s), np.cos(k * s)
+    grade = HILL_A * k * cs                            # dh/ds
+    h = H0 + HILL_A * sn
+    hd = grade * v
+    hdd = grade * a - HILL_A * k ** 2 * sn * v ** 2
+    theta = np.arctan(grade)                           # nose up while climbing
+    thetad = -HILL_A * k ** 2 * sn * v / (1 + grade ** 2)
+    return h, hd, hdd, theta, thetad
+
+
 def position_solution(dt=0.01, nodes=6):
     """lat(t), lon(t) (callable, array of shape (2, n)): N/E path integrals by Gauss-Legendre
     quadrature over each dt (machine-exact for the smooth closed-form motion), the radii's
@@ -174,15 +245,16 @@ def position_solution(dt=0.01, nodes=6):
     v, _, psi, _ = motion(tn.ravel())
     vN = (v * np.cos(psi)).reshape(tn.shape)
     vE = (v * np.sin(psi)).reshape(tn.shape)
+    hn = road(tn.ravel())[0].reshape(tn.shape)
     lat_n = np.full(tn.shape, LAT0)
     for _ in range(3):
         RN, RE = radii(lat_n)
-        dlat = (vN / (RN + H0)) @ wg * dt / 2
+        dlat = (vN / (RN + hn)) @ wg * dt / 2
         lat_g = LAT0 + np.concatenate([[0.0], np.cumsum(dlat)])
         spl_lat = CubicSpline(grid, lat_g)
         lat_n = spl_lat(tn)
     RN, RE = radii(lat_n)
-    dlon = (vE / ((RE + H0) * np.cos(lat_n))) @ wg * dt / 2
+    dlon = (vE / ((RE + hn) * np.cos(lat_n))) @ wg * dt / 2
     lon_g = LON0 + np.concatenate([[0.0], np.cumsum(dlon)])
     spl_lon = CubicSpline(grid, lon_g)
     # the path starts at rest at t = -2 .. 30 s, so the integration origin is the start point
@@ -190,25 +262,35 @@ def position_solution(dt=0.01, nodes=6):
 
 
 def truth_at(t, possol):
-    """w_ib^b (rad/s) and f^b (m/s^2) in the vehicle FRD frame, plus lat, lon, v_ned, psi."""
+    """w_ib^b (rad/s) and f^b (m/s^2) in the vehicle FRD frame, plus lat, lon, v_ned, psi
+    (and h, theta when `full`)."""
     v, a, psi, r = motion(t)
+    h, hd, hdd, theta, thetad = road(t)
     ll = possol(t)
     lat = ll[0]
     RN, RE = radii(lat)
     c, s = np.cos(psi), np.sin(psi)
     vN, vE = v * c, v * s
-    vned = np.stack([vN, vE, np.zeros_like(v)], -1)
+    vned = np.stack([vN, vE, -hd], -1)
     w_ie = np.stack([OMEGA * np.cos(lat), np.zeros_like(lat), -OMEGA * np.sin(lat)], -1)
-    w_en = np.stack([vE / (RE + H0), -vN / (RN + H0), -vE * np.tan(lat) / (RE + H0)], -1)
-    dv = np.stack([a * c - v * r * s, a * s + v * r * c, np.zeros_like(v)], -1)
-    g = np.stack([np.zeros_like(v), np.zeros_like(v), gamma(lat, H0)], -1)
+    w_en = np.stack([vE / (RE + h), -vN / (RN + h), -vE * np.tan(lat) / (RE + h)], -1)
+    dv = np.stack([a * c - v * r * s, a * s + v * r * c, -hdd], -1)
+    g = np.stack([np.zeros_like(v), np.zeros_like(v), gamma(lat, h)], -1)
     f_n = dv + np.cross(2 * w_ie + w_en, vned) - g
     w_in = w_ie + w_en
 
-    def to_b(x):  # C_bn = Rz(psi)^T
-        return np.stack([c * x[:, 0] + s * x[:, 1], -s * x[:, 0] + c * x[:, 1], x[:, 2]], -1)
+    def to_b(x):  # C_bn = Ry(theta)^T Rz(psi)^T
+        y = np.stack([c * x[:, 0] + s * x[:, 1], -s * x[:, 0] + c * x[:, 1], x[:, 2]], -1)
+        if HILL_A == 0.0:
+            return y
+        ct, st = np.cos(theta), np.sin(theta)
+        return np.stack([ct * y[:, 0] - st * y[:, 2], y[:, 1], st * y[:, 0] + ct * y[:, 2]], -1)
     w_ib = to_b(w_in)
-    w_ib[:, 2] += r
+    # w_nb^b of yaw psi then pitch theta (roll 0): [-psi' sin theta, theta', psi' cos theta]
+    if HILL_A == 0.0:
+        w_ib[:, 2] += r
+    else:
+        w_ib += np.stack([-r * np.sin(theta), thetad, r * np.cos(theta)], -1)
     return w_ib, to_b(f_n), lat, ll[1], vned, psi
 
 
@@ -313,12 +395,17 @@ def main():
     ap.add_argument("--gyro-arw", type=float, default=0.0038, help="deg/s/sqrt(Hz)")
     ap.add_argument("--accel-vrw", type=float, default=70.0, help="ug/sqrt(Hz)")
     ap.add_argument("--gnss-sigma", type=float, default=0.02)
+    ap.add_argument("--hills-m", type=float, default=0.0,
+                    help="road height H0 + A sin(2 pi s / L) of the distance s travelled (m)")
+    ap.add_argument("--hill-length-m", type=float, default=300.0, help="L of --hills-m (m)")
     ap.add_argument("--npz", help="also save the ideal/true arrays here")
     ap.add_argument("--vib", type=float, default=0.0,
                     help="optional road/engine vibration while moving: white accel noise of "
                          "VIB*(0.3 + v/20) m/s^2 and gyro VIB*(0.3 + v/20)*0.2 deg/s rms per axis")
     args = ap.parse_args()
 
+    global HILL_A, HILL_L
+    HILL_A, HILL_L = args.hills_m, args.hill_length_m
     rng = np.random.default_rng(args.seed)
     possol = position_solution()
     dt = 1.0 / args.rate
@@ -348,14 +435,15 @@ def main():
     ll = possol(t_fix)
     RN, RE = radii(ll[0])
     dn, de, dd = rng.normal(0, args.gnss_sigma, (3, len(t_fix)))
-    lat_f = ll[0] + dn / (RN + H0)
-    lon_f = ll[1] + de / ((RE + H0) * np.cos(ll[0]))
-    h_f = H0 - dd
+    h_fix = road(t_fix)[0]
+    lat_f = ll[0] + dn / (RN + h_fix)
+    lon_f = ll[1] + de / ((RE + h_fix) * np.cos(ll[0]))
+    h_f = h_fix - dd
 
     if args.npz:
         v, a, psi, r = motion(t_fix)
         np.savez(args.npz, t_imu=t_imu, W=W, Fb=Fb, w_s=w_s, f_s=f_s, t_fix=t_fix,
-                 lat=ll[0], lon=ll[1], v=v, psi=psi, r=r)
+                 lat=ll[0], lon=ll[1], v=v, psi=psi, r=r, h=h_fix, theta=road(t_fix)[3])
 
     from mcap_ros2.writer import Writer
     tmp = args.output + ".tmp"
@@ -396,6 +484,10 @@ def main():
                  gyro_bias_dps_sensor=args.gyro_bias_dps, accel_bias_mg_sensor=args.accel_bias_mg,
                  gyro_arw=args.gyro_arw, accel_vrw_ug=args.accel_vrw, gnss_sigma=args.gnss_sigma,
                  rate=args.rate, gnss_rate=args.gnss_rate)
+    if HILL_A != 0.0:      # (absent on the level road: its truth file as before)
+        grade = HILL_A * 2 * math.pi / HILL_L
+        truth |= dict(hills_m=HILL_A, hill_length_m=HILL_L, max_grade=grade,
+                      max_pitch_deg=math.degrees(math.atan(grade)))
     with open(args.output + ".truth.json", "w") as fh:
         json.dump(truth, fh, indent=1)
     print(f"wrote {args.output}: {n} IMU, {len(t_fix)} fixes")

@@ -9,7 +9,8 @@ reference, IMU stamps 60 ms late (right: time_skew imu.all covering 0.06 s), the
 (scale_factor gyro.z covering 0.02); then a null drive and the yaw scale with fixes at
 1 Hz (velocities differenced over 2 s); two null drives and the mounting with 5 cm fixes;
 the mounting pitched 6.8 deg nose down (the RTKLIB drive author's pitch) and 3 deg nose up
-(mounting_misalignment covering sin 6.8 / sin 3 deg).
+(mounting_misalignment covering sin 6.8 / sin 3 deg); a null drive and the 6.8 deg pitch over
+5 m hills 400 m long (grades up to 8 %).
 """
 import argparse
 import json
@@ -47,7 +48,12 @@ def cases(seeds):
             ("mounting 6.8 deg down in pitch", ["--seed", "15", "--mount-pitch-deg", "-6.8"],
              ("mounting_misalignment imu.all", math.sin(math.radians(6.8)))),
             ("mounting 3 deg up in pitch", ["--seed", "16", "--mount-pitch-deg", "3"],
-             ("mounting_misalignment imu.all", math.sin(math.radians(3.0))))]
+             ("mounting_misalignment imu.all", math.sin(math.radians(3.0)))),
+            ("null, 5 m hills", ["--seed", "41", "--hills-m", "5", "--hill-length-m", "400"],
+             None),
+            ("mounting 6.8 deg down in pitch, 5 m hills",
+             ["--seed", "15", "--mount-pitch-deg", "-6.8", "--hills-m", "5", "--hill-length-m",
+              "400"], ("mounting_misalignment imu.all", math.sin(math.radians(6.8))))]
     return out
 
 

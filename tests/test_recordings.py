@@ -2101,6 +2101,24 @@ def test_the_track_level_finds_an_imus_pitch_on_an_independent_drive(tmp_path, p
     assert y_lo <= yaw <= y_hi
 
 
+def test_the_navigation_check_pairs_windows_by_their_start(monkeypatch):
+    """A term removed can move where the free-inertial windows start (a window starts where
+    the IMU is quiet enough to align): over 1 m hills an independent drive had 87 windows with
+    a gyro.y scale removed and 85 without, and pairing them by position ended `diagnose` in a
+    traceback. Windows are paired by their start; those of one run only are left out."""
+    from mimunav.diagnosis import track
+    starts = np.arange(20.0, 120.0, 5.0)
+    baseline = {t0: 2.0 for t0 in starts}
+    with_term = {t0: 1.5 for t0 in np.append(starts[2:], [122.5, 127.5])}   # two lost, two new
+    monkeypatch.setattr(track, "_window_ends", lambda flight, cal, findings: with_term)
+    finding = {}
+    assert track.navigation_check(None, None, finding, baseline) is None
+    assert finding["navigation_check"]["windows"] == len(starts) - 2
+    assert finding["navigation_check"]["median_paired_change_m"] == pytest.approx(-0.5)
+    with_term.update({t0: 2.5 for t0 in starts[2:]})
+    assert "does not navigate better" in track.navigation_check(None, None, {}, baseline)
+
+
 def test_a_rest_under_a_ten_hertz_rtk_fix_is_found_from_the_track():
     """The synthetic drive at 10 Hz under 2 cm RTK fixes, the velocity by central differences
     (0.14 m/s of noise per axis and epoch: half its resting epochs read above STATIC_SPEED):
