@@ -1201,8 +1201,9 @@ def _scan(design, x, alpha):
             var = np.convolve(np.bincount(sec, design.shape[:, ch], minlength=n), kernel,
                               "valid") / np.maximum(win_counts, 1) ** 2
             var = np.where(full, var, np.nan)
-            with np.errstate(invalid="ignore", divide="ignore"):  # a window without samples:
-                step = step / np.sqrt(var + np.nansum(around(var), axis=0) /  # NaN, left out
+            # a window without samples: NaN, left out below
+            with np.errstate(invalid="ignore", divide="ignore"):
+                step = step / np.sqrt(var + np.nansum(around(var), axis=0) /
                                       np.maximum(count, 1) ** 2)
         good = np.isfinite(step)
         if good.sum() < 10:
