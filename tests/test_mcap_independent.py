@@ -25,16 +25,19 @@ EPOCH = 1_767_225_600 * 10**9
 
 
 @pytest.fixture(scope="module")
-def foxglove():
+def foxglove(tmp_path_factory):
     """read(path) -> (head, {topic: [message lines]}) by tests/oracle/read_mcap.js."""
     node, npm = shutil.which("node"), shutil.which("npm")
     if not node or not npm:
         pytest.skip("node and npm are needed for Foxglove's MCAP reader (not on this machine)")
     lock = (ORACLE / "package-lock.json").read_bytes()
     cache = Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "mimunav"
+    try:
+        cache.mkdir(parents=True, exist_ok=True)
+    except OSError:                         # a home that cannot be written (a CI sandbox)
+        cache = tmp_path_factory.mktemp("npm-cache")
     home = cache / f"mcap-oracle-{hashlib.sha256(lock).hexdigest()[:12]}"
     if not (home / "node_modules" / "@mcap" / "core").is_dir():
-        cache.mkdir(parents=True, exist_ok=True)
         tmp = Path(cache / f".{home.name}.{os.getpid()}")
         shutil.rmtree(tmp, ignore_errors=True)
         tmp.mkdir()
