@@ -7,8 +7,9 @@ its velocity under two assumptions, stated wherever the result is used:
     yaw = atan2(v_E, v_N) and pitch = atan2(-v_D, v_H), v_H the horizontal speed;
   - roll = 0: the body does not bank (road camber and body roll on the springs are
     unknown; a car rolls a few degrees per g of lateral acceleration).
-Below HOLD_SPEED the course is noise: yaw and pitch hold their last value (the first
-moving one for a rest that starts the track) and the rates are zero. Velocity and its
+Below HOLD_SPEED the course is noise: yaw holds its last value (the first moving one for a
+rest that starts the track), pitch the grade of the road over the last HOLD_DISTANCE_M
+driven (the next, for a rest that starts the track; `_road_pitch`), and the rates are zero. Velocity and its
 derivative come from a cubic smoothing spline per NED component (`smoothing_spline`,
 scipy's `make_smoothing_spline` in compiled code), its smoothing chosen by generalised
 cross-validation (`gcv_smoothing`); north and east share one smoothing, the geometric mean
@@ -75,7 +76,13 @@ class TrackMotion(Motion):
                              "does not apply here (it does not read a reference's own attitude)")
         first = np.argmax(moving)
         last = np.maximum.accumulate(np.where(moving, np.arange(len(t)), first))
-        self._t, self._yaw_hold, self._pitch_hold = t, yaw[last], pitch[last]
+        self._t, self._yaw_hold = t, yaw[last]
+        # a stopped vehicle's pitch: the grade of the road behind it (before it first moves,
+        # the road ahead)
+        distance = _distance(t, v)
+        grade = {i: _road_pitch(distance, h, i, ahead=i == first, otherwise=pitch[i])
+                 for i in np.unique(last)}
+        self._pitch_hold = np.array([grade[i] for i in last])
 
     def _velocity(self, t):
         return np.column_stack([s(t) for s in self._v])
@@ -235,6 +242,35 @@ class TrackMotion(Motion):
         dw = np.column_stack([-ydd * s_p - yd * pd * c_p, pdd, ydd * c_p - yd * pd * s_p])
         q = attitude.from_euler(yaw, pitch, np.zeros_like(yaw))
         return Kinematics(v, a, q, w, dw)
+
+
+HOLD_DISTANCE_M = 20.0      # m of road whose grade a stopped vehicle's pitch is
+
+
+def _distance(t, v):
+    """(M,) m: the horizontal distance driven at the epochs t (s) of the velocities v (M, 3),
+    by the trapezoid rule."""
+    speed = np.hypot(v[:, 0], v[:, 1])
+    return np.concatenate([[0.0], np.cumsum(0.5 * (speed[1:] + speed[:-1]) * np.diff(t))])
+
+
+def _road_pitch(distance, h, i, ahead=False, otherwise=0.0):
+    """rad: the road's pitch at epoch i - the least-squares slope of the height h (m, at the
+    epochs) against the distance driven (m) over the HOLD_DISTANCE_M behind epoch i (ahead of
+    it with `ahead`) - or `otherwise` when less than half of that was driven. What a stopped
+    vehicle holds: the velocity's pitch atan(-v_D / v_H) as v_H falls to HOLD_SPEED divides
+    the heavily smoothed vertical velocity by a vanishing speed - on an independent drive over
+    5 m hills 1-4 deg off at stops, accel.x excursions of z 10-23 on null drives (the fixes'
+    height noise, 2-5 cm over 20 m, is 0.1-0.3 deg)."""
+    h = np.asarray(h, float)
+    if ahead:
+        k = (distance >= distance[i]) & (distance <= distance[i] + HOLD_DISTANCE_M)
+    else:
+        k = (distance <= distance[i]) & (distance >= distance[i] - HOLD_DISTANCE_M)
+    x = distance[k] - distance[k].mean()
+    if np.ptp(distance[k]) < 0.5 * HOLD_DISTANCE_M:
+        return float(otherwise)
+    return math.atan(float(x @ (h[k] - h[k].mean())) / float(x @ x))
 
 
 def gcv_smoothing(t, y):

@@ -2101,6 +2101,28 @@ def test_the_track_level_finds_an_imus_pitch_on_an_independent_drive(tmp_path, p
     assert y_lo <= yaw <= y_hi
 
 
+def test_a_car_stopped_on_a_hill_holds_the_roads_grade(tmp_path):
+    """The independent drive over 5 m hills 400 m long (grades up to 8 %, the body pitched
+    with the road; `bench/independent_drive.py --hills-m`, a helper's closed form), no error
+    in its IMU: at its stops the vehicle model held the pitch of its velocity at HOLD_SPEED,
+    the heavily smoothed vertical velocity over a vanishing speed, 1-4 deg off the road -
+    eight accel.x excursions at z 10-23 on this null drive. It holds the road's grade over
+    the last HOLD_DISTANCE_M driven (`vehicle._road_pitch`): no accel.x excursion is left
+    and nothing is found."""
+    import subprocess
+    import sys
+    bench = Path(__file__).parent.parent / "bench" / "independent_drive.py"
+    bag, log, doc = tmp_path / "drive.bag.mcap", tmp_path / "drive.mcap", tmp_path / "d.json"
+    subprocess.run([sys.executable, str(bench), "-o", str(bag), "--seed", "11",
+                    "--hills-m", "5", "--hill-length-m", "400"], check=True, capture_output=True)
+    assert main(["import", "ros2", str(bag), "-o", str(log), "--imu-topic", "/imu/data",
+                 "--fix-topic", "/gnss/fix", "--reference-status", "2"]) == 0
+    main(["diagnose", str(log), "--json", str(doc)])
+    result = json.loads(doc.read_text())
+    assert result["findings"] == []
+    assert [u for u in result["unexplained"] if u["channel"] == "accel.x"] == []
+
+
 def test_the_navigation_check_pairs_windows_by_their_start(monkeypatch):
     """A term removed can move where the free-inertial windows start (a window starts where
     the IMU is quiet enough to align): over 1 m hills an independent drive had 87 windows with

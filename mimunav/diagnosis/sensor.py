@@ -109,6 +109,8 @@ class Design:
                                 # stated variance of that term (`model_allowance`)
     levels: np.ndarray = field(default_factory=lambda: wander.LAMBDA_GRID)   # wander levels
                                 # the fits may choose from
+    wander_steps: np.ndarray | None = None  # (6,) each channel's largest wander step
+                                # variance per bin, SI^2 (`diagnose`; None: no cap)
     bin_s: float = FAST_BIN_S   # the bins' length, s
     shape: np.ndarray | None = None     # (nb, 6) each bin's white variance over its channel's
                                 # (`diagnose`'s noise_shape; None: constant)
@@ -264,7 +266,7 @@ class Binning:
 
 def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander=None,
              output_tests=True, noise=None, vibration=None, bin_s=FAST_BIN_S,
-             block_s=SPLIT_BLOCK_S, noise_shape=None):
+             block_s=SPLIT_BLOCK_S, noise_shape=None, wander_steps=None):
     """Sensor-level diagnosis of `flight` (an `evaluation.Flight` with a reference IMU)
     against calibration `cal`. `candidates`: the library to test (default
     `library.candidates()`); `max_wander`: the largest wander level (random-walk step
@@ -282,8 +284,11 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
     as the fit assumes and the held-out blocks do not share the training blocks' noise;
     `noise_shape`: (N, 6) each sample's white variance relative to its channel's, where the
     reference's own error varies along the record (`track`: a yaw rate from the course
-    errs as 1/speed): the fit weighs and the scan judges each bin by it. Nothing here is
-    random."""
+    errs as 1/speed): the fit weighs and the scan judges each bin by it; `wander_steps`:
+    (6,) the largest step variance of each channel's bias wander per bin, SI units squared,
+    whatever white variance the fit finds (`track`: a level capped by `max_wander` alone
+    grows with the vehicle model's own errors, which swell that white variance). Nothing
+    here is random."""
     if flight.mimu_platform is not None:
         raise InputError(f"{flight.path}: the MIMU turns on a platform (/mimu/platform); "
                          "this analysis does not follow the rotation yet - replay and table do")
@@ -309,6 +314,7 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
         design.shape = Binning(m, usable)(np.asarray(noise_shape, float))[design.kept]
     if max_wander is not None:
         design.levels = wander.LAMBDA_GRID[wander.LAMBDA_GRID <= max_wander]
+    design.wander_steps = wander_steps
     if len(design.t) < 4 * block_s / bin_s:
         raise InputError(f"{flight.path}: {len(design.t) * bin_s:.1f} s of usable MIMU "
                          f"samples inside the reference IMU's span; the sensor level needs "
@@ -608,6 +614,10 @@ class Fitter:
         _, logdet_prior = np.linalg.slogdet(np.eye(3) + self.row_prior[c] @ m[:, :3, :3]
                                             / (r[:, None, None] * (PIN if pinned else 1.0)))
         loglik = -0.5 * (self.logdet[c] + self.n * np.log(r) + logdet_prior + q / r)
+        if self.design.wander_steps is not None:    # levels whose step exceeds the cap: out
+            over = self.design.levels * r > self.design.wander_steps[c]
+            over[0] = False                         # (the lowest level stays)
+            loglik = np.where(over, -np.inf, loglik)
         return g, r, loglik, theta
 
     def _level(self, c, cols, pinned=False):
