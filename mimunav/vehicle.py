@@ -9,11 +9,11 @@ its velocity under two assumptions, stated wherever the result is used:
     unknown; a car rolls a few degrees per g of lateral acceleration).
 Below HOLD_SPEED the course is noise: yaw holds its last value (the first moving one for a
 rest that starts the track), pitch the grade of the road over the last HOLD_DISTANCE_M
-driven (the next, for a rest that starts the track; `_road_pitch`), and the rates are zero. Velocity and its
-derivative come from a cubic smoothing spline per NED component (`smoothing_spline`,
-scipy's `make_smoothing_spline` in compiled code), its smoothing chosen by generalised
-cross-validation (`gcv_smoothing`); north and east share one smoothing, the geometric mean
-of their two choices, since the course mixes them. The rates follow analytically:
+driven (the next, for a rest that starts the track; `_road_pitch`), and the rates are
+zero. Velocity and its derivative come from a cubic smoothing spline per NED component
+(`smoothing_spline`, scipy's `make_smoothing_spline` in compiled code), its smoothing chosen
+by generalised cross-validation (`gcv_smoothing`); north and east share one smoothing, the
+geometric mean of their two choices, since the course mixes them. The rates follow analytically:
     yaw' = (v_N a_E - v_E a_N) / v_H^2,   pitch' = (v_D v_H' - a_D v_H) / (v_H^2 + v_D^2),
     w_nb^b = (-yaw' sin(pitch), pitch', yaw' cos(pitch))      (roll = 0, T&W eq. 3.19)
 and their derivatives from the spline's second derivative (jerk) in the same way.
@@ -78,11 +78,13 @@ class TrackMotion(Motion):
         last = np.maximum.accumulate(np.where(moving, np.arange(len(t)), first))
         self._t, self._yaw_hold = t, yaw[last]
         # a stopped vehicle's pitch: the grade of the road behind it (before it first moves,
-        # the road ahead)
-        distance = _distance(t, v)
-        grade = {i: _road_pitch(distance, h, i, ahead=i == first, otherwise=pitch[i])
-                 for i in np.unique(last)}
-        self._pitch_hold = np.array([grade[i] for i in last])
+        # the road ahead), at the epochs a held attitude is taken from - the last moving one
+        # before each stop
+        distance, h = _distance(t, v), np.asarray(h, float)
+        hold = np.array(pitch, float)
+        for i in np.unique(np.append(last[~moving], np.flatnonzero(moving[:-1] & ~moving[1:]))):
+            hold[i] = _road_pitch(distance, h, i, ahead=i == first, otherwise=pitch[i])
+        self._pitch_hold = hold[last]
 
     def _velocity(self, t):
         return np.column_stack([s(t) for s in self._v])
@@ -261,15 +263,14 @@ def _road_pitch(distance, h, i, ahead=False, otherwise=0.0):
     vehicle holds: the velocity's pitch atan(-v_D / v_H) as v_H falls to HOLD_SPEED divides
     the heavily smoothed vertical velocity by a vanishing speed - on an independent drive over
     5 m hills 1-4 deg off at stops, accel.x excursions of z 10-23 on null drives (the fixes'
-    height noise, 2-5 cm over 20 m, is 0.1-0.3 deg)."""
-    h = np.asarray(h, float)
+    height noise, 2-5 cm over 20 m, is 0.1-0.3 deg). distance: non-decreasing."""
     if ahead:
-        k = (distance >= distance[i]) & (distance <= distance[i] + HOLD_DISTANCE_M)
+        k = slice(i, np.searchsorted(distance, distance[i] + HOLD_DISTANCE_M, "right"))
     else:
-        k = (distance <= distance[i]) & (distance >= distance[i] - HOLD_DISTANCE_M)
-    x = distance[k] - distance[k].mean()
+        k = slice(np.searchsorted(distance, distance[i] - HOLD_DISTANCE_M, "left"), i + 1)
     if np.ptp(distance[k]) < 0.5 * HOLD_DISTANCE_M:
         return float(otherwise)
+    x = distance[k] - distance[k].mean()
     return math.atan(float(x @ (h[k] - h[k].mean())) / float(x @ x))
 
 
