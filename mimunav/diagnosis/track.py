@@ -157,10 +157,9 @@ def wander_limit(noise=CONSUMER_NOISE, bin_s=0.01, span_s=100.0):
     model's own errors - body roll in corners, suspension - are fast and structured, and a
     freely fitted wander takes their level: on the RTKLIB drive it came out 10^3 times the
     part's and turned the found pitch misalignment's sign)."""
-    levels = [(b * b * bin_s / span_s) / (white * white / bin_s)
-              for b, white in ((noise["accel_flicker"], noise["accel_white"]),
-                               (noise["gyro_flicker"], noise["gyro_white"]))]
-    return max(levels)
+    step = wander_steps(noise, bin_s, span_s)
+    return max(step[0] / (noise["accel_white"] ** 2 / bin_s),
+               step[3] / (noise["gyro_white"] ** 2 / bin_s))
 
 
 def simulated_reference(flight, backward=None):
