@@ -25,11 +25,11 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 from publish import publish                                  # noqa: E402
-from mimunav import simulation                               # noqa: E402
+from mimunav.sensors import simulation                               # noqa: E402
 from mimunav.diagnosis import concealed                      # noqa: E402
-from mimunav.profile import Profile                          # noqa: E402
+from mimunav.motion.profile import Profile                          # noqa: E402
 from mimunav.reports.diagnosis import proof_markdown         # noqa: E402
-from mimunav.sensors import MimuUnit                         # noqa: E402
+from mimunav.sensors.mimu import MimuUnit                         # noqa: E402
 
 PROOF = ROOT / "flights" / "diagnosis-proof.toml"
 
@@ -51,9 +51,9 @@ FOREIGN = ROOT.parent / "shared" / "data" / "foreign-flights"
 def foreign_flights():
     """Score of `mimunav diagnose` on the foreign development set: per log the key, the
     verdict, the findings and whether the truth is named inside its interval."""
-    from mimunav.compensation import Calibration
+    from mimunav.compensation.calibration_file import Calibration
     from mimunav.diagnosis import sensor
-    from mimunav.evaluation import Flight
+    from mimunav.evaluation.flight import Flight
     rows = []
     for key_path in sorted(FOREIGN.glob("foreign-*.key.json")):
         base = str(key_path)[:-len(".key.json")]

@@ -8,7 +8,7 @@ Replay and compensate: the high-dynamic profile's segments repeated to 600 s, si
 then each CLI command timed in a fresh process (replay: reading, compensation, both
 navigations, comparison, nav.mcap, summary and plots; compensate: reading, the wild-value
 filter and eqs. 1-4, the compensated log written), best and median of --repeats. Campaign:
-`mimunav.campaign.run_campaign` on 2 local processes, each unit drawn, calibrated `entire`
+`mimunav.evaluation.campaign.run_campaign` on 2 local processes, each unit drawn, calibrated `entire`
 and `traditional` in the lab (in memory, no covariance propagation) and flown. Reproduce:
 `mimunav reproduce -o TMP` as a user runs it (2 workers).
 """
@@ -24,9 +24,9 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 from publish import publish, timed_cli  # noqa: E402
-from mimunav import campaign                      # noqa: E402
-from mimunav.profile import Profile, dumps        # noqa: E402
-from mimunav.simulation import simulate_flight    # noqa: E402
+from mimunav.evaluation import campaign                      # noqa: E402
+from mimunav.motion.profile import Profile, dumps        # noqa: E402
+from mimunav.sensors.simulation import simulate_flight    # noqa: E402
 
 
 def profile_doc(duration, name):
@@ -55,7 +55,7 @@ def main():
         log, truth = simulate_flight(Profile.from_dict(profile_doc(600.0, "ten-minutes")),
                                      os.path.join(tmp, "ten.mcap"), 1, progress=False)
         cal = os.path.join(tmp, "cal.json")
-        from mimunav.compensation import Calibration
+        from mimunav.compensation.calibration_file import Calibration
         Calibration.from_dict(json.load(open(truth))["mimu"]["coefficients"]).save(cal)
         for name, cmd in (("replay", ["replay", log, "--cal", cal, "-o"]),
                           ("compensate", ["compensate", log, "--cal", cal, "-o"])):

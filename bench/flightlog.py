@@ -31,12 +31,12 @@ from mcap_ros2.decoder import DecoderFactory            # noqa: E402
 from mcap_ros2.writer import Writer as Ros2Writer       # noqa: E402
 
 from publish import publish  # noqa: E402
-from mimunav import truth                               # noqa: E402
+from mimunav.motion import truth                               # noqa: E402
 from mimunav.flightlog import FlightLog, LogWriter      # noqa: E402
 from mimunav.flightlog import schemas as S              # noqa: E402
 from mimunav.flightlog.writer import ZSTD_PARAMETERS    # noqa: E402
-from mimunav.profile import Profile                     # noqa: E402
-from mimunav.sensors import MimuUnit                    # noqa: E402
+from mimunav.motion.profile import Profile                     # noqa: E402
+from mimunav.sensors.mimu import MimuUnit                    # noqa: E402
 
 
 def zstd_alone(path, repeats=3):

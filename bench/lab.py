@@ -17,8 +17,10 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 from publish import publish  # noqa: E402
-from mimunav import calibration, lab          # noqa: E402
-from mimunav.sensors import MimuUnit          # noqa: E402
+from mimunav.lab import procedures as lab
+from mimunav.lab.calibrate import calibrate, standard_errors
+from mimunav.lab.runs import LabRun          # noqa: E402
+from mimunav.sensors.mimu import MimuUnit          # noqa: E402
 
 
 def main():
@@ -36,16 +38,16 @@ def main():
             paths.append(lab.run(lab.plan(proc), unit, os.path.join(tmp, proc + ".mcap"),
                                  args.seed)[0])
             res[f"{proc}_s"] = time.perf_counter() - t0
-            res[f"{proc}_samples"] = calibration.LabRun.load(paths[-1]).t.size
+            res[f"{proc}_samples"] = LabRun.load(paths[-1]).t.size
         t0 = time.perf_counter()
-        cal = calibration.calibrate(paths, "entire")
+        cal = calibrate(paths, "entire")
         res["fit_s"] = time.perf_counter() - t0
     res["total_s"] = time.perf_counter() - t_all
     samples = " + ".join(f"{res[p + '_samples'] / 1e3:.0f}k" for p in
                          ("thermal-chamber", "rate-table", "centrifuge"))
     publish(__file__, [
         (f"entire lab (chamber + rate table + centrifuge: {samples} samples) simulated, "
-         f"logged and fitted ({len(calibration.standard_errors(cal))} coefficients)",
+         f"logged and fitted ({len(standard_errors(cal))} coefficients)",
          f"{res['total_s']:.1f} s (fit {res['fit_s']:.1f} s)")], res, args.json)
 
 

@@ -20,11 +20,12 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 from publish import publish                             # noqa: E402
-from mimunav import earth                               # noqa: E402
-from mimunav.compensation import Calibration, raw_from_physics     # noqa: E402
+from mimunav.frames import earth                               # noqa: E402
+from mimunav.compensation.calibration_file import Calibration
+from mimunav.compensation.model import raw_from_physics     # noqa: E402
 from mimunav.flightlog import LogWriter                 # noqa: E402
 from mimunav.flightlog import schemas as S              # noqa: E402
-from mimunav.sensors import MimuUnit                    # noqa: E402
+from mimunav.sensors.mimu import MimuUnit                    # noqa: E402
 
 EPOCH_NS = 1_767_225_600 * 10**9
 LAT, LON, H = math.radians(45.0), math.radians(7.0), 300.0

@@ -1,6 +1,6 @@
 """Mutation score of the physics core: would a plausible bug turn a test red?
 
-    python bench/mutation.py [--per-module 40] [--seed 1] [--modules earth attitude ...]
+    python bench/mutation.py [--per-module 40] [--seed 1] [--modules frames/earth frames/attitude ...]
                              [-o reports/mutation.md]
 
 Mutants are cosmic-ray's (`cosmic-ray init` enumerates every mutation of a module); only the
@@ -27,14 +27,18 @@ from pathlib import Path
 from publish import publish
 
 ROOT = Path(__file__).resolve().parent.parent
+# module (its path under mimunav/) -> the tests that judge its mutants
 TESTS = {
-    "earth": ["tests/test_earth.py", "tests/test_truth.py", "tests/test_strapdown.py"],
-    "attitude": ["tests/test_attitude.py", "tests/test_truth.py", "tests/test_strapdown.py"],
-    "strapdown": ["tests/test_strapdown.py"],
-    "truth": ["tests/test_truth.py", "tests/test_strapdown.py"],
-    "compensation": ["tests/test_compensation.py"],
-    "trajectory": ["tests/test_trajectory.py", "tests/test_evaluation.py",
-                   "tests/test_strapdown.py"],
+    "frames/earth": ["tests/frames/test_earth.py", "tests/motion/test_truth.py",
+                     "tests/navigation/test_strapdown.py"],
+    "frames/attitude": ["tests/frames/test_attitude.py", "tests/motion/test_truth.py",
+                        "tests/navigation/test_strapdown.py"],
+    "navigation/strapdown": ["tests/navigation/test_strapdown.py"],
+    "motion/truth": ["tests/motion/test_truth.py", "tests/navigation/test_strapdown.py"],
+    "compensation/model": ["tests/compensation/test_compensation.py"],
+    "compensation/wild_values": ["tests/compensation/test_compensation.py"],
+    "motion/trajectory": ["tests/motion/test_trajectory.py", "tests/evaluation/test_evaluation.py",
+                          "tests/navigation/test_strapdown.py"],
 }
 PLAUSIBLE = ("ReplaceBinaryOperator_Add_Sub", "ReplaceBinaryOperator_Sub_Add",
              "ReplaceBinaryOperator_Mul_Div", "ReplaceBinaryOperator_Div_Mul",
@@ -73,11 +77,11 @@ def sample(clone, module, per_module, seed):
     drawn by a generator seeded from (seed, module): a module's sample does not depend on
     which other modules are run."""
     from cosmic_ray.work_db import WorkDB, use_db
-    config = clone / f"cr-{module}.toml"
+    config = clone / f"cr-{module.replace('/', '-')}.toml"
     config.write_text(f'[cosmic-ray]\nmodule-path = "mimunav/{module}.py"\ntimeout = {TIMEOUT_S}\n'
                       f'excluded-modules = []\ntest-command = "true"\n'
                       '[cosmic-ray.distributor]\nname = "local"\n')
-    session = clone / f"cr-{module}.sqlite"
+    session = clone / f"cr-{module.replace('/', '-')}.sqlite"
     subprocess.run(["cosmic-ray", "init", str(config), str(session)], cwd=clone, check=True,
                    capture_output=True)
     with use_db(str(session), WorkDB.Mode.open) as db:

@@ -18,10 +18,10 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 from publish import publish  # noqa: E402
-from mimunav import truth                      # noqa: E402
-from mimunav.compensation import compensate    # noqa: E402
-from mimunav.profile import Profile            # noqa: E402
-from mimunav.sensors import MimuUnit           # noqa: E402
+from mimunav.motion import truth                      # noqa: E402
+from mimunav.compensation.model import compensate    # noqa: E402
+from mimunav.motion.profile import Profile            # noqa: E402
+from mimunav.sensors.mimu import MimuUnit           # noqa: E402
 
 
 def timed(fn, repeats):

@@ -20,8 +20,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 from publish import publish  # noqa: E402
-from mimunav import strapdown, truth  # noqa: E402
-from mimunav.profile import Profile   # noqa: E402
+from mimunav.navigation import strapdown
+from mimunav.motion import truth  # noqa: E402
+from mimunav.motion.profile import Profile   # noqa: E402
 
 
 def main():

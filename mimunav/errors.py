@@ -13,3 +13,15 @@ def warn(message):
     standard error, prefixed like the command line's errors."""
     import sys
     print(f"mimunav: warning: {message}", file=sys.stderr)
+
+
+def require(module, extra, purpose):
+    """The imported `module`, an optional dependency; when it is not installed, an
+    InputError in one line naming the extra that installs it (pip install 'mimunav[extra]')
+    and what needs it (`purpose`)."""
+    import importlib
+    try:
+        return importlib.import_module(module)
+    except ImportError:
+        raise InputError(f"{purpose} needs {module.split('.')[0]}, which is not installed: "
+                         f"pip install 'mimunav[{extra}]'") from None

@@ -2,11 +2,14 @@
 success, so a crash or an error never leaves a half-written file, and an existing file is
 never replaced unless the caller forces it."""
 import json
+import math
 import os
 import shutil
 import tempfile
 from contextlib import contextmanager
 from pathlib import Path
+
+import numpy as np
 
 from .errors import InputError
 
@@ -124,3 +127,19 @@ def atomic_folder(path, force=False, inputs=()):
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
+
+
+def json_ready(x):
+    """A JSON-ready copy of x: numpy scalars and arrays to Python numbers and lists, tuples to
+    lists, non-finite floats to None (e.g. an rms over no rows)."""
+    if isinstance(x, dict):
+        return {k: json_ready(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [json_ready(v) for v in x]
+    if isinstance(x, np.ndarray):
+        return x.tolist()
+    if isinstance(x, np.generic):
+        x = x.item()
+    if isinstance(x, float) and not math.isfinite(x):
+        return None                     # e.g. an rms over no rows
+    return x

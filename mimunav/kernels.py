@@ -57,11 +57,11 @@ def cache_dir():
         os.utime(path)                  # used now: not stale
     except OSError:                     # nowhere to keep kernels: compiled in each process
         return None
-    _prune(path)
+    prune_cache(path)
     return str(path)
 
 
-def _prune(current):
+def prune_cache(current):
     """Remove the other versions' folders beside `current` unused for STALE_DAYS."""
     oldest = time.time() - STALE_DAYS * 86400.0
     for other in current.parent.glob(PREFIX + "*"):

@@ -6,9 +6,10 @@ import struct
 
 import numpy as np
 
-from mimunav import attitude, truth
-from mimunav.importers import GPS_EPOCH_UNIX_S
-from mimunav.profile import Profile
+from mimunav.frames import attitude
+from mimunav.motion import truth
+from mimunav.importers.recording import GPS_EPOCH_UNIX_S
+from mimunav.motion.profile import Profile
 
 HEAD = b"\xa3\x95"
 STRUCT = {"b": "b", "B": "B", "h": "h", "H": "H", "i": "i", "I": "I", "f": "f", "n": "4s",

@@ -14,10 +14,10 @@ import struct
 import traceback
 
 from mimunav.cli import main
-from mimunav.compensation import Calibration
-from mimunav.profile import Profile
-from mimunav.sensors import MimuUnit
-from mimunav.simulation import simulate_flight
+from mimunav.compensation.calibration_file import Calibration
+from mimunav.motion.profile import Profile
+from mimunav.sensors.mimu import MimuUnit
+from mimunav.sensors.simulation import simulate_flight
 
 MAGIC = b"\x89MCAP0\r\n"
 OPCODES = {0x01: "header", 0x02: "footer", 0x03: "schema", 0x04: "channel", 0x05: "message",

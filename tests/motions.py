@@ -2,8 +2,8 @@
 import numpy as np
 import quaternion
 
-from mimunav import attitude, earth
-from mimunav.truth import Kinematics, Motion
+from mimunav.frames import attitude, earth
+from mimunav.motion.truth import Kinematics, Motion
 
 
 class Coning(Motion):
@@ -102,7 +102,7 @@ class GreatCircle(Motion):
 def pull_roll(roll_rate_deg_s, hold_s):
     """A 200 m/s vehicle heading 45 deg at 30 N: a 2 g pull-up by 10 deg, a full roll at
     roll_rate_deg_s, then hold_s of straight flight."""
-    from mimunav.profile import Profile
+    from mimunav.motion.profile import Profile
     return Profile.from_dict({"name": "pull-roll", "start": {
         "latitude_deg": 30.0, "longitude_deg": 104.0, "height_m": 1000.0, "speed_m_s": 200.0,
         "heading_deg": 45.0}, "segment": [

@@ -1,6 +1,8 @@
 """Compiled kernels and their on-disk cache (`mimunav.kernels`)."""
 import os
 import shutil
+
+import pytest
 import subprocess
 import sys
 import time
@@ -13,13 +15,15 @@ from mimunav import kernels
 # inlines earth.nav_rates_at, whose gravity takes GAMMA_E as a compile-time constant)
 AT_REST = """
 import numpy as np
-from mimunav import strapdown
+import pytest
+from mimunav.motion.trajectory import State
+from mimunav.navigation import strapdown
 n, rate = 1000, 100.0
 t = np.arange(1, n + 1) / rate
 dv = np.zeros((n, 3))
 dv[:, 2] = -9.80 / rate
-nav = strapdown.integrate(t, np.zeros((n, 3)), dv, dict(t=0.0, lat=0.7, lon=0.1, h=100.0,
-                          v_ned=[0.0, 0.0, 0.0], q_nb=[1.0, 0.0, 0.0, 0.0]))
+nav = strapdown.integrate(t, np.zeros((n, 3)), dv, State(0.0, 0.7, 0.1, 100.0, np.zeros(3),
+                                                         np.quaternion(1.0, 0.0, 0.0, 0.0)))
 print(repr(float(nav.h[-1])))
 """
 
@@ -32,6 +36,7 @@ def _height_at_rest(package_parent):
     return float(out.stdout)
 
 
+@pytest.mark.slow
 def test_an_edit_of_an_inlined_callee_compiles_its_caller_again(tmp_path):
     """numba checks a cached kernel against its own file: with earth.py edited and
     strapdown.py not, the navigator kept the old gravity from its cache. The kernels are
@@ -41,7 +46,7 @@ def test_an_edit_of_an_inlined_callee_compiles_its_caller_again(tmp_path):
     shutil.copytree(Path(mimunav.__file__).parent, copy,
                     ignore=shutil.ignore_patterns("__pycache__"))
     before = _height_at_rest(tmp_path)
-    earth = copy / "earth.py"
+    earth = copy / "frames" / "earth.py"
     source = earth.read_text()
     line = "GAMMA_E = 9.7803253359"
     assert source.count(line) == 1
@@ -61,11 +66,12 @@ def test_only_versions_unused_for_a_week_are_removed(tmp_path):
         (folder / "kernel.nbc").write_bytes(b"x")
         stamp = time.time() - days * 86400.0
         os.utime(folder, (stamp, stamp))
-    kernels._prune(current)
+    kernels.prune_cache(current)
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted(
         p.name for p in (current, recent, other))
 
 
+@pytest.mark.slow
 def test_numba_is_left_as_found_and_the_version_marked_used(tmp_path):
     """numba's own cache setting is swapped only while mimunav's kernels are decorated
     (another package's kernels keep their folders), and the version's folder is marked used
@@ -73,7 +79,7 @@ def test_numba_is_left_as_found_and_the_version_marked_used(tmp_path):
     env = {k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"}
     env["PYTHONPATH"] = str(Path(mimunav.__file__).parent.parent)
     out = subprocess.run([sys.executable, "-c", "import numba.core.config as c; "
-                          "import mimunav.strapdown, mimunav.truth; print(repr(c.CACHE_DIR))"],
+                          "import mimunav.navigation.strapdown, mimunav.motion.truth; print(repr(c.CACHE_DIR))"],
                          env=env, capture_output=True, text=True, check=True)
     assert out.stdout.strip() == repr("")
     env["NUMBA_CACHE_DIR"] = str(tmp_path)

@@ -8,7 +8,7 @@ unit's true coefficients), exactly like `mimunav diagnose LOG --model CAL`.
 What the suite shares with the diagnosis, and what it does not:
   - the hidden effects are sensor behaviour (`sensors.hidden.HiddenPhysics`), computed from
     the simulator's truth (exact increments, true temperatures), not from the regressors the
-    diagnosis fits (`mimunav.effects`, built from the reference IMU); both are tested against
+    diagnosis fits (`mimunav.compensation.effects`, built from the reference IMU); both are tested against
     closed forms separately;
   - one effect lies outside the vocabulary (`bias_pulse`, a transient offset): the right
     answer there is an unexplained residual at its place, not a name;
@@ -44,7 +44,7 @@ and a 3 minute warm-up of a few degC gives a temperature_scale no flight of this
 import math
 import numpy as np
 
-from ..effects import AXES
+from ..compensation.effects import AXES
 from ..sensors.hidden import HiddenPhysics
 from ..sensors.mimu import G0
 from ..errors import InputError
@@ -125,19 +125,18 @@ _MOTION = {}
 
 
 def proof_mounting():
-    from .. import attitude
-    from ..sensors import Mounting
-    import quaternion
+    from ..frames import attitude
+    from ..frames.mounting import Mounting
     q = attitude.from_euler(*[math.radians(a) for a in PROOF_MOUNTING_EULER_DEG])
-    return Mounting(quaternion.as_float_array(q), [0.30, -0.10, 0.05])
+    return Mounting(attitude.as_wxyz(q), [0.30, -0.10, 0.05])
 
 
 def proof_motion(profile_path):
     """The proof flight's truth and ideal increments (cached per process)."""
     if profile_path not in _MOTION:
-        from .. import simulation
-        from ..profile import Profile
-        from ..sensors import Mounting
+        from ..sensors import simulation
+        from ..motion.profile import Profile
+        from ..frames.mounting import Mounting
         _MOTION[profile_path] = simulation.flight_motion(
             Profile.load(profile_path), proof_mounting(), 1000.0,
             Mounting.from_dict(simulation.FOG_MOUNTING), 1000.0, 100.0)
@@ -148,10 +147,10 @@ def recording(profile_path, effect, seed, hidden=None, calibrate=True):
     """(Flight, unit, HiddenPhysics | None, calibration): one concealed-data recording in
     memory (with `hidden` given, that effect instead of one drawn for `effect`) and the
     unit's lab-fitted entire calibration (`calibrate=False`: its true coefficients)."""
-    from .. import simulation
-    from ..campaign import lab_calibration
-    from ..evaluation import Flight
-    from ..sensors import MimuUnit
+    from ..sensors import simulation
+    from ..evaluation.campaign import lab_calibration
+    from ..evaluation.flight import Flight
+    from ..sensors.mimu import MimuUnit
     fm = proof_motion(profile_path)
     s_unit, s_effect = np.random.SeedSequence([seed, 7]).spawn(2)
     # exactly the 63-coefficient model: each answer key holds only what its log hides
@@ -253,7 +252,7 @@ def run_suite(profile_path, hidden=PROOF_EFFECTS, repeats=1, nulls=12, workers=2
     """Each effect of `hidden` `repeats` times and `nulls` null recordings; list of cases."""
     from concurrent.futures import ProcessPoolExecutor
     from tqdm import tqdm
-    from ..campaign import one_blas_thread
+    from ..evaluation.campaign import one_blas_thread
     jobs = [(profile_path, e, seed + 1000 * r + k) for r in range(repeats)
             for k, e in enumerate(hidden)]
     jobs += [(profile_path, None, seed + 500000 + k) for k in range(nulls)]

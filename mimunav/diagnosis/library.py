@@ -1,4 +1,4 @@
-"""The candidate library: every term of the effect vocabulary (`mimunav.effects`) that the
+"""The candidate library: every term of the effect vocabulary (`mimunav.compensation.effects`) that the
 recorded conditions can drive, per channel and input axis, and the physical range of each.
 
 Terms the conditions cannot drive on a flight (a column with no variation) are left out by
@@ -17,7 +17,7 @@ from itertools import combinations_with_replacement
 
 import numpy as np
 
-from ..effects import AXES
+from ..compensation.effects import AXES
 
 TEMPERATURE_RATE_WINDOWS_S = (60.0, 120.0, 300.0)
 G0 = 9.80665

@@ -29,11 +29,14 @@ import numpy as np
 import quaternion
 from scipy import stats
 
-from .. import earth, effects
-from ..effects import Conditions
-from ..evaluation import compensated_mimu, navigate_mimu, resample
+from ..frames import earth
+from ..compensation import effects
+from ..compensation.effects import Conditions
+from ..evaluation.replay import compensated_mimu, navigate_mimu, resample
 from ..kernels import njit
-from . import inference, library, sensor
+from . import inference, library
+from .confirmation import alternative_of, beta_of, estimate, rms_in, term_spans, where_rows
+from .design import term_contribution
 from .inference import Tier
 from .reference import DERIVATIVE_WINDOW_S
 from ..errors import InputError
@@ -146,7 +149,7 @@ def error_model(flight, nav, w, f):
         raise InputError(f"{flight.path}: the MIMU turns on a platform (/mimu/platform); "
                          "this analysis does not follow the rotation yet - replay and table do")
     t = flight.mimu_t
-    after = t > flight.initial["t"] + 1e-12
+    after = t > flight.initial.t + 1e-12
     rate = 1.0 / np.median(np.diff(t))
     m = max(1, round(BIN_S * rate))
     idx = np.flatnonzero(after)
@@ -154,13 +157,13 @@ def error_model(flight, nav, w, f):
     idx = idx[:n]
     mean = lambda x: x[idx].reshape(n // m, m, *x.shape[1:]).mean(axis=1)  # noqa: E731
     t_end = t[idx].reshape(n // m, m)[:, -1]
-    t_start = np.r_[flight.initial["t"], t_end[:-1]]
+    t_start = np.r_[flight.initial.t, t_end[:-1]]
     q_nb = resample(nav, t_end - 0.5 * (t_end - t_start)).q_nb
     q_ns = q_nb * flight.mimu_mounting.q_vs
     c_ns = quaternion.as_rotation_matrix(q_ns)
     f_b, w_b = mean(f), mean(w)
     model = ErrorModel(t_end, c_ns, np.einsum("nij,nj->ni", c_ns, f_b), t_end - t_start,
-                       earth.earth_rate_ned(flight.initial["lat"]))
+                       earth.earth_rate_ned(flight.initial.lat))
     temperature, frequency = flight.mimu_temperatures()
     cond = Conditions.from_outputs(t_end, f_b, w_b, mean(temperature), mean(frequency),
                                    DERIVATIVE_WINDOW_S)
@@ -285,11 +288,11 @@ def _relinearized(flight, cal, reference, findings, held):
     Findings a compensation cannot remove are returned as they are."""
     if not findings:
         return findings
-    from . import with_found            # the package's, which imports this module
+    from ..compensation.calibration_file import with_found
     terms = [{k: f[k] for k in TERM_KEYS if k in f} for f in findings]
-    point = [sensor._beta(f) for f in findings]
+    point = [beta_of(f) for f in findings]
     for passes in range(1, RELINEARIZE_PASSES + 1):
-        at = [dict(f, **sensor.estimate(term, b, b, b))
+        at = [dict(f, **estimate(term, b, b, b))
               for f, term, b in zip(findings, terms, point)]
         corrected = with_found(cal, at)
         if corrected is None or len(corrected.found) - len(cal.found) != len(findings):
@@ -310,7 +313,7 @@ def _relinearized(flight, cal, reference, findings, held):
     for f, term, b, e, (lo, hi) in zip(findings, terms, point, estimates, intervals):
         fit_doc = dict(f["fit"], relinearized_passes=passes,
                        first_pass_coefficient=f["coefficient"])
-        out.append(dict(f, **sensor.estimate(term, e, b + lo, b + hi), fit=fit_doc))
+        out.append(dict(f, **estimate(term, e, b + lo, b + hi), fit=fit_doc))
     return out
 
 
@@ -351,16 +354,16 @@ def _confirm(tier, cands, chosen, train, alpha, seed, cond):
         _, p_ho = fit_ho.test(pos)
         lo, hi = fit_ho.interval(pos)
         stability = _stability(tier, cands, c, train, rng)
-        finding = dict(sensor.estimate(term, b_ho, lo, hi), ci95_method="student-t")
+        finding = dict(estimate(term, b_ho, lo, hi), ci95_method="student-t")
         finding.update({k: term[k] for k in ("order", "window_s", "reference") if k in term})
-        contribution = sensor._contribution(tier, col, b_tr)
-        rows = sensor._where_rows(contribution)
+        contribution = term_contribution(tier, col, b_tr)
+        rows = where_rows(contribution)
         before = tier.residual
         after = before - contribution
         chans = list(range(tier.channels))
-        rms = lambda x, r: sensor._rms(x, r, chans)                               # noqa: E731
+        rms = lambda x, r: rms_in(x, r, chans)                               # noqa: E731
         finding.update(
-            where=sensor._spans(tier, rows, term, cond),
+            where=term_spans(tier, rows, term, cond),
             fit={"train_rms_before": rms(before, rows & train),
                  "train_rms_after": rms(after, rows & train),
                  "heldout_rms_before": rms(before, rows & held),
@@ -371,7 +374,7 @@ def _confirm(tier, cands, chosen, train, alpha, seed, cond):
             holm_threshold=c["threshold"], p_heldout=p_ho,
             train_coefficient=b_tr.tolist() if len(b_tr) > 1 else float(b_tr[0]),
             bootstrap_stability=stability,
-            indistinguishable_from=[sensor._alternative(cands[j][1]) for j in c["alternatives"]])
+            indistinguishable_from=[alternative_of(cands[j][1]) for j in c["alternatives"]])
         why = None
         if p_ho >= alpha / len(chosen):
             why = f"held-out p = {p_ho:.2g}, needs < {alpha / len(chosen):.2g}"

@@ -28,9 +28,11 @@ from functools import lru_cache
 import numpy as np
 from scipy import stats
 
-from ..calibration import TURN_ON, flicker_covariance, standard_errors
+from ..lab.runs import TURN_ON
+from ..lab.gls import flicker_covariance
+from ..lab.calibrate import standard_errors
 from ..sensors.noise import FLICKER_SPAN
-from ..effects import AXES
+from ..compensation.effects import AXES
 
 G0 = 9.80665
 DEG = math.pi / 180
@@ -54,7 +56,7 @@ REFERENCE_BIAS = {"accel": 100e-6 * G0, "gyro": 1 * DEG / 3600}   # seed S1 Tabl
 
 
 def _finding(effect, sensor, axis, coefficient, ci95, where, rms, test, **extra):
-    """A finding with the keys of the library's (`sensor._judge`): rms = (before, after) on
+    """A finding with the keys of the library's (`confirmation.confirm_chosen`): rms = (before, after) on
     the rows where it acts, test = (p_train, p_heldout, threshold) or None for a test that
     is no p-value (a clip or a lattice is seen, not inferred)."""
     unit = "m/s^2" if sensor == "accel" else "rad/s"
@@ -245,7 +247,7 @@ def bias_tests(design, fit, quiet, alpha_level, cal, skip=(), noise=None):
     file): a sensor's measured B replaces the class's zero drift as the null's wander, so
     the question becomes "more than this unit wanders at rest".
 
-    Three models of the means x (m,) at times t, each Gaussian (`_bias_models`):
+    Three models of the means x (m,) at times t, each Gaussian (`bias_models`):
       class   x ~ N(0, B^2 F + s0^2 11' + w I): a unit of the class - an in-run wander of
               the class's zero drift B (`CLASS_DRIFT`) as a flicker (1/f) bias (F: the
               covariance of its window means, `calibration.flicker_covariance`), a
@@ -280,14 +282,13 @@ def bias_tests(design, fit, quiet, alpha_level, cal, skip=(), noise=None):
         offset = math.sqrt(TURN_ON[sensor] ** 2 + REFERENCE_BIAS[sensor] ** 2
                            + (se_cal.get(key) or 0.0) ** 2)
         white = float(np.nanvar(np.diff(fit[:, c])) / 2) * dt / SPAN_S
-        m = _bias_models(t_means[keep], means[keep, c], drift[sensor], offset, white,
+        m = bias_models(t_means[keep], means[keep, c], drift[sensor], offset, white,
                          None if thermal is None else thermal[keep, c:c + 1])
         passing = [k for k in ("shift", "wander") if m[k]["p"] < alpha_level]
         if not passing:
             continue
         best = max(passing, key=lambda k: m[k]["lr"])      # the better fit of the two
         p = m[best]["p"]
-        unit = "m/s^2" if sensor == "accel" else "rad/s"
         label = f"{sensor}.{axis}"
         where = spans(design.t, quiet, f"{label}: quiet flight")
         other = "wander" if best == "shift" else "shift"
@@ -298,33 +299,42 @@ def bias_tests(design, fit, quiet, alpha_level, cal, skip=(), noise=None):
                    "label": f"{EFFECT_OF[other]} {label}"}]
                  if other in passing
                  and m[best]["lr"] - m[other]["lr"] < stats.chi2.isf(0.05, 1) else [])
-        x = means[keep, c]
-        if best == "shift":
-            mu, half = m["shift"]["mu"], 1.96 * m["shift"]["se"]
-            findings.append(_finding(
-                "bias_shift", sensor, axis, mu, (mu - half, mu + half), where,
-                (float(np.sqrt(np.mean(x ** 2))), float(np.sqrt(np.mean((x - mu) ** 2)))),
-                (p, p, alpha_level), normal_offset_1sigma=offset, ci95_method="wald",
-                likelihood_ratio={k: m[k]["lr"] for k in ("shift", "wander")},
-                indistinguishable_from=alike,
-                note=f"a constant {mu:.3g} {unit} beyond the class's turn-on spread "
-                     f"{offset:.3g} and {whose[sensor]} in-run wander ({drift[sensor]:.3g}): "
-                     "better "
-                     "explained as an offset than as a larger wander (likelihood ratios); "
-                     f"rms of the {SPAN_S:g} s means before and after"))
-        else:
-            sigma, lo, hi = m["wander"]["sigma"], m["wander"]["lower"], m["wander"]["upper"]
-            findings.append(_finding(
-                "bias_instability", sensor, axis, sigma, (lo, hi), where,
-                (float(np.std(x)), math.sqrt(white)), (p, p, alpha_level),
-                ci95_method="profile-likelihood",
-                likelihood_ratio={k: m[k]["lr"] for k in ("shift", "wander")},
-                indistinguishable_from=alike,
-                note=f"the bias wanders like a Gauss-Markov process of sigma {sigma:.3g} "
-                     f"{unit} (tau {GM_TAU_S:g} s) against {whose[sensor]} "
-                     f"{drift[sensor]:.3g}; 'after': the white share of a "
-                     f"{SPAN_S:g} s mean"))
+        findings.append(_bias_finding(best, m, means[keep, c], sensor, axis, where, p,
+                                      alpha_level, offset, white, alike, whose[sensor],
+                                      drift[sensor]))
     return findings
+
+
+def _bias_finding(best, m, x, sensor, axis, where, p, alpha_level, offset, white, alike,
+                  whose, drift):
+    """The bias_shift (best "shift") or bias_instability ("wander") finding of a channel
+    from its models `m` (`bias_models`) over the means x; whose: whose wander drift (SI) is
+    the null's."""
+    unit = "m/s^2" if sensor == "accel" else "rad/s"
+    if best == "shift":
+        mu, half = m["shift"]["mu"], 1.96 * m["shift"]["se"]
+        return _finding(
+            "bias_shift", sensor, axis, mu, (mu - half, mu + half), where,
+            (float(np.sqrt(np.mean(x ** 2))), float(np.sqrt(np.mean((x - mu) ** 2)))),
+            (p, p, alpha_level), normal_offset_1sigma=offset, ci95_method="wald",
+            likelihood_ratio={k: m[k]["lr"] for k in ("shift", "wander")},
+            indistinguishable_from=alike,
+            note=f"a constant {mu:.3g} {unit} beyond the class's turn-on spread "
+                 f"{offset:.3g} and {whose} in-run wander ({drift:.3g}): "
+                 "better "
+                 "explained as an offset than as a larger wander (likelihood ratios); "
+                 f"rms of the {SPAN_S:g} s means before and after")
+    sigma, lo, hi = m["wander"]["sigma"], m["wander"]["lower"], m["wander"]["upper"]
+    return _finding(
+        "bias_instability", sensor, axis, sigma, (lo, hi), where,
+        (float(np.std(x)), math.sqrt(white)), (p, p, alpha_level),
+        ci95_method="profile-likelihood",
+        likelihood_ratio={k: m[k]["lr"] for k in ("shift", "wander")},
+        indistinguishable_from=alike,
+        note=f"the bias wanders like a Gauss-Markov process of sigma {sigma:.3g} "
+             f"{unit} (tau {GM_TAU_S:g} s) against {whose} "
+             f"{drift:.3g}; 'after': the white share of a "
+             f"{SPAN_S:g} s mean")
 
 
 FAST_S = 0.1        # the flicker's highest frequency in the class model, 1/FAST_S Hz (the
@@ -374,7 +384,7 @@ def span_means(t, x):
     return t[0] + (np.arange(n) + 0.5) * SPAN_S, means
 
 
-def _profiled(x, nuisance, cov):
+def profiled_loglik(x, nuisance, cov):
     """Gaussian log-likelihood of x under cov with the columns `nuisance` (m, k) at their
     generalised-least-squares values (k = 0: none); and the fitted x."""
     if nuisance.shape[1]:
@@ -384,8 +394,8 @@ def _profiled(x, nuisance, cov):
     return -0.5 * (logdet + x @ np.linalg.solve(cov, x) + len(x) * math.log(2 * math.pi))
 
 
-def _wander_profile(x, nuisance, base, corr, grid):
-    """`_profiled` of x under s^2 corr + base for every s of `grid`, at once: with the
+def wander_profile(x, nuisance, base, corr, grid):
+    """`profiled_loglik` of x under s^2 corr + base for every s of `grid`, at once: with the
     generalised eigenvectors V of (corr, base) (V' base V = I, V' corr V = diag(lam)) the
     covariance is diagonal, diag(1 + s^2 lam), in y = V' x (scipy.linalg.eigh)."""
     from scipy.linalg import eigh
@@ -438,7 +448,7 @@ def _mean_correlations(t_bytes):
     return flicker, corr
 
 
-def _bias_models(t, x, instability, offset, white, nuisance=None):
+def bias_models(t, x, instability, offset, white, nuisance=None):
     """The class, shift and wander models of `bias_tests` on the means x at times t, each
     with the columns `nuisance` (m, k: the channel's temperature, so a slow thermal term
     too weak for the library is not read as wander) at their best values:
@@ -450,21 +460,21 @@ def _bias_models(t, x, instability, offset, white, nuisance=None):
     ones = np.ones((n, 1))
     base = flicker + white * np.eye(n)
     turn_on = offset ** 2 * (ones @ ones.T)
-    l_class = _profiled(x, nuisance, base + turn_on)
+    l_class = profiled_loglik(x, nuisance, base + turn_on)
     with_mean = np.hstack([ones, nuisance])
     inv = np.linalg.solve(base, with_mean)
     cov_mu = np.linalg.inv(with_mean.T @ inv)
     mu = float((cov_mu @ inv.T @ x)[0])
-    l_shift = _profiled(x, with_mean, base)
+    l_shift = profiled_loglik(x, with_mean, base)
     grid = instability * np.geomspace(1e-2, 1e3, 301)
-    ll = _wander_profile(x, nuisance, base + turn_on, corr, grid)
+    ll = wander_profile(x, nuisance, base + turn_on, corr, grid)
     # sigma and its interval with the unit's own flicker level b a nuisance within the class
     # (0 <= b <= B, profiled on FLICKER_LEVELS): the class's flicker is the test's null, but a
     # unit wanders as much as it does - fixed at B it took a fifth of a Gauss-Markov truth,
     # left out it read a flicker unit's 1/f as a wander three times too large; and without
     # the temperature, which once the wander is called would take part of it away
     ridge = max(white, 1e-12 * (float(np.var(x)) + offset ** 2)) * np.eye(n)  # white ~ 0
-    plain = np.max([_wander_profile(x, nuisance[:, :0], b ** 2 * flicker + ridge + turn_on,
+    plain = np.max([wander_profile(x, nuisance[:, :0], b ** 2 * flicker + ridge + turn_on,
                                     corr, grid) for b in FLICKER_LEVELS], axis=0)
     inside = grid[plain >= plain.max() - 0.5 * stats.chi2.isf(0.05, 1)]
     lr_wander = max(2 * (ll.max() - l_class), 0.0)

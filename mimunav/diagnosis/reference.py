@@ -14,10 +14,10 @@ from dataclasses import dataclass
 import numpy as np
 import quaternion
 
-from .. import attitude
-from ..effects import derivative
+from ..frames import attitude
+from ..compensation.effects import derivative
 from ..errors import InputError
-from ..intervals import RunningIntegral, intervals
+from ..motion.intervals import RunningIntegral, intervals
 
 DERIVATIVE_WINDOW_S = 0.1       # d/dt of reference rates: quartic Savitzky-Golay over 100 ms,
 # exact for motion up to 4th order in time (close to it inside the profiles' ramps), and

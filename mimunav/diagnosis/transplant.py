@@ -12,7 +12,7 @@ How a transplant is made, and what it shares with the diagnosis:
      carrier's own outputs (clipping, quantizing, offsets, wander: what a sensor does to what
      it measures) or, for the lever arm, on the rigid-body motion that scipy's RotationSpline
      derives from the log's own /truth/state attitudes - never on the reference IMU's
-     outputs, from which the diagnosis builds its regressors (`mimunav.effects`);
+     outputs, from which the diagnosis builds its regressors (`mimunav.compensation.effects`);
   3. the outputs go back to raw volts through the calibration (`raw_from_physics`): that
      inverse is this project's, which is why the foreign logs themselves, not transplants, are
      the development set's score.
@@ -31,12 +31,13 @@ import math
 from pathlib import Path
 
 import numpy as np
-import quaternion
 from scipy.spatial.transform import Rotation, RotationSpline
 
-from ..compensation import Calibration, compensate, raw_from_physics
-from ..evaluation import Flight
+from ..compensation.calibration_file import Calibration
+from ..compensation.model import compensate, raw_from_physics
+from ..evaluation.flight import Flight
 from ..sensors.hidden import parse_term
+from ..frames import attitude
 
 AXES = "xyz"
 GM_TAU_S = 100.0
@@ -155,8 +156,7 @@ def _whole_unit(flight, term, out):
             out[s][:] = turn.apply(out[s])
     else:                                   # size_effect: r in sensor axes, one accelerometer
         i = AXES.index(term["axis"])
-        r_v = Rotation.from_quat(np.roll(flight.mimu_mounting.attitude_wxyz, -1)).apply(
-            np.asarray(term["vector"], float))
+        r_v = attitude.as_scipy(flight.mimu_mounting.q_vs).apply(np.asarray(term["vector"], float))
         out["accel"][:, i] += lever_arm_specific_force(flight, r_v)[:, i]
 
 
@@ -198,8 +198,7 @@ def lever_arm_specific_force(flight, r_v):
     transport rates are left out: beside the body rate they add ~1e-5 m/s^2 at these arms,
     moving a fitted arm by < 0.01 mm."""
     tr = flight.truth
-    q = quaternion.as_float_array(tr.q_nb)
-    spline = RotationSpline(tr.t, Rotation.from_quat(q[:, [1, 2, 3, 0]]))
+    spline = RotationSpline(tr.t, attitude.as_scipy(tr.q_nb))
     t = flight.mimu_t
     dt = np.diff(t, prepend=t[0] - np.median(np.diff(t))) if len(t) > 1 else np.zeros(len(t))
 
@@ -214,7 +213,7 @@ def lever_arm_specific_force(flight, r_v):
 
 def _to_sensor(mounting, x_v):
     """Vehicle-frame vectors (N, 3) in the sensor axes of `mounting`."""
-    return Rotation.from_quat(np.roll(mounting.attitude_wxyz, -1)).inv().apply(x_v)
+    return attitude.as_scipy(mounting.q_vs).inv().apply(x_v)
 
 
 def _vibrate(flight, out):

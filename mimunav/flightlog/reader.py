@@ -13,6 +13,7 @@ import struct
 import threading
 import zlib
 from collections import deque
+from collections.abc import Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
@@ -20,9 +21,9 @@ import zstandard
 from mcap.exceptions import McapError
 from mcap.reader import make_reader
 
+from ..errors import InputError, require
 from . import schemas
 from .writer import MAGIC
-from ..errors import InputError
 
 _MSG_HEADER = 31        # opcode 1 + length 8 + channel 2 + sequence 4 + log_time 8 + publish 8
 _INDEX_ENTRY = np.dtype([("log_time", "<u8"), ("offset", "<u8")])
@@ -50,7 +51,7 @@ class FlightLog:
     LogError naming the channel and time range; True: the damaged chunk is left out and
     listed in `damaged` {topic: [(start_ns, end_ns, reason)]}."""
 
-    def __init__(self, path, skip_damaged=False):
+    def __init__(self, path: str | os.PathLike, skip_damaged: bool = False) -> None:
         self.path = os.fspath(path)
         self.skip_damaged = skip_damaged
         self.damaged = {}
@@ -80,7 +81,7 @@ class FlightLog:
                                "summary); `mimunav info LOG --recover OUT.mcap` rebuilds it")
         self.time_reversals = {}    # topic -> times a stamp went backwards (file order)
 
-    def close(self):
+    def close(self) -> None:
         self._fh.close()
 
     def __enter__(self):
@@ -90,15 +91,15 @@ class FlightLog:
         self.close()
 
     # ---- summary --------------------------------------------------------------------
-    def schema_name(self, topic):
+    def schema_name(self, topic: str) -> str:
         return self.summary.schemas[self._channel(topic).schema_id].name
 
-    def count(self, topic):
+    def count(self, topic: str) -> int | None:
         stats = self.summary.statistics
         cid = self._channel(topic).id
         return stats.channel_message_counts.get(cid, 0) if stats else None
 
-    def metadata(self):
+    def metadata(self) -> dict[str, dict]:
         """{name: {key: value}} with JSON values decoded where they parse."""
         self._fh.seek(0)
         out = {}
@@ -110,7 +111,7 @@ class FlightLog:
                            "`mimunav info LOG --recover OUT.mcap` keeps what is intact") from None
         return out
 
-    def epoch_ns(self):
+    def epoch_ns(self) -> int:
         """The flight's epoch (ns since 1970) from the `flight` metadata record, or None when
         the log has none or its metadata cannot be read; read once."""
         if not hasattr(self, "_epoch_ns"):
@@ -128,7 +129,7 @@ class FlightLog:
         return self.channels[topic]
 
     # ---- messages -------------------------------------------------------------------
-    def read(self, topic, fields=None):
+    def read(self, topic: str, fields: Sequence[str] | None = None) -> np.ndarray:
         """All messages of a channel as a structured array with a log_time (ns) field,
         in time order (the number of backward steps in file order goes to
         `time_reversals[topic]`); `fields` (names) limits the copy to those fields, or
@@ -144,7 +145,8 @@ class FlightLog:
         self._check_count(topic, len(out))
         return out
 
-    def blocks(self, topic, size=1 << 20, fields=None):
+    def blocks(self, topic: str, size: int = 1 << 20, fields: Sequence[str] | None = None
+               ) -> Iterator[np.ndarray]:
         """The messages of a channel in time order as consecutive structured arrays of
         about `size` messages (whole chunks; the last may be shorter): a log of any length
         in bounded memory. The same checks as `read` - a damaged chunk or index is a LogError
@@ -376,10 +378,11 @@ class FlightLog:
                 out[name] = msgs[name]
         out["log_time"] = log_time
 
-    def read_generic(self, topic):
+    def read_generic(self, topic: str) -> list[tuple[int, object]]:
         """Messages of any ROS 2 channel, decoded one by one (mcap_ros2): list of
         (log_time ns, message object)."""
-        from mcap_ros2.decoder import DecoderFactory
+        DecoderFactory = require("mcap_ros2.decoder", "import",
+                                 "reading a ROS 2 channel").DecoderFactory
         self._fh.seek(0)
         reader = make_reader(self._fh, decoder_factories=[DecoderFactory()])
         return [(m.log_time, d) for _, _, m, d in

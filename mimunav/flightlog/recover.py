@@ -11,6 +11,7 @@ wherever they are intact (chunks and the summary section), so the messages of a 
 channel record was in a damaged chunk are still kept. `recover` writes what was kept as a
 complete log; the report says exactly what was kept and what dropped.
 """
+import os
 import struct
 import zlib
 
@@ -33,7 +34,7 @@ FOREIGN_MAGIC = ((b"ULog\x01\x12\x35", "a PX4 ULog: `mimunav import ulog FILE -o
                                "LOG.mcap`"))
 
 
-def foreign_hint(head):
+def foreign_hint(head: bytes) -> str:
     """'; it looks like ...: import it' for the first bytes of a recording mimunav imports,
     else ''."""
     for magic, what in FOREIGN_MAGIC:
@@ -46,7 +47,7 @@ class DamagedLog(InputError):
     """A file that is not an MCAP log at all (no magic, empty)."""
 
 
-def scan(path, writer=None):
+def scan(path: str | os.PathLike, writer=None) -> dict:
     """Report of the intact part of a log: dict(channels={topic: (count, first_ns,
     last_ns)}, metadata=[names], damaged=[{offset, bytes, reason, start_ns, end_ns}],
     expected={topic: count} from the statistics when readable (else {}), size=bytes,
@@ -102,7 +103,7 @@ def scan(path, writer=None):
             "size": len(data), "epoch_ns": epoch, "complete": not damaged}
 
 
-def recover(path, out, force=False):
+def recover(path: str | os.PathLike, out: str | os.PathLike, force: bool = False) -> dict:
     """Write the intact part of a damaged log to `out` as a complete log; returns `scan`'s
     report."""
     from .writer import LogWriter
@@ -265,7 +266,7 @@ def _utc(ns):
     return f"{stamp:%Y-%m-%d %H:%M:%S}.{ns % 10**9 // 10**6:03d} UTC"
 
 
-def describe_scan(report):
+def describe_scan(report: dict) -> str:
     lines = []
     epoch = report["epoch_ns"]
     when = lambda ns: ("?" if ns is None else f"t = {(ns - epoch) / 1e9:.3f} s"   # noqa: E731

@@ -84,7 +84,7 @@ BODIES = {
 ENCAPSULATION = b"\x00\x01\x00\x00"       # CDR, little endian
 
 
-def cdr_dtype(schema_name, frame_id):
+def cdr_dtype(schema_name: str, frame_id: str) -> np.dtype:
     """Structured dtype of one whole message (encapsulation + header + body) for a fixed
     frame_id; fields encap, sec, nanosec, frame_len, frame_id, then the body's fields."""
     frame = frame_id.encode() + b"\x00"
@@ -111,7 +111,8 @@ def cdr_dtype(schema_name, frame_id):
                      "itemsize": pos + 4})
 
 
-def encode(schema_name, frame_id, stamp_ns, out=None, **fields):
+def encode(schema_name: str, frame_id: str, stamp_ns: np.ndarray, out: np.ndarray | None = None,
+           **fields: np.ndarray) -> np.ndarray:
     """Messages as one structured array (N,): stamps in integer ns since the epoch; each
     body field an array (N,) or (N, count); out: a zeroed array of `cdr_dtype` (N,) to
     fill (a view into Message records), else a new one."""
@@ -131,7 +132,7 @@ def encode(schema_name, frame_id, stamp_ns, out=None, **fields):
     return out
 
 
-def platform_fields(angle, rate):
+def platform_fields(angle: np.ndarray, rate: np.ndarray) -> dict[str, np.ndarray]:
     """/mimu/platform fields: the platform angle (rad) and rate (rad/s), (N,) each."""
     n = len(angle)
     return {"name_count": np.ones(n, np.uint32), "position_count": np.ones(n, np.uint32),
@@ -139,7 +140,8 @@ def platform_fields(angle, rate):
             "effort_count": np.zeros(n, np.uint32)}
 
 
-def imu_fields(angular_velocity, linear_acceleration):
+def imu_fields(angular_velocity: np.ndarray, linear_acceleration: np.ndarray
+               ) -> dict[str, np.ndarray]:
     """Body fields of sensor_msgs/msg/Imu as the contract writes them: rate (rad/s) and
     specific force (m/s^2), orientation identity with orientation_covariance[0] = -1."""
     n = len(angular_velocity)
@@ -148,6 +150,6 @@ def imu_fields(angular_velocity, linear_acceleration):
                 angular_velocity=angular_velocity, linear_acceleration=linear_acceleration)
 
 
-def stamps_ns(msgs):
+def stamps_ns(msgs: np.ndarray) -> np.ndarray:
     """header.stamp of decoded messages as integer ns since the epoch."""
     return msgs["sec"].astype(np.int64) * 1_000_000_000 + msgs["nanosec"].astype(np.int64)

@@ -76,7 +76,8 @@ def _record(op, body):
 class LogWriter:
     """with LogWriter(path) as log: log.metadata(...); log.write(topic, schema, ...)."""
 
-    def __init__(self, path, force=False, chunk_size=1 << 20):
+    def __init__(self, path: str | os.PathLike, force: bool = False, chunk_size: int = 1 << 20
+                 ) -> None:
         self.path = os.fspath(path)
         if os.path.exists(self.path) and not force:
             raise FileExistsError(f"{self.path} exists; use --force to replace it")
@@ -119,7 +120,7 @@ class LogWriter:
         return False
 
     # ---- records outside chunks -------------------------------------------------------
-    def metadata(self, name, values):
+    def metadata(self, name: str, values: dict) -> None:
         """A Metadata record; structured values are stored as JSON strings."""
         pairs = [(k, v if isinstance(v, str) else json.dumps(v)) for k, v in values.items()]
         rec = _record(OP["metadata"], _string(name) + _map(pairs))
@@ -127,7 +128,7 @@ class LogWriter:
         self._metadata_indexes.append((self._fh.tell(), len(rec), name))
         self._fh.write(rec)
 
-    def attachment(self, name, data, media_type="application/json"):
+    def attachment(self, name: str, data: bytes, media_type: str = 'application/json') -> None:
         body = struct.pack("<QQ", 0, 0) + _string(name) + _string(media_type) + \
             struct.pack("<Q", len(data)) + bytes(data)
         rec = _record(OP["attachment"], body + struct.pack("<I", zlib.crc32(body)))
@@ -136,7 +137,8 @@ class LogWriter:
         self._fh.write(rec)
 
     # ---- messages ---------------------------------------------------------------------
-    def write(self, topic, schema_name, frame_id, stamp_ns, **fields):
+    def write(self, topic: str, schema_name: str, frame_id: str, stamp_ns: np.ndarray,
+              **fields: np.ndarray) -> None:
         """Write fixed-size messages of a channel: stamp_ns integer ns since the UNIX epoch
         (N,), increasing; fields as in `schemas.BODIES`. Encoded a chunk at a time (memory and
         cache stay small); a channel may be written in several calls, in time order (a
@@ -163,7 +165,8 @@ class LogWriter:
         if len(stamp_ns):
             self._last_stamp[channel] = int(stamp_ns[-1])
 
-    def write_encoded(self, topic, schema_name, msgs, stamp_ns, increasing=False):
+    def write_encoded(self, topic: str, schema_name: str, msgs: np.ndarray, stamp_ns: np.ndarray,
+                      increasing: bool = False) -> None:
         """Messages already encoded (an array of CDR payloads of one size, e.g. `payload`
         rows read by `FlightLog.blocks(topic, fields=PAYLOAD)`) with their log times (ns),
         in bulk, as they are (a recorder's stamps in any order); increasing: refuse stamps

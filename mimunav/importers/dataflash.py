@@ -24,11 +24,11 @@ so.
 import os
 
 import numpy as np
-import quaternion
 
-from .. import attitude
-from ..sensors import Mounting
-from . import Recording, RecordingError, attitude_at, gps_to_unix_s
+from ..frames import attitude
+from ..frames.mounting import Mounting
+from .recording import Recording, RecordingError, attitude_at, gps_to_unix_s
+from ..errors import require
 
 GPS_STATUS = {0: "no GPS", 1: "no fix", 2: "2D", 3: "3D", 4: "DGPS", 5: "RTK float",
               6: "RTK fixed"}
@@ -41,7 +41,7 @@ def _messages(path):
     """({type: {field: array}} of the types this importer reads, '' or a note that the file
     ends inside a record); older logs' numbered types (IMU2, IMU3, GPS2) and un-numbered
     ones get the instance field I they lack."""
-    from pymavlink import DFReader
+    DFReader = require("pymavlink.DFReader", "import", "the dataflash importer")
     try:
         log = DFReader.DFReader_binary(path, zero_time_base=False)
     except Exception as exc:            # DFReader raises its own, struct and index errors
@@ -212,7 +212,7 @@ def _reference(msgs, fixes, kind, min_status, offset_us, path):
     q = np.full((len(t), 4), np.nan)
     att = msgs.get("ATT")
     if att is not None and len(att["TimeUS"]) >= 2:
-        q = attitude_at(t, att["TimeUS"].astype(float), quaternion.as_float_array(
+        q = attitude_at(t, att["TimeUS"].astype(float), attitude.as_wxyz(
             attitude.from_euler(np.radians(att["Yaw"]), np.radians(att["Pitch"]),
                                 np.radians(att["Roll"]))))
     meta = {"source": "autopilot estimate (ArduPilot EKF3: POS, XKF1 core 0, ATT)",

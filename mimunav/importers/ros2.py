@@ -23,8 +23,9 @@ from mcap.exceptions import McapError
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 
-from ..sensors import Mounting
-from . import RecordingError, Recording, velocity_from_positions
+from ..frames.mounting import Mounting
+from .recording import RecordingError, Recording
+from ..motion.track import velocity_from_positions
 
 IMU = "sensor_msgs/msg/Imu"
 NAV_SAT_FIX = "sensor_msgs/msg/NavSatFix"
@@ -218,7 +219,7 @@ def _pose_reference(path, available, topic, origin):
     """An Odometry or PoseStamped topic as the reference: ENU position placed at `origin`
     (lat deg, lon deg, h m) -> geodetic, orientation (body FLU in ENU) -> q_nb (vehicle FRD
     -> NED), velocity from Odometry's body-frame twist, else central differences."""
-    from .. import attitude, earth
+    from ..frames import attitude, earth
     schema = available.get(topic)
     if schema not in (ODOMETRY, POSE_STAMPED):
         raise RecordingError(f"{path}: {topic!r} is {schema or 'not a topic'}; a pose reference "
@@ -246,7 +247,7 @@ def _pose_reference(path, available, topic, origin):
     ned = np.column_stack([enu[:, 1], enu[:, 0], -enu[:, 2]])
     lat0, lon0, h0 = np.radians(origin[0]), np.radians(origin[1]), float(origin[2])
     lat, lon, h = earth.ned_offset_to_geodetic(ned, lat0, lon0, h0)
-    q_enu_flu = quaternion.from_float_array(a[:, 4:8])
+    q_enu_flu = attitude.from_wxyz(a[:, 4:8])
     norm = np.abs(q_enu_flu)
     if np.any(np.abs(norm - 1) > 1e-3):
         raise RecordingError(f"{topic}: orientations are not unit quaternions (|q| "
@@ -275,7 +276,7 @@ def _pose_reference(path, available, topic, origin):
             "position_sigma_m": f"{np.median(sigma):.3g}" if np.any(sigma > 0) else "not stated",
             **velocity}
     return dict(ns=ns, lat=lat, lon=lon, h=h, v_ned=v_ned,
-                q_nb=quaternion.as_float_array(q_nb)), meta
+                q_nb=attitude.as_wxyz(q_nb)), meta
 
 
 def _difference_velocity_sigma(sigma, t):

@@ -28,9 +28,9 @@ import struct
 
 import numpy as np
 
-from ..sensors import Mounting
-from . import (GPS_EPOCH_UNIX_S, RecordingError, Recording, gps_to_unix_s, text_file,
-                velocity_from_positions)
+from ..frames.mounting import Mounting
+from .recording import GPS_EPOCH_UNIX_S, RecordingError, Recording, gps_to_unix_s, text_file
+from ..motion.track import velocity_from_positions
 
 G_UNIT = 9.80665            # m/s^2 per g: the standard gravity an accelerometer's g means
 GPS_UTC_LEAP_S = 18         # GPST - UTC since 2017-01-01 (IERS Bulletin C: none added since)
@@ -139,7 +139,7 @@ def read_pos(path):
         raise RecordingError(f"{path}: no solution lines")
     a = np.asarray(rows)
     if layout == "xyz":
-        from .. import earth
+        from ..frames import earth
         lat, lon, h = earth.ecef_to_geodetic(a[:, 1:4])
         c_en = earth.ned_to_ecef_matrix(lat, lon)
         v_ned = np.einsum("kji,kj->ki", c_en, a[:, 14:17])

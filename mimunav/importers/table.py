@@ -46,9 +46,11 @@ import tomllib
 import numpy as np
 import quaternion
 
-from .. import earth
-from ..sensors import Mounting
-from . import RecordingError, Recording, gps_to_unix_s, text_file, velocity_from_positions
+from ..frames import earth
+from ..frames.mounting import Mounting
+from .recording import RecordingError, Recording, gps_to_unix_s, text_file
+from ..motion.track import velocity_from_positions
+from ..frames import attitude
 
 G_UNIT = 9.80665
 UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9, "rad/s": 1.0,
@@ -112,7 +114,7 @@ class Spec:
         if unit not in KINDS[kind]:
             raise RecordingError(f"{self.path}: {where} unit {unit!r}: one of "
                                  f"{', '.join(KINDS[kind])}")
-        x = _load(os.path.join(self.root, source["file"]), source.get("columns"), self.notes)
+        x = load_spec(os.path.join(self.root, source["file"]), source.get("columns"), self.notes)
         width = WIDTH.get(kind, 1)
         if width == 1 and x.ndim == 2 and x.shape[1] == 1:
             x = x[:, 0]
@@ -147,7 +149,7 @@ class Spec:
         return self.column(section, "time")
 
 
-def _load(path, columns, notes=None):
+def load_spec(path, columns, notes=None):
     """A numeric array from a CSV (header row optional) or a NumPy file (.npy, .npz with one
     array, or an extension-less .npy as comma2k19 stores them). A CSV's last line cut short
     (a logger stopped mid-write) is left out and said in `notes`; any other line whose column
@@ -224,7 +226,7 @@ def unix_offset_s(spec):
         return float(section["unix_offset_s"])
     if "gps_week_tow" in section:
         src = section["gps_week_tow"]
-        rows = _load(os.path.join(spec.root, src["file"]), src.get("columns"))
+        rows = load_spec(os.path.join(spec.root, src["file"]), src.get("columns"))
         device = spec.load(src.get("time"), "time", "[time] gps_week_tow.time")
         if rows.ndim != 2 or rows.shape[1] != 2 or len(rows) != len(device):
             raise RecordingError(f"{spec.path}: gps_week_tow needs (N, 2) rows of (week, time of "
@@ -234,7 +236,7 @@ def unix_offset_s(spec):
     raise RecordingError(f"{spec.path}: [time] needs unix_offset_s or gps_week_tow")
 
 
-def _unix_ns(spec, t, offset, where):
+def unix_ns(spec, t, offset, where):
     """UNIX ns of device times t (s) + offset; refused beyond 1970-2100 (a time column in ns
     or us declared as s, or an offset in the wrong unit) instead of overflowing int64."""
     unix = np.asarray(t, float) + offset
@@ -257,7 +259,7 @@ def _mounting(spec, section="imu"):
                          "mounting_rpy_deg")
 
 
-def _reference(spec, offset):
+def reference_of(spec, offset):
     """The [reference] section as a Recording's reference dict, or None."""
     if not spec.section("reference"):
         return None
@@ -287,7 +289,7 @@ def _reference(spec, offset):
         v = col["velocity_ned"]
     elif "velocity_ecef" in col:
         v = np.einsum("kji,kj->ki", earth.ned_to_ecef_matrix(lat, lon), col["velocity_ecef"])
-    ns = _unix_ns(spec, t, offset, "[reference] time")
+    ns = unix_ns(spec, t, offset, "[reference] time")
     back = np.flatnonzero(np.diff(ns) <= 0)
     if len(back):
         raise RecordingError(f"{spec.path}: [reference] time does not increase at data row "
@@ -304,7 +306,7 @@ def _reference(spec, offset):
 
 def _attitude_ned(spec, wxyz, lat, lon):
     """The reference attitude `wxyz` (its spec's `rotates`) as q_nb (body -> NED, wxyz)."""
-    q = quaternion.from_float_array(wxyz)
+    q = attitude.from_wxyz(wxyz)
     rotates = spec.section("reference")["attitude_wxyz"].get("rotates", "body_to_ned")
     if rotates == "body_to_ned":
         q_nb = q
@@ -314,7 +316,7 @@ def _attitude_ned(spec, wxyz, lat, lon):
     else:
         raise RecordingError(f"{spec.path}: attitude rotates {rotates!r}: body_to_ned or "
                              "body_to_ecef")
-    return quaternion.as_float_array(q_nb)
+    return attitude.as_wxyz(q_nb)
 
 
 def _imu(spec, section):
@@ -361,7 +363,7 @@ def read(path, mounting=None, root=None):
     given = mounting is not None
     spec_mounting, how = _mounting(spec)
     mounting = mounting or spec_mounting
-    reference = _reference(spec, offset)
+    reference = reference_of(spec, offset)
     meta = {k: v for k, v in spec.section("reference").items()
             if k in ("source", "independent", "position_sigma_m")}
     name = spec.doc.get("name", os.path.splitext(os.path.basename(path))[0])
@@ -379,13 +381,13 @@ def read(path, mounting=None, root=None):
         t_r, w_r, f_r = _imu(spec, "reference_imu")
         ref_mounting, ref_how = _mounting(spec, "reference_imu")
         section = spec.section("reference_imu")
-        second = dict(ns=_unix_ns(spec, t_r, offset, "[reference_imu] time"), w=w_r, f=f_r,
+        second = dict(ns=unix_ns(spec, t_r, offset, "[reference_imu] time"), w=w_r, f=f_r,
                       mounting=ref_mounting, model=section.get("model", "unknown"),
                       accuracy=section.get("accuracy"))
         real["reference_imu"] = (f"{len(t_r)} samples at {1.0 / np.median(np.diff(t_r)):.4g} "
                                  f"Hz ({section.get('model', 'model not stated')})")
         assumed["reference_imu_mounting"] = ref_how
     return Recording(name, spec.doc.get("description", f"table import of {spec.path}"),
-                     _unix_ns(spec, t_f, offset, "[imu] time"), w, f, mounting,
+                     unix_ns(spec, t_f, offset, "[imu] time"), w, f, mounting,
                      model=spec.doc.get("model", "unknown"), reference=reference,
                      reference_meta=meta, real=real, assumed=assumed, reference_imu=second)

@@ -18,8 +18,9 @@ import os
 
 import numpy as np
 
-from ..sensors import Mounting
-from . import RecordingError, Recording, attitude_at
+from ..frames.mounting import Mounting
+from .recording import RecordingError, Recording, attitude_at
+from ..errors import require
 
 GNSS_TOPICS = ("vehicle_gps_position", "sensor_gps")
 REFERENCE_TOPICS = ("vehicle_global_position", "vehicle_local_position", "vehicle_attitude")
@@ -75,7 +76,7 @@ def read(path, mounting=None, instance=None, reference_instance=None):
     sensor_combined, or with `instance` from that sensor_accel / sensor_gyro instance
     (`_instance`); with `reference_instance` another instance is the reference IMU (two
     autopilot IMUs against each other: the sensor level of the diagnosis)."""
-    from pyulog import ULog
+    ULog = require("pyulog", "import", "the ulog importer").ULog
     try:
         ulog = ULog(path, message_name_filter_list=["sensor_combined", *GNSS_TOPICS,
                                                     *REFERENCE_TOPICS, *INSTANCE_TOPICS])
@@ -94,27 +95,8 @@ def read(path, mounting=None, instance=None, reference_instance=None):
         source = (f"sensor_accel:{instance} with sensor_gyro:{instance} interpolated onto it "
                   f"({len(boot_us)} samples, {temp}; before PX4's calibration)")
     gps = next((g for g in (_topic(ulog, n) for n in GNSS_TOPICS) if g is not None), None)
-    offset_us, assumed = 0, {}
-    fixes = None
-    if gps is not None:
-        t_gps = np.asarray(gps.data["timestamp"], dtype=np.int64)
-        utc = np.asarray(gps.data.get("time_utc_usec", np.zeros(len(t_gps))), dtype=np.int64)
-        valid = utc > 0
-        if valid.any():
-            offset_us = int(np.median(utc[valid] - t_gps[valid]))
-        lat = np.radians(_field(gps, "latitude_deg", "lat", scales=(1.0, 1e-7)))
-        lon = np.radians(_field(gps, "longitude_deg", "lon", scales=(1.0, 1e-7)))
-        h = _field(gps, "altitude_ellipsoid_m", "alt_ellipsoid", scales=(1.0, 1e-3))
-        fix_type = _field(gps, "fix_type").astype(int)
-        eph, epv = _field(gps, "eph"), _field(gps, "epv")
-        good = fix_type >= 3
-        cov = np.zeros((len(t_gps), 9))
-        cov[:, 0] = cov[:, 4] = eph ** 2
-        cov[:, 8] = epv ** 2
-        ns = (t_gps + offset_us) * 1000
-        fixes = dict(ns=ns[good], status=np.zeros(good.sum(), np.int8), lat=lat[good],
-                     lon=lon[good], h=h[good], covariance=cov[good])
-        fixes["v_ned"] = np.column_stack([_field(gps, f"vel_{c}_m_s") for c in "ned"])[good]
+    assumed = {}
+    offset_us, fixes = _gnss(gps) if gps is not None else (0, None)
     if offset_us == 0:
         assumed["time"] = "no GNSS UTC time: boot placed at the UNIX epoch"
     keep = np.concatenate([[True], np.diff(boot_us) > 0])
@@ -152,6 +134,31 @@ def read(path, mounting=None, instance=None, reference_instance=None):
                                       "independent": "no: the autopilot fuses this IMU"}
                                      if reference is not None else {}),
                      fixes=fixes, real=real, assumed=assumed, reference_imu=second)
+
+
+def _gnss(gps):
+    """(boot to UTC offset, us - 0 without UTC time; the 3-D fixes {ns, status, lat, lon rad,
+    h m, covariance ENU m^2, v_ned m/s}) of a ULog GNSS topic."""
+    offset_us = 0
+    t_gps = np.asarray(gps.data["timestamp"], dtype=np.int64)
+    utc = np.asarray(gps.data.get("time_utc_usec", np.zeros(len(t_gps))), dtype=np.int64)
+    valid = utc > 0
+    if valid.any():
+        offset_us = int(np.median(utc[valid] - t_gps[valid]))
+    lat = np.radians(_field(gps, "latitude_deg", "lat", scales=(1.0, 1e-7)))
+    lon = np.radians(_field(gps, "longitude_deg", "lon", scales=(1.0, 1e-7)))
+    h = _field(gps, "altitude_ellipsoid_m", "alt_ellipsoid", scales=(1.0, 1e-3))
+    fix_type = _field(gps, "fix_type").astype(int)
+    eph, epv = _field(gps, "eph"), _field(gps, "epv")
+    good = fix_type >= 3
+    cov = np.zeros((len(t_gps), 9))
+    cov[:, 0] = cov[:, 4] = eph ** 2
+    cov[:, 8] = epv ** 2
+    ns = (t_gps + offset_us) * 1000
+    fixes = dict(ns=ns[good], status=np.zeros(good.sum(), np.int8), lat=lat[good],
+                 lon=lon[good], h=h[good], covariance=cov[good])
+    fixes["v_ned"] = np.column_stack([_field(gps, f"vel_{c}_m_s") for c in "ned"])[good]
+    return offset_us, fixes
 
 
 def cut_short(path):

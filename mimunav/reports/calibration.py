@@ -12,12 +12,15 @@ from concurrent.futures import ProcessPoolExecutor
 import numpy as np
 from tqdm import tqdm
 
-from .. import calibration, lab
+from ..lab import procedures as lab
+from ..lab.calibrate import calibrate, check, standard_errors
+from ..lab.positions import fit_ellipsoid
+from ..lab.runs import LabRun, TABLE1_FULL_SCALE, TABLE1_RESIDUAL
 from ..errors import InputError
-from ..campaign import one_blas_thread
-from ..compensation import poly2, raw_from_physics
+from ..evaluation.campaign import one_blas_thread
+from ..compensation.model import poly2, raw_from_physics
 from ..files import write_atomic
-from ..sensors import MimuUnit
+from ..sensors.mimu import MimuUnit
 from .plots import figure, save
 
 ENTIRE = ("thermal-chamber", "rate-table", "centrifuge")
@@ -38,7 +41,7 @@ def z_scores(unit, cal):
     """{coefficient name: (fitted - true) / reported standard error}."""
     truth = true_in_gauge(unit, cal)
     out = {}
-    for name, se in calibration.standard_errors(cal).items():
+    for name, se in standard_errors(cal).items():
         key, *idx = re.findall(r"\w+", name)
         idx = tuple(int(i) for i in idx)
         out[name] = float((getattr(cal, key)[idx] - getattr(truth, key)[idx]) / se)
@@ -55,7 +58,7 @@ def compare(cal, unit):
         raise InputError(f"compare needs an entire-63 fit with its reference readings (this is "
                          f"{cal.model!r}); a {cal.model} fit has no unique truth in its gauge")
     truth = true_in_gauge(unit, cal)
-    se = calibration.standard_errors(cal)
+    se = standard_errors(cal)
     z = z_scores(unit, cal)
     rows = []
     for name in se:
@@ -86,7 +89,7 @@ def _one_unit(seed, beyond_model=True):
         paths = [lab.run(lab.plan(p), unit, os.path.join(tmp, f"{p}.mcap"), seed,
                          progress=False)[0] for p in ENTIRE]
         t1 = time.perf_counter()
-        cal = calibration.calibrate(paths, "entire", unit=unit.name)
+        cal = calibrate(paths, "entire", unit=unit.name)
         t2 = time.perf_counter()
     return {"seed": seed, "beyond_model": beyond_model, "z": z_scores(unit, cal), "rms": cal.covariance["residual_rms"],
             "simulate_s": t1 - t0, "fit_s": t2 - t1}
@@ -172,8 +175,8 @@ def methods_unit(seed, beyond_model=False):
         for method, procedures in OFFSET_METHODS.items():
             paths = [lab.run(lab.plan(p), unit, os.path.join(tmp, f"{p}.mcap"), seed,
                              progress=False, force=True)[0] for p in procedures]
-            cal = calibration.calibrate(paths, method, unit=unit.name)
-            out[method] = offset_z(unit, cal, calibration.LabRun.load(paths[0]))
+            cal = calibrate(paths, method, unit=unit.name)
+            out[method] = offset_z(unit, cal, LabRun.load(paths[0]))
     return out
 
 
@@ -206,14 +209,14 @@ def held_out(seed, folder):
     and their errors on fresh runs."""
     unit = MimuUnit.draw(seed)
     path = lambda p, s: os.path.join(folder, f"{p}-{s}.mcap")          # noqa: E731
-    cals = {"entire": calibration.calibrate(
+    cals = {"entire": calibrate(
         [lab.run(lab.plan(p), unit, path(p, 1), 1, progress=False)[0] for p in ENTIRE],
-        "entire"), "traditional": calibration.calibrate(
+        "entire"), "traditional": calibrate(
         [lab.run(lab.plan(p), unit, path(p, 1), 1, progress=False)[0] for p in TRADITIONAL],
         "traditional")}
-    fresh = {p: calibration.LabRun.load(lab.run(lab.plan(p), unit, path(p, 2), 2,
+    fresh = {p: LabRun.load(lab.run(lab.plan(p), unit, path(p, 2), 2,
                                                  progress=False)[0]) for p in ENTIRE}
-    return {(name, p): calibration.check(cal, run) for name, cal in cals.items()
+    return {(name, p): check(cal, run) for name, cal in cals.items()
             for p, run in fresh.items()}
 
 
@@ -231,11 +234,11 @@ def orientations_study(seeds, folder):
     path = lambda p, s: os.path.join(folder, f"{p}-{s}.mcap")          # noqa: E731
     for seed in seeds:
         unit = MimuUnit.draw(seed)
-        hand = calibration.LabRun.load(lab.run(lab.plan("hand-held"), unit,
+        hand = LabRun.load(lab.run(lab.plan("hand-held"), unit,
                                                path("hand-held", seed), seed, progress=False)[0])
         twelve = lab.run(lab.plan("twelve-position"), unit, path("twelve", seed), seed,
                          progress=False)[0]
-        fresh = calibration.LabRun.load(lab.run(lab.plan("twelve-position"), unit,
+        fresh = LabRun.load(lab.run(lab.plan("twelve-position"), unit,
                                                 path("fresh", seed), seed + 1, progress=False)[0])
         g = fresh.site["gravity_m_s2"]
         u_fresh = fresh.means(fresh.raw["accel_volts"])
@@ -250,12 +253,12 @@ def orientations_study(seeds, folder):
             offset = np.linalg.norm(truth.A1 @ (-np.linalg.solve(a1, a0) - u0_true))
             return float(magnitude), float(offset)
         for n in ORIENTATIONS:
-            fit = calibration.fit_ellipsoid(hand, windows=range(n))
+            fit = fit_ellipsoid(hand, windows=range(n))
             a0 = np.array([fit.values[f"A0[{i}]"] for i in range(3)])
             a1 = np.array([[fit.values[f"A1[{i}][{j}]"] for j in range(3)] for i in range(3)])
             out["ellipsoid"][n].append(score(a0, a1, hand))
-        cal = calibration.calibrate([twelve], "twelve-position")
-        out["twelve-position"].append(score(cal.A0, cal.A1, calibration.LabRun.load(twelve)))
+        cal = calibrate([twelve], "twelve-position")
+        out["twelve-position"].append(score(cal.A0, cal.A1, LabRun.load(twelve)))
     return out
 
 
@@ -279,7 +282,7 @@ def plot_orientations(study, out_png):
 
 def plot_held_out(checks, out_png):
     """Held-out error (% of Table 1 full scale) against the condition it grows with."""
-    fs, lim = calibration.TABLE1_FULL_SCALE, calibration.TABLE1_RESIDUAL
+    fs, lim = TABLE1_FULL_SCALE, TABLE1_RESIDUAL
     panels = [("centrifuge", "accel", lambda c: np.abs(c["accel_input"]).max(axis=1) / 9.80665,
                "applied specific force, g"),
               ("rate-table", "gyro", lambda c: np.degrees(np.abs(c["gyro_input"]).max(axis=1)),
@@ -390,7 +393,7 @@ def _markdown(units, checks, png_name):
              "Each unit is drawn from seed S1 Table 2 and datasheet values "
              "(`mimunav.sensors.mimu`), run through the simulated thermal chamber, rate table "
              "and centrifuge (`mimunav.lab`) and fitted with `--method entire` "
-             "(`mimunav.calibration`). z = (fitted - true) / reported standard error, the truth "
+             "(`mimunav.lab.calibrate`). z = (fitted - true) / reported standard error, the truth "
              "expressed in the fit's gauge (temperature polynomials vanish at the file's "
              "reference readings).", "",
              "## The fit, on units that are exactly its model", "",
@@ -428,7 +431,7 @@ def _markdown(units, checks, png_name):
               "Worst window error over the run, % of Table 1 full scale (30 g, 400 deg/s); "
               "Table 1 fit residuals are 0.05 % FS (accelerometer) and 0.2 % FS (gyro).", "",
               "| calibration | run | accel % FS | gyro % FS |", "|---|---|---|---|"]
-    fs = calibration.TABLE1_FULL_SCALE
+    fs = TABLE1_FULL_SCALE
     for (name, proc), c in checks.items():
         lines.append(f"| {name} | {proc} | {100 * np.abs(c['accel_error']).max() / fs['accel']:.3f}"
                      f" | {100 * np.abs(c['gyro_error']).max() / fs['gyro']:.3f} |")

@@ -15,13 +15,16 @@ from concurrent.futures import Future, ThreadPoolExecutor
 
 import numpy as np
 
-from .. import evaluation
+from ..evaluation.replay import (comparison_times, compensated_mimu, navigate_fog, navigate_mimu,
+                                 ned_to_enu, resample)
 from ..files import atomic_folder
-from ..diagnosis import dumps, sensor
+from ..diagnosis.document import dumps
+from ..diagnosis.design import term_contribution
 from ..diagnosis import library
 from ..diagnosis.inference import p_text
 from ..diagnosis.outputs import block_index
-from ..diagnosis.sensor import CHANNELS, CONDITIONS
+from ..diagnosis.design import CHANNELS
+from ..diagnosis.scan import CONDITIONS
 from .plots import Painter, figure, on_screen, save
 
 CHANNEL_NAMES = [f"{s}.{a}" for s, a in CHANNELS]
@@ -36,10 +39,10 @@ def model_navigation(flight, cal, compensated=None):
     hand. Needs nothing a diagnosis finds: `mimunav diagnose` runs it on a thread beside
     the diagnosis (the compensation's numpy and the navigator's kernel release the
     interpreter)."""
-    t = evaluation.comparison_times(flight)
-    ref = evaluation.resample(flight.truth, t) if flight.truth is not None else \
-        evaluation.resample(evaluation.navigate_fog(flight), t)
-    return t, ref, evaluation.resample(_navigated(flight, cal, compensated), t).position_error(ref)
+    t = comparison_times(flight)
+    ref = resample(flight.truth, t) if flight.truth is not None else \
+        resample(navigate_fog(flight), t)
+    return t, ref, resample(_navigated(flight, cal, compensated), t).position_error(ref)
 
 
 def model_navigation_beside(flight, cal):
@@ -60,8 +63,8 @@ def model_navigation_beside(flight, cal):
 
 def _navigated(flight, cal, outputs=None):
     w, f = outputs if outputs is not None else \
-        evaluation.compensated_mimu(flight, cal, warn=False)[:2]    # the diagnosis warned
-    return evaluation.navigate_mimu(flight, w, f)
+        compensated_mimu(flight, cal, warn=False)[:2]    # the diagnosis warned
+    return navigate_mimu(flight, w, f)
 
 
 def navigation_gain(flight, cal_found, model):
@@ -74,13 +77,13 @@ def navigation_gain(flight, cal_found, model):
     t, ref, err = model.result()
     errors = {"model": err}
     if found is not None:
-        errors["model+found"] = evaluation.resample(found, t).position_error(ref)
+        errors["model+found"] = resample(found, t).position_error(ref)
     out, series = {"reference": "truth" if flight.truth is not None else "FOG-IMU"}, {}
     k = on_screen(len(t))
     for name, err in errors.items():
         norm = np.linalg.norm(err, axis=1)
         out[name] = {"end_m": float(norm[-1]), "max_m": float(norm.max()),
-                     "end_enu_m": evaluation.ned_to_enu(err[-1]).tolist()}
+                     "end_enu_m": ned_to_enu(err[-1]).tolist()}
         series[name] = norm[k]
     return out, t[k] - t[0], series
 
@@ -118,6 +121,24 @@ def write(out_dir, doc, diag, flight, cal, cal_found, cal_label, force=False, pa
 
 
 def markdown(doc, diag, cal_label):
+    """diagnosis.md: the verdict and method, what the reference predicts, the found terms,
+    the unexplained residual, the terms set aside, the residual by flight condition and the
+    navigation error with and without the found terms."""
+    lines = _verdict_lines(doc, cal_label) + _reference_lines(doc) + _finding_lines(doc) \
+        + _residual_lines(doc)
+    if diag.level in ("sensor", "track"):
+        lines += _condition_table(diag)
+    else:
+        lines += ["## Velocity error against the reference (timeline.png)", "",
+                  "The MIMU navigated free-inertial from the initial state; the fit uses its "
+                  f"velocity-error increments over {doc['epoch_s']:g} s. RMS of the velocity "
+                  "error (N, E, D): " + ", ".join(f"{x:.3g}" for x in doc["velocity_error_rms"])
+                  + " m/s.", ""]
+    lines += _navigation_lines(doc)
+    return "\n".join(lines) + "\n"
+
+
+def _verdict_lines(doc, cal_label):
     lines = [f"# Diagnosis of {doc['log']} ({doc['level']} level)", "",
              f"Model: `{cal_label}`. Verdict: **{doc['verdict']}** "
              f"({doc['candidates_tested']} candidate terms, family-wise alpha {doc['alpha']}).",
@@ -127,6 +148,12 @@ def markdown(doc, diag, cal_label):
                   "physics (the contract's verdict field says "
                   f"`{doc['verdict']}`), because", ""]
         lines += [f"- {r}" for r in doc["inconclusive_reasons"]] + [""]
+    return lines
+
+
+def _reference_lines(doc):
+    """What the reference predicts (the track level's check) and the time lag."""
+    lines = []
     check = doc.get("reference_check")
     if check:
         corr = check["correlation_1s"]
@@ -167,6 +194,12 @@ def markdown(doc, diag, cal_label):
             lines += [f"The lag is relative to {lag['relative_to']}.", ""]
         if "not_a_finding" in lag:
             lines += [f"The lag is not a finding: {lag['not_a_finding']}.", ""]
+    return lines
+
+
+def _finding_lines(doc):
+    """The found terms: the table, what their held-out rms says, where each acts."""
+    lines = []
     if doc["findings"]:
         lines += ["## Found terms (coefficient and 95 % interval from the held-out segments)", "",
                   "| term | coefficient | 95 % interval | units | p train / Holm limit | "
@@ -207,6 +240,13 @@ def markdown(doc, diag, cal_label):
         lines.append("")
     else:
         lines += ["No term of the library is confirmed on the held-out segments.", ""]
+    return lines
+
+
+def _residual_lines(doc):
+    """The unexplained residual, the terms within the stated accuracies, those chosen on the
+    training segments and not confirmed."""
+    lines = []
     if doc["unexplained"]:
         lines += ["## Unexplained residual", "",
                   "Localized excursions no candidate explains (2 s windows, robust z, "
@@ -234,16 +274,13 @@ def markdown(doc, diag, cal_label):
         lines += ["## Chosen on the training segments, not confirmed", ""]
         lines += [f"- {f['label']}: {f['rejected']}" for f in doc["not_confirmed"]]
         lines.append("")
-    if diag.level in ("sensor", "track"):
-        lines += _condition_table(diag)
-    else:
-        lines += ["## Velocity error against the reference (timeline.png)", "",
-                  "The MIMU navigated free-inertial from the initial state; the fit uses its "
-                  f"velocity-error increments over {doc['epoch_s']:g} s. RMS of the velocity "
-                  "error (N, E, D): " + ", ".join(f"{x:.3g}" for x in doc["velocity_error_rms"])
-                  + " m/s.", ""]
+    return lines
+
+
+def _navigation_lines(doc):
+    """The MIMU navigated through the model with and without the found terms."""
     nav = doc["navigation"]
-    lines += ["", f"## Navigation error against the {nav['reference']} (navigation.png)", "",
+    lines = ["", f"## Navigation error against the {nav['reference']} (navigation.png)", "",
               "Free-inertial over the whole record from the initial state, the MIMU's outputs "
               "through the model alone: a bias the model does not hold (on an imported "
               "recording, the gyro bias the import measured at rest) grows into it.", "",
@@ -259,7 +296,7 @@ def markdown(doc, diag, cal_label):
                       "measure of each term."]
         lines += ["", "`CAL+found.json` holds the model with the found terms: "
                   "`mimunav table LOG --cal model=CAL --cal found=CAL+found.json` compares them."]
-    return "\n".join(lines) + "\n"
+    return lines
 
 
 def _condition_table(diag):
@@ -312,7 +349,7 @@ def _timeline_lines(diag, doc):
     excursions (red), as (t_s, [(channel, unit, before, after, found spans, unexplained
     spans)])."""
     t = diag.design.t
-    sec = block_index(t, 1.0)                 # the seconds of `sensor._map` and `_scan`
+    sec = block_index(t, 1.0)                 # the seconds of `scan.condition_map` and `excursions`
     n = sec.max() + 1
     count = np.maximum(np.bincount(sec, minlength=n), 1)
     t_s = t[0] + np.arange(n) + 0.5
@@ -356,7 +393,7 @@ def _velocity_lines(diag, doc):
     by_label = {library.label(term): pos for _, term, pos in diag.candidates_list}
     for f in doc["findings"]:
         beta = np.atleast_1d(np.asarray(f["train_coefficient"], float))
-        inc = sensor._contribution(diag.tier, by_label[f["label"]], beta)
+        inc = term_contribution(diag.tier, by_label[f["label"]], beta)
         explained[1:] += np.cumsum(inc, axis=0)
     spans = [(w["t0"] - diag.epochs[0], w["t1"] - diag.epochs[0])
              for f in doc["findings"] for w in f["where"]]
@@ -393,10 +430,6 @@ def _navigation(t, series, nav, png):
 
 def proof_markdown(cases, summary, meta):
     """The concealed-data proof as a report: rates with 95 % intervals, every case."""
-    def rate(r):
-        if not r.get("n"):
-            return "n/a"
-        return f"{r['k']}/{r['n']} = {r['rate']:.0%} [{r['ci95'][0]:.0%}, {r['ci95'][1]:.0%}]"
     lines = ["# Diagnosis proof on concealed data", "",
              f"Command: `{meta['command']}` ({meta['machine']}, {meta['wall_s']:.0f} s wall).",
              "", "Each recording is the proof flight (`flights/diagnosis-proof.toml`, "
@@ -418,15 +451,15 @@ def proof_markdown(cases, summary, meta):
              "model, the flight, truth and reference-IMU models are the project's. The check "
              "against what the project did not write is the foreign development set below.", "",
              "| measure | result (95 % interval) |", "|---|---|",
-             f"| identified (named, incl. 'cannot be told from') | {rate(summary['identified'])} |",
-             f"| identified exactly | {rate(summary['identified_exact'])} |",
+             f"| identified (named, incl. 'cannot be told from') | {_rate(summary['identified'])} |",
+             f"| identified exactly | {_rate(summary['identified_exact'])} |",
              f"| false alarms on null recordings (verdict not no-missing-physics), lab-fitted "
-             f"calibration | {rate(summary['false_alarms'])} |",
+             f"calibration | {_rate(summary['false_alarms'])} |",
              f"| the same null recordings against the unit's true coefficients (the "
-             f"diagnosis' own false alarms) | {rate(summary['false_alarms_true_model'])} |",
+             f"diagnosis' own false alarms) | {_rate(summary['false_alarms_true_model'])} |",
              f"| other effects named in effect recordings | "
              f"{summary['other_findings_in_effect_recordings']} |",
-             f"| true value inside the held-out 95 % interval | {rate(summary['interval_coverage'])} |",
+             f"| true value inside the held-out 95 % interval | {_rate(summary['interval_coverage'])} |",
              f"| held-out rms after / before where the term acts (median) | "
              f"{summary['heldout_rms_ratio_median']:.3f} |", "",
              "`z` is how detectable the hidden term was on its recording: the Wald z of the true "
@@ -435,6 +468,21 @@ def proof_markdown(cases, summary, meta):
              "", "| hidden effect | sensor.axis (input) | true value | z | verdict | identified | "
              "held-out estimate [95 %] | covered | held-out rms ratio | other findings |",
              "|---|---|---|---|---|---|---|---|---|---|"]
+    lines += _proof_case_lines(cases)
+    lines += _foreign_lines(meta.get("foreign"))
+    return "\n".join(lines) + "\n"
+
+
+def _rate(r):
+    """A rate k/n with its 95 % interval, or n/a."""
+    if not r.get("n"):
+        return "n/a"
+    return f"{r['k']}/{r['n']} = {r['rate']:.0%} [{r['ci95'][0]:.0%}, {r['ci95'][1]:.0%}]"
+
+
+def _proof_case_lines(cases):
+    """A row per effect case, then the null recordings' verdicts and their false alarms."""
+    lines = []
     for c in cases:
         if not c["effect"]:
             continue
@@ -459,8 +507,13 @@ def proof_markdown(cases, summary, meta):
               f"(against the true coefficients: {', '.join(c['findings_true_model']) or 'quiet'})"
               for c in nulls if c["false_alarm"] or c["false_alarm_true_model"]]
     lines.append("")
-    if meta.get("foreign"):
-        rows = meta["foreign"]
+    return lines
+
+
+def _foreign_lines(rows):
+    """The development set of the independent simulator (`bench/diagnosis.py`), if run."""
+    lines = []
+    if rows:
         lines += ["## Development set of an independent simulator", "",
                   "`shared/data/foreign-flights`: six logs written by a simulator that shares no "
                   "code with mimunav, each diagnosed with its own calibration file and scored "
@@ -472,7 +525,7 @@ def proof_markdown(cases, summary, meta):
                   f"{', '.join(r['findings']) or '-'} | {'yes' if r['correct'] else 'no'} | "
                   f"{r['seconds']:.1f} |" for r in rows]
         lines.append("")
-    return "\n".join(lines) + "\n"
+    return lines
 
 
 def _fmt(x):

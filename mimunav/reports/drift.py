@@ -1,13 +1,13 @@
 """`mimunav drift`: seed S4's AR + Kalman treatment of the gyro drift on a log - the model
 identified at rest, the variance reduction at rest, what the same filter does under motion,
-and what it cannot do (`mimunav.drift`) - into DIR/drift.md, drift.json, drift.png."""
+and what it cannot do (`mimunav.lab.drift`) - into DIR/drift.md, drift.json, drift.png."""
 import json
 import os
 
 import numpy as np
 
-from .. import drift
-from ..compensation import Calibration
+from ..lab import drift
+from ..compensation.calibration_file import Calibration
 from ..errors import InputError
 from ..files import atomic_folder
 from .noise import choose_span, outputs

@@ -1,6 +1,6 @@
 """`mimunav noise`: the random errors of an IMU channel over a static span of a log - Allan
 deviation per axis with its 68 % band, the five IEEE-952 terms with intervals
-(`mimunav.allan`), a figure, and `noise.json` (`mimunav-noise/1`, SI units) that the lab fits
+(`mimunav.lab.allan`), a figure, and `noise.json` (`mimunav-noise/1`, SI units) that the lab fits
 read as their noise model (`mimunav calibrate --noise`).
 
 The span: given (`--span T0:T1`, s since the log's first sample of the channel, clipped to
@@ -19,8 +19,10 @@ import os
 
 import numpy as np
 
-from .. import alignment, allan
-from ..compensation import Calibration, compensate
+from ..navigation.rests import rest_intervals
+from ..lab import allan
+from ..compensation.calibration_file import Calibration
+from ..compensation.model import compensate
 from ..errors import InputError
 from ..files import atomic_folder, check_format, read_json
 from ..flightlog import FlightLog
@@ -80,7 +82,7 @@ def outputs(log_path, channel, cal=None):
     rests = []
     if truth is not None and len(truth):
         tt = (truth["log_time"].astype(np.int64) - t0) / 1e9
-        rests = alignment.rest_intervals(tt, truth["velocity_ned"], float(t[0]), float(t[-1]))
+        rests = rest_intervals(tt, truth["velocity_ned"], float(t[0]), float(t[-1]))
     if joint is not None:        # a MIMU turning on its platform is not at rest
         tj = (joint["log_time"].astype(np.int64) - t0) / 1e9
         turning = np.interp(t, tj, np.abs(joint["velocity"])) > 1e-9

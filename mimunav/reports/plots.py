@@ -8,7 +8,7 @@ import traceback
 
 import numpy as np
 
-from ..evaluation import ned_to_enu
+from ..evaluation.replay import ned_to_enu
 
 
 def _pyplot():

@@ -22,11 +22,14 @@ import time
 from pathlib import Path
 
 import numpy as np
-import quaternion
 
-from .. import attitude, evaluation, windows
-from ..compensation import Calibration
-from ..diagnosis import document, track, with_found
+from ..frames import attitude
+from ..evaluation import windows
+from ..evaluation.flight import Flight, no_reference, refuse_gaps
+from ..compensation.calibration_file import Calibration
+from ..diagnosis import track
+from ..diagnosis.document import document
+from ..compensation.calibration_file import with_found
 from ..errors import InputError
 from ..files import atomic_folder, refuse_inputs
 from ..flightlog import FlightLog
@@ -48,7 +51,7 @@ def write(log_path, out_dir, force=False, progress=True, min_speed=None,
     with FlightLog(log_path) as log:
         meta = log.metadata()
         channels = describe(log)
-    flight = evaluation.Flight.load(log_path, reference_imu=False, max_gap_s=np.inf)
+    flight = Flight.load(log_path, reference_imu=False, max_gap_s=np.inf)
     if flight.mimu_raw is not None:
         raise InputError(f"{log_path}: a raw /mimu/raw needs its calibration; the recording "
                          "report takes a recorded /mimu/imu (mimunav import ...)")
@@ -56,20 +59,20 @@ def write(log_path, out_dir, force=False, progress=True, min_speed=None,
     diag = doc = no_diagnosis = None
     try:
         if flight.truth is None and flight.fog_t is None:
-            raise evaluation.no_reference(log_path, "the track level, and no reference IMU "
+            raise no_reference(log_path, "the track level, and no reference IMU "
                                           "(/fog/imu) for the sensor level")
         if flight.fog_t is None:        # the track level leaves the gaps' surroundings out
             diag = track.diagnose(flight, cal)
         else:           # a recording with a reference IMU: the sensor level, which navigates
             from ..diagnosis import sensor
-            evaluation.refuse_gaps(flight)
+            refuse_gaps(flight)
             diag = sensor.diagnose(flight, cal)
         doc = document(Path(log_path).name, diag)
     except InputError as exc:
         no_diagnosis = str(exc)
     results, docs, no_windows = {}, {}, None
     if flight.truth is None:
-        no_windows = str(evaluation.no_reference(log_path, "the windows to restart from"))
+        no_windows = str(no_reference(log_path, "the windows to restart from"))
     else:
         results, docs, no_windows = _windows(flight, doc, lengths, min_speed, progress)
     with atomic_folder(out_dir, force=force, inputs=[log_path]) as tmp:
@@ -141,11 +144,11 @@ def markdown(log_path, meta, channels, flight, docs, no_windows, doc, no_diagnos
             lines.append(f"| measured: {key} | {_cell(value)} |")
     for key, value in (rec.get("assumed") or {}).items():
         lines.append(f"| assumed: {key} | {_cell(value)} |")
-    q = quaternion.from_float_array(flight.initial["q_nb"])
+    q = flight.initial.q_nb
     yaw, pitch, roll = (float(np.degrees(a)) for a in attitude.as_euler(q))
-    lines += ["", f"Initial state at t = {flight.initial['t']:.2f} s: roll {roll:.2f}, pitch "
+    lines += ["", f"Initial state at t = {flight.initial.t:.2f} s: roll {roll:.2f}, pitch "
               f"{pitch:.2f}, heading {yaw % 360:.1f} deg, speed "
-              f"{np.linalg.norm(flight.initial['v_ned']):.2f} m/s.", "",
+              f"{np.linalg.norm(flight.initial.v_ned):.2f} m/s.", "",
               "## Channels (`mimunav info`)", "", "```", channels, "```", "",
               "## Free-inertial windows against the reference (`mimunav windows`)", ""]
     if not docs:

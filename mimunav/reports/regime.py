@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import campaign
+from ..evaluation import campaign
 from ..files import write_atomic
 from .plots import figure, save
 from .table3 import PAPER, assumptions_markdown

@@ -7,10 +7,10 @@ import tempfile
 
 import numpy as np
 
-from .. import lab
-from .. import rotation_calibration as rc
+from ..lab import procedures as lab
+from ..lab import rotation as rc
 from ..files import write_atomic
-from ..sensors import MimuUnit
+from ..sensors.mimu import MimuUnit
 from .calibration import drawn_units, z_families, z_table
 from .plots import figure, save
 
@@ -87,7 +87,7 @@ def markdown(exact, real, png_name):
              "0-400 deg/s in 40 deg/s steps both ways, 20 s each, three mountings so that every "
              "gyro is swept in two; mechanism angle read by a 1.58 arcsec grating, logged as "
              "/mimu/platform) and is fitted with `mimunav calibrate RUN --method rotation` "
-             "(`mimunav.rotation_calibration`: per gyro w_out = k0 + k1 w + k2 w^2 + k3 w^3 plus "
+             "(`mimunav.lab.rotation`: per gyro w_out = k0 + k1 w + k2 w^2 + k3 w^3 plus "
              "cross-axis M, cross-axis nonlinearity Q and g-sensitivity G, by harmonics of the mechanism angle). "
              "z = (fitted - true) / reported standard error; the truth is the unit's eqs. 3-4 "
              "in the forward form (series reversion, `rotation_calibration.true_in_gauge`), "

@@ -14,9 +14,14 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from .. import calibration, campaign, evaluation, lab
+from ..evaluation import campaign
+from ..lab import procedures as lab
+from ..lab.calibrate import calibrate
+from ..evaluation.flight import Flight
+from ..evaluation.replay import comparison_times, errors_at, navigate_fog, replay
+from ..evaluation.table import budget_markdown, error_budget, normalised_table, table_markdown
 from ..files import write_atomic
-from ..simulation import simulate_flight
+from ..sensors.simulation import simulate_flight
 from .plots import campaign_distributions, navigation_errors
 
 PAPER = {"traditional": (3.6, 24.1, 9.07), "entire": (2.78, 0.3, 6.69)}   # seed S1 Table 3
@@ -60,7 +65,7 @@ def reproduce(out_dir="reports", seed=1, mc_units=16, workers=2, progress=True, 
             for variant, cal in cals.items():
                 cal.save(out_dir / f"table3-{variant}.json", force=True)
             steps.update()
-            flight = evaluation.Flight.load(log_job.result()[0])
+            flight = Flight.load(log_job.result()[0])
             steps.update()
             doc, budget = _flight_results(flight, cals, unit, profile, out_dir)
             # the log lived in a folder removed below: no path to it, but what it was
@@ -93,19 +98,19 @@ def _lab_calibration(unit, variant, folder, seed):
     and their fit, with its covariance."""
     paths = [lab.run(lab.plan(p), unit, os.path.join(folder, f"{p}.mcap"), seed + k,
                      progress=False)[0] for k, p in enumerate(campaign.VARIANTS[variant])]
-    return calibration.calibrate(paths, variant, unit.name)
+    return calibrate(paths, variant, unit.name)
 
 
 def _flight_results(flight, cals, unit, profile, out_dir):
     """Table 3 of the flight for the calibrations `cals` and the unit's true coefficients,
     the entire calibration's error budget, and the error figure; returns (table, budget)."""
-    doc = evaluation.table(flight, cals | {"true coefficients": unit.coefficients})
-    budget = evaluation.error_budget(flight, cals["entire"])
-    fog = evaluation.navigate_fog(flight)
-    t = evaluation.comparison_times(flight)
+    doc = normalised_table(flight, cals | {"true coefficients": unit.coefficients})
+    budget = error_budget(flight, cals["entire"])
+    fog = navigate_fog(flight)
+    t = comparison_times(flight)
     series = {}
     for variant, cal in cals.items():
-        err = evaluation.errors(evaluation.replay(flight, cal, fog=fog), t)
+        err = errors_at(replay(flight, cal, fog=fog), t)
         series[f"MIMU {variant} - truth"] = dict(err["mimu-truth"], t=t)
     series["FOG-IMU - truth"] = dict(err["fog-truth"], t=t)
     navigation_errors(series, str(out_dir / "table3-errors.png"),
@@ -202,12 +207,12 @@ def _markdown(scenario, profile, unit, doc, budget, stats, n_mc, seed, elapsed):
         "no nonlinear scale factors, no g-sensitivity. **Entire** is the paper's 63-coefficient "
         "method (thermal chamber, rate table, centrifuge; eqs. 1-10).", "",
         "## The paper (Dai et al. 2011, Table 3)", "", *paper, "",
-        "## This run", "", evaluation.table_markdown(doc),
+        "## This run", "", table_markdown(doc),
         "![errors against time](table3-errors.png)", "",
         "## Error budget of the entire calibration on this flight", "",
         "Each group of terms switched off in turn (temperature: eqs. 2/4 frozen at the first "
         "readings), the flight replayed, the 3-D end error compared:", "",
-        evaluation.budget_markdown(budget),
+        budget_markdown(budget),
         "## Monte Carlo", "", campaign.summary_markdown(stats, n_mc),
         "![distributions](table3-campaign.png)", "",
         "## Reading the numbers", "", *verdict,

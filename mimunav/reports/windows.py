@@ -1,10 +1,10 @@
-"""Free-inertial window results (`mimunav.windows`) as a document, a table and plots:
+"""Free-inertial window results (`mimunav.evaluation.windows`) as a document, a table and plots:
   growth  horizontal position error against time since the restart: every window (thin)
           and the median per length, log scale, one panel per variant;
   cdf     the distribution of the end-point horizontal error per length and variant."""
 import numpy as np
 
-from .. import windows
+from ..evaluation import windows
 from .plots import figure, save
 
 

@@ -16,7 +16,7 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from . import noise
-from .mounting import Mounting
+from ..frames.mounting import Mounting
 from ..errors import InputError
 
 G0 = 9.80665

@@ -3,7 +3,7 @@ to its true inputs (exact interval-mean specific force and rate at the sensor, t
 temperatures) beyond the model - for simulated recordings that hide an effect from the
 diagnosis (`mimunav simulate --hide`, the concealed-data proof).
 
-This is deliberately not `mimunav.effects`: the diagnosis builds its regressors there from
+This is deliberately not `mimunav.compensation.effects`: the diagnosis builds its regressors there from
 what the *reference IMU* says the motion was (Savitzky-Golay derivatives, the gyro's
 resonance frequency as its thermometer); here each effect is computed from the truth the
 simulator holds, each in its own few lines, and tested against closed forms

@@ -57,13 +57,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .. import compensation
-from ..compensation import Calibration
+from ..compensation.model import raw_from_physics
+from ..compensation.calibration_file import Calibration
 from ..files import check_format, read_json, write_atomic
 from ..kernels import njit
 from . import noise, response
 from .hidden import HiddenPhysics, HiddenSet
-from .mounting import Mounting
+from ..frames.mounting import Mounting
 from .thermal import ThermalModel
 from ..errors import InputError
 
@@ -408,7 +408,7 @@ class MimuRecorder:
         if unit.beyond_model:           # the sensing elements, forward (sensors.response)
             u_a, u_w = response.raw_output(unit.coefficients, f, w, t_acc, freq, f_gyro)
         else:                           # exactly eqs. 1-4: their inverse, to round-off
-            u_a, u_w = compensation.raw_from_physics(unit.coefficients, f, w, t_acc, freq,
+            u_a, u_w = raw_from_physics(unit.coefficients, f, w, t_acc, freq,
                                                      f_gyro=f_gyro)
         thermistor = self.thermistor_rng.normal(0, unit.thermal.thermistor_noise, (k, 3))
         thermistor += t_acc

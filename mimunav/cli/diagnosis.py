@@ -1,0 +1,167 @@
+"""The diagnose command, and findings as the terminal shows them."""
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+from .options import SEED, probability
+
+
+def _diagnose(args):
+    """Diagnosis of a log against a calibration (sensor level with a reference IMU,
+    navigation level with only a reference trajectory); JSON and report."""
+    from ..files import refuse_inputs
+    refuse_inputs([args.json, args.output], [args.log, args.model, args.noise])
+    inside = args.json and args.output and \
+        Path(args.output).resolve() in Path(args.json).resolve().parents
+    if inside:
+        raise InputError(f"--json {args.json} lies inside the report folder {args.output}, which "
+                         "gets its own diagnosis.json: give -o alone, or --json elsewhere")
+    if args.json and Path(args.json).exists() and not args.force:   # before the work
+        raise FileExistsError(f"{args.json} exists; use --force to replace it")
+    if not args.output:
+        return _diagnosed(args, None)
+    from ..reports.plots import Painter
+    with Painter() as painter:              # forked now: matplotlib loads beside the work
+        return _diagnosed(args, painter)
+
+
+def _diagnosed(args, painter):
+    """`_diagnose` once its arguments are checked; the report's figures by `painter`."""
+    from ..compensation.calibration_file import with_found
+    from ..diagnosis import levels
+    from ..diagnosis.document import document, dumps
+    from ..diagnosis.reference import Accuracy
+    from ..files import refuse_folder_early, write_atomic
+    from ..reports import diagnosis as report
+    if args.output:                 # here, after the fork: the child's import runs beside these
+        refuse_folder_early(args.output, args.force, report.FILES)
+    flight, cal, level = levels.load(args.log, args.model, args.level)
+    accuracy = Accuracy.parse(args.reference_accuracy) if args.reference_accuracy else None
+    noise = None
+    if args.noise:
+        if level != "sensor":
+            raise InputError(f"--noise sets the bias tests of the sensor level; {args.log} is "
+                             f"diagnosed at the {level} level, which has none")
+        from ..reports.noise import load
+        noise = load(args.noise)
+        print(f"bias tests' normal wander: {noise['source']}")
+    # the report's navigation of the model needs nothing the diagnosis finds: it runs on
+    # the other core beside the diagnosis
+    model = report.model_navigation_beside(flight, cal) if args.output else None
+    diag = levels.diagnose(flight, cal, level, args.alpha, args.seed, accuracy, noise)
+    doc = document(args.log, diag, args.alpha)
+    found = with_found(cal, doc["findings"])
+    if args.output:
+        report.write(args.output, doc, diag, flight, cal, found,
+                     args.model or "identity (the log's /mimu/imu as recorded)", force=args.force,
+                     painter=painter, model=model)
+    if args.json:
+        write_atomic(args.json, dumps(doc), force=args.force)
+    if doc["conclusive"]:
+        print(f"verdict: {doc['verdict']} ({doc['candidates_tested']} candidates)")
+    else:
+        print(f"verdict: inconclusive (contract verdict {doc['verdict']}; "
+              f"{doc['candidates_tested']} candidates)")
+        for reason in doc["inconclusive_reasons"]:
+            print(f"  because {reason}")
+    for f in doc["findings"]:
+        print(finding_line(f))
+    lag = doc.get("time_lag", {})
+    if "tau_s" in lag:
+        print(f"  time lag from the yaw rate: {lag['tau_s'] * 1e3:.1f} ms "
+              f"[{lag['ci95'][0] * 1e3:.1f}, {lag['ci95'][1] * 1e3:.1f}] (positive: the IMU lags)"
+              + (f"; not a finding: {lag['not_a_finding']}" if "not_a_finding" in lag else ""))
+    elif "not_estimated" in lag:
+        print(f"  time lag from the yaw rate not estimated: {lag['not_estimated']}")
+    for u in doc["unexplained"][:10]:
+        print(f"  unexplained residual {u['channel']} {u['t0']:.1f}-{u['t1']:.1f} s (z {u['z']:.1f})")
+    for w in doc.get("within_reference_accuracy", []):
+        print(set_aside_line(w))
+    if args.output:
+        print(f"wrote {args.output}/diagnosis.md" + (" and CAL+found.json" if found else ""))
+    return 0
+
+
+def finding_line(f):
+    """A finding for the terminal: term, coefficient and units, 95 % interval, held-out p,
+    attribution, a vector's components with the axes they are about (a mounting's turn also
+    about the vehicle's axes, in degrees), and the terms this flight cannot tell it from
+    (they explain the same residual: the name is the likelier of them, not a certainty)."""
+    from ..diagnosis.inference import p_text
+    units = "" if f["units"] == "1" else f" {f['units']}"
+    line = (f"  {f['label']}: {f['coefficient']:.4g}{units} "
+            f"[{f['ci95'][0]:.4g}, {f['ci95'][1]:.4g}] (held-out p {p_text(f['p_heldout'])}; "
+            f"{f.get('attribution', 'navigation level')})")
+    if "vector" in f:
+        line += (f"\n    vector ({f['units']}, {f.get('frame', 'sensor')} axes x, y, z) "
+                 + ", ".join(f"{v:.4g} [{lo:.4g}, {hi:.4g}]"
+                             for v, (lo, hi) in zip(f["vector"], f["vector_ci95"])))
+    if "vector_vehicle" in f:           # the mounting's turn: about the vehicle's x, y, z
+        line += ("\n    the sensor turned about the vehicle's forward, right, down axes "
+                 + ", ".join(f"{np.degrees(v):+.2f} deg [{np.degrees(lo):+.2f}, "
+                             f"{np.degrees(hi):+.2f}]"
+                             for v, (lo, hi) in zip(f["vector_vehicle"],
+                                                    f["vector_vehicle_ci95"])))
+    alike = [a["label"] for a in f.get("indistinguishable_from", [])]
+    if alike:
+        line += "\n    not told apart on this flight from " + ", ".join(alike)
+    return line
+
+
+def set_aside_line(w):
+    """A term set aside as within the stated accuracies (`within_reference_accuracy`), for
+    the terminal: its value, its p against the noise alone, the reference's stated 1 sigma
+    along it and the 1 sigma the test used - the estimate's with the reference's and the
+    calibration's stated errors as priors, which can exceed both."""
+    value = w.get("coefficient", w.get("vector"))
+    said = (f"{value:.4g}" if isinstance(value, float) else
+            "[" + ", ".join(f"{v:.3g}" for v in value) + "]")
+    sigmas = lambda key: ", ".join(f"{v:.3g}" for v in w[key])     # noqa: E731
+    stated = (f"the reference's (1 sigma {sigmas('reference_1sigma')}) and the calibration's"
+              if "reference_1sigma" in w else
+              f"the calibration's stated covariance (1 sigma {sigmas('calibration_1sigma')})")
+    return (f"  set aside: {w['label']} {said}: significant against the noise alone (p "
+            f"{w['p_train']:.2g}), not once the stated errors that may share it - {stated} - "
+            f"are allowed: with them its 1 sigma is {sigmas('total_1sigma')}")
+
+
+def add_diagnose(sub):
+    """The `diagnose` command's parser."""
+    p = sub.add_parser("diagnose", help="find the physics the model leaves out: test the "
+                       "MIMU's residual against the reference IMU (or, without one, its "
+                       "navigation error against the reference trajectory) for every term of "
+                       "the effect vocabulary (log contract section 3)")
+    p.add_argument("log", help="flight log (MCAP) with /mimu/raw or /mimu/imu, and /fog/imu "
+                   "(sensor level) or /truth/state (navigation and track levels)")
+    p.add_argument("--level", choices=("auto", "sensor", "navigation", "track"), default="auto",
+                   help="sensor: MIMU outputs (m/s^2, rad/s) against the FOG-IMU's; navigation: "
+                   "NED velocity error (m/s) against /truth/state; track: MIMU outputs against "
+                   "the ideal IMU simulated along a land vehicle's /truth/state without attitude "
+                   "(a recording); auto (default): sensor with /fog/imu, track for a recorded "
+                   "/mimu/imu with such a reference, else navigation")
+    p.add_argument("--model", help="the calibration the user believes (mimunav-calibration/1); "
+                   "required for /mimu/raw, optional for a recorded /mimu/imu (identity)")
+    p.add_argument("--json", help="write the mimunav-diagnosis/1 document here (with -o: the "
+                   "report's diagnosis.json, whose `navigation` section - the MIMU navigated "
+                   "with and without the found terms - only a report computes)")
+    p.add_argument("-o", "--output", help="report folder: diagnosis.md, plots, diagnosis.json, "
+                   "CAL+found.json (the model with the found terms)")
+    p.add_argument("--alpha", type=probability, default=0.05,
+                   help="family-wise error rate over the candidate library, 0 < alpha < 1 "
+                   "(default 0.05)")
+    p.add_argument("--reference-accuracy", metavar="KEY=VALUE,...",
+                   help="the reference IMU's 1-sigma accuracy; the keys given override the log's "
+                   "sensor/fog `accuracy` metadata, which overrides the defaults (seed S1 Table "
+                   "4: scale 2.5e-4; "
+                   "misalignment 1e-4 rad, assumed): gyro_scale, accel_scale (1), "
+                   "gyro_misalignment_rad, accel_misalignment_rad (rad)")
+    p.add_argument("--noise", metavar="NOISE.json",
+                   help="the unit's measured random errors (a `mimunav noise` file of its "
+                   "/mimu/raw or /mimu/imu at rest): its bias instability B (SI) replaces the "
+                   "class's zero drift as the wander the sensor level's bias tests take as "
+                   "normal")
+    p.add_argument("--seed", type=SEED, default=0, help="seed of the navigation level's block "
+                   "bootstrap (the sensor and track levels draw nothing)")
+    p.add_argument("--force", action="store_true", help="replace existing outputs")
+    p.set_defaults(func=_diagnose)

@@ -1,0 +1,91 @@
+"""The import command: a recording nobody here wrote into a contract log."""
+from pathlib import Path
+
+import numpy as np
+
+from ..importers.registry import KINDS
+from .options import number
+
+
+def _import(args):
+    """A foreign recording into a contract log."""
+    from ..files import refuse_inputs
+    from ..frames.mounting import Mounting
+    from ..importers import registry
+    from ..importers.write import summary, write_log
+    source = Path(args.source)
+    refuse_inputs([args.output], [args.source] + (sorted(map(str, source.iterdir()))
+                                                  if source.is_dir() else []))
+    mounting = (Mounting.from_rpy_deg(args.mounting_rpy_deg) if args.mounting_rpy_deg
+                else None)
+    rec = registry.read(args.kind, args.source, mounting,
+                        **{name: getattr(args, name) for name in registry.OPTIONS})
+    align = write_log(rec, args.output, force=args.force)
+    for line in summary(rec, align, args.output):
+        print(line)
+    return 0
+
+
+def add_import(sub):
+    """The `import` command's parser."""
+    p = sub.add_parser("import", help="turn a recording nobody here wrote into a contract log "
+                       "(/mimu/imu in SI sensor axes, /truth/state, /gnss/fix, metadata of what "
+                       "is real and what is assumed)")
+    p.add_argument("kind", choices=KINDS,
+                   help="rtklib: folder with imu_*.csv, its RTKLIB .tag and an RTKLIB .pos; "
+                   "ros2: an MCAP with sensor_msgs/msg/Imu (+ NavSatFix); ulog: a PX4 .ulg "
+                   "(its EKF2 estimate as a reference that is not independent); dataflash: an "
+                   "ArduPilot .bin (IMU, GPS/GPA; reference EKF3 POS/XKF1/ATT or the GPS); "
+                   "table: a TOML spec of CSV / NumPy columns with units, axes, time base and "
+                   "reference (see mimunav/importers/table.py; example tests/data/comma2k19.toml)")
+    p.add_argument("source", help="the folder (rtklib), file (ros2, ulog, dataflash) or spec "
+                   "(table)")
+    p.add_argument("--imu-instance", type=number(0, 9, int),
+                   help="dataflash: the IMU instance (field I; IMU2 = 1), default 0; ulog: "
+                   "the sensor_accel/sensor_gyro instance instead of sensor_combined")
+    p.add_argument("--reference-imu-instance", type=number(0, 9, int),
+                   help="ulog: another sensor_accel/sensor_gyro instance as the reference IMU "
+                   "(/fog/imu: diagnose then works at the sensor level)")
+    p.add_argument("--reference", choices=("auto", "ekf", "gnss", "none"), default="auto",
+                   help="dataflash: the reference trajectory: ekf = the autopilot's estimate "
+                   "(POS, XKF1, ATT; not independent), gnss = the GPS fixes (independent, no "
+                   "attitude), auto = ekf when logged, else gnss")
+    p.add_argument("--gps-status", type=number(3, 6, int), default=3,
+                   help="dataflash: the lowest GPS Status that serves as the gnss reference "
+                   "(3 3D, 4 DGPS, 5 RTK float, 6 RTK fixed), default 3")
+    p.add_argument("-o", "--output", required=True, help="log to write (.mcap)")
+    p.add_argument("--imu-topic", help="ros2: the sensor_msgs/msg/Imu topic (default: the only one)")
+    p.add_argument("--fix-topic", help="ros2: the sensor_msgs/msg/NavSatFix topic (default: the "
+                   "only one, if any)")
+    p.add_argument("--mounting-rpy-deg", type=number(-360.0, 360.0), nargs=3, metavar=("ROLL", "PITCH", "YAW"),
+                   help="sensor -> vehicle (FRD) rotation, deg (default: rtklib the README's "
+                   "180 0 180; ros2 180 0 0, REP-103 x forward, y left, z up; ulog and "
+                   "dataflash 0 0 0, the autopilot's FRD body frame; table: the spec's axes)")
+    p.add_argument("--reference-imu-topic", help="ros2: a second sensor_msgs/msg/Imu topic, a "
+                   "better IMU flown with it, as the reference IMU (/fog/imu: `diagnose` then "
+                   "works at the sensor level)")
+    p.add_argument("--reference-imu-time-offset", type=number(-60.0, 60.0), default=0.0,
+                   metavar="S", help="ros2, table, ulog: added to the reference IMU's stamps, "
+                   "s (the import measures the two IMUs' offset and refuses one beyond 10 ms)")
+    p.add_argument("--reference-imu-rpy-deg", type=number(-360.0, 360.0), nargs=3,
+                   metavar=("ROLL", "PITCH", "YAW"), help="ros2: the reference IMU's sensor -> "
+                   "vehicle (FRD) rotation, deg (default 180 0 0, REP-103)")
+    p.add_argument("--pose-topic", help="ros2: a nav_msgs/msg/Odometry or geometry_msgs/msg/"
+                   "PoseStamped topic (local ENU frame) as the reference; needs --origin")
+    p.add_argument("--origin", type=number(-360.0, 1e5), nargs=3,
+                   metavar=("LAT_DEG", "LON_DEG", "H_M"),
+                   help="ros2: geodetic origin of the pose topic's frame (deg, deg, m)")
+    p.add_argument("--reference-status", type=number(-1, 2, int),
+                   help="ros2: NavSatFix fixes of at least this status (2 = GBAS_FIX, RTK "
+                   "grade) serve as the reference trajectory (/truth/state)")
+    p.add_argument("--reference-sigma", type=number(0.0, 1e4, open_low=True), default=np.inf,
+                   help="ros2: and with a horizontal sigma from position_covariance of at most "
+                   "this, m")
+    p.add_argument("--solutions", nargs="+", default=["fix"],
+                   choices=("fix", "float", "sbas", "dgps", "single", "ppp"),
+                   help="rtklib: the solution kinds (RTKLIB Q) that serve as the reference "
+                   "(default fix; every epoch is kept in /gnss/fix with its sigmas)")
+    p.add_argument("--root", metavar="DIR", help="table: the folder of the spec's data files "
+                   "(default: the spec's `root`, relative to the spec file)")
+    p.add_argument("--force", action="store_true", help="replace an existing output")
+    p.set_defaults(func=_import)

@@ -1,0 +1,130 @@
+"""Argument types and option groups that several commands share."""
+import argparse
+from pathlib import Path
+
+import numpy as np
+
+from .. import FLIGHTS
+from ..errors import InputError
+
+
+def number(lo, hi, kind=float, open_low=False):
+    """An argparse type: a finite `kind` number within [lo, hi] ((lo, hi] with open_low),
+    checked at parse time."""
+    import argparse
+
+    def parse(text):
+        try:
+            value = kind(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not a{'n integer' if kind is int else ' number'}") from None
+        if not np.isfinite(value) or value < lo or value > hi or (open_low and value == lo):
+            raise argparse.ArgumentTypeError(
+                f"{text} is outside {'(' if open_low else '['}{lo:g}, {hi:g}]")
+        return value
+    return parse
+
+
+RATE_HZ = number(0.0, 1e5, open_low=True)          # sample rates: above 0, at most 100 kHz
+
+
+SEED = number(0, 2 ** 32 - 1, int)
+
+
+COUNT = number(1, 100000, int)
+
+
+SECONDS = number(0.0, 86400.0, open_low=True)
+
+
+def probability(text):
+    """argparse type: a number strictly between 0 and 1."""
+    import argparse
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not 0 < value < 1:
+        raise argparse.ArgumentTypeError(f"{value:g} is not between 0 and 1")
+    return value
+
+
+def span(text):
+    try:
+        t0, t1 = (float(v) for v in text.split(":"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected T0:T1 in s, got {text!r}") from None
+    if not (np.isfinite(t0) and np.isfinite(t1) and t1 > t0 >= 0):
+        raise argparse.ArgumentTypeError(f"need 0 <= T0 < T1 (finite), got {text!r}")
+    return t0, t1
+
+
+def imu_channel_arguments(p):
+    """A log's IMU channel in SI units and the output folder (`noise`, `drift`)."""
+    p.add_argument("log", help="log (.mcap): a lab run, a simulated flight, an imported recording")
+    p.add_argument("--channel", default="/mimu/imu",
+                   help="/mimu/imu (default), /fog/imu, or /mimu/raw with --cal")
+    p.add_argument("--cal", help="calibration file, to read /mimu/raw in SI units")
+    p.add_argument("-o", "--output", required=True, help="folder to write")
+    p.add_argument("--force", action="store_true", help="replace an existing folder")
+
+
+def flight_arguments(p):
+    p.add_argument("log", help="flight log (.mcap) with /mimu/raw and /fog/imu")
+    p.add_argument("--end", type=number(-1e9, 1e9), help="end point, s since the log's epoch "
+                   "(default: the last instant every channel covers)")
+
+
+def scenario_options(p, flight=True):
+    """The options of `campaign.Scenario`: what shapes a Table 3 comparison."""
+    if flight:
+        p.add_argument("--flight", default=str(FLIGHTS / "high-dynamic.toml"),
+                       help="flight profile TOML (default: flights/high-dynamic.toml, seed S1 "
+                       "4.2)")
+    p.add_argument("--severity", type=number(1e-3, 10.0), default=1.0,
+                   help="scale the flight's dynamics: g exposure (n - 1), accelerations and "
+                   "rates x S (default 1)")
+    p.add_argument("--ground-temperature-c", type=number(-60.0, 60.0), default=15.0,
+                   help="air temperature at the start height, degC (default 15, ISA)")
+    p.add_argument("--warm-up-s", type=number(0.0, 86400.0), default=600.0,
+                   help="MIMU powered on this long before take-off, s (default 600: the "
+                   "reference's ground alignment; 0 = cold at take-off)")
+    p.add_argument("--mimu-grade", default="table1",
+                   help="MIMU random errors (default table1: seed S1 Table 1 at its bound; "
+                   "tactical: ADIS16488A class; stim300: STIM300 class)")
+    p.add_argument("--nonlinearity", default="table1",
+                   help="nonlinear scale factors: table1 = Table 2 scaled to Table 1's fit "
+                   "residual (default), table2 = Table 2 literally")
+    p.add_argument("--fog-grade", default="table4",
+                   help="reference FOG-IMU (default table4: Table 4 medium accuracy; "
+                   "table4-bound: its bounds as 1 sigma; navigation: 0.01 deg/h class)")
+    p.add_argument("--exact-model", action="store_true",
+                   help="MIMU exactly the 63-coefficient model (no scale asymmetry, no dT term)")
+
+
+def scenario(args):
+    from ..evaluation.campaign import Scenario
+    return Scenario(flight=str(Path(args.flight).resolve()), severity=args.severity,
+                    ground_temperature_c=args.ground_temperature_c, warm_up_s=args.warm_up_s,
+                    mimu_grade=args.mimu_grade,
+                    nonlinearity=args.nonlinearity, fog_grade=args.fog_grade,
+                    beyond_model=not args.exact_model)
+
+
+def variant_paths(specs):
+    """{label: calibration path} of --cal LABEL=FILE (or FILE, labelled by its stem)."""
+    paths = {}
+    for spec in specs:
+        name, sep, path = spec.partition("=")
+        if not sep:
+            name, path = Path(spec).stem, spec
+        if name in paths:
+            raise InputError(f"two calibrations are labelled {name!r}: give each its own "
+                             "label (--cal LABEL=FILE)")
+        paths[name] = path
+    return paths
+
+
+def variants(specs):
+    from ..compensation.calibration_file import Calibration
+    return {name: Calibration.load(path) for name, path in variant_paths(specs).items()}

@@ -1,0 +1,208 @@
+"""Confirmation of the chosen terms on the held-out rows: the coefficient with its 95 %
+interval (profile likelihood or Wald), p-value, sign and physical range, attribution, where the
+term acts (time spans and flight conditions) and what removing it does to the residual rms.
+"""
+import math
+
+import numpy as np
+import quaternion
+
+from ..compensation import effects
+from ..sensors.mimu import G0
+from . import library
+from ..frames import attitude
+from .design import CHANNELS, DEG, detrended, term_contribution
+from .fitting import Fitter, plausible, term_test
+
+
+# ---- confirmation on held-out rows -------------------------------------------------------
+def confirm_chosen(design, chosen, train, held, alpha, full_scale, cond):
+    if not chosen:
+        return [], []
+    idx = [c["j"] for c in chosen]
+    held_fitter = Fitter(design, held)
+    cleaned = detrended(design, design.residual)
+    level = alpha / len(chosen)
+    findings, rejected = [], []
+    for c in chosen:
+        j = c["j"]
+        term = design.terms[j]
+        res = term_test(held_fitter, idx, j)
+        b_tr, b_ho = c["b_train"], res["b"]
+        interval = None
+        if not res["linear"] and len(design.columns[j]) == 1 and design.k[j] == 1:
+            interval = held_fitter.profile_interval(idx, j, float(np.sqrt(res["cov"][0, 0])))
+            if not (np.all(np.isfinite(interval)) and interval[0] <= b_ho[0] <= interval[1]):
+                interval = None     # unbounded, or the joint fit off the channel's: Wald's
+        finding = interval_estimate(design, term, b_ho, res["cov"], interval)
+        finding["ci95_method"] = "profile-likelihood" if interval is not None else "wald"
+        where = where_rows(term_contribution(design, j, b_ho))
+        finding["where"] = term_spans(design, where, term, cond)
+        finding["fit"] = _rms_fit(design, cleaned, j, b_tr, where, train, held, term)
+        for key in ("order", "window_s", "reference"):
+            if key in term:
+                finding[key] = term[key]
+        p_ho, p_ref = math.exp(res["logp"]), math.exp(res["logp_ref"])
+        finding.update(
+            label=library.label(term), p_train=c["p_train"], holm_threshold=c["threshold"],
+            p_heldout=p_ho, train_coefficient=b_tr.tolist() if len(b_tr) > 1 else float(b_tr[0]),
+            attribution=_attribution(term, p_ref < level, res["linear"]),
+            named_on=c.get("named_on", "training half"),
+            indistinguishable_from=[alternative_of(design.terms[a]) for a in c["alternatives"]],
+            not_chosen_as_implausible=c["implausible"])
+        if res["linear"]:
+            finding["p_heldout_with_reference_accuracy"] = p_ref
+        ok, limit = plausible(design, j, b_ho, full_scale)
+        why = None
+        if p_ho >= level:
+            why = f"held-out p = {p_ho:.2g}, needs < {level:.2g}"
+        elif float(b_tr @ np.linalg.lstsq(res["cov"], b_ho, rcond=None)[0]) <= 0:
+            # (a vector in the held-out fit's metric: its well-determined directions count)
+            why = "the held-out coefficient has the other sign"
+        elif not ok:
+            why = (f"held-out magnitude {np.linalg.norm(b_ho):.3g} beyond the physical range "
+                   f"{limit:.3g}")
+        (findings if why is None else rejected).append(
+            finding if why is None else dict(finding, rejected=why))
+    return findings, rejected
+
+
+def _attribution(term, beyond_reference, linear):
+    """Whom a finding is charged to: the MIMU's sensors, or for the whole unit's terms its
+    installation (mounting, lever arm) or its timing (time_skew); '-or-reference' when the
+    reference's stated accuracy could hold it, '-or-calibration' when the calibration's
+    stated covariance could."""
+    who = {"mounting_misalignment": "installation", "lever_arm": "installation",
+           "time_skew": "timing"}.get(term["effect"], "mimu")
+    if beyond_reference:
+        return who
+    return who + ("-or-reference" if linear else "-or-calibration")
+
+
+def interval_estimate(design, term, b, cov, interval=None):
+    """`estimate` with the 95 % interval of covariance `cov` (or `interval`, (lo, hi) of a
+    scalar: `Fitter.profile_interval`); a lever arm (fitted in the sensor axes) turned into
+    the vehicle frame of the metadata's lever_arm_m, its sensor-axes vector kept for the
+    compensation (`vector_sensor_axes`); a mounting misalignment (a rotation vector of the
+    sensor axes, as the contract's `vector`) also as the same turn about the vehicle's
+    axes (`vector_vehicle`, FRD, with `vector_vehicle_ci95`): a mounting that turns the
+    sensor's z axis up reverses the sign of a yaw read off the sensor axes."""
+    if interval is not None:
+        return estimate(term, b, np.array([interval[0]]), np.array([interval[1]]))
+    if term["effect"] not in ("lever_arm", "mounting_misalignment"):
+        half = 1.96 * np.sqrt(np.diag(cov))
+        return estimate(term, b, b - half, b + half)
+    c_vs = quaternion.as_rotation_matrix(attitude.from_wxyz(design.q_vs))
+    b_v, cov_v = c_vs @ b, c_vs @ cov @ c_vs.T
+    half_v = 1.96 * np.sqrt(np.diag(cov_v))
+    if term["effect"] == "mounting_misalignment":    # the sensor axes' turn phi (q_vs q(phi))
+        half = 1.96 * np.sqrt(np.diag(cov))          # is the turn C_vs phi of the vehicle
+        return dict(estimate(term, b, b - half, b + half),  # axes (q(C_vs phi) q_vs)
+                    vector_vehicle=b_v.tolist(),
+                    vector_vehicle_ci95=np.column_stack([b_v - half_v, b_v + half_v]).tolist())
+    return dict(estimate(term, b_v, b_v - half_v, b_v + half_v), frame="vehicle",
+                vector_sensor_axes=b.tolist())
+
+
+def estimate(term, beta, lo, hi):
+    """The contract's description of a term with its held-out estimate and 95 % interval
+    (a vector parameter as `vector`, its largest component as `coefficient`, and the frame
+    of its components: the MIMU's sensor axes here)."""
+    finding = {k: v for k, v in term.items() if k in ("effect", "sensor", "axis", "input_axis")}
+    if len(beta) == 1:
+        finding.update(coefficient=float(beta[0]), ci95=[float(lo[0]), float(hi[0])])
+    else:
+        big = int(np.argmax(np.abs(beta)))
+        finding.update(coefficient=float(beta[big]), ci95=[float(lo[big]), float(hi[big])],
+                       vector=beta.tolist(), vector_ci95=np.column_stack([lo, hi]).tolist(),
+                       frame="sensor")
+    finding["units"] = effects.units(term)
+    return finding
+
+
+def alternative_of(term):
+    out = {k: term[k] for k in ("effect", "sensor", "axis", "input_axis", "order", "window_s")
+           if k in term}
+    out["label"] = library.label(term)
+    return out
+
+
+def position_of(design, finding):
+    labels = [library.label(t) for t in design.terms]
+    return labels.index(finding["label"])
+
+
+def beta_of(finding):
+    return np.asarray(finding.get("vector_sensor_axes",
+                                  finding.get("vector", [finding["coefficient"]])), float)
+
+
+def where_rows(contribution):
+    """Rows where the term acts: its contribution above a quarter of its peak (99.9th
+    percentile of the magnitude over the channels it drives)."""
+    mag = np.linalg.norm(contribution / (np.abs(contribution).max(axis=0) + 1e-300), axis=1)
+    peak = np.percentile(mag, 99.9)
+    return mag >= 0.25 * peak if peak > 0 else np.zeros(len(mag), bool)
+
+
+def _rms_fit(design, before, j, b_tr, where, train, held, term):
+    """Residual rms in the term's located rows before (`before`: the residual with its bias
+    removed, `detrended`) and after removing the term with the training coefficient, on
+    training and on held-out rows."""
+    after = detrended(design, design.residual - term_contribution(design, j, b_tr))
+    chans = sorted(design.columns[j])
+    if term["sensor"] == "imu":         # report the sensor whose channels gain most
+        gains = {s: [ch for ch in chans if (ch < 3) == (s == "accel")] for s in ("accel", "gyro")}
+        ratio = {s: rms_in(after, where, chs) / max(rms_in(before, where, chs), 1e-300)
+                 for s, chs in gains.items() if chs}
+        sensor = min(ratio, key=ratio.get)
+        chans = gains[sensor]
+    else:
+        sensor = term["sensor"]
+    out = {}
+    for part, rows in (("train", train), ("heldout", held)):
+        out[f"{part}_rms_before"] = rms_in(before, where & rows, chans)
+        out[f"{part}_rms_after"] = rms_in(after, where & rows, chans)
+    out["units"] = "m/s^2" if sensor == "accel" else "rad/s"
+    out["channels"] = [f"{CHANNELS[ch][0]}.{CHANNELS[ch][1]}" for ch in chans]
+    out["basis"] = (f"bin means ({design.bin_s:.3g} s), piecewise-linear bias removed, rows where "
+                    "the term acts; 'after' uses the training coefficient")
+    return out
+
+
+def rms_in(x, rows, chans):
+    v = x[np.ix_(rows, chans)]
+    return float(np.sqrt(np.mean(v ** 2))) if v.size else float("nan")
+
+
+def term_spans(tier, rows, term, cond, gap_s=2.0, max_spans=20):
+    """Contiguous time spans of the rows (gaps below gap_s merged) with the flight
+    conditions met there."""
+    t = tier.t
+    if not rows.any():
+        return []
+    half = 0.5 * float(np.median(np.diff(t)))
+    idx = np.flatnonzero(rows)
+    breaks = np.flatnonzero(np.diff(t[idx]) > gap_s)
+    starts, ends = np.r_[idx[0], idx[breaks + 1]], np.r_[idx[breaks], idx[-1]]
+    order = np.argsort(-(t[ends] - t[starts]))[:max_spans]
+    spans = []
+    for a, b in sorted(zip(starts[order], ends[order])):
+        t0, t1 = float(t[a] - half), float(t[b] + half)
+        spans.append({"t0": t0, "t1": t1, "condition": _condition(cond, t0, t1, term)})
+    return spans
+
+
+def _condition(cond, t0, t1, term):
+    """What the flight did in [t0, t1]: peak |f| (g), |w| (deg/s), temperature range."""
+    a, b = int(np.searchsorted(cond.t, t0, "left")), int(np.searchsorted(cond.t, t1, "right"))
+    k = slice(a, b)                     # the samples t0 <= t <= t1 (the times increase)
+    if a >= b:
+        return library.label(term)
+    f = np.linalg.norm(cond.f[k], axis=1).max() / G0
+    w = np.linalg.norm(cond.w[k], axis=1).max() / DEG
+    temp = cond.T[k].mean(axis=1)
+    text = f"{library.label(term)} acting: |f| up to {f:.1f} g, |w| up to {w:.0f} deg/s"
+    if np.isfinite(temp).all():
+        text += f", T {temp.min():.1f}-{temp.max():.1f} degC"
+    return text

@@ -1,0 +1,76 @@
+"""The diagnosis as the contract writes it (`mimunav-diagnosis/1`: contract keys first,
+then this tool's), and the calibration with the found terms (`CAL+found.json`).
+"""
+import json
+import os
+
+import numpy as np
+
+from ..files import json_ready
+from . import navigation, sensor
+
+
+FORMAT = "mimunav-diagnosis/1"
+CONTRACT_KEYS = ("effect", "sensor", "axis", "input_axis", "coefficient", "ci95", "units",
+                 "vector", "vector_ci95", "where", "fit")
+
+
+def document(log_path, diag, alpha=0.05):
+    """The `mimunav-diagnosis/1` document of a diagnosis (sensor or navigation level;
+    contract keys first, then this tool's extra keys)."""
+    findings = [{**{k: f[k] for k in CONTRACT_KEYS if k in f},
+                 **{k: v for k, v in f.items() if k not in CONTRACT_KEYS}} for f in diag.findings]
+    doc = {"format": FORMAT, "log": os.path.basename(str(log_path)),
+           "verdict": sensor.verdict(diag), "findings": json_ready(findings),
+           "unexplained": json_ready(diag.unexplained),
+           "not_confirmed": json_ready(diag.rejected),
+           "level": diag.level, "candidates_tested": diag.candidates, "alpha": alpha,
+           "method": METHOD[diag.level]}
+    if diag.level in ("sensor", "track"):
+        doc["reference_accuracy"] = json_ready(diag.accuracy)
+        if getattr(diag, "bias_null", None):
+            doc["bias_null"] = json_ready(diag.bias_null)
+        doc["within_reference_accuracy"] = json_ready(diag.within_reference)
+    if getattr(diag, "reference_check", None):
+        doc["reference_check"] = json_ready(diag.reference_check)
+    if getattr(diag, "time_lag", None):
+        doc["time_lag"] = json_ready(diag.time_lag)
+    reasons = getattr(diag, "inconclusive", None) or []
+    doc["conclusive"] = not reasons
+    if reasons:
+        doc["inconclusive_reasons"] = reasons
+    if diag.level == "navigation":
+        doc.update(epoch_s=navigation.EPOCH_S, reference="truth (/truth/state)",
+                   velocity_error_rms=json_ready(np.sqrt(np.mean(diag.observed ** 2, axis=0))))
+    return doc
+
+
+METHOD = {
+    "sensor": ("sensor level (the reference IMU predicts the MIMU's outputs): generalised "
+               "least squares with a random-walk bias of fitted level and the reference's "
+               "own linear error under a prior of its stated accuracy; forward selection on "
+               "alternate 0.5 s blocks with Holm's step-down thresholds over the library; "
+               "the other blocks give the coefficient, its 95 % interval and the "
+               "confirmation; saturation, quantization, bias shift and bias instability "
+               "tested on the outputs and on 10 s means of the bias over quiet flight "
+               "against the MEMS class of seed S1 Table 1"),
+    "navigation": ("navigation level (no reference IMU: the MIMU's free-inertial velocity "
+                   "error against the reference trajectory is fitted to each candidate's "
+                   "error signature on this trajectory, bias wander and initial attitude "
+                   "error as nuisance): the same selection, held-out confirmation and "
+                   "bootstrap as the sensor level; inconclusive when a chosen term is neither "
+                   "confirmed nor refuted on the held-out segments, or holds there but not in "
+                   "the bootstrap; 'no-missing-physics' means none detected, not a statement "
+                   "of power"),
+    "track": ("track level (no reference IMU; a vehicle's reference trajectory, whose own "
+              "attitude, if any, is not used): the ideal IMU simulated along the trajectory "
+              "(attitude from the velocity: no side slip, roll 0) is the reference of the "
+              "sensor level - residual, "
+              "Holm selection on alternate blocks, held-out confirmation on the others, the "
+              "IMU in the track's band, bins as long as the track's errors stay correlated and "
+              "blocks of two bins (reference_check: bin_s, block_s), the yaw rate weighted by "
+              "its 1/speed error law; samples below 2 m/s in motion left out")}
+
+
+def dumps(doc):
+    return json.dumps(doc, indent=1, allow_nan=False, default=float) + "\n"

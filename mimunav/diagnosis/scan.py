@@ -1,0 +1,138 @@
+"""After the fit: localized excursions of the residual (2 s windows against a local
+baseline, robust z, Bonferroni), and the residual map - rms in each flight condition over the
+same in quiet flight.
+"""
+import numpy as np
+from scipy import stats
+
+from ..compensation.effects import derivative
+from ..sensors.mimu import G0
+from . import outputs
+from .design import Binning, CHANNELS, DEG
+
+
+SCAN_WINDOW_S = 2.0
+SCAN_DOF = 10
+MAP_SECONDS = 1.0
+
+
+def near_spans(t, spans, margin_s):
+    """(n,) bool: the times t (s) within margin_s of any span {"t0", "t1"} (s)."""
+    out = np.zeros(len(t), bool)
+    for span in spans:
+        out |= (t >= span["t0"] - margin_s) & (t <= span["t1"] + margin_s)
+    return out
+
+
+# ---- after the fit: residual map and localized excursions -------------------------------
+def excursions(design, x, alpha):
+    """Localized excursions of the residual x: per channel, the mean over SCAN_WINDOW_S
+    windows started every second against its local baseline (the windows starting 4 and 5 s
+    before and after, so a slow wander cancels and an excursion of a few seconds does not
+    hide in its own baseline); robust z across the windows (MAD), Bonferroni over windows x
+    channels with Student-t tails of SCAN_DOF degrees of freedom. Where the bins' white
+    variance varies (`design.shape`) each window's step is first divided by its own standard
+    deviation under that shape, so the MAD compares like with like (a vehicle model's yaw
+    rate at 2 m/s errs ten times more than at 20 m/s: departures from stops had stood out at
+    z 10-25 on null drives). Returns spans [{"t0", "t1", "channel", "z"}] (overlapping
+    windows merged)."""
+    t = design.t
+    sec = outputs.block_index(t, 1.0)
+    n = sec.max() + 1
+    counts = np.bincount(sec, minlength=n).astype(float)
+    length = int(round(SCAN_WINDOW_S))
+    kernel = np.ones(length)
+    win_counts = np.convolve(counts, kernel, "valid")
+    full = win_counts >= 0.5 * np.median(win_counts)
+    nwin = len(win_counts)
+    z_limit = stats.t.isf(alpha / (2 * nwin * 6), SCAN_DOF)
+    spans = []
+    def around(w):                  # (4, nwin): the baseline windows of each window
+        pad = np.concatenate([np.full(5, np.nan), w, np.full(5, np.nan)])
+        return np.stack([pad[5 + d:5 + d + nwin] for d in (-5, -4, 4, 5)])
+    for ch in range(6):
+        sums = np.convolve(np.bincount(sec, x[:, ch], minlength=n), kernel, "valid")
+        means = np.where(full, sums / np.maximum(win_counts, 1), np.nan)
+        base_windows = around(means)
+        count = np.isfinite(base_windows).sum(axis=0)
+        base = np.nansum(base_windows, axis=0) / np.maximum(count, 1)
+        step = np.where(count >= 2, means - base, np.nan)
+        if design.shape is not None:            # each step over its own sd (the shape's)
+            var = np.convolve(np.bincount(sec, design.shape[:, ch], minlength=n), kernel,
+                              "valid") / np.maximum(win_counts, 1) ** 2
+            var = np.where(full, var, np.nan)
+            # a window without samples: NaN, left out below
+            with np.errstate(invalid="ignore", divide="ignore"):
+                step = step / np.sqrt(var + np.nansum(around(var), axis=0) /
+                                      np.maximum(count, 1) ** 2)
+        good = np.isfinite(step)
+        if good.sum() < 10:
+            continue
+        centre = np.median(step[good])
+        spread = 1.4826 * np.median(np.abs(step[good] - centre))
+        if spread == 0:
+            continue
+        z = np.where(good, (step - centre) / spread, 0.0)
+        # an excursion also shows, halved and reversed, where it sits in a baseline (4-6 s
+        # away): keep only windows that are the largest within that reach
+        peak = np.abs(z) >= _running_max(np.abs(z), 6)
+        for w_id in np.flatnonzero((np.abs(z) > z_limit) & peak):
+            t0 = t[0] + w_id
+            if spans and spans[-1]["channel"] == ch and spans[-1]["t1"] >= t0 - 1e-9:
+                spans[-1]["t1"] = t0 + SCAN_WINDOW_S
+                spans[-1]["z"] = max(spans[-1]["z"], float(z[w_id]), key=abs)
+            else:
+                spans.append({"t0": float(t0), "t1": float(t0 + SCAN_WINDOW_S), "channel": ch,
+                              "z": float(z[w_id])})
+    for s in spans:
+        s["channel"] = f"{CHANNELS[s['channel']][0]}.{CHANNELS[s['channel']][1]}"
+    return spans
+
+
+def _running_max(x, reach):
+    """max(x[i - reach .. i + reach]) for every i."""
+    pad = np.concatenate([np.zeros(reach), x, np.zeros(reach)])
+    return np.max(np.stack([pad[k:k + len(x)] for k in range(2 * reach + 1)]), axis=0)
+
+
+CONDITIONS = ("quiet", "|f| > 2 g", "|w| > 60 deg/s", "|dw/dt| > 300 deg/s^2",
+              "|dT/dt| > 0.5 degC/min")
+
+
+def condition_masks(design, cond, m, usable):
+    """Bin masks of the flight conditions of the residual map."""
+    mean, ok = Binning(m, usable), design.kept
+    f = mean(np.linalg.norm(cond.f, axis=1)[:, None])[ok, 0] / G0
+    w = mean(np.linalg.norm(cond.w, axis=1)[:, None])[ok, 0] / DEG
+    wd = mean(np.linalg.norm(cond.w_dot, axis=1)[:, None])[ok, 0] / DEG
+    temperature = mean(cond.T.mean(axis=1)[:, None])[ok]     # slope on the bins
+    dT = (np.abs(derivative(design.t, temperature, 30.0)[:, 0] * 60)
+          if np.isfinite(temperature).all() else np.zeros(ok.sum()))   # none recorded
+    masks = {"|f| > 2 g": f > 2, "|w| > 60 deg/s": w > 60, "|dw/dt| > 300 deg/s^2": wd > 300,
+             "|dT/dt| > 0.5 degC/min": dT > 0.5}
+    # quiet: no manoeuvre (a warm-up's temperature change alone does not make a bin busy,
+    # else a flight that warms throughout would have no quiet reference at all)
+    masks["quiet"] = ~np.any([masks[k] for k in CONDITIONS[1:4]], axis=0)
+    return {k: masks[k] for k in CONDITIONS}
+
+
+def condition_map(design, x, conds, seconds=MAP_SECONDS):
+    """(conditions, 6): rms of the cleaned residual x averaged over `seconds` (so systematic
+    terms stand out of the white noise) in each condition (a majority of its bins) over the
+    same in quiet flight; NaN where a condition has fewer than 10 such averages."""
+    t = design.t
+    sec = outputs.block_index(t, seconds)
+    n = sec.max() + 1
+    count = np.maximum(np.bincount(sec, minlength=n), 1)
+    means = np.column_stack([np.bincount(sec, x[:, c], minlength=n) / count for c in range(6)])
+    full = np.bincount(sec, minlength=n) >= 0.5 * seconds / design.bin_s
+    share = {k: np.bincount(sec, m.astype(float), minlength=n) / count for k, m in conds.items()}
+    quiet = full & (share["quiet"] > 0.5)
+    quiet = quiet if quiet.sum() >= 10 else full
+    ref = np.sqrt(np.mean(means[quiet] ** 2, axis=0))
+    out = np.full((len(conds), 6), np.nan)
+    for r, key in enumerate(conds):
+        mask = full & (share[key] > 0.5)
+        if mask.sum() >= 10:
+            out[r] = np.sqrt(np.mean(means[mask] ** 2, axis=0)) / ref
+    return out

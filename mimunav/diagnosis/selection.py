@@ -1,0 +1,169 @@
+"""Forward selection of candidate terms on the training rows: Holm's step-down
+thresholds over the library, the stated accuracies of the reference and the calibration added
+for the terms they could make, physical ranges, encompassing tests between look-alikes (and
+on the whole flight where the training half cannot tell them apart).
+"""
+import math
+
+import numpy as np
+
+from . import library
+from .fitting import Fitter, plausible, reference_direction, term_test
+
+
+MAX_TERMS = 6
+
+
+# ---- selection on training rows ----------------------------------------------------------
+def select(design, train, alpha, full_scale, whole=None):
+    """Forward selection with Holm's step-down thresholds over the library; `whole`: a
+    callable giving the all-rows `Fitter` (look-alikes the training rows cannot tell apart
+    are compared on it, `told_apart`). Returns (chosen: [dict], within: linear terms
+    significant but inside the reference's accuracy)."""
+    m = len(design.terms)
+    chosen, excluded, within = [], set(), {}
+    fitter = Fitter(design, train)
+    for step in range(MAX_TERMS):
+        current = [c["j"] for c in chosen]
+        tests, implausible, significant = {}, [], {}
+        for j in range(m):
+            if j in excluded:
+                continue
+            res = term_test(fitter, current + [j], j)
+            # a term must beat the stated accuracies (the reference's for a linear term, the
+            # calibration's own for one the model carries) at the selection's threshold
+            if res["logp_ref"] > math.log(alpha / max(m - step, 1)):
+                if res["logp"] < math.log(alpha / m) and j not in within:
+                    within[j] = res
+                continue
+            res = dict(res, logp=res["logp_ref"])
+            significant[j] = res
+            ok, limit = plausible(design, j, res["b"], full_scale)
+            if not ok:
+                implausible.append(j)
+                continue
+            tests[j] = res
+        threshold = alpha / max(m - step, 1)
+        passing = [j for j, r in tests.items() if r["logp"] <= math.log(threshold)]
+        if not passing:
+            break
+        best, alternatives = _encompassing(fitter, current, passing, tests, threshold)
+        encompassed, named_on = [], "training half"
+        if alternatives and whole is not None:
+            before = best
+            best, alternatives, encompassed = told_apart(whole(), current, best,
+                                                          alternatives, threshold)
+            named_on = "whole flight" if best != before else named_on
+        best, set_aside = _whole_unit_or_one_axis(fitter, best, tests, significant,
+                                                  threshold)
+        alternatives = [j for j in alternatives if j != best]
+        chosen.append(dict(j=best, alternatives=alternatives, named_on=named_on,
+                           p_train=math.exp(tests[best]["logp"]), threshold=threshold,
+                           b_train=tests[best]["b"],
+                           implausible=[library.label(design.terms[j]) for j in implausible]))
+        # a look-alike the whole flight tells apart without either explaining the other
+        # away stays a candidate of the next step
+        excluded |= {best, *alternatives, *encompassed, *set_aside}
+    return chosen, [_within(design, j, r) for j, r in within.items()
+                    if j not in {c["j"] for c in chosen}]
+
+
+def _whole_unit_or_one_axis(fitter, best, tests, significant, level):
+    """(chosen, [set aside]): a lever arm moves all three accelerometers by one vector; a
+    proof-mass offset moves one. A lever arm is kept only when the size effect of at least
+    two accelerometer axes passes this step on its own (`significant`: every candidate of
+    the step with its p-value with the stated accuracies, a size effect beyond its physical
+    range too - it still shows that its axis moves) - else the strongest plausible one
+    (`tests`) replaces it and the lever arm is set aside (with one axis carrying it,
+    the lever arm's fit of the other two is their small transfer errors, which a 3-channel
+    Wald test turns into significance)."""
+    design = fitter.design
+    if design.terms[best]["effect"] != "lever_arm":
+        return best, []
+    alone = [j for j, term in enumerate(design.terms) if term["effect"] == "size_effect"
+             and j in significant and significant[j]["logp"] <= math.log(level)]
+    if len(alone) != 1 or alone[0] not in tests:
+        return best, []
+    return alone[0], [best]
+
+
+def _encompassing(fitter, current, passing, tests, level, contenders=10):
+    """The chosen term among the passing candidates, and those it cannot be told from. The
+    strongest alone is not enough (a linear term's Wald test and a slow term's likelihood
+    ratio differ in kind): a contender replaces it when it stays significant given the
+    current choice while the choice adds nothing given it (it encompasses the choice), both
+    at the selection's own `level` (Holm's threshold of the step: telling look-alikes apart
+    needs the same evidence as finding a term).
+    Candidates that explain each other away are indistinguishable on the training half;
+    among them the one of lowest order is named (`library.order`: a g-sensitivity before a
+    g^2 term that mimics it at constant f_z), the others listed - until the whole flight
+    tells them apart (`told_apart`)."""
+    design = fitter.design
+    ranked = sorted(passing, key=lambda j: (tests[j]["logp"], -tests[j]["stat"]))[:contenders]
+    log_level = math.log(level)
+
+    def adds(j, given):
+        return adds_to(fitter, current, j, given, log_level)
+    best = ranked[0]
+    for j in ranked[1:]:
+        if adds(j, best) and not adds(best, j):
+            best = j
+    alike = [j for j in ranked if j != best and not adds(j, best) and not adds(best, j)]
+    group = [best] + alike
+    named = min(group, key=lambda j: (library.order(design.terms[j]), tests[j]["logp"]))
+    return named, [j for j in group if j != named]
+
+
+def told_apart(whole, current, named, alike, level):
+    """(named, the look-alikes it still cannot be told from, those it encompasses) after the
+    group is compared again on the whole flight (`whole`: the all-rows `Fitter`) by
+    `_encompassing`'s pass at the same level: a member that adds to the named term while
+    the named adds nothing to it replaces it; listed are the members where neither adds
+    given the other. Half the flight may hold too little of what tells two terms apart - a
+    g^2 term and a cross-coupling to the pitch rate coincide in a pull-up at constant speed
+    and part only where the speed differs. The held-out rows take part in this choice, so
+    their confirmation (`confirm_chosen`) confirms the group's signal, not which member is named:
+    such a finding says so (`named_on`)."""
+    log_level = math.log(level)
+
+    def adds(j, given):
+        return adds_to(whole, current, j, given, log_level)
+    best = named
+    for j in alike:
+        if adds(j, best) and not adds(best, j):
+            best = j
+    others = [j for j in [named, *alike] if j != best]
+    still = [j for j in others if not adds(j, best) and not adds(best, j)]
+    return best, still, [j for j in others if adds(best, j) and not adds(j, best)]
+
+
+def adds_to(fitter, current, j, given, log_level):
+    """Candidate j is significant at log_level (its p with the stated accuracies) given the
+    terms `current` and `given`."""
+    return term_test(fitter, current + [given, j], j)["logp_ref"] <= log_level
+
+
+def _within(design, j, res):
+    """A term set aside (`term_test`'s logp_ref above the threshold): the stated 1 sigma along it
+    - the reference's linear error (with the calibration's) for a term it can make
+    (`reference_1sigma`), else the calibration's own (`calibration_1sigma`, a term the model
+    carries) - and the 1 sigma the test used (`total_1sigma`: the estimate's with the
+    reference's prior, or the noise's plus the calibration's allowance, as `term_test` takes it)."""
+    ref = reference_direction(design, j)
+    if ref is not None:
+        stated = {"reference_1sigma": np.sqrt(np.diag(ref)).tolist()}
+        total = np.sqrt(np.diag(res["cov"]))
+    else:
+        stated = {"calibration_1sigma": [math.sqrt(design.allowance[j])] * len(res["b"])}
+        total = np.sqrt(np.diag(res["cov"]) + design.allowance[j])
+    return {"label": library.label(design.terms[j]), **_describe_b(res["b"]), **stated,
+            "total_1sigma": total.tolist(),
+            "p_train": math.exp(res["logp"]),
+            "note": "significant against the noise alone, but not once the reference's and "
+                    "the calibration's stated errors may share it: the data cannot tell it "
+                    "from them (total_1sigma: the estimate's uncertainty with those priors), "
+                    "so it cannot be charged to physics the model lacks"}
+
+
+def _describe_b(b):
+    return {"vector": b.tolist()} if len(b) > 1 else {"coefficient": float(b[0])}

@@ -1,0 +1,241 @@
+"""Free-inertial windows on a recording with an external reference trajectory.
+
+How fast does the IMU alone lose position? Along the drive, the IMU is restarted every
+`step` seconds from the reference's position and velocity, with the reference's attitude
+where it has one (an autopilot's or a fused pose's), else that of a moving two-vector
+alignment (`alignment.moving_attitude`), and
+navigated free-inertial (no aiding of any kind, vertical channel included) by the project's
+strapdown navigator for 10, 30 and 60 s; the error is the navigated position minus the
+reference's, NED m, at every reference epoch inside the window.
+
+The gyro bias and the accelerometer bias along gravity are those of the rest at the start
+of the recording, else of the longest rest in it, else 0 (`alignment`), removed from every
+window; nothing else is calibrated. A window starts only where the reference is
+moving faster than `alignment.COURSE_SPEED` (heading needs a course) and has no gap
+longer than MAX_GAP_S inside. Windows of one length overlap when step < length, so they are
+not independent: the summary gives the count of disjoint windows the recording holds.
+"""
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..navigation import alignment
+from ..navigation.rests import quiet_stretches, velocity_noise
+from .replay import compensated_mimu, navigate, resample
+from .flight import no_reference
+from ..errors import InputError
+from ..frames import attitude
+from ..motion.trajectory import State
+
+WINDOW_LENGTHS_S = (10.0, 30.0, 60.0)
+START_STEP_S = 5.0
+MAX_GAP_S = 1.0             # s: largest reference gap allowed inside a window
+
+
+@dataclass
+class Window:
+    """One free-inertial run: start t0 (s), length (s), reference epochs t (s) inside it,
+    position error (M, 3) NED m at them."""
+    t0: float
+    length: float
+    t: np.ndarray
+    error_ned: np.ndarray
+
+    @property
+    def horizontal(self):
+        return np.hypot(self.error_ned[:, 0], self.error_ned[:, 1])
+
+
+def track_of(truth):
+    """The reference as the dict `alignment` takes (t s, lat, lon rad, h m, v_ned m/s,
+    q_nb wxyz: NaN rows where the reference has no attitude)."""
+    return dict(t=truth.t, lat=truth.lat, lon=truth.lon, h=truth.h, v_ned=truth.v_ned,
+                q_nb=attitude.as_wxyz(truth.q_nb))
+
+
+def starts(truth, length, step=START_STEP_S, first=0.0, min_speed=alignment.COURSE_SPEED,
+           max_gap=MAX_GAP_S, t_imu=None, parked=(), half=alignment.MOVING_HALF_WINDOW_S):
+    """Window starts (s) on a grid of `step` from `first`: moving faster than min_speed
+    (m/s, horizontal), the whole window (and the alignment interval before it) covered
+    without a gap longer than max_gap (s) in the reference or in the IMU's stamps t_imu,
+    the alignment interval (t0 +- half s) outside the rests `parked` [(t0, t1) s] (a noisy
+    fix's differenced speed passes the speed gate while the car stands: its course, and so
+    the window's heading, is noise)."""
+    end = truth.t[-1] if t_imu is None else min(truth.t[-1], t_imu[-1])    # both must cover it
+    grid = np.arange(max(first, truth.t[0] + half), end - length, step)
+    speed = np.hypot(truth.v_ned[:, 0], truth.v_ned[:, 1])
+    gaps = [truth.t] + ([] if t_imu is None else [t_imu])
+    wide = [np.diff(t) > max_gap for t in gaps]
+    gap_start = np.concatenate([t[:-1][w] for t, w in zip(gaps, wide)])
+    gap_end = np.concatenate([t[1:][w] for t, w in zip(gaps, wide)])
+    out = []
+    for t0 in grid:
+        if np.interp(t0, truth.t, speed) < min_speed:
+            continue
+        # a gap [start, end] that meets the window with its alignment interval
+        if np.any((gap_end > t0 - half) & (gap_start < t0 + length)):
+            continue
+        if any(a - half < t0 < b + half for a, b in parked):
+            continue
+        out.append(float(t0))
+    return np.asarray(out)
+
+
+def why_no_windows(truth, lengths, first, min_speed, max_gap, half):
+    """Why a recording holds no window: the conditions of `starts` the reference fails as a
+    whole (its speed never reaching min_speed; too short a span after the rest for the
+    shortest window and its alignment interval of +-half s), named as such, then those it
+    meets; a reference gap above max_gap only leaves out the windows it meets, so it is said
+    as such, not as the cause. All met: the windows' other conditions (the gaps, the IMU's,
+    the rests at standstill) leave none."""
+    speed = np.hypot(truth.v_ned[:, 0], truth.v_ned[:, 1])
+    span = truth.t[-1] - max(first, truth.t[0] + half)
+    gaps = np.diff(truth.t)
+    largest, length = (gaps.max() if len(gaps) else 0.0), min(lengths)
+    conditions = [
+        (speed.max() >= min_speed, f"a horizontal speed of {min_speed:g} m/s at a window's "
+                                   f"start (the reference peaks at {speed.max():.2f} m/s: "
+                                   "--min-speed)"),
+        (span > length, f"{length:g} s of reference after the rest and the alignment's "
+                        f"{half:g} s ({span:.1f} s: --lengths)")]
+    failed = [text for ok, text in conditions if not ok]
+    met = [text for ok, text in conditions if ok]
+    head = f"no free-inertial window of {length:g} s fits this recording: "
+    gap = (f"; the reference's gaps above {max_gap:g} s (the largest {largest:.2f} s: "
+           "--max-gap) leave out the windows they meet" if largest > max_gap else "")
+    if failed:
+        return head + "it lacks " + "; ".join(failed) + \
+            (f" (it has {'; '.join(met)}{gap})" if met else gap)
+    return head + f"it has {'; '.join(met)}, but the gaps (the reference's and the IMU's) " \
+        f"and the rests at standstill leave no window{gap}"
+
+
+def run(flight, t0, length, w, f, t_imu=None, half=alignment.MOVING_HALF_WINDOW_S):
+    """One window from reference start t0 (moved to the IMU stamp at or before it) over
+    `length` s; w rad/s, f m/s^2 sensor axes at stamps t_imu (default flight.mimu_t), the
+    biases already removed; `half`: the moving alignment's half interval (s) when the
+    reference has no attitude."""
+    t = flight.mimu_t if t_imu is None else t_imu
+    truth = flight.truth
+    k0 = int(np.searchsorted(t, t0, side="right")) - 1
+    t_start = float(t[k0])
+    start = resample(truth, np.array([t_start]))
+    q_nb = attitude.as_wxyz(start.q_nb[0])
+    if not np.isfinite(q_nb).all():         # the reference has no attitude: align moving
+        q_nb = alignment.moving_attitude(t, w, f, flight.mimu_mounting, track_of(truth),
+                                         t_start, half)
+    initial = State(t_start, float(start.lat[0]), float(start.lon[0]), float(start.h[0]),
+                    start.v_ned[0].copy(), attitude.from_wxyz(q_nb))
+    sel = slice(k0, int(np.searchsorted(t, t_start + length, side="right")) + 1)
+    nav = navigate(t[sel], w[sel], f[sel], flight.mimu_mounting, initial)
+    epochs = truth.t[(truth.t > t_start) & (truth.t <= min(t_start + length, nav.t[-1]))]
+    err = resample(nav, epochs).position_error(resample(truth, epochs))
+    return Window(t_start, length, epochs, err)
+
+
+def run_all(flight, cal=None, lengths=WINDOW_LENGTHS_S, step=START_STEP_S, time_shift_s=0.0,
+            progress=False, min_speed=None, max_gap=MAX_GAP_S):
+    """All windows of each length: {length: [Window]}, and the alignment at rest that gave
+    the gyro bias. The MIMU is compensated with `cal` (`evaluation.compensated_mimu`: for a
+    recorded /mimu/imu, None or found terms on an identity base); time_shift_s is added to
+    the IMU's stamps (negative: the IMU lags); min_speed (m/s; default: the course speed
+    `alignment.COURSE_SPEED` when the reference has no attitude, 0 when it has one) and
+    max_gap (s) as `starts`.
+    A recording that holds no window at all is a ValueError that says why."""
+    if flight.mimu_platform is not None:
+        raise InputError(f"{flight.path}: the MIMU turns on a platform (/mimu/platform); "
+                         "this analysis does not follow the rotation yet - replay and table do")
+    if flight.truth is None:
+        raise no_reference(flight.path, "the free-inertial windows")
+    w, f, _ = compensated_mimu(flight, cal)
+    t = flight.mimu_t + time_shift_s
+    track = track_of(flight.truth)
+    rest = alignment.initial_alignment(t, w, f, flight.mimu_mounting, track)
+    w, f = w - rest.gyro_bias, f - rest.accel_bias
+    out = {}
+    half = moving_half(track)
+    if min_speed is None:
+        min_speed = alignment.COURSE_SPEED if half else 0.0
+    first = rest.navigable_from
+    parked = quiet_stretches(t, w, f, track) if half else ()
+    todo = [(length, t0) for length in lengths
+            for t0 in starts(flight.truth, length, step, first, min_speed, max_gap, t, parked,
+                             half or alignment.MOVING_HALF_WINDOW_S)]
+    if not todo:
+        raise InputError(f"{flight.path}: " + why_no_windows(
+            flight.truth, lengths, first, min_speed, max_gap,
+            half or alignment.MOVING_HALF_WINDOW_S))
+    if progress:
+        from tqdm import tqdm
+        todo = tqdm(todo, desc="windows", unit="window")
+    for length, t0 in todo:
+        out.setdefault(length, []).append(run(flight, t0, length, w, f, t,
+                                              half or alignment.MOVING_HALF_WINDOW_S))
+    return out, rest
+
+
+def moving_half(track):
+    """The moving alignment's half interval (s, `alignment.moving_half_window`) when the
+    windows align on the reference's velocity (it has no attitude), else None."""
+    if np.isfinite(track["q_nb"]).all():
+        return None
+    return alignment.moving_half_window(track)
+
+
+def summary(results, span_s, reference_meta=None, track=None, half=None):
+    """Per length: number of windows, disjoint windows the span holds, and percentiles
+    (50, 68, 95, max) of the end-point horizontal and vertical errors (m), the median
+    drift rate (horizontal end error / length, m/s), and the part of the end error the
+    reference alone explains (`reference_floor`; `track` and `half`: the reference track
+    whose velocity noise stands in for an unstated velocity sigma, and the moving
+    alignment's half interval when the windows were aligned on it)."""
+    sigma_v = None if track is None else velocity_noise(track)
+    rows = {}
+    for length, wins in sorted(results.items()):
+        hor = np.array([w.horizontal[-1] for w in wins])
+        up = np.array([abs(w.error_ned[-1, 2]) for w in wins])
+        rows[length] = {"windows": len(wins), "disjoint": int(span_s // length),
+                        "horizontal_m": _percentiles(hor), "vertical_m": _percentiles(up),
+                        "median_rate_m_s": float(np.median(hor) / length),
+                        "reference_floor": reference_floor(reference_meta or {}, length,
+                                                           sigma_v, half)}
+    return rows
+
+
+def reference_floor(meta, length, measured_sigma_v=None, half=None):
+    """The horizontal end error (m, rms of the 2-D norm) a window of `length` s shows from
+    the reference's own errors alone, from its stated sigmas (`reference` metadata:
+    position_sigma_m horizontal, velocity_sigma_m_s horizontal): the start position (taken
+    from the reference) and the end position it is compared with each carry sigma_p, the
+    start velocity sigma_v grows as sigma_v * length; independent, so
+    floor = sqrt(2 sigma_p^2 + (sigma_v length)^2). An unstated velocity sigma is taken from
+    `measured_sigma_v` (per axis, `alignment.velocity_noise`: 2-D sqrt(2) times it) when
+    given, and said ("estimated"). With `half` (s, a moving alignment on the reference's
+    velocity) its tilt adds sqrt(2) a length^2 / 2, a = sqrt(2) sigma_axis / (2 half) the
+    error of the interval's mean acceleration. Unstated sigmas are left out and named; a
+    reference attitude's own error (g sigma_tilt length^2 / 2) is not included: no source
+    states it."""
+    def number(key):
+        try:
+            value = float(meta.get(key, "nan"))
+        except (TypeError, ValueError):
+            return None
+        return value if np.isfinite(value) and value >= 0 else None
+    sigma_p, sigma_v = number("position_sigma_m"), number("velocity_sigma_m_s")
+    estimated = []
+    if sigma_v is None and measured_sigma_v is not None:
+        sigma_v = math.sqrt(2) * measured_sigma_v
+        estimated.append("velocity")
+    missing = [k for k, v in (("position", sigma_p), ("velocity", sigma_v)) if v is None]
+    if sigma_p is None and sigma_v is None:
+        return {"horizontal_m": None, "not_stated": missing, "estimated": estimated}
+    terms = 2 * (sigma_p or 0.0) ** 2 + ((sigma_v or 0.0) * length) ** 2
+    if half and sigma_v:        # a difference of two velocities: sqrt(2) sigma_v, 2-D already
+        terms += (math.sqrt(2) * sigma_v / (2 * half) * length ** 2 / 2) ** 2
+    return {"horizontal_m": math.sqrt(terms), "not_stated": missing, "estimated": estimated}
+
+
+def _percentiles(x):
+    return {"p50": float(np.percentile(x, 50)), "p68": float(np.percentile(x, 68)),
+            "p95": float(np.percentile(x, 95)), "max": float(np.max(x))}

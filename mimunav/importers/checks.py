@@ -1,0 +1,344 @@
+"""A recording checked against itself before it is written: sample rate, the reference's
+and the fixes' overlap with the IMU, units, the mounting's yaw against the GNSS course, the
+clock offset of the IMU against the track, a reference IMU's clock and mounting.
+"""
+import math
+
+import numpy as np
+import quaternion
+
+from ..navigation import alignment
+from ..navigation.rests import acceleration_match, means_around, span_means, track_acceleration
+from ..frames import attitude
+from .recording import G0, RecordingError, utc_text
+from ..motion.track import velocity_from_positions
+
+
+# Hz: an IMU stream read slower than this is a status snapshot (PX4's sensor_accel and
+# sensor_gyro topics logged at 1 Hz), not the interval means a strapdown navigator needs -
+# a vehicle turns and vibrates faster; consumer IMUs are logged at 50-1000 Hz
+MIN_IMU_RATE_HZ = 10.0
+
+
+def _check_rate(name, which, ns):
+    """Refuse an IMU whose median sample rate is below MIN_IMU_RATE_HZ."""
+    rate = 1e9 / float(np.median(np.diff(ns)))
+    if rate < MIN_IMU_RATE_HZ:
+        raise RecordingError(f"{name}: the {which} has {len(ns)} samples at {rate:.3g} Hz (median "
+                             f"interval); below {MIN_IMU_RATE_HZ:g} Hz they are status snapshots, "
+                             "not increments a navigator can integrate: choose the IMU's "
+                             "full-rate stream (or check the stamps' time unit)")
+
+
+def check_recording(rec):
+    """Refuse a recording whose IMU cannot be in the units and axes the import says: a
+    rate below MIN_IMU_RATE_HZ (either IMU); the
+    median |specific force| far from 1 g (g read as m/s^2 or the reverse); with a reference
+    attitude, the 1 s mean specific force turned into NED by the mounting and that attitude
+    not pointing up (axes, mounting or quaternion convention wrong), or the gyro's rates a
+    factor of ten or more from the attitude's own rate (deg/s read as rad/s)."""
+    _check_overlap(rec)             # first: stamps in the wrong unit fail it, and it says so
+    _check_rate(rec.name, "IMU", rec.imu_ns)
+    if rec.reference_imu is not None:
+        _check_rate(rec.name, "reference IMU", rec.reference_imu["ns"])
+        _check_reference_imu(rec)
+    g = float(np.median(np.linalg.norm(rec.f, axis=1)))
+    if not 0.5 * G0 < g < 2 * G0:
+        raise RecordingError(f"{rec.name}: the median |specific force| is {g:.3g} m/s^2; a "
+                             "vehicle on Earth feels about 9.8: is the accelerometer's unit "
+                             "(g or m/s^2) right?")
+    ref = rec.reference
+    q = None if ref is None else ref.get("q_nb")
+    if q is None or np.isfinite(q).all(axis=1).sum() < 10:
+        _check_against_course(rec)
+        return
+    ok = np.isfinite(q).all(axis=1)
+    t_ref = ref["ns"][ok]
+    k = np.clip(np.searchsorted(rec.imu_ns, t_ref), 0, len(rec.imu_ns) - 1)
+    q_ns = attitude.from_wxyz(q[ok]) * rec.mounting.q_vs
+    f_n = np.median(attitude.rotate(q_ns, _local_mean(rec.f, k)), axis=0)
+    if f_n[2] > -0.8 * g or np.hypot(f_n[0], f_n[1]) > 0.3 * g:
+        raise RecordingError(f"{rec.name}: the specific force turned into NED by the mounting and "
+                             f"the reference attitude is {np.round(f_n, 2).tolist()} m/s^2 in the "
+                             f"median, not [0, 0, -{g:.1f}]: the sensor axes, the mounting or "
+                             "the attitude quaternion's convention (body -> NED or ECEF) is wrong")
+    rate = attitude.turn_rate(t_ref / 1e9, attitude.from_wxyz(q[ok]))
+    ref_rate = float(np.percentile(rate, 99))
+    imu_rate = float(np.percentile(np.linalg.norm(_local_mean(rec.w, k), axis=1), 99))
+    if ref_rate > 0.05 and not 0.1 < imu_rate / ref_rate < 10:
+        raise RecordingError(f"{rec.name}: the gyro's rates reach {imu_rate:.3g}, the reference "
+                             f"attitude turns at up to {ref_rate:.3g} rad/s: is the gyro's unit "
+                             "(deg/s or rad/s) right?")
+
+
+def _check_reference_imu(rec):
+    """The reference IMU must feel 1 g, overlap the IMU in time over at least half the IMU's
+    span, and - where either turns - see the same size of rotation in its 1 s means (|w|
+    does not depend on the mounting: a ratio beyond 0.5-2 is a unit, deg/s read as rad/s,
+    or another vehicle's topic); its stamps must agree with the IMU's within
+    REFERENCE_IMU_MAX_OFFSET_S (`reference_imu_offset_s`: a larger clock offset is beyond
+    the diagnosis' linear time_skew term - 50 ms came out as 41 ms with spurious scale
+    factors beside it); and the two mountings must bring both IMUs' 1 s mean rates and
+    specific forces to the vehicle frame within REFERENCE_IMU_MAX_TURN_DEG of each other
+    (a reference 10 deg off in yaw gave the misalignment and cos 10 deg - 1 as scale
+    factors; 90 deg crashed the diagnosis; its axes forgotten, gravity pointed up)."""
+    ref = rec.reference_imu
+    g = float(np.median(np.linalg.norm(ref["f"], axis=1)))
+    if not 0.5 * G0 < g < 2 * G0:
+        raise RecordingError(f"{rec.name}: the reference IMU's median |specific force| is "
+                             f"{g:.3g} m/s^2, not about 9.8: is its accelerometer's unit right?")
+    lo, hi = max(rec.imu_ns[0], ref["ns"][0]), min(rec.imu_ns[-1], ref["ns"][-1])
+    if hi - lo < 0.5 * (rec.imu_ns[-1] - rec.imu_ns[0]):
+        raise RecordingError(f"{rec.name}: the reference IMU ({utc_text(ref['ns'][0])} .. "
+                             f"{utc_text(ref['ns'][-1])}) covers less than half of the IMU's span "
+                             f"({utc_text(rec.imu_ns[0])} .. {utc_text(rec.imu_ns[-1])}): do the two "
+                             "share a time base?")
+    mids = np.arange(lo + 500_000_000, hi - 500_000_000, 1_000_000_000) / 1e9
+    if len(mids) < 10:
+        return
+    means = [[means_around(ns / 1e9, x, mids, 0.5) for x in (w, f)]
+             for ns, w, f in ((rec.imu_ns, rec.w, rec.f), (ref["ns"], ref["w"], ref["f"]))]
+    ok = np.isfinite(np.hstack([m for pair in means for m in pair])).all(axis=1)
+    if ok.sum() < 10:
+        return
+    size = [np.linalg.norm(pair[0][ok], axis=1) for pair in means]
+    spread = [float(np.std(x)) for x in size]
+    if max(spread) > COURSE_CHECK_RATE:
+        ratio = spread[0] / max(spread[1], 1e-12)
+        if not 0.5 < ratio < 2.0:
+            raise RecordingError(f"{rec.name}: the IMU's rotation rate varies {ratio:.3g} times "
+                                 "as much as the reference IMU's (1 s means of |w|): is one "
+                                 "gyro's unit (deg/s or rad/s) wrong, or the topic another "
+                                 "vehicle's?")
+        offset = reference_imu_offset_s(rec)
+        if abs(offset) > REFERENCE_IMU_MAX_OFFSET_S:
+            raise RecordingError(
+                f"{rec.name}: the reference IMU's stamps are {offset * 1e3:+.1f} ms off the "
+                f"IMU's (|w| of the two best aligned so): shift them with "
+                f"--reference-imu-time-offset {-offset:.4f} (the diagnosis' time_skew is a "
+                f"small-offset term)")
+    mine = [attitude.rotate(rec.mounting.q_vs, x[ok]) for x in means[0]]
+    theirs = [attitude.rotate(ref["mounting"].q_vs, x[ok]) for x in means[1]]
+    from scipy.spatial.transform import Rotation
+    turn, _ = Rotation.align_vectors(np.vstack(mine), np.vstack(theirs))
+    angle = math.degrees(turn.magnitude())
+    if angle > REFERENCE_IMU_MAX_TURN_DEG:
+        fixed = attitude.from_scipy(turn) * ref["mounting"].q_vs
+        yaw, pitch, roll = (_angle_text(a) for a in attitude.as_euler(fixed))
+        raise RecordingError(
+            f"{rec.name}: the reference IMU's rates and specific forces, turned into the vehicle "
+            f"frame by its mounting, lie {angle:.1f} deg from the IMU's: is its mounting (axes) "
+            f"right? They would agree with --reference-imu-rpy-deg {roll} {pitch} {yaw} (the "
+            "diagnosis finds mounting misalignments of a few degrees at most)")
+
+
+def _angle_text(rad):
+    """An angle in deg to 0.1 for a command line: -180 written 180, no -0.0."""
+    deg = round(math.degrees(float(rad)), 1)
+    return f"{180.0 if deg == -180.0 else deg + 0.0:.1f}"
+
+
+REFERENCE_IMU_MAX_OFFSET_S = 0.01      # s between the two IMUs' stamps the diagnosis takes
+REFERENCE_IMU_MAX_TURN_DEG = 3.0       # deg between their vehicle frames (a small-angle term)
+
+
+def reference_imu_offset_s(rec, search_s=1.0, step_s=0.001):
+    """How late (s) the reference IMU's stamps are on the IMU's, as the stamps of interval
+    means: the shift of the reference's |w| (which does not depend on either mounting) that
+    best matches the IMU's over their common span, on a grid of step_s within +-search_s
+    refined by a parabola."""
+    ref = rec.reference_imu
+    # each sample is the mean over the interval its stamp ends: compare interval centres
+    # (a 100 Hz and a 400 Hz IMU on one clock are 3.75 ms apart by their stamps alone)
+    t, t_r = (ns / 1e9 - 0.5 * np.median(np.diff(ns)) / 1e9 for ns in (rec.imu_ns, ref["ns"]))
+    grid = np.arange(max(t[0], t_r[0]) + search_s, min(t[-1], t_r[-1]) - search_s, 0.01)
+    a = np.interp(grid, t, np.linalg.norm(rec.w, axis=1))
+    size_r = np.linalg.norm(ref["w"], axis=1)
+    shifts = np.arange(-search_s, search_s + 1e-9, step_s)
+    cost = np.array([np.mean((a - np.interp(grid + d, t_r, size_r)) ** 2) for d in shifts])
+    i = int(np.clip(np.argmin(cost), 1, len(shifts) - 2))
+    lo, mid, hi = cost[i - 1:i + 2]
+    curve = lo - 2 * mid + hi
+    return float(shifts[i] + (0.5 * step_s * (lo - hi) / curve if curve > 0 else 0.0))
+
+
+def _check_overlap(rec):
+    """Refuse a reference or GNSS fixes whose time span does not overlap the IMU's: two
+    time bases (boot time, GPS week seconds, UNIX time) read as one."""
+    lo, hi = int(rec.imu_ns[0]), int(rec.imu_ns[-1])
+    for what, src in (("reference's", rec.reference), ("GNSS fixes'", rec.fixes)):
+        if src is None or not len(src["ns"]):
+            continue
+        a, b = int(np.min(src["ns"])), int(np.max(src["ns"]))
+        if b < lo or a > hi:
+            ratio = (hi - lo) / max(b - a, 1)
+            unit = (f"; the IMU's span is {ratio:.3g} times the {what}: is the IMU's time "
+                    "unit right (s, ms, us)?"
+                    if ratio > 300 or ratio < 1 / 300 else "")
+            raise RecordingError(
+                f"{rec.name}: the IMU's stamps span {utc_text(lo)} - {utc_text(hi)}, the {what} "
+                f"{utc_text(a)} - {utc_text(b)}: they do not overlap, so the two are on different time "
+                "bases (time since boot, GPS week seconds, UNIX time): give both the same"
+                + unit)
+
+
+def velocity_lag_s(ref, search_s=1.0, step_s=0.005):
+    """How late (s) the reference's own velocity is against the velocity of its positions
+    (central differences: zero phase): the shift minimising their rms horizontal difference
+    over epochs faster than alignment.COURSE_SPEED, refined by a parabola; None with fewer
+    than 50 such epochs. A filtered velocity state lags (RTKLIB's on the drive_0708 solution:
+    115 ms), and a lag found against the reference is then one against that velocity's
+    timing."""
+    v = np.asarray(ref["v_ned"], float)
+    v_pos = velocity_from_positions(ref["ns"], ref["lat"], ref["lon"], ref["h"])
+    t = (np.asarray(ref["ns"], np.int64) - int(ref["ns"][0])) / 1e9
+    ok = np.isfinite(v_pos).all(axis=1) & np.isfinite(v).all(axis=1) & \
+        (np.hypot(v[:, 0], v[:, 1]) > alignment.COURSE_SPEED) & \
+        (t > t[0] + search_s) & (t < t[-1] - search_s)
+    if ok.sum() < 50:
+        return None
+    good = np.isfinite(v_pos).all(axis=1)
+    taus = np.arange(-search_s, search_s + 1e-9, step_s)
+    cost = np.array([np.mean([(v[ok, i] - np.interp(t[ok] - tau, t[good], v_pos[good, i])) ** 2
+                              for i in range(2)]) for tau in taus])
+    i = int(np.clip(np.argmin(cost), 1, len(taus) - 2))
+    a, b, c = cost[i - 1:i + 2]
+    curve = a - 2 * b + c
+    return float(taus[i] + (0.5 * step_s * (a - c) / curve if curve > 0 else 0.0))
+
+
+COURSE_CHECK_RATE = 0.02       # rad/s: the course must turn this much (std) to judge a gyro
+COURSE_CHECK_ACCEL = 0.3        # m/s^2: horizontal acceleration (std) to judge the axes
+COURSE_CHECK_YAW = math.radians(45.0)   # a forward axis this far off is a wrong mounting
+
+
+def _check_against_course(rec):
+    """Without a reference attitude, the GNSS track of a land vehicle still judges the IMU
+    (epochs faster than alignment.COURSE_SPEED, the IMU's 1 s means turned into the vehicle
+    frame by the mounting): its yaw rate (FRD z) must follow the course rate with a ratio
+    within 0.1-10 (deg/s read as rad/s is 57) and the same sense, and its horizontal specific
+    force the track's acceleration (along: d speed/dt, across: speed x course rate) within
+    45 deg of yaw (a forward axis that points sideways). Judged only where the track turns
+    and accelerates enough to show it, and the two agree in shape (correlation, coherence)."""
+    epoch = int(rec.imu_ns[0])
+    track = reference_track(rec, epoch)
+    if track is None:
+        return
+    t = track["t"]
+    speed, course_rate, z_track = track_acceleration(t, track["v_ned"])
+    t_imu = (rec.imu_ns - epoch) / 1e9
+    sel = (speed > alignment.COURSE_SPEED) & (t > t_imu[0] + 0.5) & (t < t_imu[-1] - 0.5) \
+        & np.isfinite(course_rate) & np.isfinite(z_track)
+    if sel.sum() < 20:
+        return
+    k = np.searchsorted(t_imu, t[sel])
+    half = max(1, int(round(0.5 * rec.sample_rate_hz)))
+    w_v = attitude.rotate(rec.mounting.q_vs, _local_mean(rec.w, k, half))
+    f_v = attitude.rotate(rec.mounting.q_vs, _local_mean(rec.f, k, half))
+    rate = course_rate[sel]
+    if np.std(rate) > COURSE_CHECK_RATE:
+        corr = float(np.corrcoef(w_v[:, 2], rate)[0, 1])
+        ratio = float(np.std(w_v[:, 2]) / np.std(rate))
+        if abs(corr) > 0.7 and not (corr > 0 and 0.1 < ratio < 10):
+            raise RecordingError(
+                f"{rec.name}: the gyro's yaw rate (vehicle z by the mounting) follows the GNSS "
+                f"course rate {'reversed, ' if corr < 0 else ''}at {ratio:.3g} times its size "
+                f"(correlation {corr:+.2f}): " + ("is the gyro's unit (deg/s or rad/s) right?"
+                                                  if not 0.1 < ratio < 10 else
+                                                  "the sensor axes or the mounting turn the "
+                                                  "yaw axis upside down"))
+        if abs(corr) < 0.5:
+            _check_time_offset(rec, t_imu, t[sel], rate, corr, half)
+    z_ref = z_track[sel]
+    if np.std(z_ref) > COURSE_CHECK_ACCEL:
+        gain, coherence = acceleration_match(f_v[:, 0] + 1j * f_v[:, 1], z_ref)
+        yaw = float(np.angle(gain))
+        if coherence > 0.5:
+            # said even when small. The specific force seen turned by yaw is the IMU turned
+            # by -yaw about the vehicle's down axis from the mounting given, the sign the
+            # diagnosis' `vector_vehicle` z gives (the RTKLIB drive: +6.1 deg here, +6.06
+            # [5.05, 7.07] there)
+            rec.real["mounting_yaw_against_course"] = (
+                f"{-math.degrees(yaw):+.1f} deg about the vehicle's down axis: the IMU turned "
+                "so from the mounting given (positive: its forward axis to the right of the "
+                "vehicle's), from the accelerometers' horizontal specific force against the "
+                f"GNSS track's acceleration (coherence {coherence:.2f}, size ratio "
+                f"{abs(gain):.2f}; a car's body slip and lean take a few degrees): beyond "
+                f"{math.degrees(COURSE_CHECK_YAW):.0f} deg it is refused, a smaller one "
+                "`mimunav diagnose` measures with its interval (mounting_misalignment); "
+                f"--mounting-rpy-deg {_turned_back(rec, yaw, square=False)} would turn it back")
+        if coherence > 0.5 and abs(yaw) > COURSE_CHECK_YAW:
+            raise RecordingError(
+                f"{rec.name}: the accelerometers' horizontal specific force matches the GNSS "
+                f"track's acceleration with the IMU turned {-math.degrees(yaw):+.0f} deg about "
+                f"the vehicle's down axis from the mounting given (coherence {coherence:.2f}): "
+                "the sensor axes or the mounting's yaw are off by that much; "
+                f"the mounting turned back would be --mounting-rpy-deg {_turned_back(rec, yaw)}"
+                + (" - unless the vehicle drives in reverse most of the time (then import a "
+                   "forward stretch)" if abs(yaw) > math.radians(135.0) else ""))
+
+
+def _turned_back(rec, yaw, square=True):
+    """'R P Y' (deg) of the recording's mounting turned by -yaw about the vehicle's down axis,
+    yaw rounded to a quarter turn when within 15 deg of one and `square` (mountings are made
+    square)."""
+    quarter = round(math.degrees(yaw) / 90.0) * 90.0
+    turn = quarter if square and abs(math.degrees(yaw) - quarter) < 15.0 else math.degrees(yaw)
+    q = quaternion.from_rotation_vector([0.0, 0.0, -math.radians(turn)]) * rec.mounting.q_vs
+    z, y, x = (round(float(np.degrees(a))) + 0 for a in attitude.as_euler(q))
+    return f"{x} {y} {z}"
+
+
+TIME_OFFSET_SEARCH_S = 60.0     # s: the yaw rate is looked for this far either side
+
+
+def _check_time_offset(rec, t_imu, t_ref, rate, corr0, half):
+    """The course turns but the gyro's yaw rate does not follow it at the stamps given: if it
+    follows it well (correlation > 0.7) at a shift of the IMU's stamps of 1 s or more within
+    +-TIME_OFFSET_SEARCH_S, the two time bases differ by that shift (GPS time read as UTC is
+    18 s): refused, naming it. No shift that fits: left to the other checks and the
+    diagnosis (a noisy course)."""
+    w_z = attitude.rotate(rec.mounting.q_vs, rec.w)[:, 2:]
+    smooth = _local_mean(w_z, np.arange(len(w_z)), half)[:, 0]     # once, not per shift
+    best, best_lag = -1.0, 0.0
+    for lag in np.arange(-TIME_OFFSET_SEARCH_S, TIME_OFFSET_SEARCH_S + 1e-9, 0.5):
+        at = t_ref + lag
+        inside = (at > t_imu[0] + 0.5) & (at < t_imu[-1] - 0.5)
+        if inside.sum() < 20:
+            continue
+        k = np.searchsorted(t_imu, at[inside])
+        c = np.corrcoef(smooth[k], rate[inside])[0, 1]
+        if c > best:
+            best, best_lag = float(c), float(lag)
+    if best > 0.7 and abs(best_lag) >= 1.0:
+        raise RecordingError(
+            f"{rec.name}: the gyro's yaw rate follows the GNSS course rate only with the IMU's "
+            f"stamps shifted by {-best_lag:+.1f} s (correlation {best:.2f}, {corr0:+.2f} as "
+            "stamped): the IMU's and the reference's time bases differ by that much (GPS time "
+            "read as UTC is 18 s off)")
+
+
+def _local_mean(x, k, half=5):
+    """Means of x over the samples k - half .. k + half (noise averaged, motion kept)."""
+    return span_means(x, np.clip(k - half, 0, len(x)),
+                                np.clip(k + half + 1, 0, len(x)))
+
+
+def reference_track(rec, epoch):
+    """The trajectory the alignment takes heading from (t s since epoch, lat, lon, h,
+    v_ned): the reference, else the GNSS fixes (their velocity when recorded, else central
+    differences of their positions), else None."""
+    src = rec.reference
+    if src is None or len(src["ns"]) < 3:
+        src = rec.fixes
+    if src is None or len(src["ns"]) < 3:
+        return None
+    t = (np.asarray(src["ns"], np.int64) - epoch) / 1e9
+    v = src.get("v_ned")
+    if v is None:
+        v = velocity_from_positions(src["ns"], src["lat"], src["lon"], src["h"])
+    ok = np.isfinite(v).all(axis=1)                 # no differenced velocity across a gap
+    q = src.get("q_nb")
+    return dict(t=t[ok], lat=src["lat"][ok], lon=src["lon"][ok], h=src["h"][ok], v_ned=v[ok],
+                q_nb=None if q is None else np.asarray(q)[ok],
+                attitude_source=rec.reference_meta.get("source", "the reference"))

@@ -1,0 +1,160 @@
+"""A foreign recording in SI units (`Recording`), what every importer returns, and the
+time bases importers share (GPS time, leap seconds, counters that wrap).
+"""
+import contextlib
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..frames import attitude
+from ..frames.mounting import Mounting
+from ..errors import InputError
+
+
+UNKNOWN_ATTITUDE = np.full(4, np.nan)
+G0 = 9.80665                # m/s^2, standard gravity: the size a check of units compares with
+GPS_EPOCH_UNIX_S = 315964800            # 1980-01-06T00:00:00Z, the start of GPS time
+# GPS - UTC, s, from the GPS time (s since the GPS epoch) at which each took effect (IERS
+# Bulletin C; none added after 2017-01-01)
+LEAP_SECONDS = ((0, 0), (46828800, 7), (78364801, 8), (109900802, 9), (173059203, 10),
+                (252028804, 11), (315187205, 12), (346723206, 13), (820108813, 14),
+                (914803214, 15), (1025136015, 16), (1119744016, 17), (1167264017, 18))
+
+
+class RecordingError(InputError):
+    """A recording that cannot be turned into a contract log, with what and where."""
+
+
+@dataclass
+class Recording:
+    """A foreign recording in SI units.
+
+    imu_ns: IMU stamps, integer ns since the UNIX epoch (N,), strictly increasing;
+    w: angular rate, rad/s, IMU sensor axes (N, 3); f: specific force, m/s^2 (N, 3);
+    reference: optional external trajectory {ns, lat, lon (rad), h (m), v_ned (m/s, (M, 3)),
+      optional q_nb (M, 4) wxyz vehicle FRD -> NED (NaN rows: unknown)}, described by
+      `reference_meta` {source, independent ("yes"/"no: why"), position_sigma_m, ...};
+    fixes: optional GNSS fixes {ns, lat, lon, h, status (int8 as
+      in NavSatStatus), covariance (M, 9) m^2 ENU}; real / assumed: what the metadata says
+      is measured and what this import assumed;
+    reference_imu: optional second IMU flown with it that serves as the reference IMU
+      (/fog/imu: the sensor level of the diagnosis) {ns, w rad/s, f m/s^2 (its sensor axes),
+      mounting (`Mounting`), model, optional accuracy (`diagnosis.reference.Accuracy` keys)}."""
+    name: str
+    description: str
+    imu_ns: np.ndarray
+    w: np.ndarray
+    f: np.ndarray
+    mounting: Mounting
+    model: str = "unknown"
+    reference: dict | None = None
+    reference_meta: dict = field(default_factory=dict)
+    fixes: dict | None = None
+    real: dict = field(default_factory=dict)
+    assumed: dict = field(default_factory=dict)
+    reference_imu: dict | None = None
+
+    def __post_init__(self):
+        self.imu_ns = np.asarray(self.imu_ns, dtype=np.int64)
+        n = len(self.imu_ns)
+        for name in ("w", "f"):
+            x = np.asarray(getattr(self, name), dtype=float)
+            if x.shape != (n, 3):
+                raise RecordingError(f"{self.name}: IMU {name} has shape {x.shape}, expected "
+                                   f"({n}, 3)")
+            setattr(self, name, x)
+        if n < 2:
+            raise RecordingError(f"{self.name}: fewer than two IMU samples")
+        if np.any(np.diff(self.imu_ns) <= 0):
+            k = int(np.argmax(np.diff(self.imu_ns) <= 0))
+            raise RecordingError(f"{self.name}: IMU stamps do not increase at sample {k + 1}"
+                                 + _wrap_hint(self.imu_ns[k + 1] - self.imu_ns[k]))
+        bad = ~np.isfinite(np.hstack([self.w, self.f])).all(axis=1)
+        if bad.any():
+            raise RecordingError(f"{self.name}: {bad.sum()} IMU samples are not finite (first at "
+                               f"sample {int(np.argmax(bad))}); a log must not carry them")
+        if self.reference_imu is not None:
+            self.reference_imu = _checked_reference_imu(self.name, self.reference_imu)
+
+    def shift_reference_imu(self, offset_s, why):
+        """Add offset_s (s) to the reference IMU's stamps, saying so (`why`) in the assumed
+        metadata."""
+        if self.reference_imu is None:
+            raise InputError("--reference-imu-time-offset: the recording has no reference IMU "
+                             "(--reference-imu-topic, [reference_imu], --reference-imu-instance)")
+        self.reference_imu["ns"] = self.reference_imu["ns"] + int(round(offset_s * 1e9))
+        self.assumed["reference_imu_time"] = f"its stamps shifted by {offset_s:+.4f} s ({why})"
+
+    @property
+    def sample_rate_hz(self):
+        return float(1e9 / np.median(np.diff(self.imu_ns)))
+
+
+@contextlib.contextmanager
+def text_file(path):
+    """Turn a UnicodeDecodeError while reading `path` as text into a RecordingError naming
+    the file (a binary or damaged file where a text one belongs)."""
+    try:
+        yield
+    except UnicodeDecodeError as exc:
+        raise RecordingError(f"{path}: not a text file (byte {exc.object[exc.start]:#04x} at "
+                             f"offset {exc.start} is not UTF-8): is it the right file, or "
+                             "damaged?") from None
+
+
+def _checked_reference_imu(name, ref):
+    """The reference IMU dict with ns int64, w and f (N, 3) float, its stamps increasing and
+    its values finite - else a RecordingError naming it."""
+    ref = dict(ref)
+    ref["ns"] = np.asarray(ref["ns"], dtype=np.int64)
+    n = len(ref["ns"])
+    for key in ("w", "f"):
+        ref[key] = np.asarray(ref[key], dtype=float)
+        if ref[key].shape != (n, 3):
+            raise RecordingError(f"{name}: reference IMU {key} has shape {ref[key].shape}, "
+                                 f"expected ({n}, 3)")
+    if n < 2 or np.any(np.diff(ref["ns"]) <= 0):
+        raise RecordingError(f"{name}: the reference IMU's stamps do not increase (or fewer "
+                             "than two samples)")
+    bad = ~np.isfinite(np.hstack([ref["w"], ref["f"]])).all(axis=1)
+    if bad.any():
+        raise RecordingError(f"{name}: {bad.sum()} reference IMU samples are not finite (first "
+                             f"at sample {int(np.argmax(bad))})")
+    return ref
+
+
+# counters that loggers stamp with, and the jump back their wrap makes (ns)
+COUNTER_WRAPS = {"a 32-bit microsecond counter": 2**32 * 1000, "a 32-bit millisecond counter":
+                 2**32 * 1_000_000, "a 16-bit millisecond counter": 2**16 * 1_000_000}
+
+
+def _wrap_hint(step_ns):
+    """': ... wrapped' when a step back of step_ns (< 0) is a known counter's wrap, else ''."""
+    for what, span in COUNTER_WRAPS.items():
+        if abs(-int(step_ns) - span) < 0.01 * span:
+            return (f" (back by {-int(step_ns) / 1e9:.6g} s: {what} wrapped there; unwrap the "
+                    f"time column by adding {span / 1e9:.6g} s after each wrap)")
+    return ""
+
+
+def gps_to_unix_s(gps_s):
+    """UNIX (UTC) seconds of GPS times (s since 1980-01-06), the leap seconds then in force
+    removed."""
+    gps_s = np.asarray(gps_s, dtype=float)
+    starts, leaps = np.array(LEAP_SECONDS).T
+    return gps_s + GPS_EPOCH_UNIX_S - leaps[np.searchsorted(starts, gps_s, side="right") - 1]
+
+
+def attitude_at(t, t_att, wxyz):
+    """Attitudes (M, 4) wxyz at times t (M,) by slerp between the recorded attitudes wxyz
+    (K, 4) at increasing times t_att (K,) (same time unit); NaN outside their span."""
+    from scipy.spatial.transform import Slerp
+    q = np.full((len(t), 4), np.nan)
+    inside = (t >= t_att[0]) & (t <= t_att[-1])
+    turns = Slerp(t_att, attitude.as_scipy(attitude.from_wxyz(np.asarray(wxyz))))
+    q[inside] = attitude.as_wxyz(attitude.from_scipy(turns(np.asarray(t, float)[inside])))
+    return q
+
+
+def utc_text(ns):
+    return np.datetime_as_string(np.datetime64(int(ns), "ns"), unit="s") + "Z"

@@ -1,0 +1,81 @@
+"""Which importer reads which recording, and with which options: `read` by kind. An option
+given to an importer that does not read it is refused, not silently ignored."""
+import numpy as np
+
+from ..errors import InputError, require
+
+KINDS = ("rtklib", "ros2", "ulog", "dataflash", "table")
+# option -> (the importers that read it, its default)
+OPTIONS = {
+    "imu_instance": (("dataflash", "ulog"), None), "reference": (("dataflash",), "auto"),
+    "reference_imu_instance": (("ulog",), None),
+    "reference_imu_time_offset": (("ros2", "table", "ulog"), 0.0),
+    "gps_status": (("dataflash",), 3), "imu_topic": (("ros2",), None),
+    "fix_topic": (("ros2",), None), "pose_topic": (("ros2",), None), "origin": (("ros2",), None),
+    "reference_status": (("ros2",), None), "reference_sigma": (("ros2",), np.inf),
+    "reference_imu_topic": (("ros2",), None), "reference_imu_rpy_deg": (("ros2",), None),
+    "solutions": (("rtklib",), ["fix"]), "root": (("table",), None)}
+
+
+def refuse_foreign(kind, options):
+    """Refuse the `options` ({name: value}, names as OPTIONS) that differ from their default
+    but are not read by the `kind` importer, naming them as the command line does."""
+    given = [f"--{name.replace('_', '-')}" for name, (kinds, default) in OPTIONS.items()
+             if kind not in kinds and options.get(name, default) != default]
+    if given:
+        raise InputError(f"{', '.join(given)}: not read by the {kind} importer "
+                         f"(see `mimunav import --help`: each option names its importers)")
+
+
+def read(kind, source, mounting=None, **options):
+    """The `importers.recording.Recording` of the recording at `source` (a folder for rtklib,
+    a file for ros2, ulog and dataflash, a TOML spec for table) read by the `kind` importer;
+    mounting: the IMU's `Mounting` instead of the importer's default; options: OPTIONS by
+    name (the others at their defaults; reference_imu_time_offset, s, is added to the
+    reference IMU's stamps)."""
+    refuse_foreign(kind, options)
+    o = {name: options.get(name, default) for name, (_, default) in OPTIONS.items()}
+    rec = READERS[kind](source, mounting, o)
+    if o["reference_imu_time_offset"]:
+        rec.shift_reference_imu(o["reference_imu_time_offset"], "command line")
+    return rec
+
+
+def _rtklib(source, mounting, o):
+    from . import rtklib
+    names = {v: k for k, v in rtklib.SOLUTION_NAMES.items()}
+    return rtklib.read_drive(source, mounting=mounting,
+                             solutions=tuple(names[s] for s in o["solutions"]))
+
+
+def _ros2(source, mounting, o):
+    from ..frames.mounting import Mounting
+    require("mcap_ros2", "import", "the ros2 importer")
+    from . import ros2
+    return ros2.read(source, o["imu_topic"], o["fix_topic"], mounting=mounting,
+                     reference_status=o["reference_status"],
+                     reference_sigma_m=o["reference_sigma"], pose_topic=o["pose_topic"],
+                     origin=o["origin"], reference_imu_topic=o["reference_imu_topic"],
+                     reference_imu_mounting=(Mounting.from_rpy_deg(o["reference_imu_rpy_deg"])
+                                             if o["reference_imu_rpy_deg"] else None))
+
+
+def _table(source, mounting, o):
+    from . import table
+    return table.read(source, mounting=mounting, root=o["root"])
+
+
+def _dataflash(source, mounting, o):
+    from . import dataflash
+    return dataflash.read(source, mounting=mounting, instance=o["imu_instance"] or 0,
+                          reference=o["reference"], reference_status=o["gps_status"])
+
+
+def _ulog(source, mounting, o):
+    from . import ulog
+    return ulog.read(source, mounting=mounting, instance=o["imu_instance"],
+                     reference_instance=o["reference_imu_instance"])
+
+
+READERS = {"rtklib": _rtklib, "ros2": _ros2, "ulog": _ulog, "dataflash": _dataflash,
+           "table": _table}

@@ -1,0 +1,135 @@
+"""A `Recording` written as a contract log: `/mimu/imu` (calibrated units, not compensated
+beyond the recorder's own scaling), `/truth/state` when an external reference exists
+(attitude unknown: NaN quaternion, and `reference.attitude = "unknown"` in the metadata),
+`/gnss/fix` (latitude and longitude in rad as the contract's conventions say - not ROS's
+degrees - and position_covariance ENU m^2), the `flight` metadata with an `initial_state`
+from `navigation.alignment.initial_alignment`, `sensor/mimu`, and `recording` (what is
+real, what was assumed).
+"""
+import json
+
+import numpy as np
+
+from ..navigation import alignment
+from ..flightlog import LogWriter
+from ..flightlog import schemas as S
+from .recording import UNKNOWN_ATTITUDE
+from ..flightlog.stamps import rate_segments
+from .checks import reference_track, check_recording, velocity_lag_s
+
+
+WRITE_BLOCK_S = 10.0        # s: channels are written interleaved in blocks of this much time
+
+
+def write_log(rec, path, force=False):
+    """Write `rec` as a contract log at `path` (atomically; an existing file only with
+    force), after `check_recording`. Returns the initial alignment (`alignment.Alignment`)."""
+    check_recording(rec)
+    epoch = int(rec.imu_ns[0])
+    t = (rec.imu_ns - epoch) / 1e9
+    ref = rec.reference
+    align = alignment.initial_alignment(t, rec.w, rec.f, rec.mounting, reference_track(rec, epoch))
+    initial = {"t": float(align.t), "latitude": float(align.lat), "longitude": float(align.lon),
+               "height": float(align.h), "velocity_ned": list(map(float, align.v_ned)),
+               "attitude_wxyz": list(map(float, align.q_nb))}
+    assumed = dict(rec.assumed)
+    assumed["initial_state"] = align.method
+    rate = rec.sample_rate_hz
+    with LogWriter(path, force=force) as log:
+        log.metadata("flight", {
+            "format": "mimunav-log/1", "name": rec.name, "description": rec.description,
+            "epoch_unix_ns": str(epoch), "source": "recording", "initial_state": initial})
+        log.metadata("sensor/mimu", {
+            "model": rec.model, "sample_rate_hz": f"{rate:.6g}",
+            "mounting": rec.mounting.as_dict()})      # range: unknown, not written
+        log.metadata("recording", {"real": json.dumps(rec.real), "assumed": json.dumps(assumed),
+                                   "gyro_bias_static_rad_s": list(map(float, align.gyro_bias)),
+                                   "accel_bias_m_s2":
+                                       list(map(float, align.accel_bias)),
+                                   "static_s": (None if np.isnan(align.static[0]) else
+                                                [float(align.static[0]), float(align.static[1])]),
+                                   "observed_max": {"gyro_rad_s": float(np.abs(rec.w).max()),
+                                                    "accel_m_s2": float(np.abs(rec.f).max())}})
+        channels = [("/mimu/imu", S.IMU, "mimu", rec.imu_ns, S.imu_fields(rec.w, rec.f))]
+        if rec.reference_imu is not None:
+            ref_imu = rec.reference_imu
+            fog = {"model": ref_imu.get("model", "unknown"),
+                   "sample_rate_hz": f"{1e9 / np.median(np.diff(ref_imu['ns'])):.6g}",
+                   "mounting": ref_imu["mounting"].as_dict()}
+            if ref_imu.get("accuracy"):
+                fog["accuracy"] = ref_imu["accuracy"]
+            log.metadata("sensor/fog", fog)
+            channels.append(("/fog/imu", S.IMU, "fog", ref_imu["ns"],
+                             S.imu_fields(ref_imu["w"], ref_imu["f"])))
+        if ref is not None:
+            q = ref.get("q_nb")
+            known = q is not None and np.isfinite(q).all(axis=1).any()
+            meta = {"source": rec.real.get("reference", "external"),
+                    "attitude": ("given by the reference (" +
+                                 rec.reference_meta.get("source", "its source") + ")"
+                                 if known else "unknown"),
+                    "velocity": "given by the reference"}
+            meta.update({k: str(v) for k, v in rec.reference_meta.items()})
+            lag = velocity_lag_s(ref)
+            if lag is not None:
+                meta["velocity_lag_s"] = f"{lag:.4f}"   # positive: its velocity lags positions
+            log.metadata("reference", meta)
+            channels.append(("/truth/state", S.NAV_STATE, "vehicle", ref["ns"], dict(
+                latitude=ref["lat"], longitude=ref["lon"], height=ref["h"],
+                velocity_ned=ref["v_ned"],
+                attitude_wxyz=q if known else np.tile(UNKNOWN_ATTITUDE, (len(ref["ns"]), 1)))))
+        if rec.fixes is not None:
+            fx = rec.fixes
+            log.metadata("gnss", {"latitude_longitude": "rad (log contract conventions)",
+                                  "position_covariance": "m^2, ENU"})
+            channels.append(("/gnss/fix", S.NAV_SAT_FIX, "gnss", fx["ns"], dict(
+                status=fx["status"], service=np.ones(len(fx["ns"]), np.uint16),
+                latitude=fx["lat"], longitude=fx["lon"], altitude=fx["h"],
+                position_covariance=fx["covariance"],
+                position_covariance_type=np.full(len(fx["ns"]), 2, np.uint8))))
+        _write_interleaved(log, channels)
+    return align
+
+
+def _write_interleaved(log, channels, block_s=WRITE_BLOCK_S):
+    """Write each channel (topic, schema, frame, stamps ns, fields) block_s of time at a time,
+    all channels per block, so that a log cut short (a full disk, a copy stopped) keeps the
+    reference and fixes up to the cut, not only the IMU."""
+    lo = min(int(c[3][0]) for c in channels if len(c[3]))
+    step = int(block_s * 1e9)
+    # only the blocks that hold a sample (channels far apart in time leave long empty spans)
+    blocks = np.unique(np.concatenate([(np.asarray(c[3], np.int64) - lo) // step
+                                       for c in channels]))
+    for start in (lo + blocks * step).tolist():
+        for topic, schema, frame, ns, fields in channels:
+            a, b = np.searchsorted(ns, [start, start + step])
+            if b > a:
+                log.write(topic, schema, frame, ns[a:b], **{k: v[a:b] for k, v in fields.items()})
+
+
+def summary(rec, align, path):
+    """What an import wrote and decided, line by line: the samples and their rates, what was
+    assumed, the measured mounting yaw, the initial state and the biases the alignment took
+    (rad/s shown in deg/s, m/s^2; sensor axes)."""
+    runs = rate_segments(rec.imu_ns - rec.imu_ns[0])
+    rates = " then ".join(f"{1e9 / p:.1f}" for _, _, p in runs) if len(runs) > 1 else \
+        f"{rec.sample_rate_hz:.1f}"
+    lines = [f"wrote {path}: {len(rec.imu_ns)} IMU samples at {rates} Hz"
+             + (f", {len(rec.reference['ns'])} reference epochs" if rec.reference else "")
+             + (f", {len(rec.fixes['ns'])} GNSS fixes" if rec.fixes else "")]
+    lines += [f"assumed {key}: {value}" for key, value in rec.assumed.items()]
+    if "mounting_yaw_against_course" in rec.real:
+        lines.append(f"measured mounting yaw: {rec.real['mounting_yaw_against_course']}")
+    lines.append(f"initial state at t = {align.t:.3f} s: {align.method}")
+    if np.isnan(align.static[0]) and np.any(align.gyro_bias):
+        lines.append("biases from the reference's attitude and velocity (sensor axes): gyro "
+                     + ", ".join(f"{np.degrees(b):+.4f}" for b in align.gyro_bias) + " deg/s, "
+                     "accelerometer " + ", ".join(f"{b:+.4f}" for b in align.accel_bias)
+                     + " m/s^2")
+    elif np.isnan(align.static[0]):
+        lines.append("gyro bias: not observed (no rest of 2 s in the recording)")
+    else:
+        lines.append(f"gyro bias at rest {align.static[0]:.1f}-{align.static[1]:.1f} s (sensor "
+                     "axes) " + ", ".join(f"{np.degrees(b):+.4f}" for b in align.gyro_bias)
+                     + " deg/s")
+    return lines

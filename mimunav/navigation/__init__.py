@@ -1,0 +1,3 @@
+"""Navigation: the quaternion strapdown navigator (`strapdown`) and the initial
+state of a recording (`alignment`).
+"""

@@ -1,0 +1,396 @@
+"""Initial alignment of a land vehicle's IMU from its own data and a GNSS track.
+
+Coarse alignment at rest (Titterton & Weston 2004, sec. 10.2.1): at standstill the
+specific force is the reaction to gravity, f^b = C_bn (0, 0, -g), so
+    roll  = atan2(-f_y, -f_z),   pitch = atan2(f_x, sqrt(f_y^2 + f_z^2))     (vehicle axes);
+the gyro bias is the static mean rate less the Earth rate C_bn w_ie^n; of the accelerometer
+bias only the part along gravity is observable at rest: (|f| - g) f/|f| with the normal
+gravity g at the track's position (none without a track). Heading is not
+observable this way from a consumer gyro (Earth rate 0.004 deg/s against a bias of
+0.1-1 deg/s), so it comes from the GNSS course once the vehicle moves: a car does not slide
+sideways, its forward axis points along its velocity (the non-holonomic assumption), and the
+yaw turned between standstill and that moment is taken from the gyro.
+
+Moving alignment (`moving_attitude`, a two-vector solution of Wahba's problem by
+scipy's `Rotation.align_vectors`): the mean specific force over a short interval is matched
+exactly to f^n = dv^n/dt + (2 w_ie^n + w_en^n) x v^n - g^n from the GNSS velocity (T&W eq.
+3.70), and the vehicle's forward axis as closely as possible to the GNSS velocity direction.
+Levelling with the same accelerometers that are navigated makes the horizontal part of their
+bias cancel at the start (the classic tilt/bias equilibrium), so only its change with
+attitude propagates.
+"""
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import quaternion
+from scipy.spatial.transform import Rotation
+
+from ..frames import attitude, earth
+from ..errors import InputError
+from .rests import (G0, MIN_STATIC_S, QUIET_WINDOW_S, STATIC_MARGIN_S, STATIC_SPEED, track_still,
+                    quiet_stretches, rest_intervals, travel_sign, velocity_noise, yaw_turned)
+
+
+COURSE_SPEED = 3.0          # m/s: horizontal speed from which the GNSS course gives heading
+                            # weave: 0.2; IMU noise in 1 s means: ~0.01)
+MOVING_HALF_WINDOW_MAX_S = 5.0  # s: the longest (the gyro's bias turns the increment by
+                                # b x 5 s: 0.1 deg for 0.02 deg/s left after the rest)
+MOVING_ACCEL_ERROR = 0.02       # m/s^2: the interval's acceleration error aimed at (0.1 deg)
+MOVING_HALF_WINDOW_S = 0.25     # s: half the interval of the moving two-vector alignment
+COURSE_SPAN_S = 5.0         # s of fast epochs whose courses give the heading at a rest's end
+
+
+@dataclass
+class Alignment:
+    """An initial state (contract `initial_state` in SI: t s, rad, m, m/s, q_nb wxyz) and
+    what the alignment learnt: the gyro bias (rad/s, sensor axes) and the accelerometer bias
+    (m/s^2, sensor axes: its part along gravity at a rest, whole from a reference's attitude
+    and velocity) of the rest `static` (t0, t1) s they came from ((nan, nan): no rest - the
+    biases from the reference's attitude and velocity when it has them, else 0),
+    `at_rest_start` (the state is that of a rest that starts the recording), and `method`
+    (how each part was obtained, for the log's metadata)."""
+    t: float
+    lat: float
+    lon: float
+    h: float
+    v_ned: np.ndarray
+    q_nb: np.ndarray
+    gyro_bias: np.ndarray
+    accel_bias: np.ndarray
+    static: tuple
+    method: str
+    at_rest_start: bool = True
+
+    @property
+    def navigable_from(self):
+        """First instant (s) after the rest the biases came from, when that rest starts the
+        recording; else the initial state's time."""
+        return self.static[1] if self.at_rest_start else self.t
+
+
+def unwrapped_longitude(lon):
+    """Longitudes (rad) made continuous across the antimeridian (a track written in
+    (-pi, pi] jumps 2 pi there), for interpolation; a NaN stays a NaN of its own sample."""
+    lon = np.array(lon, dtype=float)
+    ok = np.isfinite(lon)
+    lon[ok] = np.unwrap(lon[ok])
+    return lon
+
+
+def level(f_v):
+    """(roll, pitch) rad of a vehicle at rest from its mean specific force f_v (m/s^2,
+    vehicle FRD axes)."""
+    fx, fy, fz = f_v
+    return math.atan2(-fy, -fz), math.atan2(fx, math.hypot(fy, fz))
+
+
+def reference_attitude(track, t0):
+    """q_nb (wxyz) of the reference at its first epoch at or after t0 with a finite attitude,
+    and that epoch (s); (None, None) when the reference carries no attitude."""
+    q = track.get("q_nb")
+    if q is None:
+        return None, None
+    ok = np.flatnonzero(np.isfinite(q).all(axis=1) & (track["t"] >= t0))
+    if not len(ok):
+        return None, None
+    return np.asarray(q[ok[0]], float), float(track["t"][ok[0]])
+
+
+def initial_alignment(t, w, f, mounting, track=None):
+    """Initial state of a recording: t s, w rad/s, f m/s^2 (sensor axes), `track` the
+    reference {t s, lat, lon rad, h m, v_ned m/s, optional q_nb wxyz of the vehicle (NaN
+    rows: unknown)}. In order of preference:
+
+    1. a rest that starts the recording (MIN_STATIC_S or more): level from its mean specific
+       force, heading from the course once faster than COURSE_SPEED less the gyro's yaw
+       since (else the reference's attitude), state at the first IMU stamp;
+    2. the reference's own attitude at its first epoch with one (an autopilot's estimate,
+       a fused pose): the whole state from the reference;
+    3. moving: the two-vector alignment (`moving_attitude`) at the first reference epoch
+       faster than COURSE_SPEED.
+    The biases come from the rest of case 1, else from the longest rest anywhere (with the
+    Earth rate removed as far as the attitude there is known), else are 0. Without a track
+    a rest of MIN_STATIC_S at the start is assumed and position and heading are 0. When no
+    case applies, an InputError says what the recording lacks."""
+    if track is None or len(track["t"]) < 2:
+        return _untracked(t, w, f, mounting)
+    rests = rest_intervals(track["t"], track["v_ned"], float(t[0]), float(t[-1]))
+    if rests and rests[0][0] <= t[0]:
+        return _from_rest(t, w, f, mounting, track, rests[0])
+    # a noisy fix's differenced speed can hide a rest the IMU and the fix's positions show
+    quiet = quiet_stretches(t, w, f, track)
+    if quiet and quiet[0][0] <= t[0] + QUIET_WINDOW_S:
+        q0, q1 = quiet[0][0], quiet[0][1] - STATIC_MARGIN_S       # the car starts to roll
+        covered = (min(q1, track["t"][-1]) - max(q0, track["t"][0])) / max(q1 - q0, 1e-9)
+        if q1 - q0 >= MIN_STATIC_S and covered >= 0.8 and track_still(track, q0, q1):
+            align = _from_rest(t, w, f, mounting, track, (q0, q1))
+            align.method = (f"a rest {q0:.2f}-{q1:.2f} s judged from the IMU and the "
+                            "reference's positions (its differenced speed is too noisy to "
+                            "show it); " + align.method)
+            return align
+    notes = [f"no rest of {MIN_STATIC_S:g} s starts the recording"]
+    q_ref, t_ref = reference_attitude(track, float(t[0]))
+    speed = np.hypot(track["v_ned"][:, 0], track["v_ned"][:, 1])
+    half = moving_half_window(track)
+    parked = np.zeros(len(track["t"]), bool)      # a noisy fix "fast" while the car stands
+    for a, b in quiet:
+        parked |= (track["t"] > a - half) & (track["t"] < b + half)
+    inside = (track["t"] >= max(t[0], track["t"][0]) + half) & \
+        (track["t"] <= min(t[-1], track["t"][-1]) - half)     # IMU and reference cover it
+    fast = np.flatnonzero((speed >= COURSE_SPEED) & ~parked & inside)
+    gyro_bias, accel_bias, static, bias_note = biases_at_a_rest(t, w, f, mounting, track, rests,
+                                                                 quiet)
+    if q_ref is not None:
+        t0, q_nb = t_ref, q_ref
+        notes.append(f"whole state from the reference at t = {t0:.2f} s (its attitude: "
+                     f"{track.get('attitude_source', 'the reference')})")
+    elif len(fast):
+        t0 = float(track["t"][fast[0]])
+        q_nb = moving_attitude(t, w - gyro_bias, f - accel_bias, mounting, track, t0, half)
+        notes.append(f"moving alignment at t = {t0:.2f} s ({speed[fast[0]]:.1f} m/s): the "
+                     f"IMU's velocity increment over {2 * half:.1f} s (turned by its gyro) "
+                     "matched to the reference's, forward axis to its velocity")
+    else:
+        moving = (speed >= COURSE_SPEED) & inside
+        raise InputError(
+            "no initial state can be found: the recording does not start with a rest of "
+            f"{MIN_STATIC_S:g} s (reference speed <= {STATIC_SPEED:g} m/s), the reference "
+            "carries no attitude, and " + (
+                f"its epochs faster than {COURSE_SPEED:g} m/s all lie in stretches the IMU "
+                "and the reference's positions show at rest (a noisy fix's speed)"
+                if moving.any() else
+                f"it never moves faster than {COURSE_SPEED:g} m/s (peak {speed.max():.2f} m/s) "
+                f"with {half:g} s of IMU and reference on both sides") +
+            " for a moving alignment")
+    lat, lon, h = (float(np.interp(t0, track["t"], x)) for x in (
+        track["lat"], unwrapped_longitude(track["lon"]), track["h"]))
+    v0 = np.array([np.interp(t0, track["t"], track["v_ned"][:, i]) for i in range(3)])
+    notes.append(bias_note)
+    return Alignment(t0, lat, lon, h, v0, q_nb, gyro_bias, accel_bias, static,
+                     "; ".join(notes), at_rest_start=False)
+
+
+def _untracked(t, w, f, mounting):
+    """No reference: a rest of MIN_STATIC_S assumed at the start, position and heading 0."""
+    t_end = t[0] + MIN_STATIC_S
+    rest = t <= t_end
+    if rest.sum() < 10:
+        raise InputError(f"fewer than 10 IMU samples in the first {MIN_STATIC_S:g} s: no level")
+    roll, pitch = level(attitude.rotate(mounting.q_vs, f[rest].mean(axis=0)))
+    q_nb = attitude.from_euler(np.array(0.0), np.array(pitch), np.array(roll))
+    w_ie_s = attitude.rotate(np.conjugate(q_nb * mounting.q_vs), earth.earth_rate_ned(0.0))
+    return Alignment(float(t[0]), 0.0, 0.0, 0.0, np.zeros(3), attitude.as_wxyz(q_nb),
+                     w[rest].mean(axis=0) - w_ie_s, np.zeros(3), (float(t[0]), float(t_end)),
+                     f"rest assumed for the first {MIN_STATIC_S:g} s (no GNSS track); level "
+                     "from its mean specific force; position and heading assumed 0")
+
+
+def _from_rest(t, w, f, mounting, track, interval):
+    """Case 1 of `initial_alignment`: the rest `interval` (t0, t1) starts the recording."""
+    q_vs = mounting.q_vs
+    t_end = interval[1]
+    rest = (t >= t[0]) & (t <= t_end)
+    if rest.sum() < 10:
+        raise InputError(f"fewer than 10 IMU samples in the rest {t[0]:.2f}-{t_end:.2f} s")
+    roll, pitch = level(attitude.rotate(q_vs, f[rest].mean(axis=0)))
+    notes = [f"level from the mean specific force over the rest {t[0]:.2f}-{t_end:.2f} s"]
+    lat, lon, h = (float(np.interp(t[0], track["t"], x)) for x in (
+        track["lat"], unwrapped_longitude(track["lon"]), track["h"]))
+    speed = np.hypot(track["v_ned"][:, 0], track["v_ned"][:, 1])
+    fast = np.flatnonzero((speed >= COURSE_SPEED) & (track["t"] > t_end))
+    q_ref, t_ref = reference_attitude(track, float(t[0]))
+    if len(fast):
+        # each fast epoch of the first COURSE_SPAN_S gives the heading at rest (its course
+        # less the gyro's yaw since): their circular mean weighted by speed^2, so one noisy
+        # course (a plain fix's differenced velocity, ~1 m/s of noise) does not set it
+        k = fast[track["t"][fast] <= track["t"][fast[0]] + COURSE_SPAN_S]
+        course = np.arctan2(track["v_ned"][k, 1], track["v_ned"][k, 0])
+        if travel_sign(t, f, mounting, track, float(track["t"][k[0]])) < 0:
+            course = course + math.pi               # it drives off in reverse
+            notes.append("reversing (the horizontal specific force opposes the track's "
+                         "acceleration)")
+        w_v = attitude.rotate(q_vs, w - w[rest].mean(axis=0))
+        at_rest = course - np.array([yaw_turned(t, w_v, t_end, float(x))
+                                     for x in track["t"][k]])
+        weight = speed[k] ** 2          # a course's noise falls as the speed rises
+        yaw = math.atan2(np.sum(weight * np.sin(at_rest)), np.sum(weight * np.cos(at_rest)))
+        notes.append(f"heading from the GNSS course over {len(k)} epoch(s) from t = "
+                     f"{track['t'][k[0]]:.2f} s ({speed[k[0]]:.1f} m/s) less the gyro's yaw "
+                     "since the rest (non-holonomic: no side slip)")
+    elif q_ref is not None:
+        yaw = float(attitude.as_euler(attitude.from_wxyz(q_ref))[0])
+        notes.append(f"heading from the reference's attitude at t = {t_ref:.2f} s")
+    else:
+        yaw = 0.0
+        notes.append(f"heading assumed 0 (the track never exceeds {COURSE_SPEED:g} m/s and "
+                     "carries no attitude)")
+    q_nb = attitude.from_euler(np.array(yaw), np.array(pitch), np.array(roll))
+    gyro_bias, accel_bias = _rest_biases(w[rest], f[rest], q_nb * q_vs, lat, h)
+    return Alignment(float(t[0]), lat, lon, h, np.zeros(3), attitude.as_wxyz(q_nb),
+                     gyro_bias, accel_bias, (float(t[0]), float(t_end)), "; ".join(notes))
+
+
+def _rest_biases(w, f, q_ns, lat, h):
+    """Gyro bias (mean rate less the Earth rate in sensor axes, q_ns the sensor's attitude)
+    and the accelerometer bias along gravity ((|f| - g) f/|f|) of samples at rest."""
+    w_ie_s = attitude.rotate(np.conjugate(q_ns), earth.earth_rate_ned(lat))
+    f_rest = f.mean(axis=0)
+    norm = np.linalg.norm(f_rest)
+    return (w.mean(axis=0) - w_ie_s,
+            (norm - float(earth.normal_gravity(lat, h))) * f_rest / norm)
+
+
+def biases_at_a_rest(t, w, f, mounting, track, rests, quiet=None):
+    """(gyro bias, accel bias, (t0, t1), note) of the longest rest anywhere in the
+    recording; zeros and (nan, nan) without one. The Earth rate is removed with the
+    reference's attitude there when it has one; else only its vertical part (the level is
+    known, the heading is not), leaving at most Omega cos(lat) = 7.3e-5 rad/s."""
+    where = "the rest"
+    if not rests:           # `quiet`: the IMU's quiet stretches when already found
+        rests = quiet_stretches(t, w, f, track) if quiet is None else quiet
+        where = "the IMU's quietest stretch (no reference rest; judged from the IMU alone)"
+    if not rests:
+        none = f"no rest of {MIN_STATIC_S:g} s in the reference and no quiet stretch of " \
+               f"{MIN_STATIC_S:g} s in the IMU"
+        moving = biases_from_attitude(t, w, f, mounting, track)
+        if moving is None:
+            return (np.zeros(3), np.zeros(3), (math.nan, math.nan),
+                    f"biases taken as 0: {none}")
+        gyro, accel, n = moving
+        return (gyro[0], accel[0], (math.nan, math.nan),
+                f"{none}: biases from the reference's attitude and velocity, the medians of "
+                f"{n} {ATTITUDE_BIAS_WINDOW_S:g} s windows' differences (standard errors: gyro "
+                + ", ".join(f"{math.degrees(x) * 3600:.0f}" for x in gyro[1])
+                + " deg/h, accelerometer " + ", ".join(f"{x / G0 * 1e3:.2g}" for x in accel[1])
+                + " mg; the reference's own errors and any time lag in it)")
+    t0, t1 = max(rests, key=lambda r: r[1] - r[0])
+    k = (t >= t0) & (t <= t1)
+    lat, h = (float(np.interp(0.5 * (t0 + t1), track["t"], track[x])) for x in ("lat", "h"))
+    q_ref, _ = reference_attitude(track, t0)
+    if q_ref is not None:
+        q_nb = attitude.from_wxyz(q_ref)
+        note = "its Earth rate removed with the reference's attitude"
+    else:
+        roll, pitch = level(attitude.rotate(mounting.q_vs, f[k].mean(axis=0)))
+        q_nb = attitude.from_euler(np.array(0.0), np.array(pitch), np.array(roll))
+        note = ("only the Earth rate's vertical part removed (heading unknown there: up to "
+                f"{earth.OMEGA * math.cos(lat):.1e} rad/s of it remain)")
+    gyro_bias, accel_bias = _rest_biases(w[k], f[k], q_nb * mounting.q_vs, lat, h)
+    if q_ref is None:               # take the horizontal Earth rate back out of the removal
+        w_n = earth.earth_rate_ned(lat)
+        horizontal = attitude.rotate(np.conjugate(q_nb * mounting.q_vs),
+                                     np.array([w_n[0], w_n[1], 0.0]))
+        gyro_bias = gyro_bias + horizontal
+    return (gyro_bias, accel_bias, (t0, t1),
+            f"biases from {where} {t0:.2f}-{t1:.2f} s ({note})")
+
+
+ATTITUDE_BIAS_WINDOW_S = 1.0    # s: windows of the gyro bias from a reference attitude
+MIN_ATTITUDE_BIAS_WINDOWS = 10
+
+
+def biases_from_attitude(t, w, f, mounting, track, window=ATTITUDE_BIAS_WINDOW_S):
+    """The gyro and accelerometer biases (rad/s, m/s^2, sensor axes) of a recording without
+    a rest whose reference carries the vehicle attitude (a fused pose, an autopilot's
+    estimate): per window [a, b] between the reference's own epochs (about `window` s), the
+    IMU's mean rate w and specific force f (sensor axes, stamps t s: the samples ending in
+    (a, b]) less what the reference says they were:
+        rate   C_sb (rotvec(q_nb(a)^-1 q_nb(b)) / (b - a) + C_bn (w_ie^n + w_en^n))
+        force  C_sb C_bn ((v(b) - v(a)) / (b - a) + (2 w_ie^n + w_en^n) x v - g^n)
+    (T&W eq. 3.70; C_bn at mid-window); the median over the windows and its standard error
+    (1.2533 x the MAD-based sigma / sqrt n).
+    Returns ((gyro bias, se), (accel bias, se), windows) or None without
+    MIN_ATTITUDE_BIAS_WINDOWS windows of known attitude."""
+    q = track.get("q_nb")
+    if q is None:
+        return None
+    inside = np.isfinite(q).all(axis=1) & (track["t"] >= t[0]) & (track["t"] <= t[-1])
+    t_q = track["t"][inside]
+    if len(t_q) < 2:
+        return None
+    # windows between the reference's own epochs (no interpolated attitude)
+    step = max(1, int(round(window / np.median(np.diff(t_q)))))
+    a, b = slice(0, len(t_q) - step, step), slice(step, len(t_q), step)
+    rot = attitude.as_scipy(attitude.from_wxyz(np.asarray(q)[inside]))
+    r_a, span = rot[a], t_q[b] - t_q[a]
+    w_nb = (r_a.inv() * rot[b]).as_rotvec() / span[:, None]      # vehicle axes
+    edges = t_q[a]
+    mid = 0.5 * (edges + t_q[b])
+    lat, h = (np.interp(mid, track["t"], track[k]) for k in ("lat", "h"))
+    v = np.column_stack([np.interp(mid, track["t"], track["v_ned"][:, i]) for i in range(3)])
+    w_ie, w_en = earth.earth_rate_ned(lat), earth.transport_rate_ned(lat, h, v)
+    # C_nb(mid) = C_nb(a) R(w_nb span / 2) (body-frame turn), so C_bn(mid) = R(-..) C_bn(a)
+    c_bn_mid = Rotation.from_rotvec(-0.5 * w_nb * span[:, None]) * r_a.inv()
+    rate = w_nb + c_bn_mid.apply(w_ie + w_en)
+    v_ref = np.asarray(track["v_ned"], float)[inside]
+    force = c_bn_mid.apply((v_ref[b] - v_ref[a]) / span[:, None]
+                           + np.cross(2 * w_ie + w_en, v) - earth.gravity_ned(lat, h))
+    k0, k1 = np.searchsorted(t, edges, side="right"), np.searchsorted(t, t_q[b], side="right")
+    use = k1 - k0 >= 2
+    if use.sum() < MIN_ATTITUDE_BIAS_WINDOWS:
+        return None
+    q_sv = np.conjugate(mounting.q_vs)
+
+    def median_difference(x, predicted):
+        c = np.vstack([np.zeros((1, 3)), np.cumsum(x, axis=0)])
+        d = (c[k1[use]] - c[k0[use]]) / (k1[use] - k0[use])[:, None] \
+            - attitude.rotate(q_sv, predicted[use])
+        bias = np.median(d, axis=0)
+        sigma = 1.4826 * np.median(np.abs(d - bias), axis=0)
+        return bias, 1.2533 * sigma / math.sqrt(len(d))
+    return median_difference(w, rate), median_difference(f, force), int(use.sum())
+
+
+def moving_attitude(t, w, f, mounting, track, t0, half=MOVING_HALF_WINDOW_S):
+    """q_nb (wxyz) of a moving vehicle at t0 (s), by velocity matching over (t0 - half,
+    t0 + half]: the IMU's velocity increment over the interval expressed in the body axes
+    at t0 (each sample's specific force f m/s^2 turned by the gyro's rotation w rad/s since
+    t0, sensor axes at stamps t, biases removed), matched exactly to the track's (its
+    velocity's change less gravity and Coriolis over the interval), the forward axis to the
+    track's velocity direction - against it when the vehicle reverses (`travel_sign`). With
+    the rotation followed, the interval may be long enough to average a noisy reference's
+    velocity (`moving_half_window`); a mean specific force over a turning interval had an
+    error second order in the angle turned. See the module's docstring."""
+    k = np.flatnonzero((t > t0 - half) & (t <= t0 + half))
+    if len(k) < 2 or k[0] == 0:
+        raise InputError(f"no IMU samples around t = {t0:.2f} s")
+    dt = t[k] - t[k - 1]                               # each sample: the mean over its interval
+    w_b = attitude.rotate(mounting.q_vs, w[k])
+    f_b = attitude.rotate(mounting.q_vs, f[k])
+    steps = quaternion.from_rotation_vector(w_b * dt[:, None])
+    q = np.multiply.accumulate(steps)                  # body at the interval's start -> each
+    i0 = int(np.argmin(np.abs(t[k] - t0)))
+    q_mid = np.conjugate(q[i0]) * q * quaternion.from_rotation_vector(-0.5 * w_b * dt[:, None])
+    dv_b = np.sum(attitude.rotate(q_mid, f_b * dt[:, None]), axis=0)     # body axes at t0
+    t_a, t_b = float(t[k[0] - 1]), float(t[k[-1]])
+    v = lambda s: np.array([np.interp(s, track["t"], track["v_ned"][:, i])  # noqa: E731
+                            for i in range(3)])
+    v0 = v(t0)
+    lat, h = float(np.interp(t0, track["t"], track["lat"])), float(np.interp(t0, track["t"],
+                                                                                track["h"]))
+    coriolis = np.cross(2 * earth.earth_rate_ned(lat) + earth.transport_rate_ned(lat, h, v0), v0)
+    dv_n = v(t_b) - v(t_a) + (coriolis - earth.gravity_ned(lat, h)) * (t_b - t_a)
+    forward = travel_sign(t, f, mounting, track, t0) * v0 / np.linalg.norm(v0)
+    rot, _ = Rotation.align_vectors([dv_n, forward], [dv_b, [1.0, 0, 0]],
+                                    weights=[np.inf, 1.0])
+    return attitude.as_wxyz(attitude.from_scipy(rot))
+
+
+def moving_half_window(track, accel_error=MOVING_ACCEL_ERROR):
+    """Half the moving alignment's interval (s) for a reference track: long enough that its
+    velocity noise sigma_v (from the second differences of its velocities, robustly:
+    MAD / 0.6745 / sqrt(6)) makes an error of at most `accel_error` (m/s^2, a tilt of
+    accel_error / g) in the interval's mean acceleration, sqrt(2) sigma_v / (2 half), within
+    MOVING_HALF_WINDOW_S .. MOVING_HALF_WINDOW_MAX_S. An RTK track (1-2 cm/s) keeps the
+    shortest; a plain fix's differenced velocity (about 1 m/s) the longest, where its tilt
+    error is still about 1 deg (`moving_tilt_sigma`)."""
+    sigma_v = velocity_noise(track)
+    if sigma_v is None:
+        return MOVING_HALF_WINDOW_S
+    half = math.sqrt(2) * sigma_v / (2 * accel_error)
+    # and at least one epoch interval: the reference's velocity change over a shorter
+    # interval is interpolated between its epochs while the IMU's is the true one (a 1 Hz
+    # track surging +-0.8 m/s^2 tilted the alignment by 2 deg at 0.25 s, 0.01 at 1 s)
+    step = float(np.median(np.diff(track["t"])))
+    return float(np.clip(max(half, step), MOVING_HALF_WINDOW_S, MOVING_HALF_WINDOW_MAX_S))

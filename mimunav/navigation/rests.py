@@ -1,0 +1,227 @@
+"""Rests and stillness in a recording: spans where the reference shows a vehicle at rest,
+quiet stretches of the IMU (with |f| near g and |w| small), a track's acceleration, and the
+direction of travel (forward or reversing) from 1 s means.
+"""
+import math
+
+import numpy as np
+
+from ..frames import attitude, earth
+
+
+STATIC_SPEED = 0.2          # m/s: GNSS speed below which the vehicle is taken to be at rest
+STATIC_MARGIN_S = 1.0       # s cut from the end of the rest period (the car starts to roll)
+STATIC_AVERAGE_S = 1.0      # s: the track's velocity is averaged over this before the rest test
+                            # (central differences of 2 cm fixes at 10 Hz scatter 0.14 m/s per
+                            # axis, and a 30 s rest broke into pieces under STATIC_SPEED; over
+                            # 1 s they scatter 0.03)
+MIN_STATIC_S = 2.0          # s: a shorter rest cannot give a level and a gyro bias
+                            # (1 cm/s RTK velocity noise -> 0.2 deg course noise)
+DIRECTION_SPAN_S = 5.0      # s either side: the track's acceleration that tells reversing
+DIRECTION_STEP_S = 1.0      # s: the means it is compared in (`travel_sign`)
+DIRECTION_ACCEL = 0.1       # m/s^2: horizontal acceleration (std) that can tell it (a gentle
+STILL_TOLERANCE = 0.5       # m/s: a noisy reference shows rest when its speed's 2-sigma upper
+
+
+def rest_intervals(t_track, v_ned, t_first, t_last):
+    """Rest periods of a track, [(t0, t1)] s: runs of epochs slower than STATIC_SPEED (m/s)
+    in their mean velocity over STATIC_AVERAGE_S (the displacement over it: a moving
+    vehicle's is not noise), each end that meets motion moved STATIC_MARGIN_S into the rest
+    from the neighbouring moving epoch; a run that starts the track starts at t_first (the
+    IMU's first stamp), one that ends it ends at t_last. Only rests of at least MIN_STATIC_S
+    are returned."""
+    t_track = np.asarray(t_track, float)
+    mean = means_around(t_track, np.asarray(v_ned, float), t_track, STATIC_AVERAGE_S / 2)
+    still = np.linalg.norm(mean, axis=1) <= STATIC_SPEED
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], still.astype(int), [0]])))
+    out = []
+    for a, b in zip(edges[::2], edges[1::2]):          # still[a:b]
+        t0 = t_first if a == 0 else float(t_track[a - 1]) + STATIC_MARGIN_S
+        t1 = t_last if b == len(still) else float(t_track[b]) - STATIC_MARGIN_S
+        t0, t1 = max(t0, t_first), min(t1, t_last)
+        if t1 - t0 >= MIN_STATIC_S:
+            out.append((float(t0), float(t1)))
+    return out
+
+
+def yaw_turned(t, w_v, t0, t1):
+    """Yaw (rad) a level vehicle turned between t0 and t1 from vehicle-axis rates (rad/s):
+    the integral of the rate about down (small-tilt approximation of the Euler rate)."""
+    k = (t > t0) & (t <= t1)
+    dt = np.diff(t, prepend=t[0])
+    return float(np.sum(w_v[k, 2] * dt[k]))
+
+
+QUIET_WINDOW_S = 0.5        # s: windows the IMU-only rest test looks at
+QUIET_SPREAD = 3.0          # x the quietest twentieth's spread: still quiet (the RTKLIB drive's
+                            # idling start rest 0.040 rad/s, its quietest stops 0.014, driving
+                            # 0.082 in the median)
+QUIET_SPREAD_TRACKED = 4.0  # the same where a reference track also judges each stretch
+QUIET_HOLE = 2              # windows: a louder moment inside a rest does not split it
+QUIET_RATE = math.radians(1.0)      # rad/s: a resting consumer gyro's mean rate (its bias) stays below
+QUIET_GRAVITY = 0.3         # m/s^2: |mean f| - g at rest, beyond a consumer accelerometer's bias
+G0 = 9.80665                # m/s^2, standard gravity (a resting IMU feels about this)
+
+
+def quiet_stretches(t, w, f, track=None):
+    """Rests judged from the IMU, [(t0, t1)] s of at least MIN_STATIC_S: runs of
+    QUIET_WINDOW_S windows whose gyro and specific-force-magnitude scatter are within
+    QUIET_SPREAD (QUIET_SPREAD_TRACKED with a track) times
+    the quietest twentieth of the recording's windows, whose mean rate is below QUIET_RATE and
+    whose mean specific force is gravity's size (QUIET_GRAVITY), and which the reference
+    `track` (when it covers them) does not show moving: a run the reference shows at rest
+    (`track_still`: a noisy plain GNSS fix, metres apart epoch to epoch, hid a 33 s rest
+    behind its differenced speed), else its windows where the reference's speed is below
+    STATIC_SPEED. For the biases when
+    the reference shows no rest (it may not cover one); outside the reference, a drive that
+    never stops can pass the relative test, so the note says the rest was judged from the
+    IMU alone."""
+    n = max(int(round(QUIET_WINDOW_S / np.median(np.diff(t)))), 4)
+    m = len(t) // n
+    if m < 2:
+        return []
+    cut = lambda x: x[:m * n].reshape(m, n, *x.shape[1:])          # noqa: E731
+    w_s, f_norm = cut(w), np.linalg.norm(cut(f), axis=2)
+    spread_w = np.linalg.norm(w_s.std(axis=1), axis=1)
+    spread_f = f_norm.std(axis=1)
+    # a track judges each stretch below (its positions show it still), so the spread may
+    # be looser with one: the RTKLIB drive's idling start rest is 3.4 x its quietest stops
+    loose = QUIET_SPREAD_TRACKED if track is not None and len(track["t"]) >= 2 else QUIET_SPREAD
+    steady = _close((spread_w <= loose * np.quantile(spread_w, 0.05))
+                    & (spread_f <= loose * np.quantile(spread_f, 0.05)), QUIET_HOLE)
+    # a steady turn is no rest: the mean rate and gravity judge every window, filled or not
+    quiet = (steady & (np.linalg.norm(w_s.mean(axis=1), axis=1) < QUIET_RATE)
+             & (np.abs(np.linalg.norm(cut(f).mean(axis=1), axis=1) - G0) < QUIET_GRAVITY))
+    if track is not None and len(track["t"]) >= 2:
+        mid = cut(t).mean(axis=1)
+        covered = (mid >= track["t"][0]) & (mid <= track["t"][-1])
+        speed = np.interp(mid, track["t"], np.linalg.norm(track["v_ned"], axis=1))
+        slow = ~covered | (speed <= STATIC_SPEED)
+        edges = np.flatnonzero(np.diff(np.concatenate([[0], quiet.astype(int), [0]])))
+        for a, b in zip(edges[::2], edges[1::2]):
+            if not track_still(track, float(t[a * n]), float(t[b * n - 1])):
+                quiet[a:b] &= slow[a:b]
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], quiet.astype(int), [0]])))
+    out = []
+    for a, b in zip(edges[::2], edges[1::2]):
+        t0, t1 = float(t[a * n]), float(t[b * n - 1])
+        if t1 - t0 >= MIN_STATIC_S:
+            out.append((t0, t1))
+    return out
+
+
+def _close(mask, hole):
+    """`mask` with runs of at most `hole` False between two True filled (one rest the odd
+    window of an idling engine had split into 2.5-3 s pieces, each too short to judge)."""
+    out = mask.copy()
+    idx = np.flatnonzero(mask)
+    for a, b in zip(idx[:-1], idx[1:]):
+        if 1 < b - a <= hole + 1:
+            out[a:b] = True
+    return out
+
+
+def track_still(track, t0, t1):
+    """Whether the reference over [t0, t1] s (at least 5 epochs) shows, positively, a vehicle
+    at rest under noise: the slope of a straight line through its positions (its mean
+    velocity when it has none) plus 2 of its standard errors (from the fit's own residuals)
+    at most STILL_TOLERANCE - a short or noisy stretch that cannot show rest is not one."""
+    k = (track["t"] >= t0) & (track["t"] <= t1)
+    if k.sum() < 5:
+        return False
+    if "lat" not in track:
+        v = np.asarray(track["v_ned"], float)[k, :2]
+        se_v = np.hypot(*(v.std(axis=0, ddof=1) / math.sqrt(len(v))))
+        return float(np.hypot(*v.mean(axis=0))) + 2 * float(se_v) <= STILL_TOLERANCE
+    lat, lon, h = track["lat"][k], track["lon"][k], track["h"][k]
+    ned = earth.ned_difference(lat, lon, h, lat[0], lon[0], h[0])[:, :2]
+    x = np.column_stack([np.ones(k.sum()), track["t"][k] - track["t"][k].mean()])
+    coef, *_ = np.linalg.lstsq(x, ned, rcond=None)
+    resid = ned - x @ coef
+    se = np.sqrt(np.sum(resid ** 2, axis=0) / (len(x) - 2) / np.sum(x[:, 1] ** 2))
+    return float(np.hypot(*coef[1])) + 2 * float(np.hypot(*se)) <= STILL_TOLERANCE
+
+
+def track_acceleration(t, v_ned):
+    """(horizontal speed m/s, course rate rad/s, horizontal acceleration in the direction of
+    travel as along + 1j * across m/s^2 - along = d speed/dt, across = speed x course rate,
+    positive to the right) of a track at epochs t (s) with velocity v_ned (m/s)."""
+    v = np.asarray(v_ned, float)
+    speed = np.hypot(v[:, 0], v[:, 1])
+    course = np.unwrap(np.arctan2(v[:, 1], v[:, 0]))
+    course_rate = np.gradient(course, t)
+    return speed, course_rate, np.gradient(speed, t) + 1j * speed * course_rate
+
+
+def acceleration_match(z_imu, z_track):
+    """(gain, coherence 0..1) of the vehicle-frame horizontal specific force z_imu regressed
+    on the track's horizontal acceleration z_track (both x + 1j y, `track_acceleration`),
+    each less its mean (the tilt's gravity leak): gain = sum(z_imu conj(z_track)) /
+    sum|z_track|^2, complex - its angle is the yaw that turns the track's acceleration into
+    the IMU's, its size their ratio (1 for a car's IMU mounted as stated)."""
+    z_imu, z_track = z_imu - z_imu.mean(), z_track - z_track.mean()
+    cross = np.sum(z_imu * np.conj(z_track))
+    power = math.sqrt(np.sum(abs(z_imu) ** 2) * np.sum(abs(z_track) ** 2))
+    return complex(cross / np.sum(abs(z_track) ** 2)), float(abs(cross) / power) if power else 0.0
+
+
+def travel_sign(t, f, mounting, track, t0, span=DIRECTION_SPAN_S, undecided=1.0):
+    """+1 when the vehicle moves forward at t0 (s), -1 when it reverses: over t0 +- span the
+    IMU's horizontal specific force (vehicle x + 1j y, each less its mean) regressed on the
+    track's acceleration (along + 1j across, `track_acceleration`) gives a complex gain
+    near +1 driving forward and near -1 reversing (the course is the heading + 180 deg:
+    speed changes and the centripetal force both act the other way in the vehicle frame).
+    Either needs the gain's real part beyond +-0.5 with coherence above 0.5 and the track
+    accelerating by DIRECTION_ACCEL: an aircraft's coordinated turns put almost none of the
+    centripetal acceleration into its lateral axis (gain -0.03 to -0.24 on a simulated
+    copter-like flight) and stay forward. `undecided` where the data cannot tell (a
+    constant speed on a straight road; fewer than 5 epochs): forward (1) for an alignment,
+    which must face somewhere; 0 for a vote (`diagnosis.track.reversing`)."""
+    k = np.flatnonzero((track["t"] >= t0 - span) & (track["t"] <= t0 + span))
+    if len(k) < 5:
+        return undecided
+    # both sides as means over steps of at least DIRECTION_STEP_S: a 10 Hz track with 5 cm
+    # fixes differenced has 3-5 m/s^2 of acceleration noise epoch to epoch, and no move of
+    # a car was ever coherent with it
+    step = max(float(np.median(np.diff(track["t"][k]))), DIRECTION_STEP_S)
+    grid = np.arange(t0 - span, t0 + span + 1e-9, step)
+    v = means_around(track["t"], track["v_ned"], grid, step / 2)
+    known = np.isfinite(v).all(axis=1)
+    grid, v = grid[known], v[known]
+    if len(grid) < 5:
+        return undecided
+    _, _, z_track = track_acceleration(grid, v)
+    near = slice(*np.searchsorted(t, [t0 - span - step, t0 + span + step]))   # the IMU
+    f_v = attitude.rotate(mounting.q_vs, means_around(t[near], f[near], grid, step / 2))
+    if not np.isfinite(f_v).all() or np.std(z_track) < DIRECTION_ACCEL:
+        return undecided
+    gain, coherence = acceleration_match(f_v[:, 0] + 1j * f_v[:, 1], z_track)
+    if coherence > 0.5 and abs(gain.real) > 0.5:
+        return float(np.sign(gain.real))
+    return undecided
+
+
+def means_around(t, x, epochs, half):
+    """Means of the samples x (N, k) at stamps t (s, increasing) within +-half s of each
+    epoch (nan where none)."""
+    return span_means(x, np.searchsorted(t, epochs - half), np.searchsorted(t, epochs + half))
+
+
+def span_means(x, lo, hi):
+    """Means of the rows lo[i] .. hi[i] - 1 of x (N, k) by one cumulative sum (nan where a
+    span is empty)."""
+    c = np.vstack([np.zeros((1, x.shape[1])), np.cumsum(x, axis=0)])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return (c[hi] - c[lo]) / (hi - lo)[:, None]
+
+
+def velocity_noise(track):
+    """The reference velocity's white noise per horizontal axis (m/s), from the second
+    differences of its north and east velocities (MAD / 0.6745 / sqrt(6): a second
+    difference of white noise has 6 times its variance); the vehicle's own motion between
+    epochs adds to it, so it is an upper bound. None for fewer than 5 epochs."""
+    v = np.asarray(track["v_ned"], float)[:, :2]
+    if len(v) < 5:
+        return None
+    d2 = v[2:] - 2 * v[1:-1] + v[:-2]
+    return float(np.median(np.abs(d2 - np.median(d2, axis=0)))) / 0.6745 / math.sqrt(6)

@@ -1,0 +1,613 @@
+"""Diagnosis: the effect regressors and the reference transfer against exact truth, the
+found-term compensation, the command's contract output, the foreign flights of an independent
+simulator (development set), and the concealed-data proof in its reduced (CI) form: the
+required effects hidden one per recording (one outside the vocabulary), plus nulls."""
+import json
+import math
+import os
+from types import SimpleNamespace
+
+import numpy as np
+import quaternion
+import pytest
+
+from mimunav.frames import attitude
+from mimunav.compensation import effects
+from mimunav.sensors import simulation
+from mimunav.cli import main
+from mimunav.cli.diagnosis import finding_line, set_aside_line
+from mimunav.compensation.calibration_file import Calibration
+from mimunav.compensation.model import CalibrationError, compensate
+from mimunav.diagnosis import concealed
+from mimunav.diagnosis.reference import predicted_mimu
+from mimunav.motion.profile import Profile
+from mimunav.frames.mounting import Mounting
+from mimunav.sensors.hidden import HiddenPhysics
+from places import FLIGHTS, SHARED
+
+PROOF = str(FLIGHTS / "diagnosis-proof.toml")
+# the navigation level (velocity error over minutes, contiguous tenths) on repeated blocks
+BLOCKS = str(FLIGHTS / "repeated-blocks.toml")
+PULL_ROLL = {"name": "pull-roll", "start": {
+    "latitude_deg": 30.0, "longitude_deg": 104.0, "height_m": 1000.0, "speed_m_s": 200.0,
+    "heading_deg": 45.0}, "segment": [
+        {"kind": "pull", "load_factor": 3.0, "flight_path_change_deg": 15.0},
+        {"kind": "roll", "rate_deg_s": 240.0, "angle_deg": 360.0},
+        {"kind": "hold", "duration_s": 2.0}]}
+
+
+def _ideal(mounting, fm_kwargs=None):
+    """Exact interval-mean (t, f, w) of a sensor at `mounting` on the pull-roll, 1 kHz."""
+    fm = simulation.flight_motion(Profile.from_dict(PULL_ROLL), mounting, 1000.0,
+                                  Mounting(), 1000.0, 100.0)
+    t, dth, dv = fm.mimu
+    return t, dv * 1000.0, dth * 1000.0, fm
+
+
+def test_reference_moved_to_the_mimu_mounting_matches_its_exact_increments():
+    """FOG at the origin, MIMU turned (30, 20, 45 deg) and 0.33 m away, a 3 g pull and a
+    240 deg/s roll: the transferred FOG output equals the MIMU's exact interval means to
+    the derivative's accuracy (the lever-arm terms reach 0.2 g here; the 100 ms derivative
+    window, set against the FOG's quantization noise, leaves up to 0.5 mg at the ends of the
+    roll ramps and under 0.1 mg rms)."""
+    q = attitude.from_euler(*np.radians([30.0, 20.0, 45.0]))
+    mount = Mounting(np.asarray(q.components), [0.30, -0.10, 0.05])
+    t, f, w, fm = _ideal(mount)
+    _, dth_fog, dv_fog = fm.fog
+    flight = SimpleNamespace(path="x", mimu_t=t, mimu_mounting=mount, fog_t=fm.fog[0],
+                             fog_w=dth_fog * 1000.0, fog_f=dv_fog * 1000.0, fog_mounting=Mounting())
+    f_p, w_p, inside = predicted_mimu(flight)
+    k = inside & (t > 0.1) & (t < t[-1] - 0.1)
+    assert np.abs(w_p[k] - w[k]).max() < 1e-9
+    err = np.abs(f_p[k] - f[k]).max(axis=1)
+    assert err.max() < 5e-3 and np.sqrt(np.mean(err ** 2)) < 1e-3       # 0.5 mg, 0.1 mg rms
+    centripetal = np.linalg.norm(f[k] - attitude.rotate(np.conjugate(mount.q_vs), dv_fog[k] * 1000.0),
+                                 axis=1).max()
+    assert centripetal > 1.5
+
+
+def test_size_effect_regressor_equals_an_exactly_simulated_proof_mass_offset():
+    """An accelerometer 8 mm off the sensor origin, simulated exactly (truth increments at
+    the moved point), against the effects regressor K r built from the rates."""
+    r = np.array([0.004, -0.006, 0.003])
+    base, moved = Mounting(lever_arm_m=[0.2, 0.0, 0.0]), Mounting(lever_arm_m=[0.2, 0.0, 0.0] + r)
+    t, f0, w, _ = _ideal(base)
+    _, f1, _, _ = _ideal(moved)
+    cond = effects.Conditions.from_outputs(t, f0, w, np.zeros((len(t), 3)), np.zeros((len(t), 3)))
+    for i, axis in enumerate("xyz"):
+        cols = effects.regressor({"effect": "size_effect", "sensor": "accel", "axis": axis},
+                                 cond)[("accel", i)]
+        k = slice(100, -100)
+        assert np.abs((cols @ r)[k] - (f1 - f0)[k, i]).max() < 1e-3 * np.abs(f1 - f0).max() + 1e-5
+
+
+def test_mounting_misalignment_is_the_exact_rotation_of_the_mounting():
+    """A sensor mounted 7 deg off (q_vs = q_vs,nominal exp(phi/2)), simulated exactly: the
+    effect applied to the nominal outputs reproduces it to round-off, removing it restores the
+    nominal ones, and the regressor is its first order (phi^2 / 2 of the input left)."""
+    phi = np.radians([1.0, -6.8, 5.3])
+    base = Mounting()
+    moved = Mounting(quaternion.as_float_array(base.q_vs * quaternion.from_rotation_vector(phi)))
+    t, f0, w0, _ = _ideal(base)
+    _, f1, w1, _ = _ideal(moved)
+    zeros = np.zeros((len(t), 3))
+    term = {"effect": "mounting_misalignment", "sensor": "imu", "axis": "all",
+            "vector": phi.tolist()}
+    f, w = effects.apply([term], effects.Conditions.from_outputs(t, f0, w0, zeros, zeros))
+    assert np.abs(f - f1).max() < 1e-9 and np.abs(w - w1).max() < 1e-9
+    back = effects.apply([term], effects.Conditions.from_outputs(t, f1, w1, zeros, zeros), -1.0)
+    assert np.abs(back[0] - f0).max() < 1e-9 and np.abs(back[1] - w0).max() < 1e-9
+    cond = effects.Conditions.from_outputs(t, f0, w0, zeros, zeros)
+    first = f0 + np.column_stack([effects.regressor(term, cond)[("accel", i)] @ phi
+                                  for i in range(3)])
+    assert np.abs(first - f1).max() < 0.6 * np.linalg.norm(phi) ** 2 * np.abs(f0).max()
+
+
+def test_a_mounting_finding_gives_its_turn_about_the_vehicle_axes_too():
+    """A sensor turned by phi about its own axes (q_vs exp(phi/2), the contract's vector) is
+    the vehicle's axes turned by C_vs phi (exp(phi_v/2) q_vs): the finding carries both, the
+    vehicle's with its interval by the same covariance turned, computed here by quaternion
+    composition on a mounting with no symmetry (3, -2, 95 deg: C_vs and its transpose
+    differ), and the terminal line says which axes each is about."""
+    from mimunav.diagnosis.confirmation import interval_estimate
+    q_vs = Mounting.from_rpy_deg((3.0, -2.0, 95.0)).q_vs
+    phi = np.radians([0.4, -1.1, 2.3])
+    term = {"effect": "mounting_misalignment", "sensor": "imu", "axis": "all"}
+    cov = np.diag(np.radians([0.1, 0.2, 0.3]) ** 2)
+    found = interval_estimate(SimpleNamespace(q_vs=quaternion.as_float_array(q_vs)), term, phi, cov)
+    phi_v = quaternion.as_rotation_vector(q_vs * quaternion.from_rotation_vector(phi)
+                                          * q_vs.conjugate())
+    assert found["frame"] == "sensor" and np.allclose(found["vector"], phi)
+    assert np.abs(np.asarray(found["vector_vehicle"]) - phi_v).max() < 1e-12
+    half = np.diff(np.asarray(found["vector_vehicle_ci95"]), axis=1)[:, 0] / 2
+    c_vs = quaternion.as_rotation_matrix(q_vs)
+    assert np.allclose(half, 1.96 * np.sqrt(np.diag(c_vs @ cov @ c_vs.T)))
+    line = finding_line(dict(found, label="mounting_misalignment imu.all", p_heldout=1e-9))
+    assert "(rad, sensor axes x, y, z)" in line
+    assert f"forward, right, down axes {np.degrees(phi_v[0]):+.2f} deg" in line
+
+
+def test_a_set_aside_term_is_said_with_the_sigma_its_test_used():
+    """foreign-06's gyro.z scale, set aside at -0.0018: the reference's stated 1 sigma along it
+    is 0.00025 (7 times smaller), the test's 1 sigma with the reference's and the
+    calibration's priors 0.00131 - the line must quote the latter, which decided it (it had
+    quoted only the former: 'within the reference's stated accuracy (1 sigma 0.00025)')."""
+    w = {"label": "scale_factor gyro.z", "coefficient": -0.001794855749895373,
+         "reference_1sigma": [0.00025], "total_1sigma": [0.0013103030530459633],
+         "p_train": 0.0002312278746599149}
+    line = set_aside_line(w)
+    assert "-0.001795" in line and "p 0.00023" in line
+    assert "the reference's (1 sigma 0.00025)" in line and line.endswith("its 1 sigma is 0.00131")
+    # a term the model carries (g-sensitivity), set aside against the calibration's own
+    # covariance: that is the stated sigma, not the reference's
+    line = set_aside_line({"label": "g_sensitivity gyro.x <- f_z", "coefficient": 2e-5,
+                           "calibration_1sigma": [1e-5], "total_1sigma": [1.2e-5],
+                           "p_train": 1e-4})
+    assert "reference" not in line and "covariance (1 sigma 1e-05)" in line
+
+
+def test_time_shift_is_exact_for_linear_motion_and_has_the_contract_sign():
+    t = np.arange(1, 2001) / 1000.0
+    rate = 0.5 + 3.0 * (t - 0.0005)[:, None] * np.array([1.0, -2.0, 0.5])  # interval means of a ramp
+    tau = 0.0007
+    lagged = effects.shift(t, rate, tau)
+    expect = 0.5 + 3.0 * (t - 0.0005 - tau)[:, None] * np.array([1.0, -2.0, 0.5])
+    assert np.abs(lagged[5:] - expect[5:]).max() < 1e-10
+    # the regressor: lagged - true = tau * (-dx/dt), coefficient tau > 0 for a lag
+    cond = effects.Conditions.from_outputs(t, rate, rate, rate, rate)
+    col = effects.regressor({"effect": "time_skew", "sensor": "accel", "axis": "all"}, cond)
+    assert np.allclose(col[("accel", 0)][10:-10, 0] * tau, (lagged - rate)[10:-10, 0], atol=1e-12)
+
+
+def test_found_terms_round_trip_and_remove_the_effect_they_name():
+    """A noise-free unit with a hidden g-sensitivity: its own model leaves the term in the
+    output; model + found term removes it to rounding."""
+    from mimunav.sensors.mimu import MimuUnit
+    from mimunav.sensors.mimu import NoiseModel
+    unit = MimuUnit.draw(3, beyond_model=False)
+    unit.noise = NoiseModel(*(0.0,) * 6)
+    unit.thermal.thermistor_noise = unit.thermal.frequency_noise = 0.0
+    unit.adc_lsb = 0.0
+    term = {"effect": "g_sensitivity", "sensor": "gyro", "axis": "y", "input_axis": "z",
+            "coefficient": 4e-5}
+    t, f, w, fm = _ideal(unit.mounting)
+    raw = unit.simulate(t, w / 1000.0, f / 1000.0, np.full(len(t), 20.0),
+                        np.random.default_rng(0), hidden=HiddenPhysics(term))
+    doc = unit.coefficients.as_dict()
+    doc.update(model="entire-63+found", found=[term])
+    cal = Calibration.from_dict(json.loads(json.dumps(doc)))
+    assert Calibration.from_dict(cal.as_dict()).found == [term]
+    args = [raw[k] for k in ("accel_volts", "gyro_volts", "accel_temperature", "gyro_frequency")]
+    _, w_model, _ = compensate(unit.coefficients, *args, t=t)
+    _, w_found, _ = compensate(cal, *args, t=t)
+    k = slice(1, None)
+    assert np.abs(w_model[k, 1] - w[k, 1]).max() > 1e-3           # 3 g x 4e-5
+    assert np.abs(w_found[k] - w[k]).max() < 1e-9
+    bad = dict(doc, found=[dict(term, effect="warp_drive")])
+    with pytest.raises(CalibrationError, match="found\\[0\\]"):
+        Calibration.from_dict(bad)
+
+
+@pytest.fixture(scope="module")
+def skewed_log(tmp_path_factory):
+    """A proof-flight log with a hidden 0.6 ms time skew, and the unit's own model."""
+    from mimunav.sensors.mimu import MimuUnit
+    d = tmp_path_factory.mktemp("diag")
+    unit = MimuUnit.draw(11)
+    unit.mounting = concealed.proof_mounting()
+    hidden = {"effect": "time_skew", "sensor": "imu", "axis": "all", "coefficient": 6e-4}
+    log, truth = simulation.simulate_flight(Profile.load(PROOF), d / "f.mcap", 11, unit=unit,
+                                            hide=[hidden], progress=False)
+    unit.coefficients.save(str(d / "model.json"))
+    return d, log, truth
+
+
+@pytest.mark.slow
+def test_diagnose_command_writes_the_contract_and_a_report(skewed_log, capsys):
+    d, log, truth_file = skewed_log
+    with open(log, "rb") as fh:                  # the log hides the effect
+        assert b"time_skew" not in fh.read()
+    assert json.load(open(truth_file))["hidden"][0]["effect"] == "time_skew"
+    rc = main(["diagnose", str(log), "--model", str(d / "model.json"), "--json",
+               str(d / "out.json"), "-o", str(d / "report")])
+    assert rc == 0
+    doc = json.load(open(d / "out.json"))
+    assert doc["format"] == "mimunav-diagnosis/1" and doc["verdict"] == "missing-physics"
+    f = doc["findings"][0]
+    for key in ("effect", "sensor", "axis", "coefficient", "ci95", "units", "where", "fit"):
+        assert key in f
+    assert (f["effect"], f["sensor"], f["axis"], f["units"]) == ("time_skew", "imu", "all", "s")
+    assert f["ci95"][0] <= 6e-4 <= f["ci95"][1]
+    assert all(set(w) >= {"t0", "t1", "condition"} for w in f["where"])
+    fit = f["fit"]
+    assert fit["heldout_rms_after"] < fit["heldout_rms_before"]
+    for name in ("diagnosis.md", "residual-map.png", "timeline.png", "navigation.png",
+                 "CAL+found.json", "diagnosis.json"):
+        assert (d / "report" / name).exists(), name
+    found = Calibration.load(str(d / "report" / "CAL+found.json"))
+    assert found.model == "entire-63+found" and found.found[0]["effect"] == "time_skew"
+    assert main(["table", str(log), "--cal", f"model={d / 'model.json'}",
+                 "--cal", f"found={d / 'report' / 'CAL+found.json'}"]) == 0
+    # without the FOG-IMU: the navigation level, from the truth trajectory
+    rc = main(["diagnose", str(log), "--model", str(d / "model.json"), "--level", "navigation",
+               "--json", str(d / "nav.json"), "-o", str(d / "nav")])
+    doc = json.load(open(d / "nav.json"))
+    assert rc == 0 and doc["level"] == "navigation" and doc["format"] == "mimunav-diagnosis/1"
+    for name in ("diagnosis.md", "timeline.png", "navigation.png", "diagnosis.json"):
+        assert (d / "nav" / name).exists(), name
+    # outputs are never overwritten silently
+    assert main(["diagnose", str(log), "--model", str(d / "model.json"), "--json",
+                 str(d / "out.json")]) == 2
+    assert "exists" in capsys.readouterr().err
+
+
+def test_the_terminal_names_what_a_finding_is_not_told_apart_from():
+    f = {"label": "scale_nonlinearity gyro.x (x^2)", "coefficient": 5.35e-5,
+         "units": "1/(rad/s)", "ci95": [3.0e-5, 7.7e-5], "p_heldout": 9.8e-6,
+         "attribution": "mimu", "indistinguishable_from": [
+             {"effect": "scale_asymmetry", "sensor": "gyro", "axis": "x",
+              "label": "scale_asymmetry gyro.x"}]}
+    first, second = finding_line(f).splitlines()
+    assert first.startswith("  scale_nonlinearity gyro.x (x^2): 5.35e-05 1/(rad/s) [3e-05, 7.7e-05]")
+    assert second == "    not told apart on this flight from scale_asymmetry gyro.x"
+    f["indistinguishable_from"] = []
+    assert len(finding_line(f).splitlines()) == 1
+
+
+def test_diagnose_refuses_a_log_without_a_reference(tmp_path, capsys):
+    from mimunav.flightlog import LogWriter
+    from mimunav.flightlog import schemas as S
+    path = tmp_path / "bare.mcap"
+    with LogWriter(path) as log:
+        log.metadata("flight", {"format": "mimunav-log/1", "epoch_unix_ns": "0",
+                                "initial_state": {"t": 0.0, "latitude": 0.5, "longitude": 0.1,
+                                                  "height": 0.0, "velocity_ned": [0, 0, 0],
+                                                  "attitude_wxyz": [1, 0, 0, 0]}})
+        n = 10
+        log.write("/mimu/raw", S.RAW_MIMU, "mimu", np.arange(n, dtype=np.int64) * 10**6,
+                  sample_index=np.arange(n, dtype=np.uint64), gyro_volts=np.zeros((n, 3)),
+                  accel_volts=np.zeros((n, 3)), accel_temperature=np.zeros((n, 3)),
+                  gyro_frequency=np.zeros((n, 3)))
+    Calibration().save(str(tmp_path / "c.json"))
+    assert main(["diagnose", str(path), "--model", str(tmp_path / "c.json"),
+                 "-o", str(tmp_path / "r")]) == 2
+    assert "/fog/imu" in capsys.readouterr().err
+    assert not (tmp_path / "r").exists()
+
+
+G_SENSITIVITY = {"effect": "g_sensitivity", "sensor": "gyro", "axis": "x", "input_axis": "z",
+                 "coefficient": -0.1 * math.pi / 180 / 9.80665}       # 0.1 deg/s per g
+
+
+@pytest.fixture(scope="module")
+def null_recording():
+    """The proof flight, nothing hidden and no calibration fitted, in memory."""
+    return concealed.recording(BLOCKS, None, 901, calibrate=False)
+
+
+@pytest.mark.slow
+def test_navigation_signature_matches_the_strapdown_navigator(null_recording):
+    """The linearised error equations of the navigation level against the full strapdown
+    navigator: the same outputs navigated with and without a g-sensitivity and an
+    accelerometer bias; the velocity difference equals the signature to 1 % over 2 min."""
+    from mimunav.diagnosis import navigation
+    from mimunav.evaluation.replay import navigate, resample
+    flight, unit, _, _ = null_recording
+    nav, w, f = navigation.observed_error(flight, unit.coefficients)
+    model, cond = navigation.error_model(flight, nav, w, f)
+    term = dict(G_SENSITIVITY, coefficient=2e-5)
+    full = effects.Conditions.from_outputs(flight.mimu_t, f, w, flight.mimu_raw["accel_temperature"],
+                                           flight.mimu_raw["gyro_frequency"])
+    d_w = np.zeros_like(w)
+    d_w[:, 0] = effects.regressor(term, full)[("gyro", 0)][:, 0] * 2e-5
+    d_f = np.zeros_like(f)
+    d_f[:, 1] = 5e-3                                                  # 0.5 mg
+    moved = navigate(flight.mimu_t, w + d_w, f + d_f, flight.mimu_mounting, flight.initial)
+    reg = effects.regressor(term, cond)[("gyro", 0)] * 2e-5
+    sig = navigation.signature(model, {("gyro", 0): reg,
+                                       ("accel", 1): np.full((len(model.t), 1), 5e-3)}, 1)[:, :, 0]
+    for span in (30.0, 60.0, 120.0):
+        t = np.array([model.t[0] + span])
+        k = np.searchsorted(model.t, t[0])
+        t = model.t[k:k + 1]
+        true = resample(moved, t).v_ned - resample(nav, t).v_ned
+        assert np.linalg.norm(true[0]) > 0.3
+        assert np.linalg.norm(sig[k] - true[0]) < 0.01 * np.linalg.norm(true[0]), span
+
+
+NAVIGATION_SEEDS = range(801, 809)
+
+
+def _navigation_g_sensitivity(seed):
+    """The navigation level on one recording with the g-sensitivity hidden: (labels named,
+    ratio of the estimate to the truth, z against the truth, held-out rms improved) - the
+    last three nan / False when it is not named."""
+    from mimunav.diagnosis import navigation
+    flight, unit, _, _ = concealed.recording(BLOCKS, None, seed, HiddenPhysics(dict(G_SENSITIVITY)),
+                                             calibrate=False)
+    findings = navigation.diagnose(flight, unit.coefficients).findings
+    labels = [f["label"] for f in findings]
+    found = [f for f in findings if f["label"] == "g_sensitivity gyro.x <- f_z"]
+    if not found:
+        return labels, math.nan, math.nan, False
+    f, truth = found[0], G_SENSITIVITY["coefficient"]
+    return (labels, f["coefficient"] / truth,
+            (f["coefficient"] - truth) / ((f["ci95"][1] - f["ci95"][0]) / 3.92),
+            f["fit"]["heldout_rms_after"] < f["fit"]["heldout_rms_before"])
+
+
+@pytest.fixture(scope="module")
+def navigation_g_runs():
+    """`_navigation_g_sensitivity` on recordings 801-808 (the proof flight with an
+    uncompensated 0.1 deg/s/g gyro g-sensitivity, a MEMS gyro's raw class), two at a time."""
+    from concurrent.futures import ProcessPoolExecutor
+    with ProcessPoolExecutor(2) as pool:
+        return list(pool.map(_navigation_g_sensitivity, NAVIGATION_SEEDS))
+
+
+@pytest.mark.slow
+def test_navigation_level_names_a_g_sensitivity_and_stays_quiet_on_a_null(null_recording,
+                                                                          navigation_g_runs):
+    """Without the FOG-IMU, from the velocity error against the truth alone. Its power on
+    this 0.1 deg/s/g effect is about 3 in 4 recordings (801-806: 5 of 6 with one noise
+    realisation, 4 of 6 with another), so one recording proves nothing either way: over 8,
+    named in at least 3 (a chance failure at power 3/4: 0.4 %), with a held-out improvement
+    each time, nothing else ever named, and the null recording quiet."""
+    from mimunav.diagnosis import navigation
+    null, null_unit, _, _ = null_recording
+    named = [r for r in navigation_g_runs if r[0]]
+    assert len(named) >= 3, navigation_g_runs
+    assert all(r[0] in ([], ["g_sensitivity gyro.x <- f_z"]) for r in navigation_g_runs), \
+        navigation_g_runs
+    assert all(r[3] for r in navigation_g_runs if r[0]), navigation_g_runs
+    assert navigation.diagnose(null, null_unit.coefficients).findings == []
+
+
+@pytest.mark.slow
+def test_navigation_level_estimates_are_unbiased_and_cover_the_true_g_sensitivity(
+        navigation_g_runs):
+    """Over the recordings where it is named (its power is the test above's): the estimates
+    average within 5 % of the truth and the 95 % intervals hold it in all but one. The
+    estimates are refitted about themselves (`navigation._relinearized`): from the first
+    linearization, along a navigation whose attitude drifts with the g-sensitivity itself,
+    they came out 0.84-0.97 of the truth (mean 0.91), after it 0.94-1.03."""
+    named = [r for r in navigation_g_runs if r[0]]
+    assert len(named) >= 3, navigation_g_runs
+    assert sum(abs(r[2]) <= 1.96 for r in named) >= len(named) - 1, navigation_g_runs
+    assert abs(np.mean([r[1] for r in named]) - 1) < 0.05, navigation_g_runs
+
+
+@pytest.mark.slow
+def test_concealed_effects_are_found_and_nulls_stay_quiet():
+    """Reduced proof (CI): the required effects (one outside the vocabulary), one recording
+    each, and four nulls, on the ordinary proof flight with lab-fitted calibrations. Every
+    hidden effect the flight makes detectable (its z on the whole flight > 8) must be named,
+    with the true value in the interval and a held-out improvement; the effect outside the
+    vocabulary must be located as an unexplained residual, not named; no null may raise a
+    verdict against the unit's true coefficients (at most one against its lab fit, whose
+    errors are real); no effect recording may name another effect against the true
+    coefficients (at most one, over all of them, against the lab fit)."""
+    cases = concealed.run_suite(PROOF, hidden=concealed.REQUIRED, repeats=1, nulls=4,
+                                workers=2, seed=0, progress=False)
+    s = concealed.summary(cases)
+    assert s["false_alarms_true_model"]["k"] == 0, [c for c in cases if not c["effect"]]
+    assert s["false_alarms"]["k"] <= 1, [c for c in cases if not c["effect"]]
+    others = [(c["others"], c.get("others_true_model")) for c in cases if c["effect"]]
+    assert s["other_findings_true_model"] == 0, others
+    assert s["other_findings_in_effect_recordings"] <= 1, others
+    strong = [c for c in cases if c["effect"] and c["z_detectable"] > 8]
+    assert len(strong) >= 4
+    for c in strong:
+        assert c["identified"], c
+        if c["exact"]:
+            assert c["heldout_rms_ratio"] < 1.0, c
+    outside = [c for c in cases if c["effect"] == "bias_pulse"]
+    assert outside and all(c["identified"] and (c["verdict"] == "unexplained-residual" or
+                                                c["findings"] and not c["others_true_model"])
+                           for c in outside), outside      # or a lab-fit error found beside
+    assert s["interval_coverage"]["k"] >= s["interval_coverage"]["n"] - 1
+    assert s["identified"]["k"] >= 5
+    assert math.isfinite(s["heldout_rms_ratio_median"])
+
+
+FOREIGN = str(SHARED / "foreign-flights")
+
+
+@pytest.mark.slow
+def test_foreign_flights_are_diagnosed_right():
+    """The development set of an independent simulator (shared/data/foreign-flights: no code
+    shared with mimunav, answer keys beside the logs): at least 4 of the 5 hidden effects
+    named (effect, sensor, axis) with the truth inside the 95 % interval, and the
+    effect-free log quiet. Gyro temperature coefficients compare per Hz (the contract's)."""
+    from mimunav.diagnosis import sensor
+    from mimunav.evaluation.flight import Flight
+    if not os.path.isdir(FOREIGN):
+        pytest.skip("shared/data/foreign-flights is not beside the repository")
+    named, quiet = 0, None
+    for n in range(1, 7):
+        base = os.path.join(FOREIGN, f"foreign-{n:02d}")
+        key = json.load(open(base + ".key.json"))["hidden"]
+        diag = sensor.diagnose(Flight.load(base + ".mcap"), Calibration.load(base + ".cal.json"))
+        if key is None:
+            quiet = sensor.verdict(diag) == "no-missing-physics" and not diag.findings
+            continue
+        truth = key.get("coefficient_per_hz", key["coefficient"])
+        named += any((f["effect"], f["sensor"], f["axis"]) == (key["effect"], key["sensor"], key["axis"])
+                     and f["ci95"][0] <= truth <= f["ci95"][1] for f in diag.findings)
+    assert quiet is True
+    assert named >= 4, named
+
+
+@pytest.mark.slow
+def test_a_truth_written_in_another_convention_gives_the_same_answers(tmp_path):
+    """foreign-02 with its truth rewritten as another writer might keep it - the flight moved
+    20.4 deg west so that it crosses the antimeridian, longitudes wrapped into (-pi, pi],
+    attitudes negated on alternate 10 s spans (q and -q: one rotation) - is the same flight:
+    the replay's errors against the truth and the sensor level's findings are the original's
+    (the resampling's longitude lerp had put a state half a world away, and the attitude
+    error of q against -q had read 2 pi)."""
+    from mimunav.evaluation.replay import comparison_times, errors_at, replay, resample
+    from mimunav.diagnosis import sensor
+    from mimunav.evaluation.flight import Flight
+    from mimunav.flightlog import FlightLog, LogWriter
+    from mimunav.flightlog import schemas as S
+    from mcap.reader import make_reader
+    if not os.path.isdir(FOREIGN):
+        pytest.skip("shared/data/foreign-flights is not beside the repository")
+    base = os.path.join(FOREIGN, "foreign-02")
+    shift, wrap = np.radians(-20.4), lambda x: np.remainder(x + np.pi, 2 * np.pi) - np.pi
+    with open(base + ".mcap", "rb") as fh:
+        meta = {m.name: dict(m.metadata) for m in make_reader(fh).iter_metadata()}
+    init = json.loads(meta["flight"]["initial_state"])
+    meta["flight"]["initial_state"] = json.dumps(dict(init, longitude=wrap(init["longitude"]
+                                                                           + shift)))
+    moved = tmp_path / "moved.mcap"
+    with FlightLog(base + ".mcap") as log, LogWriter(moved) as out:
+        for name, values in meta.items():
+            out.metadata(name, values)
+        for topic in log.channels:
+            msgs, schema = log.read(topic), log.schema_name(topic)
+            fields = {n: msgs[n].copy() for n, _, _ in S.BODIES[schema]}
+            if topic == "/truth/state":
+                fields["longitude"] = wrap(fields["longitude"] + shift)
+                span = (msgs["log_time"] - msgs["log_time"][0]) // 10_000_000_000
+                fields["attitude_wxyz"][span % 2 == 1] *= -1
+                assert np.ptp(fields["longitude"]) > 6           # it does cross
+            out.write(topic, schema, msgs["frame_id"][0].decode(),
+                      msgs["log_time"].astype(np.int64), **fields)
+    cal = Calibration.load(base + ".cal.json")
+    answers = []
+    for path in (base + ".mcap", str(moved)):
+        flight = Flight.load(path)
+        t = comparison_times(flight)
+        err = errors_at(replay(flight, cal), t)
+        at_imu = resample(flight.truth, flight.mimu_t[flight.mimu_t < t[-1]])
+        answers.append((err, sensor.diagnose(flight, cal).findings, at_imu))
+    (err0, found0, at0), (err1, found1, at1) = answers
+    from mimunav.frames import earth            # the truth between its samples, as windows take it
+    moved_back = earth.ned_difference(at1.lat, at1.lon - shift, at1.h, at0.lat, at0.lon, at0.h)
+    assert np.abs(moved_back).max() < 1e-6                                       # m
+    assert np.abs(at1.attitude_error(at0)).max() < 1e-12                          # rad
+    for pair in ("mimu-truth", "fog-truth", "mimu-fog"):
+        np.testing.assert_allclose(err1[pair]["position"], err0[pair]["position"], rtol=0,
+                                   atol=1e-6)                                    # m
+        np.testing.assert_allclose(err1[pair]["attitude"], err0[pair]["attitude"], rtol=0,
+                                   atol=1e-12)                                   # rad
+    assert [f["label"] for f in found1] == [f["label"] for f in found0] != []
+    np.testing.assert_allclose([f["coefficient"] for f in found1],
+                               [f["coefficient"] for f in found0], rtol=1e-9)
+
+
+def test_effective_blocks_count_the_blocks_a_regressor_lives_in():
+    """Satterthwaite's df in closed form: a regressor spread evenly over 40 blocks has 40;
+    one that is non-zero in 3 blocks of equal weight has 3 (whatever the others hold)."""
+    from mimunav.diagnosis.inference import effective_blocks
+    blocks = np.repeat(np.arange(40), 25)
+    even = np.ones((len(blocks), 1))
+    assert effective_blocks(even, blocks, 40, slice(0, 1)) == pytest.approx(40.0)
+    few = np.where(np.isin(blocks, [3, 17, 30]), 1.0, 0.0)[:, None]
+    assert effective_blocks(few, blocks, 40, slice(0, 1)) == pytest.approx(3.0)
+
+
+@pytest.mark.slow
+def test_a_term_inside_the_stated_reference_accuracy_is_listed_not_charged():
+    """foreign-06's 600 ppm gyro cross-coupling: charged to the MIMU with the default
+    reference accuracy (Table 4; misalignment 1e-4 rad); with the reference stated at 1e-3 rad
+    it can no longer be told from the reference's own error, so it is listed within the
+    stated accuracies and the verdict does not claim missing physics from it."""
+    from mimunav.diagnosis import sensor
+    from mimunav.diagnosis.reference import Accuracy
+    from mimunav.evaluation.flight import Flight
+    if not os.path.isdir(FOREIGN):
+        pytest.skip("shared/data/foreign-flights is not beside the repository")
+    base = os.path.join(FOREIGN, "foreign-06")
+    flight, cal = Flight.load(base + ".mcap"), Calibration.load(base + ".cal.json")
+    loose = Accuracy.parse("gyro_misalignment_rad=1e-3")
+    diag = sensor.diagnose(flight, cal, accuracy=loose)
+    label = "cross_coupling gyro.z <- w_x"
+    assert label not in [f["label"] for f in diag.findings]
+    assert label in [w["label"] for w in diag.within_reference]
+
+
+@pytest.mark.slow
+def test_navigation_level_says_why_a_chosen_term_is_unsettled():
+    """The foreign flights without their reference IMU, at the navigation level (a new
+    user's trial): foreign-02's g-sensitivity acts in the one boost, whose training segment
+    chose a term that the held-out segments can neither confirm nor refute; foreign-01's
+    holds on the held-out segments but the bootstrap does not choose it. Both said
+    'no-missing-physics' and conclusive; both are inconclusive now (contract verdict
+    unexplained-residual) with the reason, while the effect-free foreign-05 keeps its clean
+    bill. (An effect never chosen still gets 'no-missing-physics': nothing detected, no
+    statement of power - foreign-03 and -06 at this level.)"""
+    from mimunav.diagnosis import navigation, sensor
+    from mimunav.evaluation.flight import Flight
+    if not os.path.isdir(FOREIGN):
+        pytest.skip("shared/data/foreign-flights is not beside the repository")
+    verdicts = {}
+    for n in (1, 2, 5):
+        base = os.path.join(FOREIGN, f"foreign-{n:02d}")
+        diag = navigation.diagnose(Flight.load(base + ".mcap", reference_imu=False),
+                                   Calibration.load(base + ".cal.json"))
+        verdicts[n] = (sensor.verdict(diag), diag.findings, " ".join(diag.inconclusive))
+    assert verdicts[5] == ("no-missing-physics", [], ""), verdicts[5]
+    for n, words in ((1, "cannot name"), (2, "cannot confirm")):
+        verdict, findings, why = verdicts[n]
+        assert verdict != "no-missing-physics", verdicts[n]
+        assert findings or words in why, verdicts[n]       # named one day, or said why not
+
+
+def test_navigation_level_is_inconclusive_beyond_small_angles():
+    """A velocity error growing as g phi t (a constant tilt phi, closed form): within the
+    psi-angle equations' range it is judged, beyond it the level says inconclusive; white
+    velocity noise of 0.3 m/s with no growth is no tilt."""
+    from mimunav.diagnosis.navigation import EPOCH_S, G0, MAX_IMPLIED_TILT_RAD, beyond_small_angles
+    t = np.arange(0, 120, EPOCH_S)
+    for phi, reasons in ((0.5 * MAX_IMPLIED_TILT_RAD, 0), (2 * MAX_IMPLIED_TILT_RAD, 1)):
+        dv = np.zeros((len(t), 3))
+        dv[:, 0] = G0 * phi * t * 0.6
+        dv[:, 1] = -G0 * phi * t * 0.8
+        assert len(beyond_small_angles(dv)) == reasons
+    noise = np.random.default_rng(1).normal(0, 0.3, (len(t), 3))
+    assert beyond_small_angles(noise) == []
+
+
+def test_stamps_that_jitter_make_the_sensor_level_inconclusive():
+    """+-5 ms of uniform jitter on 100 Hz stamps (a robust sigma of 4 ms on a 10 ms period)
+    cannot carry a sample-by-sample comparison with a reference IMU (a trial's recording
+    gave spurious accelerometer scale terms): named; +-1 ms is not; exact stamps are not."""
+    from mimunav.diagnosis import sensor
+    rng = np.random.default_rng(1)
+    t = np.arange(20000) * 0.01
+    assert "jitter by 4" in sensor.stamp_jitter(t + rng.uniform(-5e-3, 5e-3, len(t)), "the MIMU's")
+    assert sensor.stamp_jitter(t + rng.uniform(-1e-3, 1e-3, len(t)), "the MIMU's") == ""
+    assert sensor.stamp_jitter(t, "the MIMU's") == ""
+
+
+def test_split_blocks_do_not_depend_on_the_last_bit_of_a_stamp():
+    """The training / held-out split (alternate 0.5 s blocks) puts a bin whose time falls on
+    a block boundary in the block it opens, whatever rounding the bin time carries: stamps
+    of a 1 kHz flight and their 10-sample means, each moved by +-2 ulp, keep their blocks
+    (a plain floor of (t - t0) / 0.5 had sent about half of the boundary bins either way)."""
+    from mimunav.diagnosis.outputs import block_index
+    from mimunav.diagnosis.sensor import SPLIT_BLOCK_S
+    rng = np.random.default_rng(5)
+    stamps = 1000.0 + np.arange(200_000) / 1000.0
+    for t in (stamps, stamps.reshape(-1, 10).mean(axis=1)):
+        exact = np.round((t - t[0]) * 1000).astype(np.int64) // 500      # ms, integer blocks
+        for _ in range(3):
+            nudged = t + rng.integers(-2, 3, len(t)) * np.spacing(t)
+            nudged[0] = t[0]
+            assert np.array_equal(block_index(nudged, SPLIT_BLOCK_S), exact)
+
+
+@pytest.mark.slow
+def test_a_bias_pulse_is_an_excursion_not_a_bias_wander():
+    """A 2 s bias pulse outside the vocabulary (the proof suite's recording 511: 3.6e-3 rad/s
+    on gyro.x in quiet flight) is located as an unexplained residual and nothing is named:
+    its bins are left out of the bias tests (it had been named bias_instability gyro.x, its
+    2 s means passing for a Gauss-Markov wander)."""
+    k = concealed.PROOF_EFFECTS.index("bias_pulse")
+    case = concealed.run_case((PROOF, "bias_pulse", 500 + k))
+    assert case["verdict"] == "unexplained-residual", case["findings"]
+    assert case["identified"] and not case["findings"] and not case["others"]
+    assert [u["channel"] for u in case["unexplained"]] == ["gyro.x"]

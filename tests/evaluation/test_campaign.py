@@ -1,0 +1,232 @@
+"""Monte Carlo campaign: reproducible from its seed, resumable, the same on local processes
+and on a (local) Dask cluster, refusing a results file of another campaign."""
+import dataclasses
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mimunav.evaluation import campaign
+
+PROFILE = """name = "short"
+description = "20 s: a 2 g pull-up and a roll"
+[start]
+latitude_deg = 30.0
+longitude_deg = 104.0
+height_m = 1000.0
+speed_m_s = 200.0
+heading_deg = 45.0
+[[segment]]
+kind = "pull"
+load_factor = 2.0
+flight_path_change_deg = 10.0
+[[segment]]
+kind = "roll"
+rate_deg_s = 200.0
+angle_deg = 360.0
+[[segment]]
+kind = "hold"
+duration_s = 8.0
+"""
+
+
+@pytest.fixture(scope="module")
+def profile(tmp_path_factory):
+    path = tmp_path_factory.mktemp("campaign") / "short.toml"
+    path.write_text(PROFILE)
+    return str(path)
+
+
+def _lines(path):
+    return [json.loads(line) for line in open(path)]
+
+
+@pytest.mark.slow
+def test_campaign_resumes_and_is_reproducible(profile, tmp_path):
+    out = tmp_path / "a.jsonl"
+    first = campaign.run_campaign(profile, 1, 7, str(out), workers=1, progress=False)
+    assert len(_lines(out)) == 1
+    with open(out, "a") as fh:
+        fh.write('{"index": 1, "torn')                  # an interrupted write
+    both = campaign.run_campaign(profile, 2, 7, str(out), workers=1, progress=False)
+    assert [r["index"] for r in _lines(out)] == [0, 1]
+    assert both[0] == first[0]                           # unit 0 was not recomputed
+    for rec in both:             # each row is its own errors over the FOG-IMU's, per axis
+        fog = np.abs(rec["fog"]["enu_m"])
+        assert np.isfinite(fog).all() and fog.min() > 0
+        for v in campaign.VARIANTS:
+            row = rec["variants"][v]
+            np.testing.assert_allclose(row["normalised_enu"], np.abs(row["enu_m"]) / fog,
+                                       rtol=1e-12)
+            assert row["norm_m"] == pytest.approx(float(np.linalg.norm(row["enu_m"])))
+    again = campaign.run_campaign(profile, 2, 7, str(tmp_path / "b.jsonl"), workers=2,
+                                  progress=False)
+    assert again == both                                 # same seed, same numbers
+    with pytest.raises(ValueError, match="another campaign"):
+        campaign.run_campaign(profile, 2, 8, str(out), workers=1, progress=False)
+    other = campaign.Scenario(flight=profile, mimu_grade="tactical")      # same seed, other unit
+    with pytest.raises(ValueError, match="another campaign"):
+        campaign.run_campaign(other, 2, 7, str(out), workers=1, progress=False)
+    namesake = tmp_path / "other" / "short.toml"           # same file name, other flight
+    namesake.parent.mkdir()
+    namesake.write_text(PROFILE.replace("duration_s = 8.0", "duration_s = 9.0", 1))
+    assert namesake.read_text() != PROFILE
+    with pytest.raises(ValueError, match="another campaign"):
+        campaign.run_campaign(str(namesake), 2, 7, str(out), workers=1, progress=False)
+    stats = campaign.summary(both)
+    assert set(stats) == {"traditional", "entire", "FOG-IMU"}
+
+
+@pytest.mark.slow
+def test_campaign_computes_again_the_units_of_other_code_and_refuses_a_workers(profile, tmp_path,
+                                                                             capsys):
+    """A results file resumed after the simulator changed: its units made by other code
+    (their `code` differs from `campaign.code_version()`) are computed again, with a
+    warning, not mixed with this code's; a unit handed back by a worker running other code
+    is refused before it is written."""
+    out = tmp_path / "a.jsonl"
+    first = campaign.run_campaign(profile, 1, 7, str(out), workers=1, progress=False)
+    assert first[0]["code"] == campaign.code_version()
+    old = dict(first[0], code="0123456789abcdef")
+    old["variants"] = {v: dict(r, norm_m=-1.0) for v, r in old["variants"].items()}
+    out.write_text(json.dumps(old) + "\n")
+    again = campaign.run_campaign(profile, 1, 7, str(out), workers=1, progress=False)
+    assert again == first and _lines(out) == first
+    assert "1 unit(s) were made by other code" in capsys.readouterr().err
+    from concurrent.futures import Future
+    foreign = Future()
+    foreign.set_result(dict(first[0], code="0123456789abcdef"))
+    with pytest.raises(ValueError, match="other code"):
+        campaign.run_campaign(profile, 1, 7, str(tmp_path / "b.jsonl"), progress=False,
+                              futures=[foreign])
+    assert _lines(tmp_path / "b.jsonl") == []
+
+
+@pytest.mark.slow
+def test_campaign_on_a_local_dask_cluster_and_a_callers_pool_matches_local_processes(profile, tmp_path):
+    from dask.distributed import LocalCluster
+    local = campaign.run_campaign(profile, 2, 3, str(tmp_path / "l.jsonl"), workers=2,
+                                  progress=False)
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
+                      dashboard_address=None) as cluster:
+        remote = campaign.run_campaign(profile, 2, 3, str(tmp_path / "d.jsonl"),
+                                       scheduler=cluster.scheduler_address, progress=False)
+    assert remote == local
+    # units submitted to the caller's pool beside its own work (`mimunav reproduce`)
+    from concurrent.futures import ProcessPoolExecutor
+    scenario = campaign.Scenario(flight=str(Path(profile).resolve()))
+    with ProcessPoolExecutor(2, initializer=campaign.one_blas_thread) as pool:
+        futures = campaign.submit_units(pool, scenario, 3, range(2))
+        with pytest.raises(ValueError, match="submitted beforehand"):
+            campaign.run_campaign(scenario, 3, 3, str(tmp_path / "x.jsonl"), futures=futures,
+                                  progress=False)
+        shared = campaign.run_campaign(scenario, 2, 3, str(tmp_path / "p.jsonl"),
+                                       futures=futures, progress=False)
+    assert shared == local
+    assert [r["index"] for r in _lines(tmp_path / "p.jsonl")] in ([0, 1], [1, 0])
+
+
+def test_in_memory_flight_equals_the_logged_one(profile, tmp_path):
+    """The campaign's in-memory flight gives the table a written log gives."""
+    from mimunav.sensors import simulation
+    from mimunav.evaluation.flight import Flight
+    from mimunav.evaluation.table import normalised_table
+    from mimunav.motion.profile import Profile
+    prof = Profile.load(profile)
+    log, _ = simulation.simulate_flight(prof, tmp_path / "f.mcap", 4, progress=False)
+    unit, fog, rng_m, rng_f = simulation.flight_units(4)
+    fm = simulation.flight_motion(prof, unit.mounting, unit.rate_hz, fog.mounting,
+                                  fog.rate_hz, 100.0)
+    mem = Flight.from_simulation(fm, unit, fog, *simulation.record_flight(
+        fm, unit, fog, rng_m, rng_f))
+    cals = {"true": unit.coefficients}
+    a = normalised_table(Flight.load(log), cals)
+    b = normalised_table(mem, cals)
+    assert a["variants"]["true"]["enu_m"] == pytest.approx(b["variants"]["true"]["enu_m"],
+                                                           rel=1e-9, abs=1e-9)
+    assert a["fog"]["enu_m"] == pytest.approx(b["fog"]["enu_m"], rel=1e-9, abs=1e-9)
+
+
+def test_scenario_options_reach_the_unit_and_the_reference(profile):
+    """Each option of a Scenario changes what it names and nothing else of the draw."""
+    base = campaign.Scenario(flight=profile)
+    u = base.draw_unit(5, "u")
+    t = dataclasses.replace(base, mimu_grade="tactical").draw_unit(5, "u")
+    assert t.noise.gyro_flicker == pytest.approx(np.radians(5.1 / 3600))
+    assert u.noise.gyro_flicker == pytest.approx(np.radians(15 / 3600))
+    assert t.coefficients.as_dict() == u.coefficients.as_dict()
+    exact = dataclasses.replace(base, beyond_model=False).draw_unit(5, "u")
+    assert exact.beyond_model == [] and u.beyond_model
+    with pytest.raises(ValueError, match="MIMU grade"):
+        campaign.Scenario(mimu_grade="perfect")
+    with pytest.raises(ValueError, match="FOG grade"):
+        campaign.Scenario(fog_grade="ring-laser")
+    from mimunav.sensors.simulation import flight_units
+    fogs = {g: flight_units(3, u, fog_grade=g)[1] for g in ("table4", "table4-bound")}
+    assert fogs["table4-bound"].accuracy()["gyro_scale"] == 2.5e-4
+    dev = {g: np.abs(np.diag(f.gyro_matrix) - 1) for g, f in fogs.items()}
+    np.testing.assert_allclose(dev["table4-bound"], 2.5 * dev["table4"])   # same draw, scaled
+
+
+def test_regime_points_and_their_summary():
+    """One-at-a-time points around the base (each level once, the base's not repeated), and
+    the summary's medians and paper test on records whose ratios are known."""
+    from mimunav.reports import regime
+    pts = regime.points(campaign.Scenario())
+    assert len(pts) == 1 + sum(len(v) - 1 for v in regime.LEVELS.values())
+    assert len({p[2] for p in pts}) == len(pts)
+    recs = []
+    for k in range(1, 21):                     # FOG 1 m per axis; entire k/10, trad 10 k
+        recs.append({"fog": {"enu_m": [1.0, -1.0, 1.0]}, "variants": {
+            "entire": {"enu_m": [k / 10, -k / 10, 0.0 + k / 10]},
+            "traditional": {"enu_m": [10.0 * k, 10.0 * k, -10.0 * k]}}})
+    s = regime.point_summary(recs)
+    np.testing.assert_allclose(s["entire"]["median"], [1.05] * 4)
+    np.testing.assert_allclose(s["traditional"]["median"], [105.0] * 4)
+    assert s["improvement_horizontal"] == pytest.approx(100.0)
+    # bands: entire [0.195, 1.905] (paper 2.78 / 0.3 / 6.69), traditional [19.5, 190.5]
+    assert s["entire"]["paper_inside"] == [False, True, False]
+    assert s["traditional"]["paper_inside"] == [False, True, False]
+
+
+def test_the_report_names_each_values_source_and_the_command_that_gives_it():
+    from mimunav.reports.table3 import assumptions_markdown, command_line
+    s = dataclasses.replace(campaign.Scenario(), mimu_grade="stim300", fog_grade="navigation",
+                            warm_up_s=0.0)
+    rows = {r.split("|")[1].strip(" `"): r for r in assumptions_markdown(s)[2:]}
+    assert "STIM300" in rows["mimu_grade"] and "not the default" in rows["mimu_grade"]
+    assert "not the paper's" in rows["fog_grade"]
+    assert "given" in rows["warm_up_s"] and "not the default" not in rows["severity"]
+    assert command_line(s, 3, 8) == ("mimunav reproduce --seed 3 --units 8 --warm-up-s 0.0 "
+                                     "--mimu-grade stim300 --fog-grade navigation")
+
+
+def _broken_flight(*args, **kwargs):
+    raise RuntimeError("the flight simulation broke")
+
+
+@pytest.mark.slow
+def test_reproduce_shares_one_pool_and_its_units_are_the_campaigns(profile, tmp_path,
+                                                                    monkeypatch):
+    """`mimunav reproduce` runs the drawn unit's lab and flight and the Monte Carlo's units on
+    one pool: its units are those `run_unit` gives alone, written once each; the table's rows
+    are there; a task that fails stops it with that error and no report."""
+    from mimunav.reports import table3
+    scenario = campaign.Scenario(flight=str(Path(profile).resolve()))
+    md = table3.reproduce(tmp_path / "r", seed=5, mc_units=2, progress=False, force=True,
+                          scenario=scenario)
+    alone = [campaign.run_unit(scenario, 5, i) for i in range(2)]
+    lines = sorted(_lines(tmp_path / "r" / "table3-campaign.jsonl"), key=lambda r: r["index"])
+    assert lines == alone
+    doc = json.load(open(tmp_path / "r" / "table3.json"))
+    assert doc["campaign"] == json.loads(json.dumps(campaign.summary(alone)))
+    assert set(doc["table"]["variants"]) == {"traditional", "entire", "true coefficients"}
+    for part in (doc["table"], doc["budget"]):      # no path to a log that is gone
+        assert part["log"] is None and "not kept" in part["log_note"]
+    assert md.exists() and (tmp_path / "r" / "table3-entire.json").exists()
+    monkeypatch.setattr(table3, "simulate_flight", _broken_flight)     # forked workers see it
+    with pytest.raises(RuntimeError, match="flight simulation broke"):
+        table3.reproduce(tmp_path / "broken", seed=5, mc_units=2, progress=False,
+                         scenario=scenario)
+    assert not (tmp_path / "broken" / "table3.md").exists()

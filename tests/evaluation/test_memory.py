@@ -1,0 +1,47 @@
+"""Peak memory of the commands that read or write a whole flight is flat in its length
+(issue: bounded memory): parked 1 kHz flights of 20 and 40 minutes (1.2 and 2.4 M MIMU
+samples, written by bench/memory.py: both above the size from which replay and table stream,
+`evaluation.STREAM_ABOVE`, and several blocks of 2^18 long, so that one block's work arrays
+are in both; `simulate` makes parked profiles of the same lengths), each command in its own
+process; the growth between them, extrapolated to a 2-hour 1 kHz flight (7.2 M samples),
+stays under 1.5 GB. A command that held its samples (compensate held 710 B a sample, replay
+583 B, simulate about 1.4 kB before they streamed) would need 4-10 GB."""
+import sys
+
+import pytest
+
+from places import BENCH
+
+sys.path.insert(0, str(BENCH))
+import memory                                   # noqa: E402
+
+from mimunav.compensation.calibration_file import Calibration    # noqa: E402
+from mimunav.sensors.mimu import MimuUnit            # noqa: E402
+
+TWO_HOURS = 7.2e6           # samples of a 2-hour 1 kHz flight
+LIMIT_MB = 1500.0
+MINUTES = (20, 40)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("kind", memory.COMMANDS)
+def test_peak_memory_is_flat_in_the_flights_length(kind, logs):
+    cal, short, long_, tmp = logs
+    small = memory.peak_mb(memory.commands(kind, short[0], cal, tmp, MINUTES[0]), tmp)
+    large = memory.peak_mb(memory.commands(kind, long_[0], cal, tmp, MINUTES[1]), tmp)
+    per_sample = max(large - small, 0.0) / (long_[1] - short[1])
+    two_hours = large + per_sample * (TWO_HOURS - long_[1])
+    assert two_hours < LIMIT_MB, (kind, small, large, per_sample * 1e6)
+
+
+@pytest.fixture(scope="module")
+def logs(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("memory")
+    unit = MimuUnit.draw(1, beyond_model=False)
+    cal = str(tmp / "cal.json")
+    Calibration.from_dict(unit.coefficients.as_dict()).save(cal)
+    out = []
+    for minutes in MINUTES:
+        path = str(tmp / f"parked-{minutes}.mcap")
+        out.append((path, memory.parked_log(path, minutes, unit)))
+    return cal, *out, str(tmp)

@@ -1,0 +1,139 @@
+"""The ArduPilot DataFlash importer on a log written in ArduPilot's record layout from a
+simulated flight (tests/dataflash_log.py) and parsed by pymavlink's DFReader: time base,
+axes, units and references against the flight's truth, then through import -> windows."""
+import json
+
+import numpy as np
+import pytest
+
+from mimunav.frames import attitude
+from mimunav.cli import main
+from mimunav.importers.recording import RecordingError
+from mimunav.importers import dataflash
+
+import dataflash_log
+
+
+@pytest.fixture(scope="module")
+def log(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("dataflash")
+    data, run, t, unix_t0 = dataflash_log.flight()
+    path = folder / "flight.bin"
+    path.write_bytes(data)
+    return path, run, t, unix_t0
+
+
+@pytest.mark.slow
+def test_time_axes_units_and_the_autopilot_reference(log):
+    path, run, t, unix_t0 = log
+    rec = dataflash.read(str(path))
+    # boot time from GPS week time (leap seconds removed): the first IMU sample's UNIX time
+    assert abs(rec.imu_ns[0] - round((unix_t0 + t[1]) * 1e9)) < 1000        # < 1 us
+    assert rec.sample_rate_hz == pytest.approx(400.0)
+    # FRD body axes, rad/s and m/s^2: the recorded rate minus the truth is the fixture's
+    # bias (1e-3, -2e-3, 5e-4) rad/s within the mean's noise (2e-3 / sqrt(26000))
+    w_true = run.dtheta / np.diff(t)[:, None]
+    np.testing.assert_allclose((rec.w - w_true).mean(axis=0), [1e-3, -2e-3, 5e-4], atol=5e-5)
+    f_true = run.dv / np.diff(t)[:, None]
+    np.testing.assert_allclose((rec.f - f_true).mean(axis=0), [0.02, -0.01, 0.03], atol=5e-4)
+    assert rec.reference_meta["independent"].startswith("no")
+    ref, tr = rec.reference, run.trajectory
+    k = np.arange(0, len(t), 80)                      # the fixture's 5 Hz epochs
+    np.testing.assert_allclose(ref["lat"], tr.lat[k], atol=np.radians(1.5e-7))
+    np.testing.assert_allclose(ref["v_ned"], tr.v_ned[k], atol=1e-5)
+    q = np.array([np.quaternion(*row) for row in ref["q_nb"]])
+    err = attitude.rotation_vector_error(q, tr.q_nb[k])
+    assert np.abs(err).max() < np.radians(0.02)       # ATT in 0.01 deg
+    assert "filtered" in rec.assumed["imu_values"]
+    assert rec.real["imu_instances"] == "0, 1"
+
+
+@pytest.mark.slow
+def test_gnss_reference_keeps_the_fixes_status_and_accuracy(log):
+    path, run, t, _ = log
+    rec = dataflash.read(str(path), reference="gnss", reference_status=6)
+    assert rec.reference_meta["independent"].startswith("yes")
+    assert "q_nb" not in rec.reference
+    assert set(rec.fixes["status"]) == {2}               # RTK fixed -> NavSatStatus GBAS_FIX
+    np.testing.assert_allclose(np.sqrt(rec.fixes["covariance"][:, [0, 4]].sum(axis=1)), 0.02,
+                               atol=1e-3)                 # GPA HAcc
+    k = np.arange(0, len(t), 80)
+    np.testing.assert_allclose(rec.reference["v_ned"], run.trajectory.v_ned[k], atol=0.01)
+
+
+@pytest.mark.slow
+def test_import_and_windows_through_the_cli(log, tmp_path):
+    """Free-inertial 10 s windows restarted from each reference: with the GNSS reference
+    (levelled at the rest, which cancels the horizontal accelerometer bias) under 1 m; with
+    the autopilot's attitude the horizontal bias |b_h| = 0.022 m/s^2 acts in full:
+    0.5 |b_h| T^2 = 1.1 m. A course, VZ or time-base mistake gives tens of metres."""
+    path = log[0]
+    for kind, lo, hi in (("gnss", 0.0, 1.0), ("ekf", 0.8, 1.4)):
+        out = tmp_path / f"{kind}.mcap"
+        assert main(["import", "dataflash", str(path), "-o", str(out), "--reference", kind]) == 0
+        assert main(["windows", str(out), "-o", str(tmp_path / f"w-{kind}")]) == 0
+        doc = json.loads((tmp_path / f"w-{kind}" / "windows.json").read_text())
+        row = doc["summary"]["10"]
+        assert lo < row["horizontal_m"]["p50"] < hi, (kind, row)
+        assert row["vertical_m"]["p95"] < 0.5, (kind, row)
+
+
+@pytest.mark.slow
+def test_a_log_cut_short_is_read_to_its_last_record_and_says_so(log, tmp_path):
+    """The log cut at 60 % mid-record (power lost): DFReader stops silently before the
+    partial record; the metadata says the file was cut short. The whole log says nothing.
+    (The fixture writes its records type by type, so the cut loses the later types.)"""
+    path = log[0]
+    assert "file" not in dataflash.read(str(path)).real
+    data = path.read_bytes()
+    cut = tmp_path / "cut.bin"
+    cut.write_bytes(data[:int(0.6 * len(data)) + 7])
+    assert "was cut short" in dataflash.read(str(cut)).real["file"]
+
+
+@pytest.mark.slow
+def test_refusals_name_the_problem(log, tmp_path, capsys):
+    path = log[0]
+    assert main(["import", "dataflash", str(path), "-o", str(tmp_path / "x.mcap"),
+                 "--imu-instance", "2"]) == 2
+    assert "instances logged: [0, 1]" in capsys.readouterr().err
+    foreign = tmp_path / "foreign.bin"
+    foreign.write_bytes(b"not a dataflash log" * 100)
+    with pytest.raises(RecordingError):
+        dataflash.read(str(foreign))
+    assert not (tmp_path / "x.mcap").exists()
+
+
+def test_older_logs_number_their_instances_by_type(tmp_path):
+    """ArduPilot before 4.1 logs IMU (no I field) and IMU2: the second instance is found
+    by its type, and instance 0 is not mixed with it."""
+    w = dataflash_log.Writer()
+    fmt, cols = "QffffffIIf", "TimeUS,GyrX,GyrY,GyrZ,AccX,AccY,AccZ,EG,EA,T"
+    dataflash_log.FORMATS["IMU_OLD"] = (20, fmt, cols)
+    dataflash_log.FORMATS["IMU2"] = (21, fmt, cols)
+    try:
+        w.parts = [w._fmt(128, "FMT", "BBnNZ", "Type,Length,Name,Format,Columns"),
+                   w._fmt(20, "IMU", fmt, cols), w._fmt(21, "IMU2", fmt, cols)]
+        for k in range(200):
+            w.add("IMU_OLD", TimeUS=1000 + 2500 * k, GyrX=0.01, AccZ=-9.8)
+            w.add("IMU2", TimeUS=1000 + 2500 * k, GyrX=0.02, AccZ=-9.81)
+    finally:
+        del dataflash_log.FORMATS["IMU_OLD"], dataflash_log.FORMATS["IMU2"]
+    path = tmp_path / "old.bin"
+    path.write_bytes(w.bytes())
+    for instance, gyro in ((0, 0.01), (1, 0.02)):
+        rec = dataflash.read(str(path), instance=instance, reference="none")
+        assert len(rec.imu_ns) == 200
+        np.testing.assert_allclose(rec.w[:, 0], gyro, rtol=1e-6)
+
+
+def test_import_never_writes_over_its_input(log, tmp_path, capsys):
+    """`import ... -o SOURCE --force` (or a file of a source folder) is refused and the
+    source is left as it was."""
+    copy = tmp_path / "flight.bin"
+    copy.write_bytes(log[0].read_bytes())
+    before = copy.read_bytes()
+    assert main(["import", "dataflash", str(copy), "-o", str(copy), "--force"]) == 2
+    assert "would replace the input" in capsys.readouterr().err
+    assert main(["import", "rtklib", str(tmp_path), "-o", str(copy), "--force"]) == 2
+    assert copy.read_bytes() == before

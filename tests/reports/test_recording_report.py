@@ -1,0 +1,46 @@
+"""`mimunav report recording` on the RTKLIB excerpt."""
+import json
+
+import numpy as np
+import pytest
+
+from mimunav.cli import main
+from mimunav.evaluation.flight import Flight
+from mimunav.importers.recording import Recording
+from mimunav.importers.write import write_log
+from drives import DRIVE
+
+
+@pytest.mark.slow
+def test_report_recording_of_the_excerpt_and_its_refusals(tmp_path):
+    """`mimunav report recording`: one folder with the metadata table, the channels, the
+    windows and the diagnosis (or why not); a log it cannot read leaves no folder behind."""
+    log = tmp_path / "drive.mcap"
+    assert main(["import", "rtklib", str(DRIVE), "-o", str(log)]) == 0
+    out = tmp_path / "report"
+    assert main(["report", "recording", str(log), "-o", str(out)]) == 0
+    text = (out / "recording.md").read_text()
+    assert "| reference | RTKLIB solution (fix)" in text
+    assert "independent of this IMU: yes" in text
+    assert "| 10 |" in text                              # the 10 s windows' row
+    doc = json.loads((out / "diagnosis" / "diagnosis.json").read_text())
+    assert doc["level"] == "track" and "conclusive" in doc
+    # the excursions that set the contract verdict are listed (11 on the excerpt)
+    assert text.count("- unexplained residual ") == len(doc["unexplained"]) > 0
+    assert (out / "windows.png").stat().st_size > 0
+    assert main(["report", "recording", str(log), "-o", str(out)]) == 2      # no --force
+    bare = tmp_path / "bare.mcap"                        # no /truth/state
+    flight = Flight.load(log, reference_imu=False)
+    rec = Recording("bare", "", flight.epoch_ns + np.round(flight.mimu_t * 1e9).astype(np.int64),
+                    *flight.mimu_imu, flight.mimu_mounting)
+    write_log(rec, bare)
+    # without a reference the report still says what the recording is, and why it has no
+    # windows and no diagnosis (the README's "diagnosis (or why not)")
+    assert main(["report", "recording", str(bare), "-o", str(tmp_path / "why")]) == 0
+    text = (tmp_path / "why" / "recording.md").read_text()
+    assert "No window: " in text and "Not run: " in text
+    assert sorted(p.name for p in (tmp_path / "why").iterdir()) == ["recording.md"]
+    cut = tmp_path / "cut.mcap"                          # a log it cannot read at all
+    cut.write_bytes(bare.read_bytes()[:4000])
+    assert main(["report", "recording", str(cut), "-o", str(tmp_path / "none")]) == 2
+    assert not (tmp_path / "none").exists()
