@@ -151,7 +151,7 @@ def main():
         (f"log read, {n:.0e} /mimu/raw samples", f"{n / reads[0] / 1e6:.1f} M samples/s first, "
          f"{n / min(reads) / 1e6:.1f} M best of 3; {res['speedup_first']:.0f}x the mcap "
          "package's iter_decoded_messages (chunks decompressed on 2 threads)"),
-        (f"zstd alone on that log's chunks (the writer's parameters, 2 threads): the writer's "
+        ("zstd alone on that log's chunks (the writer's parameters, 2 threads): the writer's "
          "and the reader's ceiling", f"compress {n / t_pack / 1e6:.2f} M msg/s, decompress "
          f"{n / t_unpack / 1e6:.2f} M msg/s ({records / 1e6:.0f} MB of records)")],
         res, args.json)

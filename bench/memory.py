@@ -80,13 +80,21 @@ def parked_log(path, minutes, unit, rate=1000.0, seed=0):
     return n
 
 
+# The peak is the process's own high-water mark, VmHWM (kB), where Linux gives it: ru_maxrss
+# survives exec, so a child that Python starts with vfork from a large parent (a pytest worker
+# holding 1.7 GB) reports the parent's peak as its own.
 PEAK = ("import resource, sys\nfrom mimunav.cli import main\ncode = main(sys.argv[1:])\n"
-        "print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, file=sys.stderr)\n"
+        "try:\n"
+        "    hwm = next(int(line.split()[1]) for line in open('/proc/self/status')\n"
+        "               if line.startswith('VmHWM:'))\n"
+        "except (OSError, StopIteration):\n"
+        "    hwm = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss\n"
+        "print(hwm, file=sys.stderr)\n"
         "sys.exit(code)")
 
 
 def peak_mb(argv, cwd):
-    """Peak resident memory (MB) of `mimunav ARGV` in its own process (getrusage)."""
+    """Peak resident memory (MB) of `mimunav ARGV` in its own process (VmHWM, else getrusage)."""
     out = subprocess.run([sys.executable, "-c", PEAK, *argv], cwd=cwd, capture_output=True,
                          text=True)
     if out.returncode != 0:

@@ -48,6 +48,18 @@ def machine():
             f"Python {platform.python_version()}")
 
 
+def write_report(folder, stem, markdown, command, wall_s, cases):
+    """REPORT/STEM.md (`markdown`) and REPORT/STEM.json ({"meta", "cases"}), each replaced
+    atomically; meta holds the command, the machine and the wall time (s)."""
+    from mimunav.files import write_atomic
+    meta = {"command": command, "machine": machine(), "wall_s": wall_s}
+    out = Path(folder)
+    out.mkdir(parents=True, exist_ok=True)
+    write_atomic(out / f"{stem}.md", markdown(cases, meta), force=True)
+    write_atomic(out / f"{stem}.json", json.dumps({"meta": meta, "cases": cases}, indent=1,
+                                                  default=float) + "\n", force=True)
+
+
 def publish(script, rows, res=None, json_path=None):
     """Print rows [(what, measured)], write res to json_path, record them in bench/results
     and regenerate the README table."""

@@ -11,10 +11,7 @@ when a finding has the hidden effect, sensor and axis; covered when the truth li
 no-missing-physics.
 """
 import argparse
-import json
 import math
-import os
-import platform
 import sys
 import time
 from pathlib import Path
@@ -23,9 +20,8 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
-from publish import publish                                  # noqa: E402
+from publish import publish, write_report                                  # noqa: E402
 from mimunav.diagnosis import sensor, transplant             # noqa: E402
-from mimunav.files import write_atomic                       # noqa: E402
 
 FOREIGN = ROOT.parent / "shared" / "data" / "foreign-flights"
 DEG = math.pi / 180
@@ -209,16 +205,9 @@ def main():
     for k, (base, effect) in enumerate(tqdm(jobs, desc="transplants")):
         cases.append(run_case(base, draw(effect, rng, base), effect, args.seed * 1000 + k))
     wall = time.perf_counter() - t0
-    meta = {"command": f"python bench/transplant.py --per-class {args.per_class} "
-                       f"--nulls {args.nulls} --seed {args.seed}",
-            "machine": f"{platform.machine()} {os.cpu_count()} cores, "
-                       f"{platform.python_version()}", "wall_s": wall}
-    out = Path(args.report)
-    out.mkdir(parents=True, exist_ok=True)
-    write_atomic(out / "diagnosis-transplant.md", markdown(cases, meta), force=True)
-    write_atomic(out / "diagnosis-transplant.json",
-                 json.dumps({"meta": meta, "cases": cases}, indent=1, default=float) + "\n",
-                 force=True)
+    write_report(args.report, "diagnosis-transplant", markdown,
+                 f"python bench/transplant.py --per-class {args.per_class} "
+                 f"--nulls {args.nulls} --seed {args.seed}", wall, cases)
     effects = [c for c in cases if not c["class"].startswith("null")]
     nulls = [c for c in cases if c["class"].startswith("null")]
     cov = [c["covered"] for c in effects if "covered" in c]

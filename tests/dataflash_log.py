@@ -106,3 +106,53 @@ def flight(rate=400.0, seed=0, unix_start_s=1714550400.0, boot_s=93.25):
         out.add("ATT", TimeUS=us, Roll=np.degrees(roll[k]), Pitch=np.degrees(pitch[k]),
                 Yaw=np.degrees(yaw[k]) % 360)
     return out.bytes(), run, t, unix_start_s
+
+
+# ArduCopter 3.1-3.2 (2014): ms since boot, the second IMU its own type, the GPS message with
+# the GPS time of week (TimeMS), Week and the boot time T (libraries/DataFlash/LogStructure.h
+# of that release)
+FORMATS_2014 = {
+    "IMU": (131, "Iffffff", "TimeMS,GyrX,GyrY,GyrZ,AccX,AccY,AccZ"),
+    "IMU2": (132, "Iffffff", "TimeMS,GyrX,GyrY,GyrZ,AccX,AccY,AccZ"),
+    "GPS": (130, "BIHBcLLeeEefI", "Status,TimeMS,Week,NSats,HDop,Lat,Lng,RelAlt,Alt,Spd,GCrs,"
+                                  "VZ,T"),
+    "ATT": (133, "IccccCC", "TimeMS,DesRoll,Roll,DesPitch,Pitch,DesYaw,Yaw"),
+}
+
+
+def flight_2014(rate=100.0, unix_start_s=1404000000.0, boot_s=61.5):
+    """(DataFlash bytes of a 2014 ArduCopter log, truth run, t, UNIX time of t = 0): IMU and
+    IMU2 (TimeMS), GPS 3-D fixes at 5 Hz with Week/TimeMS/T, ATT; no EKF position."""
+    saved = dict(FORMATS)
+    FORMATS.clear()
+    FORMATS.update(FORMATS_2014)
+    try:
+        motion = Profile.from_dict(PROFILE).motion()
+        t = np.arange(0.0, motion.t1 - 1e-9, 1.0 / rate)
+        run = truth.generate(motion, t)
+        dt = np.diff(t)
+        w, f = run.dtheta / dt[:, None], run.dv / dt[:, None]
+        out = Writer()
+        boot_ms = np.round((boot_s + t[1:]) * 1e3).astype(np.int64)
+        for name, bias in (("IMU", 0.0), ("IMU2", 1e-3)):
+            for k in range(len(boot_ms)):
+                out.add(name, TimeMS=boot_ms[k], GyrX=w[k, 0] + bias, GyrY=w[k, 1],
+                        GyrZ=w[k, 2], AccX=f[k, 0], AccY=f[k, 1], AccZ=f[k, 2])
+        tr = run.trajectory
+        yaw, pitch, roll = attitude.as_euler(tr.q_nb)
+        leap_2014 = 16
+        for k in range(0, len(t), int(rate / 5)):
+            gps_s = unix_start_s + t[k] - GPS_EPOCH_UNIX_S + leap_2014
+            week, tow = divmod(gps_s, 604800.0)
+            vn, ve, vd = tr.v_ned[k]
+            ms = int(round((boot_s + t[k]) * 1e3))
+            out.add("GPS", Status=3, TimeMS=int(round(tow * 1e3)), Week=int(week), NSats=9,
+                    HDop=1.2, Lat=np.degrees(tr.lat[k]), Lng=np.degrees(tr.lon[k]),
+                    Alt=tr.h[k], Spd=np.hypot(vn, ve), GCrs=np.degrees(np.arctan2(ve, vn)) % 360,
+                    VZ=vd, T=ms)
+            out.add("ATT", TimeMS=ms, Roll=np.degrees(roll[k]), Pitch=np.degrees(pitch[k]),
+                    Yaw=np.degrees(yaw[k]) % 360)
+        return out.bytes(), run, t, unix_start_s
+    finally:
+        FORMATS.clear()
+        FORMATS.update(saved)

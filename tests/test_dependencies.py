@@ -50,8 +50,10 @@ def test_a_command_without_its_extra_says_which_to_install(argv, extra, tmp_path
     """A command whose package is missing ends with one line naming the extra (exit 2).
     The noise command reaches allantools only once it has a log to analyse: one is made."""
     if argv[0] == "noise":
-        log = tmp_path / "static.mcap"
-        made = subprocess.run([sys.executable, "-m", "mimunav", "simulate", "flights/static.toml",
+        log, profile = tmp_path / "static.mcap", tmp_path / "static.toml"
+        profile.write_text((REPO / "flights" / "static.toml").read_text()
+                           .replace("duration_s = 3600.0", "duration_s = 60.0"))
+        made = subprocess.run([sys.executable, "-m", "mimunav", "simulate", str(profile),
                                "-o", str(log), "--seed", "1"], capture_output=True, text=True,
                               cwd=REPO)
         assert made.returncode == 0, made.stderr[-2000:]

@@ -4,6 +4,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
+from ..importers.kinds import VEHICLES
 from .options import SEED, probability
 
 
@@ -31,12 +32,12 @@ def _diagnosed(args, painter):
     from ..compensation.calibration_file import with_found
     from ..diagnosis import levels
     from ..diagnosis.document import document, dumps
-    from ..diagnosis.reference import Accuracy
+    from ..sensors.accuracy import Accuracy
     from ..files import refuse_folder_early, write_atomic
     from ..reports import diagnosis as report
     if args.output:                 # here, after the fork: the child's import runs beside these
         refuse_folder_early(args.output, args.force, report.FILES)
-    flight, cal, level = levels.load(args.log, args.model, args.level)
+    flight, cal, level, why = levels.load(args.log, args.model, args.level, args.vehicle)
     accuracy = Accuracy.parse(args.reference_accuracy) if args.reference_accuracy else None
     noise = None
     if args.noise:
@@ -49,7 +50,9 @@ def _diagnosed(args, painter):
     # the report's navigation of the model needs nothing the diagnosis finds: it runs on
     # the other core beside the diagnosis
     model = report.model_navigation_beside(flight, cal) if args.output else None
-    diag = levels.diagnose(flight, cal, level, args.alpha, args.seed, accuracy, noise)
+    diag = levels.diagnose(flight, cal, level, args.alpha, args.seed, accuracy, noise,
+                           args.vehicle)
+    diag.level_choice = why
     doc = document(args.log, diag, args.alpha)
     found = with_found(cal, doc["findings"])
     if args.output:
@@ -91,8 +94,10 @@ def finding_line(f):
     from ..diagnosis.inference import p_text
     units = "" if f["units"] == "1" else f" {f['units']}"
     line = (f"  {f['label']}: {f['coefficient']:.4g}{units} "
-            f"[{f['ci95'][0]:.4g}, {f['ci95'][1]:.4g}] (held-out p {p_text(f['p_heldout'])}; "
-            f"{f.get('attribution', 'navigation level')})")
+            f"[{f['ci95'][0]:.4g}, {f['ci95'][1]:.4g}] (held-out p {p_text(f['p_heldout'])}"
+            + (f", removes {f['effect_size']['heldout_variance_removed']:.2%} of the held-out "
+               "residual variance" if "effect_size" in f else "")
+            + f"; {f.get('attribution', 'navigation level')})")
     if "vector" in f:
         line += (f"\n    vector ({f['units']}, {f.get('frame', 'sensor')} axes x, y, z) "
                  + ", ".join(f"{v:.4g} [{lo:.4g}, {hi:.4g}]"
@@ -103,6 +108,10 @@ def finding_line(f):
                              f"{np.degrees(hi):+.2f}]"
                              for v, (lo, hi) in zip(f["vector_vehicle"],
                                                     f["vector_vehicle_ci95"])))
+    halves = f.get("halves")
+    if isinstance(halves, dict) and halves["widened_by"] > 1:
+        line += (f"\n    the recording's halves disagree (p {halves['p_same']:.2g}): interval "
+                 f"widened {halves['widened_by']:.2f}x")
     alike = [a["label"] for a in f.get("indistinguishable_from", [])]
     if alike:
         line += "\n    not told apart on this flight from " + ", ".join(alike)
@@ -137,9 +146,11 @@ def add_diagnose(sub):
     p.add_argument("--level", choices=("auto", "sensor", "navigation", "track"), default="auto",
                    help="sensor: MIMU outputs (m/s^2, rad/s) against the FOG-IMU's; navigation: "
                    "NED velocity error (m/s) against /truth/state; track: MIMU outputs against "
-                   "the ideal IMU simulated along a land vehicle's /truth/state without attitude "
-                   "(a recording); auto (default): sensor with /fog/imu, track for a recorded "
-                   "/mimu/imu with such a reference, else navigation")
+                   "the ideal IMU simulated along a car's /truth/state without attitude (a "
+                   "recording); auto (default): sensor with /fog/imu; for a recording, "
+                   "navigation when its reference has an attitude, track when a car carried "
+                   "the IMU (declared, or judged from the track: --vehicle), else navigation "
+                   "(whose findings need a measured initial heading)")
     p.add_argument("--model", help="the calibration the user believes (mimunav-calibration/1); "
                    "required for /mimu/raw, optional for a recorded /mimu/imu (identity)")
     p.add_argument("--json", help="write the mimunav-diagnosis/1 document here (with -o: the "
@@ -153,14 +164,21 @@ def add_diagnose(sub):
     p.add_argument("--reference-accuracy", metavar="KEY=VALUE,...",
                    help="the reference IMU's 1-sigma accuracy; the keys given override the log's "
                    "sensor/fog `accuracy` metadata, which overrides the defaults (seed S1 Table "
-                   "4: scale 2.5e-4; "
-                   "misalignment 1e-4 rad, assumed): gyro_scale, accel_scale (1), "
-                   "gyro_misalignment_rad, accel_misalignment_rad (rad)")
+                   "4: scale 2.5e-4, misalignment 1e-4 rad (assumed), bias 1 deg/h and 100 ug; "
+                   "a recording's logging steps measured from its outputs): gyro_scale, "
+                   "accel_scale (1), gyro_misalignment_rad, accel_misalignment_rad (rad), "
+                   "gyro_bias (rad/s), accel_bias (m/s^2) - bias stability -, gyro_step "
+                   "(rad/s), accel_step (m/s^2) - the step its outputs were logged in. A bias "
+                   "beyond Table 4's makes the reference MEMS-grade: whatever it may carry "
+                   "itself is charged to 'mimu-or-reference'")
     p.add_argument("--noise", metavar="NOISE.json",
                    help="the unit's measured random errors (a `mimunav noise` file of its "
                    "/mimu/raw or /mimu/imu at rest): its bias instability B (SI) replaces the "
                    "class's zero drift as the wander the sensor level's bias tests take as "
                    "normal")
+    p.add_argument("--vehicle", choices=VEHICLES,
+                   help="what carried the IMU, over the recording's metadata (default: as "
+                   "imported, else judged from the track): the track level is a car's")
     p.add_argument("--seed", type=SEED, default=0, help="seed of the navigation level's block "
                    "bootstrap (the sensor and track levels draw nothing)")
     p.add_argument("--force", action="store_true", help="replace existing outputs")

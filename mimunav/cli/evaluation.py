@@ -103,8 +103,8 @@ def _reproduce(args):
 def _campaign(args):
     """Monte Carlo over units: the distribution of every normalised end error."""
     from ..evaluation import campaign
-    scenario = scenario(argparse.Namespace(**dict(vars(args), flight=args.profile)))
-    records = campaign.run_campaign(scenario, args.units, args.seed, args.output,
+    drawn = scenario(argparse.Namespace(**dict(vars(args), flight=args.profile)))
+    records = campaign.run_campaign(drawn, args.units, args.seed, args.output,
                                     workers=args.workers, scheduler=args.scheduler)
     print(campaign.summary_markdown(campaign.summary(records), len(records)), end="")
     return 0
@@ -141,8 +141,9 @@ def add_windows(sub):
                    help="horizontal speed a window must start above, m/s (default: 3 when the "
                    "heading must come from the reference's course, 0 when the reference has "
                    "an attitude)")
-    p.add_argument("--max-gap", type=SECONDS, default=1.0,
-                   help="longest reference gap allowed inside a window, s (default 1)")
+    p.add_argument("--max-gap", type=SECONDS,
+                   help="longest reference gap allowed inside a window, s (default: 1, or 2.5 "
+                   "of the reference's own median steps when they are longer: 1 Hz fixes)")
     p.add_argument("-o", "--output", help="folder: windows.json, windows.png")
     p.add_argument("--force", action="store_true", help="replace an existing folder")
     p.set_defaults(func=_windows)

@@ -3,7 +3,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..importers.registry import KINDS
+from ..importers.kinds import KINDS, VEHICLES
 from .options import number
 
 
@@ -66,7 +66,9 @@ def add_import(sub):
                    "works at the sensor level)")
     p.add_argument("--reference-imu-time-offset", type=number(-60.0, 60.0), default=0.0,
                    metavar="S", help="ros2, table, ulog: added to the reference IMU's stamps, "
-                   "s (the import measures the two IMUs' offset and refuses one beyond 10 ms)")
+                   "s, before the import measures the two IMUs' offset from their rotation "
+                   "rates and corrects what it measures (beyond 1 ms); a clock it cannot time "
+                   "is left as given and said")
     p.add_argument("--reference-imu-rpy-deg", type=number(-360.0, 360.0), nargs=3,
                    metavar=("ROLL", "PITCH", "YAW"), help="ros2: the reference IMU's sensor -> "
                    "vehicle (FRD) rotation, deg (default 180 0 0, REP-103)")
@@ -87,5 +89,9 @@ def add_import(sub):
                    "(default fix; every epoch is kept in /gnss/fix with its sigmas)")
     p.add_argument("--root", metavar="DIR", help="table: the folder of the spec's data files "
                    "(default: the spec's `root`, relative to the spec file)")
+    p.add_argument("--vehicle", choices=VEHICLES,
+                   help="what carried the IMU (default: not declared - `diagnose` judges it "
+                   "from the track): a car's track gives its attitude (no side slip: the track "
+                   "level); an aircraft's, a multicopter's, a rocket's or a walker's does not")
     p.add_argument("--force", action="store_true", help="replace an existing output")
     p.set_defaults(func=_import)

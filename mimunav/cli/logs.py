@@ -1,5 +1,7 @@
-"""Commands on a log itself: info, compensate."""
+"""Commands on a log itself: info, compensate, cut."""
 import sys
+
+from .options import span
 
 
 def _info(args):
@@ -76,3 +78,27 @@ def add_info(sub):
                    help="write the intact part of a damaged (e.g. truncated) log to OUT")
     p.add_argument("--force", action="store_true", help="replace an existing OUT")
     p.set_defaults(func=_info)
+
+
+def _cut(args):
+    """A log cut to a span of time."""
+    from ..files import refuse_inputs
+    from ..importers.cut import cut
+    refuse_inputs([args.output], [args.log])
+    count, how = cut(args.log, args.output, *args.span, force=args.force)
+    print(f"wrote {args.output}: {count} messages in {args.span[0]:g}-{args.span[1]:g} s; "
+          f"initial state: {how}")
+    return 0
+
+
+def add_cut(sub):
+    """The `cut` command's parser."""
+    p = sub.add_parser("cut", help="the messages of every channel inside a span of time, with "
+                       "an initial state inside it, into a new log")
+    p.add_argument("log", help="flight log (.mcap)")
+    p.add_argument("--span", type=span, required=True,
+                   help="T0:T1, s since the log's epoch (the times `mimunav info` and the "
+                   "messages name)")
+    p.add_argument("-o", "--output", required=True, help="log to write (.mcap)")
+    p.add_argument("--force", action="store_true", help="replace an existing output")
+    p.set_defaults(func=_cut)

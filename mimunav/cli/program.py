@@ -20,6 +20,7 @@ from . import (calibration, diagnosis, evaluation, importing, logs,  # noqa: E40
 
 # every command in the order `mimunav --help` lists them, with the module that adds it
 COMMANDS = {"demo": simulation, "simulate": simulation, "compensate": logs, "info": logs,
+            "cut": logs,
             "unit": simulation, "lab": simulation, "calibrate": calibration,
             "calibration": calibration, "noise": calibration, "drift": calibration,
             "replay": evaluation, "diagnose": diagnosis, "import": importing,

@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import quaternion
+from scipy import stats
 
 from ..compensation import effects
 from ..sensors.mimu import G0
@@ -46,13 +47,17 @@ def confirm_chosen(design, chosen, train, held, alpha, full_scale, cond):
         finding.update(
             label=library.label(term), p_train=c["p_train"], holm_threshold=c["threshold"],
             p_heldout=p_ho, train_coefficient=b_tr.tolist() if len(b_tr) > 1 else float(b_tr[0]),
-            attribution=_attribution(term, p_ref < level, res["linear"]),
+            attribution=_attribution(term, p_ref < level, res["linear"],
+                                     _reference_may_carry(design, j, b_ho)),
             named_on=c.get("named_on", "training half"),
             indistinguishable_from=[alternative_of(design.terms[a]) for a in c["alternatives"]],
             not_chosen_as_implausible=c["implausible"])
         if res["linear"]:
             finding["p_heldout_with_reference_accuracy"] = p_ref
         ok, limit = plausible(design, j, b_ho, full_scale)
+        finding["effect_size"] = effect_size(res["stat"], held_fitter.n * len(design.columns[j]),
+                                             float(np.linalg.norm(b_ho)), limit)
+        share = finding["effect_size"]["heldout_variance_removed"]
         why = None
         if p_ho >= level:
             why = f"held-out p = {p_ho:.2g}, needs < {level:.2g}"
@@ -61,22 +66,61 @@ def confirm_chosen(design, chosen, train, held, alpha, full_scale, cond):
             why = "the held-out coefficient has the other sign"
         elif not ok:
             why = (f"held-out magnitude {np.linalg.norm(b_ho):.3g} beyond the physical range "
-                   f"{limit:.3g}")
+                   f"{limit:.3g}" + (" of a calibrated unit (is the calibration this unit's?)"
+                                     if design.calibrated and (term["effect"], term["sensor"])
+                                     in library.CALIBRATED_RANGE else ""))
+        elif share < library.MIN_VARIANCE_SHARE:
+            why = (f"negligible: removes {share:.3%} of the held-out residual variance "
+                   f"(at least {library.MIN_VARIANCE_SHARE:.1%})")
         (findings if why is None else rejected).append(
             finding if why is None else dict(finding, rejected=why))
     return findings, rejected
 
 
-def _attribution(term, beyond_reference, linear):
+def effect_size(stat, rows, magnitude, limit):
+    """The size of a held-out finding beside its significance: the share of the held-out
+    residual variance its removal takes away - the likelihood-ratio (or Wald) statistic over
+    the rows it is fitted on turned into a variance ratio, 1 - exp(-stat / rows) (Cox and
+    Snell's R^2 of the generalised least squares, white noise and wander weighed as the fit
+    weighs them) - and its magnitude against its physical range."""
+    return {"heldout_variance_removed": float(-math.expm1(-max(stat, 0.0) / max(rows, 1))),
+            "of_physical_range": magnitude / limit if np.isfinite(limit) else 0.0,
+            "basis": "1 - exp(-held-out statistic / held-out rows x channels); |coefficient| "
+                     "over the term's physical range"}
+
+
+def _attribution(term, beyond_reference, linear, reference_may_carry=False):
     """Whom a finding is charged to: the MIMU's sensors, or for the whole unit's terms its
     installation (mounting, lever arm) or its timing (time_skew); '-or-reference' when the
-    reference's stated accuracy could hold it, '-or-calibration' when the calibration's
-    stated covariance could."""
+    reference's stated accuracy could hold it (a linear term within its scale and
+    misalignment; `_reference_may_carry`), '-or-calibration' when the calibration's stated
+    covariance could."""
     who = {"mounting_misalignment": "installation", "lever_arm": "installation",
            "time_skew": "timing"}.get(term["effect"], "mimu")
     if beyond_reference:
-        return who
-    return who + ("-or-reference" if linear else "-or-calibration")
+        return who + ("-or-reference" if reference_may_carry and who == "mimu" else "")
+    return who + ("-or-reference" if linear or reference_may_carry else "-or-calibration")
+
+
+BIAS_SHAPED = ("bias_shift", "bias_instability", "temperature_bias", "temperature_rate",
+               "thermal_hysteresis", "vibration_rectification")
+
+
+def _reference_may_carry(design, j, b):
+    """Whether the reference itself may make candidate j's signature at coefficient b: a
+    reference of MEMS grade may carry any sensor physics (`Accuracy.mems_grade`); any
+    reference, a bias-shaped term no larger than its own bias and logging step allow
+    (`Accuracy.bias_allowance`: the term's 99.9th-percentile contribution)."""
+    term = design.terms[j]
+    if design.reference is None or term["sensor"] not in ("accel", "gyro"):
+        return False
+    if design.reference.mems_grade:
+        return True
+    if term["effect"] not in BIAS_SHAPED:
+        return False
+    touched = list(design.columns[j])
+    peak = float(np.percentile(np.abs(term_contribution(design, j, b)[:, touched]), 99.9))
+    return peak <= design.reference.bias_allowance(term["sensor"])
 
 
 def interval_estimate(design, term, b, cov, interval=None):
@@ -206,3 +250,59 @@ def _condition(cond, t0, t1, term):
     if np.isfinite(temp).all():
         text += f", T {temp.min():.1f}-{temp.max():.1f} degC"
     return text
+
+
+# ---- the halves of a recording ---------------------------------------------------------
+HALVES_ALPHA = 0.05     # the halves' coefficients differ beyond their own intervals at 95 %
+
+
+def halves_check(design, findings):
+    """(kept, set aside) findings after refitting each found term on the recording's first
+    and second halves (time, the found terms together): where the two halves disagree beyond
+    their own intervals (chi-square of the difference at HALVES_ALPHA), the interval is
+    widened by the square root of that statistic per parameter (says by how much), and a
+    finding whose widened interval holds zero is set aside as inconclusive. A recording's
+    errors need not stay the same over it (a reference's solution, a temperature, a
+    mounting that settles) as a simulation's do; the held-out blocks interleave, so they do
+    not see a drift from one end to the other. `findings`: `confirm_chosen`'s (terms of the
+    library; the tests on the outputs are not refitted here)."""
+    if not findings:
+        return findings, []
+    idx = [position_of(design, f) for f in findings]
+    first = design.t < np.median(design.t)
+    fits = [Fitter(design, rows).fit(idx) for rows in (first, ~first)]
+    kept, aside = [], []
+    for f, j in zip(findings, idx):
+        (b1, c1), (b2, c2) = (fit.of(j) for fit in fits)
+        diff = b1 - b2
+        stat = float(diff @ np.linalg.lstsq(c1 + c2, diff, rcond=None)[0])
+        p = float(stats.chi2.sf(stat, len(diff)))
+        halves = {"first": b1.tolist(), "second": b2.tolist(), "p_same": p}
+        if p >= HALVES_ALPHA:
+            kept.append(dict(f, halves=dict(halves, widened_by=1.0)))
+            continue
+        factor = math.sqrt(stat / len(diff))
+        wide = _widened(f, factor)
+        wide["halves"] = dict(halves, widened_by=factor)
+        lo, hi = wide["ci95"]
+        if lo <= 0.0 <= hi:
+            aside.append(dict(wide, rejected=(
+                f"the recording's halves disagree (p {p:.2g}): its interval widened "
+                f"{factor:.2f}x holds zero - inconclusive")))
+        else:
+            kept.append(wide)
+    return kept, aside
+
+
+def _widened(finding, factor):
+    """The finding with every 95 % interval's half-widths about its estimate times factor."""
+    out = dict(finding)
+
+    def wider(value, interval):
+        lo, hi = interval
+        return [value - factor * (value - lo), value + factor * (hi - value)]
+    out["ci95"] = wider(finding["coefficient"], finding["ci95"])
+    for vec, ci in (("vector", "vector_ci95"), ("vector_vehicle", "vector_vehicle_ci95")):
+        if ci in finding:
+            out[ci] = [wider(v, i) for v, i in zip(finding[vec], finding[ci])]
+    return out

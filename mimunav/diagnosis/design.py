@@ -48,6 +48,9 @@ class Design:
     bin_s: float = FAST_BIN_S   # the bins' length, s
     shape: np.ndarray | None = None     # (nb, 6) each bin's white variance over its channel's
                                 # (`diagnose`'s noise_shape; None: constant)
+    reference: object = None    # the reference's `sensors.accuracy.Accuracy` (`_reference_may_carry`)
+    calibrated: bool = False    # the MIMU compensated by a calibration of the unit (not
+                                # a recording's outputs taken as they are): `physical_limit`
     q_vs: np.ndarray = field(default_factory=lambda: np.array([1.0, 0, 0, 0]))   # MIMU
                                 # sensor -> vehicle (w, x, y, z): a lever arm is reported in
                                 # the vehicle frame of the metadata's lever_arm_m
@@ -177,7 +180,7 @@ class Binning:
 
 def calibration_prior(cal):
     """(18, 18) covariance of the calibration's own linear error in the MIMU's axes, in the
-    layout of `reference.Accuracy.prior`: from the standard errors of A1 and W1 in the file's
+    layout of `sensors.accuracy.Accuracy.prior`: from the standard errors of A1 and W1 in the file's
     `covariance` block (relative: E_ij = dA1_ij / A1_jj, the compensated output's error per
     unit input); zero when the file states none (e.g. a unit's true coefficients). A term
     within it is the lab fit's own uncertainty, not physics the model lacks (the terms the

@@ -33,6 +33,10 @@ def document(log_path, diag, alpha=0.05):
         doc["within_reference_accuracy"] = json_ready(diag.within_reference)
     if getattr(diag, "reference_check", None):
         doc["reference_check"] = json_ready(diag.reference_check)
+    if getattr(diag, "level_choice", None):
+        doc["level_choice"] = diag.level_choice
+    if getattr(diag, "reference_agreement", None):
+        doc["reference_agreement"] = json_ready(diag.reference_agreement)
     if getattr(diag, "time_lag", None):
         doc["time_lag"] = json_ready(diag.time_lag)
     reasons = getattr(diag, "inconclusive", None) or []
@@ -42,6 +46,8 @@ def document(log_path, diag, alpha=0.05):
     if diag.level == "navigation":
         doc.update(epoch_s=navigation.EPOCH_S, reference="truth (/truth/state)",
                    velocity_error_rms=json_ready(np.sqrt(np.mean(diag.observed ** 2, axis=0))))
+        if getattr(diag, "biases_removed", None):
+            doc["biases_removed"] = json_ready(diag.biases_removed)
     return doc
 
 

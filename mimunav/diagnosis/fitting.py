@@ -240,5 +240,6 @@ def term_test(fitter, terms, j):
 
 
 def plausible(design, j, b, full_scale):
-    limit = library.physical_limit(design.terms[j], full_scale)
+    """(within the physical range, the range) of candidate j's coefficient b."""
+    limit = library.physical_limit(design.terms[j], full_scale, design.calibrated)
     return float(np.linalg.norm(b)) <= limit, limit

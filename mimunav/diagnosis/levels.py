@@ -3,63 +3,132 @@ diagnosed at, and that level's diagnosis - what `mimunav diagnose` runs.
 
     sensor       a reference IMU (/fog/imu) predicts the MIMU's outputs (`sensor`)
     navigation   only a reference trajectory (/truth/state): the MIMU's free-inertial velocity
-                 error against it (`navigation`)
-    track        a recorded land drive's trajectory without attitude, simulated into an ideal
-                 IMU that stands in for the reference IMU (`track`)
+                 error against it (`navigation`); on a recording its findings need a measured
+                 initial heading (the reference's attitude, or a car's course)
+    track        a car's recorded trajectory without attitude, simulated into an ideal IMU
+                 that stands in for the reference IMU (`track`): a car's only (`vehicle_kind`)
 """
 import numpy as np
 
 from ..compensation.calibration_file import Calibration
 from ..errors import InputError
 from ..evaluation.flight import Flight, no_reference, refuse_gaps
-from . import navigation, sensor, track
+from . import navigation, sensor, track, vehicle_kind
 
 LEVELS = ("sensor", "navigation", "track")
 
 
-def choose(flight, level="auto"):
-    """The level `flight` (an `evaluation.flight.Flight`) is diagnosed at: `level` when given,
-    else (auto) sensor with a reference IMU; track for a recorded, already compensated
-    /mimu/imu whose reference trajectory comes from a recording or holds no attitude;
-    navigation otherwise."""
+def choose(flight, level="auto", vehicle=None):
+    """(level, why) for `flight` (an `evaluation.flight.Flight`): `level` when given, else
+    (auto) sensor with a reference IMU; for a recording, navigation when its reference carries
+    the vehicle's attitude (used as attitude, not replaced by a vehicle model), track when
+    what carried the IMU is a car (declared - `vehicle` overrides the metadata - or judged:
+    `vehicle_kind`), navigation otherwise; navigation for a simulation."""
     if level != "auto":
-        return level
-    recorded = flight.mimu_raw is None
+        return level, "given (--level)"
     if flight.fog_t is not None:
-        return "sensor"
-    if recorded and flight.truth is not None and \
-            (flight.source == "recording" or np.isnan(flight.truth.q_nb[0].w)):
-        return "track"
-    return "navigation"
+        return "sensor", "a reference IMU (/fog/imu) flew with the MIMU"
+    recorded = flight.mimu_raw is None
+    if not (recorded and flight.truth is not None):
+        return "navigation", "a reference trajectory (/truth/state) and no reference IMU"
+    if _has_attitude(flight):
+        return "navigation", "the reference trajectory carries the vehicle's attitude"
+    if flight.source == "recording" or np.isnan(flight.truth.q_nb[0].w):
+        kind, how = vehicle_of(flight, vehicle)
+        if kind == vehicle_kind.LAND:
+            return "track", f"a reference track without attitude, of a car ({how})"
+        return "navigation", (f"a reference track without attitude, not of a car ({how}): the "
+                              "track level's vehicle model does not hold")
+    return "navigation", "a reference trajectory and no reference IMU"
 
 
-def load(log_path, model_path=None, level="auto"):
-    """(flight, calibration, level) of the log at `log_path` for the diagnosis: the
+def vehicle_of(flight, vehicle=None):
+    """(kind, how) of what carried the IMU: `vehicle` (the command line's), else
+    `vehicle_kind.kind`."""
+    if vehicle:
+        return vehicle, f"declared {vehicle} (--vehicle)"
+    return vehicle_kind.kind(flight)
+
+
+def _has_attitude(flight):
+    q = flight.truth.q_nb
+    finite = np.isfinite(np.stack([q[k].components for k in range(min(len(q), 50))]))
+    return bool(finite.all())
+
+
+def load(log_path, model_path=None, level="auto", vehicle=None):
+    """(flight, calibration, level, why) of the log at `log_path` for the diagnosis: the
     calibration file at `model_path` (required for a raw /mimu/raw; the identity for a
     recorded /mimu/imu without one) and the level (`choose`). Gaps are refused unless the
     track level takes the log: it leaves their surroundings out (`track_reference.near_gaps`)
-    instead of navigating across them."""
+    instead of navigating across them. The track level is refused for a vehicle that is
+    not a car."""
     flight = Flight.load(log_path, reference_imu=level == "sensor", max_gap_s=np.inf)
     recorded = flight.mimu_raw is None          # an imported /mimu/imu: already compensated
     if model_path is None and not recorded:
         raise InputError(f"{log_path}: the log has /mimu/raw; --model CAL is required")
     cal = Calibration.load(model_path) if model_path else Calibration.identity()
-    level = choose(flight, level)
+    level, why = choose(flight, level, vehicle)
+    if level == "track" and flight.truth is not None:
+        kind, how = vehicle_of(flight, vehicle)
+        if kind != vehicle_kind.LAND:
+            raise InputError(f"{log_path}: --level track models a car (no side slip, roll 0); "
+                             f"this recording is not one ({how}): --level navigation, or "
+                             "--vehicle car if it is a car")
     if level != "track":
         refuse_gaps(flight)
     if level in ("navigation", "track") and flight.truth is None:
         raise no_reference(log_path, f"the {level} level (and no /fog/imu for the "
                                      "sensor level): nothing to diagnose against")
-    return flight, cal, level
+    return flight, cal, level, why
 
 
-def diagnose(flight, cal, level, alpha=0.05, seed=0, accuracy=None, noise=None):
+def diagnose(flight, cal, level, alpha=0.05, seed=0, accuracy=None, noise=None, vehicle=None):
     """The diagnosis of `flight` against calibration `cal` at `level`: alpha the family-wise
     error rate; seed the navigation level's block bootstrap; accuracy the reference's
-    `reference.Accuracy` (sensor and track levels); noise the unit's measured random errors
-    for the sensor level's bias tests."""
+    `sensors.accuracy.Accuracy` (sensor and track levels); noise the unit's measured random errors
+    for the sensor level's bias tests; vehicle (navigation level) what carried the IMU, when
+    the command line says."""
     if level == "navigation":
-        return navigation.diagnose(flight, cal, alpha=alpha, seed=seed)
+        diag = navigation.diagnose(flight, cal, alpha=alpha, seed=seed)
+        unmeasured = unmeasured_heading(flight, vehicle)
+        if unmeasured:
+            diag.rejected = diag.rejected + [dict(f, rejected=unmeasured) for f in diag.findings]
+            diag.findings = []
+            diag.inconclusive = list(getattr(diag, "inconclusive", None) or []) + [unmeasured]
+        return diag
     if level == "sensor":
         return sensor.diagnose(flight, cal, alpha=alpha, accuracy=accuracy, noise=noise)
     return track.diagnose(flight, cal, alpha=alpha, accuracy=accuracy)
+
+
+def unmeasured_heading(flight, vehicle=None):
+    """Why the navigation level's findings cannot stand on this recording's initial state, or
+    '': its heading was assumed (nothing measured it), or taken from the GNSS course - which
+    holds for a car, not for what else may carry an IMU (a walker's phone points anywhere, a
+    multicopter flies sideways). A simulation's initial state is the truth's."""
+    if flight.source != "recording":
+        return ""
+    rec = flight.recording or {}
+    heading = rec.get("initial_heading") or _heading_from_text(rec)
+    if heading == "reference":
+        return ""
+    kind, how = vehicle_of(flight, vehicle)
+    if heading == "course" and kind == vehicle_kind.LAND:
+        return ""
+    said = ("assumed: nothing measured it" if heading == "assumed" else
+            f"taken from the GNSS course, which is the heading of a car only, and this "
+            f"recording is not one ({how})")
+    return (f"the initial heading was {said}: the MIMU's velocity error against the reference "
+            "would fit that heading's error, not the MIMU's, so no finding is made from it")
+
+
+def _heading_from_text(rec):
+    """The heading source of a log imported before `initial_heading` was written: from the
+    alignment's words in the `assumed` metadata."""
+    said = str((rec.get("assumed") or {}).get("initial_state", ""))
+    if "heading assumed" in said:
+        return "assumed"
+    if "heading from the reference" in said or "whole state from the reference" in said:
+        return "reference"
+    return "course" if said else "assumed"

@@ -120,6 +120,14 @@ def on_channels(term, channels):
     return dict(term, channels=sorted(f"{s}.{a}" for s, a in channels))
 
 
+# A finding must show in the numbers the report prints: removing it must lower the held-out
+# residual's rms in its third significant digit (rms ratio <= 0.9995, variance share >= 0.1 %).
+# Below that, a term is significant only because the record is long (its statistic grows
+# with the rows while its share does not) and changes nothing a user could check. The same
+# share decides whether a lattice the outputs sit on matters (`outputs.quantization`).
+MIN_VARIANCE_SHARE = 1e-3
+
+
 # The physical range of each term for a MEMS unit (magnitude, SI units of the coefficient).
 # Generous on purpose - several times the seeds' largest figure - so that a real term is never
 # refused; a fitted value beyond it is a sign that a look-alike term is absorbing another's
@@ -154,15 +162,27 @@ PHYSICAL_RANGE = {
     ("vibration_rectification", "gyro"): 5 * DEG / G0 ** 2,
 }
 NONLINEARITY_OF_RANGE = 0.2     # k2 x^2 or k3 x^3 at full scale: <= 20 % of full scale
+# What a calibration leaves of the linear terms it estimates: seed S1 Table 1 bounds the
+# scale-factor fit residual of a MEMS part by 0.05 % FS (accelerometer) and 0.2 % FS (gyro);
+# ten times that is the most a unit compensated by its own calibration can still carry in a
+# scale factor or an axis coupling. A larger term is a nuisance leaking into a weakly excited
+# regressor (a lateral accelerometer in coordinated flight: a -2.8 % scale factor on an
+# effect-free foreign flight) - or a calibration of another unit, which the report says.
+CALIBRATED_RANGE = {("scale_factor", "accel"): 5e-3, ("scale_factor", "gyro"): 2e-2,
+                    ("cross_coupling", "accel"): 5e-3, ("cross_coupling", "gyro"): 2e-2}
 
 
-def physical_limit(term, full_scale):
+def physical_limit(term, full_scale, calibrated=False):
     """The largest plausible magnitude of the term's coefficient (vector: its norm);
-    `full_scale`: {"accel": m/s^2, "gyro": rad/s} of the MIMU (for nonlinearity)."""
+    `full_scale`: {"accel": m/s^2, "gyro": rad/s} of the MIMU (for nonlinearity);
+    `calibrated`: the MIMU's outputs are compensated by a calibration of the unit (not the
+    identity of a recording's outputs), which bounds its linear terms (CALIBRATED_RANGE)."""
     effect = term["effect"]
     if effect == "scale_nonlinearity":
         x = full_scale[term["sensor"]]
         return NONLINEARITY_OF_RANGE / x ** (term["order"] - 1)
+    if calibrated and (effect, term["sensor"]) in CALIBRATED_RANGE:
+        return CALIBRATED_RANGE[(effect, term["sensor"])]
     return PHYSICAL_RANGE.get((effect, term["sensor"]), PHYSICAL_RANGE.get(effect, np.inf))
 
 

@@ -9,10 +9,7 @@ Samples are interval means (log contract): the reference's running integral
 (`intervals.RunningIntegral`) at the MIMU's interval ends, differenced - exact when the
 stamps coincide, the interval-mean meaning kept when they do not.
 """
-from dataclasses import dataclass
-
 import numpy as np
-import quaternion
 
 from ..frames import attitude
 from ..compensation.effects import derivative
@@ -56,88 +53,62 @@ def predicted_mimu(flight):
     return attitude.rotate(q_sv, f_v), attitude.rotate(q_sv, w_v), inside
 
 
-# ---- the reference's own accuracy ------------------------------------------------------
-@dataclass(frozen=True)
-class Accuracy:
-    """1-sigma residual errors of a calibrated reference IMU (sensor axes): scale-factor error
-    (per axis, 1) and axis misalignment (per off-diagonal element, rad) of each triad. From
-    the `accuracy` object of the log's `sensor/fog` metadata when present (contract
-    extension, same keys), else `mimunav diagnose --reference-accuracy`, else these defaults:
-      scale 2.5e-4  seed S1 Table 4: FOG-IMU scale-factor residual <= 0.05 % FS, read as 2 sigma
-      misalignment 1e-4 rad  (20 arcsec) - Table 4 gives none: an assumption, medium-accuracy
-                    FOG-IMU class.
-    Bias and noise of the reference need no entry: the bias is part of the wander the
-    diagnosis fits, the noise part of the residual's white noise."""
-    gyro_scale: float = 2.5e-4
-    accel_scale: float = 2.5e-4
-    gyro_misalignment_rad: float = 1e-4
-    accel_misalignment_rad: float = 1e-4
-    source: str = "default (seed S1 Table 4; misalignment assumed)"
-    given: tuple = ()               # the keys the source stated (the rest are defaults)
-
-    KEYS = ("gyro_scale", "accel_scale", "gyro_misalignment_rad", "accel_misalignment_rad")
-
-    @classmethod
-    def from_dict(cls, doc, source):
-        """From an `accuracy` object; unknown keys refused, missing keys default (and not
-        `given`, so `merged` keeps another source's values for them)."""
-        if not isinstance(doc, dict):
-            raise InputError(f"{source}: the reference accuracy must be an object of "
-                             f"{', '.join(cls.KEYS)}")
-        bad = sorted(set(doc) - set(cls.KEYS))
-        if bad:
-            raise InputError(f"{source}: unknown reference-accuracy keys {bad} "
-                             f"(known: {', '.join(cls.KEYS)})")
-        try:
-            values = {k: float(v) for k, v in doc.items()}
-        except (TypeError, ValueError):
-            raise InputError(f"{source}: reference accuracies must be numbers: {doc}") from None
-        if not all(np.isfinite(v) and 0 <= v < 0.1 for v in values.values()):
-            raise InputError(f"{source}: reference accuracies must be finite, >= 0 and < 0.1 "
-                             f"(1-sigma, 1 or rad): {values}")
-        return cls(**values, source=source, given=tuple(values))
-
-    @classmethod
-    def parse(cls, text):
-        """From the command-line form 'gyro_scale=5e-5,accel_scale=5e-5,...'."""
-        try:
-            pairs = dict(item.split("=", 1) for item in text.split(",") if item.strip())
-        except ValueError:
-            raise InputError(f"--reference-accuracy {text!r}: expected KEY=VALUE,... with keys "
-                             f"{', '.join(cls.KEYS)}") from None
-        return cls.from_dict({k.strip(): v for k, v in pairs.items()}, "--reference-accuracy")
-
-    def as_dict(self):
-        return {k: getattr(self, k) for k in self.KEYS + ("source",)}
-
-    def merged(self, override):
-        """These accuracies with the keys `override` states replaced (None: unchanged)."""
-        if override is None or not override.given:
-            return self
-        values = {k: getattr(override if k in override.given else self, k) for k in self.KEYS}
-        return Accuracy(**values, source=f"{override.source} over {self.source}",
-                        given=tuple(set(self.given) | set(override.given)))
-
-    def prior(self, q_sf):
-        """(18, 18) covariance of the reference's linear error seen in the MIMU's axes:
-        parameters gamma = [accel E' row-major (9), gyro E' row-major (9)], where the
-        reference's error matrix E (diagonal: scale, off-diagonal: misalignment, independent)
-        appears as E' = C E C' with C the reference -> MIMU sensor rotation (quaternion
-        q_sf); row-major vec(C E C') = (C kron C) vec(E)."""
-        c = quaternion.as_rotation_matrix(q_sf)
-        kron = np.kron(c, c)
-        out = np.zeros((18, 18))
-        for k, (scale, mis) in enumerate(((self.accel_scale, self.accel_misalignment_rad),
-                                          (self.gyro_scale, self.gyro_misalignment_rad))):
-            var = np.where(np.eye(3, dtype=bool), scale ** 2, mis ** 2).ravel()
-            out[9 * k:9 * k + 9, 9 * k:9 * k + 9] = kron @ np.diag(var) @ kron.T
-        return out
+# ---- does the reference predict the MIMU at all? ---------------------------------------
+AGREEMENT_BIN_S = 1.0       # the check's means: long enough that white noise averages out,
+                            # short enough to follow a manoeuvre (a turn, a pull)
+AGREEMENT_CORRELATION = 0.9     # a moving channel's recorded and predicted means correlate at
+                                # least this much, else the reference does not predict it (the
+                                # model explains < 81 % of the motion: the track level's rule)
+MOVING_SPREAD = {"accel": 0.3, "gyro": 0.02}    # m/s^2, rad/s: spread of a channel's predicted
+                                # 1 s means from which a correlation can be judged: 30x the
+                                # white noise of a seed S1 Table 1 MEMS part's 1 s mean (0.01
+                                # m/s^2, 7e-4 rad/s) and 10x a consumer part's
+GRAVITY_ANGLE_DEG = 5.0     # the 1 s mean specific forces differ in direction by at most
+                            # this (the median over the seconds: a clipped boost does not move
+                            # it): a tilt larger than the diagnosis' small-angle terms (a few
+                            # degrees) shows here, at rest too
 
 
-def accuracy_of(meta_fog, override=None):
-    """The reference's `Accuracy`: the keys `override` states (the command line's), over the
-    `accuracy` object of the `sensor/fog` metadata, over the defaults."""
-    base = Accuracy()
-    if isinstance(meta_fog, dict) and "accuracy" in meta_fog:
-        base = Accuracy.from_dict(meta_fog["accuracy"], "log metadata sensor/fog accuracy")
-    return base.merged(override)
+def agreement(t, measured, predicted, usable, channels):
+    """Whether the reference's prediction follows the recorded MIMU: {"bin_s", "channels":
+    {label: {"correlation", "predicted_spread"}}, "gravity_angle_deg", "failures": [why]} from
+    the AGREEMENT_BIN_S means of the usable samples (t s; measured and predicted (N, 6):
+    accel m/s^2 then gyro rad/s, MIMU axes). A channel that moves (its predicted means spread
+    by MOVING_SPREAD) must correlate to AGREEMENT_CORRELATION; the specific forces' means
+    must point within GRAVITY_ANGLE_DEG of each other (the median over the seconds). A clock offset of seconds, a mounting
+    turned by tens of degrees, another vehicle's topic fail one of them; a quiet channel is
+    not judged (its correlation is its noise's)."""
+    sec = np.floor((t - t[0]) / AGREEMENT_BIN_S).astype(int)
+    keep = usable & np.isfinite(measured).all(axis=1) & np.isfinite(predicted).all(axis=1)
+    count = np.bincount(sec[keep], minlength=sec.max() + 1)
+    full = count >= 0.5 * np.median(count[count > 0]) if count.any() else count > 0
+    means = [np.column_stack([np.bincount(sec[keep], x[keep, c], minlength=len(count))
+                              for c in range(6)])[full] / count[full, None]
+             for x in (measured, predicted)]
+    out = {"bin_s": AGREEMENT_BIN_S, "channels": {}, "failures": []}
+    for c, (sensor, axis) in enumerate(channels):
+        m, p = means[0][:, c], means[1][:, c]
+        spread = float(np.std(p)) if len(p) >= 5 else 0.0
+        r = float(np.corrcoef(m, p)[0, 1]) if len(p) >= 5 and np.std(m) > 0 and spread > 0 \
+            else float("nan")
+        label = f"{sensor}.{axis}"
+        out["channels"][label] = {"correlation": r, "predicted_spread": spread}
+        if spread >= MOVING_SPREAD[sensor] and not r >= AGREEMENT_CORRELATION:
+            out["failures"].append(
+                f"the reference IMU does not predict the MIMU's {label}: the {AGREEMENT_BIN_S:g} "
+                f"s means correlate {r:.2f} (at least {AGREEMENT_CORRELATION:g} needed) where the "
+                f"predicted ones spread by {spread:.3g} - the two IMUs' clocks, mountings or "
+                "units disagree, or they are not on one vehicle")
+    f_m, f_p = means[0][:, :3], means[1][:, :3]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        cos = np.einsum("ij,ij->i", f_m, f_p) / (np.linalg.norm(f_m, axis=1) *
+                                                  np.linalg.norm(f_p, axis=1))
+    angle = float(np.degrees(np.arccos(np.clip(np.nanmedian(cos), -1.0, 1.0)))) \
+        if np.isfinite(cos).any() else float("nan")
+    out["gravity_angle_deg"] = angle
+    if not angle <= GRAVITY_ANGLE_DEG:
+        out["failures"].append(
+            f"the specific forces of the MIMU and of the reference IMU (turned by both "
+            f"mountings) are {angle:.1f} deg apart (median of the {AGREEMENT_BIN_S:g} s means; "
+            f"at most {GRAVITY_ANGLE_DEG:g}): a mounting or an axis is wrong")
+    return out

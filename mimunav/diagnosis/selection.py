@@ -47,7 +47,8 @@ def select(design, train, alpha, full_scale, whole=None):
         passing = [j for j, r in tests.items() if r["logp"] <= math.log(threshold)]
         if not passing:
             break
-        best, alternatives = _encompassing(fitter, current, passing, tests, threshold)
+        best, alternatives = _encompassing(fitter, current, passing, tests, threshold,
+                                           full_scale)
         encompassed, named_on = [], "training half"
         if alternatives and whole is not None:
             before = best
@@ -87,7 +88,7 @@ def _whole_unit_or_one_axis(fitter, best, tests, significant, level):
     return alone[0], [best]
 
 
-def _encompassing(fitter, current, passing, tests, level, contenders=10):
+def _encompassing(fitter, current, passing, tests, level, full_scale, contenders=10):
     """The chosen term among the passing candidates, and those it cannot be told from. The
     strongest alone is not enough (a linear term's Wald test and a slow term's likelihood
     ratio differ in kind): a contender replaces it when it stays significant given the
@@ -96,8 +97,12 @@ def _encompassing(fitter, current, passing, tests, level, contenders=10):
     needs the same evidence as finding a term).
     Candidates that explain each other away are indistinguishable on the training half;
     among them the one of lowest order is named (`library.order`: a g-sensitivity before a
-    g^2 term that mimics it at constant f_z), the others listed - until the whole flight
-    tells them apart (`told_apart`)."""
+    g^2 term that mimics it at constant f_z), and among those of one order the one whose
+    fitted size is the smallest share of its physical range (`library.physical_limit`: the
+    likelier physics - a pull's pitch rate and normal load move together, and a 0.0069
+    gyro cross-coupling of a calibrated unit had been named where a 1.9e-5 (rad/s)/(m/s^2)
+    g-sensitivity, a tenth of its range, was hidden), the others listed - until the whole
+    flight tells them apart (`told_apart`)."""
     design = fitter.design
     ranked = sorted(passing, key=lambda j: (tests[j]["logp"], -tests[j]["stat"]))[:contenders]
     log_level = math.log(level)
@@ -110,7 +115,11 @@ def _encompassing(fitter, current, passing, tests, level, contenders=10):
             best = j
     alike = [j for j in ranked if j != best and not adds(j, best) and not adds(best, j)]
     group = [best] + alike
-    named = min(group, key=lambda j: (library.order(design.terms[j]), tests[j]["logp"]))
+    def share(j):                       # the fitted size over the term's physical range
+        limit = library.physical_limit(design.terms[j], full_scale, design.calibrated)
+        return float(np.linalg.norm(tests[j]["b"])) / limit if np.isfinite(limit) else 0.0
+    named = min(group, key=lambda j: (library.order(design.terms[j]), share(j),
+                                      tests[j]["logp"]))
     return named, [j for j in group if j != named]
 
 

@@ -8,7 +8,7 @@ per channel c:
   - X_cj: the candidate terms of the library (`library`, regressors `effects.regressor`);
   - gamma: the reference IMU's own linear error (scale factor and axis misalignment of each
     triad, seen in the MIMU's axes) with a Gaussian prior of the reference's stated accuracy
-    (`reference.Accuracy`: from the log's `sensor/fog` metadata, the command line, or seed
+    (`sensors.accuracy.Accuracy`: from the log's `sensor/fog` metadata, the command line, or seed
     S1 Table 4) - so the reference's error is neither ignored nor allowed to be anything;
   - b_c: a bias that wanders as a random walk whose level is fitted to the channel's own
     residual by maximum likelihood (`wander`); the bias itself is part of it.
@@ -31,7 +31,7 @@ Procedure:
  3. terms linear in the sensor's own input (scale factor, cross-coupling, mounting
     misalignment: exactly what the reference's own error, or the calibration's own fit
     error, looks like) must pass the same threshold with the stated accuracies of both
-    (`reference.Accuracy`, the calibration file's covariance) added to their variance;
+    (`sensors.accuracy.Accuracy`, the calibration file's covariance) added to their variance;
     so must the terms the model itself carries (g-sensitivity C, nonlinearity A2/A3/W2/W3,
     temperature ct/cw) against the calibration's stated covariance of them
     (`model_allowance`); those significant against the noise alone are listed as
@@ -56,6 +56,7 @@ Procedure:
     for localized excursions (2 s windows, robust z, Bonferroni): an unexplained residual
     with its place.
 """
+import dataclasses
 import math
 from dataclasses import dataclass
 from functools import cache
@@ -67,13 +68,14 @@ from ..compensation.model import poly2
 from ..compensation.effects import AXES
 from ..sensors.mimu import MimuUnit
 from . import library, outputs, wander
-from .reference import accuracy_of
+from ..sensors.accuracy import accuracy_of
+from .reference import agreement
 from ..errors import InputError
 from .design import (Binning, CHANNELS, Design, FAST_BIN_S, detrended, term_contribution,
                      make_design, reference_error, bins, calibration_prior, residual)
 from .fitting import Fitter, term_test
 from .scan import SCAN_WINDOW_S, condition_masks, condition_map, near_spans, excursions
-from .confirmation import beta_of, confirm_chosen, position_of
+from .confirmation import beta_of, confirm_chosen, halves_check, position_of
 from .selection import select
 
 
@@ -108,13 +110,13 @@ class SensorDiagnosis:
 
 def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander=None,
              output_tests=True, noise=None, vibration=None, bin_s=FAST_BIN_S,
-             block_s=SPLIT_BLOCK_S, noise_shape=None, wander_steps=None):
+             block_s=SPLIT_BLOCK_S, noise_shape=None, wander_steps=None, check_reference=True):
     """Sensor-level diagnosis of `flight` (an `evaluation.Flight` with a reference IMU)
     against calibration `cal`. `candidates`: the library to test (default
     `library.candidates()`); `max_wander`: the largest wander level (random-walk step
     variance over the white variance of a bin) the fits may choose - for a reference whose
     own errors are structured and would otherwise pass for wander (`track`); `accuracy`:
-    the reference's `reference.Accuracy` (default: the
+    the reference's `sensors.accuracy.Accuracy` (default: the
     log's metadata, else Table 4); `output_tests`: also test the effects that are no
     regressor (`outputs`: saturation, quantization, the bias's wander and level against the
     MEMS class - not for a reference made from a vehicle's track); `noise`: the unit's
@@ -136,7 +138,8 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
                          "this analysis does not follow the rotation yet - replay and table do")
     acc = accuracy_of(flight.fog_meta, accuracy)
     prep = _prepare(flight, cal, acc, candidates, output_tests, vibration, bin_s, noise_shape,
-                    max_wander, wander_steps)
+                    max_wander, wander_steps, check_reference)
+    output_tests = prep.output_tests
     design = prep.design
     if len(design.t) < 4 * block_s / bin_s:
         raise InputError(f"{flight.path}: {len(design.t) * bin_s:.1f} s of usable MIMU "
@@ -152,6 +155,9 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
     chosen, within = select(design, train, alpha, prep.full_scale, whole)
     findings, rejected = confirm_chosen(design, chosen, train, held, alpha, prep.full_scale,
                                         prep.cond)
+    if flight.source == "recording":        # a real record's halves may differ
+        findings, aside = halves_check(design, findings)
+        rejected = rejected + aside
     everything = whole()
     before, removed = _residuals(design, everything, findings)
     conds = condition_masks(design, prep.cond, prep.bins, prep.usable)
@@ -165,11 +171,15 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
     diag = SensorDiagnosis(findings, unexplained, rejected, within, design, train, conds,
                            {"before": condition_map(design, before, conds),
                             "after": condition_map(design, after, conds)},
-                           before, after, acc.as_dict(), len(design.terms), design.terms,
+                           before, after, design.reference.as_dict(), len(design.terms),
+                           design.terms,
                            everything, outputs.bias_null(noise) if output_tests else None,
                            (flight, *prep.samples["compensated"]))
     diag.inconclusive = [why for why in (stamp_jitter(flight.mimu_t, "the MIMU's"),
                                          stamp_jitter(flight.fog_t, "the reference IMU's")) if why]
+    if prep.agreement is not None:
+        diag.reference_agreement = prep.agreement
+        diag.inconclusive = diag.inconclusive + prep.agreement["failures"]
     return diag
 
 
@@ -184,11 +194,15 @@ class _Prepared:
     full_scale: dict            # {"accel": m/s^2, "gyro": rad/s}
     on_outputs: list            # saturation and quantization findings
     quantized: set              # channels found quantized
+    output_tests: bool          # the tests on the outputs were made
+    agreement: dict | None      # `reference.agreement`, when checked
 
 
 def _prepare(flight, cal, acc, candidates, output_tests, vibration, bin_s, noise_shape,
-             max_wander, wander_steps):
-    """`_Prepared` of `diagnose`: the residual, the tests on the outputs themselves, the
+             max_wander, wander_steps, check_reference):
+    """`_Prepared` of `diagnose`: the residual, whether the reference predicts the MIMU at
+    all (`reference.agreement`: when it does not, nothing is tested - no candidate, no test
+    on the outputs - and the diagnosis says why), the tests on the outputs themselves, the
     design of the candidates on the bins with the stated accuracies as priors."""
     q_sf = np.conjugate(flight.mimu_mounting.q_vs) * flight.fog_mounting.q_vs
     t, res, usable, cond, samples = residual(flight, cal, vibration)
@@ -196,7 +210,12 @@ def _prepare(flight, cal, acc, candidates, output_tests, vibration, bin_s, noise
     full_scale = {"accel": float(flight.mimu_range.get("accel_m_s2", MimuUnit.range_accel)),
                   "gyro": float(flight.mimu_range.get("gyro_rad_s", MimuUnit.range_gyro))}
     on_outputs, quantized = [], set()
+    acc = measured_steps(flight, acc)
     cands = library.candidates() if candidates is None else candidates
+    check = agreement(t, samples["measured"], samples["predicted"], usable, CHANNELS) \
+        if check_reference else None
+    if check is not None and check["failures"]:
+        output_tests, cands = False, []
     if output_tests:
         on_outputs, clipped, quantized = _output_findings(flight, cal, t, samples, full_scale)
         usable = usable & ~clipped
@@ -207,12 +226,37 @@ def _prepare(flight, cal, acc, candidates, output_tests, vibration, bin_s, noise
                          acc.prior(q_sf) + calibration_prior(cal), cal)
     design.q_vs = flight.mimu_mounting.attitude_wxyz
     design.bin_s = bin_s
+    design.calibrated = not cal.is_identity
+    design.reference = acc
     if noise_shape is not None:
         design.shape = Binning(m, usable)(np.asarray(noise_shape, float))[design.kept]
     if max_wander is not None:
         design.levels = wander.LAMBDA_GRID[wander.LAMBDA_GRID <= max_wander]
     design.wander_steps = wander_steps
-    return _Prepared(design, cond, usable, m, samples, full_scale, on_outputs, quantized)
+    return _Prepared(design, cond, usable, m, samples, full_scale, on_outputs, quantized,
+                     output_tests, check)
+
+
+def measured_steps(flight, acc):
+    """`acc` with the step a recording's reference IMU was logged in, where its data show one
+    larger than stated (`outputs.lattice_step`; the triad's largest): a logger's values
+    rounded to a step (a VN-300 written with 2 decimals: 0.01 rad/s) carry a rounding error
+    that does not average away where the input moves slower than a step per sample. Not for
+    a simulated or contract log, whose reference IMU counts pulses: its increments carry
+    their rounding on (a 1 arcsec quantum at 1 kHz sits on a 0.005 rad/s lattice whose error
+    does not accumulate)."""
+    if flight.source != "recording":
+        return acc
+    steps = {}
+    for sensor, x in (("gyro", flight.fog_w), ("accel", flight.fog_f)):
+        found = [q for q in (outputs.lattice_step(x[:, i]) for i in range(3)) if q]
+        if found and max(found) > getattr(acc, f"{sensor}_step") * (1 + 1e-6):   # round-off
+            steps[f"{sensor}_step"] = max(found)
+    if not steps:
+        return acc
+    said = ", ".join(f"{k} {v:.4g}" for k, v in steps.items())
+    return dataclasses.replace(acc, **steps, source=f"{acc.source}; logging steps measured from "
+                               f"its outputs: {said}")
 
 
 def _residuals(design, everything, findings):
@@ -249,23 +293,44 @@ def _after_the_fit(design, removed, conds, findings, prep, alpha, cal, noise, ou
     return unexplained, on_outputs
 
 
-STAMP_JITTER = 0.25     # robust sigma of the sampling steps over the period: beyond it a
+STAMP_JITTER = 0.25     # the stamps' error (robust sigma) over the period: beyond it a
+                        # stamp does not tell which interval its sample averages
+TICKS_S = (1e-3, 1e-4, 1e-5, 1e-6)     # the whole units a logger may stamp in
 
 
 def stamp_jitter(t, whose):
-    """Why the stamps `t` (s) cannot carry a sample-by-sample comparison, or '': their steps
-    scatter (robust sigma, MAD / 0.6745) by more than STAMP_JITTER of the median step (a
-    recording stamped +-5 ms at 100 Hz gave spurious scale terms on the accelerometers)."""
+    """Why the stamps `t` (s) cannot carry a sample-by-sample comparison, or '': their error
+    against a uniform clock (robust sigma, from the steps' scatter: a step holds two stamps'
+    errors) exceeds STAMP_JITTER of the median step (a recording stamped +-5 ms at 100 Hz
+    gave spurious scale terms on the accelerometers). Stamps in whole ticks (`stamp_tick`:
+    a logger that writes whole ms) whose steps stay within a tick of the period are a
+    uniform clock rounded: their error is the rounding's, tick / sqrt 12, not jitter."""
     if t is None or len(t) < 10:
         return ""
     step = np.diff(t)
     period = float(np.median(step))
-    sigma = float(np.median(np.abs(step - period))) / 0.6745
+    spread = float(np.percentile(np.abs(step - period), 99))
+    tick = stamp_tick(t)
+    if tick and spread <= 1.001 * tick:     # whole ticks: the rounding's error, or none when
+        sigma = tick / np.sqrt(12.0) if spread >= 0.5 * tick else 0.0    # the steps are equal
+    else:
+        sigma = float(np.median(np.abs(step - period))) / 0.6745 / np.sqrt(2.0)
     if period > 0 and sigma > STAMP_JITTER * period:
-        return (f"{whose} stamps jitter by {sigma * 1e3:.2g} ms (robust sigma of their steps) on "
-                f"a {period * 1e3:.3g} ms period: a stamp does not say which interval its sample "
-                "averages, and terms driven by fast motion may be that jitter")
+        rounded = f" (stamped in whole {tick * 1e3:g} ms)" if tick else ""
+        return (f"{whose} stamps jitter by {sigma * 1e3:.2g} ms{rounded} (robust sigma of their "
+                f"error) on a {period * 1e3:.3g} ms period: a stamp does not say which interval "
+                "its sample averages, and terms driven by fast motion may be that jitter")
     return ""
+
+
+def stamp_tick(t):
+    """The largest of TICKS_S the stamps t (s, from their first) are whole multiples of, or
+    None."""
+    rel = np.asarray(t, float) - t[0]
+    for tick in TICKS_S:
+        if np.all(np.abs(rel / tick - np.round(rel / tick)) < 1e-3):
+            return tick
+    return None
 
 
 def _output_findings(flight, cal, t, samples, full_scale):

@@ -195,7 +195,8 @@ def diagnose(flight, cal, alpha=0.05, reference=None, accuracy=None):
                            max_wander=wander_limit(bin_s=bin_s), output_tests=False,
                            wander_steps=wander_steps(bin_s=bin_s),
                            vibration=vibration, bin_s=bin_s, block_s=block_s,
-                           noise_shape=rate_noise_shape(ref, trusted, motion, bin_s))
+                           noise_shape=rate_noise_shape(ref, trusted, motion, bin_s),
+                           check_reference=False)     # its own check: `reference_check`
     diag.level = "track"
     diag.reference_check = {
         "correlation_1s": corr, "threshold": PREDICTED_CORRELATION, "slope_1s": slopes,

@@ -13,7 +13,7 @@ from ..motion import truth as truth_mod
 from ..frames.mounting import Mounting
 from ..sensors.mimu import DEG, G0
 from ..motion.vehicle import HOLD_SPEED, TRUSTED_SPEED, TrackMotion
-from .reference import Accuracy
+from ..sensors.accuracy import Accuracy
 from .design import CHANNELS
 from ..errors import InputError
 

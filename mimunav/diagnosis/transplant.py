@@ -48,13 +48,16 @@ G0 = 9.80665
 
 def carrier(base):
     """(Flight, Calibration, f0 m/s^2, w0 rad/s): foreign log `base` (path without .mcap)
-    compensated with its calibration, its own hidden effect removed (sensor axes)."""
+    compensated with its calibration, its own hidden effect removed (sensor axes; a log
+    without an NN.effect.npz hides none)."""
     base = str(base)
     flight = Flight.load(base + ".mcap")
     cal = Calibration.load(base + ".cal.json")
     raw = flight.mimu_raw
     f, w, _ = compensate(cal, raw["accel_volts"], raw["gyro_volts"], raw["accel_temperature"],
                          raw["gyro_frequency"], filter_outliers=False)
+    if not Path(base + ".effect.npz").exists():      # an effect-free log has none to take out
+        return flight, cal, f, w
     effect = np.load(base + ".effect.npz")
     if len(effect["t"]) != len(flight.mimu_t) or \
             np.max(np.abs(effect["t"] - flight.mimu_t)) > 1e-6:
@@ -244,3 +247,92 @@ def _vibrate(flight, out):
     out["accel"] += vibration
     fog_f = flight.fog_f + _to_sensor(flight.fog_mounting, interval_mean(flight.fog_t))
     return dataclasses.replace(flight, fog_f=fog_f), vibration
+
+
+# ---- effect-free variants: the false-alarm bench's nulls ---------------------------------
+DEG_H = math.pi / 180 / 3600
+MG = G0 * 1e-3
+# in-class wander of a calibrated MEMS unit (seed S1 Table 1: zero drift <= 30 deg/h, ~1 mg):
+# per channel a stationary sigma drawn log-uniform in these bounds, well inside the class
+NULL_WANDER = {"gyro": (3 * DEG_H, 15 * DEG_H), "accel": (0.05 * MG, 0.5 * MG)}
+NULL_TAU_S = (30.0, 600.0)      # its correlation time (or a random walk's time scale), s
+REFERENCE_SCALE, REFERENCE_MISALIGNMENT = 2.5e-4, 1e-4     # `sensors.accuracy.Accuracy`'s defaults
+
+
+def null_variant(base, seed):
+    """(Flight, Calibration, what was drawn): foreign log `base` made effect-free (`carrier`)
+    and then varied as real flights vary, without any effect outside the models: the MIMU's
+    bias wanders in its class on every channel (first-order Gauss-Markov with a correlation
+    time of 30-600 s, or a random walk of that time scale); the reference IMU carries
+    scale-factor and misalignment errors drawn at the accuracy the diagnosis assumes; and,
+    each with probability 1/3, airframe vibration on both IMUs, both IMUs at half their
+    rate (exact: interval means of pairs), the MIMU mounted in another orientation (its
+    outputs and mounting turned together)."""
+    rng = np.random.default_rng([seed, 11])
+    flight, cal, f, w = carrier(base)
+    out = {"accel": f.copy(), "gyro": w.copy()}
+    what = {"carrier": Path(str(base)).name, "seed": seed}
+    what["wander"] = _wander(flight.mimu_t, out, rng)
+    flight, what["reference_error"] = _reference_error(flight, rng)
+    if rng.uniform() < 1 / 3:
+        flight, _ = _vibrate(flight, out)
+        what["vibration_g"] = VIBRATION_G
+    raw = dict(flight.mimu_raw)
+    t = flight.mimu_t
+    if rng.uniform() < 1 / 3 and len(t) > 1000:
+        flight, raw, out = _halved(flight, raw, out)
+        what["rate"] = "both IMUs at half rate"
+    if rng.uniform() < 1 / 3:
+        turn = Rotation.random(random_state=rng)
+        for s_ in ("accel", "gyro"):
+            out[s_] = turn.apply(out[s_])
+        q_vs = attitude.from_scipy(attitude.as_scipy(flight.mimu_mounting.q_vs) * turn.inv())
+        flight = dataclasses.replace(flight, mimu_mounting=dataclasses.replace(
+            flight.mimu_mounting, attitude_wxyz=attitude.as_wxyz(q_vs)))
+        what["mounting_turned_deg"] = float(np.degrees(turn.magnitude()))
+    raw["accel_volts"], raw["gyro_volts"] = raw_from_physics(
+        cal, out["accel"], out["gyro"], raw["accel_temperature"], raw["gyro_frequency"])
+    name = f"{what['carrier']}+null{seed}"
+    return dataclasses.replace(flight, mimu_raw=raw, name=name, path=name), cal, what
+
+
+def _wander(t, out, rng):
+    """In place on `out`: each channel's in-class bias wander (NULL_WANDER, NULL_TAU_S)."""
+    tau = float(np.exp(rng.uniform(*np.log(NULL_TAU_S))))
+    kind = str(rng.choice(["gauss-markov", "random-walk"]))
+    dt = np.diff(t, prepend=t[0])
+    for sensor, bounds in NULL_WANDER.items():
+        for i in range(3):
+            sigma = float(np.exp(rng.uniform(*np.log(bounds))))
+            if kind == "gauss-markov":
+                out[sensor][:, i] += gauss_markov(t, sigma, tau, rng)
+            else:                           # sigma reached after tau
+                out[sensor][:, i] += np.cumsum(rng.standard_normal(len(t)) * sigma
+                                               * np.sqrt(dt / tau))
+    return {"kind": kind, "tau_s": tau}
+
+
+def _reference_error(flight, rng):
+    """The flight with its reference IMU's outputs through (I + E) per triad: E's diagonal
+    N(0, REFERENCE_SCALE), off-diagonal N(0, REFERENCE_MISALIGNMENT)."""
+    drawn = {}
+    for name in ("fog_w", "fog_f"):
+        e = np.where(np.eye(3, dtype=bool), rng.normal(0, REFERENCE_SCALE, (3, 3)),
+                     rng.normal(0, REFERENCE_MISALIGNMENT, (3, 3)))
+        drawn[name] = e.tolist()
+        flight = dataclasses.replace(flight, **{name: getattr(flight, name) @ (np.eye(3) + e).T})
+    return flight, drawn
+
+
+def _halved(flight, raw, out):
+    """Both IMUs at half their rate: each pair of interval means averaged into the mean over
+    the two intervals, stamped at the second's end."""
+    def pairs(x):
+        m = len(x) // 2 * 2
+        return 0.5 * (x[:m:2] + x[1:m:2])
+    raw = {k: pairs(v) for k, v in raw.items()}
+    out = {k: pairs(v) for k, v in out.items()}
+    m, mf = len(flight.mimu_t) // 2 * 2, len(flight.fog_t) // 2 * 2
+    flight = dataclasses.replace(flight, mimu_t=flight.mimu_t[1:m:2], fog_t=flight.fog_t[1:mf:2],
+                                 fog_w=pairs(flight.fog_w), fog_f=pairs(flight.fog_f))
+    return flight, raw, out

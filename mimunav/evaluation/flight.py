@@ -37,7 +37,7 @@ class Flight:
     path: str
     name: str
     epoch_ns: int                   # epoch_unix_ns of the flight metadata
-    initial: dict                   # strapdown initial state (t, lat, lon, h, v_ned, q_nb)
+    initial: State                  # the navigation's initial state
     mimu_t: np.ndarray
     mimu_raw: dict | None           # accel_volts, gyro_volts, accel_temperature, gyro_frequency
                                     # (None: a log with the compensated /mimu/imu only)
@@ -58,6 +58,8 @@ class Flight:
                                         # samples when navigated (mimu_raw, fog_w, fog_f None;
                                         # the stamps are held)
     fog_seconds: object = None          # SecondMeans of the reference IMU (f, w), when known
+    recording: dict | None = None       # the log's `recording` metadata (an imported one's:
+                                        # what is real, what assumed, the alignment's biases)
 
     @classmethod
     def load(cls, path, reference_imu=True, max_gap_s=None, stream=False):
@@ -106,6 +108,7 @@ class Flight:
                      None if joint is None else _platform(sec(joint), joint, platform_meta),
                      STREAM_BLOCK if streamed else None,
                      streamed["fog_seconds"] if streamed else None)
+        loaded.recording = meta.get("recording")
         check_plausible(loaded, MAX_GAP_S if max_gap_s is None else max_gap_s,
                         streamed["fog_sample"] if streamed else None)
         return loaded
@@ -277,7 +280,8 @@ def refuse_gaps(flight, max_gap_s=MAX_GAP_S, warn_shorter=False):
         raise LogError(f"{flight.path}: the MIMU misses {n} samples between t = {t[k]:.3f} "
                        f"and {t[k + 1]:.3f} s ({sum(m for _, m in gaps)} in all): "
                        f"navigation would bridge {t[k + 1] - t[k]:.3g} s with one "
-                       "sample; cut the log at the gap")
+                       f"sample; cut the log at the gap: mimunav cut LOG --span "
+                       f"{t[0]:.3f}:{t[k]:.3f} (or {t[k + 1]:.3f}:{t[-1]:.3f}) -o OUT")
     if warn_shorter:
         warn(f"{flight.path}: the MIMU misses {sum(m for _, m in gaps)} samples in "
              f"{len(gaps)} gaps (longest {t[k + 1] - t[k]:.3g} s at t = {t[k]:.3f} s)")
@@ -304,10 +308,14 @@ def check_plausible(flight, max_gap_s=None, fog_sample=None):
                            "not a time series the navigator can integrate")
     t = flight.mimu_t
     refuse_gaps(flight, MAX_GAP_S if max_gap_s is None else max_gap_s, warn_shorter=True)
-    if not t[0] - 1e-6 <= flight.initial.t <= t[-1]:
+    # a sample stamped t_k is the mean over (t_k-1, t_k]: a state at power-on, the left
+    # edge of the first interval (t_0 less one step), starts the first interval (contract)
+    first = t[0] - (t[1] - t[0] if len(t) > 1 else 0.0) * 1.001 - 1e-6
+    if not first <= flight.initial.t <= t[-1]:
         raise LogError(f"{where}: the initial state's t = {flight.initial.t:.3f} s lies "
-                       f"outside the MIMU's stamps {t[0]:.3f} .. {t[-1]:.3f} s (epoch_unix_ns "
-                       "or the stamps' time base off?)")
+                       f"outside the MIMU's stamps {t[0]:.3f} .. {t[-1]:.3f} s and the "
+                       "interval before the first (epoch_unix_ns or the stamps' time base "
+                       "off?)")
     tr = flight.truth
     if tr is not None:
         state = np.column_stack([tr.lat, tr.lon, tr.h, tr.v_ned])

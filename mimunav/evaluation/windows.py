@@ -30,7 +30,19 @@ from ..motion.trajectory import State
 
 WINDOW_LENGTHS_S = (10.0, 30.0, 60.0)
 START_STEP_S = 5.0
-MAX_GAP_S = 1.0             # s: largest reference gap allowed inside a window
+MAX_GAP_S = 1.0             # s: largest reference gap allowed inside a window, at least
+GAP_STEPS = 2.5             # and at least this many of the reference's own median steps: a
+                            # 1 Hz GNSS track steps by 1 s +- its jitter, which a 1 s limit
+                            # refused; one missed epoch (2 s) passes, two (3 s) do not
+
+
+def gap_allowed(truth, max_gap=None):
+    """The longest reference step (s) a window may hold: max_gap when given, else the larger
+    of MAX_GAP_S and GAP_STEPS of the reference's median step."""
+    if max_gap is not None:
+        return max_gap
+    step = float(np.median(np.diff(truth.t))) if len(truth.t) > 1 else 0.0
+    return max(MAX_GAP_S, GAP_STEPS * step)
 
 
 @dataclass
@@ -135,13 +147,13 @@ def run(flight, t0, length, w, f, t_imu=None, half=alignment.MOVING_HALF_WINDOW_
 
 
 def run_all(flight, cal=None, lengths=WINDOW_LENGTHS_S, step=START_STEP_S, time_shift_s=0.0,
-            progress=False, min_speed=None, max_gap=MAX_GAP_S):
+            progress=False, min_speed=None, max_gap=None):
     """All windows of each length: {length: [Window]}, and the alignment at rest that gave
     the gyro bias. The MIMU is compensated with `cal` (`evaluation.compensated_mimu`: for a
     recorded /mimu/imu, None or found terms on an identity base); time_shift_s is added to
     the IMU's stamps (negative: the IMU lags); min_speed (m/s; default: the course speed
     `alignment.COURSE_SPEED` when the reference has no attitude, 0 when it has one) and
-    max_gap (s) as `starts`.
+    max_gap (s; default `gap_allowed`) as `starts`.
     A recording that holds no window at all is a ValueError that says why."""
     if flight.mimu_platform is not None:
         raise InputError(f"{flight.path}: the MIMU turns on a platform (/mimu/platform); "
@@ -149,6 +161,7 @@ def run_all(flight, cal=None, lengths=WINDOW_LENGTHS_S, step=START_STEP_S, time_
     if flight.truth is None:
         raise no_reference(flight.path, "the free-inertial windows")
     w, f, _ = compensated_mimu(flight, cal)
+    max_gap = gap_allowed(flight.truth, max_gap)
     t = flight.mimu_t + time_shift_s
     track = track_of(flight.truth)
     rest = alignment.initial_alignment(t, w, f, flight.mimu_mounting, track)

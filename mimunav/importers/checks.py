@@ -8,8 +8,9 @@ import numpy as np
 import quaternion
 
 from ..navigation import alignment
-from ..navigation.rests import acceleration_match, means_around, span_means, track_acceleration
+from ..navigation.rests import acceleration_match, span_means, track_acceleration
 from ..frames import attitude
+from .pairing import pair
 from .recording import G0, RecordingError, utc_text
 from ..motion.track import velocity_from_positions
 
@@ -41,12 +42,8 @@ def check_recording(rec):
     _check_rate(rec.name, "IMU", rec.imu_ns)
     if rec.reference_imu is not None:
         _check_rate(rec.name, "reference IMU", rec.reference_imu["ns"])
-        _check_reference_imu(rec)
-    g = float(np.median(np.linalg.norm(rec.f, axis=1)))
-    if not 0.5 * G0 < g < 2 * G0:
-        raise RecordingError(f"{rec.name}: the median |specific force| is {g:.3g} m/s^2; a "
-                             "vehicle on Earth feels about 9.8: is the accelerometer's unit "
-                             "(g or m/s^2) right?")
+        pair(rec)
+    g = _gravity_sized(rec)
     ref = rec.reference
     q = None if ref is None else ref.get("q_nb")
     if q is None or np.isfinite(q).all(axis=1).sum() < 10:
@@ -71,95 +68,30 @@ def check_recording(rec):
                              "(deg/s or rad/s) right?")
 
 
-def _check_reference_imu(rec):
-    """The reference IMU must feel 1 g, overlap the IMU in time over at least half the IMU's
-    span, and - where either turns - see the same size of rotation in its 1 s means (|w|
-    does not depend on the mounting: a ratio beyond 0.5-2 is a unit, deg/s read as rad/s,
-    or another vehicle's topic); its stamps must agree with the IMU's within
-    REFERENCE_IMU_MAX_OFFSET_S (`reference_imu_offset_s`: a larger clock offset is beyond
-    the diagnosis' linear time_skew term - 50 ms came out as 41 ms with spurious scale
-    factors beside it); and the two mountings must bring both IMUs' 1 s mean rates and
-    specific forces to the vehicle frame within REFERENCE_IMU_MAX_TURN_DEG of each other
-    (a reference 10 deg off in yaw gave the misalignment and cos 10 deg - 1 as scale
-    factors; 90 deg crashed the diagnosis; its axes forgotten, gravity pointed up)."""
-    ref = rec.reference_imu
-    g = float(np.median(np.linalg.norm(ref["f"], axis=1)))
-    if not 0.5 * G0 < g < 2 * G0:
-        raise RecordingError(f"{rec.name}: the reference IMU's median |specific force| is "
-                             f"{g:.3g} m/s^2, not about 9.8: is its accelerometer's unit right?")
-    lo, hi = max(rec.imu_ns[0], ref["ns"][0]), min(rec.imu_ns[-1], ref["ns"][-1])
-    if hi - lo < 0.5 * (rec.imu_ns[-1] - rec.imu_ns[0]):
-        raise RecordingError(f"{rec.name}: the reference IMU ({utc_text(ref['ns'][0])} .. "
-                             f"{utc_text(ref['ns'][-1])}) covers less than half of the IMU's span "
-                             f"({utc_text(rec.imu_ns[0])} .. {utc_text(rec.imu_ns[-1])}): do the two "
-                             "share a time base?")
-    mids = np.arange(lo + 500_000_000, hi - 500_000_000, 1_000_000_000) / 1e9
-    if len(mids) < 10:
-        return
-    means = [[means_around(ns / 1e9, x, mids, 0.5) for x in (w, f)]
-             for ns, w, f in ((rec.imu_ns, rec.w, rec.f), (ref["ns"], ref["w"], ref["f"]))]
-    ok = np.isfinite(np.hstack([m for pair in means for m in pair])).all(axis=1)
-    if ok.sum() < 10:
-        return
-    size = [np.linalg.norm(pair[0][ok], axis=1) for pair in means]
-    spread = [float(np.std(x)) for x in size]
-    if max(spread) > COURSE_CHECK_RATE:
-        ratio = spread[0] / max(spread[1], 1e-12)
-        if not 0.5 < ratio < 2.0:
-            raise RecordingError(f"{rec.name}: the IMU's rotation rate varies {ratio:.3g} times "
-                                 "as much as the reference IMU's (1 s means of |w|): is one "
-                                 "gyro's unit (deg/s or rad/s) wrong, or the topic another "
-                                 "vehicle's?")
-        offset = reference_imu_offset_s(rec)
-        if abs(offset) > REFERENCE_IMU_MAX_OFFSET_S:
-            raise RecordingError(
-                f"{rec.name}: the reference IMU's stamps are {offset * 1e3:+.1f} ms off the "
-                f"IMU's (|w| of the two best aligned so): shift them with "
-                f"--reference-imu-time-offset {-offset:.4f} (the diagnosis' time_skew is a "
-                f"small-offset term)")
-    mine = [attitude.rotate(rec.mounting.q_vs, x[ok]) for x in means[0]]
-    theirs = [attitude.rotate(ref["mounting"].q_vs, x[ok]) for x in means[1]]
-    from scipy.spatial.transform import Rotation
-    turn, _ = Rotation.align_vectors(np.vstack(mine), np.vstack(theirs))
-    angle = math.degrees(turn.magnitude())
-    if angle > REFERENCE_IMU_MAX_TURN_DEG:
-        fixed = attitude.from_scipy(turn) * ref["mounting"].q_vs
-        yaw, pitch, roll = (_angle_text(a) for a in attitude.as_euler(fixed))
-        raise RecordingError(
-            f"{rec.name}: the reference IMU's rates and specific forces, turned into the vehicle "
-            f"frame by its mounting, lie {angle:.1f} deg from the IMU's: is its mounting (axes) "
-            f"right? They would agree with --reference-imu-rpy-deg {roll} {pitch} {yaw} (the "
-            "diagnosis finds mounting misalignments of a few degrees at most)")
+FELT_GRAVITY_SHARE = 0.05   # of the recording's 1 s means: at least this share (and 3 s)
+                            # feels gravity's size - a vehicle on Earth spends some time on
+                            # the ground, hovering, cruising or under a parachute; a coasting
+                            # rocket's free fall (|f| near 0) is no units error
 
 
-def _angle_text(rad):
-    """An angle in deg to 0.1 for a command line: -180 written 180, no -0.0."""
-    deg = round(math.degrees(float(rad)), 1)
-    return f"{180.0 if deg == -180.0 else deg + 0.0:.1f}"
-
-
-REFERENCE_IMU_MAX_OFFSET_S = 0.01      # s between the two IMUs' stamps the diagnosis takes
-REFERENCE_IMU_MAX_TURN_DEG = 3.0       # deg between their vehicle frames (a small-angle term)
-
-
-def reference_imu_offset_s(rec, search_s=1.0, step_s=0.001):
-    """How late (s) the reference IMU's stamps are on the IMU's, as the stamps of interval
-    means: the shift of the reference's |w| (which does not depend on either mounting) that
-    best matches the IMU's over their common span, on a grid of step_s within +-search_s
-    refined by a parabola."""
-    ref = rec.reference_imu
-    # each sample is the mean over the interval its stamp ends: compare interval centres
-    # (a 100 Hz and a 400 Hz IMU on one clock are 3.75 ms apart by their stamps alone)
-    t, t_r = (ns / 1e9 - 0.5 * np.median(np.diff(ns)) / 1e9 for ns in (rec.imu_ns, ref["ns"]))
-    grid = np.arange(max(t[0], t_r[0]) + search_s, min(t[-1], t_r[-1]) - search_s, 0.01)
-    a = np.interp(grid, t, np.linalg.norm(rec.w, axis=1))
-    size_r = np.linalg.norm(ref["w"], axis=1)
-    shifts = np.arange(-search_s, search_s + 1e-9, step_s)
-    cost = np.array([np.mean((a - np.interp(grid + d, t_r, size_r)) ** 2) for d in shifts])
-    i = int(np.clip(np.argmin(cost), 1, len(shifts) - 2))
-    lo, mid, hi = cost[i - 1:i + 2]
-    curve = lo - 2 * mid + hi
-    return float(shifts[i] + (0.5 * step_s * (lo - hi) / curve if curve > 0 else 0.0))
+def _gravity_sized(rec):
+    """The median |specific force| (m/s^2) of the 1 s means that feel between 0.5 and 2 g;
+    refused when fewer than FELT_GRAVITY_SHARE of them (or 3 s) do: g read as m/s^2 (all
+    near 1) or m/s^2 read as g (near 96) - not a free fall or a boost between rests."""
+    t = (rec.imu_ns - rec.imu_ns[0]) / 1e9
+    sec = np.floor(t).astype(int)
+    count = np.bincount(sec)
+    means = np.column_stack([np.bincount(sec, rec.f[:, i]) for i in range(3)])[count > 0] / \
+        count[count > 0, None]
+    size = np.linalg.norm(means, axis=1)
+    felt = (size > 0.5 * G0) & (size < 2 * G0)
+    if felt.sum() < max(3, FELT_GRAVITY_SHARE * len(size)):
+        raise RecordingError(f"{rec.name}: {felt.sum()} of {len(size)} 1 s means of |specific "
+                             f"force| lie between 0.5 and 2 g (their median "
+                             f"{float(np.median(size)):.3g} m/s^2); a vehicle on Earth feels "
+                             "about 9.8 for a part of its record: is the accelerometer's unit "
+                             "(g or m/s^2) right?")
+    return float(np.median(size[felt]))
 
 
 def _check_overlap(rec):

@@ -4,6 +4,10 @@ GNSS itself (independent, no attitude) or the autopilot's own estimate (`POS` po
 `XKF1` velocity, `ATT` attitude; EKF3 fuses this very IMU: "not independent").
 
 ArduPilot conventions (libraries/AP_Logger/LogStructure.h, AP_InertialSensor, AP_GPS):
+Older logs (ArduPilot 3.x, 2013-2016) stamp in ms since boot (TimeMS, read as TimeUS / 1000),
+log the second IMU as its own IMU2 type, and their GPS message carries TimeMS = the GPS time of
+week in ms, Week and T = ms since boot (read as GMS, GWk, TimeUS); a log with both or neither
+time field of a message is refused, naming it.
 - IMU: TimeUS (us since boot), I (instance; older logs: IMU, IMU2, IMU3 message types),
   GyrX..Z (rad/s), AccX..Z (m/s^2, specific force), T (degC), body frame FRD (x forward,
   y right, z down) with the board orientation applied. The logged values are the sensor's
@@ -55,7 +59,7 @@ def _messages(path):
         if m is None:
             break
         kind = m.get_type()
-        d = m.to_dict()
+        d = _boot_time_us(m.to_dict(), kind, path)
         if kind in ("IMU2", "IMU3", "GPS2"):
             d["I"] = int(kind[-1]) - 1
             kind = kind[:3]
@@ -68,6 +72,22 @@ def _messages(path):
     return out, (f"the file ends inside a record at byte {log.offset} of {log.data_len} "
                  f"({left} bytes left out): the log was cut short, and ends at its last "
                  "whole record") if left > 0 else ""
+
+
+def _boot_time_us(d, kind, path):
+    """A message's fields with its time since boot as TimeUS (module doc: older logs' TimeMS;
+    their GPS's TimeMS, Week, T as GMS, GWk, TimeUS)."""
+    if "TimeUS" in d:
+        return d
+    if kind.startswith("GPS") and "Week" in d:          # ArduPilot 3.x: GPS time + boot ms
+        if "T" not in d:
+            raise RecordingError(f"{path}: a {kind} message without its boot time (T): its "
+                                 "fixes cannot be placed on the IMU's clock")
+        return {**d, "GMS": d.get("TimeMS"), "GWk": d["Week"], "TimeUS": d["T"] * 1000}
+    if "TimeMS" in d:
+        return {**d, "TimeUS": d["TimeMS"] * 1000}
+    raise RecordingError(f"{path}: a {kind} message with neither TimeUS nor TimeMS: no time "
+                         "since boot")
 
 
 def _instance(table, instance):

@@ -8,6 +8,7 @@ import numpy as np
 
 from ..frames import attitude
 from ..frames.mounting import Mounting
+from .kinds import VEHICLES
 from ..errors import InputError
 
 
@@ -39,7 +40,7 @@ class Recording:
       is measured and what this import assumed;
     reference_imu: optional second IMU flown with it that serves as the reference IMU
       (/fog/imu: the sensor level of the diagnosis) {ns, w rad/s, f m/s^2 (its sensor axes),
-      mounting (`Mounting`), model, optional accuracy (`diagnosis.reference.Accuracy` keys)}."""
+      mounting (`Mounting`), model, optional accuracy (`sensors.accuracy.Accuracy` keys)}."""
     name: str
     description: str
     imu_ns: np.ndarray
@@ -53,6 +54,9 @@ class Recording:
     real: dict = field(default_factory=dict)
     assumed: dict = field(default_factory=dict)
     reference_imu: dict | None = None
+    vehicle: str | None = None      # what carried the IMU, one of VEHICLES, when declared
+    range: dict = field(default_factory=dict)   # the IMU's full scale when known: gyro_rad_s,
+                                                # accel_m_s2 (outputs at it are clipped)
 
     def __post_init__(self):
         self.imu_ns = np.asarray(self.imu_ns, dtype=np.int64)
@@ -75,6 +79,9 @@ class Recording:
                                f"sample {int(np.argmax(bad))}); a log must not carry them")
         if self.reference_imu is not None:
             self.reference_imu = _checked_reference_imu(self.name, self.reference_imu)
+        if self.vehicle is not None and self.vehicle not in VEHICLES:
+            raise RecordingError(f"{self.name}: vehicle {self.vehicle!r}: one of "
+                                 f"{', '.join(VEHICLES)}")
 
     def shift_reference_imu(self, offset_s, why):
         """Add offset_s (s) to the reference IMU's stamps, saying so (`why`) in the assumed
@@ -83,7 +90,9 @@ class Recording:
             raise InputError("--reference-imu-time-offset: the recording has no reference IMU "
                              "(--reference-imu-topic, [reference_imu], --reference-imu-instance)")
         self.reference_imu["ns"] = self.reference_imu["ns"] + int(round(offset_s * 1e9))
-        self.assumed["reference_imu_time"] = f"its stamps shifted by {offset_s:+.4f} s ({why})"
+        said = f"its stamps shifted by {offset_s:+.4f} s ({why})"
+        before = self.assumed.get("reference_imu_time")
+        self.assumed["reference_imu_time"] = f"{before}; then {said}" if before else said
 
     @property
     def sample_rate_hz(self):

@@ -3,8 +3,9 @@ given to an importer that does not read it is refused, not silently ignored."""
 import numpy as np
 
 from ..errors import InputError, require
+from .kinds import KINDS
 
-KINDS = ("rtklib", "ros2", "ulog", "dataflash", "table")
+
 # option -> (the importers that read it, its default)
 OPTIONS = {
     "imu_instance": (("dataflash", "ulog"), None), "reference": (("dataflash",), "auto"),
@@ -14,7 +15,8 @@ OPTIONS = {
     "fix_topic": (("ros2",), None), "pose_topic": (("ros2",), None), "origin": (("ros2",), None),
     "reference_status": (("ros2",), None), "reference_sigma": (("ros2",), np.inf),
     "reference_imu_topic": (("ros2",), None), "reference_imu_rpy_deg": (("ros2",), None),
-    "solutions": (("rtklib",), ["fix"]), "root": (("table",), None)}
+    "solutions": (("rtklib",), ["fix"]), "root": (("table",), None),
+    "vehicle": (KINDS, None)}
 
 
 def refuse_foreign(kind, options):
@@ -36,6 +38,8 @@ def read(kind, source, mounting=None, **options):
     refuse_foreign(kind, options)
     o = {name: options.get(name, default) for name, (_, default) in OPTIONS.items()}
     rec = READERS[kind](source, mounting, o)
+    if o["vehicle"] is not None:
+        rec.vehicle = o["vehicle"]
     if o["reference_imu_time_offset"]:
         rec.shift_reference_imu(o["reference_imu_time_offset"], "command line")
     return rec

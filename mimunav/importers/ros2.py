@@ -154,7 +154,8 @@ def read(path, imu_topic=None, fix_topic=None, mounting=None, reference_status=N
             raise RecordingError(f"{path}: the reference IMU's topic is the IMU's own ({topic})")
         r_ns, r_w, r_f, r_dropped = _imu(path, topic)
         second = dict(ns=r_ns, w=r_w, f=r_f, mounting=reference_imu_mounting or FLU_TO_FRD,
-                      model=f"reference IMU of {topic}")
+                      model=f"reference IMU of {topic}",
+                      mounting_hint="--reference-imu-rpy-deg {roll} {pitch} {yaw}")
         real["reference_imu"] = (f"{topic} ({len(r_ns) + r_dropped} messages; {r_dropped} "
                                  "repeated stamps dropped)")
         assumed["reference_imu_mounting"] = ("REP-103 body axes -> FRD" if

@@ -6,13 +6,16 @@
                     line) are dropped and counted
     imu_*.csv.tag   RTKLIB time tags: 60-byte text header, uint32 tick_f, uint32 start
                     (GPST s since 1970), float64 fraction, then (uint32 tick ms, uint32 file
-                    position) records: the receiving computer's clock when each piece of the
-                    stream arrived. The first and last IMU ticks are mapped linearly onto the
-                    first and last tag ticks, [start + first, start + last]: both ends are
-                    arrival times. (The data README maps onto [start, start + last]; that
-                    stretches the IMU's 548.59 s by the 0.131 s before the first arrival,
-                    2.4e-4, and the yaw-rate lag then drifts from 0 to 0.13 s along the drive
-                    - measured by `diagnosis.track.time_lag` per segment. With both ends as
+                    position) records: the receiving computer's clock when the stream's
+                    bytes up to that position had arrived. Each tag times the last complete
+                    line at its position; the IMU ticks go onto the tags by a line fitted
+                    over all of them (`clock_fit`: the IMU clock's rate measured, lines
+                    logged before the first tag placed too). Where the positions do not
+                    meet the lines, the first and last ticks are mapped onto the first and
+                    last tags (`imu_stamps_ns`). (The data README maps onto [start, start +
+                    last]; that stretches the IMU's 548.59 s by the 0.131 s before the first
+                    arrival, 2.4e-4, and the yaw-rate lag then drifts from 0 to 0.13 s along
+                    the drive - measured by `diagnosis.track.time_lag` per segment. With
                     arrival times the stamps carry the stream's latency as a constant lag.)
     *.pos           RTKLIB solution: GPST date and time, lat, lon [deg], height [m,
                     ellipsoidal], Q (1 fix, 2 float), ns, sdn, sde, sdu, sdne, sdeu, sdun [m],
@@ -217,14 +220,76 @@ def find_files(folder):
     return csv, tag, one("*.pos")
 
 
+MAX_DRIFT = 1e-3        # a crystal holds +-20-50 ppm; twenty times that is no clock's rate
+
+
+def csv_line_ends(path):
+    """The byte offset after each line of the file (its line endings as they are)."""
+    with open(path, "rb") as fh:
+        return np.cumsum([len(line) for line in fh], dtype=np.int64)
+
+
+def clock_fit(ticks, ends, tag_ticks, tag_positions):
+    """(a ms, b, what was measured) of the map tag tick = a + b * IMU tick, fitted by least
+    squares over every time tag: a tag says when the stream's bytes up to its file position
+    had arrived, so it times the last complete line there. Both tick counters unwrapped. The
+    lines' ends must meet the tags' positions (the last tag at the file's end, within a line;
+    a file whose CRLF endings were turned into LF is met by one byte a line): else None, and
+    the caller maps the ends. Refused (RecordingError) when the fitted rate is beyond
+    MAX_DRIFT or the tags leave the line by more than the ends' allowance (`imu_stamps_ns`):
+    the ticks and the tags are not one recording's."""
+    ticks, tag_ticks = _unwrapped(ticks), _unwrapped(tag_ticks)
+    longest = int(np.max(np.diff(np.r_[0, ends]))) if len(ends) else 0
+    for extra, how in ((0, "as written"), (1, "one byte a line more: CRLF read as LF")):
+        shifted = ends + extra * np.arange(1, len(ends) + 1)
+        if len(shifted) and abs(int(tag_positions[-1]) - int(shifted[-1])) <= longest + extra:
+            break
+    else:
+        return None
+    line = np.searchsorted(shifted, tag_positions, side="right") - 1
+    ok = line >= 0
+    if ok.sum() < 10:
+        return None
+    x, y = ticks[line[ok]].astype(float), tag_ticks[ok].astype(float)
+    b, a = np.polyfit(x - x[0], y, 1)
+    a -= b * x[0]
+    residual = y - (a + b * x)
+    span = (x[-1] - x[0]) / 1e3
+    step = float(np.max(np.diff(tag_ticks))) / 1e3 if len(tag_ticks) > 1 else 0.0
+    allowed = CLOCK_PPM * span + 2 * step
+    worst = float(np.max(np.abs(residual))) / 1e3
+    if abs(b - 1) > MAX_DRIFT or worst > allowed:
+        raise RecordingError(
+            f"the IMU's ticks against its time tags (each tag timing the line at its file "
+            f"position): rate {(b - 1) * 1e6:+.0f} ppm (at most {MAX_DRIFT * 1e6:.0f}), tags up "
+            f"to {worst:.3f} s off the line (at most {allowed:.3f} s): the CSV and its .tag are "
+            "not of one recording, or one of them was cut or spliced")
+    said = (f"fitted over {int(ok.sum())} time tags by the lines at their file positions "
+            f"({how}): the IMU's clock runs {(b - 1) * 1e6:+.1f} ppm against the computer's; "
+            f"the tags scatter {np.std(residual):.1f} ms about the line (the stream's latency, "
+            "whose mean the stamps keep as a constant lag)")
+    return a, b, said
+
+
 def read_drive(folder, mounting=None, name=None, solutions=(1,)):
     """The drive in `folder` as a `Recording` (IMU in SI sensor axes; as the reference the
     RTK epochs whose Q is in `solutions` (1 fix, 2 float, 5 single) and that carry velocity;
     every epoch also as a GNSS fix with its sigmas)."""
     csv, tag, pos = find_files(folder)
     ticks, f, w, dropped = read_imu_csv(csv)
-    start, tag_ticks, _ = read_time_tags(tag)
-    ns = imu_stamps_ns(ticks, start, tag_ticks)
+    start, tag_ticks, tag_positions = read_time_tags(tag)
+    ends = np.delete(csv_line_ends(csv), np.asarray(dropped, int) - 1)
+    fitted = clock_fit(ticks, ends, tag_ticks, tag_positions)
+    if fitted is None:
+        ns = imu_stamps_ns(ticks, start, tag_ticks)
+        timing = (f"first and last IMU ticks mapped onto the first and last RTKLIB time tags "
+                  f"(arrival times) of {os.path.basename(tag)} (its file positions do not meet "
+                  "the CSV's lines: an excerpt?)")
+    else:
+        a, b, said = fitted
+        ms = a + b * _unwrapped(ticks).astype(float)
+        ns = np.round((start - GPS_UTC_LEAP_S + ms / 1e3) * 1e9).astype(np.int64)
+        timing = f"IMU ticks onto the RTKLIB time tags of {os.path.basename(tag)}, {said}"
     # a repeated tick (or one behind a sample already kept): keep the first
     keep = np.concatenate([[True], ns[1:] > np.maximum.accumulate(ns)[:-1]])
     if (~keep).mean() > 0.01:
@@ -264,9 +329,8 @@ def read_drive(folder, mounting=None, name=None, solutions=(1,)):
                    + (f"; {back} whose tick repeats or goes back dropped, first at line "
                       f"{int(np.argmax(~keep)) + 1} of the complete ones" if back else "")
                    + f"); g -> m/s^2 by {G_UNIT}, deg/s -> rad/s; no temperature channel",
-            "imu_time": f"first and last IMU ticks mapped onto the first and last RTKLIB time "
-                        f"tags (arrival times) of {os.path.basename(tag)}, GPST - "
-                        f"{GPS_UTC_LEAP_S} s = UTC; the stream's latency is not removed",
+            "imu_time": f"{timing}; GPST - {GPS_UTC_LEAP_S} s = UTC; the stream's latency "
+                        "is not removed",
             "reference": f"RTK solution {os.path.basename(pos)}: {int(good.sum())} {kinds} "
                          f"epochs with velocity of {len(good)} ({counts}); velocity from "
                          f"{velocity}",

@@ -41,7 +41,7 @@ def write_log(rec, path, force=False):
             "epoch_unix_ns": str(epoch), "source": "recording", "initial_state": initial})
         log.metadata("sensor/mimu", {
             "model": rec.model, "sample_rate_hz": f"{rate:.6g}",
-            "mounting": rec.mounting.as_dict()})      # range: unknown, not written
+            "mounting": rec.mounting.as_dict(), **({"range": rec.range} if rec.range else {})})
         log.metadata("recording", {"real": json.dumps(rec.real), "assumed": json.dumps(assumed),
                                    "gyro_bias_static_rad_s": list(map(float, align.gyro_bias)),
                                    "accel_bias_m_s2":
@@ -49,7 +49,9 @@ def write_log(rec, path, force=False):
                                    "static_s": (None if np.isnan(align.static[0]) else
                                                 [float(align.static[0]), float(align.static[1])]),
                                    "observed_max": {"gyro_rad_s": float(np.abs(rec.w).max()),
-                                                    "accel_m_s2": float(np.abs(rec.f).max())}})
+                                                    "accel_m_s2": float(np.abs(rec.f).max())},
+                                   "initial_heading": align.heading,
+                                   "vehicle": rec.vehicle})
         channels = [("/mimu/imu", S.IMU, "mimu", rec.imu_ns, S.imu_fields(rec.w, rec.f))]
         if rec.reference_imu is not None:
             ref_imu = rec.reference_imu
@@ -118,6 +120,8 @@ def summary(rec, align, path):
              + (f", {len(rec.reference['ns'])} reference epochs" if rec.reference else "")
              + (f", {len(rec.fixes['ns'])} GNSS fixes" if rec.fixes else "")]
     lines += [f"assumed {key}: {value}" for key, value in rec.assumed.items()]
+    if "clipped" in rec.real:
+        lines.append(f"clipped: {rec.real['clipped']}")
     if "mounting_yaw_against_course" in rec.real:
         lines.append(f"measured mounting yaw: {rec.real['mounting_yaw_against_course']}")
     lines.append(f"initial state at t = {align.t:.3f} s: {align.method}")

@@ -28,7 +28,7 @@ from scipy.spatial.transform import Rotation
 
 from ..frames import attitude, earth
 from ..errors import InputError
-from .rests import (G0, MIN_STATIC_S, QUIET_WINDOW_S, STATIC_MARGIN_S, STATIC_SPEED, track_still,
+from .rests import (G0, MIN_STATIC_S, felt_at_rest, QUIET_WINDOW_S, STATIC_MARGIN_S, STATIC_SPEED, track_still,
                     quiet_stretches, rest_intervals, travel_sign, velocity_noise, yaw_turned)
 
 
@@ -48,8 +48,11 @@ class Alignment:
     (m/s^2, sensor axes: its part along gravity at a rest, whole from a reference's attitude
     and velocity) of the rest `static` (t0, t1) s they came from ((nan, nan): no rest - the
     biases from the reference's attitude and velocity when it has them, else 0),
-    `at_rest_start` (the state is that of a rest that starts the recording), and `method`
-    (how each part was obtained, for the log's metadata)."""
+    `at_rest_start` (the state is that of a rest that starts the recording), `method`
+    (how each part was obtained, for the log's metadata), and where the heading came from
+    (`heading`: "reference" - its own attitude; "course" - the GNSS course, a vehicle that
+    moves along its forward axis, true of a car, not of a walker's phone or a multicopter;
+    "assumed" - nothing measured it, 0)."""
     t: float
     lat: float
     lon: float
@@ -61,6 +64,7 @@ class Alignment:
     static: tuple
     method: str
     at_rest_start: bool = True
+    heading: str = "assumed"
 
     @property
     def navigable_from(self):
@@ -115,7 +119,8 @@ def initial_alignment(t, w, f, mounting, track=None):
     case applies, an InputError says what the recording lacks."""
     if track is None or len(track["t"]) < 2:
         return _untracked(t, w, f, mounting)
-    rests = rest_intervals(track["t"], track["v_ned"], float(t[0]), float(t[-1]))
+    rests, not_rests = felt_at_rest(t, w, f, rest_intervals(track["t"], track["v_ned"],
+                                                            float(t[0]), float(t[-1])))
     if rests and rests[0][0] <= t[0]:
         return _from_rest(t, w, f, mounting, track, rests[0])
     # a noisy fix's differenced speed can hide a rest the IMU and the fix's positions show
@@ -129,7 +134,8 @@ def initial_alignment(t, w, f, mounting, track=None):
                             "reference's positions (its differenced speed is too noisy to "
                             "show it); " + align.method)
             return align
-    notes = [f"no rest of {MIN_STATIC_S:g} s starts the recording"]
+    notes = [f"no rest of {MIN_STATIC_S:g} s starts the recording"] + \
+        [why for _, _, why in not_rests]
     q_ref, t_ref = reference_attitude(track, float(t[0]))
     speed = np.hypot(track["v_ned"][:, 0], track["v_ned"][:, 1])
     half = moving_half_window(track)
@@ -160,15 +166,17 @@ def initial_alignment(t, w, f, mounting, track=None):
                 f"its epochs faster than {COURSE_SPEED:g} m/s all lie in stretches the IMU "
                 "and the reference's positions show at rest (a noisy fix's speed)"
                 if moving.any() else
-                f"it never moves faster than {COURSE_SPEED:g} m/s (peak {speed.max():.2f} m/s) "
-                f"with {half:g} s of IMU and reference on both sides") +
+                f"where {half:g} s of IMU and reference lie on both sides its speed peaks at "
+                f"{speed[inside].max() if inside.any() else 0.0:.2f} m/s, below "
+                f"{COURSE_SPEED:g} m/s (over the whole reference: {speed.max():.2f} m/s)") +
             " for a moving alignment")
     lat, lon, h = (float(np.interp(t0, track["t"], x)) for x in (
         track["lat"], unwrapped_longitude(track["lon"]), track["h"]))
     v0 = np.array([np.interp(t0, track["t"], track["v_ned"][:, i]) for i in range(3)])
     notes.append(bias_note)
     return Alignment(t0, lat, lon, h, v0, q_nb, gyro_bias, accel_bias, static,
-                     "; ".join(notes), at_rest_start=False)
+                     "; ".join(notes), at_rest_start=False,
+                     heading="reference" if q_ref is not None else "course")
 
 
 def _untracked(t, w, f, mounting):
@@ -215,20 +223,23 @@ def _from_rest(t, w, f, mounting, track, interval):
                                      for x in track["t"][k]])
         weight = speed[k] ** 2          # a course's noise falls as the speed rises
         yaw = math.atan2(np.sum(weight * np.sin(at_rest)), np.sum(weight * np.cos(at_rest)))
+        heading = "course"
         notes.append(f"heading from the GNSS course over {len(k)} epoch(s) from t = "
                      f"{track['t'][k[0]]:.2f} s ({speed[k[0]]:.1f} m/s) less the gyro's yaw "
                      "since the rest (non-holonomic: no side slip)")
     elif q_ref is not None:
         yaw = float(attitude.as_euler(attitude.from_wxyz(q_ref))[0])
+        heading = "reference"
         notes.append(f"heading from the reference's attitude at t = {t_ref:.2f} s")
     else:
-        yaw = 0.0
+        yaw, heading = 0.0, "assumed"
         notes.append(f"heading assumed 0 (the track never exceeds {COURSE_SPEED:g} m/s and "
                      "carries no attitude)")
     q_nb = attitude.from_euler(np.array(yaw), np.array(pitch), np.array(roll))
     gyro_bias, accel_bias = _rest_biases(w[rest], f[rest], q_nb * q_vs, lat, h)
     return Alignment(float(t[0]), lat, lon, h, np.zeros(3), attitude.as_wxyz(q_nb),
-                     gyro_bias, accel_bias, (float(t[0]), float(t_end)), "; ".join(notes))
+                     gyro_bias, accel_bias, (float(t[0]), float(t_end)), "; ".join(notes),
+                     heading=heading)
 
 
 def _rest_biases(w, f, q_ns, lat, h):

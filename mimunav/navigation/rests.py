@@ -44,6 +44,28 @@ def rest_intervals(t_track, v_ned, t_first, t_last):
     return out
 
 
+def felt_at_rest(t, w, f, rests):
+    """The rests [(t0, t1)] s (a reference's, `rest_intervals`) where the IMU feels one too:
+    its mean specific force gravity's size (within REST_GRAVITY) and its mean rate about the
+    Earth's (within REST_RATE) - a reference that stands still while the IMU falls freely or
+    spins (a rocket's apogee under a stalled GNSS velocity) is no rest; ([kept], [(t0, t1, why
+    not)])."""
+    kept, refused = [], []
+    for t0, t1 in rests:
+        k = (t >= t0) & (t <= t1)
+        if not k.any():
+            continue
+        g_err = float(np.linalg.norm(f[k].mean(axis=0))) - G0
+        rate = float(np.linalg.norm(w[k].mean(axis=0)))
+        if abs(g_err) <= REST_GRAVITY and rate <= REST_RATE:
+            kept.append((t0, t1))
+        else:
+            refused.append((t0, t1, f"the reference stands still {t0:.2f}-{t1:.2f} s but the IMU "
+                                    f"feels |f| {g_err + G0:.2f} m/s^2 and |w| "
+                                    f"{math.degrees(rate):.1f} deg/s there: no rest"))
+    return kept, refused
+
+
 def yaw_turned(t, w_v, t0, t1):
     """Yaw (rad) a level vehicle turned between t0 and t1 from vehicle-axis rates (rad/s):
     the integral of the rate about down (small-tilt approximation of the Euler rate)."""
@@ -61,6 +83,11 @@ QUIET_HOLE = 2              # windows: a louder moment inside a rest does not sp
 QUIET_RATE = math.radians(1.0)      # rad/s: a resting consumer gyro's mean rate (its bias) stays below
 QUIET_GRAVITY = 0.3         # m/s^2: |mean f| - g at rest, beyond a consumer accelerometer's bias
 G0 = 9.80665                # m/s^2, standard gravity (a resting IMU feels about this)
+REST_GRAVITY = 0.2 * G0     # m/s^2: | |mean f| - g | at a rest a reference shows, at most: beyond
+                            # any MEMS part's bias (a consumer accelerometer's 0.05 g), far below
+                            # a coasting rocket's free fall (|f| near 0)
+REST_RATE = math.radians(10.0)  # rad/s: |mean w| there, at most: beyond a consumer gyro's
+                            # uncalibrated bias (a few deg/s), below a spinning body's rate
 
 
 def quiet_stretches(t, w, f, track=None):

@@ -152,8 +152,9 @@ def _verdict_lines(doc, cal_label):
 
 
 def _reference_lines(doc):
-    """What the reference predicts (the track level's check) and the time lag."""
-    lines = []
+    """What the reference predicts (the sensor level's agreement, the track level's check)
+    and the time lag."""
+    lines = _agreement_lines(doc.get("reference_agreement"))
     check = doc.get("reference_check")
     if check:
         corr = check["correlation_1s"]
@@ -197,14 +198,43 @@ def _reference_lines(doc):
     return lines
 
 
+def _agreement_lines(check):
+    """The sensor level's check that the reference IMU predicts the MIMU at all."""
+    if not check:
+        return []
+    chans = check["channels"]
+    judged = "judged where the predicted means spread beyond the noise"
+    return ["## Does the reference IMU predict the MIMU?", "",
+            f"Correlation of the recorded and predicted {check['bin_s']:g} s means ({judged}); "
+            f"the mean specific forces are {check['gravity_angle_deg']:.2f} deg apart.", "",
+            "| channel | " + " | ".join(chans) + " |", "|" + "---|" * (len(chans) + 1),
+            "| correlation | " + " | ".join("n/a" if v["correlation"] is None else
+                                           f"{v['correlation']:.3f}" for v in chans.values())
+            + " |",
+            "| predicted spread | " + " | ".join(f"{v['predicted_spread']:.3g}"
+                                                for v in chans.values()) + " |", ""] + \
+        [f"- {why}" for why in check["failures"]] + ([""] if check["failures"] else [])
+
+
+def _size(f):
+    """A finding's effect size (`confirmation.effect_size`) as the table shows it."""
+    size = f.get("effect_size")
+    if size is None:
+        return "-"
+    of_range = size.get("of_physical_range")
+    return f"{size['heldout_variance_removed']:.2%} / " + ("-" if of_range is None else
+                                                           f"{of_range:.0%}")
+
+
 def _finding_lines(doc):
     """The found terms: the table, what their held-out rms says, where each acts."""
     lines = []
     if doc["findings"]:
         lines += ["## Found terms (coefficient and 95 % interval from the held-out segments)", "",
                   "| term | coefficient | 95 % interval | units | p train / Holm limit | "
-                  "p held-out | attribution | held-out rms before -> after | cannot be told from |",
-                  "|---|---|---|---|---|---|---|---|---|"]
+                  "p held-out | held-out variance removed / of physical range | attribution | "
+                  "held-out rms before -> after | cannot be told from |",
+                  "|---|---|---|---|---|---|---|---|---|---|"]
         for f in doc["findings"]:
             fit = f["fit"]
             alt = ", ".join(a["label"] for a in f["indistinguishable_from"]) or "-"
@@ -215,7 +245,7 @@ def _finding_lines(doc):
             lines.append(
                 f"| {f['label']} | {f['coefficient']:.4g}{vec} | [{f['ci95'][0]:.4g}, "
                 f"{f['ci95'][1]:.4g}] | {f['units']} | {p_text(f['p_train'])} / "
-                f"{f['holm_threshold']:.2g} | {p_text(f['p_heldout'])} | "
+                f"{f['holm_threshold']:.2g} | {p_text(f['p_heldout'])} | {_size(f)} | "
                 f"{_support(f)} | {fit['heldout_rms_before']:.4g} -> "
                 f"{fit['heldout_rms_after']:.4g} {fit['units']} | {alt} |")
         flat = [f for f in doc["findings"]
@@ -233,6 +263,13 @@ def _finding_lines(doc):
                       + ", ".join(f["label"] for f in flat if f["label"] not in slow)
                       + " does not fall on its basis: it is confirmed by its test (p "
                       "held-out), which this rms does not repeat."]
+        wide = [f for f in doc["findings"] if isinstance(f.get("halves"), dict)
+                and f["halves"]["widened_by"] > 1]
+        if wide:
+            lines += ["", "The recording's halves disagree on " + ", ".join(
+                f"{f['label']} (p {f['halves']['p_same']:.2g}: its intervals widened "
+                f"{f['halves']['widened_by']:.2f}x)" for f in wide) + "; the terms refitted on "
+                "each half are in diagnosis.json (`halves`)."]
         lines += ["", "Where each term acts (first spans; all in diagnosis.json):", ""]
         for f in doc["findings"]:
             for w in f["where"][:5]:
@@ -294,8 +331,12 @@ def _navigation_lines(doc):
                       "model's other errors dominate it (and errors can cancel in part), so one "
                       "term's removal can go either way; the held-out residual rms above is the "
                       "measure of each term."]
-        lines += ["", "`CAL+found.json` holds the model with the found terms: "
-                  "`mimunav table LOG --cal model=CAL --cal found=CAL+found.json` compares them."]
+        compare = ("`mimunav table LOG --cal model=CAL --cal found=CAL+found.json` compares "
+                   "them" if doc["level"] == "sensor" else
+                   "`mimunav windows LOG --cal CAL+found.json -o DIR` navigates with them "
+                   "(free-inertial windows against the reference; `mimunav table` needs a "
+                   "reference IMU, which this log has not)")
+        lines += ["", f"`CAL+found.json` holds the model with the found terms: {compare}."]
     return lines
 
 

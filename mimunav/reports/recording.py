@@ -27,7 +27,7 @@ from ..frames import attitude
 from ..evaluation import windows
 from ..evaluation.flight import Flight, no_reference, refuse_gaps
 from ..compensation.calibration_file import Calibration
-from ..diagnosis import track
+from ..diagnosis import levels
 from ..diagnosis.document import document
 from ..compensation.calibration_file import with_found
 from ..errors import InputError
@@ -61,12 +61,11 @@ def write(log_path, out_dir, force=False, progress=True, min_speed=None,
         if flight.truth is None and flight.fog_t is None:
             raise no_reference(log_path, "the track level, and no reference IMU "
                                           "(/fog/imu) for the sensor level")
-        if flight.fog_t is None:        # the track level leaves the gaps' surroundings out
-            diag = track.diagnose(flight, cal)
-        else:           # a recording with a reference IMU: the sensor level, which navigates
-            from ..diagnosis import sensor
+        level, why = levels.choose(flight)
+        if level != "track":            # the track level leaves the gaps' surroundings out
             refuse_gaps(flight)
-            diag = sensor.diagnose(flight, cal)
+        diag = levels.diagnose(flight, cal, level)
+        diag.level_choice = why
         doc = document(Path(log_path).name, diag)
     except InputError as exc:
         no_diagnosis = str(exc)

@@ -95,7 +95,7 @@ class FogUnit:
 
     def accuracy(self):
         """The 1-sigma accuracy this unit's residual errors were drawn from, as the `accuracy`
-        object of the log's `sensor/fog` metadata (`diagnosis.reference.Accuracy`)."""
+        object of the log's `sensor/fog` metadata (`sensors.accuracy.Accuracy`)."""
         return {"gyro_scale": self.scale_sigma, "accel_scale": self.scale_sigma,
                 "gyro_misalignment_rad": self.misalignment_sigma,
                 "accel_misalignment_rad": self.misalignment_sigma}

@@ -173,3 +173,16 @@ def test_a_new_users_slips_get_one_line_and_lose_nothing(good, tmp_path, capsys)
         assert words in err and len(err.strip().splitlines()) == 1, (argv, err)
     assert (cal.read_bytes(), open(good, "rb").read()) == kept
     assert not (tmp_path / "r").exists() and not (tmp_path / "w").exists()
+
+
+def test_an_initial_state_at_power_on_starts_the_first_interval(good):
+    """A sample stamped t_k is the mean over (t_k-1, t_k]: a state at the left edge of the
+    first interval (one step before the first stamp) is the flight's start, not an error;
+    three steps before is (foreign-flights-2 class: initial_state.t = 0, first stamp dt)."""
+    log, _ = good
+    flight = Flight.load(log)
+    t = flight.mimu_t
+    step = t[1] - t[0]
+    check_plausible(replace(flight, initial=replace(flight.initial, t=t[0] - step)))
+    with pytest.raises(LogError, match="interval before the first"):
+        check_plausible(replace(flight, initial=replace(flight.initial, t=t[0] - 3 * step)))

@@ -123,7 +123,7 @@ def test_a_size_effect_that_replaces_a_lever_arm_is_chosen_once(monkeypatch):
     terms = [{"effect": "lever_arm", "sensor": "imu", "axis": "all"},
              {"effect": "size_effect", "sensor": "accel", "axis": "x"},
              {"effect": "bias_shift", "sensor": "accel", "axis": "y"}]
-    design = SimpleNamespace(terms=terms)
+    design = SimpleNamespace(terms=terms, calibrated=False)
 
     def test(fitter, chosen, j):
         others = [i for i in chosen if i != j]

@@ -230,3 +230,15 @@ def test_reproduce_shares_one_pool_and_its_units_are_the_campaigns(profile, tmp_
         table3.reproduce(tmp_path / "broken", seed=5, mc_units=2, progress=False,
                          scenario=scenario)
     assert not (tmp_path / "broken" / "table3.md").exists()
+
+
+@pytest.mark.slow
+def test_the_campaign_command_runs_a_unit_and_prints_its_table(profile, tmp_path, capsys):
+    """The command's own glue (scenario options -> run_campaign -> summary), not only the
+    library: a local once shadowed the scenario builder there."""
+    from mimunav.cli.program import main
+    out = tmp_path / "c.jsonl"
+    assert main(["campaign", profile, "-o", str(out), "--units", "1", "--workers", "1"]) == 0
+    printed = capsys.readouterr().out
+    assert "Monte Carlo over 1 units" in printed and "| FOG-IMU | 1 | 1 | 1 |" in printed
+    assert _lines(out)[0]["campaign"]["scenario"]["flight"] == "short.toml"

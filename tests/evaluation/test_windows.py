@@ -169,3 +169,17 @@ def test_windows_under_a_noisy_fix_align_over_a_longer_interval(tmp_path):
     floor = row["reference_floor"]
     assert floor["estimated"] == ["velocity"] and 5.0 < floor["horizontal_m"] < 30.0
     assert row["windows"] >= 10 and row["horizontal_m"]["p50"] < floor["horizontal_m"], row
+
+
+def test_the_gap_a_window_may_hold_follows_the_references_own_rate():
+    """A 1 Hz GNSS track (steps of 1 s +- 20 ms) is no run of gaps: the limit is 2.5 of its
+    steps, so one missed epoch (2 s) passes and two (3 s) do not; a 10 Hz track keeps 1 s; a
+    limit given is the limit."""
+    from types import SimpleNamespace
+    from mimunav.evaluation.windows import gap_allowed
+    rng = np.random.default_rng(0)
+    gnss = SimpleNamespace(t=np.cumsum(1.0 + rng.uniform(-0.02, 0.02, 600)))
+    limit = gap_allowed(gnss)
+    assert 2.0 < limit < 3.0 and np.diff(gnss.t).max() < limit
+    assert gap_allowed(SimpleNamespace(t=np.arange(6000) * 0.1)) == 1.0
+    assert gap_allowed(gnss, 0.5) == 0.5

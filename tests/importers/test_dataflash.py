@@ -137,3 +137,21 @@ def test_import_never_writes_over_its_input(log, tmp_path, capsys):
     assert "would replace the input" in capsys.readouterr().err
     assert main(["import", "rtklib", str(tmp_path), "-o", str(copy), "--force"]) == 2
     assert copy.read_bytes() == before
+
+
+def test_a_2014_log_stamped_in_ms_with_its_old_gps_message(tmp_path):
+    """ArduCopter 3.x logs (2014) stamp TimeMS, log IMU2 as its own type and a GPS message of
+    TimeMS (time of week), Week and T (boot ms): read with the time base from the GPS week
+    time, both IMUs found, the fixes as the reference (no EKF position in that release).
+    These had ended in `KeyError: 'TimeUS'`."""
+    data, run, t, unix_t0 = dataflash_log.flight_2014()
+    path = tmp_path / "2014.bin"
+    path.write_bytes(data)
+    rec = dataflash.read(str(path))
+    stamps = (rec.imu_ns - int(round(unix_t0 * 1e9))) / 1e9
+    np.testing.assert_allclose(stamps, t[1:], atol=2e-3)            # ms stamps
+    np.testing.assert_allclose(rec.w, run.dtheta / np.diff(t)[:, None], atol=1e-5)
+    assert "GPS fixes" in rec.reference_meta["source"]
+    assert rec.real["imu_instances"] == "0, 1"
+    second = dataflash.read(str(path), instance=1, reference="none")
+    np.testing.assert_allclose(second.w[:, 0] - rec.w[:, 0], 1e-3, atol=1e-6)

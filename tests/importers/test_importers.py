@@ -16,7 +16,7 @@ from mimunav.evaluation.flight import Flight
 from mimunav.flightlog import FlightLog, LogWriter
 from mimunav.flightlog import schemas as S
 from mimunav.importers.recording import RecordingError, Recording
-from mimunav.importers import rtklib, ros2, ulog
+from mimunav.importers import columns, rtklib, ros2, ulog
 from mimunav.importers.write import write_log
 from mimunav.frames.mounting import Mounting
 from mimunav.motion.vehicle import TrackMotion
@@ -161,10 +161,10 @@ def test_rtklib_bad_inputs_are_named(tmp_path):
     (tmp_path / "big.csv").write_text("1.7e18\n1.7000000001e18\n")
     with pytest.raises(RecordingError, match="outside 1970-2100: is the time column's unit"):
         table.unix_ns(table.Spec(tmp_path / "h.toml"),
-                       table.load_spec(str(tmp_path / "big.csv"), None, {}), 0.0, "[imu] time")
+                       columns.load_spec(str(tmp_path / "big.csv"), None, {}), 0.0, "[imu] time")
     # a headerless CSV whose first row has a missing reading is data, not a header
     (tmp_path / "n.csv").write_text("0.0,nan,2\n0.1,3,4\n")
-    assert table.load_spec(str(tmp_path / "n.csv"), None, {}).shape == (2, 3)
+    assert columns.load_spec(str(tmp_path / "n.csv"), None, {}).shape == (2, 3)
 
 
 def test_ros2_import_by_topic(tmp_path):
@@ -498,16 +498,15 @@ def test_rtklib_pos_without_velocity_or_without_fix_epochs(tmp_path):
 def test_a_csv_cut_mid_line_loses_only_that_line(tmp_path):
     """A logger stopped mid-write leaves a partial last line: it is left out and said; a
     short line anywhere else is refused with its line number."""
-    from mimunav.importers import table
     good = "t,wx,wy\n0.0,1,2\n0.1,3,4\n"
     (tmp_path / "cut.csv").write_text(good + "0.2,5")
     notes = {}
-    data = table.load_spec(str(tmp_path / "cut.csv"), None, notes)
+    data = columns.load_spec(str(tmp_path / "cut.csv"), None, notes)
     assert data.tolist() == [[0.0, 1, 2], [0.1, 3, 4]]
     assert "last line (#4) was cut short" in notes["cut.csv"]
     (tmp_path / "bad.csv").write_text("t,wx,wy\n0.0,1\n0.1,3,4\n0.2,5,6\n")
     with pytest.raises(RecordingError, match="line\\(s\\) 2 have another column count"):
-        table.load_spec(str(tmp_path / "bad.csv"), None, {})
+        columns.load_spec(str(tmp_path / "bad.csv"), None, {})
 
 
 @pytest.mark.parametrize("wrong, message", [
@@ -779,17 +778,22 @@ def test_a_ros2_bag_with_a_reference_imu_is_diagnosed_at_the_sensor_level(tmp_pa
                         "180", "0", "90"]) == 2
     assert not out.exists()
     # the reference's mounting 10 deg off (beyond the small-angle misalignment term) and its
-    # clock 50 ms late (beyond the linear time_skew term): refused, naming what matches
-    with pytest.raises(RecordingError, match="lie 10.0 deg from the IMU's.*rpy-deg 180.0 0.0 90.0"):
-        rec = ros2.read(bag, "/mems/imu", reference_imu_topic="/nav/imu",
-                        reference_imu_mounting=Mounting.from_rpy_deg((180.0, 0.0, 80.0)))
-        write_log(rec, tmp_path / "never.mcap")
+    # clock 50 ms late (beyond the linear time_skew term): measured and corrected, and said
+    rec = ros2.read(bag, "/mems/imu", reference_imu_topic="/nav/imu",
+                    reference_imu_mounting=Mounting.from_rpy_deg((180.0, 0.0, 80.0)))
+    write_log(rec, tmp_path / "turned.mcap")
+    assert "measured 10.0 deg" in rec.real["reference_imu_mounting"]
+    assert "rpy-deg 180.0 0.0 90.0" in rec.real["reference_imu_mounting"]
+    turned = attitude.rotation_vector_error(rec.reference_imu["mounting"].q_vs,
+                                            Mounting.from_rpy_deg((180.0, 0.0, 90.0)).q_vs)
+    assert np.degrees(np.linalg.norm(turned)) < 0.1
+    rec = ros2.read(bag, "/mems/imu", reference_imu_topic="/nav/imu_late",
+                    reference_imu_mounting=Mounting.from_rpy_deg((180.0, 0.0, 90.0)))
+    write_log(rec, tmp_path / "late.mcap")
+    assert "refined to +50.0 ms" in rec.real["reference_imu_clock"]
+    assert "shifted by -0.0500 s (measured" in rec.assumed["reference_imu_time"]
     late = pair + ["--reference-imu-topic", "/nav/imu_late", "--reference-imu-rpy-deg", "180",
                    "0", "90"]
-    with pytest.raises(RecordingError, match=r"\+50.0 ms off.*--reference-imu-time-offset -0.0500"):
-        write_log(ros2.read(bag, "/mems/imu", reference_imu_topic="/nav/imu_late",
-                            reference_imu_mounting=Mounting.from_rpy_deg((180.0, 0.0, 90.0))),
-                  tmp_path / "never.mcap")
     assert main(late + ["--reference-imu-time-offset", "-0.05"]) == 0
     out.unlink()
     assert main(["import", "ros2", str(bag), "--imu-topic", "/mems/imu", "--reference-imu-topic",
@@ -864,3 +868,39 @@ def test_a_reference_velocity_late_on_its_positions_is_measured():
     for vel, want in ((late, 0.1), (v, 0.0)):
         got = velocity_lag_s(dict(ns=ns, lat=lat, lon=lon, h=h, v_ned=vel))
         assert abs(got - want) < 5e-3, (got, want)
+
+
+def test_rtklib_clock_is_fitted_from_the_tags_at_their_file_positions(tmp_path):
+    """A walk whose CSV holds 16 lines logged before the first time tag arrived (mapping the
+    ends stretched 0.16 s over the first tag: refused as a 50 ppm clock): each tag times the
+    line at its file position, the IMU clock's rate is fitted (a 20 ppm crystal here, the
+    stream's latency 0-5 ms) and every line lands within the latency of its true time; a
+    tag file of another recording is refused with the rate it implies."""
+    rng = np.random.default_rng(3)
+    n = 30000
+    ticks = 1000 + 10 * np.arange(n)                        # 300 s at 100 Hz, ms since power-up
+    lines = [f"0.0,0.0,1.0,0.1,0.2,0.3,{k}\r\n".encode() for k in ticks]
+    ends = np.cumsum([len(x) for x in lines])
+    (tmp_path / "imu_7.csv").write_bytes(b"".join(lines))
+    true_ms = 5000.0 + ticks * (1 + 20e-6)                  # the computer's ms of each line
+    records = []
+    for k in range(16, n, 2):                               # a piece of the stream per 20 ms
+        records.append((int(round(true_ms[k] + rng.uniform(0, 5))), int(ends[k])))
+    start = 1752000000
+
+    def tag_file(recs):
+        return (b"TIMETAG RTKLIB-test".ljust(60, b"\0") + struct.pack("<IId", 1000, start, 0.0)
+                + b"".join(struct.pack("<II", t, p) for t, p in recs))
+    (tmp_path / "imu_7.csv.tag").write_bytes(tag_file(records))
+    t_tag, p_tag = (np.array(x) for x in zip(*records))
+    with pytest.raises(RecordingError, match="one of them is cut"):
+        rtklib.imu_stamps_ns(ticks, start, t_tag)               # the ends mapped: refused
+    a, b, said = rtklib.clock_fit(ticks, rtklib.csv_line_ends(tmp_path / "imu_7.csv"),
+                                  t_tag, p_tag)
+    assert (b - 1) * 1e6 == pytest.approx(20.0, abs=1.0) and "ppm against" in said
+    late = a + b * ticks - true_ms                          # the mean latency, 2.5 ms
+    assert np.all((late > 0) & (late < 5.0))
+    other = [(t + (3 * i if i > len(records) // 2 else 0), p) for i, (t, p) in enumerate(records)]
+    with pytest.raises(RecordingError, match="not of one recording"):
+        rtklib.clock_fit(ticks, rtklib.csv_line_ends(tmp_path / "imu_7.csv"),
+                         *(np.array(x) for x in zip(*other)))

@@ -22,6 +22,7 @@ from places import DATA, SHARED
 
 SHARED = SHARED
 COMMA_SPEC = DATA / "comma2k19.toml"
+ONSPEED_SPEC = DATA / "onspeed-vn300.toml"
 PX4 = SHARED / "px4-ulog"
 
 
@@ -72,8 +73,13 @@ def test_comma2k19_through_the_table_importer(tmp_path):
     assert main(["windows", str(log), "-o", str(tmp_path / "w"), "--lengths", "10"]) == 0
     doc = json.loads((tmp_path / "w" / "windows.json").read_text())
     assert doc["summary"]["10"]["windows"] >= 5
+    # the pose has an attitude: the automatic level uses it (navigation), not a car model
+    auto = tmp_path / "auto.json"
+    assert main(["diagnose", str(log), "--json", str(auto)]) == 0
+    chosen = json.loads(auto.read_text())
+    assert chosen["level"] == "navigation" and "attitude" in chosen["level_choice"]
     out = tmp_path / "diag.json"
-    assert main(["diagnose", str(log), "--json", str(out)]) == 0
+    assert main(["diagnose", str(log), "--level", "track", "--json", str(out)]) == 0
     diag = json.loads(out.read_text())
     assert diag["level"] == "track"
     # whatever it concludes, nothing it confirms makes the IMU navigate worse
@@ -281,3 +287,38 @@ def test_a_table_spec_copied_elsewhere_names_its_data_folder(tmp_path, capsys):
                  "-o", str(tmp_path / "b.mcap")]) == 0
     assert main(["import", "ulog", str(PX4 / "pyulog_sample.ulg"), "--root", str(tmp_path),
                  "-o", str(tmp_path / "c.mcap")]) == 2        # not read by that importer
+
+
+@pytest.mark.slow
+def test_onspeed_cheap_imu_beside_a_quantized_vn300(tmp_path):
+    """The light aircraft of shared/data/onspeed-vn300 (a cheap MEMS IMU beside a VN-300
+    logged with 2 decimals, 30 s to a stall): the spec's per-column signs give two FRD
+    triads whose 0.5 s means correlate on every axis; the VN-300 rows written twice are one
+    sample; the two boxes' turn (about 4.8 deg of pitch) is measured and, the attitude
+    being the VN-300's own, put on the cheap IMU's mounting; the VN-300's stamps lag by its
+    data age and a few ms more (its README: tens of ms). The diagnosis against a MEMS
+    reference charges nothing to the cheap IMU alone that the VN-300 could carry, and
+    checks each term on the two halves of the 30 s."""
+    _need(SHARED / "onspeed-vn300")
+    rec = table.read(ONSPEED_SPEC)
+    assert "50 rows repeating" in rec.real["repeated [reference]"]
+    check_recording(rec)
+    yaw, pitch, roll = np.degrees(attitude.as_euler(rec.mounting.q_vs))
+    assert pitch == pytest.approx(4.8, abs=0.5) and abs(roll) < 1 and abs(yaw) < 1.5
+    assert "IMU's mounting was turned" in rec.real["reference_imu_mounting"]
+    assert "refined to" in rec.real["reference_imu_clock"]
+    log = tmp_path / "onspeed.mcap"
+    assert main(["import", "table", str(ONSPEED_SPEC), "-o", str(log)]) == 0
+    with FlightLog(log) as fl:
+        bias = fl.metadata()["recording"]["accel_bias_m_s2"]
+    assert max(abs(b) for b in bias) < 0.5     # not the 4.8 deg tilt's 0.8 m/s^2
+    out = tmp_path / "d.json"
+    assert main(["diagnose", str(log), "--json", str(out)]) == 0
+    diag = json.loads(out.read_text())
+    assert diag["level"] == "sensor" and not diag["reference_agreement"]["failures"]
+    assert diag["reference_accuracy"]["gyro_step"] == 0.01
+    for f in diag["findings"]:
+        assert f["attribution"] in ("mimu-or-reference", "installation", "timing"), f["label"]
+        if "held-out statistic" in f.get("effect_size", {}).get("basis", ""):
+            assert f["halves"]["widened_by"] >= 1.0    # a library term, refitted per half
+            assert f["effect_size"]["heldout_variance_removed"] >= 1e-3

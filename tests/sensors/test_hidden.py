@@ -10,7 +10,7 @@ from scipy.spatial.transform import Rotation
 
 from mimunav.cli import main
 from mimunav.diagnosis import wander
-from mimunav.diagnosis.reference import Accuracy, accuracy_of
+from mimunav.sensors.accuracy import Accuracy, accuracy_of
 from mimunav.sensors.hidden import HiddenPhysics, HiddenSet, delayed, parse_term
 from mimunav.sensors.thermal import ThermalModel
 

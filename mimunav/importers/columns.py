@@ -1,0 +1,95 @@
+"""Numeric columns of a logger's files: a CSV (header optional, Excel's `sep=` line, a last
+line cut short) or a NumPy array file; and the key check every table-spec level shares."""
+import difflib
+import os
+import re
+
+import numpy as np
+
+from .recording import RecordingError, text_file
+
+
+def check_keys(path, doc, known, where):
+    """Refuse a key of `doc` not among `known`, naming the nearest known one."""
+    for key in doc:
+        if key not in known:
+            near = difflib.get_close_matches(key, known, n=1, cutoff=0.5)
+            hint = f"did you mean {near[0]!r}? " if near else ""
+            raise RecordingError(f"{path}: {where} has an unknown key {key!r} ({hint}known: "
+                                 f"{', '.join(known)})")
+
+
+def load_spec(path, columns, notes=None):
+    """A numeric array from a CSV (header row optional) or a NumPy file (.npy, .npz with one
+    array, or an extension-less .npy as comma2k19 stores them). A CSV's last line cut short
+    (a logger stopped mid-write) is left out and said in `notes`; any other line whose column
+    count differs is refused."""
+    if not os.path.exists(path):
+        raise RecordingError(f"{path}: no such file")
+    if path.endswith((".csv", ".txt")):
+        with open(path) as fh, text_file(path):
+            first = fh.readline()
+            sep, skip = ",", 0
+            if first.strip().lower().startswith("sep="):        # Excel's separator line
+                sep = first.strip()[4:5] or ","
+                if sep not in (",", ";", "\t", "|"):
+                    raise RecordingError(f"{path}: separator line {first.strip()!r}: one of "
+                                         ", ; tab |")
+                skip, first = 1, fh.readline()
+        header = not all(_number(x) for x in first.strip().split(sep))
+        data = _read_csv(path, header, notes, sep, skip)
+        if header:
+            names = list(data.dtype.names)
+            data = np.column_stack([data[n] for n in names])
+            if columns is not None:
+                try:
+                    columns = [names.index(c) if isinstance(c, str) else c for c in columns]
+                except ValueError:
+                    raise RecordingError(f"{path}: columns {columns} not among {names}") from None
+    else:
+        try:
+            data = np.load(path, allow_pickle=False)
+        except (ValueError, OSError) as exc:
+            raise RecordingError(f"{path}: not a NumPy array file ({exc})") from None
+        if isinstance(data, np.lib.npyio.NpzFile):
+            if len(data.files) != 1:
+                raise RecordingError(f"{path}: {len(data.files)} arrays; store one per file")
+            data = data[data.files[0]]
+    data = np.asarray(data, dtype=float)
+    if data.size == 0:
+        raise RecordingError(f"{path}: no data rows")
+    if columns is not None:
+        if any(isinstance(c, str) for c in columns):
+            raise RecordingError(f"{path}: columns by name need a CSV header")
+        data = data.reshape(len(data), -1)[:, list(columns)]
+    return data
+
+
+def _number(text):
+    """Whether a CSV cell reads as a number ('nan', 'inf' and empty do: a first row of data
+    with a missing reading is no header)."""
+    try:
+        float(text or "nan")
+        return True
+    except ValueError:
+        return False
+
+
+def _read_csv(path, header, notes, sep=",", skip=0):
+    read = lambda **kw: np.genfromtxt(path, delimiter=sep, names=True if header else None,  # noqa: E731
+                                      dtype=float, invalid_raise=True, skip_header=skip, **kw)
+    try:
+        return read()
+    except ValueError as exc:
+        bad = [int(n) for n in re.findall(r"Line #(\d+)", str(exc))]
+        if not bad:
+            raise RecordingError(f"{path}: not a numeric CSV ({str(exc).strip()[:120]})") from None
+        with open(path, "rb") as fh:
+            last = sum(1 for line in fh if line.strip())
+        if bad != [last]:
+            raise RecordingError(f"{path}: line(s) {', '.join(map(str, bad[:5]))} have another "
+                                 "column count than the first; a table needs the same columns "
+                                 "on every line") from None
+    if notes is not None:
+        notes[f"{os.path.basename(path)}"] = f"its last line (#{last}) was cut short: left out"
+    return read(skip_footer=1)

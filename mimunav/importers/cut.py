@@ -1,0 +1,104 @@
+"""A log cut to a span of time (`mimunav cut LOG --span T0:T1 -o OUT`): every channel's
+messages stamped inside [T0, T1] (s since the log's epoch), the metadata and attachments as
+they are, and an initial state inside the span - the log's own when it lies there, else the
+reference's (/truth/state) at its first epoch in the span with an attitude, else the alignment
+of an imported recording redone on the span's IMU and track (`navigation.alignment`). The
+span's metadata says where the cut was and where the new initial state came from."""
+import numpy as np
+from mcap.reader import make_reader
+
+from ..errors import InputError
+from ..frames import attitude
+from ..frames.mounting import Mounting
+from ..navigation.alignment import initial_alignment
+from ..flightlog import FlightLog, LayoutError, LogWriter
+from ..flightlog.reader import PAYLOAD
+
+
+def cut(log_path, out, t0, t1, force=False):
+    """Write the part of the log at `log_path` stamped in [t0, t1] s (since its epoch) to
+    `out`; returns (message count, how the initial state was found)."""
+    with FlightLog(log_path) as log:
+        meta = log.metadata()
+        flight = meta.get("flight")
+        if not flight or "epoch_unix_ns" not in flight:
+            raise InputError(f"{log_path}: no `flight` metadata with epoch_unix_ns: the span "
+                             "has no time base to be cut on")
+        epoch = int(flight["epoch_unix_ns"])
+        lo, hi = epoch + int(round(t0 * 1e9)), epoch + int(round(t1 * 1e9))
+        initial, how = _initial_state(log, flight, meta, t0, t1, epoch)
+        count, generic = 0, []
+        with LogWriter(out, force=force) as dst, open(log_path, "rb") as fh:
+            reader = make_reader(fh)
+            for record in reader.iter_metadata():
+                values = record.metadata
+                if record.name == "flight":    # its description says what it is now
+                    values = {**values, "initial_state": initial, "description":
+                              f"{values.get('description', '')} - cut to {t0:g}-{t1:g} s"}
+                dst.metadata(record.name, values)
+            for att in reader.iter_attachments():
+                dst.attachment(att.name, att.data, att.media_type)
+            dst.metadata("cut", {"span_s": [t0, t1], "from": str(log_path),
+                                 "initial_state": how})
+            for topic in log.channels:
+                try:
+                    for msgs in log.blocks(topic, fields=PAYLOAD):
+                        stamps = msgs["log_time"].astype(np.int64)
+                        keep = (stamps >= lo) & (stamps <= hi)
+                        if keep.any():
+                            dst.write_encoded(topic, log.schema_name(topic),
+                                              msgs["payload"][keep], stamps[keep])
+                            count += int(keep.sum())
+                except LayoutError:
+                    generic.append(topic)
+            fh.seek(0)
+            for schema, channel, message in make_reader(fh).iter_messages(topics=generic):
+                if lo <= message.log_time <= hi:    # (the time arguments' names differ
+                    dst.copy(schema, channel, message)  # between mcap releases)
+                    count += 1
+    return count, how
+
+
+def _initial_state(log, flight, meta, t0, t1, epoch):
+    """(initial_state object, how it was found) inside [t0, t1] (module doc)."""
+    initial = flight.get("initial_state") or {}
+    if t0 <= float(initial.get("t", np.nan)) <= t1:
+        return initial, "the log's own (inside the span)"
+    if "/truth/state" in log.channels:
+        truth = log.read("/truth/state")
+        t = (truth["log_time"].astype(np.int64) - epoch) / 1e9
+        q = np.asarray(truth["attitude_wxyz"], float)
+        ok = np.flatnonzero((t >= t0) & (t <= t1) & np.isfinite(q).all(axis=1))
+        if len(ok):
+            k = ok[0]
+            return ({"t": float(t[k]), "latitude": float(truth["latitude"][k]),
+                     "longitude": float(truth["longitude"][k]), "height": float(truth["height"][k]),
+                     "velocity_ned": [float(v) for v in truth["velocity_ned"][k]],
+                     "attitude_wxyz": [float(v) for v in q[k]]},
+                    f"the reference's state at t = {t[k]:.3f} s (/truth/state)")
+        if "/mimu/imu" in log.channels:
+            return _realigned(log, truth, t, t0, t1, epoch, meta)
+    raise InputError(f"the initial state (t = {initial.get('t')}) lies outside the span and the "
+                     "log has no reference to start the span from: cut a span that holds it")
+
+
+def _realigned(log, truth, t_ref, t0, t1, epoch, meta):
+    """The alignment of an imported recording redone on the span's /mimu/imu and track."""
+    imu = log.read("/mimu/imu", fields=("angular_velocity", "linear_acceleration"))
+    t = (imu["log_time"].astype(np.int64) - epoch) / 1e9
+    k = (t >= t0) & (t <= t1)
+    inside = (t_ref >= t0) & (t_ref <= t1)
+    if k.sum() < 10 or inside.sum() < 2:
+        raise InputError(f"the span {t0:g}-{t1:g} s holds {int(k.sum())} IMU samples and "
+                         f"{int(inside.sum())} reference epochs: too few to start from")
+    track = {"t": t_ref[inside], "lat": truth["latitude"][inside],
+             "lon": truth["longitude"][inside], "h": truth["height"][inside],
+             "v_ned": np.asarray(truth["velocity_ned"], float)[inside]}
+    mounting = Mounting.from_dict(meta.get("sensor/mimu", {}).get("mounting", {}))
+    align = initial_alignment(t[k], np.asarray(imu["angular_velocity"], float)[k],
+                              np.asarray(imu["linear_acceleration"], float)[k], mounting, track)
+    q = attitude.as_wxyz(attitude.from_wxyz(np.asarray(align.q_nb, float)))
+    return ({"t": float(align.t), "latitude": float(align.lat), "longitude": float(align.lon),
+             "height": float(align.h), "velocity_ned": [float(v) for v in align.v_ned],
+             "attitude_wxyz": [float(v) for v in q]},
+            f"the alignment redone on the span: {align.method}")

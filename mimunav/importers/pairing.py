@@ -1,0 +1,285 @@
+"""A reference IMU flown beside the IMU (a better IMU on the same vehicle, often on its own
+clock and in its own axes): its clock offset and its mounting measured against the IMU's and
+corrected when the data decide them, refused with the measured values when they do not.
+
+Clock: the two rotation rates' magnitudes |w| do not depend on either mounting. Their
+normalised cross-correlation over every lag at which the two overlap for at least half the
+shorter record (masked: each lag's correlation over its own overlap) must peak once -
+at least PEAK_CORRELATION, and every lag farther than PEAK_WIDTH_S from the peak at most
+SECOND_PEAK_SHARE of it; the peak is then refined to a millisecond. A recording whose IMUs
+hardly turn (|w| spread below TURNING_RATE) cannot be timed so: said, and left as recorded.
+
+Mounting: after the clock, the two IMUs' 1 s mean rates and specific forces in the vehicle
+frame (each through its own mounting) are turned onto each other (Wahba's problem, scipy's
+`align_vectors`). The turn is applied to the reference's mounting when the vectors span two
+directions (their second singular value at least SPAN_SHARE of the first: gravity alone
+leaves the yaw about it open) and refused with the measured turn otherwise. A triad
+mirrored against the other IMU's (a column's sign, an axis order: no turn holds it) is
+refused naming it: a moving axis whose 1 s means run against the IMU's, as given or after
+the best turn (`_runs_against`). Where the reference's attitude is the reference IMU's own
+(`attitude_of`), the turn goes to the IMU's mounting instead.
+"""
+import math
+
+import numpy as np
+
+from ..frames import attitude
+from ..frames.mounting import Mounting
+from ..navigation.rests import means_around
+from .recording import G0, RecordingError, utc_text
+
+SMALL_OFFSET_S = 0.001      # s: the refinement's step; a measured offset beyond it is
+                            # corrected (whatever the user's own shift was: the result must
+                            # not depend on it), a smaller one left to the time_skew term
+SMALL_TURN_DEG = 3.0        # deg: within this its mounting_misalignment term carries a turn
+GRID_S = 0.02               # s: the coarse search's grid (50 Hz: |w| of a vehicle's motion)
+PEAK_CORRELATION = 0.5      # the |w| correlation at the peak, at least
+PEAK_WIDTH_S = 1.0          # s: the peak's own lobe (a manoeuvre's |w| stays correlated ~1 s)
+SECOND_PEAK_SHARE = 0.8     # any lag outside the lobe correlates at most this share of the peak
+TURNING_RATE = 0.02         # rad/s: |w|'s spread below which nothing times the two clocks
+SPAN_SHARE = 0.05           # second singular value over the first: two directions seen
+
+
+def pair(rec):
+    """Check the recording's reference IMU against its IMU and correct its clock and
+    mounting where they are measured (module doc); say what was measured and done in
+    rec.real (`reference_imu_clock`, `reference_imu_mounting`). Refuses (RecordingError) a
+    reference IMU that does not feel 1 g, overlaps the IMU over less than half its span,
+    turns a different amount (a unit: deg/s read as rad/s), or whose clock or mounting
+    beyond the diagnosis' small terms cannot be decided from the data."""
+    ref = rec.reference_imu
+    g = float(np.median(np.linalg.norm(ref["f"], axis=1)))
+    if not 0.5 * G0 < g < 2 * G0:
+        raise RecordingError(f"{rec.name}: the reference IMU's median |specific force| is "
+                             f"{g:.3g} m/s^2, not about 9.8: is its accelerometer's unit right?")
+    _check_units(rec)
+    clock = clock_offset(rec)
+    rec.real["reference_imu_clock"] = clock["said"]
+    if clock["offset_s"] is not None and abs(clock["offset_s"]) > SMALL_OFFSET_S:
+        rec.shift_reference_imu(-clock["offset_s"], "measured: " + clock["said"])
+    _check_overlap(rec)
+    _pair_mountings(rec)
+
+
+def _check_overlap(rec):
+    ref = rec.reference_imu
+    lo, hi = max(rec.imu_ns[0], ref["ns"][0]), min(rec.imu_ns[-1], ref["ns"][-1])
+    if hi - lo < 0.5 * (rec.imu_ns[-1] - rec.imu_ns[0]):
+        raise RecordingError(f"{rec.name}: the reference IMU ({utc_text(ref['ns'][0])} .. "
+                             f"{utc_text(ref['ns'][-1])}) covers less than half of the IMU's span "
+                             f"({utc_text(rec.imu_ns[0])} .. {utc_text(rec.imu_ns[-1])}): do the "
+                             "two share a time base?")
+
+
+def _check_units(rec):
+    """The two gyros must see the same spread of |w| (a ratio beyond 0.5-2: a unit)."""
+    size = [np.linalg.norm(w, axis=1) for w in (rec.w, rec.reference_imu["w"])]
+    spread = [float(np.std(s)) for s in size]
+    if max(spread) > TURNING_RATE:
+        ratio = spread[0] / max(spread[1], 1e-12)
+        if not 0.5 < ratio < 2.0:
+            raise RecordingError(f"{rec.name}: the IMU's rotation rate varies {ratio:.3g} times "
+                                 "as much as the reference IMU's (|w|): is one gyro's unit "
+                                 "(deg/s or rad/s) wrong, or the topic another vehicle's?")
+
+
+def _rate_magnitude(ns, w, grid):
+    """|w| at the grid times (s), from samples stamped at the end of their intervals (the
+    interval centres are compared: a 100 Hz and a 400 Hz IMU on one clock are 3.75 ms apart
+    by their stamps alone); NaN outside the samples' span."""
+    t = ns / 1e9 - 0.5 * np.median(np.diff(ns)) / 1e9
+    out = np.interp(grid, t, np.linalg.norm(w, axis=1))
+    out[(grid < t[0]) | (grid > t[-1])] = np.nan
+    return out
+
+
+def masked_correlation(x, y, min_overlap):
+    """(lags in samples, normalised correlation of x and y(. + lag) over each lag's overlap)
+    of two series on one grid with NaN where a series has no value; lags whose overlap is
+    shorter than min_overlap samples are NaN. By FFT: sums of products, of each series and
+    of its square, over the overlap of the two masks."""
+    mx, my = np.isfinite(x), np.isfinite(y)
+    x0, y0 = np.where(mx, x, 0.0), np.where(my, y, 0.0)
+    n = len(x) + len(y)
+    size = 1 << (n - 1).bit_length()
+
+    def corr(a, b):             # sum_i a[i] b[i + lag] for lag -len(a)+1 .. len(b)-1
+        full = np.fft.irfft(np.conj(np.fft.rfft(a, size)) * np.fft.rfft(b, size), size)
+        return np.concatenate([full[-(len(a) - 1):], full[:len(b)]]) if len(a) > 1 else \
+            full[:len(b)]
+    m = mx.astype(float), my.astype(float)
+    count = np.rint(corr(*m))
+    sx, sy = corr(x0, m[1]), corr(m[0], y0)
+    sxx, syy, sxy = corr(x0 * x0, m[1]), corr(m[0], y0 * y0), corr(x0, y0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        cov = sxy - sx * sy / count
+        var = (sxx - sx * sx / count) * (syy - sy * sy / count)
+        r = cov / np.sqrt(var)
+    r[(count < min_overlap) | ~(var > 0)] = np.nan
+    lags = np.arange(-(len(x) - 1), len(y)) if len(x) > 1 else np.arange(len(y))
+    return lags, r
+
+
+def clock_offset(rec):
+    """{"offset_s": how late (s) the reference IMU's stamps are on the IMU's, or None when
+    the data do not decide it, "said": what was measured} (module doc)."""
+    ref = rec.reference_imu
+    lo = min(rec.imu_ns[0], ref["ns"][0]) / 1e9
+    hi = max(rec.imu_ns[-1], ref["ns"][-1]) / 1e9
+    grid = np.arange(lo, hi, GRID_S)
+    a, b = _rate_magnitude(rec.imu_ns, rec.w, grid), _rate_magnitude(ref["ns"], ref["w"], grid)
+    if max(np.nanstd(a), np.nanstd(b)) < TURNING_RATE:
+        return {"offset_s": None, "said": f"not measured: neither IMU turns (|w| spread below "
+                                          f"{TURNING_RATE:g} rad/s); the stamps taken as "
+                                          "recorded"}
+    shorter = min(np.isfinite(a).sum(), np.isfinite(b).sum())
+    lags, r = masked_correlation(a, b, max(0.5 * shorter, 10.0 / GRID_S))
+    if not np.isfinite(r).any():
+        return {"offset_s": None, "said": "not measured: the two records never overlap for "
+                                          "half the shorter one"}
+    k = int(np.nanargmax(r))
+    peak = float(r[k])
+    away = np.abs(lags - lags[k]) * GRID_S > PEAK_WIDTH_S
+    second = float(np.nanmax(r[away])) if np.isfinite(r[away]).any() else -1.0
+    said = (f"the |w| of the two IMUs correlate {peak:.2f} with the reference's stamps "
+            f"{lags[k] * GRID_S:+.2f} s late, {second:.2f} at best elsewhere")
+    if peak < PEAK_CORRELATION or second > SECOND_PEAK_SHARE * peak:
+        return {"offset_s": None, "said": f"not decided ({said}: at least {PEAK_CORRELATION:g} "
+                                          f"at one lag and at most {SECOND_PEAK_SHARE:g} of it "
+                                          "elsewhere needed)", "ambiguous": True}
+    offset = _refined(rec, lags[k] * GRID_S)
+    return {"offset_s": offset, "said": f"{said}; refined to {offset * 1e3:+.1f} ms"}
+
+
+def _refined(rec, coarse_s, search_s=2 * GRID_S, step_s=0.001):
+    """The offset (s) that best matches the two |w| within +-search_s of coarse_s, on a grid
+    of step_s refined by a parabola."""
+    ref = rec.reference_imu
+    t, t_r = (ns / 1e9 - 0.5 * np.median(np.diff(ns)) / 1e9 for ns in (rec.imu_ns, ref["ns"]))
+    lo = max(t[0], t_r[0] - coarse_s) + search_s
+    hi = min(t[-1], t_r[-1] - coarse_s) - search_s
+    grid = np.arange(lo, hi, 0.01)
+    a = np.interp(grid, t, np.linalg.norm(rec.w, axis=1))
+    size_r = np.linalg.norm(ref["w"], axis=1)
+    shifts = coarse_s + np.arange(-search_s, search_s + 1e-9, step_s)
+    cost = np.array([np.mean((a - np.interp(grid + d, t_r, size_r)) ** 2) for d in shifts])
+    i = int(np.clip(np.argmin(cost), 1, len(shifts) - 2))
+    c_lo, mid, c_hi = cost[i - 1:i + 2]
+    curve = c_lo - 2 * mid + c_hi
+    return float(shifts[i] + (0.5 * step_s * (c_lo - c_hi) / curve if curve > 0 else 0.0))
+
+
+def _pair_mountings(rec):
+    """Turn the reference IMU's mounting onto the IMU's where the 1 s means decide it
+    (module doc); say what was measured."""
+    ref = rec.reference_imu
+    lo, hi = max(rec.imu_ns[0], ref["ns"][0]), min(rec.imu_ns[-1], ref["ns"][-1])
+    mids = np.arange(lo + 500_000_000, hi - 500_000_000, 1_000_000_000) / 1e9
+    if len(mids) < 10:
+        rec.real["reference_imu_mounting"] = "not measured: under 10 s of overlap"
+        return
+    means = [[means_around(ns / 1e9, x, mids, 0.5) for x in (w, f)]
+             for ns, w, f in ((rec.imu_ns, rec.w, rec.f), (ref["ns"], ref["w"], ref["f"]))]
+    ok = np.isfinite(np.hstack([m for p in means for m in p])).all(axis=1)
+    if ok.sum() < 10:
+        rec.real["reference_imu_mounting"] = "not measured: under 10 s of common samples"
+        return
+    turn, angle, seen = _measured_turn(rec, means, ok)
+    # a triad mirrored (a sign, an axis order) is no turn: as given, or after the best turn,
+    # one of its moving axes runs against the other IMU's
+    for k, sensor in enumerate(("gyro", "accel")):
+        mine = attitude.rotate(rec.mounting.q_vs, means[0][k][ok])
+        theirs = attitude.rotate(ref["mounting"].q_vs, means[1][k][ok])
+        _runs_against(rec.name, sensor, mine, theirs, "with the mountings given")
+        _runs_against(rec.name, sensor, mine, turn.apply(theirs),
+                      "after the best turn between them")
+    fixed = attitude.from_scipy(turn) * ref["mounting"].q_vs
+    yaw, pitch, roll = (_angle_text(a) for a in attitude.as_euler(fixed))
+    hint = ref.get("mounting_hint")
+    said = (f"{angle:.1f} deg from the mounting given (1 s mean rates and specific forces in the "
+            "vehicle frame); the two would agree with the reference IMU at roll, pitch, yaw "
+            f"{roll}, {pitch}, {yaw} deg" + (f" ({hint.format(roll=roll, pitch=pitch, yaw=yaw)})"
+                                            if hint else ""))
+    attitude_of_reference = rec.reference_meta.get("attitude_of") == "reference_imu"
+    if attitude_of_reference and seen:
+        # the reference's attitude is of the reference IMU's axes: they stay, the IMU turns
+        mine = np.conjugate(attitude.from_scipy(turn)) * rec.mounting.q_vs
+        rec.mounting = Mounting(attitude.as_wxyz(mine), rec.mounting.lever_arm_m)
+        yaw, pitch, roll = (_angle_text(a) for a in attitude.as_euler(mine))
+        rec.real["reference_imu_mounting"] = (
+            f"measured {said}: the reference's attitude is the reference IMU's (attitude_of), "
+            f"so the IMU's mounting was turned instead, to roll, pitch, yaw {roll}, {pitch}, "
+            f"{yaw} deg")
+        rec.assumed["mounting"] = f"measured against the reference IMU: roll, pitch, yaw " \
+                                  f"{roll}, {pitch}, {yaw} deg"
+        return
+    if angle <= SMALL_TURN_DEG and not seen:
+        rec.real["reference_imu_mounting"] = (
+            f"measured {angle:.1f} deg of tilt from the mounting given; the turn about gravity "
+            "is not seen (the recording holds one direction: no turn): the mounting given is "
+            "taken for it")
+        return
+    if angle <= SMALL_TURN_DEG:
+        rec.real["reference_imu_mounting"] = f"measured {said}: kept (the diagnosis fits a " \
+                                             "turn this small)"
+        return
+    if not seen:
+        raise RecordingError(
+            f"{rec.name}: the reference IMU's rates and specific forces, turned into the vehicle "
+            f"frame by its mounting, lie {angle:.1f} deg from the IMU's, and the recording "
+            "holds one direction only (gravity, no turn), which leaves a turn about it open: "
+            f"give its mounting (its tilt as the data show it, the yaw as given: roll, "
+            f"pitch, yaw {roll}, {pitch}, {yaw} deg"
+            + (f": {hint.format(roll=roll, pitch=pitch, yaw=yaw)})" if hint else ")"))
+    ref["mounting"] = Mounting(attitude.as_wxyz(fixed), ref["mounting"].lever_arm_m)
+    rec.real["reference_imu_mounting"] = f"measured {said}: turned so"
+
+
+AS_GIVEN_AGAINST = -0.5     # a moving axis whose 1 s means, mountings as given, correlate
+                            # below this runs against the other IMU's: a sign, not noise
+
+
+def _runs_against(name, sensor, mine, theirs, when):
+    """Refuse (naming the triad and axis) a moving axis - 1 s means spread by 0.02 rad/s or
+    0.3 m/s^2 (`reference.MOVING_SPREAD`'s sizes) - whose means (vehicle frame) run against
+    the other IMU's: correlation below AS_GIVEN_AGAINST."""
+    spread = 0.02 if sensor == "gyro" else 0.3
+    for i, axis in enumerate("xyz"):
+        if min(np.std(mine[:, i]), np.std(theirs[:, i])) < spread:
+            continue
+        r = float(np.corrcoef(mine[:, i], theirs[:, i])[0, 1])
+        if r < AS_GIVEN_AGAINST:
+            raise RecordingError(
+                f"{name}: {when}, the two IMUs' {sensor}s about the vehicle's {axis} axis run "
+                f"against each other (1 s means correlate {r:.2f}): a {sensor} column's sign "
+                "or the axes' order differs between the two triads - a reflection, which no "
+                f"mounting can turn: check the {sensor} columns")
+
+
+def _measured_turn(rec, means, ok):
+    """(the turn of the reference's vehicle-frame vectors onto the IMU's, its angle in deg,
+    whether two directions decide it) from the 1 s means: rates (when the IMUs turn,
+    scaled to the specific forces' weight) and specific forces; with one direction seen,
+    the smallest turn of the mean specific force onto the IMU's (the tilt: the yaw about
+    it is left open)."""
+    from scipy.spatial.transform import Rotation
+    q_mine, q_ref = rec.mounting.q_vs, rec.reference_imu["mounting"].q_vs
+    w_mine, f_mine = (attitude.rotate(q_mine, x[ok]) for x in means[0])
+    w_ref, f_ref = (attitude.rotate(q_ref, x[ok]) for x in means[1])
+    rms_w = float(np.sqrt(np.mean(w_mine ** 2)))
+    turning = max(np.std(np.linalg.norm(w_mine, axis=1)),
+                  np.std(np.linalg.norm(w_ref, axis=1))) >= TURNING_RATE
+    mine = np.vstack([w_mine * (G0 / rms_w), f_mine]) if turning else f_mine
+    theirs = np.vstack([w_ref * (G0 / rms_w), f_ref]) if turning else f_ref
+    singular = np.linalg.svd(mine.T @ theirs, compute_uv=False)
+    if singular[1] >= SPAN_SHARE * singular[0]:
+        turn, _ = Rotation.align_vectors(mine, theirs)
+        return turn, math.degrees(turn.magnitude()), True
+    turn, _ = Rotation.align_vectors([f_mine.mean(axis=0)], [f_ref.mean(axis=0)])
+    return turn, math.degrees(turn.magnitude()), False
+
+
+def _angle_text(rad):
+    """An angle in deg to 0.1 for a command line: -180 written 180, no -0.0."""
+    deg = round(math.degrees(float(rad)), 1)
+    return f"{180.0 if deg == -180.0 else deg + 0.0:.1f}"

@@ -1,0 +1,86 @@
+"""The level a recording is diagnosed at follows from what it is (`diagnosis.levels`,
+`diagnosis.vehicle_kind`): the track level's vehicle model is a car's, a reference attitude
+is used as attitude, and no navigation-level finding stands on an unmeasured heading. Found
+on real recordings: the track level had been chosen for a rocket, a multicopter, a walk and a
+car with a full attitude reference; the navigation level had named a 78 % accelerometer scale
+on a walk aligned with "heading assumed 0"."""
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from mimunav.diagnosis import levels, vehicle_kind
+from mimunav.motion.trajectory import Trajectory
+
+G = 9.80665
+
+
+def _flight(v_ned, f=None, attitude=False, recording=None, dt=0.1):
+    """A recording-like flight with a reference track of velocities v_ned (N, 3) every dt s
+    and an IMU feeling f (N, 3) at the same stamps (default: 1 g, level)."""
+    n = len(v_ned)
+    t = np.arange(n) * dt
+    q = np.full(n, np.quaternion(1, 0, 0, 0) if attitude else
+                np.quaternion(np.nan, np.nan, np.nan, np.nan))
+    truth = Trajectory(t, np.full(n, 0.7), np.zeros(n), np.zeros(n), np.asarray(v_ned, float), q)
+    f = np.tile([0.0, 0.0, -G], (n, 1)) if f is None else f
+    return SimpleNamespace(truth=truth, mimu_t=t, mimu_imu=(np.zeros((n, 3)), f),
+                           recording=recording or {}, fog_t=None, mimu_raw=None,
+                           source="recording")
+
+
+def _ramp(n, top, axis=0):
+    v = np.zeros((n, 3))
+    v[:, axis] = top * np.clip(np.arange(n) / (0.1 * n), 0, 1)
+    return v
+
+
+def test_a_car_drive_is_judged_a_car_and_goes_to_the_track_level():
+    flight = _flight(_ramp(3000, 15.0))
+    kind, how = vehicle_kind.kind(flight)
+    assert kind == "car" and how.startswith("judged a car")
+    assert levels.choose(flight)[0] == "track"
+
+
+@pytest.mark.parametrize("what, v, f, says", [
+    ("a walk", _ramp(3000, 1.4), None, "95th percentile is 1.4 m/s"),
+    ("an airliner", _ramp(3000, 230.0), None, "99th percentile is 230 m/s"),
+    ("a multicopter's climb on the spot", _ramp(3000, 3.0, axis=2) * -1, None,
+     "while hardly moving horizontally"),
+    ("a rocket's boost", np.column_stack([np.full(3000, 10.0), np.zeros(3000),
+                                          -np.linspace(0, 300, 3000)]),
+     np.tile([0.0, 0.0, -4 * G], (3000, 1)), "g off 1 g"),
+])
+def test_what_is_not_a_car_is_not_given_the_track_level(what, v, f, says):
+    flight = _flight(v, f)
+    kind, how = vehicle_kind.kind(flight)
+    assert kind == "other" and says in how, (what, how)
+    level, why = levels.choose(flight)
+    assert level == "navigation" and "not of a car" in why
+
+
+def test_a_declared_vehicle_is_taken_and_an_attitude_reference_is_used_as_attitude():
+    walk = _flight(_ramp(3000, 1.4), recording={"vehicle": "car"})
+    assert levels.choose(walk)[0] == "track"            # declared: the user's word
+    assert levels.choose(walk, vehicle="pedestrian")[0] == "navigation"
+    car = _flight(_ramp(3000, 15.0), attitude=True)
+    level, why = levels.choose(car)
+    assert level == "navigation" and "carries the vehicle's attitude" in why
+
+
+@pytest.mark.parametrize("heading, vehicle, stands", [
+    ("reference", "pedestrian", True), ("course", "car", True),
+    ("course", "pedestrian", False), ("assumed", "car", False)])
+def test_a_navigation_finding_needs_a_measured_heading(heading, vehicle, stands):
+    flight = _flight(_ramp(3000, 1.4), recording={"initial_heading": heading,
+                                                   "vehicle": vehicle})
+    why = levels.unmeasured_heading(flight)
+    assert (why == "") == stands, why
+    if not stands:
+        assert "no finding is made" in why
+
+
+def test_an_older_log_says_its_heading_in_words():
+    said = {"assumed": {"initial_state": "rest assumed ...; heading assumed 0 (the track ...)"}}
+    flight = _flight(_ramp(3000, 15.0), recording=said)
+    assert "assumed: nothing measured it" in levels.unmeasured_heading(flight)

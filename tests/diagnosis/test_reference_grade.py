@@ -1,0 +1,64 @@
+"""A reference of any grade, and a recording's two halves (`sensors.accuracy.Accuracy`,
+`diagnosis.confirmation.halves_check`): what the reference may carry itself is not charged to
+the MIMU alone, and an interval the halves of a recording contradict is widened or set aside."""
+import math
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from mimunav.diagnosis import confirmation
+from mimunav.sensors.accuracy import Accuracy
+from mimunav.errors import InputError
+
+DEG_H = math.pi / 180 / 3600
+
+
+def test_a_reference_less_stable_than_table_4_is_of_mems_grade():
+    assert not Accuracy().mems_grade
+    vn = Accuracy.parse(f"gyro_bias={10 * DEG_H},gyro_step=0.01")
+    assert vn.mems_grade
+    # 2 sigma of its stability plus half a logging step: 0.005 rad/s of a 0.01 rad/s log
+    assert vn.bias_allowance("gyro") == pytest.approx(2 * 10 * DEG_H + 0.005)
+    assert vn.bias_sigma("gyro") == pytest.approx(math.hypot(10 * DEG_H, 0.01 / math.sqrt(12)))
+    assert Accuracy().bias_sigma("accel") == pytest.approx(100e-6 * 9.80665)
+    with pytest.raises(InputError, match="below 0.1 .scale 1, misalignment rad. or 1"):
+        Accuracy.parse("gyro_step=2")
+
+
+class _Halves:
+    """A stand-in for `fitting.Fitter` that returns given (b, cov) per half."""
+    values = {}
+
+    def __init__(self, design, rows):
+        self.half = "first" if rows[0] else "second"
+
+    def fit(self, idx):
+        return SimpleNamespace(of=lambda j: self.values[self.half])
+
+
+@pytest.mark.parametrize("second, widened, kept", [
+    (1.05, 1.0, True),          # the halves agree: the interval stands
+    (1.6, None, True),          # they disagree, the widened interval still excludes zero
+    (-1.0, None, False),        # they disagree in sign: inconclusive, set aside
+])
+def test_halves_that_disagree_widen_the_interval_or_set_the_term_aside(monkeypatch, second,
+                                                                       widened, kept):
+    design = SimpleNamespace(t=np.arange(100.0), terms=[{"effect": "scale_factor"}])
+    monkeypatch.setattr(confirmation, "Fitter", _Halves)
+    monkeypatch.setattr(confirmation, "position_of", lambda d, f: 0)
+    se = 0.1
+    _Halves.values = {"first": (np.array([1.0]), np.array([[se ** 2]])),
+                      "second": (np.array([second]), np.array([[se ** 2]]))}
+    finding = {"label": "scale_factor accel.x", "coefficient": 1.2,
+               "ci95": [1.2 - 1.96 * se, 1.2 + 1.96 * se]}
+    found, aside = confirmation.halves_check(design, [finding])
+    assert (len(found) == 1) == kept and (len(aside) == 1) == (not kept)
+    out = (found or aside)[0]
+    stat = (1.0 - second) ** 2 / (2 * se ** 2)
+    factor = widened or math.sqrt(stat)
+    assert out["halves"]["widened_by"] == pytest.approx(factor)
+    half = 1.96 * se * factor
+    assert out["ci95"] == pytest.approx([1.2 - half, 1.2 + half])
+    if not kept:
+        assert "halves disagree" in out["rejected"] and "inconclusive" in out["rejected"]

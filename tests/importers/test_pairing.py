@@ -1,0 +1,109 @@
+"""A reference IMU on its own clock and in its own axes (`importers.pairing`): the clock
+offset found over the whole overlap at any size and taken only from an unambiguous peak, the
+mounting measured at any angle and taken only where the motion decides it. A clock seconds
+off had been "measured" as +34 ms by a search over +-1 s."""
+import numpy as np
+import pytest
+
+from mimunav.frames import attitude
+from mimunav.frames.mounting import Mounting
+from mimunav.importers import pairing
+from mimunav.importers.recording import Recording, RecordingError
+from mimunav.motion import truth
+from mimunav.motion.profile import Profile
+from places import FLIGHTS
+
+RATE = 200.0
+EPOCH_NS = 1_700_000_000_000_000_000
+
+
+@pytest.fixture(scope="module")
+def pair_motion():
+    """(stamps ns, IMU w, f in FLU, reference w, f in its RFD axes) of 150 s of the proof flight."""
+    motion = Profile.load(FLIGHTS / "diagnosis-proof.toml").motion()
+    t = np.arange(0.0, min(motion.t1, 150.0), 1.0 / RATE)
+    run = truth.generate(motion, t)
+    rng = np.random.default_rng(8)
+    dth, dv = Mounting.from_axes("FLU").sensor_increments(run)
+    dth_r, dv_r = Mounting.from_rpy_deg((180.0, 0.0, 90.0)).sensor_increments(run)
+    return (EPOCH_NS + np.round(t[1:] * 1e9).astype(np.int64),
+            dth * RATE + rng.normal(0, 1e-3, dth.shape), dv * RATE + rng.normal(0, 1e-2, dv.shape),
+            dth_r * RATE, dv_r * RATE)
+
+
+def _recording(ns, w, f, w_r, f_r, late_s=0.0, rpy=(180.0, 0.0, 90.0)):
+    return Recording("pair", "test", ns, w, f, Mounting.from_axes("FLU"),
+                     reference_imu=dict(ns=ns + int(round(late_s * 1e9)), w=w_r, f=f_r,
+                                        mounting=Mounting.from_rpy_deg(rpy), model="nav"))
+
+
+@pytest.mark.parametrize("late_s", [-9.26, 0.05, 3.7])
+def test_a_clock_off_by_any_amount_is_found_and_shifted_back(pair_motion, late_s):
+    ns = pair_motion[0]
+    rec = _recording(*pair_motion, late_s=late_s)
+    pairing.pair(rec)
+    assert abs((rec.reference_imu["ns"][0] - ns[0]) / 1e9) < 1e-4
+    assert f"refined to {late_s * 1e3:+.1f} ms" in rec.real["reference_imu_clock"]
+    assert "shifted by" in rec.assumed["reference_imu_time"]
+
+
+def test_a_mounting_off_by_any_angle_is_turned_onto_the_imus(pair_motion):
+    rec = _recording(*pair_motion, rpy=(180.0, 0.0, 0.0))           # 90 deg off in yaw
+    pairing.pair(rec)
+    error = attitude.rotation_vector_error(rec.reference_imu["mounting"].q_vs,
+                                           Mounting.from_rpy_deg((180.0, 0.0, 90.0)).q_vs)
+    assert np.degrees(np.linalg.norm(error)) < 0.1
+    assert "measured 90.0 deg" in rec.real["reference_imu_mounting"]
+
+
+def test_a_periodic_motion_leaves_the_clock_as_recorded():
+    """|w| of a steady oscillation repeats every period: no lag stands out, none is taken."""
+    t = np.arange(0.0, 120.0, 1.0 / RATE)
+    w = np.column_stack([0.3 * np.sin(2 * np.pi * t / 4.0), 0 * t, 0 * t])
+    f = np.tile([0.0, 0.0, -9.81], (len(t), 1))
+    ns = EPOCH_NS + np.round(t * 1e9).astype(np.int64)
+    rec = Recording("swing", "test", ns, w, f, Mounting(),
+                    reference_imu=dict(ns=ns + 1_000_000_000, w=w.copy(), f=f.copy(),
+                                       mounting=Mounting(), model="nav"))
+    pairing.pair(rec)
+    assert rec.real["reference_imu_clock"].startswith("not decided")
+    assert np.array_equal(rec.reference_imu["ns"], ns + 1_000_000_000)
+
+
+def test_a_still_recording_cannot_place_a_turn_about_gravity():
+    """Parked: gravity alone. A tilt is measured; a yaw 20 deg off is not seen, and a tilt
+    beyond the small terms is refused naming what the data do say."""
+    t = np.arange(0.0, 60.0, 1.0 / RATE)
+    rng = np.random.default_rng(2)
+    f = np.tile([0.0, 0.0, -9.81], (len(t), 1)) + rng.normal(0, 0.01, (len(t), 3))
+    w = rng.normal(0, 1e-3, (len(t), 3))
+    ns = EPOCH_NS + np.round(t * 1e9).astype(np.int64)
+
+    def rec(rpy):                       # the reference's own noise, a tenth of the IMU's
+        return Recording("parked", "test", ns, w, f, Mounting(),
+                         reference_imu=dict(ns=ns, w=rng.normal(0, 1e-4, w.shape),
+                                            f=f.mean(axis=0) + rng.normal(0, 1e-3, f.shape),
+                                            mounting=Mounting.from_rpy_deg(rpy), model="nav",
+                                            mounting_hint="--reference-imu-rpy-deg {roll} "
+                                                          "{pitch} {yaw}"))
+    yawed = rec((0.0, 0.0, 20.0))
+    pairing.pair(yawed)
+    assert "not seen" in yawed.real["reference_imu_mounting"]
+    assert "not measured: neither IMU turns" in yawed.real["reference_imu_clock"]
+    with pytest.raises(RecordingError, match="one direction only.*rpy-deg 0.0 0.0 0.0"):
+        pairing.pair(rec((15.0, 0.0, 0.0)))     # the importer's own way to give it
+
+
+def test_a_mirrored_triad_is_refused_naming_it(pair_motion):
+    """A gyro column with the wrong sign makes the reference's triads a reflection of the
+    IMU's: no mounting turns one onto the other; the gyro triad is named (it had gone
+    through as a 'mounting' of tens of degrees)."""
+    ns, w, f, w_r, f_r = pair_motion
+    mirrored = w_r * [-1.0, 1.0, 1.0]
+    with pytest.raises(RecordingError, match="gyros about the vehicle.s y axis run against"):
+        pairing.pair(_recording(ns, w, f, mirrored, f_r))
+    pairing.pair(_recording(ns, w, f, w_r, f_r))            # the true one passes
+    # its mounting given 90 deg off as well: no axis runs against another as given, but
+    # after the best turn one does
+    with pytest.raises(RecordingError, match="after the best turn.*gyros about"):
+        pairing.pair(_recording(ns, w, f, mirrored, f_r, rpy=(180.0, 0.0, 0.0)))

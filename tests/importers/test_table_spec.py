@@ -1,0 +1,158 @@
+"""A table spec is read as written or refused, never guessed (`importers.table`): unknown keys
+refused naming the nearest (`scale` had been ignored, so a 10 us tick became a time base 10x
+too short), any count size as a scale, increments instead of rates, a logger's repeated rows,
+Excel's `sep=` line, a second clock's offset per section, and the sensor's range with its
+clipped samples counted."""
+import numpy as np
+import pytest
+
+from mimunav.flightlog import FlightLog
+from mimunav.importers import table
+from mimunav.importers.recording import RecordingError
+from mimunav.importers.write import write_log
+
+N, RATE = 4000, 100.0
+SPEC = """name = "t"
+[imu]
+time = {{ file = "imu.csv", columns = ["tick"], unit = "us", scale = 10 }}
+{rate}
+{force}
+axes = "FRD"
+{extra}
+[time]
+unix_offset_s = 1700000000.0
+"""
+RATES = 'angular_rate = { file = "imu.csv", columns = ["gx", "gy", "gz"] }'
+FORCES = 'specific_force = { file = "imu.csv", columns = ["ax", "ay", "az"] }'
+
+
+def _imu(tmp_path, rate=RATES, force=FORCES, extra="", rows=None, sep=None, edit=None,
+         clip=np.inf):
+    t = np.arange(1, N + 1) / RATE
+    w = np.clip(0.2 * np.sin(2 * np.pi * 0.3 * t[:, None] + [0.0, 1.0, 2.0]), -clip, clip)
+    f = np.tile([0.5, 0.0, -9.8], (N, 1))
+    data = np.column_stack([np.round(t * 1e5), w, f, w / RATE, f / RATE])
+    if rows is not None:
+        data = data[rows]
+    if edit is not None:
+        edit(data)
+    header = "tick,gx,gy,gz,ax,ay,az,dx,dy,dz,vx,vy,vz"
+    text = "\n".join([header] + [",".join(f"{v:.10g}" for v in row) for row in data]) + "\n"
+    if sep:
+        text = f"sep={sep}\n" + text.replace(",", sep)
+    (tmp_path / "imu.csv").write_text(text)
+    (tmp_path / "spec.toml").write_text(SPEC.format(rate=rate, force=force, extra=extra))
+    return t, w, f
+
+
+def test_a_tick_scale_gives_the_time_base_and_an_unknown_key_is_named(tmp_path):
+    t, w, f = _imu(tmp_path)
+    rec = table.read(tmp_path / "spec.toml")
+    assert np.allclose((rec.imu_ns - rec.imu_ns[0]) / 1e9, t - t[0], atol=1e-6)
+    assert np.allclose(rec.w, w) and np.allclose(rec.f, f)
+    (tmp_path / "spec.toml").write_text(SPEC.format(rate=RATES, force=FORCES, extra="")
+                                        .replace("scale = 10", "scal = 10"))
+    with pytest.raises(RecordingError, match="unknown key 'scal' .did you mean 'scale'"):
+        table.read(tmp_path / "spec.toml")
+    (tmp_path / "spec.toml").write_text(SPEC.format(rate=RATES, force=FORCES,
+                                                    extra="colums = 3"))
+    with pytest.raises(RecordingError, match=r"\[imu\] has an unknown key 'colums'"):
+        table.read(tmp_path / "spec.toml")
+
+
+def test_increments_are_divided_by_their_intervals(tmp_path):
+    t, w, f = _imu(tmp_path, rate='angle_increment = { file = "imu.csv", columns = '
+                                  '["dx", "dy", "dz"] }',
+                   force='velocity_increment = { file = "imu.csv", columns = ["vx", "vy", "vz"] }')
+    rec = table.read(tmp_path / "spec.toml")
+    assert np.allclose(rec.w, w, atol=1e-9) and np.allclose(rec.f, f, atol=1e-9)
+
+
+def test_repeated_rows_are_left_out_and_a_separator_line_is_read(tmp_path):
+    rows = np.r_[np.arange(100), 99, 99, np.arange(100, N)]      # sample 99 written 3 times
+    _imu(tmp_path, rows=rows, sep=";")
+    rec = table.read(tmp_path / "spec.toml")
+    assert len(rec.imu_ns) == N
+    assert "2 rows repeating the row before" in rec.real["repeated [imu]"]
+    _imu(tmp_path, rows=rows, sep=";", edit=lambda d: d[100].__setitem__(1, 0.7))
+    with pytest.raises(RecordingError, match="repeats the time .* with other values"):
+        table.read(tmp_path / "spec.toml")
+
+
+def test_a_sections_own_clock_offset_and_the_sensors_range(tmp_path):
+    clip = np.radians(10.0)                                 # a gyro of +-10 deg/s clips
+    t, w, f = _imu(tmp_path, clip=clip,
+                   extra="time_offset_s = 2.5\nrange = { angular_rate = { value = 10, unit = "
+                         "\"deg/s\" }, specific_force = { value = 4, unit = \"g\" } }")
+    rec = table.read(tmp_path / "spec.toml")
+    assert abs(rec.imu_ns[0] - (0.01 + 2.5 + 1.7e9) * 1e9) < 1e3
+    assert rec.range == pytest.approx({"gyro_rad_s": clip, "accel_m_s2": 4 * 9.80665})
+    assert rec.real["clipped"].startswith(f"{int((np.abs(w) >= 0.999 * clip).any(1).sum())} "
+                                          "samples at the range")
+    write_log(rec, tmp_path / "out.mcap")
+    with FlightLog(tmp_path / "out.mcap") as log:
+        assert log.metadata()["sensor/mimu"]["range"]["gyro_rad_s"] == pytest.approx(clip)
+
+
+def test_per_column_signs_a_data_age_and_a_packet_written_twice(tmp_path):
+    """`scale` per column flips a logger's own sign conventions; a time column's `age` is
+    subtracted (a packet that arrived late); a row repeating the row before within half a
+    step (the same packet written twice, its age-corrected time a tick apart) is one sample."""
+    def edit(data):
+        data[:, 0] += 1000.0 * (np.arange(len(data)) % 3)      # ticks of 10 us: 0, 10, 20 ms late
+        data[:, 7] = 1000.0 * (np.arange(len(data)) % 3) / 100.0   # ... and that age, in ms
+        data[11, 0] = data[10, 0] + 1.0                           # row 11: row 10 again,
+        data[11, 1:7] = data[10, 1:7]                             # 10 us later
+        data[11, 7] = data[10, 7]
+    t, w, f = _imu(tmp_path, edit=edit)
+    (tmp_path / "spec.toml").write_text(SPEC.format(
+        rate='angular_rate = { file = "imu.csv", columns = ["gx", "gy", "gz"], scale = [-1, 1, 1] }',
+        force=FORCES, extra="").replace(
+            'unit = "us", scale = 10 }',
+            'unit = "us", scale = 10, age = { file = "imu.csv", columns = ["dx"], unit = "ms" } }'))
+    rec = table.read(tmp_path / "spec.toml")
+    assert len(rec.imu_ns) == N - 1 and "1 rows repeating" in rec.real["repeated [imu]"]
+    keep = np.r_[0:11, 12:N]
+    assert np.allclose((rec.imu_ns - rec.imu_ns[0]) / 1e9, t[keep] - t[0], atol=2e-5)
+    assert np.allclose(rec.w, w[keep] * [-1, 1, 1])
+    (tmp_path / "spec.toml").write_text(SPEC.format(
+        rate='angular_rate = { file = "imu.csv", columns = ["gx", "gy", "gz"], scale = [-1, 1] }',
+        force=FORCES, extra=""))
+    with pytest.raises(RecordingError, match="or 3 of them, one per column"):
+        table.read(tmp_path / "spec.toml")
+
+
+def test_a_reference_attitude_in_euler_angles_and_a_height_on_its_own_clock(tmp_path):
+    """[reference] attitude_rpy (roll, pitch, yaw of body -> NED, z-y-x) gives the same q_nb
+    as the quaternion; a height in ft on another clock is interpolated onto the reference's
+    times, the epochs it does not cover left out and counted."""
+    from mimunav.frames import attitude
+    _imu(tmp_path)
+    n = 200
+    t = np.arange(1, n + 1) / 10.0
+    roll, pitch, yaw = np.radians(10.0), np.radians(-5.0), np.radians(120.0) + 0.01 * t
+    q = attitude.as_wxyz(attitude.from_euler(yaw, pitch, np.full(n, roll)))
+    ref = np.column_stack([t * 1e5, np.full(n, 30.0), np.full(n, 104.0), np.zeros((n, 3)),
+                           np.degrees(np.column_stack([np.full(n, roll), np.full(n, pitch),
+                                                       yaw]))])
+    np.savetxt(tmp_path / "ref.csv", ref, delimiter=",", header="tick,lat,lon,vn,ve,vd,r,p,y",
+               comments="")
+    baro = np.column_stack([(t[20:] - 0.05) * 1e5, 1000.0 + 10 * t[20:]])
+    np.savetxt(tmp_path / "baro.csv", baro, delimiter=",", header="tick,alt", comments="")
+    section = """[reference]
+time = { file = "ref.csv", columns = ["tick"], unit = "us", scale = 10 }
+latitude = { file = "ref.csv", columns = ["lat"], unit = "deg" }
+longitude = { file = "ref.csv", columns = ["lon"], unit = "deg" }
+height = { file = "baro.csv", columns = ["alt"], unit = "ft", time = { file = "baro.csv", columns = ["tick"], unit = "us", scale = 10 } }
+velocity_ned = { file = "ref.csv", columns = ["vn", "ve", "vd"] }
+attitude_rpy = { file = "ref.csv", columns = ["r", "p", "y"], unit = "deg" }
+"""
+    (tmp_path / "spec.toml").write_text(SPEC.format(rate=RATES, force=FORCES, extra="")
+                                        + section)
+    rec = table.read(tmp_path / "spec.toml")
+    got = rec.reference
+    # the barometer runs 0.05 s early from epoch 20 on: epochs 0-19 and the last uncovered
+    assert len(got["ns"]) == n - 21 and "21 epochs beyond its span" in \
+        rec.real["reference_height_time"]
+    assert np.allclose(got["h"], 0.3048 * (1000.5 + 10 * t[20:-1]), atol=0.02)
+    assert np.allclose(np.abs(np.sum(got["q_nb"] * q[20:-1], axis=1)), 1.0, atol=1e-9)
