@@ -75,8 +75,9 @@ def flight_arguments(p):
                    "(default: the last instant every channel covers)")
 
 
-def scenario_options(p, flight=True):
-    """The options of `campaign.Scenario`: what shapes a Table 3 comparison."""
+def scenario_options(p, flight=True, gyro_zero=False):
+    """The options of `campaign.Scenario`: what shapes a Table 3 comparison (`gyro_zero`:
+    with --gyro-zero, for the commands whose every unit runs through `campaign.run_unit`)."""
     if flight:
         p.add_argument("--flight", default=str(FLIGHTS / "high-dynamic.toml"),
                        help="flight profile TOML (default: flights/high-dynamic.toml, seed S1 "
@@ -98,6 +99,12 @@ def scenario_options(p, flight=True):
     p.add_argument("--fog-grade", default="table4",
                    help="reference FOG-IMU (default table4: Table 4 medium accuracy; "
                    "table4-bound: its bounds as 1 sigma; navigation: 0.01 deg/h class)")
+    if gyro_zero:
+        p.add_argument("--gyro-zero", choices=("lab", "pre-flight"), default="lab",
+                       help="the traditional calibration's gyro zero: lab = fitted on the rate "
+                       "table at 25 degC (default); pre-flight = taken still in the launch "
+                       "attitude over the warm-up's last 10 s (seed S1's refs calibrate no gyro "
+                       "zero)")
     p.add_argument("--exact-model", action="store_true",
                    help="MIMU exactly the 63-coefficient model (no scale asymmetry, no dT term)")
 
@@ -108,7 +115,8 @@ def scenario(args):
                     ground_temperature_c=args.ground_temperature_c, warm_up_s=args.warm_up_s,
                     mimu_grade=args.mimu_grade,
                     nonlinearity=args.nonlinearity, fog_grade=args.fog_grade,
-                    beyond_model=not args.exact_model)
+                    beyond_model=not args.exact_model,
+                    gyro_zero=getattr(args, "gyro_zero", "lab"))
 
 
 def variant_paths(specs):

@@ -29,6 +29,7 @@ from tqdm import tqdm
 from ..lab import procedures as lab
 from ..sensors import simulation
 from ..lab.calibrate import calibrate
+from ..lab.preflight import gyro_zero
 from ..lab.runs import LabRun
 from .flight import Flight
 from .table import normalised_table
@@ -47,6 +48,11 @@ VARIANTS = {"traditional": ("multi-position", "single-axis-rate"),
 _MOTIONS = {}                        # per process: (procedure, lab seed) -> lab motion
 _FLIGHTS = {}                        # per process: flight key -> simulation.FlightMotion
 WARM_UP_S = 600.0                    # s, see SOURCES
+# the traditional calibration's gyro zero: "lab" (fitted with its scale factors on the rate
+# table at the lab's temperature) or "pre-flight" (`lab.preflight`: taken over the warm-up's
+# last PREFLIGHT_S seconds, still in the launch attitude)
+GYRO_ZEROS = ("lab", "pre-flight")
+PREFLIGHT_S = 10.0                   # s: seed S1 Table 1 states the gyro zero over 10 s
 
 
 @dataclass(frozen=True)
@@ -65,15 +71,20 @@ class Scenario:
     nonlinearity: str = "table1"
     fog_grade: str = "table4"
     beyond_model: bool = True
+    gyro_zero: str = "lab"
 
     def __post_init__(self):
         for value, allowed, what in ((self.mimu_grade, MIMU_GRADES, "MIMU grade"),
                                      (self.nonlinearity, NONLINEARITY, "nonlinearity"),
-                                     (self.fog_grade, FOG_GRADES, "FOG grade")):
+                                     (self.fog_grade, FOG_GRADES, "FOG grade"),
+                                     (self.gyro_zero, GYRO_ZEROS, "gyro zero")):
             if value not in allowed:
                 raise InputError(f"{what} {value!r}: one of {', '.join(allowed)}")
         if not 0.0 <= self.warm_up_s <= 86400.0:
             raise InputError(f"warm-up {self.warm_up_s} s: expected 0..86400")
+        if self.gyro_zero == "pre-flight" and self.warm_up_s < PREFLIGHT_S:
+            raise InputError(f"a pre-flight gyro zero takes the warm-up's last {PREFLIGHT_S:g} s:"
+                             f" a warm-up of {self.warm_up_s:g} s is shorter")
         if not -60.0 <= self.ground_temperature_c <= 60.0:
             raise InputError(f"ground temperature {self.ground_temperature_c} degC: "
                              "expected -60..60")
@@ -82,7 +93,10 @@ class Scenario:
         """JSON-ready, with the flight by file name and content hash (a campaign file moves
         with its data; another profile of the same name is another campaign)."""
         digest = hashlib.sha256(Path(self.flight).read_bytes()).hexdigest()[:16]
-        return dict(asdict(self), flight=Path(self.flight).name, flight_sha256=digest)
+        doc = dict(asdict(self), flight=Path(self.flight).name, flight_sha256=digest)
+        if self.gyro_zero == "lab":     # the only zero before there was a choice: the
+            del doc["gyro_zero"]        # campaigns written then resume as they were
+        return doc
 
     def source(self, key):
         """Where this scenario's value of option `key` comes from (`SOURCES` for the
@@ -131,6 +145,9 @@ SOURCES = {
                     "reading); 'table2' = literally",
     "fog_grade": "seed S1 Table 4 read as medium accuracy, bounds at ~2 sigma "
                  "(sensors.fog.FOG_GRADES)",
+    "gyro_zero": "the lab's rate-table fit at 25 degC (the project's first reading); "
+                 "'pre-flight': the zero taken still in the launch attitude over the warm-up's "
+                 "last 10 s (seed S1's refs [2-5] calibrate no gyro zero in the lab)",
     "beyond_model": "sensing elements simulated forward (cross-axis nonlinearity, "
                     "sensors.response), scale asymmetry 50-200 ppm and seed S3's dT term "
                     "(assumed magnitudes, sensors.mimu)",
@@ -165,8 +182,15 @@ def run_unit(scenario, seed, index):
     unit, fog, rng_mimu, rng_fog = simulation.flight_units(useed, unit,
                                                            fog_grade=scenario.fog_grade)
     fm = _flight_motion(scenario, unit, fog)
-    raw, fog_out = simulation.record_flight(fm, unit, fog, rng_mimu, rng_fog,
-                                            warm_up_s=scenario.warm_up_s)
+    if scenario.gyro_zero == "pre-flight":
+        pre, raw, fog_out = simulation.record_with_preflight(fm, unit, fog, rng_mimu, rng_fog,
+                                                             PREFLIGHT_S, scenario.warm_up_s)
+        tr = fm.run.trajectory
+        w_still, _ = simulation.still_rates(unit.mounting, tr.q_nb[0], tr.lat[0], tr.h[0])
+        cals["traditional"], _ = gyro_zero(cals["traditional"], pre, w_still, unit.rate_hz)
+    else:
+        raw, fog_out = simulation.record_flight(fm, unit, fog, rng_mimu, rng_fog,
+                                                warm_up_s=scenario.warm_up_s)
     doc = normalised_table(Flight.from_simulation(fm, unit, fog, raw, fog_out), cals)
     doc.pop("log")
     return {"index": index, "unit_seed": useed, "campaign": _identity(scenario, seed),

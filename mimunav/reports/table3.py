@@ -126,7 +126,8 @@ def assumptions_markdown(scenario):
         mark = "" if scenario.source(key) == campaign.SOURCES[key] or key in (
             "mimu_grade", "fog_grade", "nonlinearity") and getattr(scenario, key) == getattr(
             campaign.Scenario(), key) else " (not the default)"
-        lines.append(f"| `{key}` | {identity[key]}{mark} | {scenario.source(key)} |")
+        value = identity.get(key, getattr(scenario, key))   # (the lab gyro zero: not in it)
+        lines.append(f"| `{key}` | {value}{mark} | {scenario.source(key)} |")
     return lines
 
 

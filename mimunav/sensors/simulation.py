@@ -33,7 +33,7 @@ from ..motion.platform import platform_metadata
 from .hidden import HiddenPhysics, HiddenSet
 from .thermal import BAY_TAU_S, ISA_LAPSE, bay_temperature
 from ..errors import InputError
-from ..frames import attitude
+from ..frames import attitude, earth
 
 DEFAULT_EPOCH = "2026-01-01T00:00:00Z"
 # Documented default mountings: the FOG-IMU defines the vehicle frame origin; the MIMU sits
@@ -176,6 +176,47 @@ def record_flight(fm, unit, fog, rng_mimu, rng_fog, hidden=None, warm_up_s=0.0):
     (`MimuUnit.simulate`); the MIMU powered on `warm_up_s` before take-off (0: cold)."""
     raw = unit.simulate(*fm.mimu, fm.env, rng_mimu, hidden=hidden, warm_up_s=warm_up_s)
     return raw, fog.simulate(*fm.fog, rng_fog)
+
+
+def still_rates(mounting, q_nb, lat, h):
+    """(w rad/s, f m/s^2; (3,), sensor axes) of an IMU at `mounting` standing still at
+    latitude `lat` (rad) and height `h` (m) in the attitude q_nb (body FRD -> NED): the
+    Earth's rate and the specific force of rest, w^s = C_sv C_vn w_ie^n and
+    f^s = C_sv C_vn (0, 0, -g)."""
+    q_sn = np.conjugate(mounting.q_vs) * np.conjugate(q_nb)
+    return (attitude.rotate(q_sn, earth.earth_rate_ned(lat)),
+            attitude.rotate(q_sn, -earth.gravity_ned(lat, h)))
+
+
+def still_increments(mounting, q_nb, lat, h, t):
+    """`still_rates` as increments (dtheta rad, dv m/s; (N, 3)), one per interval of the
+    uniform sample times t (s, (N,))."""
+    dt = float(np.median(np.diff(t))) if len(t) > 1 else 0.0
+    w, f = still_rates(mounting, q_nb, lat, h)
+    return np.tile(w * dt, (len(t), 1)), np.tile(f * dt, (len(t), 1))
+
+
+def record_with_preflight(fm, unit, fog, rng_mimu, rng_fog, preflight_s, warm_up_s,
+                          hidden=None):
+    """`record_flight` with the MIMU's last `preflight_s` seconds of its warm-up recorded
+    too, standing still in the flight's first attitude (the launch attitude) in the bay's
+    first temperature: (pre-flight raw, flight raw, FOG outputs). One record of the MIMU:
+    the pre-flight samples share the flight's turn-on bias, noise and thermal history (the
+    unit powered on `warm_up_s` before take-off, `preflight_s` <= `warm_up_s`)."""
+    if not 0.0 < preflight_s <= warm_up_s:
+        raise InputError(f"a pre-flight span of {preflight_s:g} s needs a warm-up at least "
+                         f"as long (warm-up {warm_up_s:g} s)")
+    t, dtheta, dv = fm.mimu
+    n_pre = int(round(preflight_s * unit.rate_hz))
+    t_pre = t[0] - np.arange(n_pre, 0, -1) / unit.rate_hz
+    tr = fm.run.trajectory
+    dth_pre, dv_pre = still_increments(unit.mounting, tr.q_nb[0], tr.lat[0], tr.h[0], t_pre)
+    raw = unit.simulate(np.concatenate([t_pre, t]), np.vstack([dth_pre, dtheta]),
+                        np.vstack([dv_pre, dv]), np.concatenate([np.full(n_pre, fm.env[0]),
+                                                                 fm.env]),
+                        rng_mimu, hidden=hidden, warm_up_s=warm_up_s - preflight_s)
+    pre = {k: v[:n_pre] for k, v in raw.items()}
+    return pre, {k: v[n_pre:] for k, v in raw.items()}, fog.simulate(*fm.fog, rng_fog)
 
 
 def truth_file(log):

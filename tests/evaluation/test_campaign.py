@@ -169,6 +169,30 @@ def test_scenario_options_reach_the_unit_and_the_reference(profile):
     np.testing.assert_allclose(dev["table4-bound"], 2.5 * dev["table4"])   # same draw, scaled
 
 
+@pytest.mark.slow
+def test_a_pre_flight_gyro_zero_changes_the_traditional_zero_only(profile, monkeypatch):
+    """--gyro-zero pre-flight: the traditional calibration's W0 is the one taken before
+    take-off, its other coefficients the lab's; the entire calibration is the lab's. The
+    choice needs a warm-up as long as the span it takes, is named in a campaign's identity
+    (the lab zero as before: old campaigns resume), and is refused when unknown."""
+    lab = campaign.Scenario(flight=profile)
+    pre = dataclasses.replace(lab, gyro_zero="pre-flight")
+    assert "gyro_zero" not in lab.identity() and pre.identity()["gyro_zero"] == "pre-flight"
+    with pytest.raises(ValueError, match="gyro zero"):
+        campaign.Scenario(gyro_zero="hangar")
+    with pytest.raises(ValueError, match="warm-up"):
+        campaign.Scenario(gyro_zero="pre-flight", warm_up_s=5.0)
+    seen = []
+    monkeypatch.setattr(campaign, "normalised_table",
+                        lambda flight, cals: seen.append(cals) or {"log": None})
+    for scenario in (lab, pre):
+        campaign.run_unit(scenario, 1, 0)
+    by_lab, by_pre = seen
+    assert not np.allclose(by_lab["traditional"].W0, by_pre["traditional"].W0)
+    np.testing.assert_array_equal(by_lab["traditional"].W1, by_pre["traditional"].W1)
+    np.testing.assert_array_equal(by_lab["entire"].W0, by_pre["entire"].W0)
+
+
 def test_regime_points_and_their_summary():
     """One-at-a-time points around the base (each level once, the base's not repeated), and
     the summary's medians and paper test on records whose ratios are known."""
