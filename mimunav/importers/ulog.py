@@ -121,6 +121,8 @@ def read(path, mounting=None, instance=None, reference_instance=None):
     if reference is not None:
         real["reference"] = ("PX4 EKF2 output: vehicle_global_position, vehicle_local_position "
                              f"velocity, vehicle_attitude ({len(reference['ns'])} epochs)")
+    else:
+        assumed["reference"] = unused_reference(ulog)
     assumed.update(mounting="PX4 body frame FRD = vehicle frame" if mounting is None
                    else "given on the command line",
                    calibration="PX4's on-board calibration, as logged")
@@ -198,6 +200,16 @@ def instances(ulog):
                 text += f", temperature {temp.min():.2f} to {temp.max():.2f} degC"
         out[f"{d.name}:{d.multi_id}"] = text
     return out
+
+
+def unused_reference(ulog):
+    """Why the log gives no reference trajectory: which of REFERENCE_TOPICS it has and lacks
+    (a logged attitude or local position without a global position is not used)."""
+    have = [n for n in REFERENCE_TOPICS if _topic(ulog, n) is not None]
+    missing = [n for n in REFERENCE_TOPICS[:2] if n not in have]
+    return (f"none: the log has {', '.join(have) or 'none of ' + ', '.join(REFERENCE_TOPICS)}"
+            f" but not {' and '.join(missing)}; the reference trajectory needs the autopilot's "
+            "global position and local velocity (an attitude alone is not used)")
 
 
 def autopilot_estimate(ulog, offset_us):

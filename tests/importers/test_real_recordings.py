@@ -143,7 +143,8 @@ def test_px4_v6c_autopilot_reference_and_imu_instances(tmp_path):
 
 def test_px4_sample_without_gnss(tmp_path):
     """pyulog's sample: 69 s of sensor_combined at 250 Hz, no GNSS and no global position:
-    imported with the rest assumed at the start and position 0, and says so."""
+    imported with the rest assumed at the start and position 0, and says so - and that its
+    vehicle_attitude is not used without a global position."""
     path = PX4 / "pyulog_sample.ulg"
     _need(path)
     log = tmp_path / "sample.mcap"
@@ -153,6 +154,9 @@ def test_px4_sample_without_gnss(tmp_path):
         n = len(fl.read("/mimu/imu")["log_time"])
     assert "no GNSS track" in meta["recording"]["assumed"]["initial_state"]
     assert "reference" not in meta
+    # the attitude and local position it does log are named as not used, and why
+    unused = meta["recording"]["assumed"]["reference"]
+    assert "vehicle_attitude" in unused and "not vehicle_global_position" in unused
     assert float(meta["sensor/mimu"]["sample_rate_hz"]) == pytest.approx(250.0, abs=0.5)
     assert n == 17070                   # every sensor_combined sample (the README's count)
     assert "file" not in meta["recording"]["real"]
