@@ -18,8 +18,9 @@ from ..motion.intervals import RunningIntegral, intervals
 
 DERIVATIVE_WINDOW_S = 0.1       # d/dt of reference rates: quartic Savitzky-Golay over 100 ms,
 # exact for motion up to 4th order in time (close to it inside the profiles' ramps), and
-# long enough that the reference's output quantization (FOG: 5 urad per pulse) does not turn
-# into angular-acceleration noise. That noise is shared by the lever-arm transfer (x dr) and
+# long enough that the reference's output quantization (FOG: 5 urad per pulse) turns into
+# little angular-acceleration noise where the count moves every sample (where it stands still
+# for many, not: `pulse_counted`). That noise is shared by the lever-arm transfer (x dr) and
 # the size-effect regressor (x r) - errors in variables: over 20 ms it faked centimetre
 # proof-mass offsets on null recordings, over 50 ms it still raised 2 false size effects in
 # 40 nulls (reports/diagnosis-proof.md, seed 200 run); over 100 ms none in the cases tried.
@@ -45,7 +46,7 @@ def predicted_mimu(flight):
     inside = (t > flight.fog_t[0]) & (t <= flight.fog_t[-1])
     if inside.sum() < 2:
         raise InputError(f"{flight.path}: the reference IMU does not cover the MIMU's samples")
-    counted = flight.source != "recording"
+    counted = flight.source == "simulation"
     fog_w = pulse_counted(flight.fog_t, flight.fog_w) if counted else flight.fog_w
     fog_f = pulse_counted(flight.fog_t, flight.fog_f) if counted else flight.fog_f
     w_v = attitude.rotate(flight.fog_mounting.q_vs, fog_w)
@@ -61,10 +62,11 @@ def predicted_mimu(flight):
 
 
 def pulse_counted(t, x):
-    """A pulse-counting reference's interval means (t s (N,), x (N, 3): rad/s or m/s^2) with
-    its count's staircase replaced by the line through the middles of its steps, where the
-    data show the counting: a simulated or contract log's reference (FOG: 1 arcsec and 0.1
-    mm/s a pulse) reports round(true running sum / quantum) - its error never accumulates,
+    """A pulse-counting reference's interval means (t s (N,), x (N, 3): rad/s or m/s^2, one
+    rate: the count is taken per sample) with its count's staircase replaced by the line
+    through the middles of its runs, where the data show the counting: this project's
+    simulated reference (FOG: 1 arcsec and 0.1 mm/s a pulse; `predicted_mimu` passes only a
+    log whose source is "simulation") reports round(true running sum / quantum) - its error never accumulates,
     but at a slow rate its count stands still for many samples and then moves a whole
     quantum, and the derivative of that staircase (the lever-arm transfer's dw/dt, the
     size-effect and lever-arm regressors) is the quantization's, not the motion's: on a long
@@ -74,7 +76,9 @@ def pulse_counted(t, x):
     sum stands at that count, to a fraction of a quantum. An axis whose samples are not whole
     multiples of their smallest step (a continuous reference) is left as it is, and so is a
     rate fast enough that the count moves every sample (each run one sample long: the line is
-    the staircase); a recording's outputs, rounded rather than counted, are not passed here."""
+    the staircase); a recording's outputs, rounded rather than counted, are not passed here.
+    The line also takes part of a real oscillation smaller than a few quanta (a 30 Hz rate of
+    1 quantum's angle: about a fifth), which the raw count keeps."""
     t = np.asarray(t, float)
     out = np.array(x, float, copy=True)
     if len(t) < 3:
@@ -88,9 +92,11 @@ def pulse_counted(t, x):
             continue
         edges = np.flatnonzero(np.round(pulses[1:])) + 1    # samples where the count moves
         starts, ends = np.r_[0, edges], np.r_[edges - 1, len(pulses) - 1]
-        middle = 0.5 * (t[starts] + t[ends])
+        # in sample numbers, not seconds: the count is per sample, and a gap in the stamps
+        # would otherwise pour the line's rise across it into the one sample after it
+        middle = 0.5 * (starts + ends)
         running = np.cumsum(out[:, i])                      # the count, in rate x samples
-        out[1:, i] = np.diff(np.interp(t, middle, running[starts]))
+        out[1:, i] = np.diff(np.interp(np.arange(len(pulses)), middle, running[starts]))
     return out
 
 

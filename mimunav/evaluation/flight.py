@@ -125,7 +125,8 @@ class Flight:
                    {key: raw[key] for key in RAW_FIELDS},
                    unit.mounting, {"accel_m_s2": unit.range_accel, "gyro_rad_s": unit.range_gyro},
                    fm.fog[0], fog_out["angular_velocity"], fog_out["linear_acceleration"],
-                   fog.mounting, truth, fog_meta={"accuracy": fog.accuracy()})
+                   fog.mounting, truth, fog_meta={"accuracy": fog.accuracy()},
+                   source="simulation")
 
     def mimu_blocks(self, cal):
         """The MIMU through `cal` (`compensated_mimu`) in time-ordered blocks of

@@ -49,3 +49,16 @@ def test_a_quiet_flight_beside_a_pulse_counting_fog_fits_no_lever_arm():
     flight, _, _, cal = concealed.recording("flights/gentle.toml", None, 1003, calibrate=False)
     diag = sensor.diagnose(flight, cal)
     assert sensor.verdict(diag) == "no-missing-physics", [f["label"] for f in diag.findings]
+
+
+def test_a_gap_in_the_stamps_pours_no_spike_into_the_sample_after_it():
+    """The count is per sample: 1 s of dropped reference samples on a 5e-5 rad/s axis leaves
+    every sample within one sample's worth of a quantum of the rate (the line drawn over
+    seconds put 167x the rate into the first sample after the gap)."""
+    t = np.arange(0.0, 20.0, DT)
+    rate = np.full((len(t), 3), 5e-5)
+    counted = quantize_increments(rate * DT, ARCSEC) / DT
+    keep = np.ones(len(t), bool)
+    keep[10000:11000] = False
+    smoothed = pulse_counted(t[keep], counted[keep])
+    assert np.abs(smoothed - rate[keep]).max() <= 5e-5 + 1e-12
