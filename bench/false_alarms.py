@@ -28,11 +28,10 @@ import time
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
-from scipy import stats
-
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 from publish import publish, write_report                                  # noqa: E402
+from mimunav.evaluation.proportions import proportion                      # noqa: E402
 
 SHARED = ROOT.parent / "shared" / "data"
 CARRIERS = [SHARED / "foreign-flights" / f"foreign-0{n}" for n in range(1, 7)] + \
@@ -63,9 +62,8 @@ def run(job):
 
 def interval(k, n):
     """Clopper-Pearson 95 % interval of k alarms in n logs."""
-    lo = stats.beta.ppf(0.025, k, n - k + 1) if k else 0.0
-    hi = stats.beta.ppf(0.975, k + 1, n - k) if k < n else 1.0
-    return float(lo), float(hi)
+    lo, hi = proportion([True] * k + [False] * (n - k))["ci95"]
+    return lo, hi
 
 
 def markdown(cases, meta):

@@ -123,6 +123,7 @@ def set_aside_line(w):
     the terminal: its value, its p against the noise alone, the reference's stated 1 sigma
     along it and the 1 sigma the test used - the estimate's with the reference's and the
     calibration's stated errors as priors, which can exceed both."""
+    from ..diagnosis.document import charge_text
     value = w.get("coefficient", w.get("vector"))
     said = (f"{value:.4g}" if isinstance(value, float) else
             "[" + ", ".join(f"{v:.3g}" for v in value) + "]")
@@ -132,7 +133,8 @@ def set_aside_line(w):
               f"the calibration's stated covariance (1 sigma {sigmas('calibration_1sigma')})")
     return (f"  set aside: {w['label']} {said}: significant against the noise alone (p "
             f"{w['p_train']:.2g}), not once the stated errors that may share it - {stated} - "
-            f"are allowed: with them its 1 sigma is {sigmas('total_1sigma')}")
+            f"are allowed: with them its 1 sigma is {sigmas('total_1sigma')}\n"
+            f"    {charge_text(w)}")
 
 
 def add_diagnose(sub):

@@ -202,5 +202,5 @@ def add_campaign(sub):
     p.add_argument("--workers", type=number(1, 256, int), default=2,
                    help="local processes (default 2)")
     p.add_argument("--scheduler", help="Dask scheduler address (runs there instead)")
-    scenario_options(p, flight=False, gyro_zero=True)
+    scenario_options(p, flight=False)
     p.set_defaults(func=_campaign)

@@ -75,9 +75,8 @@ def flight_arguments(p):
                    "(default: the last instant every channel covers)")
 
 
-def scenario_options(p, flight=True, gyro_zero=False):
-    """The options of `campaign.Scenario`: what shapes a Table 3 comparison (`gyro_zero`:
-    with --gyro-zero, for the commands whose every unit runs through `campaign.run_unit`)."""
+def scenario_options(p, flight=True):
+    """The options of `campaign.Scenario`: what shapes a Table 3 comparison."""
     if flight:
         p.add_argument("--flight", default=str(FLIGHTS / "high-dynamic.toml"),
                        help="flight profile TOML (default: flights/high-dynamic.toml, seed S1 "
@@ -89,7 +88,8 @@ def scenario_options(p, flight=True, gyro_zero=False):
                    help="air temperature at the start height, degC (default 15, ISA)")
     p.add_argument("--warm-up-s", type=number(0.0, 86400.0), default=600.0,
                    help="MIMU powered on this long before take-off, s (default 600: the "
-                   "reference's ground alignment; 0 = cold at take-off)")
+                   "reference's ground alignment; 0 = cold at take-off, with --gyro-zero lab: "
+                   "a pre-flight zero takes the warm-up's last 10 s)")
     p.add_argument("--mimu-grade", default="table1",
                    help="MIMU random errors (default table1: seed S1 Table 1 at its bound; "
                    "tactical: ADIS16488A class; stim300: STIM300 class)")
@@ -99,12 +99,11 @@ def scenario_options(p, flight=True, gyro_zero=False):
     p.add_argument("--fog-grade", default="table4",
                    help="reference FOG-IMU (default table4: Table 4 medium accuracy; "
                    "table4-bound: its bounds as 1 sigma; navigation: 0.01 deg/h class)")
-    if gyro_zero:
-        p.add_argument("--gyro-zero", choices=("lab", "pre-flight"), default="lab",
-                       help="the traditional calibration's gyro zero: lab = fitted on the rate "
-                       "table at 25 degC (default); pre-flight = taken still in the launch "
-                       "attitude over the warm-up's last 10 s (seed S1's refs calibrate no gyro "
-                       "zero)")
+    p.add_argument("--gyro-zero", choices=("pre-flight", "lab"), default="pre-flight",
+                   help="the traditional calibration's gyro zero: pre-flight = taken still in "
+                   "the launch attitude over the warm-up's last 10 s (default; seed S1's refs "
+                   "calibrate no gyro zero in the lab); lab = fitted on the rate table at "
+                   "25 degC")
     p.add_argument("--exact-model", action="store_true",
                    help="MIMU exactly the 63-coefficient model (no scale asymmetry, no dT term)")
 
@@ -116,7 +115,7 @@ def scenario(args):
                     mimu_grade=args.mimu_grade,
                     nonlinearity=args.nonlinearity, fog_grade=args.fog_grade,
                     beyond_model=not args.exact_model,
-                    gyro_zero=getattr(args, "gyro_zero", "lab"))
+                    gyro_zero=args.gyro_zero)
 
 
 def variant_paths(specs):

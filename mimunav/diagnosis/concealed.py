@@ -48,6 +48,7 @@ from ..compensation.effects import AXES
 from ..sensors.hidden import HiddenPhysics
 from ..sensors.mimu import G0
 from ..errors import InputError
+from ..evaluation.proportions import proportion
 
 DEG = math.pi / 180
 MG = 1e-3 * G0
@@ -279,22 +280,12 @@ def summary(cases):
     cov = [c["covered"] for c in eff if "covered" in c]
     ratios = [c["heldout_rms_ratio"] for c in eff if "heldout_rms_ratio" in c]
     return {"recordings": len(cases), "with_effect": len(eff), "nulls": len(nul),
-            "identified": _rate([c["identified"] for c in eff]),
-            "identified_exact": _rate([c["exact"] for c in eff]),
-            "false_alarms": _rate([c["false_alarm"] for c in nul]),
-            "false_alarms_true_model": _rate([c["false_alarm_true_model"] for c in nul]),
+            "identified": proportion([c["identified"] for c in eff]),
+            "identified_exact": proportion([c["exact"] for c in eff]),
+            "false_alarms": proportion([c["false_alarm"] for c in nul]),
+            "false_alarms_true_model": proportion([c["false_alarm_true_model"] for c in nul]),
             "other_findings_in_effect_recordings": sum(len(c["others"]) for c in eff),
             "other_findings_true_model": sum(len(c.get("others_true_model", []))
                                              for c in eff if "others" in c),
-            "interval_coverage": _rate(cov),
+            "interval_coverage": proportion(cov),
             "heldout_rms_ratio_median": float(np.median(ratios)) if ratios else None}
-
-
-def _rate(flags):
-    from scipy.stats import beta
-    n, k = len(flags), int(sum(flags))
-    if n == 0:
-        return {"k": 0, "n": 0}
-    lo = beta.ppf(0.025, k, n - k + 1) if k else 0.0
-    hi = beta.ppf(0.975, k + 1, n - k) if k < n else 1.0
-    return {"k": k, "n": n, "rate": k / n, "ci95": [float(lo), float(hi)]}

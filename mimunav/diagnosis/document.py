@@ -80,3 +80,19 @@ METHOD = {
 
 def dumps(doc):
     return json.dumps(doc, indent=1, allow_nan=False, default=float) + "\n"
+
+
+def charge_text(w):
+    """What a set-aside term says of the MIMU against the reference: a discrepancy exists,
+    and the accuracy (1 sigma along the term) that would let it be charged to the MIMU."""
+    k = w.get("charged_at_accuracy")
+    if k is None:
+        return "the MIMU and the reference disagree along it"
+    whose = "reference's" if "reference_1sigma" in w else "calibration's"
+    if k <= 0:
+        return (f"the MIMU and the reference disagree along it; no {whose} accuracy 1e4 times "
+                "better than stated would let it be charged to the MIMU on this flight")
+    return (f"the MIMU and the reference disagree along it: it would be charged to the MIMU "
+            f"with the {whose} 1 sigma at {k:.2g} of the stated ("
+            + ", ".join(f"{v:.3g}" for v in w["charged_at_1sigma"]) + ") or better")
+

@@ -41,20 +41,21 @@ class Fitter:
                           for c in range(6)]
         self.row_precision = [np.linalg.inv(p + 1e-24 * np.eye(3)) for p in self.row_prior]
 
-    def _profile(self, c, cols, pinned=False, gram=None):
+    def _profile(self, c, cols, factor=1.0, gram=None):
         """(Grams, r, log-likelihood) of channel c at every wander level, with the candidate
         columns `cols` (indices into the channel's columns) in the mean and the reference
         inputs (columns 1-3) under the reference's prior: the
         likelihood of y ~ N(X beta, r (wander) + R P R'), by Woodbury over the 3 prior
         columns, with r profiled (fixed-point on the penalized residual); and the
-        coefficients of the reference inputs and `cols` at every level. `gram`: the
-        channel's Grams with another residual (`profile_interval`)."""
+        coefficients of the reference inputs and `cols` at every level. `factor`: the prior's
+        precision multiplied by it (`prior_factor`); `gram`: the channel's Grams with another
+        residual (`profile_interval`)."""
         g = self.gram[c] if gram is None else gram
         every = [1, 2, 3] + list(cols)
         m = g[:, every][:, :, every]
         h = g[:, every, 0]
         pen = np.zeros((len(every), len(every)))
-        pen[:3, :3] = self.row_precision[c] * (PIN if pinned else 1.0)
+        pen[:3, :3] = self.row_precision[c] * factor
         r = np.maximum(g[:, 0, 0], 1e-300) / self.n
         for _ in range(4):
             theta = np.linalg.solve(m + r[:, None, None] * pen + 1e-12 * np.eye(len(every)) *
@@ -63,7 +64,7 @@ class Fitter:
             q = np.maximum(g[:, 0, 0] - np.einsum("li,li->l", h, theta), 1e-300)
             r = q / self.n
         _, logdet_prior = np.linalg.slogdet(np.eye(3) + self.row_prior[c] @ m[:, :3, :3]
-                                            / (r[:, None, None] * (PIN if pinned else 1.0)))
+                                            / (r[:, None, None] * factor))
         loglik = -0.5 * (self.logdet[c] + self.n * np.log(r) + logdet_prior + q / r)
         if self.design.wander_steps is not None:    # levels whose step exceeds the cap: out
             over = self.design.levels * r > self.design.wander_steps[c]
@@ -71,14 +72,14 @@ class Fitter:
             loglik = np.where(over, -np.inf, loglik)
         return g, r, loglik, theta
 
-    def _level(self, c, cols, pinned=False):
+    def _level(self, c, cols, factor=1.0):
         """(Gram, r, log-likelihood) of channel c at the wander level of maximum marginal
-        likelihood (`_profile`); kept per (channel, columns in their order, pinned): a
+        likelihood (`_profile`); kept per (channel, columns in their order, factor): a
         selection step fits every candidate with the same chosen terms on the channels the
         candidate does not touch, and the likelihood ratio refits the fit's own model."""
-        key = (c, tuple(cols), pinned)
+        key = (c, tuple(cols), factor)
         if key not in self._levels:
-            g, r, loglik, _ = self._profile(c, cols, pinned)
+            g, r, loglik, _ = self._profile(c, cols, factor)
             best = int(np.argmax(loglik))
             self._levels[key] = g[best], float(r[best]), float(loglik[best])
         return self._levels[key]
@@ -135,10 +136,12 @@ class Fitter:
             lo, hi = min(lo, 0.0), max(hi, 0.0)     # interval (a profile of several tops)
         return lo, hi
 
-    def fit(self, terms, pinned=False):
+    def fit(self, terms, pinned=False, accuracy=1.0):
         """`Fit` of the candidates `terms` (indices) with the reference error gamma under its
-        prior (`pinned`: gamma held at zero - the candidates against the noise alone);
-        parameters [gamma (18), terms...]."""
+        prior (`pinned`: gamma held at zero - the candidates against the noise alone;
+        `accuracy`: the prior's 1 sigma as a multiple of the stated one); parameters
+        [gamma (18), terms...]."""
+        factor = prior_factor(pinned, accuracy)
         k = [self.design.k[j] for j in terms]
         offsets = 18 + np.concatenate([[0], np.cumsum(k)]).astype(int)
         size = offsets[-1]
@@ -149,13 +152,20 @@ class Fitter:
                 if j in self.slot[c]:
                     cols += list(self.slot[c][j])
                     slots += list(range(o, o + kj))
-            g, r, _ = self._level(c, cols[3:], pinned)
+            g, r, _ = self._level(c, cols[3:], factor)
             a[np.ix_(slots, slots)] += g[np.ix_(cols, cols)] / r
             h[slots] += g[cols, 0] / r
-        a[:18, :18] += self.precision * (PIN if pinned else 1.0)
+        a[:18, :18] += self.precision * factor
         cov = _covariance(a)
         beta = cov @ h
         return Fit(beta, cov, [slice(o, o + kj) for o, kj in zip(offsets, k)], list(terms))
+
+
+def prior_factor(pinned=False, accuracy=1.0):
+    """The multiplier of the reference prior's precision: PIN holds the error at zero; a
+    reference `accuracy` times as accurate as stated (its 1 sigma scaled) divides it by
+    accuracy^2."""
+    return PIN if pinned else 1.0 / accuracy ** 2
 
 
 def _covariance(a):

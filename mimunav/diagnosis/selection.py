@@ -6,9 +6,10 @@ on the whole flight where the training half cannot tell them apart).
 import math
 
 import numpy as np
+from scipy import optimize
 
 from . import library
-from .fitting import Fitter, plausible, reference_direction, term_test
+from .fitting import Fitter, plausible, reference_direction, term_test, wald
 
 
 MAX_TERMS = 6
@@ -34,7 +35,8 @@ def select(design, train, alpha, full_scale, whole=None):
             # calibration's own for one the model carries) at the selection's threshold
             if res["logp_ref"] > math.log(alpha / max(m - step, 1)):
                 if res["logp"] < math.log(alpha / m) and j not in within:
-                    within[j] = res
+                    within[j] = dict(res, charged_at=chargeable_accuracy(
+                        fitter, current + [j], j, math.log(alpha / max(m - step, 1))))
                 continue
             res = dict(res, logp=res["logp_ref"])
             significant[j] = res
@@ -152,6 +154,32 @@ def adds_to(fitter, current, j, given, log_level):
     return term_test(fitter, current + [given, j], j)["logp_ref"] <= log_level
 
 
+def chargeable_accuracy(fitter, terms, j, log_level):
+    """The stated accuracy's multiple (< 1) at which candidate j, fitted with `terms`, would
+    pass `log_level`: the reference's 1 sigma for a term its linear error can make, else the
+    calibration's (the allowance's); 0.0 when the noise alone does not reach it, 1e-4 and
+    below reported as 0.0 - no reference a flight test has would do."""
+    design = fitter.design
+    if reference_direction(design, j) is not None:
+        def logp(k):
+            return wald(*fitter.fit(terms, accuracy=k).of(j))[1]
+    else:
+        res = term_test(fitter, terms, j)
+        if res["logp"] > log_level or design.allowance[j] <= 0:
+            return 0.0
+        b, cov = res["b"], res["cov"]
+
+        def logp(k):
+            return wald(b, cov + k ** 2 * design.allowance[j])[1]
+    lo = math.log(1e-4)
+    if logp(1.0) <= log_level:              # passes as stated (a caller's other threshold)
+        return 1.0
+    if logp(math.exp(lo)) > log_level:
+        return 0.0
+    return math.exp(optimize.brentq(lambda u: logp(math.exp(u)) - log_level, lo, 0.0,
+                                    xtol=1e-3))
+
+
 def _within(design, j, res):
     """A term set aside (`term_test`'s logp_ref above the threshold): the stated 1 sigma along it
     - the reference's linear error (with the calibration's) for a term it can make
@@ -165,13 +193,19 @@ def _within(design, j, res):
     else:
         stated = {"calibration_1sigma": [math.sqrt(design.allowance[j])] * len(res["b"])}
         total = np.sqrt(np.diag(res["cov"]) + design.allowance[j])
+    k = res["charged_at"]
     return {"label": library.label(design.terms[j]), **_describe_b(res["b"]), **stated,
             "total_1sigma": total.tolist(),
             "p_train": math.exp(res["logp"]),
+            "charged_at_accuracy": k,
+            "charged_at_1sigma": [k * v for v in next(iter(stated.values()))],
             "note": "significant against the noise alone, but not once the reference's and "
                     "the calibration's stated errors may share it: the data cannot tell it "
                     "from them (total_1sigma: the estimate's uncertainty with those priors), "
-                    "so it cannot be charged to physics the model lacks"}
+                    "so it cannot be charged to physics the model lacks. A discrepancy between "
+                    "the MIMU and the reference exists; it would be charged to the MIMU with "
+                    "the stated 1 sigma scaled by charged_at_accuracy (charged_at_1sigma; 0: "
+                    "by no reference 1e4 times better than stated)"}
 
 
 def _describe_b(b):

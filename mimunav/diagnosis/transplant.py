@@ -68,7 +68,7 @@ def carrier(base):
 def transplant(base, spec, seed=0):
     """(Flight with the effect of `spec` hidden in its MIMU, calibration, answer key)."""
     flight, cal, f, w = carrier(base)
-    term = _parse(spec)
+    term = parse_spec(spec)
     rng = np.random.default_rng(seed)
     out = {"accel": f.copy(), "gyro": w.copy()}
     effect, sensor = term["effect"], term["sensor"]
@@ -163,7 +163,10 @@ def _whole_unit(flight, term, out):
         out["accel"][:, i] += lever_arm_specific_force(flight, r_v)[:, i]
 
 
-def _parse(spec):
+def parse_spec(spec):
+    """The answer-key term (dict) of a transplant spec (module doc): the `--hide` syntax,
+    plus the classes only a transplant hides (saturation level, quantization step, wander
+    sigma, vibration rectification, lever arm vector)."""
     effect = spec.split(":", 1)[0]
     if effect in ("saturation", "quantization", "bias_instability", "vibration_rectification",
                   "lever_arm"):

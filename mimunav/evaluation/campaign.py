@@ -48,9 +48,9 @@ VARIANTS = {"traditional": ("multi-position", "single-axis-rate"),
 _MOTIONS = {}                        # per process: (procedure, lab seed) -> lab motion
 _FLIGHTS = {}                        # per process: flight key -> simulation.FlightMotion
 WARM_UP_S = 600.0                    # s, see SOURCES
-# the traditional calibration's gyro zero: "lab" (fitted with its scale factors on the rate
-# table at the lab's temperature) or "pre-flight" (`lab.preflight`: taken over the warm-up's
-# last PREFLIGHT_S seconds, still in the launch attitude)
+# the traditional calibration's gyro zero: "pre-flight" (`lab.preflight`: taken over the
+# warm-up's last PREFLIGHT_S seconds, still in the launch attitude; the default, SOURCES) or
+# "lab" (fitted with its scale factors on the rate table at the lab's temperature)
 GYRO_ZEROS = ("lab", "pre-flight")
 PREFLIGHT_S = 10.0                   # s: seed S1 Table 1 states the gyro zero over 10 s
 
@@ -71,7 +71,7 @@ class Scenario:
     nonlinearity: str = "table1"
     fog_grade: str = "table4"
     beyond_model: bool = True
-    gyro_zero: str = "lab"
+    gyro_zero: str = "pre-flight"
 
     def __post_init__(self):
         for value, allowed, what in ((self.mimu_grade, MIMU_GRADES, "MIMU grade"),
@@ -84,7 +84,8 @@ class Scenario:
             raise InputError(f"warm-up {self.warm_up_s} s: expected 0..86400")
         if self.gyro_zero == "pre-flight" and self.warm_up_s < PREFLIGHT_S:
             raise InputError(f"a pre-flight gyro zero takes the warm-up's last {PREFLIGHT_S:g} s:"
-                             f" a warm-up of {self.warm_up_s:g} s is shorter")
+                             f" a warm-up of {self.warm_up_s:g} s is shorter (a warm-up of at "
+                             f"least {PREFLIGHT_S:g} s, or the lab's zero: --gyro-zero lab)")
         if not -60.0 <= self.ground_temperature_c <= 60.0:
             raise InputError(f"ground temperature {self.ground_temperature_c} degC: "
                              "expected -60..60")
@@ -145,9 +146,12 @@ SOURCES = {
                     "reading); 'table2' = literally",
     "fog_grade": "seed S1 Table 4 read as medium accuracy, bounds at ~2 sigma "
                  "(sensors.fog.FOG_GRADES)",
-    "gyro_zero": "the lab's rate-table fit at 25 degC (the project's first reading); "
-                 "'pre-flight': the zero taken still in the launch attitude over the warm-up's "
-                 "last 10 s (seed S1's refs [2-5] calibrate no gyro zero in the lab)",
+    "gyro_zero": "pre-flight: the traditional calibration's gyro zero taken still in the "
+                 "launch attitude over the warm-up's last 10 s (seed S1 names what its refs "
+                 "[2-5] calibrate in the lab - cross-coupling, accelerometer zero and first-"
+                 "order scale, gyro scale - and no gyro zero; a MEMS gyro's zero taken at "
+                 "power-on before flight is the ordinary practice); 'lab': fitted on the rate "
+                 "table at 25 degC (the project's first reading)",
     "beyond_model": "sensing elements simulated forward (cross-axis nonlinearity, "
                     "sensors.response), scale asymmetry 50-200 ppm and seed S3's dT term "
                     "(assumed magnitudes, sensors.mimu)",
@@ -179,22 +183,48 @@ def run_unit(scenario, seed, index):
     useed = unit_seed(seed, index)
     unit = scenario.draw_unit(useed, f"MIMU-{index:04d}")
     cals = {variant: lab_calibration(unit, variant, seed, useed) for variant in VARIANTS}
+    flight, still = fly(scenario, unit, useed)
+    cals["traditional"] = traditional_zero(cals["traditional"], still)
+    doc = normalised_table(flight, cals)
+    doc.pop("log")
+    return {"index": index, "unit_seed": useed, "campaign": _identity(scenario, seed),
+            "code": code_version(), **doc}
+
+
+@dataclass
+class Still:
+    """The MIMU's pre-flight record (`mimu_raw` fields over the warm-up's last
+    PREFLIGHT_S s), the true rate it sensed standing still (rad/s, sensor axes) and its
+    sample rate (Hz): what `lab.preflight.gyro_zero` takes."""
+    raw: dict
+    w_still: np.ndarray
+    rate_hz: float
+
+
+def fly(scenario, unit, useed):
+    """(`Flight` of `unit` on `scenario`'s flight with seed `useed`, built in memory; `Still`
+    or None): with a pre-flight gyro zero the MIMU's warm-up's last seconds are recorded
+    too, standing in the launch attitude."""
     unit, fog, rng_mimu, rng_fog = simulation.flight_units(useed, unit,
                                                            fog_grade=scenario.fog_grade)
     fm = _flight_motion(scenario, unit, fog)
+    still = None
     if scenario.gyro_zero == "pre-flight":
         pre, raw, fog_out = simulation.record_with_preflight(fm, unit, fog, rng_mimu, rng_fog,
                                                              PREFLIGHT_S, scenario.warm_up_s)
         tr = fm.run.trajectory
         w_still, _ = simulation.still_rates(unit.mounting, tr.q_nb[0], tr.lat[0], tr.h[0])
-        cals["traditional"], _ = gyro_zero(cals["traditional"], pre, w_still, unit.rate_hz)
+        still = Still(pre, w_still, unit.rate_hz)
     else:
         raw, fog_out = simulation.record_flight(fm, unit, fog, rng_mimu, rng_fog,
                                                 warm_up_s=scenario.warm_up_s)
-    doc = normalised_table(Flight.from_simulation(fm, unit, fog, raw, fog_out), cals)
-    doc.pop("log")
-    return {"index": index, "unit_seed": useed, "campaign": _identity(scenario, seed),
-            "code": code_version(), **doc}
+    return Flight.from_simulation(fm, unit, fog, raw, fog_out), still
+
+
+def traditional_zero(cal, still):
+    """The traditional calibration with its gyro zero taken before flight (`still`), or as
+    the lab fitted it (`still` None)."""
+    return cal if still is None else gyro_zero(cal, still.raw, still.w_still, still.rate_hz)[0]
 
 
 def _flight_motion(scenario, unit, fog):

@@ -18,7 +18,7 @@ import numpy as np
 from ..evaluation.replay import (comparison_times, compensated_mimu, navigate_fog, navigate_mimu,
                                  ned_to_enu, resample)
 from ..files import atomic_folder
-from ..diagnosis.document import dumps
+from ..diagnosis.document import charge_text, dumps
 from ..diagnosis.design import term_contribution
 from ..diagnosis import library
 from ..diagnosis.inference import p_text
@@ -304,7 +304,8 @@ def _residual_lines(doc):
                   + (f"the reference's stated 1 sigma {_vec(w['reference_1sigma'])}"
                      if "reference_1sigma" in w else
                      f"the calibration's stated 1 sigma {_vec(w['calibration_1sigma'])}")
-                  + f"; p train against the noise alone {w['p_train']:.2g})"
+                  + f"; p train against the noise alone {w['p_train']:.2g}); "
+                  + charge_text(w)
                   for w in doc["within_reference_accuracy"]]
         lines.append("")
     if doc["not_confirmed"]:
