@@ -10,7 +10,7 @@ from numpy.typing import ArrayLike
 
 from ..files import check_format, json_ready, read_json, write_atomic
 from . import effects
-from .model import CalibrationError
+from .model import CalibrationError, poly2
 
 FORMAT = "mimunav-calibration/1"
 MODELS = ("entire-63", "linear", "cold-start")
@@ -186,6 +186,24 @@ class Calibration:
             shifted = getattr(self, c).copy()
             shifted[:, 0] -= d
             setattr(out, c, shifted)
+        return out
+
+    def without(self, keys) -> "Calibration":
+        """A copy with the coefficient arrays `keys` (e.g. "C", "A2") zeroed."""
+        out = Calibration.from_dict(self.as_dict())
+        for key in keys:
+            getattr(out, key)[:] = 0.0
+        return out
+
+    def frozen_at(self, accel_temperature: ArrayLike, gyro_frequency: ArrayLike
+                  ) -> "Calibration":
+        """A copy with eqs. 2/4 held at these readings (degC and Hz, per axis): their
+        value there as the constant term, no dependence on the readings."""
+        out = Calibration.from_dict(self.as_dict())
+        for key, reading in (("ct", accel_temperature), ("cw", gyro_frequency)):
+            poly = getattr(out, key)
+            poly[:, 0] = poly2(poly, np.asarray(reading, float)[None, :])[0]
+            poly[:, 1:] = 0.0
         return out
 
     def save(self, path: str | os.PathLike, force: bool = False) -> None:

@@ -7,7 +7,6 @@ import math
 import numpy as np
 
 from ..compensation.calibration_file import Calibration
-from ..compensation.model import poly2
 from ..errors import InputError
 from .replay import comparison_times, navigate_fog, ned_to_enu, replay, resample
 
@@ -91,25 +90,20 @@ def without(cal, group, flight):
     """`cal` with one group of terms switched off: temperature (eqs. 2, 4 frozen at the
     flight's first readings), nonlinear scale factor (A2, A3, W2, W3), g-sensitivity (C),
     cross-coupling (off-diagonals of A1 and W1)."""
-    out = Calibration.from_dict(cal.as_dict())
     if group == "temperature":
         r = flight.mimu_raw
-        for key, reading in (("ct", r["accel_temperature"][0]), ("cw", r["gyro_frequency"][0])):
-            poly = getattr(out, key)
-            poly[:, 0] = poly2(poly, reading[None, :])[0]
-            poly[:, 1:] = 0.0
-    elif group == "nonlinear scale factor":
-        for key in ("A2", "A3", "W2", "W3"):
-            getattr(out, key)[:] = 0.0
-    elif group == "g-sensitivity":
-        out.C[:] = 0.0
-    elif group == "cross-coupling":
+        return cal.frozen_at(r["accel_temperature"][0], r["gyro_frequency"][0])
+    if group == "nonlinear scale factor":
+        return cal.without(("A2", "A3", "W2", "W3"))
+    if group == "g-sensitivity":
+        return cal.without(("C",))
+    if group == "cross-coupling":
+        out = Calibration.from_dict(cal.as_dict())
         for key in ("A1", "W1"):
             m = getattr(out, key)
             m[~np.eye(3, dtype=bool)] = 0.0
-    else:
-        raise InputError(f"unknown term group {group!r}; one of {', '.join(BUDGET_GROUPS)}")
-    return out
+        return out
+    raise InputError(f"unknown term group {group!r}; one of {', '.join(BUDGET_GROUPS)}")
 
 
 def error_budget(flight, cal, end=None):

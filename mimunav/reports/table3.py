@@ -20,6 +20,8 @@ from ..lab import procedures as lab
 from ..lab.calibrate import calibrate
 from ..evaluation.replay import comparison_times, errors_at, navigate_fog, replay
 from ..evaluation.table import budget_markdown, error_budget, normalised_table, table_markdown
+from ..evaluation.traditional import ZeroConditions, traditional_budget, traditional_markdown
+from ..lab.runs import LabRun
 from ..evaluation.proportions import proportion
 from ..files import write_atomic
 from .plots import campaign_distributions, navigation_errors
@@ -70,8 +72,9 @@ def reproduce(out_dir="reports", seed=1, mc_units=16, workers=2, progress=True, 
                 cal.save(out_dir / f"table3-{variant}.json", force=True)
             steps.update()
             doc, budget = _flight_results(flight, cals, unit, profile, out_dir)
+            floor = _traditional_floor(flight, cals["traditional"], unit, still, tmp)
             # the flight was simulated in memory (as each campaign unit's): no log, but what
-            for part in (doc, budget):       # it was
+            for part in (doc, budget, floor):     # it was
                 part["log"] = None
                 part["log_note"] = (f"{profile.name} flight simulated in memory for unit "
                                     f"{unit.name} (seed {seed}), no log written")
@@ -86,10 +89,11 @@ def reproduce(out_dir="reports", seed=1, mc_units=16, workers=2, progress=True, 
     probabilities = paper_probabilities(records) if records else None
     steps.update()
     elapsed = time.perf_counter() - t_start
-    write_atomic(md, _markdown(scenario, profile, unit, doc, budget, stats, probabilities,
-                               len(records), seed, elapsed), force=True)
+    write_atomic(md, _markdown(scenario, profile, unit, doc, budget, floor, stats,
+                               probabilities, len(records), seed, elapsed), force=True)
     write_atomic(out_dir / "table3.json", json.dumps(
-        {"scenario": scenario.identity(), "table": doc, "budget": budget, "campaign": stats,
+        {"scenario": scenario.identity(), "table": doc, "budget": budget,
+         "traditional_budget": floor, "campaign": stats,
          "paper_probabilities": probabilities, "seed": seed}, indent=1) + "\n", force=True)
     steps.update()
     steps.close()
@@ -102,6 +106,18 @@ def _lab_calibration(unit, variant, folder, seed):
     paths = [lab.run(lab.plan(p), unit, os.path.join(folder, f"{p}.mcap"), seed + k,
                      progress=False)[0] for k, p in enumerate(campaign.VARIANTS[variant])]
     return calibrate(paths, variant, unit.name)
+
+
+def _traditional_floor(flight, cal, unit, still, folder):
+    """The traditional row's budget (`evaluation.traditional`), its zeros' conditions from
+    the lab runs in `folder` (and the pre-flight record `still`, when the gyro zeros were
+    taken before flight)."""
+    zero = ZeroConditions.from_lab(
+        *(LabRun.load(os.path.join(folder, f"{p}.mcap")) for p in campaign.VARIANTS["traditional"]),
+        unit.coefficients)
+    if still is not None:
+        zero = zero.with_preflight_gyros(still, flight)
+    return traditional_budget(flight, cal, unit.coefficients, zero)
 
 
 def _flight_results(flight, cals, unit, profile, out_dir):
@@ -196,7 +212,8 @@ def paper_lines(stats, probabilities):
     return out
 
 
-def _markdown(scenario, profile, unit, doc, budget, stats, probabilities, n_mc, seed, elapsed):
+def _markdown(scenario, profile, unit, doc, budget, trad_budget, stats, probabilities, n_mc,
+              seed, elapsed):
     paper = ["| compensation | east | north | up |", "|---|---|---|---|"]
     for name, row in PAPER.items():
         paper.append(f"| {name} | {row[0]} | {row[1]} | {row[2]} |")
@@ -254,6 +271,12 @@ def _markdown(scenario, profile, unit, doc, budget, stats, probabilities, n_mc, 
         "Each group of terms switched off in turn (temperature: eqs. 2/4 frozen at the first "
         "readings), the flight replayed, the 3-D end error compared:", "",
         budget_markdown(budget),
+        "## Error budget of the traditional calibration on this flight", "",
+        "What sets the traditional row: one group of the unit's true terms added back to its "
+        "outputs at a time, relative to the conditions its zeros were set in "
+        "(`mimunav/evaluation/traditional.py`); what all five leave is the calibration's own "
+        "fit error and the unit's random errors.", "",
+        traditional_markdown(trad_budget),
         "## Monte Carlo", "", campaign.summary_markdown(stats, n_mc),
         "![distributions](table3-campaign.png)", "",
         "## Reading the numbers", "", *verdict,
