@@ -117,16 +117,18 @@ def error_budget(flight, cal, end=None):
     return doc
 
 
-def budget_markdown(doc):
-    against = ("the truth (/truth/state)" if doc["reference"] == "truth" else
+def budget_markdown(doc, base="full", what="east/north/up:", worth="group worth (3-D, m)"):
+    """A budget (`error_budget`, `traditional.traditional_budget`) as a table: each row's
+    end error and its group's worth against the row `base`."""
+    against = ("the truth (/truth/state)" if doc.get("reference", "truth") == "truth" else
                "the FOG-IMU's own solution (no /truth/state in this log)")
     lines = [f"End-point error of the MIMU at t = {doc['end_t_s']:.2f} s against {against}, "
-             "east/north/up:", "",
-             "| calibration | east m | north m | up m | 3-D m | group worth (3-D, m) |",
+             f"{what}", "",
+             f"| calibration | east m | north m | up m | 3-D m | {worth} |",
              "|---|---|---|---|---|---|"]
     for name, row in doc["variants"].items():
         e = row["enu_m"]
-        worth = "-" if name == "full" else f"{row['worth_m']:+.3g}"
+        cell = "-" if name == base else f"{row['worth_m']:+.3g}"
         lines.append(f"| {name} | {e[0]:+.3g} | {e[1]:+.3g} | {e[2]:+.3g} | "
-                     f"{row['norm_m']:.3g} | {worth} |")
+                     f"{row['norm_m']:.3g} | {cell} |")
     return "\n".join(lines) + "\n"

@@ -31,6 +31,7 @@ import numpy as np
 from ..compensation.model import compensate
 from ..sensors.simulation import still_rates
 from .replay import comparison_times, navigate_mimu, ned_to_enu, resample
+from .table import budget_markdown
 
 GROUPS = ("temperature offset lab-to-flight", "temperature change in flight",
           "nonlinear scale factor", "g-sensitivity at 1 g", "g-sensitivity at (n-1) g")
@@ -140,14 +141,6 @@ def traditional_budget(flight, trad, true, zero):
 
 def traditional_markdown(doc):
     """The traditional budget as a table: each row's end error and the group's worth."""
-    lines = [f"End-point error of the MIMU at t = {doc['end_t_s']:.2f} s against the truth, "
-             "east/north/up, with one group of the unit's true terms added back to the "
-             "traditional calibration's outputs at a time:", "",
-             "| outputs | east m | north m | up m | 3-D m | group worth (3-D m removed) |",
-             "|---|---|---|---|---|---|"]
-    for name, row in doc["variants"].items():
-        e = row["enu_m"]
-        worth = "-" if name == "traditional" else f"{row['worth_m']:+.3g}"
-        lines.append(f"| {name} | {e[0]:+.3g} | {e[1]:+.3g} | {e[2]:+.3g} | "
-                     f"{row['norm_m']:.3g} | {worth} |")
-    return "\n".join(lines) + "\n"
+    return budget_markdown(doc, "traditional", "east/north/up, with one group of the unit's "
+                           "true terms added back to the traditional calibration's outputs at "
+                           "a time:", "group worth (3-D m removed)")
