@@ -1,6 +1,6 @@
 """Peak memory of the commands that read a whole flight, against the flight's length.
 
-    python bench/memory.py [--minutes 5 20] [--commands compensate replay table]
+    python bench/memory.py [--minutes 5 20] [--commands compensate replay table diagnose]
 
 A parked 1 kHz flight (MIMU raw volts of a drawn unit at rest through its true
 coefficients, FOG-IMU at rest, truth at 100 Hz; white noise) of each length is written
@@ -30,7 +30,7 @@ from mimunav.sensors.mimu import MimuUnit                    # noqa: E402
 EPOCH_NS = 1_767_225_600 * 10**9
 LAT, LON, H = math.radians(45.0), math.radians(7.0), 300.0
 BLOCK = 200_000
-COMMANDS = ("compensate", "replay", "table", "simulate")
+COMMANDS = ("compensate", "replay", "table", "simulate", "diagnose")
 
 
 def parked_log(path, minutes, unit, rate=1000.0, seed=0):
@@ -114,7 +114,9 @@ def commands(kind, log, cal, tmp, minutes):
         return ["simulate", str(profile), "-o", f"{tmp}/sim.mcap", "--force"]
     out = {"compensate": ["compensate", log, "--cal", cal, "-o", f"{tmp}/out.mcap", "--force"],
            "replay": ["replay", log, "--cal", cal, "-o", f"{tmp}/replay", "--force"],
-           "table": ["table", log, "--cal", f"c={cal}"]}
+           "table": ["table", log, "--cal", f"c={cal}"],
+           "diagnose": ["diagnose", log, "--model", cal, "--json", f"{tmp}/diagnosis.json",
+                        "--force"]}
     return out[kind]
 
 

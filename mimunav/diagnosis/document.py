@@ -83,16 +83,20 @@ def dumps(doc):
 
 
 def charge_text(w):
-    """What a set-aside term says of the MIMU against the reference: a discrepancy exists,
-    and the accuracy (1 sigma along the term) that would let it be charged to the MIMU."""
+    """What a set-aside term says of the MIMU against the reference: the two disagree along
+    it, and how much smaller the stated linear errors it was tested against would have to be
+    for it to pass the selection's test (a finding would still need the other checks)."""
     k = w.get("charged_at_accuracy")
     if k is None:
         return "the MIMU and the reference disagree along it"
-    whose = "reference's" if "reference_1sigma" in w else "calibration's"
+    whose = ("the reference's and the calibration's stated linear errors together"
+             if "reference_1sigma" in w else "the calibration's stated covariance")
     if k <= 0:
-        return (f"the MIMU and the reference disagree along it; no {whose} accuracy 1e4 times "
-                "better than stated would let it be charged to the MIMU on this flight")
-    return (f"the MIMU and the reference disagree along it: it would be charged to the MIMU "
-            f"with the {whose} 1 sigma at {k:.2g} of the stated ("
-            + ", ".join(f"{v:.3g}" for v in w["charged_at_1sigma"]) + ") or better")
-
+        return (f"the MIMU and the reference disagree along it; with {whose} even 1e4 times "
+                "smaller it would not pass the selection's test on this flight")
+    said = (f"the MIMU and the reference disagree along it: it would pass the selection's "
+            f"test with {whose} at {k:.2g} of the stated (1 sigma "
+            + ", ".join(f"{v:.3g}" for v in w["charged_at_1sigma"]) + ")")
+    if not w.get("charged_at_monotone", True):
+        said += ", though not at every smaller value (the test is not monotone here)"
+    return said

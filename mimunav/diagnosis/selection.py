@@ -155,10 +155,14 @@ def adds_to(fitter, current, j, given, log_level):
 
 
 def chargeable_accuracy(fitter, terms, j, log_level):
-    """The stated accuracy's multiple (< 1) at which candidate j, fitted with `terms`, would
-    pass `log_level`: the reference's 1 sigma for a term its linear error can make, else the
-    calibration's (the allowance's); 0.0 when the noise alone does not reach it, 1e-4 and
-    below reported as 0.0 - no reference a flight test has would do."""
+    """(k, monotone): the largest multiple k < 1 of the stated linear errors (the
+    reference's and the calibration's together, the prior the test uses, for a term the
+    reference's linear error can make; else the calibration's allowance) at which candidate
+    j, fitted with `terms`, passes the selection's test at `log_level`; 0.0 when no k down to
+    1e-4 does (no reference a flight test has). Found on a log grid from k = 1 down and
+    refined between the first grid point that passes and the one before; `monotone` is
+    False when a smaller grid k fails again (the Wald statistic with a tighter prior need
+    not grow: the wander level is chosen anew at each k)."""
     design = fitter.design
     if reference_direction(design, j) is not None:
         def logp(k):
@@ -166,18 +170,21 @@ def chargeable_accuracy(fitter, terms, j, log_level):
     else:
         res = term_test(fitter, terms, j)
         if res["logp"] > log_level or design.allowance[j] <= 0:
-            return 0.0
+            return 0.0, True
         b, cov = res["b"], res["cov"]
 
         def logp(k):
             return wald(b, cov + k ** 2 * design.allowance[j])[1]
-    lo = math.log(1e-4)
-    if logp(1.0) <= log_level:              # passes as stated (a caller's other threshold)
-        return 1.0
-    if logp(math.exp(lo)) > log_level:
-        return 0.0
-    return math.exp(optimize.brentq(lambda u: logp(math.exp(u)) - log_level, lo, 0.0,
-                                    xtol=1e-3))
+    grid = np.logspace(0.0, -4.0, 25)
+    passes = [logp(k) <= log_level for k in grid]
+    if passes[0]:                        # passes as stated (a caller's other threshold)
+        return 1.0, all(passes)
+    if not any(passes):
+        return 0.0, True
+    first = passes.index(True)
+    k = math.exp(optimize.brentq(lambda u: logp(math.exp(u)) - log_level,
+                                 math.log(grid[first]), math.log(grid[first - 1]), xtol=1e-3))
+    return k, all(passes[first:])
 
 
 def _within(design, j, res):
@@ -193,19 +200,22 @@ def _within(design, j, res):
     else:
         stated = {"calibration_1sigma": [math.sqrt(design.allowance[j])] * len(res["b"])}
         total = np.sqrt(np.diag(res["cov"]) + design.allowance[j])
-    k = res["charged_at"]
+    k, monotone = res["charged_at"]
     return {"label": library.label(design.terms[j]), **_describe_b(res["b"]), **stated,
             "total_1sigma": total.tolist(),
             "p_train": math.exp(res["logp"]),
             "charged_at_accuracy": k,
             "charged_at_1sigma": [k * v for v in next(iter(stated.values()))],
+            "charged_at_monotone": monotone,
             "note": "significant against the noise alone, but not once the reference's and "
                     "the calibration's stated errors may share it: the data cannot tell it "
                     "from them (total_1sigma: the estimate's uncertainty with those priors), "
-                    "so it cannot be charged to physics the model lacks. A discrepancy between "
-                    "the MIMU and the reference exists; it would be charged to the MIMU with "
-                    "the stated 1 sigma scaled by charged_at_accuracy (charged_at_1sigma; 0: "
-                    "by no reference 1e4 times better than stated)"}
+                    "so it cannot be charged to physics the model lacks. The MIMU and the "
+                    "reference disagree along it; with those stated errors scaled by "
+                    "charged_at_accuracy (1 sigma charged_at_1sigma; 0: not even 1e4 times "
+                    "smaller) it would pass this test at the selection's threshold on the "
+                    "training half - a finding would still need the plausibility, look-alike "
+                    "and held-out checks"}
 
 
 def _describe_b(b):

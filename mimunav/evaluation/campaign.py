@@ -257,6 +257,12 @@ def lab_calibration(unit, variant, lab_seed, noise_seed, propagate=False):
     """`unit` through the lab procedures of `variant` (the lab's setting errors drawn from
     `lab_seed`, the unit's noise from `noise_seed`) and their fit, in memory (`propagate`:
     with the full covariance, `calibration.calibrate`)."""
+    return calibrate(lab_runs(unit, variant, lab_seed, noise_seed), variant, unit.name,
+                     propagate=propagate)
+
+
+def lab_runs(unit, variant, lab_seed, noise_seed):
+    """The `LabRun`s of `variant`'s procedures (in `VARIANTS` order), recorded in memory."""
     runs = []
     for k, proc in enumerate(VARIANTS[variant]):
         plan = lab.plan(proc)
@@ -267,7 +273,7 @@ def lab_calibration(unit, variant, lab_seed, noise_seed, propagate=False):
             f"{proc} ({unit.name})", lab.lab_metadata(plan), raw["t"],
             {key: raw[key] for key in ("accel_volts", "gyro_volts", "accel_temperature",
                                        "gyro_frequency")}, ts, fields))
-    return calibrate(runs, variant, unit.name, propagate=propagate)
+    return runs
 
 
 def _identity(scenario, seed):

@@ -2,27 +2,32 @@
 made by adding back to its compensated outputs one group of the unit's true terms at a
 time and navigating again.
 
-The traditional calibration (A0, A1, W0, W1: zeros, first-order scales, cross-coupling)
-has no temperature model, no nonlinear scale factors and no g-sensitivity; its zeros were
-set in some conditions - the lab's multi-position run for the accelerometers; for the gyros
-the lab's rate table (`--gyro-zero lab`) or the launch attitude standing before flight
-(`pre-flight`) - and there they absorbed whatever those groups gave. So a group is added
-back relative to those conditions (`ZeroConditions`), each as the unit's true model gives
-it (seed S1 eqs. 1-4 with the unit's own 63 coefficients):
+The traditional calibration (A0, A1, W0, W1: zeros, first-order scales, cross-coupling, on
+the raw volts) has no temperature model, no nonlinear scale factors and no g-sensitivity.
+Its linear terms were fitted in the lab - the accelerometers on the multi-position run, the
+gyros on the rate table - and there a least-squares fit on [1, volts] took into them the
+part of each missing group that is linear in the volts over the lab's windows; the gyro
+zeros may have been set again standing in the launch attitude before flight
+(`--gyro-zero pre-flight`), which takes each group's value at rest instead of the lab's
+constant. So a group is added back as the unit's true model gives it on the flight (seed S1
+eqs. 1-4 with the unit's own 63 coefficients) minus what the calibration absorbed of it
+(`Absorbed`):
 
-  temperature offset lab-to-flight   eqs. 2/4 frozen at the flight's first readings, minus
-                                     frozen at the zeros' readings
-  temperature change in flight       eqs. 2/4 as they run, minus frozen at the first readings
-  nonlinear scale factor             A2, A3, W2, W3
-  g-sensitivity at 1 g               C times the specific force of rest in the flight's own
-                                     attitude (gravity's reaction, sensor axes), minus C times
-                                     the specific force the gyro zeros were set at
-  g-sensitivity at (n-1) g           C times the rest of the specific force: the load of the
-                                     manoeuvres
+  temperature offset zeros-to-flight  eqs. 2/4 frozen at the flight's first readings, minus
+                                      what the lab (or the pre-flight rest) absorbed
+  temperature change in flight        eqs. 2/4 as they run, minus frozen at the first readings
+  nonlinear scale factor              A2 v^2 + A3 v^3 (W2, W3), minus the absorbed part
+  g-sensitivity at 1 g                C times the specific force of rest in the flight's own
+                                      attitude (gravity's reaction, sensor axes), minus the
+                                      absorbed part (the lab's, or the launch attitude's)
+  g-sensitivity at (n-1) g            C times the rest of the specific force: the load of
+                                      the manoeuvres (none in the lab)
 
+The groups telescope: the ideal traditional calibration (the fit of the true outputs
+without noise or setting errors) plus all five is the true calibration, sample by sample.
 A group's worth is the 3-D end error of the traditional row minus that with the group added
-back; what the five leave is the calibration's own fit error and the unit's random errors
-(the `true coefficients` row).
+back; what all five leave is the calibration's own fit error (the lab's setting errors and
+noise), the unit's turn-on bias and random errors, and its physics beyond eqs. 1-4.
 """
 from dataclasses import dataclass
 
@@ -33,72 +38,89 @@ from ..sensors.simulation import still_rates
 from .replay import comparison_times, navigate_mimu, ned_to_enu, resample
 from .table import budget_markdown
 
-GROUPS = ("temperature offset lab-to-flight", "temperature change in flight",
+GROUPS = ("temperature offset zeros-to-flight", "temperature change in flight",
           "nonlinear scale factor", "g-sensitivity at 1 g", "g-sensitivity at (n-1) g")
+PARTS = ("temperature", "nonlinear", "g-sensitivity")      # what the lab fit can absorb
+
+
+def outputs(cal, raw):
+    """(f m/s^2, w rad/s) of raw MIMU samples through `cal`, no wild-value filter."""
+    f, w, _ = compensate(cal, raw["accel_volts"], raw["gyro_volts"], raw["accel_temperature"],
+                         raw["gyro_frequency"], filter_outliers=False)
+    return f, w
+
+
+def parts(true, raw):
+    """{part: (df, dw) (N, 3)}: the unit's true outputs on `raw` split as a chain from its
+    linear part on the raw volts (A0 + A1 u, W0 + W1 u): + temperature (eqs. 2/4, on the
+    linear model) + nonlinear (A2, A3, W2, W3) + g-sensitivity (C f, f the true specific
+    force) = the true outputs."""
+    no_g = true.without(("C",))
+    linear = no_g.without(("A2", "A3", "W2", "W3"))
+    base = linear.without(("ct", "cw"))
+    (f0, w0), (f1, w1), (f2, w2) = (outputs(c, raw) for c in (base, linear, no_g))
+    return {"temperature": (f1 - f0, w1 - w0), "nonlinear": (f2 - f1, w2 - w1),
+            "g-sensitivity": (np.zeros_like(f2), f2 @ true.C.T)}
 
 
 @dataclass
-class ZeroConditions:
-    """Where the traditional calibration's zeros were set: the accelerometers' temperature
-    readings (degC, (3,)) over the lab's multi-position run; the gyros' resonance
-    frequencies (Hz, (3,)) and the specific force they sensed (m/s^2, sensor axes, (3,)) -
-    over the lab's rate table, or standing in the launch attitude before flight."""
-    accel_temperature: np.ndarray
-    gyro_frequency: np.ndarray
-    gyro_specific_force: np.ndarray
+class Absorbed:
+    """What the traditional calibration took into its linear terms of each part (`PARTS`),
+    per sensor: a + B u (output units; a (3,), B (3, 3), u the raw volts)."""
+    accel: dict
+    gyro: dict
 
     @classmethod
     def from_lab(cls, multi_position, rate_table, true):
-        """From the lab runs (`lab.runs.LabRun`) the zeros were fitted on; `true`: the
-        unit's coefficients (the specific force the rate table's gyros sensed)."""
-        raw = rate_table.raw
-        f, _, _ = compensate(true, raw["accel_volts"], raw["gyro_volts"],
-                             raw["accel_temperature"], raw["gyro_frequency"],
-                             filter_outliers=False)
-        return cls(multi_position.raw["accel_temperature"].mean(axis=0),
-                   raw["gyro_frequency"].mean(axis=0), f.mean(axis=0))
+        """The least squares on [1, u] over the window means of the lab runs
+        (`lab.runs.LabRun`) the traditional calibration was fitted on - the accelerometers'
+        on `multi_position`, the gyros' on `rate_table` - of each part of the true outputs."""
+        def projected(run, sensor):
+            k = 0 if sensor == "accel" else 1
+            u = run.means(run.raw[f"{sensor}_volts"])
+            design = np.column_stack([np.ones(len(u)), u])
+            out = {}
+            for name, pair in parts(true, run.raw).items():
+                coef = np.linalg.lstsq(design, run.means(pair[k]), rcond=None)[0]
+                out[name] = (coef[0], coef[1:].T)
+            return out
+        return cls(projected(multi_position, "accel"), projected(rate_table, "gyro"))
 
-    def with_preflight_gyros(self, still, flight):
-        """The gyro zeros taken before flight (`campaign.Still`, in the flight's first
-        attitude): their frequencies and the specific force of rest there."""
-        tr = flight.truth
-        _, f = still_rates(flight.mimu_mounting, tr.q_nb[0], tr.lat[0], tr.h[0])
-        return ZeroConditions(self.accel_temperature,
-                              still.raw["gyro_frequency"].mean(axis=0), f)
+    def with_preflight_gyros(self, still, true):
+        """The gyro zeros set again standing before flight (`campaign.Still`): each part's
+        constant is its value at rest there (the slopes stay the lab's)."""
+        u = still.raw["gyro_volts"].mean(axis=0)
+        gyro = {name: (pair[1].mean(axis=0) - self.gyro[name][1] @ u, self.gyro[name][1])
+                for name, pair in parts(true, still.raw).items()}
+        return Absorbed(self.accel, gyro)
+
+    def at(self, part, raw):
+        """(df, dw) (N, 3): what the calibration absorbed of `part`, on raw samples."""
+        return tuple(a + raw[f"{sensor}_volts"] @ b.T for sensor, (a, b) in
+                     (("accel", self.accel[part]), ("gyro", self.gyro[part])))
 
 
-def added_back(flight, true, zero):
+def added_back(flight, true, absorbed):
     """{group: (df m/s^2, dw rad/s), (N, 3) each, sensor axes}: what each group of the
-    unit's true terms adds to the outputs of a calibration that lacks it (module doc). The
-    groups telescope: a calibration equal to the true one's linear part with its zeros set
-    at `zero` (eqs. 2/4 frozen there, W0 holding C times the zeros' specific force) plus all
-    five gives the true outputs exactly - so the temperature groups are taken on the linear
-    model and without C, the nonlinear one without C, and C acts on the true specific force."""
+    unit's true terms adds to the traditional calibration's outputs (module doc)."""
     raw = flight.mimu_raw
-
-    def outputs(cal):
-        f, w, _ = compensate(cal, raw["accel_volts"], raw["gyro_volts"],
-                             raw["accel_temperature"], raw["gyro_frequency"],
-                             filter_outliers=False)
-        return f, w
-
-    def difference(a, b):
-        (fa, wa), (fb, wb) = outputs(a), outputs(b)
-        return fa - fb, wa - wb
-
-    no_g = true.without(("C",))
-    linear = no_g.without(("A2", "A3", "W2", "W3"))
+    part = parts(true, raw)
+    linear = true.without(("C", "A2", "A3", "W2", "W3"))
     first = linear.frozen_at(raw["accel_temperature"][0], raw["gyro_frequency"][0])
-    f_true, _ = outputs(true)
+    change = tuple(a - b for a, b in zip(outputs(linear, raw), outputs(first, raw)))
+    f_true = outputs(true, raw)[0]
     rest = gravity_reaction(flight)
-    zero_f = np.zeros_like(f_true)
+
+    def minus(pair, taken):
+        return pair[0] - taken[0], pair[1] - taken[1]
+    one_g = (np.zeros_like(f_true), rest @ true.C.T)
     return {
-        "temperature offset lab-to-flight": difference(
-            first, linear.frozen_at(zero.accel_temperature, zero.gyro_frequency)),
-        "temperature change in flight": difference(linear, first),
-        "nonlinear scale factor": difference(no_g, linear),
-        "g-sensitivity at 1 g": (zero_f, (rest - zero.gyro_specific_force) @ true.C.T),
-        "g-sensitivity at (n-1) g": (zero_f, (f_true - rest) @ true.C.T)}
+        "temperature offset zeros-to-flight": minus(
+            minus(part["temperature"], change), absorbed.at("temperature", raw)),
+        "temperature change in flight": change,
+        "nonlinear scale factor": minus(part["nonlinear"], absorbed.at("nonlinear", raw)),
+        "g-sensitivity at 1 g": minus(one_g, absorbed.at("g-sensitivity", raw)),
+        "g-sensitivity at (n-1) g": (np.zeros_like(f_true), (f_true - rest) @ true.C.T)}
 
 
 def gravity_reaction(flight):
@@ -111,20 +133,20 @@ def gravity_reaction(flight):
     return still_rates(flight.mimu_mounting, at.q_nb, at.lat, at.h)[1]
 
 
-def traditional_budget(flight, trad, true, zero):
+def traditional_budget(flight, trad, true, absorbed):
     """The traditional row with each group added back, all five added back, and the unit's
     true coefficients, at the table's end point against the truth: a JSON-ready dict
     (east/north/up m, 3-D norm, and each group's worth: the 3-D error it removes)."""
     t_end = comparison_times(flight)[-1:]
     ref = resample(flight.truth, t_end)
     raw = flight.mimu_raw
-    f, w, _ = compensate(trad, raw["accel_volts"], raw["gyro_volts"], raw["accel_temperature"],
-                         raw["gyro_frequency"], filter_outliers=False)
-    groups = added_back(flight, true, zero)
+    f, w = outputs(trad, raw)
+    groups = added_back(flight, true, absorbed)
     rows = {"traditional": (f, w)}
     rows.update({f"+ {name}": (f + df, w + dw) for name, (df, dw) in groups.items()})
     rows["+ all five"] = (f + sum(d[0] for d in groups.values()),
                           w + sum(d[1] for d in groups.values()))
+    rows["true coefficients"] = outputs(true, raw)
     out = {}
     for name, (fi, wi) in rows.items():
         nav = resample(navigate_mimu(flight, wi, fi), t_end)
@@ -133,10 +155,9 @@ def traditional_budget(flight, trad, true, zero):
     base = out["traditional"]["norm_m"]
     for row in out.values():
         row["worth_m"] = base - row["norm_m"]
-    return {"end_t_s": float(t_end[0]), "zero_conditions": {
-        "accel_temperature_degc": zero.accel_temperature.tolist(),
-        "gyro_frequency_hz": zero.gyro_frequency.tolist(),
-        "gyro_specific_force_m_s2": zero.gyro_specific_force.tolist()}, "variants": out}
+    taken = {sensor: {part: {"a": a.tolist(), "B": b.tolist()} for part, (a, b) in
+                      getattr(absorbed, sensor).items()} for sensor in ("accel", "gyro")}
+    return {"end_t_s": float(t_end[0]), "absorbed": taken, "variants": out}
 
 
 def traditional_markdown(doc):

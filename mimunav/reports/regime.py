@@ -157,7 +157,7 @@ def markdown(rows, base, seed, units):
     for r in rows:
         for variant in campaign.VARIANTS:
             s = r[variant]
-            below = " ".join(f"{p['rate']:.2f}" for p in r["paper"][variant])
+            below = " ".join(f"{p['k']}/{p['n']}" for p in r["paper"][variant])
             lines.append(f"| {r['name']} | {variant} | " + " | ".join(_cell(s, j)
                                                                       for j in range(4))
                          + f" | {below} |")
@@ -198,13 +198,15 @@ def findings(rows):
                                                   best["paper"][variant]))
                    + f"); the lowest {variant} horizontal median is "
                    f"{lowest[variant]['median'][3]:.3g} x FOG (`{lowest['name']}`).")
-    words = max(rows, key=lambda r: r["paper"]["order_of_magnitude"]["rate"]
-                * r["paper"]["close_to_fog"]["rate"])
+    words = max(rows, key=lambda r: r["paper"]["both_words"]["rate"])
+    both = words["paper"]["both_words"]
     out.append(f"- The paper's words per unit (entire >= {ORDER_OF_MAGNITUDE:g}x better than "
-               f"traditional; entire within {CLOSE_TO_FOG:g}x of the FOG, horizontal) are "
-               f"borne out most often at `{words['name']}`: "
-               f"{words['paper']['order_of_magnitude']['rate']:.2f} and "
-               f"{words['paper']['close_to_fog']['rate']:.2f} of its units.")
+               f"traditional and within {CLOSE_TO_FOG:g}x of the FOG, horizontal, both at "
+               f"once) are borne out most often at `{words['name']}`: {both['k']}/{both['n']} "
+               f"units [{both['ci95'][0]:.2f}, {both['ci95'][1]:.2f}].")
+    out.append(f"- The points named 'most' above are the best of {len(rows)}: their intervals "
+               "are each point's own, not a test of the choice (the best of many points lies "
+               "high by chance).")
     return out
 
 

@@ -143,9 +143,13 @@ def test_a_set_aside_term_is_said_with_the_sigma_its_test_used():
     # and it says plainly that the two IMUs disagree, and what accuracy would charge it
     assert said.strip() == "the MIMU and the reference disagree along it"
     line = set_aside_line(dict(w, charged_at_accuracy=0.033, charged_at_1sigma=[8.3e-6]))
-    assert line.endswith("with the reference's 1 sigma at 0.033 of the stated (8.3e-06) or "
-                         "better")
-    assert "no reference's accuracy 1e4 times better" in set_aside_line(
+    assert line.endswith("it would pass the selection's test with the reference's and the "
+                         "calibration's stated linear errors together at 0.033 of the stated "
+                         "(1 sigma 8.3e-06)")
+    line = set_aside_line(dict(w, charged_at_accuracy=0.033, charged_at_1sigma=[8.3e-6],
+                               charged_at_monotone=False))
+    assert line.endswith("though not at every smaller value (the test is not monotone here)")
+    assert "even 1e4 times smaller it would not pass" in set_aside_line(
         dict(w, charged_at_accuracy=0.0, charged_at_1sigma=[0.0]))
     # a term the model carries (g-sensitivity), set aside against the calibration's own
     # covariance: that is the stated sigma, not the reference's

@@ -199,6 +199,7 @@ def test_regime_points_and_their_summary():
     assert rates("entire") == [1.0, 3 / 20, 1.0] and rates("traditional") == [0.0, 2 / 20, 0.0]
     assert s["paper"]["order_of_magnitude"]["rate"] == 1.0      # 100x better in every unit
     assert s["paper"]["close_to_fog"]["k"] == 20                # entire k / 10 <= 3
+    assert s["paper"]["both_words"]["k"] == 20
     lo, hi = s["paper"]["entire"][1]["ci95"]                    # Clopper-Pearson of 3 in 20
     assert lo == pytest.approx(0.0321, abs=1e-4) and hi == pytest.approx(0.3789, abs=1e-4)
 
