@@ -99,7 +99,10 @@ def main():
              for k in range(args.simulated)]
     from tqdm import tqdm
     t0 = time.perf_counter()
-    with ProcessPoolExecutor(args.workers) as pool:
+    from mimunav.evaluation.campaign import one_blas_thread
+    # one BLAS thread per worker: two workers each spinning OpenBLAS's own threads on 2 cores
+    # ran at a load of 4 and half speed (this bench, 2026-11-29)
+    with ProcessPoolExecutor(args.workers, initializer=one_blas_thread) as pool:
         cases = list(tqdm(pool.map(run, jobs), total=len(jobs), desc="nulls"))
     wall = time.perf_counter() - t0
     report = "false-alarms" if args.seed == 1 else f"false-alarms-seed{args.seed}"

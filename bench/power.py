@@ -172,7 +172,10 @@ def main():
     from tqdm import tqdm
     t0 = time.perf_counter()
     jobs, skipped = plan(classes, levels, args.per_level, args.seed)
-    with ProcessPoolExecutor(args.workers) as pool:
+    from mimunav.evaluation.campaign import one_blas_thread
+    # one BLAS thread per worker: two workers each spinning OpenBLAS's own threads on 2 cores
+    # ran at a load of 4 and half speed (this bench, 2026-11-29)
+    with ProcessPoolExecutor(args.workers, initializer=one_blas_thread) as pool:
         done = list(tqdm(pool.map(run, jobs), total=len(jobs), desc="power cases"))
     wall = time.perf_counter() - t0
     command = "python bench/power.py " + " ".join(sys.argv[1:])
