@@ -287,9 +287,12 @@ def _markdown(scenario, profile, unit, doc, budget, trad_budget, stats, probabil
         budget_markdown(budget),
         "## Error budget of the traditional calibration on this flight", "",
         "What sets the traditional row: one group of the unit's true terms added back to its "
-        "outputs at a time, relative to the conditions its zeros were set in "
-        "(`mimunav/evaluation/traditional.py`); what all five leave is the calibration's own "
-        "fit error and the unit's random errors.", "",
+        "outputs at a time, less what the calibration had absorbed of it - the lab fit's "
+        "least squares on the volts, or for pre-flight gyro zeros its value at rest "
+        "(`mimunav/evaluation/traditional.py`). What all five leave is the calibration's own "
+        "fit error, the unit's turn-on bias and random errors and its physics beyond eqs. "
+        "1-4. The worths do not add up: the groups' errors partly cancel, so a group added "
+        "back alone can leave a larger end error (a negative worth).", "",
         traditional_markdown(trad_budget),
         "## Monte Carlo", "", campaign.summary_markdown(stats, n_mc),
         "![distributions](table3-campaign.png)", "",
