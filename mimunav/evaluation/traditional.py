@@ -50,15 +50,23 @@ def outputs(cal, raw):
     return f, w
 
 
-def parts(true, raw):
-    """{part: (df, dw) (N, 3)}: the unit's true outputs on `raw` split as a chain from its
-    linear part on the raw volts (A0 + A1 u, W0 + W1 u): + temperature (eqs. 2/4, on the
-    linear model) + nonlinear (A2, A3, W2, W3) + g-sensitivity (C f, f the true specific
-    force) = the true outputs."""
+def chain(true, raw):
+    """{step: (f, w)}: outputs on `raw` of the true calibration built up from its linear part
+    on the raw volts: "base" (A0 + A1 u, W0 + W1 u), "linear" (+ eqs. 2/4), "no_g" (+ A2,
+    A3, W2, W3); the true outputs are no_g's with C f added to w (f: no_g's, which C does
+    not touch)."""
     no_g = true.without(("C",))
     linear = no_g.without(("A2", "A3", "W2", "W3"))
-    base = linear.without(("ct", "cw"))
-    (f0, w0), (f1, w1), (f2, w2) = (outputs(c, raw) for c in (base, linear, no_g))
+    return {"base": outputs(linear.without(("ct", "cw")), raw), "linear": outputs(linear, raw),
+            "no_g": outputs(no_g, raw)}
+
+
+def parts(true, raw, steps=None):
+    """{part: (df, dw) (N, 3)}: the unit's true outputs on `raw` less their linear part on
+    the raw volts, split along the `chain` (`steps`, if already made): temperature (eqs.
+    2/4, on the linear model) + nonlinear (A2, A3, W2, W3) + g-sensitivity (C f, f the true
+    specific force)."""
+    (f0, w0), (f1, w1), (f2, w2) = (steps or chain(true, raw)).values()
     return {"temperature": (f1 - f0, w1 - w0), "nonlinear": (f2 - f1, w2 - w1),
             "g-sensitivity": (np.zeros_like(f2), f2 @ true.C.T)}
 
@@ -104,11 +112,12 @@ def added_back(flight, true, absorbed):
     """{group: (df m/s^2, dw rad/s), (N, 3) each, sensor axes}: what each group of the
     unit's true terms adds to the traditional calibration's outputs (module doc)."""
     raw = flight.mimu_raw
-    part = parts(true, raw)
-    linear = true.without(("C", "A2", "A3", "W2", "W3"))
-    first = linear.frozen_at(raw["accel_temperature"][0], raw["gyro_frequency"][0])
-    change = tuple(a - b for a, b in zip(outputs(linear, raw), outputs(first, raw)))
-    f_true = outputs(true, raw)[0]
+    steps = chain(true, raw)
+    part = parts(true, raw, steps)
+    first = true.without(("C", "A2", "A3", "W2", "W3")).frozen_at(raw["accel_temperature"][0],
+                                                                   raw["gyro_frequency"][0])
+    change = tuple(a - b for a, b in zip(steps["linear"], outputs(first, raw)))
+    f_true = steps["no_g"][0]
     rest = gravity_reaction(flight)
 
     def minus(pair, taken):

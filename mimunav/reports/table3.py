@@ -66,13 +66,17 @@ def reproduce(out_dir="reports", seed=1, mc_units=16, workers=2, progress=True, 
             flight, still = campaign.fly(scenario, unit, seed)     # here, beside the pool
             campaign.forget()
             steps.update()
-            cals = {variant: cal_jobs[variant].result() for variant in campaign.VARIANTS}
+            cals = {variant: cal_jobs[variant].result()[0] for variant in campaign.VARIANTS}
             cals["traditional"] = campaign.traditional_zero(cals["traditional"], still)
             for variant, cal in cals.items():
                 cal.save(out_dir / f"table3-{variant}.json", force=True)
             steps.update()
             doc, budget = _flight_results(flight, cals, unit, profile, out_dir)
-            floor = _traditional_floor(flight, cals["traditional"], unit, still, tmp)
+            absorbed = cal_jobs["traditional"].result()[1]
+            if still is not None:       # the gyro zeros set again before flight
+                absorbed = absorbed.with_preflight_gyros(still, unit.coefficients)
+            floor = traditional_budget(flight, cals["traditional"], unit.coefficients,
+                                       absorbed)
             # the flight was simulated in memory (as each campaign unit's): no log, but what
             for part in (doc, budget, floor):     # it was
                 part["log"] = None
@@ -101,24 +105,14 @@ def reproduce(out_dir="reports", seed=1, mc_units=16, workers=2, progress=True, 
 
 
 def _lab_calibration(unit, variant, folder, seed):
-    """`unit` through the lab procedures of `variant` as logs in `folder` (seeds seed + k)
-    and their fit, with its covariance."""
-    paths = [lab.run(lab.plan(p), unit, os.path.join(folder, f"{p}.mcap"), seed + k,
-                     progress=False)[0] for k, p in enumerate(campaign.VARIANTS[variant])]
-    return calibrate(paths, variant, unit.name)
-
-
-def _traditional_floor(flight, cal, unit, still, folder):
-    """The traditional row's budget (`evaluation.traditional`), what its fit absorbed taken
-    from the lab runs in `folder` (and the pre-flight record `still`, when the gyro zeros
-    were set again before flight)."""
-    runs = {p: LabRun.load(os.path.join(folder, f"{p}.mcap"))
-            for p in ("multi-position", "single-axis-rate")}      # campaign.VARIANTS
-    absorbed = Absorbed.from_lab(runs["multi-position"], runs["single-axis-rate"],
-                                 unit.coefficients)
-    if still is not None:
-        absorbed = absorbed.with_preflight_gyros(still, unit.coefficients)
-    return traditional_budget(flight, cal, unit.coefficients, absorbed)
+    """`unit` through the lab procedures of `variant` as logs in `folder` (seeds seed + k):
+    (their fit, with its covariance; for the traditional variant what that fit absorbed of
+    the unit's missing terms, `evaluation.traditional.Absorbed`, else None)."""
+    runs = [LabRun.load(lab.run(lab.plan(p), unit, os.path.join(folder, f"{p}.mcap"), seed + k,
+                                progress=False)[0])
+            for k, p in enumerate(campaign.VARIANTS[variant])]
+    absorbed = Absorbed.from_lab(*runs, unit.coefficients) if variant == "traditional" else None
+    return calibrate(runs, variant, unit.name), absorbed
 
 
 def _flight_results(flight, cals, unit, profile, out_dir):
