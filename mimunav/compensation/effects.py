@@ -89,6 +89,11 @@ class Conditions:
             self._shared["centripetal"] = _centripetal_matrix(self.w, self.w_dot)
         return self._shared["centripetal"]
 
+    def release_shared(self):
+        """Forget what the regressors shared (the centripetal matrices: 72 bytes a sample):
+        once a design's columns are made; a later regressor makes them again."""
+        self._shared.clear()
+
     def index_at(self, offset_s):
         """(N,) index of the first sample at or after t + offset_s (s) for every sample,
         kept per offset (`np.searchsorted`, side left)."""

@@ -48,7 +48,9 @@ def confirm_chosen(design, chosen, train, held, alpha, full_scale, cond):
             label=library.label(term), p_train=c["p_train"], holm_threshold=c["threshold"],
             p_heldout=p_ho, train_coefficient=b_tr.tolist() if len(b_tr) > 1 else float(b_tr[0]),
             attribution=_attribution(term, p_ref < level, res["linear"],
-                                     _reference_may_carry(design, j, b_ho)),
+                                     _reference_may_carry(design, j, b_ho) or (
+                                         p_ref >= level
+                                         and design.allowance_of[j] == "reference")),
             named_on=c.get("named_on", "training half"),
             indistinguishable_from=[alternative_of(design.terms[a]) for a in c["alternatives"]],
             not_chosen_as_implausible=c["implausible"])

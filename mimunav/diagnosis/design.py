@@ -39,8 +39,12 @@ class Design:
     kept: np.ndarray            # usable bins of the raw binning
     prior: np.ndarray           # (18, 18) reference error covariance (`Accuracy.prior`)
     along: list                 # per candidate: (18, k) map to gamma if linear, else None
-    allowance: list = field(default_factory=list)   # per candidate: the calibration's
-                                # stated variance of that term (`model_allowance`)
+    allowance: list = field(default_factory=list)   # per candidate: (k, k) the stated
+                                # covariance of its coefficient that is no physics the model
+                                # lacks: the calibration's (`model_allowance`) or the
+                                # reference's through the lever-arm transfer (`transfer_allowance`)
+    allowance_of: list = field(default_factory=list)    # per candidate: whose ("calibration",
+                                # "reference", or None when it has none)
     levels: np.ndarray = field(default_factory=lambda: wander.LAMBDA_GRID)   # wander levels
                                 # the fits may choose from
     wander_steps: np.ndarray | None = None  # (6,) each channel's largest wander step
@@ -76,7 +80,9 @@ class Design:
     @cached_property
     def channel_columns(self):
         """Per channel c: ((nb, 4 + sum k) [residual, reference inputs, every candidate's
-        columns on c], {candidate: its column indices}) - what every `Fitter` filters."""
+        columns on c], {candidate: its column indices}) - what every `Fitter` filters. Each
+        candidate's `columns` become views of these (the same numbers, held once: a 2-hour
+        flight's bins of 70 candidates are about a gigabyte)."""
         out = []
         for c in range(6):
             cols = [self.residual[:, c:c + 1], self.ref_columns(c)]
@@ -87,6 +93,8 @@ class Design:
                     slot[j] = np.arange(start, start + self.k[j])
                     start += self.k[j]
             out.append((np.hstack(cols), slot))
+            for j, s in slot.items():
+                self.columns[j][c] = out[-1][0][:, s[0]:s[-1] + 1]
         return out
 
     @cached_property
@@ -231,9 +239,12 @@ def model_allowance(cal, term):
 
 
 # ---- the design --------------------------------------------------------------------------
-def make_design(t, res, usable, cond, cands, m, prior, cal):
+def make_design(t, res, usable, cond, cands, m, prior, cal, transfer=None):
     """Bin the residual, the reference inputs and each candidate's regressor; drop candidates
-    the flight cannot drive (no variation) and mark those the reference inputs span."""
+    the flight cannot drive (no variation) and mark those the reference inputs span.
+    `transfer`: (d (3,) m, P (9, 9)) the lever arm from the reference to the MIMU in the
+    MIMU's axes and the covariance of the reference's gyro error matrix there
+    (`transfer_allowance`), or None."""
     if len(t) < m[0] + m[1]:
         raise InputError(f"{len(t)} MIMU samples: fewer than one {FAST_BIN_S:g} s bin")
     mean = Binning(m, usable)
@@ -266,8 +277,59 @@ def make_design(t, res, usable, cond, cands, m, prior, cal):
         design.k.append(next(iter(cols.values())).shape[1])
         design.terms.append(term)
         design.along.append(_along(design, cols))
-        design.allowance.append(model_allowance(cal, term))
+        design.allowance.append(np.atleast_2d(model_allowance(cal, term)))
+        design.allowance_of.append("calibration" if design.allowance[-1].any() else None)
+    if transfer is not None and np.any(transfer[0]):
+        rates = (mean(cond.w)[ok], mean(cond.w_dot)[ok])
+        for j, term in enumerate(design.terms):
+            if term["effect"] in TRANSFERRED:
+                design.allowance[j] = transfer_allowance(design.columns[j], *rates, *transfer)
+                design.allowance_of[j] = "reference"
+    cond.release_shared()
+    design.channel_columns          # made now, channel by channel: the columns held once
     return design
+
+
+TRANSFERRED = ("lever_arm", "size_effect")
+
+
+def transfer_allowance(columns, w, w_dot, d, cov):
+    """(k, k) the covariance a candidate's coefficient takes from the reference IMU's stated
+    gyro error through the lever-arm transfer (`reference.predicted_mimu`): a reference that
+    reads (I + G) w moves the specific force it predicts at the MIMU, d away, by
+        df = (G w) x (w x d) + w x ((G w) x d) + (G dw/dt) x d
+    (the first-order change of w x (w x d) + dw/dt x d) - a lever-arm-like signature that a
+    lever arm or a proof-mass offset fits (on effect-free foreign-05 variants, 0.3 m apart
+    and reference gyro errors at their stated 2.5e-4 / 1e-4 rad, a size effect's z of
+    2-5 fell to 0.5-0.7 with the reference's error taken away). columns: the candidate's
+    {channel: (nb, k)} bin means; w, w_dot: (nb, 3) the predicted rates (rad/s, rad/s^2) in
+    the MIMU's axes; d (3,) m, MIMU axes; cov (9, 9) the gyro error matrix G's covariance,
+    row-major, MIMU axes (`Accuracy.prior`'s gyro block). B = the least-squares fit of the
+    candidate to each of G's nine unit signatures on its channels (`transfer_signatures`);
+    returns B cov B'."""
+    signatures = transfer_signatures(w, w_dot, d)
+    chans = sorted(c for c in columns if c < 3)
+    if not chans:
+        k = next(iter(columns.values())).shape[1]
+        return np.zeros((k, k))
+    x = np.vstack([columns[c] for c in chans])
+    s = np.vstack([signatures[:, c, :] for c in chans])
+    b = np.linalg.lstsq(x, s, rcond=None)[0]             # (k, 9)
+    return b @ cov @ b.T
+
+
+def transfer_signatures(w, w_dot, d):
+    """(n, 3, 9) d(df)/dG: the change of the transferred specific force w x (w x d) + dw/dt x d
+    (m/s^2) per unit entry of the reference's gyro error matrix G (row-major), to first order
+    (`transfer_allowance`). w (n, 3) rad/s, w_dot (n, 3) rad/s^2, d (3,) m, one frame."""
+    out = np.empty((len(w), 3, 9))
+    for e in range(9):
+        g = np.zeros(9)
+        g[e] = 1.0
+        gw, gw_dot = w @ g.reshape(3, 3).T, w_dot @ g.reshape(3, 3).T
+        out[:, :, e] = (np.cross(gw, np.cross(w, d)) + np.cross(w, np.cross(gw, d))
+                        + np.cross(gw_dot, d))
+    return out
 
 
 def gamma_slots(c):

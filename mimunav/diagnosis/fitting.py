@@ -235,13 +235,16 @@ def term_test(fitter, terms, j):
         stat = max(fitter.likelihood_ratio([i for i in terms if i != j], j), 0.0)
         logp = float(stats.chi2.logsf(stat, len(b)))
         logp_ref = logp
-        if design.allowance[j] > 0:     # must also beat the calibration's own uncertainty
+        if design.allowance[j].any():   # must also beat the stated uncertainty that is no
+            # missing physics: the calibration's own, or the reference's through the transfer
             logp_ref = max(logp, wald(b, cov + design.allowance[j])[1])
         return {"b": b, "cov": cov, "stat": stat, "logp": logp, "logp_ref": logp_ref,
                 "linear": False}
-    if ref is None:                 # a term of several channels (time skew): Wald
+    if ref is None:                 # a term of several channels (time skew, lever arm): Wald
         stat, logp = wald(b, cov)
-        return {"b": b, "cov": cov, "stat": stat, "logp": logp, "logp_ref": logp,
+        logp_ref = max(logp, wald(b, cov + design.allowance[j])[1]) \
+            if design.allowance[j].any() else logp
+        return {"b": b, "cov": cov, "stat": stat, "logp": logp, "logp_ref": logp_ref,
                 "linear": False}
     stat, logp = wald(*fitter.fit(terms, pinned=True).of(j))
     _, logp_ref = wald(b, cov)

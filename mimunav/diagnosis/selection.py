@@ -157,7 +157,7 @@ def adds_to(fitter, current, j, given, log_level):
 def chargeable_accuracy(fitter, terms, j, log_level):
     """(k, monotone): the largest multiple k < 1 of the stated linear errors (the
     reference's and the calibration's together, the prior the test uses, for a term the
-    reference's linear error can make; else the calibration's allowance) at which candidate
+    reference's linear error can make; else the term's allowance, `Design.allowance`) at which candidate
     j, fitted with `terms`, passes the selection's test at `log_level`; 0.0 when no k down to
     1e-4 does (no reference a flight test has). Found on a log grid from k = 1 down and
     refined between the first grid point that passes and the one before; `monotone` is
@@ -169,7 +169,7 @@ def chargeable_accuracy(fitter, terms, j, log_level):
             return wald(*fitter.fit(terms, accuracy=k).of(j))[1]
     else:
         res = term_test(fitter, terms, j)
-        if res["logp"] > log_level or design.allowance[j] <= 0:
+        if res["logp"] > log_level or not design.allowance[j].any():
             return 0.0, True
         b, cov = res["b"], res["cov"]
 
@@ -190,16 +190,19 @@ def chargeable_accuracy(fitter, terms, j, log_level):
 def _within(design, j, res):
     """A term set aside (`term_test`'s logp_ref above the threshold): the stated 1 sigma along it
     - the reference's linear error (with the calibration's) for a term it can make
-    (`reference_1sigma`), else the calibration's own (`calibration_1sigma`, a term the model
-    carries) - and the 1 sigma the test used (`total_1sigma`: the estimate's with the
-    reference's prior, or the noise's plus the calibration's allowance, as `term_test` takes it)."""
+    (`reference_1sigma`), else the term's allowance (`Design.allowance`): the calibration's
+    own (`calibration_1sigma`, a term the model carries) or the reference's gyro error through
+    the lever-arm transfer (`reference_1sigma`, a lever arm or proof-mass offset) - and the 1
+    sigma the test used (`total_1sigma`: the estimate's with the reference's prior, or the
+    noise's plus the allowance, as `term_test` takes it)."""
     ref = reference_direction(design, j)
     if ref is not None:
         stated = {"reference_1sigma": np.sqrt(np.diag(ref)).tolist()}
         total = np.sqrt(np.diag(res["cov"]))
     else:
-        stated = {"calibration_1sigma": [math.sqrt(design.allowance[j])] * len(res["b"])}
-        total = np.sqrt(np.diag(res["cov"]) + design.allowance[j])
+        key = f"{design.allowance_of[j]}_1sigma"       # calibration_ or reference_1sigma
+        stated = {key: np.sqrt(np.diag(design.allowance[j])).tolist()}
+        total = np.sqrt(np.diag(res["cov"]) + np.diag(design.allowance[j]))
     k, monotone = res["charged_at"]
     return {"label": library.label(design.terms[j]), **_describe_b(res["b"]), **stated,
             "total_1sigma": total.tolist(),

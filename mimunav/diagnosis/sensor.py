@@ -34,7 +34,9 @@ Procedure:
     (`sensors.accuracy.Accuracy`, the calibration file's covariance) added to their variance;
     so must the terms the model itself carries (g-sensitivity C, nonlinearity A2/A3/W2/W3,
     temperature ct/cw) against the calibration's stated covariance of them
-    (`model_allowance`); those significant against the noise alone are listed as
+    (`model_allowance`), and so must a lever arm or a proof-mass offset against the
+    reference's stated gyro error carried into the predicted specific force by the lever-arm
+    transfer (`transfer_allowance`); those significant against the noise alone are listed as
     `within_reference_accuracy`, never dropped silently;
  4. the chosen terms are refitted on the held-out rows alone: coefficient and 95 % interval
     (for linear terms including those accuracies; for a one-parameter term of one channel,
@@ -67,6 +69,7 @@ from ..compensation.wild_values import REPLACED, UNUSABLE
 from ..compensation.model import poly2
 from ..compensation.effects import AXES
 from ..sensors.mimu import MimuUnit
+from ..frames import attitude
 from . import library, outputs, wander
 from ..sensors.accuracy import accuracy_of
 from .reference import agreement
@@ -190,7 +193,7 @@ class _Prepared:
     cond: object                # `effects.Conditions` of every sample
     usable: np.ndarray          # (N,) bool: samples in the fit
     bins: tuple                 # (m, start) of `bins`
-    samples: dict               # `residual`'s per-sample extras
+    samples: dict               # {"compensated": (w, f)} of `residual`'s per-sample extras
     full_scale: dict            # {"accel": m/s^2, "gyro": rad/s}
     on_outputs: list            # saturation and quantization findings
     quantized: set              # channels found quantized
@@ -222,8 +225,14 @@ def _prepare(flight, cal, acc, candidates, output_tests, vibration, bin_s, noise
         # a quantized output's error depends on where its input falls between two steps:
         # terms of that channel alone would fit the lattice, not physics
         cands = [c for c in cands if not _on_channels_only(c, quantized)]
-    design = make_design(t, res, usable, cond, cands, m,
-                         acc.prior(q_sf) + calibration_prior(cal), cal)
+    # of the samples, only the compensated MIMU is kept (for the report): the rest was for
+    # the agreement and the tests on the outputs, made above - not held through the fits
+    samples = {"compensated": samples["compensated"]}
+    prior = acc.prior(q_sf)
+    lever = attitude.rotate(np.conjugate(flight.mimu_mounting.q_vs),
+                            flight.mimu_mounting.lever_arm_m - flight.fog_mounting.lever_arm_m)
+    design = make_design(t, res, usable, cond, cands, m, prior + calibration_prior(cal), cal,
+                         transfer=(lever, prior[9:, 9:]))
     design.q_vs = flight.mimu_mounting.attitude_wxyz
     design.bin_s = bin_s
     design.calibrated = not cal.is_identity

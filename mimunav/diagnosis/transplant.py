@@ -77,7 +77,7 @@ def transplant(base, spec, seed=0):
     if effect == "lever_arm":
         out["accel"] += lever_arm_specific_force(flight, np.asarray(term["vector"]))
     elif effect == "vibration_rectification":
-        flight, vibration = _vibrate(flight, out)
+        flight, vibration = vibrate(flight, out)
         m = max(1, int(round(0.5 / np.median(np.diff(flight.mimu_t)))))
         power = np.convolve(vibration[:, i] ** 2, np.ones(m) / m, "same")
         out[sensor][:, i] += value * power
@@ -222,7 +222,7 @@ def _to_sensor(mounting, x_v):
     return attitude.as_scipy(mounting.q_vs).inv().apply(x_v)
 
 
-def _vibrate(flight, out):
+def vibrate(flight, out):
     """(a copy of `flight` whose reference IMU carries a sinusoidal linear vibration of the
     airframe, the vibration the MIMU feels (N, 3) m/s^2 in its axes): VIBRATION_G per vehicle
     axis at VIBRATION_HZ (phases 0, 1, 2 rad), switched on over the middle third of the
@@ -276,10 +276,15 @@ def null_variant(base, seed):
     out = {"accel": f.copy(), "gyro": w.copy()}
     what = {"carrier": Path(str(base)).name, "seed": seed}
     what["wander"] = _wander(flight.mimu_t, out, rng)
-    flight, what["reference_error"] = _reference_error(flight, rng)
+    errors = what["reference_error"] = _reference_errors(rng)
     if rng.uniform() < 1 / 3:
-        flight, _ = _vibrate(flight, out)
+        flight, _ = vibrate(flight, out)
         what["vibration_g"] = VIBRATION_G
+    # after the vibration: the reference's scale and axis errors act on all it senses (they
+    # had been drawn onto its outputs before the vibration was added, so its vibration was
+    # sensed without them: a reference scale that differs between a boost and the vibrating
+    # spans, which a temperature_scale term fitted on foreign-03 - 3 of 96 nulls)
+    flight = _through_reference_errors(flight, errors)
     raw = dict(flight.mimu_raw)
     t = flight.mimu_t
     if rng.uniform() < 1 / 3 and len(t) > 1000:
@@ -315,16 +320,18 @@ def _wander(t, out, rng):
     return {"kind": kind, "tau_s": tau}
 
 
-def _reference_error(flight, rng):
-    """The flight with its reference IMU's outputs through (I + E) per triad: E's diagonal
-    N(0, REFERENCE_SCALE), off-diagonal N(0, REFERENCE_MISALIGNMENT)."""
-    drawn = {}
-    for name in ("fog_w", "fog_f"):
-        e = np.where(np.eye(3, dtype=bool), rng.normal(0, REFERENCE_SCALE, (3, 3)),
-                     rng.normal(0, REFERENCE_MISALIGNMENT, (3, 3)))
-        drawn[name] = e.tolist()
-        flight = dataclasses.replace(flight, **{name: getattr(flight, name) @ (np.eye(3) + e).T})
-    return flight, drawn
+def _reference_errors(rng):
+    """The reference IMU's drawn errors {"fog_w", "fog_f"}: per triad E with its diagonal
+    N(0, REFERENCE_SCALE), off-diagonal N(0, REFERENCE_MISALIGNMENT) (lists)."""
+    return {name: np.where(np.eye(3, dtype=bool), rng.normal(0, REFERENCE_SCALE, (3, 3)),
+                           rng.normal(0, REFERENCE_MISALIGNMENT, (3, 3))).tolist()
+            for name in ("fog_w", "fog_f")}
+
+
+def _through_reference_errors(flight, errors):
+    """The flight with its reference IMU's outputs through (I + E) per triad (`errors`)."""
+    return dataclasses.replace(flight, **{
+        name: getattr(flight, name) @ (np.eye(3) + np.asarray(e)).T for name, e in errors.items()})
 
 
 def _halved(flight, raw, out):

@@ -32,20 +32,23 @@ DIFFUSE = 1e8                                  # initial bias variance over r (d
 
 
 @njit(nogil=True)
-def _innovations(cols, present, lam, shape):
-    """Standardized innovations (m - 1, k) of every column at the present rows after the
-    first (the diffuse start's) and their innovation variances over r (m - 1,), m the number
-    of present rows; absent rows are predicted across. shape (n,): each row's white variance
-    over r."""
+def _innovations(cols, present, lam, shape, state):
+    """Standardized innovations (m', k) of every column at the present rows of this block
+    and their innovation variances over r (m',), the diffuse start's first present row of
+    the record left out; absent rows are predicted across. shape (n,): each row's white
+    variance over r. state: the filter carried from block to block, updated in place -
+    [p, row, b_1 .. b_k] (p the bias variance over r, DIFFUSE at the start; row -1 until the
+    first present row; b the filtered bias of each column)."""
     n, k = cols.shape
     m = 0
     for i in range(n):
         m += 1 if present[i] else 0
-    out = np.empty((max(m - 1, 0), k))
-    s = np.empty(max(m - 1, 0))
-    b = np.zeros(k)
-    p = DIFFUSE
-    row = -1                        # the output row of the present row being filtered
+    start = 1 if state[1] < 0 and m > 0 else 0      # the record's first present row: no output
+    out = np.empty((m - start, k))
+    s = np.empty(m - start)
+    b = state[2:]
+    p = state[0]
+    row = -1 if start else 0        # the output row of the present row being filtered
     for i in range(n):
         p += lam
         if present[i]:
@@ -60,7 +63,9 @@ def _innovations(cols, present, lam, shape):
             if row >= 0:
                 s[row] = si
             row += 1
+            state[1] = 0.0                # a present row seen
             p = p * shape[i] / si         # p - p^2 / si
+    state[0] = p
     return out, s
 
 
@@ -72,8 +77,37 @@ def innovations(cols, present, lam, shape=None):
     1)."""
     shape = np.ones(len(cols)) if shape is None else np.ascontiguousarray(shape, float)
     z, s = _innovations(np.ascontiguousarray(cols, float), np.ascontiguousarray(present), lam,
-                        shape)
+                        shape, _start(cols.shape[1]))
     return z, float(np.log(s).sum())
+
+
+def _start(k):
+    """The filter's state before the first row (`_innovations`): diffuse, nothing seen."""
+    state = np.zeros(2 + k)
+    state[0], state[1] = DIFFUSE, -1.0
+    return state
+
+
+BLOCK_ROWS = 1 << 15    # rows filtered at a time by `grams`: its memory is this many rows'
+                        # innovations, whatever the record's length (2 h at 10 ms: 720,000)
+
+
+def gram(cols, present, lam, shape=None):
+    """(Gram z'z of the standardized innovations (k, k), their log-determinant term, their
+    number) of `innovations`, filtered BLOCK_ROWS at a time with the filter's state carried
+    across: the innovations are the same numbers; the Gram's sums are taken block by block
+    (an ulp's difference from one product)."""
+    n, k = cols.shape
+    shape = np.ones(n) if shape is None else np.ascontiguousarray(shape, float)
+    present = np.ascontiguousarray(present)
+    state, total, logdet, count = _start(k), np.zeros((k, k)), 0.0, 0
+    for a in range(0, n, BLOCK_ROWS):
+        z, s = _innovations(np.ascontiguousarray(cols[a:a + BLOCK_ROWS], float),
+                            present[a:a + BLOCK_ROWS], lam, shape[a:a + BLOCK_ROWS], state)
+        total += z.T @ z
+        logdet += float(np.log(s).sum())
+        count += len(z)
+    return total, logdet, count
 
 
 THREADS = min(2, os.cpu_count() or 1)   # levels filtered side by side: the filter (numba, no
@@ -86,8 +120,7 @@ def grams(cols, present, levels, shape=None):
     THREADS at a time; each level's result is the same whatever the number of threads.
     shape: (n,) each row's relative white variance (`innovations`)."""
     def one(lam):
-        z, logdet = innovations(cols, present, lam, shape)
-        return z.T @ z, logdet, len(z)
+        return gram(cols, present, lam, shape)
     with ThreadPoolExecutor(THREADS) as pool:
         out = list(pool.map(one, levels))
     return np.stack([g for g, _, _ in out]), np.array([d for _, d, _ in out]), out[0][2]

@@ -1,0 +1,69 @@
+"""The reference's gyro error through the lever-arm transfer (`diagnosis.design.transfer_allowance`):
+a reference that reads its rates wrong moves the specific force it predicts at a MIMU that sits
+elsewhere, by a lever-arm-like signature; that share of a lever arm or proof-mass offset is
+the reference's stated accuracy, not physics the model lacks. And the false-alarm bench's
+reference senses everything through its drawn errors (`diagnosis.transplant.null_variant`)."""
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mimunav.diagnosis import transplant
+from mimunav.diagnosis.design import transfer_allowance, transfer_signatures
+
+SHARED = Path(__file__).resolve().parents[3] / "shared" / "data"
+
+
+def _transfer(w, w_dot, d):
+    return np.cross(w, np.cross(w, d)) + np.cross(w_dot, d)
+
+
+def test_the_signatures_are_the_first_order_change_of_the_transfer():
+    rng = np.random.default_rng(4)
+    w, w_dot = rng.normal(0, 2.0, (50, 3)), rng.normal(0, 20.0, (50, 3))
+    d = np.array([-0.25, 0.15, -0.10])
+    g = rng.normal(0, 1e-4, (3, 3))
+    exact = _transfer(w @ (np.eye(3) + g).T, w_dot @ (np.eye(3) + g).T, d) - _transfer(w, w_dot, d)
+    linear = transfer_signatures(w, w_dot, d) @ g.ravel()
+    # the second-order rest is (G w) x ((G w) x d): |G|^2 of the signal, 1e-4 of the change
+    assert np.abs(linear - exact).max() < 1e-3 * np.abs(exact).max()
+    assert np.abs(exact).max() > 1e-5          # the change itself is not round-off
+
+
+def test_a_reference_scale_error_is_a_lever_arm_of_twice_it_in_a_steady_turn():
+    # without angular acceleration a rate scale s moves w x (w x d) by 2 s w x (w x d): a
+    # lever arm 2 s d exactly, so the allowance of a lever arm is (2 d)(2 d)' var(s) when
+    # the three scale errors are one (fully correlated)
+    rng = np.random.default_rng(5)
+    w = rng.normal(0, 1.5, (200, 3))
+    d = np.array([0.3, -0.1, 0.2])
+    columns = {c: np.stack([np.cross(w, np.cross(w, e))[:, c] for e in np.eye(3)], axis=1)
+               for c in range(3)}                       # the lever arm's regressor per axis
+    diagonal = np.zeros(9)
+    diagonal[[0, 4, 8]] = 1.0
+    sigma = 2.5e-4
+    cov = sigma ** 2 * np.outer(diagonal, diagonal)
+    allowance = transfer_allowance(columns, w, np.zeros_like(w), d, cov)
+    np.testing.assert_allclose(allowance, 4 * sigma ** 2 * np.outer(d, d), rtol=1e-9,
+                               atol=1e-12 * sigma ** 2)
+
+
+def test_a_candidate_on_no_accelerometer_takes_no_allowance():
+    w = np.ones((10, 3))
+    allowance = transfer_allowance({4: np.ones((10, 1))}, w, w, np.ones(3), np.eye(9))
+    assert allowance.shape == (1, 1) and not allowance.any()
+
+
+@pytest.mark.skipif(not (SHARED / "foreign-flights").exists(), reason="shared data absent")
+def test_the_null_variants_reference_senses_its_vibration_through_its_errors():
+    base = SHARED / "foreign-flights" / "foreign-03"
+    seed = 2011                 # draws the vibration, neither the half rate nor a turn
+    variant, _, drawn = transplant.null_variant(base, seed)
+    assert drawn.get("vibration_g") and "rate" not in drawn and "mounting_turned_deg" not in drawn
+    flight, _, f, w = transplant.carrier(base)
+    vibrated, _ = transplant.vibrate(flight, {"accel": f.copy(), "gyro": w.copy()})
+    e = np.asarray(drawn["reference_error"]["fog_f"])
+    np.testing.assert_allclose(variant.fog_f, vibrated.fog_f @ (np.eye(3) + e).T, rtol=0,
+                               atol=1e-12)
+    old_order = flight.fog_f @ (np.eye(3) + e).T + (vibrated.fog_f - flight.fog_f)
+    assert np.abs(variant.fog_f - old_order).max() > 1e-3     # E times 2 g of vibration
