@@ -98,7 +98,8 @@ def scenario_options(p, flight=True):
                    "residual (default), table2 = Table 2 literally")
     p.add_argument("--fog-grade", default="table4",
                    help="reference FOG-IMU (default table4: Table 4 medium accuracy; "
-                   "table4-bound: its bounds as 1 sigma; navigation: 0.01 deg/h class)")
+                   "table4-bound: its bounds as 1 sigma; table4-stability: its zero drift "
+                   "read as Table 1's is, a 10 s bias stability; navigation: 0.01 deg/h class)")
     p.add_argument("--gyro-zero", choices=("pre-flight", "lab"), default="pre-flight",
                    help="the traditional calibration's gyro zero: pre-flight = taken still in "
                    "the launch attitude over the warm-up's last 10 s (default; seed S1's refs "

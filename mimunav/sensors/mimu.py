@@ -93,6 +93,12 @@ MIMU_GRADES = {
     "stim300": {"accel_white": 119.0, "accel_flicker": 0.05, "accel_turn_on": 0.1,
                 "gyro_white": 9.0, "gyro_flicker": 0.5, "gyro_turn_on": 1.0},
 }
+# Temperature and g-sensitivity ranges (module doc): magnitudes uniform, random sign
+ACCEL_TEMPERATURE_SLOPE_G = (0.05e-3, 0.5e-3)       # g/degC, datasheet class (assumed)
+ACCEL_TEMPERATURE_CURVATURE_G = (1e-6, 5e-6)        # g/degC^2, datasheet class (assumed)
+GYRO_TEMPERATURE_SLOPE_DEG_S = (0.005, 0.05)        # (deg/s)/degC, datasheet class (assumed)
+GYRO_TEMPERATURE_CURVATURE_DEG_S = (1e-5, 1e-4)     # (deg/s)/degC^2, datasheet class (assumed)
+G_SENSITIVITY_DEG_S_G = (0.01, 0.04)                # (deg/s)/g, seed S1 Table 2
 # Nonlinearity readings (module doc): one factor per triad (accel, gyro) on Table 2's k2, k3.
 # "table1": the largest k2 x^2 + k3 x^3 at full scale (30 g, 400 deg/s) equals Table 1's fit
 # residual (0.05 % FS, 0.2 % FS): accel 0.15 g / (0.09 + 0.54) g, gyro 0.8 / (40 + 0.064) deg/s.
@@ -177,12 +183,12 @@ class MimuUnit:
             A2=k2a * a_diag**2 / G0, A3=k3a * a_diag**3 / G0**2,
             W0=rng.normal(0, 0.5 * DEG, 3), W1=w1,
             W2=k2w * w_diag**2 / DEG, W3=k3w * w_diag**3 / DEG**2,
-            C=sign((3, 3)) * rng.uniform(0.01, 0.04, (3, 3)) * DEG / G0)
+            C=sign((3, 3)) * rng.uniform(*G_SENSITIVITY_DEG_S_G, (3, 3)) * DEG / G0)
         # temperature: bias(T) = s1 (T - 25) + s2 (T - 25)^2 in volts
-        a_s1 = sign(3) * rng.uniform(0.05e-3, 0.5e-3, 3) * G0 / a_diag
-        a_s2 = sign(3) * rng.uniform(1e-6, 5e-6, 3) * G0 / a_diag
-        w_s1 = sign(3) * rng.uniform(0.005, 0.05, 3) * DEG / w_diag
-        w_s2 = sign(3) * rng.uniform(1e-5, 1e-4, 3) * DEG / w_diag
+        a_s1 = sign(3) * rng.uniform(*ACCEL_TEMPERATURE_SLOPE_G, 3) * G0 / a_diag
+        a_s2 = sign(3) * rng.uniform(*ACCEL_TEMPERATURE_CURVATURE_G, 3) * G0 / a_diag
+        w_s1 = sign(3) * rng.uniform(*GYRO_TEMPERATURE_SLOPE_DEG_S, 3) * DEG / w_diag
+        w_s2 = sign(3) * rng.uniform(*GYRO_TEMPERATURE_CURVATURE_DEG_S, 3) * DEG / w_diag
         coeff.ct = _poly_about(a_s1, a_s2, 25.0, 1.0)
         # gyro: T - 25 = (f - f0) / (f0 tcf)
         f0, tcf = np.asarray(thermal.f0), np.asarray(thermal.tcf)

@@ -22,6 +22,8 @@ from ..kernels import njit
 
 ISA_LAPSE = 0.0065          # K/m, ISA troposphere
 BAY_TAU_S = 900.0           # s, equipment-bay lag behind the outside air (datasheet class)
+SELF_HEATING_C = (8.0, 20.0)        # degC above the bay, uniform per sensor (datasheet class)
+SELF_HEATING_TAU_S = (180.0, 600.0)     # s, its time constants, uniform (datasheet class)
 
 
 def first_order_lag(t, u, tau, y0):
@@ -69,8 +71,8 @@ class ThermalModel:
     def draw(cls, rng):
         """Datasheet-class values: 8-20 degC self-heating reached with 3-10 min time
         constants; resonance 8-12 kHz with -25..-35 ppm/degC."""
-        return cls(self_heating=rng.uniform(8, 20, 6).tolist(),
-                   tau=rng.uniform(180, 600, 6).tolist(),
+        return cls(self_heating=rng.uniform(*SELF_HEATING_C, 6).tolist(),
+                   tau=rng.uniform(*SELF_HEATING_TAU_S, 6).tolist(),
                    f0=rng.uniform(8000, 12000, 3).tolist(),
                    tcf=(-rng.uniform(25e-6, 35e-6, 3)).tolist())
 

@@ -257,3 +257,22 @@ def test_fog_output_is_within_table_4_grade():
     total = out["angular_velocity"].sum(axis=0) / rate
     assert np.all(np.abs(total - (fog.gyro_matrix @ w_true + fog.gyro_bias) * n / rate)
                   < 50 * DEG / 3600)
+
+
+def test_the_table3_report_states_the_temperature_slopes_a_unit_is_drawn_with(monkeypatch):
+    # the report's model-numbers table and the unit's draw read one constant: a gyro bias
+    # slope pinned at 0.02 (deg/s)/degC (no curvature) is what the drawn unit's cw gives
+    # between 25 and 26 degC through its resonance frequency, and what the report says
+    from mimunav.compensation.model import poly2
+    from mimunav.evaluation.campaign import Scenario
+    from mimunav.reports.table3 import model_numbers_markdown
+    from mimunav.sensors import mimu as mimu_module
+    monkeypatch.setattr(mimu_module, "GYRO_TEMPERATURE_SLOPE_DEG_S", (0.02, 0.02))
+    monkeypatch.setattr(mimu_module, "GYRO_TEMPERATURE_CURVATURE_DEG_S", (0.0, 0.0))
+    unit = mimu_module.MimuUnit.draw(3)
+    freq = unit.thermal.resonance_frequency(np.array([[25.0] * 3, [26.0] * 3]))
+    volts = np.diff(poly2(unit.coefficients.cw, freq), axis=0)[0]
+    slope = np.abs(volts * np.diag(unit.coefficients.W1)) / (math.pi / 180)
+    np.testing.assert_allclose(slope, 0.02, rtol=1e-9)
+    row = next(r for r in model_numbers_markdown(Scenario()) if "bias slope" in r)
+    assert "gyro 0.02-0.02 (deg/s)/degC" in row
