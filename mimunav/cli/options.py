@@ -105,6 +105,11 @@ def scenario_options(p, flight=True):
                    "the launch attitude over the warm-up's last 10 s (default; seed S1's refs "
                    "calibrate no gyro zero in the lab); lab = fitted on the rate table at "
                    "25 degC")
+    p.add_argument("--start", choices=("air", "ground"), default="air",
+                   help="air = both navigators start from the exact state (default); ground = "
+                   "from the FOG-IMU's gyrocompass over the flight's first 120 s at rest, the "
+                   "MIMU given the same attitude (a profile that begins at rest: "
+                   "flights/boost-coast.toml, flights/ground-gentle.toml)")
     p.add_argument("--exact-model", action="store_true",
                    help="MIMU exactly the 63-coefficient model (no scale asymmetry, no dT term)")
 
@@ -116,7 +121,7 @@ def scenario(args):
                     mimu_grade=args.mimu_grade,
                     nonlinearity=args.nonlinearity, fog_grade=args.fog_grade,
                     beyond_model=not args.exact_model,
-                    gyro_zero=args.gyro_zero)
+                    gyro_zero=args.gyro_zero, start=args.start)
 
 
 def variant_paths(specs):

@@ -32,6 +32,7 @@ from ..lab.calibrate import calibrate
 from ..lab.preflight import gyro_zero
 from ..lab.runs import LabRun
 from .flight import Flight
+from .ground import ground_start
 from .table import normalised_table
 from ..kernels import code_version
 from .. import FLIGHTS
@@ -52,6 +53,7 @@ WARM_UP_S = 600.0                    # s, see SOURCES
 # warm-up's last PREFLIGHT_S seconds, still in the launch attitude; the default, SOURCES) or
 # "lab" (fitted with its scale factors on the rate table at the lab's temperature)
 GYRO_ZEROS = ("lab", "pre-flight")
+STARTS = ("air", "ground")          # `Scenario.start`, see SOURCES
 PREFLIGHT_S = 10.0                   # s: seed S1 Table 1 states the gyro zero over 10 s
 
 
@@ -72,12 +74,14 @@ class Scenario:
     fog_grade: str = "table4"
     beyond_model: bool = True
     gyro_zero: str = "pre-flight"
+    start: str = "air"
 
     def __post_init__(self):
         for value, allowed, what in ((self.mimu_grade, MIMU_GRADES, "MIMU grade"),
                                      (self.nonlinearity, NONLINEARITY, "nonlinearity"),
                                      (self.fog_grade, FOG_GRADES, "FOG grade"),
-                                     (self.gyro_zero, GYRO_ZEROS, "gyro zero")):
+                                     (self.gyro_zero, GYRO_ZEROS, "gyro zero"),
+                                     (self.start, STARTS, "start")):
             if value not in allowed:
                 raise InputError(f"{what} {value!r}: one of {', '.join(allowed)}")
         if not 0.0 <= self.warm_up_s <= 86400.0:
@@ -97,6 +101,8 @@ class Scenario:
         doc = dict(asdict(self), flight=Path(self.flight).name, flight_sha256=digest)
         if self.gyro_zero == "lab":     # the only zero before there was a choice: the
             del doc["gyro_zero"]        # campaigns written then resume as they were
+        if self.start == "air":         # likewise the only start before the ground one
+            del doc["start"]
         return doc
 
     def source(self, key):
@@ -152,6 +158,10 @@ SOURCES = {
                  "order scale, gyro scale - and no gyro zero; a MEMS gyro's zero taken at "
                  "power-on before flight is the ordinary practice); 'lab': fitted on the rate "
                  "table at 25 degC (the project's first reading)",
+    "start": "air: both navigators start from the exact state at the flight's first sample "
+             "(the seed says nothing of the alignment); 'ground': from the FOG-IMU's "
+             "gyrocompass on the pad over the flight's first 120 s, the MIMU given the same "
+             "attitude (evaluation.ground) - needs a profile that begins at rest",
     "beyond_model": "sensing elements simulated forward (cross-axis nonlinearity, "
                     "sensors.response), scale asymmetry 50-200 ppm and seed S3's dT term "
                     "(assumed magnitudes, sensors.mimu)",
@@ -218,7 +228,10 @@ def fly(scenario, unit, useed):
     else:
         raw, fog_out = simulation.record_flight(fm, unit, fog, rng_mimu, rng_fog,
                                                 warm_up_s=scenario.warm_up_s)
-    return Flight.from_simulation(fm, unit, fog, raw, fog_out), still
+    flight = Flight.from_simulation(fm, unit, fog, raw, fog_out)
+    if scenario.start == "ground":
+        flight, _ = ground_start(flight)
+    return flight, still
 
 
 def traditional_zero(cal, still):
