@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import FLIGHTS
 from ..evaluation import campaign
 from ..files import write_atomic
 from .plots import figure, save
@@ -35,6 +36,10 @@ LABELS = {"mimu_grade": "MIMU random-error grade", "fog_grade": "FOG-IMU grade",
           "warm_up_s": "MIMU warm-up before take-off, s",
           "gyro_zero": "traditional calibration's gyro zero"}
 AXES = ("east", "north", "up", "horizontal")
+# The start, on the shipped profiles that begin at rest (the base flight starts in the air, so
+# a ground start is no one-at-a-time change of it): each flown from the exact state and from
+# the FOG-IMU's gyrocompass on the pad (`evaluation.ground`)
+START_FLIGHTS = ("boost-coast.toml", "ground-gentle.toml")
 
 
 def points(base):
@@ -81,6 +86,11 @@ def regime_map(out_dir="reports", seed=1, units=16, workers=2, scheduler=None, b
                      "scenario": scenario.identity(), **point_summary(records)})
     for key, level, scenario in points(base):
         run(key, level, scenario, "base" if key is None else f"{key}={level}")
+    for flight in START_FLIGHTS:
+        for start in campaign.STARTS:
+            run("start", start, dataclasses.replace(base, flight=str(FLIGHTS / flight),
+                                                    start=start),
+                f"flight={Path(flight).stem}, start={start}")
     corner = favourable_corner(rows, base)
     if corner not in [p[2] for p in points(base)]:
         run("corner", None, corner, "favourable corner")
@@ -166,7 +176,8 @@ def markdown(rows, base, seed, units):
         levels = ", ".join(f"`{k}` {corner[0]['scenario'][k]}" for k in LEVELS)
         lines += ["", f"The `favourable corner` combines, per option, the level of its sweep "
                   f"with the smallest entire horizontal error: {levels}."]
-    lines += ["", "## What the map says", "", *findings(rows), *movers(rows, base), ""]
+    lines += ["", "## What the map says", "", *findings(rows), *movers(rows, base),
+              *start_effect(rows), ""]
     return "\n".join(lines)
 
 
@@ -207,6 +218,24 @@ def findings(rows):
     out.append(f"- The points named 'most' above are the best of {len(rows)}: their intervals "
                "are each point's own, not a test of the choice (the best of many points lies "
                "high by chance).")
+    return out
+
+
+def start_effect(rows):
+    """What the ground start does on each flight that begins at rest: each variant's
+    horizontal median from the exact state and from the FOG-IMU's alignment."""
+    out = []
+    for flight in START_FLIGHTS:
+        pair = {r["level"]: r for r in rows if r["option"] == "start"
+                and r["name"].startswith(f"flight={Path(flight).stem},")}
+        if set(pair) != set(campaign.STARTS):
+            continue
+        out.append(f"- `{Path(flight).stem}` from the exact state -> from the FOG-IMU's "
+                   "gyrocompass on the pad (horizontal median, x FOG): " + ", ".join(
+                       f"{v} {pair['air'][v]['median'][3]:.3g} -> "
+                       f"{pair['ground'][v]['median'][3]:.3g}" for v in campaign.VARIANTS)
+                   + "; the alignment's error is common to both IMUs, so it moves the FOG's "
+                   "end error most where the flight is fast and long.")
     return out
 
 

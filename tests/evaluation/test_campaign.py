@@ -261,3 +261,30 @@ def test_the_campaign_command_runs_a_unit_and_prints_its_table(profile, tmp_path
     printed = capsys.readouterr().out
     assert "Monte Carlo over 1 units" in printed and "| FOG-IMU | 1 | 1 | 1 |" in printed
     assert _lines(out)[0]["campaign"]["scenario"]["flight"] == "short.toml"
+
+
+def test_the_regime_maps_ground_start_flights_begin_at_rest_long_enough_to_align():
+    """The start's points fly profiles a ground start accepts: at rest from the first sample
+    for at least the alignment's span (`evaluation.ground.ALIGN_S`)."""
+    import tomllib
+    from mimunav import FLIGHTS
+    from mimunav.evaluation.ground import ALIGN_S
+    from mimunav.reports import regime
+    for name in regime.START_FLIGHTS:
+        doc = tomllib.loads((FLIGHTS / name).read_text())
+        first = doc["segment"][0]
+        assert doc["start"]["speed_m_s"] == 0.0
+        assert first["kind"] == "hold" and first["duration_s"] >= ALIGN_S
+
+
+def test_the_start_effect_is_read_from_its_pair_of_points():
+    from mimunav.reports import regime
+
+    def row(start, trad, ent):
+        return {"option": "start", "level": start,
+                "name": f"flight=boost-coast, start={start}",
+                "traditional": {"median": [0, 0, 0, trad]}, "entire": {"median": [0, 0, 0, ent]}}
+    said = regime.start_effect([row("air", 500.0, 40.0), row("ground", 3.0, 1.2)])
+    assert len(said) == 1
+    assert "traditional 500 -> 3, entire 40 -> 1.2" in said[0]
+    assert regime.start_effect([row("air", 500.0, 40.0)]) == []      # no pair, no sentence
