@@ -114,9 +114,24 @@ def scenario_options(p, flight=True):
                    help="MIMU exactly the 63-coefficient model (no scale asymmetry, no dT term)")
 
 
+def flight_path(given):
+    """The profile TOML `given` (a path), else the shipped profile of that file name
+    (`flights/` of the package: the names the help and the messages give work from any
+    folder); InputError naming the shipped ones when neither exists."""
+    path = Path(given)
+    if path.exists():
+        return path.resolve()
+    shipped = FLIGHTS / path.name
+    if shipped.exists():
+        return shipped
+    names = ", ".join(sorted(p.name for p in FLIGHTS.glob("*.toml")))
+    raise InputError(f"flight profile {given}: no such file, nor a shipped profile of that "
+                     f"name ({names}, in {FLIGHTS})")
+
+
 def scenario(args):
     from ..evaluation.campaign import Scenario
-    return Scenario(flight=str(Path(args.flight).resolve()), severity=args.severity,
+    return Scenario(flight=str(flight_path(args.flight)), severity=args.severity,
                     ground_temperature_c=args.ground_temperature_c, warm_up_s=args.warm_up_s,
                     mimu_grade=args.mimu_grade,
                     nonlinearity=args.nonlinearity, fog_grade=args.fog_grade,

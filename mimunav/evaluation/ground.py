@@ -28,6 +28,25 @@ RATE_TOLERANCE = 0.5        # x the Earth's rate: the FOG's mean rate must lie w
                             # heading by tens of degrees (error eps / (W cos L)), no alignment
 
 
+def begins_at_rest(profile, align_s=ALIGN_S):
+    """Refuse (InputError) a profile (`motion.profile.Profile`) that does not begin at rest
+    with a hold of at least align_s s - before any work (`ground_start` checks the flown
+    data again)."""
+    first = profile.segments[0]
+    if profile.start["speed"] == 0.0 and first["kind"] == "hold" and \
+            float(first["duration_s"]) >= align_s:
+        return
+    raise _moving(profile.name, align_s, f"{profile.start['speed']:g} m/s at its start")
+
+
+def _moving(name, align_s, speed):
+    return InputError(f"flight {name}: a ground start aligns on the pad over the flight's first "
+                      f"{align_s:g} s, and this flight moves there ({speed}): a profile that "
+                      f"begins at rest with a hold of at least {align_s:g} s (the shipped "
+                      "flights/boost-coast.toml, flights/ground-gentle.toml), or the air start "
+                      "(--start air)")
+
+
 def ground_start(flight, align_s=ALIGN_S):
     """(`flight` with its initial state from the FOG-IMU's gyrocompass over its first
     `align_s` s, what the alignment did: {"align_s", "t", "heading_error_deg",
@@ -35,24 +54,22 @@ def ground_start(flight, align_s=ALIGN_S):
     checked on its truth (speed at most `rests.STATIC_SPEED` m/s) and on the FOG's own rate
     (within RATE_TOLERANCE of the Earth's) - else InputError."""
     if flight.truth is None or flight.fog_t is None:
-        raise InputError(f"{flight.path}: a ground start needs the reference IMU and the truth")
+        raise InputError(f"flight {flight.name or flight.path}: a ground start needs the "
+                         "reference IMU and the truth")
     tr = flight.truth
     t_end = float(flight.fog_t[0] + align_s)
     pad = tr.t <= t_end
     speed = np.linalg.norm(tr.v_ned[pad], axis=1).max() if pad.any() else math.inf
     if tr.t[-1] < t_end or not speed <= STATIC_SPEED:
-        raise InputError(f"{flight.path}: a ground start aligns on the pad over the flight's "
-                         f"first {align_s:g} s, and this flight moves there (speed up to "
-                         f"{speed:.3g} m/s): a profile that begins at rest with a hold of at "
-                         f"least {align_s:g} s (flights/boost-coast.toml, "
-                         "flights/ground-gentle.toml), or the air start (--start air)")
+        raise _moving(flight.name or flight.path, align_s, f"speed up to {speed:.3g} m/s")
     k = (flight.fog_t > flight.fog_t[0]) & (flight.fog_t <= t_end)
     w_v = attitude.rotate(flight.fog_mounting.q_vs, flight.fog_w[k].mean(axis=0))
     f_v = attitude.rotate(flight.fog_mounting.q_vs, flight.fog_f[k].mean(axis=0))
     end = int(np.searchsorted(tr.t, t_end))
     truth = tr.state(min(end, len(tr.t) - 1))
     if abs(np.linalg.norm(w_v) - earth.OMEGA) > RATE_TOLERANCE * earth.OMEGA:
-        raise InputError(f"{flight.path}: the FOG-IMU's mean rate on the pad is "
+        raise InputError(f"flight {flight.name or flight.path}: the FOG-IMU's mean rate on "
+                         "the pad is "
                          f"{math.degrees(np.linalg.norm(w_v)) * 3600:.3g} deg/h against the "
                          f"Earth's {math.degrees(earth.OMEGA) * 3600:.3g}: it does not stand "
                          "still enough to gyrocompass")

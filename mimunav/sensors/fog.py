@@ -31,8 +31,11 @@ FOG_GRADE_SOURCES = {
     "table4": "seed S1 Table 4 read as medium accuracy, its bounds at about 2 sigma",
     "table4-bound": "seed S1 Table 4's bounds taken as 1 sigma (1 deg/h, 100 ug, 2.5e-4)",
     "navigation": "a navigation-grade reference (0.01 deg/h, 10 ppm): not the paper's FOG-IMU",
-    "table4-stability": "seed S1 Table 4's zero drift read as Table 1's is (`sensors.mimu."
-                        "MIMU_GRADES` table1): 1 deg/h and 100 ug as the 10 s bias stability"}
+    "table4-stability": "seed S1 Table 4's zero drift read as Table 1's is for the MIMU "
+                        "(mimu_grade table1): 1 deg/h and 100 ug as the 10 s bias stability, "
+                        "with the MIMU grade's shares of it - gyro white noise 2/3 of it over "
+                        "10 s, flicker half, turn-on bias a third; accel white a tenth (per "
+                        "sqrt(Hz)), flicker half, turn-on a fifth"}
 FOG_GRADES = {
     # the module doc above: Table 4 read as medium accuracy, the bounds at about 2 sigma
     "table4": {"gyro_bias": 0.5, "accel_bias": 50.0, "scale": SCALE_SIGMA,

@@ -186,3 +186,24 @@ def test_an_initial_state_at_power_on_starts_the_first_interval(good):
     check_plausible(replace(flight, initial=replace(flight.initial, t=t[0] - step)))
     with pytest.raises(LogError, match="interval before the first"):
         check_plausible(replace(flight, initial=replace(flight.initial, t=t[0] - 3 * step)))
+
+
+def test_a_shipped_flight_is_found_by_its_name_from_any_folder_and_a_ground_start_needs_one(
+        tmp_path, monkeypatch, capsys):
+    """`--flight flights/NAME.toml` as the help and the messages write it works outside the
+    checkout; a name that is no file and no shipped profile is refused naming the shipped
+    ones; a ground start of the default flight (it starts in the air) is refused before any
+    work, naming the flight and what would do."""
+    from mimunav import FLIGHTS
+    from mimunav.cli import main
+    from mimunav.cli.options import flight_path
+    from mimunav.errors import InputError
+    monkeypatch.chdir(tmp_path)
+    assert flight_path("flights/boost-coast.toml") == FLIGHTS / "boost-coast.toml"
+    with pytest.raises(InputError, match="no such file, nor a shipped profile.*boost-coast.toml"):
+        flight_path("flights/no-such.toml")
+    code = main(["reproduce", "--start", "ground", "-o", str(tmp_path / "r")])
+    err = capsys.readouterr().err
+    assert code == 2 and "flight high-dynamic: a ground start" in err and "250 m/s" in err
+    assert not (tmp_path / "r").exists()                # refused before any work
+    assert "boost-coast.toml" in err and "--start air" in err and "(in memory)" not in err
