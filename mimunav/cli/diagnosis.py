@@ -123,14 +123,14 @@ def set_aside_line(w):
     the terminal: its value, its p against the noise alone, the reference's stated 1 sigma
     along it and the 1 sigma the test used - the estimate's with the reference's and the
     calibration's stated errors as priors, which can exceed both."""
-    from ..diagnosis.document import charge_text
+    from ..diagnosis.document import charge_text, stated_errors
     value = w.get("coefficient", w.get("vector"))
     said = (f"{value:.4g}" if isinstance(value, float) else
             "[" + ", ".join(f"{v:.3g}" for v in value) + "]")
     sigmas = lambda key: ", ".join(f"{v:.3g}" for v in w[key])     # noqa: E731
-    stated = (f"the reference's (1 sigma {sigmas('reference_1sigma')}) and the calibration's"
-              if "reference_1sigma" in w else
-              f"the calibration's stated covariance (1 sigma {sigmas('calibration_1sigma')})")
+    words, key = stated_errors(w)
+    stated = (f"the reference's (1 sigma {sigmas(key)}) and the calibration's"
+              if key == "reference_1sigma" else f"{words} (1 sigma {sigmas(key)})")
     return (f"  set aside: {w['label']} {said}: significant against the noise alone (p "
             f"{w['p_train']:.2g}), not once the stated errors that may share it - {stated} - "
             f"are allowed: with them its 1 sigma is {sigmas('total_1sigma')}\n"

@@ -82,6 +82,18 @@ def dumps(doc):
     return json.dumps(doc, indent=1, allow_nan=False, default=float) + "\n"
 
 
+def stated_errors(w):
+    """(words, key of their 1 sigma) of the stated errors a set-aside term was tested
+    against (`selection._within`'s keys)."""
+    if "reference_1sigma" in w:
+        return ("the reference's and the calibration's stated linear errors together",
+                "reference_1sigma")
+    if "transfer_1sigma" in w:
+        return ("the reference's stated gyro error carried by the lever-arm transfer",
+                "transfer_1sigma")
+    return "the calibration's stated covariance", "calibration_1sigma"
+
+
 def charge_text(w):
     """What a set-aside term says of the MIMU against the reference: the two disagree along
     it, and how much smaller the stated linear errors it was tested against would have to be
@@ -89,8 +101,7 @@ def charge_text(w):
     k = w.get("charged_at_accuracy")
     if k is None:
         return "the MIMU and the reference disagree along it"
-    whose = ("the reference's and the calibration's stated linear errors together"
-             if "reference_1sigma" in w else "the calibration's stated covariance")
+    whose = stated_errors(w)[0]
     if k <= 0:
         return (f"the MIMU and the reference disagree along it; with {whose} even 1e4 times "
                 "smaller it would not pass the selection's test on this flight")

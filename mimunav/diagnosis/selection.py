@@ -192,7 +192,7 @@ def _within(design, j, res):
     - the reference's linear error (with the calibration's) for a term it can make
     (`reference_1sigma`), else the term's allowance (`Design.allowance`): the calibration's
     own (`calibration_1sigma`, a term the model carries) or the reference's gyro error through
-    the lever-arm transfer (`reference_1sigma`, a lever arm or proof-mass offset) - and the 1
+    the lever-arm transfer (`transfer_1sigma`, a lever arm or proof-mass offset) - and the 1
     sigma the test used (`total_1sigma`: the estimate's with the reference's prior, or the
     noise's plus the allowance, as `term_test` takes it)."""
     ref = reference_direction(design, j)
@@ -200,7 +200,8 @@ def _within(design, j, res):
         stated = {"reference_1sigma": np.sqrt(np.diag(ref)).tolist()}
         total = np.sqrt(np.diag(res["cov"]))
     else:
-        key = f"{design.allowance_of[j]}_1sigma"       # calibration_ or reference_1sigma
+        key = ("transfer_1sigma" if design.allowance_of[j] == "reference"
+               else "calibration_1sigma")
         stated = {key: np.sqrt(np.diag(design.allowance[j])).tolist()}
         total = np.sqrt(np.diag(res["cov"]) + np.diag(design.allowance[j]))
     k, monotone = res["charged_at"]

@@ -18,7 +18,7 @@ import numpy as np
 from ..evaluation.replay import (comparison_times, compensated_mimu, navigate_fog, navigate_mimu,
                                  ned_to_enu, resample)
 from ..files import atomic_folder
-from ..diagnosis.document import charge_text, dumps
+from ..diagnosis.document import charge_text, dumps, stated_errors
 from ..diagnosis.design import term_contribution
 from ..diagnosis import library
 from ..diagnosis.inference import p_text
@@ -296,14 +296,13 @@ def _residual_lines(doc):
         lines += ["## Within the stated accuracies", "",
                   "Significant against the noise alone, but not once the reference's stated "
                   f"error ({acc['source']}) and the calibration's stated covariance may share "
-                  "it: with those priors the estimate's own uncertainty (total 1 sigma) is too "
+                  "it (for a lever arm or a proof-mass offset: the reference's gyro error "
+                  "carried by the lever-arm transfer): with those priors the estimate's own uncertainty (total 1 sigma) is too "
                   "large at the selection's threshold - the data cannot tell the term from "
                   "them, so it is not charged to physics the model lacks.", ""]
         lines += [f"- {w['label']}: {_vec(w.get('vector', [w.get('coefficient')]))}, total "
                   f"1 sigma {_vec(w.get('total_1sigma', []))} ("
-                  + (f"the reference's stated 1 sigma {_vec(w['reference_1sigma'])}"
-                     if "reference_1sigma" in w else
-                     f"the calibration's stated 1 sigma {_vec(w['calibration_1sigma'])}")
+                  + f"{stated_errors(w)[0]}: 1 sigma {_vec(w[stated_errors(w)[1]])}"
                   + f"; p train against the noise alone {w['p_train']:.2g}); "
                   + charge_text(w)
                   for w in doc["within_reference_accuracy"]]
