@@ -2,6 +2,8 @@
 
     python bench/memory.py [--minutes 5 20] [--commands compensate replay table diagnose]
 
+Each command's wall time beside it (the 2-hour line extrapolates it too).
+
 A parked 1 kHz flight (MIMU raw volts of a drawn unit at rest through its true
 coefficients, FOG-IMU at rest, truth at 100 Hz; white noise) of each length is written
 block by block, then each command runs in its own process and its peak resident memory is
@@ -13,6 +15,7 @@ import math
 import subprocess
 import sys
 import tempfile
+import time
 from pathlib import Path
 
 import numpy as np
@@ -94,12 +97,14 @@ PEAK = ("import resource, sys\nfrom mimunav.cli import main\ncode = main(sys.arg
 
 
 def peak_mb(argv, cwd):
-    """Peak resident memory (MB) of `mimunav ARGV` in its own process (VmHWM, else getrusage)."""
+    """(peak resident memory MB, wall time s) of `mimunav ARGV` in its own process (VmHWM,
+    else getrusage)."""
+    start = time.perf_counter()
     out = subprocess.run([sys.executable, "-c", PEAK, *argv], cwd=cwd, capture_output=True,
                          text=True)
     if out.returncode != 0:
         raise RuntimeError(f"mimunav {' '.join(argv)}: {out.stderr.strip()[-500:]}")
-    return int(out.stderr.strip().splitlines()[-1]) / 1024
+    return int(out.stderr.strip().splitlines()[-1]) / 1024, time.perf_counter() - start
 
 
 def commands(kind, log, cal, tmp, minutes):
@@ -126,7 +131,7 @@ def main():
     ap.add_argument("--commands", nargs="+", default=list(COMMANDS), choices=COMMANDS)
     args = ap.parse_args()
     unit = MimuUnit.draw(1, beyond_model=False)
-    results = {}
+    results, seconds = {}, {}
     with tempfile.TemporaryDirectory() as tmp:
         cal = f"{tmp}/cal.json"
         Calibration.from_dict(unit.coefficients.as_dict()).save(cal)
@@ -134,19 +139,23 @@ def main():
             log = f"{tmp}/parked-{minutes:g}.mcap"
             n = parked_log(log, minutes, unit)
             for kind in args.commands:
-                results[(kind, n)] = peak_mb(commands(kind, log, cal, tmp, minutes), tmp)
+                results[(kind, n)], seconds[(kind, n)] = peak_mb(
+                    commands(kind, log, cal, tmp, minutes), tmp)
                 print(f"{kind:11s} {minutes:6g} min ({n / 1e6:.2f} M samples): "
-                      f"{results[(kind, n)]:7.0f} MB", flush=True)
+                      f"{results[(kind, n)]:7.0f} MB, {seconds[(kind, n)]:.0f} s", flush=True)
     (n0, n1) = sorted({n for _, n in results})
     rows = []
     for kind in args.commands:
         slope = (results[(kind, n1)] - results[(kind, n0)]) / (n1 - n0) * 1e6     # MB / M
+        per_m = (seconds[(kind, n1)] - seconds[(kind, n0)]) / (n1 - n0) * 1e6    # s / M
         rows.append((f"peak memory of `mimunav {kind}` against the flight's length (parked, "
                      "1 kHz)",
                      f"{results[(kind, n0)]:.0f} MB at {args.minutes[0]:g} min, "
                      f"{results[(kind, n1)]:.0f} MB at {args.minutes[1]:g} min: "
                      f"{slope * 1.048576:.0f} B/sample, a 2-hour 1 kHz flight "
-                     f"~{results[(kind, n0)] + slope * (7.2 - n0 / 1e6):.0f} MB"))
+                     f"~{results[(kind, n0)] + slope * (7.2 - n0 / 1e6):.0f} MB; wall "
+                     f"{seconds[(kind, n0)]:.0f} s and {seconds[(kind, n1)]:.0f} s, 2 hours "
+                     f"~{seconds[(kind, n0)] + per_m * (7.2 - n0 / 1e6):.0f} s"))
     publish(__file__, rows)
 
 
