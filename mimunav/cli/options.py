@@ -110,6 +110,9 @@ def scenario_options(p, flight=True):
                    "from the FOG-IMU's gyrocompass over the flight's first 120 s at rest, the "
                    "MIMU given the same attitude (a profile that begins at rest: "
                    "flights/boost-coast.toml, flights/ground-gentle.toml)")
+    p.add_argument("--g-sensitivity", type=number(0.0, 100.0), default=1.0,
+                   help="scale the gyros' drawn g-sensitivity C (default 1: seed S1 Table 2's "
+                   "0.01-0.04 (deg/s)/g; 0 = none)")
     p.add_argument("--exact-model", action="store_true",
                    help="MIMU exactly the 63-coefficient model (no scale asymmetry, no dT term)")
 
@@ -136,7 +139,8 @@ def scenario(args):
                     mimu_grade=args.mimu_grade,
                     nonlinearity=args.nonlinearity, fog_grade=args.fog_grade,
                     beyond_model=not args.exact_model,
-                    gyro_zero=args.gyro_zero, start=args.start)
+                    gyro_zero=args.gyro_zero, start=args.start,
+                    g_sensitivity=args.g_sensitivity)
 
 
 def variant_paths(specs):

@@ -83,6 +83,7 @@ class Scenario:
     beyond_model: bool = True
     gyro_zero: str = "pre-flight"
     start: str = "air"
+    g_sensitivity: float = 1.0
 
     def __post_init__(self):
         for value, allowed, what in ((self.mimu_grade, MIMU_GRADES, "MIMU grade"),
@@ -100,6 +101,8 @@ class Scenario:
                              f"least {PREFLIGHT_S:g} s, or the lab's zero: --gyro-zero lab)")
         if self.start == "ground":
             begins_at_rest(self.profile())
+        if not 0.0 <= self.g_sensitivity <= 100.0:
+            raise InputError(f"g-sensitivity factor {self.g_sensitivity}: expected 0..100")
         if not -60.0 <= self.ground_temperature_c <= 60.0:
             raise InputError(f"ground temperature {self.ground_temperature_c} degC: "
                              "expected -60..60")
@@ -113,6 +116,8 @@ class Scenario:
             del doc["gyro_zero"]        # campaigns written then resume as they were
         if self.start == "air":         # likewise the only start before the ground one
             del doc["start"]
+        if self.g_sensitivity == 1.0:   # and the drawn g-sensitivity as drawn
+            del doc["g_sensitivity"]
         return doc
 
     def source(self, key):
@@ -143,6 +148,7 @@ class Scenario:
         unit = MimuUnit.draw(seed, nonlinearity=self.nonlinearity, name=name,
                              beyond_model=self.beyond_model, grade=self.mimu_grade)
         unit.mounting = Mounting.from_dict(MIMU_MOUNTING)
+        unit.coefficients.C = unit.coefficients.C * self.g_sensitivity
         return unit
 
     def flight_key(self):
@@ -172,6 +178,8 @@ SOURCES = {
                  "power-on before flight is the ordinary practice); 'lab': fitted on the rate "
                  "table at 25 degC (the project's first reading)",
     "start": START_SOURCES["air"],
+    "g_sensitivity": "1 = the gyros' g-sensitivity C as drawn from seed S1 Table 2 (0.01-0.04 "
+                     "(deg/s)/g per entry); the factor scales it (0: none)",
     "beyond_model": "sensing elements simulated forward (cross-axis nonlinearity, "
                     "sensors.response), scale asymmetry 50-200 ppm and seed S3's dT term "
                     "(assumed magnitudes, sensors.mimu)",

@@ -10,6 +10,7 @@ Each point's units stream to OUT/regime/POINT.jsonl, so an interrupted map resum
 run on local processes or a Dask cluster (`--scheduler`).
 """
 import dataclasses
+import hashlib
 import json
 from pathlib import Path
 
@@ -29,12 +30,14 @@ LEVELS = {"mimu_grade": ("table1", "tactical", "stim300"),
           "ground_temperature_c": (-40.0, 15.0, 45.0),
           # 10 s: powered just long enough for the pre-flight gyro zero (the cold start)
           "warm_up_s": (10.0, 600.0, 3600.0),
-          "gyro_zero": ("pre-flight", "lab")}
+          "gyro_zero": ("pre-flight", "lab"),
+          "g_sensitivity": (0.0, 1.0, 3.0)}
 LABELS = {"mimu_grade": "MIMU random-error grade", "fog_grade": "FOG-IMU grade",
           "severity": "flight severity (g exposure x)",
           "ground_temperature_c": "ground air temperature, degC",
           "warm_up_s": "MIMU warm-up before take-off, s",
-          "gyro_zero": "traditional calibration's gyro zero"}
+          "gyro_zero": "traditional calibration's gyro zero",
+          "g_sensitivity": "gyro g-sensitivity C x (drawn from Table 2)"}
 AXES = ("east", "north", "up", "horizontal")
 # The start, on the shipped profiles that begin at rest (the base flight starts in the air, so
 # a ground start is no one-at-a-time change of it): each flown from the exact state and from
@@ -76,10 +79,11 @@ def regime_map(out_dir="reports", seed=1, units=16, workers=2, scheduler=None, b
     folder.mkdir(parents=True, exist_ok=True)
     rows = []
 
-    def run(key, level, scenario, name):
+    def run(key, level, scenario, name, file=None):
         if progress:
             print(f"regime point {name}", flush=True)
-        records = campaign.run_campaign(scenario, units, seed, str(folder / f"{name}.jsonl"),
+        records = campaign.run_campaign(scenario, units, seed,
+                                        str(folder / f"{file or name}.jsonl"),
                                         workers=workers, scheduler=scheduler,
                                         progress=progress)
         rows.append({"option": key, "level": level, "name": name, "units": len(records),
@@ -93,7 +97,11 @@ def regime_map(out_dir="reports", seed=1, units=16, workers=2, scheduler=None, b
                 f"flight={Path(flight).stem}, start={start}")
     corner = favourable_corner(rows, base)
     if corner not in [p[2] for p in points(base)]:
-        run("corner", None, corner, "favourable corner")
+        # its file named by its scenario: the corner moves when a sweep's best level does
+        # (a new option's, a new run's), and a file of another corner is no resume of it
+        digest = hashlib.sha256(json.dumps(corner.identity(), sort_keys=True).encode())
+        run("corner", None, corner, "favourable corner",
+            f"favourable corner {digest.hexdigest()[:12]}")
     plot(rows, base, str(out_dir / "regime.png"))
     write_atomic(out_dir / "regime.json", json.dumps({"seed": seed, "units_per_point": units,
                                                       "points": rows}, indent=1) + "\n",

@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from mimunav.errors import InputError
 from mimunav.evaluation import campaign
 from profiles import PULL_UP_AND_ROLL
 
@@ -288,3 +289,17 @@ def test_the_start_effect_is_read_from_its_pair_of_points():
     assert len(said) == 1
     assert "traditional 500 -> 3, entire 40 -> 1.2" in said[0]
     assert regime.start_effect([row("air", 500.0, 40.0)]) == []      # no pair, no sentence
+
+
+def test_the_g_sensitivity_factor_scales_the_drawn_unit_and_is_said():
+    from mimunav.reports.table3 import command_line
+    tripled = dataclasses.replace(campaign.Scenario(), g_sensitivity=3.0)
+    c1 = campaign.Scenario().draw_unit(2, "u").coefficients
+    c3 = tripled.draw_unit(2, "u").coefficients
+    np.testing.assert_array_equal(c3.C, 3.0 * c1.C)
+    np.testing.assert_array_equal(c3.W1, c1.W1)                 # nothing else moves
+    assert tripled.identity()["g_sensitivity"] == 3.0
+    assert "g_sensitivity" not in campaign.Scenario().identity()    # old campaigns resume
+    assert command_line(tripled, 1, 16).endswith("--g-sensitivity 3.0")
+    with pytest.raises(InputError, match="g-sensitivity factor -1"):
+        campaign.Scenario(g_sensitivity=-1.0)
