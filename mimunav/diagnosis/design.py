@@ -308,10 +308,7 @@ def transfer_allowance(columns, w, w_dot, d, cov):
     candidate to each of G's nine unit signatures on its channels (`transfer_signatures`);
     returns B cov B'."""
     signatures = transfer_signatures(w, w_dot, d)
-    chans = sorted(c for c in columns if c < 3)
-    if not chans:
-        k = next(iter(columns.values())).shape[1]
-        return np.zeros((k, k))
+    chans = sorted(c for c in columns if c < 3)     # TRANSFERRED terms act on accelerometers
     x = np.vstack([columns[c] for c in chans])
     s = np.vstack([signatures[:, c, :] for c in chans])
     b = np.linalg.lstsq(x, s, rcond=None)[0]             # (k, 9)
