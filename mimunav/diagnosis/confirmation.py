@@ -273,19 +273,30 @@ def halves_check(design, findings):
     idx = [position_of(design, f) for f in findings]
     first = design.t < np.median(design.t)
     fits = [Fitter(design, rows).fit(idx) for rows in (first, ~first)]
+    return halves_verdict(findings, [[fit.of(j) for fit in fits] for j in idx])
+
+
+def halves_verdict(findings, halves, absorbed=None):
+    """(kept, set aside) `findings` given each one's estimates on the recording's two halves,
+    `halves`: per finding ((b1, cov1), (b2, cov2)), the first half's and the second's
+    coefficients and covariances. The difference's chi-square (its covariance the sum of the
+    halves', independent rows) tested at HALVES_ALPHA; beyond it the 95 % interval is widened
+    by sqrt(statistic / parameters) / absorbed, at least 1, and a finding whose widened
+    interval holds zero is set aside as inconclusive. `absorbed` (per finding, default 1): how
+    many times wider the finding's interval already is than the one its halves pool to (a
+    block-robust interval carries a misfit between the halves as scatter of its own)."""
     kept, aside = [], []
-    for f, j in zip(findings, idx):
-        (b1, c1), (b2, c2) = (fit.of(j) for fit in fits)
+    for n, (f, ((b1, c1), (b2, c2))) in enumerate(zip(findings, halves)):
         diff = b1 - b2
         stat = float(diff @ np.linalg.lstsq(c1 + c2, diff, rcond=None)[0])
         p = float(stats.chi2.sf(stat, len(diff)))
-        halves = {"first": b1.tolist(), "second": b2.tolist(), "p_same": p}
-        if p >= HALVES_ALPHA:
-            kept.append(dict(f, halves=dict(halves, widened_by=1.0)))
+        record = {"first": b1.tolist(), "second": b2.tolist(), "p_same": p}
+        factor = math.sqrt(stat / len(diff)) / (1.0 if absorbed is None else absorbed[n])
+        if p >= HALVES_ALPHA or factor <= 1.0:
+            kept.append(dict(f, halves=dict(record, widened_by=1.0)))
             continue
-        factor = math.sqrt(stat / len(diff))
         wide = _widened(f, factor)
-        wide["halves"] = dict(halves, widened_by=factor)
+        wide["halves"] = dict(record, widened_by=factor)
         lo, hi = wide["ci95"]
         if lo <= 0.0 <= hi:
             aside.append(dict(wide, rejected=(

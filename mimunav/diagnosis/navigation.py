@@ -35,7 +35,8 @@ from ..compensation.effects import Conditions
 from ..evaluation.replay import compensated_mimu, navigate_mimu, resample
 from ..kernels import njit
 from . import inference, library
-from .confirmation import alternative_of, beta_of, estimate, rms_in, term_spans, where_rows
+from .confirmation import (alternative_of, beta_of, estimate, halves_verdict, rms_in,
+                           term_spans, where_rows)
 from .design import term_contribution
 from .inference import Tier
 from .reference import DERIVATIVE_WINDOW_S
@@ -220,7 +221,11 @@ def diagnose(flight, cal, alpha=0.05, seed=0, reference=None):
     train = seg % 2 == 0
     chosen = _select({"navigation": tier}, cands, {"navigation": train}, alpha)
     findings, rejected = _confirm(tier, cands, chosen, train, alpha, seed, cond)
-    findings = _relinearized(flight, cal, reference, findings, ~train)
+    findings, at = _relinearized(flight, cal, reference, findings, ~train)
+    if flight.source == "recording":        # a real record's halves may differ
+        findings, aside = halves_check(*(at or (tier, _columns(cands, findings), None)),
+                                       findings)
+        rejected = rejected + aside
     diag = NavigationDiagnosis(findings, rejected, tier, train, len(cands), cands, observed,
                                epochs, [], beyond_small_angles(observed)
                                + ([] if findings else unsettled(rejected)))
@@ -304,9 +309,10 @@ def _relinearized(flight, cal, reference, findings, held):
     fit of the same terms on the remaining error gives a correction; repeated until the
     correction is below RELINEARIZE_TOLERANCE of its standard error (at most
     RELINEARIZE_PASSES). The interval is the last refit's, about the point it linearized at.
-    Findings a compensation cannot remove are returned as they are."""
+    Findings a compensation cannot remove are returned as they are. Returns (findings, the
+    last linearization (tier, the findings' columns, its point) or None)."""
     if not findings:
-        return findings
+        return findings, None
     from ..compensation.calibration_file import with_found
     terms = [{k: f[k] for k in TERM_KEYS if k in f} for f in findings]
     point = [beta_of(f) for f in findings]
@@ -315,10 +321,10 @@ def _relinearized(flight, cal, reference, findings, held):
               for f, term, b in zip(findings, terms, point)]
         corrected = with_found(cal, at)
         if corrected is None or len(corrected.found) - len(cal.found) != len(findings):
-            return findings
+            return findings, None
         tier, cands, _, _, _, _ = _tier(flight, corrected, reference, [dict(t) for t in terms])
         if len(cands) != len(terms):
-            return findings
+            return findings, None
         fit = inference.fit(tier, [pos for _, _, pos in cands], held)
         delta = [fit.beta[fit.slices[k]] for k in range(len(terms))]
         intervals = [fit.interval(k) for k in range(len(terms))]
@@ -333,7 +339,41 @@ def _relinearized(flight, cal, reference, findings, held):
         fit_doc = dict(f["fit"], relinearized_passes=passes,
                        first_pass_coefficient=f["coefficient"])
         out.append(dict(f, **estimate(term, e, b + lo, b + hi), fit=fit_doc))
-    return out
+    return out, (tier, [pos for _, _, pos in cands], point)
+
+
+def halves_check(tier, columns, point, findings):
+    """(kept, set aside) findings after refitting the found terms together on the first and
+    the second half (time) of the velocity-error increments of `tier` (their `columns`),
+    linearized at `point` (per finding its coefficients, None: at zero): the sensor level's
+    rule (`confirmation.halves_verdict`). The held-out segments interleave with the training
+    ones, so they cannot see a term that drifts from one end of a recording to the other (a
+    reference solution that settles, a temperature, a mounting); the halves can."""
+    if not findings:
+        return findings, []
+    first = tier.t < np.median(tier.t)
+    fits = [inference.fit(tier, columns, rows) for rows in (first, ~first)]
+    point = point or [np.zeros(tier.k[c]) for c in columns]
+    halves = [[(b0 + fit.beta[fit.slices[k]], fit.cov[fit.slices[k], fit.slices[k]])
+               for fit in fits] for k, b0 in enumerate(point)]
+    return halves_verdict(findings, halves, [_absorbed(f, h) for f, h in zip(findings, halves)])
+
+
+def _absorbed(finding, halves):
+    """How many times wider the finding's 95 % interval is than a normal one of the halves'
+    pooled covariance (inverse-variance), the smallest over its parameters: the held-out
+    fit's block-robust interval already carries a misfit between the halves as scatter."""
+    (_, c1), (_, c2) = halves
+    pooled = np.sqrt(np.diag(np.linalg.pinv(np.linalg.pinv(c1) + np.linalg.pinv(c2))))
+    intervals = np.asarray(finding.get("vector_ci95", [finding["ci95"]]), float)
+    half = 0.5 * (intervals[:, 1] - intervals[:, 0])
+    return max(float(np.min(half / np.maximum(1.959964 * pooled, 1e-300))), 1e-12)
+
+
+def _columns(cands, findings):
+    """The tier columns of `findings` (terms of `cands`, matched on their labels)."""
+    column = {library.label(term): pos for _, term, pos in cands}
+    return [column[f["label"]] for f in findings]
 
 
 def beyond_small_angles(observed):

@@ -7,7 +7,8 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from mimunav.diagnosis import confirmation
+from mimunav.diagnosis import confirmation, inference, navigation
+from mimunav.diagnosis.inference import Tier
 from mimunav.sensors.accuracy import Accuracy
 from mimunav.errors import InputError
 
@@ -62,3 +63,47 @@ def test_halves_that_disagree_widen_the_interval_or_set_the_term_aside(monkeypat
     assert out["ci95"] == pytest.approx([1.2 - half, 1.2 + half])
     if not kept:
         assert "halves disagree" in out["rejected"] and "inconclusive" in out["rejected"]
+
+
+def _velocity_tier(first, second, rng, sigma=0.02):
+    """A navigation-level Tier of 600 one-second increments, one channel, whose residual is
+    one candidate's column x times `first` in the first 300 s and `second` after, plus white
+    noise of `sigma` (m/s)."""
+    t = np.arange(1.0, 601.0)
+    x = np.sin(2 * np.pi * t / 47.0) + 0.5 * np.sin(2 * np.pi * t / 13.0)
+    truth = np.where(t <= 300.0, first, second)
+    y = (x * truth + sigma * rng.standard_normal(len(t)))[:, None]
+    return Tier("navigation", t, y, [{0: x[:, None]}], [1], kept=np.ones(len(t), bool),
+                knot_s=(600.0,), block_s=30.0)
+
+
+@pytest.mark.parametrize("second, kept, widened", [
+    (0.2, True, False),         # one coefficient all through: the halves agree
+    (0.3, True, True),          # it moves by half: widened, still beyond zero
+    (-0.2, False, True),        # it changes sign: inconclusive
+])
+def test_the_navigation_levels_halves_see_a_term_that_moves_over_a_recording(second, kept,
+                                                                            widened):
+    """navigation.halves_check refits the found term on each half of the velocity-error
+    increments: the halves' coefficients are the two truths (within 4 standard errors), and
+    the verdict is the sensor level's. At a linearization point b0 (the relinearized
+    findings), the tier's residual is what is left after b0, and the halves are b0 + their
+    own fits."""
+    rng = np.random.default_rng(7)
+    for b0 in (None, 0.15):
+        tier = _velocity_tier(0.2 - (b0 or 0.0), second - (b0 or 0.0), rng)
+        whole = inference.fit(tier, [0], np.ones(600, bool))
+        lo, hi = (v[0] + (b0 or 0.0) for v in whole.interval(0))
+        finding = {"label": "scale_factor accel.x", "coefficient": float(whole.beta[0]) +
+                   (b0 or 0.0), "ci95": [float(lo), float(hi)]}
+        point = None if b0 is None else [np.array([b0])]
+        found, aside = navigation.halves_check(tier, [0], point, [finding])
+        assert (len(found) == 1) == kept and (len(aside) == 1) == (not kept)
+        out = (found or aside)[0]
+        halves = out["halves"]
+        se = [math.sqrt(fit.cov[0, 0]) for fit in (inference.fit(tier, [0], tier.t <= 300),)]
+        assert halves["first"][0] == pytest.approx(0.2, abs=4 * se[0])
+        assert halves["second"][0] == pytest.approx(second, abs=4 * se[0] * 1.5)
+        assert (halves["widened_by"] > 1.0) == widened
+        assert (out["ci95"][1] - out["ci95"][0]) == pytest.approx(
+            (hi - lo) * halves["widened_by"], rel=1e-9)
