@@ -96,7 +96,7 @@ def finding_line(f):
     line = (f"  {f['label']}: {f['coefficient']:.4g}{units} "
             f"[{f['ci95'][0]:.4g}, {f['ci95'][1]:.4g}] (held-out p {p_text(f['p_heldout'])}"
             + (f", removes {f['effect_size']['heldout_variance_removed']:.2%} of the held-out "
-               "residual variance" if "effect_size" in f else "")
+               "residual variance as the fit weighs it" if "effect_size" in f else "")
             + f"; {f.get('attribution', 'navigation level')})")
     if "vector" in f:
         line += (f"\n    vector ({f['units']}, {f.get('frame', 'sensor')} axes x, y, z) "
@@ -111,7 +111,9 @@ def finding_line(f):
     halves = f.get("halves")
     if isinstance(halves, dict) and halves["widened_by"] > 1:
         line += (f"\n    the recording's halves disagree (p {halves['p_same']:.2g}): interval "
-                 f"widened {halves['widened_by']:.2f}x")
+                 f"widened {halves['widened_by']:.2f}x" + (
+                     f", held-out p {p_text(halves['p_heldout_widened'])} with it"
+                     if "p_heldout_widened" in halves else ""))
     alike = [a["label"] for a in f.get("indistinguishable_from", [])]
     if alike:
         line += "\n    not told apart on this flight from " + ", ".join(alike)

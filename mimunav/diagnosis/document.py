@@ -7,7 +7,7 @@ import os
 import numpy as np
 
 from ..files import json_ready
-from . import navigation, sensor
+from . import navigation, outputs, sensor
 
 
 FORMAT = "mimunav-diagnosis/1"
@@ -55,10 +55,12 @@ METHOD = {
     "sensor": ("sensor level (the reference IMU predicts the MIMU's outputs): generalised "
                "least squares with a random-walk bias of fitted level and the reference's "
                "own linear error under a prior of its stated accuracy; forward selection on "
-               "alternate 0.5 s blocks with Holm's step-down thresholds over the library; "
+               f"alternate {sensor.SPLIT_BLOCK_S:g} s blocks with Holm's step-down "
+               "thresholds over the library; "
                "the other blocks give the coefficient, its 95 % interval and the "
                "confirmation; saturation, quantization, bias shift and bias instability "
-               "tested on the outputs and on 10 s means of the bias over quiet flight "
+               f"tested on the outputs and on {outputs.SPAN_S:g} s means of the bias over "
+               "quiet flight "
                "against the MEMS class of seed S1 Table 1"),
     "navigation": ("navigation level (no reference IMU: the MIMU's free-inertial velocity "
                    "error against the reference trajectory is fitted to each candidate's "

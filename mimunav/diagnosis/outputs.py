@@ -244,7 +244,7 @@ def bias_null(noise=None):
                 "(diagnosis.outputs.CLASS_DRIFT)"]))}
 
 
-def bias_tests(design, fit, quiet, alpha_level, cal, skip=(), noise=None):
+def bias_tests(design, fit, quiet, alpha_level, cal, skip=(), noise=None, carried=None):
     """bias_instability and bias_shift findings per channel, from the bias's SPAN_S means
     over quiet flight. fit: residual without the fitted reference error and confirmed terms
     (nb, 6) on the design's bins (what is left: the bias and the white noise); quiet (nb,)
@@ -255,7 +255,9 @@ def bias_tests(design, fit, quiet, alpha_level, cal, skip=(), noise=None):
     an offset and a wander of its own); noise: the unit's measured random errors
     ({"source", "instability": {sensor: B}}, `reports.noise.load` of a `mimunav noise`
     file): a sensor's measured B replaces the class's zero drift as the null's wander, so
-    the question becomes "more than this unit wanders at rest".
+    the question becomes "more than this unit wanders at rest"; carried: (6,) SI, 1 sigma of
+    each channel's quiet mean that the confirmed terms' removal leaves (their estimates'
+    error, `confirmation.removal_sigma`), a part of the offset's null.
 
     Three models of the means x (m,) at times t, each Gaussian (`bias_models`):
       class   x ~ N(0, B^2 F + s0^2 11' + w I): a unit of the class - an in-run wander of
@@ -290,8 +292,9 @@ def bias_tests(design, fit, quiet, alpha_level, cal, skip=(), noise=None):
             continue
         key = f"{'A0' if sensor == 'accel' else 'W0'}[{AXES.index(axis)}]"
         reference = _reference_bias(design, sensor)
+        removal = 0.0 if carried is None else float(carried[c])
         offset = math.sqrt(TURN_ON[sensor] ** 2 + reference ** 2
-                           + (se_cal.get(key) or 0.0) ** 2)
+                           + (se_cal.get(key) or 0.0) ** 2 + removal ** 2)
         white = float(np.nanvar(np.diff(fit[:, c])) / 2) * dt / SPAN_S
         # the null's wander: the MIMU's (class or measured) and the reference's own
         wander = math.hypot(drift[sensor], reference)
@@ -314,6 +317,8 @@ def bias_tests(design, fit, quiet, alpha_level, cal, skip=(), noise=None):
                  and m[best]["lr"] - m[other]["lr"] < stats.chi2.isf(0.05, 1) else [])
         finding = _bias_finding(best, m, means[keep, c], sensor, axis, where, p,
                                 alpha_level, offset, white, alike, whose[sensor], wander)
+        if removal > 0.0 and best == "shift":
+            finding["found_terms_1sigma"] = removal     # a part of normal_offset_1sigma
         if design.reference is not None and (design.reference.mems_grade or abs(
                 finding["coefficient"]) <= design.reference.bias_allowance(sensor)):
             finding["attribution"] = "mimu-or-reference"    # the reference may wander so
@@ -341,8 +346,9 @@ def _bias_finding(best, m, x, sensor, axis, where, p, alpha_level, offset, white
             (p, p, alpha_level), normal_offset_1sigma=offset, ci95_method="wald",
             likelihood_ratio={k: m[k]["lr"] for k in ("shift", "wander")},
             indistinguishable_from=alike,
-            note=f"a constant {mu:.3g} {unit} beyond the class's turn-on spread "
-                 f"{offset:.3g} and {whose} in-run wander ({drift:.3g}): "
+            note=f"a constant {mu:.3g} {unit} beyond the offset a unit of the class may "
+                 f"show ({offset:.3g}: turn-on spread, calibration, reference, found terms) "
+                 f"and {whose} in-run wander ({drift:.3g}): "
                  "better "
                  "explained as an offset than as a larger wander (likelihood ratios); "
                  f"rms of the {SPAN_S:g} s means before and after")

@@ -78,7 +78,8 @@ from .design import (Binning, CHANNELS, Design, FAST_BIN_S, detrended, term_cont
                      make_design, reference_error, bins, calibration_prior, residual)
 from .fitting import Fitter, term_test
 from .scan import SCAN_WINDOW_S, condition_masks, condition_map, near_spans, excursions
-from .confirmation import beta_of, confirm_chosen, halves_check, position_of
+from .confirmation import (beta_of, confirm_chosen, halves_check, position_of,
+                           removal_sigma)
 from .selection import select
 
 
@@ -162,10 +163,10 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
         findings, aside = halves_check(design, findings)
         rejected = rejected + aside
     everything = whole()
-    before, removed = _residuals(design, everything, findings)
+    before, removed, fit_found = _residuals(design, everything, findings)
     conds = condition_masks(design, prep.cond, prep.bins, prep.usable)
-    unexplained, on_outputs = _after_the_fit(design, removed, conds, findings, prep, alpha,
-                                             cal, noise, output_tests)
+    unexplained, on_outputs = _after_the_fit(design, (removed, fit_found), conds, findings,
+                                             prep, alpha, cal, noise, output_tests)
     for f in on_outputs:
         if f["effect"] == "bias_shift":
             removed[:, CHANNELS.index((f["sensor"], f["axis"]))] -= f["coefficient"]
@@ -269,21 +270,25 @@ def measured_steps(flight, acc):
 
 
 def _residuals(design, everything, findings):
-    """(before, removed) (nb, 6): the residual less the reference's fitted error without the
-    found terms, detrended, and less the fitted error and the found terms with them (the
-    all-rows `Fitter` everything)."""
+    """(before, removed, fit): (nb, 6) the residual less the reference's fitted error
+    without the found terms, detrended, and less the fitted error and the found terms with
+    them (the all-rows `Fitter` everything), and that all-rows fit of the found terms."""
     before = detrended(design, design.residual - reference_error(design, everything.fit([])))
     found = [position_of(design, f) for f in findings]
-    removed = design.residual - reference_error(design, everything.fit(found))
+    fit = everything.fit(found)
+    removed = design.residual - reference_error(design, fit)
     for f, j in zip(findings, found):
         removed = removed - term_contribution(design, j, beta_of(f))
-    return before, removed
+    return before, removed, fit
 
 
-def _after_the_fit(design, removed, conds, findings, prep, alpha, cal, noise, output_tests):
+def _after_the_fit(design, residual, conds, findings, prep, alpha, cal, noise, output_tests):
     """(unexplained excursions, findings on the outputs): localized excursions of the
-    residual `removed` (against a local baseline: the constant of a bias_shift removed later
-    does not move them), then the bias tests on quiet flight away from them."""
+    residual (`residual`: the residual with the found terms removed and their all-rows fit,
+    `_residuals`) against a local baseline (the constant of a bias_shift removed later
+    does not move them), then the bias tests on quiet flight away from them, whose offset
+    null carries the found terms' removal error (`confirmation.removal_sigma`)."""
+    removed, fit_found = residual
     scanned = removed.copy()
     if output_tests:
         scanned[:, sorted(prep.quantized)] = 0.0    # a lattice's own error is no excursion
@@ -298,7 +303,9 @@ def _after_the_fit(design, removed, conds, findings, prep, alpha, cal, noise, ou
                                          alpha / (len(design.terms) + 12), cal,
                                          skip={(f["sensor"], f["axis"]) for f in
                                                on_outputs + findings
-                                               if f["effect"] in OWN_OFFSET}, noise=noise)
+                                               if f["effect"] in OWN_OFFSET}, noise=noise,
+                                         carried=removal_sigma(design, fit_found, findings,
+                                                               quiet))
     return unexplained, on_outputs
 
 

@@ -232,8 +232,9 @@ def _finding_lines(doc):
     if doc["findings"]:
         lines += ["## Found terms (coefficient and 95 % interval from the held-out segments)", "",
                   "| term | coefficient | 95 % interval | units | p train / Holm limit | "
-                  "p held-out | held-out variance removed / of physical range | attribution | "
-                  "held-out rms before -> after | cannot be told from |",
+                  "p held-out | held-out variance removed (as the fit weighs it) / of physical "
+                  "range | attribution | held-out rms before -> after (bin means where it acts) "
+                  "| cannot be told from |",
                   "|---|---|---|---|---|---|---|---|---|---|"]
         for f in doc["findings"]:
             fit = f["fit"]
@@ -268,7 +269,10 @@ def _finding_lines(doc):
         if wide:
             lines += ["", "The recording's halves disagree on " + ", ".join(
                 f"{f['label']} (p {f['halves']['p_same']:.2g}: its intervals widened "
-                f"{f['halves']['widened_by']:.2f}x)" for f in wide) + "; the terms refitted on "
+                f"{f['halves']['widened_by']:.2f}x" + (
+                    f", its held-out p {p_text(f['halves']['p_heldout_widened'])} with them"
+                    if "p_heldout_widened" in f["halves"] else "") + ")"
+                for f in wide) + "; the terms refitted on "
                 "each half are in diagnosis.json (`halves`)."]
         lines += ["", "Where each term acts (first spans; all in diagnosis.json):", ""]
         for f in doc["findings"]:

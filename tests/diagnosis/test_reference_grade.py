@@ -6,6 +6,7 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from scipy import stats
 
 from mimunav.diagnosis import confirmation, inference, navigation
 from mimunav.diagnosis.inference import Tier
@@ -51,7 +52,7 @@ def test_halves_that_disagree_widen_the_interval_or_set_the_term_aside(monkeypat
     se = 0.1
     _Halves.values = {"first": (np.array([1.0]), np.array([[se ** 2]])),
                       "second": (np.array([second]), np.array([[se ** 2]]))}
-    finding = {"label": "scale_factor accel.x", "coefficient": 1.2,
+    finding = {"label": "scale_factor accel.x", "coefficient": 1.2, "p_heldout": 1e-6,
                "ci95": [1.2 - 1.96 * se, 1.2 + 1.96 * se]}
     found, aside = confirmation.halves_check(design, [finding])
     assert (len(found) == 1) == kept and (len(aside) == 1) == (not kept)
@@ -63,6 +64,12 @@ def test_halves_that_disagree_widen_the_interval_or_set_the_term_aside(monkeypat
     assert out["ci95"] == pytest.approx([1.2 - half, 1.2 + half])
     if not kept:
         assert "halves disagree" in out["rejected"] and "inconclusive" in out["rejected"]
+    if widened is None:     # one parameter: the held-out z (4.89 at p 1e-6) over the factor
+        z = stats.norm.isf(0.5e-6) / factor
+        assert out["halves"]["p_heldout_widened"] == pytest.approx(2 * stats.norm.sf(z),
+                                                                   rel=1e-6)
+    else:
+        assert "p_heldout_widened" not in out["halves"]
 
 
 def _velocity_tier(first, second, rng, sigma=0.02):
