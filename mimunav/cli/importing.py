@@ -69,6 +69,11 @@ def add_import(sub):
                    "s, before the import measures the two IMUs' offset from their rotation "
                    "rates and corrects what it measures (beyond 1 ms); a clock it cannot time "
                    "is left as given and said")
+    p.add_argument("--reference-time-offset", type=number(-3600.0, 3600.0), default=0.0,
+                   metavar="S", help="every importer: added to the reference trajectory's "
+                   "(and the GNSS fixes') stamps, s, before the import checks them against "
+                   "the IMU's rotation (a shift of a second or more it measures is refused, "
+                   "naming this option and the value that puts it back)")
     p.add_argument("--reference-imu-rpy-deg", type=number(-360.0, 360.0), nargs=3,
                    metavar=("ROLL", "PITCH", "YAW"), help="ros2: the reference IMU's sensor -> "
                    "vehicle (FRD) rotation, deg (default 180 0 0, REP-103)")

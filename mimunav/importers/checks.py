@@ -10,7 +10,7 @@ import quaternion
 from ..navigation import alignment
 from ..navigation.rests import acceleration_match, span_means, track_acceleration
 from ..frames import attitude
-from .pairing import pair
+from .pairing import pair, trajectory_clock
 from .recording import G0, RecordingError, utc_text
 from ..motion.track import velocity_from_positions
 
@@ -66,6 +66,22 @@ def check_recording(rec):
         raise RecordingError(f"{rec.name}: the gyro's rates reach {imu_rate:.3g}, the reference "
                              f"attitude turns at up to {ref_rate:.3g} rad/s: is the gyro's unit "
                              "(deg/s or rad/s) right?")
+    _check_reference_clock(rec)
+
+
+def _check_reference_clock(rec):
+    """The reference attitude's turn rate against the IMU's (`pairing.trajectory_clock`):
+    said in rec.real["reference_clock"]; a decided lag of REFUSED_OFFSET_S or more refused,
+    naming the shift that puts it back (a reference IMU re-timed by the import leaves its
+    device's solution on the old clock: 2.5 s off on the light aircraft's)."""
+    clock = trajectory_clock(rec)
+    rec.real["reference_clock"] = clock["said"]
+    late = clock["offset_s"]
+    if late is not None and abs(late) >= REFUSED_OFFSET_S:
+        raise RecordingError(
+            f"{rec.name}: the reference's attitude turns as the IMU does only with its stamps "
+            f"{late:+.2f} s late ({clock['said']}): the two time bases differ by that much; "
+            f"--reference-time-offset {-late:+.2f} would shift the reference back")
 
 
 FELT_GRAVITY_SHARE = 0.05   # of the recording's 1 s means: at least this share (and 3 s)
@@ -179,8 +195,9 @@ def _check_against_course(rec):
                                                   if not 0.1 < ratio < 10 else
                                                   "the sensor axes or the mounting turn the "
                                                   "yaw axis upside down"))
-        if abs(corr) < 0.5:
-            _check_time_offset(rec, t_imu, t[sel], rate, corr, half)
+        # searched whatever the correlation as stamped: a car's turns last seconds, so
+        # stamps 2 s off still correlated 0.70 on the shared drive (1.00 at the shift)
+        _check_time_offset(rec, t_imu, t[sel], rate, corr, half)
     z_ref = z_track[sel]
     if np.std(z_ref) > COURSE_CHECK_ACCEL:
         gain, coherence = acceleration_match(f_v[:, 0] + 1j * f_v[:, 1], z_ref)
@@ -222,6 +239,10 @@ def _turned_back(rec, yaw, square=True):
 
 
 TIME_OFFSET_SEARCH_S = 60.0     # s: the yaw rate is looked for this far either side
+REFUSED_OFFSET_S = 1.0          # s: a reference this far off the IMU's clock is refused; below,
+                                # the diagnosis measures the lag with its interval (time_skew,
+                                # the track's lag): a first-order time term holds while the
+                                # motion's rates change little within it (a turn: ~1 s)
 
 
 def _check_time_offset(rec, t_imu, t_ref, rate, corr0, half):
@@ -242,12 +263,13 @@ def _check_time_offset(rec, t_imu, t_ref, rate, corr0, half):
         c = np.corrcoef(smooth[k], rate[inside])[0, 1]
         if c > best:
             best, best_lag = float(c), float(lag)
-    if best > 0.7 and abs(best_lag) >= 1.0:
+    if best > 0.7 and abs(best_lag) >= REFUSED_OFFSET_S:
         raise RecordingError(
             f"{rec.name}: the gyro's yaw rate follows the GNSS course rate only with the IMU's "
             f"stamps shifted by {-best_lag:+.1f} s (correlation {best:.2f}, {corr0:+.2f} as "
             "stamped): the IMU's and the reference's time bases differ by that much (GPS time "
-            "read as UTC is 18 s off)")
+            f"read as UTC is 18 s off); --reference-time-offset {best_lag:+.1f} would shift "
+            "the reference back")
 
 
 def _local_mean(x, k, half=5):

@@ -83,12 +83,15 @@ def _check_units(rec):
                                  "(deg/s or rad/s) wrong, or the topic another vehicle's?")
 
 
-def _rate_magnitude(ns, w, grid):
-    """|w| at the grid times (s), from samples stamped at the end of their intervals (the
-    interval centres are compared: a 100 Hz and a 400 Hz IMU on one clock are 3.75 ms apart
-    by their stamps alone); NaN outside the samples' span."""
-    t = ns / 1e9 - 0.5 * np.median(np.diff(ns)) / 1e9
-    out = np.interp(grid, t, np.linalg.norm(w, axis=1))
+def _centres(ns):
+    """The interval centres (s) of samples stamped at the end of their intervals (a 100 Hz
+    and a 400 Hz IMU on one clock are 3.75 ms apart by their stamps alone)."""
+    return ns / 1e9 - 0.5 * np.median(np.diff(ns)) / 1e9
+
+
+def _on_grid(t, x, grid):
+    """x (at times t, s) at the grid times (s); NaN outside t's span."""
+    out = np.interp(grid, t, x)
     out[(grid < t[0]) | (grid > t[-1])] = np.nan
     return out
 
@@ -124,31 +127,60 @@ def clock_offset(rec):
     """{"offset_s": how late (s) the reference IMU's stamps are on the IMU's, or None when
     the data do not decide it, "said": what was measured} (module doc)."""
     ref = rec.reference_imu
-    lo = min(rec.imu_ns[0], ref["ns"][0]) / 1e9
-    hi = max(rec.imu_ns[-1], ref["ns"][-1]) / 1e9
+    found = rate_lag(_centres(rec.imu_ns), np.linalg.norm(rec.w, axis=1),
+                     _centres(ref["ns"]), np.linalg.norm(ref["w"], axis=1), "the two IMUs",
+                     "the reference's stamps")
+    if found.get("lag_s") is None:
+        return dict(found, offset_s=None)
+    offset = _refined(rec, found["lag_s"])
+    return {"offset_s": offset, "said": f"{found['said']}; refined to {offset * 1e3:+.1f} ms"}
+
+
+def trajectory_clock(rec):
+    """{"offset_s": how late (s) the reference trajectory's stamps are on the IMU's, to
+    GRID_S, or None when the data do not decide it, "said"}: the IMU's |w| against the turn
+    rate of the reference's attitude (between successive attitudes, at their mid-times;
+    steps over twice the median left out), by the module doc's rule."""
+    ref = rec.reference
+    ok = np.isfinite(ref["q_nb"]).all(axis=1)
+    t = ref["ns"][ok] / 1e9
+    rate = attitude.turn_rate(t, attitude.from_wxyz(ref["q_nb"][ok]))
+    step = np.diff(t)
+    keep = step <= 2 * np.median(step)
+    found = rate_lag(_centres(rec.imu_ns), np.linalg.norm(rec.w, axis=1),
+                     (0.5 * (t[1:] + t[:-1]))[keep], rate[keep],
+                     "the IMU's and the reference attitude's turn rates", "the reference's stamps")
+    return dict(found, offset_s=found.get("lag_s"))
+
+
+def rate_lag(t_a, rate_a, t_b, rate_b, whose, late):
+    """{"lag_s": how late (s) series b's times are on a's, to GRID_S, or None, "said",
+    "ambiguous" when a peak is there but not alone}: two rotation-rate magnitudes (rad/s at
+    times s, interval centres) correlated over every lag at which they overlap for half the
+    shorter (module doc); `whose`, `late`: what the sentence calls the series and b's
+    stamps."""
+    lo, hi = min(t_a[0], t_b[0]), max(t_a[-1], t_b[-1])
     grid = np.arange(lo, hi, GRID_S)
-    a, b = _rate_magnitude(rec.imu_ns, rec.w, grid), _rate_magnitude(ref["ns"], ref["w"], grid)
+    a, b = _on_grid(t_a, rate_a, grid), _on_grid(t_b, rate_b, grid)
     if max(np.nanstd(a), np.nanstd(b)) < TURNING_RATE:
-        return {"offset_s": None, "said": f"not measured: neither IMU turns (|w| spread below "
-                                          f"{TURNING_RATE:g} rad/s); the stamps taken as "
-                                          "recorded"}
+        return {"lag_s": None, "said": f"not measured: neither turns (|w| spread below "
+                                       f"{TURNING_RATE:g} rad/s); the stamps taken as recorded"}
     shorter = min(np.isfinite(a).sum(), np.isfinite(b).sum())
     lags, r = masked_correlation(a, b, max(0.5 * shorter, 10.0 / GRID_S))
     if not np.isfinite(r).any():
-        return {"offset_s": None, "said": "not measured: the two records never overlap for "
-                                          "half the shorter one"}
+        return {"lag_s": None, "said": "not measured: the two records never overlap for "
+                                       "half the shorter one"}
     k = int(np.nanargmax(r))
     peak = float(r[k])
     away = np.abs(lags - lags[k]) * GRID_S > PEAK_WIDTH_S
     second = float(np.nanmax(r[away])) if np.isfinite(r[away]).any() else -1.0
-    said = (f"the |w| of the two IMUs correlate {peak:.2f} with the reference's stamps "
-            f"{lags[k] * GRID_S:+.2f} s late, {second:.2f} at best elsewhere")
+    said = (f"{whose} (|w|) correlate {peak:.2f} with {late} {lags[k] * GRID_S:+.2f} s "
+            f"late, {second:.2f} at best elsewhere")
     if peak < PEAK_CORRELATION or second > SECOND_PEAK_SHARE * peak:
-        return {"offset_s": None, "said": f"not decided ({said}: at least {PEAK_CORRELATION:g} "
-                                          f"at one lag and at most {SECOND_PEAK_SHARE:g} of it "
-                                          "elsewhere needed)", "ambiguous": True}
-    offset = _refined(rec, lags[k] * GRID_S)
-    return {"offset_s": offset, "said": f"{said}; refined to {offset * 1e3:+.1f} ms"}
+        return {"lag_s": None, "said": f"not decided ({said}: at least {PEAK_CORRELATION:g} "
+                                       f"at one lag and at most {SECOND_PEAK_SHARE:g} of it "
+                                       "elsewhere needed)", "ambiguous": True}
+    return {"lag_s": float(lags[k] * GRID_S), "said": said}
 
 
 def _refined(rec, coarse_s, search_s=2 * GRID_S, step_s=0.001):

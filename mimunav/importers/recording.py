@@ -90,9 +90,25 @@ class Recording:
             raise InputError("--reference-imu-time-offset: the recording has no reference IMU "
                              "(--reference-imu-topic, [reference_imu], --reference-imu-instance)")
         self.reference_imu["ns"] = self.reference_imu["ns"] + int(round(offset_s * 1e9))
+        self._say_shift("reference_imu_time", offset_s, why)
+
+    def shift_reference(self, offset_s, why):
+        """Add offset_s (s) to the reference trajectory's and the GNSS fixes' stamps, saying
+        so (`why`) in the assumed metadata."""
+        if self.reference is None and self.fixes is None:
+            raise InputError("--reference-time-offset: the recording has no reference "
+                             "trajectory or GNSS fixes")
+        step = int(round(offset_s * 1e9))
+        for part in (self.reference, self.fixes):
+            if part is not None:
+                part["ns"] = np.asarray(part["ns"], dtype=np.int64) + step
+        self._say_shift("reference_time", offset_s, why)
+
+    def _say_shift(self, key, offset_s, why):
+        """Say in the assumed metadata (`key`) that stamps were shifted by offset_s (s)."""
         said = f"its stamps shifted by {offset_s:+.4f} s ({why})"
-        before = self.assumed.get("reference_imu_time")
-        self.assumed["reference_imu_time"] = f"{before}; then {said}" if before else said
+        before = self.assumed.get(key)
+        self.assumed[key] = f"{before}; then {said}" if before else said
 
     @property
     def sample_rate_hz(self):

@@ -11,6 +11,7 @@ OPTIONS = {
     "imu_instance": (("dataflash", "ulog"), None), "reference": (("dataflash",), "auto"),
     "reference_imu_instance": (("ulog",), None),
     "reference_imu_time_offset": (("ros2", "table", "ulog"), 0.0),
+    "reference_time_offset": (KINDS, 0.0),
     "gps_status": (("dataflash",), 3), "imu_topic": (("ros2",), None),
     "fix_topic": (("ros2",), None), "pose_topic": (("ros2",), None), "origin": (("ros2",), None),
     "reference_status": (("ros2",), None), "reference_sigma": (("ros2",), np.inf),
@@ -34,7 +35,8 @@ def read(kind, source, mounting=None, **options):
     a file for ros2, ulog and dataflash, a TOML spec for table) read by the `kind` importer;
     mounting: the IMU's `Mounting` instead of the importer's default; options: OPTIONS by
     name (the others at their defaults; reference_imu_time_offset, s, is added to the
-    reference IMU's stamps)."""
+    reference IMU's stamps, reference_time_offset to the reference trajectory's and the
+    fixes')."""
     refuse_foreign(kind, options)
     o = {name: options.get(name, default) for name, (_, default) in OPTIONS.items()}
     rec = READERS[kind](source, mounting, o)
@@ -42,6 +44,8 @@ def read(kind, source, mounting=None, **options):
         rec.vehicle = o["vehicle"]
     if o["reference_imu_time_offset"]:
         rec.shift_reference_imu(o["reference_imu_time_offset"], "command line")
+    if o["reference_time_offset"]:
+        rec.shift_reference(o["reference_time_offset"], "command line")
     return rec
 
 

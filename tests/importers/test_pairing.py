@@ -2,12 +2,15 @@
 offset found over the whole overlap at any size and taken only from an unambiguous peak, the
 mounting measured at any angle and taken only where the motion decides it. A clock seconds
 off had been "measured" as +34 ms by a search over +-1 s."""
+import re
+
 import numpy as np
 import pytest
+import quaternion
 
 from mimunav.frames import attitude
 from mimunav.frames.mounting import Mounting
-from mimunav.importers import pairing
+from mimunav.importers import checks, pairing
 from mimunav.importers.recording import Recording, RecordingError
 from mimunav.motion import truth
 from mimunav.motion.profile import Profile
@@ -89,7 +92,7 @@ def test_a_still_recording_cannot_place_a_turn_about_gravity():
     yawed = rec((0.0, 0.0, 20.0))
     pairing.pair(yawed)
     assert "not seen" in yawed.real["reference_imu_mounting"]
-    assert "not measured: neither IMU turns" in yawed.real["reference_imu_clock"]
+    assert "not measured: neither turns" in yawed.real["reference_imu_clock"]
     with pytest.raises(RecordingError, match="one direction only.*rpy-deg 0.0 0.0 0.0"):
         pairing.pair(rec((15.0, 0.0, 0.0)))     # the importer's own way to give it
 
@@ -107,3 +110,46 @@ def test_a_mirrored_triad_is_refused_naming_it(pair_motion):
     # after the best turn one does
     with pytest.raises(RecordingError, match="after the best turn.*gyros about"):
         pairing.pair(_recording(ns, w, f, mirrored, f_r, rpy=(180.0, 0.0, 0.0)))
+
+
+@pytest.fixture(scope="module")
+def flown():
+    """(IMU stamps ns, w, f in FLU, the truth Trajectory at 10 Hz) of 150 s of the proof flight."""
+    motion = Profile.load(FLIGHTS / "diagnosis-proof.toml").motion()
+    t = np.arange(0.0, min(motion.t1, 150.0), 1.0 / RATE)
+    run = truth.generate(motion, t)
+    dth, dv = Mounting.from_axes("FLU").sensor_increments(run)
+    every = int(RATE / 10)
+    return (EPOCH_NS + np.round(t[1:] * 1e9).astype(np.int64), dth * RATE, dv * RATE,
+            run.trajectory, every)
+
+
+def _with_reference(flown, late_s):
+    ns, w, f, traj, every = flown
+    k = slice(0, None, every)
+    ref = dict(ns=EPOCH_NS + np.round((traj.t[k] + late_s) * 1e9).astype(np.int64),
+               lat=traj.lat[k], lon=traj.lon[k], h=traj.h[k], v_ned=traj.v_ned[k],
+               q_nb=quaternion.as_float_array(traj.q_nb[k]))
+    return Recording("flown", "test", ns, w, f, Mounting.from_axes("FLU"), reference=ref)
+
+
+@pytest.mark.parametrize("late_s", [2.0, -7.5, 0.3])
+def test_a_reference_trajectory_off_the_imus_clock_is_measured_by_its_attitude(flown, late_s):
+    """The reference's attitude turns as the IMU does: its stamps late by seconds are
+    refused naming --reference-time-offset and the value that puts them back (a light
+    aircraft's VN-300 solution was left 2.5 s off when its IMU was re-timed); given that
+    shift, the import goes on; a lag under a second is said (to the 20 ms grid), left to
+    the diagnosis."""
+    rec = _with_reference(flown, late_s)
+    if abs(late_s) < checks.REFUSED_OFFSET_S:
+        checks.check_recording(rec)
+        assert f"stamps {late_s:+.2f} s late" in rec.real["reference_clock"]
+        return
+    back = re.escape(f"--reference-time-offset {-late_s:+.2f} ")
+    with pytest.raises(RecordingError, match=back):
+        checks.check_recording(rec)
+    rec = _with_reference(flown, late_s)
+    rec.shift_reference(-late_s, "test")
+    checks.check_recording(rec)
+    assert "stamps +0.00 s late" in rec.real["reference_clock"]
+    assert "shifted by" in rec.assumed["reference_time"]
