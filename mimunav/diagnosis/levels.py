@@ -89,6 +89,8 @@ def diagnose(flight, cal, level, alpha=0.05, seed=0, accuracy=None, noise=None, 
     `sensors.accuracy.Accuracy` (sensor and track levels); noise the unit's measured random errors
     for the sensor level's bias tests; vehicle (navigation level) what carried the IMU, when
     the command line says."""
+    if level == "sensor":
+        return sensor.diagnose(flight, cal, alpha=alpha, accuracy=accuracy, noise=noise)
     if level == "navigation":
         diag = navigation.diagnose(flight, cal, alpha=alpha, seed=seed)
         unmeasured = unmeasured_heading(flight, vehicle)
@@ -96,10 +98,30 @@ def diagnose(flight, cal, level, alpha=0.05, seed=0, accuracy=None, noise=None, 
             diag.rejected = diag.rejected + [dict(f, rejected=unmeasured) for f in diag.findings]
             diag.findings = []
             diag.inconclusive = list(getattr(diag, "inconclusive", None) or []) + [unmeasured]
-        return diag
-    if level == "sensor":
-        return sensor.diagnose(flight, cal, alpha=alpha, accuracy=accuracy, noise=noise)
-    return track.diagnose(flight, cal, alpha=alpha, accuracy=accuracy)
+    else:
+        diag = track.diagnose(flight, cal, alpha=alpha, accuracy=accuracy)
+    fused = fused_reference(flight)
+    if fused and not diag.findings:
+        diag.inconclusive = list(getattr(diag, "inconclusive", None) or []) + [fused]
+    return diag
+
+
+def fused_reference(flight):
+    """Why a recording's reference trajectory may carry its IMU's own errors, or '': its
+    `reference` metadata does not say it is independent of the IMU ("no: the autopilot
+    fuses this IMU", "unknown: ...", or nothing said). A filter that fuses the IMU estimates
+    and takes out part of the IMU's errors, so what it took out does not show against it:
+    'nothing is missing' cannot be said from it (a term that shows still stands on its tests,
+    its size perhaps shrunk)."""
+    if flight.source != "recording":
+        return ""
+    said = str((flight.reference_meta or {}).get("independent") or "not stated")
+    if said.lower().startswith("yes"):
+        return ""
+    return (f"the reference trajectory is not known to be independent of this IMU ({said}): "
+            "a filter that fuses the IMU takes out part of its errors, and what it took out "
+            "does not show against it - no finding here is not 'no missing physics' (a table "
+            "spec states it as [reference] independent = \"yes: ...\")")
 
 
 def unmeasured_heading(flight, vehicle=None):

@@ -84,3 +84,27 @@ def test_an_older_log_says_its_heading_in_words():
     said = {"assumed": {"initial_state": "rest assumed ...; heading assumed 0 (the track ...)"}}
     flight = _flight(_ramp(3000, 15.0), recording=said)
     assert "assumed: nothing measured it" in levels.unmeasured_heading(flight)
+
+
+@pytest.mark.parametrize("independent, said", [
+    ("yes: GNSS only", None), ("no: the autopilot fuses this IMU", "the autopilot fuses"),
+    (None, "not stated")])
+def test_nothing_found_against_a_reference_that_fuses_the_imu_is_no_clean_bill(
+        monkeypatch, independent, said):
+    """A recording's reference trajectory not stated independent of the IMU (an autopilot's
+    or an optimiser's solution fuses it): finding nothing is inconclusive, saying why; a
+    finding stands; a simulation's truth is independent by construction."""
+    meta = {} if independent is None else {"independent": independent}
+    flight = SimpleNamespace(source="recording", reference_meta=meta, recording={
+        "initial_heading": "reference"})
+    empty = SimpleNamespace(findings=[], inconclusive=[], rejected=[])
+    monkeypatch.setattr(levels.navigation, "diagnose", lambda *a, **k: empty)
+    diag = levels.diagnose(flight, None, "navigation")
+    assert (said is None) == (not diag.inconclusive)
+    if said:
+        assert said in diag.inconclusive[0] and "not known to be independent" in \
+            diag.inconclusive[0]
+    found = SimpleNamespace(findings=[{"label": "x"}], inconclusive=[], rejected=[])
+    monkeypatch.setattr(levels.navigation, "diagnose", lambda *a, **k: found)
+    assert levels.diagnose(flight, None, "navigation").inconclusive == []
+    assert levels.fused_reference(SimpleNamespace(source="simulation", reference_meta={})) == ""

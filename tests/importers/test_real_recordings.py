@@ -78,6 +78,11 @@ def test_comma2k19_through_the_table_importer(tmp_path):
     assert main(["diagnose", str(log), "--json", str(auto)]) == 0
     chosen = json.loads(auto.read_text())
     assert chosen["level"] == "navigation" and "attitude" in chosen["level_choice"]
+    # comma's pose fuses this IMU: what it absorbed does not show against it, so finding
+    # nothing is no clean bill (it had said 'no-missing-physics', conclusive)
+    if not chosen["findings"]:
+        assert not chosen["conclusive"] and chosen["verdict"] != "no-missing-physics"
+        assert any("not known to be independent" in r for r in chosen["inconclusive_reasons"])
     out = tmp_path / "diag.json"
     assert main(["diagnose", str(log), "--level", "track", "--json", str(out)]) == 0
     diag = json.loads(out.read_text())
