@@ -273,7 +273,8 @@ def _tier(flight, cal, reference, terms=None):
     epochs = np.arange(t0, t1 + 1e-9, EPOCH_S)
     if len(epochs) < MIN_EPOCHS:
         raise InputError(f"{flight.path}: {t1 - t0:.0f} s of reference overlap is too short "
-                         "for a navigation-level diagnosis")
+                         f"for a navigation-level diagnosis (it needs {MIN_EPOCHS * EPOCH_S:g} "
+                         "s: its bias wander and initial attitude are fitted beside the terms)")
     observed = resample(nav, epochs).velocity_error(resample(reference, epochs))
     at = np.clip(np.searchsorted(model.t, epochs), 0, len(model.t) - 1)
     increments = lambda x: np.diff(x[at], axis=0)                            # noqa: E731

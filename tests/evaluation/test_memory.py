@@ -30,6 +30,7 @@ STREAMING = [kind for kind in memory.COMMANDS if kind != "diagnose"]
 
 
 @pytest.mark.slow
+@pytest.mark.bench          # left out of the default run: `python -m pytest -m bench`
 @pytest.mark.parametrize("kind", STREAMING)
 def test_peak_memory_is_flat_in_the_flights_length(kind, logs):
     cal, short, long_, tmp = logs
