@@ -239,6 +239,10 @@ def _turned_back(rec, yaw, square=True):
 
 
 TIME_OFFSET_SEARCH_S = 60.0     # s: the yaw rate is looked for this far either side
+CLEARLY_BETTER = 0.1            # a shift's correlation must beat the stamps' by this much:
+                                # over half the record a smooth turn correlates ~1 with itself
+                                # shifted (0.999999 against 0.9999988 as stamped), while stamps
+                                # 2 s off correlate 0.70 against 1.00 (the shared drive)
 REFUSED_OFFSET_S = 1.0          # s: a reference this far off the IMU's clock is refused; below,
                                 # the diagnosis measures the lag with its interval (time_skew,
                                 # the track's lag): a first-order time term holds while the
@@ -246,24 +250,24 @@ REFUSED_OFFSET_S = 1.0          # s: a reference this far off the IMU's clock is
 
 
 def _check_time_offset(rec, t_imu, t_ref, rate, corr0, half):
-    """The course turns but the gyro's yaw rate does not follow it at the stamps given: if it
-    follows it well (correlation > 0.7) at a shift of the IMU's stamps of 1 s or more within
-    +-TIME_OFFSET_SEARCH_S, the two time bases differ by that shift (GPS time read as UTC is
-    18 s): refused, naming it. No shift that fits: left to the other checks and the
-    diagnosis (a noisy course)."""
+    """The course turns: if the gyro's yaw rate follows it well (correlation > 0.7, over at
+    least half the epochs) at a shift of the IMU's stamps of REFUSED_OFFSET_S or more within
+    +-TIME_OFFSET_SEARCH_S, and clearly better than as stamped (CLEARLY_BETTER), the two
+    time bases differ by that shift (GPS time read as UTC is 18 s): refused, naming it. No
+    shift that fits: left to the other checks and the diagnosis (a noisy course)."""
     w_z = attitude.rotate(rec.mounting.q_vs, rec.w)[:, 2:]
     smooth = _local_mean(w_z, np.arange(len(w_z)), half)[:, 0]     # once, not per shift
     best, best_lag = -1.0, 0.0
     for lag in np.arange(-TIME_OFFSET_SEARCH_S, TIME_OFFSET_SEARCH_S + 1e-9, 0.5):
         at = t_ref + lag
         inside = (at > t_imu[0] + 0.5) & (at < t_imu[-1] - 0.5)
-        if inside.sum() < 20:
+        if inside.sum() < max(20, 0.5 * len(t_ref)):
             continue
         k = np.searchsorted(t_imu, at[inside])
         c = np.corrcoef(smooth[k], rate[inside])[0, 1]
         if c > best:
             best, best_lag = float(c), float(lag)
-    if best > 0.7 and abs(best_lag) >= REFUSED_OFFSET_S:
+    if best > 0.7 and best > corr0 + CLEARLY_BETTER and abs(best_lag) >= REFUSED_OFFSET_S:
         raise RecordingError(
             f"{rec.name}: the gyro's yaw rate follows the GNSS course rate only with the IMU's "
             f"stamps shifted by {-best_lag:+.1f} s (correlation {best:.2f}, {corr0:+.2f} as "
