@@ -110,6 +110,9 @@ def scenario_options(p, flight=True):
                    "from the FOG-IMU's gyrocompass over the flight's first 120 s at rest, the "
                    "MIMU given the same attitude (a profile that begins at rest: "
                    "flights/boost-coast.toml, flights/ground-gentle.toml)")
+    p.add_argument("--duration-s", type=number(0.0, 86400.0), default=0.0,
+                   help="the end point this long after the navigators' start, s (default 0: "
+                   "the flight's end; the seed gives no duration)")
     p.add_argument("--g-sensitivity", type=number(0.0, 100.0), default=1.0,
                    help="scale the gyros' drawn g-sensitivity C (default 1: seed S1 Table 2's "
                    "0.01-0.04 (deg/s)/g; 0 = none)")
@@ -140,7 +143,7 @@ def scenario(args):
                     nonlinearity=args.nonlinearity, fog_grade=args.fog_grade,
                     beyond_model=not args.exact_model,
                     gyro_zero=args.gyro_zero, start=args.start,
-                    g_sensitivity=args.g_sensitivity)
+                    g_sensitivity=args.g_sensitivity, duration_s=args.duration_s)
 
 
 def variant_paths(specs):

@@ -63,6 +63,7 @@ START_SOURCES = {
               "datasheet class), the MIMU given the same attitude - the seed says nothing of "
               "the alignment; its error is common to both IMUs"}
 PREFLIGHT_S = 10.0                   # s: seed S1 Table 1 states the gyro zero over 10 s
+MIN_DURATION_S = 10.0                # s: a shorter end point is the initial state's error
 
 
 @dataclass(frozen=True)
@@ -84,6 +85,7 @@ class Scenario:
     gyro_zero: str = "pre-flight"
     start: str = "air"
     g_sensitivity: float = 1.0
+    duration_s: float = 0.0
 
     def __post_init__(self):
         for value, allowed, what in ((self.mimu_grade, MIMU_GRADES, "MIMU grade"),
@@ -103,6 +105,10 @@ class Scenario:
             begins_at_rest(self.profile())
         if not 0.0 <= self.g_sensitivity <= 100.0:
             raise InputError(f"g-sensitivity factor {self.g_sensitivity}: expected 0..100")
+        if self.duration_s and not MIN_DURATION_S <= self.duration_s < self.profile().motion(
+                ).t1:
+            raise InputError(f"duration {self.duration_s} s: 0 (the flight's end) or "
+                             f"{MIN_DURATION_S:g} s to less than the profile's length")
         if not -60.0 <= self.ground_temperature_c <= 60.0:
             raise InputError(f"ground temperature {self.ground_temperature_c} degC: "
                              "expected -60..60")
@@ -118,6 +124,8 @@ class Scenario:
             del doc["start"]
         if self.g_sensitivity == 1.0:   # and the drawn g-sensitivity as drawn
             del doc["g_sensitivity"]
+        if not self.duration_s:         # and the flight's own end
+            del doc["duration_s"]
         return doc
 
     def source(self, key):
@@ -178,6 +186,9 @@ SOURCES = {
                  "power-on before flight is the ordinary practice); 'lab': fitted on the rate "
                  "table at 25 degC (the project's first reading)",
     "start": START_SOURCES["air"],
+    "duration_s": "0 = the end point at the flight's end (the seed gives no flight "
+                  "duration); else this long after the navigators' start, s: the same "
+                  "flight ended earlier",
     "g_sensitivity": "1 = the gyros' g-sensitivity C as drawn from seed S1 Table 2 (0.01-0.04 "
                      "(deg/s)/g per entry); the factor scales it (0: none)",
     "beyond_model": "sensing elements simulated forward (cross-axis nonlinearity, "
@@ -213,7 +224,8 @@ def run_unit(scenario, seed, index):
     cals = {variant: lab_calibration(unit, variant, seed, useed) for variant in VARIANTS}
     flight, still = fly(scenario, unit, useed)
     cals["traditional"] = traditional_zero(cals["traditional"], still)
-    doc = normalised_table(flight, cals)
+    end = flight.initial.t + scenario.duration_s if scenario.duration_s else None
+    doc = normalised_table(flight, cals, end=end)
     doc.pop("log")
     return {"index": index, "unit_seed": useed, "campaign": _identity(scenario, seed),
             "code": code_version(), **doc}

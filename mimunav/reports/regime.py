@@ -31,13 +31,17 @@ LEVELS = {"mimu_grade": ("table1", "tactical", "stim300"),
           # 10 s: powered just long enough for the pre-flight gyro zero (the cold start)
           "warm_up_s": (10.0, 600.0, 3600.0),
           "gyro_zero": ("pre-flight", "lab"),
-          "g_sensitivity": (0.0, 1.0, 3.0)}
+          "g_sensitivity": (0.0, 1.0, 3.0),
+          # the base flight ended after 30 and 60 s of its 144 (0: at its end); the start
+          # points' profiles run 363 and 500 s
+          "duration_s": (30.0, 60.0, 0.0)}
 LABELS = {"mimu_grade": "MIMU random-error grade", "fog_grade": "FOG-IMU grade",
           "severity": "flight severity (g exposure x)",
           "ground_temperature_c": "ground air temperature, degC",
           "warm_up_s": "MIMU warm-up before take-off, s",
           "gyro_zero": "traditional calibration's gyro zero",
-          "g_sensitivity": "gyro g-sensitivity C x (drawn from Table 2)"}
+          "g_sensitivity": "gyro g-sensitivity C x (drawn from Table 2)",
+          "duration_s": "end point after, s (0: the flight's end)"}
 AXES = ("east", "north", "up", "horizontal")
 # The start, on the shipped profiles that begin at rest (the base flight starts in the air, so
 # a ground start is no one-at-a-time change of it): each flown from the exact state and from

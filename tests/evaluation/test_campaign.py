@@ -2,6 +2,7 @@
 and on a (local) Dask cluster, refusing a results file of another campaign."""
 import dataclasses
 import json
+import types
 from pathlib import Path
 
 import numpy as np
@@ -169,7 +170,7 @@ def test_a_pre_flight_gyro_zero_changes_the_traditional_zero_only(profile, monke
         campaign.Scenario(gyro_zero="pre-flight", warm_up_s=5.0)
     seen = []
     monkeypatch.setattr(campaign, "normalised_table",
-                        lambda flight, cals: seen.append(cals) or {"log": None})
+                        lambda flight, cals, end=None: seen.append(cals) or {"log": None})
     for scenario in (lab, pre):
         campaign.run_unit(scenario, 1, 0)
     by_lab, by_pre = seen
@@ -303,3 +304,27 @@ def test_the_g_sensitivity_factor_scales_the_drawn_unit_and_is_said():
     assert command_line(tripled, 1, 16).endswith("--g-sensitivity 3.0")
     with pytest.raises(InputError, match="g-sensitivity factor -1"):
         campaign.Scenario(g_sensitivity=-1.0)
+
+
+def test_a_duration_ends_the_same_flight_earlier_and_is_said(monkeypatch):
+    """`duration_s` takes the end point that long after the navigators' start, on the same
+    flight (the table's own `end`); 0 is the flight's end and leaves old campaigns' identity
+    as it was; a duration beyond the profile is refused."""
+    from mimunav.reports.table3 import command_line
+    short = dataclasses.replace(campaign.Scenario(), duration_s=30.0)
+    assert short.identity()["duration_s"] == 30.0
+    assert "duration_s" not in campaign.Scenario().identity()
+    assert command_line(short, 1, 16).endswith("--duration-s 30.0")
+    ends = []
+    monkeypatch.setattr(campaign, "normalised_table",
+                        lambda flight, cals, end=None: ends.append((flight.initial.t, end)) or {
+                            "log": None})
+    monkeypatch.setattr(campaign, "lab_calibration", lambda *a, **k: None)
+    monkeypatch.setattr(campaign, "traditional_zero", lambda cal, still: cal)
+    flight = types.SimpleNamespace(initial=types.SimpleNamespace(t=4.0))
+    monkeypatch.setattr(campaign, "fly", lambda scenario, unit, useed: (flight, None))
+    campaign.run_unit(short, 1, 0)
+    campaign.run_unit(campaign.Scenario(), 1, 0)
+    assert ends == [(4.0, 34.0), (4.0, None)]
+    with pytest.raises(InputError, match="duration 500.0 s"):
+        campaign.Scenario(duration_s=500.0)         # the base flight lasts 144 s
