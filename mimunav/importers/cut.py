@@ -95,10 +95,20 @@ def _realigned(log, truth, t_ref, t0, t1, epoch, meta):
              "lon": truth["longitude"][inside], "h": truth["height"][inside],
              "v_ned": np.asarray(truth["velocity_ned"], float)[inside]}
     mounting = Mounting.from_dict(meta.get("sensor/mimu", {}).get("mounting", {}))
-    align = initial_alignment(t[k], np.asarray(imu["angular_velocity"], float)[k],
-                              np.asarray(imu["linear_acceleration"], float)[k], mounting, track)
+    # the biases the import measured over the whole recording (its rest) hold for the span:
+    # taken out first, where the span alone may hold no rest to measure them
+    recording = meta.get("recording") or {}
+    gyro_bias, accel_bias = (np.asarray(recording.get(key) or np.zeros(3), float)
+                             for key in ("gyro_bias_static_rad_s", "accel_bias_m_s2"))
+    align = initial_alignment(t[k], np.asarray(imu["angular_velocity"], float)[k] - gyro_bias,
+                              np.asarray(imu["linear_acceleration"], float)[k] - accel_bias,
+                              mounting, track)
+    method = align.method
+    if gyro_bias.any() or accel_bias.any():
+        method = ("on the outputs less the biases the import measured over the whole "
+                  f"recording, then: {method}")
     q = attitude.as_wxyz(attitude.from_wxyz(np.asarray(align.q_nb, float)))
     return ({"t": float(align.t), "latitude": float(align.lat), "longitude": float(align.lon),
              "height": float(align.h), "velocity_ned": [float(v) for v in align.v_ned],
              "attitude_wxyz": [float(v) for v in q]},
-            f"the alignment redone on the span: {align.method}")
+            f"the alignment redone on the span: {method}")
