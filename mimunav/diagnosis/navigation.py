@@ -35,8 +35,8 @@ from ..compensation.effects import Conditions
 from ..evaluation.replay import compensated_mimu, navigate_mimu, resample
 from ..kernels import njit
 from . import inference, library
-from .confirmation import (alternative_of, beta_of, estimate, halves_verdict, rms_in,
-                           term_spans, where_rows)
+from .confirmation import (alternative_of, beta_of, effect_size, estimate, halves_verdict,
+                           rms_in, term_spans, where_rows)
 from .design import term_contribution
 from .inference import Tier
 from .reference import DERIVATIVE_WINDOW_S
@@ -220,8 +220,11 @@ def diagnose(flight, cal, alpha=0.05, seed=0, reference=None):
                      SEGMENTS - 1)
     train = seg % 2 == 0
     chosen = _select({"navigation": tier}, cands, {"navigation": train}, alpha)
-    findings, rejected = _confirm(tier, cands, chosen, train, alpha, seed, cond)
+    limit = physical_limits(flight, cal)
+    findings, rejected = _confirm(tier, cands, chosen, train, alpha, seed, cond, limit)
     findings, at = _relinearized(flight, cal, reference, findings, ~train)
+    findings, beyond = _within_range(findings, limit)
+    rejected = rejected + beyond
     if flight.source == "recording":        # a real record's halves may differ
         findings, aside = halves_check(*(at or (tier, _columns(cands, findings), None)),
                                        findings)
@@ -236,6 +239,35 @@ def diagnose(flight, cal, alpha=0.05, seed=0, reference=None):
     return diag
 
 
+def physical_limits(flight, cal):
+    """term -> the largest plausible magnitude of its coefficient (`library.physical_limit`:
+    the MIMU's full scale, and a calibrated unit's bound on its linear terms)."""
+    from ..sensors.mimu import MimuUnit
+    full_scale = {"accel": float(flight.mimu_range.get("accel_m_s2", MimuUnit.range_accel)),
+                  "gyro": float(flight.mimu_range.get("gyro_rad_s", MimuUnit.range_gyro))}
+    return lambda term: library.physical_limit(term, full_scale, not cal.is_identity)
+
+
+BEYOND_RANGE = ("its coefficient is beyond the term's physical range ({limit:.3g} {units}): "
+                "something else makes that signature on this flight - on quiet flight, its "
+                "regressor's own noise, which the velocity error integrates too (errors in "
+                "variables), or another term's")
+
+
+def _within_range(findings, limit):
+    """(kept, rejected) findings: a relinearized estimate beyond its term's physical range
+    is rejected (`BEYOND_RANGE`)."""
+    kept, beyond = [], []
+    for f in findings:
+        bound = limit(f)
+        if float(np.linalg.norm(beta_of(f))) > bound:
+            beyond.append(dict(f, beyond_range=bound, rejected=BEYOND_RANGE.format(
+                limit=bound, units=f["units"])))
+        else:
+            kept.append(f)
+    return kept, beyond
+
+
 def unsettled(rejected):
     """Why 'nothing found' cannot be said although no term was confirmed: a term chosen on
     the training segments whose held-out interval holds the training coefficient (not
@@ -246,7 +278,13 @@ def unsettled(rejected):
     for r in rejected:
         train = ", ".join(f"{b:.3g}" for b in np.ravel(r["train_coefficient"]))
         held = ", ".join(f"{b:.3g}" for b in r.get("vector", [r["coefficient"]]))
-        if r.get("heldout_untestable"):
+        if "beyond_range" in r:
+            units = "" if r["units"] == "1" else f" {r['units']}"
+            reasons.append(f"{r['label']} fits the velocity error (held-out p "
+                           f"{r['p_heldout']:.2g}) at {held}{units}, beyond its physical "
+                           f"range ({r['beyond_range']:.3g}): something this level cannot name "
+                           "makes its signature (on quiet flight, the regressor's own noise)")
+        elif r.get("heldout_untestable"):
             reasons.append(f"{r['label']} was chosen on the training segments (p "
                            f"{r['p_train']:.2g}) and the held-out ones cannot confirm it at "
                            f"the Holm limit: their 95 % interval holds the training "
@@ -379,28 +417,39 @@ def _columns(cands, findings):
 
 def beyond_small_angles(observed):
     """[reason] when the velocity error (ne, 3) NED m/s at EPOCH_S epochs grows, over
-    GROWTH_WINDOW_S windows, as a tilt beyond MAX_IMPLIED_TILT_RAD would make it, else []."""
+    GROWTH_WINDOW_S windows, as a tilt beyond MAX_IMPLIED_TILT_RAD would make it in the
+    horizontal, or as an accelerometer error of as many g in the vertical (the same 0.1 g:
+    a hundred times a MEMS unit's bias class - another unit's calibration, a unit's error
+    the bias-wander nuisance would absorb and call nothing missing), else []."""
     m = max(int(round(GROWTH_WINDOW_S / EPOCH_S)), 3)
     k = len(observed) // m
     if k < 1:
         return []
     x = (np.arange(m) - (m - 1) / 2) * EPOCH_S
-    pieces = observed[:k * m, :2].reshape(k, m, 2)
-    slopes = np.einsum("j,kjc->kc", x, pieces) / float(x @ x)
-    growth = float(np.median(np.linalg.norm(slopes, axis=1)))
+    slopes = np.einsum("j,kjc->kc", x, observed[:k * m].reshape(k, m, 3)) / float(x @ x)
+    growth = float(np.median(np.linalg.norm(slopes[:, :2], axis=1)))
+    down = float(np.median(np.abs(slopes[:, 2])))
+    reasons = []
+    if down / G0 > MAX_IMPLIED_TILT_RAD:
+        reasons.append(f"the free-inertial vertical velocity error grows at {down:.2g} m/s^2 "
+                       f"(median of {GROWTH_WINDOW_S:g} s slopes), as a {down / G0 * 1e3:.0f} "
+                       "mg accelerometer error would - far beyond a MEMS unit's bias: the "
+                       "calibration does not describe this unit, and the bias wander the "
+                       "fit takes as nuisance would hide it; calibrate the MIMU first")
     tilt = growth / G0
     if not tilt > MAX_IMPLIED_TILT_RAD:
-        return []
-    return [f"the free-inertial velocity error grows at {growth:.2g} m/s^2 (median of "
+        return reasons
+    return reasons + [f"the free-inertial velocity error grows at {growth:.2g} m/s^2 (median of "
             f"{GROWTH_WINDOW_S:g} s slopes), as a {np.degrees(tilt):.1f} deg tilt or a "
             f"{growth / G0 * 1e3:.0f} mg accelerometer bias would: beyond the small-angle error "
             f"equations of the navigation level (valid to {np.degrees(MAX_IMPLIED_TILT_RAD):.1f}"
             " deg); calibrate the MIMU first or diagnose against a reference IMU"]
 
 
-def _confirm(tier, cands, chosen, train, alpha, seed, cond):
-    """Held-out refit of the chosen terms; the sensor level's rules (held-out p, sign,
-    bootstrap stability)."""
+def _confirm(tier, cands, chosen, train, alpha, seed, cond, limit):
+    """Held-out refit of the chosen terms; the sensor level's rules (physical range,
+    held-out p, effect size, sign, bootstrap stability); `limit`: term -> its physical
+    range (`physical_limits`)."""
     if not chosen:
         return [], []
     rng = np.random.default_rng(seed)
@@ -435,14 +484,24 @@ def _confirm(tier, cands, chosen, train, alpha, seed, cond):
             train_coefficient=b_tr.tolist() if len(b_tr) > 1 else float(b_tr[0]),
             bootstrap_stability=stability,
             indistinguishable_from=[alternative_of(cands[j][1]) for j in c["alternatives"]])
+        stat_ho = fit_ho.test(pos)[0] * len(b_ho)
+        finding["effect_size"] = effect_size(stat_ho, int(held.sum()) * tier.channels,
+                                             float(np.linalg.norm(b_ho)), limit(term))
+        share = finding["effect_size"]["heldout_variance_removed"]
         why = None
-        if p_ho >= alpha / len(chosen):
+        if float(np.linalg.norm(b_ho)) > limit(term):
+            why = BEYOND_RANGE.format(limit=limit(term), units=finding["units"])
+            finding["beyond_range"] = limit(term)
+        elif p_ho >= alpha / len(chosen):
             why = f"held-out p = {p_ho:.2g}, needs < {alpha / len(chosen):.2g}"
             # the held-out interval holds the training coefficient: those segments can
             # neither confirm nor refute the term (it acts where they have little of it)
             finding["heldout_untestable"] = bool(np.all((lo <= b_tr) & (b_tr <= hi)))
         elif float(b_tr @ b_ho) <= 0:
             why = "the held-out coefficient has the other sign"
+        elif share < library.MIN_VARIANCE_SHARE:
+            why = (f"negligible: removes {share:.3%} of the held-out residual variance as the "
+                   f"fit weighs it (below {library.MIN_VARIANCE_SHARE:.1%})")
         elif stability < STABILITY:
             why = f"chosen in {stability:.0%} of the block-bootstrap replicates"
             finding["confirmed_unnamed"] = True     # held out, it holds: something is there

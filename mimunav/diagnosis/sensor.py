@@ -146,9 +146,13 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
     output_tests = prep.output_tests
     design = prep.design
     if len(design.t) < 4 * block_s / bin_s:
+        flagged = float(np.mean(~prep.usable))
         raise InputError(f"{flight.path}: {len(design.t) * bin_s:.1f} s of usable MIMU "
                          f"samples inside the reference IMU's span; the sensor level needs "
-                         f"at least {4 * block_s:g} s")
+                         f"at least {4 * block_s:g} s" + (
+                             f" ({flagged:.0%} of the samples flagged unusable - saturated "
+                             "or wild - by the compensation: is the calibration this unit's?)"
+                             if flagged > 0.5 else ""))
     block = outputs.block_index(design.t, block_s)
     train = block % 2 == 0
     held = ~train

@@ -179,7 +179,8 @@ def _checked_inputs(t, dtheta, dv, check_units, t_prev=None, median=True):
         if 0.3 < force < 3.0:
             raise IncrementError(
                 f"median specific force is {force:.3g} m/s^2, near 1 g expressed in g: dv "
-                "must be in m/s (specific force in m/s^2 times the interval)")
+                "must be in m/s (specific force in m/s^2 times the interval) - or, for a "
+                "compensated MIMU, the calibration is another unit's")
         if force > 20 * 9.8:
             raise IncrementError(
                 f"median specific force is {force:.3g} m/s^2 (over 20 g for most of the "

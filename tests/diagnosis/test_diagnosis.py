@@ -601,6 +601,40 @@ def test_navigation_level_is_inconclusive_beyond_small_angles():
         assert len(beyond_small_angles(dv)) == reasons
     noise = np.random.default_rng(1).normal(0, 0.3, (len(t), 3))
     assert beyond_small_angles(noise) == []
+    # the vertical channel: a down error growing as a constant accelerometer error a t - at
+    # 0.5 g judged, at 2 g (another unit's calibration: 1.1 g on a gentle flight) not
+    for a, reasons in ((0.5 * MAX_IMPLIED_TILT_RAD, 0), (2 * MAX_IMPLIED_TILT_RAD, 1)):
+        dv = np.zeros((len(t), 3))
+        dv[:, 2] = G0 * a * t
+        said = beyond_small_angles(dv)
+        assert len(said) == reasons and all("vertical" in r for r in said)
+
+
+def test_a_parked_flight_with_its_true_model_names_nothing_at_the_navigation_level(tmp_path):
+    """120 s parked, the unit's exact model: on quiet flight a scale factor's regressor is
+    its input's own noise once the bias wander takes the constant part, and the velocity
+    error integrates that same noise - a new user's parked and boost-coast flights had
+    'scale_factor accel.x -20.47 [-20.47, -20.47], held-out p 1.3e-14' and 0.5 on accel.z
+    (errors in variables). A coefficient beyond the term's physical range is no finding; the
+    level says it cannot name what made it."""
+    from mimunav.diagnosis import levels
+    from mimunav.evaluation.flight import Flight
+    from mimunav.sensors.mimu import MimuUnit
+    from mimunav.sensors.simulation import simulate_flight
+    prof = Profile.from_dict({"name": "parked", "description": "parked 120 s",
+                              "start": {"latitude_deg": 45.0, "longitude_deg": 126.6,
+                                        "height_m": 150.0, "speed_m_s": 0.0,
+                                        "heading_deg": 0.0},
+                              "segment": [{"kind": "hold", "duration_s": 120.0}]})
+    unit = MimuUnit.draw(11, beyond_model=False)
+    path = tmp_path / "parked.mcap"
+    simulate_flight(prof, path, 1, unit=unit, progress=False, force=True)
+    diag = levels.diagnose(Flight.load(path, reference_imu=False), unit.coefficients,
+                           "navigation")
+    assert diag.findings == []
+    beyond = [r for r in diag.rejected if "beyond_range" in r]
+    assert beyond and all(abs(r["coefficient"]) > r["beyond_range"] for r in beyond)
+    assert any("beyond its physical range" in why for why in diag.inconclusive)
 
 
 def test_stamps_that_jitter_make_the_sensor_level_inconclusive():
