@@ -78,6 +78,13 @@ class Calibration:
         """Validate a parsed `mimunav-calibration/1` document and build the object."""
         def fail(msg):
             raise CalibrationError(f"{source}: {msg}")
+        where = {"mimunav-unit/1": "its `coefficients` object",
+                 "mimunav-truth/1": "its `mimu` object's `coefficients`"}.get(
+            doc.get("format") if isinstance(doc, dict) else None)
+        if where:           # a simulated unit's true coefficients are a calibration document
+            fail(f"a {doc['format']} file, not a calibration: the unit's true coefficients "
+                 f"are {where} (a {FORMAT} document) - save that object as a file of its "
+                 "own to use them as the model")
         check_format(doc, FORMAT, source, CalibrationError)
         model = doc.get("model")
         base = (model[:-len(FOUND_SUFFIX)] if isinstance(model, str)

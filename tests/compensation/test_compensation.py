@@ -94,6 +94,9 @@ def _cal_doc(**changes):
     (dict(accel__ct="hot"), "accel.ct is not numeric|accel.ct has shape"),
     (dict(gyro__W0=["0.1", "0", "0"]), "gyro.W0 is not numeric"),   # text, read as 0.1 before
     (dict(accel=None), "accel.A1 is required"),
+    # a simulated unit's or flight's file given as the model: where its coefficients are
+    (dict(format="mimunav-unit/1"), "unit's true coefficients are its `coefficients` object"),
+    (dict(format="mimunav-truth/1"), "its `mimu` object's `coefficients`"),
 ])
 def test_malformed_calibration_files_say_what_is_wrong(changes, message):
     with pytest.raises(CalibrationError, match=message):
