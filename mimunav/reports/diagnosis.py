@@ -78,7 +78,9 @@ def navigation_gain(flight, cal_found, model):
     errors = {"model": err}
     if found is not None:
         errors["model+found"] = resample(found, t).position_error(ref)
-    out, series = {"reference": "truth" if flight.truth is not None else "FOG-IMU"}, {}
+    reference = ("FOG-IMU" if flight.truth is None else "truth" if flight.source != "recording"
+                 else "recording's reference trajectory")
+    out, series = {"reference": reference}, {}
     k = on_screen(len(t))
     for name, err in errors.items():
         norm = np.linalg.norm(err, axis=1)
