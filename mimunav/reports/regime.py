@@ -189,7 +189,7 @@ def markdown(rows, base, seed, units):
         lines += ["", f"The `favourable corner` combines, per option, the level of its sweep "
                   f"with the smallest entire horizontal error: {levels}."]
     lines += ["", "## What the map says", "", *findings(rows), *movers(rows, base),
-              *start_effect(rows), ""]
+              *start_effect(rows), *rows_reached(rows), ""]
     return "\n".join(lines)
 
 
@@ -230,6 +230,30 @@ def findings(rows):
     out.append(f"- The points named 'most' above are the best of {len(rows)}: their intervals "
                "are each point's own, not a test of the choice (the best of many points lies "
                "high by chance).")
+    return out
+
+
+REACHED = 0.5      # a paper's row is reached where half the units or more are at or below it
+
+
+def rows_reached(rows):
+    """Where each of the paper's rows is reached - at least REACHED of the units at or below
+    it in both horizontal axes - and how those points differ from the base scenario (the
+    options and their sources in the table above say which the seed states), or that no
+    point reaches it."""
+    base = next(r for r in rows if r["option"] is None)["scenario"]
+    out = []
+    for variant in campaign.VARIANTS:
+        reached = [r for r in rows if all(p["rate"] >= REACHED
+                                          for p in r["paper"][variant][:2])]
+        where = "; ".join(
+            f"`{r['name']}` (away from the base in " + ", ".join(
+                f"{k} {v}" for k, v in r["scenario"].items()
+                if v != base.get(k) and not k.endswith("sha256")) + ")"
+            for r in reached)
+        out.append(f"- The paper's {variant} row is reached (at least {REACHED:.0%} of the "
+                   "units at or below it in east and north) at: " + (where or "no point of "
+                   "this map") + ".")
     return out
 
 

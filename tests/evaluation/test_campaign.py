@@ -292,6 +292,27 @@ def test_the_start_effect_is_read_from_its_pair_of_points():
     assert regime.start_effect([row("air", 500.0, 40.0)]) == []      # no pair, no sentence
 
 
+def test_where_the_papers_rows_are_reached_is_read_from_the_units_shares():
+    """A row is reached where half the units or more lie at or below it in east and north;
+    the point is named with how it differs from the base (a key the base's identity leaves
+    out is a non-default value); a row reached nowhere is said so."""
+    from mimunav.reports import regime
+
+    def row(name, option, scenario, trad, ent):
+        rates = lambda r: [{"rate": x} for x in r]                           # noqa: E731
+        return {"option": option, "name": name, "scenario": scenario,
+                "paper": {"traditional": rates(trad), "entire": rates(ent)}}
+    base = {"flight": "high-dynamic.toml", "flight_sha256": "a"}
+    said = regime.rows_reached([
+        row("base", None, base, (0.0, 0.0, 0.1), (0.1, 0.0, 0.4)),
+        row("ground", "start", {"flight": "boost-coast.toml", "flight_sha256": "b",
+                                "start": "ground"}, (0.56, 0.88, 0.25), (0.88, 0.12, 0.8)),
+        row("up only", "x", dict(base, severity=0.5), (0.0, 0.5, 1.0), (0.0, 0.0, 1.0))])
+    assert said[0].endswith("at: `ground` (away from the base in flight boost-coast.toml, "
+                            "start ground).")
+    assert said[1].endswith("at: no point of this map.")
+
+
 def test_the_g_sensitivity_factor_scales_the_drawn_unit_and_is_said():
     from mimunav.reports.table3 import command_line
     tripled = dataclasses.replace(campaign.Scenario(), g_sensitivity=3.0)
