@@ -348,6 +348,13 @@ def halves_verdict(findings, halves, absorbed=None):
     return kept, aside
 
 
+def halves_reasons(rejected):
+    """Why 'nothing is missing' cannot be said of a recording whose halves set terms aside
+    (`halves_verdict`): each such term, with its text - the halves saw it, inconsistently."""
+    return [f"{r['label']}: {r['rejected']}" for r in rejected
+            if isinstance(r.get("halves"), dict) and "halves disagree" in r.get("rejected", "")]
+
+
 def _widened(finding, factor):
     """The finding with every 95 % interval's half-widths about its estimate times factor."""
     out = dict(finding)

@@ -120,8 +120,9 @@ def fused_reference(flight):
         return ""
     return (f"the reference trajectory is not known to be independent of this IMU ({said}): "
             "a filter that fuses the IMU takes out part of its errors, and what it took out "
-            "does not show against it - no finding here is not 'no missing physics' (a table "
-            "spec states it as [reference] independent = \"yes: ...\")")
+            "does not show against it - finding nothing here does not mean nothing is missing "
+            "(where it is independent, a table spec says so: [reference] independent = "
+            "\"yes: ...\")")
 
 
 def unmeasured_heading(flight, vehicle=None):

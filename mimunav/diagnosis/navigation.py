@@ -35,8 +35,8 @@ from ..compensation.effects import Conditions
 from ..evaluation.replay import compensated_mimu, navigate_mimu, resample
 from ..kernels import njit
 from . import inference, library
-from .confirmation import (alternative_of, beta_of, effect_size, estimate, halves_verdict,
-                           rms_in, term_spans, where_rows)
+from .confirmation import (alternative_of, beta_of, effect_size, estimate, halves_reasons,
+                           halves_verdict, rms_in, term_spans, where_rows)
 from .design import term_contribution
 from .inference import Tier
 from .reference import DERIVATIVE_WINDOW_S
@@ -223,15 +223,16 @@ def diagnose(flight, cal, alpha=0.05, seed=0, reference=None):
     limit = physical_limits(flight, cal)
     findings, rejected = _confirm(tier, cands, chosen, train, alpha, seed, cond, limit)
     findings, at = _relinearized(flight, cal, reference, findings, ~train)
-    findings, beyond = _within_range(findings, limit)
+    at = at or (tier, _columns(cands, findings), None)
+    findings, beyond, at = _within_range(findings, limit, at)
     rejected = rejected + beyond
     if flight.source == "recording":        # a real record's halves may differ
-        findings, aside = halves_check(*(at or (tier, _columns(cands, findings), None)),
-                                       findings)
+        findings, aside = halves_check(*at, findings, ~train)
         rejected = rejected + aside
     diag = NavigationDiagnosis(findings, rejected, tier, train, len(cands), cands, observed,
                                epochs, [], beyond_small_angles(observed)
-                               + ([] if findings else unsettled(rejected)))
+                               + ([] if findings else unsettled(rejected)
+                                  + halves_reasons(rejected)))
     removed = {k: recorded_bias(flight, k).tolist()
                for k in ("gyro_bias_static_rad_s", "accel_bias_m_s2")}
     if any(any(v) for v in removed.values()):
@@ -254,18 +255,16 @@ BEYOND_RANGE = ("its coefficient is beyond the term's physical range ({limit:.3g
                 "variables), or another term's")
 
 
-def _within_range(findings, limit):
-    """(kept, rejected) findings: a relinearized estimate beyond its term's physical range
-    is rejected (`BEYOND_RANGE`)."""
-    kept, beyond = [], []
-    for f in findings:
-        bound = limit(f)
-        if float(np.linalg.norm(beta_of(f))) > bound:
-            beyond.append(dict(f, beyond_range=bound, rejected=BEYOND_RANGE.format(
-                limit=bound, units=f["units"])))
-        else:
-            kept.append(f)
-    return kept, beyond
+def _within_range(findings, limit, at):
+    """(kept, rejected, the linearization `at` = (tier, columns, point) of the kept ones):
+    a relinearized estimate beyond its term's physical range is rejected (`BEYOND_RANGE`)."""
+    inside = [float(np.linalg.norm(beta_of(f))) <= limit(f) for f in findings]
+    beyond = [dict(f, beyond_range=limit(f), rejected=BEYOND_RANGE.format(
+        limit=limit(f), units=f["units"])) for f, ok in zip(findings, inside) if not ok]
+    tier, columns, point = at
+    pick = lambda xs: [x for x, ok in zip(xs, inside) if ok]                 # noqa: E731
+    return pick(findings), beyond, (tier, pick(columns),
+                                    None if point is None else pick(point))
 
 
 def unsettled(rejected):
@@ -381,13 +380,14 @@ def _relinearized(flight, cal, reference, findings, held):
     return out, (tier, [pos for _, _, pos in cands], point)
 
 
-def halves_check(tier, columns, point, findings):
+def halves_check(tier, columns, point, findings, held):
     """(kept, set aside) findings after refitting the found terms together on the first and
     the second half (time) of the velocity-error increments of `tier` (their `columns`),
     linearized at `point` (per finding its coefficients, None: at zero): the sensor level's
     rule (`confirmation.halves_verdict`). The held-out segments interleave with the training
     ones, so they cannot see a term that drifts from one end of a recording to the other (a
-    reference solution that settles, a temperature, a mounting); the halves can."""
+    reference solution that settles, a temperature, a mounting); the halves can. `held`:
+    the rows the findings' intervals were fitted on (`_absorbed`)."""
     if not findings:
         return findings, []
     first = tier.t < np.median(tier.t)
@@ -395,18 +395,23 @@ def halves_check(tier, columns, point, findings):
     point = point or [np.zeros(tier.k[c]) for c in columns]
     halves = [[(b0 + fit.beta[fit.slices[k]], fit.cov[fit.slices[k], fit.slices[k]])
                for fit in fits] for k, b0 in enumerate(point)]
-    return halves_verdict(findings, halves, [_absorbed(f, h) for f, h in zip(findings, halves)])
+    fit_ho = inference.fit(tier, columns, held)
+    share = len(tier.t) / max(int(held.sum()), 1)
+    absorbed = [_absorbed(fit_ho.cov[fit_ho.slices[k], fit_ho.slices[k]], h, share)
+                for k, h in enumerate(halves)]
+    return halves_verdict(findings, halves, absorbed)
 
 
-def _absorbed(finding, halves):
-    """How many times wider the finding's 95 % interval is than a normal one of the halves'
-    pooled covariance (inverse-variance), the smallest over its parameters: the held-out
-    fit's block-robust interval already carries a misfit between the halves as scatter."""
+def _absorbed(cov_held, halves, share):
+    """How many times the held-out fit's standard errors (`cov_held`, the findings'
+    intervals') exceed what its rows would give without a misfit between the halves - the
+    halves' pooled (inverse-variance) covariance over all rows times `share` (all rows over
+    held-out rows) - the smallest over the parameters, at least 1: a block-robust variance
+    carries such a misfit as scatter of its own."""
     (_, c1), (_, c2) = halves
-    pooled = np.sqrt(np.diag(np.linalg.pinv(np.linalg.pinv(c1) + np.linalg.pinv(c2))))
-    intervals = np.asarray(finding.get("vector_ci95", [finding["ci95"]]), float)
-    half = 0.5 * (intervals[:, 1] - intervals[:, 0])
-    return max(float(np.min(half / np.maximum(1.959964 * pooled, 1e-300))), 1e-12)
+    pooled = np.diag(np.linalg.pinv(np.linalg.pinv(c1) + np.linalg.pinv(c2))) * share
+    ratio = np.sqrt(np.diag(cov_held) / np.maximum(pooled, 1e-300))
+    return max(float(np.min(ratio)), 1.0)
 
 
 def _columns(cands, findings):
@@ -428,7 +433,12 @@ def beyond_small_angles(observed):
     x = (np.arange(m) - (m - 1) / 2) * EPOCH_S
     slopes = np.einsum("j,kjc->kc", x, observed[:k * m].reshape(k, m, 3)) / float(x @ x)
     growth = float(np.median(np.linalg.norm(slopes[:, :2], axis=1)))
-    down = float(np.median(np.abs(slopes[:, 2])))
+    # the free-inertial vertical channel diverges: a constant accelerometer error b grows the
+    # down velocity error as b cosh(t / tau), tau = sqrt(R / 2 g) (570 s): each window's
+    # slope is read back to the error at the start
+    mid = (np.arange(k) + 0.5) * m * EPOCH_S
+    down = float(np.median(np.abs(slopes[:, 2])
+                           / np.cosh(mid / np.sqrt(EARTH_RADIUS_M / (2 * G0)))))
     reasons = []
     if down / G0 > MAX_IMPLIED_TILT_RAD:
         reasons.append(f"the free-inertial vertical velocity error grows at {down:.2g} m/s^2 "
@@ -489,14 +499,14 @@ def _confirm(tier, cands, chosen, train, alpha, seed, cond, limit):
                                              float(np.linalg.norm(b_ho)), limit(term))
         share = finding["effect_size"]["heldout_variance_removed"]
         why = None
-        if float(np.linalg.norm(b_ho)) > limit(term):
-            why = BEYOND_RANGE.format(limit=limit(term), units=finding["units"])
-            finding["beyond_range"] = limit(term)
-        elif p_ho >= alpha / len(chosen):
+        if p_ho >= alpha / len(chosen):
             why = f"held-out p = {p_ho:.2g}, needs < {alpha / len(chosen):.2g}"
             # the held-out interval holds the training coefficient: those segments can
             # neither confirm nor refute the term (it acts where they have little of it)
             finding["heldout_untestable"] = bool(np.all((lo <= b_tr) & (b_tr <= hi)))
+        elif float(np.linalg.norm(b_ho)) > limit(term):     # held out, it is there
+            why = BEYOND_RANGE.format(limit=limit(term), units=finding["units"])
+            finding["beyond_range"] = limit(term)
         elif float(b_tr @ b_ho) <= 0:
             why = "the held-out coefficient has the other sign"
         elif share < library.MIN_VARIANCE_SHARE:

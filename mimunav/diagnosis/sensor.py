@@ -78,8 +78,8 @@ from .design import (Binning, CHANNELS, Design, FAST_BIN_S, detrended, term_cont
                      make_design, reference_error, bins, calibration_prior, residual)
 from .fitting import Fitter, term_test
 from .scan import SCAN_WINDOW_S, condition_masks, condition_map, near_spans, excursions
-from .confirmation import (beta_of, confirm_chosen, halves_check, position_of,
-                           removal_sigma)
+from .confirmation import (beta_of, confirm_chosen, halves_check, halves_reasons,
+                           position_of, removal_sigma)
 from .selection import select
 
 
@@ -146,7 +146,8 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
     output_tests = prep.output_tests
     design = prep.design
     if len(design.t) < 4 * block_s / bin_s:
-        flagged = float(np.mean(~prep.usable))
+        inside = (prep.cond.t >= flight.fog_t[0]) & (prep.cond.t <= flight.fog_t[-1])
+        flagged = float(np.mean(~prep.usable[inside])) if inside.any() else 0.0
         raise InputError(f"{flight.path}: {len(design.t) * bin_s:.1f} s of usable MIMU "
                          f"samples inside the reference IMU's span; the sensor level needs "
                          f"at least {4 * block_s:g} s" + (
@@ -163,6 +164,7 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
     chosen, within = select(design, train, alpha, prep.full_scale, whole)
     findings, rejected = confirm_chosen(design, chosen, train, held, alpha, prep.full_scale,
                                         prep.cond)
+    aside = []
     if flight.source == "recording":        # a real record's halves may differ
         findings, aside = halves_check(design, findings)
         rejected = rejected + aside
@@ -185,6 +187,8 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
                            (flight, *prep.samples["compensated"]))
     diag.inconclusive = [why for why in (stamp_jitter(flight.mimu_t, "the MIMU's"),
                                          stamp_jitter(flight.fog_t, "the reference IMU's")) if why]
+    if not findings:        # what the halves set aside was there, but not the same throughout
+        diag.inconclusive += halves_reasons(aside)
     if prep.agreement is not None:
         diag.reference_agreement = prep.agreement
         diag.inconclusive = diag.inconclusive + prep.agreement["failures"]

@@ -32,7 +32,7 @@ from ..lab.calibrate import calibrate
 from ..lab.preflight import gyro_zero
 from ..lab.runs import LabRun
 from .flight import Flight
-from .ground import begins_at_rest, ground_start
+from .ground import ALIGN_S, begins_at_rest, ground_start
 from .table import normalised_table
 from ..kernels import code_version
 from .. import FLIGHTS
@@ -105,10 +105,13 @@ class Scenario:
             begins_at_rest(self.profile())
         if not 0.0 <= self.g_sensitivity <= 100.0:
             raise InputError(f"g-sensitivity factor {self.g_sensitivity}: expected 0..100")
-        if self.duration_s and not MIN_DURATION_S <= self.duration_s < self.profile().motion(
-                ).t1:
+        # the navigators start ALIGN_S into the flight from the pad (`ground_start`)
+        navigated = self.profile().motion().t1 - (ALIGN_S if self.start == "ground" else 0.0) \
+            if self.duration_s else 0.0
+        if self.duration_s and not MIN_DURATION_S <= self.duration_s < navigated:
             raise InputError(f"duration {self.duration_s} s: 0 (the flight's end) or "
-                             f"{MIN_DURATION_S:g} s to less than the profile's length")
+                             f"{MIN_DURATION_S:g} s to less than the {navigated:.0f} s the "
+                             "navigators fly")
         if not -60.0 <= self.ground_temperature_c <= 60.0:
             raise InputError(f"ground temperature {self.ground_temperature_c} degC: "
                              "expected -60..60")

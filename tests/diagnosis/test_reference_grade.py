@@ -97,14 +97,15 @@ def test_the_navigation_levels_halves_see_a_term_that_moves_over_a_recording(sec
     findings), the tier's residual is what is left after b0, and the halves are b0 + their
     own fits."""
     rng = np.random.default_rng(7)
+    held = (np.arange(600) // 60) % 2 == 1         # the diagnosis' odd segments
     for b0 in (None, 0.15):
         tier = _velocity_tier(0.2 - (b0 or 0.0), second - (b0 or 0.0), rng)
-        whole = inference.fit(tier, [0], np.ones(600, bool))
-        lo, hi = (v[0] + (b0 or 0.0) for v in whole.interval(0))
-        finding = {"label": "scale_factor accel.x", "coefficient": float(whole.beta[0]) +
+        fit_ho = inference.fit(tier, [0], held)
+        lo, hi = (v[0] + (b0 or 0.0) for v in fit_ho.interval(0))
+        finding = {"label": "scale_factor accel.x", "coefficient": float(fit_ho.beta[0]) +
                    (b0 or 0.0), "ci95": [float(lo), float(hi)]}
         point = None if b0 is None else [np.array([b0])]
-        found, aside = navigation.halves_check(tier, [0], point, [finding])
+        found, aside = navigation.halves_check(tier, [0], point, [finding], held)
         assert (len(found) == 1) == kept and (len(aside) == 1) == (not kept)
         out = (found or aside)[0]
         halves = out["halves"]
@@ -114,3 +115,26 @@ def test_the_navigation_levels_halves_see_a_term_that_moves_over_a_recording(sec
         assert (halves["widened_by"] > 1.0) == widened
         assert (out["ci95"][1] - out["ci95"][0]) == pytest.approx(
             (hi - lo) * halves["widened_by"], rel=1e-9)
+
+
+def test_a_term_out_of_range_leaves_the_halves_of_the_others_in_place():
+    """`navigation._within_range` drops a relinearized finding beyond its physical range
+    together with its column and linearization point, so the halves of the terms kept are
+    their own (an independent review: they had been paired with their neighbours')."""
+    findings = [{"label": "a", "coefficient": 9.0, "units": "1", "effect": "scale_factor"},
+                {"label": "b", "coefficient": 0.01, "units": "1", "effect": "scale_factor"}]
+    kept, beyond, (tier, columns, point) = navigation._within_range(
+        findings, lambda f: 0.05, ("tier", [4, 7], [np.array([9.0]), np.array([0.01])]))
+    assert [f["label"] for f in kept] == ["b"] and columns == [7] and point[0][0] == 0.01
+    assert beyond[0]["label"] == "a" and beyond[0]["beyond_range"] == 0.05
+    assert navigation._within_range(findings[1:], lambda f: 0.05, ("tier", [7], None))[2][2] \
+        is None
+
+
+def test_terms_the_halves_set_aside_say_why_nothing_found_is_no_clean_bill():
+    aside = {"label": "lever_arm imu.all", "halves": {"p_same": 1e-4, "widened_by": 3.0},
+             "rejected": "the recording's halves disagree (p 0.0001): its interval widened "
+                         "3.00x holds zero - inconclusive"}
+    other = {"label": "x", "rejected": "held-out p = 0.5, needs < 0.025"}
+    said = confirmation.halves_reasons([aside, other])
+    assert said == [f"lever_arm imu.all: {aside['rejected']}"]

@@ -349,3 +349,8 @@ def test_a_duration_ends_the_same_flight_earlier_and_is_said(monkeypatch):
     assert ends == [(4.0, 34.0), (4.0, None)]
     with pytest.raises(InputError, match="duration 500.0 s"):
         campaign.Scenario(duration_s=500.0)         # the base flight lasts 144 s
+    # from the pad the navigators start 120 s in: boost-coast's 363 s leave 243
+    pad = dict(flight=str(campaign.FLIGHTS / "boost-coast.toml"), start="ground")
+    assert campaign.Scenario(**pad, duration_s=200.0).duration_s == 200.0
+    with pytest.raises(InputError, match="less than the 243 s the navigators fly"):
+        campaign.Scenario(**pad, duration_s=300.0)
