@@ -164,10 +164,9 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
     chosen, within = select(design, train, alpha, prep.full_scale, whole)
     findings, rejected = confirm_chosen(design, chosen, train, held, alpha, prep.full_scale,
                                         prep.cond)
-    aside = []
-    if flight.source == "recording":        # a real record's halves may differ
-        findings, aside = halves_check(design, findings)
-        rejected = rejected + aside
+    findings, aside = halves_check(design, findings) if flight.source == "recording" \
+        else (findings, [])                 # a real record's halves may differ
+    rejected = rejected + aside
     everything = whole()
     before, removed, fit_found = _residuals(design, everything, findings)
     conds = condition_masks(design, prep.cond, prep.bins, prep.usable)
