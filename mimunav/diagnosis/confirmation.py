@@ -46,7 +46,7 @@ def confirm_chosen(design, chosen, train, held, alpha, full_scale, cond):
         p_ho, p_ref = math.exp(res["logp"]), math.exp(res["logp_ref"])
         finding.update(
             label=library.label(term), p_train=c["p_train"], holm_threshold=c["threshold"],
-            p_heldout=p_ho, train_coefficient=b_tr.tolist() if len(b_tr) > 1 else float(b_tr[0]),
+            p_heldout=p_ho, heldout_threshold=level, train_coefficient=b_tr.tolist() if len(b_tr) > 1 else float(b_tr[0]),
             attribution=_attribution(term, p_ref < level, res["linear"],
                                      _reference_may_carry(design, j, b_ho) or (
                                          p_ref >= level
@@ -318,8 +318,9 @@ def halves_verdict(findings, halves, absorbed=None):
     coefficients and covariances. The difference's chi-square (its covariance the sum of the
     halves', independent rows) tested at HALVES_ALPHA; beyond it the 95 % interval is widened
     by sqrt(statistic / parameters) / absorbed, at least 1, and a finding whose widened
-    interval holds zero is set aside as inconclusive; the held-out p read with the wider
-    interval (its chi-square over factor^2) is said beside. `absorbed` (per finding, default 1): how
+    interval holds zero, or whose held-out p read with the wider interval (its chi-square
+    over factor^2: a chi-square reading of whatever test gave it) misses the finding's own
+    held-out limit (`heldout_threshold`, when it has one), is set aside as inconclusive. `absorbed` (per finding, default 1): how
     many times wider the finding's interval already is than the one its halves pool to (a
     block-robust interval carries a misfit between the halves as scatter of its own)."""
     kept, aside = [], []
@@ -339,7 +340,12 @@ def halves_verdict(findings, halves, absorbed=None):
             wide["halves"]["p_heldout_widened"] = float(
                 stats.chi2.sf(stat_ho / factor ** 2, len(diff)))
         lo, hi = wide["ci95"]
-        if lo <= 0.0 <= hi:
+        if wide["halves"].get("p_heldout_widened", 0.0) >= f.get("heldout_threshold", 1.0):
+            aside.append(dict(wide, rejected=(
+                f"the recording's halves disagree (p {p:.2g}): with its interval widened "
+                f"{factor:.2f}x its held-out p reads {wide['halves']['p_heldout_widened']:.2g}, "
+                f"above its limit {f['heldout_threshold']:.2g} - inconclusive")))
+        elif lo <= 0.0 <= hi:
             aside.append(dict(wide, rejected=(
                 f"the recording's halves disagree (p {p:.2g}): its interval widened "
                 f"{factor:.2f}x holds zero - inconclusive")))

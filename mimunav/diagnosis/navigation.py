@@ -491,6 +491,7 @@ def _confirm(tier, cands, chosen, train, alpha, seed, cond, limit):
                  "epochs where the term acts; 'after' uses the training coefficient"},
             label=library.label(term), level="navigation", p_train=c["p_train"],
             holm_threshold=c["threshold"], p_heldout=p_ho,
+            heldout_threshold=alpha / len(chosen),
             train_coefficient=b_tr.tolist() if len(b_tr) > 1 else float(b_tr[0]),
             bootstrap_stability=stability,
             indistinguishable_from=[alternative_of(cands[j][1]) for j in c["alternatives"]])

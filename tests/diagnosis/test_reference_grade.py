@@ -68,6 +68,12 @@ def test_halves_that_disagree_widen_the_interval_or_set_the_term_aside(monkeypat
         z = stats.norm.isf(0.5e-6) / factor
         assert out["halves"]["p_heldout_widened"] == pytest.approx(2 * stats.norm.sf(z),
                                                                    rel=1e-6)
+        # with its own held-out limit, a finding the widening leaves above it is set aside
+        # even where the interval still excludes zero (1.6: p 0.25 against 0.025)
+        strict, aside = confirmation.halves_check(design, [dict(finding,
+                                                               heldout_threshold=0.025)])
+        assert (strict, len(aside)) == ([], 1) and "above its limit 0.025" in \
+            aside[0]["rejected"]
     else:
         assert "p_heldout_widened" not in out["halves"]
 
