@@ -46,7 +46,8 @@ def confirm_chosen(design, chosen, train, held, alpha, full_scale, cond):
         p_ho, p_ref = math.exp(res["logp"]), math.exp(res["logp_ref"])
         finding.update(
             label=library.label(term), p_train=c["p_train"], holm_threshold=c["threshold"],
-            p_heldout=p_ho, heldout_threshold=level, train_coefficient=b_tr.tolist() if len(b_tr) > 1 else float(b_tr[0]),
+            p_heldout=p_ho, heldout_threshold=level,
+            train_coefficient=b_tr.tolist() if len(b_tr) > 1 else float(b_tr[0]),
             attribution=_attribution(term, p_ref < level, res["linear"],
                                      _reference_may_carry(design, j, b_ho) or (
                                          p_ref >= level
@@ -320,9 +321,10 @@ def halves_verdict(findings, halves, absorbed=None):
     by sqrt(statistic / parameters) / absorbed, at least 1, and a finding whose widened
     interval holds zero, or whose held-out p read with the wider interval (its chi-square
     over factor^2: a chi-square reading of whatever test gave it) misses the finding's own
-    held-out limit (`heldout_threshold`, when it has one), is set aside as inconclusive. `absorbed` (per finding, default 1): how
-    many times wider the finding's interval already is than the one its halves pool to (a
-    block-robust interval carries a misfit between the halves as scatter of its own)."""
+    held-out limit (`heldout_threshold`, when it has one), is set aside as inconclusive.
+    `absorbed` (per finding, default 1): how many times wider the finding's interval already
+    is than the one its halves pool to (a block-robust interval carries a misfit between the
+    halves as scatter of its own)."""
     kept, aside = [], []
     for n, (f, ((b1, c1), (b2, c2))) in enumerate(zip(findings, halves)):
         diff = b1 - b2
@@ -357,8 +359,8 @@ def halves_verdict(findings, halves, absorbed=None):
 def halves_reasons(rejected):
     """Why 'nothing is missing' cannot be said of a recording whose halves set terms aside
     (`halves_verdict`): each such term, with its text - the halves saw it, inconsistently."""
-    return [f"{r['label']}: {r['rejected']}" for r in rejected
-            if isinstance(r.get("halves"), dict) and "halves disagree" in r.get("rejected", "")]
+    return [f"{r['label']}: {r['rejected']}" for r in rejected    # only the halves' own
+            if isinstance(r.get("halves"), dict)]                 # rejections carry them
 
 
 def _widened(finding, factor):

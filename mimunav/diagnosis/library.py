@@ -18,6 +18,7 @@ from itertools import combinations_with_replacement
 import numpy as np
 
 from ..compensation.effects import AXES
+from ..sensors.mimu import MimuUnit
 
 TEMPERATURE_RATE_WINDOWS_S = (60.0, 120.0, 300.0)
 G0 = 9.80665
@@ -170,6 +171,13 @@ NONLINEARITY_OF_RANGE = 0.2     # k2 x^2 or k3 x^3 at full scale: <= 20 % of ful
 # effect-free foreign flight) - or a calibration of another unit, which the report says.
 CALIBRATED_RANGE = {("scale_factor", "accel"): 5e-3, ("scale_factor", "gyro"): 2e-2,
                     ("cross_coupling", "accel"): 5e-3, ("cross_coupling", "gyro"): 2e-2}
+
+
+def full_scale(mimu_range):
+    """{"accel": m/s^2, "gyro": rad/s}: the MIMU's full scale from a log's `range` metadata
+    (`Flight.mimu_range`), the simulated unit's where the log does not say."""
+    return {"accel": float(mimu_range.get("accel_m_s2", MimuUnit.range_accel)),
+            "gyro": float(mimu_range.get("gyro_rad_s", MimuUnit.range_gyro))}
 
 
 def physical_limit(term, full_scale, calibrated=False):

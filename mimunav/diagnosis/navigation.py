@@ -243,10 +243,8 @@ def diagnose(flight, cal, alpha=0.05, seed=0, reference=None):
 def physical_limits(flight, cal):
     """term -> the largest plausible magnitude of its coefficient (`library.physical_limit`:
     the MIMU's full scale, and a calibrated unit's bound on its linear terms)."""
-    from ..sensors.mimu import MimuUnit
-    full_scale = {"accel": float(flight.mimu_range.get("accel_m_s2", MimuUnit.range_accel)),
-                  "gyro": float(flight.mimu_range.get("gyro_rad_s", MimuUnit.range_gyro))}
-    return lambda term: library.physical_limit(term, full_scale, not cal.is_identity)
+    scale = library.full_scale(flight.mimu_range)
+    return lambda term: library.physical_limit(term, scale, not cal.is_identity)
 
 
 BEYOND_RANGE = ("its coefficient is beyond the term's physical range ({limit:.3g} {units}): "

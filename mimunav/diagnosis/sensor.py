@@ -68,7 +68,6 @@ import numpy as np
 from ..compensation.wild_values import REPLACED, UNUSABLE
 from ..compensation.model import poly2
 from ..compensation.effects import AXES
-from ..sensors.mimu import MimuUnit
 from ..frames import attitude
 from . import library, outputs, wander
 from ..sensors.accuracy import accuracy_of
@@ -218,8 +217,7 @@ def _prepare(flight, cal, acc, candidates, output_tests, vibration, bin_s, noise
     q_sf = np.conjugate(flight.mimu_mounting.q_vs) * flight.fog_mounting.q_vs
     t, res, usable, cond, samples = residual(flight, cal, vibration)
     m = bins(t, flight.fog_t, bin_s)
-    full_scale = {"accel": float(flight.mimu_range.get("accel_m_s2", MimuUnit.range_accel)),
-                  "gyro": float(flight.mimu_range.get("gyro_rad_s", MimuUnit.range_gyro))}
+    full_scale = library.full_scale(flight.mimu_range)
     on_outputs, quantized = [], set()
     acc = measured_steps(flight, acc)
     cands = library.candidates() if candidates is None else candidates
