@@ -115,6 +115,22 @@ def channel_inputs(term):
     return None
 
 
+def reads_own_outputs(term):
+    """Whether the term's regressor is made of the outputs of the triad it acts on (`inputs`,
+    `channel_inputs`: a scale or cross term, a misalignment, a time skew): measured from those
+    outputs, the regressor carries the same noise as the error it drives (errors in
+    variables). A vibration power does not (a mean square does not follow the noise's sign);
+    nor do the gyros' rates on the accelerometers (lever arm) or the specific force on the
+    gyros (g-sensitivity)."""
+    if term["effect"] == "vibration_rectification":
+        return False
+    per_channel = channel_inputs(term)
+    if per_channel is not None:
+        return any(s == channel[0] for channel, ins in per_channel.items() for s, _ in ins)
+    ins = inputs(term)
+    return ins is not None and any(s == term["sensor"] for s, _ in ins)
+
+
 def on_channels(term, channels):
     """`term` restricted to the output channels `channels` [(sensor, axis)] (its `channels`
     key, "sensor.axis" names, which the design honours); the others' columns are not fitted."""

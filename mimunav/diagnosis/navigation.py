@@ -5,16 +5,11 @@ The compensated MIMU is navigated from the log's initial state with the project'
 navigator (`evaluation.navigate_mimu`); its velocity error against the reference, sampled every
 EPOCH_S, is the observation. Every candidate term of the library (`library.candidates`)
 has an error signature on this trajectory: the velocity error its regressor, at unit
-coefficient, produces through the linearised strapdown error equations (psi-angle form,
-Titterton & Weston, Strapdown Inertial Navigation Technology, 2nd ed., section 12.2):
-
-    d(phi)/dt = - C_nb d(w_b)                    attitude error, rad
-    d(dv)/dt  =   C_nb d(f_b) + f_n x phi        velocity error, m/s
-
-over minutes, where the earth-rate and transport-rate couplings and the Schuler feedback of
-gravity (period 84 min) are below the noise (tested against the full navigator in
-tests/test_diagnosis.py). The regressors are built from the compensated MIMU outputs
-themselves (the error of a regressor built from a slightly wrong input is second order).
+coefficient, produces through the linearised strapdown error equations (`error_equations`;
+tested against the full navigator in tests/diagnosis/test_diagnosis.py). The regressors'
+inputs come from the reference's motion and attitude where it has an attitude; without one,
+from the MIMU's own outputs, and a term made of those (`library.reads_own_outputs`) is not
+a finding: the velocity error carries the same noise (errors in variables, `OWN_NOISE`).
 
 The fit is on velocity-error increments over EPOCH_S (white accelerometer noise gives
 independent increments; gyro noise and wander give correlated ones, handled by HAC blocks of
@@ -26,29 +21,23 @@ confirmation and block-bootstrap stability are those of the sensor level (`senso
 from dataclasses import dataclass
 
 import numpy as np
-import quaternion
 from scipy import stats
 
-from ..frames import earth
 from ..compensation import effects
-from ..compensation.effects import Conditions
-from ..evaluation.replay import compensated_mimu, navigate_mimu, resample
-from ..kernels import njit
+from ..evaluation.replay import resample
 from . import inference, library
 from .confirmation import (alternative_of, beta_of, effect_size, estimate, halves_reasons,
                            halves_verdict, rms_in, term_spans, where_rows)
 from .design import term_contribution
+from .error_equations import (EARTH_RADIUS_M, G0, error_model, independent_inputs,
+                              observed_error, recorded_bias, signature)
 from .inference import Tier
-from .reference import DERIVATIVE_WINDOW_S
 from ..errors import InputError
 
 EPOCH_S = 1.0
-EARTH_RADIUS_M = 6.371e6        # mean radius: the transport-rate error's scale (Schuler)
-G0 = 9.80665                    # m/s^2, the gravity gradient 2 g / R of the vertical channel
 BLOCK_S = 30.0
 WANDER_KNOT_S = 60.0
 MIN_EPOCHS = 40                 # shortest reference overlap, in epochs
-BIN_S = 0.01                    # regressors and the error equations are integrated on 10 ms bins
 CHANNELS = ("north", "east", "down")
 SEGMENTS = 10                   # contiguous segments: even ones train, odd ones held out
 MAX_TERMS = 4
@@ -82,117 +71,6 @@ class NavigationDiagnosis:
     biases_removed: dict | None = None  # a recording's import-measured biases, taken out
 
 
-@dataclass
-class ErrorModel:
-    """What the signatures need, on bins of BIN_S: time t (s), the sensor-to-NED rotation
-    c_ns (nb, 3, 3), the specific force in NED f_n (nb, 3), the bin length dt (s)."""
-    t: np.ndarray
-    c_ns: np.ndarray
-    f_n: np.ndarray
-    dt: np.ndarray
-    w_ie: np.ndarray = None     # Earth rate in NED at the start, rad/s (Coriolis of dv)
-
-    def velocity(self, d_f, d_w):
-        """Velocity error (nb, 3, k), NED m/s, at the bin ends caused by sensor-axis
-        specific-force errors d_f (nb, 3, k) m/s^2 and rate errors d_w (nb, 3, k) rad/s:
-        d(phi)/dt = -C_ns d_w + d(w_en), d(w_en) = (dv_E, -dv_N, 0) / R (the transport-rate
-        error, which with f_n x phi closes the Schuler loop: over 400 s the open loop
-        overstates a tilt's velocity error by 4 %, sin(w_s t) / (w_s t)),
-        d(dv)/dt = C_ns d_f + f_n x phi - 2 w_ie x dv + (0, 0, 2 g / R dD), dD the down error
-        (the vertical channel's gravity gradient: cosh(sqrt(2 g / R) t) = 1.26 at 400 s)
-        (Titterton & Weston sec. 12.2.1, phi-angle form)."""
-        dt = self.dt[:, None, None]
-        drive_phi = -np.einsum("nij,njk->nik", self.c_ns, d_w) * dt
-        drive_v = np.einsum("nij,njk->nik", self.c_ns, d_f) * dt
-        out = np.empty_like(drive_v)
-        w_ie = np.zeros(3) if self.w_ie is None else np.asarray(self.w_ie, float)
-        _schuler(drive_phi, drive_v, self.f_n, self.dt, EARTH_RADIUS_M, w_ie, out)
-        return out
-
-
-@njit(nogil=True)
-def _schuler(drive_phi, drive_v, f_n, dt, radius, w_ie, out):
-    """The phi-angle error equations of `ErrorModel.velocity`, bin by bin: phi and dv carry
-    each other (transport-rate error, f x phi), the down error its gravity gradient; out
-    (nb, 3, k) the velocity error."""
-    nb, _, k = drive_v.shape
-    for c in range(k):
-        p0 = p1 = p2 = v0 = v1 = v2 = down = 0.0
-        for n in range(nb):
-            T = dt[n]
-            p0 += drive_phi[n, 0, c] + v1 / radius * T
-            p1 += drive_phi[n, 1, c] - v0 / radius * T
-            p2 += drive_phi[n, 2, c]
-            f0, f1, f2 = f_n[n, 0], f_n[n, 1], f_n[n, 2]
-            c0 = 2.0 * (w_ie[1] * v2 - w_ie[2] * v1)          # 2 w_ie x dv (Coriolis)
-            c1 = 2.0 * (w_ie[2] * v0 - w_ie[0] * v2)
-            c2 = 2.0 * (w_ie[0] * v1 - w_ie[1] * v0)
-            v0 += drive_v[n, 0, c] + (f1 * p2 - f2 * p1 - c0) * T
-            v1 += drive_v[n, 1, c] + (f2 * p0 - f0 * p2 - c1) * T
-            v2 += drive_v[n, 2, c] + ((f0 * p1 - f1 * p0) - c2 + 2.0 * G0 / radius * down) * T
-            down += v2 * T
-            out[n, 0, c], out[n, 1, c], out[n, 2, c] = v0, v1, v2
-
-
-def observed_error(flight, cal):
-    """(MIMU navigation Trajectory, w rad/s, f m/s^2 sensor-axis outputs) of the compensated
-    MIMU, navigated from the log's initial state. A recording's outputs (no raw, no
-    calibration of the unit) have the biases its import measured removed first (`recording`
-    metadata: a phone's 3.9 deg/s gyro bias tilted the free-inertial run 36 deg in a
-    minute, beyond the error model's small angles)."""
-    w, f, _ = compensated_mimu(flight, cal)
-    w, f = w - recorded_bias(flight, "gyro_bias_static_rad_s"), \
-        f - recorded_bias(flight, "accel_bias_m_s2")
-    if not (np.isfinite(w).all() and np.isfinite(f).all()):
-        raise InputError(f"{flight.path}: the compensated MIMU has non-finite samples: the "
-                         "navigation level needs an unbroken free-inertial run")
-    nav = navigate_mimu(flight, w, f)
-    return nav, w, f
-
-
-def recorded_bias(flight, key):
-    """The bias (3,) sensor axes, SI, that a recording's import measured (`key` of its
-    `recording` metadata), or 0 for a log with raw outputs or without one."""
-    doc = flight.recording or {}
-    value = doc.get(key) if flight.mimu_raw is None else None
-    return np.zeros(3) if value is None else np.asarray(value, float)
-
-
-def error_model(flight, nav, w, f):
-    """The ErrorModel on BIN_S bins after the initial state, and the bins' Conditions."""
-    if flight.mimu_platform is not None:
-        raise InputError(f"{flight.path}: the MIMU turns on a platform (/mimu/platform); "
-                         "this analysis does not follow the rotation yet - replay and table do")
-    t = flight.mimu_t
-    after = t > flight.initial.t + 1e-12
-    rate = 1.0 / np.median(np.diff(t))
-    m = max(1, round(BIN_S * rate))
-    idx = np.flatnonzero(after)
-    n = len(idx) // m * m
-    idx = idx[:n]
-    mean = lambda x: x[idx].reshape(n // m, m, *x.shape[1:]).mean(axis=1)  # noqa: E731
-    t_end = t[idx].reshape(n // m, m)[:, -1]
-    t_start = np.r_[flight.initial.t, t_end[:-1]]
-    q_nb = resample(nav, t_end - 0.5 * (t_end - t_start)).q_nb
-    q_ns = q_nb * flight.mimu_mounting.q_vs
-    c_ns = quaternion.as_rotation_matrix(q_ns)
-    f_b, w_b = mean(f), mean(w)
-    model = ErrorModel(t_end, c_ns, np.einsum("nij,nj->ni", c_ns, f_b), t_end - t_start,
-                       earth.earth_rate_ned(flight.initial.lat))
-    temperature, frequency = flight.mimu_temperatures()
-    cond = Conditions.from_outputs(t_end, f_b, w_b, mean(temperature), mean(frequency),
-                                   DERIVATIVE_WINDOW_S)
-    return model, cond
-
-
-def signature(model, regressor, k):
-    """Velocity-error signature (nb, 3, k) of a regressor {(sensor, axis index): (nb, k)}."""
-    d = {"accel": np.zeros((len(model.t), 3, k)), "gyro": np.zeros((len(model.t), 3, k))}
-    for (sens, i), x in regressor.items():
-        d[sens][:, i, :] = x
-    return model.velocity(d["accel"], d["gyro"])
-
-
 def nuisance(model):
     """Signatures (nb, 3, q) of what the navigation level does not test: piecewise-linear
     (wandering) accelerometer and gyro biases, the initial attitude error."""
@@ -221,7 +99,9 @@ def diagnose(flight, cal, alpha=0.05, seed=0, reference=None):
     train = seg % 2 == 0
     chosen = _select({"navigation": tier}, cands, {"navigation": train}, alpha)
     limit = physical_limits(flight, cal)
-    findings, rejected = _confirm(tier, cands, chosen, train, alpha, seed, cond, limit)
+    own = independent_inputs(flight, reference) is None
+    noisy = lambda term: own and library.reads_own_outputs(term)             # noqa: E731
+    findings, rejected = _confirm(tier, cands, chosen, train, alpha, seed, cond, limit, noisy)
     findings, at = _relinearized(flight, cal, reference, findings, ~train)
     at = at or (tier, _columns(cands, findings), None)
     findings, beyond, at = _within_range(findings, limit, at)
@@ -253,6 +133,11 @@ BEYOND_RANGE = ("its coefficient is beyond the term's physical range ({limit:.3g
                 "variables), or another term's")
 
 
+OWN_NOISE = ("its regressor is made of the MIMU's own outputs (the reference trajectory has no "
+             "attitude to make it from), whose noise the velocity error integrates too: a fit "
+             "of that noise (errors in variables) cannot be told from the term")
+
+
 def _within_range(findings, limit, at):
     """(kept, rejected, the linearization `at` = (tier, columns, point) of the kept ones):
     a relinearized estimate beyond its term's physical range is rejected (`BEYOND_RANGE`)."""
@@ -281,6 +166,10 @@ def unsettled(rejected):
                            f"{r['p_heldout']:.2g}) at {held}{units}, beyond its physical "
                            f"range ({r['beyond_range']:.3g}): something this level cannot name "
                            "makes its signature (on quiet flight, the regressor's own noise)")
+        elif r.get("errors_in_variables"):
+            reasons.append(f"{r['label']} fits the velocity error (held-out p "
+                           f"{r['p_heldout']:.2g}) at {held} {r['units']}, but {OWN_NOISE}; a "
+                           "reference with an attitude, or a reference IMU, can tell them apart")
         elif r.get("heldout_untestable"):
             reasons.append(f"{r['label']} was chosen on the training segments (p "
                            f"{r['p_train']:.2g}) and the held-out ones cannot confirm it at "
@@ -302,7 +191,7 @@ def _tier(flight, cal, reference, terms=None):
     reference) of the MIMU compensated by `cal` and navigated; terms: the candidates
     (default the library's)."""
     nav, w, f = observed_error(flight, cal)
-    model, cond = error_model(flight, nav, w, f)
+    model, cond = error_model(flight, nav, w, f, reference)
     t0 = max(model.t[0], reference.t[0])
     t1 = min(model.t[-1], reference.t[-1])
     epochs = np.arange(t0, t1 + 1e-9, EPOCH_S)
@@ -454,10 +343,11 @@ def beyond_small_angles(observed):
             " deg); calibrate the MIMU first or diagnose against a reference IMU"]
 
 
-def _confirm(tier, cands, chosen, train, alpha, seed, cond, limit):
+def _confirm(tier, cands, chosen, train, alpha, seed, cond, limit, noisy):
     """Held-out refit of the chosen terms; the sensor level's rules (physical range,
     held-out p, effect size, sign, bootstrap stability); `limit`: term -> its physical
-    range (`physical_limits`)."""
+    range (`physical_limits`); `noisy`: term -> whether its regressor carries the MIMU's own
+    noise (`OWN_NOISE`)."""
     if not chosen:
         return [], []
     rng = np.random.default_rng(seed)
@@ -506,6 +396,9 @@ def _confirm(tier, cands, chosen, train, alpha, seed, cond, limit):
         elif float(np.linalg.norm(b_ho)) > limit(term):     # held out, it is there
             why = BEYOND_RANGE.format(limit=limit(term), units=finding["units"])
             finding["beyond_range"] = limit(term)
+        elif noisy(term):
+            why = OWN_NOISE
+            finding["errors_in_variables"] = True
         elif float(b_tr @ b_ho) <= 0:
             why = "the held-out coefficient has the other sign"
         elif share < library.MIN_VARIANCE_SHARE:

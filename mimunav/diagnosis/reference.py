@@ -10,11 +10,14 @@ Samples are interval means (log contract): the reference's running integral
 stamps coincide, the interval-mean meaning kept when they do not.
 """
 import numpy as np
+import quaternion
 
 from ..frames import attitude
 from ..compensation.effects import derivative
 from ..errors import InputError
+from ..evaluation.replay import resample
 from ..motion.intervals import RunningIntegral, intervals
+from ..motion.truth import Kinematics, body_rate_and_specific_force
 
 DERIVATIVE_WINDOW_S = 0.1       # d/dt of reference rates: quartic Savitzky-Golay over 100 ms,
 # exact for motion up to 4th order in time (close to it inside the profiles' ramps), and
@@ -59,6 +62,41 @@ def predicted_mimu(flight):
         f_v = f_v + np.cross(w_v, np.cross(w_v, dr)) + np.cross(w_dot, dr)
     q_sv = np.conjugate(flight.mimu_mounting.q_vs)
     return attitude.rotate(q_sv, f_v), attitude.rotate(q_sv, w_v), inside
+
+
+def has_attitude(trajectory, t0, t1):
+    """Whether `trajectory` carries an attitude (finite q_nb) at every sample that the span
+    t0-t1 (s) interpolates between, and covers that span."""
+    if len(trajectory) < 2 or trajectory.t[0] > t0 + 1e-9 or trajectory.t[-1] < t1 - 1e-9:
+        return False
+    k = np.searchsorted(trajectory.t, [t0, t1])
+    q = quaternion.as_float_array(trajectory.q_nb[max(k[0] - 1, 0):k[1] + 1])
+    return bool(np.isfinite(q).all())
+
+
+def trajectory_outputs(trajectory, edges, mounting):
+    """(f m/s^2, w rad/s), each (N, 3) in MIMU sensor axes: what an ideal MIMU at `mounting`
+    (a `frames.mounting.Mounting`) read, as means over the N intervals between `edges` (s,
+    (N+1,)), on `trajectory` (a Trajectory with attitude, vehicle frame, covering the edges).
+    The NED velocity and the attitude differenced over each interval give dv/dt and the body
+    rate w_nb; then w_ib = w_nb + C_bn (w_ie + w_en), f = C_bn (dv/dt - g + (2 w_ie + w_en)
+    x v) (Titterton & Weston eq. 3.12, 3.70: `motion.truth.body_rate_and_specific_force`),
+    plus w x (w x r) + dw/dt x r at the lever arm r. A reference independent of the MIMU
+    gives regressors free of the MIMU's own noise (errors in variables, `navigation`)."""
+    edges = np.asarray(edges, float)
+    dt = np.diff(edges)[:, None]
+    at = resample(trajectory, edges)
+    mid = resample(trajectory, 0.5 * (edges[1:] + edges[:-1]))
+    turn = attitude.short_way(np.conjugate(at.q_nb[:-1]) * at.q_nb[1:])
+    kinematics = Kinematics(mid.v_ned, np.diff(at.v_ned, axis=0) / dt, mid.q_nb,
+                            quaternion.as_rotation_vector(turn) / dt, np.zeros_like(dt * mid.v_ned))
+    w_v, f_v = body_rate_and_specific_force(mid.lat, mid.h, kinematics)
+    r = np.asarray(mounting.lever_arm_m, float)
+    if np.any(r):
+        w_dot = derivative(mid.t, w_v, TRANSFER_WINDOW_S)
+        f_v = f_v + np.cross(w_v, np.cross(w_v, r)) + np.cross(w_dot, r)
+    q_sv = np.conjugate(mounting.q_vs)
+    return attitude.rotate(q_sv, f_v), attitude.rotate(q_sv, w_v)
 
 
 def pulse_counted(t, x):

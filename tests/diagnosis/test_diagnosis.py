@@ -304,11 +304,11 @@ def test_navigation_signature_matches_the_strapdown_navigator(null_recording):
     """The linearised error equations of the navigation level against the full strapdown
     navigator: the same outputs navigated with and without a g-sensitivity and an
     accelerometer bias; the velocity difference equals the signature to 1 % over 2 min."""
-    from mimunav.diagnosis import navigation
+    from mimunav.diagnosis import error_equations
     from mimunav.evaluation.replay import navigate, resample
     flight, unit, _, _ = null_recording
-    nav, w, f = navigation.observed_error(flight, unit.coefficients)
-    model, cond = navigation.error_model(flight, nav, w, f)
+    nav, w, f = error_equations.observed_error(flight, unit.coefficients)
+    model, cond = error_equations.error_model(flight, nav, w, f)
     term = dict(G_SENSITIVITY, coefficient=2e-5)
     full = effects.Conditions.from_outputs(flight.mimu_t, f, w, flight.mimu_raw["accel_temperature"],
                                            flight.mimu_raw["gyro_frequency"])
@@ -318,8 +318,9 @@ def test_navigation_signature_matches_the_strapdown_navigator(null_recording):
     d_f[:, 1] = 5e-3                                                  # 0.5 mg
     moved = navigate(flight.mimu_t, w + d_w, f + d_f, flight.mimu_mounting, flight.initial)
     reg = effects.regressor(term, cond)[("gyro", 0)] * 2e-5
-    sig = navigation.signature(model, {("gyro", 0): reg,
-                                       ("accel", 1): np.full((len(model.t), 1), 5e-3)}, 1)[:, :, 0]
+    sig = error_equations.signature(model, {("gyro", 0): reg,
+                                            ("accel", 1): np.full((len(model.t), 1), 5e-3)},
+                                    1)[:, :, 0]
     for span in (30.0, 60.0, 120.0):
         t = np.array([model.t[0] + span])
         k = np.searchsorted(model.t, t[0])
@@ -592,7 +593,8 @@ def test_navigation_level_is_inconclusive_beyond_small_angles():
     """A velocity error growing as g phi t (a constant tilt phi, closed form): within the
     psi-angle equations' range it is judged, beyond it the level says inconclusive; white
     velocity noise of 0.3 m/s with no growth is no tilt."""
-    from mimunav.diagnosis.navigation import EPOCH_S, G0, MAX_IMPLIED_TILT_RAD, beyond_small_angles
+    from mimunav.diagnosis.error_equations import G0
+    from mimunav.diagnosis.navigation import EPOCH_S, MAX_IMPLIED_TILT_RAD, beyond_small_angles
     t = np.arange(0, 120, EPOCH_S)
     for phi, reasons in ((0.5 * MAX_IMPLIED_TILT_RAD, 0), (2 * MAX_IMPLIED_TILT_RAD, 1)):
         dv = np.zeros((len(t), 3))
@@ -605,7 +607,7 @@ def test_navigation_level_is_inconclusive_beyond_small_angles():
     # b tau sinh(t / tau), tau = sqrt(R / 2 g) - over an hour a 10 mg error's slopes reach
     # 118 mg (an independent review's closed form); read back to b, 10 mg is judged and
     # 0.2 g (another unit's calibration: 1.1 g on a gentle flight) is not
-    from mimunav.diagnosis.navigation import EARTH_RADIUS_M
+    from mimunav.diagnosis.error_equations import EARTH_RADIUS_M
     tau = math.sqrt(EARTH_RADIUS_M / (2 * G0))
     hour = np.arange(0, 3600, EPOCH_S)
     for b, reasons in ((0.01 * G0, 0), (2 * MAX_IMPLIED_TILT_RAD * G0, 1)):
@@ -616,14 +618,16 @@ def test_navigation_level_is_inconclusive_beyond_small_angles():
 
 
 def test_a_parked_flight_with_its_true_model_names_nothing_at_the_navigation_level(tmp_path):
-    """120 s parked, the unit's exact model: on quiet flight a scale factor's regressor is
-    its input's own noise once the bias wander takes the constant part, and the velocity
-    error integrates that same noise - a new user's parked and boost-coast flights had
-    'scale_factor accel.x -20.47 [-20.47, -20.47], held-out p 1.3e-14' and 0.5 on accel.z
-    (errors in variables). A coefficient beyond the term's physical range is no finding; the
-    level says it cannot name what made it."""
-    from mimunav.diagnosis import levels
+    """120 s parked, the unit's exact model. With its regressors made of the MIMU's own
+    outputs, a scale factor's regressor is that output's noise once the bias wander takes the
+    constant part, and the velocity error integrates the same noise: a new user's parked and
+    boost-coast flights had 'scale_factor accel.x 1.0, held-out p 1e-14' (errors in
+    variables). Made from the reference trajectory's motion and attitude (independent of the
+    MIMU) nothing is found and nothing is left to doubt; from a reference without attitude the
+    level still names nothing, and says it cannot tell such terms from that noise."""
+    from mimunav.diagnosis import levels, navigation, sensor
     from mimunav.evaluation.flight import Flight
+    from mimunav.frames import attitude
     from mimunav.sensors.mimu import MimuUnit
     from mimunav.sensors.simulation import simulate_flight
     prof = Profile.from_dict({"name": "parked", "description": "parked 120 s",
@@ -634,12 +638,17 @@ def test_a_parked_flight_with_its_true_model_names_nothing_at_the_navigation_lev
     unit = MimuUnit.draw(11, beyond_model=False)
     path = tmp_path / "parked.mcap"
     simulate_flight(prof, path, 1, unit=unit, progress=False, force=True)
-    diag = levels.diagnose(Flight.load(path, reference_imu=False), unit.coefficients,
-                           "navigation")
+    flight = Flight.load(path, reference_imu=False)
+    diag = levels.diagnose(flight, unit.coefficients, "navigation")
+    assert sensor.verdict(diag) == "no-missing-physics", (diag.findings, diag.inconclusive)
+    assert not [r for r in diag.rejected if "beyond_range" in r or "errors_in_variables" in r]
+    blind = flight.truth[np.arange(len(flight.truth))]
+    blind.q_nb = attitude.from_wxyz(np.full((len(blind), 4), np.nan))
+    diag = navigation.diagnose(flight, unit.coefficients, reference=blind)
     assert diag.findings == []
-    beyond = [r for r in diag.rejected if "beyond_range" in r]
-    assert beyond and all(abs(r["coefficient"]) > r["beyond_range"] for r in beyond)
-    assert any("beyond its physical range" in why for why in diag.inconclusive)
+    doubts = [r for r in diag.rejected if "beyond_range" in r or "errors_in_variables" in r]
+    assert doubts and any("cannot name" in why or "errors in variables" in why
+                          for why in diag.inconclusive), diag.inconclusive
 
 
 def test_stamps_that_jitter_make_the_sensor_level_inconclusive():
