@@ -242,10 +242,13 @@ def _turned_back(rec, yaw, square=True):
 
 
 TIME_OFFSET_SEARCH_S = 60.0     # s: the yaw rate is looked for this far either side
-CLEARLY_BETTER = 0.1            # a shift's correlation must beat the stamps' by this much:
-                                # over half the record a smooth turn correlates ~1 with itself
-                                # shifted (0.999999 against 0.9999988 as stamped), while stamps
-                                # 2 s off correlate 0.70 against 1.00 (the shared drive)
+CLEARLY_BETTER = 2.0            # a shift must leave at most half the yaw-rate variance the
+                                # stamps leave unexplained (1 - r^2): over half the record a
+                                # smooth turn correlates ~1 with itself shifted (0.999999
+                                # against 0.9999988 as stamped: 1.2x), while the shared drive
+                                # with its reference late by 0.5 / 1.0 / 1.5 s: 4.4x / 18.8x /
+                                # 38.8x (r 0.981 / 0.916 / 0.818 as stamped, 0.996 at the
+                                # shift). A margin of 0.1 in r had let the 1 s pass
 REFUSED_OFFSET_S = 1.0          # s: a reference this far off the IMU's clock is refused; below,
                                 # the diagnosis measures the lag with its interval (time_skew,
                                 # the track's lag): a first-order time term holds while the
@@ -270,7 +273,8 @@ def _check_time_offset(rec, t_imu, t_ref, rate, corr0, half):
         c = np.corrcoef(smooth[k], rate[inside])[0, 1]
         if c > best:
             best, best_lag = float(c), float(lag)
-    if best > 0.7 and best > corr0 + CLEARLY_BETTER and abs(best_lag) >= REFUSED_OFFSET_S:
+    unexplained = (1 - corr0 ** 2) / max(1 - best ** 2, 1e-12)
+    if best > 0.7 and unexplained >= CLEARLY_BETTER and abs(best_lag) >= REFUSED_OFFSET_S:
         raise RecordingError(
             f"{rec.name}: the gyro's yaw rate follows the GNSS course rate only with the IMU's "
             f"stamps shifted by {-best_lag:+.1f} s (correlation {best:.2f}, {corr0:+.2f} as "
