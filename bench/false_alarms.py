@@ -3,6 +3,7 @@ logs on which `diagnose` answers anything but "no-missing-physics" (a finding, a
 residual, an inconclusive answer), with its 95 % Clopper-Pearson interval.
 
     python bench/false_alarms.py [--transplants 36] [--simulated 12] [--seed 1] [--workers 2]
+                                 [--level sensor|navigation] [--without-attitude]
 
 Two sources, so that the nulls are not only the project's own:
   transplants  the independent simulator's logs (shared/data/foreign-flights, their hidden
@@ -19,6 +20,9 @@ Two sources, so that the nulls are not only the project's own:
                hidden): a unit drawn per seed, calibrated in the simulated lab (its
                calibration's own errors), flown on the proof, high-dynamic, repeated-blocks
                (450 s) and gentle (840 s, low dynamics) profiles.
+At the navigation level (`--level navigation`) the same logs are diagnosed against their
+truth trajectory alone (the reference IMU is not used); `--without-attitude` takes the
+truth's attitude away (a GNSS-only reference: the terms' inputs are then the MIMU's outputs).
 Writes REPORT/false-alarms.md and .json (false-alarms-seedN for another seed: a held-out
 draw of the same kinds); a row in bench/results/false_alarms.json.
 """
@@ -40,9 +44,9 @@ PROFILES = ["diagnosis-proof.toml", "high-dynamic.toml", "repeated-blocks.toml",
 
 
 def run(job):
-    """One null: (source, what it is, seed) -> its case record."""
-    kind, what, seed = job
-    from mimunav.diagnosis import concealed, sensor, transplant
+    """One null: (source, what it is, seed, level, without attitude) -> its case record."""
+    kind, what, seed, level, blind = job
+    from mimunav.diagnosis import concealed, navigation, sensor, transplant
     t0 = time.perf_counter()
     if kind == "transplant":
         flight, cal, drawn = transplant.null_variant(what, seed)
@@ -50,14 +54,28 @@ def run(job):
     else:
         flight, _, _, cal = concealed.recording(str(ROOT / "flights" / what), None, seed)
         name, drawn = what, {"seed": seed}
-    diag = sensor.diagnose(flight, cal)
+    if level == "navigation":
+        diag = navigation.diagnose(flight, cal, reference=without_attitude(flight.truth)
+                                   if blind else None)
+    else:
+        diag = sensor.diagnose(flight, cal)
     verdict = sensor.verdict(diag)
     return {"source": kind, "log": Path(name).name, "drawn": drawn, "verdict": verdict,
+            "level": level + (" (reference without attitude)" if blind else ""),
             "findings": [f["label"] for f in diag.findings],
             "unexplained": len(diag.unexplained),
             "inconclusive": list(getattr(diag, "inconclusive", []) or []),
             "alarm": verdict != "no-missing-physics" or bool(diag.findings),
             "seconds": time.perf_counter() - t0}
+
+
+def without_attitude(trajectory):
+    """The trajectory with its attitude unknown (NaN quaternions), as a GNSS fix has it."""
+    import numpy as np
+    from mimunav.frames import attitude
+    blind = trajectory[np.arange(len(trajectory))]
+    blind.q_nb = attitude.from_wxyz(np.full((len(blind), 4), np.nan))
+    return blind
 
 
 def interval(k, n):
@@ -67,7 +85,8 @@ def interval(k, n):
 
 
 def markdown(cases, meta):
-    lines = ["# False alarms of the sensor-level diagnosis on effect-free logs", "",
+    level = cases[0].get("level", "sensor") if cases else "sensor"
+    lines = [f"# False alarms of the {level}-level diagnosis on effect-free logs", "",
              f"`{meta['command']}` on {meta['machine']}, {meta['wall_s']:.0f} s.", ""]
     for source in ("transplant", "simulated", "all"):
         part = [c for c in cases if source in ("all", c["source"])]
@@ -92,10 +111,18 @@ def main():
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--report", default=str(ROOT / "reports"))
     ap.add_argument("--json")
+    ap.add_argument("--level", choices=("sensor", "navigation"), default="sensor",
+                    help="the diagnosis level: sensor (against the reference IMU) or "
+                    "navigation (against the truth trajectory alone)")
+    ap.add_argument("--without-attitude", action="store_true",
+                    help="navigation level: the truth trajectory without its attitude")
     args = ap.parse_args()
-    jobs = [("transplant", str(CARRIERS[k % len(CARRIERS)]), args.seed * 1000 + k)
+    if args.without_attitude and args.level != "navigation":
+        ap.error("--without-attitude needs --level navigation")
+    how = (args.level, args.without_attitude)
+    jobs = [("transplant", str(CARRIERS[k % len(CARRIERS)]), args.seed * 1000 + k, *how)
             for k in range(args.transplants)]
-    jobs += [("simulated", PROFILES[k % len(PROFILES)], args.seed * 1000 + k)
+    jobs += [("simulated", PROFILES[k % len(PROFILES)], args.seed * 1000 + k, *how)
              for k in range(args.simulated)]
     from tqdm import tqdm
     t0 = time.perf_counter()
@@ -105,14 +132,18 @@ def main():
     with ProcessPoolExecutor(args.workers, initializer=one_blas_thread) as pool:
         cases = list(tqdm(pool.map(run, jobs), total=len(jobs), desc="nulls"))
     wall = time.perf_counter() - t0
-    report = "false-alarms" if args.seed == 1 else f"false-alarms-seed{args.seed}"
+    options = ("" if args.level == "sensor" else " --level navigation") + \
+        (" --without-attitude" if args.without_attitude else "")
+    report = "false-alarms" + options.replace(" --level ", "-").replace(" --", "-") + \
+        ("" if args.seed == 1 else f"-seed{args.seed}")
     write_report(args.report, report, markdown,
                  f"python bench/false_alarms.py --transplants {args.transplants} "
-                 f"--simulated {args.simulated} --seed {args.seed}", wall, cases)
+                 f"--simulated {args.simulated} --seed {args.seed}{options}", wall, cases)
     k = sum(c["alarm"] for c in cases)
     lo, hi = interval(k, len(cases))
     publish(__file__, [(
-        f"false alarms: {len(cases)} effect-free logs ({args.transplants} varied foreign, "
+        f"false alarms{options.replace(' --level', ',').replace(' --', ', ')}: {len(cases)} "
+        f"effect-free logs ({args.transplants} varied foreign, "
         f"{args.simulated} simulated{'' if args.seed == 1 else f', seed {args.seed}'}; "
         f"reports/{report}.md)",
         f"{k} answered with an alarm: {k / len(cases):.1%} [95 %: {lo:.1%}, {hi:.1%}]; "

@@ -45,7 +45,10 @@ def document(log_path, diag, alpha=0.05):
         doc["inconclusive_reasons"] = reasons
     if diag.level == "navigation":
         doc.update(epoch_s=navigation.EPOCH_S, reference="truth (/truth/state)",
-                   velocity_error_rms=json_ready(np.sqrt(np.mean(diag.observed ** 2, axis=0))))
+                   velocity_error_rms=json_ready(np.sqrt(np.mean(diag.observed ** 2, axis=0))),
+                   variance_inflation={
+                       name: diag.tier.inflation.get(rows.tobytes(), 1.0)
+                       for name, rows in (("training", diag.train), ("held_out", ~diag.train))})
         if getattr(diag, "biases_removed", None):
             doc["biases_removed"] = json_ready(diag.biases_removed)
     return doc

@@ -41,6 +41,8 @@ MIN_EPOCHS = 40                 # shortest reference overlap, in epochs
 CHANNELS = ("north", "east", "down")
 SEGMENTS = 10                   # contiguous segments: even ones train, odd ones held out
 MAX_TERMS = 4
+CALIBRATED = 10                 # candidates per selection step whose variance inflation is
+                                # measured (each costs a fit of the library): the strongest
 STABILITY = 0.5                 # share of bootstrap replicates a term must win
 BOOTSTRAP = 200
 # the psi-angle error equations are first order in the attitude error phi: their neglected
@@ -102,12 +104,18 @@ def diagnose(flight, cal, alpha=0.05, seed=0, reference=None):
     own = independent_inputs(flight, reference) is None
     noisy = lambda term: own and library.reads_own_outputs(term)             # noqa: E731
     findings, rejected = _confirm(tier, cands, chosen, train, alpha, seed, cond, limit, noisy)
-    findings, at = _relinearized(flight, cal, reference, findings, ~train)
-    at = at or (tier, _columns(cands, findings), None)
+    given = _columns(cands, findings)
+    findings, at = _relinearized(flight, cal, reference, findings, ~train,
+                                 inference.variance_inflation(tier, ~train, given))
+    at = at or (tier, given, None)
     findings, beyond, at = _within_range(findings, limit, at)
     rejected = rejected + beyond
     if flight.source == "recording":        # a real record's halves may differ
-        findings, aside = halves_check(*at, findings, ~train)
+        first = tier.t < np.median(tier.t)
+        given = _columns(cands, findings)
+        inflations = [inference.variance_inflation(tier, rows, given)
+                      for rows in (first, ~first, ~train)]
+        findings, aside = halves_check(*at, findings, ~train, inflations)
         rejected = rejected + aside
     diag = NavigationDiagnosis(findings, rejected, tier, train, len(cands), cands, observed,
                                epochs, [], beyond_small_angles(observed)
@@ -128,9 +136,8 @@ def physical_limits(flight, cal):
 
 
 BEYOND_RANGE = ("its coefficient is beyond the term's physical range ({limit:.3g} {units}): "
-                "something else makes that signature on this flight - on quiet flight, its "
-                "regressor's own noise, which the velocity error integrates too (errors in "
-                "variables), or another term's")
+                "something else makes that signature on this flight - another term's, or "
+                "a motion the error equations do not follow")
 
 
 OWN_NOISE = ("its regressor is made of the MIMU's own outputs (the reference trajectory has no "
@@ -165,7 +172,7 @@ def unsettled(rejected):
             reasons.append(f"{r['label']} fits the velocity error (held-out p "
                            f"{r['p_heldout']:.2g}) at {held}{units}, beyond its physical "
                            f"range ({r['beyond_range']:.3g}): something this level cannot name "
-                           "makes its signature (on quiet flight, the regressor's own noise)")
+                           "makes its signature")
         elif r.get("errors_in_variables"):
             reasons.append(f"{r['label']} fits the velocity error (held-out p "
                            f"{r['p_heldout']:.2g}) at {held} {r['units']}, but {OWN_NOISE}; a "
@@ -224,7 +231,7 @@ def _tier(flight, cal, reference, terms=None):
     return tier, cands, cond, observed, epochs, (t0, t1)
 
 
-def _relinearized(flight, cal, reference, findings, held):
+def _relinearized(flight, cal, reference, findings, held, inflation):
     """The findings with their held-out estimates refitted about themselves (Gauss-Newton on
     the navigation): the error equations are linear in the attitude error and are evaluated
     along the MIMU's own navigation, whose attitude drifts with the very terms found, so the
@@ -233,7 +240,9 @@ def _relinearized(flight, cal, reference, findings, held):
     the found terms is navigated again, their signatures rebuilt along it, and the held-out
     fit of the same terms on the remaining error gives a correction; repeated until the
     correction is below RELINEARIZE_TOLERANCE of its standard error (at most
-    RELINEARIZE_PASSES). The interval is the last refit's, about the point it linearized at.
+    RELINEARIZE_PASSES). The interval is the last refit's, about the point it linearized at,
+    its covariance times `inflation` (the held-out rows' `inference.variance_inflation`
+    beside the found terms on the whole library: this tier has the found terms only).
     Findings a compensation cannot remove are returned as they are. Returns (findings, the
     last linearization (tier, the findings' columns, its point) or None)."""
     if not findings:
@@ -250,7 +259,7 @@ def _relinearized(flight, cal, reference, findings, held):
         tier, cands, _, _, _, _ = _tier(flight, corrected, reference, [dict(t) for t in terms])
         if len(cands) != len(terms):
             return findings, None
-        fit = inference.fit(tier, [pos for _, _, pos in cands], held)
+        fit = inference.fit(tier, [pos for _, _, pos in cands], held, inflation)
         delta = [fit.beta[fit.slices[k]] for k in range(len(terms))]
         intervals = [fit.interval(k) for k in range(len(terms))]
         estimates = [b + d for b, d in zip(point, delta)]
@@ -267,22 +276,24 @@ def _relinearized(flight, cal, reference, findings, held):
     return out, (tier, [pos for _, _, pos in cands], point)
 
 
-def halves_check(tier, columns, point, findings, held):
+def halves_check(tier, columns, point, findings, held, inflations=(1.0, 1.0, 1.0)):
     """(kept, set aside) findings after refitting the found terms together on the first and
     the second half (time) of the velocity-error increments of `tier` (their `columns`),
     linearized at `point` (per finding its coefficients, None: at zero): the sensor level's
     rule (`confirmation.halves_verdict`). The held-out segments interleave with the training
     ones, so they cannot see a term that drifts from one end of a recording to the other (a
     reference solution that settles, a temperature, a mounting); the halves can. `held`:
-    the rows the findings' intervals were fitted on (`_absorbed`)."""
+    the rows the findings' intervals were fitted on (`_absorbed`); `inflations`: the
+    variance inflations of the first half, the second and `held` (`inference`)."""
     if not findings:
         return findings, []
     first = tier.t < np.median(tier.t)
-    fits = [inference.fit(tier, columns, rows) for rows in (first, ~first)]
+    fits = [inference.fit(tier, columns, rows, lam)
+            for rows, lam in zip((first, ~first), inflations)]
     point = point or [np.zeros(tier.k[c]) for c in columns]
     halves = [[(b0 + fit.beta[fit.slices[k]], fit.cov[fit.slices[k], fit.slices[k]])
                for fit in fits] for k, b0 in enumerate(point)]
-    fit_ho = inference.fit(tier, columns, held)
+    fit_ho = inference.fit(tier, columns, held, inflations[2])
     share = len(tier.t) / max(int(held.sum()), 1)
     absorbed = [_absorbed(fit_ho.cov[fit_ho.slices[k], fit_ho.slices[k]], h, share)
                 for k, h in enumerate(halves)]
@@ -353,7 +364,8 @@ def _confirm(tier, cands, chosen, train, alpha, seed, cond, limit, noisy):
     rng = np.random.default_rng(seed)
     held = ~train
     idx = [cands[c["j"]][2] for c in chosen]
-    fit_tr, fit_ho = inference.fit(tier, idx, train), inference.fit(tier, idx, held)
+    lam_tr, lam_ho = (inference.variance_inflation(tier, rows, idx) for rows in (train, held))
+    fit_tr, fit_ho = inference.fit(tier, idx, train, lam_tr), inference.fit(tier, idx, held, lam_ho)
     findings, rejected = [], []
     for pos, c in enumerate(chosen):
         _, term, col = cands[c["j"]]
@@ -376,7 +388,8 @@ def _confirm(tier, cands, chosen, train, alpha, seed, cond, limit, noisy):
                  "heldout_rms_before": rms(before, rows & held),
                  "heldout_rms_after": rms(after, rows & held),
                  "units": "m/s", "basis": f"velocity-error increments over {EPOCH_S:g} s (NED), "
-                 "epochs where the term acts; 'after' uses the training coefficient"},
+                 "epochs where the term acts; 'after' uses the training coefficient",
+                 "variance_inflation": {"training": lam_tr, "held_out": lam_ho}},
             label=library.label(term), level="navigation", p_train=c["p_train"],
             holm_threshold=c["threshold"], p_heldout=p_ho,
             heldout_threshold=alpha / len(chosen),
@@ -393,12 +406,12 @@ def _confirm(tier, cands, chosen, train, alpha, seed, cond, limit, noisy):
             # the held-out interval holds the training coefficient: those segments can
             # neither confirm nor refute the term (it acts where they have little of it)
             finding["heldout_untestable"] = bool(np.all((lo <= b_tr) & (b_tr <= hi)))
+        elif noisy(term):                   # held out, it is there - or the noise is
+            why = OWN_NOISE
+            finding["errors_in_variables"] = True
         elif float(np.linalg.norm(b_ho)) > limit(term):     # held out, it is there
             why = BEYOND_RANGE.format(limit=limit(term), units=finding["units"])
             finding["beyond_range"] = limit(term)
-        elif noisy(term):
-            why = OWN_NOISE
-            finding["errors_in_variables"] = True
         elif float(b_tr @ b_ho) <= 0:
             why = "the held-out coefficient has the other sign"
         elif share < library.MIN_VARIANCE_SHARE:
@@ -422,16 +435,24 @@ def _current(cands, chosen, tier_name):
 
 
 def _select(tiers, cands, train, alpha):
-    """Forward selection with Holm's step-down thresholds over the whole library."""
+    """Forward selection with Holm's step-down thresholds over the whole library; each step
+    tests the CALIBRATED strongest candidates (nominal evidence) with the variance inflation
+    measured beside them (`inference.variance_inflation`), the others count as not passing."""
     chosen, excluded = [], set()
     m = len(cands)
     for step in range(MAX_TERMS):
-        p, evidence = np.ones(m), np.ones(m)
+        evidence = np.ones(m)
         for j, (tn, _, pos) in enumerate(cands):
             if j not in excluded:
                 cur = _current(cands, chosen, tn)
-                fit = inference.fit(tiers[tn], cur + [pos], train[tn])
-                p[j], evidence[j] = fit.test(len(cur))[1], fit.test(len(cur), nominal=True)[1]
+                evidence[j] = inference.fit(tiers[tn], cur + [pos], train[tn]).test(
+                    len(cur), nominal=True)[1]
+        p, lam = np.ones(m), {}
+        for j in [j for j in np.argsort(evidence) if j not in excluded][:CALIBRATED]:
+            tn, _, pos = cands[j]
+            cur = _current(cands, chosen, tn)
+            lam[j] = inference.variance_inflation(tiers[tn], train[tn], cur + [pos])
+            p[j] = inference.fit(tiers[tn], cur + [pos], train[tn], lam[j]).test(len(cur))[1]
         threshold = inference.holm_threshold(alpha, m, step)
         if p.min() > threshold:
             break
@@ -443,18 +464,20 @@ def _select(tiers, cands, train, alpha):
         tn, _, pos_b = cands[best]
         cur = _current(cands, chosen, tn)
         alternatives = []
-        for j in np.flatnonzero(p <= threshold):
+        for j in passing:
             if j == best or cands[j][0] != tn:
                 continue
             pos_j = cands[j][2]
-            p_j = inference.fit(tiers[tn], cur + [pos_b, pos_j], train[tn]).test(len(cur) + 1)[1]
-            p_b = inference.fit(tiers[tn], cur + [pos_j, pos_b], train[tn]).test(len(cur) + 1)[1]
+            p_j = inference.fit(tiers[tn], cur + [pos_b, pos_j], train[tn],
+                                lam[best]).test(len(cur) + 1)[1]
+            p_b = inference.fit(tiers[tn], cur + [pos_j, pos_b], train[tn],
+                                lam[j]).test(len(cur) + 1)[1]
             if p_j > alpha and p_b > alpha:
                 alternatives.append(int(j))
         same = [j for j in np.argsort(evidence) if cands[j][0] == tn and j not in excluded]
         chosen.append(dict(j=best, alternatives=alternatives, p_train=float(p[best]),
                            threshold=threshold, competitors=[int(j) for j in same[:10]],
-                           prior=list(cur)))
+                           prior=list(cur), variance_inflation=lam[best]))
         excluded |= {best, *alternatives}
     return chosen
 

@@ -567,7 +567,7 @@ def test_navigation_level_says_why_a_chosen_term_is_unsettled():
     """The foreign flights without their reference IMU, at the navigation level (a new
     user's trial): foreign-02's g-sensitivity acts in the one boost, whose training segment
     chose a term that the held-out segments can neither confirm nor refute; foreign-01's
-    holds on the held-out segments but the bootstrap does not choose it. Both said
+    too (it had held there, but the bootstrap did not choose it). Both said
     'no-missing-physics' and conclusive; both are inconclusive now (contract verdict
     unexplained-residual) with the reason, while the effect-free foreign-05 keeps its clean
     bill. (An effect never chosen still gets 'no-missing-physics': nothing detected, no
@@ -583,10 +583,12 @@ def test_navigation_level_says_why_a_chosen_term_is_unsettled():
                                    Calibration.load(base + ".cal.json"))
         verdicts[n] = (sensor.verdict(diag), diag.findings, " ".join(diag.inconclusive))
     assert verdicts[5] == ("no-missing-physics", [], ""), verdicts[5]
-    for n, words in ((1, "cannot name"), (2, "cannot confirm")):
+    for n in (1, 2):
         verdict, findings, why = verdicts[n]
         assert verdict != "no-missing-physics", verdicts[n]
-        assert findings or words in why, verdicts[n]       # named one day, or said why not
+        # named one day, or said why not (foreign-01's term is chosen on the training
+        # segments and held out not confirmed since the variance inflation, 2026-11-29)
+        assert findings or "cannot name" in why or "cannot confirm" in why, verdicts[n]
 
 
 def test_navigation_level_is_inconclusive_beyond_small_angles():
