@@ -335,32 +335,93 @@ def halves_verdict(findings, halves, absorbed=None):
         if p >= HALVES_ALPHA or factor <= 1.0:
             kept.append(dict(f, halves=dict(record, widened_by=1.0)))
             continue
-        wide = _widened(f, factor)
-        wide["halves"] = dict(record, widened_by=factor)
-        if "p_heldout" in f:    # the held-out test's statistic read with the wider interval
-            stat_ho = stats.chi2.isf(max(f["p_heldout"], 1e-300), len(diff))
-            wide["halves"]["p_heldout_widened"] = float(
-                stats.chi2.sf(stat_ho / factor ** 2, len(diff)))
-        lo, hi = wide["ci95"]
-        if wide["halves"].get("p_heldout_widened", 0.0) >= f.get("heldout_threshold", 1.0):
-            aside.append(dict(wide, rejected=(
-                f"the recording's halves disagree (p {p:.2g}): with its interval widened "
-                f"{factor:.2f}x its held-out p reads {wide['halves']['p_heldout_widened']:.2g}, "
-                f"above its limit {f['heldout_threshold']:.2g} - inconclusive")))
-        elif lo <= 0.0 <= hi:
-            aside.append(dict(wide, rejected=(
-                f"the recording's halves disagree (p {p:.2g}): its interval widened "
-                f"{factor:.2f}x holds zero - inconclusive")))
-        else:
-            kept.append(wide)
+        ok, wide = _judged_wider(f, factor, len(diff), f"the recording's halves disagree "
+                                 f"(p {p:.2g})", "halves", record)
+        (kept if ok else aside).append(wide)
     return kept, aside
 
 
-def halves_reasons(rejected):
-    """Why 'nothing is missing' cannot be said of a recording whose halves set terms aside
-    (`halves_verdict`): each such term, with its text - the halves saw it, inconsistently."""
-    return [f"{r['label']}: {r['rejected']}" for r in rejected    # only the halves' own
-            if isinstance(r.get("halves"), dict)]                 # rejections carry them
+def _judged_wider(finding, factor, k, why, key, record):
+    """(kept, the finding with its intervals widened by factor and `record` under `key`,
+    with the held-out p read with the wider interval - its chi-square (k dof) over factor^2:
+    a chi-square reading of whatever test gave it): set aside (`rejected`: `why` and the
+    reading) when that p misses the finding's own held-out limit (`heldout_threshold`) or
+    the widened interval holds zero."""
+    wide = _widened(finding, factor)
+    wide[key] = record = dict(record, widened_by=factor)
+    if "p_heldout" in finding:
+        stat_ho = stats.chi2.isf(max(finding["p_heldout"], 1e-300), k)
+        record["p_heldout_widened"] = float(stats.chi2.sf(stat_ho / factor ** 2, k))
+    lo, hi = wide["ci95"]
+    if record.get("p_heldout_widened", 0.0) >= finding.get("heldout_threshold", 1.0):
+        return False, dict(wide, rejected=(
+            f"{why}: with its interval widened {factor:.2f}x its held-out p reads "
+            f"{record['p_heldout_widened']:.2g}, above its limit "
+            f"{finding['heldout_threshold']:.2g} - inconclusive"))
+    if lo <= 0.0 <= hi:
+        return False, dict(wide, rejected=f"{why}: its interval widened {factor:.2f}x holds "
+                                          "zero - inconclusive")
+    return True, wide
+
+
+# The library's median held-out test statistic beside a recording's findings, over its chance
+# value, at most this: on the independent simulator's 12 development logs (sensor level,
+# beside their findings) it was 0.46-1.73 - a median of ~100 correlated chi-square values
+# scatters by tens of percent; on the light aircraft's recording (shared onspeed-vn300: a
+# cheap IMU, uncalibrated, beside a VN-300 logged in 0.01 steps) 35, and 21 on its first 8 s
+LIBRARY_INFLATION_LIMIT = 3.0
+
+
+def library_inflation(design, rows, given):
+    """lambda: the median over the library's terms other than `given` (positions) of each
+    one's test statistic on `rows` beside them, as chi-square with 1 dof (from its p), over
+    that law's median 0.455 (genomic control: Devlin & Roeder, Biometrics 55, 1999; the
+    navigation level corrects every test by it, `inference.variance_inflation`) - about 1
+    where the tests' noise model holds and the findings take what is there."""
+    fitter = Fitter(design, rows)
+    others = [j for j in range(len(design.terms)) if j not in given]
+    logp = np.array([term_test(fitter, list(given) + [j], j)["logp"] for j in others])
+    chi2 = stats.chi2.isf(np.exp(np.clip(logp, -745.0, 0.0)), 1)
+    return float(np.median(chi2) / stats.chi2.ppf(0.5, 1))
+
+
+def recording_checks(design, findings, held, library=True):
+    """(kept, set aside, [reason]) of a recording's findings: its halves (`halves_check`),
+    then (`library`) the library beside the kept ones on the held-out rows `held`
+    (`library_inflation`; not for the track level, whose vehicle-model reference has an error
+    model and a check of its own, `track.reference_check`).
+    Beyond LIBRARY_INFLATION_LIMIT the residual is not the noise the tests assume (a
+    reference's steps, its lag, vibration, errors the library has no term for): each
+    finding's interval is widened by sqrt(lambda), judged as the halves' widening is
+    (`_judged_wider`), and the reason given - 'nothing else is missing' cannot be said."""
+    kept, aside = halves_check(design, findings)
+    if not library:
+        return kept, aside, []
+    lam = library_inflation(design, held, [position_of(design, f) for f in kept])
+    record = {"lambda": lam, "limit": LIBRARY_INFLATION_LIMIT}
+    if not lam > LIBRARY_INFLATION_LIMIT:
+        return [dict(f, library_inflation=dict(record, widened_by=1.0)) for f in kept], aside, []
+    beside = ("beside the library's findings, its other terms" if kept
+              else "with no finding of the library, its terms")
+    why = (f"{beside} stand out {lam:.1f} times their chance level on the held-out blocks "
+           f"(median test statistic; at most {LIBRARY_INFLATION_LIMIT:g} where the tests' "
+           "noise model holds)")
+    judged = [_judged_wider(f, math.sqrt(lam), len(np.ravel(beta_of(f))), why,
+                            "library_inflation", record) for f in kept]
+    return ([f for ok, f in judged if ok], aside + [f for ok, f in judged if not ok],
+            [why + ": the residual is not the noise the tests assume (the reference's steps "
+             "or lag, vibration, errors no term describes)"
+             + (f"; the library's findings are judged with intervals {math.sqrt(lam):.2f}x "
+                "wider" if kept else "")])
+
+
+def set_aside_reasons(rejected):
+    """Why 'nothing is missing' cannot be said of a recording whose halves or library check
+    set terms aside (`halves_verdict`, `recording_checks`): each such term, with its text -
+    seen, but not the same throughout or not beyond what the residual makes of any term."""
+    return [f"{r['label']}: {r['rejected']}" for r in rejected    # only those checks'
+            if isinstance(r.get("halves"), dict)                  # rejections carry them
+            or isinstance(r.get("library_inflation"), dict)]
 
 
 def _widened(finding, factor):

@@ -26,7 +26,7 @@ from scipy import stats
 from ..compensation import effects
 from ..evaluation.replay import resample
 from . import inference, library
-from .confirmation import (alternative_of, beta_of, effect_size, estimate, halves_reasons,
+from .confirmation import (alternative_of, beta_of, effect_size, estimate, set_aside_reasons,
                            halves_verdict, rms_in, term_spans, where_rows)
 from .design import term_contribution
 from .error_equations import (EARTH_RADIUS_M, G0, error_model, independent_inputs,
@@ -120,7 +120,7 @@ def diagnose(flight, cal, alpha=0.05, seed=0, reference=None):
     diag = NavigationDiagnosis(findings, rejected, tier, train, len(cands), cands, observed,
                                epochs, [], beyond_small_angles(observed)
                                + ([] if findings else unsettled(rejected)
-                                  + halves_reasons(rejected)))
+                                  + set_aside_reasons(rejected)))
     removed = {k: recorded_bias(flight, k).tolist()
                for k in ("gyro_bias_static_rad_s", "accel_bias_m_s2")}
     if any(any(v) for v in removed.values()):

@@ -77,7 +77,7 @@ from .design import (Binning, CHANNELS, Design, FAST_BIN_S, detrended, term_cont
                      make_design, reference_error, bins, calibration_prior, residual)
 from .fitting import Fitter, term_test
 from .scan import SCAN_WINDOW_S, condition_masks, condition_map, near_spans, excursions
-from .confirmation import (beta_of, confirm_chosen, halves_check, halves_reasons,
+from .confirmation import (beta_of, confirm_chosen, recording_checks, set_aside_reasons,
                            position_of, removal_sigma)
 from .selection import select
 
@@ -153,8 +153,7 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
                              f" ({flagged:.0%} of the samples flagged unusable - saturated "
                              "or wild - by the compensation: is the calibration this unit's?)"
                              if flagged > 0.5 else ""))
-    block = outputs.block_index(design.t, block_s)
-    train = block % 2 == 0
+    train = outputs.block_index(design.t, block_s) % 2 == 0
     held = ~train
 
     # the all-rows fit, made when first needed (look-alikes during the selection; its Grams
@@ -163,8 +162,8 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
     chosen, within = select(design, train, alpha, prep.full_scale, whole)
     findings, rejected = confirm_chosen(design, chosen, train, held, alpha, prep.full_scale,
                                         prep.cond)
-    findings, aside = halves_check(design, findings) if flight.source == "recording" \
-        else (findings, [])                 # a real record's halves may differ
+    findings, aside, doubts = recording_checks(design, findings, held, check_reference) \
+        if flight.source == "recording" else (findings, [], [])    # a real record's noise
     rejected = rejected + aside
     everything = whole()
     before, removed, fit_found = _residuals(design, everything, findings)
@@ -184,9 +183,10 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
                            everything, outputs.bias_null(noise) if output_tests else None,
                            (flight, *prep.samples["compensated"]))
     diag.inconclusive = [why for why in (stamp_jitter(flight.mimu_t, "the MIMU's"),
-                                         stamp_jitter(flight.fog_t, "the reference IMU's")) if why]
+                                         stamp_jitter(flight.fog_t, "the reference IMU's"),
+                                         *doubts) if why]
     if not findings:        # what the halves set aside was there, but not the same throughout
-        diag.inconclusive += halves_reasons(aside)
+        diag.inconclusive += set_aside_reasons(aside)
     if prep.agreement is not None:
         diag.reference_agreement = prep.agreement
         diag.inconclusive = diag.inconclusive + prep.agreement["failures"]

@@ -142,5 +142,5 @@ def test_terms_the_halves_set_aside_say_why_nothing_found_is_no_clean_bill():
              "rejected": "the recording's halves disagree (p 0.0001): its interval widened "
                          "3.00x holds zero - inconclusive"}
     other = {"label": "x", "rejected": "held-out p = 0.5, needs < 0.025"}
-    said = confirmation.halves_reasons([aside, other])
+    said = confirmation.set_aside_reasons([aside, other])
     assert said == [f"lever_arm imu.all: {aside['rejected']}"]

@@ -340,7 +340,19 @@ def test_onspeed_cheap_imu_beside_a_quantized_vn300(tmp_path):
     assert main(["cut", str(log), "--span", "0:8", "-o", str(cut)]) == 0
     assert main(["diagnose", str(cut), "--json", str(cut_out)]) == 0
     whole = {f["label"]: f["ci95"] for f in diag["findings"] if f["effect"] == "bias_shift"}
-    for f in json.loads(cut_out.read_text())["findings"]:
+    cut_doc = json.loads(cut_out.read_text())
+    # beside their library findings the library's other terms stand out 35 (30 s) and 21
+    # (8 s) times their chance level: the tests' noise model does not hold here (a reference
+    # in 0.01 steps, a lag, a cheap unit's errors) - said, and the library's findings judged
+    # with intervals sqrt(lambda) wider: the cut's 6.5 deg [2.2, 10.8] yaw mounting (held-out
+    # p 0.007), which the whole 30 s did not name and the import's box-to-box measurement
+    # (within 1.5 deg, above) contradicts, is set aside
+    for doc in (diag, cut_doc):
+        assert any("times their chance level" in r for r in doc["inconclusive_reasons"]), doc
+    assert "mounting_misalignment imu.all" not in [f["label"] for f in cut_doc["findings"]]
+    aside = [r for r in cut_doc["not_confirmed"] if r["label"] == "mounting_misalignment imu.all"]
+    assert aside and aside[0]["library_inflation"]["lambda"] > 3, cut_doc["not_confirmed"]
+    for f in cut_doc["findings"]:
         if f["effect"] == "bias_shift":
             lo, hi = whole.get(f["label"], (np.inf, -np.inf))
             assert f["ci95"][0] <= hi and lo <= f["ci95"][1], (f["label"], f["ci95"], whole)
