@@ -341,16 +341,18 @@ def halves_verdict(findings, halves, absorbed=None):
     return kept, aside
 
 
-def _judged_wider(finding, factor, k, why, key, record):
+def _judged_wider(finding, factor, k, why, key, record, p_heldout=None):
     """(kept, the finding with its intervals widened by factor and `record` under `key`,
     with the held-out p read with the wider interval - its chi-square (k dof) over factor^2:
     a chi-square reading of whatever test gave it): set aside (`rejected`: `why` and the
     reading) when that p misses the finding's own held-out limit (`heldout_threshold`) or
-    the widened interval holds zero."""
+    the widened interval holds zero. `p_heldout`: the p to read, when an earlier widening
+    read the finding's own already (the halves')."""
     wide = _widened(finding, factor)
     wide[key] = record = dict(record, widened_by=factor)
-    if "p_heldout" in finding:
-        stat_ho = stats.chi2.isf(max(finding["p_heldout"], 1e-300), k)
+    p_heldout = finding.get("p_heldout") if p_heldout is None else p_heldout
+    if p_heldout is not None:
+        stat_ho = stats.chi2.isf(max(p_heldout, 1e-300), k)
         record["p_heldout_widened"] = float(stats.chi2.sf(stat_ho / factor ** 2, k))
     lo, hi = wide["ci95"]
     if record.get("p_heldout_widened", 0.0) >= finding.get("heldout_threshold", 1.0):
@@ -370,6 +372,7 @@ def _judged_wider(finding, factor, k, why, key, record):
 # scatters by tens of percent; on the light aircraft's recording (shared onspeed-vn300: a
 # cheap IMU, uncalibrated, beside a VN-300 logged in 0.01 steps) 35, and 21 on its first 8 s
 LIBRARY_INFLATION_LIMIT = 3.0
+LIBRARY_MIN_TERMS = 20
 
 
 def library_inflation(design, rows, given):
@@ -377,10 +380,14 @@ def library_inflation(design, rows, given):
     one's test statistic on `rows` beside them, as chi-square with 1 dof (from its p), over
     that law's median 0.455 (genomic control: Devlin & Roeder, Biometrics 55, 1999; the
     navigation level corrects every test by it, `inference.variance_inflation`) - about 1
-    where the tests' noise model holds and the findings take what is there."""
+    where the tests' noise model holds and the findings take what is there; None with fewer
+    than LIBRARY_MIN_TERMS others (a median of a few is no measure of the bulk)."""
     fitter = Fitter(design, rows)
     others = [j for j in range(len(design.terms)) if j not in given]
     logp = np.array([term_test(fitter, list(given) + [j], j)["logp"] for j in others])
+    logp = logp[np.isfinite(logp)]
+    if len(logp) < LIBRARY_MIN_TERMS:
+        return None
     chi2 = stats.chi2.isf(np.exp(np.clip(logp, -745.0, 0.0)), 1)
     return float(np.median(chi2) / stats.chi2.ppf(0.5, 1))
 
@@ -399,7 +406,7 @@ def recording_checks(design, findings, held, library=True):
         return kept, aside, []
     lam = library_inflation(design, held, [position_of(design, f) for f in kept])
     record = {"lambda": lam, "limit": LIBRARY_INFLATION_LIMIT}
-    if not lam > LIBRARY_INFLATION_LIMIT:
+    if lam is None or not lam > LIBRARY_INFLATION_LIMIT:
         return [dict(f, library_inflation=dict(record, widened_by=1.0)) for f in kept], aside, []
     beside = ("beside the library's findings, its other terms" if kept
               else "with no finding of the library, its terms")
@@ -407,7 +414,9 @@ def recording_checks(design, findings, held, library=True):
            f"(median test statistic; at most {LIBRARY_INFLATION_LIMIT:g} where the tests' "
            "noise model holds)")
     judged = [_judged_wider(f, math.sqrt(lam), len(np.ravel(beta_of(f))), why,
-                            "library_inflation", record) for f in kept]
+                            "library_inflation", record,
+                            f.get("halves", {}).get("p_heldout_widened"))
+              for f in kept]
     return ([f for ok, f in judged if ok], aside + [f for ok, f in judged if not ok],
             [why + ": the residual is not the noise the tests assume (the reference's steps "
              "or lag, vibration, errors no term describes)"

@@ -46,9 +46,7 @@ def document(log_path, diag, alpha=0.05):
     if diag.level == "navigation":
         doc.update(epoch_s=navigation.EPOCH_S, reference="truth (/truth/state)",
                    velocity_error_rms=json_ready(np.sqrt(np.mean(diag.observed ** 2, axis=0))),
-                   variance_inflation={
-                       name: diag.tier.inflation.get(rows.tobytes(), 1.0)
-                       for name, rows in (("training", diag.train), ("held_out", ~diag.train))})
+                   variance_inflation=diag.variance_inflation)
         if getattr(diag, "biases_removed", None):
             doc["biases_removed"] = json_ready(diag.biases_removed)
     return doc
@@ -68,10 +66,11 @@ METHOD = {
     "navigation": ("navigation level (no reference IMU: the MIMU's free-inertial velocity "
                    "error against the reference trajectory is fitted to each candidate's "
                    "error signature on this trajectory, bias wander and initial attitude "
-                   "error as nuisance; the terms' inputs from the reference's motion and "
-                   "attitude, or where it has no attitude from the MIMU's outputs, and then a "
-                   "term made of them is not a finding - the velocity error carries the same "
-                   "noise): the same selection, held-out confirmation and "
+                   "error as nuisance; the terms' inputs from a simulation's exact truth "
+                   "with attitude, else from the MIMU's outputs, and then a term made of them "
+                   "is not a finding - the velocity error carries the same noise; every "
+                   "test's variance times the inflation the rest of the library shows): the "
+                   "same selection, held-out confirmation and "
                    "bootstrap as the sensor level; inconclusive when a chosen term is neither "
                    "confirmed nor refuted on the held-out segments, or holds there but not in "
                    "the bootstrap; 'no-missing-physics' means none detected, not a statement "

@@ -151,16 +151,20 @@ def variance_inflation(tier, rows, given=()):
     over the tier's other candidates of each one's test statistic beside `given`, as
     chi-square with 1 dof (from its p-value), over that law's median (module doc) - given
     the terms a flight has, the rest of the library is null. Kept per (rows, given) in
-    `tier.inflation`; 1 where fewer than MIN_CALIBRATION_TERMS others are left."""
+    `tier.inflation`; 1 where fewer than MIN_CALIBRATION_TERMS others (with a finite p) are
+    left. A chi-square reading of F tests of k parameters: for k > 1 it over-corrects
+    (conservative)."""
     given = list(given)
     key = (rows.tobytes(), tuple(sorted(given)))
     if key not in tier.inflation:
         others = [j for j in range(len(tier.columns)) if j not in given]
         lam = 1.0
         if len(others) >= MIN_CALIBRATION_TERMS:
-            p = [fit(tier, given + [j], rows).test(len(given))[1] for j in others]
-            chi2 = stats.chi2.isf(np.clip(p, 1e-300, 1.0), 1)
-            lam = max(1.0, float(np.median(chi2) / stats.chi2.ppf(0.5, 1)))
+            p = np.array([fit(tier, given + [j], rows).test(len(given))[1] for j in others])
+            p = p[np.isfinite(p)]
+            if len(p) >= MIN_CALIBRATION_TERMS:
+                chi2 = stats.chi2.isf(np.clip(p, 1e-300, 1.0), 1)
+                lam = max(1.0, float(np.median(chi2) / stats.chi2.ppf(0.5, 1)))
         tier.inflation[key] = lam
     return tier.inflation[key]
 

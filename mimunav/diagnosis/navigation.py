@@ -7,9 +7,10 @@ EPOCH_S, is the observation. Every candidate term of the library (`library.candi
 has an error signature on this trajectory: the velocity error its regressor, at unit
 coefficient, produces through the linearised strapdown error equations (`error_equations`;
 tested against the full navigator in tests/diagnosis/test_diagnosis.py). The regressors'
-inputs come from the reference's motion and attitude where it has an attitude; without one,
-from the MIMU's own outputs, and a term made of those (`library.reads_own_outputs`) is not
-a finding: the velocity error carries the same noise (errors in variables, `OWN_NOISE`).
+inputs come from a simulation's exact truth where it has an attitude; otherwise (a recorded
+reference's noise would sit in both them and the velocity error) from the MIMU's own
+outputs, and a term made of those (`library.reads_own_outputs`) is not a finding: the
+velocity error carries the same noise (errors in variables, `OWN_NOISE`).
 
 The fit is on velocity-error increments over EPOCH_S (white accelerometer noise gives
 independent increments; gyro noise and wander give correlated ones, handled by HAC blocks of
@@ -71,6 +72,7 @@ class NavigationDiagnosis:
     unexplained: list
     inconclusive: list              # why the error equations cannot judge this flight
     biases_removed: dict | None = None  # a recording's import-measured biases, taken out
+    variance_inflation: dict | None = None  # training / held-out lambda beside the chosen
 
 
 def nuisance(model):
@@ -104,6 +106,9 @@ def diagnose(flight, cal, alpha=0.05, seed=0, reference=None):
     own = independent_inputs(flight, reference) is None
     noisy = lambda term: own and library.reads_own_outputs(term)             # noqa: E731
     findings, rejected = _confirm(tier, cands, chosen, train, alpha, seed, cond, limit, noisy)
+    idx = [cands[c["j"]][2] for c in chosen]
+    inflation = {name: inference.variance_inflation(tier, rows, idx)
+                 for name, rows in (("training", train), ("held_out", ~train))}
     given = _columns(cands, findings)
     findings, at = _relinearized(flight, cal, reference, findings, ~train,
                                  inference.variance_inflation(tier, ~train, given))
@@ -121,6 +126,7 @@ def diagnose(flight, cal, alpha=0.05, seed=0, reference=None):
                                epochs, [], beyond_small_angles(observed)
                                + ([] if findings else unsettled(rejected)
                                   + set_aside_reasons(rejected)))
+    diag.variance_inflation = inflation
     removed = {k: recorded_bias(flight, k).tolist()
                for k in ("gyro_bias_static_rad_s", "accel_bias_m_s2")}
     if any(any(v) for v in removed.values()):
@@ -140,9 +146,10 @@ BEYOND_RANGE = ("its coefficient is beyond the term's physical range ({limit:.3g
                 "a motion the error equations do not follow")
 
 
-OWN_NOISE = ("its regressor is made of the MIMU's own outputs (the reference trajectory has no "
-             "attitude to make it from), whose noise the velocity error integrates too: a fit "
-             "of that noise (errors in variables) cannot be told from the term")
+OWN_NOISE = ("its regressor is made of the MIMU's own outputs (only a simulation's exact truth "
+             "with attitude gives them otherwise: a recorded reference's noise would sit in "
+             "both), whose noise the velocity error integrates too: a fit of that noise "
+             "(errors in variables) cannot be told from the term")
 
 
 def _within_range(findings, limit, at):
@@ -176,7 +183,7 @@ def unsettled(rejected):
         elif r.get("errors_in_variables"):
             reasons.append(f"{r['label']} fits the velocity error (held-out p "
                            f"{r['p_heldout']:.2g}) at {held} {r['units']}, but {OWN_NOISE}; a "
-                           "reference with an attitude, or a reference IMU, can tell them apart")
+                           "reference IMU (the sensor level) can tell them apart")
         elif r.get("heldout_untestable"):
             reasons.append(f"{r['label']} was chosen on the training segments (p "
                            f"{r['p_train']:.2g}) and the held-out ones cannot confirm it at "

@@ -273,7 +273,8 @@ def _check_time_offset(rec, t_imu, t_ref, rate, corr0, half):
         c = np.corrcoef(smooth[k], rate[inside])[0, 1]
         if c > best:
             best, best_lag = float(c), float(lag)
-    unexplained = (1 - corr0 ** 2) / max(1 - best ** 2, 1e-12)
+    # as stamped, a correlation below zero explains nothing (r0 = -0.9 is no near-match)
+    unexplained = (1 - max(corr0, 0.0) ** 2) / max(1 - best ** 2, 1e-12)
     if best > 0.7 and unexplained >= CLEARLY_BETTER and abs(best_lag) >= REFUSED_OFFSET_S:
         raise RecordingError(
             f"{rec.name}: the gyro's yaw rate follows the GNSS course rate only with the IMU's "
