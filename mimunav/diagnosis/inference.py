@@ -72,6 +72,17 @@ class Tier:
         blocks += np.concatenate([[0], np.cumsum(np.diff(t) > 1.5 * np.median(np.diff(t)))])
         return (lambda v, c: project(v, c) / scale[c]), _renumber(blocks), np.asarray(scale)
 
+    def whitened(self, rows, j, c):
+        """Candidate j's columns (None: the residual) on channel c over `rows`, nuisance-free
+        and scaled (`prepared`), kept: a fit of the library re-uses them; None where j does
+        not act on c."""
+        key = ("whitened", rows.tobytes(), j, c)
+        if key not in self._cache:
+            whiten = self.prepared(rows)[0]
+            block = self.residual[:, c] if j is None else self.columns[j].get(c)
+            self._cache[key] = None if block is None else whiten(block[rows], c)
+        return self._cache[key]
+
     @property
     def channels(self):
         return self.residual.shape[1]
@@ -123,25 +134,21 @@ def p_text(p):
 def design(tier, terms, rows):
     """Stacked, nuisance-free, scaled response and design over the chosen rows for the
     candidate indices `terms`: (y, X, block ids, slices)."""
-    whiten, blocks, _ = tier.prepared(rows)
+    _, blocks, _ = tier.prepared(rows)
     ys, xs, bl = [], [], []
     widths = [tier.k[j] for j in terms]
     slices, start = [], 0
     for w in widths:
         slices.append(slice(start, start + w))
         start += w
+    n = int(rows.sum())
     for c in range(tier.channels):
-        cols = np.zeros((rows.sum(), start))
-        used = False
-        for j, s in zip(terms, slices):
-            block = tier.columns[j].get(c)
-            if block is not None:
-                cols[:, s] = block[rows]
-                used = True
-        if not used and terms:
+        parts = [tier.whitened(rows, j, c) for j in terms]
+        if terms and all(p is None for p in parts):
             continue
-        ys.append(whiten(tier.residual[rows, c], c))
-        xs.append(whiten(cols, c) if start else cols)
+        ys.append(tier.whitened(rows, None, c))
+        xs.append(np.hstack([np.zeros((n, w)) if p is None else p
+                             for p, w in zip(parts, widths)]) if start else np.zeros((n, 0)))
         bl.append(blocks)
     return np.concatenate(ys), np.vstack(xs), np.concatenate(bl), slices
 
