@@ -409,7 +409,7 @@ def recording_checks(design, findings, held, library=True):
     if lam is None or not lam > LIBRARY_INFLATION_LIMIT:
         return [dict(f, library_inflation=dict(record, widened_by=1.0)) for f in kept], aside, []
     beside = ("beside the library's findings, its other terms" if kept
-              else "with no finding of the library, its terms")
+              else "with no term of the library found, its terms")
     why = (f"{beside} stand out {lam:.1f} times their chance level on the held-out blocks "
            f"(median test statistic; at most {LIBRARY_INFLATION_LIMIT:g} where the tests' "
            "noise model holds)")
@@ -417,11 +417,14 @@ def recording_checks(design, findings, held, library=True):
                             "library_inflation", record,
                             f.get("halves", {}).get("p_heldout_widened"))
               for f in kept]
+    dropped = sum(not ok for ok, _ in judged)
     return ([f for ok, f in judged if ok], aside + [f for ok, f in judged if not ok],
             [why + ": the residual is not the noise the tests assume (the reference's steps "
              "or lag, vibration, errors no term describes)"
-             + (f"; the library's findings are judged with intervals {math.sqrt(lam):.2f}x "
-                "wider" if kept else "")])
+             + (f"; the library's {len(kept)} finding(s) judged with intervals "
+                f"{math.sqrt(lam):.2f}x wider, {dropped} set aside" if kept else "")
+             + " (the tests on the outputs - bias, saturation, quantization - have nulls of "
+             "their own and are not judged by it)"])
 
 
 def set_aside_reasons(rejected):

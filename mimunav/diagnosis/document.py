@@ -44,7 +44,7 @@ def document(log_path, diag, alpha=0.05):
     if reasons:
         doc["inconclusive_reasons"] = reasons
     if diag.level == "navigation":
-        doc.update(epoch_s=navigation.EPOCH_S, reference="truth (/truth/state)",
+        doc.update(epoch_s=navigation.EPOCH_S, reference=diag.reference_kind,
                    velocity_error_rms=json_ready(np.sqrt(np.mean(diag.observed ** 2, axis=0))),
                    variance_inflation=diag.variance_inflation)
         if getattr(diag, "biases_removed", None):

@@ -73,6 +73,7 @@ class NavigationDiagnosis:
     inconclusive: list              # why the error equations cannot judge this flight
     biases_removed: dict | None = None  # a recording's import-measured biases, taken out
     variance_inflation: dict | None = None  # training / held-out lambda beside the chosen
+    reference_kind: str = "truth (/truth/state)"
 
 
 def nuisance(model):
@@ -125,8 +126,11 @@ def diagnose(flight, cal, alpha=0.05, seed=0, reference=None):
     diag = NavigationDiagnosis(findings, rejected, tier, train, len(cands), cands, observed,
                                epochs, [], beyond_small_angles(observed)
                                + ([] if findings else unsettled(rejected)
-                                  + set_aside_reasons(rejected)))
+                                  + set_aside_reasons(rejected)
+                                  + untestable(cands, noisy)))
     diag.variance_inflation = inflation
+    diag.reference_kind = ("truth (/truth/state)" if flight.source == "simulation" else
+                           "the recording's reference trajectory (/truth/state)")
     removed = {k: recorded_bias(flight, k).tolist()
                for k in ("gyro_bias_static_rad_s", "accel_bias_m_s2")}
     if any(any(v) for v in removed.values()):
@@ -162,6 +166,20 @@ def _within_range(findings, limit, at):
     pick = lambda xs: [x for x, ok in zip(xs, inside) if ok]                 # noqa: E731
     return pick(findings), beyond, (tier, pick(columns),
                                     None if point is None else pick(point))
+
+
+def untestable(cands, noisy):
+    """[reason] when the library's terms made of the MIMU's own outputs (`noisy`) cannot be
+    tested on this reference: 'nothing found' does not cover them."""
+    n = sum(noisy(term) for _, term, _ in cands)
+    if not n:
+        return []
+    return [f"{n} of the {len(cands)} candidate terms (scale, cross-axis, asymmetry, "
+            "nonlinearity, misalignment, time skew) are made of the MIMU's own outputs here - "
+            "only a simulation's exact truth with attitude gives their inputs otherwise - and "
+            "cannot be told from the noise the velocity error shares with them: 'nothing "
+            "found' does not cover them; a reference IMU (the sensor level) or a land "
+            "vehicle's track (the track level) can test them"]
 
 
 def unsettled(rejected):

@@ -83,8 +83,8 @@ def _check_reference_clock(rec):
     if late is not None and abs(late) >= REFUSED_OFFSET_S:
         raise RecordingError(
             f"{rec.name}: the reference's attitude turns as the IMU does only with its stamps "
-            f"{late:+.2f} s late ({clock['said']}): the two time bases differ by that much; "
-            f"--reference-time-offset {-late:+.2f} would shift the reference back")
+            f"{late:+.2f} s late ({clock['said']}): the two time bases differ by that much"
+            + _advice(rec, rec.reference_shift_s - late, ".2f"))
 
 
 FELT_GRAVITY_SHARE = 0.05   # of the recording's 1 s means: at least this share (and 3 s)
@@ -279,9 +279,20 @@ def _check_time_offset(rec, t_imu, t_ref, rate, corr0, half):
         raise RecordingError(
             f"{rec.name}: the gyro's yaw rate follows the GNSS course rate only with the IMU's "
             f"stamps shifted by {-best_lag:+.1f} s (correlation {best:.2f}, {corr0:+.2f} as "
-            "stamped): the IMU's and the reference's time bases differ by that much (GPS time "
-            f"read as UTC is 18 s off); --reference-time-offset {best_lag:+.1f} would shift "
-            "the reference back")
+            "stamped): the IMU's and the reference's time bases differ by that much"
+            + (" (GPS time read as UTC is 18 s off)" if abs(best_lag) > 10 else "")
+            + _advice(rec, rec.reference_shift_s + best_lag, ".1f"))
+
+
+def _advice(rec, total_s, form):
+    """'; --reference-time-offset TOTAL would shift the reference back' - the whole shift
+    from the recording's stamps, in place of any the command line gave (a given shift is
+    in the stamps checked: the correction alone would undo it)."""
+    given = rec.reference_shift_s
+    if given and abs(total_s) < 0.05:
+        return f"; without the --reference-time-offset {given:+g} given, the reference is right"
+    return (f"; --reference-time-offset {total_s:+{form}} would shift the reference back"
+            + (f" (in place of the {given:+g} s given)" if given else ""))
 
 
 def _local_mean(x, k, half=5):

@@ -55,6 +55,7 @@ class Recording:
     assumed: dict = field(default_factory=dict)
     reference_imu: dict | None = None
     vehicle: str | None = None      # what carried the IMU, one of VEHICLES, when declared
+    reference_shift_s: float = 0.0  # what --reference-time-offset (or a spec) added, s
     range: dict = field(default_factory=dict)   # the IMU's full scale when known: gyro_rad_s,
                                                 # accel_m_s2 (outputs at it are clipped)
 
@@ -102,6 +103,7 @@ class Recording:
         for part in (self.reference, self.fixes):
             if part is not None:
                 part["ns"] = np.asarray(part["ns"], dtype=np.int64) + step
+        self.reference_shift_s += offset_s
         self._say_shift("reference_time", offset_s, why)
 
     def _say_shift(self, key, offset_s, why):

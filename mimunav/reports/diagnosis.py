@@ -141,8 +141,10 @@ def markdown(doc, diag, cal_label):
 
 
 def _verdict_lines(doc, cal_label):
+    verdict = (f"**{doc['verdict']}**" if doc["conclusive"] else
+               f"**inconclusive** (contract verdict {doc['verdict']}; the reasons below)")
     lines = [f"# Diagnosis of {doc['log']} ({doc['level']} level)", "",
-             f"Model: `{cal_label}`. Verdict: **{doc['verdict']}** "
+             f"Model: `{cal_label}`. Verdict: {verdict} "
              f"({doc['candidates_tested']} candidate terms, family-wise alpha {doc['alpha']}).",
              "", doc["method"] + ".", ""]
     if not doc["conclusive"]:

@@ -550,6 +550,23 @@ def test_the_gnss_course_judges_units_and_axes_without_a_reference_attitude(tmp_
     assert not (tmp_path / "never.mcap").exists()
 
 
+def test_a_shift_given_on_the_command_line_is_counted_in_the_advice(tmp_path):
+    """Right stamps shifted by --reference-time-offset +1.0 (a new user following advice that
+    did not apply): the refusal names the whole shift from the recording's stamps - none - not
+    the correction to the shifted ones (it had said -1.0, then +1.0 once that was given)."""
+    t_tr, lat, lon, h, v = straight_track()
+    t = np.arange(t_tr[0], t_tr[-1] + 1e-9, 0.01)
+    run = truth.generate(TrackMotion(t_tr, lat, lon, h, v), t)
+    dth, dv = MOUNT.sensor_increments(run)
+    epoch = 1_700_000_000_000_000_000
+    ref = dict(ns=epoch + np.round(t_tr * 1e9).astype(np.int64), lat=lat, lon=lon, h=h, v_ned=v)
+    rec = Recording("given", "", epoch + np.round(t[1:] * 1e9).astype(np.int64), dth * 100.0,
+                    dv * 100.0, MOUNT, reference=ref)
+    rec.shift_reference(1.0, "command line")
+    with pytest.raises(RecordingError, match=r"without the --reference-time-offset \+1 given"):
+        write_log(rec, tmp_path / "never.mcap")
+
+
 @pytest.mark.slow
 def test_the_import_measures_the_mountings_yaw_against_the_course(tmp_path, capsys):
     """The ideal IMU of a level drive that turns once (`one_turn_track`) declared with its
