@@ -393,7 +393,8 @@ def library_inflation(design, rows, given):
 
 
 def recording_checks(design, findings, held, library=True):
-    """(kept, set aside, [reason]) of a recording's findings: its halves (`halves_check`),
+    """(kept, set aside, [reason], the library's record {lambda, limit, widened_by} or None)
+    of a recording's findings: its halves (`halves_check`),
     then (`library`) the library beside the kept ones on the held-out rows `held`
     (`library_inflation`; not for the track level, whose vehicle-model reference has an error
     model and a check of its own, `track.reference_check`).
@@ -403,11 +404,12 @@ def recording_checks(design, findings, held, library=True):
     (`_judged_wider`), and the reason given - 'nothing else is missing' cannot be said."""
     kept, aside = halves_check(design, findings)
     if not library:
-        return kept, aside, []
+        return kept, aside, [], None
     lam = library_inflation(design, held, [position_of(design, f) for f in kept])
     record = {"lambda": lam, "limit": LIBRARY_INFLATION_LIMIT}
     if lam is None or not lam > LIBRARY_INFLATION_LIMIT:
-        return [dict(f, library_inflation=dict(record, widened_by=1.0)) for f in kept], aside, []
+        return ([dict(f, library_inflation=dict(record, widened_by=1.0)) for f in kept], aside,
+                [], record)
     beside = ("beside the library's findings, its other terms" if kept
               else "with no term of the library found, its terms")
     why = (f"{beside} stand out {lam:.1f} times their chance level on the held-out blocks "
@@ -424,7 +426,7 @@ def recording_checks(design, findings, held, library=True):
              + (f"; the library's {len(kept)} finding(s) judged with intervals "
                 f"{math.sqrt(lam):.2f}x wider, {dropped} set aside" if kept else "")
              + " (the tests on the outputs - bias, saturation, quantization - have nulls of "
-             "their own and are not judged by it)"])
+             "their own and are not judged by it)"], dict(record, widened_by=math.sqrt(lam)))
 
 
 def set_aside_reasons(rejected):

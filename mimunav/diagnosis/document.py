@@ -35,6 +35,8 @@ def document(log_path, diag, alpha=0.05):
         doc["reference_check"] = json_ready(diag.reference_check)
     if getattr(diag, "level_choice", None):
         doc["level_choice"] = diag.level_choice
+    if getattr(diag, "library_inflation", None):
+        doc["library_inflation"] = json_ready(diag.library_inflation)
     if getattr(diag, "reference_agreement", None):
         doc["reference_agreement"] = json_ready(diag.reference_agreement)
     if getattr(diag, "time_lag", None):

@@ -109,6 +109,8 @@ class SensorDiagnosis:
     fitter: object = None       # the all-rows `Fitter` (for `term_z`)
     bias_null: dict = None      # the wander the bias tests take as normal, and its source
     compensated: tuple = None   # (flight, w rad/s, f m/s^2 (N, 3) sensor axes): the MIMU of
+    library_inflation: dict = None  # a recording's: the library beside the findings
+                                    # (`confirmation.recording_checks`), None when not measured
 
 
 def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander=None,
@@ -156,14 +158,14 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
     train = outputs.block_index(design.t, block_s) % 2 == 0
     held = ~train
 
-    # the all-rows fit, made when first needed (look-alikes during the selection; its Grams
-    # cost about a second on a 10-minute flight)
+    # the all-rows fit, when first needed (look-alikes; ~1 s of Grams on a 10-minute flight)
     whole = cache(lambda: Fitter(design, np.ones(len(design.t), bool)))
     chosen, within = select(design, train, alpha, prep.full_scale, whole)
     findings, rejected = confirm_chosen(design, chosen, train, held, alpha, prep.full_scale,
                                         prep.cond)
-    findings, aside, doubts = recording_checks(design, findings, held, check_reference) \
-        if flight.source == "recording" else (findings, [], [])    # a real record's noise
+    findings, aside, doubts, library = recording_checks(  # a real record's halves and noise
+        design, findings, held, check_reference) if flight.source == "recording" \
+        else (findings, [], [], None)
     rejected = rejected + aside
     everything = whole()
     before, removed, fit_found = _residuals(design, everything, findings)
@@ -181,7 +183,7 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
                            before, after, design.reference.as_dict(), len(design.terms),
                            design.terms,
                            everything, outputs.bias_null(noise) if output_tests else None,
-                           (flight, *prep.samples["compensated"]))
+                           (flight, *prep.samples["compensated"]), library)
     diag.inconclusive = [why for why in (stamp_jitter(flight.mimu_t, "the MIMU's"),
                                          stamp_jitter(flight.fog_t, "the reference IMU's"),
                                          *doubts) if why]

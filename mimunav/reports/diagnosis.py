@@ -10,8 +10,9 @@
 The folder is built beside its final place and renamed into it (nothing half-written).
 """
 import math
-import threading
-from concurrent.futures import Future, ThreadPoolExecutor
+from functools import cache
+from types import SimpleNamespace
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
@@ -46,19 +47,12 @@ def model_navigation(flight, cal, compensated=None):
 
 
 def model_navigation_beside(flight, cal):
-    """A Future of `model_navigation(flight, cal)` computed on a daemon thread started now:
-    unlike an executor's worker, it is not waited for when the command fails or is
-    interrupted before asking for it (a 2-hour flight's navigation would hold up Ctrl-C or an
-    input error by half a minute)."""
-    future = Future()
-
-    def run():
-        try:
-            future.set_result(model_navigation(flight, cal))
-        except BaseException as exc:            # raised where the result is asked for
-            future.set_exception(exc)
-    threading.Thread(target=run, name="model-navigation", daemon=True).start()
-    return future
+    """`model_navigation(flight, cal)`, computed when its `result()` is first asked for (after
+    the diagnosis). It had run on a thread beside the diagnosis: the two then ran
+    numpy-quaternion arrays at once, and 1 run in 3-6 of a navigation-level diagnosis with
+    a report ended in 'Reference count error detected: ... dtype 12 (d)' and a segmentation
+    fault (2026-11-29; none in 8 runs since)."""
+    return SimpleNamespace(result=cache(lambda: model_navigation(flight, cal)))
 
 
 def _navigated(flight, cal, outputs=None):
@@ -152,7 +146,25 @@ def _verdict_lines(doc, cal_label):
                   "physics (the contract's verdict field says "
                   f"`{doc['verdict']}`), because", ""]
         lines += [f"- {r}" for r in doc["inconclusive_reasons"]] + [""]
-    return lines
+    return lines + _inflation_lines(doc)
+
+
+def _inflation_lines(doc):
+    """How far the library's test statistics stand above their chance level (median over
+    its terms, chi-square 1 dof): a correction at the navigation level, a check on a
+    recording at the sensor level."""
+    lam = doc.get("variance_inflation")
+    if lam:
+        return [f"Every test's variance was multiplied by the inflation the rest of the library "
+                f"shows beside the terms chosen (its median statistic over its chance value): "
+                f"training {lam['training']:.2f}, held-out {lam['held_out']:.2f}.", ""]
+    lib = doc.get("library_inflation")
+    if lib and lib.get("lambda") is not None:
+        return [f"Beside the findings the library's other terms stand {lib['lambda']:.2f} "
+                f"times their chance level on the held-out blocks (at most {lib['limit']:g} "
+                f"where the tests' noise model holds; the library's findings' intervals "
+                f"widened {lib['widened_by']:.2f}x).", ""]
+    return []
 
 
 def _reference_lines(doc):

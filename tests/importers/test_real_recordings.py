@@ -349,6 +349,7 @@ def test_onspeed_cheap_imu_beside_a_quantized_vn300(tmp_path):
     # (within 1.5 deg, above) contradicts, is set aside
     for doc in (diag, cut_doc):
         assert any("times their chance level" in r for r in doc["inconclusive_reasons"]), doc
+        assert doc["library_inflation"]["lambda"] > doc["library_inflation"]["limit"]
     assert "mounting_misalignment imu.all" not in [f["label"] for f in cut_doc["findings"]]
     aside = [r for r in cut_doc["not_confirmed"] if r["label"] == "mounting_misalignment imu.all"]
     assert aside and aside[0]["library_inflation"]["lambda"] > 3, cut_doc["not_confirmed"]
