@@ -47,8 +47,8 @@ def _diagnosed(args, painter):
         from ..reports.noise import load
         noise = load(args.noise)
         print(f"bias tests' normal wander: {noise['source']}")
-    # the report's navigation of the model needs nothing the diagnosis finds: it runs on
-    # the other core beside the diagnosis
+    # the report's navigation of the model needs nothing the diagnosis finds: made when
+    # the report asks for it (not on a thread beside the diagnosis: see its docstring)
     model = report.model_navigation_beside(flight, cal) if args.output else None
     diag = levels.diagnose(flight, cal, level, args.alpha, args.seed, accuracy, noise,
                            args.vehicle)

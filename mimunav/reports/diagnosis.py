@@ -89,8 +89,8 @@ def write(out_dir, doc, diag, flight, cal, cal_found, cal_label, force=False, pa
     """The report folder: diagnosis.json (with the navigation gain), CAL+found.json, the
     figures and diagnosis.md. The figures are drawn by `painter` (a `plots.Painter`, else
     here) while the navigations run on threads (matplotlib holds the interpreter; the
-    navigator does not). model: a Future of `model_navigation(flight, cal)` started beside
-    the diagnosis, else it is run here beside the navigation with the found terms."""
+    navigator does not). model: what `model_navigation_beside` returns (its `result()`
+    made before the navigation with the found terms), else it is run here beside that."""
     painter = painter or Painter(fork=False)
     # left in reverse: the navigations joined, then the figures drawn (or the child stopped
     # on an error), then the folder committed (or removed)
