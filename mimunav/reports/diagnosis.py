@@ -89,16 +89,17 @@ def write(out_dir, doc, diag, flight, cal, cal_found, cal_label, force=False, pa
     """The report folder: diagnosis.json (with the navigation gain), CAL+found.json, the
     figures and diagnosis.md. The figures are drawn by `painter` (a `plots.Painter`, else
     here) while the navigations run on threads (matplotlib holds the interpreter; the
-    navigator does not). model: what `model_navigation_beside` returns (its `result()`
-    made before the navigation with the found terms), else it is run here beside that."""
+    navigator does not). model: what `model_navigation_beside` returns, else one made here;
+    its `result()` is made in the thread of the navigation with the found terms, one after
+    the other (two navigations in two threads: `model_navigation_beside`)."""
     painter = painter or Painter(fork=False)
     # left in reverse: the navigations joined, then the figures drawn (or the child stopped
     # on an error), then the folder committed (or removed)
     with atomic_folder(out_dir, force=force) as tmp, painter, ThreadPoolExecutor(2) as pool:
-        if model is None:
+        if model is None:                   # made in the same thread as the found terms'
             own = getattr(diag, "compensated", None)     # the sensor level's, of this flight
-            model = pool.submit(model_navigation, flight, cal,
-                                own[1:] if own and own[0] is flight else None)
+            outputs = own[1:] if own and own[0] is flight else None
+            model = SimpleNamespace(result=cache(lambda: model_navigation(flight, cal, outputs)))
         gain = pool.submit(navigation_gain, flight, cal_found, model)
         if diag.level in ("sensor", "track"):
             painter.draw(_residual_map, diag.residual_map, str(tmp / "residual-map.png"))
