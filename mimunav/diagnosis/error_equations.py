@@ -10,7 +10,7 @@ with the transport-rate error closing the Schuler loop, the Coriolis term and th
 channel's gravity gradient (`ErrorModel.velocity`). The regressors' inputs (what drives each
 candidate term) come from a simulation's exact truth with attitude
 (`reference.trajectory_outputs`); else from the MIMU's own outputs, whose noise the velocity
-error integrates too (errors in variables: `ErrorModel.own_outputs`) - as a recorded
+error integrates too (errors in variables) - as a recorded
 reference's noise would be, differenced into them (`independent_inputs`).
 """
 from dataclasses import dataclass
@@ -40,7 +40,6 @@ class ErrorModel:
     f_n: np.ndarray
     dt: np.ndarray
     w_ie: np.ndarray = None     # Earth rate in NED at the start, rad/s (Coriolis of dv)
-    own_outputs: bool = True    # the regressors' inputs are the MIMU's own outputs
 
     def velocity(self, d_f, d_w):
         """Velocity error (nb, 3, k), NED m/s, at the bin ends caused by sensor-axis
@@ -113,7 +112,7 @@ def error_model(flight, nav, w, f, reference=None):
     regressors' inputs. From `reference` (a Trajectory) when it carries an attitude over the
     bins (`reference.trajectory_outputs`: free of the MIMU's noise), the bins ending with it;
     else from the MIMU's own outputs w, f (sensor axes, rad/s, m/s^2), whose noise the
-    velocity error integrates too (errors in variables: `ErrorModel.own_outputs`)."""
+    velocity error integrates too (errors in variables: `independent_inputs`)."""
     if flight.mimu_platform is not None:
         raise InputError(f"{flight.path}: the MIMU turns on a platform (/mimu/platform); "
                          "this analysis does not follow the rotation yet - replay and table do")
@@ -135,7 +134,7 @@ def error_model(flight, nav, w, f, reference=None):
     c_ns = quaternion.as_rotation_matrix(q_ns)
     f_b, w_b = mean(f), mean(w)
     model = ErrorModel(t_end, c_ns, np.einsum("nij,nj->ni", c_ns, f_b), t_end - t_start,
-                       earth.earth_rate_ned(flight.initial.lat), own_outputs=reference is None)
+                       earth.earth_rate_ned(flight.initial.lat))
     temperature, frequency = flight.mimu_temperatures()
     if reference is not None:
         f_in, w_in = trajectory_outputs(reference, np.r_[t_start[0], t_end],

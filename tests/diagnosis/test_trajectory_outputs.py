@@ -61,3 +61,23 @@ def test_a_trajectory_without_attitude_gives_no_outputs():
     blind = traj[np.arange(len(traj))]
     blind.q_nb = attitude.from_wxyz(q)
     assert not has_attitude(blind, 0.0, 20.0) and has_attitude(blind, 6.0, 20.0)
+
+
+def test_at_rest_the_outputs_are_the_earths_rate_and_gravity_in_closed_form():
+    """A trajectory written by hand - at rest, tilted, at 45 deg N - against the closed form
+    w = C_bn w_ie, f = -C_bn g (`frames.earth`), without the truth generator's
+    `body_rate_and_specific_force` that `trajectory_outputs` calls (the exact-increment test
+    above shares it)."""
+    from mimunav.frames import earth
+    from mimunav.motion.trajectory import Trajectory
+    n, lat, h = 101, np.radians(45.0), 150.0
+    q = attitude.from_euler(np.radians(37.0), np.radians(4.0), np.radians(-3.0))
+    traj = Trajectory(np.arange(n) * 0.01, np.full(n, lat), np.full(n, 0.3), np.full(n, h),
+                      np.zeros((n, 3)), np.full(n, q))
+    mounting = Mounting(attitude.as_wxyz(attitude.from_euler(0.1, -0.05, 0.2)), np.zeros(3))
+    f_s, w_s = trajectory_outputs(traj, traj.t, mounting)
+    q_sn = np.conjugate(mounting.q_vs) * np.conjugate(q)
+    np.testing.assert_allclose(w_s, np.tile(attitude.rotate(q_sn, earth.earth_rate_ned(lat)),
+                                            (n - 1, 1)), atol=1e-15)
+    np.testing.assert_allclose(f_s, np.tile(attitude.rotate(q_sn, -earth.gravity_ned(lat, h)),
+                                            (n - 1, 1)), atol=1e-12)
