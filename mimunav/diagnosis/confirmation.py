@@ -14,6 +14,7 @@ from . import library
 from ..frames import attitude
 from .design import CHANNELS, DEG, detrended, term_contribution
 from .fitting import Fitter, plausible, term_test
+from .inference import median_inflation
 
 
 # ---- confirmation on held-out rows -------------------------------------------------------
@@ -386,10 +387,7 @@ def library_inflation(design, rows, given):
     others = [j for j in range(len(design.terms)) if j not in given]
     logp = np.array([term_test(fitter, list(given) + [j], j)["logp"] for j in others])
     logp = logp[np.isfinite(logp)]
-    if len(logp) < LIBRARY_MIN_TERMS:
-        return None
-    chi2 = stats.chi2.isf(np.exp(np.clip(logp, -745.0, 0.0)), 1)
-    return float(np.median(chi2) / stats.chi2.ppf(0.5, 1))
+    return median_inflation(logp) if len(logp) >= LIBRARY_MIN_TERMS else None
 
 
 def recording_checks(design, findings, held, library=True):
