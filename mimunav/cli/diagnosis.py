@@ -37,7 +37,9 @@ def _diagnosed(args, painter):
     from ..reports import diagnosis as report
     if args.output:                 # here, after the fork: the child's import runs beside these
         refuse_folder_early(args.output, args.force, report.FILES)
-    flight, cal, level, why = levels.load(args.log, args.model, args.level, args.vehicle)
+    # without a report, a long flight's sensor level streams (the report navigates it whole)
+    flight, cal, level, why = levels.load(args.log, args.model, args.level, args.vehicle,
+                                          stream=not args.output)
     accuracy = Accuracy.parse(args.reference_accuracy) if args.reference_accuracy else None
     noise = None
     if args.noise:
@@ -159,9 +161,13 @@ def add_diagnose(sub):
                    "required for /mimu/raw, optional for a recorded /mimu/imu (identity)")
     p.add_argument("--json", help="write the mimunav-diagnosis/1 document here (with -o: the "
                    "report's diagnosis.json, whose `navigation` section - the MIMU navigated "
-                   "with and without the found terms - only a report computes)")
+                   "with and without the found terms - only a report computes). Without -o, "
+                   "the sensor level of a long log (over ~1 M MIMU samples) is read from it "
+                   "block by block in bounded memory, its per-sample columns (~200 bytes a "
+                   "sample) in scratch files under the temporary directory (TMPDIR)")
     p.add_argument("-o", "--output", help="report folder: diagnosis.md, plots, diagnosis.json, "
-                   "CAL+found.json (the model with the found terms)")
+                   "CAL+found.json (the model with the found terms); the log is held in "
+                   "memory for the report's navigations")
     p.add_argument("--alpha", type=probability, default=0.05,
                    help="family-wise error rate over the candidate library, 0 < alpha < 1 "
                    "(default 0.05)")

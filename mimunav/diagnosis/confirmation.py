@@ -3,6 +3,7 @@ interval (profile likelihood or Wald), p-value, sign and physical range, attribu
 term acts (time spans and flight conditions) and what removing it does to the residual rms.
 """
 import math
+from dataclasses import dataclass
 
 import numpy as np
 import quaternion
@@ -18,7 +19,7 @@ from .inference import median_inflation
 
 
 # ---- confirmation on held-out rows -------------------------------------------------------
-def confirm_chosen(design, chosen, train, held, alpha, full_scale, cond):
+def confirm_chosen(design, chosen, train, held, alpha, full_scale, extremes):
     if not chosen:
         return [], []
     idx = [c["j"] for c in chosen]
@@ -39,7 +40,7 @@ def confirm_chosen(design, chosen, train, held, alpha, full_scale, cond):
         finding = interval_estimate(design, term, b_ho, res["cov"], interval)
         finding["ci95_method"] = "profile-likelihood" if interval is not None else "wald"
         where = where_rows(term_contribution(design, j, b_ho))
-        finding["where"] = term_spans(design, where, term, cond)
+        finding["where"] = term_spans(design, where, term, extremes)
         finding["fit"] = _rms_fit(design, cleaned, j, b_tr, where, train, held, term)
         for key in ("order", "window_s", "reference"):
             if key in term:
@@ -259,9 +260,28 @@ def rms_in(x, rows, chans):
     return float(np.sqrt(np.mean(v ** 2))) if v.size else float("nan")
 
 
-def term_spans(tier, rows, term, cond, gap_s=2.0, max_spans=20):
+@dataclass
+class Extremes:
+    """The flight conditions `term_spans` says, per row (a sample or a bin) at times t (s):
+    the largest |f| (m/s^2) and |w| (rad/s), the smallest and the largest mean temperature of
+    the triad (degC; NaN unrecorded)."""
+    t: np.ndarray
+    f: np.ndarray
+    w: np.ndarray
+    temperature_low: np.ndarray
+    temperature_high: np.ndarray
+
+    @classmethod
+    def of_conditions(cls, cond):
+        """Of `effects.Conditions`, a row a sample."""
+        temperature = cond.T.mean(axis=1)
+        return cls(cond.t, np.linalg.norm(cond.f, axis=1), np.linalg.norm(cond.w, axis=1),
+                   temperature, temperature)
+
+
+def term_spans(tier, rows, term, extremes, gap_s=2.0, max_spans=20):
     """Contiguous time spans of the rows (gaps below gap_s merged) with the flight
-    conditions met there."""
+    conditions met there (`Extremes`)."""
     t = tier.t
     if not rows.any():
         return []
@@ -273,22 +293,23 @@ def term_spans(tier, rows, term, cond, gap_s=2.0, max_spans=20):
     spans = []
     for a, b in sorted(zip(starts[order], ends[order])):
         t0, t1 = float(t[a] - half), float(t[b] + half)
-        spans.append({"t0": t0, "t1": t1, "condition": _condition(cond, t0, t1, term)})
+        spans.append({"t0": t0, "t1": t1, "condition": _condition(extremes, t0, t1, term)})
     return spans
 
 
-def _condition(cond, t0, t1, term):
+def _condition(extremes, t0, t1, term):
     """What the flight did in [t0, t1]: peak |f| (g), |w| (deg/s), temperature range."""
-    a, b = int(np.searchsorted(cond.t, t0, "left")), int(np.searchsorted(cond.t, t1, "right"))
-    k = slice(a, b)                     # the samples t0 <= t <= t1 (the times increase)
+    a = int(np.searchsorted(extremes.t, t0, "left"))
+    b = int(np.searchsorted(extremes.t, t1, "right"))
+    k = slice(a, b)                     # the rows t0 <= t <= t1 (the times increase)
     if a >= b:
         return library.label(term)
-    f = np.linalg.norm(cond.f[k], axis=1).max() / G0
-    w = np.linalg.norm(cond.w[k], axis=1).max() / DEG
-    temp = cond.T[k].mean(axis=1)
+    f = extremes.f[k].max() / G0
+    w = extremes.w[k].max() / DEG
+    low, high = extremes.temperature_low[k], extremes.temperature_high[k]
     text = f"{library.label(term)} acting: |f| up to {f:.1f} g, |w| up to {w:.0f} deg/s"
-    if np.isfinite(temp).all():
-        text += f", T {temp.min():.1f}-{temp.max():.1f} degC"
+    if np.isfinite(low).all() and np.isfinite(high).all():
+        text += f", T {low.min():.1f}-{high.max():.1f} degC"
     return text
 
 

@@ -11,13 +11,9 @@ from functools import cached_property
 import numpy as np
 from scipy import linalg
 
-from ..compensation import effects
 from ..lab.calibrate import standard_errors
-from ..evaluation.replay import compensated_mimu
-from ..compensation.effects import AXES, Conditions, derivative, vibration_power
+from ..compensation.effects import AXES
 from . import library, wander
-from .reference import DERIVATIVE_WINDOW_S, predicted_mimu
-from ..errors import InputError
 
 
 FAST_BIN_S = 0.01
@@ -55,6 +51,10 @@ class Design:
     reference: object = None    # the reference's `sensors.accuracy.Accuracy` (`_reference_may_carry`)
     calibrated: bool = False    # the MIMU compensated by a calibration of the unit (not
                                 # a recording's outputs taken as they are): `physical_limit`
+    channel_columns: list = field(default_factory=list)  # per channel c: ((nb, 4 + sum k)
+                                # [residual, reference inputs, every candidate's columns on
+                                # c], {candidate: its column indices}) - what every `Fitter`
+                                # filters; each candidate's `columns` are views of these
     q_vs: np.ndarray = field(default_factory=lambda: np.array([1.0, 0, 0, 0]))   # MIMU
                                 # sensor -> vehicle (w, x, y, z): a lever arm is reported in
                                 # the vehicle frame of the metadata's lever_arm_m
@@ -78,64 +78,53 @@ class Design:
                      for ref in (self.inputs[:, :3], self.inputs[:, 3:]))
 
     @cached_property
-    def channel_columns(self):
-        """Per channel c: ((nb, 4 + sum k) [residual, reference inputs, every candidate's
-        columns on c], {candidate: its column indices}) - what every `Fitter` filters. Each
-        candidate's `columns` become views of these (the same numbers, held once: a 2-hour
-        flight's bins of 70 candidates are about a gigabyte)."""
-        out = []
-        for c in range(6):
-            cols = [self.residual[:, c:c + 1], self.ref_columns(c)]
-            slot, start = {}, 4
-            for j in range(len(self.terms)):
-                if c in self.columns[j]:
-                    cols.append(self.columns[j][c])
-                    slot[j] = np.arange(start, start + self.k[j])
-                    start += self.k[j]
-            out.append((np.hstack(cols), slot))
-            for j, s in slot.items():
-                self.columns[j][c] = out[-1][0][:, s[0]:s[-1] + 1]
-        return out
-
-    @cached_property
-    def detrend_q(self):
-        """(nb, knots) orthonormal basis of the piecewise-linear bias (hat functions with
-        knots every DETREND_KNOT_S) that `detrended` removes: one per design, not per call. By
-        Cholesky (Q = B L'^-1, B'B = L L'): the hats' Gram is tridiagonal and well
-        conditioned, and Householder QR of the 68,000 x 70 basis of a 10-minute flight took
-        0.35 s against 0.03 s; the projection Q Q' is the same."""
+    def detrend_basis(self):
+        """The piecewise-linear bias `detrended` removes: hat functions with knots every
+        DETREND_KNOT_S (those that see less than half a bin's weight dropped), held as each
+        bin's two hats (left index (nb,), weights (nb, 2); -1 for a dropped hat), the banded
+        Cholesky factor of their Gram B'B, tridiagonal (or where that is singular the Gram
+        itself, dense, which `detrend` pseudo-inverts) and whether it is the factor: memory
+        linear in the flight's length (a dense basis of a 2-hour flight's 720,000 bins and
+        720 knots is 4 GB)."""
         knots = np.arange(self.t[0], self.t[-1] + DETREND_KNOT_S, DETREND_KNOT_S)
-        basis = np.clip(1 - np.abs((self.t[:, None] - knots[None, :]) / DETREND_KNOT_S), 0,
-                        None)
-        basis = basis[:, basis.sum(axis=0) > 0.5]
+        left = np.clip(np.searchsorted(knots, self.t, "right") - 1, 0, len(knots) - 2) \
+            if len(knots) > 1 else np.zeros(len(self.t), int)
+        u = (self.t - knots[left]) / DETREND_KNOT_S
+        weights = np.column_stack([1 - u, u]) if len(knots) > 1 else np.ones((len(self.t), 1))
+        index = np.column_stack([left, left + 1])[:, :weights.shape[1]]
+        kept = np.bincount(index.ravel(), weights.ravel(), len(knots)) > 0.5
+        slot = np.cumsum(kept) - 1                  # a kept hat's column
+        index = np.where(kept[index], slot[index], -1)
+        weights = np.where(index >= 0, weights, 0.0)
+        k = int(kept.sum())
+        gram = np.zeros((2, k))                     # upper band: (0, j) B_j-1'B_j, (1, j) B_j'B_j
+        for c in range(index.shape[1]):
+            on = index[:, c] >= 0
+            gram[1] += np.bincount(index[on, c], weights[on, c] ** 2, k)
+        if index.shape[1] == 2:
+            both = (index >= 0).all(axis=1)
+            gram[0] += np.bincount(index[both, 1], weights[both, 0] * weights[both, 1], k)
         try:
-            lower = np.linalg.cholesky(basis.T @ basis)
-        except np.linalg.LinAlgError:       # hats that see the same few bins across a gap
-            return np.linalg.qr(basis)[0]
-        return linalg.solve_triangular(lower, basis.T, lower=True).T
+            return index, weights, linalg.cholesky_banded(gram), True
+        except np.linalg.LinAlgError:   # hats that see the same few bins across a gap
+            return index, weights, np.diag(gram[1]) + np.diag(gram[0, 1:], 1) \
+                + np.diag(gram[0, 1:], -1), False
 
-
-def residual(flight, cal, vibration=None):
-    """(t s, residual (N, 6) accel m/s^2 then gyro rad/s, usable (N,), Conditions).
-    vibration: (N, 3) the MIMU's vibration power, (m/s^2)^2, when its outputs in `flight`
-    were filtered (`diagnose`); else from them."""
-    temperature, frequency = flight.mimu_temperatures()
-    w, f, flags = compensated_mimu(flight, cal, per_sample=True)
-    f_p, w_p, inside = predicted_mimu(flight)
-    t = flight.mimu_t
-    # vibration power from the MIMU's own specific force: the reference, often sampled more
-    # slowly, averages part of an airframe vibration away (an interval mean attenuates a
-    # tone by sinc(pi f dt): 17 % of the power of 117 Hz at 500 Hz)
-    cond = Conditions(t, f_p, w_p, derivative(t, f_p, DERIVATIVE_WINDOW_S),
-                      derivative(t, w_p, DERIVATIVE_WINDOW_S),
-                      temperature, frequency,
-                      vibration_power(t, np.nan_to_num(f)) if vibration is None else vibration)
-    res = np.hstack([f - f_p, w - w_p])
-    usable = inside & (flags == 0) & np.isfinite(res).all(axis=1)
-    usable[0] = False                       # the sample at the first stamp has no interval
-    return t, res, usable, cond, {"measured": np.hstack([f, w]),
-                                  "predicted": np.hstack([f_p, w_p]), "flags": flags,
-                                  "inside": inside, "compensated": (w, f)}
+    def detrend(self, x):
+        """(nb, k) x less its least-squares projection on `detrend_basis` (B (B'B)^+ B' x)."""
+        index, weights, factor, banded = self.detrend_basis
+        k = factor.shape[1]
+        projected = np.column_stack([
+            sum(np.bincount(index[on, c], weights[on, c] * x[on, j], k)
+                for c in range(index.shape[1]) for on in [index[:, c] >= 0])
+            for j in range(x.shape[1])])
+        coef = linalg.cho_solve_banded((factor, False), projected) if banded \
+            else np.linalg.lstsq(factor, projected, rcond=None)[0]  # the dense Gram
+        fitted = np.zeros_like(x)
+        for c in range(index.shape[1]):
+            on = index[:, c] >= 0
+            fitted[on] += weights[on, c, None] * coef[index[on, c]]
+        return x - fitted
 
 
 def bins(t, t_reference, bin_s=FAST_BIN_S):
@@ -239,55 +228,74 @@ def model_allowance(cal, term):
 
 
 # ---- the design --------------------------------------------------------------------------
-def make_design(t, res, usable, cond, cands, m, prior, cal, transfer=None):
-    """Bin the residual, the reference inputs and each candidate's regressor; drop candidates
-    the flight cannot drive (no variation) and mark those the reference inputs span.
-    `transfer`: (d (3,) m, P (9, 9)) the lever arm from the reference to the MIMU in the
-    MIMU's axes and the covariance of the reference's gyro error matrix there
-    (`transfer_allowance`), or None."""
-    if len(t) < m[0] + m[1]:
-        raise InputError(f"{len(t)} MIMU samples: fewer than one {FAST_BIN_S:g} s bin")
-    mean = Binning(m, usable)
-    tb, rb = mean(t), mean(res)
-    ok = np.isfinite(rb).all(axis=1)
-    inputs = mean(np.hstack([cond.f, cond.w]))[ok]
-    design = Design(tb[ok], rb[ok], inputs, [], [], [], ok, prior, [])
-    means = {"accel": cond.T[usable].mean(axis=0), "gyro": cond.freq[usable].mean(axis=0)}
-    for term in cands:
-        term = dict(term)
-        if term["effect"] in ("temperature_bias", "temperature_scale"):
-            term["reference"] = float(means[term["sensor"]][AXES.index(term["axis"])])
-        cols = {}
-        for (sensor, i), x in effects.regressor(term, cond).items():
-            if "channels" in term and f"{sensor}.{AXES[i]}" not in term["channels"]:
-                continue                    # a channel the reference cannot carry (`track`)
-            cols[(0 if sensor == "accel" else 3) + i] = mean(x)[ok]
-        if not cols:
-            continue
-        if not all(np.isfinite(x).all() for x in cols.values()):
-            continue                        # e.g. temperature terms of a log without them
-        if term["effect"] == "vibration_rectification" and \
-                not library.vibrating(next(iter(cols.values()))):
-            continue                        # a flight without airframe vibration
-        scale = max(np.abs(x).max() for x in cols.values())
-        spread = max(np.ptp(x, axis=0).max() for x in cols.values())
-        if not spread > 1e-9 * max(scale, 1e-300):
-            continue
-        design.columns.append(cols)
-        design.k.append(next(iter(cols.values())).shape[1])
-        design.terms.append(term)
-        design.along.append(_along(design, cols))
-        design.allowance.append(np.atleast_2d(model_allowance(cal, term)))
-        design.allowance_of.append("calibration" if design.allowance[-1].any() else None)
+def make_design(binned, terms, prior, cal, transfer=None):
+    """The design of the bins `binned` (`samples.Bins`, of `terms`: the candidates, each
+    temperature term with its reference): the usable bins kept, candidates the flight cannot
+    drive (no variation) dropped and those the reference inputs span marked. `transfer`:
+    (d (3,) m, P (9, 9)) the lever arm from the reference to the MIMU in the MIMU's axes and
+    the covariance of the reference's gyro error matrix there (`transfer_allowance`), or
+    None. The bins' channel matrices become the design's (rows and columns left out by
+    copying a channel at a time; `binned.matrices` is emptied as they are taken)."""
+    ok = np.isfinite(binned.residual).all(axis=1)
+    design = Design(binned.t[ok], binned.residual[ok], binned.inputs[ok], [], [], [], ok,
+                    prior, [])
+    matrices = [binned.matrices.pop(0) for _ in range(6)]
+    if not ok.all():
+        for c in range(6):
+            matrices[c] = matrices[c][ok]
+    kept = []
+    for j, term in enumerate(terms):
+        cols = {c: matrices[c][:, slot[j][0]:sum(slot[j])]
+                for c, slot in enumerate(binned.slots) if j in slot}
+        if _drivable(term, cols):
+            kept.append(j)
+            design.terms.append(term)
+            design.k.append(next(iter(cols.values())).shape[1])
+            design.along.append(_along(design, cols))
+            design.allowance.append(np.atleast_2d(model_allowance(cal, term)))
+            design.allowance_of.append("calibration" if design.allowance[-1].any() else None)
+    _hand_over(design, matrices, binned, kept)
     if transfer is not None and np.any(transfer[0]):
-        rates = (mean(cond.w)[ok], mean(cond.w_dot)[ok])
+        rates = (binned.inputs[ok, 3:], binned.w_dot[ok])
         for j, term in enumerate(design.terms):
             if term["effect"] in TRANSFERRED:
                 design.allowance[j] = transfer_allowance(design.columns[j], *rates, *transfer)
                 design.allowance_of[j] = "reference"
-    cond.release_shared()
-    design.channel_columns          # made now, channel by channel: the columns held once
     return design
+
+
+def _drivable(term, cols):
+    """Whether the flight drives the candidate's columns {channel: (nb, k)}: finite (a log
+    without temperatures has none for the temperature terms), varying, and for a vibration
+    rectification, vibrating."""
+    if not cols or not all(np.isfinite(x).all() for x in cols.values()):
+        return False
+    if term["effect"] == "vibration_rectification" and \
+            not library.vibrating(next(iter(cols.values()))):
+        return False                        # a flight without airframe vibration
+    scale = max(np.abs(x).max() for x in cols.values())
+    spread = max(np.ptp(x, axis=0).max() for x in cols.values())
+    return spread > 1e-9 * max(scale, 1e-300)
+
+
+def _hand_over(design, matrices, binned, kept):
+    """The channel matrices into `design`, without the columns of the candidates not `kept`
+    (indices of `binned`'s terms), and each kept candidate's `columns` as views of them."""
+    design.columns = [{} for _ in kept]
+    for c in range(6):
+        slot = binned.slots[c]
+        keep = list(range(4)) + [i for j in kept if j in slot
+                                 for i in range(slot[j][0], sum(slot[j]))]
+        x = matrices[c] if len(keep) == matrices[c].shape[1] else matrices[c][:, keep]
+        matrices[c] = None
+        own, start = {}, 4
+        for new, j in enumerate(kept):
+            if j in slot:
+                k = slot[j][1]
+                own[new] = np.arange(start, start + k)
+                design.columns[new][c] = x[:, start:start + k]
+                start += k
+        design.channel_columns.append((x, own))
 
 
 TRANSFERRED = ("lever_arm", "size_effect")
@@ -366,5 +374,4 @@ def reference_error(design, fit):
 def detrended(design, resid):
     """Residual with a piecewise-linear bias (knots every DETREND_KNOT_S) removed per
     channel: for display, the rms figures and the scan."""
-    q = design.detrend_q
-    return resid - q @ (q.T @ resid)
+    return design.detrend(resid)

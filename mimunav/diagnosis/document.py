@@ -63,7 +63,8 @@ METHOD = {
                "the other blocks give the coefficient, its 95 % interval and the "
                "confirmation; saturation, quantization, bias shift and bias instability "
                f"tested on the outputs and on {outputs.SPAN_S:g} s means of the bias over "
-               "quiet flight "
+               f"quiet flight (longer where a flight holds more than {outputs.MAX_SPANS} of "
+               "them: a bias finding's note says how long) "
                "against the MEMS class of seed S1 Table 1"),
     "navigation": ("navigation level (no reference IMU: the MIMU's free-inertial velocity "
                    "error against the reference trajectory is fitted to each candidate's "

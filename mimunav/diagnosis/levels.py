@@ -28,7 +28,7 @@ def choose(flight, level="auto", vehicle=None):
         return level, "given (--level)"
     if flight.fog_t is not None:
         return "sensor", "a reference IMU (/fog/imu) flew with the MIMU"
-    recorded = flight.mimu_raw is None
+    recorded = flight.mimu_imu is not None      # an imported /mimu/imu
     if not (recorded and flight.truth is not None):
         return "navigation", "a reference trajectory (/truth/state) and no reference IMU"
     if _has_attitude(flight):
@@ -56,19 +56,23 @@ def _has_attitude(flight):
     return bool(finite.all())
 
 
-def load(log_path, model_path=None, level="auto", vehicle=None):
+def load(log_path, model_path=None, level="auto", vehicle=None, stream=False):
     """(flight, calibration, level, why) of the log at `log_path` for the diagnosis: the
     calibration file at `model_path` (required for a raw /mimu/raw; the identity for a
     recorded /mimu/imu without one) and the level (`choose`). Gaps are refused unless the
     track level takes the log: it leaves their surroundings out (`track_reference.near_gaps`)
     instead of navigating across them. The track level is refused for a vehicle that is
-    not a car."""
-    flight = Flight.load(log_path, reference_imu=level == "sensor", max_gap_s=np.inf)
-    recorded = flight.mimu_raw is None          # an imported /mimu/imu: already compensated
+    not a car. stream: a long flight diagnosed at the sensor level is read from its log block
+    by block (`Flight.load(stream=True)`, `sensor.diagnose`) instead of held."""
+    flight = Flight.load(log_path, reference_imu=level == "sensor", max_gap_s=np.inf,
+                         stream=stream and level in ("auto", "sensor"))
+    recorded = flight.mimu_imu is not None      # an imported /mimu/imu: already compensated
     if model_path is None and not recorded:
         raise InputError(f"{log_path}: the log has /mimu/raw; --model CAL is required")
     cal = Calibration.load(model_path) if model_path else Calibration.identity()
     level, why = choose(flight, level, vehicle)
+    if flight.stream_block is not None and level != "sensor":       # those levels hold it
+        flight = Flight.load(log_path, reference_imu=False, max_gap_s=np.inf)
     if level == "track" and flight.truth is not None:
         kind, how = vehicle_of(flight, vehicle)
         if kind != vehicle_kind.LAND:

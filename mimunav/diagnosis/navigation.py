@@ -28,7 +28,7 @@ from ..compensation import effects
 from ..evaluation.replay import resample
 from . import inference, library
 from .confirmation import (alternative_of, beta_of, effect_size, estimate, set_aside_reasons,
-                           halves_verdict, rms_in, term_spans, where_rows)
+                           halves_verdict, rms_in, term_spans, where_rows, Extremes)
 from .design import term_contribution
 from .error_equations import (EARTH_RADIUS_M, G0, error_model, independent_inputs,
                               observed_error, recorded_bias, signature)
@@ -407,7 +407,7 @@ def _confirm(tier, cands, chosen, train, alpha, seed, cond, limit, noisy):
         chans = list(range(tier.channels))
         rms = lambda x, r: rms_in(x, r, chans)                               # noqa: E731
         finding.update(
-            where=term_spans(tier, rows, term, cond),
+            where=term_spans(tier, rows, term, Extremes.of_conditions(cond)),
             fit={"train_rms_before": rms(before, rows & train),
                  "train_rms_after": rms(after, rows & train),
                  "heldout_rms_before": rms(before, rows & held),

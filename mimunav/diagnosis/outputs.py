@@ -14,7 +14,8 @@ level, log contract section 3):
                     white noise. Coefficient: q in SI (a volt step times the channel's gain).
   bias_instability  the bias wanders more than the unit class allows, and
   bias_shift        a constant offset beyond the unit's normal bias: the fitted bias's SPAN_S
-                    means over quiet flight against a unit of the class (turn-on spread and
+                    means (longer on a long flight: `bias_span`) over quiet
+                    flight against a unit of the class (turn-on spread and
                     in-run zero drift, `calibration.TURN_ON`, `CLASS_DRIFT`, with the
                     calibration's own stated A0 / W0 error and the reference's bias, Table 4:
                     1 deg/h, 100 ug): likelihood ratios of a free constant and of a free
@@ -81,12 +82,20 @@ def _share(before, after):
     return float(1.0 - (after / before) ** 2) if before > 0 else 0.0
 
 
-def noise_sigma(residual):
-    """Per-sample white noise sigma of each column of a residual (N, k): 1.4826 MAD of the
-    first difference over sqrt 2 (robust to a wandering bias and to manoeuvres)."""
-    d = np.diff(residual, axis=0)
-    d = np.ascontiguousarray(d[np.isfinite(d).all(axis=1)].T)   # a column's samples together
-    return 1.4826 * np.median(np.abs(d - np.median(d, axis=1)[:, None]), axis=1) / math.sqrt(2)
+def noise_sigma_of(column, width):
+    """Per-sample white noise sigma of each of the columns column(c), c < width, of a
+    residual: 1.4826 MAD of the first difference over sqrt 2 (robust to a wandering bias
+    and to manoeuvres), over the differences finite in every column; the columns read one at
+    a time (twice: the rows finite in all, then each one's MAD)."""
+    finite = None
+    for c in range(width):
+        ok = np.isfinite(np.diff(column(c)))
+        finite = ok if finite is None else finite & ok
+    out = np.empty(width)
+    for c in range(width):
+        d = np.diff(column(c))[finite]
+        out[c] = 1.4826 * np.median(np.abs(d - np.median(d))) / math.sqrt(2)
+    return out
 
 
 # ---- saturation ----------------------------------------------------------------------------
@@ -96,9 +105,11 @@ def saturation(t, measured, predicted, rows, train, full_scale, steps=None, sigm
     the reference); train: the split's training samples; full_scale {"accel", "gyro"};
     steps (6,): a quantized channel's step (SI), which widens "beyond" by a step (a
     quantized output's maximum sits up to half a step from its input's); sigma (6,): the
-    `noise_sigma` of measured - predicted over `rows` when the caller has it."""
+    `noise_sigma` of measured - predicted over `rows` when the caller has it. measured and
+    predicted are read a column at a time, x[:, c] (`samples.Columns`)."""
     if sigma is None:
-        sigma = noise_sigma(np.where(rows[:, None], measured - predicted, np.nan))
+        sigma = noise_sigma_of(lambda c: np.where(rows, measured[:, c] - predicted[:, c],
+                                                  np.nan), 6)
     sigma = sigma + (0.0 if steps is None else np.asarray(steps) / SATURATION_MARGIN_SIGMA)
     clipped = np.zeros(len(t), bool)
     findings = []
@@ -245,7 +256,7 @@ def bias_null(noise=None):
 
 
 def bias_tests(design, fit, quiet, alpha_level, cal, skip=(), noise=None, carried=None):
-    """bias_instability and bias_shift findings per channel, from the bias's SPAN_S means
+    """bias_instability and bias_shift findings per channel, from the bias's `bias_span` means
     over quiet flight. fit: residual without the fitted reference error and confirmed terms
     (nb, 6) on the design's bins (what is left: the bias and the white noise); quiet (nb,)
     bool: the bins of quiet flight, the only ones read - in manoeuvres whatever the model and
@@ -277,9 +288,9 @@ def bias_tests(design, fit, quiet, alpha_level, cal, skip=(), noise=None, carrie
     apart when their likelihoods are within chi2(1)'s 95 %."""
     if quiet.sum() < 100:
         return []
-    fit = np.where(quiet[:, None], fit, np.nan)
-    t_means, means = span_means(design.t, fit)
-    thermal = _temperature_means(design, quiet)
+    fit, span = np.where(quiet[:, None], fit, np.nan), bias_span(design.t)
+    t_means, means = span_means(design.t, fit, span)
+    thermal = _temperature_means(design, quiet, span)
     se_cal = standard_errors(cal)
     measured = (noise or {}).get("instability", {})
     drift = {**CLASS_DRIFT, **measured}
@@ -295,11 +306,11 @@ def bias_tests(design, fit, quiet, alpha_level, cal, skip=(), noise=None, carrie
         removal = 0.0 if carried is None else float(carried[c])
         offset = math.sqrt(TURN_ON[sensor] ** 2 + reference ** 2
                            + (se_cal.get(key) or 0.0) ** 2 + removal ** 2)
-        white = float(np.nanvar(np.diff(fit[:, c])) / 2) * dt / SPAN_S
+        white = float(np.nanvar(np.diff(fit[:, c])) / 2) * dt / span
         # the null's wander: the MIMU's (class or measured) and the reference's own
         wander = math.hypot(drift[sensor], reference)
         m = bias_models(t_means[keep], means[keep, c], wander, offset, white,
-                         None if thermal is None else thermal[keep, c:c + 1])
+                         None if thermal is None else thermal[keep, c:c + 1], span)
         passing = [k for k in ("shift", "wander") if m[k]["p"] < alpha_level]
         if not passing:
             continue
@@ -316,7 +327,7 @@ def bias_tests(design, fit, quiet, alpha_level, cal, skip=(), noise=None, carrie
                  if other in passing
                  and m[best]["lr"] - m[other]["lr"] < stats.chi2.isf(0.05, 1) else [])
         finding = _bias_finding(best, m, means[keep, c], sensor, axis, where, p,
-                                alpha_level, offset, white, alike, whose[sensor], wander)
+                                alpha_level, offset, white, alike, whose[sensor], wander, span)
         if removal > 0.0 and best == "shift":
             finding["found_terms_1sigma"] = removal     # a part of normal_offset_1sigma
         if design.reference is not None and (design.reference.mems_grade or abs(
@@ -333,10 +344,10 @@ def _reference_bias(design, sensor):
 
 
 def _bias_finding(best, m, x, sensor, axis, where, p, alpha_level, offset, white, alike,
-                  whose, drift):
+                  whose, drift, span):
     """The bias_shift (best "shift") or bias_instability ("wander") finding of a channel
-    from its models `m` (`bias_models`) over the means x; whose: whose wander drift (SI) is
-    the null's."""
+    from its models `m` (`bias_models`) over the span (s) means x; whose: whose wander drift
+    (SI) is the null's."""
     unit = "m/s^2" if sensor == "accel" else "rad/s"
     if best == "shift":
         mu, half = m["shift"]["mu"], 1.96 * m["shift"]["se"]
@@ -351,7 +362,7 @@ def _bias_finding(best, m, x, sensor, axis, where, p, alpha_level, offset, white
                  f"and {whose} in-run wander ({drift:.3g}): "
                  "better "
                  "explained as an offset than as a larger wander (likelihood ratios); "
-                 f"rms of the {SPAN_S:g} s means before and after")
+                 f"rms of the {span:g} s means before and after")
     sigma, lo, hi = m["wander"]["sigma"], m["wander"]["lower"], m["wander"]["upper"]
     return _finding(
         "bias_instability", sensor, axis, sigma, (lo, hi), where,
@@ -362,13 +373,13 @@ def _bias_finding(best, m, x, sensor, axis, where, p, alpha_level, offset, white
         note=f"the bias wanders like a Gauss-Markov process of sigma {sigma:.3g} "
              f"{unit} (tau {GM_TAU_S:g} s) against {whose} "
              f"{drift:.3g}; 'after': the white share of a "
-             f"{SPAN_S:g} s mean")
+             f"{span:g} s mean")
 
 
 FAST_S = 0.1        # the flicker's highest frequency in the class model, 1/FAST_S Hz (the
                     # means' sinc makes faster terms negligible)
-def _temperature_means(design, quiet):
-    """(m, 6) SPAN_S means over quiet flight of each channel's temperature_bias regressor
+def _temperature_means(design, quiet, span):
+    """(m, 6) `span` (s) means over quiet flight of each channel's temperature_bias regressor
     (its temperature reading about the log's mean), or None when the library has none
     (a log without temperatures); a channel without one is 0."""
     cols = np.zeros((len(design.t), 6))
@@ -378,12 +389,24 @@ def _temperature_means(design, quiet):
                 cols[:, c] = x[:, 0]
     if not cols.any():
         return None
-    return span_means(design.t, np.where(quiet[:, None], cols, np.nan))[1]
+    return span_means(design.t, np.where(quiet[:, None], cols, np.nan), span)[1]
 
 
 EFFECT_OF = {"shift": "bias_shift", "wander": "bias_instability"}
 SPAN_S = 2.0        # the bias is read from SPAN_S means of quiet flight: what is faster (a
                     # colored noise, flicker at seconds) is no bias instability nor offset
+MAX_SPANS = 900     # at most this many means (`bias_span`): the models' covariances are
+                    # dense (m, m) and their eigendecompositions O(m^3) - 6 channels x 7 of
+                    # them took a 48-minute flight's 1440 means to a minute and 0.3 GB;
+                    # 900 holds 30 minutes of 2 s means, far more than any test flight's
+
+
+def bias_span(t):
+    """The length (s) of the means `bias_tests` reads over the bins at t (s): SPAN_S, or for
+    a flight of more than MAX_SPANS of them the least multiple of SPAN_S that keeps their
+    number to MAX_SPANS (a 2-hour flight: 10 s), still far below the Gauss-Markov wander's
+    GM_TAU_S (a mean over span / tau of it keeps its structure)."""
+    return SPAN_S * max(1, math.ceil((float(t[-1] - t[0]) / SPAN_S + 1) / MAX_SPANS))
 
 
 def block_index(t, length_s):
@@ -398,18 +421,18 @@ def block_index(t, length_s):
 BOUNDARY_TOLERANCE = 1e-6   # of a block: far above rounding (1e-14 s), below any sample step
 
 
-def span_means(t, x):
-    """(times (m,), means (m, k)) of x (n, k) over consecutive SPAN_S spans of t, NaN where
-    fewer than half a span's bins are finite."""
-    sec = block_index(t, SPAN_S)
+def span_means(t, x, span=SPAN_S):
+    """(times (m,), means (m, k)) of x (n, k) over consecutive spans of `span` s of t, NaN
+    where fewer than half a span's bins are finite."""
+    sec = block_index(t, span)
     n = sec.max() + 1
     good = np.isfinite(x)
     count = np.stack([np.bincount(sec, good[:, c], minlength=n) for c in range(x.shape[1])], 1)
     sums = np.stack([np.bincount(sec, np.where(good[:, c], x[:, c], 0.0), minlength=n)
                      for c in range(x.shape[1])], 1)
-    full = SPAN_S / float(np.median(np.diff(t)))
+    full = span / float(np.median(np.diff(t)))
     means = np.where(count >= 0.5 * full, sums / np.maximum(count, 1), np.nan)
-    return t[0] + (np.arange(n) + 0.5) * SPAN_S, means
+    return t[0] + (np.arange(n) + 0.5) * span, means
 
 
 def profiled_loglik(x, nuisance, cov):
@@ -463,27 +486,28 @@ def gm_mean_correlation(t, span, tau):
 
 
 @lru_cache(maxsize=4)
-def _mean_correlations(t_bytes):
-    """(flicker covariance of unit instability, Gauss-Markov correlation) of the SPAN_S means
-    at the times t (s, float64 bytes): the same for every channel whose quiet means are at the
-    same times, so made once (read-only arrays)."""
+def _mean_correlations(t_bytes, span):
+    """(flicker covariance of unit instability, Gauss-Markov correlation) of the `span` (s)
+    means at the times t (s, float64 bytes): the same for every channel whose quiet means
+    are at the same times, so made once (read-only arrays)."""
     t = np.frombuffer(t_bytes)
-    span = float(t[-1] - t[0]) + SPAN_S
-    flicker = flicker_covariance(t - SPAN_S / 2, t + SPAN_S / 2,
-                                 1.0 / (FLICKER_SPAN * span), 1.0 / FAST_S)
-    corr = gm_mean_correlation(t, SPAN_S, GM_TAU_S)
+    length = float(t[-1] - t[0]) + span
+    flicker = flicker_covariance(t - span / 2, t + span / 2,
+                                 1.0 / (FLICKER_SPAN * length), 1.0 / FAST_S)
+    corr = gm_mean_correlation(t, span, GM_TAU_S)
     flicker.flags.writeable = corr.flags.writeable = False
     return flicker, corr
 
 
-def bias_models(t, x, instability, offset, white, nuisance=None):
-    """The class, shift and wander models of `bias_tests` on the means x at times t, each
+def bias_models(t, x, instability, offset, white, nuisance=None, span=SPAN_S):
+    """The class, shift and wander models of `bias_tests` on the `span` (s) means x at times
+    t (s), each
     with the columns `nuisance` (m, k: the channel's temperature, so a slow thermal term
     too weak for the library is not read as wander) at their best values:
     {"shift": {"lr", "mu", "se"}, "wander": {"lr", "sigma", "lower", "upper"}}."""
     n = len(x)
     nuisance = np.zeros((n, 0)) if nuisance is None else nuisance
-    unit_flicker, corr = _mean_correlations(np.ascontiguousarray(t, float).tobytes())
+    unit_flicker, corr = _mean_correlations(np.ascontiguousarray(t, float).tobytes(), span)
     flicker = instability ** 2 * unit_flicker
     ones = np.ones((n, 1))
     base = flicker + white * np.eye(n)

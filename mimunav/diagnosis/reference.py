@@ -42,26 +42,48 @@ TRANSFER_WINDOW_S = 0.03        # d/dt of the reference rate in the lever-arm tr
 
 
 def predicted_mimu(flight):
-    """(f m/s^2, w rad/s) the MIMU should have read at its stamps, MIMU sensor axes, from the
-    flight's reference IMU (`/fog/imu`, its pulse counts smoothed: `pulse_counted`) and both
-    mountings."""
+    """(f m/s^2, w rad/s, inside) the MIMU should have read at its stamps, MIMU sensor axes,
+    from the flight's reference IMU (`/fog/imu`, `counted_outputs`) and both mountings
+    (`predicted_at`); inside (N,) bool: the stamps inside the reference's span."""
+    inside = inside_reference(flight)
+    fog_t = flight.fog_t
+    return (*predicted_at(flight.mimu_t, fog_t, counted_outputs(flight, fog_t, flight.fog_w),
+                          counted_outputs(flight, fog_t, flight.fog_f), flight), inside)
+
+
+def inside_reference(flight):
+    """(N,) bool: the MIMU's stamps inside the reference IMU's span; an InputError when fewer
+    than two are."""
     t = flight.mimu_t
     inside = (t > flight.fog_t[0]) & (t <= flight.fog_t[-1])
     if inside.sum() < 2:
         raise InputError(f"{flight.path}: the reference IMU does not cover the MIMU's samples")
-    counted = flight.source == "simulation"
-    fog_w = pulse_counted(flight.fog_t, flight.fog_w) if counted else flight.fog_w
-    fog_f = pulse_counted(flight.fog_t, flight.fog_f) if counted else flight.fog_f
+    return inside
+
+
+def counted_outputs(flight, fog_t, x):
+    """The reference IMU's outputs x (N, k) at its stamps fog_t (s) with a pulse count's
+    staircase smoothed where the flight's reference counts pulses (a simulation's:
+    `pulse_counted`), else as they are. Each column on its own: a column at a time gives
+    the same."""
+    return pulse_counted(fog_t, x) if flight.source == "simulation" else x
+
+
+def predicted_at(t, fog_t, fog_w, fog_f, flight):
+    """(f m/s^2, w rad/s) the MIMU should have read at stamps t (s), MIMU sensor axes, from
+    the reference IMU's samples fog_t (s), fog_w (rad/s), fog_f (m/s^2) (its sensor axes,
+    through `counted_outputs`; covering t - all of the flight's, or those around a block:
+    `samples`) and the mountings of `flight`."""
     w_v = attitude.rotate(flight.fog_mounting.q_vs, fog_w)
     f_v = attitude.rotate(flight.fog_mounting.q_vs, fog_f)
-    reference = RunningIntegral(intervals(flight.fog_t)[2], np.hstack([w_v, f_v]))
+    reference = RunningIntegral(intervals(fog_t)[2], np.hstack([w_v, f_v]))
     w_v, f_v = reference.means(t).reshape(len(t), 2, 3).transpose(1, 0, 2)
     dr = flight.mimu_mounting.lever_arm_m - flight.fog_mounting.lever_arm_m
     if np.any(dr):
         w_dot = derivative(t, w_v, TRANSFER_WINDOW_S)
         f_v = f_v + np.cross(w_v, np.cross(w_v, dr)) + np.cross(w_dot, dr)
     q_sv = np.conjugate(flight.mimu_mounting.q_vs)
-    return attitude.rotate(q_sv, f_v), attitude.rotate(q_sv, w_v), inside
+    return attitude.rotate(q_sv, f_v), attitude.rotate(q_sv, w_v)
 
 
 def has_attitude(trajectory, t0, t1):
@@ -103,8 +125,9 @@ def pulse_counted(t, x):
     """A pulse-counting reference's interval means (t s (N,), x (N, 3): rad/s or m/s^2, one
     rate: the count is taken per sample) with its count's staircase replaced by the line
     through the middles of its runs, where the data show the counting: this project's
-    simulated reference (FOG: 1 arcsec and 0.1 mm/s a pulse; `predicted_mimu` passes only a
-    log whose source is "simulation") reports round(true running sum / quantum) - its error never accumulates,
+    simulated reference (FOG: 1 arcsec and 0.1 mm/s a pulse; `counted_outputs` passes only a
+    log whose source is "simulation") reports round(true running sum / quantum) - its error
+    never accumulates,
     but at a slow rate its count stands still for many samples and then moves a whole
     quantum, and the derivative of that staircase (the lever-arm transfer's dw/dt, the
     size-effect and lever-arm regressors) is the quantization's, not the motion's: on a long
@@ -166,16 +189,19 @@ def agreement(t, measured, predicted, usable, channels):
     """Whether the reference's prediction follows the recorded MIMU: {"bin_s", "channels":
     {label: {"correlation", "predicted_spread"}}, "gravity_angle_deg", "failures": [why]} from
     the AGREEMENT_BIN_S means of the usable samples (t s; measured and predicted (N, 6):
-    accel m/s^2 then gyro rad/s, MIMU axes). A channel that moves (its predicted means spread
-    by MOVING_SPREAD) must correlate to AGREEMENT_CORRELATION; the specific forces' means
-    must point within GRAVITY_ANGLE_DEG of each other (the median over the seconds). A clock offset of seconds, a mounting
-    turned by tens of degrees, another vehicle's topic fail one of them; a quiet channel is
-    not judged (its correlation is its noise's)."""
+    accel m/s^2 then gyro rad/s, MIMU axes; read as x[:, c]). A channel that moves (its
+    predicted means spread by MOVING_SPREAD) must correlate to AGREEMENT_CORRELATION; the
+    specific forces' means must point within GRAVITY_ANGLE_DEG of each other (the median
+    over the seconds). A clock offset of seconds, a mounting turned by tens of degrees,
+    another vehicle's topic fail one of them; a quiet channel is not judged (its correlation
+    is its noise's)."""
     sec = np.floor((t - t[0]) / AGREEMENT_BIN_S).astype(int)
-    keep = usable & np.isfinite(measured).all(axis=1) & np.isfinite(predicted).all(axis=1)
+    keep = usable.copy()                # a column at a time: x[:, c] (`samples.Columns`)
+    for c in range(6):
+        keep &= np.isfinite(measured[:, c]) & np.isfinite(predicted[:, c])
     count = np.bincount(sec[keep], minlength=sec.max() + 1)
     full = count >= 0.5 * np.median(count[count > 0]) if count.any() else count > 0
-    means = [np.column_stack([np.bincount(sec[keep], x[keep, c], minlength=len(count))
+    means = [np.column_stack([np.bincount(sec[keep], x[:, c][keep], minlength=len(count))
                               for c in range(6)])[full] / count[full, None]
              for x in (measured, predicted)]
     out = {"bin_s": AGREEMENT_BIN_S, "channels": {}, "failures": []}

@@ -8,7 +8,7 @@ from scipy import stats
 from ..compensation.effects import derivative
 from ..sensors.mimu import G0
 from . import outputs
-from .design import Binning, CHANNELS, DEG
+from .design import CHANNELS, DEG
 
 
 SCAN_WINDOW_S = 2.0
@@ -99,15 +99,14 @@ CONDITIONS = ("quiet", "|f| > 2 g", "|w| > 60 deg/s", "|dw/dt| > 300 deg/s^2",
               "|dT/dt| > 0.5 degC/min")
 
 
-def condition_masks(design, cond, m, usable):
-    """Bin masks of the flight conditions of the residual map."""
-    mean, ok = Binning(m, usable), design.kept
-    f = mean(np.linalg.norm(cond.f, axis=1)[:, None])[ok, 0] / G0
-    w = mean(np.linalg.norm(cond.w, axis=1)[:, None])[ok, 0] / DEG
-    wd = mean(np.linalg.norm(cond.w_dot, axis=1)[:, None])[ok, 0] / DEG
-    temperature = mean(cond.T.mean(axis=1)[:, None])[ok]     # slope on the bins
+def condition_masks(design, norms):
+    """Bin masks of the flight conditions of the residual map; norms (nb, 4): the design's
+    bins' mean |f| m/s^2, |w| rad/s, |dw/dt| rad/s^2 and temperature degC
+    (`samples.Bins.norms`)."""
+    f, w, wd = norms[:, 0] / G0, norms[:, 1] / DEG, norms[:, 2] / DEG
+    temperature = norms[:, 3:]                          # slope on the bins
     dT = (np.abs(derivative(design.t, temperature, 30.0)[:, 0] * 60)
-          if np.isfinite(temperature).all() else np.zeros(ok.sum()))   # none recorded
+          if np.isfinite(temperature).all() else np.zeros(len(norms)))   # none recorded
     masks = {"|f| > 2 g": f > 2, "|w| > 60 deg/s": w > 60, "|dw/dt| > 300 deg/s^2": wd > 300,
              "|dT/dt| > 0.5 degC/min": dT > 0.5}
     # quiet: no manoeuvre (a warm-up's temperature change alone does not make a bin busy,

@@ -60,13 +60,14 @@ Procedure:
 """
 import dataclasses
 import math
+import tempfile
+from contextlib import nullcontext
 from dataclasses import dataclass
 from functools import cache
 
 import numpy as np
 
 from ..compensation.wild_values import REPLACED, UNUSABLE
-from ..compensation.model import poly2
 from ..compensation.effects import AXES
 from ..frames import attitude
 from . import library, outputs, wander
@@ -74,11 +75,12 @@ from ..sensors.accuracy import accuracy_of
 from .reference import agreement
 from ..errors import InputError
 from .design import (Binning, CHANNELS, Design, FAST_BIN_S, detrended, term_contribution,
-                     make_design, reference_error, bins, calibration_prior, residual)
+                     make_design, reference_error, bins, calibration_prior)
+from .samples import binned, sample_stage, temperature_references
 from .fitting import Fitter, term_test
 from .scan import SCAN_WINDOW_S, condition_masks, condition_map, near_spans, excursions
-from .confirmation import (beta_of, confirm_chosen, recording_checks, set_aside_reasons,
-                           position_of, removal_sigma)
+from .confirmation import (Extremes, beta_of, confirm_chosen, recording_checks,
+                           set_aside_reasons, position_of, removal_sigma)
 from .selection import select
 
 
@@ -108,7 +110,8 @@ class SensorDiagnosis:
     candidates_list: list       # [term]
     fitter: object = None       # the all-rows `Fitter` (for `term_z`)
     bias_null: dict = None      # the wander the bias tests take as normal, and its source
-    compensated: tuple = None   # (flight, w rad/s, f m/s^2 (N, 3) sensor axes): the MIMU of
+    compensated: tuple = None   # (flight, w rad/s, f m/s^2 (N, 3) sensor axes): the MIMU through
+                                # the calibration, for the report; None: the flight streamed
     library_inflation: dict = None  # a recording's: the library beside the findings
                                     # (`confirmation.recording_checks`), None when not measured
 
@@ -147,7 +150,7 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
     output_tests = prep.output_tests
     design = prep.design
     if len(design.t) < 4 * block_s / bin_s:
-        inside = (prep.cond.t >= flight.fog_t[0]) & (prep.cond.t <= flight.fog_t[-1])
+        inside = (prep.t >= flight.fog_t[0]) & (prep.t <= flight.fog_t[-1])
         flagged = float(np.mean(~prep.usable[inside])) if inside.any() else 0.0
         raise InputError(f"{flight.path}: {len(design.t) * bin_s:.1f} s of usable MIMU "
                          f"samples inside the reference IMU's span; the sensor level needs "
@@ -162,14 +165,14 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
     whole = cache(lambda: Fitter(design, np.ones(len(design.t), bool)))
     chosen, within = select(design, train, alpha, prep.full_scale, whole)
     findings, rejected = confirm_chosen(design, chosen, train, held, alpha, prep.full_scale,
-                                        prep.cond)
+                                        prep.extremes)
     findings, aside, doubts, library = recording_checks(  # a real record's halves and noise
         design, findings, held, check_reference) if flight.source == "recording" \
         else (findings, [], [], None)
     rejected = rejected + aside
     everything = whole()
     before, removed, fit_found = _residuals(design, everything, findings)
-    conds = condition_masks(design, prep.cond, prep.bins, prep.usable)
+    conds = condition_masks(design, prep.norms)
     unexplained, on_outputs = _after_the_fit(design, (removed, fit_found), conds, findings,
                                              prep, alpha, cal, noise, output_tests)
     for f in on_outputs:
@@ -183,7 +186,7 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
                            before, after, design.reference.as_dict(), len(design.terms),
                            design.terms,
                            everything, outputs.bias_null(noise) if output_tests else None,
-                           (flight, *prep.samples["compensated"]), library)
+                           prep.compensated and (flight, *prep.compensated), library)
     diag.inconclusive = [why for why in (stamp_jitter(flight.mimu_t, "the MIMU's"),
                                          stamp_jitter(flight.fog_t, "the reference IMU's"),
                                          *doubts) if why]
@@ -197,12 +200,14 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
 
 @dataclass
 class _Prepared:
-    """What `diagnose` fits: the design and the samples and flags it was made from."""
+    """What `diagnose` fits: the design and what of the samples the later steps read."""
     design: Design
-    cond: object                # `effects.Conditions` of every sample
+    t: np.ndarray               # (N,) the MIMU's stamps, s
     usable: np.ndarray          # (N,) bool: samples in the fit
-    bins: tuple                 # (m, start) of `bins`
-    samples: dict               # {"compensated": (w, f)} of `residual`'s per-sample extras
+    norms: np.ndarray           # (nb, 4) the design's bins' `samples.Bins.norms`
+    extremes: Extremes          # the flight conditions over the raw bins (`term_spans`)
+    compensated: tuple | None   # (w rad/s, f m/s^2) (N, 3) sensor axes: the MIMU through the
+                                # calibration, for the report (None: the flight streamed)
     full_scale: dict            # {"accel": m/s^2, "gyro": rad/s}
     on_outputs: list            # saturation and quantization findings
     quantized: set              # channels found quantized
@@ -212,34 +217,46 @@ class _Prepared:
 
 def _prepare(flight, cal, acc, candidates, output_tests, vibration, bin_s, noise_shape,
              max_wander, wander_steps, check_reference):
-    """`_Prepared` of `diagnose`: the residual, whether the reference predicts the MIMU at
-    all (`reference.agreement`: when it does not, nothing is tested - no candidate, no test
-    on the outputs - and the diagnosis says why), the tests on the outputs themselves, the
-    design of the candidates on the bins with the stated accuracies as priors."""
+    """`_Prepared` of `diagnose`: the samples (`samples.sample_stage`: a streamed flight's
+    spilled to scratch files for as long as this runs), whether the reference predicts the
+    MIMU at all (`reference.agreement`: when it does not, nothing is tested - no candidate,
+    no test on the outputs - and the diagnosis says why), the tests on the outputs
+    themselves, the design of the candidates on the bins with the stated accuracies as
+    priors."""
+    with tempfile.TemporaryDirectory(prefix="mimunav-diagnose-") \
+            if flight.stream_block is not None else nullcontext() as folder:
+        samples = sample_stage(flight, cal, folder)
+        samples.vibration = vibration
+        return _prepared(flight, cal, acc, candidates, output_tests, samples, bin_s,
+                         noise_shape, max_wander, wander_steps, check_reference)
+
+
+def _prepared(flight, cal, acc, candidates, output_tests, samples, bin_s, noise_shape,
+              max_wander, wander_steps, check_reference):
     q_sf = np.conjugate(flight.mimu_mounting.q_vs) * flight.fog_mounting.q_vs
-    t, res, usable, cond, samples = residual(flight, cal, vibration)
+    t, spill = samples.t, samples.spill
+    usable = _usable(samples)
     m = bins(t, flight.fog_t, bin_s)
     full_scale = library.full_scale(flight.mimu_range)
     on_outputs, quantized = [], set()
-    acc = measured_steps(flight, acc)
+    acc = measured_steps(flight, acc, spill)
     cands = library.candidates() if candidates is None else candidates
-    check = agreement(t, samples["measured"], samples["predicted"], usable, CHANNELS) \
-        if check_reference else None
+    check = agreement(t, spill.series("measured"), spill.series("predicted"), usable,
+                      CHANNELS) if check_reference else None
     if check is not None and check["failures"]:
         output_tests, cands = False, []
     if output_tests:
-        on_outputs, clipped, quantized = _output_findings(flight, cal, t, samples, full_scale)
+        on_outputs, clipped, quantized = _output_findings(cal, samples, full_scale)
         usable = usable & ~clipped
         # a quantized output's error depends on where its input falls between two steps:
         # terms of that channel alone would fit the lattice, not physics
         cands = [c for c in cands if not _on_channels_only(c, quantized)]
-    # of the samples, only the compensated MIMU is kept (for the report): the rest was for
-    # the agreement and the tests on the outputs, made above - not held through the fits
-    samples = {"compensated": samples["compensated"]}
     prior = acc.prior(q_sf)
     lever = attitude.rotate(np.conjugate(flight.mimu_mounting.q_vs),
                             flight.mimu_mounting.lever_arm_m - flight.fog_mounting.lever_arm_m)
-    design = make_design(t, res, usable, cond, cands, m, prior + calibration_prior(cal), cal,
+    terms = temperature_references(cands, samples, usable)
+    binned_ = binned(samples, usable, m, terms, flight.stream_block if samples.streamed else None)
+    design = make_design(binned_, terms, prior + calibration_prior(cal), cal,
                          transfer=(lever, prior[9:, 9:]))
     design.q_vs = flight.mimu_mounting.attitude_wxyz
     design.bin_s = bin_s
@@ -250,11 +267,26 @@ def _prepare(flight, cal, acc, candidates, output_tests, vibration, bin_s, noise
     if max_wander is not None:
         design.levels = wander.LAMBDA_GRID[wander.LAMBDA_GRID <= max_wander]
     design.wander_steps = wander_steps
-    return _Prepared(design, cond, usable, m, samples, full_scale, on_outputs, quantized,
-                     output_tests, check)
+    measured = None if samples.streamed else spill.column("measured")
+    return _Prepared(design, t, usable, binned_.norms[design.kept],
+                     Extremes(binned_.centres, *binned_.extremes.T),
+                     None if measured is None else (np.ascontiguousarray(measured[:, 3:]),
+                                                    np.ascontiguousarray(measured[:, :3])),
+                     full_scale, on_outputs, quantized, output_tests, check)
 
 
-def measured_steps(flight, acc):
+def _usable(samples):
+    """(N,) bool: the samples inside the reference, unflagged, finite in both the measured
+    and the predicted outputs; never the first (its stamp has no interval)."""
+    measured, predicted = samples.spill.series("measured"), samples.spill.series("predicted")
+    usable = samples.inside & (samples.flags == 0)
+    for c in range(6):
+        usable &= np.isfinite(measured[:, c] - predicted[:, c])
+    usable[0] = False
+    return usable
+
+
+def measured_steps(flight, acc, spill=None):
     """`acc` with the step a recording's reference IMU was logged in, where its data show one
     larger than stated (`outputs.lattice_step`; the triad's largest): a logger's values
     rounded to a step (a VN-300 written with 2 decimals: 0.01 rad/s) carry a rounding error
@@ -265,8 +297,9 @@ def measured_steps(flight, acc):
     if flight.source != "recording":
         return acc
     steps = {}
-    for sensor, x in (("gyro", flight.fog_w), ("accel", flight.fog_f)):
-        found = [q for q in (outputs.lattice_step(x[:, i]) for i in range(3)) if q]
+    for k, sensor in enumerate(("gyro", "accel")):
+        found = [q for q in (outputs.lattice_step(_reference_column(flight, spill, 3 * k + i))
+                             for i in range(3)) if q]
         if found and max(found) > getattr(acc, f"{sensor}_step") * (1 + 1e-6):   # round-off
             steps[f"{sensor}_step"] = max(found)
     if not steps:
@@ -274,6 +307,15 @@ def measured_steps(flight, acc):
     said = ", ".join(f"{k} {v:.4g}" for k, v in steps.items())
     return dataclasses.replace(acc, **steps, source=f"{acc.source}; logging steps measured from "
                                f"its outputs: {said}")
+
+
+def _reference_column(flight, spill, c):
+    """(M,) column c of the reference IMU's outputs [w rad/s, f m/s^2]: held by the flight,
+    or spilled by a streamed one's `samples.sample_stage` (a recording's are not pulse
+    counted: the spilled values are the log's)."""
+    if flight.stream_block is not None:
+        return spill.column("reference", c)
+    return (flight.fog_w if c < 3 else flight.fog_f)[:, c % 3]
 
 
 def _residuals(design, everything, findings):
@@ -356,21 +398,23 @@ def stamp_tick(t):
     return None
 
 
-def _output_findings(flight, cal, t, samples, full_scale):
+def _output_findings(cal, samples, full_scale):
     """(saturation and quantization findings, samples clipped (N,) bool, quantized channels
     {channel index}): the tests on the outputs themselves (`outputs`), on every sample the
     compensation did not repair (a sample stuck at an extreme is flagged SATURATED there and
-    is tested here). Quantization first: a quantized channel's clip test allows its step."""
-    measured, predicted = samples["measured"], samples["predicted"]
-    repaired = (samples["flags"] & (REPLACED | UNUSABLE)) != 0
-    rows = samples["inside"] & ~repaired & np.isfinite(measured).all(axis=1) \
-        & np.isfinite(predicted).all(axis=1)
+    is tested here), a column at a time. Quantization first: a quantized channel's clip test
+    allows its step."""
+    t, spill, flags = samples.t, samples.spill, samples.flags
+    measured, predicted = spill.series("measured"), spill.series("predicted")
+    rows = samples.inside & ((flags & (REPLACED | UNUSABLE)) == 0)
+    for c in range(6):
+        rows &= np.isfinite(measured[:, c]) & np.isfinite(predicted[:, c])
     rows[0] = False
-    live = rows & (samples["flags"] == 0)
-    sigma = outputs.noise_sigma(np.where(live[:, None], measured - predicted, np.nan))
-    raw = flight.mimu_raw
-    volts = None if raw is None else np.hstack([raw["accel_volts"], raw["gyro_volts"]])
-    found = outputs.quantization(t, measured, volts, _volt_gains(cal, raw, live), live, sigma)
+    live = rows & (flags == 0)
+    sigma = outputs.noise_sigma_of(
+        lambda c: np.where(live, measured[:, c] - predicted[:, c], np.nan), 6)
+    volts = spill.series("volts") if "volts" in spill else None
+    found = outputs.quantization(t, measured, volts, _volt_gains(cal, spill, live), live, sigma)
     steps = np.zeros(6)
     for f in found:
         steps[CHANNELS.index((f["sensor"], f["axis"]))] = f["coefficient"]
@@ -387,20 +431,23 @@ def _on_channels_only(term, channels):
     return CHANNELS.index((term["sensor"], term["axis"])) in channels
 
 
-def _volt_gains(cal, raw, rows):
+def _volt_gains(cal, spill, rows):
     """(6, 3) the slope of each channel's output in SI per V of its own raw volts over the
     samples `rows` (median, smallest, largest magnitude): A1_ii + 2 A2_i V + 3 A3_i V^2 at
-    the temperature-compensated V (eqs. 1-4; W for the gyros); ones without raw volts."""
-    if raw is None or cal is None or cal.base_model not in ("entire-63", "linear"):
+    the temperature-compensated V (eqs. 1-4; W for the gyros), from the `samples` spill's
+    volts and temperatures, an axis at a time; ones without raw volts."""
+    if "volts" not in spill or cal is None or cal.base_model not in ("entire-63", "linear"):
         return np.ones((6, 3))
     out = []
-    for (a1, a2, a3), u, temp, poly in (
-            ((cal.A1, cal.A2, cal.A3), raw["accel_volts"], raw["accel_temperature"], cal.ct),
-            ((cal.W1, cal.W2, cal.W3), raw["gyro_volts"], raw["gyro_frequency"], cal.cw)):
-        v = (u - poly2(poly, temp))[rows]
-        slope = np.abs(np.diag(a1) + 2 * a2 * v + 3 * a3 * v * v)
-        out += [(np.median(slope[:, i]), slope[:, i].min(), slope[:, i].max())
-                for i in range(3)]
+    for k, ((a1, a2, a3), poly, reading) in enumerate((
+            ((cal.A1, cal.A2, cal.A3), cal.ct, "temperature"),
+            ((cal.W1, cal.W2, cal.W3), cal.cw, "frequency"))):
+        for i in range(3):
+            temp = spill.column(reading, i)
+            v = (spill.column("volts", 3 * k + i)
+                 - (poly[i, 0] + temp * (poly[i, 1] + temp * poly[i, 2])))[rows]   # poly2
+            slope = np.abs(a1[i, i] + 2 * a2[i] * v + 3 * a3[i] * v * v)
+            out.append((np.median(slope), slope.min(), slope.max()))
     return np.asarray(out)
 
 

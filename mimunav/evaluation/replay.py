@@ -206,11 +206,11 @@ def compensated_mimu(flight, cal, per_sample=False, warn=True):
     warned about) about outputs stuck at an extreme inside the range."""
     w, f, flags = compensated_whole(flight, cal)
     if warn:
-        _warn_stuck(flight, _stuck_inside_range(flight, w, f, flags))
+        warn_stuck(flight, stuck_inside_range(flight, w, f, flags))
     return w, f, (flags if per_sample else flag_counts(flags))
 
 
-def _warn_stuck(flight, stuck):
+def warn_stuck(flight, stuck):
     if stuck:
         from ..errors import warn
         warn(f"{flight.path}: {stuck} MIMU samples have a raw output stuck at its extreme for "
@@ -218,7 +218,7 @@ def _warn_stuck(flight, stuck):
              "amplifier): flagged saturated; the navigation through them is wrong")
 
 
-def _stuck_inside_range(flight, w, f, flags):
+def stuck_inside_range(flight, w, f, flags):
     """Samples flagged saturated although their compensated outputs lie inside the declared
     range: clipped by the ADC or an amplifier below it."""
     inside = (np.abs(f) < flight.mimu_range.get("accel_m_s2", np.inf)).all(axis=1) \
@@ -333,11 +333,11 @@ def replay(flight, cal, fog=None, check=None, at=None):
                 seconds.add(t, f, w)
             for name, count in flag_counts(flags).items():
                 counts[name] += count
-            stuck += _stuck_inside_range(flight, w, f, flags)
+            stuck += stuck_inside_range(flight, w, f, flags)
             keep.add(nav.feed(t, w, f))
         keep.add(nav.finish())
         fog = fog if fog_nav is None else fog_nav.result()
-    _warn_stuck(flight, stuck)
+    warn_stuck(flight, stuck)
     if check is not None:
         check_compensation(flight, seconds, check)
     return Replay(flight, keep.trajectory(), fog, counts)
