@@ -17,6 +17,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from tqdm import tqdm
 
 from ..compensation import effects
 from ..compensation.effects import AXES, Conditions, derivative, vibration_power
@@ -174,11 +175,13 @@ def _streamed_stage(flight, cal, spill, inside):
     """`sample_stage` of a streamed flight: the reference IMU spilled first (`_reference`),
     then the MIMU compensated block by block (`compensation.log.compensated_blocks`, which
     carries margins across blocks so each sample sees what it would over the whole record)
-    and predicted from the reference's samples around the block."""
+    and predicted from the reference's samples around the block; progress on stderr."""
     t, fog_t = flight.mimu_t, flight.fog_t
     flags = np.empty(len(t), np.uint8)
     stuck, a = 0, 0
-    with FlightLog(flight.path) as log, closing(spill):
+    with FlightLog(flight.path) as log, closing(spill), \
+            tqdm(total=len(t), desc="diagnose: samples", unit="sample", unit_scale=True,
+                 leave=False) as bar:
         _reference(log, flight, spill)
         for raw, f, w, block_flags in compensated_blocks(log, cal, flight.stream_block):
             b = a + len(raw)
@@ -196,6 +199,7 @@ def _streamed_stage(flight, cal, spill, inside):
                  np.hstack([raw["accel_volts"], raw["gyro_volts"]]))
             flags[a:b] = block_flags
             stuck += stuck_inside_range(flight, w, f, block_flags)
+            bar.update(b - a)
             a = b
     if a != len(t):
         raise InputError(f"{flight.path}: /mimu/raw gave {a} samples in blocks and {len(t)} "
@@ -273,7 +277,7 @@ def temperature_references(terms, samples, usable):
 def binned(samples, usable, bins, terms, block=None):
     """`Bins` of `samples` (usable (N,) bool; bins (m, start)) with the regressors of
     `terms`, made `block` samples at a time (None: all at once) into arrays of the whole
-    flight's bins: no block's bins are held beside them."""
+    flight's bins: no block's bins are held beside them. Blocks show progress on stderr."""
     m, start = bins
     n = (len(samples.t) - start) // m * m
     if n < m:
@@ -282,7 +286,8 @@ def binned(samples, usable, bins, terms, block=None):
     far = max([float(term.get("window_s", 0.0)) for term in terms] +
               [effects.HYSTERESIS_SLOPE_WINDOW_S / 2]) + NEAR_HALO_S
     out = None
-    for a in range(start, start + n, step):
+    for a in tqdm(range(start, start + n, step), desc="diagnose: bins", unit="block",
+                  disable=block is None, leave=False):
         piece = _block_bins(samples, usable, a, min(a + step, start + n), m, terms, far)
         if out is None:
             out = _allocated(piece, n // m)
