@@ -74,6 +74,7 @@ from . import library, outputs, wander
 from ..sensors.accuracy import accuracy_of
 from .reference import agreement
 from ..errors import InputError
+from ..compensation.model import poly2
 from .design import (Binning, CHANNELS, Design, FAST_BIN_S, detrended, term_contribution,
                      make_design, reference_error, bins, calibration_prior)
 from .samples import binned, sample_stage, temperature_references
@@ -235,7 +236,9 @@ def _prepared(flight, cal, acc, candidates, output_tests, samples, bin_s, noise_
               max_wander, wander_steps, check_reference):
     q_sf = np.conjugate(flight.mimu_mounting.q_vs) * flight.fog_mounting.q_vs
     t, spill = samples.t, samples.spill
-    usable = _usable(samples)
+    finite = _finite(samples)
+    usable = samples.inside & (samples.flags == 0) & finite
+    usable[0] = False                       # the sample at the first stamp has no interval
     m = bins(t, flight.fog_t, bin_s)
     full_scale = library.full_scale(flight.mimu_range)
     on_outputs, quantized = [], set()
@@ -246,7 +249,7 @@ def _prepared(flight, cal, acc, candidates, output_tests, samples, bin_s, noise_
     if check is not None and check["failures"]:
         output_tests, cands = False, []
     if output_tests:
-        on_outputs, clipped, quantized = _output_findings(cal, samples, full_scale)
+        on_outputs, clipped, quantized = _output_findings(cal, samples, finite, full_scale)
         usable = usable & ~clipped
         # a quantized output's error depends on where its input falls between two steps:
         # terms of that channel alone would fit the lattice, not physics
@@ -275,15 +278,14 @@ def _prepared(flight, cal, acc, candidates, output_tests, samples, bin_s, noise_
                      full_scale, on_outputs, quantized, output_tests, check)
 
 
-def _usable(samples):
-    """(N,) bool: the samples inside the reference, unflagged, finite in both the measured
-    and the predicted outputs; never the first (its stamp has no interval)."""
+def _finite(samples):
+    """(N,) bool: the samples whose measured and predicted outputs are all finite, read a
+    column at a time."""
     measured, predicted = samples.spill.series("measured"), samples.spill.series("predicted")
-    usable = samples.inside & (samples.flags == 0)
+    finite = np.ones(len(samples.t), bool)
     for c in range(6):
-        usable &= np.isfinite(measured[:, c] - predicted[:, c])
-    usable[0] = False
-    return usable
+        finite &= np.isfinite(measured[:, c]) & np.isfinite(predicted[:, c])
+    return finite
 
 
 def measured_steps(flight, acc, spill=None):
@@ -398,7 +400,7 @@ def stamp_tick(t):
     return None
 
 
-def _output_findings(cal, samples, full_scale):
+def _output_findings(cal, samples, finite, full_scale):
     """(saturation and quantization findings, samples clipped (N,) bool, quantized channels
     {channel index}): the tests on the outputs themselves (`outputs`), on every sample the
     compensation did not repair (a sample stuck at an extreme is flagged SATURATED there and
@@ -406,9 +408,7 @@ def _output_findings(cal, samples, full_scale):
     allows its step."""
     t, spill, flags = samples.t, samples.spill, samples.flags
     measured, predicted = spill.series("measured"), spill.series("predicted")
-    rows = samples.inside & ((flags & (REPLACED | UNUSABLE)) == 0)
-    for c in range(6):
-        rows &= np.isfinite(measured[:, c]) & np.isfinite(predicted[:, c])
+    rows = samples.inside & ((flags & (REPLACED | UNUSABLE)) == 0) & finite
     rows[0] = False
     live = rows & (flags == 0)
     sigma = outputs.noise_sigma_of(
@@ -444,8 +444,7 @@ def _volt_gains(cal, spill, rows):
             ((cal.W1, cal.W2, cal.W3), cal.cw, "frequency"))):
         for i in range(3):
             temp = spill.column(reading, i)
-            v = (spill.column("volts", 3 * k + i)
-                 - (poly[i, 0] + temp * (poly[i, 1] + temp * poly[i, 2])))[rows]   # poly2
+            v = (spill.column("volts", 3 * k + i) - poly2(poly[i:i + 1], temp[:, None])[:, 0])[rows]
             slope = np.abs(a1[i, i] + 2 * a2[i] * v + 3 * a3[i] * v * v)
             out.append((np.median(slope), slope.min(), slope.max()))
     return np.asarray(out)
