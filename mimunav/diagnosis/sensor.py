@@ -168,7 +168,7 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
     findings, rejected = confirm_chosen(design, chosen, train, held, alpha, prep.full_scale,
                                         prep.extremes)
     findings, aside, doubts, library = recording_checks(  # a real record's halves and noise
-        design, findings, held, check_reference) if flight.source == "recording" \
+        design, findings, held) if flight.source == "recording" \
         else (findings, [], [], None)
     rejected = rejected + aside
     everything = whole()

@@ -57,6 +57,11 @@ After the search every finding must also hold where the reference is weakest (`s
     -6e-5 and +0.008 m - no evidence either way, so such a drive is inconclusive. A
     mounting's tilt (roll, pitch) is not checked so: the windows level themselves on the
     IMU's own specific force and cannot see one (`is_tilt`).
+Before these, as on every recording, the findings' halves must agree and the library's
+other terms beside them must not stand out beyond chance on the held-out blocks
+(`confirmation.recording_checks`): the vehicle model's own errors (roll, pitch on the
+springs, the reference's filter) are residual the tests do not model; beyond the limit
+each finding is judged with its interval widened and 'nothing else is missing' is not said.
 A finding that fails one is not confirmed; when none survives, the diagnosis is then
 **inconclusive** (something was seen that this reference cannot support); so it is when the reference predicts fewer than MIN_PREDICTED of the six channels or fewer than
 MIN_TRUSTED of the samples are usable, and when nothing is found while the model does not
@@ -215,8 +220,11 @@ def diagnose(flight, cal, alpha=0.05, reference=None, accuracy=None):
     demoted += _time_lag(diag, flight, cal, corr, outputs, (ref, trusted, motion), alpha)
     # terms that failed the checks, and channels the model does not follow, make the
     # diagnosis inconclusive only when nothing held: a finding stands on its own tests,
-    # 'nothing is missing' needs the terms of every channel the recording moves tested
-    diag.inconclusive = reasons + ([] if diag.findings else demoted + untested(diag))
+    # 'nothing is missing' needs the terms of every channel the recording moves tested;
+    # the sensor level's own reasons (stamps, the halves, the library beside the findings)
+    # stand as they are
+    diag.inconclusive = (list(diag.inconclusive) + reasons
+                         + ([] if diag.findings else demoted + untested(diag)))
     return diag
 
 
