@@ -427,10 +427,9 @@ def recording_checks(design, findings, held):
     (`_judged_wider`), and the reason given - 'nothing else is missing' cannot be said."""
     kept, aside = halves_check(design, findings)
     lam = library_inflation(design, held, [position_of(design, f) for f in kept])
-    record = {"lambda": lam, "limit": LIBRARY_INFLATION_LIMIT}
+    record = {"lambda": lam, "limit": LIBRARY_INFLATION_LIMIT, "widened_by": 1.0}
     if lam is None or not lam > LIBRARY_INFLATION_LIMIT:
-        return ([dict(f, library_inflation=dict(record, widened_by=1.0)) for f in kept], aside,
-                [], record)
+        return [dict(f, library_inflation=record) for f in kept], aside, [], record
     beside = ("beside the library's findings, its other terms" if kept
               else "with no term of the library found, its terms")
     why = (f"{beside} stand out {lam:.1f} times their chance level on the held-out blocks "

@@ -161,7 +161,9 @@ def _inflation_lines(doc):
                 f"training {lam['training']:.2f}, held-out {lam['held_out']:.2f}.", ""]
     lib = doc.get("library_inflation")
     if lib and lib.get("lambda") is not None:
-        return [f"Beside the findings the library's other terms stand {lib['lambda']:.2f} "
+        beside = ("Beside the findings the library's other terms" if doc.get("findings")
+                  else "The library's terms")
+        return [f"{beside} stand {lib['lambda']:.2f} "
                 f"times their chance level on the held-out blocks (at most {lib['limit']:g} "
                 f"where the tests' noise model holds; the library's findings' intervals "
                 f"widened {lib['widened_by']:.2f}x).", ""]

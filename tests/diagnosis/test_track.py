@@ -587,13 +587,13 @@ def test_the_track_level_on_an_independent_drive_with_a_yaw_gyro_scale(tmp_path)
     import subprocess
     import sys
     bench = BENCH / "independent_drive.py"
-    bag, log, doc = tmp_path / "drive.bag.mcap", tmp_path / "drive.mcap", tmp_path / "d.json"
+    bag, log = tmp_path / "drive.bag.mcap", tmp_path / "drive.mcap"
     subprocess.run([sys.executable, str(bench), "-o", str(bag), "--seed", "14",
                     "--gyro-sf-z", "0.02"], check=True, capture_output=True)
     assert main(["import", "ros2", str(bag), "-o", str(log), "--imu-topic", "/imu/data",
                  "--fix-topic", "/gnss/fix", "--reference-status", "2"]) == 0
-    assert main(["diagnose", str(log), "--json", str(doc)]) == 0
-    result = json.loads(doc.read_text())
+    assert main(["diagnose", str(log), "-o", str(tmp_path / "d")]) == 0  # with its report
+    result = json.loads((tmp_path / "d" / "diagnosis.json").read_text())
     assert [f["label"] for f in result["findings"]] == ["scale_factor gyro.z"]
     lo, hi = result["findings"][0]["ci95"]
     assert lo <= 0.02 <= hi and hi - lo < 0.03
@@ -602,6 +602,7 @@ def test_the_track_level_on_an_independent_drive_with_a_yaw_gyro_scale(tmp_path)
     # chance level (lambda 0.3-2.0 on bench/track_drive.py's 15 drives), nothing widened
     library = result["library_inflation"]
     assert library["lambda"] < library["limit"] and result["conclusive"], library
+    assert "widened 1.00x" in (tmp_path / "d" / "diagnosis.md").read_text()
 
 
 @pytest.mark.slow
