@@ -240,12 +240,9 @@ def make_design(binned, terms, prior, cal, transfer=None):
     design = Design(binned.t[ok], binned.residual[ok], binned.inputs[ok], [], [], [], ok,
                     prior, [])
     matrices = [binned.matrices.pop(0) for _ in range(6)]
-    if not ok.all():
-        for c in range(6):
-            matrices[c] = matrices[c][ok]
     kept = []
     for j, term in enumerate(terms):
-        cols = {c: matrices[c][:, slot[j][0]:sum(slot[j])]
+        cols = {c: matrices[c][ok, slot[j][0]:sum(slot[j])]
                 for c, slot in enumerate(binned.slots) if j in slot}
         if _drivable(term, cols):
             kept.append(j)
@@ -254,7 +251,7 @@ def make_design(binned, terms, prior, cal, transfer=None):
             design.along.append(_along(design, cols))
             design.allowance.append(np.atleast_2d(model_allowance(cal, term)))
             design.allowance_of.append("calibration" if design.allowance[-1].any() else None)
-    _hand_over(design, matrices, binned, kept)
+    _hand_over(design, matrices, binned, kept, ok)
     if transfer is not None and np.any(transfer[0]):
         rates = (binned.inputs[ok, 3:], binned.w_dot[ok])
         for j, term in enumerate(design.terms):
@@ -278,24 +275,43 @@ def _drivable(term, cols):
     return spread > 1e-9 * max(scale, 1e-300)
 
 
-def _hand_over(design, matrices, binned, kept):
-    """The channel matrices into `design`, without the columns of the candidates not `kept`
-    (indices of `binned`'s terms), and each kept candidate's `columns` as views of them."""
+def _hand_over(design, matrices, binned, kept, ok):
+    """The channel matrices into `design`: their usable bins `ok` and the columns of the
+    residual, the reference inputs and the candidates `kept` (indices of `binned`'s terms;
+    twins share theirs, `samples.Bins`), moved in place (`_compacted`); each kept
+    candidate's `columns` views of them."""
     design.columns = [{} for _ in kept]
     for c in range(6):
         slot = binned.slots[c]
-        keep = list(range(4)) + [i for j in kept if j in slot
-                                 for i in range(slot[j][0], sum(slot[j]))]
-        x = matrices[c] if len(keep) == matrices[c].shape[1] else matrices[c][:, keep]
+        used = sorted(set(range(4)).union(*(range(slot[j][0], sum(slot[j]))
+                                             for j in kept if j in slot)))
+        x = _compacted(matrices[c], ok, used)
         matrices[c] = None
-        own, start = {}, 4
+        where = {col: i for i, col in enumerate(used)}
+        own = {}
         for new, j in enumerate(kept):
             if j in slot:
-                k = slot[j][1]
+                start, k = where[slot[j][0]], slot[j][1]
                 own[new] = np.arange(start, start + k)
                 design.columns[new][c] = x[:, start:start + k]
-                start += k
         design.channel_columns.append((x, own))
+
+
+COMPACTING_ROWS = 1 << 15       # rows moved at a time by `_compacted`
+
+
+def _compacted(x, rows, cols):
+    """x's rows where `rows` (bool) and columns `cols` (ascending), as a view of x's top-left
+    corner: moved there in place, COMPACTING_ROWS at a time, with no copy of x beside it (a
+    2-hour flight's channel matrix is ~0.2 GB); x itself when nothing is left out."""
+    if rows.all() and cols == list(range(x.shape[1])):
+        return x
+    done = 0
+    for a in range(0, len(x), COMPACTING_ROWS):
+        piece = x[a:a + COMPACTING_ROWS][rows[a:a + COMPACTING_ROWS]][:, cols]   # a copy
+        x[done:done + len(piece), :len(cols)] = piece       # rows up to a: read before
+        done += len(piece)
+    return x[:done, :len(cols)]
 
 
 TRANSFERRED = ("lever_arm", "size_effect")

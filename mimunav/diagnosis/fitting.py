@@ -108,7 +108,8 @@ class Fitter:
         (c,) = self.design.columns[j]
         cols = self._columns(c, terms)
         (x,) = self._columns(c, [j])
-        others = [i for i in cols if i != x]
+        others = list(cols)
+        others.remove(x)                    # one occurrence: a twin's column stays
         g = self.gram[c]
         _, _, loglik, theta = self._profile(c, cols)
         best = int(np.argmax(loglik))

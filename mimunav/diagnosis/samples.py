@@ -243,10 +243,14 @@ class Bins:
     rad/s, |dw/dt| rad/s^2 and the mean temperature degC; over every sample of a bin, usable
     or not: centres (nb,) s its mean time, extremes (nb, 4) the largest |f| m/s^2 and |w|
     rad/s, the smallest and the largest mean temperature degC. matrices: per channel c the
-    (nb, 4 + sum k) columns [residual, the reference inputs of its triad, every term's
-    regressor on c in the terms' order] (`effects.regressor`), made in place block by block - the design's own
-    (`design.make_design`); slots: per channel {term index: (its first column there, its
-    number of columns)}."""
+    columns [residual, the reference inputs of its triad, every term's regressor on c in the
+    terms' order] (`effects.regressor`), made in place block by block - the design's own
+    (`design.make_design`) - where a term's columns equal columns placed before them on the
+    whole flight (a scale factor is its channel's input, a cross-coupling another input,
+    time_skew accel.all is time_skew imu.all on the accelerometers, a lever arm a size
+    effect's on each accelerometer: about a quarter of the columns) held once; slots: per
+    channel {term index: (its first column there, its number of columns)}, twins sharing
+    theirs."""
     t: np.ndarray
     residual: np.ndarray
     inputs: np.ndarray
@@ -285,20 +289,26 @@ def binned(samples, usable, bins, terms, block=None):
     step = n if block is None else max(m, block // m * m)
     far = max([float(term.get("window_s", 0.0)) for term in terms] +
               [effects.HYSTERESIS_SLOPE_WINDOW_S / 2]) + NEAR_HALO_S
-    out = None
+    out = twins = None
     for a in tqdm(range(start, start + n, step), desc="diagnose: bins", unit="block",
                   disable=block is None, leave=False):
         piece = _block_bins(samples, usable, a, min(a + step, start + n), m, terms, far)
         if out is None:
-            out = _allocated(piece, n // m)
+            out, twins = _allocated(piece, n // m)
         rows = slice((a - start) // m, (a - start) // m + len(piece[0]))
         for k, x in enumerate(piece[:7]):
             getattr(out, BIN_FIELDS[k])[rows] = x
-        for c, (matrix, slot) in enumerate(zip(out.matrices, out.slots)):
-            matrix[rows, 0] = piece[1][:, c]
-            matrix[rows, 1:4] = piece[2][:, :3] if c < 3 else piece[2][:, 3:]
-            for j, (first, k) in slot.items():
-                matrix[rows, first:first + k] = piece[7][j][c]
+        for c in range(6):
+            out.matrices[c][rows, 0] = piece[1][:, c]
+            out.matrices[c][rows, 1:4] = piece[2][:, :3] if c < 3 else piece[2][:, 3:]
+            for j, (first, k) in list(out.slots[c].items()):     # an owner before its twins
+                x = piece[7][j][c]
+                if j in twins[c] and not np.array_equal(
+                        out.matrices[c][rows, first:first + k], x, equal_nan=True):
+                    _part(out, twins, c, j)     # twins so far, not in this block: apart
+                    first = out.slots[c][j][0]
+                if j not in twins[c]:
+                    out.matrices[c][rows, first:first + k] = x
     return out
 
 
@@ -306,17 +316,52 @@ BIN_FIELDS = ("t", "residual", "inputs", "w_dot", "norms", "centres", "extremes"
 
 
 def _allocated(piece, nb):
-    """`Bins` of nb bins, unfilled, laid out as the first block's `piece` (`_block_bins`)."""
+    """(`Bins` of nb bins, unfilled, laid out as the first block's `piece` (`_block_bins`),
+    per channel the terms whose columns there are a twin's: equal in this block to columns
+    placed before them - the reference inputs or an earlier term's - and given those)."""
     fields = [np.empty((nb,) + x.shape[1:]) for x in piece[:7]]
-    matrices, slots = [], []
+    matrices, slots, twins = [], [], []
     for c in range(6):
-        slot, width = {}, 4
+        placed = dict(enumerate((piece[1][:, c],) + tuple(
+            (piece[2][:, :3] if c < 3 else piece[2][:, 3:]).T)))
+        slot, twin = {}, set()
         for j, cols in enumerate(piece[7]):
             if c in cols:
-                slot[j], width = (width, cols[c].shape[1]), width + cols[c].shape[1]
-        matrices.append(np.empty((nb, width)))
+                x, k = cols[c], cols[c].shape[1]
+                first = _placed_at(placed, x)
+                if first is None:
+                    first = len(placed)
+                    placed.update({first + i: x[:, i] for i in range(k)})
+                else:
+                    twin.add(j)
+                slot[j] = (first, k)
+        matrices.append(np.empty((nb, len(placed))))
         slots.append(slot)
-    return Bins(*fields, matrices, slots)
+        twins.append(twin)
+    return Bins(*fields, matrices, slots), twins
+
+
+def _placed_at(placed, x):
+    """The first of k columns in `placed` {column: its values in the block}, never the
+    residual (0), equal to x's k columns (NaN equal to NaN), or None."""
+    k = x.shape[1]
+    for first in range(1, len(placed) - k + 1):
+        if all(np.array_equal(placed[first + i], x[:, i], equal_nan=True) for i in range(k)):
+            return first
+    return None
+
+
+def _part(out, twins, c, j):
+    """Give term j on channel c columns of its own, its twin's bins so far copied into them
+    (the blocks before this one were equal): a matrix one term wider."""
+    matrix = out.matrices[c]
+    first, k = out.slots[c][j]
+    wider = np.empty((matrix.shape[0], matrix.shape[1] + k))
+    wider[:, :matrix.shape[1]] = matrix
+    wider[:, matrix.shape[1]:] = matrix[:, first:first + k]
+    out.matrices[c] = wider
+    out.slots[c][j] = (matrix.shape[1], k)
+    twins[c].discard(j)
 
 
 def _block_bins(samples, usable, a, b, m, terms, far_s):

@@ -146,6 +146,8 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
         raise InputError(f"{flight.path}: the MIMU turns on a platform (/mimu/platform); "
                          "this analysis does not follow the rotation yet - replay and table do")
     acc = accuracy_of(flight.fog_meta, accuracy)
+    jitter = [stamp_jitter(flight.mimu_t, "the MIMU's"),  # before the bins are held: a
+              stamp_jitter(flight.fog_t, "the reference IMU's")]  # stamp's steps are 8 B each
     prep = _prepare(flight, cal, acc, candidates, output_tests, vibration, bin_s, noise_shape,
                     max_wander, wander_steps, check_reference)
     output_tests = prep.output_tests
@@ -188,9 +190,7 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
                            design.terms,
                            everything, outputs.bias_null(noise) if output_tests else None,
                            prep.compensated and (flight, *prep.compensated), library)
-    diag.inconclusive = [why for why in (stamp_jitter(flight.mimu_t, "the MIMU's"),
-                                         stamp_jitter(flight.fog_t, "the reference IMU's"),
-                                         *doubts) if why]
+    diag.inconclusive = [why for why in jitter + doubts if why]
     if not findings:        # what the halves set aside was there, but not the same throughout
         diag.inconclusive += set_aside_reasons(aside)
     if prep.agreement is not None:

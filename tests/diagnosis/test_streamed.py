@@ -82,8 +82,44 @@ def test_a_streamed_diagnosis_is_the_held_one(tmp_path, monkeypatch):
     # moves some by 1e-3 and more
     pairs = [(getattr(held_bins, k), getattr(streamed_bins, k))
              for k in ("t", "residual", "inputs", "w_dot", "norms", "extremes")]
-    pairs += [(x[:, i], y[:, i]) for x, y in zip(held_bins.matrices, streamed_bins.matrices)
-              for i in range(x.shape[1])]
+    pairs += [(held_bins.matrices[c][:, a:a + k], streamed_bins.matrices[c][:, b:b + k])
+              for c in range(6)
+              for (j, (a, k)), (_, (b, _)) in zip(held_bins.slots[c].items(),
+                                                  streamed_bins.slots[c].items())]
+    pairs += [(x[:, :4], y[:, :4]) for x, y in zip(held_bins.matrices, streamed_bins.matrices)]
     assert len(pairs) > 100
     for x, y in pairs:
         assert np.allclose(y, x, rtol=0, atol=1e-9 * np.nanmax(np.abs(x)), equal_nan=True)
+
+
+def test_twin_columns_are_held_once_and_part_where_they_differ(monkeypatch):
+    """`samples.binned` holds a term's columns once where they equal columns placed before
+    them on the whole flight, and gives them their own from the block where they part (the
+    bins before it copied from the twin): every term's bins are its own, block by block."""
+    rng = np.random.default_rng(1)
+    nb, m = 40, 10                              # 40 bins of 10 samples, blocks of 10 bins
+    inputs, residual = rng.normal(size=(nb, 6)), rng.normal(size=(nb, 6))
+    own = rng.normal(size=(nb, 2))
+    parting = own.copy()
+    parting[25:] += 1.0                         # equal to `own` in the first two blocks
+    columns = [{0: inputs[:, [0]]},             # the channel's own input: a twin throughout
+               {0: own, 3: own[:, :1]},         # placed
+               {0: parting}]                    # a twin of term 1 until bin 25
+
+    def block_bins(samples, usable, a, b, m_, terms, far):
+        r = slice(a // m, b // m)
+        return (np.arange(nb)[r], residual[r], inputs[r], inputs[r, :3], inputs[r, :4],
+                np.arange(nb)[r], inputs[r, :4], [{c: x[r] for c, x in t.items()}
+                                                  for t in columns])
+    monkeypatch.setattr(samples, "_block_bins", block_bins)
+    stage = type("Stage", (), {"t": np.arange(nb * m) * 1e-3})()
+    terms = [{"effect": "scale_factor"}] * 3
+    out = samples.binned(stage, np.ones(nb * m, bool), (m, 0), terms, block=10 * m)
+    for j, t in enumerate(columns):
+        for c, x in t.items():
+            first, k = out.slots[c][j]
+            assert np.array_equal(out.matrices[c][:, first:first + k], x), (j, c)
+    assert out.slots[0][0] == (1, 1) and out.matrices[0].shape[1] == 4 + 2 + 2
+    assert out.slots[0][2][0] == 6 and out.matrices[3].shape[1] == 5
+    held = samples.binned(stage, np.ones(nb * m, bool), (m, 0), terms)     # one block
+    assert held.matrices[0].shape[1] == 8 and held.slots[0] == out.slots[0]
