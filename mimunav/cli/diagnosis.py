@@ -83,6 +83,8 @@ def _diagnosed(args, painter):
         print(f"  unexplained residual {u['channel']} {u['t0']:.1f}-{u['t1']:.1f} s (z {u['z']:.1f})")
     for w in doc.get("within_reference_accuracy", []):
         print(set_aside_line(w))
+    for line in checked_aside_lines(doc):
+        print(line)
     if args.output:
         print(f"wrote {args.output}/diagnosis.md" + (" and CAL+found.json" if found else ""))
     return 0
@@ -120,6 +122,16 @@ def finding_line(f):
     if alike:
         line += "\n    not told apart on this flight from " + ", ".join(alike)
     return line
+
+
+def checked_aside_lines(doc):
+    """The terms a recording's checks set aside (its halves disagree, or the library beside
+    them is not at its chance level: `confirmation.recording_checks`), for the terminal -
+    those not already said among the reasons the diagnosis is inconclusive."""
+    from ..diagnosis.confirmation import set_aside_reasons
+    said = set(doc.get("inconclusive_reasons", []))
+    return [f"  set aside: {why}" for why in set_aside_reasons(doc.get("not_confirmed", []))
+            if why not in said]
 
 
 def set_aside_line(w):

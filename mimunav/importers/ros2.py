@@ -168,14 +168,42 @@ def read(path, imu_topic=None, fix_topic=None, mounting=None, reference_status=N
                      real=real, assumed=assumed, reference_imu=second)
 
 
+def _imu_messages(path, topic):
+    """(stamp ns, the message's 37 float64: orientation (4), its covariance (9), angular
+    velocity (3), its covariance (9), linear acceleration (3), its covariance (9)) of each
+    message of an Imu topic, read from its CDR bytes (OMG XCDR1 as ROS 2 writes it: a 4-byte
+    encapsulation header, little- or big-endian by its second byte, then the fields aligned
+    to their size from the data's start: Header {int32 sec, uint32 nanosec, string frame_id:
+    uint32 length with its NUL, then the bytes}, then the float64 fields from the next
+    multiple of 8) - the same numbers mcap-ros2-support decodes (tests/importers), about 100
+    times faster (an hour at 100 Hz: ~5 s instead of ~8 min)."""
+    with open(path, "rb") as fh:
+        reader = make_reader(fh)
+        messages = reader.iter_messages(topics=[topic])
+        while True:
+            try:
+                _, channel, message = next(messages)
+                data = message.data
+                if channel.message_encoding != "cdr" or data[1] not in (0, 1):
+                    raise ValueError(f"{channel.message_encoding} encoding, header "
+                                     f"{data[:4].hex()}: not CDR")
+                end = "<" if data[1] == 1 else ">"
+                sec, nanosec, length = struct.unpack_from(end + "iII", data, 4)
+                start = 4 + (12 + length + 7) // 8 * 8
+                values = struct.unpack_from(end + "37d", data, start)
+            except StopIteration:
+                return
+            except _DAMAGE as exc:
+                raise _damaged(path, exc) from None
+            stamp = sec * 1_000_000_000 + nanosec
+            yield (stamp if stamp > 0 else message.log_time), values
+
+
 def _imu(path, topic):
     """(stamps ns, w rad/s, f m/s^2 (N, 3) in the message frame, repeated stamps dropped) of
     an Imu topic, sorted by stamp; a topic whose covariance[0] = -1 (REP-145: not measured)
     says it lacks a gyro or an accelerometer is refused."""
-    rows = [(ns, m.angular_velocity.x, m.angular_velocity.y, m.angular_velocity.z,
-             m.linear_acceleration.x, m.linear_acceleration.y, m.linear_acceleration.z,
-             m.angular_velocity_covariance[0], m.linear_acceleration_covariance[0])
-            for ns, m in _messages(path, topic)]
+    rows = [(ns, *v[13:16], *v[25:28], v[16], v[28]) for ns, v in _imu_messages(path, topic)]
     if len(rows) < 2:
         raise RecordingError(f"{path}: {topic} has {len(rows)} messages")
     a = np.asarray(rows, dtype=object)

@@ -201,6 +201,59 @@ def test_ros2_import_by_topic(tmp_path):
     assert abs(pitch) < 0.01 and abs(roll) < 0.01
 
 
+def test_ros2_imu_messages_are_read_as_mcap_ros2_decodes_them(tmp_path):
+    """Imu messages written by mcap-ros2-support's own writer, frame ids of 0 to 9
+    characters (each moves the float64 fields to another alignment), random values and
+    stamps of any second: the importer's direct CDR reading (`ros2._imu`) gives the numbers
+    the package's own decoder gives, bit for bit; a message cut short is refused as damage."""
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+    from mcap_ros2.writer import Writer
+    rng = np.random.default_rng(5)
+    bag = tmp_path / "imu.mcap"
+    with open(bag, "wb") as fh:
+        writer = Writer(fh)
+        imu = writer.register_msgdef("sensor_msgs/msg/Imu", MSGDEFS["sensor_msgs/msg/Imu"])
+        for k in range(40):
+            v = rng.normal(size=37)
+            vec = lambda a: {"x": a[0], "y": a[1], "z": a[2]}        # noqa: E731
+            writer.write_message("/imu", imu, {
+                "header": {"stamp": {"sec": 1_700_000_000 + k, "nanosec": int(rng.integers(10**9))},
+                           "frame_id": "abcdefghi"[:k % 10]},
+                "orientation": {"x": v[0], "y": v[1], "z": v[2], "w": v[3]},
+                "orientation_covariance": list(v[4:13]), "angular_velocity": vec(v[13:16]),
+                "angular_velocity_covariance": list(v[16:25]),
+                "linear_acceleration": vec(v[25:28]),
+                "linear_acceleration_covariance": list(v[28:37])}, log_time=k + 1)
+        writer.finish()
+    with open(bag, "rb") as fh:
+        decoded = sorted((m.header.stamp.sec * 10**9 + m.header.stamp.nanosec, m)
+                         for _, _, _, m in make_reader(
+                             fh, decoder_factories=[DecoderFactory()]).iter_decoded_messages())
+    rec = ros2.read(bag)
+    assert np.array_equal(rec.imu_ns, [ns for ns, _ in decoded])
+    assert np.array_equal(rec.w, [[m.angular_velocity.x, m.angular_velocity.y,
+                                   m.angular_velocity.z] for _, m in decoded])
+    assert np.array_equal(rec.f, [[m.linear_acceleration.x, m.linear_acceleration.y,
+                                   m.linear_acceleration.z] for _, m in decoded])
+    from mcap.writer import Writer as RawWriter
+    with open(bag, "rb") as fh:           # each message's bytes, a frame id's length made huge
+        raw = [(schema, m.data) for schema, _, m in make_reader(fh).iter_messages()]
+    with open(tmp_path / "cut.mcap", "wb") as fh:
+        writer = RawWriter(fh)
+        writer.start()
+        sid = writer.register_schema(raw[0][0].name, raw[0][0].encoding, raw[0][0].data)
+        cid = writer.register_channel("/imu", "cdr", sid)
+        for k, (_, data) in enumerate(raw):
+            data = bytearray(data)
+            if k == 20:
+                data[12:16] = (10**6).to_bytes(4, "little")
+            writer.add_message(cid, log_time=k + 1, data=bytes(data), publish_time=k + 1)
+        writer.finish()
+    with pytest.raises(RecordingError, match="damaged or truncated MCAP"):
+        ros2.read(tmp_path / "cut.mcap")
+
+
 def test_ros2_rtk_fixes_as_the_reference(tmp_path):
     """NavSatFix of a receiver driving north at 5 m/s, RTK-grade (status 2, 2 cm) with a few
     degraded fixes (status 0, 3 m): with --reference-status 2 only the RTK fixes become
