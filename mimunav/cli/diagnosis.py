@@ -118,6 +118,9 @@ def finding_line(f):
                  f"widened {halves['widened_by']:.2f}x" + (
                      f", held-out p {p_text(halves['p_heldout_widened'])} with it"
                      if "p_heldout_widened" in halves else ""))
+    if f.get("ci95_method") == "student-t over segments":     # the track level's lag
+        line += ("\n    its interval: the scatter of the yaw rate's segments' lags (Student t), "
+                 "not the bins' noise model - the library check does not widen it")
     alike = [a["label"] for a in f.get("indistinguishable_from", [])]
     if alike:
         line += "\n    not told apart on this flight from " + ", ".join(alike)
@@ -147,10 +150,10 @@ def set_aside_line(w):
     words, key = stated_errors(w)
     stated = (f"the reference's (1 sigma {sigmas(key)}) and the calibration's"
               if key == "reference_1sigma" else f"{words} (1 sigma {sigmas(key)})")
-    return (f"  set aside: {w['label']} {said}: significant against the noise alone (p "
-            f"{w['p_train']:.2g}), not once the stated errors that may share it - {stated} - "
-            f"are allowed: with them its 1 sigma is {sigmas('total_1sigma')}\n"
-            f"    {charge_text(w)}")
+    return (f"  within the stated errors: {w['label']} {said}: significant against the "
+            f"noise alone (p {w['p_train']:.2g}), not once the stated errors that may share "
+            f"it - {stated} - are allowed: with them its 1 sigma is "
+            f"{sigmas('total_1sigma')}\n    {charge_text(w)}")
 
 
 def add_diagnose(sub):

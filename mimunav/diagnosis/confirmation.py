@@ -395,7 +395,7 @@ def _judged_wider(finding, factor, k, why, key, record, p_heldout=None):
 # cheap IMU, uncalibrated, beside a VN-300 logged in 0.01 steps) 35, and 21 on its first 8 s.
 # At the track level (a vehicle model's IMU as the reference) on the 15 drives of
 # bench/track_drive.py (an independent generator: null, lag, mounting, yaw scale; 1 Hz and
-# 5 cm fixes, 5 m hills) 0.29-2.04; on the shared RTKLIB drive 8.4 (4.8 with its fixes at
+# 5 cm fixes, 5 m hills) 0.29-2.04; on the shared RTKLIB drive 8.4 (3.6 with its fixes at
 # 1 Hz, 21 on its first 60 s) and on comma2k19's segment 7.0 - the car's roll, pitch on its
 # springs and the reference's own filter, none of them in the model
 LIBRARY_INFLATION_LIMIT = 3.0
@@ -443,8 +443,8 @@ def recording_checks(design, findings, held):
     return ([f for ok, f in judged if ok], aside + [f for ok, f in judged if not ok],
             [why + ": the residual is not the noise the tests assume (the reference's steps "
              "or lag, vibration, errors no term describes)"
-             + (f"; the library's {len(kept)} finding(s) judged with intervals "
-                f"{math.sqrt(lam):.2f}x wider, {dropped} set aside" if kept else "")
+             + (f"; each finding of the search judged with its interval {math.sqrt(lam):.2f}x "
+                f"wider: {dropped} of {len(kept)} set aside by it" if kept else "")
              + " (the tests on the outputs - bias, saturation, quantization - have nulls of "
              "their own and are not judged by it)"], dict(record, widened_by=math.sqrt(lam)))
 

@@ -24,10 +24,10 @@ TWO_HOURS = 7.2e6           # samples of a 2-hour 1 kHz flight (the growth betwe
 LIMIT_MB = 1500.0
 MINUTES = (18, 30)
 # `diagnose` streams its sensor level (issue 55, diagnosis/samples.py) but still grows with the
-# flight: its design's bins (10 ms, ~130 candidate columns: ~125 B a 1 kHz sample) are held
-# for the fits. Measured 2026-11-29 on a parked 1 kHz flight: 1060 MB at 48 min, 2259 MB at
-# 2 hours (128 s) - above LIMIT_MB, so its row stays bench/memory.py's rather than an expected
-# failure that costs CI two minutes
+# flight: its design's bins (10 ms, ~120 candidate columns once repeated ones are held once:
+# ~100 B a 1 kHz sample) are held for the fits. Measured 2026-11-29 on a parked 1 kHz flight
+# (bench/memory.py): 904 MB at 48 min, 1615 MB at 2 hours (109 s) - above LIMIT_MB, so its
+# row stays bench/memory.py's rather than an expected failure that costs CI two minutes
 STREAMING = [kind for kind in memory.COMMANDS if kind != "diagnose"]
 
 
