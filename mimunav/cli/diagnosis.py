@@ -83,7 +83,7 @@ def _diagnosed(args, painter):
         print(f"  unexplained residual {u['channel']} {u['t0']:.1f}-{u['t1']:.1f} s (z {u['z']:.1f})")
     for w in doc.get("within_reference_accuracy", []):
         print(set_aside_line(w))
-    for line in checked_aside_lines(doc):
+    for line in not_confirmed_lines(doc):
         print(line)
     if args.output:
         print(f"wrote {args.output}/diagnosis.md" + (" and CAL+found.json" if found else ""))
@@ -127,14 +127,14 @@ def finding_line(f):
     return line
 
 
-def checked_aside_lines(doc):
-    """The terms a recording's checks set aside (its halves disagree, or the library beside
-    them is not at its chance level: `confirmation.recording_checks`), for the terminal -
-    those not already said among the reasons the diagnosis is inconclusive."""
-    from ..diagnosis.confirmation import set_aside_reasons
+def not_confirmed_lines(doc):
+    """The terms chosen in training and then not confirmed (`not_confirmed`: the held-out
+    test, the physical range, a recording's halves or its library check), each with why, for
+    the terminal - those not already said among the reasons the diagnosis is inconclusive."""
     said = set(doc.get("inconclusive_reasons", []))
-    return [f"  set aside: {why}" for why in set_aside_reasons(doc.get("not_confirmed", []))
-            if why not in said]
+    lines = [f"{r.get('label', r.get('effect', '?'))}: {r['rejected']}"
+             for r in doc.get("not_confirmed", []) if r.get("rejected")]
+    return [f"  not confirmed: {line}" for line in lines if line not in said]
 
 
 def set_aside_line(w):

@@ -15,7 +15,7 @@ from mimunav.frames import attitude
 from mimunav.compensation import effects
 from mimunav.sensors import simulation
 from mimunav.cli import main
-from mimunav.cli.diagnosis import checked_aside_lines, finding_line, set_aside_line
+from mimunav.cli.diagnosis import finding_line, not_confirmed_lines, set_aside_line
 from mimunav.compensation.calibration_file import Calibration
 from mimunav.compensation.model import CalibrationError, compensate
 from mimunav.diagnosis import concealed
@@ -128,22 +128,26 @@ def test_a_mounting_finding_gives_its_turn_about_the_vehicle_axes_too():
     assert f"forward, right, down axes {np.degrees(phi_v[0]):+.2f} deg" in line
 
 
-def test_the_terminal_names_the_terms_a_recordings_checks_set_aside():
-    """A recording with a finding kept and another set aside by its library check (the
-    RTKLIB drive's kind): the terminal names the one set aside and why; with nothing kept,
-    the reason is already among the inconclusive reasons and is not said twice; a term
-    rejected by another test (no halves or library record) is not one of them."""
+def test_the_terminal_names_the_terms_not_confirmed_and_why():
+    """A recording with a finding kept, one term set aside by its library check (the RTKLIB
+    drive's kind) and one beyond its physical range (comma2k19's accel.x scale at the track
+    level): the terminal names both and why; what the inconclusive reasons already say is
+    not said twice."""
     aside = {"label": "scale_factor accel.x", "coefficient": 0.04,
              "library_inflation": {"lambda": 8.4, "widened_by": 2.9},
              "rejected": "its interval widened 2.90x holds zero - inconclusive"}
-    other = {"label": "bias_shift gyro.z", "rejected": "not confirmed on the held-out blocks"}
+    other = {"label": "scale_factor accel.y", "rejected": "held-out magnitude 0.0566 beyond "
+                                                          "the physical range 0.05"}
     doc = {"findings": [{"label": "mounting_misalignment imu.all"}],
            "not_confirmed": [aside, other], "inconclusive_reasons": ["the library stands out"]}
-    assert checked_aside_lines(doc) == [
-        "  set aside: scale_factor accel.x: its interval widened 2.90x holds zero - inconclusive"]
+    assert not_confirmed_lines(doc) == [
+        "  not confirmed: scale_factor accel.x: its interval widened 2.90x holds zero - "
+        "inconclusive",
+        "  not confirmed: scale_factor accel.y: held-out magnitude 0.0566 beyond the physical "
+        "range 0.05"]
     doc = dict(doc, findings=[], inconclusive_reasons=[
         "scale_factor accel.x: its interval widened 2.90x holds zero - inconclusive"])
-    assert checked_aside_lines(doc) == []
+    assert [line.split(":")[1] for line in not_confirmed_lines(doc)] == [" scale_factor accel.y"]
 
 
 def test_a_set_aside_term_is_said_with_the_sigma_its_test_used():
