@@ -275,7 +275,20 @@ def _check_time_offset(rec, t_imu, t_ref, rate, corr0, half):
             best, best_lag = float(c), float(lag)
     # as stamped, a correlation below zero explains nothing (r0 = -0.9 is no near-match)
     unexplained = (1 - max(corr0, 0.0) ** 2) / max(1 - best ** 2, 1e-12)
-    if best > 0.7 and unexplained >= CLEARLY_BETTER and abs(best_lag) >= REFUSED_OFFSET_S:
+    shifted = best > 0.7 and unexplained >= CLEARLY_BETTER and best_lag != 0.0
+    grid = f"searched every 0.5 s within +-{TIME_OFFSET_SEARCH_S:g} s"
+    rec.real["reference_clock"] = (
+        f"the gyro's yaw rate follows the GNSS course rate best with the IMU's stamps shifted "
+        f"by {-best_lag:+.1f} s (correlation {best:.2f}, {corr0:+.2f} as stamped; {grid})"
+        + ("" if abs(best_lag) >= REFUSED_OFFSET_S else
+           f": under {REFUSED_OFFSET_S:g} s it is imported as stamped and left to `mimunav "
+           "diagnose`, which measures the lag with its interval (the track level's time lag)")
+        if shifted else
+        f"the gyro's yaw rate follows the GNSS course rate as stamped (correlation "
+        f"{corr0:+.2f}; no shift explains clearly more, {grid})") + (
+        f" - the reference as shifted by the --reference-time-offset {rec.reference_shift_s:+g} "
+        "given" if rec.reference_shift_s else "")
+    if shifted and abs(best_lag) >= REFUSED_OFFSET_S:
         raise RecordingError(
             f"{rec.name}: the gyro's yaw rate follows the GNSS course rate only with the IMU's "
             f"stamps shifted by {-best_lag:+.1f} s (correlation {best:.2f}, {corr0:+.2f} as "

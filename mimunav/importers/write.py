@@ -124,6 +124,8 @@ def summary(rec, align, path):
         lines.append(f"clipped: {rec.real['clipped']}")
     if "mounting_yaw_against_course" in rec.real:
         lines.append(f"measured mounting yaw: {rec.real['mounting_yaw_against_course']}")
+    if "reference_clock" in rec.real:
+        lines.append(f"measured clock offset: {rec.real['reference_clock']}")
     lines.append(f"initial state at t = {align.t:.3f} s: {align.method}")
     if np.isnan(align.static[0]) and np.any(align.gyro_bias):
         lines.append("biases from the reference's attitude and velocity (sensor axes): gyro "

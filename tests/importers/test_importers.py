@@ -569,6 +569,7 @@ def test_a_csv_cut_mid_line_loses_only_that_line(tmp_path):
     ("5 s", "shifted by .* time bases differ.*--reference-time-offset"),
     ("2 s", "shifted by .* time bases differ.*--reference-time-offset"),
     ("1 s", "shifted by .* time bases differ.*--reference-time-offset"),
+    ("0.5 s", None),
 ])
 def test_the_gnss_course_judges_units_and_axes_without_a_reference_attitude(tmp_path, wrong,
                                                                             message):
@@ -580,7 +581,8 @@ def test_the_gnss_course_judges_units_and_axes_without_a_reference_attitude(tmp_
     make the yaw rate follow the course only shifted (the weave's period makes the shift's
     value ambiguous here; the helper's drive gave 18.0 s exactly) - each refused at
     import, naming what to check (they imported and then 'diagnosed' a misalignment, or
-    every window was wrong)."""
+    every window was wrong). Under 1 s (0.5 s) it is imported as stamped, and the import
+    says the shift it measured and that the diagnosis measures the lag."""
     t_tr, lat, lon, h, v = straight_track()
     motion = TrackMotion(t_tr, lat, lon, h, v)
     t = np.arange(t_tr[0], t_tr[-1] + 1e-9, 0.01)
@@ -598,6 +600,11 @@ def test_the_gnss_course_judges_units_and_axes_without_a_reference_attitude(tmp_
     ref = dict(ns=epoch + np.round(t_tr * 1e9).astype(np.int64), lat=lat, lon=lon, h=h, v_ned=v)
     rec = Recording("wrong", "", epoch + np.round((t[1:] + shift) * 1e9).astype(np.int64), w,
                     f, mounting, reference=ref)
+    if message is None:
+        write_log(rec, tmp_path / "late.mcap")
+        assert "IMU's stamps shifted by -0.5 s" in rec.real["reference_clock"]
+        assert "left to `mimunav diagnose`" in rec.real["reference_clock"]
+        return
     with pytest.raises(RecordingError, match=message):
         write_log(rec, tmp_path / "never.mcap")
     assert not (tmp_path / "never.mcap").exists()
