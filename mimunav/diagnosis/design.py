@@ -51,10 +51,11 @@ class Design:
     reference: object = None    # the reference's `sensors.accuracy.Accuracy` (`_reference_may_carry`)
     calibrated: bool = False    # the MIMU compensated by a calibration of the unit (not
                                 # a recording's outputs taken as they are): `physical_limit`
-    channel_columns: list = field(default_factory=list)  # per channel c: ((nb, 4 + sum k)
-                                # [residual, reference inputs, every candidate's columns on
-                                # c], {candidate: its column indices}) - what every `Fitter`
-                                # filters; each candidate's `columns` are views of these
+    channel_columns: list = field(default_factory=list)  # per channel c: ((nb, 4 + k)
+                                # [residual, reference inputs, the candidates' columns on c,
+                                # a column that repeats another held once], {candidate: its
+                                # column indices}) - what every `Fitter` filters; each
+                                # candidate's `columns` are views of these
     q_vs: np.ndarray = field(default_factory=lambda: np.array([1.0, 0, 0, 0]))   # MIMU
                                 # sensor -> vehicle (w, x, y, z): a lever arm is reported in
                                 # the vehicle frame of the metadata's lever_arm_m
@@ -234,8 +235,8 @@ def make_design(binned, terms, prior, cal, transfer=None):
     drive (no variation) dropped and those the reference inputs span marked. `transfer`:
     (d (3,) m, P (9, 9)) the lever arm from the reference to the MIMU in the MIMU's axes and
     the covariance of the reference's gyro error matrix there (`transfer_allowance`), or
-    None. The bins' channel matrices become the design's (rows and columns left out by
-    copying a channel at a time; `binned.matrices` is emptied as they are taken)."""
+    None. The bins' channel matrices become the design's (rows and columns left out in
+    place, `_compacted`; `binned.matrices` is emptied as they are taken)."""
     ok = np.isfinite(binned.residual).all(axis=1)
     design = Design(binned.t[ok], binned.residual[ok], binned.inputs[ok], [], [], [], ok,
                     prior, [])
@@ -303,7 +304,7 @@ COMPACTING_ROWS = 1 << 15       # rows moved at a time by `_compacted`
 def _compacted(x, rows, cols):
     """x's rows where `rows` (bool) and columns `cols` (ascending), as a view of x's top-left
     corner: moved there in place, COMPACTING_ROWS at a time, with no copy of x beside it (a
-    2-hour flight's channel matrix is ~0.2 GB); x itself when nothing is left out."""
+    2-hour flight's channel matrix is ~0.1 GB); x itself when nothing is left out."""
     if rows.all() and cols == list(range(x.shape[1])):
         return x
     done = 0

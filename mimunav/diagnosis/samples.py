@@ -300,7 +300,7 @@ def binned(samples, usable, bins, terms, block=None):
             getattr(out, BIN_FIELDS[k])[rows] = x
         for c in range(6):
             out.matrices[c][rows, 0] = piece[1][:, c]
-            out.matrices[c][rows, 1:4] = piece[2][:, :3] if c < 3 else piece[2][:, 3:]
+            out.matrices[c][rows, 1:4] = _triad(piece[2], c)
             for j, (first, k) in list(out.slots[c].items()):     # an owner before its twins
                 x = piece[7][j][c]
                 if j in twins[c] and not np.array_equal(
@@ -322,8 +322,7 @@ def _allocated(piece, nb):
     fields = [np.empty((nb,) + x.shape[1:]) for x in piece[:7]]
     matrices, slots, twins = [], [], []
     for c in range(6):
-        placed = dict(enumerate((piece[1][:, c],) + tuple(
-            (piece[2][:, :3] if c < 3 else piece[2][:, 3:]).T)))
+        placed = dict(enumerate((piece[1][:, c],) + tuple(_triad(piece[2], c).T)))
         slot, twin = {}, set()
         for j, cols in enumerate(piece[7]):
             if c in cols:
@@ -339,6 +338,11 @@ def _allocated(piece, nb):
         slots.append(slot)
         twins.append(twin)
     return Bins(*fields, matrices, slots), twins
+
+
+def _triad(inputs, c):
+    """(n, 3) the reference inputs (n, 6: f then w) of channel c's triad."""
+    return inputs[:, :3] if c < 3 else inputs[:, 3:]
 
 
 def _placed_at(placed, x):

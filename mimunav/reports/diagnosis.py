@@ -161,12 +161,11 @@ def _inflation_lines(doc):
                 f"training {lam['training']:.2f}, held-out {lam['held_out']:.2f}.", ""]
     lib = doc.get("library_inflation")
     if lib and lib.get("lambda") is not None:
-        beside = ("Beside the findings the library's other terms" if doc.get("findings")
-                  else "The library's terms")
-        return [f"{beside} stand {lib['lambda']:.2f} "
-                f"times their chance level on the held-out blocks (at most {lib['limit']:g} "
-                f"where the tests' noise model holds; the library's findings' intervals "
-                f"widened {lib['widened_by']:.2f}x).", ""]
+        return [("Beside the findings the library's other terms" if doc.get("findings") else
+                 "The library's terms") + f" stand {lib['lambda']:.2f} times their chance level "
+                f"on the held-out blocks (at most {lib['limit']:g} where the tests' noise model "
+                f"holds; each finding of the search judged with its interval widened "
+                f"{lib['widened_by']:.2f}x).", ""]
     return []
 
 
