@@ -106,8 +106,9 @@ class RecordStats:
         subs = [[] for _ in names]
         for block in blocks:
             first = (-seen) % step
-            for k, name in enumerate(names):
-                subs[k].append(np.asarray(block[name], dtype=float)[first::step])
+            for k, name in enumerate(names):      # a copy: a field's strided view would
+                # keep the whole block alive (a 2-hour 1 kHz record's every message)
+                subs[k].append(np.asarray(block[name], dtype=float)[first::step].copy())
             seen += len(block)
             stamps = block["log_time"].astype(np.int64)
             steps = np.diff(stamps if last is None else np.r_[last, stamps])

@@ -5,6 +5,7 @@ calibration's own linear errors (18 parameters: each triad's scale and misalignm
 term's contribution to each channel.
 """
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
 
@@ -14,6 +15,7 @@ from scipy import linalg
 from ..lab.calibrate import standard_errors
 from ..compensation.effects import AXES
 from . import library, wander
+from .spill import ScratchMatrix
 
 
 FAST_BIN_S = 0.01
@@ -29,7 +31,7 @@ class Design:
     t: np.ndarray               # (nb,) bin centres, s
     residual: np.ndarray        # (nb, 6)
     inputs: np.ndarray          # (nb, 6): predicted f (m/s^2) then w (rad/s), MIMU axes
-    columns: list               # per candidate: {channel: (nb, k)}
+    columns: list               # per candidate: {channel: (nb, k)} (`TermColumns`)
     k: list                     # per candidate: parameter count
     terms: list                 # the candidates
     kept: np.ndarray            # usable bins of the raw binning
@@ -54,8 +56,9 @@ class Design:
     channel_columns: list = field(default_factory=list)  # per channel c: ((nb, 4 + k)
                                 # [residual, reference inputs, the candidates' columns on c,
                                 # a column that repeats another held once], {candidate: its
-                                # column indices}) - what every `Fitter` filters; each
-                                # candidate's `columns` are views of these
+                                # column indices}) - what every `Fitter` filters, an
+                                # array or, for a flight that streams, a
+                                # `spill.ScratchMatrix`; each candidate's `columns` read them
     q_vs: np.ndarray = field(default_factory=lambda: np.array([1.0, 0, 0, 0]))   # MIMU
                                 # sensor -> vehicle (w, x, y, z): a lever arm is reported in
                                 # the vehicle frame of the metadata's lever_arm_m
@@ -243,7 +246,7 @@ def make_design(binned, terms, prior, cal, transfer=None):
     matrices = [binned.matrices.pop(0) for _ in range(6)]
     kept = []
     for j, term in enumerate(terms):
-        cols = {c: matrices[c][ok, slot[j][0]:sum(slot[j])]
+        cols = {c: matrices[c][:, slot[j][0]:sum(slot[j])][ok]
                 for c, slot in enumerate(binned.slots) if j in slot}
         if _drivable(term, cols):
             kept.append(j)
@@ -280,13 +283,15 @@ def _hand_over(design, matrices, binned, kept, ok):
     """The channel matrices into `design`: their usable bins `ok` and the columns of the
     residual, the reference inputs and the candidates `kept` (indices of `binned`'s terms;
     twins share theirs, `samples.Bins`), moved in place (`_compacted`); each kept
-    candidate's `columns` views of them."""
-    design.columns = [{} for _ in kept]
+    candidate's `columns` read from them (`TermColumns`); matrices in scratch files
+    (`spill.ScratchMatrix`) select theirs without moving them."""
+    where_of = [{} for _ in kept]
     for c in range(6):
         slot = binned.slots[c]
         used = sorted(set(range(4)).union(*(range(slot[j][0], sum(slot[j]))
                                              for j in kept if j in slot)))
-        x = _compacted(matrices[c], ok, used)
+        x = matrices[c].selected(ok, used) if isinstance(matrices[c], ScratchMatrix) \
+            else _compacted(matrices[c], ok, used)
         matrices[c] = None
         where = {col: i for i, col in enumerate(used)}
         own = {}
@@ -294,8 +299,28 @@ def _hand_over(design, matrices, binned, kept, ok):
             if j in slot:
                 start, k = where[slot[j][0]], slot[j][1]
                 own[new] = np.arange(start, start + k)
-                design.columns[new][c] = x[:, start:start + k]
+                where_of[new][c] = (start, k)
         design.channel_columns.append((x, own))
+    design.columns = [TermColumns(design.channel_columns, spans) for spans in where_of]
+
+
+class TermColumns(Mapping):
+    """A candidate's columns {channel c: (nb, k)}, read from the design's channel matrices
+    when asked for (a view of an array; from scratch files, `spill.ScratchMatrix`, a copy):
+    `spans` {c: (its first column in channel c's matrix, k)}."""
+
+    def __init__(self, channel_columns, spans):
+        self._matrices, self._spans = channel_columns, spans
+
+    def __getitem__(self, c):
+        first, k = self._spans[c]
+        return self._matrices[c][0][:, first:first + k]
+
+    def __iter__(self):
+        return iter(self._spans)
+
+    def __len__(self):
+        return len(self._spans)
 
 
 COMPACTING_ROWS = 1 << 15       # rows moved at a time by `_compacted`

@@ -1,6 +1,6 @@
 """The sensor level's per-sample stage: the recorded MIMU through the calibration beside what
 the reference IMU says it should have read (`reference.predicted_at`), kept column by column
-(`Spill`) - in memory for a flight held whole, in scratch files for one that streams
+(`spill.Spill`) - in memory for a flight held whole, in scratch files for one that streams
 (`evaluation.flight.Flight.load(stream=True)`), so that a flight of any length is worked in
 bounded memory: the tests on the outputs read one column at a time (`sensor`), the design's
 bins one block at a time (`design.make_design`).
@@ -14,7 +14,6 @@ The columns of `Samples.spill` (one row a MIMU sample, MIMU sensor axes):
 """
 from contextlib import closing
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 from tqdm import tqdm
@@ -27,6 +26,7 @@ from ..evaluation.flight import FOG_FIELDS
 from ..evaluation.replay import compensated_mimu, stuck_inside_range, warn_stuck
 from ..flightlog import FlightLog
 from .design import Binning
+from .spill import ScratchMatrix, Spill
 from .reference import (DERIVATIVE_WINDOW_S, counted_outputs, inside_reference, predicted_at,
                         predicted_mimu)
 
@@ -35,99 +35,6 @@ PREDICTION_HALO_S = 1.0     # MIMU samples either side of a streamed block its p
                             # made over and cut from: the lever-arm transfer's derivative
                             # (`reference.TRANSFER_WINDOW_S`) and the running integral's
                             # first interval (`RunningIntegral.means`) reach far less
-
-
-class Spill:
-    """Per-sample columns appended block by block and read back a column or a span of rows
-    at a time: held in memory (folder None: a single block's arrays are kept as they are,
-    without a copy), else in `folder`, one file of raw values per column."""
-
-    def __init__(self, folder=None):
-        self.folder = None if folder is None else Path(folder)
-        self._parts, self._kinds, self._files = {}, {}, {}
-
-    def __contains__(self, name):
-        return name in self._kinds
-
-    def append(self, name, x):
-        """Append rows x (n,) or (n, k) to column group `name`."""
-        x = np.asarray(x)
-        kind = (x.dtype, x.shape[1:])
-        if self._kinds.setdefault(name, kind) != kind:
-            raise ValueError(f"{name}: rows of {kind}, not {self._kinds[name]}")
-        if self.folder is None:
-            self._parts.setdefault(name, []).append(x)
-            return
-        cols = x.reshape(len(x), -1)
-        for c in range(cols.shape[1]):
-            if (name, c) not in self._files:        # a file of an earlier Spill: replaced
-                self._files[(name, c)] = open(self._path(name, c), "wb")
-            self._files[(name, c)].write(np.ascontiguousarray(cols[:, c]).tobytes())
-
-    def put_column(self, name, c, x):
-        """Replace column c of group `name` (in files) by x (N,), the same length."""
-        self._flush()
-        if len(x) * self._kinds[name][0].itemsize != self._path(name, c).stat().st_size:
-            raise ValueError(f"{name}.{c}: {len(x)} rows replace a column of another length")
-        self._files.pop((name, c)).close()
-        np.ascontiguousarray(x, self._kinds[name][0]).tofile(self._path(name, c))
-
-    def close(self):
-        """Flush and close the scratch files (they stay readable)."""
-        for fh in self._files.values():
-            fh.close()
-        self._files = {}
-
-    def column(self, name, c=None):
-        """(N,) column c of group `name` (c None: a group of single columns)."""
-        if self.folder is None:
-            x = self._held(name)
-            return x if c is None else x[:, c]
-        self._flush()
-        return np.fromfile(self._path(name, c or 0), self._kinds[name][0])
-
-    def span(self, name, a, b):
-        """Rows a..b-1 of group `name`, (b - a,) or (b - a, k)."""
-        if self.folder is None:
-            return self._held(name)[a:b]
-        self._flush()
-        dtype, shape = self._kinds[name]
-        width = int(np.prod(shape)) if shape else 1
-        out = np.empty((b - a, width), dtype)
-        for c in range(width):
-            out[:, c] = np.fromfile(self._path(name, c), dtype, count=b - a,
-                                    offset=a * dtype.itemsize)
-        return out.reshape((b - a,) + shape)
-
-    def series(self, name):
-        """Group `name` as something read as x[:, c]: the array when held, else `Columns`."""
-        return self._held(name) if self.folder is None else Columns(self, name)
-
-    def _held(self, name):
-        parts = self._parts[name]
-        if len(parts) > 1:
-            self._parts[name] = parts = [np.concatenate(parts)]
-        return parts[0]
-
-    def _path(self, name, c):
-        return self.folder / f"{name}.{c}"
-
-    def _flush(self):
-        for fh in self._files.values():
-            fh.flush()
-
-
-class Columns:
-    """A spilled (N, k) group read one column at a time: x[:, c]."""
-
-    def __init__(self, spill, name):
-        self.spill, self.name = spill, name
-
-    def __getitem__(self, key):
-        rows, c = key
-        if rows != slice(None):
-            raise IndexError("a spilled group is read a whole column at a time: x[:, c]")
-        return self.spill.column(self.name, c)
 
 
 @dataclass
@@ -278,10 +185,12 @@ def temperature_references(terms, samples, usable):
     return out
 
 
-def binned(samples, usable, bins, terms, block=None):
+def binned(samples, usable, bins, terms, block=None, scratch=False):
     """`Bins` of `samples` (usable (N,) bool; bins (m, start)) with the regressors of
     `terms`, made `block` samples at a time (None: all at once) into arrays of the whole
-    flight's bins: no block's bins are held beside them. Blocks show progress on stderr."""
+    flight's bins: no block's bins are held beside them; scratch: the channel matrices in
+    scratch files (`spill.ScratchMatrix`), a block's at a time in memory. Blocks show
+    progress on stderr."""
     m, start = bins
     n = (len(samples.t) - start) // m * m
     if n < m:
@@ -294,33 +203,59 @@ def binned(samples, usable, bins, terms, block=None):
                   disable=block is None, leave=False):
         piece = _block_bins(samples, usable, a, min(a + step, start + n), m, terms, far)
         if out is None:
-            out, twins = _allocated(piece, n // m)
+            out, twins = _allocated(piece, n // m, scratch)
         rows = slice((a - start) // m, (a - start) // m + len(piece[0]))
         for k, x in enumerate(piece[:7]):
             getattr(out, BIN_FIELDS[k])[rows] = x
         for c in range(6):
-            out.matrices[c][rows, 0] = piece[1][:, c]
-            out.matrices[c][rows, 1:4] = _triad(piece[2], c)
-            for j, (first, k) in list(out.slots[c].items()):     # an owner before its twins
-                x = piece[7][j][c]
-                if j in twins[c] and not np.array_equal(
-                        out.matrices[c][rows, first:first + k], x, equal_nan=True):
-                    _part(out, twins, c, j)     # twins so far, not in this block: apart
-                    first = out.slots[c][j][0]
-                if j not in twins[c]:
-                    out.matrices[c][rows, first:first + k] = x
+            x = _channel_block(out, twins, c, piece)        # may widen the matrix
+            _put(out.matrices[c], rows, x)
+    for matrix in out.matrices:
+        if isinstance(matrix, ScratchMatrix):
+            matrix.close()
     return out
+
+
+def _channel_block(out, twins, c, piece):
+    """(bins, width) channel c's columns of a block `piece` (`_block_bins`): the residual,
+    the triad's reference inputs, each term's own columns (a twin's compared with its
+    owner's, and parted from it where they differ, `_part`)."""
+    x = np.empty((len(piece[0]), out.matrices[c].shape[1]))
+    x[:, 0] = piece[1][:, c]
+    x[:, 1:4] = _triad(piece[2], c)
+    for j, (first, k) in list(out.slots[c].items()):     # an owner before its twins
+        columns = piece[7][j][c]
+        if j in twins[c] and not np.array_equal(x[:, first:first + k], columns,
+                                                equal_nan=True):
+            _part(out, twins, c, j)     # twins so far, not in this block: apart
+            first = out.slots[c][j][0]
+            x = np.hstack([x, np.empty((len(x), k))])
+        if j not in twins[c]:
+            x[:, first:first + k] = columns
+    return x
+
+
+def _put(matrix, rows, x):
+    """Rows `rows` (a slice, in order) of a channel matrix: x."""
+    if isinstance(matrix, ScratchMatrix):
+        if rows.start != len(matrix):
+            raise ValueError(f"bins {rows} written after {len(matrix)}: out of order")
+        matrix.append(x)
+    else:
+        matrix[rows] = x
 
 
 BIN_FIELDS = ("t", "residual", "inputs", "w_dot", "norms", "centres", "extremes")
 
 
-def _allocated(piece, nb):
+def _allocated(piece, nb, scratch=False):
     """(`Bins` of nb bins, unfilled, laid out as the first block's `piece` (`_block_bins`),
     per channel the terms whose columns there are a twin's: equal in this block to columns
-    placed before them - the reference inputs or an earlier term's - and given those)."""
+    placed before them - the reference inputs or an earlier term's - and given those);
+    scratch: the channel matrices `spill.ScratchMatrix`es with no rows yet."""
     fields = [np.empty((nb,) + x.shape[1:]) for x in piece[:7]]
     matrices, slots, twins = [], [], []
+    files = ScratchMatrix.scratch() if scratch else None
     for c in range(6):
         placed = dict(enumerate((piece[1][:, c],) + tuple(_triad(piece[2], c).T)))
         slot, twin = {}, set()
@@ -334,7 +269,8 @@ def _allocated(piece, nb):
                 else:
                     twin.add(j)
                 slot[j] = (first, k)
-        matrices.append(np.empty((nb, len(placed))))
+        matrices.append(np.empty((nb, len(placed))) if files is None else
+                        ScratchMatrix.empty(*files, f"channel{c}", len(placed)))
         slots.append(slot)
         twins.append(twin)
     return Bins(*fields, matrices, slots), twins
@@ -360,10 +296,13 @@ def _part(out, twins, c, j):
     (the blocks before this one were equal): a matrix one term wider."""
     matrix = out.matrices[c]
     first, k = out.slots[c][j]
-    wider = np.empty((matrix.shape[0], matrix.shape[1] + k))
-    wider[:, :matrix.shape[1]] = matrix
-    wider[:, matrix.shape[1]:] = matrix[:, first:first + k]
-    out.matrices[c] = wider
+    if isinstance(matrix, ScratchMatrix):
+        out.matrices[c] = matrix.widened(first, k)
+    else:
+        wider = np.empty((matrix.shape[0], matrix.shape[1] + k))
+        wider[:, :matrix.shape[1]] = matrix
+        wider[:, matrix.shape[1]:] = matrix[:, first:first + k]
+        out.matrices[c] = wider
     out.slots[c][j] = (matrix.shape[1], k)
     twins[c].discard(j)
 

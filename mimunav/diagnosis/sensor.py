@@ -258,7 +258,8 @@ def _prepared(flight, cal, acc, candidates, output_tests, samples, bin_s, noise_
     lever = attitude.rotate(np.conjugate(flight.mimu_mounting.q_vs),
                             flight.mimu_mounting.lever_arm_m - flight.fog_mounting.lever_arm_m)
     terms = temperature_references(cands, samples, usable)
-    binned_ = binned(samples, usable, m, terms, flight.stream_block if samples.streamed else None)
+    binned_ = binned(samples, usable, m, terms, flight.stream_block if samples.streamed else None,
+                     scratch=samples.streamed)
     design = make_design(binned_, terms, prior + calibration_prior(cal), cal,
                          transfer=(lever, prior[9:, 9:]))
     design.q_vs = flight.mimu_mounting.attitude_wxyz

@@ -94,20 +94,9 @@ BLOCK_ROWS = 1 << 15    # rows filtered at a time by `grams`: its memory is this
 
 def gram(cols, present, lam, shape=None):
     """(Gram z'z of the standardized innovations (k, k), their log-determinant term, their
-    number) of `innovations`, filtered BLOCK_ROWS at a time with the filter's state carried
-    across: the innovations are the same numbers; the Gram's sums are taken block by block
-    (an ulp's difference from one product)."""
-    n, k = cols.shape
-    shape = np.ones(n) if shape is None else np.ascontiguousarray(shape, float)
-    present = np.ascontiguousarray(present)
-    state, total, logdet, count = _start(k), np.zeros((k, k)), 0.0, 0
-    for a in range(0, n, BLOCK_ROWS):
-        z, s = _innovations(np.ascontiguousarray(cols[a:a + BLOCK_ROWS], float),
-                            present[a:a + BLOCK_ROWS], lam, shape[a:a + BLOCK_ROWS], state)
-        total += z.T @ z
-        logdet += float(np.log(s).sum())
-        count += len(z)
-    return total, logdet, count
+    number) of `innovations` at the one level lam (`grams`)."""
+    g, logdet, count = grams(cols, present, np.array([lam]), shape)
+    return g[0], float(logdet[0]), count
 
 
 THREADS = min(2, os.cpu_count() or 1)   # levels filtered side by side: the filter (numba, no
@@ -116,11 +105,28 @@ THREADS = min(2, os.cpu_count() or 1)   # levels filtered side by side: the filt
 
 def grams(cols, present, levels, shape=None):
     """(Grams (L, k, k) of the standardized innovations at every level of `levels` (L,), their
-    log-determinant terms (L,), the number of innovations): `innovations` level by level,
-    THREADS at a time; each level's result is the same whatever the number of threads.
-    shape: (n,) each row's relative white variance (`innovations`)."""
-    def one(lam):
-        return gram(cols, present, lam, shape)
+    log-determinant terms (L,), the number of innovations) of `innovations`, filtered
+    BLOCK_ROWS rows at a time with each level's filter state carried across: the innovations
+    are the same numbers, the Gram's sums taken block by block (an ulp's difference from one
+    product). Each block of `cols` (n, k: an array, or anything read as cols[a:b], such as
+    `spill.ScratchMatrix`) is read once for every level, the levels filtered THREADS at a
+    time; each level's result is the same whatever the number of threads. shape: (n,) each
+    row's relative white variance (`innovations`)."""
+    n, k = cols.shape
+    shape = np.ones(n) if shape is None else np.ascontiguousarray(shape, float)
+    present = np.ascontiguousarray(present)
+    states = [_start(k) for _ in levels]
+    totals, logdets, count = np.zeros((len(levels), k, k)), np.zeros(len(levels)), 0
     with ThreadPoolExecutor(THREADS) as pool:
-        out = list(pool.map(one, levels))
-    return np.stack([g for g, _, _ in out]), np.array([d for _, d, _ in out]), out[0][2]
+        for a in range(0, n, BLOCK_ROWS):
+            block = np.ascontiguousarray(cols[a:a + BLOCK_ROWS], float)
+            rows, weights = present[a:a + BLOCK_ROWS], shape[a:a + BLOCK_ROWS]
+
+            def one(i):
+                z, s = _innovations(block, rows, levels[i], weights, states[i])
+                return z.T @ z, float(np.log(s).sum()), len(z)
+            for i, (g, logdet, m) in enumerate(pool.map(one, range(len(levels)))):
+                totals[i] += g
+                logdets[i] += logdet
+            count += m
+    return totals, logdets, count

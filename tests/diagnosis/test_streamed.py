@@ -92,10 +92,12 @@ def test_a_streamed_diagnosis_is_the_held_one(tmp_path, monkeypatch):
         assert np.allclose(y, x, rtol=0, atol=1e-9 * np.nanmax(np.abs(x)), equal_nan=True)
 
 
-def test_twin_columns_are_held_once_and_part_where_they_differ(monkeypatch):
+@pytest.mark.parametrize("scratch", [False, True])
+def test_twin_columns_are_held_once_and_part_where_they_differ(monkeypatch, scratch):
     """`samples.binned` holds a term's columns once where they equal columns placed before
     them on the whole flight, and gives them their own from the block where they part (the
-    bins before it copied from the twin): every term's bins are its own, block by block."""
+    bins before it copied from the twin): every term's bins are its own, block by block, in
+    memory and in scratch files (`spill.ScratchMatrix`)."""
     rng = np.random.default_rng(1)
     nb, m = 40, 10                              # 40 bins of 10 samples, blocks of 10 bins
     inputs, residual = rng.normal(size=(nb, 6)), rng.normal(size=(nb, 6))
@@ -114,7 +116,8 @@ def test_twin_columns_are_held_once_and_part_where_they_differ(monkeypatch):
     monkeypatch.setattr(samples, "_block_bins", block_bins)
     stage = type("Stage", (), {"t": np.arange(nb * m) * 1e-3})()
     terms = [{"effect": "scale_factor"}] * 3
-    out = samples.binned(stage, np.ones(nb * m, bool), (m, 0), terms, block=10 * m)
+    out = samples.binned(stage, np.ones(nb * m, bool), (m, 0), terms, block=10 * m,
+                         scratch=scratch)
     for j, t in enumerate(columns):
         for c, x in t.items():
             first, k = out.slots[c][j]
