@@ -41,8 +41,10 @@ PROFILE = {"name": "copter-like", "start": {"latitude_deg": -35.36, "longitude_d
 class Writer:
     def __init__(self):
         self.parts = [self._fmt(128, "FMT", "BBnNZ", "Type,Length,Name,Format,Columns")]
+        self.lines = ["FMT, 128, 89, FMT, BBnNZ, Type,Length,Name,Format,Columns"]
         for name, (mid, fmt, cols) in FORMATS.items():
             self.parts.append(self._fmt(mid, name, fmt, cols))
+            self.lines.append(f"FMT, {mid}, {self._size(fmt)}, {name}, {fmt}, {cols}")
 
     @staticmethod
     def _size(fmt):
@@ -62,14 +64,24 @@ class Writer:
                           (float(v) if c == "f" else int(v)))
         self.parts.append(HEAD + bytes([mid]) + struct.pack(
             "<" + "".join(STRUCT[c] for c in fmt), *packed))
+        # the text form a ground station writes: scaled fields in their units, floats as
+        # the float32 they are stored in, 7 significant digits (Mission Planner's)
+        self.lines.append(", ".join([name] + [
+            f"{p / SCALE[c]:.7f}" if c in SCALE else
+            f"{float(np.float32(p)):.7g}" if c == "f" else str(p)
+            for c, p in zip(fmt, packed)]))
 
     def bytes(self):
         return b"".join(self.parts)
 
+    def text(self):
+        """The log as a text DataFlash log (`.log`): a header line, then a line a record."""
+        return ("ArduCopter V4.5.0 (test)\n" + "\n".join(self.lines) + "\n").encode()
 
-def flight(rate=400.0, seed=0, unix_start_s=1714550400.0, boot_s=93.25):
-    """(DataFlash bytes, truth run, flight times t (s), UNIX time of t = 0) of PROFILE (the
-    autopilot booted boot_s before t = 0):
+
+def flight(rate=400.0, seed=0, unix_start_s=1714550400.0, boot_s=93.25, text=False):
+    """(DataFlash bytes - binary, or with `text` the text form -, truth run, flight times t
+    (s), UNIX time of t = 0) of PROFILE (the autopilot booted boot_s before t = 0):
     IMU instance 0 = interval means + white noise + a bias, instance 1 = the same at another
     noise; GPS RTK fixed with GPA, POS, XKF1, ATT at 5 Hz from the truth."""
     motion = Profile.from_dict(PROFILE).motion()
@@ -105,7 +117,7 @@ def flight(rate=400.0, seed=0, unix_start_s=1714550400.0, boot_s=93.25):
         out.add("XKF1", TimeUS=us, C=0, Roll=np.degrees(roll[k]), VN=vn, VE=ve, VD=vd)
         out.add("ATT", TimeUS=us, Roll=np.degrees(roll[k]), Pitch=np.degrees(pitch[k]),
                 Yaw=np.degrees(yaw[k]) % 360)
-    return out.bytes(), run, t, unix_start_s
+    return out.text() if text else out.bytes(), run, t, unix_start_s
 
 
 # ArduCopter 3.1-3.2 (2014): ms since boot, the second IMU its own type, the GPS message with

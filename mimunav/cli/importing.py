@@ -1,4 +1,5 @@
 """The import command: a recording nobody here wrote into a contract log."""
+import argparse
 from pathlib import Path
 
 import numpy as np
@@ -35,9 +36,11 @@ def add_import(sub):
                    help="rtklib: folder with imu_*.csv, its RTKLIB .tag and an RTKLIB .pos; "
                    "ros2: an MCAP with sensor_msgs/msg/Imu (+ NavSatFix); ulog: a PX4 .ulg "
                    "(its EKF2 estimate as a reference that is not independent); dataflash: an "
-                   "ArduPilot .bin (IMU, GPS/GPA; reference EKF3 POS/XKF1/ATT or the GPS); "
+                   "ArduPilot .bin or its text .log (IMU, GPS/GPA; reference EKF3 "
+                   "POS/XKF1/ATT or the GPS); "
                    "table: a TOML spec of CSV / NumPy columns with units, axes, time base and "
-                   "reference (see mimunav/importers/table.py; example tests/data/comma2k19.toml)")
+                   "reference (its keys: mimunav import --spec-keys; example "
+                   "tests/data/comma2k19.toml)")
     p.add_argument("source", help="the folder (rtklib), file (ros2, ulog, dataflash) or spec "
                    "(table)")
     p.add_argument("--imu-instance", type=number(0, 9, int),
@@ -99,4 +102,18 @@ def add_import(sub):
                    "from the track): a car's track gives its attitude (no side slip: the track "
                    "level); an aircraft's, a multicopter's, a rocket's or a walker's does not")
     p.add_argument("--force", action="store_true", help="replace an existing output")
+    p.add_argument("--spec-keys", action=_SpecKeys, help="table: print every key a spec may "
+                   "hold (sections, units, time bases) and exit")
     p.set_defaults(func=_import)
+
+
+class _SpecKeys(argparse.Action):
+    """Print the table spec's description (`importers.table`'s) and exit, like --help."""
+
+    def __init__(self, option_strings, dest, **kwargs):
+        super().__init__(option_strings, dest, nargs=0, default=argparse.SUPPRESS, **kwargs)
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        from ..importers import table
+        print(table.__doc__.strip())
+        parser.exit()

@@ -104,6 +104,10 @@ def _gravity_sized(rec):
         count[count > 0, None]
     size = np.linalg.norm(means, axis=1)
     felt = (size > 0.5 * G0) & (size < 2 * G0)
+    if felt.sum() < 3 and felt.all():
+        raise RecordingError(f"{rec.name}: the IMU's record is {t[-1]:.2f} s long: its units "
+                             "are checked on at least 3 s (1 s means of |specific force| near "
+                             "1 g), and an import needs more than that to align")
     if felt.sum() < max(3, FELT_GRAVITY_SHARE * len(size)):
         raise RecordingError(f"{rec.name}: {felt.sum()} of {len(size)} 1 s means of |specific "
                              f"force| lie between 0.5 and 2 g (their median "
@@ -316,11 +320,11 @@ def _local_mean(x, k, half=5):
 
 def reference_track(rec, epoch):
     """The trajectory the alignment takes heading from (t s since epoch, lat, lon, h,
-    v_ned): the reference, else the GNSS fixes (their velocity when recorded, else central
+    v_ned; `what` it is, for messages): the reference, else the GNSS fixes (their velocity when recorded, else central
     differences of their positions), else None."""
-    src = rec.reference
+    src, what = rec.reference, "the reference"
     if src is None or len(src["ns"]) < 3:
-        src = rec.fixes
+        src, what = rec.fixes, "the GNSS fixes (no reference trajectory)"
     if src is None or len(src["ns"]) < 3:
         return None
     t = (np.asarray(src["ns"], np.int64) - epoch) / 1e9
@@ -331,4 +335,4 @@ def reference_track(rec, epoch):
     q = src.get("q_nb")
     return dict(t=t[ok], lat=src["lat"][ok], lon=src["lon"][ok], h=src["h"][ok], v_ned=v[ok],
                 q_nb=None if q is None else np.asarray(q)[ok],
-                attitude_source=rec.reference_meta.get("source", "the reference"))
+                attitude_source=rec.reference_meta.get("source", "the reference"), what=what)

@@ -1,5 +1,7 @@
 """Numeric columns of a logger's files: a CSV (header optional, Excel's `sep=` line, a last
 line cut short) or a NumPy array file; and the key check every table-spec level shares."""
+import csv
+import datetime
 import difflib
 import os
 import re
@@ -9,12 +11,14 @@ import numpy as np
 from .recording import RecordingError, text_file
 
 
-def check_keys(path, doc, known, where):
-    """Refuse a key of `doc` not among `known`, naming the nearest known one."""
+def check_keys(path, doc, known, where, elsewhere=None):
+    """Refuse a key of `doc` not among `known`, naming where it belongs when `elsewhere`
+    {key: where it stands} knows it, else the nearest known one."""
     for key in doc:
         if key not in known:
             near = difflib.get_close_matches(key, known, n=1, cutoff=0.5)
-            hint = f"did you mean {near[0]!r}? " if near else ""
+            hint = (f"it belongs {elsewhere[key]}; " if elsewhere and key in elsewhere else
+                    f"did you mean {near[0]!r}? " if near else "")
             raise RecordingError(f"{path}: {where} has an unknown key {key!r} ({hint}known: "
                                  f"{', '.join(known)})")
 
@@ -27,16 +31,7 @@ def load_spec(path, columns, notes=None):
     if not os.path.exists(path):
         raise RecordingError(f"{path}: no such file")
     if path.endswith((".csv", ".txt")):
-        with open(path) as fh, text_file(path):
-            first = fh.readline()
-            sep, skip = ",", 0
-            if first.strip().lower().startswith("sep="):        # Excel's separator line
-                sep = first.strip()[4:5] or ","
-                if sep not in (",", ";", "\t", "|"):
-                    raise RecordingError(f"{path}: separator line {first.strip()!r}: one of "
-                                         ", ; tab |")
-                skip, first = 1, fh.readline()
-        header = not all(_number(x) for x in first.strip().split(sep))
+        sep, skip, header = _csv_layout(path)
         data = _read_csv(path, header, notes, sep, skip)
         if header:
             names = list(data.dtype.names)
@@ -63,6 +58,58 @@ def load_spec(path, columns, notes=None):
             raise RecordingError(f"{path}: columns by name need a CSV header")
         data = data.reshape(len(data), -1)[:, list(columns)]
     return data
+
+
+def _csv_layout(path):
+    """(separator, lines before the header or data, whether a header row names the
+    columns) of a CSV: Excel's `sep=` line, else commas; a header when its first row is not
+    all numbers."""
+    with open(path) as fh, text_file(path):
+        first = fh.readline()
+        sep, skip = ",", 0
+        if first.strip().lower().startswith("sep="):        # Excel's separator line
+            sep = first.strip()[4:5] or ","
+            if sep not in (",", ";", "\t", "|"):
+                raise RecordingError(f"{path}: separator line {first.strip()!r}: one of "
+                                     ", ; tab |")
+            skip, first = 1, fh.readline()
+    return sep, skip, not all(_number(x) for x in first.strip().split(sep))
+
+
+def load_date_times(path, column):
+    """(N,) UNIX time, s, of a CSV column (header name or 0-based index) of ISO 8601
+    date-times with their UTC offset ('2023-08-04 17:47:58.125-04:00', '...T21:47:58Z'), the
+    rows `load_spec` reads of the same file (a last line cut short left out). A date-time
+    without an offset is refused: its time zone is unknown."""
+    if not os.path.exists(path):
+        raise RecordingError(f"{path}: no such file")
+    if not path.endswith((".csv", ".txt")):
+        raise RecordingError(f"{path}: date-times are read from a CSV, not a NumPy file")
+    sep, skip, header = _csv_layout(path)
+    with open(path, newline="") as fh, text_file(path):
+        rows = [r for r in list(csv.reader(fh, delimiter=sep))[skip:] if any(c.strip() for c in r)]
+    names = [c.strip() for c in rows.pop(0)] if header and rows else None
+    if isinstance(column, str):
+        if names is None or column not in names:
+            raise RecordingError(f"{path}: column {column!r} not among {names}")
+        column = names.index(column)
+    if rows and len(rows[-1]) != len(rows[0]):
+        rows.pop()                                  # cut short (`load_spec` says so)
+    out = np.empty(len(rows))
+    for k, row in enumerate(rows):
+        text = row[column].strip() if column < len(row) else ""
+        try:
+            when = datetime.datetime.fromisoformat(text)
+        except ValueError:
+            raise RecordingError(f"{path}: data row {k}: {text!r} is not an ISO 8601 "
+                                 "date-time") from None
+        if when.tzinfo is None:
+            raise RecordingError(f"{path}: data row {k}: {text!r} has no UTC offset ('Z' or "
+                                 "+hh:mm): the time zone of its clock is unknown")
+        out[k] = when.timestamp()
+    if not len(out):
+        raise RecordingError(f"{path}: no data rows")
+    return out
 
 
 def _number(text):

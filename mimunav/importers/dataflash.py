@@ -1,4 +1,5 @@
-"""ArduPilot DataFlash logs (`.bin`, read by pymavlink's DFReader): the IMU from the `IMU`
+"""ArduPilot DataFlash logs (binary `.bin`, or the text `.log` a ground station writes of one:
+lines `FMT, ...`, `IMU, ...`; read by pymavlink's DFReader): the IMU from the `IMU`
 messages of one instance, GNSS from `GPS` (+ `GPA` accuracies), and as reference either the
 GNSS itself (independent, no attitude) or the autopilot's own estimate (`POS` position,
 `XKF1` velocity, `ATT` attitude; EKF3 fuses this very IMU: "not independent").
@@ -25,7 +26,12 @@ The UNIX time of boot is the median of (GPS week time - TimeUS) over 3-D fixes, 
 removed (`gps_to_unix_s`); without fixes boot is put at the UNIX epoch and the metadata says
 so.
 """
+import contextlib
+import ctypes
+import io
 import os
+import sys
+import tempfile
 
 import numpy as np
 
@@ -41,15 +47,83 @@ NAV_SAT_STATUS = {3: 0, 4: 1, 5: 2, 6: 2}
 TYPES = ("IMU", "IMU2", "IMU3", "GPS", "GPS2", "GPA", "POS", "XKF1", "ATT")
 
 
-def _messages(path):
-    """({type: {field: array}} of the types this importer reads, '' or a note that the file
-    ends inside a record); older logs' numbered types (IMU2, IMU3, GPS2) and un-numbered
-    ones get the instance field I they lack."""
+BINARY_HEAD = b"\xa3\x95"        # a binary record's first two bytes (AP_Logger)
+TEXT_HEAD = b"FMT,"             # a text log's first format line, after any header line
+
+
+def _reader(path):
+    """(pymavlink's reader of the log at `path`, whether it is binary), binary or text as
+    its first bytes say; a RecordingError for a file that is neither."""
     DFReader = require("pymavlink.DFReader", "import", "the dataflash importer")
+    with open(path, "rb") as fh:
+        head = fh.read(4096)
+    if head.startswith(BINARY_HEAD):
+        kind = DFReader.DFReader_binary
+    elif TEXT_HEAD in head:
+        kind = DFReader.DFReader_text
+    else:
+        raise RecordingError(f"{path}: not a DataFlash log: a binary log begins with the bytes "
+                             f"0xA3 0x95 and a text log holds 'FMT, ...' lines in its first "
+                             f"4 kB; this one begins {head[:16]!r}")
     try:
-        log = DFReader.DFReader_binary(path, zero_time_base=False)
+        return kind(path, zero_time_base=False), kind is DFReader.DFReader_binary
     except Exception as exc:            # DFReader raises its own, struct and index errors
         raise RecordingError(f"{path}: not a readable DataFlash log ({exc})") from None
+
+
+def _messages(path):
+    """({type: {field: array}} of the types this importer reads, '' or a note on what was
+    not read: the file ending inside a record, bytes pymavlink skipped as unreadable (its
+    reports, printed byte by byte, are held back and counted)); older logs' numbered types
+    (IMU2, IMU3, GPS2) and un-numbered ones get the instance field I they lack."""
+    with _output_held() as said:
+        log, binary = _reader(path)
+        rows = _rows(log, path)
+    out = {kind: {k: np.array([r.get(k, np.nan) for r in rs]) for k in rs[0]
+                  if k != "mavpackettype"} for kind, rs in rows.items()}
+    notes = []
+    skipped = [line for line in said[0].splitlines()
+               if "bad header" in line or "Skipped" in line]
+    if skipped:
+        notes.append(f"pymavlink skipped unreadable bytes ({len(skipped)} reports, the first: "
+                     f"{skipped[0].strip()})")
+    left = int(log.data_len - log.offset)       # DFReader stops before a partial record
+    if left > 0 and binary:                     # (a text log's reader ends past its end)
+        notes.append(f"the file ends inside a record at byte {log.offset} of {log.data_len} "
+                     f"({left} bytes left out): the log was cut short, and ends at its last "
+                     "whole record")
+    return out, "; ".join(notes)
+
+
+@contextlib.contextmanager
+def _output_held():
+    """Hold back what is written to the process's stdout and stderr - by Python and by C
+    (pymavlink's compiled indexer prints a line per unreadable byte with printf) - into a
+    scratch file; yields a list that gets the text once the block ends."""
+    said, text = io.StringIO(), []
+    for stream in (sys.stdout, sys.stderr):
+        stream.flush()
+    saved = [os.dup(1), os.dup(2)]
+    try:
+        with tempfile.TemporaryFile() as scratch:
+            os.dup2(scratch.fileno(), 1)
+            os.dup2(scratch.fileno(), 2)
+            try:
+                with contextlib.redirect_stdout(said), contextlib.redirect_stderr(said):
+                    yield text
+            finally:
+                ctypes.CDLL(None).fflush(None)      # C's buffered printf, before fd 1 returns
+                os.dup2(saved[0], 1)
+                os.dup2(saved[1], 2)
+            scratch.seek(0)
+            text.append(scratch.read().decode(errors="replace") + said.getvalue())
+    finally:
+        for fd in saved:
+            os.close(fd)
+
+
+def _rows(log, path):
+    """{type: [message dicts]} of the types this importer reads, each with TimeUS and I."""
     rows = {}
     while True:
         try:
@@ -57,7 +131,7 @@ def _messages(path):
         except Exception as exc:
             raise RecordingError(f"{path}: damaged DataFlash message ({exc})") from None
         if m is None:
-            break
+            return rows
         kind = m.get_type()
         d = _boot_time_us(m.to_dict(), kind, path)
         if kind in ("IMU2", "IMU3", "GPS2"):
@@ -66,12 +140,6 @@ def _messages(path):
         elif kind in ("IMU", "GPS", "GPA"):
             d.setdefault("I", 0)                # older logs: instance 0 has no I field
         rows.setdefault(kind, []).append(d)
-    out = {kind: {k: np.array([r.get(k, np.nan) for r in rs]) for k in rs[0]
-                  if k != "mavpackettype"} for kind, rs in rows.items()}
-    left = int(log.data_len - log.offset)       # DFReader stops before a partial record
-    return out, (f"the file ends inside a record at byte {log.offset} of {log.data_len} "
-                 f"({left} bytes left out): the log was cut short, and ends at its last "
-                 "whole record") if left > 0 else ""
 
 
 def _boot_time_us(d, kind, path):

@@ -66,7 +66,9 @@ refused, naming the nearest known one.
                                  measured between the two IMUs is the IMU's mounting
               source, independent ("yes" / "no: why"), position_sigma_m   text for the metadata
 
-Units: s, ms, us, ns; rad/s, deg/s; m/s^2, g (9.80665); deg, rad; m, mm, ft; m/s.
+Units: s, ms, us, ns, iso8601 (a CSV column of date-times with their UTC offset,
+'2023-08-04 17:47:58.125-04:00' or '2023-08-04T21:47:58.125Z': UNIX time, so [time]
+unix_offset_s = 0); rad/s, deg/s; m/s^2, g (9.80665); deg, rad; m, mm, ft; m/s.
 """
 import os
 import tomllib
@@ -77,7 +79,7 @@ import quaternion
 from ..frames import earth
 from ..frames.mounting import Mounting
 from ..sensors.accuracy import Accuracy
-from .columns import check_keys, load_spec
+from .columns import check_keys, load_date_times, load_spec
 from .recording import RecordingError, Recording, gps_to_unix_s, text_file
 from ..motion.track import velocity_from_positions
 from ..frames import attitude
@@ -85,8 +87,8 @@ from ..frames import attitude
 G_UNIT = 9.80665
 UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9, "rad/s": 1.0,
          "deg/s": np.pi / 180, "m/s^2": 1.0, "g": G_UNIT, "rad": 1.0, "deg": np.pi / 180,
-         "m": 1.0, "mm": 1e-3, "ft": 0.3048, "m/s": 1.0, "1": 1.0}
-KINDS = {"time": ("s", "ms", "us", "ns"), "angular_rate": ("rad/s", "deg/s"),
+         "m": 1.0, "mm": 1e-3, "ft": 0.3048, "m/s": 1.0, "1": 1.0, "iso8601": 1.0}
+KINDS = {"time": ("s", "ms", "us", "ns", "iso8601"), "angular_rate": ("rad/s", "deg/s"),
          "specific_force": ("m/s^2", "g"), "angle_increment": ("rad", "deg"),
          "velocity_increment": ("m/s",), "latitude": ("deg", "rad"), "longitude": ("deg", "rad"),
          "height": ("m", "mm", "ft"), "position_ecef": ("m",), "velocity_ned": ("m/s",),
@@ -107,6 +109,10 @@ SECTION_KEYS = {
                   "independent", "position_sigma_m", "time_offset_s")}
 SOURCE_KEYS = ("file", "columns", "unit", "scale", "time", "rotates", "age")
 RANGE_KEYS = ("angular_rate", "specific_force")
+ELSEWHERE = {**{key: "in a column source ({file = ..., " + key + " = ...})" for key in SOURCE_KEYS},
+             **{key: "in [" + section + "]" for section, keys in reversed(SECTION_KEYS.items())
+                if section for key in keys},
+             **{key: "at the spec's top level, beside `name`" for key in SECTION_KEYS[""]}}
 
 
 class Spec:
@@ -134,11 +140,13 @@ class Spec:
         self.notes = {}             # what reading the files left out, for the metadata
         for section in ("imu", "time"):
             if not isinstance(self.doc.get(section), dict):
-                raise RecordingError(f"{path}: no [{section}] section")
-        check_keys(self.path, self.doc, SECTION_KEYS[""], "the spec")
+                raise RecordingError(f"{path}: no [{section}] section (its keys: "
+                                     f"{', '.join(SECTION_KEYS[section])}; every key of a "
+                                     "spec: mimunav import --spec-keys)")
+        check_keys(self.path, self.doc, SECTION_KEYS[""], "the spec", ELSEWHERE)
         for section, keys in SECTION_KEYS.items():
             if section and isinstance(self.doc.get(section), dict):
-                check_keys(self.path, self.doc[section], keys, f"[{section}]")
+                check_keys(self.path, self.doc[section], keys, f"[{section}]", ELSEWHERE)
 
     def section(self, name):
         return self.doc.get(name) or {}
@@ -159,25 +167,32 @@ class Spec:
             source = {"file": source}
         if not isinstance(source, dict) or "file" not in source:
             raise RecordingError(f"{self.path}: {where} needs a file")
-        check_keys(self.path, source, SOURCE_KEYS, where)
+        check_keys(self.path, source, SOURCE_KEYS, where, ELSEWHERE)
         unit = source.get("unit", KINDS[kind][0])
         if unit not in KINDS[kind]:
             raise RecordingError(f"{self.path}: {where} unit {unit!r}: one of "
                                  f"{', '.join(KINDS[kind])} (a count of another size: `scale`)")
         width = WIDTH.get(kind, 1)
         scale = _scale(self.path, source.get("scale", 1.0), width, where)
-        x = load_spec(os.path.join(self.root, source["file"]), source.get("columns"), self.notes)
+        x = self._date_times(source, where) if unit == "iso8601" else \
+            load_spec(os.path.join(self.root, source["file"]), source.get("columns"), self.notes)
         if width == 1 and x.ndim == 2 and x.shape[1] == 1:
             x = x[:, 0]
         if (x.ndim == 1 and width != 1) or (x.ndim == 2 and x.shape[1] != width) or x.ndim > 2:
             raise RecordingError(f"{self.path}: {where} from {source['file']} has shape "
                                  f"{x.shape}, expected {width} column(s)")
+        if np.isnan(x).all():
+            raise RecordingError(f"{self.path}: {where} from {source['file']} holds no number in "
+                                 "any row: a column of text (ISO 8601 date-times such as "
+                                 "2023-08-04 17:47:58-04:00 are read with unit = \"iso8601\", "
+                                 "UNIX time: [time] unix_offset_s = 0)")
         if not np.isfinite(x).all() and self.doc.get("nonfinite", "refuse") != "drop":
             raise RecordingError(f"{self.path}: {where} from {source['file']} holds values that "
                                  f"are not finite (first at data row "
                                  f"{int(np.argmax(~np.isfinite(x.reshape(len(x), -1)).all(1)))}"
                                  ", counted from 0 after any header line); `nonfinite = "
-                                 "\"drop\"` in the spec leaves such rows out (and counts them)")
+                                 "\"drop\"` at the spec's top level, beside `name`, leaves such "
+                                 "rows out (and counts them)")
         x = x * (UNITS[unit] * scale)
         if "age" in source:             # the data's age when the row was written: its time
             if kind != "time":          # is the row's less the age
@@ -189,6 +204,14 @@ class Spec:
             x = x - age
         return x
 
+    def _date_times(self, source, where):
+        """UNIX time (s) of a column of ISO 8601 date-times (`unit = "iso8601"`)."""
+        columns = source.get("columns", [0])
+        columns = columns if isinstance(columns, list) else [columns]
+        if len(columns) != 1 or source.get("scale", 1.0) != 1.0:
+            raise RecordingError(f"{self.path}: {where}: date-times are one column, unscaled")
+        return load_date_times(os.path.join(self.root, source["file"]), columns[0])
+
     def finite_rows(self, where, *columns):
         """The columns (equal lengths) with every row that is not finite in any of them left
         out, and counted in `notes` (only `nonfinite = "drop"` lets such values through
@@ -196,6 +219,10 @@ class Spec:
         ok = np.ones(len(columns[0]), bool)
         for x in columns:
             ok &= np.isfinite(np.reshape(x, (len(x), -1))).all(axis=1)
+        if ok.sum() < 2:
+            raise RecordingError(f"{self.path}: {where}: {int(ok.sum())} of {len(ok)} rows are "
+                                 "finite in every column (nonfinite = \"drop\" left the rest "
+                                 "out): nothing to import")
         if not ok.all():
             self.notes[f"nonfinite {where}"] = (f"{int((~ok).sum())} of {len(ok)} rows not "
                                                 "finite: left out (nonfinite = \"drop\")")

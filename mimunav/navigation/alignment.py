@@ -159,16 +159,20 @@ def initial_alignment(t, w, f, mounting, track=None):
                      "matched to the reference's, forward axis to its velocity")
     else:
         moving = (speed >= COURSE_SPEED) & inside
+        what = track.get("what", "the reference")
         raise InputError(
-            "no initial state can be found: the recording does not start with a rest of "
-            f"{MIN_STATIC_S:g} s (reference speed <= {STATIC_SPEED:g} m/s), the reference "
-            "carries no attitude, and " + (
+            f"no initial state can be found from {what}: it carries no attitude, the "
+            f"recording does not start with a rest of {MIN_STATIC_S:g} s (its speed <= "
+            f"{STATIC_SPEED:g} m/s), and " + (
                 f"its epochs faster than {COURSE_SPEED:g} m/s all lie in stretches the IMU "
-                "and the reference's positions show at rest (a noisy fix's speed)"
+                "and its positions show at rest (a noisy fix's speed)"
                 if moving.any() else
-                f"where {half:g} s of IMU and reference lie on both sides its speed peaks at "
-                f"{speed[inside].max() if inside.any() else 0.0:.2f} m/s, below "
-                f"{COURSE_SPEED:g} m/s (over the whole reference: {speed.max():.2f} m/s)") +
+                f"where {half:g} s of IMU and it lie on both sides its speed peaks at "
+                f"{speed[inside].max():.2f} m/s, below {COURSE_SPEED:g} m/s (over all of "
+                f"it: {speed.max():.2f} m/s)" if inside.any() else
+                f"none of its epochs has {half:g} s of IMU and of it on both sides (the "
+                f"IMU's record is {t[-1] - t[0]:.2f} s, its "
+                f"{track['t'][-1] - track['t'][0]:.2f} s): too short") +
             " for a moving alignment")
     lat, lon, h = (float(np.interp(t0, track["t"], x)) for x in (
         track["lat"], unwrapped_longitude(track["lon"]), track["h"]))

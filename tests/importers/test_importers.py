@@ -523,6 +523,19 @@ def test_imu_and_reference_on_different_time_bases_are_refused():
         write_log(rec, "/nonexistent/never-written.mcap")
 
 
+def test_a_record_too_short_to_check_its_units_says_so():
+    """1.2 s of an IMU at rest (a new user's excerpt of a copter log): the units check
+    needs 3 s of 1 s means near 1 g - the message says the record is too short, not that
+    the accelerometer's unit may be wrong beside a median of 9.8 m/s^2."""
+    t = np.arange(0.0, 1.2, 0.02)
+    rec = Recording("excerpt", "", 1_700_000_000_000_000_000 + np.round(t * 1e9).astype(np.int64),
+                    np.zeros((len(t), 3)), np.tile([0.0, 0.0, -9.8], (len(t), 1)), Mounting())
+    from mimunav.importers.checks import check_recording
+    with pytest.raises(RecordingError, match="record is 1.18 s long: its units are checked on "
+                                             "at least 3 s"):
+        check_recording(rec)
+
+
 def test_rtklib_pos_without_velocity_or_without_fix_epochs(tmp_path):
     """RTKLIB's default .pos has no velocity columns: the reference velocity comes from the
     positions' central differences (not an empty reference); a .pos with no epoch of the

@@ -156,3 +156,55 @@ attitude_rpy = { file = "ref.csv", columns = ["r", "p", "y"], unit = "deg" }
         rec.real["reference_height_time"]
     assert np.allclose(got["h"], 0.3048 * (1000.5 + 10 * t[20:-1]), atol=0.02)
     assert np.allclose(np.abs(np.sum(got["q_nb"] * q[20:-1], axis=1)), 1.0, atol=1e-9)
+
+
+def test_text_columns_and_dropped_rows_are_refused_saying_why(tmp_path, capsys):
+    """What a new user's phone export met (issue 53): a time column of date-time text is
+    said to hold no number (not "not finite", with advice that would drop every row); a key
+    put in the wrong place names where it belongs; `nonfinite = "drop"` that leaves no row is
+    a refusal, not an IndexError; `--spec-keys` prints every key."""
+    def edit(data):
+        data[:, 0] = np.nan                     # what genfromtxt reads of text cells
+    _imu(tmp_path, edit=edit)
+    with pytest.raises(RecordingError, match="holds no number in any row: a column of text"):
+        table.read(tmp_path / "spec.toml")
+    _imu(tmp_path, extra='nonfinite = "drop"')
+    with pytest.raises(RecordingError, match="it belongs at the spec's top level"):
+        table.read(tmp_path / "spec.toml")
+
+    def holes(data):
+        data[::2, 1] = np.nan
+        data[1::2, 4] = np.nan
+    _imu(tmp_path, edit=holes)
+    spec = tmp_path / "spec.toml"
+    spec.write_text('nonfinite = "drop"\n' + spec.read_text())
+    with pytest.raises(RecordingError, match="0 of 4000 rows are finite in every column"):
+        table.read(spec)
+    from mimunav.cli import main
+    with pytest.raises(SystemExit):
+        main(["import", "--spec-keys"])
+    assert "unix_offset_s" in capsys.readouterr().out
+
+
+def test_iso_8601_date_times_are_unix_time_with_their_offset(tmp_path):
+    """A phone logger's time column of date-times with a UTC offset (`unit = "iso8601"`):
+    UNIX time to the microsecond, whatever the offset it is written in; one without an
+    offset is refused (its time zone is unknown)."""
+    import datetime
+    t = 1691185678.0 + np.arange(N) / RATE
+    zone = datetime.timezone(datetime.timedelta(hours=-4))
+    stamps = [datetime.datetime.fromtimestamp(x, zone).isoformat(sep=" ") for x in t]
+    w = 0.2 * np.sin(2 * np.pi * 0.3 * t[:, None] - t[0] + [0.0, 1.0, 2.0])
+    lines = ["time,gx,gy,gz,ax,ay,az"] + [f"{s},{a:.9g},{b:.9g},{c:.9g},0.5,0,-9.8"
+                                          for s, (a, b, c) in zip(stamps, w)]
+    (tmp_path / "imu.csv").write_text("\n".join(lines) + "\n")
+    spec = (SPEC.format(rate=RATES, force=FORCES, extra="")
+            .replace('columns = ["tick"], unit = "us", scale = 10', 'columns = ["time"], '
+                     'unit = "iso8601"').replace("1700000000.0", "0.0"))
+    (tmp_path / "spec.toml").write_text(spec)
+    rec = table.read(tmp_path / "spec.toml")
+    assert np.abs(rec.imu_ns / 1e9 - t).max() < 1e-6
+    assert np.allclose(rec.w, w)
+    (tmp_path / "imu.csv").write_text("\n".join(line.replace("-04:00", "") for line in lines))
+    with pytest.raises(RecordingError, match="has no UTC offset"):
+        table.read(tmp_path / "spec.toml")

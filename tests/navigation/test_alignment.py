@@ -145,10 +145,17 @@ def test_no_initial_state_is_a_clear_error():
     r_n, _ = earth.radii(LAT0)
     track = dict(t=t[::25], lat=LAT0 + 1.0 * t[::25] / (r_n + H0), lon=np.full(n // 25, LON0),
                  h=np.full(n // 25, H0), v_ned=np.tile([1.0, 0.0, 0.0], (n // 25, 1)))
-    with pytest.raises(InputError, match="does not start with a rest.*no attitude.*its "
+    with pytest.raises(InputError, match="no attitude.*does not start with a rest.*its "
                                          "speed peaks at 1.00 m/s, below 3 m/s"):
         alignment.initial_alignment(t, np.zeros((n, 3)), np.tile([0, 0, -9.8], (n, 1)),
                                     Mounting(), track)
+    # a record shorter than the moving alignment's two windows: said, not a speed of 0.00
+    short = t < 0.45
+    cut = {k: v[track["t"] < 0.45] for k, v in track.items()}
+    with pytest.raises(InputError, match=r"none of its epochs has .* s of IMU and of it on "
+                                         r"both sides \(the IMU's record is 0.44 s"):
+        alignment.initial_alignment(t[short], np.zeros((short.sum(), 3)),
+                                    np.tile([0, 0, -9.8], (short.sum(), 1)), Mounting(), cut)
 
 
 def test_a_rest_under_a_noisy_fix_is_found_from_the_imu_and_the_positions(tmp_path):
