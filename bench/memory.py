@@ -1,6 +1,10 @@
 """Peak memory of the commands that read a whole flight, against the flight's length.
 
-    python bench/memory.py [--minutes 5 20] [--commands compensate replay table diagnose]
+    python bench/memory.py [--minutes 5 20] [--commands compensate replay table diagnose
+                                                    diagnose-report]
+
+diagnose-report is `mimunav diagnose LOG -o DIR`: the diagnosis and its report folder (the
+figures, the model's navigation with and without the found terms).
 
 Each command's wall time beside it (the 2-hour line extrapolates it too).
 
@@ -33,7 +37,7 @@ from mimunav.sensors.mimu import MimuUnit                    # noqa: E402
 EPOCH_NS = 1_767_225_600 * 10**9
 LAT, LON, H = math.radians(45.0), math.radians(7.0), 300.0
 BLOCK = 200_000
-COMMANDS = ("compensate", "replay", "table", "simulate", "diagnose")
+COMMANDS = ("compensate", "replay", "table", "simulate", "diagnose", "diagnose-report")
 
 
 def parked_log(path, minutes, unit, rate=1000.0, seed=0):
@@ -121,7 +125,9 @@ def commands(kind, log, cal, tmp, minutes):
            "replay": ["replay", log, "--cal", cal, "-o", f"{tmp}/replay", "--force"],
            "table": ["table", log, "--cal", f"c={cal}"],
            "diagnose": ["diagnose", log, "--model", cal, "--json", f"{tmp}/diagnosis.json",
-                        "--force"]}
+                        "--force"],
+           "diagnose-report": ["diagnose", log, "--model", cal, "-o", f"{tmp}/report",
+                               "--force"]}
     return out[kind]
 
 
@@ -148,7 +154,8 @@ def main():
     for kind in args.commands:
         slope = (results[(kind, n1)] - results[(kind, n0)]) / (n1 - n0) * 1e6     # MB / M
         per_m = (seconds[(kind, n1)] - seconds[(kind, n0)]) / (n1 - n0) * 1e6    # s / M
-        rows.append((f"peak memory of `mimunav {kind}` against the flight's length (parked, "
+        name = "diagnose -o" if kind == "diagnose-report" else kind
+        rows.append((f"peak memory of `mimunav {name}` against the flight's length (parked, "
                      "1 kHz)",
                      f"{results[(kind, n0)]:.0f} MB at {args.minutes[0]:g} min, "
                      f"{results[(kind, n1)]:.0f} MB at {args.minutes[1]:g} min: "

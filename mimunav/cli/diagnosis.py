@@ -35,11 +35,12 @@ def _diagnosed(args, painter):
     from ..sensors.accuracy import Accuracy
     from ..files import refuse_folder_early, write_atomic
     from ..reports import diagnosis as report
+    from ..reports.navigation_gain import model_navigation_beside
     if args.output:                 # here, after the fork: the child's import runs beside these
         refuse_folder_early(args.output, args.force, report.FILES)
-    # without a report, a long flight's sensor level streams (the report navigates it whole)
+    # a long flight's sensor level streams, its report's navigations too
     flight, cal, level, why = levels.load(args.log, args.model, args.level, args.vehicle,
-                                          stream=not args.output)
+                                          stream=True)
     accuracy = Accuracy.parse(args.reference_accuracy) if args.reference_accuracy else None
     noise = None
     if args.noise:
@@ -51,7 +52,7 @@ def _diagnosed(args, painter):
         print(f"bias tests' normal wander: {noise['source']}")
     # the report's navigation of the model needs nothing the diagnosis finds: made when
     # the report asks for it (not on a thread beside the diagnosis: see its docstring)
-    model = report.model_navigation_beside(flight, cal) if args.output else None
+    model = model_navigation_beside(flight, cal) if args.output else None
     diag = levels.diagnose(flight, cal, level, args.alpha, args.seed, accuracy, noise,
                            args.vehicle)
     diag.level_choice = why

@@ -150,6 +150,15 @@ def unmeasured_heading(flight, vehicle=None):
             "would fit that heading's error, not the MIMU's, so no finding is made from it")
 
 
+def leveled_on_its_outputs(flight):
+    """Whether a recording's initial attitude was leveled on the MIMU's own specific force (a
+    rest's mean, a moving alignment's two vectors) rather than taken whole from the
+    reference: a found term that turns the outputs (a mounting) then turns them away from
+    the attitude the navigation starts from."""
+    said = str(((flight.recording or {}).get("assumed") or {}).get("initial_state", ""))
+    return flight.source == "recording" and "whole state from the reference" not in said
+
+
 def _heading_from_text(rec):
     """The heading source of a log imported before `initial_heading` was written: from the
     alignment's words in the `assumed` metadata."""

@@ -24,7 +24,7 @@ class Spill:
     def append(self, name, x):
         """Append rows x (n,) or (n, k) to column group `name`."""
         x = np.asarray(x)
-        kind = (x.dtype, x.shape[1:])
+        kind, new = (x.dtype, x.shape[1:]), name not in self._kinds
         if self._kinds.setdefault(name, kind) != kind:
             raise ValueError(f"{name}: rows of {kind}, not {self._kinds[name]}")
         if self.folder is None:
@@ -32,8 +32,9 @@ class Spill:
             return
         cols = x.reshape(len(x), -1)
         for c in range(cols.shape[1]):
-            if (name, c) not in self._files:        # a file of an earlier Spill: replaced
-                self._files[(name, c)] = open(self._path(name, c), "wb")
+            if (name, c) not in self._files:    # a new group's file replaces an earlier
+                # Spill's; one closed since (`close`, `put_column`) is appended to
+                self._files[(name, c)] = open(self._path(name, c), "wb" if new else "ab")
             self._files[(name, c)].write(np.ascontiguousarray(cols[:, c]).tobytes())
 
     def put_column(self, name, c, x):
@@ -173,7 +174,7 @@ class ScratchMatrix:
         self._spill.close()
 
     def __getitem__(self, key):
-        if isinstance(key, slice):
+        if isinstance(key, slice) and key.step in (None, 1):
             return self._read_rows(*key.indices(len(self))[:2])
         if not (isinstance(key, tuple) and len(key) == 2 and isinstance(key[0], slice)
                 and key[0] == slice(None) and isinstance(key[1], slice)):

@@ -233,6 +233,17 @@ def navigate_mimu(flight, w, f):
     return Trajectory.concatenate([nav.feed(flight.mimu_t, w, f), nav.finish()])
 
 
+def navigate_mimu_at(flight, cal, at):
+    """The MIMU through `cal` navigated from the flight's initial state, kept at times `at`
+    (s, increasing): block by block when the flight streams (`replay` without the reference
+    IMU, the flags' counts or the checks)."""
+    nav, keep = _mimu_navigator(flight), Sampler(at)
+    for t, w, f, _ in flight.mimu_blocks(cal):
+        keep.add(nav.feed(t, w, f))
+    keep.add(nav.finish())
+    return keep.trajectory()
+
+
 def _mimu_navigator(flight):
     return VehicleNavigator(flight.mimu_mounting, flight.initial, flight.mimu_platform,
                             whole_record=flight.stream_block is None)

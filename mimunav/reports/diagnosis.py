@@ -5,6 +5,7 @@
                      unexplained excursion) marked (sensor level); at the navigation level
                      the velocity error against the reference and the found terms' share
   navigation.png     navigation error of the model and of the model with the found terms
+                     (`navigation_gain`)
   diagnosis.json     the `mimunav-diagnosis/1` document;  CAL+found.json  the calibration
                      with the found terms (when any), for `mimunav table`.
 The folder is built beside its final place and renamed into it (nothing half-written).
@@ -16,8 +17,6 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
-from ..evaluation.replay import (comparison_times, compensated_mimu, navigate_fog, navigate_mimu,
-                                 ned_to_enu, resample)
 from ..files import atomic_folder
 from ..diagnosis.document import charge_text, dumps, stated_errors
 from ..diagnosis.design import term_contribution
@@ -26,62 +25,12 @@ from ..diagnosis.inference import p_text
 from ..diagnosis.outputs import block_index
 from ..diagnosis.design import CHANNELS
 from ..diagnosis.scan import CONDITIONS
-from .plots import Painter, figure, on_screen, save
+from .navigation_gain import draw_navigation, model_navigation, navigation_gain, navigation_lines
+from .plots import Painter, figure, save
 
 CHANNEL_NAMES = [f"{s}.{a}" for s, a in CHANNELS]
 FILES = ("diagnosis.md", "diagnosis.json", "CAL+found.json", "residual-map.png",
          "timeline.png", "navigation.png")          # all the report may write (module doc)
-
-
-def model_navigation(flight, cal, compensated=None):
-    """(comparison times t (s), the reference's trajectory at t, the position error (t, 3) m
-    NED of the MIMU through `cal` at t): the truth, else the FOG-IMU navigated, is the
-    reference. compensated: the MIMU's (w rad/s, f m/s^2) through `cal` when already at
-    hand. Needs nothing a diagnosis finds: `mimunav diagnose` runs it on a thread beside
-    the diagnosis (the compensation's numpy and the navigator's kernel release the
-    interpreter)."""
-    t = comparison_times(flight)
-    ref = resample(flight.truth, t) if flight.truth is not None else \
-        resample(navigate_fog(flight), t)
-    return t, ref, resample(_navigated(flight, cal, compensated), t).position_error(ref)
-
-
-def model_navigation_beside(flight, cal):
-    """`model_navigation(flight, cal)`, computed when its `result()` is first asked for (after
-    the diagnosis). It had run on a thread beside the diagnosis: the two then ran
-    numpy-quaternion arrays at once, and 1 run in 3-6 of a navigation-level diagnosis with
-    a report ended in 'Reference count error detected: ... dtype 12 (d)' and a segmentation
-    fault (2026-11-29; none in 8 runs since)."""
-    return SimpleNamespace(result=cache(lambda: model_navigation(flight, cal)))
-
-
-def _navigated(flight, cal, outputs=None):
-    w, f = outputs if outputs is not None else \
-        compensated_mimu(flight, cal, warn=False)[:2]    # the diagnosis warned
-    return navigate_mimu(flight, w, f)
-
-
-def navigation_gain(flight, cal_found, model):
-    """Position error (m, 3-D) against the truth (else the FOG-IMU) at the end and its
-    maximum, for the model (`model`: a Future of what `model_navigation` returns, awaited
-    once the found terms' navigation is done) and the model with the found terms
-    (`cal_found`, None: no found terms); and the series to plot, `plots.on_screen`'s
-    samples of them (time s since the initial state, {name: 3-D error m})."""
-    found = _navigated(flight, cal_found) if cal_found is not None else None
-    t, ref, err = model.result()
-    errors = {"model": err}
-    if found is not None:
-        errors["model+found"] = resample(found, t).position_error(ref)
-    reference = ("FOG-IMU" if flight.truth is None else "truth" if flight.source != "recording"
-                 else "recording's reference trajectory")
-    out, series = {"reference": reference}, {}
-    k = on_screen(len(t))
-    for name, err in errors.items():
-        norm = np.linalg.norm(err, axis=1)
-        out[name] = {"end_m": float(norm[-1]), "max_m": float(norm.max()),
-                     "end_enu_m": ned_to_enu(err[-1]).tolist()}
-        series[name] = norm[k]
-    return out, t[k] - t[0], series
 
 
 def write(out_dir, doc, diag, flight, cal, cal_found, cal_label, force=False, painter=None,
@@ -100,7 +49,7 @@ def write(out_dir, doc, diag, flight, cal, cal_found, cal_label, force=False, pa
             own = getattr(diag, "compensated", None)     # the sensor level's, of this flight
             outputs = own[1:] if own and own[0] is flight else None
             model = SimpleNamespace(result=cache(lambda: model_navigation(flight, cal, outputs)))
-        gain = pool.submit(navigation_gain, flight, cal_found, model)
+        gain = pool.submit(navigation_gain, flight, cal_found, model, doc["findings"])
         if diag.level in ("sensor", "track"):
             painter.draw(_residual_map, diag.residual_map, str(tmp / "residual-map.png"))
             painter.draw(_timeline, _timeline_lines(diag, doc), str(tmp / "timeline.png"))
@@ -112,7 +61,7 @@ def write(out_dir, doc, diag, flight, cal, cal_found, cal_label, force=False, pa
         (tmp / "diagnosis.json").write_text(dumps(doc))
         if cal_found is not None:
             cal_found.save(str(tmp / "CAL+found.json"))
-        painter.draw(_navigation, t_nav, series, nav, str(tmp / "navigation.png"))
+        painter.draw(draw_navigation, t_nav, series, nav, str(tmp / "navigation.png"))
         (tmp / "diagnosis.md").write_text(markdown(doc, diag, cal_label))
     return out_dir
 
@@ -131,7 +80,7 @@ def markdown(doc, diag, cal_label):
                   f"velocity-error increments over {doc['epoch_s']:g} s. RMS of the velocity "
                   "error (N, E, D): " + ", ".join(f"{x:.3g}" for x in doc["velocity_error_rms"])
                   + " m/s.", ""]
-    lines += _navigation_lines(doc)
+    lines += navigation_lines(doc)
     return "\n".join(lines) + "\n"
 
 
@@ -197,7 +146,11 @@ def _reference_lines(doc):
                 "explains, over the predicted means' rms) is below "
                 f"{check['model_error_threshold']:.2f}, with columns made of such inputs"
                 + (":" if narrowed else "; here each keeps all its channels.")]
-            lines += [f"- {label}: on {', '.join(chans)}" for label, chans in narrowed.items()]
+            own = {f["label"]: f["fit"]["channels"] for f in doc["findings"] if "fit" in f}
+            lines += [f"- {label}: on {', '.join(chans)}" + (
+                f" (the finding of this name is fitted on {', '.join(own[label])} alone)"
+                if set(own.get(label, chans)) != set(chans) else "")
+                for label, chans in narrowed.items()]
         if check.get("not_tested"):
             lines += ["", "Not tested on this recording (driven by an input, or acting on "
                       "channels, the reference does not predict): "
@@ -336,32 +289,6 @@ def _residual_lines(doc):
     return lines
 
 
-def _navigation_lines(doc):
-    """The MIMU navigated through the model with and without the found terms."""
-    nav = doc["navigation"]
-    lines = ["", f"## Navigation error against the {nav['reference']} (navigation.png)", "",
-              "Free-inertial over the whole record from the initial state, the MIMU's outputs "
-              "through the model alone: a bias the model does not hold (on an imported "
-              "recording, the gyro bias the import measured at rest) grows into it.", "",
-              "| compensation | end 3-D error, m | max 3-D error, m |", "|---|---|---|"]
-    for name in ("model", "model+found"):
-        if name in nav:
-            lines.append(f"| {name} | {nav[name]['end_m']:.1f} | {nav[name]['max_m']:.1f} |")
-    if "model+found" in nav:
-        if nav["model+found"]["end_m"] > nav["model"]["end_m"]:
-            lines += ["", "Removing the found terms alone does not shorten the end error here: the "
-                      "model's other errors dominate it (and errors can cancel in part), so one "
-                      "term's removal can go either way; the held-out residual rms above is the "
-                      "measure of each term."]
-        compare = ("`mimunav table LOG --cal model=CAL --cal found=CAL+found.json` compares "
-                   "them" if doc["level"] == "sensor" else
-                   "`mimunav windows LOG --cal CAL+found.json -o DIR` navigates with them "
-                   "(free-inertial windows against the reference; `mimunav table` needs a "
-                   "reference IMU, which this log has not)")
-        lines += ["", f"`CAL+found.json` holds the model with the found terms: {compare}."]
-    return lines
-
-
 def _condition_table(diag):
     lines = ["## Residual by flight condition", "",
               "RMS of the residual's 1 s means (bias wander removed) in each condition (the "
@@ -478,17 +405,6 @@ def _velocity_timeline(lines, png):
     axes[0, 0].legend(fontsize=8)
     axes[-1, 0].set_xlabel("time since the first epoch, s")
     save(plt, fig, png)
-
-
-def _navigation(t, series, nav, png):
-    plt, fig, axes = figure(1, 1, (9, 4))
-    ax = axes[0, 0]
-    for name, norm in series.items():
-        ax.plot(t, norm, label=name)
-    ax.set_xlabel("time since the initial state, s")
-    ax.set_ylabel(f"3-D position error vs {nav['reference']}, m")
-    ax.legend()
-    save(plt, fig, png, margins=dict(left=0.1, right=0.98, bottom=0.12, top=0.96))
 
 
 def proof_markdown(cases, summary, meta):

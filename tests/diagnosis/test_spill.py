@@ -1,6 +1,8 @@
 """A channel matrix in scratch files (`diagnosis.spill.ScratchMatrix`) reads as the array it
 holds: rows a block at a time, columns whole, a selection of rows and columns; and the
 wander's Grams from it are the array's, bit for bit."""
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -37,8 +39,26 @@ def test_a_scratch_matrix_reads_as_its_array():
         picked.append(np.zeros((1, 4)))
     with pytest.raises(IndexError):
         matrix[rows]
-    widened = matrix.widened(1, 2)          # columns 1-2 copied at the end
+    with pytest.raises(IndexError):
+        matrix[0:10:2]
+    assert matrix[5:5].shape == (0, 6) and picked.selected(rows[:0] | False, [0]).shape[0] == 0
+    widened = matrix.widened(1, 2)          # columns 1-2 copied at the end, after close()
     assert np.array_equal(widened[:, 6:8], x[:, 1:3])
+    widened.append(x[:3, [0, 1, 2, 3, 4, 5, 1, 2]])     # appended to, not replaced
+    assert len(widened) == 1003 and np.array_equal(widened[1000:], x[:3, [0, 1, 2, 3, 4, 5, 1, 2]])
+
+
+def test_the_scratch_folder_goes_with_the_last_matrix_reading_it():
+    spill, folder = ScratchMatrix.scratch()
+    matrix = ScratchMatrix.empty(spill, folder, "channel0", 2)
+    matrix.append(np.ones((4, 2)))
+    matrix.close()
+    picked = matrix.selected(np.array([True, False, True, True]), [1])
+    path = Path(folder.name)
+    del spill, folder, matrix
+    assert path.is_dir() and np.array_equal(picked[0:3], np.ones((3, 1)))
+    del picked
+    assert not path.exists()
 
 
 def test_the_grams_of_a_scratch_matrix_are_the_arrays(monkeypatch):

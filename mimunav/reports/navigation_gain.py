@@ -1,0 +1,128 @@
+"""The report's navigation of the MIMU through the model, with and without the found terms
+(`mimunav diagnose -o`): free-inertial from the log's initial state against the truth, else the
+FOG-IMU navigated, else the recording's reference trajectory; position errors in m (NED, the
+end's also ENU), block by block when the flight streams."""
+from functools import cache
+from types import SimpleNamespace
+
+import numpy as np
+
+from ..diagnosis.levels import leveled_on_its_outputs
+from ..evaluation.replay import (comparison_times, navigate_fog, navigate_mimu,
+                                 navigate_mimu_at, ned_to_enu, resample)
+from .plots import figure, on_screen, save
+
+
+def model_navigation(flight, cal, compensated=None):
+    """(comparison times t (s), the reference's trajectory at t, the position error (t, 3) m
+    NED of the MIMU through `cal` at t): the truth, else the FOG-IMU navigated, is the
+    reference. compensated: the MIMU's (w rad/s, f m/s^2) through `cal` when already at
+    hand. Block by block when the flight streams (only the states at t are kept). Needs
+    nothing a diagnosis finds."""
+    t = comparison_times(flight)
+    ref = resample(flight.truth, t) if flight.truth is not None else navigate_fog(flight, at=t)
+    return t, ref, _navigated(flight, cal, t, compensated).position_error(ref)
+
+
+def model_navigation_beside(flight, cal):
+    """`model_navigation(flight, cal)` when its `result()` is first asked for, after the
+    diagnosis (beside it on a thread, numpy-quaternion arrays in both crashed 1 run in 3-6
+    with 'Reference count error detected', 2026-11-29)."""
+    return SimpleNamespace(result=cache(lambda: model_navigation(flight, cal)))
+
+
+def _navigated(flight, cal, at, outputs=None):
+    """The MIMU through `cal` navigated, at times `at` (s): from `outputs` (w, f) if given."""
+    if outputs is not None:
+        return resample(navigate_mimu(flight, *outputs), at)
+    return navigate_mimu_at(flight, cal, at)
+
+
+def navigation_gain(flight, cal_found, model, findings=()):
+    """Position error (m, 3-D) against the truth (else the FOG-IMU) at the end and its
+    maximum, for the model (`model`: what `model_navigation_beside` returns, awaited first)
+    and the model with the found terms (`cal_found`, None: no found terms; `findings`: this
+    diagnosis' own, `tilting_mountings`); and the series to plot, `plots.on_screen`'s
+    samples of them (time s since the initial state, {name: 3-D error m})."""
+    t, ref, err = model.result()
+    errors = {"model": err}
+    reference = ("FOG-IMU" if flight.truth is None else "truth" if flight.source != "recording"
+                 else "recording's reference trajectory")
+    out, series = {"reference": reference}, {}
+    leveled = leveled_on_its_outputs(flight)
+    if leveled:
+        out["initial_state"] = "leveled on the MIMU's own outputs through the model"
+    tilting = tilting_mountings(findings) if leveled else []
+    if cal_found is not None and tilting:
+        out["model+found"] = {"not_navigated": (
+            f"the found {'; '.join(tilting)} tilts the outputs the import leveled the "
+            "initial state on: from that state the navigation would charge the tilt to the "
+            "terms - import the recording again with the mounting it found "
+            "(--mounting-rpy-deg) to navigate with it")}
+    elif cal_found is not None:
+        errors["model+found"] = _navigated(flight, cal_found, t).position_error(ref)
+    k = on_screen(len(t))
+    for name, err in errors.items():
+        norm = np.linalg.norm(err, axis=1)
+        out[name] = {"end_m": float(norm[-1]), "max_m": float(norm.max()),
+                     "end_enu_m": ned_to_enu(err[-1]).tolist()}
+        series[name] = norm[k]
+    return out, t[k] - t[0], series
+
+
+def tilting_mountings(findings):
+    """The found mountings that turn the MIMU about the vehicle's forward or right axis (95 %
+    interval of the turn clear of 0: `vector_vehicle_ci95`), each with those turns in deg - a
+    turn about the down axis leaves a leveled state level."""
+    out = []
+    for f in findings:
+        ci = f.get("vector_vehicle_ci95")
+        if f["effect"] == "mounting_misalignment" and ci and \
+                any(lo > 0 or hi < 0 for lo, hi in ci[:2]):
+            roll, pitch = np.degrees(f["vector_vehicle"][:2])
+            out.append(f"{f['label']} ({roll:+.2f} deg about the forward axis, {pitch:+.2f} "
+                       "about the right)")
+    return out
+
+
+def navigation_lines(doc):
+    """The MIMU navigated through the model with and without the found terms."""
+    nav = doc["navigation"]
+    lines = ["", f"## Navigation error against the {nav['reference']} (navigation.png)", "",
+              "Free-inertial over the whole record from the initial state, the MIMU's outputs "
+              "through the model alone: a bias the model does not hold (on an imported "
+              "recording, the gyro bias the import measured at rest) grows into it.", "",
+              "| compensation | end 3-D error, m | max 3-D error, m |", "|---|---|---|"]
+    for name in ("model", "model+found"):
+        if "end_m" in nav.get(name, {}):
+            lines.append(f"| {name} | {nav[name]['end_m']:.1f} | {nav[name]['max_m']:.1f} |")
+    if "not_navigated" in nav.get("model+found", {}):
+        lines += ["", f"Not navigated with the found terms: {nav['model+found']['not_navigated']}."]
+    if "model+found" in nav:
+        if nav["model+found"].get("end_m", 0.0) > nav["model"]["end_m"]:
+            lines += ["", "Removing the found terms alone does not shorten the end error here: the "
+                      "model's other errors dominate it (and errors can cancel in part), so one "
+                      "term's removal can go either way; the held-out residual rms above is the "
+                      "measure of each term." + (
+                          " The initial state was leveled on the MIMU's own outputs, which "
+                          "took up part of any accelerometer error the terms remove (its "
+                          "removal then leaves a tilt of that size)."
+                          if "initial_state" in nav else "")]
+        compare = ("`mimunav table LOG --cal model=CAL --cal found=CAL+found.json` compares "
+                   "them" if doc["level"] == "sensor" else
+                   "`mimunav windows LOG --cal CAL+found.json -o DIR` navigates with them "
+                   "(free-inertial windows against the reference; `mimunav table` needs a "
+                   "reference IMU, which this log has not)")
+        lines += ["", f"`CAL+found.json` holds the model with the found terms: {compare}."]
+    return lines
+
+
+def draw_navigation(t, series, nav, png):
+    plt, fig, axes = figure(1, 1, (9, 4))
+    ax = axes[0, 0]
+    for name, norm in series.items():
+        ax.plot(t, norm, label=name)
+    ax.set_xlabel("time since the initial state, s")
+    ax.set_ylabel(f"3-D position error vs {nav['reference']}, m")
+    ax.legend()
+    save(plt, fig, png, margins=dict(left=0.1, right=0.98, bottom=0.12, top=0.96))

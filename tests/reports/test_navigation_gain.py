@@ -1,0 +1,41 @@
+"""The report's navigation with the found terms (`reports.navigation_gain`): not navigated
+from an initial state the import leveled on the MIMU's own outputs when a found mounting
+turns those outputs (the RTKLIB drive's 6 deg mounting had doubled the end error, 121 ->
+250 km, and the report blamed the model's other errors)."""
+from types import SimpleNamespace
+
+import numpy as np
+
+from mimunav.diagnosis.levels import leveled_on_its_outputs
+from mimunav.reports.navigation_gain import navigation_gain, navigation_lines, tilting_mountings
+
+
+def _recording(initial_state):
+    return SimpleNamespace(source="recording", truth=None, recording={
+        "assumed": {"initial_state": initial_state}})
+
+
+def test_a_found_mounting_is_not_navigated_from_a_self_leveled_state():
+    leveled = _recording("level from the mean specific force over the rest 0.00-33.76 s; "
+                         "heading from the GNSS course")
+    whole = _recording("whole state from the reference at t = 0.00 s")
+    assert leveled_on_its_outputs(leveled) and not leveled_on_its_outputs(whole)
+    assert not leveled_on_its_outputs(SimpleNamespace(source="simulation", recording=None))
+    t = np.linspace(0.0, 10.0, 11)
+    err = np.column_stack([t, 0 * t, 0 * t])
+    model = SimpleNamespace(result=lambda: (t, None, err))
+    pitched = {"effect": "mounting_misalignment", "label": "mounting_misalignment imu.all",
+               "vector_vehicle": [0.0044, -0.099, 0.107],        # the drive's, rad
+               "vector_vehicle_ci95": [[-0.057, 0.066], [-0.161, -0.037], [0.054, 0.161]]}
+    yawed = dict(pitched, vector_vehicle_ci95=[[-0.057, 0.066], [-0.06, 0.02], [0.054, 0.161]])
+    assert tilting_mountings([yawed]) == []         # a turn about down leaves it level
+    (said,) = tilting_mountings([pitched])
+    assert "-5.67 about the right" in said
+    found = SimpleNamespace(found=[{"effect": "mounting_misalignment", "sensor": "imu",
+                                    "axis": "all"}])
+    nav, _, series = navigation_gain(leveled, found, model, [pitched])   # never navigated
+    assert "tilts the outputs the import leveled" in nav["model+found"]["not_navigated"]
+    assert list(series) == ["model"] and nav["model"]["end_m"] == 10.0
+    lines = "\n".join(navigation_lines({"navigation": nav, "level": "track"}))
+    assert "| model | 10.0 |" in lines and "Not navigated with the found terms" in lines
+    assert "| model+found |" not in lines
