@@ -4,6 +4,8 @@ they are, and an initial state inside the span - the log's own when it lies ther
 reference's (/truth/state) at its first epoch in the span with an attitude, else the alignment
 of an imported recording redone on the span's IMU and track (`navigation.alignment`). The
 span's metadata says where the cut was and where the new initial state came from."""
+import json
+
 import numpy as np
 from mcap.reader import make_reader
 
@@ -26,7 +28,7 @@ def cut(log_path, out, t0, t1, force=False):
                              "has no time base to be cut on")
         epoch = int(flight["epoch_unix_ns"])
         lo, hi = epoch + int(round(t0 * 1e9)), epoch + int(round(t1 * 1e9))
-        initial, how = _initial_state(log, flight, meta, t0, t1, epoch)
+        initial, how, heading = _initial_state(log, flight, meta, t0, t1, epoch)
         count, generic = 0, []
         with LogWriter(out, force=force) as dst, open(log_path, "rb") as fh:
             reader = make_reader(fh)
@@ -35,6 +37,8 @@ def cut(log_path, out, t0, t1, force=False):
                 if record.name == "flight":    # its description says what it is now
                     values = {**values, "initial_state": initial, "description":
                               f"{values.get('description', '')} - cut to {t0:g}-{t1:g} s"}
+                if record.name == "recording" and heading is not None:     # and how the
+                    values = _restarted(values, how, heading)   # span's state was found
                 dst.metadata(record.name, values)
             for att in reader.iter_attachments():
                 dst.attachment(att.name, att.data, att.media_type)
@@ -59,11 +63,21 @@ def cut(log_path, out, t0, t1, force=False):
     return count, how
 
 
+def _restarted(values, how, heading):
+    """A recording's metadata values with its initial state's account (`assumed`'s
+    initial_state, `initial_heading`) the span's: what `diagnose` judges the state by."""
+    assumed = values.get("assumed") or "{}"
+    assumed = json.loads(assumed) if isinstance(assumed, str) else dict(assumed)
+    assumed["initial_state"] = how
+    return {**values, "assumed": assumed, "initial_heading": heading}
+
+
 def _initial_state(log, flight, meta, t0, t1, epoch):
-    """(initial_state object, how it was found) inside [t0, t1] (module doc)."""
+    """(initial_state object, how it was found, where its heading came from - None: the
+    log's own state, unchanged) inside [t0, t1] (module doc)."""
     initial = flight.get("initial_state") or {}
     if t0 <= float(initial.get("t", np.nan)) <= t1:
-        return initial, "the log's own (inside the span)"
+        return initial, "the log's own (inside the span)", None
     if "/truth/state" in log.channels:
         truth = log.read("/truth/state")
         t = (truth["log_time"].astype(np.int64) - epoch) / 1e9
@@ -75,7 +89,8 @@ def _initial_state(log, flight, meta, t0, t1, epoch):
                      "longitude": float(truth["longitude"][k]), "height": float(truth["height"][k]),
                      "velocity_ned": [float(v) for v in truth["velocity_ned"][k]],
                      "attitude_wxyz": [float(v) for v in q[k]]},
-                    f"the reference's state at t = {t[k]:.3f} s (/truth/state)")
+                    f"whole state from the reference at t = {t[k]:.3f} s (/truth/state)",
+                    "reference")
         if "/mimu/imu" in log.channels:
             return _realigned(log, truth, t, t0, t1, epoch, meta)
     raise InputError(f"the initial state (t = {initial.get('t')}) lies outside the span and the "
@@ -111,4 +126,4 @@ def _realigned(log, truth, t_ref, t0, t1, epoch, meta):
     return ({"t": float(align.t), "latitude": float(align.lat), "longitude": float(align.lon),
              "height": float(align.h), "velocity_ned": [float(v) for v in align.v_ned],
              "attitude_wxyz": [float(v) for v in q]},
-            f"the alignment redone on the span: {method}")
+            f"the alignment redone on the span: {method}", align.heading)

@@ -90,6 +90,10 @@ def test_a_cut_recording_is_aligned_again_on_its_imports_biases(tmp_path):
     with FlightLog(out) as fl:
         cut = fl.metadata()
     assert "less the biases the import measured" in cut["cut"]["initial_state"]
+    # the recording's account of its initial state is the span's (what diagnose judges by)
+    assert cut["recording"]["assumed"]["initial_state"] == cut["cut"]["initial_state"]
+    assert cut["recording"]["initial_heading"] == "course"
+    assert meta["recording"]["assumed"]["initial_state"].startswith("level from the mean")
     start = cut["flight"]["initial_state"]
     t_start = start["t"] + int(meta["flight"]["epoch_unix_ns"]) / 1e9 - epoch / 1e9
     k = int(np.argmin(np.abs(run.trajectory.t - t_start)))
