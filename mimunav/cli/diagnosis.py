@@ -113,6 +113,10 @@ def finding_line(f):
                              f"{np.degrees(hi):+.2f}]"
                              for v, (lo, hi) in zip(f["vector_vehicle"],
                                                     f["vector_vehicle_ci95"])))
+    if "mounting_rpy_deg" in f:
+        line += ("\n    the mounting that holds it (sensor -> vehicle roll, pitch, yaw): "
+                 f"--mounting-rpy-deg {' '.join(f'{a:g}' for a in f['mounting_rpy_deg'])} "
+                 "(import)")
     halves = f.get("halves")
     if isinstance(halves, dict) and halves["widened_by"] > 1:
         line += (f"\n    the recording's halves disagree (p {halves['p_same']:.2g}): interval "

@@ -135,7 +135,9 @@ def interval_estimate(design, term, b, cov, interval=None):
     compensation (`vector_sensor_axes`); a mounting misalignment (a rotation vector of the
     sensor axes, as the contract's `vector`) also as the same turn about the vehicle's
     axes (`vector_vehicle`, FRD, with `vector_vehicle_ci95`): a mounting that turns the
-    sensor's z axis up reverses the sign of a yaw read off the sensor axes."""
+    sensor's z axis up reverses the sign of a yaw read off the sensor axes; and the mounting
+    that holds it (`mounting_rpy_deg`: sensor -> vehicle roll, pitch, yaw, deg, as
+    `--mounting-rpy-deg` takes it)."""
     if interval is not None:
         return estimate(term, b, np.array([interval[0]]), np.array([interval[1]]))
     if term["effect"] not in ("lever_arm", "mounting_misalignment"):
@@ -146,9 +148,12 @@ def interval_estimate(design, term, b, cov, interval=None):
     half_v = 1.96 * np.sqrt(np.diag(cov_v))
     if term["effect"] == "mounting_misalignment":    # the sensor axes' turn phi (q_vs q(phi))
         half = 1.96 * np.sqrt(np.diag(cov))          # is the turn C_vs phi of the vehicle
-        return dict(estimate(term, b, b - half, b + half),  # axes (q(C_vs phi) q_vs)
+        yaw, pitch, roll = attitude.as_euler(        # axes (q(C_vs phi) q_vs): the mounting
+            quaternion.from_rotation_vector(b_v) * attitude.from_wxyz(design.q_vs))  # it found
+        return dict(estimate(term, b, b - half, b + half),
                     vector_vehicle=b_v.tolist(),
-                    vector_vehicle_ci95=np.column_stack([b_v - half_v, b_v + half_v]).tolist())
+                    vector_vehicle_ci95=np.column_stack([b_v - half_v, b_v + half_v]).tolist(),
+                    mounting_rpy_deg=[round(float(np.degrees(a)), 2) for a in (roll, pitch, yaw)])
     return dict(estimate(term, b_v, b_v - half_v, b_v + half_v), frame="vehicle",
                 vector_sensor_axes=b.tolist())
 

@@ -212,8 +212,10 @@ def _finding_lines(doc):
             alt = ", ".join(a["label"] for a in f["indistinguishable_from"]) or "-"
             vec = f" (vector {_vec(f['vector'])}, {f.get('frame', 'sensor')} axes" + (
                 f"; turned {_vec(np.degrees(f['vector_vehicle']))} deg about the vehicle's "
-                "forward, right, down axes" if "vector_vehicle" in f else "") + ")" \
-                if "vector" in f else ""
+                "forward, right, down axes" if "vector_vehicle" in f else "") + (
+                "; the mounting that holds it: --mounting-rpy-deg "
+                + " ".join(f"{a:g}" for a in f["mounting_rpy_deg"])
+                if "mounting_rpy_deg" in f else "") + ")" if "vector" in f else ""
             lines.append(
                 f"| {f['label']} | {f['coefficient']:.4g}{vec} | [{f['ci95'][0]:.4g}, "
                 f"{f['ci95'][1]:.4g}] | {f['units']} | {p_text(f['p_train'])} / "

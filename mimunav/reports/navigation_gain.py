@@ -54,11 +54,14 @@ def navigation_gain(flight, cal_found, model, findings=()):
         out["initial_state"] = "leveled on the MIMU's own outputs through the model"
     tilting = tilting_mountings(findings) if leveled else []
     if cal_found is not None and tilting:
+        said, rpy = tilting[0]
+        cut = "redone on the span" in str(flight.recording.get("assumed", {}))
         out["model+found"] = {"not_navigated": (
-            f"the found {'; '.join(tilting)} tilts the outputs the import leveled the "
-            "initial state on: from that state the navigation would charge the tilt to the "
-            "terms - import the recording again with the mounting it found "
-            "(--mounting-rpy-deg) to navigate with it")}
+            f"the found {said} tilts the outputs the initial state was leveled on: from that "
+            "state the navigation would charge the tilt to the terms - import the recording "
+            f"again with the mounting that holds it, --mounting-rpy-deg "
+            f"{' '.join(f'{a:g}' for a in rpy)}" + (", and cut it again," if cut else ",")
+            + " to navigate with it")}
     elif cal_found is not None:
         errors["model+found"] = _navigated(flight, cal_found, t).position_error(ref)
     k = on_screen(len(t))
@@ -71,17 +74,18 @@ def navigation_gain(flight, cal_found, model, findings=()):
 
 
 def tilting_mountings(findings):
-    """The found mountings that turn the MIMU about the vehicle's forward or right axis (95 %
-    interval of the turn clear of 0: `vector_vehicle_ci95`), each with those turns in deg - a
-    turn about the down axis leaves a leveled state level."""
+    """(what it is, with its turns about the forward and right axes in deg; the mounting that
+    holds it, `mounting_rpy_deg`) of each found mounting that turns the MIMU about the
+    vehicle's forward or right axis (95 % interval of the turn clear of 0:
+    `vector_vehicle_ci95`) - a turn about the down axis leaves a leveled state level."""
     out = []
     for f in findings:
         ci = f.get("vector_vehicle_ci95")
         if f["effect"] == "mounting_misalignment" and ci and \
                 any(lo > 0 or hi < 0 for lo, hi in ci[:2]):
             roll, pitch = np.degrees(f["vector_vehicle"][:2])
-            out.append(f"{f['label']} ({roll:+.2f} deg about the forward axis, {pitch:+.2f} "
-                       "about the right)")
+            out.append((f"{f['label']} ({roll:+.2f} deg about the forward axis, {pitch:+.2f} "
+                        "about the right)", f.get("mounting_rpy_deg", [])))
     return out
 
 

@@ -337,6 +337,12 @@ def test_track_diagnosis_recovers_a_known_mounting_misalignment(tmp_path):
         0.5 * np.linalg.norm(phi) ** 2
     ci = np.asarray(doc["findings"][0]["vector_vehicle_ci95"])
     assert np.all((ci[:, 0] <= phi_v) & (phi_v <= ci[:, 1])), (ci, phi_v)
+    # the mounting it offers for the import is the one the drive was made with
+    from mimunav.frames import attitude
+    true_rpy = np.degrees(attitude.as_euler(moved.q_vs))[::-1]       # roll, pitch, yaw
+    offered = np.asarray(doc["findings"][0]["mounting_rpy_deg"])
+    turn = (offered - true_rpy + 180.0) % 360.0 - 180.0
+    assert np.abs(turn).max() < np.degrees(0.5 * np.linalg.norm(phi) ** 2), (offered, true_rpy)
 
 
 def test_track_level_gives_a_null_drive_its_clean_bill(tmp_path):

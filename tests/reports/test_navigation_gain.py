@@ -26,15 +26,19 @@ def test_a_found_mounting_is_not_navigated_from_a_self_leveled_state():
     model = SimpleNamespace(result=lambda: (t, None, err))
     pitched = {"effect": "mounting_misalignment", "label": "mounting_misalignment imu.all",
                "vector_vehicle": [0.0044, -0.099, 0.107],        # the drive's, rad
-               "vector_vehicle_ci95": [[-0.057, 0.066], [-0.161, -0.037], [0.054, 0.161]]}
+               "vector_vehicle_ci95": [[-0.057, 0.066], [-0.161, -0.037], [0.054, 0.161]],
+               "mounting_rpy_deg": [-179.95, 5.68, -173.85]}
     yawed = dict(pitched, vector_vehicle_ci95=[[-0.057, 0.066], [-0.06, 0.02], [0.054, 0.161]])
     assert tilting_mountings([yawed]) == []         # a turn about down leaves it level
-    (said,) = tilting_mountings([pitched])
-    assert "-5.67 about the right" in said
+    ((said, rpy),) = tilting_mountings([pitched])
+    assert "-5.67 about the right" in said and rpy == [-179.95, 5.68, -173.85]
     found = SimpleNamespace(found=[{"effect": "mounting_misalignment", "sensor": "imu",
                                     "axis": "all"}])
     nav, _, series = navigation_gain(leveled, found, model, [pitched])   # never navigated
-    assert "tilts the outputs the import leveled" in nav["model+found"]["not_navigated"]
+    assert "tilts the outputs the initial state was leveled on" in \
+        nav["model+found"]["not_navigated"]
+    assert "--mounting-rpy-deg -179.95 5.68 -173.85, to navigate" in \
+        nav["model+found"]["not_navigated"]
     assert list(series) == ["model"] and nav["model"]["end_m"] == 10.0
     lines = "\n".join(navigation_lines({"navigation": nav, "level": "track"}))
     assert "| model | 10.0 |" in lines and "Not navigated with the found terms" in lines
