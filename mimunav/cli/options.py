@@ -70,7 +70,8 @@ def imu_channel_arguments(p):
 
 
 def flight_arguments(p):
-    p.add_argument("log", help="flight log (.mcap) with /mimu/raw and /fog/imu")
+    p.add_argument("log", help="flight log (.mcap) with the MIMU (/mimu/raw, or /mimu/imu as "
+                   "recorded: a calibration of found terms on an identity base) and /fog/imu")
     p.add_argument("--end", type=number(-1e9, 1e9), help="end point, s since the log's epoch "
                    "(default: the last instant every channel covers)")
 

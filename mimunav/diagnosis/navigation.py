@@ -179,7 +179,7 @@ def untestable(cands, noisy):
             "only a simulation's exact truth with attitude gives their inputs otherwise - and "
             "cannot be told from the noise the velocity error shares with them: 'nothing "
             "found' does not cover them; a reference IMU (the sensor level) or a land "
-            "vehicle's track (the track level) can test them"]
+            "vehicle's track (--level track) can test them"]
 
 
 def unsettled(rejected):

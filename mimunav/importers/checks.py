@@ -289,7 +289,8 @@ def _check_time_offset(rec, t_imu, t_ref, rate, corr0, half):
            "diagnose`, which measures the lag with its interval (the track level's time lag)")
         if shifted else
         f"the gyro's yaw rate follows the GNSS course rate as stamped (correlation "
-        f"{corr0:+.2f}; no shift explains clearly more, {grid})") + (
+        f"{corr0:+.2f}; no shift explains clearly more, {grid}; a lag under 0.5 s is "
+        "`mimunav diagnose`'s to measure: the track level's time lag)") + (
         f" - the reference as shifted by the --reference-time-offset {rec.reference_shift_s:+g} "
         "given" if rec.reference_shift_s else "")
     if shifted and abs(best_lag) >= REFUSED_OFFSET_S:

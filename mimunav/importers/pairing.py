@@ -166,10 +166,12 @@ def rate_lag(t_a, rate_a, t_b, rate_b, whose, late):
         return {"lag_s": None, "said": f"not measured: neither turns (|w| spread below "
                                        f"{TURNING_RATE:g} rad/s); the stamps taken as recorded"}
     shorter = min(np.isfinite(a).sum(), np.isfinite(b).sum())
-    lags, r = masked_correlation(a, b, max(0.5 * shorter, 10.0 / GRID_S))
+    need = max(0.5 * shorter, 10.0 / GRID_S)
+    lags, r = masked_correlation(a, b, need)
     if not np.isfinite(r).any():
-        return {"lag_s": None, "said": "not measured: the two records never overlap for "
-                                       "half the shorter one"}
+        return {"lag_s": None, "said": f"not measured: a lag is judged on {need * GRID_S:.3g} s "
+                                       "of overlap (half the shorter record, at least 10 s), "
+                                       f"the shorter holds {shorter * GRID_S:.3g} s"}
     k = int(np.nanargmax(r))
     peak = float(r[k])
     away = np.abs(lags - lags[k]) * GRID_S > PEAK_WIDTH_S

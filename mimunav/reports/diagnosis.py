@@ -80,7 +80,7 @@ def markdown(doc, diag, cal_label):
                   f"velocity-error increments over {doc['epoch_s']:g} s. RMS of the velocity "
                   "error (N, E, D): " + ", ".join(f"{x:.3g}" for x in doc["velocity_error_rms"])
                   + " m/s.", ""]
-    lines += navigation_lines(doc)
+    lines += navigation_lines(doc, cal_label)
     return "\n".join(lines) + "\n"
 
 
@@ -109,12 +109,14 @@ def _inflation_lines(doc):
                 f"shows beside the terms chosen (its median statistic over its chance value): "
                 f"training {lam['training']:.2f}, held-out {lam['held_out']:.2f}.", ""]
     lib = doc.get("library_inflation")
-    if lib and lib.get("lambda") is not None:
-        return [("Beside the findings the library's other terms" if doc.get("findings") else
-                 "The library's terms") + f" stand {lib['lambda']:.2f} times their chance level "
-                f"on the held-out blocks (at most {lib['limit']:g} where the tests' noise model "
-                f"holds; each finding of the search judged with its interval widened "
-                f"{lib['widened_by']:.2f}x).", ""]
+    if lib and lib.get("lambda") is not None:     # as the terminal's reason says it
+        searched = [f for f in doc.get("findings", []) if "library_inflation" in f]
+        return [("Beside the library's findings its other terms" if searched else
+                 "With no term of the library found, its terms") + f" stand {lib['lambda']:.2f} "
+                f"times their chance level on the held-out blocks (at most {lib['limit']:g} where "
+                "the tests' noise model holds" + (
+                    f"; each finding of the search judged with its interval widened "
+                    f"{lib['widened_by']:.2f}x" if searched else "") + ").", ""]
     return []
 
 

@@ -89,13 +89,15 @@ def tilting_mountings(findings):
     return out
 
 
-def navigation_lines(doc):
-    """The MIMU navigated through the model with and without the found terms."""
+def navigation_lines(doc, cal_label=""):
+    """The MIMU navigated through the model (`cal_label`: its file, or 'identity ...') with
+    and without the found terms."""
     nav = doc["navigation"]
     lines = ["", f"## Navigation error against the {nav['reference']} (navigation.png)", "",
               "Free-inertial over the whole record from the initial state, the MIMU's outputs "
-              "through the model alone: a bias the model does not hold (on an imported "
-              "recording, the gyro bias the import measured at rest) grows into it.", "",
+              "through the model alone (on an imported recording, its outputs as recorded: "
+              "the biases the import measured at a rest are not removed): every error the "
+              "model does not hold grows into it.", "",
               "| compensation | end 3-D error, m | max 3-D error, m |", "|---|---|---|"]
     for name in ("model", "model+found"):
         if "end_m" in nav.get(name, {}):
@@ -112,8 +114,10 @@ def navigation_lines(doc):
                           "took up part of any accelerometer error the terms remove (its "
                           "removal then leaves a tilt of that size)."
                           if "initial_state" in nav else "")]
-        compare = ("`mimunav table LOG --cal model=CAL --cal found=CAL+found.json` compares "
-                   "them" if doc["level"] == "sensor" else
+        model = "" if cal_label.startswith("identity") else f"--cal model={cal_label} "
+        compare = (f"`mimunav table LOG {model}--cal found=CAL+found.json` "
+                   + ("compares them" if model else "navigates with them beside the reference "
+                      "IMU") if doc["level"] == "sensor" else
                    "`mimunav windows LOG --cal CAL+found.json -o DIR` navigates with them "
                    "(free-inertial windows against the reference; `mimunav table` needs a "
                    "reference IMU, which this log has not)")
@@ -127,6 +131,7 @@ def draw_navigation(t, series, nav, png):
     for name, norm in series.items():
         ax.plot(t, norm, label=name)
     ax.set_xlabel("time since the initial state, s")
-    ax.set_ylabel(f"3-D position error vs {nav['reference']}, m")
+    ax.set_ylabel("3-D position error, m")
+    ax.set_title(f"against the {nav['reference']}")
     ax.legend()
-    save(plt, fig, png, margins=dict(left=0.1, right=0.98, bottom=0.12, top=0.96))
+    save(plt, fig, png, margins=dict(left=0.1, right=0.98, bottom=0.12, top=0.9))
