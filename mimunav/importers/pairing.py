@@ -220,13 +220,16 @@ def _pair_mountings(rec):
         return
     turn, angle, seen = _measured_turn(rec, means, ok)
     # a triad mirrored (a sign, an axis order) is no turn: as given, or after the best turn,
-    # one of its moving axes runs against the other IMU's
-    for k, sensor in enumerate(("gyro", "accel")):
-        mine = attitude.rotate(rec.mounting.q_vs, means[0][k][ok])
-        theirs = attitude.rotate(ref["mounting"].q_vs, means[1][k][ok])
-        _runs_against(rec.name, sensor, mine, theirs, "with the mountings given")
-        _runs_against(rec.name, sensor, mine, turn.apply(theirs),
-                      "after the best turn between them")
+    # one of its moving axes runs against the other IMU's - both triads as given first (the
+    # turn is fitted on both: a mirrored accelerometer can turn the gyros against each other)
+    vehicle = [(attitude.rotate(rec.mounting.q_vs, means[0][k][ok]),
+                attitude.rotate(ref["mounting"].q_vs, means[1][k][ok])) for k in range(2)]
+    for (mine, theirs), sensor in zip(vehicle, ("gyro", "accel")):
+        _runs_against(rec.name, sensor, mine, theirs, "with the mountings given",
+                      f"{sensor} columns")
+    for (mine, theirs), sensor in zip(vehicle, ("gyro", "accel")):
+        _runs_against(rec.name, sensor, mine, turn.apply(theirs), "after the best turn between "
+                      "them (fitted on both triads)", "gyro and the accelerometer columns")
     fixed = attitude.from_scipy(turn) * ref["mounting"].q_vs
     yaw, pitch, roll = (_angle_text(a) for a in attitude.as_euler(fixed))
     hint = ref.get("mounting_hint")
@@ -273,8 +276,8 @@ AS_GIVEN_AGAINST = -0.5     # a moving axis whose 1 s means, mountings as given,
                             # below this runs against the other IMU's: a sign, not noise
 
 
-def _runs_against(name, sensor, mine, theirs, when):
-    """Refuse (naming the triad and axis) a moving axis - 1 s means spread by 0.02 rad/s or
+def _runs_against(name, sensor, mine, theirs, when, columns):
+    """Refuse (naming the triad and axis, and the `columns` to check) a moving axis - 1 s means spread by 0.02 rad/s or
     0.3 m/s^2 (`reference.MOVING_SPREAD`'s sizes) - whose means (vehicle frame) run against
     the other IMU's: correlation below AS_GIVEN_AGAINST."""
     spread = 0.02 if sensor == "gyro" else 0.3
@@ -285,9 +288,9 @@ def _runs_against(name, sensor, mine, theirs, when):
         if r < AS_GIVEN_AGAINST:
             raise RecordingError(
                 f"{name}: {when}, the two IMUs' {sensor}s about the vehicle's {axis} axis run "
-                f"against each other (1 s means correlate {r:.2f}): a {sensor} column's sign "
-                "or the axes' order differs between the two triads - a reflection, which no "
-                f"mounting can turn: check the {sensor} columns")
+                f"against each other (1 s means correlate {r:.2f}): a column's sign or the "
+                f"axes' order differs between the two IMUs - a reflection, which no mounting "
+                f"can turn: check the {columns}")
 
 
 def _measured_turn(rec, means, ok):

@@ -108,8 +108,18 @@ def test_a_mirrored_triad_is_refused_naming_it(pair_motion):
     pairing.pair(_recording(ns, w, f, w_r, f_r))            # the true one passes
     # its mounting given 90 deg off as well: no axis runs against another as given, but
     # after the best turn one does
-    with pytest.raises(RecordingError, match="after the best turn.*gyros about"):
+    with pytest.raises(RecordingError, match="after the best turn.*gyros about.*check the "
+                                             "gyro and the accelerometer columns"):
         pairing.pair(_recording(ns, w, f, mirrored, f_r, rpy=(180.0, 0.0, 0.0)))
+    # a mirrored accelerometer is named as such, not by the gyros its best turn sets against
+    # each other (the light aircraft's VerticalG read without its sign had been)
+    for axis in range(3):
+        sign = np.ones(3)
+        sign[axis] = -1.0
+        with pytest.raises(RecordingError, match="mountings given, the two IMUs' accels about "
+                                                 "the vehicle's . axis.*check the accel "
+                                                 "columns"):
+            pairing.pair(_recording(ns, w, f, w_r, f_r * sign))
 
 
 @pytest.fixture(scope="module")
