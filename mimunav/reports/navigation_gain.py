@@ -8,6 +8,7 @@ from types import SimpleNamespace
 import numpy as np
 
 from ..diagnosis.levels import leveled_on_its_outputs
+from ..frames import attitude
 from ..evaluation.replay import (comparison_times, navigate_fog, navigate_mimu,
                                  navigate_mimu_at, ned_to_enu, resample)
 from .plots import figure, on_screen, save
@@ -38,12 +39,13 @@ def _navigated(flight, cal, at, outputs=None):
     return navigate_mimu_at(flight, cal, at)
 
 
-def navigation_gain(flight, cal_found, model, findings=()):
+def navigation_gain(flight, cal_found, model, findings=(), cal=None):
     """Position error (m, 3-D) against the truth (else the FOG-IMU) at the end and its
-    maximum, for the model (`model`: what `model_navigation_beside` returns, awaited first)
-    and the model with the found terms (`cal_found`, None: no found terms; `findings`: this
-    diagnosis' own, `tilting_mountings`); and the series to plot, `plots.on_screen`'s
-    samples of them (time s since the initial state, {name: 3-D error m})."""
+    maximum, for the model (`model`: what `model_navigation_beside` returns, awaited first;
+    `cal`: its calibration, whose own found mounting is noted, `_model_tilt`) and the model
+    with the found terms (`cal_found`, None: no found terms; `findings`: this diagnosis'
+    own, `tilting_mountings`); and the series to plot, `plots.on_screen`'s samples of them
+    (time s since the initial state, {name: 3-D error m})."""
     t, ref, err = model.result()
     errors = {"model": err}
     reference = ("FOG-IMU" if flight.truth is None else "truth" if flight.source != "recording"
@@ -70,7 +72,25 @@ def navigation_gain(flight, cal_found, model, findings=()):
         out[name] = {"end_m": float(norm[-1]), "max_m": float(norm.max()),
                      "end_enu_m": ned_to_enu(err[-1]).tolist()}
         series[name] = norm[k]
+    note = _model_tilt(flight, cal) if leveled else ""
+    if note:
+        out["model"]["note"] = note
     return out, t[k] - t[0], series
+
+
+def _model_tilt(flight, cal):
+    """What the model's own found mounting (a calibration written by an earlier diagnosis)
+    tilts about the vehicle's forward and right axes, when it does: the model's navigation
+    from a state leveled on the outputs holds that tilt; '' otherwise."""
+    for term in getattr(cal, "found", None) or []:
+        if term["effect"] == "mounting_misalignment" and "vector" in term:
+            turn = attitude.rotate(flight.mimu_mounting.q_vs, np.asarray(term["vector"], float))
+            roll, pitch = np.degrees(turn[:2])
+            if np.hypot(roll, pitch) > 0:
+                return (f"its calibration holds a found mounting_misalignment ({roll:+.2f} deg "
+                        f"about the forward axis, {pitch:+.2f} about the right) that tilts the "
+                        "outputs the initial state was leveled on: this error holds that tilt")
+    return ""
 
 
 def tilting_mountings(findings):
@@ -102,6 +122,8 @@ def navigation_lines(doc, cal_label=""):
     for name in ("model", "model+found"):
         if "end_m" in nav.get(name, {}):
             lines.append(f"| {name} | {nav[name]['end_m']:.1f} | {nav[name]['max_m']:.1f} |")
+    if "note" in nav["model"]:
+        lines += ["", f"The model's row: {nav['model']['note']}."]
     if "not_navigated" in nav.get("model+found", {}):
         lines += ["", f"Not navigated with the found terms: {nav['model+found']['not_navigated']}."]
     if "model+found" in nav:

@@ -11,7 +11,8 @@ from mimunav.reports.navigation_gain import navigation_gain, navigation_lines, t
 
 
 def _recording(initial_state):
-    return SimpleNamespace(source="recording", truth=None, recording={
+    from mimunav.frames.mounting import Mounting
+    return SimpleNamespace(source="recording", truth=None, mimu_mounting=Mounting(), recording={
         "assumed": {"initial_state": initial_state}})
 
 
@@ -42,4 +43,11 @@ def test_a_found_mounting_is_not_navigated_from_a_self_leveled_state():
     assert list(series) == ["model"] and nav["model"]["end_m"] == 10.0
     lines = "\n".join(navigation_lines({"navigation": nav, "level": "track"}))
     assert "| model | 10.0 |" in lines and "Not navigated with the found terms" in lines
-    assert "| model+found |" not in lines
+    assert "| model+found |" not in lines and "The model's row" not in lines
+    # a model written by an earlier diagnosis with a found mounting: its row says the tilt
+    earlier = SimpleNamespace(found=[{"effect": "mounting_misalignment", "sensor": "imu",
+                                      "axis": "all", "vector": [0.0, -0.1, 0.1]}])
+    nav, _, _ = navigation_gain(leveled, found, model, [pitched], earlier)
+    assert "-5.73 about the right" in nav["model"]["note"]
+    assert "The model's row: its calibration holds a found mounting" in "\n".join(
+        navigation_lines({"navigation": nav, "level": "track"}))
