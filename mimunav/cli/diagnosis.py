@@ -113,6 +113,9 @@ def finding_line(f):
                              f"{np.degrees(hi):+.2f}]"
                              for v, (lo, hi) in zip(f["vector_vehicle"],
                                                     f["vector_vehicle_ci95"])))
+    if "import_measured" in f:
+        m = f["import_measured"]
+        line += f"\n    the import measured {m['value']:.4g} {m['units']}: {m['basis']}"
     if "mounting_rpy_deg" in f:
         line += ("\n    the mounting that holds it (sensor -> vehicle roll, pitch, yaw): "
                  f"--mounting-rpy-deg {' '.join(f'{a:g}' for a in f['mounting_rpy_deg'])} "

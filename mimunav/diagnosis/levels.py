@@ -94,7 +94,9 @@ def diagnose(flight, cal, level, alpha=0.05, seed=0, accuracy=None, noise=None, 
     for the sensor level's bias tests; vehicle (navigation level) what carried the IMU, when
     the command line says."""
     if level == "sensor":
-        return sensor.diagnose(flight, cal, alpha=alpha, accuracy=accuracy, noise=noise)
+        diag = sensor.diagnose(flight, cal, alpha=alpha, accuracy=accuracy, noise=noise)
+        beside_the_imports_biases(diag.findings, flight, cal)
+        return diag
     if level == "navigation":
         diag = navigation.diagnose(flight, cal, alpha=alpha, seed=seed)
         unmeasured = unmeasured_heading(flight, vehicle)
@@ -148,6 +150,32 @@ def unmeasured_heading(flight, vehicle=None):
             f"recording is not one ({how})")
     return (f"the initial heading was {said}: the MIMU's velocity error against the reference "
             "would fit that heading's error, not the MIMU's, so no finding is made from it")
+
+
+IMPORT_BIASES = {"accel": ("accel_bias_m_s2", "m/s^2"), "gyro": ("gyro_bias_static_rad_s", "rad/s")}
+
+
+def beside_the_imports_biases(findings, flight, cal):
+    """Give each constant bias found on a recording's outputs as recorded (`cal` an identity)
+    the bias its import's alignment measured on that axis (`import_measured`) where the
+    alignment measured all three against the reference's attitude (at a rest, or from its
+    attitude and velocity): the finding is against the reference IMU - two references, whose
+    difference is the reference IMU's own bias or a bias that moved."""
+    rec = flight.recording or {}
+    said = str((rec.get("assumed") or {}).get("initial_state", ""))
+    if flight.source != "recording" or not cal.is_identity or cal.found or not (
+            "biases from the reference's attitude and velocity" in said
+            or "removed with the reference's attitude" in said):
+        return          # biases taken as 0, or a rest leveled on the outputs (no horizontal)
+    for f in findings:
+        key, units = IMPORT_BIASES.get(f.get("sensor"), (None, None))
+        values = rec.get(key) if key else None
+        if f["effect"] == "bias_shift" and values is not None and f.get("units") == units:
+            f["import_measured"] = {
+                "value": float(values["xyz".index(f["axis"])]), "units": units,
+                "basis": "the import's alignment (recording metadata " + key + "), against "
+                         "the reference's attitude; this finding is against the reference "
+                         "IMU: a difference is that IMU's own bias, or a bias that moved"}
 
 
 def leveled_on_its_outputs(flight):

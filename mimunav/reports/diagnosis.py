@@ -249,6 +249,9 @@ def _finding_lines(doc):
                     if "p_heldout_widened" in f["halves"] else "") + ")"
                 for f in wide) + "; the terms refitted on "
                 "each half are in diagnosis.json (`halves`)."]
+        lines += [f"\n{f['label']}: the import measured {f['import_measured']['value']:.4g} "
+                  f"{f['import_measured']['units']} - {f['import_measured']['basis']}."
+                  for f in doc["findings"] if "import_measured" in f]
         lines += ["", "Where each term acts (first spans; all in diagnosis.json):", ""]
         for f in doc["findings"]:
             for w in f["where"][:5]:

@@ -108,3 +108,36 @@ def test_nothing_found_against_a_reference_that_fuses_the_imu_is_no_clean_bill(
     monkeypatch.setattr(levels.navigation, "diagnose", lambda *a, **k: found)
     assert levels.diagnose(flight, None, "navigation").inconclusive == []
     assert levels.fused_reference(SimpleNamespace(source="simulation", reference_meta={})) == ""
+
+
+def test_a_bias_found_on_a_recording_says_what_its_import_measured():
+    """The light aircraft's accel.z bias: -0.319 m/s^2 against the VN-300's accelerometers,
+    -0.178 from its import (against the VN-300's attitude and velocity) - the finding says
+    the import's value and that the two references differ; not where the import took the
+    biases as 0, nor where a rest leveled on the outputs could not see a horizontal one."""
+    from types import SimpleNamespace
+
+    from mimunav.compensation.calibration_file import Calibration
+    from mimunav.diagnosis.levels import beside_the_imports_biases
+
+    def flight(how):
+        return SimpleNamespace(source="recording", recording={
+            "assumed": {"initial_state": how}, "accel_bias_m_s2": [0.02, -0.04, -0.1776],
+            "gyro_bias_static_rad_s": [1e-3, -1e-3, 3e-4]})
+
+    def found():
+        return [{"effect": "bias_shift", "sensor": "accel", "axis": "z", "units": "m/s^2",
+                 "coefficient": -0.319},
+                {"effect": "bias_instability", "sensor": "gyro", "axis": "x", "units": "rad/s"}]
+    measured = found()
+    beside_the_imports_biases(measured, flight(
+        "no rest of 2 s ...: biases from the reference's attitude and velocity, the medians"),
+        Calibration.identity())
+    assert measured[0]["import_measured"]["value"] == -0.1776
+    assert "against the reference IMU" in measured[0]["import_measured"]["basis"]
+    assert "import_measured" not in measured[1]             # a wander is no constant
+    for how in ("biases taken as 0: no rest", "biases from the rest 0.00-30.00 s (only the "
+                "Earth rate's vertical part removed ...)"):
+        unseen = found()
+        beside_the_imports_biases(unseen, flight(how), Calibration.identity())
+        assert "import_measured" not in unseen[0], how
