@@ -151,8 +151,8 @@ class Bins:
     or not: centres (nb,) s its mean time, extremes (nb, 4) the largest |f| m/s^2 and |w|
     rad/s, the smallest and the largest mean temperature degC. matrices: per channel c the
     columns [residual, the reference inputs of its triad, every term's regressor on c in the
-    terms' order] (`effects.regressor`), made in place block by block - the design's own
-    (`design.make_design`) - where a term's columns equal columns placed before them on the
+    terms' order] (`effects.regressor`), made block by block - arrays, or with `binned`'s
+    scratch `spill.ScratchMatrix`es; the design's own (`design.make_design`) - where a term's columns equal columns placed before them on the
     whole flight (a scale factor is its channel's input, a cross-coupling another input,
     time_skew accel.all is time_skew imu.all on the accelerometers, a lever arm a size
     effect's on each accelerometer: about a quarter of the columns) held once; slots: per

@@ -92,13 +92,6 @@ BLOCK_ROWS = 1 << 15    # rows filtered at a time by `grams`: its memory is this
                         # innovations, whatever the record's length (2 h at 10 ms: 720,000)
 
 
-def gram(cols, present, lam, shape=None):
-    """(Gram z'z of the standardized innovations (k, k), their log-determinant term, their
-    number) of `innovations` at the one level lam (`grams`)."""
-    g, logdet, count = grams(cols, present, np.array([lam]), shape)
-    return g[0], float(logdet[0]), count
-
-
 THREADS = min(2, os.cpu_count() or 1)   # levels filtered side by side: the filter (numba, no
                                         # GIL) and the Gram (BLAS) release the interpreter
 

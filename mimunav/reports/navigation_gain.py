@@ -1,7 +1,7 @@
 """The report's navigation of the MIMU through the model, with and without the found terms
-(`mimunav diagnose -o`): free-inertial from the log's initial state against the truth, else the
-FOG-IMU navigated, else the recording's reference trajectory; position errors in m (NED, the
-end's also ENU), block by block when the flight streams."""
+(`mimunav diagnose -o`): free-inertial from the log's initial state against /truth/state (a
+simulation's truth, a recording's reference trajectory), else the FOG-IMU navigated; position
+errors in m (NED, the end's also ENU), block by block when the flight streams."""
 from functools import cache
 from types import SimpleNamespace
 

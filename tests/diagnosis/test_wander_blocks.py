@@ -1,4 +1,4 @@
-"""The Kalman filter of the wander fitted block by block (`diagnosis.wander.gram`): the same
+"""The Kalman filter of the wander fitted block by block (`diagnosis.wander.grams`): the same
 innovations as one pass over the record, whatever the blocks - so a long flight's Grams need
 one block's memory."""
 import numpy as np
@@ -20,7 +20,8 @@ def test_the_gram_by_blocks_is_the_gram_of_one_pass(monkeypatch, block):
     monkeypatch.setattr(wander, "BLOCK_ROWS", block)
     for lam in (1e-9, 1e-3, 0.1):
         z, logdet = wander.innovations(cols, present, lam, shape)
-        gram, logdet_blocks, count = wander.gram(cols, present, lam, shape)
+        grams, logdets, count = wander.grams(cols, present, np.array([lam]), shape)
+        gram, logdet_blocks = grams[0], float(logdets[0])
         assert count == len(z) == present.sum() - 1      # the diffuse first row gives none
         np.testing.assert_allclose(gram, z.T @ z, rtol=1e-12, atol=0)
         assert logdet_blocks == pytest.approx(logdet, rel=1e-12, abs=1e-9)
