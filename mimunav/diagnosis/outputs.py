@@ -330,6 +330,10 @@ def bias_tests(design, fit, quiet, alpha_level, cal, skip=(), noise=None, carrie
                                 alpha_level, offset, white, alike, whose[sensor], wander, span)
         if removal > 0.0 and best == "shift":
             finding["found_terms_1sigma"] = removal     # a part of normal_offset_1sigma
+        if best == "shift" and cal is not None and cal.is_identity:
+            finding["note"] += ("; the outputs are taken as recorded: no calibration removed "
+                                "the part's turn-on bias, which shows here whole (the class's "
+                                "offset is a calibrated MIMU's)")
         if design.reference is not None and (design.reference.mems_grade or abs(
                 finding["coefficient"]) <= design.reference.bias_allowance(sensor)):
             finding["attribution"] = "mimu-or-reference"    # the reference may wander so

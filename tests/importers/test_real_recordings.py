@@ -334,8 +334,12 @@ def test_onspeed_cheap_imu_beside_a_quantized_vn300(tmp_path):
     diag = json.loads(out.read_text())
     assert diag["level"] == "sensor" and not diag["reference_agreement"]["failures"]
     assert diag["reference_accuracy"]["gyro_step"] == 0.01
+    assert "bias_shift accel.z" in [f["label"] for f in diag["findings"]]   # -0.32 m/s^2
     for f in diag["findings"]:
         assert f["attribution"] in ("mimu-or-reference", "installation", "timing"), f["label"]
+        if f["effect"] == "bias_shift":     # beside the import's, its reference named; the
+            assert "import_measured" in f   # part's turn-on bias said to show whole
+            assert "taken as recorded" in f["note"]
         if "held-out statistic" in f.get("effect_size", {}).get("basis", ""):
             assert f["halves"]["widened_by"] >= 1.0    # a library term, refitted per half
             assert f["effect_size"]["heldout_variance_removed"] >= 1e-3
