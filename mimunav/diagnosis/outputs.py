@@ -326,19 +326,29 @@ def bias_tests(design, fit, quiet, alpha_level, cal, skip=(), noise=None, carrie
                    "label": f"{EFFECT_OF[other]} {label}"}]
                  if other in passing
                  and m[best]["lr"] - m[other]["lr"] < stats.chi2.isf(0.05, 1) else [])
-        finding = _bias_finding(best, m, means[keep, c], sensor, axis, where, p,
-                                alpha_level, offset, white, alike, whose[sensor], wander, span)
-        if removal > 0.0 and best == "shift":
+        findings.append(_qualified(_bias_finding(
+            best, m, means[keep, c], sensor, axis, where, p, alpha_level, offset, white, alike,
+            whose[sensor], wander, span), design, cal, removal))
+    return findings
+
+
+def _qualified(finding, design, cal, removal):
+    """A bias finding with what qualifies it: a shift's null offset's share from the
+    confirmed terms' removal (`removal`, SI) and, on outputs taken as recorded (`cal` an
+    identity), that the part's turn-on bias shows whole; and `mimu-or-reference` where the
+    reference may wander so."""
+    if finding["effect"] == "bias_shift":
+        if removal > 0.0:
             finding["found_terms_1sigma"] = removal     # a part of normal_offset_1sigma
-        if best == "shift" and cal is not None and cal.is_identity:
+        if cal is not None and cal.is_identity:
             finding["note"] += ("; the outputs are taken as recorded: no calibration removed "
                                 "the part's turn-on bias, which shows here whole (the class's "
                                 "offset is a calibrated MIMU's)")
-        if design.reference is not None and (design.reference.mems_grade or abs(
-                finding["coefficient"]) <= design.reference.bias_allowance(sensor)):
-            finding["attribution"] = "mimu-or-reference"    # the reference may wander so
-        findings.append(finding)
-    return findings
+    reference = design.reference
+    if reference is not None and (reference.mems_grade or abs(
+            finding["coefficient"]) <= reference.bias_allowance(finding["sensor"])):
+        finding["attribution"] = "mimu-or-reference"
+    return finding
 
 
 def _reference_bias(design, sensor):
