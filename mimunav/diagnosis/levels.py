@@ -138,8 +138,7 @@ def unmeasured_heading(flight, vehicle=None):
     multicopter flies sideways). A simulation's initial state is the truth's."""
     if flight.source != "recording":
         return ""
-    rec = flight.recording or {}
-    heading = rec.get("initial_heading") or _heading_from_text(rec)
+    heading = (flight.recording or {}).get("initial_heading") or _heading_from_text(flight)
     if heading == "reference":
         return ""
     kind, how = vehicle_of(flight, vehicle)
@@ -162,7 +161,7 @@ def beside_the_imports_biases(findings, flight, cal):
     attitude and velocity): the finding is against the reference IMU - two references, whose
     difference is the reference IMU's own bias or a bias that moved."""
     rec = flight.recording or {}
-    said = str((rec.get("assumed") or {}).get("initial_state", ""))
+    said = alignment_said(flight, of_the_import=True)
     if flight.source != "recording" or not cal.is_identity or cal.found or not (
             "biases from the reference's attitude and velocity" in said
             or "removed with the reference's attitude" in said):
@@ -183,14 +182,23 @@ def leveled_on_its_outputs(flight):
     rest's mean, a moving alignment's two vectors) rather than taken whole from the
     reference: a found term that turns the outputs (a mounting) then turns them away from
     the attitude the navigation starts from."""
-    said = str(((flight.recording or {}).get("assumed") or {}).get("initial_state", ""))
-    return flight.source == "recording" and "whole state from the reference" not in said
+    return flight.source == "recording" and \
+        "whole state from the reference" not in alignment_said(flight)
 
 
-def _heading_from_text(rec):
+def alignment_said(flight, of_the_import=False):
+    """How a recording's initial state was found, as its metadata says it (`assumed`'s
+    initial_state: the import's alignment, or a cut's); of_the_import: the import's own,
+    whose measured biases the metadata keeps after a cut ('' when none is said)."""
+    assumed = (flight.recording or {}).get("assumed") or {}
+    return str(assumed.get("import_initial_state", assumed.get("initial_state", ""))
+               if of_the_import else assumed.get("initial_state", ""))
+
+
+def _heading_from_text(flight):
     """The heading source of a log imported before `initial_heading` was written: from the
     alignment's words in the `assumed` metadata."""
-    said = str((rec.get("assumed") or {}).get("initial_state", ""))
+    said = alignment_said(flight)
     if "heading assumed" in said:
         return "assumed"
     if "heading from the reference" in said or "whole state from the reference" in said:

@@ -65,9 +65,12 @@ def cut(log_path, out, t0, t1, force=False):
 
 def _restarted(values, how, heading):
     """A recording's metadata values with its initial state's account (`assumed`'s
-    initial_state, `initial_heading`) the span's: what `diagnose` judges the state by."""
+    initial_state, `initial_heading`) the span's: what `diagnose` judges the state by; the
+    import's kept as import_initial_state (its biases are the metadata's)."""
     assumed = values.get("assumed") or "{}"
     assumed = json.loads(assumed) if isinstance(assumed, str) else dict(assumed)
+    # the import's own account stays: the biases it measured (kept in the metadata) are its
+    assumed.setdefault("import_initial_state", assumed.get("initial_state", ""))
     assumed["initial_state"] = how
     return {**values, "assumed": assumed, "initial_heading": heading}
 

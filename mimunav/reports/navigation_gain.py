@@ -7,7 +7,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from ..diagnosis.levels import leveled_on_its_outputs
+from ..diagnosis.levels import alignment_said, leveled_on_its_outputs
 from ..frames import attitude
 from ..evaluation.replay import (comparison_times, navigate_fog, navigate_mimu,
                                  navigate_mimu_at, ned_to_enu, resample)
@@ -57,7 +57,7 @@ def navigation_gain(flight, cal_found, model, findings=(), cal=None):
     tilting = tilting_mountings(findings) if leveled else []
     if cal_found is not None and tilting:
         said, rpy = tilting[0]
-        cut = "redone on the span" in str(flight.recording.get("assumed", {}))
+        cut = "redone on the span" in alignment_said(flight)
         out["model+found"] = {"not_navigated": (
             f"the found {said} tilts the outputs the initial state was leveled on: from that "
             "state the navigation would charge the tilt to the terms - import the recording "
@@ -85,11 +85,10 @@ def _model_tilt(flight, cal):
     for term in getattr(cal, "found", None) or []:
         if term["effect"] == "mounting_misalignment" and "vector" in term:
             turn = attitude.rotate(flight.mimu_mounting.q_vs, np.asarray(term["vector"], float))
-            roll, pitch = np.degrees(turn[:2])
-            if np.hypot(roll, pitch) > 0:
-                return (f"its calibration holds a found mounting_misalignment ({roll:+.2f} deg "
-                        f"about the forward axis, {pitch:+.2f} about the right) that tilts the "
-                        "outputs the initial state was leveled on: this error holds that tilt")
+            if np.any(turn[:2]):
+                return (f"its calibration holds a found mounting_misalignment "
+                        f"({_tilt_text(turn)}) that tilts the outputs the initial state was "
+                        "leveled on: this error holds that tilt")
     return ""
 
 
@@ -103,10 +102,15 @@ def tilting_mountings(findings):
         ci = f.get("vector_vehicle_ci95")
         if f["effect"] == "mounting_misalignment" and ci and \
                 any(lo > 0 or hi < 0 for lo, hi in ci[:2]):
-            roll, pitch = np.degrees(f["vector_vehicle"][:2])
-            out.append((f"{f['label']} ({roll:+.2f} deg about the forward axis, {pitch:+.2f} "
-                        "about the right)", f.get("mounting_rpy_deg", [])))
+            out.append((f"{f['label']} ({_tilt_text(f['vector_vehicle'])})",
+                        f.get("mounting_rpy_deg", [])))
     return out
+
+
+def _tilt_text(vector_vehicle):
+    """A mounting's turn (rad, vehicle axes FRD) about the forward and right axes, in deg."""
+    roll, pitch = np.degrees(vector_vehicle[:2])
+    return f"{roll:+.2f} deg about the forward axis, {pitch:+.2f} about the right"
 
 
 def navigation_lines(doc, cal_label=""):

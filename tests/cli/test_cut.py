@@ -94,6 +94,8 @@ def test_a_cut_recording_is_aligned_again_on_its_imports_biases(tmp_path):
     assert cut["recording"]["assumed"]["initial_state"] == cut["cut"]["initial_state"]
     assert cut["recording"]["initial_heading"] == "course"
     assert meta["recording"]["assumed"]["initial_state"].startswith("level from the mean")
+    assert cut["recording"]["assumed"]["import_initial_state"] == \
+        meta["recording"]["assumed"]["initial_state"]       # whose biases the metadata keeps
     start = cut["flight"]["initial_state"]
     t_start = start["t"] + int(meta["flight"]["epoch_unix_ns"]) / 1e9 - epoch / 1e9
     k = int(np.argmin(np.abs(run.trajectory.t - t_start)))

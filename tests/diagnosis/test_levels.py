@@ -141,3 +141,11 @@ def test_a_bias_found_on_a_recording_says_what_its_import_measured():
         unseen = found()
         beside_the_imports_biases(unseen, flight(how), Calibration.identity())
         assert "import_measured" not in unseen[0], how
+    # a cut log: the biases in its metadata are the import's, judged by the import's own
+    # alignment, not by the span's (which said nothing of them)
+    cut = flight("the alignment redone on the span: ... biases taken as 0: no rest")
+    cut.recording["assumed"]["import_initial_state"] = \
+        "no rest of 2 s ...: biases from the reference's attitude and velocity"
+    kept = found()
+    beside_the_imports_biases(kept, cut, Calibration.identity())
+    assert kept[0]["import_measured"]["value"] == -0.1776
