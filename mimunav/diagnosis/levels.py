@@ -144,7 +144,8 @@ def unmeasured_heading(flight, vehicle=None):
     kind, how = vehicle_of(flight, vehicle)
     if heading == "course" and kind == vehicle_kind.LAND:
         return ""
-    said = ("assumed: nothing measured it" if heading == "assumed" else
+    why = ((flight.recording or {}).get("assumed") or {}).get("initial_heading")
+    said = ((why or "assumed: nothing measured it") if heading == "assumed" else
             f"taken from the GNSS course, which is the heading of a car only, and this "
             f"recording is not one ({how})")
     return (f"the initial heading was {said}: the MIMU's velocity error against the reference "

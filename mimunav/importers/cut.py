@@ -15,6 +15,7 @@ from ..frames.mounting import Mounting
 from ..navigation.alignment import initial_alignment
 from ..flightlog import FlightLog, LayoutError, LogWriter
 from ..flightlog.reader import PAYLOAD
+from .recording import heading_source
 
 
 def cut(log_path, out, t0, t1, force=False):
@@ -72,7 +73,8 @@ def _restarted(values, how, heading):
     # the import's own account stays: the biases it measured (kept in the metadata) are its
     assumed.setdefault("import_initial_state", assumed.get("initial_state", ""))
     assumed["initial_state"] = how
-    return {**values, "assumed": assumed, "initial_heading": heading}
+    known = json.loads(values.get("reference_heading_known", "true"))    # JSON in the record
+    return {**values, "assumed": assumed, "initial_heading": heading_source(heading, known)}
 
 
 def _initial_state(log, flight, meta, t0, t1, epoch):

@@ -26,6 +26,13 @@ class RecordingError(InputError):
     """A recording that cannot be turned into a contract log, with what and where."""
 
 
+def heading_source(heading, reference_heading_known):
+    """Where an initial heading came from (`alignment.Alignment.heading`: reference, course or
+    assumed) as the log's `initial_heading` says it: a heading taken from a reference, or from
+    its course, in a frame of unknown azimuth measures nothing - assumed."""
+    return heading if reference_heading_known is not False else "assumed"
+
+
 @dataclass
 class Recording:
     """A foreign recording in SI units.
@@ -58,6 +65,8 @@ class Recording:
     reference_shift_s: float = 0.0  # what --reference-time-offset (or a spec) added, s
     range: dict = field(default_factory=dict)   # the IMU's full scale when known: gyro_rad_s,
                                                 # accel_m_s2 (outputs at it are clipped)
+    reference_heading_known: bool = True    # False: the reference lies in a local frame whose
+                                            # azimuth is not known (`local_frame`)
 
     def __post_init__(self):
         self.imu_ns = np.asarray(self.imu_ns, dtype=np.int64)

@@ -24,6 +24,7 @@ from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 
 from ..frames.mounting import Mounting
+from .local_frame import LocalFrame
 from .recording import RecordingError, Recording
 from ..motion.track import velocity_from_positions
 
@@ -32,10 +33,8 @@ NAV_SAT_FIX = "sensor_msgs/msg/NavSatFix"
 ODOMETRY = "nav_msgs/msg/Odometry"
 POSE_STAMPED = "geometry_msgs/msg/PoseStamped"
 FLU_TO_FRD = Mounting.from_axes("FLU")            # a half turn about x
-# q_NED<-ENU: swap east/north, flip up (a half turn about (1, 1, 0)/sqrt(2)); q_FLU<-FRD: a
-# half turn about x. Hamilton, scalar first.
-Q_NED_ENU = np.quaternion(0.0, math.sqrt(0.5), math.sqrt(0.5), 0.0)
-Q_FLU_FRD = np.quaternion(0.0, 1.0, 0.0, 0.0)
+# q_FLU<-FRD: a half turn about x (Hamilton, scalar first); REP-103's ENU: `local_frame`
+Q_FLU_FRD = quaternion.quaternion(0.0, 1.0, 0.0, 0.0)
 
 
 # what a damaged or truncated MCAP raises from the mcap package's reader and decoders
@@ -248,15 +247,12 @@ def _pose_reference(path, available, topic, origin):
     """An Odometry or PoseStamped topic as the reference: ENU position placed at `origin`
     (lat deg, lon deg, h m) -> geodetic, orientation (body FLU in ENU) -> q_nb (vehicle FRD
     -> NED), velocity from Odometry's body-frame twist, else central differences."""
-    from ..frames import attitude, earth
+    from ..frames import attitude
     schema = available.get(topic)
     if schema not in (ODOMETRY, POSE_STAMPED):
         raise RecordingError(f"{path}: {topic!r} is {schema or 'not a topic'}; a pose reference "
                              f"needs {ODOMETRY} or {POSE_STAMPED}")
-    if origin is None or len(origin) != 3 or not np.isfinite(origin).all() \
-            or abs(origin[0]) > 90:
-        raise RecordingError(f"a pose reference needs the geodetic origin of its frame "
-                             f"(--origin LAT_DEG LON_DEG H_M), got {origin}")
+    frame = LocalFrame.from_axes("enu", origin)
     rows = []
     for ns, m in _messages(path, topic):
         pose = m.pose.pose if schema == ODOMETRY else m.pose
@@ -273,29 +269,23 @@ def _pose_reference(path, available, topic, origin):
     a = a[np.argsort(a[:, 0], kind="stable")]
     ns = a[:, 0].astype(np.int64)
     enu = a[:, 1:4]
-    ned = np.column_stack([enu[:, 1], enu[:, 0], -enu[:, 2]])
-    lat0, lon0, h0 = np.radians(origin[0]), np.radians(origin[1]), float(origin[2])
-    lat, lon, h = earth.ned_offset_to_geodetic(ned, lat0, lon0, h0)
     q_enu_flu = attitude.from_wxyz(a[:, 4:8])
     norm = np.abs(q_enu_flu)
     if np.any(np.abs(norm - 1) > 1e-3):
         raise RecordingError(f"{topic}: orientations are not unit quaternions (|q| "
                              f"{norm.min():.3g}-{norm.max():.3g})")
-    # the pose frame is the origin's tangent plane; each epoch's NED is turned from it by
-    # the arc travelled (0.22 deg at 25 km): C_nk_n0 = C_en(k)^T C_en(origin)
-    q_nk_n0 = quaternion.from_rotation_matrix(np.einsum(
-        "kji,jl->kil", earth.ned_to_ecef_matrix(lat, lon), earth.ned_to_ecef_matrix(lat0, lon0)))
-    q_nb = q_nk_n0 * Q_NED_ENU * (q_enu_flu / norm) * Q_FLU_FRD
+    q_enu_flu = q_enu_flu / norm
     sigma = np.sqrt(np.maximum(a[:, 11], 0) + np.maximum(a[:, 12], 0))
     t = (ns - ns[0]) / 1e9
-    if schema == ODOMETRY:
-        v_ned = attitude.rotate(q_nk_n0 * Q_NED_ENU * (q_enu_flu / norm), a[:, 8:11])
+    if schema == ODOMETRY:          # the twist is in the child (body) frame
+        reference = frame.place(ns, enu, attitude.rotate(q_enu_flu, a[:, 8:11]),
+                                q_enu_flu * Q_FLU_FRD)
         how = "velocity from its body-frame twist"
         v_sigma = np.sqrt(np.maximum(a[:, 13], 0) + np.maximum(a[:, 14], 0))
         velocity = {"velocity_sigma_m_s": f"{np.median(v_sigma):.3g}"} if np.any(v_sigma > 0) \
             else {}
     else:
-        v_ned = velocity_from_positions(ns, lat, lon, h)
+        reference = frame.place(ns, enu, None, q_enu_flu * Q_FLU_FRD)
         how = "velocity from position differences"
         velocity = _difference_velocity_sigma(sigma, t)
     meta = {"source": f"{schema} {topic}, frame origin {origin[0]:.8f} deg, {origin[1]:.8f} "
@@ -304,8 +294,7 @@ def _pose_reference(path, available, topic, origin):
                            "this IMU",
             "position_sigma_m": f"{np.median(sigma):.3g}" if np.any(sigma > 0) else "not stated",
             **velocity}
-    return dict(ns=ns, lat=lat, lon=lon, h=h, v_ned=v_ned,
-                q_nb=attitude.as_wxyz(q_nb)), meta
+    return reference, meta
 
 
 def _difference_velocity_sigma(sigma, t):

@@ -57,13 +57,26 @@ refused, naming the nearest known one.
     [reference] (optional)
               time               device time of the epochs
               latitude, longitude  deg | rad;  height  m (ellipsoidal)   or  position_ecef m
+              or position_local  m | mm | ft: x, y, z in a local level frame (a motion-capture
+                                 room's, a map frame), placed on the Earth by
+              local_frame = {axes = "enu" | "ned" | "z_up" | "z_down",
+                             origin = [lat_deg, lon_deg, h_m] (the frame's origin, ellipsoidal
+                             height: it sets gravity and the Earth rate's direction),
+                             azimuth_deg = x's azimuth from true north, clockwise (z_up and
+                             z_down only: y completes a right-handed frame), or "unknown" -
+                             then the reference's heading measures nothing, and no finding
+                             stands on it}
               velocity_ned  m/s  or  velocity_ecef  m/s  (else central differences of position)
+              or velocity_local  m/s in the local frame's axes
               attitude_wxyz      unit quaternions with `rotates` = "body_to_ecef" | "body_to_ned"
+                                 (| "body_to_local", the default beside position_local)
               or attitude_rpy    deg | rad: roll, pitch, yaw of body -> NED (yaw, then pitch,
                                  then roll: the aerospace z-y-x sequence)
-              attitude_of        "vehicle" (default) or "reference_imu": the attitude is the
+              attitude_of        "vehicle" (default), "reference_imu": the attitude is the
                                  reference IMU's own axes' (an INS's solution), so a turn
-                                 measured between the two IMUs is the IMU's mounting
+                                 measured between the two IMUs is the IMU's mounting; or "imu":
+                                 the MIMU's own axes' and point (a motion-capture truth of the
+                                 IMU), turned into the vehicle's by [imu]'s mounting
               source, independent ("yes" / "no: why"), position_sigma_m   text for the metadata
 
 Units: s, ms, us, ns, iso8601 (a CSV column of date-times with their UTC offset,
@@ -71,217 +84,20 @@ Units: s, ms, us, ns, iso8601 (a CSV column of date-times with their UTC offset,
 unix_offset_s = 0); rad/s, deg/s; m/s^2, g (9.80665); deg, rad; m, mm, ft; m/s.
 """
 import os
-import tomllib
 
 import numpy as np
-import quaternion
 
-from ..frames import earth
+from ..frames import attitude
 from ..frames.mounting import Mounting
 from ..sensors.accuracy import Accuracy
-from .columns import check_keys, load_date_times, load_spec
-from .recording import RecordingError, Recording, gps_to_unix_s, text_file
-from ..motion.track import velocity_from_positions
-from ..frames import attitude
+from .columns import check_keys
+from .recording import RecordingError, Recording
+from .table_reference import reference_of
+from .table_spec import KINDS, RANGE_KEYS, UNITS, Spec, unix_ns, unix_offset_s, unrepeated
 
-G_UNIT = 9.80665
-UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9, "rad/s": 1.0,
-         "deg/s": np.pi / 180, "m/s^2": 1.0, "g": G_UNIT, "rad": 1.0, "deg": np.pi / 180,
-         "m": 1.0, "mm": 1e-3, "ft": 0.3048, "m/s": 1.0, "1": 1.0, "iso8601": 1.0}
-KINDS = {"time": ("s", "ms", "us", "ns", "iso8601"), "angular_rate": ("rad/s", "deg/s"),
-         "specific_force": ("m/s^2", "g"), "angle_increment": ("rad", "deg"),
-         "velocity_increment": ("m/s",), "latitude": ("deg", "rad"), "longitude": ("deg", "rad"),
-         "height": ("m", "mm", "ft"), "position_ecef": ("m",), "velocity_ned": ("m/s",),
-         "velocity_ecef": ("m/s",), "attitude_wxyz": ("1",), "attitude_rpy": ("deg", "rad")}
-WIDTH = {"angular_rate": 3, "specific_force": 3, "angle_increment": 3, "velocity_increment": 3,
-         "position_ecef": 3, "velocity_ned": 3, "velocity_ecef": 3, "attitude_wxyz": 4,
-         "attitude_rpy": 3}
-# every key a spec may hold, by where it stands (an unknown one is refused, the nearest named)
-IMU_KEYS = ("time", "angular_rate", "specific_force", "angle_increment", "velocity_increment",
-            "axes", "mounting_rpy_deg", "lever_arm_m", "range", "time_offset_s")
-SECTION_KEYS = {
-    "": ("name", "description", "model", "source", "root", "nonfinite", "vehicle", "imu", "time",
-         "reference", "reference_imu"),
-    "imu": IMU_KEYS, "reference_imu": IMU_KEYS + ("model", "accuracy"),
-    "time": ("unix_offset_s", "gps_week_tow", "note"),
-    "reference": ("time", "latitude", "longitude", "height", "position_ecef", "velocity_ned",
-                  "velocity_ecef", "attitude_wxyz", "attitude_rpy", "attitude_of", "source",
-                  "independent", "position_sigma_m", "time_offset_s")}
-SOURCE_KEYS = ("file", "columns", "unit", "scale", "time", "rotates", "age")
-RANGE_KEYS = ("angular_rate", "specific_force")
-ELSEWHERE = {**{key: "in a column source ({file = ..., " + key + " = ...})" for key in SOURCE_KEYS},
-             **{key: "in [" + section + "]" for section, keys in reversed(SECTION_KEYS.items())
-                if section for key in keys},
-             **{key: "at the spec's top level, beside `name`" for key in SECTION_KEYS[""]}}
-
-
-class Spec:
-    """A parsed table spec: `column(section, key)` loads a quantity in SI units."""
-
-    def __init__(self, path, root=None):
-        self.path = os.path.abspath(path)
-        try:
-            with open(path, "rb") as fh, text_file(path):
-                self.doc = tomllib.load(fh)
-        except tomllib.TOMLDecodeError as exc:
-            raise RecordingError(f"{path}: not a valid TOML spec ({exc})") from None
-        if root is None:
-            root = os.path.join(os.path.dirname(self.path), self.doc.get("root", "."))
-            if not os.path.isdir(root):
-                raise RecordingError(f"{path}: its data folder (root = "
-                                     f"{self.doc.get('root', '.')!r}, relative to the spec) "
-                                     f"is {os.path.normpath(root)}, which does not exist: "
-                                     "give the folder with --root")
-        elif not os.path.isdir(root):
-            raise RecordingError(f"--root {root}: "
-                                 + ("a file, not a folder" if os.path.exists(root) else
-                                    "no such folder"))
-        self.root = os.path.normpath(os.path.abspath(root))
-        self.notes = {}             # what reading the files left out, for the metadata
-        for section in ("imu", "time"):
-            if not isinstance(self.doc.get(section), dict):
-                raise RecordingError(f"{path}: no [{section}] section (its keys: "
-                                     f"{', '.join(SECTION_KEYS[section])}; every key of a "
-                                     "spec: mimunav import --spec-keys)")
-        check_keys(self.path, self.doc, SECTION_KEYS[""], "the spec", ELSEWHERE)
-        for section, keys in SECTION_KEYS.items():
-            if section and isinstance(self.doc.get(section), dict):
-                check_keys(self.path, self.doc[section], keys, f"[{section}]", ELSEWHERE)
-
-    def section(self, name):
-        return self.doc.get(name) or {}
-
-    def has(self, section, key):
-        return key in self.section(section)
-
-    def column(self, section, key):
-        """The quantity `key` of `section` in SI units, (N,) or (N, width)."""
-        source = self.section(section).get(key)
-        if source is None:
-            raise RecordingError(f"{self.path}: [{section}] has no {key}")
-        return self.load(source, key, f"[{section}] {key}")
-
-    def load(self, source, kind, where):
-        """A column source (path string or {file, columns, unit}) of quantity `kind`, SI."""
-        if isinstance(source, str):
-            source = {"file": source}
-        if not isinstance(source, dict) or "file" not in source:
-            raise RecordingError(f"{self.path}: {where} needs a file")
-        check_keys(self.path, source, SOURCE_KEYS, where, ELSEWHERE)
-        unit = source.get("unit", KINDS[kind][0])
-        if unit not in KINDS[kind]:
-            raise RecordingError(f"{self.path}: {where} unit {unit!r}: one of "
-                                 f"{', '.join(KINDS[kind])} (a count of another size: `scale`)")
-        width = WIDTH.get(kind, 1)
-        scale = _scale(self.path, source.get("scale", 1.0), width, where)
-        x = self._date_times(source, where) if unit == "iso8601" else \
-            load_spec(os.path.join(self.root, source["file"]), source.get("columns"), self.notes)
-        if width == 1 and x.ndim == 2 and x.shape[1] == 1:
-            x = x[:, 0]
-        if (x.ndim == 1 and width != 1) or (x.ndim == 2 and x.shape[1] != width) or x.ndim > 2:
-            raise RecordingError(f"{self.path}: {where} from {source['file']} has shape "
-                                 f"{x.shape}, expected {width} column(s)")
-        if np.isnan(x).all():
-            raise RecordingError(f"{self.path}: {where} from {source['file']} holds no number in "
-                                 "any row: a column of text (ISO 8601 date-times such as "
-                                 "2023-08-04 17:47:58-04:00 are read with unit = \"iso8601\", "
-                                 "UNIX time: [time] unix_offset_s = 0)")
-        if not np.isfinite(x).all() and self.doc.get("nonfinite", "refuse") != "drop":
-            raise RecordingError(f"{self.path}: {where} from {source['file']} holds values that "
-                                 f"are not finite (first at data row "
-                                 f"{int(np.argmax(~np.isfinite(x.reshape(len(x), -1)).all(1)))}"
-                                 ", counted from 0 after any header line); `nonfinite = "
-                                 "\"drop\"` at the spec's top level, beside `name`, leaves such "
-                                 "rows out (and counts them)")
-        x = x * (UNITS[unit] * scale)
-        if "age" in source:             # the data's age when the row was written: its time
-            if kind != "time":          # is the row's less the age
-                raise RecordingError(f"{self.path}: {where}: `age` belongs to a time column")
-            age = self.load(source["age"], "time", f"{where}.age")
-            if len(age) != len(x):
-                raise RecordingError(f"{self.path}: {where}.age has {len(age)} rows, the time "
-                                     f"{len(x)}")
-            x = x - age
-        return x
-
-    def _date_times(self, source, where):
-        """UNIX time (s) of a column of ISO 8601 date-times (`unit = "iso8601"`)."""
-        columns = source.get("columns", [0])
-        columns = columns if isinstance(columns, list) else [columns]
-        if len(columns) != 1 or source.get("scale", 1.0) != 1.0:
-            raise RecordingError(f"{self.path}: {where}: date-times are one column, unscaled")
-        return load_date_times(os.path.join(self.root, source["file"]), columns[0])
-
-    def finite_rows(self, where, *columns):
-        """The columns (equal lengths) with every row that is not finite in any of them left
-        out, and counted in `notes` (only `nonfinite = "drop"` lets such values through
-        `load`)."""
-        ok = np.ones(len(columns[0]), bool)
-        for x in columns:
-            ok &= np.isfinite(np.reshape(x, (len(x), -1))).all(axis=1)
-        if ok.sum() < 2:
-            raise RecordingError(f"{self.path}: {where}: {int(ok.sum())} of {len(ok)} rows are "
-                                 "finite in every column (nonfinite = \"drop\" left the rest "
-                                 "out): nothing to import")
-        if not ok.all():
-            self.notes[f"nonfinite {where}"] = (f"{int((~ok).sum())} of {len(ok)} rows not "
-                                                "finite: left out (nonfinite = \"drop\")")
-        return tuple(x[ok] for x in columns)
-
-    def time_of(self, section, key):
-        """Device time (s) of quantity `key`: its own `time`, else its section's, plus the
-        section's time_offset_s."""
-        source = self.section(section).get(key)
-        if isinstance(source, dict) and "time" in source:
-            t = self.load(source["time"], "time", f"[{section}] {key}.time")
-        else:
-            t = self.column(section, "time")
-        offset = self.section(section).get("time_offset_s", 0.0)
-        if not isinstance(offset, (int, float)) or isinstance(offset, bool) or \
-                not np.isfinite(offset):
-            raise RecordingError(f"{self.path}: [{section}] time_offset_s {offset!r}: a number "
-                                 "of seconds")
-        return t + offset
-
-
-def _scale(path, scale, width, where):
-    """A source's `scale`: one non-zero number, or one per column (a logger's own signs: a
-    roll rate positive left wing down is `scale = [-1, 1, 1]` of an FRD triad)."""
-    values = scale if isinstance(scale, list) else [scale]
-    if len(values) not in (1, width) or not all(
-            isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v) and v != 0
-            for v in values):
-        raise RecordingError(f"{path}: {where} scale {scale!r}: a finite non-zero number (the "
-                             f"column's step in its unit), or {width} of them, one per column")
-    return np.asarray(values, float) if len(values) > 1 else float(values[0])
-
-
-def unix_offset_s(spec):
-    """UNIX time minus device time, s, from the [time] section."""
-    section = spec.section("time")
-    if "unix_offset_s" in section:
-        return float(section["unix_offset_s"])
-    if "gps_week_tow" in section:
-        src = section["gps_week_tow"]
-        rows = load_spec(os.path.join(spec.root, src["file"]), src.get("columns"))
-        device = spec.load(src.get("time"), "time", "[time] gps_week_tow.time")
-        if rows.ndim != 2 or rows.shape[1] != 2 or len(rows) != len(device):
-            raise RecordingError(f"{spec.path}: gps_week_tow needs (N, 2) rows of (week, time of "
-                                 f"week) and N device times; got {rows.shape}, {device.shape}")
-        gps_s = rows[:, 0] * 604800.0 + rows[:, 1]
-        return float(np.median(gps_to_unix_s(gps_s) - device))
-    raise RecordingError(f"{spec.path}: [time] needs unix_offset_s or gps_week_tow")
-
-
-def unix_ns(spec, t, offset, where):
-    """UNIX ns of device times t (s) + offset; refused beyond 1970-2100 (a time column in ns
-    or us declared as s, or an offset in the wrong unit) instead of overflowing int64."""
-    unix = np.asarray(t, float) + offset
-    if len(unix) and not (0.0 <= unix.min() and unix.max() < 4.1e9):
-        raise RecordingError(f"{spec.path}: {where} + the [time] offset reaches "
-                             f"{unix.min():.4g} .. {unix.max():.4g} s since 1970, outside "
-                             "1970-2100: is the time column's unit (s, ms, us, ns) right?")
-    return np.round(unix * 1e9).astype(np.int64)
+# what the [reference] attitude is of: the vehicle's axes, the reference IMU's (an INS's
+# solution: `pairing` measures the MIMU's mounting against it) or the MIMU's own
+ATTITUDE_OF = ("vehicle", "reference_imu", "imu")
 
 
 def _mounting(spec, section="imu"):
@@ -294,104 +110,6 @@ def _mounting(spec, section="imu"):
         return Mounting.from_axes(imu["axes"], lever), f"sensor axes {imu['axes']} (spec)"
     raise RecordingError(f"{spec.path}: [{section}] needs axes (e.g. \"FRD\") or "
                          "mounting_rpy_deg")
-
-
-def reference_of(spec, offset):
-    """The [reference] section as a Recording's reference dict, or None."""
-    if not spec.section("reference"):
-        return None
-    keys = ["time"] + [k for k in ("position_ecef", "latitude", "longitude", "height",
-                                   "velocity_ned", "velocity_ecef", "attitude_wxyz",
-                                   "attitude_rpy") if spec.has("reference", k)]
-    if "attitude_wxyz" in keys and "attitude_rpy" in keys:
-        raise RecordingError(f"{spec.path}: [reference] gives attitude_wxyz and attitude_rpy: "
-                             "one of them")
-    if "position_ecef" in keys:
-        keys = [k for k in keys if k not in ("latitude", "longitude", "height")]
-    else:
-        missing = [k for k in ("latitude", "longitude", "height") if k not in keys]
-        if missing:
-            raise RecordingError(f"{spec.path}: [reference] has no {', '.join(missing)} "
-                                 "(give latitude, longitude and height, or position_ecef)")
-    own = [k for k in keys[1:] if isinstance(spec.section("reference")[k], dict)
-           and "time" in spec.section("reference")[k]]      # quantities on their own clock
-    keys = [k for k in keys if k not in own]
-    columns = [spec.time_of("reference", "time")] + [spec.column("reference", k)
-                                                     for k in keys[1:]]
-    n = len(columns[0])
-    for key, x in zip(keys, columns):
-        if len(x) != n:
-            raise RecordingError(f"{spec.path}: [reference] {key} has {len(x)} rows, time {n}")
-    col = dict(zip(keys, _unrepeated(spec, "[reference]",
-                                     *spec.finite_rows("[reference]", *columns),
-                                     names=keys[1:])))
-    for key in own:
-        col[key] = _onto(spec, key, col["time"])
-    if own:                             # epochs beyond what the own clocks cover: left out
-        inside = np.isfinite(np.column_stack([col[k] for k in own])).all(axis=1)
-        if inside.sum() < 2:
-            raise RecordingError(f"{spec.path}: [reference] {', '.join(own)} on their own "
-                                 "clocks do not cover the reference's times")
-        col = {k: x[inside] for k, x in col.items()}
-    t = col["time"]
-    if "position_ecef" in col:
-        lat, lon, h = earth.ecef_to_geodetic(col["position_ecef"])
-    else:
-        lat, lon, h = col["latitude"], col["longitude"], col["height"]
-    v = None
-    if "velocity_ned" in col:
-        v = col["velocity_ned"]
-    elif "velocity_ecef" in col:
-        v = np.einsum("kji,kj->ki", earth.ned_to_ecef_matrix(lat, lon), col["velocity_ecef"])
-    ns = unix_ns(spec, t, offset, "[reference] time")
-    back = np.flatnonzero(np.diff(ns) <= 0)
-    if len(back):
-        raise RecordingError(f"{spec.path}: [reference] time does not increase at data row "
-                             f"{back[0] + 1} (0-based, after the header; {len(back)} such rows):"
-                             " sort the reference by time or drop its repeated rows")
-    if v is None:
-        v = velocity_from_positions(ns, lat, lon, h)
-    ref = dict(ns=ns, lat=lat, lon=lon, h=h, v_ned=v)
-    if "attitude_wxyz" in col:
-        ref["q_nb"] = _attitude_ned(spec, col["attitude_wxyz"], lat, lon)
-    if "attitude_rpy" in col:           # roll, pitch, yaw of body -> NED (z-y-x turns)
-        rpy = col["attitude_rpy"]
-        ref["q_nb"] = attitude.as_wxyz(attitude.from_euler(rpy[:, 2], rpy[:, 1], rpy[:, 0]))
-    ok = np.isfinite(ref["v_ned"]).all(axis=1)      # differenced velocity: none across a gap
-    return {k: x[ok] for k, x in ref.items()}
-
-
-def _onto(spec, key, t):
-    """[reference] quantity `key` on its own clock, interpolated linearly onto the times t
-    (s) - a box's pressure altitude beside a receiver's packets; NaN where it does not cover
-    them."""
-    t_k, x = _unrepeated(spec, f"[reference] {key}", *spec.finite_rows(
-        f"[reference] {key}", spec.time_of("reference", key), spec.column("reference", key)))
-    if len(t_k) < 2 or np.any(np.diff(t_k) <= 0):
-        raise RecordingError(f"{spec.path}: [reference] {key}'s own times must increase")
-    outside = (t < t_k[0]) | (t > t_k[-1])
-    spec.notes[f"reference_{key}_time"] = (
-        f"{key} interpolated linearly onto the reference's times"
-        + (f"; {int(outside.sum())} epochs beyond its span left out" if outside.any() else ""))
-    x2 = np.reshape(x, (len(x), -1))
-    out = np.column_stack([np.interp(t, t_k, x2[:, i]) for i in range(x2.shape[1])])
-    out[outside] = np.nan
-    return out[:, 0] if x.ndim == 1 else out
-
-
-def _attitude_ned(spec, wxyz, lat, lon):
-    """The reference attitude `wxyz` (its spec's `rotates`) as q_nb (body -> NED, wxyz)."""
-    q = attitude.from_wxyz(wxyz)
-    rotates = spec.section("reference")["attitude_wxyz"].get("rotates", "body_to_ned")
-    if rotates == "body_to_ned":
-        q_nb = q
-    elif rotates == "body_to_ecef":
-        q_en = quaternion.from_rotation_matrix(earth.ned_to_ecef_matrix(lat, lon))
-        q_nb = np.conjugate(q_en) * q
-    else:
-        raise RecordingError(f"{spec.path}: attitude rotates {rotates!r}: body_to_ned or "
-                             "body_to_ecef")
-    return attitude.as_wxyz(q_nb)
 
 
 def _imu(spec, section):
@@ -410,12 +128,12 @@ def _imu(spec, section):
                                  f"{len(t)}")
     if len(t_w) == len(t_f) and np.array_equal(t_w, t_f, equal_nan=True):     # one clock
         t_f, f, w = spec.finite_rows(f"[{section}]", t_f, f, w)
-        t_f, f, w = _unrepeated(spec, f"[{section}]", t_f, f, w)
+        t_f, f, w = unrepeated(spec, f"[{section}]", t_f, f, w)
         t_w = t_f
     else:
-        t_f, f = _unrepeated(spec, f"[{section}] {force_key}",
+        t_f, f = unrepeated(spec, f"[{section}] {force_key}",
                              *spec.finite_rows(f"[{section}] {force_key}", t_f, f))
-        t_w, w = _unrepeated(spec, f"[{section}] {rate_key}",
+        t_w, w = unrepeated(spec, f"[{section}] {rate_key}",
                              *spec.finite_rows(f"[{section}] {rate_key}", t_w, w))
     f = _per_second(t_f, f) if force_key == "velocity_increment" else f
     w = _per_second(t_w, w) if rate_key == "angle_increment" else w
@@ -452,38 +170,6 @@ def _per_second(t, x):
         raise RecordingError(f"increments' times do not increase (at row "
                              f"{int(np.argmax(dt <= 0))})")
     return x / dt[:, None]
-
-
-def _unrepeated(spec, where, t, *columns, names=None):
-    """The rows with each row that repeats the one before it left out and counted in the
-    notes: the same values within half the median step of time (a logger that wrote a sample
-    twice; stamped twice in whole ms, or by its data's age, its times may differ by a tick);
-    a repeated time with other values is refused (which of the two is the sample?)."""
-    if len(t) < 2:
-        return (t, *columns)
-    step = np.diff(t)
-    same = np.concatenate([[False], np.abs(step) < 0.5 * np.median(step)])
-    for x in columns:
-        flat = np.reshape(x, (len(x), -1))
-        same &= np.concatenate([[False], (flat[1:] == flat[:-1]).all(axis=1)])
-    clash = np.concatenate([[False], step == 0]) & ~same
-    if clash.any():
-        k = int(np.argmax(clash))
-        differ = [n for n, x in zip(names or [], columns)
-                  if not np.array_equal(np.reshape(x[k], -1), np.reshape(x[k - 1], -1))]
-        hint = (f" Only {', '.join(differ)} differ{'s' if len(differ) == 1 else ''}: a column "
-                "of another clock (its own `time = {...}` in the spec interpolates it onto "
-                "these times)" if differ and len(differ) < len(columns) else
-                " Drop one of them")
-        raise RecordingError(f"{spec.path}: {where} repeats the time {t[k]:.6g} s at data row {k} "
-                             "(0-based, after the header) with other values: which is the "
-                             f"sample?{hint}")
-    if not same.any():
-        return (t, *columns)
-    spec.notes[f"repeated {where}"] = (f"{int(same.sum())} rows repeating the row before "
-                                       "(within half a step): left out")
-    keep = ~same
-    return (t[keep], *(x[keep] for x in columns))
 
 
 def sensor_range(spec, section="imu"):
@@ -535,13 +221,19 @@ def read(path, mounting=None, root=None):
     given = mounting is not None
     spec_mounting, how = _mounting(spec)
     mounting = mounting or spec_mounting
-    reference = reference_of(spec, offset)
+    reference, frame = reference_of(spec, offset)
     rng = sensor_range(spec)
     meta = {k: v for k, v in spec.section("reference").items()
             if k in ("source", "independent", "position_sigma_m", "attitude_of")}
-    if meta.get("attitude_of", "vehicle") not in ("vehicle", "reference_imu"):
+    if meta.get("attitude_of", "vehicle") not in ATTITUDE_OF:
         raise RecordingError(f"{spec.path}: [reference] attitude_of {meta['attitude_of']!r}: "
-                             "\"vehicle\" or \"reference_imu\"")
+                             + " or ".join(f'"{k}"' for k in ATTITUDE_OF))
+    if meta.get("attitude_of") == "imu" and reference is not None and "q_nb" in reference:
+        reference["q_nb"] = _of_the_vehicle(spec, reference["q_nb"], mounting)
+        notes["reference_attitude"] = ("the MIMU's own axes' (attitude_of = \"imu\"), turned "
+                                       "into the vehicle's by the mounting")
+    if frame is not None:
+        meta["frame"] = frame.description
     name = spec.doc.get("name", os.path.splitext(os.path.basename(path))[0])
     rate = 1.0 / np.median(np.diff(t_f))
     real = {"imu": f"{len(t_f)} samples at {rate:.4g} Hz from {spec.root}",
@@ -573,4 +265,17 @@ def read(path, mounting=None, root=None):
                      unix_ns(spec, t_f, offset, "[imu] time"), w, f, mounting,
                      model=spec.doc.get("model", "unknown"), reference=reference,
                      reference_meta=meta, real=real, assumed=assumed, reference_imu=second,
-                     vehicle=spec.doc.get("vehicle"), range=rng)
+                     vehicle=spec.doc.get("vehicle"), range=rng,
+                     reference_heading_known=frame is None or frame.azimuth_known)
+
+
+def _of_the_vehicle(spec, q_ns_wxyz, mounting):
+    """q_nb (wxyz) of the vehicle from the attitude of the MIMU's own axes (q_ns, wxyz) and its
+    mounting (q_vs): q_nv = q_ns q_vs^-1. The position is then the MIMU's too: a lever arm
+    would place it elsewhere, so none is taken."""
+    if np.any(mounting.lever_arm_m != 0):
+        raise RecordingError(f"{spec.path}: [reference] attitude_of = \"imu\": the reference "
+                             "is the MIMU's own point, so its lever_arm_m must be 0 (it is "
+                             f"{list(mounting.lever_arm_m)} m)")
+    q_ns = attitude.from_wxyz(q_ns_wxyz)
+    return attitude.as_wxyz(q_ns * np.conjugate(mounting.q_vs))

@@ -13,7 +13,7 @@ import numpy as np
 from ..navigation import alignment
 from ..flightlog import LogWriter
 from ..flightlog import schemas as S
-from .recording import UNKNOWN_ATTITUDE
+from .recording import UNKNOWN_ATTITUDE, heading_source
 from ..flightlog.stamps import rate_segments
 from .checks import reference_track, check_recording, velocity_lag_s
 
@@ -34,6 +34,12 @@ def write_log(rec, path, force=False):
                "attitude_wxyz": list(map(float, align.q_nb))}
     assumed = dict(rec.assumed)
     assumed["initial_state"] = align.method
+    heading = heading_source(align.heading, rec.reference_heading_known)
+    if heading != align.heading:
+        source = "attitude" if align.heading == "reference" else align.heading
+        assumed["initial_heading"] = ("assumed: the reference lies in a local frame whose "
+                                      "azimuth is not known, so the heading from its "
+                                      f"{source} is no true heading")
     rate = rec.sample_rate_hz
     with LogWriter(path, force=force) as log:
         log.metadata("flight", {
@@ -50,7 +56,8 @@ def write_log(rec, path, force=False):
                                                 [float(align.static[0]), float(align.static[1])]),
                                    "observed_max": {"gyro_rad_s": float(np.abs(rec.w).max()),
                                                     "accel_m_s2": float(np.abs(rec.f).max())},
-                                   "initial_heading": align.heading,
+                                   "initial_heading": heading,
+                                   "reference_heading_known": rec.reference_heading_known,
                                    "vehicle": rec.vehicle})
         channels = [("/mimu/imu", S.IMU, "mimu", rec.imu_ns, S.imu_fields(rec.w, rec.f))]
         if rec.reference_imu is not None:

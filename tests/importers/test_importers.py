@@ -147,7 +147,7 @@ def test_rtklib_bad_inputs_are_named(tmp_path):
     (tmp_path / "b.pos").write_bytes(b"\x89MCAP0\r\n" + bytes(range(256)))
     with pytest.raises(RecordingError, match="b.pos: not a text file"):
         rtklib.read_pos(tmp_path / "b.pos")
-    from mimunav.importers import table
+    from mimunav.importers import table, table_reference, table_spec
     (tmp_path / "b.toml").write_bytes(b"\x89\xff\xfe")
     with pytest.raises(RecordingError, match="b.toml: not a text file"):
         table.read(tmp_path / "b.toml")
@@ -156,11 +156,11 @@ def test_rtklib_bad_inputs_are_named(tmp_path):
     (tmp_path / "h.toml").write_text('[imu]\ntime = "a.csv"\n[time]\nunix_offset_s = 0\n'
                                      '[reference]\ntime = "a.csv"\nlatitude = "a.csv"\n')
     with pytest.raises(RecordingError, match="has no longitude, height"):
-        table.reference_of(table.Spec(tmp_path / "h.toml"), 0.0)
+        table_reference.reference_of(table_spec.Spec(tmp_path / "h.toml"), 0.0)
     # ns read as s: named, not an int64 overflow
     (tmp_path / "big.csv").write_text("1.7e18\n1.7000000001e18\n")
     with pytest.raises(RecordingError, match="outside 1970-2100: is the time column's unit"):
-        table.unix_ns(table.Spec(tmp_path / "h.toml"),
+        table_spec.unix_ns(table_spec.Spec(tmp_path / "h.toml"),
                        columns.load_spec(str(tmp_path / "big.csv"), None, {}), 0.0, "[imu] time")
     # a headerless CSV whose first row has a missing reading is data, not a header
     (tmp_path / "n.csv").write_text("0.0,nan,2\n0.1,3,4\n")

@@ -1,0 +1,189 @@
+"""The [reference] section of a table spec (`importers.table`): an external trajectory -
+geodetic or ECEF positions, or positions in a local level frame placed at its geodetic origin
+(`local_frame`) - with its velocity and attitude, as a `Recording`'s reference dict.
+"""
+import numpy as np
+import quaternion
+
+from ..frames import attitude, earth
+from ..motion.track import velocity_from_positions
+from .columns import check_keys
+from .local_frame import AXES, LocalFrame
+from .recording import RecordingError
+from .table_spec import FRAME_KEYS, unix_ns, unrepeated
+
+QUANTITIES = ("position_ecef", "latitude", "longitude", "height", "position_local",
+              "velocity_ned", "velocity_ecef", "velocity_local", "attitude_wxyz", "attitude_rpy")
+GEODETIC = ("latitude", "longitude", "height")
+
+
+def reference_of(spec, offset):
+    """(the [reference] section as a Recording's reference dict, or None; its
+    `local_frame.LocalFrame` when its positions are in one, else None)."""
+    if not spec.section("reference"):
+        return None, None
+    keys = ["time"] + _position_keys(spec)
+    frame = local_frame_of(spec) if "position_local" in keys else None
+    col = _columns(spec, keys)
+    ns = unix_ns(spec, col["time"], offset, "[reference] time")
+    back = np.flatnonzero(np.diff(ns) <= 0)
+    if len(back):
+        raise RecordingError(f"{spec.path}: [reference] time does not increase at data row "
+                             f"{back[0] + 1} (0-based, after the header; {len(back)} such rows):"
+                             " sort the reference by time or drop its repeated rows")
+    if frame is not None:
+        q_lb = attitude_given(spec, col["attitude_wxyz"], ("body_to_local",)) \
+            if "attitude_wxyz" in col else None
+        ref = frame.place(ns, col["position_local"], col.get("velocity_local"), q_lb)
+    else:
+        ref = _geodetic(spec, ns, col)
+    ok = np.isfinite(ref["v_ned"]).all(axis=1)      # differenced velocity: none across a gap
+    return {k: x[ok] for k, x in ref.items()}, frame
+
+
+def _position_keys(spec):
+    """The [reference] quantities given, checked: one kind of position (geodetic, ECEF or in a
+    local frame), velocity and attitude in that kind's frames."""
+    keys = [k for k in QUANTITIES if spec.has("reference", k)]
+    where = f"{spec.path}: [reference]"
+    if "attitude_wxyz" in keys and "attitude_rpy" in keys:
+        raise RecordingError(f"{where} gives attitude_wxyz and attitude_rpy: one of them")
+    if "position_local" in keys:
+        other = [k for k in keys if k in ("position_ecef", "velocity_ned", "velocity_ecef",
+                                          "attitude_rpy") + GEODETIC]
+        if other:
+            raise RecordingError(f"{where} gives position_local and {', '.join(other)}: in a "
+                                 "local frame, velocity_local and attitude_wxyz (rotates = "
+                                 "\"body_to_local\") are its velocity and attitude")
+        return keys
+    if "velocity_local" in keys:
+        raise RecordingError(f"{where} gives velocity_local without position_local")
+    if "position_ecef" in keys:
+        return [k for k in keys if k not in GEODETIC]
+    missing = [k for k in GEODETIC if k not in keys]
+    if missing:
+        raise RecordingError(f"{where} has no {', '.join(missing)} (give latitude, longitude "
+                             "and height, position_ecef, or position_local with local_frame)")
+    return keys
+
+
+def local_frame_of(spec):
+    """The [reference] local_frame {axes, origin, azimuth_deg} as a `local_frame.LocalFrame`."""
+    given = spec.section("reference").get("local_frame")
+    if not isinstance(given, dict):
+        raise RecordingError(f"{spec.path}: [reference] position_local needs local_frame = "
+                             "{axes = \"z_up\", origin = [lat_deg, lon_deg, h_m], azimuth_deg = "
+                             "... or \"unknown\"} (axes: " + ", ".join(AXES) + ")")
+    check_keys(spec.path, given, FRAME_KEYS, "[reference] local_frame")
+    axes, azimuth = given.get("axes"), given.get("azimuth_deg")
+    if axes in ("enu", "ned") and azimuth is not None:
+        raise RecordingError(f"{spec.path}: [reference] local_frame axes {axes!r} name their "
+                             "azimuth: azimuth_deg belongs to axes z_up or z_down")
+    if axes in ("z_up", "z_down") and not (azimuth == "unknown" or (
+            isinstance(azimuth, (int, float)) and not isinstance(azimuth, bool)
+            and np.isfinite(azimuth))):
+        raise RecordingError(f"{spec.path}: [reference] local_frame axes {axes!r} need "
+                             "azimuth_deg: the azimuth of the frame's x axis from true north, "
+                             "clockwise, deg, or \"unknown\" (then no finding stands on the "
+                             f"reference's heading); got {azimuth!r}")
+    return LocalFrame.from_axes(axes, given.get("origin"),
+                                None if azimuth == "unknown" else azimuth,
+                                "[reference] local_frame origin = [lat_deg, lon_deg, h_m]")
+
+
+def _columns(spec, keys):
+    """The [reference] columns of `keys` (SI) on the reference's time, rows not finite or
+    repeated left out; quantities on their own clocks interpolated onto it."""
+    own = [k for k in keys[1:] if isinstance(spec.section("reference")[k], dict)
+           and "time" in spec.section("reference")[k]]      # quantities on their own clock
+    keys = [k for k in keys if k not in own]
+    columns = [spec.time_of("reference", "time")] + [spec.column("reference", k)
+                                                     for k in keys[1:]]
+    n = len(columns[0])
+    for key, x in zip(keys, columns):
+        if len(x) != n:
+            raise RecordingError(f"{spec.path}: [reference] {key} has {len(x)} rows, time {n}")
+    col = dict(zip(keys, unrepeated(spec, "[reference]",
+                                    *spec.finite_rows("[reference]", *columns),
+                                    names=keys[1:])))
+    for key in own:
+        col[key] = _onto(spec, key, col["time"])
+    if own:                             # epochs beyond what the own clocks cover: left out
+        inside = np.isfinite(np.column_stack([col[k] for k in own])).all(axis=1)
+        if inside.sum() < 2:
+            raise RecordingError(f"{spec.path}: [reference] {', '.join(own)} on their own "
+                                 "clocks do not cover the reference's times")
+        col = {k: x[inside] for k, x in col.items()}
+    return col
+
+
+def _geodetic(spec, ns, col):
+    """The reference dict of geodetic or ECEF positions, NED or ECEF velocities (else central
+    differences) and an attitude to NED or ECEF (or roll, pitch, yaw)."""
+    if "position_ecef" in col:
+        lat, lon, h = earth.ecef_to_geodetic(col["position_ecef"])
+    else:
+        lat, lon, h = col["latitude"], col["longitude"], col["height"]
+    if "velocity_ned" in col:
+        v = col["velocity_ned"]
+    elif "velocity_ecef" in col:
+        v = np.einsum("kji,kj->ki", earth.ned_to_ecef_matrix(lat, lon), col["velocity_ecef"])
+    else:
+        v = velocity_from_positions(ns, lat, lon, h)
+    ref = dict(ns=ns, lat=lat, lon=lon, h=h, v_ned=v)
+    if "attitude_wxyz" in col:
+        ref["q_nb"] = _attitude_ned(spec, col["attitude_wxyz"], lat, lon)
+    if "attitude_rpy" in col:           # roll, pitch, yaw of body -> NED (z-y-x turns)
+        rpy = col["attitude_rpy"]
+        ref["q_nb"] = attitude.as_wxyz(attitude.from_euler(rpy[:, 2], rpy[:, 1], rpy[:, 0]))
+    return ref
+
+
+def _onto(spec, key, t):
+    """[reference] quantity `key` on its own clock, interpolated linearly onto the times t
+    (s) - a box's pressure altitude beside a receiver's packets; NaN where it does not cover
+    them."""
+    t_k, x = unrepeated(spec, f"[reference] {key}", *spec.finite_rows(
+        f"[reference] {key}", spec.time_of("reference", key), spec.column("reference", key)))
+    if len(t_k) < 2 or np.any(np.diff(t_k) <= 0):
+        raise RecordingError(f"{spec.path}: [reference] {key}'s own times must increase")
+    outside = (t < t_k[0]) | (t > t_k[-1])
+    spec.notes[f"reference_{key}_time"] = (
+        f"{key} interpolated linearly onto the reference's times"
+        + (f"; {int(outside.sum())} epochs beyond its span left out" if outside.any() else ""))
+    x2 = np.reshape(x, (len(x), -1))
+    out = np.column_stack([np.interp(t, t_k, x2[:, i]) for i in range(x2.shape[1])])
+    out[outside] = np.nan
+    return out[:, 0] if x.ndim == 1 else out
+
+
+def _attitude_ned(spec, wxyz, lat, lon):
+    """The reference attitude `wxyz` (its spec's `rotates`) as q_nb (body -> NED, wxyz)."""
+    q = attitude_given(spec, wxyz, ("body_to_ned", "body_to_ecef"))
+    if _rotates(spec) == "body_to_ecef":
+        q_en = quaternion.from_rotation_matrix(earth.ned_to_ecef_matrix(lat, lon))
+        q = np.conjugate(q_en) * q
+    return attitude.as_wxyz(q)
+
+
+def attitude_given(spec, wxyz, rotations):
+    """The [reference] attitude_wxyz rows as unit quaternions, its `rotates` one of `rotations`
+    (the first the default); rows further than 1e-3 from unit length refused (not an
+    attitude: columns in another order, or a rotation vector)."""
+    rotates = _rotates(spec, rotations[0])
+    if rotates not in rotations:
+        raise RecordingError(f"{spec.path}: [reference] attitude_wxyz rotates {rotates!r}: "
+                             f"{' or '.join(rotations)} for these positions")
+    q = attitude.from_wxyz(wxyz)
+    norm = np.abs(q)
+    if np.any(np.abs(norm - 1) > 1e-3):
+        k = int(np.argmax(np.abs(norm - 1)))
+        raise RecordingError(f"{spec.path}: [reference] attitude_wxyz is no unit quaternion "
+                             f"(|q| {norm[k]:.4g} at data row {k}): the columns w, x, y, z in "
+                             "that order?")
+    return q / norm
+
+
+def _rotates(spec, default="body_to_ned"):
+    source = spec.section("reference").get("attitude_wxyz")
+    return source.get("rotates", default) if isinstance(source, dict) else default

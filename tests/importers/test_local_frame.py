@@ -1,0 +1,132 @@
+"""A reference in a local level frame (a motion-capture room's) is placed on the Earth as the
+truth says (`importers.local_frame`, the table spec's position_local): positions through an
+implementation nobody here wrote (pymap3d), attitudes and velocities in closed form, the
+frame's azimuth honoured - or, not known, the log's initial heading said to be assumed."""
+import math
+
+import numpy as np
+import pytest
+import quaternion
+
+from mimunav.flightlog import FlightLog
+from mimunav.frames import attitude
+from mimunav.importers import table
+from mimunav.importers.recording import RecordingError
+from mimunav.importers.write import write_log
+
+ORIGIN = (47.3769, 8.5417, 480.0)          # deg, deg, m (ellipsoidal)
+RATE, SECONDS = 100.0, 40.0
+RADIUS, SPEED = 20.0, 4.0                   # m, m/s: a walk around a room's circle
+SPEC = """name = "room"
+vehicle = "pedestrian"
+[imu]
+time = {{ file = "imu.csv", columns = ["t"], unit = "s" }}
+angular_rate = {{ file = "imu.csv", columns = ["gx", "gy", "gz"] }}
+specific_force = {{ file = "imu.csv", columns = ["ax", "ay", "az"] }}
+axes = "{axes}"
+[time]
+unix_offset_s = 1700000000.0
+[reference]
+time = {{ file = "truth.csv", columns = ["t"], unit = "s" }}
+position_local = {{ file = "truth.csv", columns = ["x", "y", "z"] }}
+attitude_wxyz = {{ file = "truth.csv", columns = ["qw", "qx", "qy", "qz"] }}
+local_frame = {{ axes = "z_up", origin = {origin}, azimuth_deg = {azimuth} }}
+{extra}
+"""
+
+
+def _room(tmp_path, azimuth_deg=30.0, axes="FRD", extra="", azimuth_text=None):
+    """A level walk counter-clockwise (seen from above) around a circle in true ENU, written in
+    a z-up frame whose x points `azimuth_deg` east of north. Returns (t s, truth east/north/up
+    m, heading rad, v_ned m/s). The attitude is of the body FRD (axes = FRD) or, with
+    attitude_of = "imu", of sensor axes `axes`."""
+    t = np.arange(0.0, SECONDS, 1 / RATE)
+    turn = SPEED / RADIUS * t
+    e, n, u = RADIUS * np.cos(turn), RADIUS * np.sin(turn), np.full_like(t, 1.5)
+    v_enu = SPEED * np.column_stack([-np.sin(turn), np.cos(turn), 0 * t])
+    heading = np.arctan2(v_enu[:, 0], v_enu[:, 1])          # from north toward east
+    a = math.radians(azimuth_deg)
+    x, y = e * math.sin(a) + n * math.cos(a), -e * math.cos(a) + n * math.sin(a)
+    # body FRD -> FLU (half turn about x), then a yaw about the frame's up by the angle from
+    # the frame's x to the body's forward, counter-clockwise: azimuth - heading
+    gamma = a - heading
+    q_lb = quaternion.from_float_array(np.column_stack(
+        [np.cos(gamma / 2), 0 * t, 0 * t, np.sin(gamma / 2)])) * np.quaternion(0, 1, 0, 0)
+    if axes != "FRD":                       # the attitude is of the sensor's axes: q_ls
+        from mimunav.frames.mounting import Mounting
+        q_lb = q_lb * Mounting.from_axes(axes).q_vs
+    q = quaternion.as_float_array(q_lb)
+    rows = np.column_stack([t, x, y, u, q])
+    (tmp_path / "truth.csv").write_text("t,x,y,z,qw,qx,qy,qz\n" + "\n".join(
+        ",".join(f"{v:.12g}" for v in row) for row in rows) + "\n")
+    # the body turns left at SPEED / RADIUS, pulled left by SPEED^2 / RADIUS (FRD axes)
+    imu = np.column_stack([t, np.tile([0.0, 0.0, -SPEED / RADIUS], (len(t), 1)),
+                           np.tile([0.0, -SPEED ** 2 / RADIUS, -9.81], (len(t), 1))])
+    (tmp_path / "imu.csv").write_text("t,gx,gy,gz,ax,ay,az\n" + "\n".join(
+        ",".join(f"{v:.10g}" for v in row) for row in imu) + "\n")
+    (tmp_path / "spec.toml").write_text(SPEC.format(
+        axes=axes, origin=list(ORIGIN), extra=extra,
+        azimuth=azimuth_text or azimuth_deg))
+    v_ned = np.column_stack([v_enu[:, 1], v_enu[:, 0], -v_enu[:, 2]])
+    return t, np.column_stack([e, n, u]), heading, v_ned
+
+
+def test_positions_attitudes_and_velocities_of_a_turned_room_frame_are_the_truths(tmp_path):
+    import pymap3d as pm
+    t, enu, heading, v_ned = _room(tmp_path)
+    rec = table.read(tmp_path / "spec.toml")
+    ref = rec.reference
+    lat, lon, h = pm.enu2geodetic(enu[:, 0], enu[:, 1], enu[:, 2], *ORIGIN)
+    k = np.round((ref["ns"] - rec.imu_ns[0]) / 1e9 * RATE).astype(int)     # epochs of t
+    # 1e-10 rad of latitude is 0.6 mm
+    np.testing.assert_allclose(np.degrees(ref["lat"]), lat[k], atol=1e-8)
+    np.testing.assert_allclose(np.degrees(ref["lon"]), lon[k], atol=1e-8)
+    np.testing.assert_allclose(ref["h"], h[k], atol=1e-3)
+    yaw, pitch, roll = attitude.as_euler(attitude.from_wxyz(ref["q_nb"]))
+    # within 20 m of the origin each epoch's NED turns from the origin's by < 4e-6 rad
+    np.testing.assert_allclose(np.angle(np.exp(1j * (yaw - heading[k]))), 0, atol=1e-5)
+    np.testing.assert_allclose(np.hypot(pitch, roll), 0, atol=1e-5)
+    # central differences of a circle: speed short by (w dt)^2 / 6 = 1.3e-6 of 4 m/s
+    np.testing.assert_allclose(ref["v_ned"][1:-1], v_ned[k][1:-1], atol=1e-3)
+    assert rec.reference_heading_known and "azimuth 30 deg" in rec.reference_meta["frame"]
+
+
+def test_the_imus_own_attitude_is_turned_into_the_vehicles_by_its_mounting(tmp_path):
+    t, enu, heading, v_ned = _room(tmp_path, axes="FLU", extra='attitude_of = "imu"')
+    ref = table.read(tmp_path / "spec.toml").reference
+    yaw, pitch, roll = attitude.as_euler(attitude.from_wxyz(ref["q_nb"]))
+    k = np.round((ref["ns"] - 1.7e18) / 1e9 * RATE).astype(int)
+    np.testing.assert_allclose(np.angle(np.exp(1j * (yaw - heading[k]))), 0, atol=1e-5)
+    np.testing.assert_allclose(np.hypot(pitch, roll), 0, atol=1e-5)
+    (tmp_path / "spec.toml").write_text((tmp_path / "spec.toml").read_text().replace(
+        'axes = "FLU"', 'axes = "FLU"\nlever_arm_m = [0.1, 0.0, 0.0]'))
+    with pytest.raises(RecordingError, match="lever_arm_m must be 0"):
+        table.read(tmp_path / "spec.toml")
+
+
+def test_an_unknown_azimuth_makes_the_logs_initial_heading_assumed(tmp_path):
+    _room(tmp_path, azimuth_text='"unknown"')
+    rec = table.read(tmp_path / "spec.toml")
+    assert not rec.reference_heading_known and "not known" in rec.reference_meta["frame"]
+    write_log(rec, tmp_path / "log.mcap")
+    with FlightLog(tmp_path / "log.mcap") as log:
+        meta = log.metadata()["recording"]
+    assert meta["initial_heading"] == "assumed"
+    assert "azimuth is not known" in meta["assumed"]["initial_heading"]
+
+
+@pytest.mark.parametrize("edit, match", [
+    (lambda s: s.replace(", azimuth_deg = 30.0", ""), "need azimuth_deg"),
+    (lambda s: s.replace('axes = "z_up"', 'axes = "enu"'), "name their azimuth"),
+    (lambda s: s.replace("origin = ", "orgin = "), "did you mean 'origin'"),
+    (lambda s: s.replace(f"origin = {list(ORIGIN)}, ", ""), "needs the geodetic origin"),
+    (lambda s: s.replace("local_frame = {", "x = {"), "unknown key 'x'"),
+    (lambda s: s.replace("[reference]\n", '[reference]\nlatitude = "truth.csv"\n'),
+     "position_local and latitude"),
+    (lambda s: s.replace('qz"] }', 'qz"], rotates = "body_to_ned" }'), "body_to_local"),
+])
+def test_a_local_frame_given_wrong_is_refused_naming_what_it_needs(tmp_path, edit, match):
+    _room(tmp_path)
+    (tmp_path / "spec.toml").write_text(edit((tmp_path / "spec.toml").read_text()))
+    with pytest.raises(RecordingError, match=match):
+        table.read(tmp_path / "spec.toml")
