@@ -153,38 +153,82 @@ def unmeasured_heading(flight, vehicle=None):
 
 
 IMPORT_BIASES = {"accel": ("accel_bias_m_s2", "m/s^2"), "gyro": ("gyro_bias_static_rad_s", "rad/s")}
+# an axis this close to the vertical at a rest (cos 5 deg): the bias the rest measured along
+# gravity, b.g g_i, is the axis' own within 0.4 % and holds under 9 % of the other axes'
+VERTICAL_AXIS = 0.9962
 
 
 def beside_the_imports_biases(findings, flight, cal):
     """Give each constant bias found on a recording's outputs as recorded (`cal` an identity)
     the bias its import's alignment measured on that axis (`import_measured`) where the
-    alignment measured all three against the reference's attitude (at a rest, or from its
-    attitude and velocity): the finding is against the reference IMU - two references, whose
-    difference is the reference IMU's own bias or a bias that moved."""
+    alignment measured it against the reference's attitude (`bias_basis`: a gyro's with the
+    Earth rate removed by that attitude; an accelerometer's from the reference's attitude
+    and velocity, or at a rest along gravity on an axis within 5 deg of the vertical): the
+    finding is against the reference IMU - two references, whose difference is the
+    reference IMU's own bias or a bias that moved."""
     rec = flight.recording or {}
-    said = alignment_said(flight, of_the_import=True)
-    if flight.source != "recording" or not cal.is_identity or cal.found or not (
-            "biases from the reference's attitude and velocity" in said
-            or "removed with the reference's attitude" in said):
-        return          # biases taken as 0, or a rest leveled on the outputs (no horizontal)
+    if flight.source != "recording" or not cal.is_identity or cal.found:
+        return
+    basis = bias_basis(flight)
     for f in findings:
         key, units = IMPORT_BIASES.get(f.get("sensor"), (None, None))
         values = rec.get(key) if key else None
-        if f["effect"] == "bias_shift" and values is not None and f.get("units") == units:
+        if f["effect"] != "bias_shift" or values is None or f.get("units") != units:
+            continue
+        i = "xyz".index(f["axis"])
+        how = _measured_how(basis, f["sensor"], i)
+        if how:
             f["import_measured"] = {
-                "value": float(values["xyz".index(f["axis"])]), "units": units,
-                "basis": "the import's alignment (recording metadata " + key + "), against "
-                         "the reference's attitude; this finding is against the reference "
-                         "IMU: a difference is that IMU's own bias, or a bias that moved"}
+                "value": float(values[i]), "units": units,
+                "basis": f"the import's alignment (recording metadata {key}), {how}; this "
+                         "finding is against the reference IMU: a difference is that IMU's "
+                         "own bias, or a bias that moved"}
+
+
+def _measured_how(basis, sensor, i):
+    """How the import measured the bias of `sensor` axis i against the reference's attitude,
+    or '' where it did not (taken as 0, the Earth rate removed at a heading not measured,
+    an axis a rest's gravity did not lie along)."""
+    if sensor == "gyro":
+        return "the Earth rate removed with the reference's attitude" \
+            if basis.get("gyro") == "reference_attitude" else ""
+    if basis.get("accel") == "all":
+        return "against the reference's attitude and velocity"
+    up = basis.get("gravity_sensor_axes")
+    if basis.get("accel") == "along_gravity" and up and abs(up[i]) >= VERTICAL_AXIS:
+        return "at a rest, along gravity (this axis within 5 deg of the vertical)"
+    return ""
+
+
+def bias_basis(flight):
+    """What the import's alignment measured of each bias: the recording metadata's
+    `bias_basis` ({gyro: reference_attitude | course | vertical_earth_rate | none, accel: all
+    | along_gravity | none, gravity_sensor_axes: the rest's up in sensor axes}); for a log
+    imported before it was written, read from the alignment's words (the rest's gravity
+    axis then unknown)."""
+    given = (flight.recording or {}).get("bias_basis")
+    if isinstance(given, dict):
+        return given
+    said = alignment_said(flight, of_the_import=True)
+    if "biases from the reference's attitude and velocity" in said:
+        return {"gyro": "reference_attitude", "accel": "all"}
+    if "removed with the reference's attitude" in said:
+        return {"gyro": "reference_attitude", "accel": "along_gravity"}
+    return {"gyro": "none", "accel": "none"}
 
 
 def leveled_on_its_outputs(flight):
     """Whether a recording's initial attitude was leveled on the MIMU's own specific force (a
     rest's mean, a moving alignment's two vectors) rather than taken whole from the
-    reference: a found term that turns the outputs (a mounting) then turns them away from
+    reference (the recording metadata's `initial_attitude`; for a log imported before it
+    was written, the alignment's words): a found term that turns the outputs (a mounting) then turns them away from
     the attitude the navigation starts from."""
-    return flight.source == "recording" and \
-        "whole state from the reference" not in alignment_said(flight)
+    if flight.source != "recording":
+        return False
+    given = (flight.recording or {}).get("initial_attitude")
+    if given:
+        return given != "reference"
+    return "whole state from the reference" not in alignment_said(flight)
 
 
 def alignment_said(flight, of_the_import=False):

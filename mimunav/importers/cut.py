@@ -29,7 +29,7 @@ def cut(log_path, out, t0, t1, force=False):
                              "has no time base to be cut on")
         epoch = int(flight["epoch_unix_ns"])
         lo, hi = epoch + int(round(t0 * 1e9)), epoch + int(round(t1 * 1e9))
-        initial, how, heading = _initial_state(log, flight, meta, t0, t1, epoch)
+        initial, how, heading, attitude_from = _initial_state(log, flight, meta, t0, t1, epoch)
         count, generic = 0, []
         with LogWriter(out, force=force) as dst, open(log_path, "rb") as fh:
             reader = make_reader(fh)
@@ -39,7 +39,8 @@ def cut(log_path, out, t0, t1, force=False):
                     values = {**values, "initial_state": initial, "description":
                               f"{values.get('description', '')} - cut to {t0:g}-{t1:g} s"}
                 if record.name == "recording" and heading is not None:     # and how the
-                    values = _restarted(values, how, heading)   # span's state was found
+                    values = _restarted(values, how, heading,   # span's state was found
+                                        attitude_from)
                 dst.metadata(record.name, values)
             for att in reader.iter_attachments():
                 dst.attachment(att.name, att.data, att.media_type)
@@ -64,25 +65,28 @@ def cut(log_path, out, t0, t1, force=False):
     return count, how
 
 
-def _restarted(values, how, heading):
+def _restarted(values, how, heading, attitude_from):
     """A recording's metadata values with its initial state's account (`assumed`'s
-    initial_state, `initial_heading`) the span's: what `diagnose` judges the state by; the
-    import's kept as import_initial_state (its biases are the metadata's)."""
+    initial_state, `initial_heading`, `initial_attitude`) the span's: what `diagnose` judges
+    the state by; the import's kept as import_initial_state (its biases are the metadata's,
+    and `bias_basis` says what they measured)."""
     assumed = values.get("assumed") or "{}"
     assumed = json.loads(assumed) if isinstance(assumed, str) else dict(assumed)
     # the import's own account stays: the biases it measured (kept in the metadata) are its
     assumed.setdefault("import_initial_state", assumed.get("initial_state", ""))
     assumed["initial_state"] = how
     known = json.loads(values.get("reference_heading_known", "true"))    # JSON in the record
-    return {**values, "assumed": assumed, "initial_heading": heading_source(heading, known)}
+    return {**values, "assumed": assumed, "initial_heading": heading_source(heading, known),
+            "initial_attitude": attitude_from}
 
 
 def _initial_state(log, flight, meta, t0, t1, epoch):
     """(initial_state object, how it was found, where its heading came from - None: the
-    log's own state, unchanged) inside [t0, t1] (module doc)."""
+    log's own state, unchanged -, where its attitude came from) inside [t0, t1] (module
+    doc)."""
     initial = flight.get("initial_state") or {}
     if t0 <= float(initial.get("t", np.nan)) <= t1:
-        return initial, "the log's own (inside the span)", None
+        return initial, "the log's own (inside the span)", None, None
     if "/truth/state" in log.channels:
         truth = log.read("/truth/state")
         t = (truth["log_time"].astype(np.int64) - epoch) / 1e9
@@ -95,7 +99,7 @@ def _initial_state(log, flight, meta, t0, t1, epoch):
                      "velocity_ned": [float(v) for v in truth["velocity_ned"][k]],
                      "attitude_wxyz": [float(v) for v in q[k]]},
                     f"whole state from the reference at t = {t[k]:.3f} s (/truth/state)",
-                    "reference")
+                    "reference", "reference")
         if "/mimu/imu" in log.channels:
             return _realigned(log, truth, t, t0, t1, epoch, meta)
     raise InputError(f"the initial state (t = {initial.get('t')}) lies outside the span and the "
@@ -131,4 +135,4 @@ def _realigned(log, truth, t_ref, t0, t1, epoch, meta):
     return ({"t": float(align.t), "latitude": float(align.lat), "longitude": float(align.lon),
              "height": float(align.h), "velocity_ned": [float(v) for v in align.v_ned],
              "attitude_wxyz": [float(v) for v in q]},
-            f"the alignment redone on the span: {method}", align.heading)
+            f"the alignment redone on the span: {method}", align.heading, align.attitude_from)

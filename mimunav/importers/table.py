@@ -69,7 +69,8 @@ refused, naming the nearest known one.
               velocity_ned  m/s  or  velocity_ecef  m/s  (else central differences of position)
               or velocity_local  m/s in the local frame's axes
               attitude_wxyz      unit quaternions with `rotates` = "body_to_ecef" | "body_to_ned"
-                                 (| "body_to_local", the default beside position_local)
+                                 (| "body_to_local", the default beside position_local); the
+                                 body is the vehicle's FRD axes, or an IMU's own (attitude_of)
               or attitude_rpy    deg | rad: roll, pitch, yaw of body -> NED (yaw, then pitch,
                                  then roll: the aerospace z-y-x sequence)
               attitude_of        "vehicle" (default), "reference_imu": the attitude is the
@@ -225,15 +226,23 @@ def read(path, mounting=None, root=None):
     rng = sensor_range(spec)
     meta = {k: v for k, v in spec.section("reference").items()
             if k in ("source", "independent", "position_sigma_m", "attitude_of")}
-    if meta.get("attitude_of", "vehicle") not in ATTITUDE_OF:
-        raise RecordingError(f"{spec.path}: [reference] attitude_of {meta['attitude_of']!r}: "
-                             + " or ".join(f'"{k}"' for k in ATTITUDE_OF))
-    if meta.get("attitude_of") == "imu" and reference is not None and "q_nb" in reference:
-        reference["q_nb"] = _of_the_vehicle(spec, reference["q_nb"], mounting)
-        notes["reference_attitude"] = ("the MIMU's own axes' (attitude_of = \"imu\"), turned "
-                                       "into the vehicle's by the mounting")
     if frame is not None:
         meta["frame"] = frame.description
+    second, ref_how = None, None
+    if spec.section("reference_imu"):
+        t_r, w_r, f_r = _imu(spec, "reference_imu")
+        ref_mounting, ref_how = _mounting(spec, "reference_imu")
+        section = spec.section("reference_imu")
+        if "accuracy" in section:               # refused now, not at the diagnosis
+            Accuracy.from_dict(section["accuracy"], f"{spec.path}: [reference_imu] accuracy")
+        second = dict(ns=unix_ns(spec, t_r, offset, "[reference_imu] time"), w=w_r, f=f_r,
+                      mounting=ref_mounting, model=section.get("model", "unknown"),
+                      accuracy=section.get("accuracy"),
+                      mounting_hint="mounting_rpy_deg = [{roll}, {pitch}, {yaw}] in the spec's "
+                                    "[reference_imu]")
+        notes["reference_imu"] = (f"{len(t_r)} samples at {1.0 / np.median(np.diff(t_r)):.4g} "
+                                  f"Hz ({section.get('model', 'model not stated')})")
+    _to_the_vehicles_attitude(spec, meta, reference, mounting, second)
     name = spec.doc.get("name", os.path.splitext(os.path.basename(path))[0])
     rate = 1.0 / np.median(np.diff(t_f))
     real = {"imu": f"{len(t_f)} samples at {rate:.4g} Hz from {spec.root}",
@@ -246,20 +255,7 @@ def read(path, mounting=None, root=None):
     assumed = {"mounting": "given on the command line" if given else how,
                "time": spec.section("time").get("note", "as the spec's [time] says"),
                "calibration": "none: the outputs are used as recorded"}
-    second = None
-    if spec.section("reference_imu"):
-        t_r, w_r, f_r = _imu(spec, "reference_imu")
-        ref_mounting, ref_how = _mounting(spec, "reference_imu")
-        section = spec.section("reference_imu")
-        if "accuracy" in section:               # refused now, not at the diagnosis
-            Accuracy.from_dict(section["accuracy"], f"{spec.path}: [reference_imu] accuracy")
-        second = dict(ns=unix_ns(spec, t_r, offset, "[reference_imu] time"), w=w_r, f=f_r,
-                      mounting=ref_mounting, model=section.get("model", "unknown"),
-                      accuracy=section.get("accuracy"),
-                      mounting_hint="mounting_rpy_deg = [{roll}, {pitch}, {yaw}] in the spec's "
-                                    "[reference_imu]")
-        real["reference_imu"] = (f"{len(t_r)} samples at {1.0 / np.median(np.diff(t_r)):.4g} "
-                                 f"Hz ({section.get('model', 'model not stated')})")
+    if ref_how:
         assumed["reference_imu_mounting"] = ref_how
     return Recording(name, spec.doc.get("description", f"table import of {spec.path}"),
                      unix_ns(spec, t_f, offset, "[imu] time"), w, f, mounting,
@@ -269,13 +265,28 @@ def read(path, mounting=None, root=None):
                      reference_heading_known=frame is None or frame.azimuth_known)
 
 
-def _of_the_vehicle(spec, q_ns_wxyz, mounting):
-    """q_nb (wxyz) of the vehicle from the attitude of the MIMU's own axes (q_ns, wxyz) and its
-    mounting (q_vs): q_nv = q_ns q_vs^-1. The position is then the MIMU's too: a lever arm
-    would place it elsewhere, so none is taken."""
-    if np.any(mounting.lever_arm_m != 0):
+def _to_the_vehicles_attitude(spec, meta, reference, mounting, second):
+    """The reference attitude (`reference` q_nb, in place) of the vehicle's axes, where
+    [reference] attitude_of says it is of an IMU's own axes: q_nv = q_ns q_vs^-1, q_vs that
+    IMU's mounting (sensor -> vehicle). "imu": the MIMU's, whose point the reference then is
+    (a lever arm would place it elsewhere: refused); "reference_imu": the reference IMU's
+    (`pairing` then turns the MIMU against it, not it)."""
+    of = meta.get("attitude_of", "vehicle")
+    if of not in ATTITUDE_OF:
+        raise RecordingError(f"{spec.path}: [reference] attitude_of {of!r}: "
+                             + " or ".join(f'"{k}"' for k in ATTITUDE_OF))
+    if of == "vehicle":
+        return
+    if of == "reference_imu" and second is None:
+        raise RecordingError(f"{spec.path}: [reference] attitude_of = \"reference_imu\" needs "
+                             "a [reference_imu] section (the IMU whose axes the attitude is of)")
+    imu = mounting if of == "imu" else second["mounting"]
+    if of == "imu" and np.any(imu.lever_arm_m != 0):
         raise RecordingError(f"{spec.path}: [reference] attitude_of = \"imu\": the reference "
                              "is the MIMU's own point, so its lever_arm_m must be 0 (it is "
-                             f"{list(mounting.lever_arm_m)} m)")
-    q_ns = attitude.from_wxyz(q_ns_wxyz)
-    return attitude.as_wxyz(q_ns * np.conjugate(mounting.q_vs))
+                             f"{[float(x) for x in imu.lever_arm_m]} m)")
+    if reference is not None and "q_nb" in reference:
+        q_ns = attitude.from_wxyz(reference["q_nb"])
+        reference["q_nb"] = attitude.as_wxyz(q_ns * np.conjugate(imu.q_vs))
+        meta["attitude_axes"] = (f"the {'MIMU' if of == 'imu' else 'reference IMU'}'s own "
+                                 "(attitude_of), turned into the vehicle's by its mounting")

@@ -4,7 +4,9 @@ beyond the recorder's own scaling), `/truth/state` when an external reference ex
 `/gnss/fix` (latitude and longitude in rad as the contract's conventions say - not ROS's
 degrees - and position_covariance ENU m^2), the `flight` metadata with an `initial_state`
 from `navigation.alignment.initial_alignment`, `sensor/mimu`, and `recording` (what is
-real, what was assumed).
+real, what was assumed; the biases the alignment measured, sensor axes, and in words the
+diagnosis reads: `initial_heading` reference | course | assumed, `initial_attitude`
+reference | leveled, `bias_basis` as `alignment.Alignment`'s).
 """
 import json
 
@@ -57,6 +59,8 @@ def write_log(rec, path, force=False):
                                    "observed_max": {"gyro_rad_s": float(np.abs(rec.w).max()),
                                                     "accel_m_s2": float(np.abs(rec.f).max())},
                                    "initial_heading": heading,
+                                   "initial_attitude": align.attitude_from,
+                                   "bias_basis": align.bias_basis,
                                    "reference_heading_known": rec.reference_heading_known,
                                    "vehicle": rec.vehicle})
         channels = [("/mimu/imu", S.IMU, "mimu", rec.imu_ns, S.imu_fields(rec.w, rec.f))]

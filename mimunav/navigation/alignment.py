@@ -20,7 +20,7 @@ bias cancel at the start (the classic tilt/bias equilibrium), so only its change
 attitude propagates.
 """
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import quaternion
@@ -52,7 +52,14 @@ class Alignment:
     (how each part was obtained, for the log's metadata), and where the heading came from
     (`heading`: "reference" - its own attitude; "course" - the GNSS course, a vehicle that
     moves along its forward axis, true of a car, not of a walker's phone or a multicopter;
-    "assumed" - nothing measured it, 0)."""
+    "assumed" - nothing measured it, 0), where the attitude came from (`attitude_from`:
+    "reference" - taken whole from it; "leveled" - from the IMU's own specific force, a rest's
+    or a moving alignment's), and what the biases measured (`bias_basis`: gyro
+    "reference_attitude" (the Earth rate removed with the reference's attitude), "course" (at
+    the course's heading), "vertical_earth_rate" (its horizontal part, up to Omega cos(lat),
+    left in), "assumed" (removed at a heading and latitude assumed) or "none" (taken as 0);
+    accel "all" (from the reference's attitude and velocity), "along_gravity" (a rest's:
+    the part along gravity only, `gravity_sensor_axes` its up in sensor axes) or "none")."""
     t: float
     lat: float
     lon: float
@@ -65,6 +72,8 @@ class Alignment:
     method: str
     at_rest_start: bool = True
     heading: str = "assumed"
+    attitude_from: str = "leveled"
+    bias_basis: dict = field(default_factory=lambda: {"gyro": "none", "accel": "none"})
 
     @property
     def navigable_from(self):
@@ -107,8 +116,8 @@ def initial_alignment(t, w, f, mounting, track=None):
     rows: unknown)}. In order of preference:
 
     1. a rest that starts the recording (MIN_STATIC_S or more): level from its mean specific
-       force, heading from the course once faster than COURSE_SPEED less the gyro's yaw
-       since (else the reference's attitude), state at the first IMU stamp;
+       force, heading from the reference's attitude once moving, turned back by the gyro
+       (else the course less the gyro's yaw since), state at the first IMU stamp;
     2. the reference's own attitude at its first epoch with one (an autopilot's estimate,
        a fused pose): the whole state from the reference;
     3. moving: the two-vector alignment (`moving_attitude`) at the first reference epoch
@@ -145,8 +154,8 @@ def initial_alignment(t, w, f, mounting, track=None):
     inside = (track["t"] >= max(t[0], track["t"][0]) + half) & \
         (track["t"] <= min(t[-1], track["t"][-1]) - half)     # IMU and reference cover it
     fast = np.flatnonzero((speed >= COURSE_SPEED) & ~parked & inside)
-    gyro_bias, accel_bias, static, bias_note = biases_at_a_rest(t, w, f, mounting, track, rests,
-                                                                 quiet)
+    gyro_bias, accel_bias, static, bias_note, basis = biases_at_a_rest(t, w, f, mounting, track,
+                                                                        rests, quiet)
     if q_ref is not None:
         t0, q_nb = t_ref, q_ref
         notes.append(f"whole state from the reference at t = {t0:.2f} s (its attitude: "
@@ -158,29 +167,37 @@ def initial_alignment(t, w, f, mounting, track=None):
                      f"IMU's velocity increment over {2 * half:.1f} s (turned by its gyro) "
                      "matched to the reference's, forward axis to its velocity")
     else:
-        moving = (speed >= COURSE_SPEED) & inside
-        what = track.get("what", "the reference")
-        raise InputError(
-            f"no initial state can be found from {what}: it carries no attitude, the "
-            f"recording does not start with a rest of {MIN_STATIC_S:g} s (its speed <= "
-            f"{STATIC_SPEED:g} m/s), and " + (
-                f"its epochs faster than {COURSE_SPEED:g} m/s all lie in stretches the IMU "
-                "and its positions show at rest (a noisy fix's speed)"
-                if moving.any() else
-                f"where {half:g} s of IMU and it lie on both sides its speed peaks at "
-                f"{speed[inside].max():.2f} m/s, below {COURSE_SPEED:g} m/s (over all of "
-                f"it: {speed.max():.2f} m/s)" if inside.any() else
-                f"none of its epochs has {half:g} s of IMU and of it on both sides (the "
-                f"IMU's record is {t[-1] - t[0]:.2f} s, its "
-                f"{track['t'][-1] - track['t'][0]:.2f} s): too short") +
-            " for a moving alignment")
+        raise _no_initial_state(t, track, speed, inside, half)
     lat, lon, h = (float(np.interp(t0, track["t"], x)) for x in (
         track["lat"], unwrapped_longitude(track["lon"]), track["h"]))
     v0 = np.array([np.interp(t0, track["t"], track["v_ned"][:, i]) for i in range(3)])
     notes.append(bias_note)
     return Alignment(t0, lat, lon, h, v0, q_nb, gyro_bias, accel_bias, static,
                      "; ".join(notes), at_rest_start=False,
-                     heading="reference" if q_ref is not None else "course")
+                     heading="reference" if q_ref is not None else "course",
+                     attitude_from="reference" if q_ref is not None else "leveled",
+                     bias_basis=basis)
+
+
+def _no_initial_state(t, track, speed, inside, half):
+    """The InputError of a recording without a rest at its start, a reference attitude or a
+    fast epoch for a moving alignment: what it lacks, in numbers."""
+    moving = (speed >= COURSE_SPEED) & inside
+    what = track.get("what", "the reference")
+    return InputError(
+        f"no initial state can be found from {what}: it carries no attitude, the "
+        f"recording does not start with a rest of {MIN_STATIC_S:g} s (its speed <= "
+        f"{STATIC_SPEED:g} m/s), and " + (
+            f"its epochs faster than {COURSE_SPEED:g} m/s all lie in stretches the IMU "
+            "and its positions show at rest (a noisy fix's speed)"
+            if moving.any() else
+            f"where {half:g} s of IMU and it lie on both sides its speed peaks at "
+            f"{speed[inside].max():.2f} m/s, below {COURSE_SPEED:g} m/s (over all of "
+            f"it: {speed.max():.2f} m/s)" if inside.any() else
+            f"none of its epochs has {half:g} s of IMU and of it on both sides (the "
+            f"IMU's record is {t[-1] - t[0]:.2f} s, its "
+            f"{track['t'][-1] - track['t'][0]:.2f} s): too short") +
+        " for a moving alignment")
 
 
 def _untracked(t, w, f, mounting):
@@ -195,7 +212,8 @@ def _untracked(t, w, f, mounting):
     return Alignment(float(t[0]), 0.0, 0.0, 0.0, np.zeros(3), attitude.as_wxyz(q_nb),
                      w[rest].mean(axis=0) - w_ie_s, np.zeros(3), (float(t[0]), float(t_end)),
                      f"rest assumed for the first {MIN_STATIC_S:g} s (no GNSS track); level "
-                     "from its mean specific force; position and heading assumed 0")
+                     "from its mean specific force; position and heading assumed 0",
+                     bias_basis={"gyro": "assumed", "accel": "none"})
 
 
 def _from_rest(t, w, f, mounting, track, interval):
@@ -212,17 +230,23 @@ def _from_rest(t, w, f, mounting, track, interval):
     speed = np.hypot(track["v_ned"][:, 0], track["v_ned"][:, 1])
     fast = np.flatnonzero((speed >= COURSE_SPEED) & (track["t"] > t_end))
     q_ref, t_ref = reference_attitude(track, float(t[0]))
-    if len(fast):
+    w_v = attitude.rotate(q_vs, w - w[rest].mean(axis=0))
+    k = fast[track["t"][fast] <= track["t"][fast[0]] + COURSE_SPAN_S] if len(fast) else fast
+    back = _reference_heading_back(t, w_v, t_end, track, k)
+    if back is not None:
+        yaw, t_k = back
+        heading = "reference"
+        notes.append(f"heading from the reference's attitude at t = {t_k:.2f} s, moving "
+                     f"({speed[fast[0]]:.1f} m/s), turned back to the rest by the gyro")
+    elif len(fast):
         # each fast epoch of the first COURSE_SPAN_S gives the heading at rest (its course
         # less the gyro's yaw since): their circular mean weighted by speed^2, so one noisy
         # course (a plain fix's differenced velocity, ~1 m/s of noise) does not set it
-        k = fast[track["t"][fast] <= track["t"][fast[0]] + COURSE_SPAN_S]
         course = np.arctan2(track["v_ned"][k, 1], track["v_ned"][k, 0])
         if travel_sign(t, f, mounting, track, float(track["t"][k[0]])) < 0:
             course = course + math.pi               # it drives off in reverse
             notes.append("reversing (the horizontal specific force opposes the track's "
                          "acceleration)")
-        w_v = attitude.rotate(q_vs, w - w[rest].mean(axis=0))
         at_rest = course - np.array([yaw_turned(t, w_v, t_end, float(x))
                                      for x in track["t"][k]])
         weight = speed[k] ** 2          # a course's noise falls as the speed rises
@@ -241,9 +265,42 @@ def _from_rest(t, w, f, mounting, track, interval):
                      "carries no attitude)")
     q_nb = attitude.from_euler(np.array(yaw), np.array(pitch), np.array(roll))
     gyro_bias, accel_bias = _rest_biases(w[rest], f[rest], q_nb * q_vs, lat, h)
+    if heading == "assumed":        # no heading: the Earth rate's vertical part only removed
+        gyro_bias = gyro_bias + _horizontal_earth_rate(q_nb * q_vs, lat)
+        notes.append("only the Earth rate's vertical part removed from the gyro bias (up to "
+                     f"{earth.OMEGA * math.cos(lat):.1e} rad/s of it remain)")
+    basis = {"gyro": {"reference": "reference_attitude", "course": "course"}.get(
+                 heading, "vertical_earth_rate"),
+             "accel": "along_gravity", "gravity_sensor_axes": _up(f[rest])}
     return Alignment(float(t[0]), lat, lon, h, np.zeros(3), attitude.as_wxyz(q_nb),
                      gyro_bias, accel_bias, (float(t[0]), float(t_end)), "; ".join(notes),
-                     heading=heading)
+                     heading=heading, bias_basis=basis)
+
+
+def _reference_heading_back(t, w_v, t_end, track, k):
+    """(yaw rad, epoch s) at a rest's end t_end from the reference's attitude at the first of
+    its moving epochs k that carries one - where an INS's heading has converged, which at
+    rest it may not have - turned back by the gyro's rotation since the rest (vehicle-axis
+    rates w_v rad/s at stamps t, the rest's mean removed): q_nb(t_end) = q_nb(t_k) dq^-1,
+    dq the body's turn over (t_end, t_k]. Exact for any motion, where a course needs a car
+    (no side slip). None when the reference carries no attitude there."""
+    q = track.get("q_nb")
+    if q is None or not len(k):
+        return None
+    k = k[np.isfinite(q[k]).all(axis=1)]
+    if not len(k):
+        return None
+    t_k = float(track["t"][k[0]])
+    # each sample is the mean rate over the interval its stamp ends: each over its part of
+    # (t_end, t_k] (whole intervals only had left up to the rate times a step: 0.1 deg at
+    # 100 Hz turning 20 deg/s)
+    j = np.arange(np.searchsorted(t, t_end, side="right"),
+                  min(np.searchsorted(t, t_k, side="left") + 1, len(t)))
+    dt = np.clip(np.minimum(t[j], t_k) - np.maximum(t[np.maximum(j - 1, 0)], t_end), 0.0, None)
+    dq = np.multiply.reduce(quaternion.from_rotation_vector(w_v[j] * dt[:, None])) \
+        if len(j) else quaternion.one
+    q_rest = attitude.from_wxyz(np.asarray(q[k[0]], float)) * np.conjugate(dq)
+    return float(attitude.as_euler(q_rest)[0]), t_k
 
 
 def _rest_biases(w, f, q_ns, lat, h):
@@ -257,8 +314,8 @@ def _rest_biases(w, f, q_ns, lat, h):
 
 
 def biases_at_a_rest(t, w, f, mounting, track, rests, quiet=None):
-    """(gyro bias, accel bias, (t0, t1), note) of the longest rest anywhere in the
-    recording; zeros and (nan, nan) without one. The Earth rate is removed with the
+    """(gyro bias, accel bias, (t0, t1), note, bias_basis as `Alignment`'s) of the longest
+    rest anywhere in the recording; zeros and (nan, nan) without one. The Earth rate is removed with the
     reference's attitude there when it has one; else only its vertical part (the level is
     known, the heading is not), leaving at most Omega cos(lat) = 7.3e-5 rad/s."""
     where = "the rest"
@@ -271,14 +328,15 @@ def biases_at_a_rest(t, w, f, mounting, track, rests, quiet=None):
         moving = biases_from_attitude(t, w, f, mounting, track)
         if moving is None:
             return (np.zeros(3), np.zeros(3), (math.nan, math.nan),
-                    f"biases taken as 0: {none}")
+                    f"biases taken as 0: {none}", {"gyro": "none", "accel": "none"})
         gyro, accel, n = moving
         return (gyro[0], accel[0], (math.nan, math.nan),
                 f"{none}: biases from the reference's attitude and velocity, the medians of "
                 f"{n} {ATTITUDE_BIAS_WINDOW_S:g} s windows' differences (standard errors: gyro "
                 + ", ".join(f"{math.degrees(x) * 3600:.0f}" for x in gyro[1])
                 + " deg/h, accelerometer " + ", ".join(f"{x / G0 * 1e3:.2g}" for x in accel[1])
-                + " mg; the reference's own errors and any time lag in it)")
+                + " mg; the reference's own errors and any time lag in it)",
+                {"gyro": "reference_attitude", "accel": "all"})
     t0, t1 = max(rests, key=lambda r: r[1] - r[0])
     k = (t >= t0) & (t <= t1)
     lat, h = (float(np.interp(0.5 * (t0 + t1), track["t"], track[x])) for x in ("lat", "h"))
@@ -293,12 +351,24 @@ def biases_at_a_rest(t, w, f, mounting, track, rests, quiet=None):
                 f"{earth.OMEGA * math.cos(lat):.1e} rad/s of it remain)")
     gyro_bias, accel_bias = _rest_biases(w[k], f[k], q_nb * mounting.q_vs, lat, h)
     if q_ref is None:               # take the horizontal Earth rate back out of the removal
-        w_n = earth.earth_rate_ned(lat)
-        horizontal = attitude.rotate(np.conjugate(q_nb * mounting.q_vs),
-                                     np.array([w_n[0], w_n[1], 0.0]))
-        gyro_bias = gyro_bias + horizontal
+        gyro_bias = gyro_bias + _horizontal_earth_rate(q_nb * mounting.q_vs, lat)
+    basis = {"gyro": "reference_attitude" if q_ref is not None else "vertical_earth_rate",
+             "accel": "along_gravity", "gravity_sensor_axes": _up(f[k])}
     return (gyro_bias, accel_bias, (t0, t1),
-            f"biases from {where} {t0:.2f}-{t1:.2f} s ({note})")
+            f"biases from {where} {t0:.2f}-{t1:.2f} s ({note})", basis)
+
+
+def _horizontal_earth_rate(q_ns, lat):
+    """The Earth rate's horizontal part in sensor axes (rad/s) at the attitude q_ns: what a
+    removal at an unmeasured heading must put back (up to Omega cos(lat) = 7.3e-5 rad/s)."""
+    w_n = earth.earth_rate_ned(lat)
+    return attitude.rotate(np.conjugate(q_ns), np.array([w_n[0], w_n[1], 0.0]))
+
+
+def _up(f):
+    """The up direction in sensor axes of specific forces f (m/s^2) at a rest: their mean's."""
+    mean = f.mean(axis=0)
+    return [float(x) for x in mean / np.linalg.norm(mean)]
 
 
 ATTITUDE_BIAS_WINDOW_S = 1.0    # s: windows of the gyro bias from a reference attitude

@@ -141,6 +141,26 @@ def test_a_bias_found_on_a_recording_says_what_its_import_measured():
         unseen = found()
         beside_the_imports_biases(unseen, flight(how), Calibration.identity())
         assert "import_measured" not in unseen[0], how
+    # what the metadata says the import measured (`bias_basis`): a rest's accelerometer bias
+    # along gravity is an axis' own only on an axis near the vertical; a gyro's with the
+    # Earth rate removed at the reference's attitude, not at an assumed heading
+    rest = flight("biases from the rest 0.00-30.00 s (its Earth rate removed with the "
+                  "reference's attitude)")
+    rest.recording["bias_basis"] = {"gyro": "reference_attitude", "accel": "along_gravity",
+                                    "gravity_sensor_axes": [0.02, -0.03, -0.9993]}
+    both = found() + [{"effect": "bias_shift", "sensor": "accel", "axis": "x",
+                       "units": "m/s^2"},
+                      {"effect": "bias_shift", "sensor": "gyro", "axis": "y", "units": "rad/s"}]
+    beside_the_imports_biases(both, rest, Calibration.identity())
+    assert "along gravity" in both[0]["import_measured"]["basis"]
+    assert "import_measured" not in both[2]             # horizontal: not measured at a rest
+    assert both[3]["import_measured"]["value"] == -1e-3
+    rest.recording["bias_basis"]["gyro"] = "vertical_earth_rate"
+    rest.recording["bias_basis"]["gravity_sensor_axes"] = [0.2, 0.0, -0.98]    # 11.5 deg
+    tilted = found() + [dict(both[3])]
+    tilted[2].pop("import_measured", None)
+    beside_the_imports_biases(tilted, rest, Calibration.identity())
+    assert not any("import_measured" in f for f in tilted)
     # a cut log: the biases in its metadata are the import's, judged by the import's own
     # alignment, not by the span's (which said nothing of them)
     cut = flight("the alignment redone on the span: ... biases taken as 0: no rest")

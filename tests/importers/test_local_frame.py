@@ -10,6 +10,7 @@ import quaternion
 
 from mimunav.flightlog import FlightLog
 from mimunav.frames import attitude
+from mimunav.frames.mounting import Mounting
 from mimunav.importers import table
 from mimunav.importers.recording import RecordingError
 from mimunav.importers.write import write_log
@@ -35,11 +36,22 @@ local_frame = {{ axes = "z_up", origin = {origin}, azimuth_deg = {azimuth} }}
 """
 
 
-def _room(tmp_path, azimuth_deg=30.0, axes="FRD", extra="", azimuth_text=None):
+REFERENCE_IMU = """attitude_of = "reference_imu"
+[reference_imu]
+time = {{ file = "ref.csv", columns = ["t"], unit = "s" }}
+angular_rate = {{ file = "ref.csv", columns = ["gx", "gy", "gz"] }}
+specific_force = {{ file = "ref.csv", columns = ["ax", "ay", "az"] }}
+axes = "{axes}"
+"""
+
+
+def _room(tmp_path, azimuth_deg=30.0, axes="FRD", extra="", azimuth_text=None,
+          reference_imu_axes=None):
     """A level walk counter-clockwise (seen from above) around a circle in true ENU, written in
     a z-up frame whose x points `azimuth_deg` east of north. Returns (t s, truth east/north/up
     m, heading rad, v_ned m/s). The attitude is of the body FRD (axes = FRD) or, with
-    attitude_of = "imu", of sensor axes `axes`."""
+    attitude_of = "imu", of sensor axes `axes` - or of a reference IMU's, `reference_imu_axes`,
+    which flies beside with the same outputs in its own axes."""
     t = np.arange(0.0, SECONDS, 1 / RATE)
     turn = SPEED / RADIUS * t
     e, n, u = RADIUS * np.cos(turn), RADIUS * np.sin(turn), np.full_like(t, 1.5)
@@ -52,9 +64,8 @@ def _room(tmp_path, azimuth_deg=30.0, axes="FRD", extra="", azimuth_text=None):
     gamma = a - heading
     q_lb = quaternion.from_float_array(np.column_stack(
         [np.cos(gamma / 2), 0 * t, 0 * t, np.sin(gamma / 2)])) * np.quaternion(0, 1, 0, 0)
-    if axes != "FRD":                       # the attitude is of the sensor's axes: q_ls
-        from mimunav.frames.mounting import Mounting
-        q_lb = q_lb * Mounting.from_axes(axes).q_vs
+    if axes != "FRD" or reference_imu_axes:     # the attitude is of a sensor's axes: q_ls
+        q_lb = q_lb * Mounting.from_axes(reference_imu_axes or axes).q_vs
     q = quaternion.as_float_array(q_lb)
     rows = np.column_stack([t, x, y, u, q])
     (tmp_path / "truth.csv").write_text("t,x,y,z,qw,qx,qy,qz\n" + "\n".join(
@@ -64,6 +75,13 @@ def _room(tmp_path, azimuth_deg=30.0, axes="FRD", extra="", azimuth_text=None):
                            np.tile([0.0, -SPEED ** 2 / RADIUS, -9.81], (len(t), 1))])
     (tmp_path / "imu.csv").write_text("t,gx,gy,gz,ax,ay,az\n" + "\n".join(
         ",".join(f"{v:.10g}" for v in row) for row in imu) + "\n")
+    if reference_imu_axes:                  # its outputs in its own axes: q_sv of the vehicle's
+        q_sv = np.conjugate(Mounting.from_axes(reference_imu_axes).q_vs)
+        mine = np.column_stack([t, attitude.rotate(q_sv, imu[:, 1:4]),
+                                attitude.rotate(q_sv, imu[:, 4:7])])
+        (tmp_path / "ref.csv").write_text("t,gx,gy,gz,ax,ay,az\n" + "\n".join(
+            ",".join(f"{v:.10g}" for v in row) for row in mine) + "\n")
+        extra += REFERENCE_IMU.format(axes=reference_imu_axes)
     (tmp_path / "spec.toml").write_text(SPEC.format(
         axes=axes, origin=list(ORIGIN), extra=extra,
         azimuth=azimuth_text or azimuth_deg))
@@ -102,6 +120,18 @@ def test_the_imus_own_attitude_is_turned_into_the_vehicles_by_its_mounting(tmp_p
         'axes = "FLU"', 'axes = "FLU"\nlever_arm_m = [0.1, 0.0, 0.0]'))
     with pytest.raises(RecordingError, match="lever_arm_m must be 0"):
         table.read(tmp_path / "spec.toml")
+
+
+def test_a_reference_imus_own_attitude_is_turned_into_the_vehicles_by_its_mounting(tmp_path):
+    """An INS whose attitude is of its own axes, mounted right-back-down (turned 90 deg in
+    yaw): the log's attitude is the vehicle's, and the initial heading too (it had been the
+    INS's axes', 90 deg off)."""
+    t, enu, heading, v_ned = _room(tmp_path, reference_imu_axes="RBD")
+    rec = table.read(tmp_path / "spec.toml")
+    yaw, pitch, roll = attitude.as_euler(attitude.from_wxyz(rec.reference["q_nb"]))
+    k = np.round((rec.reference["ns"] - 1.7e18) / 1e9 * RATE).astype(int)
+    np.testing.assert_allclose(np.angle(np.exp(1j * (yaw - heading[k]))), 0, atol=1e-5)
+    assert "reference IMU's own" in rec.reference_meta["attitude_axes"]
 
 
 def test_an_unknown_azimuth_makes_the_logs_initial_heading_assumed(tmp_path):

@@ -15,8 +15,8 @@ from mimunav.flightlog import FlightLog
 from mimunav.importers import rtklib
 from mimunav.importers.write import write_log
 from mimunav.frames.mounting import Mounting
-from drives import (DEG, DRIVE, H0, LAT0, LON0, MOUNT, ideal_flight, stop_track, straight_track,
-                    under_a_noisy_fix, under_two_cm)
+from drives import (DEG, DRIVE, H0, LAT0, LON0, MOUNT, ideal_flight, smoothstep, stop_track,
+                    straight_track, track_from_velocity, under_a_noisy_fix, under_two_cm)
 
 
 def test_alignment_recovers_attitude_and_bias_of_a_synthetic_drive(tmp_path):
@@ -45,6 +45,41 @@ def test_alignment_recovers_attitude_and_bias_of_a_synthetic_drive(tmp_path):
         # velocity direction's (0.02 deg)
         assert np.abs(err[:2]).max() < 0.005 * DEG, (t0, half, np.degrees(err))
         assert abs(err[2]) < 0.1 * DEG, (t0, half, np.degrees(err))
+
+
+def test_after_a_rest_the_heading_is_the_references_attitude_turned_back_not_the_course(tmp_path):
+    """A reference that carries attitude gives the heading at the rest, not the course (which
+    holds only without side slip): the vehicle turns 20 deg as it drives off (to 10 m/s, from
+    the rest's end at 20 s); the reference's heading, 10 deg off the truth throughout (a
+    crab), taken at the first epoch faster than COURSE_SPEED and turned back to the rest by
+    the gyro, is the truth's at rest + 10 - the course would give the truth's, the
+    reference's heading unturned that + 10 + the turn so far."""
+    t = np.arange(0.0, 60.0 + 1e-9, 0.1)
+    speed = 10.0 * smoothstep((t - 20.0) / 5.0)
+    yaw = 30 * DEG + 20 * DEG * smoothstep((t - 21.2) / 2.0)    # from 0.9 m/s (HOLD_SPEED 0.5)
+    track = track_from_velocity(t, np.column_stack([speed * np.cos(yaw), speed * np.sin(yaw),
+                                                    0 * t]))
+    path, motion, run = ideal_flight(tmp_path, MOUNT, track=track, with_attitude=True)
+    flight = Flight.load(path, reference_imu=False)
+    w, f = flight.mimu_imu
+    ref = windows.track_of(flight.truth)
+    crab = quaternion.from_rotation_vector([0.0, 0.0, 10 * DEG])      # about down: heading +10
+    ref["q_nb"] = quaternion.as_float_array(crab * attitude.from_wxyz(ref["q_nb"]))
+    align = alignment.initial_alignment(flight.mimu_t, w, f, flight.mimu_mounting, ref)
+    heading, _, _ = attitude.as_euler(attitude.from_wxyz(np.asarray(align.q_nb)[None]))
+    assert align.heading == "reference" and "turned back to the rest" in align.method
+    # leveled on its own outputs; the gyro bias's Earth rate removed at the reference's
+    # attitude, the accelerometer's along gravity only: what the log's metadata says
+    assert align.attitude_from == "leveled" and align.bias_basis["gyro"] == "reference_attitude"
+    up = np.asarray(align.bias_basis["gravity_sensor_axes"])
+    assert align.bias_basis["accel"] == "along_gravity"
+    assert np.allclose(up, f[0] / np.linalg.norm(f[0]), atol=1e-6)
+    assert flight.recording["bias_basis"]["gyro"] == "reference_attitude"   # the import too
+    assert flight.recording["initial_attitude"] == "leveled"
+    t_k = float(align.method.split("attitude at t = ")[1].split(" s")[0])
+    at_rest, at_k = attitude.as_euler(motion.kinematics(np.array([0.0, t_k])).q_nb)[0]
+    assert at_k - at_rest > 5 * DEG             # it had turned by then: the turn-back counts
+    assert abs(heading[0] - (at_rest + 10 * DEG)) < 0.01 * DEG, np.degrees(heading)
 
 
 def cut_track(track, t0):
