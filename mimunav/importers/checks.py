@@ -174,10 +174,17 @@ def _check_against_course(rec):
     within 0.1-10 (deg/s read as rad/s is 57) and the same sense, and its horizontal specific
     force the track's acceleration (along: d speed/dt, across: speed x course rate) within
     45 deg of yaw (a forward axis that points sideways). Judged only where the track turns
-    and accelerates enough to show it, and the two agree in shape (correlation, coherence)."""
+    and accelerates enough to show it, and the two agree in shape (correlation, coherence).
+    Not for a vehicle declared other than a car (a multicopter flies sideways, a walker's
+    phone points anywhere: a course rate that fit a yaw rate 9.5 s off had refused one)."""
     epoch = int(rec.imu_ns[0])
     track = reference_track(rec, epoch)
     if track is None:
+        return
+    if rec.vehicle not in (None, "car"):
+        rec.real["course_checks"] = (f"not made: a {rec.vehicle} (declared) need not move "
+                                     "along its forward axis, so its course judges neither the "
+                                     "IMU's axes nor its clock")
         return
     t = track["t"]
     speed, course_rate, z_track = track_acceleration(t, track["v_ned"])

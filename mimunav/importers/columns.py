@@ -33,9 +33,9 @@ def load_spec(path, columns, notes=None):
     if path.endswith((".csv", ".txt")):
         sep, skip, header = _csv_layout(path)
         data = _read_csv(path, header, notes, sep, skip)
-        if header:
-            names = list(data.dtype.names)
-            data = np.column_stack([data[n] for n in names])
+        if header:                      # the names as written, not as the reader makes them
+            data = np.column_stack([data[n] for n in data.dtype.names])
+            names = header_names(path, sep, skip)
             if columns is not None:
                 try:
                     columns = [names.index(c) if isinstance(c, str) else c for c in columns]
@@ -122,9 +122,24 @@ def _number(text):
         return False
 
 
+def header_names(path, sep, skip):
+    """A CSV's column names as its header row writes them, after `skip` lines: spaces around
+    each and a comment mark before the first left out ('#timestamp [ns]' is EuRoC's first)."""
+    with open(path, newline="") as fh, text_file(path):
+        for _ in range(skip):
+            fh.readline()
+        names = [c.strip() for c in next(csv.reader([fh.readline()], delimiter=sep))]
+    if names:
+        names[0] = names[0].lstrip("#").strip()
+    return names
+
+
 def _read_csv(path, header, notes, sep=",", skip=0):
+    """The numbers of a CSV after `skip` lines: a structured array named by its header row
+    when it has one (the reader's names, which `header_names` corrects), else (N, columns)."""
     read = lambda **kw: np.genfromtxt(path, delimiter=sep, names=True if header else None,  # noqa: E731
-                                      dtype=float, invalid_raise=True, skip_header=skip, **kw)
+                                      dtype=float, invalid_raise=True, skip_header=skip,
+                                      ndmin=0 if header else 2, **kw)
     try:
         return read()
     except ValueError as exc:

@@ -583,6 +583,7 @@ def test_a_csv_cut_mid_line_loses_only_that_line(tmp_path):
     ("2 s", "shifted by .* time bases differ.*--reference-time-offset"),
     ("1 s", "shifted by .* time bases differ.*--reference-time-offset"),
     ("0.5 s", None),
+    ("5 s multicopter", None),
 ])
 def test_the_gnss_course_judges_units_and_axes_without_a_reference_attitude(tmp_path, wrong,
                                                                             message):
@@ -595,7 +596,9 @@ def test_the_gnss_course_judges_units_and_axes_without_a_reference_attitude(tmp_
     value ambiguous here; the helper's drive gave 18.0 s exactly) - each refused at
     import, naming what to check (they imported and then 'diagnosed' a misalignment, or
     every window was wrong). Under 1 s (0.5 s) it is imported as stamped, and the import
-    says the shift it measured and that the diagnosis measures the lag."""
+    says the shift it measured and that the diagnosis measures the lag. Declared a
+    multicopter, whose course is no heading (it flies sideways), the course judges nothing
+    and says so (a multicopter's course had fit its yaw rate 9.5 s off and refused it)."""
     t_tr, lat, lon, h, v = straight_track()
     motion = TrackMotion(t_tr, lat, lon, h, v)
     t = np.arange(t_tr[0], t_tr[-1] + 1e-9, 0.01)
@@ -612,7 +615,12 @@ def test_the_gnss_course_judges_units_and_axes_without_a_reference_attitude(tmp_
     epoch = 1_700_000_000_000_000_000
     ref = dict(ns=epoch + np.round(t_tr * 1e9).astype(np.int64), lat=lat, lon=lon, h=h, v_ned=v)
     rec = Recording("wrong", "", epoch + np.round((t[1:] + shift) * 1e9).astype(np.int64), w,
-                    f, mounting, reference=ref)
+                    f, mounting, reference=ref, vehicle=wrong.split()[-1] if "copter" in wrong
+                    else None)
+    if rec.vehicle:
+        write_log(rec, tmp_path / "copter.mcap")
+        assert "not made: a multicopter" in rec.real["course_checks"]
+        return
     if message is None:
         write_log(rec, tmp_path / "late.mcap")
         assert "IMU's stamps shifted by -0.5 s" in rec.real["reference_clock"]

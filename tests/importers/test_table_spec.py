@@ -208,3 +208,23 @@ def test_iso_8601_date_times_are_unix_time_with_their_offset(tmp_path):
     (tmp_path / "imu.csv").write_text("\n".join(line.replace("-04:00", "") for line in lines))
     with pytest.raises(RecordingError, match="has no UTC offset"):
         table.read(tmp_path / "spec.toml")
+
+
+def test_columns_are_named_as_the_header_writes_them(tmp_path):
+    """EuRoC's header: a comment mark before the first name, units in brackets, spaces - each
+    name as written (they had been rewritten by the CSV reader: '#timestamp [ns]' into
+    'timestamp_ns', so the name the file shows was refused)."""
+    from mimunav.importers import columns
+    t = np.arange(5) * 5_000_000 + 1_403_636_579_758_555_392
+    rows = "\n".join(f"{ns},{k * 0.1},0.2,0.3, {9.8 + k}" for k, ns in enumerate(t))
+    (tmp_path / "data.csv").write_text("#timestamp [ns],w_RS_S_x [rad s^-1],w_RS_S_y [rad s^-1],"
+                                       "w_RS_S_z [rad s^-1], a_RS_S_x [m s^-2]\n" + rows + "\n")
+    got = columns.load_spec(str(tmp_path / "data.csv"), ["a_RS_S_x [m s^-2]", "timestamp [ns]",
+                                                         "w_RS_S_x [rad s^-1]"])
+    np.testing.assert_allclose(got[:, 0], 9.8 + np.arange(5))
+    np.testing.assert_allclose(got[:, 1], t.astype(float))
+    np.testing.assert_allclose(got[:, 2], np.arange(5) * 0.1)
+    with pytest.raises(RecordingError, match=r"not among \['timestamp \[ns\]'"):
+        columns.load_spec(str(tmp_path / "data.csv"), ["timestamp_ns"])
+    one = columns.load_spec(str(tmp_path / "data.csv"), [4])          # one column: (N, 1)
+    assert one.shape == (5, 1)
