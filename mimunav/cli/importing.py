@@ -80,11 +80,7 @@ def add_import(sub):
     p.add_argument("--reference-imu-rpy-deg", type=number(-360.0, 360.0), nargs=3,
                    metavar=("ROLL", "PITCH", "YAW"), help="ros2: the reference IMU's sensor -> "
                    "vehicle (FRD) rotation, deg (default 180 0 0, REP-103)")
-    p.add_argument("--pose-topic", help="ros2: a nav_msgs/msg/Odometry or geometry_msgs/msg/"
-                   "PoseStamped topic (local ENU frame) as the reference; needs --origin")
-    p.add_argument("--origin", type=number(-360.0, 1e5), nargs=3,
-                   metavar=("LAT_DEG", "LON_DEG", "H_M"),
-                   help="ros2: geodetic origin of the pose topic's frame (deg, deg, m)")
+    _add_pose_options(p)
     p.add_argument("--reference-status", type=number(-1, 2, int),
                    help="ros2: NavSatFix fixes of at least this status (2 = GBAS_FIX, RTK "
                    "grade) serve as the reference trajectory (/truth/state)")
@@ -105,6 +101,25 @@ def add_import(sub):
     p.add_argument("--spec-keys", action=_SpecKeys, help="table: print every key a spec may "
                    "hold (sections, units, time bases) and exit")
     p.set_defaults(func=_import)
+
+
+def _add_pose_options(p):
+    """ros2: a pose topic as the reference, its frame's origin and azimuth."""
+    p.add_argument("--pose-topic", help="ros2: a nav_msgs/msg/Odometry or geometry_msgs/msg/"
+                   "PoseStamped topic (local ENU frame, or --pose-azimuth) as the reference; "
+                   "needs --origin")
+    p.add_argument("--origin", type=number(-360.0, 1e5), nargs=3,
+                   metavar=("LAT_DEG", "LON_DEG", "H_M"),
+                   help="ros2: geodetic origin of the pose topic's frame (deg, deg, m)")
+    p.add_argument("--pose-azimuth", type=_azimuth, metavar="DEG|unknown",
+                   help="ros2: the pose topic's frame is level, z up, its x axis this far east "
+                   "of true north, deg (default: REP-103's ENU, x east = 90); 'unknown': its "
+                   "heading then measures nothing, and no finding stands on it")
+
+
+def _azimuth(text):
+    """--pose-azimuth: deg within [-360, 360], or 'unknown'."""
+    return "unknown" if text.strip().lower() == "unknown" else number(-360.0, 360.0)(text)
 
 
 class _SpecKeys(argparse.Action):

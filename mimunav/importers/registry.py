@@ -14,6 +14,7 @@ OPTIONS = {
     "reference_time_offset": (KINDS, 0.0),
     "gps_status": (("dataflash",), 3), "imu_topic": (("ros2",), None),
     "fix_topic": (("ros2",), None), "pose_topic": (("ros2",), None), "origin": (("ros2",), None),
+    "pose_azimuth": (("ros2",), None),
     "reference_status": (("ros2",), None), "reference_sigma": (("ros2",), np.inf),
     "reference_imu_topic": (("ros2",), None), "reference_imu_rpy_deg": (("ros2",), None),
     "solutions": (("rtklib",), ["fix"]), "root": (("table",), None),
@@ -63,7 +64,8 @@ def _ros2(source, mounting, o):
     return ros2.read(source, o["imu_topic"], o["fix_topic"], mounting=mounting,
                      reference_status=o["reference_status"],
                      reference_sigma_m=o["reference_sigma"], pose_topic=o["pose_topic"],
-                     origin=o["origin"], reference_imu_topic=o["reference_imu_topic"],
+                     origin=o["origin"], pose_azimuth=o["pose_azimuth"],
+                     reference_imu_topic=o["reference_imu_topic"],
                      reference_imu_mounting=(Mounting.from_rpy_deg(o["reference_imu_rpy_deg"])
                                              if o["reference_imu_rpy_deg"] else None))
 

@@ -99,14 +99,15 @@ def _messages(path, topic):
 
 def read(path, imu_topic=None, fix_topic=None, mounting=None, reference_status=None,
          reference_sigma_m=np.inf, pose_topic=None, origin=None, reference_imu_topic=None,
-         reference_imu_mounting=None):
+         reference_imu_mounting=None, pose_azimuth=None):
     """The recording of a ROS 2 MCAP as a `Recording`. With `reference_status` (the lowest
     NavSatStatus that counts: 2 = GBAS_FIX, RTK-grade) the fixes of at least that status
     whose horizontal sigma (from position_covariance, when known) is at most
     reference_sigma_m serve as the reference trajectory too, velocity from central
     differences of their positions. With `pose_topic` (Odometry or PoseStamped) and
     `origin` (lat deg, lon deg, h m of the pose frame's origin) the poses are the reference
-    instead (`_pose_reference`). With `reference_imu_topic` a second Imu topic (a better IMU
+    instead (`_pose_reference`): in REP-103's ENU, or with `pose_azimuth` (deg, or
+    "unknown") a z-up frame whose x axis points that far east of north. With `reference_imu_topic` a second Imu topic (a better IMU
     flown with it; `reference_imu_mounting`, default REP-103 FLU) is the reference IMU."""
     available = topics(path)
     imu_topic = _pick(path, available, IMU, imu_topic, required=True)
@@ -129,7 +130,13 @@ def read(path, imu_topic=None, fix_topic=None, mounting=None, reference_status=N
         if reference_status is not None:
             raise RecordingError("choose one reference: RTK fixes (--reference-status) or a "
                                  "pose topic (--pose-topic)")
-        reference, reference_meta = _pose_reference(path, available, pose_topic, origin)
+        frame = LocalFrame.from_axes("enu", origin) if pose_azimuth is None else \
+            LocalFrame.from_axes("z_up", origin, None if pose_azimuth == "unknown" else
+                                 float(pose_azimuth))
+        reference, reference_meta = _pose_reference(path, available, pose_topic, frame)
+    elif pose_azimuth is not None:
+        raise RecordingError("--pose-azimuth is the azimuth of --pose-topic's frame: give the "
+                             "pose topic too")
     elif reference_status is not None:
         if fixes is None:
             raise RecordingError(f"{path}: a reference from fixes needs a NavSatFix topic")
@@ -164,7 +171,8 @@ def read(path, imu_topic=None, fix_topic=None, mounting=None, reference_status=N
     return Recording(name, f"ROS 2 recording {os.path.basename(path)}: {imu_topic} {rate:.0f} Hz, "
                      f"{(ns[-1] - ns[0]) / 1e9:.1f} s", ns, w, f, mounting or FLU_TO_FRD,
                      fixes=fixes, reference=reference, reference_meta=reference_meta,
-                     real=real, assumed=assumed, reference_imu=second)
+                     real=real, assumed=assumed, reference_imu=second,
+                     reference_heading_known=frame.azimuth_known if pose_topic else True)
 
 
 def _imu_messages(path, topic):
@@ -243,16 +251,16 @@ def _fix_reference(fixes, status, sigma_m, topic):
     return dict(ns=ns[ok], lat=lat[ok], lon=lon[ok], h=h[ok], v_ned=v[ok]), meta
 
 
-def _pose_reference(path, available, topic, origin):
-    """An Odometry or PoseStamped topic as the reference: ENU position placed at `origin`
-    (lat deg, lon deg, h m) -> geodetic, orientation (body FLU in ENU) -> q_nb (vehicle FRD
-    -> NED), velocity from Odometry's body-frame twist, else central differences."""
+def _pose_reference(path, available, topic, frame):
+    """An Odometry or PoseStamped topic as the reference: positions in the local `frame`
+    (`local_frame.LocalFrame`) -> geodetic, orientation (body FLU in that frame) -> q_nb
+    (vehicle FRD -> NED), velocity from Odometry's body-frame twist, else central
+    differences."""
     from ..frames import attitude
     schema = available.get(topic)
     if schema not in (ODOMETRY, POSE_STAMPED):
         raise RecordingError(f"{path}: {topic!r} is {schema or 'not a topic'}; a pose reference "
                              f"needs {ODOMETRY} or {POSE_STAMPED}")
-    frame = LocalFrame.from_axes("enu", origin)
     rows = []
     for ns, m in _messages(path, topic):
         pose = m.pose.pose if schema == ODOMETRY else m.pose
@@ -268,28 +276,26 @@ def _pose_reference(path, available, topic, origin):
         raise RecordingError(f"{path}: {topic} has {len(a)} poses (finite ones needed, >= 3)")
     a = a[np.argsort(a[:, 0], kind="stable")]
     ns = a[:, 0].astype(np.int64)
-    enu = a[:, 1:4]
-    q_enu_flu = attitude.from_wxyz(a[:, 4:8])
-    norm = np.abs(q_enu_flu)
+    p_l = a[:, 1:4]
+    q_lb = attitude.from_wxyz(a[:, 4:8])
+    norm = np.abs(q_lb)
     if np.any(np.abs(norm - 1) > 1e-3):
         raise RecordingError(f"{topic}: orientations are not unit quaternions (|q| "
                              f"{norm.min():.3g}-{norm.max():.3g})")
-    q_enu_flu = q_enu_flu / norm
+    q_lb = q_lb / norm
     sigma = np.sqrt(np.maximum(a[:, 11], 0) + np.maximum(a[:, 12], 0))
     t = (ns - ns[0]) / 1e9
     if schema == ODOMETRY:          # the twist is in the child (body) frame
-        reference = frame.place(ns, enu, attitude.rotate(q_enu_flu, a[:, 8:11]),
-                                q_enu_flu * Q_FLU_FRD)
+        reference = frame.place(ns, p_l, attitude.rotate(q_lb, a[:, 8:11]), q_lb * Q_FLU_FRD)
         how = "velocity from its body-frame twist"
         v_sigma = np.sqrt(np.maximum(a[:, 13], 0) + np.maximum(a[:, 14], 0))
         velocity = {"velocity_sigma_m_s": f"{np.median(v_sigma):.3g}"} if np.any(v_sigma > 0) \
             else {}
     else:
-        reference = frame.place(ns, enu, None, q_enu_flu * Q_FLU_FRD)
+        reference = frame.place(ns, p_l, None, q_lb * Q_FLU_FRD)
         how = "velocity from position differences"
         velocity = _difference_velocity_sigma(sigma, t)
-    meta = {"source": f"{schema} {topic}, frame origin {origin[0]:.8f} deg, {origin[1]:.8f} "
-                      f"deg, {origin[2]:.3f} m (given), {how}",
+    meta = {"source": f"{schema} {topic}, {frame.description}, {how}",
             "independent": "unknown: a pose estimate of the recording system, which may fuse "
                            "this IMU",
             "position_sigma_m": f"{np.median(sigma):.3g}" if np.any(sigma > 0) else "not stated",

@@ -507,6 +507,20 @@ def test_ros2_pose_topic_in_a_local_enu_frame_as_the_reference(tmp_path, schema)
     if schema == "nav_msgs/msg/Odometry":
         assert "twist" in meta["source"] and float(meta["position_sigma_m"]) == \
             pytest.approx(0.03 * math.sqrt(2), rel=1e-2)
+    # the same poses in a frame whose x points north (y west): moving 30 deg west of north;
+    # a frame of azimuth not known: the log's heading is assumed
+    north = tmp_path / "north.mcap"
+    assert main(args[:4] + [str(north)] + args[5:] + ["--origin", "45.0", "10.0", "100.0",
+                                                      "--pose-azimuth", "0"]) == 0
+    with FlightLog(north) as log:
+        heading, _, _ = attitude.as_euler(quaternion.from_float_array(
+            log.read("/truth/state")["attitude_wxyz"]))
+    np.testing.assert_allclose(np.degrees(heading), -30.0, atol=0.01)
+    unknown = tmp_path / "unknown.mcap"
+    assert main(args[:4] + [str(unknown)] + args[5:] + ["--origin", "45.0", "10.0", "100.0",
+                                                        "--pose-azimuth", "unknown"]) == 0
+    with FlightLog(unknown) as log:
+        assert log.metadata()["recording"]["initial_heading"] == "assumed"
 
 
 def test_imu_and_reference_on_different_time_bases_are_refused():
