@@ -12,6 +12,7 @@ from ..navigation.rests import acceleration_match, span_means, track_acceleratio
 from ..frames import attitude
 from .pairing import pair, trajectory_clock
 from .recording import G0, RecordingError, utc_text
+from ..motion.carrier import LAND, car_tests
 from ..motion.track import velocity_from_positions
 
 
@@ -175,16 +176,20 @@ def _check_against_course(rec):
     force the track's acceleration (along: d speed/dt, across: speed x course rate) within
     45 deg of yaw (a forward axis that points sideways). Judged only where the track turns
     and accelerates enough to show it, and the two agree in shape (correlation, coherence).
-    Not for a vehicle declared other than a car (a multicopter flies sideways, a walker's
-    phone points anywhere: a course rate that fit a yaw rate 9.5 s off had refused one)."""
+    Not for what is not a car, declared or judged (`motion.carrier`): a multicopter flies
+    sideways, a walker's phone points anywhere (a course rate that fit a multicopter's yaw
+    rate 9.5 s off had refused it)."""
     epoch = int(rec.imu_ns[0])
     track = reference_track(rec, epoch)
     if track is None:
         return
-    if rec.vehicle not in (None, "car"):
-        rec.real["course_checks"] = (f"not made: a {rec.vehicle} (declared) need not move "
-                                     "along its forward axis, so its course judges neither the "
-                                     "IMU's axes nor its clock")
+    failed = [] if rec.vehicle == LAND else \
+        [f"declared a {rec.vehicle}"] if rec.vehicle else \
+        car_tests(track["v_ned"], (rec.imu_ns - epoch) / 1e9, rec.f)[0]
+    if failed:
+        rec.real["course_checks"] = (f"not made: not a car ({'; '.join(failed)}), so it need "
+                                     "not move along its forward axis, and its course judges "
+                                     "neither the IMU's axes nor its clock")
         return
     t = track["t"]
     speed, course_rate, z_track = track_acceleration(t, track["v_ned"])

@@ -21,7 +21,7 @@ from mimunav.importers.write import write_log
 from mimunav.frames.mounting import Mounting
 from mimunav.motion.vehicle import TrackMotion
 from drives import (DEG, DRIVE, H0, LAT0, LON0, MOUNT, one_turn_track, straight_track,
-                    with_consumer_noise)
+                    track_from_velocity, with_consumer_noise)
 from places import FLIGHTS
 
 
@@ -598,6 +598,7 @@ def test_a_csv_cut_mid_line_loses_only_that_line(tmp_path):
     ("1 s", "shifted by .* time bases differ.*--reference-time-offset"),
     ("0.5 s", None),
     ("5 s multicopter", None),
+    ("5 s at 80 m/s", None),
 ])
 def test_the_gnss_course_judges_units_and_axes_without_a_reference_attitude(tmp_path, wrong,
                                                                             message):
@@ -611,9 +612,12 @@ def test_the_gnss_course_judges_units_and_axes_without_a_reference_attitude(tmp_
     import, naming what to check (they imported and then 'diagnosed' a misalignment, or
     every window was wrong). Under 1 s (0.5 s) it is imported as stamped, and the import
     says the shift it measured and that the diagnosis measures the lag. Declared a
-    multicopter, whose course is no heading (it flies sideways), the course judges nothing
-    and says so (a multicopter's course had fit its yaw rate 9.5 s off and refused it)."""
+    multicopter, whose course is no heading (it flies sideways), or judged no car (80 m/s),
+    the course judges nothing and says so (a multicopter's course had fit its yaw rate
+    9.5 s off and refused it)."""
     t_tr, lat, lon, h, v = straight_track()
+    if "80 m/s" in wrong:
+        t_tr, lat, lon, h, v = track_from_velocity(t_tr, 8 * v)
     motion = TrackMotion(t_tr, lat, lon, h, v)
     t = np.arange(t_tr[0], t_tr[-1] + 1e-9, 0.01)
     run = truth.generate(motion, t)
@@ -626,14 +630,16 @@ def test_the_gnss_course_judges_units_and_axes_without_a_reference_attitude(tmp_
         mounting = Mounting.from_rpy_deg((180.0, 0.0, 270.0))
     else:           # two time bases 5 s apart (a quarter of the weave: 18 s aliases to 2),
         shift = float(wrong.split()[0])    # or 2 s (correlating 0.8 as stamped: searched too)
+    declared = wrong.split()[-1] if "copter" in wrong else None
     epoch = 1_700_000_000_000_000_000
     ref = dict(ns=epoch + np.round(t_tr * 1e9).astype(np.int64), lat=lat, lon=lon, h=h, v_ned=v)
     rec = Recording("wrong", "", epoch + np.round((t[1:] + shift) * 1e9).astype(np.int64), w,
-                    f, mounting, reference=ref, vehicle=wrong.split()[-1] if "copter" in wrong
-                    else None)
-    if rec.vehicle:
-        write_log(rec, tmp_path / "copter.mcap")
-        assert "not made: a multicopter" in rec.real["course_checks"]
+                    f, mounting, reference=ref, vehicle=declared)
+    if declared or "80 m/s" in wrong:
+        write_log(rec, tmp_path / "not-a-car.mcap")
+        assert ("not made: not a car (declared a multicopter)" if declared else
+                "not made: not a car (its speed's 99th percentile is 80 m/s") in \
+            rec.real["course_checks"]
         return
     if message is None:
         write_log(rec, tmp_path / "late.mcap")

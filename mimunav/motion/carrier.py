@@ -1,0 +1,69 @@
+"""What carried an IMU, judged from its reference track and its specific force: a land
+vehicle on wheels (a car), whose track gives its attitude under the no-side-slip model and
+whose course is its heading, or anything else - an aircraft, a multicopter, a rocket, a
+walker's phone - whose track does not. Only called a car when every test below holds (a
+recording that cannot show it is not one):
+
+    MOVING_SPEED    it moves like a vehicle: its horizontal speed's 95th percentile at least
+                    this (a walker, a hovering multicopter, a parked car stay below)
+    CAR_SPEED       and at most this at the 99th (an airliner, a rocket exceed it)
+    GRADE           its climb over its horizontal distance, the 99th percentile of |v_d| / v
+                    where it moves, at most this (a climbing aircraft or rocket exceed it)
+    STILL_CLIMB     where it hardly moves horizontally, |v_d| at most this (a multicopter
+                    climbs on the spot; a car does not)
+    LOAD            the IMU's 1 s mean |specific force| within this of 1 g in 99.5 % of the
+                    seconds (a rocket's boost or coast, an aircraft's pull or push exceed it)
+"""
+import numpy as np
+
+LAND = "car"
+MOVING_SPEED = 5.0          # m/s: 18 km/h - a car's drive reaches it most of the time it moves
+CAR_SPEED = 70.0            # m/s: 250 km/h
+GRADE = 0.3                 # 30 %: steeper than any public road (the steepest about 35 % over
+                            # metres; 99 % of a drive's moving epochs far below)
+STILL_CLIMB = 1.5           # m/s, below 2 m/s of horizontal speed
+LOAD = 0.5 * 9.80665        # m/s^2: 0.5 g - a car's hardest braking or cornering on dry road
+                            # adds about 1 g horizontally: |f| = sqrt(2) g, 0.41 g over
+
+
+def car_tests(v_ned, t=None, f=None):
+    """([the tests the track fails, said], [the numbers that passed them]) of a reference
+    track's NED velocities v_ned (m/s, (M, 3)) and the IMU's specific force f (m/s^2, sensor
+    axes, (N, 3)) at its stamps t (s) - None: not recorded (a raw /mimu/raw), the load not
+    tested."""
+    v = np.asarray(v_ned, float)
+    ok = np.isfinite(v).all(axis=1)
+    speed, climb = np.hypot(v[ok, 0], v[ok, 1]), np.abs(v[ok, 2])
+    failed, numbers = [], []
+    p95, p99 = float(np.percentile(speed, 95)), float(np.percentile(speed, 99))
+    if p95 < MOVING_SPEED:
+        failed.append(f"its speed's 95th percentile is {p95:.1f} m/s (a car's drive reaches "
+                      f"{MOVING_SPEED:g})")
+    if p99 > CAR_SPEED:
+        failed.append(f"its speed's 99th percentile is {p99:.0f} m/s (over {CAR_SPEED:g})")
+    moving = speed > 2.0
+    grade = float(np.percentile(climb[moving] / speed[moving], 99)) if moving.any() else 0.0
+    if grade > GRADE:
+        failed.append(f"it climbs at {100 * grade:.0f} % of its horizontal speed (99th "
+                      f"percentile; a road at most {100 * GRADE:.0f} %)")
+    still_climb = float(climb[~moving].max()) if (~moving).any() else 0.0
+    if still_climb > STILL_CLIMB:
+        failed.append(f"it climbs at {still_climb:.1f} m/s while hardly moving horizontally")
+    load = None if f is None else _load(t, f)
+    if load is not None and load > LOAD:
+        failed.append(f"its IMU's 1 s mean |specific force| is {load / 9.80665:.2f} g off 1 g "
+                      f"in 0.5 % of the seconds (a car at most {LOAD / 9.80665:.1f} g)")
+    numbers = [f"speed p95 {p95:.1f} m/s, p99 {p99:.1f} m/s", f"grade p99 {100 * grade:.0f} %",
+               f"climb at standstill {still_climb:.1f} m/s"] + \
+        ([f"load {load / 9.80665:.2f} g off 1 g (99.5 %)"] if load is not None else [])
+    return failed, numbers
+
+
+def _load(t, f):
+    """The 99.5th percentile of | |1 s mean specific force| - g | (m/s^2) of specific forces
+    f (m/s^2) at stamps t (s)."""
+    sec = np.floor(t - t[0]).astype(int)
+    count = np.bincount(sec)
+    means = np.column_stack([np.bincount(sec, f[:, i]) for i in range(3)])[count > 0] / \
+        count[count > 0, None]
+    return float(np.percentile(np.abs(np.linalg.norm(means, axis=1) - 9.80665), 99.5))
