@@ -10,6 +10,8 @@ import numpy as np
 
 from .recording import RecordingError, text_file
 
+LAYOUT_LINES = 200          # lines a table's layout is read from: comments, header, first data
+
 
 def check_keys(path, doc, known, where, elsewhere=None):
     """Refuse a key of `doc` not among `known`, naming where it belongs when `elsewhere`
@@ -61,34 +63,61 @@ def load_spec(path, columns, notes=None):
 
 
 def _csv_layout(path):
-    """(separator, lines before the header or data, whether a header row names the
-    columns) of a CSV: Excel's `sep=` line, else commas; a header when its first row is not
-    all numbers."""
+    """(separator - None: runs of whitespace -, lines before the header or data, whether a
+    header row names the columns) of a CSV or text table: Excel's `sep=` line, else commas,
+    else whitespace when the first data line is whitespace-separated numbers (KITTI's, TUM's
+    text tables). Lines starting with '#' before the data are comments; the last of them is
+    the header when it names as many columns as the data has ('# timestamp tx ty tz ...'),
+    and a first line that is not all numbers is one too."""
     with open(path) as fh, text_file(path):
-        first = fh.readline()
-        sep, skip = ",", 0
-        if first.strip().lower().startswith("sep="):        # Excel's separator line
-            sep = first.strip()[4:5] or ","
-            if sep not in (",", ";", "\t", "|"):
-                raise RecordingError(f"{path}: separator line {first.strip()!r}: one of "
-                                     ", ; tab |")
-            skip, first = 1, fh.readline()
-    return sep, skip, not all(_number(x) for x in first.strip().split(sep))
+        lines = [line for _, line in zip(range(LAYOUT_LINES), fh)]
+    sep, skip = ",", 0
+    if lines and lines[0].strip().lower().startswith("sep="):     # Excel's separator line
+        sep = lines[0].strip()[4:5] or ","
+        if sep not in (",", ";", "\t", "|"):
+            raise RecordingError(f"{path}: separator line {lines[0].strip()!r}: one of "
+                                 ", ; tab |")
+        skip = 1
+    k = skip
+    while k < len(lines) and (not lines[k].strip() or lines[k].lstrip().startswith("#")):
+        k += 1
+    data = lines[k].strip() if k < len(lines) else ""
+    if not skip and "," not in data and len(data.split()) > 1 and \
+            all(_number(x) for x in data.split()):
+        sep = None
+
+    def cells(line):
+        return line.split() if sep is None else line.split(sep)
+    if not all(_number(x) for x in cells(data)):
+        return sep, k, True
+    before = lines[k - 1].lstrip() if k > skip else ""
+    named = cells(before[1:]) if before.startswith("#") else []
+    if len(named) == len(cells(data)) and not all(_number(x) for x in named):
+        return sep, k - 1, True
+    return sep, k, False
 
 
-def load_date_times(path, column):
+def load_date_times(path, column, zone=None):
     """(N,) UNIX time, s, of a CSV column (header name or 0-based index) of ISO 8601
     date-times with their UTC offset ('2023-08-04 17:47:58.125-04:00', '...T21:47:58Z'), the
     rows `load_spec` reads of the same file (a last line cut short left out). A date-time
-    without an offset is refused: its time zone is unknown."""
+    without an offset takes `zone` ('Z', '+02:00': its clock's, as the data's documentation
+    says), and is refused without one: its time zone is unknown."""
     if not os.path.exists(path):
         raise RecordingError(f"{path}: no such file")
     if not path.endswith((".csv", ".txt")):
         raise RecordingError(f"{path}: date-times are read from a CSV, not a NumPy file")
     sep, skip, header = _csv_layout(path)
     with open(path, newline="") as fh, text_file(path):
-        rows = [r for r in list(csv.reader(fh, delimiter=sep))[skip:] if any(c.strip() for c in r)]
-    names = [c.strip() for c in rows.pop(0)] if header and rows else None
+        lines = fh.readlines()[skip:]
+    rows = [r for r in (csv.reader(lines, delimiter=sep) if sep else (x.split() for x in lines))
+            if any(c.strip() for c in r) and not r[0].lstrip().startswith("#")]
+    if header and isinstance(column, int) and rows and column < len(rows[0]) and \
+            _date_time(rows[0][column]):
+        header = False              # a first row of date-times is data (KITTI's timestamps)
+    names = header_names(path, sep, skip) if header else None
+    if header and lines and not lines[0].lstrip().startswith("#"):
+        rows.pop(0)                                 # the header row (a '#' one is left out)
     if isinstance(column, str):
         if names is None or column not in names:
             raise RecordingError(f"{path}: column {column!r} not among {names}")
@@ -103,13 +132,36 @@ def load_date_times(path, column):
         except ValueError:
             raise RecordingError(f"{path}: data row {k}: {text!r} is not an ISO 8601 "
                                  "date-time") from None
-        if when.tzinfo is None:
+        if when.tzinfo is None and zone is None:
             raise RecordingError(f"{path}: data row {k}: {text!r} has no UTC offset ('Z' or "
-                                 "+hh:mm): the time zone of its clock is unknown")
+                                 "+hh:mm): the time zone of its clock is unknown (`zone = "
+                                 "\"Z\"` or \"+hh:mm\" in its column source gives it)")
+        if when.tzinfo is None:
+            when = when.replace(tzinfo=_zone(path, zone))
         out[k] = when.timestamp()
     if not len(out):
         raise RecordingError(f"{path}: no data rows")
     return out
+
+
+def _date_time(text):
+    """Whether a cell reads as an ISO 8601 date-time."""
+    try:
+        datetime.datetime.fromisoformat(text.strip())
+        return True
+    except ValueError:
+        return False
+
+
+def _zone(path, zone):
+    """The tzinfo of a `zone` text: 'Z' or '+hh:mm' / '-hh:mm'."""
+    try:
+        tz = datetime.datetime.fromisoformat("2000-01-01T00:00:00" + str(zone)).tzinfo
+    except ValueError:
+        tz = None
+    if tz is None:
+        raise RecordingError(f"{path}: zone {zone!r}: 'Z' or a UTC offset such as '+02:00'")
+    return tz
 
 
 def _number(text):
@@ -124,11 +176,16 @@ def _number(text):
 
 def header_names(path, sep, skip):
     """A CSV's column names as its header row writes them, after `skip` lines: spaces around
-    each and a comment mark before the first left out ('#timestamp [ns]' is EuRoC's first)."""
+    each and a comment mark before the first left out ('#timestamp [ns]' is EuRoC's first);
+    sep None: separated by whitespace."""
     with open(path, newline="") as fh, text_file(path):
         for _ in range(skip):
             fh.readline()
-        names = [c.strip() for c in next(csv.reader([fh.readline()], delimiter=sep))]
+        line = fh.readline()
+    if sep is None:
+        names = line.lstrip().lstrip("#").split()
+    else:
+        names = [c.strip() for c in next(csv.reader([line], delimiter=sep))]
     if names:
         names[0] = names[0].lstrip("#").strip()
     return names

@@ -19,6 +19,9 @@ positive left wing down is `scale = [-1, 1, 1]` of the triad's FRD columns). A t
 that arrived late): it is subtracted. `time` overrides the section's time for that quantity (e.g. a
 gyro on its own clock: it is interpolated linearly onto the specific force's stamps, and the
 metadata says so). A CSV may start with Excel's `sep=;` line (its separator then: , ; tab |);
+a text table of numbers separated by spaces (KITTI's, TUM's) is read as such, its lines
+starting with '#' before the data comments - the last of them its header when it names every
+column ('# timestamp tx ty tz qx qy qz qw');
 rows that repeat the row before them (a logger writing a sample twice) are left out and
 counted; a repeated time with other values is refused. Every key is checked: an unknown one is
 refused, naming the nearest known one.
@@ -81,8 +84,8 @@ refused, naming the nearest known one.
               source, independent ("yes" / "no: why"), position_sigma_m   text for the metadata
 
 Units: s, ms, us, ns, iso8601 (a CSV column of date-times with their UTC offset,
-'2023-08-04 17:47:58.125-04:00' or '2023-08-04T21:47:58.125Z': UNIX time, so [time]
-unix_offset_s = 0); rad/s, deg/s; m/s^2, g (9.80665); deg, rad; m, mm, ft; m/s.
+'2023-08-04 17:47:58.125-04:00' or '2023-08-04T21:47:58.125Z', or without one and the
+source's `zone = "Z"` or "+02:00": UNIX time, so [time] unix_offset_s = 0); rad/s, deg/s; m/s^2, g (9.80665); deg, rad; m, mm, ft; m/s.
 """
 import os
 

@@ -34,7 +34,7 @@ SECTION_KEYS = {
                   "velocity_ecef", "attitude_wxyz", "attitude_rpy", "attitude_of", "source",
                   "independent", "position_sigma_m", "time_offset_s", "position_local",
                   "velocity_local", "local_frame")}
-SOURCE_KEYS = ("file", "columns", "unit", "scale", "time", "rotates", "age")
+SOURCE_KEYS = ("file", "columns", "unit", "scale", "time", "rotates", "age", "zone")
 FRAME_KEYS = ("axes", "origin", "azimuth_deg")          # [reference] local_frame = {...}
 RANGE_KEYS = ("angular_rate", "specific_force")
 ELSEWHERE = {**{key: "in [reference] local_frame = {" + key + " = ...}" for key in FRAME_KEYS},
@@ -103,6 +103,9 @@ class Spec:
                                  f"{', '.join(KINDS[kind])} (a count of another size: `scale`)")
         width = WIDTH.get(kind, 1)
         scale = _scale(self.path, source.get("scale", 1.0), width, where)
+        if "zone" in source and unit != "iso8601":
+            raise RecordingError(f"{self.path}: {where}: `zone` belongs to date-times "
+                                 "(unit = \"iso8601\")")
         x = self._date_times(source, where) if unit == "iso8601" else \
             load_spec(os.path.join(self.root, source["file"]), source.get("columns"), self.notes)
         if width == 1 and x.ndim == 2 and x.shape[1] == 1:
@@ -139,7 +142,8 @@ class Spec:
         columns = columns if isinstance(columns, list) else [columns]
         if len(columns) != 1 or source.get("scale", 1.0) != 1.0:
             raise RecordingError(f"{self.path}: {where}: date-times are one column, unscaled")
-        return load_date_times(os.path.join(self.root, source["file"]), columns[0])
+        return load_date_times(os.path.join(self.root, source["file"]), columns[0],
+                               source.get("zone"))
 
     def finite_rows(self, where, *columns):
         """The columns (equal lengths) with every row that is not finite in any of them left

@@ -228,3 +228,31 @@ def test_columns_are_named_as_the_header_writes_them(tmp_path):
         columns.load_spec(str(tmp_path / "data.csv"), ["timestamp_ns"])
     one = columns.load_spec(str(tmp_path / "data.csv"), [4])          # one column: (N, 1)
     assert one.shape == (5, 1)
+
+
+def test_text_tables_separated_by_spaces_with_comment_lines_and_zoned_date_times(tmp_path):
+    """TUM's ground truth: comment lines, the last naming the columns, numbers separated by
+    spaces; KITTI's timestamps: date-times without a UTC offset, which the source's `zone`
+    gives (refused without it, and `zone` beside another unit)."""
+    from mimunav.importers import columns
+    rows = "\n".join(f"{1305031098.6659 + 0.01 * k:.4f} {0.1 * k:.3f} 0.5  1.6 0 0 0 1"
+                     for k in range(4))
+    (tmp_path / "groundtruth.txt").write_text(
+        "# ground truth trajectory\n# file: 'rgbd_dataset_freiburg1_xyz.bag'\n"
+        "# timestamp tx ty tz qx qy qz qw\n" + rows + "\n")
+    got = columns.load_spec(str(tmp_path / "groundtruth.txt"), ["tx", "timestamp", "qw"])
+    np.testing.assert_allclose(got, [[0.1 * k, 1305031098.6659 + 0.01 * k, 1.0]
+                                     for k in range(4)])
+    (tmp_path / "bare.txt").write_text("# no names here\n" + rows + "\n")
+    assert columns.load_spec(str(tmp_path / "bare.txt"), [1]).ravel().tolist() == \
+        pytest.approx([0.0, 0.1, 0.2, 0.3])
+    (tmp_path / "timestamps.txt").write_text("2011-09-26 13:02:25.964389445\n"
+                                             "2011-09-26 13:02:26.074347265\n")
+    with pytest.raises(RecordingError, match="13:02:25.96.* no UTC offset.*zone = "):
+        columns.load_date_times(str(tmp_path / "timestamps.txt"), 0)
+    utc = columns.load_date_times(str(tmp_path / "timestamps.txt"), 0, "Z")
+    assert utc[0] == pytest.approx(1317042145.964389, abs=1e-6)
+    cest = columns.load_date_times(str(tmp_path / "timestamps.txt"), 0, "+02:00")
+    np.testing.assert_allclose(utc - cest, 7200.0)
+    with pytest.raises(RecordingError, match="zone 'CEST'"):
+        columns.load_date_times(str(tmp_path / "timestamps.txt"), 0, "CEST")
