@@ -3,6 +3,7 @@ line cut short) or a NumPy array file; and the key check every table-spec level 
 import csv
 import datetime
 import difflib
+import glob
 import os
 import re
 
@@ -27,9 +28,25 @@ def check_keys(path, doc, known, where, elsewhere=None):
 
 def load_spec(path, columns, notes=None):
     """A numeric array from a CSV (header row optional) or a NumPy file (.npy, .npz with one
-    array, or an extension-less .npy as comma2k19 stores them). A CSV's last line cut short
-    (a logger stopped mid-write) is left out and said in `notes`; any other line whose column
-    count differs is refused."""
+    array, or an extension-less .npy as comma2k19 stores them) - or from every file a glob
+    pattern matches, their rows in the order of their names (KITTI's oxts/data/*.txt, a file
+    per epoch). A CSV's last line cut short (a logger stopped mid-write) is left out and said
+    in `notes`; any other line whose column count differs is refused."""
+    return np.vstack([_load_one(one, columns, notes) for one in files_of(path)])
+
+
+def files_of(path):
+    """[path], or the files a glob pattern (* ? [) matches, in the order of their names."""
+    if not any(c in os.path.basename(path) for c in "*?["):
+        return [path]
+    found = sorted(glob.glob(path))
+    if not found:
+        raise RecordingError(f"{path}: no file matches")
+    return found
+
+
+def _load_one(path, columns, notes):
+    """`load_spec` of one file, (N, columns)."""
     if not os.path.exists(path):
         raise RecordingError(f"{path}: no such file")
     if path.endswith((".csv", ".txt")):
@@ -59,7 +76,7 @@ def load_spec(path, columns, notes=None):
         if any(isinstance(c, str) for c in columns):
             raise RecordingError(f"{path}: columns by name need a CSV header")
         data = data.reshape(len(data), -1)[:, list(columns)]
-    return data
+    return data.reshape(len(data), -1)
 
 
 def _csv_layout(path):
@@ -98,6 +115,11 @@ def _csv_layout(path):
 
 
 def load_date_times(path, column, zone=None):
+    """`date_times` of a file, or of every file a glob pattern matches (`files_of`)."""
+    return np.concatenate([date_times(one, column, zone) for one in files_of(path)])
+
+
+def date_times(path, column, zone=None):
     """(N,) UNIX time, s, of a CSV column (header name or 0-based index) of ISO 8601
     date-times with their UTC offset ('2023-08-04 17:47:58.125-04:00', '...T21:47:58Z'), the
     rows `load_spec` reads of the same file (a last line cut short left out). A date-time

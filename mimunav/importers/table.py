@@ -11,7 +11,8 @@ a path string or a table:
       time = <column source> }
 
 `columns` picks CSV columns by header name or 0-based index, or NumPy columns by index
-(default: all). `scale` multiplies the column before its unit converts it (a logger's counts:
+(default: all); `file` may be a glob pattern ("oxts/data/*.txt": a file per epoch, their rows
+in the order of their names). `scale` multiplies the column before its unit converts it (a logger's counts:
 a time in ticks of 10 us is `unit = "us", scale = 10`; a gyro in 0.01 deg/s steps is
 `unit = "deg/s", scale = 0.01`; one scale per column gives a logger's own signs: a roll rate
 positive left wing down is `scale = [-1, 1, 1]` of the triad's FRD columns). A time column's

@@ -256,3 +256,16 @@ def test_text_tables_separated_by_spaces_with_comment_lines_and_zoned_date_times
     np.testing.assert_allclose(utc - cest, 7200.0)
     with pytest.raises(RecordingError, match="zone 'CEST'"):
         columns.load_date_times(str(tmp_path / "timestamps.txt"), 0, "CEST")
+
+
+def test_a_file_per_epoch_is_read_through_a_glob_in_name_order(tmp_path):
+    """KITTI's raw OXTS: one text file of one line per epoch, named by its index - a glob's
+    files read in the order of their names (not the order the folder lists them in)."""
+    from mimunav.importers import columns
+    (tmp_path / "data").mkdir()
+    for k in (2, 0, 10, 1):                                  # written out of order
+        (tmp_path / "data" / f"{k:010d}.txt").write_text(f"{49.0 + k} 8.4 {100 + k}\n")
+    got = columns.load_spec(str(tmp_path / "data" / "*.txt"), [0, 2])
+    np.testing.assert_allclose(got, [[49.0, 100], [50.0, 101], [51.0, 102], [59.0, 110]])
+    with pytest.raises(RecordingError, match="no file matches"):
+        columns.load_spec(str(tmp_path / "data" / "*.csv"), None)
