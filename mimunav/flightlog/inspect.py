@@ -63,6 +63,31 @@ def _mounting_text(doc):
             f"{np.round(m.lever_arm_m, 3).tolist()} m")
 
 
+HEADING = {"reference": "from the reference's attitude", "course": "from the GNSS course (a "
+           "car's heading)", "assumed": "assumed: nothing measured it"}
+ATTITUDE = {"reference": "from the reference", "leveled": "leveled on the IMU's own specific "
+            "force"}
+
+
+def _recording_lines(meta):
+    """An imported recording's initial heading and attitude - where they came from, which
+    decides what the diagnosis may find - and its reference's frame, when the metadata says."""
+    rec = meta.get("recording") if isinstance(meta.get("recording"), dict) else {}
+    assumed = rec.get("assumed") if isinstance(rec.get("assumed"), dict) else {}
+    lines = []
+    if rec.get("initial_heading"):
+        heading = rec["initial_heading"]
+        why = str(assumed.get("initial_heading") or "").removeprefix("assumed: ")
+        said = f"{heading} ({why})" if why else HEADING.get(heading, heading)
+        leveled = ATTITUDE.get(rec.get("initial_attitude"))
+        lines.append(f"heading   {said}" + (f"; attitude {leveled}" if leveled else ""))
+    frame = (meta.get("reference") or {}).get("frame") if isinstance(meta.get("reference"),
+                                                                       dict) else None
+    if frame:
+        lines.append(f"reference {frame}")
+    return lines
+
+
 def describe(log, unreadable=None):
     """The text of `mimunav info`; the topics that cannot be read are appended to the list
     `unreadable` when one is given."""
@@ -79,6 +104,7 @@ def describe(log, unreadable=None):
                      f"{np.degrees(s.get('latitude', 0)):.6f} deg, lon "
                      f"{np.degrees(s.get('longitude', 0)):.6f} deg, h {s.get('height', 0):.1f} m, "
                      f"v_ned [{v[0]:.3f}, {v[1]:.3f}, {v[2]:.3f}] m/s")
+    lines += _recording_lines(meta)
     for name in sorted(k for k in meta if k.startswith("sensor/")):
         m = meta[name]
         lines.append(f"{name:<11} {m.get('model', '?')}, {m.get('sample_rate_hz', '?')} Hz, "

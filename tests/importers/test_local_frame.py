@@ -9,6 +9,7 @@ import pytest
 import quaternion
 
 from mimunav.flightlog import FlightLog
+from mimunav.flightlog.inspect import describe
 from mimunav.frames import attitude
 from mimunav.frames.mounting import Mounting
 from mimunav.importers import table
@@ -143,6 +144,10 @@ def test_an_unknown_azimuth_makes_the_logs_initial_heading_assumed(tmp_path):
         meta = log.metadata()["recording"]
     assert meta["initial_heading"] == "assumed"
     assert "azimuth is not known" in meta["assumed"]["initial_heading"]
+    with FlightLog(tmp_path / "log.mcap") as log:           # `mimunav info` says it
+        text = describe(log)
+    assert "heading   assumed (the reference lies in a local frame whose azimuth" in text
+    assert "reference local frame (level, z up, x at an azimuth not known" in text
 
 
 @pytest.mark.parametrize("edit, match", [
