@@ -15,7 +15,10 @@ a path string or a table:
 in the order of their names). `scale` multiplies the column before its unit converts it (a logger's counts:
 a time in ticks of 10 us is `unit = "us", scale = 10`; a gyro in 0.01 deg/s steps is
 `unit = "deg/s", scale = 0.01`; one scale per column gives a logger's own signs: a roll rate
-positive left wing down is `scale = [-1, 1, 1]` of the triad's FRD columns). A time column's
+positive left wing down is `scale = [-1, 1, 1]` of the triad's FRD columns). `offset` is then
+added, in the column's unit (one number, or one per column): KITTI's roll, pitch (positive
+nose down) and yaw (from east, counter-clockwise) are attitude_rpy's with `unit = "rad",
+scale = [1, -1, -1], offset = [0, 0, 1.5707963267948966]`. A time column's
 `age` (a column source in a time unit) is the data's age when its row was written (a packet
 that arrived late): it is subtracted. `time` overrides the section's time for that quantity (e.g. a
 gyro on its own clock: it is interpolated linearly onto the specific force's stamps, and the

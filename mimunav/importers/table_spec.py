@@ -34,7 +34,8 @@ SECTION_KEYS = {
                   "velocity_ecef", "attitude_wxyz", "attitude_rpy", "attitude_of", "source",
                   "independent", "position_sigma_m", "time_offset_s", "position_local",
                   "velocity_local", "local_frame")}
-SOURCE_KEYS = ("file", "columns", "unit", "scale", "time", "rotates", "age", "zone")
+SOURCE_KEYS = ("file", "columns", "unit", "scale", "offset", "time", "rotates", "age",
+               "zone")
 FRAME_KEYS = ("axes", "origin", "azimuth_deg")          # [reference] local_frame = {...}
 RANGE_KEYS = ("angular_rate", "specific_force")
 ELSEWHERE = {**{key: "in [reference] local_frame = {" + key + " = ...}" for key in FRAME_KEYS},
@@ -103,6 +104,7 @@ class Spec:
                                  f"{', '.join(KINDS[kind])} (a count of another size: `scale`)")
         width = WIDTH.get(kind, 1)
         scale = _scale(self.path, source.get("scale", 1.0), width, where)
+        offset = _scale(self.path, source.get("offset", 0.0), width, where, "offset")
         if "zone" in source and unit != "iso8601":
             raise RecordingError(f"{self.path}: {where}: `zone` belongs to date-times "
                                  "(unit = \"iso8601\")")
@@ -125,7 +127,7 @@ class Spec:
                                  ", counted from 0 after any header line); `nonfinite = "
                                  "\"drop\"` at the spec's top level, beside `name`, leaves such "
                                  "rows out (and counts them)")
-        x = x * (UNITS[unit] * scale)
+        x = (x * scale + offset) * UNITS[unit]
         if "age" in source:             # the data's age when the row was written: its time
             if kind != "time":          # is the row's less the age
                 raise RecordingError(f"{self.path}: {where}: `age` belongs to a time column")
@@ -177,15 +179,18 @@ class Spec:
         return t + offset
 
 
-def _scale(path, scale, width, where):
+def _scale(path, scale, width, where, key="scale"):
     """A source's `scale`: one non-zero number, or one per column (a logger's own signs: a
-    roll rate positive left wing down is `scale = [-1, 1, 1]` of an FRD triad)."""
+    roll rate positive left wing down is `scale = [-1, 1, 1]` of an FRD triad); with key
+    "offset", its `offset` (any finite numbers, 0 allowed)."""
     values = scale if isinstance(scale, list) else [scale]
     if len(values) not in (1, width) or not all(
-            isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v) and v != 0
-            for v in values):
-        raise RecordingError(f"{path}: {where} scale {scale!r}: a finite non-zero number (the "
-                             f"column's step in its unit), or {width} of them, one per column")
+            isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v)
+            and (v != 0 or key == "offset") for v in values):
+        raise RecordingError(f"{path}: {where} {key} {scale!r}: a finite "
+                             + ("non-zero number (the column's step in its unit)"
+                                if key == "scale" else "number in the column's unit")
+                             + f", or {width} of them, one per column")
     return np.asarray(values, float) if len(values) > 1 else float(values[0])
 
 

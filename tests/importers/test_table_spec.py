@@ -269,3 +269,20 @@ def test_a_file_per_epoch_is_read_through_a_glob_in_name_order(tmp_path):
     np.testing.assert_allclose(got, [[49.0, 100], [50.0, 101], [51.0, 102], [59.0, 110]])
     with pytest.raises(RecordingError, match="no file matches"):
         columns.load_spec(str(tmp_path / "data" / "*.csv"), None)
+
+
+def test_an_offset_is_added_after_the_scale_in_the_columns_unit(tmp_path):
+    """KITTI's OXTS attitude (roll, pitch positive nose down, yaw from east counter-clockwise,
+    rad) as the aerospace roll, pitch, heading: scale [1, -1, -1], offset [0, 0, pi/2]; an
+    offset that is no number is refused, naming it."""
+    from mimunav.importers.table_spec import Spec
+    (tmp_path / "oxts.txt").write_text("0.1 0.2 0.0\n-0.1 -0.2 1.5707963267948966\n")
+    source = '{ file = "oxts.txt", unit = "rad", scale = [1, -1, -1], offset = [0, 0, %s] }'
+    (tmp_path / "s.toml").write_text('[imu]\n[time]\nunix_offset_s = 0\n[reference]\n'
+                                     'attitude_rpy = ' + source % "1.5707963267948966" + "\n")
+    rpy = Spec(tmp_path / "s.toml").column("reference", "attitude_rpy")
+    np.testing.assert_allclose(rpy, [[0.1, -0.2, np.pi / 2], [-0.1, 0.2, 0.0]], atol=1e-12)
+    (tmp_path / "s.toml").write_text((tmp_path / "s.toml").read_text().replace(
+        "0, 0, 1.5707963267948966", '0, 0, "east"'))
+    with pytest.raises(RecordingError, match="offset .*a finite number in the column's unit"):
+        Spec(tmp_path / "s.toml").column("reference", "attitude_rpy")
