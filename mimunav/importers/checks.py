@@ -70,7 +70,52 @@ def check_recording(rec):
         raise RecordingError(f"{rec.name}: the gyro's rates reach {imu_rate:.3g}, the reference "
                              f"attitude turns at up to {ref_rate:.3g} rad/s: is the gyro's unit "
                              "(deg/s or rad/s) right?")
+    _check_heading_against_course(rec, q, ok)
     _check_reference_clock(rec)
+
+
+HEADING_OFF_COURSE_DEG = 10.0   # deg: a car's reference heading from its own course, the
+                                # median over its epochs faster than FAST_S: in ordinary
+                                # driving a car slips a few degrees (beyond ~5 its tyres
+                                # slide), and a wrong yaw convention is off by tens (KITTI's
+                                # yaw from east read as a heading: 90)
+FAST_S = 5.0                    # m/s: a course from differenced fixes holds to a few degrees
+
+
+def _check_heading_against_course(rec, q, ok):
+    """A car's reference heading must follow its own course (no side slip), in the mean
+    over its fast epochs: refused beyond HEADING_OFF_COURSE_DEG (a yaw in another convention;
+    a car reversing for most of its fast epochs reads 180 and is refused too, saying so);
+    said in rec.real otherwise. Not judged for what is not a car (it may fly sideways)."""
+    epoch = int(rec.imu_ns[0])
+    track = reference_track(rec, epoch)
+    if track is None or _not_a_car(rec, track, epoch):
+        return
+    v = rec.reference["v_ned"][ok]
+    fast = np.hypot(v[:, 0], v[:, 1]) > FAST_S
+    if fast.sum() < 20:
+        return
+    heading = attitude.as_euler(attitude.from_wxyz(q[ok][fast]))[0]
+    off = np.angle(np.exp(1j * (heading - np.arctan2(v[fast, 1], v[fast, 0]))))
+    mean = math.degrees(float(np.angle(np.mean(np.exp(1j * off)))))
+    said = (f"the reference's heading lies {mean:+.1f} deg from its own course (circular "
+            f"mean over {int(fast.sum())} epochs faster than {FAST_S:g} m/s)")
+    if abs(mean) > HEADING_OFF_COURSE_DEG:
+        raise RecordingError(
+            f"{rec.name}: {said}, and a car moves along its heading: is the attitude's yaw in "
+            "the convention the import reads (a heading from north, clockwise; a yaw from "
+            "east, counter-clockwise, is heading = 90 deg - yaw: `scale` and `offset` in a "
+            "table spec)?" + (" Or does it drive in reverse most of the time?"
+                              if abs(mean) > 150 else ""))
+    rec.real["reference_heading"] = said
+
+
+def _not_a_car(rec, track, epoch):
+    """[why the recording is not a car] - declared another vehicle, or the tests
+    `motion.carrier.car_tests` fails on its track and specific force - or [] for a car."""
+    if rec.vehicle:
+        return [] if rec.vehicle == LAND else [f"declared a {rec.vehicle}"]
+    return car_tests(track["v_ned"], (rec.imu_ns - epoch) / 1e9, rec.f)[0]
 
 
 def _check_reference_clock(rec):
@@ -183,9 +228,7 @@ def _check_against_course(rec):
     track = reference_track(rec, epoch)
     if track is None:
         return
-    failed = [] if rec.vehicle == LAND else \
-        [f"declared a {rec.vehicle}"] if rec.vehicle else \
-        car_tests(track["v_ned"], (rec.imu_ns - epoch) / 1e9, rec.f)[0]
+    failed = _not_a_car(rec, track, epoch)
     if failed:
         rec.real["course_checks"] = (f"not made: not a car ({'; '.join(failed)}), so it need "
                                      "not move along its forward axis, and its course judges "
@@ -348,4 +391,5 @@ def reference_track(rec, epoch):
     q = src.get("q_nb")
     return dict(t=t[ok], lat=src["lat"][ok], lon=src["lon"][ok], h=src["h"][ok], v_ned=v[ok],
                 q_nb=None if q is None else np.asarray(q)[ok],
-                attitude_source=rec.reference_meta.get("source", "the reference"), what=what)
+                attitude_source=rec.reference_meta.get("source", "the reference"), what=what,
+                heading_known=rec.reference_heading_known)

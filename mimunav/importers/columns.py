@@ -57,7 +57,8 @@ def _load_one(path, columns, notes):
             names = header_names(path, sep, skip)
             if columns is not None:
                 try:
-                    columns = [names.index(c) if isinstance(c, str) else c for c in columns]
+                    columns = [names.index(c.lstrip("#").strip()) if isinstance(c, str) else c
+                               for c in columns]       # a header's '#' is no part of a name
                 except ValueError:
                     raise RecordingError(f"{path}: columns {columns} not among {names}") from None
     else:
@@ -141,6 +142,7 @@ def date_times(path, column, zone=None):
     if header and lines and not lines[0].lstrip().startswith("#"):
         rows.pop(0)                                 # the header row (a '#' one is left out)
     if isinstance(column, str):
+        column = column.lstrip("#").strip()         # a header's '#' is no part of a name
         if names is None or column not in names:
             raise RecordingError(f"{path}: column {column!r} not among {names}")
         column = names.index(column)

@@ -117,7 +117,9 @@ def _realigned(log, truth, t_ref, t0, t1, epoch, meta):
                          f"{int(inside.sum())} reference epochs: too few to start from")
     track = {"t": t_ref[inside], "lat": truth["latitude"][inside],
              "lon": truth["longitude"][inside], "h": truth["height"][inside],
-             "v_ned": np.asarray(truth["velocity_ned"], float)[inside]}
+             "v_ned": np.asarray(truth["velocity_ned"], float)[inside],
+             "heading_known": (meta.get("recording") or {}).get("reference_heading_known",
+                                                                 True) is not False}
     mounting = Mounting.from_dict(meta.get("sensor/mimu", {}).get("mounting", {}))
     # the biases the import measured over the whole recording (its rest) hold for the span:
     # taken out first, where the span alone may hold no rest to measure them

@@ -40,7 +40,8 @@ refused, naming the nearest known one.
               specific_force     m/s^2 | g                          (N, 3), sensor axes
               or angle_increment rad | deg, velocity_increment m/s: each sample's increment
                                  over the interval its stamp ends (divided by that interval)
-              axes = "FRD"       vehicle direction of sensor x, y, z (`Mounting.from_axes`)
+              axes               required (or mounting_rpy_deg): the vehicle directions of
+                                 sensor x, y, z, e.g. "FRD" (`Mounting.from_axes`)
               or mounting_rpy_deg = [roll, pitch, yaw]; lever_arm_m = [x, y, z] (vehicle FRD)
               range              the sensor's full scale: {angular_rate = {value = 2000,
                                  unit = "deg/s"}, specific_force = {value = 16, unit = "g"}}
@@ -48,6 +49,10 @@ refused, naming the nearest known one.
                                  the log's sensor/mimu range says it
               time_offset_s      added to this section's device time (also in [reference],
                                  [reference_imu]): a second clock's offset
+              sampling = "interval_mean" (default: each sample the mean over the interval
+                                 its stamp ends, as the log contract says) or "instant" (the
+                                 value at its stamp, as most loggers sample: the stamps move
+                                 half an interval later)
     [time]    unix_offset_s      UNIX time = device time + offset (s), or
               gps_week_tow       {file, time}: rows of (GPS week, time of week s) stamped in
                                  device time; the offset is their median difference, the GPS -
@@ -103,6 +108,7 @@ from .recording import RecordingError, Recording
 from .table_reference import reference_of
 from .table_spec import KINDS, RANGE_KEYS, UNITS, Spec, unix_ns, unix_offset_s, unrepeated
 
+SAMPLING = ("interval_mean", "instant")      # what an IMU section's samples are (`_sampled`)
 # what the [reference] attitude is of: the vehicle's axes, the reference IMU's (an INS's
 # solution: `pairing` measures the MIMU's mounting against it) or the MIMU's own
 ATTITUDE_OF = ("vehicle", "reference_imu", "imu")
@@ -158,7 +164,29 @@ def _imu(spec, section):
         w = np.column_stack([np.interp(t_f, t_w, w[:, i]) for i in range(3)])
         spec.notes[f"{section}_time"] = ("angular rate interpolated linearly onto the specific "
                                          "force's stamps")
-    return t_f, w, f
+    return _sampled(spec, section, t_f, (rate_key, force_key)), w, f
+
+
+def _sampled(spec, section, t, keys):
+    """The stamps t (s) of an IMU section as the log contract means them - each sample the
+    mean over the interval its stamp ends: a logger's instantaneous samples (`sampling =
+    "instant"`) are the means, to second order, of the interval centred on them, so their
+    stamps move half a median interval later (read as means they lead by it: a 200 Hz
+    IMU by 2.5 ms, which the diagnosis then measures as a time skew)."""
+    sampling = spec.section(section).get("sampling", "interval_mean")
+    if sampling not in SAMPLING:
+        raise RecordingError(f"{spec.path}: [{section}] sampling {sampling!r}: "
+                             + " or ".join(f'"{k}"' for k in SAMPLING))
+    if sampling == "interval_mean":
+        return t
+    if any(k.endswith("increment") for k in keys):
+        raise RecordingError(f"{spec.path}: [{section}] sampling = \"instant\" belongs to "
+                             "rates and specific forces: an increment is over its interval")
+    half = 0.5 * float(np.median(np.diff(t)))
+    spec.notes[f"{section}_sampling"] = (f"instantaneous samples: stamps moved {half * 1e3:.4g} "
+                                         "ms later, to the end of the interval each is the "
+                                         "mean of")
+    return t + half
 
 
 def _one_of(spec, section, rate, increment):

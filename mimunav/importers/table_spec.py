@@ -24,7 +24,7 @@ WIDTH = {"angular_rate": 3, "specific_force": 3, "angle_increment": 3, "velocity
          "attitude_rpy": 3, "position_local": 3, "velocity_local": 3}
 # every key a spec may hold, by where it stands (an unknown one is refused, the nearest named)
 IMU_KEYS = ("time", "angular_rate", "specific_force", "angle_increment", "velocity_increment",
-            "axes", "mounting_rpy_deg", "lever_arm_m", "range", "time_offset_s")
+            "axes", "mounting_rpy_deg", "lever_arm_m", "range", "time_offset_s", "sampling")
 SECTION_KEYS = {
     "": ("name", "description", "model", "source", "root", "nonfinite", "vehicle", "imu", "time",
          "reference", "reference_imu"),

@@ -137,6 +137,10 @@ def summary(rec, align, path):
         lines.append(f"measured mounting yaw: {rec.real['mounting_yaw_against_course']}")
     if "reference_clock" in rec.real:
         lines.append(f"measured clock offset: {rec.real['reference_clock']}")
+    if "reference_heading" in rec.real:
+        lines.append(f"measured heading: {rec.real['reference_heading']}")
+    if "course_checks" in rec.real:
+        lines.append(f"course checks: {rec.real['course_checks']}")
     lines.append(f"initial state at t = {align.t:.3f} s: {align.method}")
     if np.isnan(align.static[0]) and np.any(align.gyro_bias):
         lines.append("biases from the reference's attitude and velocity (sensor axes): gyro "

@@ -265,12 +265,15 @@ def _from_rest(t, w, f, mounting, track, interval):
                      "carries no attitude)")
     q_nb = attitude.from_euler(np.array(yaw), np.array(pitch), np.array(roll))
     gyro_bias, accel_bias = _rest_biases(w[rest], f[rest], q_nb * q_vs, lat, h)
-    if heading == "assumed":        # no heading: the Earth rate's vertical part only removed
+    true_north = heading != "assumed" and track.get("heading_known", True)
+    if not true_north:              # no true heading: the Earth rate's vertical part only
         gyro_bias = gyro_bias + _horizontal_earth_rate(q_nb * q_vs, lat)
         notes.append("only the Earth rate's vertical part removed from the gyro bias (up to "
-                     f"{earth.OMEGA * math.cos(lat):.1e} rad/s of it remain)")
+                     f"{earth.OMEGA * math.cos(lat):.1e} rad/s of it remain: "
+                     + ("no heading)" if heading == "assumed" else
+                        "the reference's frame has no known azimuth)"))
     basis = {"gyro": {"reference": "reference_attitude", "course": "course"}.get(
-                 heading, "vertical_earth_rate"),
+                 heading, "vertical_earth_rate") if true_north else "vertical_earth_rate",
              "accel": "along_gravity", "gravity_sensor_axes": _up(f[rest])}
     return Alignment(float(t[0]), lat, lon, h, np.zeros(3), attitude.as_wxyz(q_nb),
                      gyro_bias, accel_bias, (float(t[0]), float(t_end)), "; ".join(notes),
@@ -335,24 +338,29 @@ def biases_at_a_rest(t, w, f, mounting, track, rests, quiet=None):
                 f"{n} {ATTITUDE_BIAS_WINDOW_S:g} s windows' differences (standard errors: gyro "
                 + ", ".join(f"{math.degrees(x) * 3600:.0f}" for x in gyro[1])
                 + " deg/h, accelerometer " + ", ".join(f"{x / G0 * 1e3:.2g}" for x in accel[1])
-                + " mg; the reference's own errors and any time lag in it)",
-                {"gyro": "reference_attitude", "accel": "all"})
+                + " mg; the reference's own errors and any time lag in it)"
+                + ("" if track.get("heading_known", True) else
+                   "; the Earth rate's horizontal part left in the gyro's: the reference's "
+                   "frame has no known azimuth"),
+                {"gyro": "reference_attitude" if track.get("heading_known", True) else
+                 "vertical_earth_rate", "accel": "all"})
     t0, t1 = max(rests, key=lambda r: r[1] - r[0])
     k = (t >= t0) & (t <= t1)
     lat, h = (float(np.interp(0.5 * (t0 + t1), track["t"], track[x])) for x in ("lat", "h"))
     q_ref, _ = reference_attitude(track, t0)
+    true_north = q_ref is not None and track.get("heading_known", True)
     if q_ref is not None:
         q_nb = attitude.from_wxyz(q_ref)
-        note = "its Earth rate removed with the reference's attitude"
     else:
         roll, pitch = level(attitude.rotate(mounting.q_vs, f[k].mean(axis=0)))
         q_nb = attitude.from_euler(np.array(0.0), np.array(pitch), np.array(roll))
-        note = ("only the Earth rate's vertical part removed (heading unknown there: up to "
-                f"{earth.OMEGA * math.cos(lat):.1e} rad/s of it remain)")
+    note = "its Earth rate removed with the reference's attitude" if true_north else (
+        "only the Earth rate's vertical part removed (heading unknown there: up to "
+        f"{earth.OMEGA * math.cos(lat):.1e} rad/s of it remain)")
     gyro_bias, accel_bias = _rest_biases(w[k], f[k], q_nb * mounting.q_vs, lat, h)
-    if q_ref is None:               # take the horizontal Earth rate back out of the removal
+    if not true_north:              # take the horizontal Earth rate back out of the removal
         gyro_bias = gyro_bias + _horizontal_earth_rate(q_nb * mounting.q_vs, lat)
-    basis = {"gyro": "reference_attitude" if q_ref is not None else "vertical_earth_rate",
+    basis = {"gyro": "reference_attitude" if true_north else "vertical_earth_rate",
              "accel": "along_gravity", "gravity_sensor_axes": _up(f[k])}
     return (gyro_bias, accel_bias, (t0, t1),
             f"biases from {where} {t0:.2f}-{t1:.2f} s ({note})", basis)
@@ -405,6 +413,8 @@ def biases_from_attitude(t, w, f, mounting, track, window=ATTITUDE_BIAS_WINDOW_S
     lat, h = (np.interp(mid, track["t"], track[k]) for k in ("lat", "h"))
     v = np.column_stack([np.interp(mid, track["t"], track["v_ned"][:, i]) for i in range(3)])
     w_ie, w_en = earth.earth_rate_ned(lat), earth.transport_rate_ned(lat, h, v)
+    if not track.get("heading_known", True):    # its north is not true north: the Earth
+        w_ie[..., :2] = 0.0                     # rate's horizontal part is left in
     # C_nb(mid) = C_nb(a) R(w_nb span / 2) (body-frame turn), so C_bn(mid) = R(-..) C_bn(a)
     c_bn_mid = Rotation.from_rotvec(-0.5 * w_nb * span[:, None]) * r_a.inv()
     rate = w_nb + c_bn_mid.apply(w_ie + w_en)

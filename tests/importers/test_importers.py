@@ -651,6 +651,33 @@ def test_the_gnss_course_judges_units_and_axes_without_a_reference_attitude(tmp_
     assert not (tmp_path / "never.mcap").exists()
 
 
+@pytest.mark.parametrize("yaw_off_deg", [0.0, 90.0, 26.6])
+def test_a_cars_reference_heading_must_follow_its_course(tmp_path, yaw_off_deg):
+    """The weaving synthetic drive with its attitude: as it is, the import says how far the
+    reference's heading lies from the course (0); a yaw read in another convention (KITTI's,
+    from east: 90 deg off; its pi/2 offset given in deg as 90 rad: 26.6) is refused, naming
+    the convention - it had been imported silently, and a free-inertial window ended 42 m
+    off instead of 1.8."""
+    t_tr, lat, lon, h, v = straight_track()
+    motion = TrackMotion(t_tr, lat, lon, h, v)
+    t = np.arange(t_tr[0], t_tr[-1] + 1e-9, 0.01)
+    dth, dv = MOUNT.sensor_increments(truth.generate(motion, t))
+    q = quaternion.from_rotation_vector([0.0, 0.0, math.radians(yaw_off_deg)]) * \
+        motion.kinematics(t_tr).q_nb
+    epoch = 1_700_000_000_000_000_000
+    ref = dict(ns=epoch + np.round(t_tr * 1e9).astype(np.int64), lat=lat, lon=lon, h=h, v_ned=v,
+               q_nb=quaternion.as_float_array(q))
+    rec = Recording("car", "", epoch + np.round(t[1:] * 1e9).astype(np.int64), dth * 100.0,
+                    dv * 100.0, MOUNT, reference=ref, vehicle="car")
+    if yaw_off_deg == 0.0:
+        write_log(rec, tmp_path / "car.mcap")
+        assert "heading lies +0.0 deg from its own course" in rec.real["reference_heading"]
+        return
+    with pytest.raises(RecordingError, match=re.escape(f"heading lies {yaw_off_deg:+.1f} deg "
+                                                       "from its own course") + ".*yaw from east"):
+        write_log(rec, tmp_path / "car.mcap")
+
+
 def test_a_shift_given_on_the_command_line_is_counted_in_the_advice(tmp_path):
     """Right stamps shifted by --reference-time-offset +1.0 (a new user following advice that
     did not apply): the refusal names the whole shift from the recording's stamps - none - not

@@ -144,6 +144,8 @@ def test_an_unknown_azimuth_makes_the_logs_initial_heading_assumed(tmp_path):
         meta = log.metadata()["recording"]
     assert meta["initial_heading"] == "assumed"
     assert "azimuth is not known" in meta["assumed"]["initial_heading"]
+    # the gyro bias keeps the Earth rate's horizontal part: where it points is not known
+    assert meta["bias_basis"]["gyro"] == "vertical_earth_rate"
     with FlightLog(tmp_path / "log.mcap") as log:           # `mimunav info` says it
         text = describe(log)
     assert "heading   assumed (the reference lies in a local frame whose azimuth" in text
