@@ -75,17 +75,21 @@ def check_recording(rec):
 
 
 HEADING_OFF_COURSE_DEG = 10.0   # deg: a car's reference heading from its own course, the
-                                # median over its epochs faster than FAST_S: in ordinary
+                                # mean over its epochs faster than FAST_S: in ordinary
                                 # driving a car slips a few degrees (beyond ~5 its tyres
                                 # slide), and a wrong yaw convention is off by tens (KITTI's
                                 # yaw from east read as a heading: 90)
+JUDGED_OFF_COURSE_DEG = 30.0    # deg: the same for a recording judged a car, not declared one
+                                # (`motion.carrier`'s tests also pass a light aircraft in
+                                # gentle flight, which crabs 15-20 deg in a strong crosswind)
 FAST_S = 5.0                    # m/s: a course from differenced fixes holds to a few degrees
 
 
 def _check_heading_against_course(rec, q, ok):
     """A car's reference heading must follow its own course (no side slip), in the mean
-    over its fast epochs: refused beyond HEADING_OFF_COURSE_DEG (a yaw in another convention;
-    a car reversing for most of its fast epochs reads 180 and is refused too, saying so);
+    over its fast epochs: refused beyond HEADING_OFF_COURSE_DEG (JUDGED_OFF_COURSE_DEG for
+    a recording judged a car, not declared one) - a yaw in another convention;
+    a car reversing for most of its fast epochs reads 180 and is refused too, saying so;
     said in rec.real otherwise. Not judged for what is not a car (it may fly sideways)."""
     epoch = int(rec.imu_ns[0])
     track = reference_track(rec, epoch)
@@ -100,13 +104,16 @@ def _check_heading_against_course(rec, q, ok):
     mean = math.degrees(float(np.angle(np.mean(np.exp(1j * off)))))
     said = (f"the reference's heading lies {mean:+.1f} deg from its own course (circular "
             f"mean over {int(fast.sum())} epochs faster than {FAST_S:g} m/s)")
-    if abs(mean) > HEADING_OFF_COURSE_DEG:
+    limit = HEADING_OFF_COURSE_DEG if rec.vehicle == LAND else JUDGED_OFF_COURSE_DEG
+    if abs(mean) > limit:
         raise RecordingError(
             f"{rec.name}: {said}, and a car moves along its heading: is the attitude's yaw in "
             "the convention the import reads (a heading from north, clockwise; a yaw from "
             "east, counter-clockwise, is heading = 90 deg - yaw: `scale` and `offset` in a "
             "table spec)?" + (" Or does it drive in reverse most of the time?"
-                              if abs(mean) > 150 else ""))
+                              if abs(mean) > 150 else "")
+            + ("" if rec.vehicle == LAND else " (Judged a car from its track; if it is not "
+               "one, declare what it is: --vehicle, or the spec's `vehicle`.)"))
     rec.real["reference_heading"] = said
 
 

@@ -651,13 +651,15 @@ def test_the_gnss_course_judges_units_and_axes_without_a_reference_attitude(tmp_
     assert not (tmp_path / "never.mcap").exists()
 
 
-@pytest.mark.parametrize("yaw_off_deg", [0.0, 90.0, 26.6])
-def test_a_cars_reference_heading_must_follow_its_course(tmp_path, yaw_off_deg):
+@pytest.mark.parametrize("yaw_off_deg, vehicle", [(0.0, "car"), (90.0, "car"), (26.6, "car"),
+                                                 (26.6, None), (90.0, None)])
+def test_a_cars_reference_heading_must_follow_its_course(tmp_path, yaw_off_deg, vehicle):
     """The weaving synthetic drive with its attitude: as it is, the import says how far the
     reference's heading lies from the course (0); a yaw read in another convention (KITTI's,
     from east: 90 deg off; its pi/2 offset given in deg as 90 rad: 26.6) is refused, naming
     the convention - it had been imported silently, and a free-inertial window ended 42 m
-    off instead of 1.8."""
+    off instead of 1.8. Judged a car, not declared, 26.6 deg passes (a light aircraft's
+    crab), 90 is refused, naming how to declare what it is."""
     t_tr, lat, lon, h, v = straight_track()
     motion = TrackMotion(t_tr, lat, lon, h, v)
     t = np.arange(t_tr[0], t_tr[-1] + 1e-9, 0.01)
@@ -668,13 +670,15 @@ def test_a_cars_reference_heading_must_follow_its_course(tmp_path, yaw_off_deg):
     ref = dict(ns=epoch + np.round(t_tr * 1e9).astype(np.int64), lat=lat, lon=lon, h=h, v_ned=v,
                q_nb=quaternion.as_float_array(q))
     rec = Recording("car", "", epoch + np.round(t[1:] * 1e9).astype(np.int64), dth * 100.0,
-                    dv * 100.0, MOUNT, reference=ref, vehicle="car")
-    if yaw_off_deg == 0.0:
+                    dv * 100.0, MOUNT, reference=ref, vehicle=vehicle)
+    if yaw_off_deg == 0.0 or (yaw_off_deg < 30 and vehicle is None):
         write_log(rec, tmp_path / "car.mcap")
-        assert "heading lies +0.0 deg from its own course" in rec.real["reference_heading"]
+        assert f"heading lies {yaw_off_deg:+.1f} deg from its own course" in \
+            rec.real["reference_heading"]
         return
     with pytest.raises(RecordingError, match=re.escape(f"heading lies {yaw_off_deg:+.1f} deg "
-                                                       "from its own course") + ".*yaw from east"):
+                                                       "from its own course") + ".*yaw from east"
+                       + (".*Judged a car.*--vehicle" if vehicle is None else "")):
         write_log(rec, tmp_path / "car.mcap")
 
 
