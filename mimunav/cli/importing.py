@@ -113,8 +113,12 @@ def _add_pose_options(p):
                    help="ros2: geodetic origin of the pose topic's frame (deg, deg, m)")
     p.add_argument("--pose-azimuth", type=_azimuth, metavar="DEG|unknown",
                    help="ros2: the pose topic's frame is level, z up, its x axis this far east "
-                   "of true north, deg (default: REP-103's ENU, x east = 90); 'unknown': its "
-                   "heading then measures nothing, and no finding stands on it")
+                   "of true north, deg (REP-103's ENU: 90). Not given (or 'unknown'): ENU is "
+                   "taken, but its heading measures nothing and no finding stands on it")
+    p.add_argument("--reference-independent", metavar="TEXT",
+                   help="ros2: whether the reference (pose topic or fixes) is independent of "
+                   "this IMU, 'yes: why' (motion capture) or 'no: why' (a filter that fuses "
+                   "it); default: the importer's judgement")
 
 
 def _azimuth(text):

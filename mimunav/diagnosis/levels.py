@@ -127,8 +127,8 @@ def fused_reference(flight):
     return (f"the reference trajectory is not known to be independent of this IMU ({said}): "
             "a filter that fuses the IMU takes out part of its errors, and what it took out "
             "does not show against it - finding nothing here does not mean nothing is missing "
-            "(where it is independent, a table spec says so: [reference] independent = "
-            "\"yes: ...\")")
+            "(where it is independent, the import says so: a table spec's [reference] "
+            "independent = \"yes: ...\", ros2's --reference-independent \"yes: ...\")")
 
 
 def unmeasured_heading(flight, vehicle=None):

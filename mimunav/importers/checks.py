@@ -110,7 +110,7 @@ def _check_heading_against_course(rec, q, ok):
             f"{rec.name}: {said}, and a car moves along its heading: is the attitude's yaw in "
             "the convention the import reads (a heading from north, clockwise; a yaw from "
             "east, counter-clockwise, is heading = 90 deg - yaw: `scale` and `offset` in a "
-            "table spec)?" + (" Or does it drive in reverse most of the time?"
+            "table spec, the offset in the column's unit - 1.5707963 in rad)?" + (" Or does it drive in reverse most of the time?"
                               if abs(mean) > 150 else "")
             + ("" if rec.vehicle == LAND else " (Judged a car from its track; if it is not "
                "one, declare what it is: --vehicle, or the spec's `vehicle`.)"))

@@ -41,11 +41,13 @@ class LocalFrame:
     description: str
 
     @classmethod
-    def from_axes(cls, axes, origin, azimuth_deg=None, how_given="--origin LAT_DEG LON_DEG H_M"):
+    def from_axes(cls, axes, origin, azimuth_deg=None, how_given="--origin LAT_DEG LON_DEG H_M",
+                  taken=(0.0, "")):
         """The frame `axes` (one of AXES) at `origin` (lat deg, lon deg, h m); azimuth_deg:
         x's azimuth from true north, clockwise, deg - required (a number or None: not known)
         for z_up / z_down, none for enu / ned; how_given: how a user gives the origin, for
-        the message that refuses a missing one."""
+        the message that refuses a missing one; taken: (the azimuth taken when not known, deg;
+        why, and how to give it, for the description)."""
         if origin is None or len(origin) != 3 or not all(
                 isinstance(v, (int, float)) and not isinstance(v, bool) for v in origin) \
                 or not np.isfinite(origin).all() or abs(origin[0]) > 90:
@@ -58,12 +60,14 @@ class LocalFrame:
             level, azimuth = _NAMED[axes]
             known = True
         else:
-            level, azimuth, known = axes, (azimuth_deg or 0.0), azimuth_deg is not None
+            known = azimuth_deg is not None
+            level, azimuth = axes, azimuth_deg if known else taken[0]
         half = math.radians(azimuth) / 2
         q_n0l = quaternion.quaternion(math.cos(half), 0.0, 0.0, math.sin(half)) * _Q_LEVEL[level]
         said = (f"{axes} axes" if axes in _NAMED else
                 f"level, z {axes[2:]}, x at azimuth {azimuth:g} deg" if known else
-                f"level, z {axes[2:]}, x at an azimuth not known (0 taken)")
+                f"level, z {axes[2:]}, x at an azimuth not known ({taken[0]:g} taken"
+                + (f": {taken[1]})" if taken[1] else ")"))
         return cls(float(origin[0]), float(origin[1]), float(origin[2]), q_n0l, known,
                    f"local frame ({said}) at origin {origin[0]:.8f} deg, {origin[1]:.8f} deg, "
                    f"{origin[2]:.3f} m (given)")

@@ -14,7 +14,7 @@ OPTIONS = {
     "reference_time_offset": (KINDS, 0.0),
     "gps_status": (("dataflash",), 3), "imu_topic": (("ros2",), None),
     "fix_topic": (("ros2",), None), "pose_topic": (("ros2",), None), "origin": (("ros2",), None),
-    "pose_azimuth": (("ros2",), None),
+    "pose_azimuth": (("ros2",), None), "reference_independent": (("ros2",), None),
     "reference_status": (("ros2",), None), "reference_sigma": (("ros2",), np.inf),
     "reference_imu_topic": (("ros2",), None), "reference_imu_rpy_deg": (("ros2",), None),
     "solutions": (("rtklib",), ["fix"]), "root": (("table",), None),
@@ -65,6 +65,7 @@ def _ros2(source, mounting, o):
                      reference_status=o["reference_status"],
                      reference_sigma_m=o["reference_sigma"], pose_topic=o["pose_topic"],
                      origin=o["origin"], pose_azimuth=o["pose_azimuth"],
+                     reference_independent=o["reference_independent"],
                      reference_imu_topic=o["reference_imu_topic"],
                      reference_imu_mounting=(Mounting.from_rpy_deg(o["reference_imu_rpy_deg"])
                                              if o["reference_imu_rpy_deg"] else None))

@@ -99,15 +99,18 @@ def _messages(path, topic):
 
 def read(path, imu_topic=None, fix_topic=None, mounting=None, reference_status=None,
          reference_sigma_m=np.inf, pose_topic=None, origin=None, reference_imu_topic=None,
-         reference_imu_mounting=None, pose_azimuth=None):
+         reference_imu_mounting=None, pose_azimuth=None, reference_independent=None):
     """The recording of a ROS 2 MCAP as a `Recording`. With `reference_status` (the lowest
     NavSatStatus that counts: 2 = GBAS_FIX, RTK-grade) the fixes of at least that status
     whose horizontal sigma (from position_covariance, when known) is at most
     reference_sigma_m serve as the reference trajectory too, velocity from central
     differences of their positions. With `pose_topic` (Odometry or PoseStamped) and
     `origin` (lat deg, lon deg, h m of the pose frame's origin) the poses are the reference
-    instead (`_pose_reference`): in REP-103's ENU, or with `pose_azimuth` (deg, or
-    "unknown") a z-up frame whose x axis points that far east of north. With `reference_imu_topic` a second Imu topic (a better IMU
+    instead (`_pose_reference`): a z-up frame whose x axis points `pose_azimuth` (deg) east
+    of north; not given (or "unknown"), REP-103's ENU is taken for it, but its heading is
+    no measurement (a SLAM map's x points anywhere): the log's initial heading is assumed.
+    `reference_independent` ("yes: why" / "no: why") says whether the poses are independent
+    of this IMU. With `reference_imu_topic` a second Imu topic (a better IMU
     flown with it; `reference_imu_mounting`, default REP-103 FLU) is the reference IMU."""
     available = topics(path)
     imu_topic = _pick(path, available, IMU, imu_topic, required=True)
@@ -125,23 +128,9 @@ def read(path, imu_topic=None, fix_topic=None, mounting=None, reference_status=N
         if len(fx):
             fixes = dict(ns=fx[:, 0].astype(np.int64), status=fx[:, 1].astype(np.int8),
                          lat=fx[:, 2], lon=fx[:, 3], h=fx[:, 4], covariance=fx[:, 5:14])
-    reference, reference_meta = None, {}
-    if pose_topic is not None:
-        if reference_status is not None:
-            raise RecordingError("choose one reference: RTK fixes (--reference-status) or a "
-                                 "pose topic (--pose-topic)")
-        frame = LocalFrame.from_axes("enu", origin) if pose_azimuth is None else \
-            LocalFrame.from_axes("z_up", origin, None if pose_azimuth == "unknown" else
-                                 float(pose_azimuth))
-        reference, reference_meta = _pose_reference(path, available, pose_topic, frame)
-    elif pose_azimuth is not None:
-        raise RecordingError("--pose-azimuth is the azimuth of --pose-topic's frame: give the "
-                             "pose topic too")
-    elif reference_status is not None:
-        if fixes is None:
-            raise RecordingError(f"{path}: a reference from fixes needs a NavSatFix topic")
-        reference, reference_meta = _fix_reference(fixes, reference_status, reference_sigma_m,
-                                                   fix_topic)
+    reference, reference_meta, frame = _reference(
+        path, available, pose_topic, origin, pose_azimuth, reference_status, reference_sigma_m,
+        fixes, fix_topic)
     name = os.path.splitext(os.path.basename(path))[0]
     real = {"imu": f"{imu_topic} ({len(ns) + dropped} messages; {dropped} repeated stamps "
                    "dropped)", "source": os.path.basename(path)}
@@ -151,6 +140,13 @@ def read(path, imu_topic=None, fix_topic=None, mounting=None, reference_status=N
     assumed = {"mounting": "REP-103 body axes (x forward, y left, z up) -> FRD" if mounting is None
                else "given on the command line",
                "calibration": "none: the Imu messages are used as recorded"}
+    if reference_independent is not None:
+        if reference is None:
+            raise RecordingError("--reference-independent says of a reference trajectory: "
+                                 "give one (--pose-topic, or --reference-status)")
+        reference_meta["independent"] = reference_independent
+    if frame is not None and not frame.azimuth_known:
+        assumed["reference_frame"] = frame.description
     if reference is not None:
         real["reference"] = f"{len(reference['ns'])} epochs: {reference_meta['source']}"
     second = None
@@ -172,7 +168,30 @@ def read(path, imu_topic=None, fix_topic=None, mounting=None, reference_status=N
                      f"{(ns[-1] - ns[0]) / 1e9:.1f} s", ns, w, f, mounting or FLU_TO_FRD,
                      fixes=fixes, reference=reference, reference_meta=reference_meta,
                      real=real, assumed=assumed, reference_imu=second,
-                     reference_heading_known=frame.azimuth_known if pose_topic else True)
+                     reference_heading_known=frame is None or frame.azimuth_known)
+
+
+def _reference(path, available, pose_topic, origin, pose_azimuth, reference_status,
+               reference_sigma_m, fixes, fix_topic):
+    """(reference, its metadata, its `local_frame.LocalFrame` or None) of `read`: the pose
+    topic's in its frame, or the fixes of at least reference_status, or none."""
+    if pose_topic is not None:
+        if reference_status is not None:
+            raise RecordingError("choose one reference: RTK fixes (--reference-status) or a "
+                                 "pose topic (--pose-topic)")
+        frame = LocalFrame.from_axes(
+            "z_up", origin, None if pose_azimuth in (None, "unknown") else float(pose_azimuth),
+            taken=(90.0, "REP-103's ENU; --pose-azimuth DEG gives it"))
+        reference, meta = _pose_reference(path, available, pose_topic, frame)
+        return reference, {**meta, "frame": frame.description}, frame
+    if pose_azimuth is not None:
+        raise RecordingError("--pose-azimuth is the azimuth of --pose-topic's frame: give the "
+                             "pose topic too")
+    if reference_status is not None:
+        if fixes is None:
+            raise RecordingError(f"{path}: a reference from fixes needs a NavSatFix topic")
+        return (*_fix_reference(fixes, reference_status, reference_sigma_m, fix_topic), None)
+    return None, {}, None
 
 
 def _imu_messages(path, topic):

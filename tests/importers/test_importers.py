@@ -516,11 +516,21 @@ def test_ros2_pose_topic_in_a_local_enu_frame_as_the_reference(tmp_path, schema)
         heading, _, _ = attitude.as_euler(quaternion.from_float_array(
             log.read("/truth/state")["attitude_wxyz"]))
     np.testing.assert_allclose(np.degrees(heading), -30.0, atol=0.01)
+    # not given: ENU taken for the positions and attitudes, but no measured heading - said
+    with FlightLog(out) as log:
+        meta = log.metadata()
+    assert meta["recording"]["initial_heading"] == "assumed"
+    assert "--pose-azimuth DEG gives it" in meta["reference"]["frame"]
     unknown = tmp_path / "unknown.mcap"
     assert main(args[:4] + [str(unknown)] + args[5:] + ["--origin", "45.0", "10.0", "100.0",
-                                                        "--pose-azimuth", "unknown"]) == 0
+                                                        "--pose-azimuth", "unknown",
+                                                        "--reference-independent",
+                                                        "yes: motion capture"]) == 0
     with FlightLog(unknown) as log:
         assert log.metadata()["recording"]["initial_heading"] == "assumed"
+        assert log.metadata()["reference"]["independent"] == "yes: motion capture"
+    with pytest.raises(RecordingError, match="--reference-independent says of a reference"):
+        ros2.read(bag, reference_independent="yes")            # no reference: refused
 
 
 def test_imu_and_reference_on_different_time_bases_are_refused():
