@@ -271,6 +271,14 @@ def test_a_file_per_epoch_is_read_through_a_glob_in_name_order(tmp_path):
     np.testing.assert_allclose(got, [[49.0, 100], [50.0, 101], [51.0, 102], [59.0, 110]])
     with pytest.raises(RecordingError, match="no file matches"):
         columns.load_spec(str(tmp_path / "data" / "*.csv"), None)
+    (tmp_path / "named").mkdir()                  # each with its header: read one by one
+    for k in (1, 0):
+        (tmp_path / "named" / f"{k}.csv").write_text(f"lat,lon\n{49.0 + k},8.4\n")
+    np.testing.assert_allclose(columns.load_spec(str(tmp_path / "named" / "*.csv"), ["lat"]),
+                               [[49.0], [50.0]])
+    (tmp_path / "data" / "0000000003.txt").write_text("52.0 8.4\n")       # a short row: named
+    with pytest.raises(RecordingError, match="0000000003.txt.*column count|another column"):
+        columns.load_spec(str(tmp_path / "data" / "*.txt"), [0])
 
 
 def test_an_offset_is_added_after_the_scale_in_the_columns_unit(tmp_path):
