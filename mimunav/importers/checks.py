@@ -230,7 +230,8 @@ def _check_against_course(rec):
     and accelerates enough to show it, and the two agree in shape (correlation, coherence).
     Not for what is not a car, declared or judged (`motion.carrier`): a multicopter flies
     sideways, a walker's phone points anywhere (a course rate that fit a multicopter's yaw
-    rate 9.5 s off had refused it)."""
+    rate 9.5 s off had refused it) - but for it too a yaw rate that follows the course
+    closely (correlation > 0.7) at a size ratio outside 0.1-10 is a gyro unit read wrong."""
     epoch = int(rec.imu_ns[0])
     track = reference_track(rec, epoch)
     if track is None:
@@ -239,8 +240,9 @@ def _check_against_course(rec):
     if failed:
         rec.real["course_checks"] = (f"not made: not a car ({'; '.join(failed)}), so it need "
                                      "not move along its forward axis, and its course judges "
-                                     "neither the IMU's axes nor its clock")
-        return
+                                     "neither the IMU's axes nor its clock - but a yaw rate "
+                                     "that follows it at 0.1-10 times its size still checks "
+                                     "the gyro's unit")
     t = track["t"]
     speed, course_rate, z_track = track_acceleration(t, track["v_ned"])
     t_imu = (rec.imu_ns - epoch) / 1e9
@@ -254,19 +256,9 @@ def _check_against_course(rec):
     f_v = attitude.rotate(rec.mounting.q_vs, _local_mean(rec.f, k, half))
     rate = course_rate[sel]
     if np.std(rate) > COURSE_CHECK_RATE:
-        corr = float(np.corrcoef(w_v[:, 2], rate)[0, 1])
-        ratio = float(np.std(w_v[:, 2]) / np.std(rate))
-        if abs(corr) > 0.7 and not (corr > 0 and 0.1 < ratio < 10):
-            raise RecordingError(
-                f"{rec.name}: the gyro's yaw rate (vehicle z by the mounting) follows the GNSS "
-                f"course rate {'reversed, ' if corr < 0 else ''}at {ratio:.3g} times its size "
-                f"(correlation {corr:+.2f}): " + ("is the gyro's unit (deg/s or rad/s) right?"
-                                                  if not 0.1 < ratio < 10 else
-                                                  "the sensor axes or the mounting turn the "
-                                                  "yaw axis upside down"))
-        # searched whatever the correlation as stamped: a car's turns last seconds, so
-        # stamps 2 s off still correlated 0.70 on the shared drive (1.00 at the shift)
-        _check_time_offset(rec, t_imu, t[sel], rate, corr, half)
+        _check_yaw_rate(rec, w_v[:, 2], rate, not failed, t_imu, t[sel], half)
+    if failed:
+        return
     z_ref = z_track[sel]
     if np.std(z_ref) > COURSE_CHECK_ACCEL:
         gain, coherence = acceleration_match(f_v[:, 0] + 1j * f_v[:, 1], z_ref)
@@ -294,6 +286,31 @@ def _check_against_course(rec):
                 f"the mounting turned back would be --mounting-rpy-deg {_turned_back(rec, yaw)}"
                 + (" - unless the vehicle drives in reverse most of the time (then import a "
                    "forward stretch)" if abs(yaw) > math.radians(135.0) else ""))
+
+
+def _check_yaw_rate(rec, yaw_rate, rate, car, t_imu, t_ref, half):
+    """The IMU's 1 s mean yaw rate (rad/s, vehicle axes) against the course rate at the
+    track's fast epochs t_ref: its unit (a size ratio outside 0.1-10 where they correlate),
+    and for a car its sense and its clock (`_check_time_offset`)."""
+    corr = float(np.corrcoef(yaw_rate, rate)[0, 1])
+    ratio = float(np.std(yaw_rate) / np.std(rate))
+    # a yaw rate that follows the course at 57 times its size is a unit read wrong whatever
+    # carried it; against it, only a car's (a multicopter may yaw against its turns)
+    wrong = (abs(corr) > 0.7 and not (corr > 0 and 0.1 < ratio < 10)) if car else \
+        (corr > 0.7 and not 0.1 < ratio < 10)
+    if wrong:
+        raise RecordingError(
+            f"{rec.name}: the gyro's yaw rate (vehicle z by the mounting) follows the GNSS "
+            f"course rate {'reversed, ' if corr < 0 else ''}at {ratio:.3g} times its size "
+            f"(correlation {corr:+.2f}): " + ("is the gyro's unit (deg/s or rad/s) right?"
+                                              if not 0.1 < ratio < 10 else
+                                              "the sensor axes or the mounting turn the "
+                                              "yaw axis upside down"))
+    if not car:
+        return
+    # searched whatever the correlation as stamped: a car's turns last seconds, so
+    # stamps 2 s off still correlated 0.70 on the shared drive (1.00 at the shift)
+    _check_time_offset(rec, t_imu, t_ref, rate, corr, half)
 
 
 def _turned_back(rec, yaw, square=True):
