@@ -112,8 +112,8 @@ def reference_attitude(track, t0):
 
 def initial_alignment(t, w, f, mounting, track=None):
     """Initial state of a recording: t s, w rad/s, f m/s^2 (sensor axes), `track` the
-    reference {t s, lat, lon rad, h m, v_ned m/s, optional q_nb wxyz of the vehicle (NaN
-    rows: unknown)}. In order of preference:
+    reference {t s, lat, lon rad, h m, v_ned m/s, optional q_nb wxyz of the vehicle (NaN rows:
+    unknown), heading_known (False: its north is no true north)}. In order of preference:
 
     1. a rest that starts the recording (MIN_STATIC_S or more): level from its mean specific
        force, heading from the reference's attitude once moving, turned back by the gyro
@@ -318,9 +318,10 @@ def _rest_biases(w, f, q_ns, lat, h):
 
 def biases_at_a_rest(t, w, f, mounting, track, rests, quiet=None):
     """(gyro bias, accel bias, (t0, t1), note, bias_basis as `Alignment`'s) of the longest
-    rest anywhere in the recording; zeros and (nan, nan) without one. The Earth rate is removed with the
-    reference's attitude there when it has one; else only its vertical part (the level is
-    known, the heading is not), leaving at most Omega cos(lat) = 7.3e-5 rad/s."""
+    rest anywhere in the recording; zeros and (nan, nan) without one. The Earth rate is
+    removed with the reference's attitude there when it has one and a true north; else only
+    its vertical part (the level is known, the heading is not), leaving at most
+    Omega cos(lat) = 7.3e-5 rad/s."""
     where = "the rest"
     if not rests:           # `quiet`: the IMU's quiet stretches when already found
         rests = quiet_stretches(t, w, f, track) if quiet is None else quiet
