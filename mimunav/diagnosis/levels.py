@@ -221,8 +221,8 @@ def leveled_on_its_outputs(flight):
     """Whether a recording's initial attitude was leveled on the MIMU's own specific force (a
     rest's mean, a moving alignment's two vectors) rather than taken whole from the
     reference (the recording metadata's `initial_attitude`; for a log imported before it
-    was written, the alignment's words): a found term that turns the outputs (a mounting) then turns them away from
-    the attitude the navigation starts from."""
+    was written, the alignment's words): a found term that turns the outputs (a mounting)
+    then turns them away from the attitude the navigation starts from."""
     if flight.source != "recording":
         return False
     given = (flight.recording or {}).get("initial_attitude")

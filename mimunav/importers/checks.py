@@ -91,9 +91,7 @@ def _check_heading_against_course(rec, q, ok):
     a recording judged a car, not declared one) - a yaw in another convention;
     a car reversing for most of its fast epochs reads 180 and is refused too, saying so;
     said in rec.real otherwise. Not judged for what is not a car (it may fly sideways)."""
-    epoch = int(rec.imu_ns[0])
-    track = reference_track(rec, epoch)
-    if track is None or _not_a_car(rec, track, epoch):
+    if _not_a_car(rec, rec.reference["v_ned"]):
         return
     v = rec.reference["v_ned"][ok]
     fast = np.hypot(v[:, 0], v[:, 1]) > FAST_S
@@ -110,19 +108,20 @@ def _check_heading_against_course(rec, q, ok):
             f"{rec.name}: {said}, and a car moves along its heading: is the attitude's yaw in "
             "the convention the import reads (a heading from north, clockwise; a yaw from "
             "east, counter-clockwise, is heading = 90 deg - yaw: `scale` and `offset` in a "
-            "table spec, the offset in the column's unit - 1.5707963 in rad)?" + (" Or does it drive in reverse most of the time?"
-                              if abs(mean) > 150 else "")
+            "table spec, the offset in the column's unit - 1.5707963 in rad)?"
+            + (" Or does it drive in reverse most of the time?" if abs(mean) > 150 else "")
             + ("" if rec.vehicle == LAND else " (Judged a car from its track; if it is not "
                "one, declare what it is: --vehicle, or the spec's `vehicle`.)"))
     rec.real["reference_heading"] = said
 
 
-def _not_a_car(rec, track, epoch):
+def _not_a_car(rec, v_ned):
     """[why the recording is not a car] - declared another vehicle, or the tests
-    `motion.carrier.car_tests` fails on its track and specific force - or [] for a car."""
+    `motion.carrier.car_tests` fails on its track's velocities v_ned (m/s) and its specific
+    force - or [] for a car."""
     if rec.vehicle:
         return [] if rec.vehicle == LAND else [f"declared a {rec.vehicle}"]
-    return car_tests(track["v_ned"], (rec.imu_ns - epoch) / 1e9, rec.f)[0]
+    return car_tests(v_ned, (rec.imu_ns - rec.imu_ns[0]) / 1e9, rec.f)[0]
 
 
 def _check_reference_clock(rec):
@@ -236,7 +235,7 @@ def _check_against_course(rec):
     track = reference_track(rec, epoch)
     if track is None:
         return
-    failed = _not_a_car(rec, track, epoch)
+    failed = _not_a_car(rec, track["v_ned"])
     if failed:
         rec.real["course_checks"] = (f"not made: not a car ({'; '.join(failed)}), so it need "
                                      "not move along its forward axis, and its course judges "
@@ -400,8 +399,9 @@ def _local_mean(x, k, half=5):
 
 def reference_track(rec, epoch):
     """The trajectory the alignment takes heading from (t s since epoch, lat, lon, h,
-    v_ned; `what` it is, for messages): the reference, else the GNSS fixes (their velocity when recorded, else central
-    differences of their positions), else None."""
+    v_ned; `what` it is, for messages; heading_known), the reference, else the GNSS fixes
+    (their velocity when recorded, else central differences of their positions), else
+    None."""
     src, what = rec.reference, "the reference"
     if src is None or len(src["ns"]) < 3:
         src, what = rec.fixes, "the GNSS fixes (no reference trajectory)"

@@ -37,14 +37,15 @@ def load_spec(path, columns, notes=None):
     joined = _joined(files, columns) if len(files) > 1 else None
     if joined is not None:
         return joined
-    if len(files) > 1:              # one table split in files: one layout throughout
-        widths = {one: _load_one(one, None, None).shape[1] for one in files}
-        if len(set(widths.values())) > 1:
-            odd = min(widths, key=lambda one: list(widths.values()).count(widths[one]))
-            raise RecordingError(f"{odd}: {widths[odd]} columns, another column count than "
-                                 f"{files[0]}'s {widths[files[0]]}: the files of {path} must "
-                                 "hold one table's columns")
-    return np.vstack([_load_one(one, columns, notes) for one in files])
+    tables = [_load_one(one, notes) for one in files]
+    widths = [data.shape[1] for data, _ in tables]
+    if len(set(widths)) > 1:        # one table split in files: one layout throughout
+        odd = min(range(len(files)), key=widths.count)
+        raise RecordingError(f"{files[odd]}: {widths[odd]} columns, another column count than "
+                             f"{files[0]}'s {widths[0]}: the files of {path} must hold one "
+                             "table's columns")
+    return np.vstack([_picked(one, data, names, columns)
+                      for one, (data, names) in zip(files, tables)])
 
 
 def _joined(files, columns):
@@ -80,22 +81,17 @@ def files_of(path):
     return found
 
 
-def _load_one(path, columns, notes):
-    """`load_spec` of one file, (N, columns)."""
+def _load_one(path, notes):
+    """(the numbers of one file, (N, columns); its header's names, or None)."""
     if not os.path.exists(path):
         raise RecordingError(f"{path}: no such file")
+    names = None
     if path.endswith((".csv", ".txt")):
         sep, skip, header = _csv_layout(path)
         data = _read_csv(path, header, notes, sep, skip)
         if header:                      # the names as written, not as the reader makes them
             data = np.column_stack([data[n] for n in data.dtype.names])
             names = header_names(path, sep, skip)
-            if columns is not None:
-                try:
-                    columns = [names.index(c.lstrip("#").strip()) if isinstance(c, str) else c
-                               for c in columns]       # a header's '#' is no part of a name
-                except ValueError:
-                    raise RecordingError(f"{path}: columns {columns} not among {names}") from None
     else:
         try:
             data = np.load(path, allow_pickle=False)
@@ -108,11 +104,23 @@ def _load_one(path, columns, notes):
     data = np.asarray(data, dtype=float)
     if data.size == 0:
         raise RecordingError(f"{path}: no data rows")
-    if columns is not None:
-        if any(isinstance(c, str) for c in columns):
+    return data.reshape(len(data), -1), names
+
+
+def _picked(path, data, names, columns):
+    """The `columns` of a file's numbers: header names (a header's '#' no part of one) or
+    0-based indices; all for None."""
+    if columns is None:
+        return data
+    if any(isinstance(c, str) for c in columns):
+        if names is None:
             raise RecordingError(f"{path}: columns by name need a CSV header")
-        data = data.reshape(len(data), -1)[:, list(columns)]
-    return data.reshape(len(data), -1)
+        try:
+            columns = [names.index(c.lstrip("#").strip()) if isinstance(c, str) else c
+                       for c in columns]
+        except ValueError:
+            raise RecordingError(f"{path}: columns {columns} not among {names}") from None
+    return data[:, list(columns)]
 
 
 def _csv_layout(path):
@@ -151,11 +159,11 @@ def _csv_layout(path):
 
 
 def load_date_times(path, column, zone=None):
-    """`date_times` of a file, or of every file a glob pattern matches (`files_of`)."""
-    return np.concatenate([date_times(one, column, zone) for one in files_of(path)])
+    """`_date_times` of a file, or of every file a glob pattern matches (`files_of`)."""
+    return np.concatenate([_date_times(one, column, zone) for one in files_of(path)])
 
 
-def date_times(path, column, zone=None):
+def _date_times(path, column, zone=None):
     """(N,) UNIX time, s, of a CSV column (header name or 0-based index) of ISO 8601
     date-times with their UTC offset ('2023-08-04 17:47:58.125-04:00', '...T21:47:58Z'), the
     rows `load_spec` reads of the same file (a last line cut short left out). A date-time

@@ -277,8 +277,8 @@ AS_GIVEN_AGAINST = -0.5     # a moving axis whose 1 s means, mountings as given,
 
 
 def _runs_against(name, sensor, mine, theirs, when, columns):
-    """Refuse (naming the triad and axis, and the `columns` to check) a moving axis - 1 s means spread by 0.02 rad/s or
-    0.3 m/s^2 (`reference.MOVING_SPREAD`'s sizes) - whose means (vehicle frame) run against
+    """Refuse (naming the triad and axis, and the `columns` to check) a moving axis - 1 s
+    means spread by 0.02 rad/s or 0.3 m/s^2 (`reference.MOVING_SPREAD`'s sizes) - whose means (vehicle frame) run against
     the other IMU's: correlation below AS_GIVEN_AGAINST."""
     spread = 0.02 if sensor == "gyro" else 0.3
     for i, axis in enumerate("xyz"):

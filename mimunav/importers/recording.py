@@ -26,6 +26,19 @@ class RecordingError(InputError):
     """A recording that cannot be turned into a contract log, with what and where."""
 
 
+def unit_quaternions(wxyz, where):
+    """Rows of w, x, y, z as unit quaternions (an array of them); rows further than 1e-3 from
+    unit length refused, naming `where` and the worst row (not an attitude: columns in
+    another order - ROS's x, y, z, w - or a rotation vector)."""
+    q = attitude.from_wxyz(wxyz)
+    norm = np.abs(q)
+    if np.any(np.abs(norm - 1) > 1e-3):
+        k = int(np.argmax(np.abs(norm - 1)))
+        raise RecordingError(f"{where} is no unit quaternion (|q| {norm[k]:.4g} at row {k}): "
+                             "the columns w, x, y, z in that order?")
+    return q / norm
+
+
 def heading_source(heading, reference_heading_known):
     """Where an initial heading came from (`alignment.Alignment.heading`: reference, course or
     assumed) as the log's `initial_heading` says it: a heading taken from a reference, or from

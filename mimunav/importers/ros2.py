@@ -25,7 +25,7 @@ from mcap_ros2.decoder import DecoderFactory
 
 from ..frames.mounting import Mounting
 from .local_frame import LocalFrame
-from .recording import RecordingError, Recording
+from .recording import RecordingError, Recording, unit_quaternions
 from ..motion.track import velocity_from_positions
 
 IMU = "sensor_msgs/msg/Imu"
@@ -295,23 +295,18 @@ def _pose_reference(path, available, topic, frame):
         raise RecordingError(f"{path}: {topic} has {len(a)} poses (finite ones needed, >= 3)")
     a = a[np.argsort(a[:, 0], kind="stable")]
     ns = a[:, 0].astype(np.int64)
-    p_l = a[:, 1:4]
-    q_lb = attitude.from_wxyz(a[:, 4:8])
-    norm = np.abs(q_lb)
-    if np.any(np.abs(norm - 1) > 1e-3):
-        raise RecordingError(f"{topic}: orientations are not unit quaternions (|q| "
-                             f"{norm.min():.3g}-{norm.max():.3g})")
-    q_lb = q_lb / norm
+    q_lb = unit_quaternions(a[:, 4:8], f"{topic}: an orientation")
     sigma = np.sqrt(np.maximum(a[:, 11], 0) + np.maximum(a[:, 12], 0))
     t = (ns - ns[0]) / 1e9
-    if schema == ODOMETRY:          # the twist is in the child (body) frame
-        reference = frame.place(ns, p_l, attitude.rotate(q_lb, a[:, 8:11]), q_lb * Q_FLU_FRD)
+    # Odometry's twist is in the child (body) frame; a PoseStamped's velocity: differences
+    v_l = attitude.rotate(q_lb, a[:, 8:11]) if schema == ODOMETRY else None
+    reference = frame.place(ns, a[:, 1:4], v_l, q_lb * Q_FLU_FRD)
+    if schema == ODOMETRY:
         how = "velocity from its body-frame twist"
         v_sigma = np.sqrt(np.maximum(a[:, 13], 0) + np.maximum(a[:, 14], 0))
         velocity = {"velocity_sigma_m_s": f"{np.median(v_sigma):.3g}"} if np.any(v_sigma > 0) \
             else {}
     else:
-        reference = frame.place(ns, p_l, None, q_lb * Q_FLU_FRD)
         how = "velocity from position differences"
         velocity = _difference_velocity_sigma(sigma, t)
     meta = {"source": f"{schema} {topic}, {frame.description}, {how}",

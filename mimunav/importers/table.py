@@ -12,8 +12,8 @@ a path string or a table:
 
 `columns` picks CSV columns by header name or 0-based index, or NumPy columns by index
 (default: all); `file` may be a glob pattern ("oxts/data/*.txt": a file per epoch, their rows
-in the order of their names). `scale` multiplies the column before its unit converts it (a logger's counts:
-a time in ticks of 10 us is `unit = "us", scale = 10`; a gyro in 0.01 deg/s steps is
+in the order of their names). `scale` multiplies the column before its unit converts it (a
+logger's counts: a time in ticks of 10 us is `unit = "us", scale = 10`; a gyro in 0.01 deg/s steps is
 `unit = "deg/s", scale = 0.01`; one scale per column gives a logger's own signs: a roll rate
 positive left wing down is `scale = [-1, 1, 1]` of the triad's FRD columns). `offset` is then
 added, in the column's unit (one number, or one per column): KITTI's roll, pitch (positive
@@ -94,7 +94,8 @@ refused, naming the nearest known one.
 
 Units: s, ms, us, ns, iso8601 (a CSV column of date-times with their UTC offset,
 '2023-08-04 17:47:58.125-04:00' or '2023-08-04T21:47:58.125Z', or without one and the
-source's `zone = "Z"` or "+02:00": UNIX time, so [time] unix_offset_s = 0); rad/s, deg/s; m/s^2, g (9.80665); deg, rad; m, mm, ft; m/s.
+source's `zone = "Z"` or "+02:00": UNIX time, so [time] unix_offset_s = 0); rad/s, deg/s;
+m/s^2, g (9.80665); deg, rad; m, mm, ft; m/s.
 """
 import os
 

@@ -9,7 +9,7 @@ from ..frames import attitude, earth
 from ..motion.track import velocity_from_positions
 from .columns import check_keys
 from .local_frame import AXES, LocalFrame
-from .recording import RecordingError
+from .recording import RecordingError, unit_quaternions
 from .table_spec import FRAME_KEYS, unix_ns, unrepeated
 
 QUANTITIES = ("position_ecef", "latitude", "longitude", "height", "position_local",
@@ -23,7 +23,7 @@ def reference_of(spec, offset):
     if not spec.section("reference"):
         return None, None
     keys = ["time"] + _position_keys(spec)
-    frame = local_frame_of(spec) if "position_local" in keys else None
+    frame = _local_frame_of(spec) if "position_local" in keys else None
     col = _columns(spec, keys)
     ns = unix_ns(spec, col["time"], offset, "[reference] time")
     back = np.flatnonzero(np.diff(ns) <= 0)
@@ -32,7 +32,7 @@ def reference_of(spec, offset):
                              f"{back[0] + 1} (0-based, after the header; {len(back)} such rows):"
                              " sort the reference by time or drop its repeated rows")
     if frame is not None:
-        q_lb = attitude_given(spec, col["attitude_wxyz"], ("body_to_local",)) \
+        q_lb = _attitude_given(spec, col["attitude_wxyz"], ("body_to_local",)) \
             if "attitude_wxyz" in col else None
         ref = frame.place(ns, col["position_local"], col.get("velocity_local"), q_lb)
     else:
@@ -67,7 +67,7 @@ def _position_keys(spec):
     return keys
 
 
-def local_frame_of(spec):
+def _local_frame_of(spec):
     """The [reference] local_frame {axes, origin, azimuth_deg} as a `local_frame.LocalFrame`."""
     given = spec.section("reference").get("local_frame")
     if not isinstance(given, dict):
@@ -159,29 +159,21 @@ def _onto(spec, key, t):
 
 def _attitude_ned(spec, wxyz, lat, lon):
     """The reference attitude `wxyz` (its spec's `rotates`) as q_nb (body -> NED, wxyz)."""
-    q = attitude_given(spec, wxyz, ("body_to_ned", "body_to_ecef"))
+    q = _attitude_given(spec, wxyz, ("body_to_ned", "body_to_ecef"))
     if _rotates(spec) == "body_to_ecef":
         q_en = quaternion.from_rotation_matrix(earth.ned_to_ecef_matrix(lat, lon))
         q = np.conjugate(q_en) * q
     return attitude.as_wxyz(q)
 
 
-def attitude_given(spec, wxyz, rotations):
-    """The [reference] attitude_wxyz rows as unit quaternions, its `rotates` one of `rotations`
-    (the first the default); rows further than 1e-3 from unit length refused (not an
-    attitude: columns in another order, or a rotation vector)."""
+def _attitude_given(spec, wxyz, rotations):
+    """The [reference] attitude_wxyz rows as unit quaternions (`recording.unit_quaternions`),
+    its `rotates` one of `rotations` (the first the default)."""
     rotates = _rotates(spec, rotations[0])
     if rotates not in rotations:
         raise RecordingError(f"{spec.path}: [reference] attitude_wxyz rotates {rotates!r}: "
                              f"{' or '.join(rotations)} for these positions")
-    q = attitude.from_wxyz(wxyz)
-    norm = np.abs(q)
-    if np.any(np.abs(norm - 1) > 1e-3):
-        k = int(np.argmax(np.abs(norm - 1)))
-        raise RecordingError(f"{spec.path}: [reference] attitude_wxyz is no unit quaternion "
-                             f"(|q| {norm[k]:.4g} at data row {k}): the columns w, x, y, z in "
-                             "that order?")
-    return q / norm
+    return unit_quaternions(wxyz, f"{spec.path}: [reference] attitude_wxyz")
 
 
 def _rotates(spec, default="body_to_ned"):

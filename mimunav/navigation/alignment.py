@@ -234,10 +234,10 @@ def _from_rest(t, w, f, mounting, track, interval):
     k = fast[track["t"][fast] <= track["t"][fast[0]] + COURSE_SPAN_S] if len(fast) else fast
     back = _reference_heading_back(t, w_v, t_end, track, k)
     if back is not None:
-        yaw, t_k = back
+        yaw, i = back
         heading = "reference"
-        notes.append(f"heading from the reference's attitude at t = {t_k:.2f} s, moving "
-                     f"({speed[fast[0]]:.1f} m/s), turned back to the rest by the gyro")
+        notes.append(f"heading from the reference's attitude at t = {track['t'][i]:.2f} s, "
+                     f"moving ({speed[i]:.1f} m/s), turned back to the rest by the gyro")
     elif len(fast):
         # each fast epoch of the first COURSE_SPAN_S gives the heading at rest (its course
         # less the gyro's yaw since): their circular mean weighted by speed^2, so one noisy
@@ -281,8 +281,8 @@ def _from_rest(t, w, f, mounting, track, interval):
 
 
 def _reference_heading_back(t, w_v, t_end, track, k):
-    """(yaw rad, epoch s) at a rest's end t_end from the reference's attitude at the first of
-    its moving epochs k that carries one - where an INS's heading has converged, which at
+    """(yaw rad, the epoch's index in the track) at a rest's end t_end from the reference's
+    attitude at the first of its moving epochs k that carries one - where an INS's heading has converged, which at
     rest it may not have - turned back by the gyro's rotation since the rest (vehicle-axis
     rates w_v rad/s at stamps t, the rest's mean removed): q_nb(t_end) = q_nb(t_k) dq^-1,
     dq the body's turn over (t_end, t_k]. Exact for any motion, where a course needs a car
@@ -303,7 +303,7 @@ def _reference_heading_back(t, w_v, t_end, track, k):
     dq = np.multiply.reduce(quaternion.from_rotation_vector(w_v[j] * dt[:, None])) \
         if len(j) else quaternion.one
     q_rest = attitude.from_wxyz(np.asarray(q[k[0]], float)) * np.conjugate(dq)
-    return float(attitude.as_euler(q_rest)[0]), t_k
+    return float(attitude.as_euler(q_rest)[0]), int(k[0])
 
 
 def _rest_biases(w, f, q_ns, lat, h):

@@ -82,6 +82,25 @@ def test_after_a_rest_the_heading_is_the_references_attitude_turned_back_not_the
     assert abs(heading[0] - (at_rest + 10 * DEG)) < 0.01 * DEG, np.degrees(heading)
 
 
+def test_a_frame_of_unknown_azimuth_leaves_the_earth_rates_horizontal_part_in_the_gyro_bias(
+        tmp_path):
+    """The synthetic drive's exact increments (the rotating Earth's rate in them) with a
+    gyro bias, its reference's north not true north: the bias at the rest is the true one
+    plus the Earth rate's horizontal part, Omega cos(lat) north (WGS-84's 7.292115e-5 rad/s),
+    turned into sensor axes by the true attitude - not removed at a heading nobody measured."""
+    bias = np.array([0.01, -0.02, 0.03])
+    path, motion, run = ideal_flight(tmp_path, MOUNT, gyro_bias=bias, with_attitude=True)
+    flight = Flight.load(path, reference_imu=False)
+    w, f = flight.mimu_imu
+    track = dict(windows.track_of(flight.truth), heading_known=False)
+    align = alignment.initial_alignment(flight.mimu_t, w, f, flight.mimu_mounting, track)
+    q_ns = motion.kinematics(np.array([0.0])).q_nb[0] * MOUNT.q_vs
+    north = np.array([7.292115e-5 * math.cos(LAT0), 0.0, 0.0])
+    want = bias + attitude.rotate(np.conjugate(q_ns), north)
+    assert np.allclose(align.gyro_bias, want, atol=2e-8), (align.gyro_bias - want)
+    assert align.bias_basis["gyro"] == "vertical_earth_rate"
+
+
 def cut_track(track, t0):
     return tuple(x[track[0] >= t0] for x in track)
 
