@@ -275,12 +275,13 @@ def _time_lag(diag, flight, cal, corr, outputs, reference, alpha):
             "channel": "gyro.z (the vehicle's yaw rate, the model's best channel)",
             "sign": "positive: the IMU's samples describe motion tau s earlier than their "
                     "stamps (it lags), as time_skew"})
-        late = velocity_lag(flight)
-        if math.isfinite(tau) and late is not None and abs(late) >= VELOCITY_LAG_NOTE_S:
+        late, late_se = velocity_lag(flight) or (0.0, 0.0)
+        if math.isfinite(tau) and abs(late) >= VELOCITY_LAG_NOTE_S:
             diag.time_lag["reference_velocity_lag_s"] = late
             diag.time_lag["relative_to"] = (
                 f"the reference's velocity, which lags its own positions by {late * 1e3:.0f} "
-                f"ms (reference metadata velocity_lag_s, a filtered velocity): against the "
+                f"+- {late_se * 1e3:.0f} ms (reference metadata velocity_lag_s, a filtered "
+                f"velocity): against the "
                 f"positions the IMU lags by about {(tau + late) * 1e3:.0f} ms")
         demoted += lag_finding(diag, flight, cal, segments, alpha)
     else:

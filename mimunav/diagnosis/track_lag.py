@@ -89,10 +89,12 @@ def unplaced_lag(segments):
 
 
 def velocity_lag(flight):
-    """The reference's velocity lag behind its positions (s) from the log's `reference`
-    metadata (written at import, `importers.velocity_lag_s`), or None."""
+    """The reference's velocity lag behind its positions and its standard error (s, s) from
+    the log's `reference` metadata (written at import, `importers.velocity_lag_s`; the error
+    nan in logs imported before it was written), or None."""
+    meta = flight.reference_meta or {}
     try:
-        return float((flight.reference_meta or {})["velocity_lag_s"])
+        return float(meta["velocity_lag_s"]), float(meta.get("velocity_lag_se_s", "nan"))
     except (KeyError, TypeError, ValueError):
         return None
 

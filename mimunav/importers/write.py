@@ -84,8 +84,9 @@ def write_log(rec, path, force=False):
                     "velocity": "given by the reference"}
             meta.update({k: str(v) for k, v in rec.reference_meta.items()})
             lag = velocity_lag_s(ref)
-            if lag is not None:
-                meta["velocity_lag_s"] = f"{lag:.4f}"   # positive: its velocity lags positions
+            if lag is not None:                       # positive: its velocity lags positions
+                meta["velocity_lag_s"] = f"{lag[0]:.4f}"
+                meta["velocity_lag_se_s"] = f"{lag[1]:.4f}"
             log.metadata("reference", meta)
             channels.append(("/truth/state", S.NAV_STATE, "vehicle", ref["ns"], dict(
                 latitude=ref["lat"], longitude=ref["lon"], height=ref["h"],

@@ -1024,14 +1024,20 @@ accuracy = {gyro_scale = 5e-5, gyro_misalignment_rad = 2e-5}
 
 def test_a_reference_velocity_late_on_its_positions_is_measured():
     """The synthetic weave's track with its velocity column delayed by 100 ms (a filter
-    state), and not delayed: velocity_lag_s finds 0.100 and 0.000 s within 5 ms."""
+    state), and not delayed: velocity_lag_s finds 0.100 and 0.000 s within 5 ms; with 5 cm
+    of position noise at 10 Hz too (the differenced positions' noise had pulled a search
+    between epochs half an epoch off: +50 ms), and within 3 of its standard errors."""
     from mimunav.importers.checks import velocity_lag_s
-    t, lat, lon, h, v = straight_track(duration=200.0)
-    ns = np.round(t * 1e9).astype(np.int64)
-    late = np.column_stack([np.interp(t - 0.1, t, v[:, i]) for i in range(3)])
-    for vel, want in ((late, 0.1), (v, 0.0)):
-        got = velocity_lag_s(dict(ns=ns, lat=lat, lon=lon, h=h, v_ned=vel))
-        assert abs(got - want) < 5e-3, (got, want)
+    rng = np.random.default_rng(7)
+    for rate, noise in ((4.0, 0.0), (10.0, 0.05)):
+        t, lat, lon, h, v = straight_track(duration=200.0, rate=rate)
+        ns = np.round(t * 1e9).astype(np.int64)
+        late = np.column_stack([np.interp(t - 0.1, t, v[:, i]) for i in range(3)])
+        for vel, want in ((late, 0.1), (v, 0.0)):
+            noisy = [x + rng.normal(0.0, noise / 6.4e6, len(t)) for x in (lat, lon)]
+            got, se = velocity_lag_s(dict(ns=ns, lat=noisy[0], lon=noisy[1], h=h, v_ned=vel))
+            assert abs(got - want) < 5e-3, (rate, got, want)
+            assert abs(got - want) < 3 * se + 2e-3 and se < 5e-3, (rate, got, se)
 
 
 def test_rtklib_clock_is_fitted_from_the_tags_at_their_file_positions(tmp_path):
