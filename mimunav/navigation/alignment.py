@@ -28,7 +28,7 @@ from scipy.spatial.transform import Rotation
 
 from ..frames import attitude, earth
 from ..errors import InputError
-from .rests import (G0, MIN_STATIC_S, felt_at_rest, QUIET_WINDOW_S, STATIC_MARGIN_S, STATIC_SPEED, track_still,
+from .rests import (G0, MIN_STATIC_S, felt_at_rest, rate_mean_se, QUIET_WINDOW_S, STATIC_MARGIN_S, STATIC_SPEED, track_still,
                     quiet_stretches, rest_intervals, travel_sign, velocity_noise, yaw_turned)
 
 
@@ -138,7 +138,7 @@ def initial_alignment(t, w, f, mounting, track=None):
         q0, q1 = quiet[0][0], quiet[0][1] - STATIC_MARGIN_S       # the car starts to roll
         covered = (min(q1, track["t"][-1]) - max(q0, track["t"][0])) / max(q1 - q0, 1e-9)
         if q1 - q0 >= MIN_STATIC_S and covered >= 0.8 and track_still(track, q0, q1):
-            align = _from_rest(t, w, f, mounting, track, (q0, q1))
+            align = _from_rest(t, w, f, mounting, track, (q0, q1), still_until=quiet[0][1])
             align.method = (f"a rest {q0:.2f}-{q1:.2f} s judged from the IMU and the "
                             "reference's positions (its differenced speed is too noisy to "
                             "show it); " + align.method)
@@ -216,8 +216,11 @@ def _untracked(t, w, f, mounting):
                      bias_basis={"gyro": "assumed", "accel": "none"})
 
 
-def _from_rest(t, w, f, mounting, track, interval):
-    """Case 1 of `initial_alignment`: the rest `interval` (t0, t1) starts the recording."""
+def _from_rest(t, w, f, mounting, track, interval, still_until=-math.inf):
+    """Case 1 of `initial_alignment`: the rest `interval` (t0, t1) starts the recording; the
+    IMU held still until `still_until` (s), so no course before it is the vehicle's (a
+    noisy fix's 'fast' epoch 1 s after the rest's margin, while the IMU still stood, had
+    turned the heading 3 deg)."""
     q_vs = mounting.q_vs
     t_end = interval[1]
     rest = (t >= t[0]) & (t <= t_end)
@@ -228,7 +231,7 @@ def _from_rest(t, w, f, mounting, track, interval):
     lat, lon, h = (float(np.interp(t[0], track["t"], x)) for x in (
         track["lat"], unwrapped_longitude(track["lon"]), track["h"]))
     speed = np.hypot(track["v_ned"][:, 0], track["v_ned"][:, 1])
-    fast = np.flatnonzero((speed >= COURSE_SPEED) & (track["t"] > t_end))
+    fast = np.flatnonzero((speed >= COURSE_SPEED) & (track["t"] > max(t_end, still_until)))
     q_ref, t_ref = reference_attitude(track, float(t[0]))
     w_v = attitude.rotate(q_vs, w - w[rest].mean(axis=0))
     k = fast[track["t"][fast] <= track["t"][fast[0]] + COURSE_SPAN_S] if len(fast) else fast
@@ -326,10 +329,21 @@ def biases_at_a_rest(t, w, f, mounting, track, rests, quiet=None):
     if not rests:           # `quiet`: the IMU's quiet stretches when already found
         rests = quiet_stretches(t, w, f, track) if quiet is None else quiet
         where = "the IMU's quietest stretch (no reference rest; judged from the IMU alone)"
+    none = f"no rest of {MIN_STATIC_S:g} s in the reference and no quiet stretch of " \
+           f"{MIN_STATIC_S:g} s in the IMU"
+    moving = biases_from_attitude(t, w, f, mounting, track) if rests else None
+    if rests:               # a rest's gyro bias against the reference attitude's: the better
+        t0, t1 = max(rests, key=lambda r: r[1] - r[0])
+        se = rate_mean_se(t, w, t0, t1)
+        if moving is not None and np.linalg.norm(moving[0][1]) < np.linalg.norm(se) and \
+                np.linalg.norm(se) > REST_BIAS_ENOUGH:
+            rests = []
+            none = (f"the rest {t0:.2f}-{t1:.2f} s measures the gyro bias less well than the "
+                    "reference's attitude does (standard errors "
+                    + ", ".join(f"{math.degrees(x) * 3600:.0f}" for x in se)
+                    + " deg/h from its 1 s means' scatter: the IMU moves there)")
     if not rests:
-        none = f"no rest of {MIN_STATIC_S:g} s in the reference and no quiet stretch of " \
-               f"{MIN_STATIC_S:g} s in the IMU"
-        moving = biases_from_attitude(t, w, f, mounting, track)
+        moving = biases_from_attitude(t, w, f, mounting, track) if moving is None else moving
         if moving is None:
             return (np.zeros(3), np.zeros(3), (math.nan, math.nan),
                     f"biases taken as 0: {none}", {"gyro": "none", "accel": "none"})
@@ -365,6 +379,11 @@ def biases_at_a_rest(t, w, f, mounting, track, rests, quiet=None):
              "accel": "along_gravity", "gravity_sensor_axes": _up(f[k])}
     return (gyro_bias, accel_bias, (t0, t1),
             f"biases from {where} {t0:.2f}-{t1:.2f} s ({note})", basis)
+
+
+REST_BIAS_ENOUGH = math.radians(1.0 / 3600)   # rad/s: a rest that measures the gyro bias
+#   this well (seed S1 Table 4's FOG-IMU bias stability, 1 deg/h) is kept whatever the
+#   reference's attitude offers (an ideal IMU's two measures differ in round-off only)
 
 
 def _horizontal_earth_rate(q_ns, lat):
@@ -421,21 +440,63 @@ def biases_from_attitude(t, w, f, mounting, track, window=ATTITUDE_BIAS_WINDOW_S
     rate = w_nb + c_bn_mid.apply(w_ie + w_en)
     v_ref = np.asarray(track["v_ned"], float)[inside]
     force = c_bn_mid.apply((v_ref[b] - v_ref[a]) / span[:, None]
-                           + np.cross(2 * w_ie + w_en, v) - earth.gravity_ned(lat, h))
+                           + np.cross(2 * w_ie + w_en, v)) \
+        - _mean_gravity_body(rot, t_q, step, earth.gravity_ned(lat, h))
     k0, k1 = np.searchsorted(t, edges, side="right"), np.searchsorted(t, t_q[b], side="right")
     use = k1 - k0 >= 2
     if use.sum() < MIN_ATTITUDE_BIAS_WINDOWS:
         return None
     q_sv = np.conjugate(mounting.q_vs)
 
-    def median_difference(x, predicted):
+    def window_means(x):
         c = np.vstack([np.zeros((1, 3)), np.cumsum(x, axis=0)])
-        d = (c[k1[use]] - c[k0[use]]) / (k1[use] - k0[use])[:, None] \
-            - attitude.rotate(q_sv, predicted[use])
+        return (c[k1[use]] - c[k0[use]]) / (k1[use] - k0[use])[:, None]
+
+    def median_difference(x, predicted):
+        d = window_means(x) - attitude.rotate(q_sv, predicted[use])
         bias = np.median(d, axis=0)
         sigma = 1.4826 * np.median(np.abs(d - bias), axis=0)
         return bias, 1.2533 * sigma / math.sqrt(len(d))
+    # the IMU sits at the lever arm r from the reference's point: it also feels
+    # dw/dt x r + w x (w x r) (vehicle axes, from the IMU's own rates: the window's mean
+    # dw/dt is the rate's change across it) - a boat rolling 11 deg with r 1.4 m had left
+    # 0.013 m/s^2 on accel.z, the centripetal mean, and the tangential's median over
+    # windows of a roll does not vanish either
+    w_v = attitude.rotate(mounting.q_vs, w)
+    r = mounting.lever_arm_m
+    force = np.array(force)
+    turn = (_rate_at(t, w_v, t_q[b][use]) - _rate_at(t, w_v, edges[use])) / span[use, None]
+    force[use] += window_means(np.cross(w_v, np.cross(w_v, r))) + np.cross(turn, r)
     return median_difference(w, rate), median_difference(f, force), int(use.sum())
+
+
+def _mean_gravity_body(rot, t_q, step, g_n):
+    """(n, 3) m/s^2: gravity g_n (n, 3, NED) in the body axes averaged over each window of
+    `step` reference epochs t_q (s; attitudes rot, body -> NED), over its epochs - by
+    Simpson's rule where they are even in number of steps and evenly spaced, else the
+    trapezoid's: at the window's mid-rotation alone a hull rolling 2.6 deg at 6 s was off by
+    g phi'' span^2 / 12 = 0.04 m/s^2 in 1 s windows, by the trapezoid over 10 Hz epochs
+    4e-4."""
+    starts = np.arange(0, len(t_q) - step, step)[:len(g_n)]
+    times = t_q[starts[:, None] + np.arange(step + 1)]
+    steps = np.diff(times, axis=1)
+    if step % 2 == 0 and np.allclose(steps, steps[:, :1], rtol=1e-3):
+        weights = np.tile(np.r_[1.0, np.tile([4.0, 2.0], step // 2)[:-1], 1.0] / (3 * step),
+                          (len(starts), 1))
+    else:
+        padded = np.pad(steps, ((0, 0), (1, 1)))
+        weights = 0.5 * (padded[:, :-1] + padded[:, 1:]) / steps.sum(axis=1, keepdims=True)
+    out = np.zeros((len(starts), 3))
+    for j in range(step + 1):
+        out += rot[starts + j].inv().apply(g_n) * weights[:, j:j + 1]
+    return out
+
+
+def _rate_at(t, w, epochs, reach=2):
+    """The rates w (N, 3) at the epochs (s): the mean of the 2 reach + 1 samples of stamps t
+    (s) nearest each (an interval mean's stamp ends its interval: half a sample late)."""
+    k = np.clip(np.searchsorted(t, epochs), reach, len(t) - reach - 1)
+    return np.mean([w[k + d] for d in range(-reach, reach + 1)], axis=0)
 
 
 def moving_attitude(t, w, f, mounting, track, t0, half=MOVING_HALF_WINDOW_S):

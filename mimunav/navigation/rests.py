@@ -48,8 +48,10 @@ def felt_at_rest(t, w, f, rests):
     """The rests [(t0, t1)] s (a reference's, `rest_intervals`) where the IMU feels one too:
     its mean specific force gravity's size (within REST_GRAVITY) and its mean rate about the
     Earth's (within REST_RATE) - a reference that stands still while the IMU falls freely or
-    spins (a rocket's apogee under a stalled GNSS velocity) is no rest; ([kept], [(t0, t1, why
-    not)])."""
+    spins (a rocket's apogee under a stalled GNSS velocity) is no rest - and, within them,
+    the runs where it holds still (`steady_runs`: a moored boat rocking on its mooring is
+    still to its GNSS, and its mean rate is small, but its gyro bias from that 'rest' had
+    been 20 times the truth); ([kept], [(t0, t1, why not)])."""
     kept, refused = [], []
     for t0, t1 in rests:
         k = (t >= t0) & (t <= t1)
@@ -57,13 +59,57 @@ def felt_at_rest(t, w, f, rests):
             continue
         g_err = float(np.linalg.norm(f[k].mean(axis=0))) - G0
         rate = float(np.linalg.norm(w[k].mean(axis=0)))
-        if abs(g_err) <= REST_GRAVITY and rate <= REST_RATE:
-            kept.append((t0, t1))
-        else:
+        if abs(g_err) > REST_GRAVITY or rate > REST_RATE:
             refused.append((t0, t1, f"the reference stands still {t0:.2f}-{t1:.2f} s but the IMU "
                                     f"feels |f| {g_err + G0:.2f} m/s^2 and |w| "
                                     f"{math.degrees(rate):.1f} deg/s there: no rest"))
+            continue
+        runs, tilt, turn = steady_runs(t, w, f, t0, t1)
+        kept += runs
+        if not runs:
+            refused.append((t0, t1, f"the reference stands still {t0:.2f}-{t1:.2f} s but the IMU "
+                                    f"does not: its 1 s means tilt up to {math.degrees(tilt):.2f} "
+                                    f"deg and turn up to {math.degrees(turn):.2f} deg/s about "
+                                    f"their means (a rest holds within "
+                                    f"{math.degrees(REST_TILT):g} deg and "
+                                    f"{math.degrees(REST_TURN):g} deg/s for {MIN_STATIC_S:g} s): "
+                                    "it rocks or moves, no rest"))
     return kept, refused
+
+
+REST_TILT = math.radians(1.0)   # rad: a rest's 1 s means of specific force stay this close to
+#                                 their mean direction - 3 x the idling RTKLIB drive's worst
+#                                 (0.31 deg, its occupants aboard; its stops 0.01-0.22), where
+#                                 a moored hull rolling 2.6 deg, or a car braking at 0.2 m/s^2
+#                                 (1.2 deg), lies beyond
+REST_TURN = math.radians(1.0)   # rad/s: its 1 s mean rates this close to their mean - 4 x
+#                                 that drive's worst (0.23 deg/s), where a hull rocking at
+#                                 2.5 deg/s lies beyond
+STEADY_WINDOW_S = 1.0           # s: the means judged
+
+
+def steady_runs(t, w, f, t0, t1):
+    """([(a, b)] s: the runs of at least MIN_STATIC_S within [t0, t1] where the IMU holds
+    still - its STEADY_WINDOW_S means of specific force (m/s^2) within REST_TILT of their
+    mean direction over the span (the level a rest gives) and of rate (rad/s) within
+    REST_TURN of their mean -,
+    the worst tilt (rad) and turn (rad/s) of the span's means). A span shorter than two
+    windows is judged as one window."""
+    n = max(int((t1 - t0) // STEADY_WINDOW_S), 1)
+    filled, f_mean, w_mean = _window_means(t, (f, w), t0, t1, n)
+    up = f_mean / np.linalg.norm(f_mean, axis=1)[:, None]
+    middle = up.mean(axis=0)
+    tilt = np.arccos(np.clip(up @ (middle / np.linalg.norm(middle)), -1.0, 1.0))
+    turn = np.linalg.norm(w_mean - w_mean.mean(axis=0), axis=1)
+    steady = np.zeros(n, bool)
+    steady[filled] = (tilt <= REST_TILT) & (turn <= REST_TURN)
+    runs = []
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], steady.astype(int), [0]])))
+    for a, b in zip(edges[::2], edges[1::2]):
+        start, end = t0 + a * STEADY_WINDOW_S, t1 if b == n else t0 + b * STEADY_WINDOW_S
+        if end - start >= MIN_STATIC_S:
+            runs.append((float(start), float(end)))
+    return runs, float(tilt.max()), float(turn.max())
 
 
 def yaw_turned(t, w_v, t0, t1):
@@ -102,7 +148,11 @@ def quiet_stretches(t, w, f, track=None):
     STATIC_SPEED. For the biases when
     the reference shows no rest (it may not cover one); outside the reference, a drive that
     never stops can pass the relative test, so the note says the rest was judged from the
-    IMU alone."""
+    IMU alone. Each run is first cut to where the IMU holds still (`steady_runs`): a smooth
+    braking is quiet but tilts the specific force (a phone's bias 'at rest' had been taken
+    over 3 s of a car still braking from 3.7 m/s either side of its stop), and a quiet run
+    that went on into smooth driving had failed the track's test whole, losing a parked
+    minute at its start."""
     n = max(int(round(QUIET_WINDOW_S / np.median(np.diff(t)))), 4)
     m = len(t) // n
     if m < 2:
@@ -119,22 +169,30 @@ def quiet_stretches(t, w, f, track=None):
     # a steady turn is no rest: the mean rate and gravity judge every window, filled or not
     quiet = (steady & (np.linalg.norm(w_s.mean(axis=1), axis=1) < QUIET_RATE)
              & (np.abs(np.linalg.norm(cut(f).mean(axis=1), axis=1) - G0) < QUIET_GRAVITY))
-    if track is not None and len(track["t"]) >= 2:
-        mid = cut(t).mean(axis=1)
-        covered = (mid >= track["t"][0]) & (mid <= track["t"][-1])
-        speed = np.interp(mid, track["t"], np.linalg.norm(track["v_ned"], axis=1))
-        slow = ~covered | (speed <= STATIC_SPEED)
-        edges = np.flatnonzero(np.diff(np.concatenate([[0], quiet.astype(int), [0]])))
-        for a, b in zip(edges[::2], edges[1::2]):
-            if not track_still(track, float(t[a * n]), float(t[b * n - 1])):
-                quiet[a:b] &= slow[a:b]
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], quiet.astype(int), [0]])))
+    runs = [run for t0, t1 in _runs(quiet, cut(t)[:, 0], cut(t)[:, -1])
+            for run in steady_runs(t, w, f, t0, t1)[0]]
+    if track is None or len(track["t"]) < 2:
+        return runs
+    mid = cut(t).mean(axis=1)
+    covered = (mid >= track["t"][0]) & (mid <= track["t"][-1])
+    speed = np.interp(mid, track["t"], np.linalg.norm(track["v_ned"], axis=1))
+    slow = ~covered | (speed <= STATIC_SPEED)
     out = []
-    for a, b in zip(edges[::2], edges[1::2]):
-        t0, t1 = float(t[a * n]), float(t[b * n - 1])
-        if t1 - t0 >= MIN_STATIC_S:
+    for t0, t1 in runs:         # the IMU still: its positions, else its speed must agree
+        if track_still(track, t0, t1):
             out.append((t0, t1))
+        else:
+            inside = (mid >= t0) & (mid <= t1)
+            out += _runs(inside & slow, cut(t)[:, 0], cut(t)[:, -1])
     return out
+
+
+def _runs(mask, starts, ends):
+    """[(t0, t1)] s of the runs of True in the windows' mask (their first and last stamps
+    starts, ends) at least MIN_STATIC_S long."""
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], mask.astype(int), [0]])))
+    return [(float(starts[a]), float(ends[b - 1])) for a, b in zip(edges[::2], edges[1::2])
+            if ends[b - 1] - starts[a] >= MIN_STATIC_S]
 
 
 def _close(mask, hole):
@@ -252,3 +310,29 @@ def velocity_noise(track):
         return None
     d2 = v[2:] - 2 * v[1:-1] + v[:-2]
     return float(np.median(np.abs(d2 - np.median(d2, axis=0)))) / 0.6745 / math.sqrt(6)
+
+
+def rate_mean_se(t, w, t0, t1):
+    """(3,) rad/s: the standard error of the IMU's mean rate w (rad/s, stamps t s) over
+    [t0, t1] from the scatter of its STEADY_WINDOW_S means (their sd over sqrt n): what a
+    gyro bias from that rest is worth when the IMU moves a little there (a moored hull
+    rocking: 0.2 deg/s over 5 s, against 0.002 for a phone parked a minute); NaN with fewer
+    than 3 windows."""
+    n = int((t1 - t0) // STEADY_WINDOW_S)
+    if n < 3:
+        return np.full(3, np.nan)
+    _, means = _window_means(t, (w,), t0, t1, n)
+    return means.std(axis=0, ddof=1) / math.sqrt(len(means))
+
+
+def _window_means(t, series, t0, t1, n):
+    """(filled (n,) bool, then each of `series` (N, 3) averaged over the filled ones of n
+    STEADY_WINDOW_S windows from t0 - the samples of [t0, t1] at stamps t (s), those past
+    the last window's end in it)."""
+    k = np.flatnonzero((t >= t0) & (t <= t1))
+    which = np.minimum(((t[k] - t0) // STEADY_WINDOW_S).astype(int), n - 1)
+    counts = np.bincount(which, minlength=n)
+    filled = counts > 0
+    return (filled,) + tuple(
+        np.column_stack([np.bincount(which, x[k, i], n) for i in range(3)])[filled]
+        / counts[filled, None] for x in series)

@@ -307,3 +307,73 @@ def runs_of(mask, t):
     """[(t0, t1)] of the runs of True in mask (at the epochs t)."""
     edges = np.flatnonzero(np.diff(np.concatenate([[0], mask.astype(int), [0]])))
     return [(t[a], t[b - 1]) for a, b in zip(edges[::2], edges[1::2])] or [(0.0, 0.0)]
+
+
+def _rocking_hull(amplitude_deg, period_s=6.0, span_s=60.0, rate=100.0):
+    """A hull moored at LAT0 (the reference still, its attitude given at 10 Hz) rolling
+    amplitude_deg sin(2 pi t / period_s): the IMU's rates (the roll rate's exact interval
+    means plus the Earth's, body axes) with a gyro bias, and its specific force (gravity turned into the
+    body); (t, w, f, track, bias)."""
+    t = np.arange(0.0, span_s, 1.0 / rate)
+    omega = 2 * math.pi / period_s
+    roll = math.radians(amplitude_deg) * np.sin(omega * t)
+    q_nb = attitude.from_euler(np.zeros_like(t), np.zeros_like(t), roll)
+    q_bn = np.conjugate(q_nb)
+    bias = np.array([2e-4, -3e-4, 1e-4])
+    roll_rate = np.diff(roll, prepend=0.0) * rate        # interval means, as the contract's
+    w = np.column_stack([roll_rate, np.zeros_like(t), np.zeros_like(t)]) \
+        + attitude.rotate(q_bn, earth.earth_rate_ned(LAT0)) + bias
+    g = float(earth.normal_gravity(LAT0, H0))
+    f = attitude.rotate(q_bn, np.array([0.0, 0.0, -g]))
+    k = np.arange(0, len(t), 10)
+    track = {"t": t[k], "lat": np.full(len(k), LAT0), "lon": np.full(len(k), LON0),
+             "h": np.full(len(k), H0), "v_ned": np.zeros((len(k), 3)),
+             "q_nb": attitude.as_wxyz(q_nb[k])}
+    return t, w, f, track, bias
+
+
+def test_a_rocking_hull_is_no_rest():
+    """A moored hull rolling 2.6 deg at 6 s (its GNSS still, its mean rate 0.3 deg/s) had
+    been taken as a rest, its gyro bias 20 times the truth: the IMU's 1 s means tilt 2.6 deg
+    and turn 2.7 deg/s about their means (2.48 deg, 2.3 deg/s in 1 s means) - refused, the reason in numbers; still water
+    (no roll) is a rest."""
+    from mimunav.navigation.rests import felt_at_rest
+    t, w, f, _, _ = _rocking_hull(2.6)
+    kept, refused = felt_at_rest(t, w, f, [(0.0, 59.9)])
+    assert kept == [] and "tilt up to 2.5" in refused[0][2] and "it rocks" in refused[0][2]
+    t, w, f, _, _ = _rocking_hull(0.0)
+    assert felt_at_rest(t, w, f, [(0.0, 59.9)]) == ([(0.0, 59.9)], [])
+
+
+def test_a_gently_rocking_rest_gives_way_to_the_reference_attitude():
+    """A hull rolling 0.6 deg (its 1 s means within a rest's tolerances): a rest, but one
+    whose gyro bias is worth 1 s means' scatter over sqrt n (170 deg/h here) - the
+    reference's attitude measures it better, and the bias comes from that, exact on these
+    exact increments; in still water the rest gives it."""
+    for amplitude, basis in ((0.6, "the reference's attitude and velocity"), (0.0, "the rest")):
+        t, w, f, track, bias = _rocking_hull(amplitude)
+        gyro, _, _, note, _ = alignment.biases_at_a_rest(t, w, f, Mounting(), track,
+                                                         [(0.0, 59.9)])
+        assert f"biases from {basis}" in note, note
+        assert np.abs(gyro - bias).max() < 2e-6, (amplitude, gyro - bias)
+
+
+def test_the_reference_attitudes_accelerometer_bias_allows_for_the_lever_arm():
+    """The IMU 1.2 m forward, 0.4 m right and 0.6 m above the point a rolling hull's
+    reference describes (roll 2.6 deg at 6 s): it feels dw/dt x r + w x (w x r) besides
+    gravity, whose windows' median does not vanish - the accelerometer bias from the
+    reference's attitude (none in truth) stays within 1e-4 m/s^2 of 0 on every axis (with
+    gravity averaged over each window: at its mid-rotation it was 0.04 off); leaving the
+    lever arm out leaves 0.013."""
+    t, w, f, track, _ = _rocking_hull(2.6)
+    r = np.array([1.2, 0.4, -0.6])
+    omega = 2 * math.pi / 6.0
+    roll_rate = math.radians(2.6) * omega * np.cos(omega * t)
+    roll_acc = -math.radians(2.6) * omega ** 2 * np.sin(omega * t)
+    w_x = np.column_stack([roll_rate, np.zeros_like(t), np.zeros_like(t)])
+    f = f + np.cross(np.column_stack([roll_acc, 0 * t, 0 * t]), r) \
+        + np.cross(w_x, np.cross(w_x, r))
+    _, (accel, _), _ = alignment.biases_from_attitude(t, w, f, Mounting(lever_arm_m=r), track)
+    assert np.abs(accel).max() < 1e-4, accel
+    _, (unaware, _), _ = alignment.biases_from_attitude(t, w, f, Mounting(), track)
+    assert np.abs(unaware).max() > 5e-3, unaware
