@@ -19,8 +19,8 @@ def kind(flight):
         return said, f"declared {said} (recording metadata)"
     if flight.truth is None or len(flight.truth) < 10:
         return "other", "not a car: no reference track to judge it from"
-    f = None if flight.mimu_imu is None else flight.mimu_imu[1]
-    failed, numbers = car_tests(flight.truth.v_ned, flight.mimu_t, f)
+    w, f = (None, None) if flight.mimu_imu is None else flight.mimu_imu
+    failed, numbers = car_tests(flight.truth.t, flight.truth.v_ned, flight.mimu_t, f, w)
     if failed:
         return "other", f"judged not a car: {'; '.join(failed)}"
     return LAND, "judged a car: " + ", ".join(numbers)

@@ -91,7 +91,8 @@ def _check_heading_against_course(rec, q, ok):
     a recording judged a car, not declared one) - a yaw in another convention;
     a car reversing for most of its fast epochs reads 180 and is refused too, saying so;
     said in rec.real otherwise. Not judged for what is not a car (it may fly sideways)."""
-    if _not_a_car(rec, rec.reference["v_ned"]):
+    if _not_a_car(rec, (np.asarray(rec.reference["ns"], np.int64) - int(rec.imu_ns[0])) / 1e9,
+                  rec.reference["v_ned"]):
         return
     v = rec.reference["v_ned"][ok]
     fast = np.hypot(v[:, 0], v[:, 1]) > FAST_S
@@ -115,13 +116,13 @@ def _check_heading_against_course(rec, q, ok):
     rec.real["reference_heading"] = said
 
 
-def _not_a_car(rec, v_ned):
+def _not_a_car(rec, t_track, v_ned):
     """[why the recording is not a car] - declared another vehicle, or the tests
-    `motion.carrier.car_tests` fails on its track's velocities v_ned (m/s) and its specific
-    force - or [] for a car."""
+    `motion.carrier.car_tests` fails on its track's velocities v_ned (m/s) at t_track (s
+    from the IMU's first stamp) and its specific force and rate - or [] for a car."""
     if rec.vehicle:
         return [] if rec.vehicle == LAND else [f"declared a {rec.vehicle}"]
-    return car_tests(v_ned, (rec.imu_ns - rec.imu_ns[0]) / 1e9, rec.f)[0]
+    return car_tests(t_track, v_ned, (rec.imu_ns - rec.imu_ns[0]) / 1e9, rec.f, rec.w)[0]
 
 
 def _check_reference_clock(rec):
@@ -249,6 +250,8 @@ def _blocks(n, k):
 COURSE_CHECK_RATE = 0.02       # rad/s: the course must turn this much (std) to judge a gyro
 COURSE_CHECK_ACCEL = 0.3        # m/s^2: horizontal acceleration (std) to judge the axes
 COURSE_CHECK_YAW = math.radians(45.0)   # a forward axis this far off is a wrong mounting
+DIAGNOSED_YAW = math.radians(20.0)      # the diagnosis' small-angle mounting term holds no
+                                        # more (diagnosis.library.PHYSICAL_RANGE, 0.35 rad)
 
 
 def _check_against_course(rec):
@@ -267,7 +270,7 @@ def _check_against_course(rec):
     track = reference_track(rec, epoch)
     if track is None:
         return
-    failed = _not_a_car(rec, track["v_ned"])
+    failed = _not_a_car(rec, track["t"], track["v_ned"])
     if failed:
         rec.real["course_checks"] = (f"not made: not a car ({'; '.join(failed)}), so it need "
                                      "not move along its forward axis, and its course judges "
@@ -305,9 +308,12 @@ def _check_against_course(rec):
                 "vehicle's), from the accelerometers' horizontal specific force against the "
                 f"GNSS track's acceleration (coherence {coherence:.2f}, size ratio "
                 f"{abs(gain):.2f}; a car's body slip and lean take a few degrees): beyond "
-                f"{math.degrees(COURSE_CHECK_YAW):.0f} deg it is refused, a smaller one "
-                "`mimunav diagnose` measures with its interval (mounting_misalignment); "
-                f"--mounting-rpy-deg {_turned_back(rec, yaw, square=False)} would turn it back")
+                f"{math.degrees(COURSE_CHECK_YAW):.0f} deg it is refused; `mimunav diagnose` "
+                f"measures one within {math.degrees(DIAGNOSED_YAW):.0f} deg with its interval "
+                "(mounting_misalignment, a small-angle term)"
+                + ("" if abs(yaw) <= DIAGNOSED_YAW else ", not this one: import it turned back")
+                + f"; --mounting-rpy-deg {_turned_back(rec, yaw, square=False)} would turn it "
+                "back")
         if coherence > 0.5 and abs(yaw) > COURSE_CHECK_YAW:
             raise RecordingError(
                 f"{rec.name}: the accelerometers' horizontal specific force matches the GNSS "

@@ -13,6 +13,11 @@ recording that cannot show it is not one):
                     climbs on the spot; a car does not)
     LOAD            the IMU's 1 s mean |specific force| within this of 1 g in 99.5 % of the
                     seconds (a rocket's boost or coast, an aircraft's pull or push exceed it)
+    BODY_RATE       the IMU's roll and pitch rate - its 1 s mean rate across its mean down,
+                    the median rate (a bias) removed - at most this in 95 % of the seconds
+                    (a boat's roll, an aircraft's or a multicopter's manoeuvres exceed it)
+The climbs are judged on the velocities' CLIMB_WINDOW_S means: a phone's 1 Hz altitudes
+(1 m of noise each) had climbed at 2.2 m/s on the spot by their differences.
 """
 import numpy as np
 
@@ -24,14 +29,20 @@ GRADE = 0.3                 # 30 %: steeper than any public road (the steepest a
 STILL_CLIMB = 1.5           # m/s, below 2 m/s of horizontal speed
 LOAD = 0.5 * 9.80665        # m/s^2: 0.5 g - a car's hardest braking or cornering on dry road
                             # adds about 1 g horizontally: |f| = sqrt(2) g, 0.41 g over
+BODY_RATE = np.radians(5.0)  # rad/s: 3 x the most a car showed - its body and the road turn
+                            # it 0.2-1.6 deg/s (95 %; the RTKLIB and comma2k19 drives, an
+                            # independent simulator's over hills); a moored-and-sailing
+                            # boat's roll 10, a light aircraft's 17, a multicopter's 30
+CLIMB_WINDOW_S = 10.0       # s: the velocities' means the climbs are judged on (a climb on the
+#                             spot that decides, a multicopter's take-off, lasts longer)
 
 
-def car_tests(v_ned, t=None, f=None):
+def car_tests(t_track, v_ned, t=None, f=None, w=None):
     """([the tests the track fails, said], [the numbers that passed them]) of a reference
-    track's NED velocities v_ned (m/s, (M, 3)) and the IMU's specific force f (m/s^2, sensor
-    axes, (N, 3)) at its stamps t (s) - None: not recorded (a raw /mimu/raw), the load not
-    tested."""
-    v = np.asarray(v_ned, float)
+    track's NED velocities v_ned (m/s, (M, 3)) at its epochs t_track (s) and the IMU's
+    specific force f (m/s^2) and rate w (rad/s) (sensor axes, (N, 3)) at its stamps t (s) -
+    None: not recorded (a raw /mimu/raw), the load and the body rate not tested."""
+    v = _means(np.asarray(t_track, float), np.asarray(v_ned, float), CLIMB_WINDOW_S / 2)
     ok = np.isfinite(v).all(axis=1)
     speed, climb = np.hypot(v[ok, 0], v[ok, 1]), np.abs(v[ok, 2])
     failed, numbers = [], []
@@ -53,17 +64,49 @@ def car_tests(v_ned, t=None, f=None):
     if load is not None and load > LOAD:
         failed.append(f"its IMU's 1 s mean |specific force| is {load / 9.80665:.2f} g off 1 g "
                       f"in 0.5 % of the seconds (a car at most {LOAD / 9.80665:.1f} g)")
+    body = None if f is None or w is None else _body_rate(t, f, w)
+    if body is not None and body > BODY_RATE:
+        failed.append(f"its IMU rolls or pitches at {np.degrees(body):.1f} deg/s (95th "
+                      f"percentile of 1 s means; a car at most {np.degrees(BODY_RATE):g})")
     numbers = [f"speed p95 {p95:.1f} m/s, p99 {p99:.1f} m/s", f"grade p99 {100 * grade:.0f} %",
                f"climb at standstill {still_climb:.1f} m/s"] + \
-        ([f"load {load / 9.80665:.2f} g off 1 g (99.5 %)"] if load is not None else [])
+        ([f"load {load / 9.80665:.2f} g off 1 g (99.5 %)"] if load is not None else []) + \
+        ([f"roll and pitch rate {np.degrees(body):.1f} deg/s (95 %)"] if body is not None
+         else [])
     return failed, numbers
+
+
+def _means(t, x, half):
+    """Means of the rows of x (M, k) within +-half s of each of its epochs t (s)."""
+    c = np.vstack([np.zeros((1, x.shape[1])), np.nancumsum(x, axis=0)])
+    n = np.concatenate([[0], np.cumsum(np.isfinite(x).all(axis=1))])
+    lo, hi = np.searchsorted(t, t - half), np.searchsorted(t, t + half, "right")
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return (c[hi] - c[lo]) / (n[hi] - n[lo])[:, None]
+
+
+def _seconds(t, x):
+    """1 s means of x (N, 3) at stamps t (s), the seconds with samples."""
+    sec = np.floor(t - t[0]).astype(int)
+    count = np.bincount(sec)
+    return np.column_stack([np.bincount(sec, x[:, i]) for i in range(3)])[count > 0] / \
+        count[count > 0, None]
+
+
+def _body_rate(t, f, w):
+    """The 95th percentile (rad/s) of the IMU's 1 s mean rate across its mean down (the
+    median of its specific force's directions), the median rate removed: what a car's body
+    and road turn about its level axes."""
+    f_s, w_s = _seconds(t, f), _seconds(t, w)
+    up = f_s / np.linalg.norm(f_s, axis=1)[:, None]
+    down = np.median(up, axis=0)
+    down = down / np.linalg.norm(down)
+    w_s = w_s - np.median(w_s, axis=0)
+    across = w_s - np.outer(w_s @ down, down)
+    return float(np.percentile(np.linalg.norm(across, axis=1), 95))
 
 
 def _load(t, f):
     """The 99.5th percentile of | |1 s mean specific force| - g | (m/s^2) of specific forces
     f (m/s^2) at stamps t (s)."""
-    sec = np.floor(t - t[0]).astype(int)
-    count = np.bincount(sec)
-    means = np.column_stack([np.bincount(sec, f[:, i]) for i in range(3)])[count > 0] / \
-        count[count > 0, None]
-    return float(np.percentile(np.abs(np.linalg.norm(means, axis=1) - 9.80665), 99.5))
+    return float(np.percentile(np.abs(np.linalg.norm(_seconds(t, f), axis=1) - 9.80665), 99.5))
