@@ -81,7 +81,10 @@ def _diagnosed(args, painter):
     elif "not_estimated" in lag:
         print(f"  time lag from the yaw rate not estimated: {lag['not_estimated']}")
     for u in doc["unexplained"][:10]:
-        print(f"  unexplained residual {u['channel']} {u['t0']:.1f}-{u['t1']:.1f} s (z {u['z']:.1f})")
+        print(f"  unexplained residual {excursion_text(u)}")
+    for u in doc.get("reference_check", {}).get("excursions_at_stops", []):
+        print(f"  at a stop, the vehicle model's own: {excursion_text(u)} within "
+              f"{u['bound']:.2g} {u['units']}, {u['why']}")
     for w in doc.get("within_reference_accuracy", []):
         print(set_aside_line(w))
     for line in not_confirmed_lines(doc):
@@ -89,6 +92,12 @@ def _diagnosed(args, painter):
     if args.output:
         print(f"wrote {args.output}/diagnosis.md" + (" and CAL+found.json" if found else ""))
     return 0
+
+
+def excursion_text(u):
+    """An excursion of the scan: channel, span, robust z and its size (SI units)."""
+    size = f", {u['size']:+.3g} {u['units']}" if "size" in u else ""
+    return f"{u['channel']} {u['t0']:.1f}-{u['t1']:.1f} s (z {u['z']:.1f}{size})"
 
 
 def finding_line(f):

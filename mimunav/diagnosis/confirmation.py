@@ -463,6 +463,38 @@ def set_aside_reasons(rejected):
             or isinstance(r.get("library_inflation"), dict)]
 
 
+def beyond_range(design, beyond):
+    """The candidates `selection.select` left as beyond their physical range (`beyond`), as
+    rejected terms (`beyond_range`: the range; `rejected`: why) - a signature in the residual
+    that the term holds only at a size its first-order form does not describe."""
+    out = []
+    for c in beyond:
+        term = design.terms[c["j"]]
+        half = 1.96 * np.sqrt(np.diag(c["cov"]))
+        entry = dict(interval_estimate(design, term, c["b"], c["cov"]) if len(c["b"]) > 1
+                     else estimate(term, c["b"], c["b"] - half, c["b"] + half),
+                     label=library.label(term), p_train=c["p_train"], beyond_range=c["limit"])
+        size = float(np.linalg.norm(c["b"]))
+        said = (f"{math.degrees(size):.1f} deg, beyond the {math.degrees(c['limit']):.0f} deg "
+                "a small-angle term holds: the mounting given is off by more than the "
+                "diagnosis fits (this estimate falls short of such a turn); turn it back at "
+                "import (--mounting-rpy-deg, or the spec's mounting_rpy_deg) and diagnose again"
+                if term["effect"] == "mounting_misalignment" else
+                f"{size:.3g} {entry['units']}, beyond its physical range ({c['limit']:.3g})")
+        out.append(dict(entry, rejected=f"significant on the training half (p "
+                                        f"{c['p_train']:.2g}) at {said}: not chosen"))
+    return out
+
+
+def beyond_range_reasons(rejected):
+    """Why 'nothing is missing' cannot be said: the mounting misalignment fitted beyond its
+    physical range (`beyond_range`) - a mounting given wrong by more than the small-angle
+    term holds, which every other term is fitted through. (Other terms beyond their range
+    are look-alikes the selection passes over - on null flights too - and are only listed.)"""
+    return [f"{r['label']} {r['rejected']}" for r in rejected if "beyond_range" in r
+            and r["effect"] == "mounting_misalignment"]
+
+
 def _widened(finding, factor):
     """The finding with every 95 % interval's half-widths about its estimate times factor."""
     out = dict(finding)

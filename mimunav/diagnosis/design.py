@@ -50,6 +50,8 @@ class Design:
     bin_s: float = FAST_BIN_S   # the bins' length, s
     shape: np.ndarray | None = None     # (nb, 6) each bin's white variance over its channel's
                                 # (`diagnose`'s noise_shape; None: constant)
+    scan_shape: np.ndarray | None = None    # the same as the excursion scan judges it (None:
+                                # `shape`'s)
     reference: object = None    # the reference's `sensors.accuracy.Accuracy` (`_reference_may_carry`)
     calibrated: bool = False    # the MIMU compensated by a calibration of the unit (not
                                 # a recording's outputs taken as they are): `physical_limit`

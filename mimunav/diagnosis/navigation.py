@@ -134,8 +134,23 @@ def diagnose(flight, cal, alpha=0.05, seed=0, reference=None):
     removed = {k: recorded_bias(flight, k).tolist()
                for k in ("gyro_bias_static_rad_s", "accel_bias_m_s2")}
     if any(any(v) for v in removed.values()):
-        diag.biases_removed = dict(removed, source="the recording's import (its alignment)")
+        diag.biases_removed = dict(removed, source="the recording's import (its alignment)",
+                                   **_what_was_measured(flight))
     return diag
+
+
+def _what_was_measured(flight):
+    """{basis, not_removed}: what the import's alignment measured of the biases it removed
+    (the recording's `bias_basis`) and, where a rest gave the accelerometers', what stays:
+    a rest measures their bias along gravity only - across it a bias reads as tilt."""
+    basis = (flight.recording or {}).get("bias_basis")
+    if not isinstance(basis, dict):
+        return {}
+    out = {"basis": basis}
+    if basis.get("accel") == "along_gravity":
+        out["not_removed"] = ("the accelerometers' bias across gravity (at the rest it reads "
+                              "as a tilt, so the rest cannot measure it)")
+    return out
 
 
 def physical_limits(flight, cal):

@@ -31,11 +31,13 @@ def excursions(design, x, alpha):
     before and after, so a slow wander cancels and an excursion of a few seconds does not
     hide in its own baseline); robust z across the windows (MAD), Bonferroni over windows x
     channels with Student-t tails of SCAN_DOF degrees of freedom. Where the bins' white
-    variance varies (`design.shape`) each window's step is first divided by its own standard
+    variance varies (`design.scan_shape`, else `shape`) each window's step is first divided by its own standard
     deviation under that shape, so the MAD compares like with like (a vehicle model's yaw
     rate at 2 m/s errs ten times more than at 20 m/s: departures from stops had stood out at
-    z 10-25 on null drives). Returns spans [{"t0", "t1", "channel", "z"}] (overlapping
-    windows merged)."""
+    z 10-25 on null drives). Returns spans [{"t0", "t1", "channel", "z", "size", "units",
+    "peak_t0"}] (overlapping windows merged; z and size - the effect: the window's mean less
+    its baseline's, in the channel's SI units - of the window of largest |z|, which starts
+    at peak_t0 s)."""
     t = design.t
     sec = outputs.block_index(t, 1.0)
     n = sec.max() + 1
@@ -47,6 +49,7 @@ def excursions(design, x, alpha):
     nwin = len(win_counts)
     z_limit = stats.t.isf(alpha / (2 * nwin * 6), SCAN_DOF)
     spans = []
+    shape = design.shape if getattr(design, "scan_shape", None) is None else design.scan_shape
     def around(w):                  # (4, nwin): the baseline windows of each window
         pad = np.concatenate([np.full(5, np.nan), w, np.full(5, np.nan)])
         return np.stack([pad[5 + d:5 + d + nwin] for d in (-5, -4, 4, 5)])
@@ -56,9 +59,9 @@ def excursions(design, x, alpha):
         base_windows = around(means)
         count = np.isfinite(base_windows).sum(axis=0)
         base = np.nansum(base_windows, axis=0) / np.maximum(count, 1)
-        step = np.where(count >= 2, means - base, np.nan)
-        if design.shape is not None:            # each step over its own sd (the shape's)
-            var = np.convolve(np.bincount(sec, design.shape[:, ch], minlength=n), kernel,
+        step = size = np.where(count >= 2, means - base, np.nan)
+        if shape is not None:                   # each step over its own sd (the shape's)
+            var = np.convolve(np.bincount(sec, shape[:, ch], minlength=n), kernel,
                               "valid") / np.maximum(win_counts, 1) ** 2
             var = np.where(full, var, np.nan)
             # a window without samples: NaN, left out below
@@ -78,13 +81,16 @@ def excursions(design, x, alpha):
         peak = np.abs(z) >= _running_max(np.abs(z), 6)
         for w_id in np.flatnonzero((np.abs(z) > z_limit) & peak):
             t0 = t[0] + w_id
+            peak = {"z": float(z[w_id]), "size": float(size[w_id]), "peak_t0": float(t0)}
             if spans and spans[-1]["channel"] == ch and spans[-1]["t1"] >= t0 - 1e-9:
                 spans[-1]["t1"] = t0 + SCAN_WINDOW_S
-                spans[-1]["z"] = max(spans[-1]["z"], float(z[w_id]), key=abs)
+                if abs(peak["z"]) > abs(spans[-1]["z"]):
+                    spans[-1].update(peak)
             else:
                 spans.append({"t0": float(t0), "t1": float(t0 + SCAN_WINDOW_S), "channel": ch,
-                              "z": float(z[w_id])})
+                              **peak})
     for s in spans:
+        s["units"] = "m/s^2" if CHANNELS[s["channel"]][0] == "accel" else "rad/s"
         s["channel"] = f"{CHANNELS[s['channel']][0]}.{CHANNELS[s['channel']][1]}"
     return spans
 

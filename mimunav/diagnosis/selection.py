@@ -20,9 +20,12 @@ def select(design, train, alpha, full_scale, whole=None):
     """Forward selection with Holm's step-down thresholds over the library; `whole`: a
     callable giving the all-rows `Fitter` (look-alikes the training rows cannot tell apart
     are compared on it, `told_apart`). Returns (chosen: [dict], within: linear terms
-    significant but inside the reference's accuracy)."""
+    significant but inside the reference's accuracy, beyond: [{j, b, cov, p_train, limit}]
+    the candidates still significant when the selection stopped, given the chosen, whose
+    estimate lies beyond their physical range - not chosen, never dropped silently: a
+    mounting turned 30 deg fits its small-angle term at 0.40 rad, beyond 0.35)."""
     m = len(design.terms)
-    chosen, excluded, within = [], set(), {}
+    chosen, excluded, within, beyond = [], set(), {}, []
     fitter = Fitter(design, train)
     for step in range(MAX_TERMS):
         current = [c["j"] for c in chosen]
@@ -43,11 +46,15 @@ def select(design, train, alpha, full_scale, whole=None):
             ok, limit = plausible(design, j, res["b"], full_scale)
             if not ok:
                 implausible.append(j)
+                significant[j] = dict(res, limit=limit)
                 continue
             tests[j] = res
         threshold = alpha / max(m - step, 1)
         passing = [j for j, r in tests.items() if r["logp"] <= math.log(threshold)]
         if not passing:
+            beyond = [dict(j=j, b=significant[j]["b"], cov=significant[j]["cov"],
+                           p_train=math.exp(significant[j]["logp"]),
+                           limit=significant[j]["limit"]) for j in implausible]
             break
         best, alternatives = _encompassing(fitter, current, passing, tests, threshold,
                                            full_scale)
@@ -68,7 +75,7 @@ def select(design, train, alpha, full_scale, whole=None):
         # away stays a candidate of the next step
         excluded |= {best, *alternatives, *encompassed, *set_aside}
     return chosen, [_within(design, j, r) for j, r in within.items()
-                    if j not in {c["j"] for c in chosen}]
+                    if j not in {c["j"] for c in chosen}], beyond
 
 
 def _whole_unit_or_one_axis(fitter, best, tests, significant, level):

@@ -80,8 +80,9 @@ from .design import (Binning, CHANNELS, Design, FAST_BIN_S, detrended, term_cont
 from .samples import binned, sample_stage, temperature_references
 from .fitting import Fitter, term_test
 from .scan import SCAN_WINDOW_S, condition_masks, condition_map, near_spans, excursions
-from .confirmation import (Extremes, beta_of, confirm_chosen, recording_checks,
-                           set_aside_reasons, position_of, removal_sigma)
+from .confirmation import (Extremes, beta_of, beyond_range, beyond_range_reasons,
+                           confirm_chosen, recording_checks, set_aside_reasons, position_of,
+                           removal_sigma)
 from .selection import select
 
 
@@ -137,11 +138,11 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
     as the fit assumes and the held-out blocks do not share the training blocks' noise;
     `noise_shape`: (N, 6) each sample's white variance relative to its channel's, where the
     reference's own error varies along the record (`track`: a yaw rate from the course
-    errs as 1/speed): the fit weighs and the scan judges each bin by it; `wander_steps`:
-    (6,) the largest step variance of each channel's bias wander per bin, SI units squared,
-    whatever white variance the fit finds (`track`: a level capped by `max_wander` alone
-    grows with the vehicle model's own errors, which swell that white variance). Nothing
-    here is random."""
+    errs as 1/speed): the fit weighs and the scan judges each bin by it (a pair: the fit's,
+    the scan's); `wander_steps`: (6,) the largest step variance of each channel's bias
+    wander per bin, SI units squared, whatever white variance the fit finds (`track`: a
+    level capped by `max_wander` alone grows with the vehicle model's own errors, which
+    swell that white variance). Nothing here is random."""
     if flight.mimu_platform is not None:
         raise InputError(f"{flight.path}: the MIMU turns on a platform (/mimu/platform); "
                          "this analysis does not follow the rotation yet - replay and table do")
@@ -166,13 +167,13 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
 
     # the all-rows fit, when first needed (look-alikes; ~1 s of Grams on a 10-minute flight)
     whole = cache(lambda: Fitter(design, np.ones(len(design.t), bool)))
-    chosen, within = select(design, train, alpha, prep.full_scale, whole)
+    chosen, within, beyond = select(design, train, alpha, prep.full_scale, whole)
     findings, rejected = confirm_chosen(design, chosen, train, held, alpha, prep.full_scale,
                                         prep.extremes)
     findings, aside, doubts, library = recording_checks(  # a real record's halves and noise
         design, findings, held) if flight.source == "recording" \
         else (findings, [], [], None)
-    rejected = rejected + aside
+    rejected = rejected + aside + beyond_range(design, beyond)
     everything = whole()
     before, removed, fit_found = _residuals(design, everything, findings)
     conds = condition_masks(design, prep.norms)
@@ -192,7 +193,7 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
                            prep.compensated and (flight, *prep.compensated), library)
     diag.inconclusive = [why for why in jitter + doubts if why]
     if not findings:        # what the halves set aside was there, but not the same throughout
-        diag.inconclusive += set_aside_reasons(aside)
+        diag.inconclusive += set_aside_reasons(aside) + beyond_range_reasons(rejected)
     if prep.agreement is not None:
         diag.reference_agreement = prep.agreement
         diag.inconclusive = diag.inconclusive + prep.agreement["failures"]
@@ -267,7 +268,10 @@ def _prepared(flight, cal, acc, candidates, output_tests, samples, bin_s, noise_
     design.calibrated = not cal.is_identity
     design.reference = acc
     if noise_shape is not None:
-        design.shape = Binning(m, usable)(np.asarray(noise_shape, float))[design.kept]
+        fit_shape, scan_shape = noise_shape if isinstance(noise_shape, tuple) else \
+            (noise_shape, noise_shape)
+        design.shape, design.scan_shape = (Binning(m, usable)(np.asarray(x, float))[design.kept]
+                                           for x in (fit_shape, scan_shape))
     if max_wander is not None:
         design.levels = wander.LAMBDA_GRID[wander.LAMBDA_GRID <= max_wander]
     design.wander_steps = wander_steps

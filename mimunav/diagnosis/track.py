@@ -72,6 +72,7 @@ inconclusive diagnosis keeps its findings' verdict if any survive, otherwise
 "unexplained-residual" (the reference does not explain the recording), with
 `conclusive: false` and the reasons in the document.
 """
+import json
 import math
 from dataclasses import replace
 
@@ -86,7 +87,7 @@ from ..evaluation.replay import compensated_mimu
 from ..compensation.effects import vibration_power
 from .track_reference import (CHECK_BIN_S, NOT_FOLLOWED, VEHICLE_MODEL_ACCURACY, in_band,
                               noise_floor, rate_noise_shape, reversing, simulated_reference,
-                              wander_limit, wander_steps)
+                              wander_limit, wander_steps, held_pitch_excursions)
 from .track_navigation import TILT_UNSEEN, is_tilt, window_ends, navigation_check
 from .track_lag import VELOCITY_LAG_NOTE_S, unplaced_lag, velocity_lag, lag_finding, time_lag
 
@@ -203,6 +204,9 @@ def diagnose(flight, cal, alpha=0.05, reference=None, accuracy=None):
                            noise_shape=rate_noise_shape(ref, trusted, motion, bin_s),
                            check_reference=False)     # its own check: `reference_check`
     diag.level = "track"
+    diag.unexplained, at_stops = held_pitch_excursions(
+        diag.unexplained, diag.design.t, motion.held_pitch_sd(diag.design.t),
+        flight.mimu_mounting.q_vs)
     diag.reference_check = {
         "correlation_1s": corr, "threshold": PREDICTED_CORRELATION, "slope_1s": slopes,
         "model_error_1s": spread, "model_error_threshold": MODEL_ERROR_SHARE,
@@ -215,6 +219,7 @@ def diagnose(flight, cal, alpha=0.05, reference=None, accuracy=None):
         "trusted_fraction": float(trusted.mean()),
         "bin_s": bin_s, "block_s": block_s,
         "reversing_s": float(reversing_s),
+        "excursions_at_stops": at_stops,
         "usable_s": float(len(diag.design.t) * np.median(np.diff(diag.design.t)))}
     reasons, demoted = screen(diag, flight, cal)
     demoted += _time_lag(diag, flight, cal, corr, outputs, (ref, trusted, motion), alpha)
@@ -223,9 +228,24 @@ def diagnose(flight, cal, alpha=0.05, reference=None, accuracy=None):
     # 'nothing is missing' needs the terms of every channel the recording moves tested;
     # the sensor level's own reasons (stamps, the halves, the library beside the findings)
     # stand as they are
-    diag.inconclusive = (list(diag.inconclusive) + reasons
+    diag.inconclusive = (list(diag.inconclusive) + reasons + _imports_mounting(diag, flight)
                          + ([] if diag.findings else demoted + untested(diag)))
     return diag
+
+
+def _imports_mounting(diag, flight):
+    """[the mounting's yaw the import measured against the GNSS course] when the small-angle
+    mounting term fitted beyond its range (`confirmation.beyond_range`): the import's measure
+    holds a turn of any size and names the mounting that turns it back (a wrong mounting
+    undermines whatever else is found); else []."""
+    if not any(r["effect"] == "mounting_misalignment" and "beyond_range" in r
+               for r in diag.rejected):
+        return []
+    real = (flight.recording or {}).get("real")
+    said = (json.loads(real) if isinstance(real, str) else real or {}).get(
+        "mounting_yaw_against_course")
+    return [f"the mounting given is off by more than the diagnosis fits; the import measured "
+            f"its yaw: {said}"] if said else []
 
 
 def _library(unpredicted, spread):

@@ -244,8 +244,9 @@ SPEED_BANDS = 5                 # of the trusted bins, by 1/v^2, for the yaw-rat
 
 
 def rate_noise_shape(ref, trusted, motion, bin_s):
-    """(N, 6): each sample's white variance relative to its channel's floor, in bins of bin_s
-    (s), for `sensor.diagnose`. The vehicle model's yaw rate is, moving, the track's smoothed
+    """(the fit's, the scan's) (N, 6) each: each sample's white variance relative to its
+    channel's floor, in bins of bin_s (s), for `sensor.diagnose`. The vehicle model's yaw
+    rate is, moving, the track's smoothed
     lateral acceleration over the speed (yaw' = a_lateral / v), so its error grows as 1/v
     where the part's own noise does not: the yaw-rate residual's variance in a moving bin is
     F + sigma_a^2 / v^2, measured here - a line through the robust variances (MAD^2) of the
@@ -260,29 +261,45 @@ def rate_noise_shape(ref, trusted, motion, bin_s):
     depend on the speed - and everywhere when the data show no such law (a noise-free track).
     On an independent 10 Hz drive with 2 cm fixes the residual times the speed was 0.019
     m/s^2 rms per sample at every speed from 2 to 30 m/s; on the RTKLIB drive the variance
-    grows as 1/v^2 from a floor below the part's noise."""
+    grows as 1/v^2 from a floor below the part's noise.
+    The scan's shape adds the pitch rate's law the same way: moving, it is -a_D / v (the
+    vertical acceleration's error over the speed). Without it, arriving at and leaving a
+    stop on a slope stood out at z 8-11 on gyro.y in 6 of 10 null hilly drives. The fit's
+    weights leave it out: weighted by it, the fit leans on the fast bins, where the vertical
+    velocity's smoothing blunts the model's pitch rate against the MIMU's (banded by the
+    horizontal smoothing, `in_band`) - a gyro.y scale of 3.4 % the model made was found on
+    a null drive under 5 cm fixes."""
     from ..frames import attitude
     from .reference import predicted_mimu
     t = ref.mimu_t
     shape = np.ones((len(t), 6))
     _, w_p, _ = predicted_mimu(ref)
     q_vs = ref.mimu_mounting.q_vs
-    yaw_error = attitude.rotate(q_vs, ref.mimu_imu[0] - w_p)[:, 2]
+    rate_error = attitude.rotate(q_vs, ref.mimu_imu[0] - w_p)
     speed = motion.speed(t)
-    fast = trusted & (speed > TRUSTED_SPEED) & np.isfinite(yaw_error)
+    modelled = speed >= HOLD_SPEED
+    shapes = []
+    for axis in (2, 1):                                 # the vehicle's yaw and pitch rates
+        law = _rate_law(t, rate_error[:, axis], trusted & (speed > TRUSTED_SPEED), speed,
+                        bin_s)
+        if law is not None:
+            slope, floor = law
+            along = quaternion.as_rotation_matrix(q_vs)[axis] ** 2   # in sensor axes
+            shape[modelled, 3:] += (slope / floor) * along / speed[modelled, None] ** 2
+        shapes.append(shape.copy())
+    return shapes[0], shapes[1]
+
+
+def _rate_law(t, error, fast, speed, bin_s):
+    """`yaw_error_law` of one vehicle rate's residual `error` (rad/s, per sample) in bins of
+    bin_s over the samples `fast`."""
+    fast = fast & np.isfinite(error)
     k = np.floor((t[fast] - t[0]) / bin_s).astype(int)
     count = np.bincount(k)
     full = count >= 0.5 * np.max(count, initial=0)
-    error = (np.bincount(k, yaw_error[fast]) / np.maximum(count, 1))[full]
+    mean = (np.bincount(k, error[fast]) / np.maximum(count, 1))[full]
     inverse = (np.bincount(k, speed[fast] ** -2) / np.maximum(count, 1))[full]
-    law = yaw_error_law(error, inverse, noise_floor(bin_s=bin_s)["gyro.z"] ** 2)
-    if law is None:
-        return shape
-    slope, floor = law
-    along = quaternion.as_rotation_matrix(q_vs)[2] ** 2     # vehicle down in sensor axes
-    modelled = speed >= HOLD_SPEED
-    shape[modelled, 3:] += (slope / floor) * along / speed[modelled, None] ** 2
-    return shape
+    return yaw_error_law(mean, inverse, noise_floor(bin_s=bin_s)["gyro.z"] ** 2)
 
 
 def yaw_error_law(error, inverse, part):
@@ -320,3 +337,48 @@ def noise_floor(noise=CONSUMER_NOISE, bin_s=CHECK_BIN_S):
     mean and the bias instability B, which a constant does not remove over a drive."""
     return {f"{s}.{a}": math.hypot(noise[f"{s}_white"] / math.sqrt(bin_s),
                                    noise[f"{s}_flicker"]) for s, a in CHANNELS}
+
+
+HELD_PITCH_Z = 3.0      # an accelerometer step within 3 sigma of the held pitch's error
+#                         (a normal bound: 0.3 % of the model's own steps lie beyond it)
+
+
+def held_pitch_excursions(spans, t, held_sd, q_vs):
+    """(kept, set aside): the scan's excursions `spans` (`scan.excursions`) with those an
+    accelerometer's step at a stop explains within HELD_PITCH_Z of the held pitch's error set
+    aside. A stopped vehicle's pitch is the road's grade over the metres around the stop
+    (`vehicle._road_pitch`), not measured at the stop itself: its error d_theta tilts g onto
+    the vehicle's forward axis for the whole stop, so a window at the stop steps against a
+    baseline in motion by g d_theta on that axis (an independent drive on a curving 1-3 %
+    grade: accel.x -0.019 m/s^2 at its first departure, z -7.3 on a drive with no error).
+    t: the design's bin times (s); held_sd: the held pitch's 1 sigma at them (rad,
+    `TrackMotion.held_pitch_sd`); q_vs: the MIMU's mounting (sensor to vehicle)."""
+    forward = quaternion.rotate_vectors(np.conj(q_vs), np.array([1.0, 0.0, 0.0]))
+    kept, aside = [], []
+    for span in spans:
+        sensor, axis = span["channel"].split(".")
+        sigma = (G0 * abs(forward["xyz".index(axis)]) * _stop_share_step(t, held_sd,
+                                                                         span["peak_t0"])
+                 if sensor == "accel" else math.nan)
+        if abs(span["size"]) <= HELD_PITCH_Z * sigma:
+            aside.append(dict(span, held_pitch_1sigma=sigma, bound=HELD_PITCH_Z * sigma,
+                              why=f"{HELD_PITCH_Z:g} sigma of the step a stop's held pitch "
+                                  "(the road's grade around it, not measured at the stop) "
+                                  "makes: the vehicle model's, not the IMU's"))
+        else:
+            kept.append(span)
+    return kept, aside
+
+
+def _stop_share_step(t, held_sd, t0, window_s=2.0, around=(-5, -4, 4, 5)):
+    """rad: the held pitch's error carried into the step of the scan's window at t0 (s): its
+    mean over the window's bins less its mean over the baseline windows (`scan.excursions`:
+    those starting 4 and 5 s either side) - one stop's error is one number, so it moves the
+    window's mean by the share of its bins at the stop; NaN where it is not measured."""
+    def mean(start):
+        inside = (t >= start) & (t < start + window_s)
+        return np.mean(held_sd[inside]) if inside.any() else math.nan
+    base = np.array([mean(t0 + d) for d in around])
+    if np.isfinite(base).sum() < 2:
+        return math.nan
+    return abs(mean(t0) - np.mean(base[np.isfinite(base)]))

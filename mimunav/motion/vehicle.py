@@ -81,10 +81,11 @@ class TrackMotion(Motion):
         # the road ahead), at the epochs a held attitude is taken from - the last moving one
         # before each stop
         distance, h = _distance(t, v), np.asarray(h, float)
-        hold = np.array(pitch, float)
+        hold, hold_sd = np.array(pitch, float), np.full(len(t), np.nan)
         for i in np.unique(np.append(last[~moving], np.flatnonzero(moving[:-1] & ~moving[1:]))):
-            hold[i] = _road_pitch(distance, h, i, ahead=i == first, otherwise=pitch[i])
-        self._pitch_hold = hold[last]
+            hold[i], hold_sd[i] = _road_pitch(distance, h, i, ahead=i == first,
+                                              otherwise=pitch[i])
+        self._pitch_hold, self._pitch_hold_sd = hold[last], hold_sd[last]
 
     def _velocity(self, t):
         return np.column_stack([s(t) for s in self._v])
@@ -92,6 +93,14 @@ class TrackMotion(Motion):
     def speed(self, t):
         """|v| (m/s) of the smoothed track at times t (s)."""
         return np.linalg.norm(self._velocity(np.asarray(t, float)), axis=1)
+
+    def held_pitch_sd(self, t):
+        """rad: the error (1 sigma) of the pitch a stopped vehicle holds at times t (s), as
+        `_road_pitch` measures it; 0 where it moves, NaN where the grade was not measured."""
+        t = np.asarray(t, float)
+        moving = np.hypot(*self._velocity(t)[:, :2].T) >= HOLD_SPEED
+        k = np.clip(np.searchsorted(self._t, t, side="right") - 1, 0, len(self._t) - 1)
+        return np.where(moving, 0.0, self._pitch_hold_sd[k])
 
     def trusted(self, t):
         """True where the attitude model holds: at rest or faster than TRUSTED_SPEED."""
@@ -257,21 +266,30 @@ def _distance(t, v):
 
 
 def _road_pitch(distance, h, i, ahead=False, otherwise=0.0):
-    """rad: the road's pitch at epoch i - the least-squares slope of the height h (m, at the
-    epochs) against the distance driven (m) over the HOLD_DISTANCE_M behind epoch i (ahead of
-    it with `ahead`) - or `otherwise` when less than half of that was driven. What a stopped
-    vehicle holds: the velocity's pitch atan(-v_D / v_H) as v_H falls to HOLD_SPEED divides
-    the heavily smoothed vertical velocity by a vanishing speed - on an independent drive over
-    5 m hills 1-4 deg off at stops, accel.x excursions of z 10-23 on null drives (the fixes'
-    height noise, 2-5 cm over 20 m, is 0.1-0.3 deg). distance: non-decreasing."""
+    """(rad, rad): the road's pitch at epoch i - the least-squares slope of the height h (m,
+    at the epochs) against the distance driven (m) over the HOLD_DISTANCE_M behind epoch i
+    (ahead of it with `ahead`) - and its error: the slope's standard error beside how far
+    the grade turns over the stretch (a quadratic fit's slope at epoch i less the line's; a
+    grade of 1-3 % curving over 500 m left the line's 0.14 deg off at a stop); or
+    (`otherwise`, NaN) when less than half of that was driven. What a stopped vehicle holds:
+    the velocity's pitch atan(-v_D / v_H) as v_H falls to HOLD_SPEED divides the heavily
+    smoothed vertical velocity by a vanishing speed - on an independent drive over 5 m hills
+    1-4 deg off at stops, accel.x excursions of z 10-23 on null drives (the fixes' height
+    noise, 2-5 cm over 20 m, is 0.1-0.3 deg). distance: non-decreasing."""
     if ahead:
         k = slice(i, np.searchsorted(distance, distance[i] + HOLD_DISTANCE_M, "right"))
     else:
         k = slice(np.searchsorted(distance, distance[i] - HOLD_DISTANCE_M, "left"), i + 1)
-    if np.ptp(distance[k]) < 0.5 * HOLD_DISTANCE_M:
-        return float(otherwise)
+    if np.ptp(distance[k]) < 0.5 * HOLD_DISTANCE_M or len(distance[k]) < 4:
+        return float(otherwise), math.nan
     x = distance[k] - distance[k].mean()
-    return math.atan(float(x @ (h[k] - h[k].mean())) / float(x @ x))
+    y = h[k] - h[k].mean()
+    slope = float(x @ y) / float(x @ x)
+    rest = y - slope * x
+    se = math.sqrt(float(rest @ rest) / (len(x) - 2) / float(x @ x))
+    curve, line, _ = np.polyfit(x, y, 2)
+    turn = 2 * curve * (distance[i] - distance[k].mean()) + line - slope
+    return math.atan(slope), math.hypot(se, turn)
 
 
 def gcv_smoothing(t, y):

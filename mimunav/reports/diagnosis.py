@@ -271,7 +271,20 @@ def _residual_lines(doc):
                   "Localized excursions no candidate explains (2 s windows, robust z, "
                   "Bonferroni over windows and channels):", ""]
         lines += [f"- {u['channel']}: {u['t0']:.1f}-{u['t1']:.1f} s, z = {u['z']:.1f}"
+                  + (f", {u['size']:+.3g} {u['units']}" if "size" in u else "")
                   for u in doc["unexplained"][:20]]
+        lines.append("")
+    stops = doc.get("reference_check", {}).get("excursions_at_stops", [])
+    if stops:
+        lines += ["## Excursions at stops: the vehicle model's own", "",
+                  "A stopped vehicle's pitch is the road's grade around the stop, not measured "
+                  "at it; its error tilts g onto the forward axis for the whole stop. These "
+                  "steps lie within the bound that error sets, so they are not charged to the "
+                  "IMU:",
+                  ""]
+        lines += [f"- {u['channel']}: {u['t0']:.1f}-{u['t1']:.1f} s, z = {u['z']:.1f}, "
+                  f"{u['size']:+.3g} {u['units']} (bound {u['bound']:.2g}: {u['why']})"
+                  for u in stops]
         lines.append("")
     if doc.get("within_reference_accuracy"):
         acc = doc["reference_accuracy"]

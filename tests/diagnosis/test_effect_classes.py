@@ -90,7 +90,7 @@ def test_look_alikes_the_training_half_cannot_part_are_told_apart_on_the_whole_f
     diag = sensor.diagnose(flight, cal)
     full_scale = {"accel": float(flight.mimu_range.get("accel_m_s2", MimuUnit.range_accel)),
                   "gyro": float(flight.mimu_range.get("gyro_rad_s", MimuUnit.range_gyro))}
-    train_only, _ = select(diag.design, diag.train, 0.05, full_scale)
+    train_only, *_ = select(diag.design, diag.train, 0.05, full_scale)
     assert library.label(diag.design.terms[train_only[0]["j"]]) == "cross_coupling gyro.x <- w_y"
     (f,) = diag.findings
     assert f["label"] == "g2_sensitivity gyro.x <- f_zz" and f["named_on"] == "whole flight"
@@ -133,7 +133,7 @@ def test_a_size_effect_that_replaces_a_lever_arm_is_chosen_once(monkeypatch):
     monkeypatch.setattr(selection, "Fitter", lambda design, rows: SimpleNamespace(design=design))
     monkeypatch.setattr(selection, "term_test", test)
     monkeypatch.setattr(selection, "plausible", lambda design, j, b, full_scale: (True, 1.0))
-    chosen, _ = select(design, np.ones(10, bool), 0.05, {},
+    chosen, *_ = select(design, np.ones(10, bool), 0.05, {},
                                whole=lambda: SimpleNamespace(design=design))
     assert [c["j"] for c in chosen] == [1]
 

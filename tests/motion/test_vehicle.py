@@ -4,11 +4,11 @@ import math
 import numpy as np
 import pytest
 
-from mimunav.frames import earth
+from mimunav.frames import attitude, earth
 from mimunav.motion import truth
 from mimunav.errors import InputError
 from mimunav.motion.vehicle import TrackMotion
-from drives import H0, LAT0, LON0, straight_track
+from drives import H0, LAT0, LON0, straight_track, track_from_velocity
 
 
 def test_track_motion_circle_matches_closed_form():
@@ -125,3 +125,32 @@ def test_reference_velocity_is_in_each_epochs_own_ned():
     v = velocity_from_positions((1.7e18 + t * 1e9).astype(np.int64), np.full_like(t, lat),
                                 lon, np.full_like(t, h))
     assert np.abs(v - [0.0, 25.0, 0.0]).max() < 1e-4          # m/s (one-sided ends: 2e-5)
+
+
+@pytest.mark.parametrize("curve", [0.0, 1e-4])
+def test_a_stopped_cars_pitch_error_is_measured_against_the_roads_curve(curve):
+    """A car at rest for 20 s at the foot of a road whose height is 0.02 s + curve s^2 over
+    the distance s (m) driven: the grade at the stop is 0.02 exactly, the line over the
+    HOLD_DISTANCE_M ahead reads 0.02 + curve x (its points' spread) - its error is the
+    quadratic's slope at the stop less the line's, which `held_pitch_sd` reports whole (with
+    the line's standard error beside it): the true error within 5 % (the track's trapezoid
+    positions) and at most twice it; on a straight grade the held pitch is exact and its
+    error ~0."""
+    t = np.arange(0.0, 80.0 + 1e-9, 0.1)
+    speed = 10.0 * np.clip((t - 20.0) / 5.0, 0.0, 1.0) ** 2 * (3 - 2 * np.clip(
+        (t - 20.0) / 5.0, 0.0, 1.0))
+    s = np.concatenate([[0.0], np.cumsum(0.5 * (speed[1:] + speed[:-1]) * np.diff(t))])
+    grade = 0.02 + 2 * curve * s
+    v = np.column_stack([speed, np.zeros_like(t), -grade * speed])
+    _, lat, lon, h, _ = track_from_velocity(t, v)
+    motion = TrackMotion(t, lat, lon, h, v)
+    at_rest = np.array([5.0, 10.0, 15.0])
+    pitch = attitude.as_euler(motion.kinematics(at_rest).q_nb)[1]
+    error = np.abs(pitch - math.atan(0.02))
+    sd = motion.held_pitch_sd(at_rest)
+    assert np.all(motion.held_pitch_sd(np.array([40.0, 60.0])) == 0.0)      # moving
+    if curve == 0.0:
+        assert np.all(error < 1e-5) and np.all(sd < 5e-5)          # 0.003 deg
+    else:
+        assert np.all(error > 1e-3)                      # the line's error: 0.1 deg and more
+        assert np.all(sd > 0.95 * error) and np.all(sd < 2 * error), (sd, error)
