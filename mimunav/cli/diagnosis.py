@@ -148,10 +148,10 @@ def not_confirmed_lines(doc):
     """The terms chosen in training and then not confirmed (`not_confirmed`: the held-out
     test, the physical range, a recording's halves or its library check), each with why, for
     the terminal - those not already said among the reasons the diagnosis is inconclusive."""
-    said = set(doc.get("inconclusive_reasons", []))
-    lines = [f"{r.get('label', r.get('effect', '?'))}: {r['rejected']}"
-             for r in doc.get("not_confirmed", []) if r.get("rejected")]
-    return [f"  not confirmed: {line}" for line in lines if line not in said]
+    said = " ".join(doc.get("inconclusive_reasons", []))
+    return [f"  not confirmed: {r.get('label', r.get('effect', '?'))}: {r['rejected']}"
+            for r in doc.get("not_confirmed", []) if r.get("rejected")
+            and r["rejected"] not in said]
 
 
 def set_aside_line(w):

@@ -178,6 +178,11 @@ PHYSICAL_RANGE = {
     ("vibration_rectification", "accel"): 0.1 * G0 / G0 ** 2,
     ("vibration_rectification", "gyro"): 5 * DEG / G0 ** 2,
 }
+TRAJECTORY_LEVER_ARM = 10.0     # m: from a reference trajectory's point (a GNSS antenna, an
+#                                 INS's reference point) to the MIMU, within one vehicle - a
+#                                 car's 5 m, a boat's or a light aircraft's 10; an undeclared
+#                                 1.4 m boat lever arm, found at its truth, had been refused
+#                                 against the 1 m a unit beside a reference IMU may be off
 NONLINEARITY_OF_RANGE = 0.2     # k2 x^2 or k3 x^3 at full scale: <= 20 % of full scale
 # What a calibration leaves of the linear terms it estimates: seed S1 Table 1 bounds the
 # scale-factor fit residual of a MEMS part by 0.05 % FS (accelerometer) and 0.2 % FS (gyro);

@@ -22,11 +22,12 @@ confirmation and block-bootstrap stability are those of the sensor level (`senso
 from dataclasses import dataclass
 
 import numpy as np
+import quaternion
 from scipy import stats
 
 from ..compensation import effects
 from ..evaluation.replay import resample
-from . import inference, library
+from . import inference, library, vehicle_kind
 from .confirmation import (alternative_of, beta_of, effect_size, estimate, set_aside_reasons,
                            halves_verdict, rms_in, term_spans, where_rows, Extremes)
 from .design import term_contribution
@@ -123,8 +124,11 @@ def diagnose(flight, cal, alpha=0.05, seed=0, reference=None):
                       for rows in (first, ~first, ~train)]
         findings, aside = halves_check(*at, findings, ~train, inflations)
         rejected = rejected + aside
+    q_vs = flight.mimu_mounting.q_vs
+    findings, rejected = ([in_vehicle_frame(f, q_vs) for f in x] for x in (findings, rejected))
     diag = NavigationDiagnosis(findings, rejected, tier, train, len(cands), cands, observed,
                                epochs, [], beyond_small_angles(observed)
+                               + vehicle_kind.mounting_beyond_range(rejected, flight)
                                + ([] if findings else unsettled(rejected)
                                   + set_aside_reasons(rejected)
                                   + untestable(cands, noisy)))
@@ -155,9 +159,12 @@ def _what_was_measured(flight):
 
 def physical_limits(flight, cal):
     """term -> the largest plausible magnitude of its coefficient (`library.physical_limit`:
-    the MIMU's full scale, and a calibrated unit's bound on its linear terms)."""
+    the MIMU's full scale, and a calibrated unit's bound on its linear terms); a lever arm
+    here is the MIMU's from the point the reference trajectory describes, anywhere in the
+    vehicle (library.TRAJECTORY_LEVER_ARM), not from a reference IMU beside it."""
     scale = library.full_scale(flight.mimu_range)
-    return lambda term: library.physical_limit(term, scale, not cal.is_identity)
+    return lambda term: (library.TRAJECTORY_LEVER_ARM if term["effect"] == "lever_arm" else
+                         library.physical_limit(term, scale, not cal.is_identity))
 
 
 BEYOND_RANGE = ("its coefficient is beyond the term's physical range ({limit:.3g} {units}): "
@@ -213,10 +220,20 @@ def unsettled(rejected):
                            f"{r['p_heldout']:.2g}) at {held}{units}, beyond its physical "
                            f"range ({r['beyond_range']:.3g}): something this level cannot name "
                            "makes its signature")
+        elif r.get("errors_in_variables") and _beyond(r) > 1:
+            reasons.append(f"{r['label']} fits the velocity error (held-out p "
+                           f"{r['p_heldout']:.2g}) only at {_beyond(r):.3g} times its physical "
+                           f"range, and {OWN_NOISE}: no such term, but something this level "
+                           "cannot name makes its signature")
         elif r.get("errors_in_variables"):
             reasons.append(f"{r['label']} fits the velocity error (held-out p "
                            f"{r['p_heldout']:.2g}) at {held} {r['units']}, but {OWN_NOISE}; a "
                            "reference IMU (the sensor level) can tell them apart")
+        elif r.get("heldout_untestable") and "train_beyond_range" in r:
+            reasons.append(f"{r['label']} was chosen on the training segments (p "
+                           f"{r['p_train']:.2g}) at {_beyond(r, 'train'):.3g} times its "
+                           "physical range, and the held-out ones cannot test it: no such "
+                           "term, but something this level cannot name makes its signature")
         elif r.get("heldout_untestable"):
             reasons.append(f"{r['label']} was chosen on the training segments (p "
                            f"{r['p_train']:.2g}) and the held-out ones cannot confirm it at "
@@ -229,6 +246,34 @@ def unsettled(rejected):
                            f"{r['bootstrap_stability']:.0%} of the block-bootstrap replicates: "
                            "something is missing that this flight cannot name")
     return reasons
+
+
+def in_vehicle_frame(finding, q_vs):
+    """A lever-arm finding (fitted in the sensor axes) with its vector and interval turned
+    into the vehicle frame of the metadata's lever_arm_m (q_vs: sensor -> vehicle), the
+    sensor-axes vector kept for the compensation (`vector_sensor_axes`), as the sensor level
+    reports it (`confirmation.interval_estimate`); any other finding as it is. The interval
+    turns with the components' standard errors taken as independent (exact for a mounting
+    along the vehicle's axes, FLU, RFU...; its covariance is not kept this far)."""
+    if finding.get("effect") != "lever_arm" or finding.get("frame") == "vehicle":
+        return finding
+    c_vs = quaternion.as_rotation_matrix(q_vs)
+    b = np.asarray(finding["vector"], float)
+    lo, hi = np.asarray(finding["vector_ci95"], float).T
+    b_v = c_vs @ b
+    half_v = np.sqrt((c_vs ** 2) @ ((hi - lo) / 2) ** 2)
+    term = {k: finding[k] for k in ("effect", "sensor", "axis") if k in finding}
+    return {**finding, **estimate(term, b_v, b_v - half_v, b_v + half_v), "frame": "vehicle",
+            "vector_sensor_axes": b.tolist()}
+
+
+def _beyond(rejected, which="held_out"):
+    """How many times its physical range a rejected term's coefficient is (held-out, or
+    the training one's with which="train")."""
+    if which == "train":
+        return float(np.linalg.norm(np.ravel(rejected["train_coefficient"]))) \
+            / rejected["train_beyond_range"]
+    return float(rejected.get("effect_size", {}).get("of_physical_range", 0.0))
 
 
 def _tier(flight, cal, reference, terms=None):
@@ -446,6 +491,8 @@ def _confirm(tier, cands, chosen, train, alpha, seed, cond, limit, noisy):
             # the held-out interval holds the training coefficient: those segments can
             # neither confirm nor refute the term (it acts where they have little of it)
             finding["heldout_untestable"] = bool(np.all((lo <= b_tr) & (b_tr <= hi)))
+            if float(np.linalg.norm(b_tr)) > limit(term):   # no such term: its signature
+                finding["train_beyond_range"] = limit(term)
         elif noisy(term):                   # held out, it is there - or the noise is
             why = OWN_NOISE
             finding["errors_in_variables"] = True

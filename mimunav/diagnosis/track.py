@@ -72,13 +72,12 @@ inconclusive diagnosis keeps its findings' verdict if any survive, otherwise
 "unexplained-residual" (the reference does not explain the recording), with
 `conclusive: false` and the reasons in the document.
 """
-import json
 import math
 from dataclasses import replace
 
 import numpy as np
 
-from . import library, sensor
+from . import library, sensor, vehicle_kind
 from .confirmation import position_of
 from .design import FAST_BIN_S
 from .design import CHANNELS
@@ -228,24 +227,10 @@ def diagnose(flight, cal, alpha=0.05, reference=None, accuracy=None):
     # 'nothing is missing' needs the terms of every channel the recording moves tested;
     # the sensor level's own reasons (stamps, the halves, the library beside the findings)
     # stand as they are
-    diag.inconclusive = (list(diag.inconclusive) + reasons + _imports_mounting(diag, flight)
+    diag.inconclusive = (list(diag.inconclusive) + reasons
+                         + vehicle_kind.mounting_beyond_range(diag.rejected, flight)
                          + ([] if diag.findings else demoted + untested(diag)))
     return diag
-
-
-def _imports_mounting(diag, flight):
-    """[the mounting's yaw the import measured against the GNSS course] when the small-angle
-    mounting term fitted beyond its range (`confirmation.beyond_range`): the import's measure
-    holds a turn of any size and names the mounting that turns it back (a wrong mounting
-    undermines whatever else is found); else []."""
-    if not any(r["effect"] == "mounting_misalignment" and "beyond_range" in r
-               for r in diag.rejected):
-        return []
-    real = (flight.recording or {}).get("real")
-    said = (json.loads(real) if isinstance(real, str) else real or {}).get(
-        "mounting_yaw_against_course")
-    return [f"the mounting given is off by more than the diagnosis fits; the import measured "
-            f"its yaw: {said}"] if said else []
 
 
 def _library(unpredicted, spread):
@@ -296,7 +281,10 @@ def _time_lag(diag, flight, cal, corr, outputs, reference, alpha):
             "sign": "positive: the IMU's samples describe motion tau s earlier than their "
                     "stamps (it lags), as time_skew"})
         late, late_se = velocity_lag(flight) or (0.0, 0.0)
-        if math.isfinite(tau) and abs(late) >= VELOCITY_LAG_NOTE_S:
+        # noted where it is both large and significant (a phone's -30 +- 46 ms had been
+        # added to the IMU's lag); a log written before its error was: where it is large
+        if math.isfinite(tau) and abs(late) >= VELOCITY_LAG_NOTE_S and \
+                not abs(late) <= 2 * late_se:
             diag.time_lag["reference_velocity_lag_s"] = late
             diag.time_lag["relative_to"] = (
                 f"the reference's velocity, which lags its own positions by {late * 1e3:.0f} "

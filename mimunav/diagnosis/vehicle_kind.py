@@ -3,6 +3,10 @@ track gives its attitude under the no-side-slip model of the track level, or any
 Declared at import (`mimunav import --vehicle`, the `recording` metadata's `vehicle`), else
 judged from the reference track and the IMU (`motion.carrier`: its tests and limits).
 """
+import json
+import math
+import re
+
 from ..motion.carrier import LAND, car_tests
 
 
@@ -24,3 +28,30 @@ def kind(flight):
     if failed:
         return "other", f"judged not a car: {'; '.join(failed)}"
     return LAND, "judged a car: " + ", ".join(numbers)
+
+
+SMALL_ANGLE_MOUNTING = math.radians(20.0)   # library.PHYSICAL_RANGE's mounting_misalignment
+
+
+def mounting_beyond_range(rejected, flight):
+    """[what the import measured of the mounting] when the small-angle mounting term was
+    fitted beyond its range (`confirmation.beyond_range`, `rejected`'s `beyond_range`), from
+    the recording's `mounting_yaw_against_course` (a turn of any size, against the GNSS
+    course): beyond the term's range it names the turn and the option that turns it back;
+    within it, the fit's size is not the mounting's (a noisy reference's: an independent
+    drive under 0.5 m fixes fitted a 10 deg yaw as 33 deg, pitch 31 of it); else []."""
+    if not any(r.get("effect") == "mounting_misalignment" and
+               ("beyond_range" in r or "train_beyond_range" in r) for r in rejected):
+        return []
+    real = (flight.recording or {}).get("real")
+    said = (json.loads(real) if isinstance(real, str) else real or {}).get(
+        "mounting_yaw_against_course")
+    yaw = re.match(r"\s*([-+]?\d+(?:\.\d+)?) deg", said or "")
+    if yaw is None:
+        return []
+    if abs(math.radians(float(yaw.group(1)))) <= SMALL_ANGLE_MOUNTING:
+        return [f"the import measured the mounting's yaw at {yaw.group(1)} deg against the "
+                "GNSS course, within the small-angle term's range: the fit's size is not the "
+                "mounting's, and the reference does not carry the term here"]
+    return [f"the mounting given is off by more than the diagnosis fits; the import measured "
+            f"its yaw: {said}"]

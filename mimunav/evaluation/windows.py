@@ -16,6 +16,7 @@ longer than MAX_GAP_S inside. Windows of one length overlap when step < length, 
 not independent: the summary gives the count of disjoint windows the recording holds.
 """
 import math
+import re
 from dataclasses import dataclass
 
 import numpy as np
@@ -229,11 +230,10 @@ def reference_floor(meta, length, measured_sigma_v=None, half=None):
     error of the interval's mean acceleration. Unstated sigmas are left out and named; a
     reference attitude's own error (g sigma_tilt length^2 / 2) is not included: no source
     states it."""
-    def number(key):
-        try:
-            value = float(meta.get(key, "nan"))
-        except (TypeError, ValueError):
-            return None
+    def number(key):            # a leading number: "3 (horizontalAccuracy column)" is 3
+        said = re.match(r"\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)",
+                        str(meta.get(key, "")))
+        value = float(said.group(1)) if said else math.nan
         return value if np.isfinite(value) and value >= 0 else None
     sigma_p, sigma_v = number("position_sigma_m"), number("velocity_sigma_m_s")
     estimated = []

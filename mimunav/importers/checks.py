@@ -190,6 +190,17 @@ def _check_overlap(rec):
                 + unit)
 
 
+def differenced(ref):
+    """Whether a reference's velocity is its positions' central differences (an importer's
+    `velocity_from_positions` where the source has none), to 1 mm/s: no lag to measure, and
+    the metadata says so (a phone's positions-only reference had been written 'velocity
+    given by the reference', its lag 0.0000 +- 0.0000)."""
+    v = np.asarray(ref["v_ned"], float)
+    v_pos = velocity_from_positions(ref["ns"], ref["lat"], ref["lon"], ref["h"])
+    ok = np.isfinite(v).all(axis=1) & np.isfinite(v_pos).all(axis=1)
+    return bool(ok.any()) and bool(np.abs(v[ok] - v_pos[ok]).max() < 1e-3)
+
+
 def velocity_lag_s(ref, search_s=1.0):
     """How late (s) the reference's own velocity is against the velocity of its positions
     (central differences: zero phase), over epochs faster than alignment.COURSE_SPEED; None

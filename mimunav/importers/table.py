@@ -91,6 +91,8 @@ refused, naming the nearest known one.
                                  the MIMU's own axes' and point (a motion-capture truth of the
                                  IMU), turned into the vehicle's by [imu]'s mounting
               source, independent ("yes" / "no: why"), position_sigma_m   text for the metadata
+                                 (position_sigma_m's leading number, m, 1 sigma horizontal, is
+                                 the position error `mimunav windows` allows for)
 
 Units: s, ms, us, ns, iso8601 (a CSV column of date-times with their UTC offset,
 '2023-08-04 17:47:58.125-04:00' or '2023-08-04T21:47:58.125Z', or without one and the

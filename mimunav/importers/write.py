@@ -17,10 +17,27 @@ from ..flightlog import LogWriter
 from ..flightlog import schemas as S
 from .recording import UNKNOWN_ATTITUDE, heading_source
 from ..flightlog.stamps import rate_segments
-from .checks import reference_track, check_recording, velocity_lag_s
+from .checks import differenced, reference_track, check_recording, velocity_lag_s
 
 
 WRITE_BLOCK_S = 10.0        # s: channels are written interleaved in blocks of this much time
+
+
+def _reference_metadata(rec, known):
+    """The `reference` metadata of rec's reference (`known`: it carries an attitude): its
+    source, what it gives, and its velocity's lag behind its positions (s, positive: late)
+    unless that velocity is their differences."""
+    meta = {"source": rec.real.get("reference", "external"),
+            "attitude": ("given by the reference (" + rec.reference_meta.get("source", "its "
+                         "source") + ")" if known else "unknown"),
+            "velocity": "given by the reference"}
+    meta.update({k: str(v) for k, v in rec.reference_meta.items()})
+    if differenced(rec.reference):
+        meta["velocity"] = "differenced from its positions (central differences)"
+    elif (lag := velocity_lag_s(rec.reference)) is not None:
+        meta["velocity_lag_s"] = f"{lag[0]:.4f}"
+        meta["velocity_lag_se_s"] = f"{lag[1]:.4f}"
+    return meta
 
 
 def write_log(rec, path, force=False):
@@ -77,17 +94,7 @@ def write_log(rec, path, force=False):
         if ref is not None:
             q = ref.get("q_nb")
             known = q is not None and np.isfinite(q).all(axis=1).any()
-            meta = {"source": rec.real.get("reference", "external"),
-                    "attitude": ("given by the reference (" +
-                                 rec.reference_meta.get("source", "its source") + ")"
-                                 if known else "unknown"),
-                    "velocity": "given by the reference"}
-            meta.update({k: str(v) for k, v in rec.reference_meta.items()})
-            lag = velocity_lag_s(ref)
-            if lag is not None:                       # positive: its velocity lags positions
-                meta["velocity_lag_s"] = f"{lag[0]:.4f}"
-                meta["velocity_lag_se_s"] = f"{lag[1]:.4f}"
-            log.metadata("reference", meta)
+            log.metadata("reference", _reference_metadata(rec, known))
             channels.append(("/truth/state", S.NAV_STATE, "vehicle", ref["ns"], dict(
                 latitude=ref["lat"], longitude=ref["lon"], height=ref["h"],
                 velocity_ned=ref["v_ned"],

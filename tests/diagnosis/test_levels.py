@@ -169,3 +169,46 @@ def test_a_bias_found_on_a_recording_says_what_its_import_measured():
     kept = found()
     beside_the_imports_biases(kept, cut, Calibration.identity())
     assert kept[0]["import_measured"]["value"] == -0.1776
+
+
+def test_a_mounting_beyond_the_small_angle_term_is_judged_by_the_imports_yaw():
+    """The small-angle mounting term fitted beyond its 20 deg range: where the import
+    measured a yaw against the course beyond that range, the diagnosis names it (the mounting
+    given is off); where the import measured one within it, the fit's size is not the
+    mounting's (an independent drive under 0.5 m fixes fitted a true 10 deg yaw as 33 deg);
+    without such a term, or without the import's measure, nothing is added."""
+    import json
+    beyond = [{"effect": "mounting_misalignment", "beyond_range": 0.35}]
+    flight = lambda yaw: SimpleNamespace(recording={"real": json.dumps(   # noqa: E731
+        {"mounting_yaw_against_course": f"{yaw:+.1f} deg about the vehicle's down axis"})})
+    said = vehicle_kind.mounting_beyond_range(beyond, flight(-29.7))
+    assert len(said) == 1 and "off by more than the diagnosis fits" in said[0]
+    said = vehicle_kind.mounting_beyond_range(beyond, flight(10.1))
+    assert len(said) == 1 and "not the mounting's" in said[0] and "+10.1 deg" in said[0]
+    assert vehicle_kind.mounting_beyond_range([{"effect": "lever_arm", "beyond_range": 1}],
+                                              flight(-29.7)) == []
+    assert vehicle_kind.mounting_beyond_range(beyond, SimpleNamespace(recording={})) == []
+
+
+def test_a_lever_arm_against_a_trajectory_is_reported_in_the_vehicle_frame():
+    """The navigation level fits a lever arm in the sensor axes; it is reported, with its
+    interval, in the vehicle frame of the metadata's lever_arm_m (a boat's IMU declared FLU:
+    [1.2, -0.4, 0.6] sensor is [1.2, 0.4, -0.6] FRD - read as FRD the signs of y and z had
+    looked wrong), the sensor-axes vector kept for the compensation; and its physical range
+    is the vehicle's size (10 m), not the 1 m a unit beside a reference IMU may be off (a
+    found 1.4 m boat lever arm had been refused)."""
+    from mimunav.diagnosis import library, navigation
+    from mimunav.frames.mounting import Mounting
+    q_vs = Mounting.from_axes("FLU").q_vs
+    finding = {"effect": "lever_arm", "sensor": "imu", "axis": "all",
+               "vector": [1.2, -0.4, 0.6], "coefficient": 1.2,
+               "vector_ci95": [[1.1, 1.3], [-0.5, -0.3], [0.55, 0.65]]}
+    turned = navigation.in_vehicle_frame(finding, q_vs)
+    assert turned["frame"] == "vehicle" and turned["vector_sensor_axes"] == [1.2, -0.4, 0.6]
+    assert np.allclose(turned["vector"], [1.2, 0.4, -0.6])
+    assert np.allclose(turned["vector_ci95"], [[1.1, 1.3], [0.3, 0.5], [-0.65, -0.55]])
+    assert navigation.in_vehicle_frame(turned, q_vs) is turned
+    limit = navigation.physical_limits(SimpleNamespace(mimu_range={}),
+                                       SimpleNamespace(is_identity=True))
+    assert limit({"effect": "lever_arm", "sensor": "imu"}) == library.TRAJECTORY_LEVER_ARM
+    assert library.physical_limit({"effect": "lever_arm", "sensor": "imu"}, {}) == 1.0

@@ -185,3 +185,15 @@ def test_the_gap_a_window_may_hold_follows_the_references_own_rate():
     assert 2.0 < limit < 3.0 and np.diff(gnss.t).max() < limit
     assert gap_allowed(SimpleNamespace(t=np.arange(6000) * 0.1)) == 1.0
     assert gap_allowed(gnss, 0.5) == 0.5
+
+
+def test_a_stated_position_sigma_is_read_from_its_leading_number():
+    """A table spec's position_sigma_m is text for the metadata: "3 (horizontalAccuracy
+    column)" had been taken as not stated; its leading number is the sigma (m), and text
+    without one is still not stated."""
+    with_text = windows.reference_floor({"position_sigma_m": "3 (horizontalAccuracy column)"},
+                                        10.0)
+    assert with_text["not_stated"] == ["velocity"]
+    assert with_text["horizontal_m"] == pytest.approx(3.0 * 2 ** 0.5)
+    assert windows.reference_floor({"position_sigma_m": "unknown"}, 10.0)["horizontal_m"] \
+        is None

@@ -1040,6 +1040,19 @@ def test_a_reference_velocity_late_on_its_positions_is_measured():
             assert abs(got - want) < 3 * se + 2e-3 and se < 5e-3, (rate, got, se)
 
 
+def test_a_velocity_differenced_from_the_positions_is_said_so():
+    """A positions-only reference whose importer differenced the positions (a phone's
+    Location.csv): its metadata had said 'velocity given by the reference' with a lag of
+    0.0000 +- 0.0000; `differenced` tells it (to 1 mm/s), and a velocity of its own is not."""
+    from mimunav.importers.checks import differenced
+    from mimunav.motion.track import velocity_from_positions
+    t, lat, lon, h, v = straight_track(duration=100.0)
+    ns = np.round(t * 1e9).astype(np.int64)
+    assert differenced(dict(ns=ns, lat=lat, lon=lon, h=h,
+                            v_ned=velocity_from_positions(ns, lat, lon, h)))
+    assert not differenced(dict(ns=ns, lat=lat, lon=lon, h=h, v_ned=v))
+
+
 def test_rtklib_clock_is_fitted_from_the_tags_at_their_file_positions(tmp_path):
     """A walk whose CSV holds 16 lines logged before the first time tag arrived (mapping the
     ends stretched 0.16 s over the first tag: refused as a 50 ppm clock): each tag times the
