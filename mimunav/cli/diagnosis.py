@@ -82,6 +82,9 @@ def _diagnosed(args, painter):
         print(f"  time lag from the yaw rate not estimated: {lag['not_estimated']}")
     for u in doc["unexplained"][:10]:
         print(f"  unexplained residual {excursion_text(u)}")
+    for u in doc.get("reference_check", {}).get("excursions_not_predicted", []):
+        print(f"  on a channel the reference does not predict (says nothing of the IMU): "
+              f"{excursion_text(u)}")
     for u in doc.get("reference_check", {}).get("excursions_at_stops", []):
         print(f"  at a stop, the vehicle model's own: {excursion_text(u)} within "
               f"{u['bound']:.2g} {u['units']}, {u['why']}")

@@ -274,6 +274,14 @@ def _residual_lines(doc):
                   + (f", {u['size']:+.3g} {u['units']}" if "size" in u else "")
                   for u in doc["unexplained"][:20]]
         lines.append("")
+    others = doc.get("reference_check", {}).get("excursions_not_predicted", [])
+    if others:
+        lines += ["## Excursions on channels the reference does not predict", "",
+                  "Their residual holds the reference's own errors: these say nothing of "
+                  "the IMU.", ""]
+        lines += [f"- {u['channel']}: {u['t0']:.1f}-{u['t1']:.1f} s, z = {u['z']:.1f}, "
+                  f"{u['size']:+.3g} {u['units']}" for u in others]
+        lines.append("")
     stops = doc.get("reference_check", {}).get("excursions_at_stops", [])
     if stops:
         lines += ["## Excursions at stops: the vehicle model's own", "",
