@@ -44,6 +44,8 @@ def car_tests(t_track, v_ned, t=None, f=None, w=None):
     None: not recorded (a raw /mimu/raw), the load and the body rate not tested."""
     v = _means(np.asarray(t_track, float), np.asarray(v_ned, float), CLIMB_WINDOW_S / 2)
     ok = np.isfinite(v).all(axis=1)
+    if not ok.any():
+        return [f"its track is shorter than the {CLIMB_WINDOW_S:g} s the tests need"], []
     speed, climb = np.hypot(v[ok, 0], v[ok, 1]), np.abs(v[ok, 2])
     failed, numbers = [], []
     p95, p99 = float(np.percentile(speed, 95)), float(np.percentile(speed, 99))
@@ -77,12 +79,16 @@ def car_tests(t_track, v_ned, t=None, f=None, w=None):
 
 
 def _means(t, x, half):
-    """Means of the rows of x (M, k) within +-half s of each of its epochs t (s)."""
+    """Means of the rows of x (M, k) within +-half s of each of its epochs t (s); NaN where
+    that window runs past the track's ends (a one-sided window over one-sided differences:
+    a 1 Hz track's last epoch had 'climbed 1.7 m/s' on 2 m of height noise)."""
     c = np.vstack([np.zeros((1, x.shape[1])), np.nancumsum(x, axis=0)])
     n = np.concatenate([[0], np.cumsum(np.isfinite(x).all(axis=1))])
     lo, hi = np.searchsorted(t, t - half), np.searchsorted(t, t + half, "right")
     with np.errstate(invalid="ignore", divide="ignore"):
-        return (c[hi] - c[lo]) / (n[hi] - n[lo])[:, None]
+        out = (c[hi] - c[lo]) / (n[hi] - n[lo])[:, None]
+    out[(t - half < t[0]) | (t + half > t[-1])] = np.nan
+    return out
 
 
 def _seconds(t, x):

@@ -56,3 +56,19 @@ def test_a_noisy_altitude_is_no_climb_on_the_spot():
     failed, _ = car_tests(t, v)
     assert any("while hardly moving" in x for x in failed), failed
     assert STILL_CLIMB < 2.0
+
+
+def test_the_tracks_ends_and_a_short_track_are_not_judged_on_half_windows():
+    """A 1 Hz track's last epochs have one-sided differences and one-sided windows: 2 m of
+    height noise there had 'climbed 1.7 m/s' at a standstill and judged a car no car; the
+    tests take only epochs whose 10 s window lies inside the track - and a track shorter than
+    that is no car, said (a 6 s multicopter log had ended in an IndexError)."""
+    rng = np.random.default_rng(41)
+    t = np.arange(0.0, 300.0, 1.0)
+    speed = np.where(t < 280.0, 12.0, 0.0)
+    h = rng.normal(0.0, 2.0, len(t))
+    v = np.column_stack([speed, np.zeros_like(t), -np.gradient(h, t)])
+    v[-1, 2] = 6.0                      # the last one-sided difference at its worst
+    assert car_tests(t, v)[0] == []
+    failed, numbers = car_tests(t[:6], v[:6])
+    assert failed == ["its track is shorter than the 10 s the tests need"] and numbers == []
