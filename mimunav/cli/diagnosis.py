@@ -85,9 +85,9 @@ def _diagnosed(args, painter):
     for u in doc.get("reference_check", {}).get("excursions_not_predicted", []):
         print(f"  on a channel the reference does not predict (says nothing of the IMU): "
               f"{excursion_text(u)}")
-    for u in doc.get("reference_check", {}).get("excursions_at_stops", []):
-        print(f"  at a stop, the vehicle model's own: {excursion_text(u)} within "
-              f"{u['bound']:.2g} {u['units']}, {u['why']}")
+    for u in doc.get("reference_check", {}).get("excursions_of_the_model", []):
+        print(f"  the vehicle model's own: {excursion_text(u)} within {u['bound']:.2g} "
+              f"{u['units']}, {u['why']}")
     for w in doc.get("within_reference_accuracy", []):
         print(set_aside_line(w))
     for line in not_confirmed_lines(doc):

@@ -86,7 +86,7 @@ from ..evaluation.replay import compensated_mimu
 from ..compensation.effects import vibration_power
 from .track_reference import (CHECK_BIN_S, NOT_FOLLOWED, VEHICLE_MODEL_ACCURACY, in_band,
                               noise_floor, rate_noise_shape, reversing, simulated_reference,
-                              wander_limit, wander_steps, held_pitch_excursions)
+                              wander_limit, wander_steps, model_excursions)
 from .track_navigation import TILT_UNSEEN, is_tilt, window_ends, navigation_check
 from .track_lag import VELOCITY_LAG_NOTE_S, unplaced_lag, velocity_lag, lag_finding, time_lag
 
@@ -203,9 +203,9 @@ def diagnose(flight, cal, alpha=0.05, reference=None, accuracy=None):
                            noise_shape=rate_noise_shape(ref, trusted, motion, bin_s),
                            check_reference=False)     # its own check: `reference_check`
     diag.level = "track"
-    diag.unexplained, at_stops = held_pitch_excursions(
+    diag.unexplained, the_models = model_excursions(
         diag.unexplained, diag.design.t, motion.held_pitch_sd(diag.design.t),
-        flight.mimu_mounting.q_vs)
+        diag.design.inputs[:, :3], flight.mimu_mounting.q_vs)
     # a channel the model does not predict has its own errors in its residual: an excursion
     # there says nothing of the IMU (a 0.5 m-fix drive's accel.x, +2.84 m/s^2 at z 9.2)
     unfollowed = [u for u in diag.unexplained if not corr[u["channel"]] >= PREDICTED_CORRELATION]
@@ -222,7 +222,7 @@ def diagnose(flight, cal, alpha=0.05, reference=None, accuracy=None):
         "trusted_fraction": float(trusted.mean()),
         "bin_s": bin_s, "block_s": block_s,
         "reversing_s": float(reversing_s),
-        "excursions_at_stops": at_stops, "excursions_not_predicted": unfollowed,
+        "excursions_of_the_model": the_models, "excursions_not_predicted": unfollowed,
         "usable_s": float(len(diag.design.t) * np.median(np.diff(diag.design.t)))}
     reasons, demoted = screen(diag, flight, cal)
     demoted += _time_lag(diag, flight, cal, corr, outputs, (ref, trusted, motion), alpha)

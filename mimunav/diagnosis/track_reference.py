@@ -339,45 +339,59 @@ def noise_floor(noise=CONSUMER_NOISE, bin_s=CHECK_BIN_S):
                                    noise[f"{s}_flicker"]) for s, a in CHANNELS}
 
 
-HELD_PITCH_Z = 3.0      # an accelerometer step within 3 sigma of the held pitch's error
-#                         (a normal bound: 0.3 % of the model's own steps lie beyond it)
+MODEL_STEP_Z = 3.0      # an accelerometer step within 3 sigma of the vehicle model's own
+#                         error there (a normal bound: 0.3 % of the model's steps lie beyond)
 
 
-def held_pitch_excursions(spans, t, held_sd, q_vs):
+def model_excursions(spans, t, held_sd, f_model, q_vs):
     """(kept, set aside): the scan's excursions `spans` (`scan.excursions`) with those an
-    accelerometer's step at a stop explains within HELD_PITCH_Z of the held pitch's error set
-    aside. A stopped vehicle's pitch is the road's grade over the metres around the stop
-    (`vehicle._road_pitch`), not measured at the stop itself: its error d_theta tilts g onto
-    the vehicle's forward axis for the whole stop, so a window at the stop steps against a
-    baseline in motion by g d_theta on that axis (an independent drive on a curving 1-3 %
-    grade: accel.x -0.019 m/s^2 at its first departure, z -7.3 on a drive with no error).
+    accelerometer's step explains within MODEL_STEP_Z of the vehicle model's own error
+    there set aside, the two errors it states for an accelerometer together:
+      - a stop's held pitch: the road's grade over the metres around the stop
+        (`vehicle._road_pitch`), not measured at the stop itself - its error d_theta tilts g
+        onto the forward axis for the whole stop, so a window at the stop steps against a
+        baseline in motion by g d_theta (an independent drive on a curving 1-3 % grade:
+        accel.x -0.019 m/s^2 at its first departure, z -7.3 on a drive with no error);
+      - the body's tilt on its springs, BODY_TILT_GRADIENT per g of horizontal acceleration
+        (the accel scale the model states): a step of the horizontal specific force by a
+        moves the output by up to 0.12 a (the RTKLIB drive's departure: +0.52 m/s^2, z 12.5).
     t: the design's bin times (s); held_sd: the held pitch's 1 sigma at them (rad,
-    `TrackMotion.held_pitch_sd`); q_vs: the MIMU's mounting (sensor to vehicle)."""
-    forward = quaternion.rotate_vectors(np.conj(q_vs), np.array([1.0, 0.0, 0.0]))
+    `TrackMotion.held_pitch_sd`); f_model: the model's specific force in the bins (m/s^2,
+    MIMU sensor axes); q_vs: the MIMU's mounting (sensor to vehicle)."""
+    turn_back = np.conj(q_vs)
+    forward = quaternion.rotate_vectors(turn_back, np.array([1.0, 0.0, 0.0]))
+    f_v = quaternion.rotate_vectors(q_vs, f_model)
+    tilt = quaternion.rotate_vectors(turn_back, BODY_TILT_GRADIENT * np.column_stack(
+        [f_v[:, 0], f_v[:, 1], np.zeros(len(f_v))]))          # sensor axes
     kept, aside = [], []
     for span in spans:
         sensor, axis = span["channel"].split(".")
-        sigma = (G0 * abs(forward["xyz".index(axis)]) * _stop_share_step(t, held_sd,
-                                                                         span["peak_t0"])
-                 if sensor == "accel" else math.nan)
-        if abs(span["size"]) <= HELD_PITCH_Z * sigma:
-            aside.append(dict(span, held_pitch_1sigma=sigma, bound=HELD_PITCH_Z * sigma,
-                              why=f"{HELD_PITCH_Z:g} sigma of the step a stop's held pitch "
-                                  "(the road's grade around it, not measured at the stop) "
-                                  "makes: the vehicle model's, not the IMU's"))
+        if sensor != "accel":
+            kept.append(span)
+            continue
+        i = "xyz".index(axis)
+        held = G0 * abs(forward[i]) * _window_step(t, held_sd, span["peak_t0"])
+        body = _window_step(t, tilt[:, i], span["peak_t0"])
+        sigma = math.hypot(np.nan_to_num(held), np.nan_to_num(body))
+        if abs(span["size"]) <= MODEL_STEP_Z * sigma:
+            aside.append(dict(span, model_1sigma=sigma, bound=MODEL_STEP_Z * sigma,
+                              why=f"{MODEL_STEP_Z:g} sigma of the step the vehicle model's own "
+                                  f"errors make there (a stop's held pitch {held:.2g}, the "
+                                  f"body's tilt on its springs {body:.2g} m/s^2): the "
+                                  "model's, not the IMU's"))
         else:
             kept.append(span)
     return kept, aside
 
 
-def _stop_share_step(t, held_sd, t0, window_s=2.0, around=(-5, -4, 4, 5)):
-    """rad: the held pitch's error carried into the step of the scan's window at t0 (s): its
-    mean over the window's bins less its mean over the baseline windows (`scan.excursions`:
-    those starting 4 and 5 s either side) - one stop's error is one number, so it moves the
-    window's mean by the share of its bins at the stop; NaN where it is not measured."""
+def _window_step(t, series, t0, window_s=2.0, around=(-5, -4, 4, 5)):
+    """|the series' mean over the scan's window at t0 (s) less its mean over the baseline
+    windows| (`scan.excursions`: those starting 4 and 5 s either side) - a model error
+    constant over a stretch moves a window's mean by the share of its bins in it; NaN where
+    the series is not known."""
     def mean(start):
         inside = (t >= start) & (t < start + window_s)
-        return np.mean(held_sd[inside]) if inside.any() else math.nan
+        return np.mean(series[inside]) if inside.any() else math.nan
     base = np.array([mean(t0 + d) for d in around])
     if np.isfinite(base).sum() < 2:
         return math.nan

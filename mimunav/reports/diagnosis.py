@@ -282,14 +282,13 @@ def _residual_lines(doc):
         lines += [f"- {u['channel']}: {u['t0']:.1f}-{u['t1']:.1f} s, z = {u['z']:.1f}, "
                   f"{u['size']:+.3g} {u['units']}" for u in others]
         lines.append("")
-    stops = doc.get("reference_check", {}).get("excursions_at_stops", [])
+    stops = doc.get("reference_check", {}).get("excursions_of_the_model", [])
     if stops:
-        lines += ["## Excursions at stops: the vehicle model's own", "",
+        lines += ["## Excursions the vehicle model's own errors make", "",
                   "A stopped vehicle's pitch is the road's grade around the stop, not measured "
-                  "at it; its error tilts g onto the forward axis for the whole stop. These "
-                  "steps lie within the bound that error sets, so they are not charged to the "
-                  "IMU:",
-                  ""]
+                  "at it, and the body tilts on its springs as it accelerates; both tilt g "
+                  "into the accelerometers. These steps lie within the bound those errors "
+                  "set there, so they are not charged to the IMU:", ""]
         lines += [f"- {u['channel']}: {u['t0']:.1f}-{u['t1']:.1f} s, z = {u['z']:.1f}, "
                   f"{u['size']:+.3g} {u['units']} (bound {u['bound']:.2g}: {u['why']})"
                   for u in stops]
