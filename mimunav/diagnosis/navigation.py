@@ -200,8 +200,8 @@ def untestable(cands, noisy):
             "nonlinearity, misalignment, time skew) are made of the MIMU's own outputs here - "
             "only a simulation's exact truth with attitude gives their inputs otherwise - and "
             "cannot be told from the noise the velocity error shares with them: 'nothing "
-            "found' does not cover them; a reference IMU (the sensor level) or a land "
-            "vehicle's track (--level track) can test them"]
+            "found' does not cover them; a reference IMU beside it (the sensor level) or, "
+            "for a car, its track (--level track) can test them"]
 
 
 def unsettled(rejected):

@@ -70,14 +70,15 @@ def track_of(truth):
 def starts(truth, length, step=START_STEP_S, first=0.0, min_speed=alignment.COURSE_SPEED,
            max_gap=MAX_GAP_S, t_imu=None, parked=(), half=alignment.MOVING_HALF_WINDOW_S):
     """Window starts (s) on a grid of `step` from `first`: moving faster than min_speed
-    (m/s, horizontal), the whole window (and the alignment interval before it) covered
+    (m/s, horizontal; the track's velocity averaged over the alignment interval, t0 +-
+    half: a walker's 4 m fixes had passed 3 m/s epoch by epoch while it stood), the whole window (and the alignment interval before it) covered
     without a gap longer than max_gap (s) in the reference or in the IMU's stamps t_imu,
     the alignment interval (t0 +- half s) outside the rests `parked` [(t0, t1) s] (a noisy
     fix's differenced speed passes the speed gate while the car stands: its course, and so
     the window's heading, is noise)."""
     end = truth.t[-1] if t_imu is None else min(truth.t[-1], t_imu[-1])    # both must cover it
     grid = np.arange(max(first, truth.t[0] + half), end - length, step)
-    speed = np.hypot(truth.v_ned[:, 0], truth.v_ned[:, 1])
+    speed = alignment.mean_speed({"t": truth.t, "v_ned": truth.v_ned}, half)   # not one epoch
     gaps = [truth.t] + ([] if t_imu is None else [t_imu])
     wide = [np.diff(t) > max_gap for t in gaps]
     gap_start = np.concatenate([t[:-1][w] for t, w in zip(gaps, wide)])
@@ -102,14 +103,14 @@ def why_no_windows(truth, lengths, first, min_speed, max_gap, half):
     meets; a reference gap above max_gap only leaves out the windows it meets, so it is said
     as such, not as the cause. All met: the windows' other conditions (the gaps, the IMU's,
     the rests at standstill) leave none."""
-    speed = np.hypot(truth.v_ned[:, 0], truth.v_ned[:, 1])
+    speed = alignment.mean_speed({"t": truth.t, "v_ned": truth.v_ned}, half)   # as `starts`
     span = truth.t[-1] - max(first, truth.t[0] + half)
     gaps = np.diff(truth.t)
     largest, length = (gaps.max() if len(gaps) else 0.0), min(lengths)
     conditions = [
         (speed.max() >= min_speed, f"a horizontal speed of {min_speed:g} m/s at a window's "
-                                   f"start (the reference peaks at {speed.max():.2f} m/s: "
-                                   "--min-speed)"),
+                                   f"start (the reference peaks at {speed.max():.2f} m/s "
+                                   f"over +-{half:g} s: --min-speed)"),
         (span > length, f"{length:g} s of reference after the rest and the alignment's "
                         f"{half:g} s ({span:.1f} s: --lengths)")]
     failed = [text for ok, text in conditions if not ok]
@@ -197,8 +198,8 @@ def moving_half(track):
     return alignment.moving_half_window(track)
 
 
-def summary(results, span_s, reference_meta=None, track=None, half=None):
-    """Per length: number of windows, disjoint windows the span holds, and percentiles
+def summary(results, reference_meta=None, track=None, half=None):
+    """Per length: number of windows, how many of them are disjoint, and percentiles
     (50, 68, 95, max) of the end-point horizontal and vertical errors (m), the median
     drift rate (horizontal end error / length, m/s), and the part of the end error the
     reference alone explains (`reference_floor`; `track` and `half`: the reference track
@@ -209,12 +210,22 @@ def summary(results, span_s, reference_meta=None, track=None, half=None):
     for length, wins in sorted(results.items()):
         hor = np.array([w.horizontal[-1] for w in wins])
         up = np.array([abs(w.error_ned[-1, 2]) for w in wins])
-        rows[length] = {"windows": len(wins), "disjoint": int(span_s // length),
+        rows[length] = {"windows": len(wins), "disjoint": _disjoint(wins, length),
                         "horizontal_m": _percentiles(hor), "vertical_m": _percentiles(up),
                         "median_rate_m_s": float(np.median(hor) / length),
                         "reference_floor": reference_floor(reference_meta or {}, length,
                                                            sigma_v, half)}
     return rows
+
+
+def _disjoint(wins, length):
+    """The most windows of `wins` (each `length` s) that do not overlap, taken in order of
+    their starts (the span's capacity had been given: '13 (45)' for 13 windows)."""
+    count, free_from = 0, -math.inf
+    for t0 in sorted(w.t0 for w in wins):
+        if t0 >= free_from:
+            count, free_from = count + 1, t0 + length
+    return count
 
 
 def reference_floor(meta, length, measured_sigma_v=None, half=None):

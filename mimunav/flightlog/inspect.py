@@ -64,7 +64,8 @@ def _mounting_text(doc):
 
 
 HEADING = {"reference": "from the reference's attitude", "course": "from the GNSS course (a "
-           "car's heading)", "assumed": "assumed: nothing measured it"}
+           "car's heading; of what is not a car, only its course)",
+           "assumed": "assumed: nothing measured it"}
 ATTITUDE = {"reference": "from the reference", "leveled": "leveled on the IMU's own specific "
             "force"}
 

@@ -29,7 +29,8 @@ from scipy.spatial.transform import Rotation
 from ..frames import attitude, earth
 from ..errors import InputError
 from .rests import (G0, MIN_STATIC_S, felt_at_rest, rate_mean_se, QUIET_WINDOW_S, STATIC_MARGIN_S, STATIC_SPEED, track_still,
-                    quiet_stretches, rest_intervals, travel_sign, velocity_noise, yaw_turned)
+                    means_around, quiet_stretches, rest_intervals, travel_sign, velocity_noise,
+                    yaw_turned)
 
 
 COURSE_SPEED = 3.0          # m/s: horizontal speed from which the GNSS course gives heading
@@ -146,8 +147,8 @@ def initial_alignment(t, w, f, mounting, track=None):
     notes = [f"no rest of {MIN_STATIC_S:g} s starts the recording"] + \
         [why for _, _, why in not_rests]
     q_ref, t_ref = reference_attitude(track, float(t[0]))
-    speed = np.hypot(track["v_ned"][:, 0], track["v_ned"][:, 1])
     half = moving_half_window(track)
+    speed = mean_speed(track, half)
     parked = np.zeros(len(track["t"]), bool)      # a noisy fix "fast" while the car stands
     for a, b in quiet:
         parked |= (track["t"] > a - half) & (track["t"] < b + half)
@@ -230,7 +231,7 @@ def _from_rest(t, w, f, mounting, track, interval, still_until=-math.inf):
     notes = [f"level from the mean specific force over the rest {t[0]:.2f}-{t_end:.2f} s"]
     lat, lon, h = (float(np.interp(t[0], track["t"], x)) for x in (
         track["lat"], unwrapped_longitude(track["lon"]), track["h"]))
-    speed = np.hypot(track["v_ned"][:, 0], track["v_ned"][:, 1])
+    speed = mean_speed(track, moving_half_window(track))
     fast = np.flatnonzero((speed >= COURSE_SPEED) & (track["t"] > max(t_end, still_until)))
     q_ref, t_ref = reference_attitude(track, float(t[0]))
     w_v = attitude.rotate(q_vs, w - w[rest].mean(axis=0))
@@ -532,6 +533,16 @@ def moving_attitude(t, w, f, mounting, track, t0, half=MOVING_HALF_WINDOW_S):
     rot, _ = Rotation.align_vectors([dv_n, forward], [dv_b, [1.0, 0, 0]],
                                     weights=[np.inf, 1.0])
     return attitude.as_wxyz(attitude.from_scipy(rot))
+
+
+def mean_speed(track, half):
+    """Horizontal speed (m/s) of the track's velocity averaged over +-half s about each of
+    its epochs (`moving_half_window`): a noisy fix's differenced speed passes COURSE_SPEED
+    while a walker stands or sets off (3.3 m/s on 4 m fixes, its course noise: a heading
+    176 deg off), its mean over the alignment's interval does not; an RTK track's is its
+    own."""
+    v = means_around(track["t"], np.asarray(track["v_ned"], float)[:, :2], track["t"], half)
+    return np.hypot(v[:, 0], v[:, 1])
 
 
 def moving_half_window(track, accel_error=MOVING_ACCEL_ERROR):

@@ -90,26 +90,38 @@ STEADY_WINDOW_S = 1.0           # s: the means judged
 
 def steady_runs(t, w, f, t0, t1):
     """([(a, b)] s: the runs of at least MIN_STATIC_S within [t0, t1] where the IMU holds
-    still - its STEADY_WINDOW_S means of specific force (m/s^2) within REST_TILT of their
-    mean direction over the span (the level a rest gives) and of rate (rad/s) within
-    REST_TURN of their mean -,
-    the worst tilt (rad) and turn (rad/s) of the span's means). A span shorter than two
-    windows is judged as one window."""
+    still - consecutive STEADY_WINDOW_S means of specific force (m/s^2) within REST_TILT of
+    the run's mean direction so far and of rate (rad/s) within REST_TURN of its mean rate
+    so far, a window beyond either starting the next run -, the worst tilt (rad) and turn
+    (rad/s) of the span's means about their mean). Run by run, so that a steady turn beside
+    a rest is a run of its own (judged by its rate where that matters), not a share of one
+    mean that neither holds. A span shorter than two windows is judged as one window."""
     n = max(int((t1 - t0) // STEADY_WINDOW_S), 1)
     filled, f_mean, w_mean = _window_means(t, (f, w), t0, t1, n)
     up = f_mean / np.linalg.norm(f_mean, axis=1)[:, None]
+    index = np.flatnonzero(filled)
+    runs, first = [], 0
+    for k in range(1, len(index) + 1):
+        if k < len(index) and index[k] == index[k - 1] + 1 and \
+                _holds(up[first:k], w_mean[first:k], up[k], w_mean[k]):
+            continue
+        start = t0 + index[first] * STEADY_WINDOW_S
+        end = t1 if index[k - 1] == n - 1 else t0 + (index[k - 1] + 1) * STEADY_WINDOW_S
+        if end - start >= MIN_STATIC_S:
+            runs.append((float(start), float(end)))
+        first = k
     middle = up.mean(axis=0)
     tilt = np.arccos(np.clip(up @ (middle / np.linalg.norm(middle)), -1.0, 1.0))
     turn = np.linalg.norm(w_mean - w_mean.mean(axis=0), axis=1)
-    steady = np.zeros(n, bool)
-    steady[filled] = (tilt <= REST_TILT) & (turn <= REST_TURN)
-    runs = []
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], steady.astype(int), [0]])))
-    for a, b in zip(edges[::2], edges[1::2]):
-        start, end = t0 + a * STEADY_WINDOW_S, t1 if b == n else t0 + b * STEADY_WINDOW_S
-        if end - start >= MIN_STATIC_S:
-            runs.append((float(start), float(end)))
     return runs, float(tilt.max()), float(turn.max())
+
+
+def _holds(up, rate, next_up, next_rate):
+    """Whether a window's direction of specific force (unit) and rate (rad/s) lie within
+    REST_TILT and REST_TURN of a run's means (its windows' `up`, `rate`)."""
+    middle = up.mean(axis=0)
+    tilt = math.acos(min(1.0, float(next_up @ middle) / float(np.linalg.norm(middle))))
+    return tilt <= REST_TILT and float(np.linalg.norm(next_rate - rate.mean(axis=0))) <= REST_TURN
 
 
 def yaw_turned(t, w_v, t0, t1):
@@ -126,7 +138,7 @@ QUIET_SPREAD = 3.0          # x the quietest twentieth's spread: still quiet (th
                             # 0.082 in the median)
 QUIET_SPREAD_TRACKED = 4.0  # the same where a reference track also judges each stretch
 QUIET_HOLE = 2              # windows: a louder moment inside a rest does not split it
-QUIET_RATE = math.radians(1.0)      # rad/s: a resting consumer gyro's mean rate (its bias) stays below
+QUIET_RATE = math.radians(1.0)      # rad/s: a resting consumer gyro's mean rate over a run (its bias) stays below
 QUIET_GRAVITY = 0.3         # m/s^2: |mean f| - g at rest, beyond a consumer accelerometer's bias
 G0 = 9.80665                # m/s^2, standard gravity (a resting IMU feels about this)
 REST_GRAVITY = 0.2 * G0     # m/s^2: | |mean f| - g | at a rest a reference shows, at most: beyond
@@ -166,11 +178,12 @@ def quiet_stretches(t, w, f, track=None):
     loose = QUIET_SPREAD_TRACKED if track is not None and len(track["t"]) >= 2 else QUIET_SPREAD
     steady = _close((spread_w <= loose * np.quantile(spread_w, 0.05))
                     & (spread_f <= loose * np.quantile(spread_f, 0.05)), QUIET_HOLE)
-    # a steady turn is no rest: the mean rate and gravity judge every window, filled or not
-    quiet = (steady & (np.linalg.norm(w_s.mean(axis=1), axis=1) < QUIET_RATE)
-             & (np.abs(np.linalg.norm(cut(f).mean(axis=1), axis=1) - G0) < QUIET_GRAVITY))
+    # gravity judges every window, filled or not; a steady turn is no rest: the mean rate
+    # judges each run (a hand-held phone's tremor had lifted half its 0.5 s windows of a
+    # 30 s rest past QUIET_RATE, 0.67-1.08 deg/s about a 0.39 deg/s bias, and lost the rest)
+    quiet = steady & (np.abs(np.linalg.norm(cut(f).mean(axis=1), axis=1) - G0) < QUIET_GRAVITY)
     runs = [run for t0, t1 in _runs(quiet, cut(t)[:, 0], cut(t)[:, -1])
-            for run in steady_runs(t, w, f, t0, t1)[0]]
+            for run in steady_runs(t, w, f, t0, t1)[0] if _mean_rate(t, w, *run) < QUIET_RATE]
     if track is None or len(track["t"]) < 2:
         return runs
     mid = cut(t).mean(axis=1)
@@ -185,6 +198,12 @@ def quiet_stretches(t, w, f, track=None):
             inside = (mid >= t0) & (mid <= t1)
             out += _runs(inside & slow, cut(t)[:, 0], cut(t)[:, -1])
     return out
+
+
+def _mean_rate(t, w, t0, t1):
+    """|mean rate| (rad/s) of the samples w at stamps t (s) in [t0, t1]."""
+    k = (t >= t0) & (t <= t1)
+    return float(np.linalg.norm(w[k].mean(axis=0)))
 
 
 def _runs(mask, starts, ends):

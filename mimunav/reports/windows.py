@@ -10,7 +10,6 @@ from .plots import figure, save
 
 def document(flight, results, rest, cal_label, time_shift_s):
     """JSON-ready: the summary table, the alignment at rest and every window's end error."""
-    span = float(flight.truth.t[-1] - rest.navigable_from)
     track = windows.track_of(flight.truth)
     half = windows.moving_half(track)
     static = [None if np.isnan(x) else x for x in rest.static]
@@ -20,7 +19,7 @@ def document(flight, results, rest, cal_label, time_shift_s):
                      "gyro_bias_rad_s": rest.gyro_bias.tolist(),
                      "accel_bias_m_s2": rest.accel_bias.tolist()},
             "summary": {f"{length:g}": row for length, row in
-                        windows.summary(results, span, flight.reference_meta, track,
+                        windows.summary(results, flight.reference_meta, track,
                                         half).items()},
             "windows": {f"{length:g}": [{"t0_s": w.t0, "end_ned_m": w.error_ned[-1].tolist()}
                                         for w in wins] for length, wins in results.items()},

@@ -28,7 +28,7 @@ def test_windows_of_an_ideal_imu_stay_at_the_alignment_error(tmp_path):
     assert max(ends10) < 0.05 and max(ends30) < 0.44, (max(ends10), max(ends30))
     # a recording that holds no window says why and what option would help (issue 16: a walk
     # returned zero windows and exit 0)
-    with pytest.raises(ValueError, match="peaks at .* m/s: --min-speed"):
+    with pytest.raises(ValueError, match="peaks at .* m/s over .* s: --min-speed"):
         windows.run_all(flight, lengths=(10.0,), min_speed=1e3)
     assert main(["windows", str(path), "--min-speed", "1000"]) == 2
 
@@ -167,7 +167,7 @@ def test_windows_under_a_noisy_fix_align_over_a_longer_interval(tmp_path):
     # a window every second: the median of 17 windows 5 s apart moved by 7 m with where
     # the drive's rest ends (the windows' starts against the fix's epochs)
     results, _ = windows.run_all(flight, lengths=(10.0,), step=1.0)
-    row = windows.summary(results, 100.0, flight.reference_meta, track, half)[10.0]
+    row = windows.summary(results, flight.reference_meta, track, half)[10.0]
     floor = row["reference_floor"]
     assert floor["estimated"] == ["velocity"] and 5.0 < floor["horizontal_m"] < 30.0
     assert row["windows"] >= 50 and row["horizontal_m"]["p50"] < floor["horizontal_m"], row
@@ -197,3 +197,12 @@ def test_a_stated_position_sigma_is_read_from_its_leading_number():
     assert with_text["horizontal_m"] == pytest.approx(3.0 * 2 ** 0.5)
     assert windows.reference_floor({"position_sigma_m": "unknown"}, 10.0)["horizontal_m"] \
         is None
+
+
+def test_the_disjoint_windows_are_counted_among_those_run():
+    """The count in brackets is of the windows run that do not overlap (it had been the
+    span's capacity: '13 (45)'): starts 0, 5, 10, 15, 20 s of 10 s windows hold 3."""
+    from types import SimpleNamespace
+    wins = [SimpleNamespace(t0=t0, horizontal=np.array([1.0]), error_ned=np.zeros((1, 3)))
+            for t0 in (20.0, 0.0, 5.0, 10.0, 15.0)]
+    assert windows.summary({10.0: wins})[10.0]["disjoint"] == 3

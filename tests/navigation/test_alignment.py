@@ -377,3 +377,38 @@ def test_the_reference_attitudes_accelerometer_bias_allows_for_the_lever_arm():
     assert np.abs(accel).max() < 1e-4, accel
     _, (unaware, _), _ = alignment.biases_from_attitude(t, w, f, Mounting(), track)
     assert np.abs(unaware).max() > 5e-3, unaware
+
+
+def test_a_hand_held_rest_with_tremor_and_bias_is_a_rest():
+    """A phone held still for 30 s in a walker's hand: a gyro bias of 0.82 deg/s and a
+    1.5 Hz tremor of 1 deg/s lift some 0.5 s windows' mean rate past QUIET_RATE (1 deg/s),
+    which had split the rest into pieces too short to keep (then a standing walker was
+    aligned as moving at 3.1 m/s on its noisy fixes); the rate is judged on the run's mean:
+    the rest is found, and the walking after it is not; and where a noisy 1 Hz fix's
+    differenced speed passes COURSE_SPEED while the walker stands, its mean over the
+    alignment's interval (`mean_speed`) does not."""
+    from mimunav.navigation.rests import QUIET_RATE
+    rng = np.random.default_rng(47)
+    t = np.arange(0.0, 60.0, 0.01)
+    bias = np.radians([0.4, -0.5, 0.5])
+    tremor = np.radians(1.0) * np.sin(2 * math.pi * 1.5 * t)
+    w = bias + tremor[:, None] * bias / np.linalg.norm(bias) \
+        + rng.normal(0.0, np.radians(0.05), (len(t), 3))
+    f = np.tile([0.0, 0.0, -9.80665], (len(t), 1)) + rng.normal(0.0, 0.02, (len(t), 3))
+    walking = t >= 30.0
+    f[walking, 2] += 3.0 * np.sin(2 * math.pi * 2.0 * t[walking])
+    w[walking, 0] += np.radians(20.0) * np.sin(2 * math.pi * 2.0 * t[walking])
+    windows = w[:3000].reshape(-1, 50, 3).mean(axis=1)
+    assert (np.linalg.norm(windows, axis=1) > QUIET_RATE).any()     # the old test's failure
+    stretches = quiet_stretches(t, w, f)
+    assert len(stretches) == 1 and stretches[0][0] < 1.0 and 28.0 < stretches[0][1] <= 30.0
+    # the walker's 4 m fixes at 1 Hz: standing 30 s, then 1.4 m/s east
+    t_fix = np.arange(0.0, 120.0, 1.0)
+    east = np.where(t_fix < 30.0, 0.0, 1.4 * (t_fix - 30.0)) + rng.normal(0.0, 4.0, len(t_fix))
+    north = rng.normal(0.0, 4.0, len(t_fix))
+    v = np.column_stack([np.gradient(north, t_fix), np.gradient(east, t_fix),
+                         np.zeros_like(t_fix)])
+    track = {"t": t_fix, "v_ned": v}
+    standing = t_fix < 25.0
+    assert (np.hypot(v[standing, 0], v[standing, 1]) > alignment.COURSE_SPEED).sum() >= 3
+    assert (alignment.mean_speed(track, 5.0)[standing] < alignment.COURSE_SPEED).all()
