@@ -80,6 +80,10 @@ refused, naming the nearest known one.
                              stands on it}
               velocity_ned  m/s  or  velocity_ecef  m/s  (else central differences of position)
               or velocity_local  m/s in the local frame's axes
+              or ground_speed  m/s | km/h | kn  with  course  deg | rad from true north,
+                                 clockwise (a receiver's speed and course over ground, NMEA
+                                 RMC, a phone's Location): north and east from them, down
+                                 from the heights' central differences
               attitude_wxyz      unit quaternions with `rotates` = "body_to_ecef" | "body_to_ned"
                                  (| "body_to_local", the default beside position_local); the
                                  body is the vehicle's FRD axes, or an IMU's own (attitude_of)

@@ -13,7 +13,8 @@ from .recording import RecordingError, unit_quaternions
 from .table_spec import FRAME_KEYS, unix_ns, unrepeated
 
 QUANTITIES = ("position_ecef", "latitude", "longitude", "height", "position_local",
-              "velocity_ned", "velocity_ecef", "velocity_local", "attitude_wxyz", "attitude_rpy")
+              "velocity_ned", "velocity_ecef", "velocity_local", "ground_speed", "course",
+              "attitude_wxyz", "attitude_rpy")
 GEODETIC = ("latitude", "longitude", "height")
 
 
@@ -48,6 +49,14 @@ def _position_keys(spec):
     where = f"{spec.path}: [reference]"
     if "attitude_wxyz" in keys and "attitude_rpy" in keys:
         raise RecordingError(f"{where} gives attitude_wxyz and attitude_rpy: one of them")
+    over_ground = [k for k in ("ground_speed", "course") if k in keys]
+    if len(over_ground) == 1:
+        raise RecordingError(f"{where} gives {over_ground[0]} alone: ground_speed and course "
+                             "together make the horizontal velocity")
+    velocities = [k for k in ("velocity_ned", "velocity_ecef", "velocity_local",
+                              "ground_speed") if k in keys]
+    if len(velocities) > 1:
+        raise RecordingError(f"{where} gives {' and '.join(velocities)}: one velocity")
     if "position_local" in keys:
         other = [k for k in keys if k in ("position_ecef", "velocity_ned", "velocity_ecef",
                                           "attitude_rpy") + GEODETIC]
@@ -130,6 +139,9 @@ def _geodetic(spec, ns, col):
         v = np.einsum("kji,kj->ki", earth.ned_to_ecef_matrix(lat, lon), col["velocity_ecef"])
     else:
         v = velocity_from_positions(ns, lat, lon, h)
+    if "ground_speed" in col:           # over ground: north and east; down as differenced
+        speed, course = col["ground_speed"], col["course"]
+        v = np.column_stack([speed * np.cos(course), speed * np.sin(course), v[:, 2]])
     ref = dict(ns=ns, lat=lat, lon=lon, h=h, v_ned=v)
     if "attitude_wxyz" in col:
         ref["q_nb"] = _attitude_ned(spec, col["attitude_wxyz"], lat, lon)

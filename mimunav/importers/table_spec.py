@@ -12,13 +12,15 @@ from .recording import RecordingError, gps_to_unix_s, text_file
 G_UNIT = 9.80665
 UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9, "rad/s": 1.0,
          "deg/s": np.pi / 180, "m/s^2": 1.0, "g": G_UNIT, "rad": 1.0, "deg": np.pi / 180,
-         "m": 1.0, "mm": 1e-3, "ft": 0.3048, "m/s": 1.0, "1": 1.0, "iso8601": 1.0}
+         "m": 1.0, "mm": 1e-3, "ft": 0.3048, "m/s": 1.0, "km/h": 1 / 3.6, "kn": 1852 / 3600,
+         "1": 1.0, "iso8601": 1.0}
 KINDS = {"time": ("s", "ms", "us", "ns", "iso8601"), "angular_rate": ("rad/s", "deg/s"),
          "specific_force": ("m/s^2", "g"), "angle_increment": ("rad", "deg"),
          "velocity_increment": ("m/s",), "latitude": ("deg", "rad"), "longitude": ("deg", "rad"),
          "height": ("m", "mm", "ft"), "position_ecef": ("m",), "velocity_ned": ("m/s",),
          "velocity_ecef": ("m/s",), "attitude_wxyz": ("1",), "attitude_rpy": ("deg", "rad"),
-         "position_local": ("m", "mm", "ft"), "velocity_local": ("m/s",)}
+         "position_local": ("m", "mm", "ft"), "velocity_local": ("m/s",),
+         "ground_speed": ("m/s", "km/h", "kn"), "course": ("deg", "rad")}
 WIDTH = {"angular_rate": 3, "specific_force": 3, "angle_increment": 3, "velocity_increment": 3,
          "position_ecef": 3, "velocity_ned": 3, "velocity_ecef": 3, "attitude_wxyz": 4,
          "attitude_rpy": 3, "position_local": 3, "velocity_local": 3}
@@ -33,7 +35,7 @@ SECTION_KEYS = {
     "reference": ("time", "latitude", "longitude", "height", "position_ecef", "velocity_ned",
                   "velocity_ecef", "attitude_wxyz", "attitude_rpy", "attitude_of", "source",
                   "independent", "position_sigma_m", "time_offset_s", "position_local",
-                  "velocity_local", "local_frame")}
+                  "velocity_local", "local_frame", "ground_speed", "course")}
 SOURCE_KEYS = ("file", "columns", "unit", "scale", "offset", "time", "rotates", "age",
                "zone")
 FRAME_KEYS = ("axes", "origin", "azimuth_deg")          # [reference] local_frame = {...}

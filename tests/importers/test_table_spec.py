@@ -314,3 +314,39 @@ def test_instantaneous_samples_are_stamped_at_the_end_of_the_interval_they_stand
     _imu(tmp_path, extra='sampling = "instantaneous"')
     with pytest.raises(RecordingError, match="sampling 'instantaneous': \"interval_mean\" or"):
         table.read(tmp_path / "spec.toml")
+
+
+def test_a_receivers_speed_and_course_over_ground_are_its_velocity(tmp_path):
+    """[reference] ground_speed (km/h here) and course (deg from north, clockwise) - the speed
+    and bearing columns of a phone's Location.csv or NMEA RMC, which a spec could not take -
+    give the north and east velocity exactly; down from the heights' central differences;
+    one without the other, or beside velocity_ned, is refused saying why."""
+    _imu(tmp_path)
+    n = 200
+    t = np.arange(1, n + 1) / 10.0
+    course = np.radians(30.0 + 20.0 * np.sin(0.3 * t))
+    speed = 10.0 + 0.1 * t                                    # m/s
+    climb = 0.5                                                # m/s, up
+    ref = np.column_stack([t * 1e5, np.full(n, 30.0), np.full(n, 104.0), 100.0 + climb * t,
+                           speed * 3.6, np.degrees(course)])
+    np.savetxt(tmp_path / "ref.csv", ref, delimiter=",", header="tick,lat,lon,h,kmh,bearing",
+               comments="")
+    section = """[reference]
+time = { file = "ref.csv", columns = ["tick"], unit = "us", scale = 10 }
+latitude = { file = "ref.csv", columns = ["lat"], unit = "deg" }
+longitude = { file = "ref.csv", columns = ["lon"], unit = "deg" }
+height = { file = "ref.csv", columns = ["h"], unit = "m" }
+"""
+    over_ground = """ground_speed = { file = "ref.csv", columns = ["kmh"], unit = "km/h" }
+course = { file = "ref.csv", columns = ["bearing"], unit = "deg" }
+"""
+    spec = tmp_path / "spec.toml"
+    spec.write_text(SPEC.format(rate=RATES, force=FORCES, extra="") + section + over_ground)
+    v = table.read(spec).reference["v_ned"]
+    assert np.allclose(v[:, 0], speed * np.cos(course)) and \
+        np.allclose(v[:, 1], speed * np.sin(course))
+    assert np.allclose(v[:, 2], -climb, atol=1e-6)
+    spec.write_text(SPEC.format(rate=RATES, force=FORCES, extra="") + section
+                    + over_ground.splitlines()[0] + "\n")
+    with pytest.raises(RecordingError, match="ground_speed alone"):
+        table.read(spec)
