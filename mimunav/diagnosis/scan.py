@@ -78,8 +78,8 @@ def excursions(design, x, alpha):
         z = np.where(good, (step - centre) / spread, 0.0)
         # an excursion also shows, halved and reversed, where it sits in a baseline (4-6 s
         # away): keep only windows that are the largest within that reach
-        peak = np.abs(z) >= _running_max(np.abs(z), 6)
-        for w_id in np.flatnonzero((np.abs(z) > z_limit) & peak):
+        largest = np.abs(z) >= _running_max(np.abs(z), 6)
+        for w_id in np.flatnonzero((np.abs(z) > z_limit) & largest):
             t0 = t[0] + w_id
             peak = {"z": float(z[w_id]), "size": float(size[w_id]), "peak_t0": float(t0)}
             if spans and spans[-1]["channel"] == ch and spans[-1]["t1"] >= t0 - 1e-9:

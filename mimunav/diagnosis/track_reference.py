@@ -339,22 +339,23 @@ def noise_floor(noise=CONSUMER_NOISE, bin_s=CHECK_BIN_S):
                                    noise[f"{s}_flicker"]) for s, a in CHANNELS}
 
 
-MODEL_STEP_Z = 3.0      # an accelerometer step within 3 sigma of the vehicle model's own
-#                         error there (a normal bound: 0.3 % of the model's steps lie beyond)
+MODEL_STEP_Z = 3.0      # a stop's held pitch error (measured: a sigma) counts 3 times (a
+#                         normal bound: 0.3 % of the model's steps lie beyond)
 
 
 def model_excursions(spans, t, held_sd, f_model, q_vs):
-    """(kept, set aside): the scan's excursions `spans` (`scan.excursions`) with those an
-    accelerometer's step explains within MODEL_STEP_Z of the vehicle model's own error
-    there set aside, the two errors it states for an accelerometer together:
+    """(kept, set aside): the scan's excursions `spans` (`scan.excursions`) with those the
+    vehicle model's own errors may make there set aside, the two it states for an
+    accelerometer together (root sum square):
       - a stop's held pitch: the road's grade over the metres around the stop
         (`vehicle._road_pitch`), not measured at the stop itself - its error d_theta tilts g
         onto the forward axis for the whole stop, so a window at the stop steps against a
         baseline in motion by g d_theta (an independent drive on a curving 1-3 % grade:
         accel.x -0.019 m/s^2 at its first departure, z -7.3 on a drive with no error);
-      - the body's tilt on its springs, BODY_TILT_GRADIENT per g of horizontal acceleration
-        (the accel scale the model states): a step of the horizontal specific force by a
-        moves the output by up to 0.12 a (the RTKLIB drive's departure: +0.52 m/s^2, z 12.5).
+      - the body's tilt on its springs, at most BODY_TILT_GRADIENT per g of horizontal
+        acceleration (passenger cars' bound, taken as one here, not as a sigma): a step of
+        the horizontal specific force by a moves the output by up to 0.12 a (the RTKLIB
+        drive's departure, +0.52 m/s^2 at z 12.5, is beyond its 0.22: it stays unexplained).
     t: the design's bin times (s); held_sd: the held pitch's 1 sigma at them (rad,
     `TrackMotion.held_pitch_sd`); f_model: the model's specific force in the bins (m/s^2,
     MIMU sensor axes); q_vs: the MIMU's mounting (sensor to vehicle)."""
@@ -372,13 +373,13 @@ def model_excursions(spans, t, held_sd, f_model, q_vs):
         i = "xyz".index(axis)
         held = G0 * abs(forward[i]) * _window_step(t, held_sd, span["peak_t0"])
         body = _window_step(t, tilt[:, i], span["peak_t0"])
-        sigma = math.hypot(np.nan_to_num(held), np.nan_to_num(body))
-        if abs(span["size"]) <= MODEL_STEP_Z * sigma:
-            aside.append(dict(span, model_1sigma=sigma, bound=MODEL_STEP_Z * sigma,
-                              why=f"{MODEL_STEP_Z:g} sigma of the step the vehicle model's own "
-                                  f"errors make there (a stop's held pitch {held:.2g}, the "
-                                  f"body's tilt on its springs {body:.2g} m/s^2): the "
-                                  "model's, not the IMU's"))
+        bound = math.hypot(MODEL_STEP_Z * np.nan_to_num(held), np.nan_to_num(body))
+        if abs(span["size"]) <= bound:
+            aside.append(dict(span, bound=bound,
+                              why=f"the step the vehicle model's own errors may make there "
+                                  f"({MODEL_STEP_Z:g} sigma of a stop's held pitch, "
+                                  f"{MODEL_STEP_Z * held:.2g}; the body's tilt on its springs "
+                                  f"at most {body:.2g} m/s^2): the model's, not the IMU's"))
         else:
             kept.append(span)
     return kept, aside

@@ -38,10 +38,13 @@ def mounting_beyond_range(rejected, flight):
     fitted beyond its range (`confirmation.beyond_range`, `rejected`'s `beyond_range`), from
     the recording's `mounting_yaw_against_course` (a turn of any size, against the GNSS
     course): beyond the term's range it names the turn and the option that turns it back;
-    within it, the fit's size is not the mounting's (a noisy reference's: an independent
-    drive under 0.5 m fixes fitted a 10 deg yaw as 33 deg, pitch 31 of it); else []."""
-    if not any(r.get("effect") == "mounting_misalignment" and
-               ("beyond_range" in r or "train_beyond_range" in r) for r in rejected):
+    within it, the fit's size is not the mounting's where the fit turns about the vehicle's
+    down axis (a noisy reference's), while a fit about its level axes may be a tilted
+    mounting the import does not measure (an independent review: a cradle tilted back 30
+    deg had been called the reference's fault); else []."""
+    beyond = [r for r in rejected if r.get("effect") == "mounting_misalignment" and
+              ("beyond_range" in r or "train_beyond_range" in r)]
+    if not beyond:
         return []
     real = (flight.recording or {}).get("real")
     said = (json.loads(real) if isinstance(real, str) else real or {}).get(
@@ -49,9 +52,18 @@ def mounting_beyond_range(rejected, flight):
     yaw = re.match(r"\s*([-+]?\d+(?:\.\d+)?) deg", said or "")
     if yaw is None:
         return []
+    turn = beyond[0].get("vector_vehicle")
+    about_down = turn is not None and abs(turn[2]) >= max(abs(turn[0]), abs(turn[1]))
+    if abs(math.radians(float(yaw.group(1)))) <= SMALL_ANGLE_MOUNTING and not about_down:
+        return [f"the import measured the mounting's yaw at {yaw.group(1)} deg against the "
+                "GNSS course, and measures nothing of its roll and pitch, about which the "
+                "fit turns " + ("(its axes not known here)" if turn is None else "mostly")
+                + ": a mounting tilted beyond 20 deg may be the cause (--mounting-rpy-deg), "
+                "or the reference does not carry the term here"]
     if abs(math.radians(float(yaw.group(1)))) <= SMALL_ANGLE_MOUNTING:
         return [f"the import measured the mounting's yaw at {yaw.group(1)} deg against the "
-                "GNSS course, within the small-angle term's range: the fit's size is not the "
-                "mounting's, and the reference does not carry the term here"]
+                "GNSS course, within the small-angle term's range, and the fit turns about "
+                "the vehicle's down axis: the fit's size is not the mounting's, and the "
+                "reference does not carry the term here"]
     return [f"the mounting given is off by more than the diagnosis fits; the import measured "
             f"its yaw: {said}"]

@@ -235,19 +235,22 @@ def velocity_lag_s(ref, search_s=1.0):
     a = np.gradient(v, t, axis=0)[ok]
     if not np.isfinite(a).all() or np.sum(a * a) == 0.0:
         return float(best), math.inf
-    for _ in range(LAG_STEPS):        # the grid's noisy minimum may be epochs off: step on
+    for step in range(LAG_STEPS + 1):   # the grid's noisy minimum may be epochs off: step on
         ea, aa = (np.add.reduceat(np.sum(x, axis=1), _blocks(len(x), LAG_BLOCKS))
                   for x in (residual(best) * a, a * a))
         refine = -float(np.sum(ea) / np.sum(aa))
         if abs(refine) <= dt:
             break
+        if step == LAG_STEPS:           # no shift settles it: no lag to give
+            return None
         best += round(refine / dt) * dt
     leave_one_out = -(np.sum(ea) - ea) / (np.sum(aa) - aa)
     se = math.sqrt((LAG_BLOCKS - 1) * np.mean((leave_one_out - leave_one_out.mean()) ** 2))
     return float(best + np.clip(refine, -dt, dt)), se
 
 
-LAG_STEPS = 5       # whole-epoch steps of the refinement at most (it converges in 1-2)
+LAG_STEPS = 5       # whole-epoch steps of the refinement at most (it converges in 1-2;
+#                    one that does not gives no lag)
 LAG_BLOCKS = 10     # contiguous blocks of the jackknife: the positions' differenced noise is
 #                    blue (it nearly cancels against a smooth acceleration), so a white-noise
 #                    standard error overstated it 100-fold; the blocks' spread measures it

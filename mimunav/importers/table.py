@@ -83,7 +83,9 @@ refused, naming the nearest known one.
               or ground_speed  m/s | km/h | kn  with  course  deg | rad from true north,
                                  clockwise (a receiver's speed and course over ground, NMEA
                                  RMC, a phone's Location): north and east from them, down
-                                 from the heights' central differences
+                                 from the heights' central differences; where either is
+                                 negative (iOS's "invalid", -1) or empty, the positions'
+                                 differences for that epoch
               attitude_wxyz      unit quaternions with `rotates` = "body_to_ecef" | "body_to_ned"
                                  (| "body_to_local", the default beside position_local); the
                                  body is the vehicle's FRD axes, or an IMU's own (attitude_of)

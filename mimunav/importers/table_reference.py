@@ -59,7 +59,7 @@ def _position_keys(spec):
         raise RecordingError(f"{where} gives {' and '.join(velocities)}: one velocity")
     if "position_local" in keys:
         other = [k for k in keys if k in ("position_ecef", "velocity_ned", "velocity_ecef",
-                                          "attitude_rpy") + GEODETIC]
+                                          "attitude_rpy", "ground_speed", "course") + GEODETIC]
         if other:
             raise RecordingError(f"{where} gives position_local and {', '.join(other)}: in a "
                                  "local frame, velocity_local and attitude_wxyz (rotates = "
@@ -141,7 +141,9 @@ def _geodetic(spec, ns, col):
         v = velocity_from_positions(ns, lat, lon, h)
     if "ground_speed" in col:           # over ground: north and east; down as differenced
         speed, course = col["ground_speed"], col["course"]
-        v = np.column_stack([speed * np.cos(course), speed * np.sin(course), v[:, 2]])
+        given = (speed >= 0) & (course >= 0) & np.isfinite(speed) & np.isfinite(course)
+        v = np.column_stack([np.where(given, speed * np.cos(course), v[:, 0]),
+                             np.where(given, speed * np.sin(course), v[:, 1]), v[:, 2]])
     ref = dict(ns=ns, lat=lat, lon=lon, h=h, v_ned=v)
     if "attitude_wxyz" in col:
         ref["q_nb"] = _attitude_ned(spec, col["attitude_wxyz"], lat, lon)

@@ -83,10 +83,10 @@ def _means(t, x, half):
     that window runs past the track's ends (a one-sided window over one-sided differences:
     a 1 Hz track's last epoch had 'climbed 1.7 m/s' on 2 m of height noise)."""
     c = np.vstack([np.zeros((1, x.shape[1])), np.nancumsum(x, axis=0)])
-    n = np.concatenate([[0], np.cumsum(np.isfinite(x).all(axis=1))])
+    n = np.vstack([np.zeros((1, x.shape[1])), np.cumsum(np.isfinite(x), axis=0)])
     lo, hi = np.searchsorted(t, t - half), np.searchsorted(t, t + half, "right")
     with np.errstate(invalid="ignore", divide="ignore"):
-        out = (c[hi] - c[lo]) / (n[hi] - n[lo])[:, None]
+        out = (c[hi] - c[lo]) / (n[hi] - n[lo])
     out[(t - half < t[0]) | (t + half > t[-1])] = np.nan
     return out
 

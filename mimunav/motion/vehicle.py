@@ -280,15 +280,18 @@ def _road_pitch(distance, h, i, ahead=False, otherwise=0.0):
         k = slice(i, np.searchsorted(distance, distance[i] + HOLD_DISTANCE_M, "right"))
     else:
         k = slice(np.searchsorted(distance, distance[i] - HOLD_DISTANCE_M, "left"), i + 1)
-    if np.ptp(distance[k]) < 0.5 * HOLD_DISTANCE_M or len(distance[k]) < 4:
+    if np.ptp(distance[k]) < 0.5 * HOLD_DISTANCE_M or len(distance[k]) < 5:
         return float(otherwise), math.nan
     x = distance[k] - distance[k].mean()
     y = h[k] - h[k].mean()
     slope = float(x @ y) / float(x @ x)
     rest = y - slope * x
     se = math.sqrt(float(rest @ rest) / (len(x) - 2) / float(x @ x))
-    curve, line, _ = np.polyfit(x, y, 2)
-    turn = 2 * curve * (distance[i] - distance[k].mean()) + line - slope
+    (curve, line, _), cov = np.polyfit(x, y, 2, cov=True)
+    # the grade's turn only where the curve is there (2 of its standard errors): else the
+    # quadratic's own noise, 2-3 times the line's, had been counted twice
+    significant = abs(curve) > 2 * math.sqrt(max(cov[0, 0], 0.0))
+    turn = 2 * curve * (distance[i] - distance[k].mean()) + line - slope if significant else 0.0
     return math.atan(slope), math.hypot(se, turn)
 
 

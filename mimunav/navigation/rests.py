@@ -332,16 +332,26 @@ def velocity_noise(track):
 
 
 def rate_mean_se(t, w, t0, t1):
-    """(3,) rad/s: the standard error of the IMU's mean rate w (rad/s, stamps t s) over
-    [t0, t1] from the scatter of its STEADY_WINDOW_S means (their sd over sqrt n): what a
-    gyro bias from that rest is worth when the IMU moves a little there (a moored hull
-    rocking: 0.2 deg/s over 5 s, against 0.002 for a phone parked a minute); NaN with fewer
-    than 3 windows."""
+    """((3,) rad/s, 1): the standard error of the IMU's mean rate w (rad/s, stamps t s) over
+    [t0, t1] from the scatter of its STEADY_WINDOW_S means (their sd over sqrt n), and how
+    many times that scatter exceeds what the samples' own noise within the windows predicts
+    (their pooled sd over sqrt of a window's samples; the largest axis'): about 1 where the
+    IMU is still, far above where it moves (a moored hull rocking: its 5 s 'rest' 0.2 deg/s,
+    the ratio in the tens); (NaN, NaN) with fewer than 3 windows."""
     n = int((t1 - t0) // STEADY_WINDOW_S)
     if n < 3:
-        return np.full(3, np.nan)
-    _, means = _window_means(t, (w,), t0, t1, n)
-    return means.std(axis=0, ddof=1) / math.sqrt(len(means))
+        return np.full(3, np.nan), math.nan
+    k = np.flatnonzero((t >= t0) & (t <= t1))
+    which = np.minimum(((t[k] - t0) // STEADY_WINDOW_S).astype(int), n - 1)
+    filled, means = _window_means(t, (w,), t0, t1, n)
+    counts = np.bincount(which, minlength=n)
+    inside = w[k] - np.column_stack([np.bincount(which, w[k, i], n) for i in range(3)])[which] \
+        / counts[which, None]
+    pooled = np.sum(inside ** 2, axis=0) / max(int(np.sum(counts[filled] - 1)), 1)
+    # a noise-free (simulated) IMU predicts 0: its round-off is the floor
+    predicted = np.maximum(np.sqrt(pooled / np.mean(counts[filled])), 1e-12)
+    scatter = means.std(axis=0, ddof=1)
+    return scatter / math.sqrt(len(means)), float(np.max(scatter / predicted))
 
 
 def _window_means(t, series, t0, t1, n):

@@ -174,8 +174,8 @@ def markdown(log_path, meta, channels, flight, docs, no_windows, doc, no_diagnos
     if not doc["conclusive"]:
         lines += [f"- {r}" for r in doc["inconclusive_reasons"]] + [""]
     for f in doc["findings"]:
-        value = (f"vector [{', '.join(f'{x:.4g}' for x in f['vector'])}] {f['units']} (sensor "
-                 "axes; the largest component's 95 % interval "
+        value = (f"vector [{', '.join(f'{x:.4g}' for x in f['vector'])}] {f['units']} "
+                 f"({f.get('frame', 'sensor')} axes; the largest component's 95 % interval "
                  if "vector" in f else f"{f['coefficient']:.4g} {f['units']} (95 % interval ")
         lines.append(f"- found {f['label']}: {value}[{f['ci95'][0]:.4g}, {f['ci95'][1]:.4g}]; "
                      f"attribution {f.get('attribution', '')})")

@@ -175,16 +175,24 @@ def test_a_mounting_beyond_the_small_angle_term_is_judged_by_the_imports_yaw():
     """The small-angle mounting term fitted beyond its 20 deg range: where the import
     measured a yaw against the course beyond that range, the diagnosis names it (the mounting
     given is off); where the import measured one within it, the fit's size is not the
-    mounting's (an independent drive under 0.5 m fixes fitted a true 10 deg yaw as 33 deg);
-    without such a term, or without the import's measure, nothing is added."""
+    mounting's where the fit turns about down (an independent drive under 0.5 m fixes fitted a
+    true 10 deg yaw as 33 deg), while a fit about the level axes may be a tilt the import
+    does not measure; without such a term, or without the import's measure, nothing is
+    added."""
     import json
-    beyond = [{"effect": "mounting_misalignment", "beyond_range": 0.35}]
+    beyond = [{"effect": "mounting_misalignment", "beyond_range": 0.35,
+               "vector_vehicle": [0.05, 0.1, 0.5]}]               # mostly about down
     flight = lambda yaw: SimpleNamespace(recording={"real": json.dumps(   # noqa: E731
         {"mounting_yaw_against_course": f"{yaw:+.1f} deg about the vehicle's down axis"})})
     said = vehicle_kind.mounting_beyond_range(beyond, flight(-29.7))
     assert len(said) == 1 and "off by more than the diagnosis fits" in said[0]
     said = vehicle_kind.mounting_beyond_range(beyond, flight(10.1))
     assert len(said) == 1 and "not the mounting's" in said[0] and "+10.1 deg" in said[0]
+    # a fit mostly about the level axes (a cradle tilted back 30 deg): the import's yaw
+    # says nothing of it - the tilt may be the cause, not only the reference
+    tilted = [dict(beyond[0], vector_vehicle=[0.0, 0.52, 0.01])]
+    said = vehicle_kind.mounting_beyond_range(tilted, flight(1.0))
+    assert "measures nothing of its roll and pitch" in said[0] and "tilted" in said[0]
     assert vehicle_kind.mounting_beyond_range([{"effect": "lever_arm", "beyond_range": 1}],
                                               flight(-29.7)) == []
     assert vehicle_kind.mounting_beyond_range(beyond, SimpleNamespace(recording={})) == []

@@ -320,7 +320,8 @@ def test_a_receivers_speed_and_course_over_ground_are_its_velocity(tmp_path):
     """[reference] ground_speed (km/h here) and course (deg from north, clockwise) - the speed
     and bearing columns of a phone's Location.csv or NMEA RMC, which a spec could not take -
     give the north and east velocity exactly; down from the heights' central differences;
-    one without the other, or beside velocity_ned, is refused saying why."""
+    a negative one (iOS's invalid) takes the positions' differences; one without the other
+    is refused saying why."""
     _imu(tmp_path)
     n = 200
     t = np.arange(1, n + 1) / 10.0
@@ -346,6 +347,14 @@ course = { file = "ref.csv", columns = ["bearing"], unit = "deg" }
     assert np.allclose(v[:, 0], speed * np.cos(course)) and \
         np.allclose(v[:, 1], speed * np.sin(course))
     assert np.allclose(v[:, 2], -climb, atol=1e-6)
+    # iOS writes -1 for an invalid speed or course (standing still): those epochs take the
+    # positions' differences (a -1 had read as 1 m/s, hiding every rest)
+    ref[:50, 4:] = -1.0
+    np.savetxt(tmp_path / "ref.csv", ref, delimiter=",", header="tick,lat,lon,h,kmh,bearing",
+               comments="")
+    v = table.read(spec).reference["v_ned"]
+    assert np.abs(v[:50, :2]).max() < 1e-6 and \
+        np.allclose(v[50:, 0], speed[50:] * np.cos(course[50:]))
     spec.write_text(SPEC.format(rate=RATES, force=FORCES, extra="") + section
                     + over_ground.splitlines()[0] + "\n")
     with pytest.raises(RecordingError, match="ground_speed alone"):
