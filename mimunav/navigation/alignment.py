@@ -141,8 +141,9 @@ def initial_alignment(t, w, f, mounting, track=None):
         if q1 - q0 >= MIN_STATIC_S and covered >= 0.8 and track_still(track, q0, q1):
             align = _from_rest(t, w, f, mounting, track, (q0, q1), still_until=quiet[0][1])
             align.method = (f"a rest {q0:.2f}-{q1:.2f} s judged from the IMU and the "
-                            "reference's positions (its differenced speed is too noisy to "
-                            "show it); " + align.method)
+                            "reference's positions (its velocity's 1 s means do not show "
+                            "it: too noisy, or a vertical differenced from noisy heights); "
+                            + align.method)
             return align
     notes = [f"no rest of {MIN_STATIC_S:g} s starts the recording"] + \
         [why for _, _, why in not_rests]
