@@ -2,9 +2,13 @@
   growth  horizontal position error against time since the restart: every window (thin)
           and the median per length, log scale, one panel per variant;
   cdf     the distribution of the end-point horizontal error per length and variant."""
+import math
+
 import numpy as np
 
 from ..evaluation import windows
+from ..frames import earth
+from ..sensors.mimu import G0
 from .plots import figure, save
 
 
@@ -18,12 +22,24 @@ def document(flight, results, rest, cal_label, time_shift_s):
             "rest": {"t0_s": static[0], "t1_s": static[1], "alignment": rest.method,
                      "gyro_bias_rad_s": rest.gyro_bias.tolist(),
                      "accel_bias_m_s2": rest.accel_bias.tolist()},
-            "summary": {f"{length:g}": row for length, row in
+            "summary": {f"{length:g}": dict(row, earth_rate_left_m=earth_rate_left(
+                            rest, length)) for length, row in
                         windows.summary(results, flight.reference_meta, track,
                                         half).items()},
             "windows": {f"{length:g}": [{"t0_s": w.t0, "end_ned_m": w.error_ned[-1].tolist()}
                                         for w in wins] for length, wins in results.items()},
             "frames": "errors NED m, window navigated minus reference; t0 s since the epoch"}
+
+
+def earth_rate_left(rest, length):
+    """m: the most a window of `length` s drifts from the Earth rate's horizontal part that
+    the rest's gyro bias keeps where its heading was not known (`bias_basis` gyro
+    "vertical_earth_rate"): a tilt growing at Omega cos(lat), g Omega cos(lat) length^3 / 6
+    (13 m at 60 s on a new user's ideal IMU, charged to it before); 0 otherwise."""
+    if (rest.bias_basis or {}).get("gyro") != "vertical_earth_rate":
+        return 0.0
+    left = earth.OMEGA * abs(math.cos(rest.lat))
+    return G0 * left * length ** 3 / 6
 
 
 def markdown_table(doc, label=None):
@@ -37,8 +53,11 @@ def markdown_table(doc, label=None):
         floor = row.get("reference_floor", {})
         notes = [f"{k} sigma not stated" for k in floor.get("not_stated", [])] + \
             [f"{k} sigma estimated from the track" for k in floor.get("estimated", [])]
+        if row.get("earth_rate_left_m"):
+            notes.append(f"and the rest's bias keeps the Earth rate's horizontal part (no "
+                         f"heading there): up to {row['earth_rate_left_m']:.3g} m of drift")
         cell = ("not stated" if floor.get("horizontal_m") is None else
-                f"{floor['horizontal_m']:.3g}" + (f" ({'; '.join(notes)})" if notes else ""))
+                f"{floor['horizontal_m']:.3g}") + (f" ({'; '.join(notes)})" if notes else "")
         lines.append((f"| {label} " if label else "") +
                      f"| {length} | {row['windows']} ({row['disjoint']}) | {h['p50']:.3g} / "
                      f"{h['p68']:.3g} / {h['p95']:.3g} / {h['max']:.3g} | {v['p50']:.3g} / "

@@ -206,3 +206,24 @@ def test_the_disjoint_windows_are_counted_among_those_run():
     wins = [SimpleNamespace(t0=t0, horizontal=np.array([1.0]), error_ned=np.zeros((1, 3)))
             for t0 in (20.0, 0.0, 5.0, 10.0, 15.0)]
     assert windows.summary({10.0: wins})[10.0]["disjoint"] == 3
+
+
+def test_the_earth_rate_a_rest_without_heading_keeps_is_said_beside_the_floor():
+    """A rest whose heading was not known keeps the Earth rate's horizontal part in its gyro
+    bias (said at import): a window drifts by up to g Omega cos(lat) L^3 / 6 from it (17 m at
+    60 s at 45 deg - a new user's ideal IMU had shown 15 m there, charged to it); the
+    windows' table says so; with a measured heading, nothing."""
+    from types import SimpleNamespace
+    from mimunav.frames import earth
+    from mimunav.reports.windows import earth_rate_left, markdown_table
+    rest = SimpleNamespace(bias_basis={"gyro": "vertical_earth_rate"}, lat=math.radians(45.0))
+    left = earth_rate_left(rest, 60.0)
+    assert left == pytest.approx(9.80665 * earth.OMEGA * math.cos(math.radians(45.0))
+                                 * 60.0 ** 3 / 6)
+    assert earth_rate_left(SimpleNamespace(bias_basis={"gyro": "course"}, lat=0.8), 60.0) == 0
+    row = {"windows": 3, "disjoint": 1, "horizontal_m": dict.fromkeys(
+        ("p50", "p68", "p95", "max"), 1.0), "vertical_m": {"p50": 0.1, "p95": 0.2},
+        "median_rate_m_s": 0.1, "reference_floor": {"horizontal_m": 2.0, "not_stated": [],
+                                                    "estimated": []},
+        "earth_rate_left_m": left}
+    assert f"up to {left:.3g} m of drift" in markdown_table({"summary": {"60": row}})
