@@ -7,7 +7,8 @@ from .stamps import missing_samples, rate_segments
 
 
 def channel_report(log, topic, origin_ns=None):
-    """dict: schema, count, rate_hz (median), duration_s, gaps [(t0, t1) s since origin_ns
+    """dict: schema, count, rate_hz (one rate: the mean over the span, missing samples
+    counted; several: the median step's), duration_s, gaps [(t0, t1) s since origin_ns
     (the log's epoch; default the channel's first stamp), where samples are missing given
     the median rate - not sampling jitter; with the number missing in `missing`], dropped
     samples (sample_index jumps, at s since the same origin)."""
@@ -24,10 +25,14 @@ def channel_report(log, topic, origin_ns=None):
     if len(segments) > 1:
         rep["rates"] = [((t[a] - t0) / 1e9, 1e9 / period) for a, _, period in segments]
     nominal = np.concatenate([np.full(b - a, period) for a, b, period in segments])
-    rep.update(rate_hz=1e9 / med, duration_s=(t[-1] - t[0]) / 1e9,
+    missing = sum(n for _, n in gaps)
+    # one rate: its mean over the span, the missing samples counted (a median step of
+    # stamps rounded to the ns had read 100.001 Hz where 60,000 samples spanned 599.99 s)
+    rate = (len(t) - 1 + missing) / ((t[-1] - t[0]) / 1e9) if len(segments) == 1 else 1e9 / med
+    rep.update(rate_hz=rate, duration_s=(t[-1] - t[0]) / 1e9,
                start_ns=int(t[0]), gaps=[((t[k] - t0) / 1e9, (t[k + 1] - t0) / 1e9)
                                           for k, _ in gaps],
-               missing=sum(n for _, n in gaps),
+               missing=missing,
                jitter_ms=float(1.4826 * np.median(np.abs(step - nominal)) / 1e6),
                backwards=log.time_reversals.get(topic, 0), duplicates=int(np.sum(step == 0)))
     if "sample_index" in msgs.dtype.names:
