@@ -5,8 +5,9 @@ corrected when the data decide them, refused with the measured values when they 
 Clock: the two rotation rates' magnitudes |w| do not depend on either mounting. Their
 normalised cross-correlation over every lag at which the two overlap for at least half the
 shorter record (masked: each lag's correlation over its own overlap) must peak once -
-at least PEAK_CORRELATION, and every lag farther than PEAK_WIDTH_S from the peak at most
-SECOND_PEAK_SHARE of it; the peak is then refined to a millisecond. A recording whose IMUs
+at least PEAK_CORRELATION, and every lag beyond the peak's own lobe (where the correlation
+stays above SECOND_PEAK_SHARE of it, at most LOBE_MAX_S either side) at most that share;
+the peak is then refined to a millisecond. A recording whose IMUs
 hardly turn (|w| spread below TURNING_RATE) cannot be timed so: said, and left as recorded.
 
 Mounting: after the clock, the two IMUs' 1 s mean rates and specific forces in the vehicle
@@ -34,8 +35,10 @@ SMALL_OFFSET_S = 0.001      # s: the refinement's step; a measured offset beyond
 SMALL_TURN_DEG = 3.0        # deg: within this its mounting_misalignment term carries a turn
 GRID_S = 0.02               # s: the coarse search's grid (50 Hz: |w| of a vehicle's motion)
 PEAK_CORRELATION = 0.5      # the |w| correlation at the peak, at least
-PEAK_WIDTH_S = 1.0          # s: the peak's own lobe (a manoeuvre's |w| stays correlated ~1 s)
-SECOND_PEAK_SHARE = 0.8     # any lag outside the lobe correlates at most this share of the peak
+SECOND_PEAK_SHARE = 0.8     # the peak's lobe ends where the correlation falls below this
+#                             share of the peak; no lag beyond it may reach it again
+LOBE_MAX_S = 30.0           # s: a lobe wider than this either side is no peak (the motion
+#                             hardly changes over the record: nothing to time it by)
 TURNING_RATE = 0.02         # rad/s: |w|'s spread below which nothing times the two clocks
 SPAN_SHARE = 0.05           # second singular value over the first: two directions seen
 
@@ -174,15 +177,40 @@ def rate_lag(t_a, rate_a, t_b, rate_b, whose, late):
                                        f"the shorter holds {shorter * GRID_S:.3g} s"}
     k = int(np.nanargmax(r))
     peak = float(r[k])
-    away = np.abs(lags - lags[k]) * GRID_S > PEAK_WIDTH_S
+    lobe, width = _lobe(r, k, SECOND_PEAK_SHARE * peak)
+    away = np.ones(len(r), bool)
+    away[lobe] = False
     second = float(np.nanmax(r[away])) if np.isfinite(r[away]).any() else -1.0
     said = (f"{whose} (|w|) correlate {peak:.2f} with {late} {lags[k] * GRID_S:+.2f} s "
-            f"late, {second:.2f} at best elsewhere")
-    if peak < PEAK_CORRELATION or second > SECOND_PEAK_SHARE * peak:
+            f"late, {second:.2f} at best beyond the peak's lobe (+-{width:.2g} s)")
+    if peak < PEAK_CORRELATION or second > SECOND_PEAK_SHARE * peak or width > LOBE_MAX_S:
         return {"lag_s": None, "said": f"not decided ({said}: at least {PEAK_CORRELATION:g} "
-                                       f"at one lag and at most {SECOND_PEAK_SHARE:g} of it "
-                                       "elsewhere needed)", "ambiguous": True}
+                                       f"at one lag, at most {SECOND_PEAK_SHARE:g} of it "
+                                       f"beyond a lobe of at most +-{LOBE_MAX_S:g} s needed)",
+                "ambiguous": True}
     return {"lag_s": float(lags[k] * GRID_S), "said": said}
+
+
+def _lobe(r, k, floor):
+    """(slice, s): the lags about the peak k where the correlation r stays above floor, and
+    on down to the first minimum either side (NaN ends it), and the half width (s) above
+    the floor - the peak's own lobe, as wide as
+    the motion stays correlated with itself (a
+    car's |w| over its turns of 6-20 s: a fixed 1 s had counted its shoulder, 0.89, as a
+    second peak and left a 2.5 s offset measured at 1.00 undecided)."""
+    r = np.nan_to_num(r, nan=-np.inf)
+    lo = hi = k
+    while lo > 0 and r[lo - 1] > floor:
+        lo -= 1
+    while hi < len(r) - 1 and r[hi + 1] > floor:
+        hi += 1
+    width = (hi - lo) * GRID_S / 2
+    # and on down its flanks to their first minimum: a second peak rises again beyond it
+    while lo > 0 and -np.inf < r[lo - 1] < r[lo]:
+        lo -= 1
+    while hi < len(r) - 1 and -np.inf < r[hi + 1] < r[hi]:
+        hi += 1
+    return slice(lo, hi + 1), width
 
 
 def _refined(rec, coarse_s, search_s=2 * GRID_S, step_s=0.001):

@@ -145,6 +145,9 @@ def summary(rec, align, path):
         lines.append(f"measured mounting yaw: {rec.real['mounting_yaw_against_course']}")
     if "reference_clock" in rec.real:
         lines.append(f"measured clock offset: {rec.real['reference_clock']}")
+    for key in ("reference_imu_clock", "reference_imu_mounting"):     # said, not only stored
+        if key in rec.real:
+            lines.append(f"measured {key.replace('_', ' ')}: {rec.real[key]}")
     if "reference_heading" in rec.real:
         lines.append(f"measured heading: {rec.real['reference_heading']}")
     if "course_checks" in rec.real:
