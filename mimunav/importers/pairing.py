@@ -281,8 +281,9 @@ def _pair_mountings(rec):
     if angle <= SMALL_TURN_DEG and not seen:
         rec.real["reference_imu_mounting"] = (
             f"measured {angle:.1f} deg of tilt from the mounting given; the turn about gravity "
-            "is not seen (the recording holds one direction: no turn): the mounting given is "
-            "taken for it")
+            "is not seen (beside gravity, the 1 s means hold too little of a second direction "
+            f"- under {SPAN_SHARE:g} of it: a still or gently driven vehicle): the yaw given is "
+            "taken for it - check it")
         return
     if angle <= SMALL_TURN_DEG:
         rec.real["reference_imu_mounting"] = f"measured {said}: kept (the diagnosis fits a " \
@@ -291,8 +292,9 @@ def _pair_mountings(rec):
     if not seen:
         raise RecordingError(
             f"{rec.name}: the reference IMU's rates and specific forces, turned into the vehicle "
-            f"frame by its mounting, lie {angle:.1f} deg from the IMU's, and the recording "
-            "holds one direction only (gravity, no turn), which leaves a turn about it open: "
+            f"frame by its mounting, lie {angle:.1f} deg from the IMU's, and beside gravity "
+            f"their 1 s means hold too little of a second direction (under {SPAN_SHARE:g} of "
+            "it: a still or gently driven vehicle), which leaves a turn about it open: "
             f"give its mounting (its tilt as the data show it, the yaw as given: roll, "
             f"pitch, yaw {roll}, {pitch}, {yaw} deg"
             + (f": {hint.format(roll=roll, pitch=pitch, yaw=yaw)})" if hint else ")"))
