@@ -190,18 +190,24 @@ def _check_overlap(rec):
                 + unit)
 
 
-def differenced(ref):
+def differenced(ref, v_pos=None):
     """Whether a reference's velocity is its positions' central differences (an importer's
     `velocity_from_positions` where the source has none), to 1 mm/s: no lag to measure, and
     the metadata says so (a phone's positions-only reference had been written 'velocity
     given by the reference', its lag 0.0000 +- 0.0000)."""
     v = np.asarray(ref["v_ned"], float)
-    v_pos = velocity_from_positions(ref["ns"], ref["lat"], ref["lon"], ref["h"])
+    v_pos = positions_velocity(ref) if v_pos is None else v_pos
     ok = np.isfinite(v).all(axis=1) & np.isfinite(v_pos).all(axis=1)
     return bool(ok.any()) and bool(np.abs(v[ok] - v_pos[ok]).max() < 1e-3)
 
 
-def velocity_lag_s(ref, search_s=1.0):
+def positions_velocity(ref):
+    """(M, 3) m/s: the central differences of a reference's positions
+    (`velocity_from_positions`), for `differenced` and `velocity_lag_s` to share."""
+    return velocity_from_positions(ref["ns"], ref["lat"], ref["lon"], ref["h"])
+
+
+def velocity_lag_s(ref, search_s=1.0, v_pos=None):
     """How late (s) the reference's own velocity is against the velocity of its positions
     (central differences: zero phase), over epochs faster than alignment.COURSE_SPEED; None
     with fewer than 50 such epochs. A filtered velocity state lags (RTKLIB's on the
@@ -217,7 +223,7 @@ def velocity_lag_s(ref, search_s=1.0):
     Returns (lag, its standard error: a jackknife over LAG_BLOCKS blocks of the epochs), or
     None."""
     v = np.asarray(ref["v_ned"], float)[:, :2]
-    v_pos = velocity_from_positions(ref["ns"], ref["lat"], ref["lon"], ref["h"])[:, :2]
+    v_pos = (positions_velocity(ref) if v_pos is None else v_pos)[:, :2]
     t = (np.asarray(ref["ns"], np.int64) - int(ref["ns"][0])) / 1e9
     ok = np.isfinite(v_pos).all(axis=1) & np.isfinite(v).all(axis=1) & \
         (np.hypot(v[:, 0], v[:, 1]) > alignment.COURSE_SPEED) & \

@@ -17,7 +17,8 @@ from ..flightlog import LogWriter
 from ..flightlog import schemas as S
 from .recording import UNKNOWN_ATTITUDE, heading_source
 from ..flightlog.stamps import rate_segments
-from .checks import differenced, reference_track, check_recording, velocity_lag_s
+from .checks import (differenced, positions_velocity, reference_track, check_recording,
+                     velocity_lag_s)
 
 
 WRITE_BLOCK_S = 10.0        # s: channels are written interleaved in blocks of this much time
@@ -32,9 +33,10 @@ def _reference_metadata(rec, known):
                          "source") + ")" if known else "unknown"),
             "velocity": "given by the reference"}
     meta.update({k: str(v) for k, v in rec.reference_meta.items()})
-    if differenced(rec.reference):
+    v_pos = positions_velocity(rec.reference)           # differenced once, used twice
+    if differenced(rec.reference, v_pos):
         meta["velocity"] = "differenced from its positions (central differences)"
-    elif (lag := velocity_lag_s(rec.reference)) is not None:
+    elif (lag := velocity_lag_s(rec.reference, v_pos=v_pos)) is not None:
         meta["velocity_lag_s"] = f"{lag[0]:.4f}"
         meta["velocity_lag_se_s"] = f"{lag[1]:.4f}"
     return meta

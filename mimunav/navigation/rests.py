@@ -343,10 +343,12 @@ def rate_mean_se(t, w, t0, t1):
         return np.full(3, np.nan), math.nan
     k = np.flatnonzero((t >= t0) & (t <= t1))
     which = np.minimum(((t[k] - t0) // STEADY_WINDOW_S).astype(int), n - 1)
-    filled, means = _window_means(t, (w,), t0, t1, n)
     counts = np.bincount(which, minlength=n)
-    inside = w[k] - np.column_stack([np.bincount(which, w[k, i], n) for i in range(3)])[which] \
-        / counts[which, None]
+    filled = counts > 0
+    window_mean = np.column_stack([np.bincount(which, w[k, i], n) for i in range(3)]) \
+        / np.maximum(counts, 1)[:, None]
+    inside = w[k] - window_mean[which]            # each sample less its window's mean
+    means = window_mean[filled]
     pooled = np.sum(inside ** 2, axis=0) / max(int(np.sum(counts[filled] - 1)), 1)
     # a noise-free (simulated) IMU predicts 0: its round-off is the floor
     predicted = np.maximum(np.sqrt(pooled / np.mean(counts[filled])), 1e-12)
