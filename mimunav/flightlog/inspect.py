@@ -3,7 +3,7 @@
 import numpy as np
 
 from . import schemas
-from .stamps import missing_samples, rate_segments
+from .stamps import mean_rate_hz, missing_samples, rate_segments
 
 
 def channel_report(log, topic, origin_ns=None):
@@ -18,7 +18,6 @@ def channel_report(log, topic, origin_ns=None):
     if len(t) < 2:
         return rep
     step = np.diff(t)
-    med = float(np.median(step))
     gaps = missing_samples(t)
     t0 = int(t[0]) if origin_ns is None else int(origin_ns)
     segments = rate_segments(t)
@@ -26,10 +25,7 @@ def channel_report(log, topic, origin_ns=None):
         rep["rates"] = [((t[a] - t0) / 1e9, 1e9 / period) for a, _, period in segments]
     nominal = np.concatenate([np.full(b - a, period) for a, b, period in segments])
     missing = sum(n for _, n in gaps)
-    # one rate: its mean over the span, the missing samples counted (a median step of
-    # stamps rounded to the ns had read 100.001 Hz where 60,000 samples spanned 599.99 s)
-    rate = (len(t) - 1 + missing) / ((t[-1] - t[0]) / 1e9) if len(segments) == 1 else 1e9 / med
-    rep.update(rate_hz=rate, duration_s=(t[-1] - t[0]) / 1e9,
+    rep.update(rate_hz=mean_rate_hz(t), duration_s=(t[-1] - t[0]) / 1e9,
                start_ns=int(t[0]), gaps=[((t[k] - t0) / 1e9, (t[k + 1] - t0) / 1e9)
                                           for k, _ in gaps],
                missing=missing,

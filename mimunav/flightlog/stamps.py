@@ -45,6 +45,17 @@ def rate_segments(t: np.ndarray) -> list[tuple[int, int, float]]:
     return [(a, b, _period(step[a:b])) for a, b in zip(merged[:-1], merged[1:])]
 
 
+def mean_rate_hz(t: np.ndarray) -> float:
+    """The sample rate of a channel (Hz): with one rate, the mean over its span with the
+    missing samples counted (the median step of stamps rounded to the ns had read
+    100.001 Hz where 60,000 samples spanned 599.99 s); with several, the median step's."""
+    t = np.asarray(t, np.int64)
+    if len(rate_segments(t)) > 1:
+        return float(1e9 / np.median(np.diff(t)))
+    missing = sum(n for _, n in missing_samples(t))
+    return (len(t) - 1 + missing) / ((t[-1] - t[0]) / 1e9)
+
+
 def _merge_alike(step, bounds):
     """The run bounds with each pair of neighbouring runs of one rate (periods within
     RATE_CHANGE) merged, and every run shorter than RATE_RUN steps (no rate by the

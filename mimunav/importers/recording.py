@@ -10,6 +10,7 @@ from ..frames import attitude
 from ..frames.mounting import Mounting
 from .kinds import VEHICLES
 from ..errors import InputError
+from ..flightlog.stamps import mean_rate_hz
 
 
 UNKNOWN_ATTITUDE = np.full(4, np.nan)
@@ -136,7 +137,8 @@ class Recording:
 
     @property
     def sample_rate_hz(self):
-        return float(1e9 / np.median(np.diff(self.imu_ns)))
+        """The IMU's sample rate (Hz): `flightlog.stamps.mean_rate_hz`."""
+        return mean_rate_hz(self.imu_ns)
 
 
 @contextlib.contextmanager

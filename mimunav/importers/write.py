@@ -16,7 +16,7 @@ from ..navigation import alignment
 from ..flightlog import LogWriter
 from ..flightlog import schemas as S
 from .recording import UNKNOWN_ATTITUDE, heading_source
-from ..flightlog.stamps import rate_segments
+from ..flightlog.stamps import mean_rate_hz, rate_segments
 from .checks import (differenced, positions_velocity, reference_track, check_recording,
                      velocity_lag_s)
 
@@ -86,7 +86,7 @@ def write_log(rec, path, force=False):
         if rec.reference_imu is not None:
             ref_imu = rec.reference_imu
             fog = {"model": ref_imu.get("model", "unknown"),
-                   "sample_rate_hz": f"{1e9 / np.median(np.diff(ref_imu['ns'])):.6g}",
+                   "sample_rate_hz": f"{mean_rate_hz(ref_imu['ns']):.6g}",
                    "mounting": ref_imu["mounting"].as_dict()}
             if ref_imu.get("accuracy"):
                 fog["accuracy"] = ref_imu["accuracy"]

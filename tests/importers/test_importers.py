@@ -169,9 +169,11 @@ def test_rtklib_bad_inputs_are_named(tmp_path):
 
 def test_ros2_import_by_topic(tmp_path):
     """A ROS 2 bag written as a foreign recorder would (its own topics and frame, NavSatFix
-    in degrees, FLU axes) comes back in SI, rad and the FRD mounting."""
+    in degrees, FLU axes) comes back in SI, rad and the FRD mounting; its rate is the mean
+    over the span (stamps whose median step is not their mean: 100.0001 Hz by the median)."""
     rate, n = 100.0, 1500
-    stamps = 1_700_000_000_000_000_000 + np.arange(n) * 10_000_000
+    steps = np.tile([9_999_990, 9_999_990, 9_999_990, 10_000_015, 10_000_015], n // 5)
+    stamps = 1_700_000_000_000_000_000 + np.concatenate([[0], np.cumsum(steps)])[:n]
     rng = np.random.default_rng(1)
     w = rng.normal(0, 0.01, (n, 3))
     f = np.tile([0.0, 0.0, 9.80], (n, 1)) + rng.normal(0, 0.02, (n, 3))   # FLU: +g up
@@ -190,9 +192,11 @@ def test_ros2_import_by_topic(tmp_path):
     rec = ros2.read(bag, imu_topic="/imu/data")
     assert np.array_equal(rec.imu_ns, stamps) and np.allclose(rec.w, w) and np.allclose(rec.f, f)
     assert np.allclose(rec.fixes["lat"], 40.1 * DEG)
-    assert rec.sample_rate_hz == pytest.approx(rate)
+    assert rec.sample_rate_hz == pytest.approx(rate, abs=1e-6)
     out = tmp_path / "log.mcap"
     assert main(["import", "ros2", str(bag), "--imu-topic", "/imu/data", "-o", str(out)]) == 0
+    with FlightLog(out) as fl:
+        assert float(fl.metadata()["sensor/mimu"]["sample_rate_hz"]) == 100.0
     flight = Flight.load(out, reference_imu=False)
     # FLU -> FRD: the level vehicle reads -g on its down axis
     f_v = attitude.rotate(flight.mimu_mounting.q_vs, f.mean(axis=0))
