@@ -6,8 +6,10 @@ Clock: the two rotation rates' magnitudes |w| do not depend on either mounting. 
 normalised cross-correlation over every lag at which the two overlap for at least half the
 shorter record (masked: each lag's correlation over its own overlap) must peak once -
 at least PEAK_CORRELATION, and every lag beyond the peak's own lobe (where the correlation
-stays above SECOND_PEAK_SHARE of it, at most LOBE_MAX_S either side) at most that share;
-the peak is then refined to a millisecond. A recording whose IMUs
+stays above SECOND_PEAK_SHARE of it, at most LOBE_MAX_S either side) at most that share,
+or the peak above the best of them by DISTINCT_Z standard errors (`peak_margin`); the peak
+is then refined to a millisecond with each gyro's bias fitted beside it (`_refined`), its
+standard error said. A recording whose IMUs
 hardly turn (|w| spread below TURNING_RATE) cannot be timed so: said, and left as recorded.
 
 Mounting: after the clock, the two IMUs' 1 s mean rates and specific forces in the vehicle
@@ -41,6 +43,12 @@ LOBE_MAX_S = 30.0           # s: a lobe wider than this either side is no peak (
 #                             hardly changes over the record: nothing to time it by)
 TURNING_RATE = 0.02         # rad/s: |w|'s spread below which nothing times the two clocks
 SPAN_SHARE = 0.05           # second singular value over the first: two directions seen
+DISTINCT_Z = 4.0            # a rival peak above that share is no rival when the peak
+#                             stands above it by this many standard errors (`peak_margin`):
+#                             the rival is the best of some hundreds of lobes within the
+#                             search, and 0.01 shared among 500 of them is z = 4.1 one-sided
+#                             (a robot's 1.5 Hz bumps: 0.88 a bump away, 8.3 errors below the
+#                             peak; a steady wave's next period: 1.0 below)
 
 
 def pair(rec):
@@ -135,8 +143,10 @@ def clock_offset(rec):
                      "the reference's stamps")
     if found.get("lag_s") is None:
         return dict(found, offset_s=None)
-    offset = _refined(rec, found["lag_s"])
-    return {"offset_s": offset, "said": f"{found['said']}; refined to {offset * 1e3:+.1f} ms"}
+    offset, se = _refined(rec, found["lag_s"])
+    return {"offset_s": offset, "offset_se_s": se,
+            "said": f"{found['said']}; refined to {offset * 1e3 + 0.0:+.1f} ms "
+                    f"(standard error {se * 1e3:.2g} ms)"}
 
 
 def trajectory_clock(rec):
@@ -180,15 +190,44 @@ def rate_lag(t_a, rate_a, t_b, rate_b, whose, late):
     lobe, width = _lobe(r, k, SECOND_PEAK_SHARE * peak)
     away = np.ones(len(r), bool)
     away[lobe] = False
-    second = float(np.nanmax(r[away])) if np.isfinite(r[away]).any() else -1.0
+    j = int(np.nanargmax(np.where(away, r, np.nan))) if np.isfinite(r[away]).any() else None
+    second = float(r[j]) if j is not None else -1.0
     said = (f"{whose} (|w|) correlate {peak:.2f} with {late} {lags[k] * GRID_S:+.2f} s "
             f"late, {second:.2f} at best beyond the peak's lobe (+-{width:.2g} s)")
-    if peak < PEAK_CORRELATION or second > SECOND_PEAK_SHARE * peak or width > LOBE_MAX_S:
+    rival = second > SECOND_PEAK_SHARE * peak
+    if rival and peak >= PEAK_CORRELATION and width <= LOBE_MAX_S:
+        margin, se = peak_margin(a, b, lags[k], lags[j])
+        said += (f" at {lags[j] * GRID_S:+.2f} s, {margin:.3f} below the peak (standard "
+                 f"error {se:.2g}, block jackknife)")
+        rival = not margin > DISTINCT_Z * se
+    if peak < PEAK_CORRELATION or rival or width > LOBE_MAX_S:
         return {"lag_s": None, "said": f"not decided ({said}: at least {PEAK_CORRELATION:g} "
                                        f"at one lag, at most {SECOND_PEAK_SHARE:g} of it "
                                        f"beyond a lobe of at most +-{LOBE_MAX_S:g} s needed)",
                 "ambiguous": True}
     return {"lag_s": float(lags[k] * GRID_S), "said": said}
+
+
+def peak_margin(a, b, lag, rival, blocks=20):
+    """(how much higher the correlation of a and b(. + lag) is than at lag `rival`, its
+    standard error): a and b on one grid (NaN: no value), lags in samples; the error by the
+    jackknife over `blocks` consecutive blocks of a's grid, each left out in turn (blocks
+    of the recording, longer than its motion stays correlated)."""
+    def pairs(shift):
+        i = np.arange(len(a))
+        i = i[(i + shift >= 0) & (i + shift < len(b))]
+        i = i[np.isfinite(a[i]) & np.isfinite(b[i + shift])]
+        return i, a[i], b[i + shift]
+    (i_p, x_p, y_p), (i_r, x_r, y_r) = pairs(lag), pairs(rival)
+    block_p, block_r = (np.minimum(i * blocks // len(a), blocks - 1) for i in (i_p, i_r))
+
+    def margin(out=-1):
+        keep_p, keep_r = block_p != out, block_r != out
+        return (np.corrcoef(x_p[keep_p], y_p[keep_p])[0, 1]
+                - np.corrcoef(x_r[keep_r], y_r[keep_r])[0, 1])
+    parts = np.array([margin(q) for q in range(blocks)])
+    se = math.sqrt((blocks - 1) / blocks * np.sum((parts - parts.mean()) ** 2))
+    return float(margin()), se
 
 
 def _lobe(r, k, floor):
@@ -213,22 +252,43 @@ def _lobe(r, k, floor):
     return slice(lo, hi + 1), width
 
 
-def _refined(rec, coarse_s, search_s=2 * GRID_S, step_s=0.001):
-    """The offset (s) that best matches the two |w| within +-search_s of coarse_s, on a grid
-    of step_s refined by a parabola."""
+def _refined(rec, coarse_s, search_s=2 * GRID_S, step_s=0.001, blocks=10):
+    """(offset s, its standard error s): the offset that best matches the two |w|^2 within
+    +-search_s of coarse_s, on a grid of step_s refined by a parabola; the error by the
+    jackknife over `blocks` consecutive blocks of the overlap. Each gyro's bias b moves its
+    |w|^2 by 2 b.w + |b|^2, which a shift can partly mimic (a MEMS pair's 0.3 deg/s had made
+    a fixed wing's offset 0.3 ms late): at each shift the difference is fitted on [the IMU's
+    rates, 1] first - with w_r = C w, |w_r + b_r|^2 - |w + b|^2 = 2 (C'b_r - b).w + const,
+    whatever the mounting C - and the cost is what that fit leaves."""
     ref = rec.reference_imu
     t, t_r = (ns / 1e9 - 0.5 * np.median(np.diff(ns)) / 1e9 for ns in (rec.imu_ns, ref["ns"]))
     lo = max(t[0], t_r[0] - coarse_s) + search_s
     hi = min(t[-1], t_r[-1] - coarse_s) - search_s
     grid = np.arange(lo, hi, 0.01)
-    a = np.interp(grid, t, np.linalg.norm(rec.w, axis=1))
-    size_r = np.linalg.norm(ref["w"], axis=1)
+    w = np.column_stack([np.interp(grid, t, rec.w[:, i]) for i in range(3)])
+    bias_columns = np.column_stack([w, np.ones(len(grid))])
+    size_r = np.sum(ref["w"] ** 2, axis=1)
     shifts = coarse_s + np.arange(-search_s, search_s + 1e-9, step_s)
-    cost = np.array([np.mean((a - np.interp(grid + d, t_r, size_r)) ** 2) for d in shifts])
-    i = int(np.clip(np.argmin(cost), 1, len(shifts) - 2))
+    block = np.minimum(np.arange(len(grid)) * blocks // len(grid), blocks - 1)
+
+    def left(d):                # per block, what the bias columns leave of the difference
+        y = np.interp(grid + d, t_r, size_r) - np.sum(w ** 2, axis=1)
+        coef = np.linalg.lstsq(bias_columns, y, rcond=None)[0]
+        return np.bincount(block, (y - bias_columns @ coef) ** 2, minlength=blocks)
+    cost = np.array([left(d) for d in shifts])              # (shifts, blocks)
+    whole = _parabola_min(shifts, cost.sum(axis=1), step_s)
+    parts = np.array([_parabola_min(shifts, cost.sum(axis=1) - cost[:, b], step_s)
+                      for b in range(blocks)])
+    se = math.sqrt((blocks - 1) / blocks * np.sum((parts - parts.mean()) ** 2))
+    return whole, se
+
+
+def _parabola_min(x, cost, step):
+    """The x of the least cost on the even grid x (spacing step), refined by a parabola."""
+    i = int(np.clip(np.argmin(cost), 1, len(x) - 2))
     c_lo, mid, c_hi = cost[i - 1:i + 2]
     curve = c_lo - 2 * mid + c_hi
-    return float(shifts[i] + (0.5 * step_s * (c_lo - c_hi) / curve if curve > 0 else 0.0))
+    return float(x[i] + (0.5 * step * (c_lo - c_hi) / curve if curve > 0 else 0.0))
 
 
 def _pair_mountings(rec):
@@ -278,16 +338,22 @@ def _pair_mountings(rec):
         rec.assumed["mounting"] = f"measured against the reference IMU: roll, pitch, yaw " \
                                   f"{roll}, {pitch}, {yaw} deg"
         return
+    # an accelerometer bias difference b across gravity tilts the mean specific force by
+    # b / g: a small measured tilt may be that, not the boxes' turn (the diagnosis fits both)
+    bias_alike = f"{G0 * math.tan(math.radians(angle)):.2g} m/s^2"
     if angle <= SMALL_TURN_DEG and not seen:
         rec.real["reference_imu_mounting"] = (
-            f"measured {angle:.1f} deg of tilt from the mounting given; the turn about gravity "
-            "is not seen (beside gravity, the 1 s means hold too little of a second direction "
-            f"- under {SPAN_SHARE:g} of it: a still or gently driven vehicle): the yaw given is "
-            "taken for it - check it")
+            f"measured {angle:.1f} deg of tilt from the mounting given (or an accelerometer "
+            f"bias difference of {bias_alike} across gravity, which reads the same); the turn "
+            "about gravity is not seen (beside gravity, the 1 s means hold too little of a "
+            f"second direction - under {SPAN_SHARE:g} of it: a still or gently driven "
+            "vehicle): the yaw given is taken for it - check it")
         return
     if angle <= SMALL_TURN_DEG:
-        rec.real["reference_imu_mounting"] = f"measured {said}: kept (the diagnosis fits a " \
-                                             "turn this small)"
+        rec.real["reference_imu_mounting"] = (
+            f"measured {said}: kept (the diagnosis fits a turn this small; its tilt may be an "
+            f"accelerometer bias difference across gravity: {bias_alike} reads as "
+            f"{angle:.1f} deg)")
         return
     if not seen:
         raise RecordingError(
@@ -308,8 +374,8 @@ AS_GIVEN_AGAINST = -0.5     # a moving axis whose 1 s means, mountings as given,
 
 def _runs_against(name, sensor, mine, theirs, when, columns):
     """Refuse (naming the triad and axis, and the `columns` to check) a moving axis - 1 s
-    means spread by 0.02 rad/s or 0.3 m/s^2 (`reference.MOVING_SPREAD`'s sizes) - whose means (vehicle frame) run against
-    the other IMU's: correlation below AS_GIVEN_AGAINST."""
+    means spread by 0.02 rad/s or 0.3 m/s^2 (`reference.MOVING_SPREAD`'s sizes) - whose
+    means (vehicle frame) run against the other IMU's: correlation below AS_GIVEN_AGAINST."""
     spread = 0.02 if sensor == "gyro" else 0.3
     for i, axis in enumerate("xyz"):
         if min(np.std(mine[:, i]), np.std(theirs[:, i])) < spread:
@@ -333,9 +399,12 @@ def _measured_turn(rec, means, ok):
     q_mine, q_ref = rec.mounting.q_vs, rec.reference_imu["mounting"].q_vs
     w_mine, f_mine = (attitude.rotate(q_mine, x[ok]) for x in means[0])
     w_ref, f_ref = (attitude.rotate(q_ref, x[ok]) for x in means[1])
+    # each gyro's bias is a constant the turn must not fit: the rates about their means (a
+    # MEMS pair's 0.3 deg/s bias difference, weighted up to g beside the specific forces,
+    # had turned a fixed wing's two aligned IMUs 1.1 deg apart; w - mean = C (w_r - mean))
+    w_mine, w_ref = w_mine - w_mine.mean(axis=0), w_ref - w_ref.mean(axis=0)
     rms_w = float(np.sqrt(np.mean(w_mine ** 2)))
-    turning = max(np.std(np.linalg.norm(w_mine, axis=1)),
-                  np.std(np.linalg.norm(w_ref, axis=1))) >= TURNING_RATE
+    turning = rms_w >= TURNING_RATE
     mine = np.vstack([w_mine * (G0 / rms_w), f_mine]) if turning else f_mine
     theirs = np.vstack([w_ref * (G0 / rms_w), f_ref]) if turning else f_ref
     singular = np.linalg.svd(mine.T @ theirs, compute_uv=False)

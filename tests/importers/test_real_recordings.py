@@ -363,13 +363,16 @@ def test_onspeed_cheap_imu_beside_a_quantized_vn300(tmp_path):
     # in 0.01 steps, a lag, a cheap unit's errors) - said, and the library's findings judged
     # with intervals sqrt(lambda) wider: the cut's 6.5 deg [2.2, 10.8] yaw mounting (held-out
     # p 0.007), which the whole 30 s did not name and the import's box-to-box measurement
-    # (within 1.5 deg, above) contradicts, is set aside
+    # (within 1.5 deg, above) contradicts, is set aside - by that check, or (the clock
+    # refined with the gyros' biases beside it: 7.4 ms, not 8.9) by the halves first
     for doc in (diag, cut_doc):
         assert any("times their chance level" in r for r in doc["inconclusive_reasons"]), doc
         assert doc["library_inflation"]["lambda"] > doc["library_inflation"]["limit"]
     assert "mounting_misalignment imu.all" not in [f["label"] for f in cut_doc["findings"]]
     aside = [r for r in cut_doc["not_confirmed"] if r["label"] == "mounting_misalignment imu.all"]
-    assert aside and aside[0]["library_inflation"]["lambda"] > 3, cut_doc["not_confirmed"]
+    assert aside, cut_doc["not_confirmed"]
+    judged = aside[0].get("library_inflation") or aside[0]["halves"]
+    assert judged.get("lambda", 0) > 3 or judged.get("p_heldout_widened", 0) > 0.05, aside
     for f in cut_doc["findings"]:
         if f["effect"] == "bias_shift":
             lo, hi = whole.get(f["label"], (np.inf, -np.inf))
