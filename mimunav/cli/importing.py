@@ -47,8 +47,9 @@ def add_import(sub):
                    help="dataflash: the IMU instance (field I; IMU2 = 1), default 0; ulog: "
                    "the sensor_accel/sensor_gyro instance instead of sensor_combined")
     p.add_argument("--reference-imu-instance", type=number(0, 9, int),
-                   help="ulog: another sensor_accel/sensor_gyro instance as the reference IMU "
-                   "(/fog/imu: diagnose then works at the sensor level)")
+                   help="ulog: another sensor_accel/sensor_gyro instance, dataflash: another "
+                   "IMU instance (IMU2 = 1) as the reference IMU (/fog/imu: diagnose then "
+                   "works at the sensor level)")
     p.add_argument("--reference", choices=("auto", "ekf", "gnss", "none"), default="auto",
                    help="dataflash: the reference trajectory: ekf = the autopilot's estimate "
                    "(POS, XKF1, ATT; not independent), gnss = the GPS fixes (independent, no "
@@ -68,7 +69,7 @@ def add_import(sub):
                    "better IMU flown with it, as the reference IMU (/fog/imu: `diagnose` then "
                    "works at the sensor level)")
     p.add_argument("--reference-imu-time-offset", type=number(-60.0, 60.0), default=0.0,
-                   metavar="S", help="ros2, table, ulog: added to the reference IMU's stamps, "
+                   metavar="S", help="ros2, table, ulog, dataflash: added to the reference IMU's stamps, "
                    "s, before the import measures the two IMUs' offset from their rotation "
                    "rates and corrects what it measures (beyond 1 ms); a clock it cannot time "
                    "is left as given and said")

@@ -29,8 +29,8 @@ def _check_rate(name, which, ns):
         raise RecordingError(f"{name}: the {which} has {len(ns)} samples at {rate:.3g} Hz (median "
                              f"interval); below {MIN_IMU_RATE_HZ:g} Hz they are status snapshots, "
                              "not increments a navigator can integrate: choose the IMU's "
-                             "full-rate stream - ulog and dataflash: --imu-instance (ulog "
-                             "also --reference-imu-instance); ros2: --imu-topic or "
+                             "full-rate stream - ulog and dataflash: --imu-instance or "
+                             "--reference-imu-instance; ros2: --imu-topic or "
                              "--reference-imu-topic; table: the spec's columns - or check the "
                              "stamps' time unit")
 

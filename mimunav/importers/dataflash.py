@@ -37,6 +37,7 @@ import numpy as np
 
 from ..frames import attitude
 from ..frames.mounting import Mounting
+from ..sensors.accuracy import AUTOPILOT_MEMS, AUTOPILOT_MEMS_SOURCE
 from .recording import Recording, RecordingError, attitude_at, gps_to_unix_s
 from ..errors import require
 
@@ -167,16 +168,9 @@ def _instance(table, instance):
     return {k: v[keep] for k, v in table.items()} if keep.any() else None
 
 
-def read(path, mounting=None, instance=0, reference="auto", reference_status=3):
-    """The recording of an ArduPilot DataFlash log as a `Recording` (IMU in FRD body axes).
-
-    instance: the IMU (and GPS) instance; reference: "ekf" (POS + XKF1 + ATT, autopilot
-    estimate, not independent), "gnss" (fixes of status >= reference_status, velocity from
-    ground speed, course and VZ; independent, no attitude), "none", or "auto" (ekf when
-    logged, else gnss when there are fixes)."""
-    if reference not in ("auto", "ekf", "gnss", "none"):
-        raise RecordingError(f"reference must be auto, ekf, gnss or none, not {reference!r}")
-    msgs, cut = _messages(path)
+def _imu(msgs, instance, path):
+    """(boot us, w rad/s, f m/s^2 - in time order, repeated stamps dropped -, how many were
+    dropped, the IMU table) of the IMU messages of `instance`."""
     imu = _instance(msgs.get("IMU"), instance)
     if imu is None or len(imu["TimeUS"]) < 2:
         found = sorted({int(i) for i in msgs.get("IMU", {}).get("I", [])})
@@ -188,6 +182,31 @@ def read(path, mounting=None, instance=0, reference="auto", reference_status=3):
     order = np.argsort(boot_us, kind="stable")
     boot_us, w, f = boot_us[order], w[order], f[order]
     keep = np.concatenate([[True], np.diff(boot_us) > 0])
+    return boot_us[keep], w[keep], f[keep], int((~keep).sum()), imu
+
+
+def _temperature(imu):
+    """The IMU table's temperature range as text, or None when it logs none."""
+    temp = imu["T"][np.isfinite(imu["T"])] if "T" in imu else []
+    return f"{temp.min():.2f} to {temp.max():.2f} degC" if len(temp) else None
+
+
+def read(path, mounting=None, instance=0, reference="auto", reference_status=3,
+         reference_instance=None):
+    """The recording of an ArduPilot DataFlash log as a `Recording` (IMU in FRD body axes).
+
+    instance: the IMU (and GPS) instance; reference: "ekf" (POS + XKF1 + ATT, autopilot
+    estimate, not independent), "gnss" (fixes of status >= reference_status, velocity from
+    ground speed, course and VZ; independent, no attitude), "none", or "auto" (ekf when
+    logged, else gnss when there are fixes); reference_instance: another IMU instance as
+    the reference IMU (two autopilot IMUs against each other, both in the body frame, on
+    one clock: the sensor level of the diagnosis)."""
+    if reference not in ("auto", "ekf", "gnss", "none"):
+        raise RecordingError(f"reference must be auto, ekf, gnss or none, not {reference!r}")
+    if reference_instance is not None and reference_instance == instance:
+        raise RecordingError(f"{path}: the reference IMU instance is the IMU's own")
+    msgs, cut = _messages(path)
+    boot_us, w, f, repeated, imu = _imu(msgs, instance, path)
     gps = _instance(msgs.get("GPS"), instance) or _instance(msgs.get("GPS"), 0)
     gpa = _instance(msgs.get("GPA"), instance) or _instance(msgs.get("GPA"), 0)
     offset_us, assumed = 0, {}
@@ -206,16 +225,25 @@ def read(path, mounting=None, instance=0, reference="auto", reference_status=3):
     ref, ref_meta = _reference(msgs, fixes, reference, reference_status, offset_us, path)
     name = os.path.splitext(os.path.basename(path))[0]
     real = {"imu": f"IMU instance {instance} ({len(boot_us)} samples; "
-                   f"{int((~keep).sum())} repeated stamps dropped)",
+                   f"{repeated} repeated stamps dropped)",
             "source": os.path.abspath(path)}
     if cut:
         real["file"] = cut
-    if "T" in imu:
-        temp = imu["T"][np.isfinite(imu["T"])]
-        if len(temp):
-            real["imu_temperature"] = f"{temp.min():.2f} to {temp.max():.2f} degC"
+    if _temperature(imu):
+        real["imu_temperature"] = _temperature(imu)
     found = sorted({int(i) for i in msgs["IMU"].get("I", [0])})
     real["imu_instances"] = ", ".join(str(i) for i in found)
+    second = None
+    if reference_instance is not None:
+        r_us, r_w, r_f, r_repeated, r_imu = _imu(msgs, reference_instance, path)
+        second = dict(ns=(r_us + offset_us) * 1000, w=r_w, f=r_f, mounting=Mounting(),
+                      model=f"ArduPilot autopilot IMU instance {reference_instance}",
+                      accuracy=dict(AUTOPILOT_MEMS))
+        assumed["reference_imu_accuracy"] = AUTOPILOT_MEMS_SOURCE
+        real["reference_imu"] = (f"IMU instance {reference_instance} ({len(r_us)} samples; "
+                                 f"{r_repeated} repeated stamps dropped"
+                                 + (f"; {_temperature(r_imu)}" if _temperature(r_imu) else "")
+                                 + ")")
     if fixes is not None:
         counts = {GPS_STATUS.get(s, str(s)): int((gps["Status"] == s).sum())
                   for s in np.unique(gps["Status"].astype(int))}
@@ -228,13 +256,13 @@ def read(path, mounting=None, instance=0, reference="auto", reference_status=3):
                    imu_values="filtered outputs at the logging rate (INS_*_FILTER low-pass), "
                               "not interval means",
                    height="above mean sea level (geoid undulation not applied)")
-    rate = 1e6 / np.median(np.diff(boot_us[keep]))
-    span = (boot_us[keep][-1] - boot_us[keep][0]) / 1e6
+    rate = 1e6 / np.median(np.diff(boot_us))
+    span = (boot_us[-1] - boot_us[0]) / 1e6
     return Recording(name, f"ArduPilot DataFlash {os.path.basename(path)}: IMU {instance} "
-                     f"{rate:.0f} Hz, {span:.1f} s", (boot_us[keep] + offset_us) * 1000,
-                     w[keep], f[keep], mounting or Mounting(), model="ArduPilot autopilot IMU",
+                     f"{rate:.0f} Hz, {span:.1f} s", (boot_us + offset_us) * 1000,
+                     w, f, mounting or Mounting(), model="ArduPilot autopilot IMU",
                      reference=ref, reference_meta=ref_meta, fixes=fixes, real=real,
-                     assumed=assumed)
+                     assumed=assumed, reference_imu=second)
 
 
 def _fixes(gps, gpa, use, offset_us):

@@ -9,8 +9,8 @@ from .kinds import KINDS
 # option -> (the importers that read it, its default)
 OPTIONS = {
     "imu_instance": (("dataflash", "ulog"), None), "reference": (("dataflash",), "auto"),
-    "reference_imu_instance": (("ulog",), None),
-    "reference_imu_time_offset": (("ros2", "table", "ulog"), 0.0),
+    "reference_imu_instance": (("ulog", "dataflash"), None),
+    "reference_imu_time_offset": (("ros2", "table", "ulog", "dataflash"), 0.0),
     "reference_time_offset": (KINDS, 0.0),
     "gps_status": (("dataflash",), 3), "imu_topic": (("ros2",), None),
     "fix_topic": (("ros2",), None), "pose_topic": (("ros2",), None), "origin": (("ros2",), None),
@@ -79,7 +79,8 @@ def _table(source, mounting, o):
 def _dataflash(source, mounting, o):
     from . import dataflash
     return dataflash.read(source, mounting=mounting, instance=o["imu_instance"] or 0,
-                          reference=o["reference"], reference_status=o["gps_status"])
+                          reference=o["reference"], reference_status=o["gps_status"],
+                          reference_instance=o["reference_imu_instance"])
 
 
 def _ulog(source, mounting, o):

@@ -19,6 +19,7 @@ import os
 import numpy as np
 
 from ..frames.mounting import Mounting
+from ..sensors.accuracy import AUTOPILOT_MEMS, AUTOPILOT_MEMS_SOURCE
 from .recording import RecordingError, Recording, attitude_at
 from ..errors import require
 
@@ -109,7 +110,9 @@ def read(path, mounting=None, instance=None, reference_instance=None):
         r_us, r_w, r_f, r_temp = _instance(ulog, path, reference_instance)
         r_keep = np.concatenate([[True], np.diff(r_us) > 0])
         second = dict(ns=(r_us[r_keep] + offset_us) * 1000, w=r_w[r_keep], f=r_f[r_keep],
-                      mounting=Mounting(), model=f"PX4 IMU instance {reference_instance}")
+                      mounting=Mounting(), model=f"PX4 IMU instance {reference_instance}",
+                      accuracy=dict(AUTOPILOT_MEMS))
+        assumed["reference_imu_accuracy"] = AUTOPILOT_MEMS_SOURCE
         real["reference_imu"] = (f"sensor_accel:{reference_instance} with sensor_gyro:"
                                  f"{reference_instance} ({int(r_keep.sum())} samples, {r_temp})")
     cut = cut_short(path)

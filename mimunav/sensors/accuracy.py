@@ -15,6 +15,22 @@ FOG_GYRO_BIAS = 1.0 * np.pi / 180 / 3600    # rad/s: seed S1 Table 4, <= 1 deg/h
 FOG_ACCEL_BIAS = 100e-6 * 9.80665           # m/s^2: seed S1 Table 4, ~100 ug
 
 
+# An autopilot's own IMUs (a second instance as the reference IMU of a PX4 or ArduPilot
+# log): consumer MEMS parts, 1 sigma read as half the datasheet's tolerance (as Table 4's
+# bound is read as 2 sigma). TDK ICM-42688-P datasheet (DS-000347), a common autopilot
+# part: gyro sensitivity tolerance +-0.5 %, cross-axis +-1.25 %; accelerometer sensitivity
+# +-0.5 %, cross-axis +-1 %, zero-g offset +-20 mg (before the autopilot's accelerometer
+# calibration, whose residual no log states); the gyro's offset is calibrated at every boot
+# by both autopilots, and what is left is its drift in flight: +-0.005 (deg/s)/degC over a
+# 20 degC warm-up, 0.1 deg/s. Older parts (MPU-6000: +-3 % sensitivity) are worse: these
+# are the least a user should expect, `mimunav diagnose --reference-accuracy` states others.
+AUTOPILOT_MEMS = {"gyro_scale": 2.5e-3, "accel_scale": 2.5e-3,
+                  "gyro_misalignment_rad": 6.25e-3, "accel_misalignment_rad": 5e-3,
+                  "gyro_bias": float(np.radians(0.05)), "accel_bias": 0.5 * 20e-3 * 9.80665}
+AUTOPILOT_MEMS_SOURCE = ("an autopilot's MEMS IMU: half the ICM-42688-P datasheet's tolerances "
+                         "(sensors.accuracy.AUTOPILOT_MEMS); --reference-accuracy states others")
+
+
 @dataclass(frozen=True)
 class Accuracy:
     """1-sigma residual errors of a calibrated reference IMU (sensor axes): scale-factor error

@@ -184,3 +184,29 @@ def test_a_text_log_reads_as_its_binary_and_damage_is_counted_not_printed(log, t
     assert "bad header" not in said.out + said.err and "Skipped" not in said.out + said.err
     assert "skipped unreadable bytes" in damaged.real["file"]
     assert len(damaged.imu_ns) >= len(binary.imu_ns) - 2
+
+
+def test_a_second_imu_instance_is_the_reference_imu_of_mems_grade(log, tmp_path):
+    """--reference-imu-instance 1: instance 1 is the reference IMU (its own samples, the
+    body frame, the log's clock - the two IMUs' clocks measured equal), stated of MEMS
+    grade (an autopilot's part: `AUTOPILOT_MEMS`, not the FOG defaults, so what the two
+    disagree on is not charged to the IMU alone); its own instance is refused as one."""
+    from mimunav.flightlog import FlightLog
+    from mimunav.sensors.accuracy import AUTOPILOT_MEMS, accuracy_of
+    path, run, t, _ = log
+    rec = dataflash.read(str(path), reference_instance=1)
+    ref = rec.reference_imu
+    assert np.array_equal(ref["ns"], rec.imu_ns) and not np.allclose(ref["w"], rec.w)
+    np.testing.assert_allclose(ref["w"].mean(axis=0), rec.w.mean(axis=0), atol=5e-4)
+    assert "IMU instance 1" in rec.real["reference_imu"]
+    out = tmp_path / "pair.mcap"
+    assert main(["import", "dataflash", str(path), "--reference-imu-instance", "1",
+                 "-o", str(out)]) == 0
+    with FlightLog(out) as fl:
+        meta = fl.metadata()
+        assert len(fl.read("/fog/imu")["log_time"]) == len(ref["ns"])
+    assert "refined to" in meta["recording"]["real"]["reference_imu_clock"]
+    accuracy = accuracy_of(meta["sensor/fog"])
+    assert accuracy.mems_grade and accuracy.gyro_scale == AUTOPILOT_MEMS["gyro_scale"]
+    with pytest.raises(RecordingError, match="the IMU's own"):
+        dataflash.read(str(path), instance=1, reference_instance=1)
