@@ -475,3 +475,35 @@ def reference_track(rec, epoch):
                 q_nb=None if q is None else np.asarray(q)[ok],
                 attitude_source=rec.reference_meta.get("source", "the reference"), what=what,
                 heading_known=rec.reference_heading_known)
+
+
+UPRIGHT_DEG = 60.0      # deg: a car, an aircraft, a ship or a copter at rest stands within
+#                        this of level (a tail-dragger's 10-15 deg of pitch, a moored hull's
+#                        roll); beyond it the mounting given has the IMU's axes turned -
+#                        a z axis up taken as down reads a roll of 180
+RESTS_UPRIGHT = ("car", "aircraft", "multicopter", "ship")
+
+
+def resting_upright(rec, align):
+    """A vehicle that rests upright must level at its rest through the mounting given: a
+    declared car, aircraft, ship or copter beyond UPRIGHT_DEG of roll or pitch is refused
+    with the mounting that levels it (the yaw as given); an undeclared one is said in
+    rec.real["resting_tilt"] (it may be a rocket on its rail or a hand-held unit). Judged
+    only where the alignment found a rest (a moving vehicle banks)."""
+    if np.isnan(align.static[0]) or rec.vehicle in ("rocket", "pedestrian", "other"):
+        return
+    _, pitch, roll = attitude.as_euler(attitude.from_wxyz(align.q_nb))
+    if max(abs(roll), abs(pitch)) <= math.radians(UPRIGHT_DEG):
+        return
+    level = attitude.from_euler(np.array(0.0), np.array(pitch), np.array(roll))
+    yaw_l, pitch_l, roll_l = attitude.as_euler(level * rec.mounting.q_vs)
+    said = (f"at its rest {align.static[0]:.1f}-{align.static[1]:.1f} s the IMU, through the "
+            f"mounting given, rests at roll {math.degrees(roll):+.1f}, pitch "
+            f"{math.degrees(pitch):+.1f} deg; the mounting that levels it (the yaw as given): "
+            f"--mounting-rpy-deg {math.degrees(roll_l):.1f} {math.degrees(pitch_l):.1f} "
+            f"{math.degrees(yaw_l):.1f} (a table spec's mounting_rpy_deg)")
+    if rec.vehicle in RESTS_UPRIGHT:
+        raise RecordingError(f"{rec.name}: a {rec.vehicle} rests upright (within "
+                             f"{UPRIGHT_DEG:g} deg of level), but {said}")
+    rec.real["resting_tilt"] = (f"{said}: a vehicle that rests upright is not so mounted "
+                                "(declare it with --vehicle to have this refused)")

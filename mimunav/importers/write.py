@@ -18,7 +18,7 @@ from ..flightlog import schemas as S
 from .recording import UNKNOWN_ATTITUDE, heading_source
 from ..flightlog.stamps import mean_rate_hz, rate_segments
 from .checks import (differenced, positions_velocity, reference_track, check_recording,
-                     velocity_lag_s)
+                     resting_upright, velocity_lag_s)
 
 
 WRITE_BLOCK_S = 10.0        # s: channels are written interleaved in blocks of this much time
@@ -50,6 +50,7 @@ def write_log(rec, path, force=False):
     t = (rec.imu_ns - epoch) / 1e9
     ref = rec.reference
     align = alignment.initial_alignment(t, rec.w, rec.f, rec.mounting, reference_track(rec, epoch))
+    resting_upright(rec, align)
     initial = {"t": float(align.t), "latitude": float(align.lat), "longitude": float(align.lon),
                "height": float(align.h), "velocity_ned": list(map(float, align.v_ned)),
                "attitude_wxyz": list(map(float, align.q_nb))}
@@ -154,6 +155,8 @@ def summary(rec, align, path):
         lines.append(f"measured heading: {rec.real['reference_heading']}")
     if "course_checks" in rec.real:
         lines.append(f"course checks: {rec.real['course_checks']}")
+    if "resting_tilt" in rec.real:
+        lines.append(f"warning: {rec.real['resting_tilt']}")
     lines.append(f"initial state at t = {align.t:.3f} s: {align.method}")
     if np.isnan(align.static[0]) and np.any(align.gyro_bias):
         lines.append("biases from the reference's attitude and velocity (sensor axes): gyro "

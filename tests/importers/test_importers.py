@@ -1134,3 +1134,30 @@ def test_a_cars_slow_turns_time_two_clocks_and_a_hulls_waves_do_not():
     found = rate_lag(t, waves + rng.normal(0.0, 0.003, len(t)),
                      t, np.interp(t - 2.5, t, waves), "the two IMUs", "the reference's stamps")
     assert found["lag_s"] is None and found.get("ambiguous")
+
+
+def test_an_upside_down_mounting_is_refused_for_a_vehicle_that_rests_upright(tmp_path):
+    """An IMU whose z axis points down, imported with a mounting that takes it as up (a ROS
+    bag's default FLU for a z-down unit): the vehicle rests at roll 180. A declared car is
+    refused with the mounting that levels it (FRD: 0 0 0); undeclared, it is said (a rocket
+    on its rail or a hand-held unit may so rest); a rocket is not judged."""
+    n = 3000
+    ns = 1_700_000_000_000_000_000 + np.arange(n) * 10_000_000
+    rng = np.random.default_rng(3)
+    w = rng.normal(0, 1e-3, (n, 3))
+    f = np.tile([0.0, 0.0, -9.81], (n, 1)) + rng.normal(0, 0.02, (n, 3))    # FRD at rest
+
+    def rec(vehicle):
+        r = Recording("robot", "test", ns, w, f, Mounting.from_axes("FLU"))
+        r.vehicle = vehicle
+        return r
+    with pytest.raises(RecordingError, match=r"a car rests upright.*roll [+-]180\.0.*"
+                                              r"--mounting-rpy-deg -?0\.0 -?0\.0 -?0\.0"):
+        write_log(rec("car"), tmp_path / "car.mcap")
+    assert not (tmp_path / "car.mcap").exists()
+    undeclared = rec(None)
+    write_log(undeclared, tmp_path / "any.mcap")
+    assert "rests at roll" in undeclared.real["resting_tilt"]
+    rocket = rec("rocket")
+    write_log(rocket, tmp_path / "rocket.mcap")
+    assert "resting_tilt" not in rocket.real
