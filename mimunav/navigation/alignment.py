@@ -9,7 +9,10 @@ gravity g at the track's position (none without a track). Heading is not
 observable this way from a consumer gyro (Earth rate 0.004 deg/s against a bias of
 0.1-1 deg/s), so it comes from the GNSS course once the vehicle moves: a car does not slide
 sideways, its forward axis points along its velocity (the non-holonomic assumption), and the
-yaw turned between standstill and that moment is taken from the gyro.
+yaw turned between standstill and that moment is taken from the gyro. The courses are those
+of its straight driving (`_course_epochs`: in a turn an antenna ahead of the axle moves w x r
+across the heading) from the speed at which the track's averaged velocity holds them
+(`course_speed`).
 
 Moving alignment (`moving_attitude`, a two-vector solution of Wahba's problem by
 scipy's `Rotation.align_vectors`): the mean specific force over a short interval is matched
@@ -27,6 +30,7 @@ import quaternion
 from scipy.spatial.transform import Rotation
 
 from ..frames import attitude, earth
+from .attitude_biases import ATTITUDE_BIAS_WINDOW_S, biases_from_attitude
 from ..errors import InputError
 from .rests import (G0, MIN_STATIC_S, felt_at_rest, rate_mean_se, QUIET_WINDOW_S, STATIC_MARGIN_S, STATIC_SPEED, track_still,
                     means_around, quiet_stretches, rest_intervals, travel_sign, velocity_noise,
@@ -34,12 +38,24 @@ from .rests import (G0, MIN_STATIC_S, felt_at_rest, rate_mean_se, QUIET_WINDOW_S
 
 
 COURSE_SPEED = 3.0          # m/s: horizontal speed from which the GNSS course gives heading
+#                             where the track's velocity noise is not measured or large
+COURSE_SIGMA_DEG = 2.0      # deg: a course epoch's error from the velocity noise, at most -
+#                             what a 0.1 m/s plain fix makes at COURSE_SPEED (1.9 deg)
+COURSE_SPEED_MIN = 1.0      # m/s: the least, however quiet the track: a walker's sway
+#                             (+-0.2 m/s across) turns a slower course by more than that
                             # weave: 0.2; IMU noise in 1 s means: ~0.01)
 MOVING_HALF_WINDOW_MAX_S = 5.0  # s: the longest (the gyro's bias turns the increment by
                                 # b x 5 s: 0.1 deg for 0.02 deg/s left after the rest)
 MOVING_ACCEL_ERROR = 0.02       # m/s^2: the interval's acceleration error aimed at (0.1 deg)
 MOVING_HALF_WINDOW_S = 0.25     # s: half the interval of the moving two-vector alignment
 COURSE_SPAN_S = 5.0         # s of fast epochs whose courses give the heading at a rest's end
+STRAIGHT_RATE = math.radians(1.0)   # rad/s: the gyro's yaw rate below which a vehicle drives
+#                             straight - its course its heading, with no antenna lever arm's
+#                             w x r across it: the RTKLIB drive's courses as it pulled out
+#                             turning at 4-12 deg/s put its heading at rest 2-3 deg from the
+#                             -4.1 its 189 straight epochs of 40-120 s give
+COURSE_SEARCH_S = 60.0      # s after the first fast epoch in which straight ones are sought
+#                             (a residual gyro bias of 0.003 deg/s turns 0.2 deg over it)
 
 
 @dataclass
@@ -118,7 +134,8 @@ def initial_alignment(t, w, f, mounting, track=None):
 
     1. a rest that starts the recording (MIN_STATIC_S or more): level from its mean specific
        force, heading from the reference's attitude once moving, turned back by the gyro
-       (else the course less the gyro's yaw since), state at the first IMU stamp;
+       (else the course of straight driving less the gyro's yaw since), state at the first
+       IMU stamp; the rest ends where the IMU starts to move (`rests.settled_until`);
     2. the reference's own attitude at its first epoch with one (an autopilot's estimate,
        a fused pose): the whole state from the reference;
     3. moving: the two-vector alignment (`moving_attitude`) at the first reference epoch
@@ -190,8 +207,8 @@ def _no_initial_state(t, track, speed, inside, half):
         f"no initial state can be found from {what}: it carries no attitude, the "
         f"recording does not start with a rest of {MIN_STATIC_S:g} s (its speed <= "
         f"{STATIC_SPEED:g} m/s), and " + (
-            f"its epochs faster than {COURSE_SPEED:g} m/s all lie in stretches the IMU "
-            "and its positions show at rest (a noisy fix's speed)"
+            f"its epochs faster than {COURSE_SPEED:g} m/s all lie in stretches the "
+            "IMU and its positions show at rest (a noisy fix's speed)"
             if moving.any() else
             f"where {half:g} s of IMU and it lie on both sides its speed peaks at "
             f"{speed[inside].max():.2f} m/s, below {COURSE_SPEED:g} m/s (over all of "
@@ -233,11 +250,17 @@ def _from_rest(t, w, f, mounting, track, interval, still_until=-math.inf):
     lat, lon, h = (float(np.interp(t[0], track["t"], x)) for x in (
         track["lat"], unwrapped_longitude(track["lon"]), track["h"]))
     speed = mean_speed(track, moving_half_window(track))
-    fast = np.flatnonzero((speed >= COURSE_SPEED) & (track["t"] > max(t_end, still_until)))
+    after = track["t"] > max(t_end, still_until)
     q_ref, t_ref = reference_attitude(track, float(t[0]))
+    # an INS's heading is taken once the vehicle moves as a car's course would give one
+    # (COURSE_SPEED: where it has converged), else its course at that speed, else its
+    # heading at rest; a track without attitude gives a course from the speed its noise allows
+    moving = np.flatnonzero((speed >= COURSE_SPEED) & after)
+    fast = moving if q_ref is not None else \
+        np.flatnonzero((speed >= course_speed(track)) & after)
     w_v = attitude.rotate(q_vs, w - w[rest].mean(axis=0))
-    k = fast[track["t"][fast] <= track["t"][fast[0]] + COURSE_SPAN_S] if len(fast) else fast
-    back = _reference_heading_back(t, w_v, t_end, track, k)
+    back = _reference_heading_back(t, w_v, t_end, track, moving)
+    k, straight = _course_epochs(t, w_v, track, fast)
     if back is not None:
         yaw, i = back
         heading = "reference"
@@ -258,16 +281,19 @@ def _from_rest(t, w, f, mounting, track, interval, still_until=-math.inf):
         yaw = math.atan2(np.sum(weight * np.sin(at_rest)), np.sum(weight * np.cos(at_rest)))
         heading = "course"
         notes.append(f"heading from the GNSS course over {len(k)} epoch(s) from t = "
-                     f"{track['t'][k[0]]:.2f} s ({speed[k[0]]:.1f} m/s) less the gyro's yaw "
-                     "since the rest (non-holonomic: no side slip)")
+                     f"{track['t'][k[0]]:.2f} s ({speed[k[0]]:.1f} m/s"
+                     + (f", driving straight: yaw rate under {math.degrees(STRAIGHT_RATE):g} "
+                        "deg/s" if straight else ", turning: none drove straight") +
+                     ") less the gyro's yaw since the rest (non-holonomic: no side slip)")
     elif q_ref is not None:
         yaw = float(attitude.as_euler(attitude.from_wxyz(q_ref))[0])
         heading = "reference"
         notes.append(f"heading from the reference's attitude at t = {t_ref:.2f} s")
     else:
         yaw, heading = 0.0, "assumed"
-        notes.append(f"heading assumed 0 (the track never exceeds {COURSE_SPEED:g} m/s and "
-                     "carries no attitude)")
+        notes.append(f"heading assumed 0 (the track never exceeds "
+                     f"{course_speed(track):.2g} m/s "
+                     "and carries no attitude)")
     q_nb = attitude.from_euler(np.array(yaw), np.array(pitch), np.array(roll))
     gyro_bias, accel_bias = _rest_biases(w[rest], f[rest], q_nb * q_vs, lat, h)
     true_north = heading != "assumed" and track.get("heading_known", True)
@@ -283,6 +309,21 @@ def _from_rest(t, w, f, mounting, track, interval, still_until=-math.inf):
     return Alignment(float(t[0]), lat, lon, h, np.zeros(3), attitude.as_wxyz(q_nb),
                      gyro_bias, accel_bias, (float(t[0]), float(t_end)), "; ".join(notes),
                      heading=heading, bias_basis=basis)
+
+
+def _course_epochs(t, w_v, track, fast):
+    """(the track's epochs whose courses give the heading, whether they drive straight):
+    the `fast` ones within COURSE_SEARCH_S of the first where the gyro's yaw rate (vehicle
+    axes w_v, rad/s at stamps t; its mean over +-0.5 s) is below STRAIGHT_RATE, else the
+    first COURSE_SPAN_S of them all."""
+    if not len(fast):
+        return fast, False
+    t_k = track["t"][fast]
+    rate = means_around(t, w_v[:, 2:], t_k, 0.5)[:, 0]
+    straight = fast[(t_k <= t_k[0] + COURSE_SEARCH_S) & (np.abs(rate) < STRAIGHT_RATE)]
+    if len(straight):
+        return straight, True
+    return fast[t_k <= t_k[0] + COURSE_SPAN_S], False
 
 
 def _reference_heading_back(t, w_v, t_end, track, k):
@@ -404,106 +445,6 @@ def _up(f):
     return [float(x) for x in mean / np.linalg.norm(mean)]
 
 
-ATTITUDE_BIAS_WINDOW_S = 1.0    # s: windows of the gyro bias from a reference attitude
-MIN_ATTITUDE_BIAS_WINDOWS = 10
-
-
-def biases_from_attitude(t, w, f, mounting, track, window=ATTITUDE_BIAS_WINDOW_S):
-    """The gyro and accelerometer biases (rad/s, m/s^2, sensor axes) of a recording without
-    a rest whose reference carries the vehicle attitude (a fused pose, an autopilot's
-    estimate): per window [a, b] between the reference's own epochs (about `window` s), the
-    IMU's mean rate w and specific force f (sensor axes, stamps t s: the samples ending in
-    (a, b]) less what the reference says they were:
-        rate   C_sb (rotvec(q_nb(a)^-1 q_nb(b)) / (b - a) + C_bn (w_ie^n + w_en^n))
-        force  C_sb C_bn ((v(b) - v(a)) / (b - a) + (2 w_ie^n + w_en^n) x v - g^n)
-    (T&W eq. 3.70; C_bn at mid-window); the median over the windows and its standard error
-    (1.2533 x the MAD-based sigma / sqrt n).
-    Returns ((gyro bias, se), (accel bias, se), windows) or None without
-    MIN_ATTITUDE_BIAS_WINDOWS windows of known attitude."""
-    q = track.get("q_nb")
-    if q is None:
-        return None
-    inside = np.isfinite(q).all(axis=1) & (track["t"] >= t[0]) & (track["t"] <= t[-1])
-    t_q = track["t"][inside]
-    if len(t_q) < 2:
-        return None
-    # windows between the reference's own epochs (no interpolated attitude)
-    step = max(1, int(round(window / np.median(np.diff(t_q)))))
-    a, b = slice(0, len(t_q) - step, step), slice(step, len(t_q), step)
-    rot = attitude.as_scipy(attitude.from_wxyz(np.asarray(q)[inside]))
-    r_a, span = rot[a], t_q[b] - t_q[a]
-    w_nb = (r_a.inv() * rot[b]).as_rotvec() / span[:, None]      # vehicle axes
-    edges = t_q[a]
-    mid = 0.5 * (edges + t_q[b])
-    lat, h = (np.interp(mid, track["t"], track[k]) for k in ("lat", "h"))
-    v = np.column_stack([np.interp(mid, track["t"], track["v_ned"][:, i]) for i in range(3)])
-    w_ie, w_en = earth.earth_rate_ned(lat), earth.transport_rate_ned(lat, h, v)
-    if not track.get("heading_known", True):    # its north is not true north: the Earth
-        w_ie[..., :2] = 0.0                     # rate's horizontal part is left in
-    # C_nb(mid) = C_nb(a) R(w_nb span / 2) (body-frame turn), so C_bn(mid) = R(-..) C_bn(a)
-    c_bn_mid = Rotation.from_rotvec(-0.5 * w_nb * span[:, None]) * r_a.inv()
-    rate = w_nb + c_bn_mid.apply(w_ie + w_en)
-    v_ref = np.asarray(track["v_ned"], float)[inside]
-    force = c_bn_mid.apply((v_ref[b] - v_ref[a]) / span[:, None]
-                           + np.cross(2 * w_ie + w_en, v)) \
-        - _mean_gravity_body(rot, t_q, step, earth.gravity_ned(lat, h))
-    k0, k1 = np.searchsorted(t, edges, side="right"), np.searchsorted(t, t_q[b], side="right")
-    use = k1 - k0 >= 2
-    if use.sum() < MIN_ATTITUDE_BIAS_WINDOWS:
-        return None
-    q_sv = np.conjugate(mounting.q_vs)
-
-    def window_means(x):
-        c = np.vstack([np.zeros((1, 3)), np.cumsum(x, axis=0)])
-        return (c[k1[use]] - c[k0[use]]) / (k1[use] - k0[use])[:, None]
-
-    def median_difference(x, predicted):
-        d = window_means(x) - attitude.rotate(q_sv, predicted[use])
-        bias = np.median(d, axis=0)
-        sigma = 1.4826 * np.median(np.abs(d - bias), axis=0)
-        return bias, 1.2533 * sigma / math.sqrt(len(d))
-    # the IMU sits at the lever arm r from the reference's point: it also feels
-    # dw/dt x r + w x (w x r) (vehicle axes, from the IMU's own rates: the window's mean
-    # dw/dt is the rate's change across it) - a boat rolling 11 deg with r 1.4 m had left
-    # 0.013 m/s^2 on accel.z, the centripetal mean, and the tangential's median over
-    # windows of a roll does not vanish either
-    w_v = attitude.rotate(mounting.q_vs, w)
-    r = mounting.lever_arm_m
-    force = np.array(force)
-    turn = (_rate_at(t, w_v, t_q[b][use]) - _rate_at(t, w_v, edges[use])) / span[use, None]
-    force[use] += window_means(np.cross(w_v, np.cross(w_v, r))) + np.cross(turn, r)
-    return median_difference(w, rate), median_difference(f, force), int(use.sum())
-
-
-def _mean_gravity_body(rot, t_q, step, g_n):
-    """(n, 3) m/s^2: gravity g_n (n, 3, NED) in the body axes averaged over each window of
-    `step` reference epochs t_q (s; attitudes rot, body -> NED), over its epochs - by
-    Simpson's rule where they are even in number of steps and evenly spaced, else the
-    trapezoid's: at the window's mid-rotation alone a hull rolling 2.6 deg at 6 s was off by
-    g phi'' span^2 / 12 = 0.04 m/s^2 in 1 s windows, by the trapezoid over 10 Hz epochs
-    4e-4."""
-    starts = np.arange(0, len(t_q) - step, step)[:len(g_n)]
-    times = t_q[starts[:, None] + np.arange(step + 1)]
-    steps = np.diff(times, axis=1)
-    if step % 2 == 0 and np.allclose(steps, steps[:, :1], rtol=1e-3):
-        weights = np.tile(np.r_[1.0, np.tile([4.0, 2.0], step // 2)[:-1], 1.0] / (3 * step),
-                          (len(starts), 1))
-    else:
-        padded = np.pad(steps, ((0, 0), (1, 1)))
-        weights = 0.5 * (padded[:, :-1] + padded[:, 1:]) / steps.sum(axis=1, keepdims=True)
-    out = np.zeros((len(starts), 3))
-    for j in range(step + 1):
-        out += rot[starts + j].inv().apply(g_n) * weights[:, j:j + 1]
-    return out
-
-
-def _rate_at(t, w, epochs, reach=2):
-    """The rates w (N, 3) at the epochs (s): the mean of the 2 reach + 1 samples of stamps t
-    (s) nearest each (an interval mean's stamp ends its interval: half a sample late)."""
-    k = np.clip(np.searchsorted(t, epochs), reach, len(t) - reach - 1)
-    return np.mean([w[k + d] for d in range(-reach, reach + 1)], axis=0)
-
-
 def moving_attitude(t, w, f, mounting, track, t0, half=MOVING_HALF_WINDOW_S):
     """q_nb (wxyz) of a moving vehicle at t0 (s), by velocity matching over (t0 - half,
     t0 + half]: the IMU's velocity increment over the interval expressed in the body axes
@@ -537,6 +478,25 @@ def moving_attitude(t, w, f, mounting, track, t0, half=MOVING_HALF_WINDOW_S):
     rot, _ = Rotation.align_vectors([dv_n, forward], [dv_b, [1.0, 0, 0]],
                                     weights=[np.inf, 1.0])
     return attitude.as_wxyz(attitude.from_scipy(rot))
+
+
+def course_speed(track, span_s=COURSE_SPAN_S):
+    """The horizontal speed (m/s) from which the track's courses, averaged over the epochs
+    of span_s, give the heading at a rest's end: where the noise of its velocity
+    (`velocity_noise`, per axis) averaged so turns a course by COURSE_SIGMA_DEG, within
+    COURSE_SPEED_MIN .. COURSE_SPEED (unmeasured: COURSE_SPEED). An RTK robot's track
+    (0.13 m/s per 10 Hz epoch, 50 epochs in COURSE_SPAN_S) gives it its heading at 1.2 m/s
+    (a fixed 3 m/s had left it assumed); a plain fix's 0.1 m/s at 1 Hz keeps 3 m/s. What
+    takes one epoch's course or its rate (the moving alignment, the windows' starts, the
+    course checks) keeps COURSE_SPEED: at a walking pace a turn's w x r of an antenna
+    ahead of the axle runs the course off the heading (a pull-out's course rate had led
+    the gyro's by a second)."""
+    sigma_v = velocity_noise(track)
+    if sigma_v is None:
+        return COURSE_SPEED
+    epochs = max(1.0, span_s / float(np.median(np.diff(track["t"]))))
+    return float(np.clip(sigma_v / math.sqrt(epochs) / math.tan(math.radians(COURSE_SIGMA_DEG)),
+                         COURSE_SPEED_MIN, COURSE_SPEED))
 
 
 def mean_speed(track, half):

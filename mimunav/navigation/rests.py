@@ -65,7 +65,8 @@ def felt_at_rest(t, w, f, rests):
                                     f"{math.degrees(rate):.1f} deg/s there: no rest"))
             continue
         runs, tilt, turn = steady_runs(t, w, f, t0, t1)
-        kept += runs
+        runs = [(a, settled_until(t, w, f, a, b)) for a, b in runs]
+        kept += [(a, b) for a, b in runs if b - a >= MIN_STATIC_S]
         if not runs:
             refused.append((t0, t1, f"the reference stands still {t0:.2f}-{t1:.2f} s but the IMU "
                                     f"does not: its 1 s means tilt up to {math.degrees(tilt):.2f} "
@@ -114,6 +115,50 @@ def steady_runs(t, w, f, t0, t1):
     tilt = np.arccos(np.clip(up @ (middle / np.linalg.norm(middle)), -1.0, 1.0))
     turn = np.linalg.norm(w_mean - w_mean.mean(axis=0), axis=1)
     return runs, float(tilt.max()), float(turn.max())
+
+
+SETTLED_Z = 5.0     # a rest's last window whose mean lies this many times the scatter of the
+#                    rest's other window means from their median has started to move: a
+#                    robot setting off 0.4 s before a reference's rest ended had moved its gyro
+#                    bias by 0.006 deg/s (6 of its standard errors) within REST_TURN's 1 deg/s;
+#                    6 channels at 5 sigma: a still rest's end cut by chance once in ~10^5
+
+
+# the least scatter of a window's mean (rad/s x 3, m/s^2 x 3): below a navigation-grade
+# unit's 1 s noise (0.002 deg/h^0.5: 6e-7 rad/s; 0.01 m/s/h^0.5: 1.7e-4 m/s^2), above a
+# simulation's rounding - an ideal IMU's still windows agree to 1e-15 and had cut 6 s of rest
+SETTLED_FLOOR = np.array([1e-7] * 3 + [1e-6] * 3)
+
+
+def settled_until(t, w, f, t0, t1):
+    """The end (s) of the rest [t0, t1] before its IMU starts to move: STEADY_WINDOW_S
+    windows counted back from t1 are cut, the last first, while one's mean rate (rad/s) or
+    specific force (m/s^2) lies more than SETTLED_Z times from the median of the windows
+    before it, in the robust scatter of those (or the samples' own noise over a window, when
+    larger). The rest's start is a reference's, trimmed by STATIC_MARGIN_S, or the
+    recording's."""
+    n = int((t1 - t0) // STEADY_WINDOW_S)
+    if n < 4:
+        return t1
+    k = np.flatnonzero((t > t1 - n * STEADY_WINDOW_S) & (t <= t1))
+    back = np.minimum(((t1 - t[k]) // STEADY_WINDOW_S).astype(int), n - 1)   # 0: the last
+    counts = np.bincount(back, minlength=n)
+    if (counts < 2).any():
+        return t1
+    x = np.hstack([w[k], f[k]])
+    means = np.column_stack([np.bincount(back, x[:, i], n) for i in range(6)]) / counts[:, None]
+    own = np.sqrt(np.column_stack([np.bincount(back, (x[:, i] - means[back, i]) ** 2, n)
+                                   for i in range(6)])) / counts[:, None]
+    cut = 0
+    while n - cut > 3:
+        before = means[cut + 1:]
+        centre = np.median(before, axis=0)
+        scatter = np.maximum.reduce([1.4826 * np.median(np.abs(before - centre), axis=0),
+                                     np.median(own[cut + 1:], axis=0), SETTLED_FLOOR])
+        if not (np.abs(means[cut] - centre) > SETTLED_Z * scatter).any():
+            break
+        cut += 1
+    return t1 - cut * STEADY_WINDOW_S
 
 
 def _holds(up, rate, next_up, next_rate):

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 import quaternion
 
-from mimunav.navigation import alignment
+from mimunav.navigation import alignment, attitude_biases
 from mimunav.navigation.rests import MIN_STATIC_S, STATIC_SPEED, quiet_stretches, rest_intervals
 from mimunav.frames import attitude, earth
 from mimunav.evaluation import windows
@@ -373,9 +373,9 @@ def test_the_reference_attitudes_accelerometer_bias_allows_for_the_lever_arm():
     w_x = np.column_stack([roll_rate, np.zeros_like(t), np.zeros_like(t)])
     f = f + np.cross(np.column_stack([roll_acc, 0 * t, 0 * t]), r) \
         + np.cross(w_x, np.cross(w_x, r))
-    _, (accel, _), _ = alignment.biases_from_attitude(t, w, f, Mounting(lever_arm_m=r), track)
+    _, (accel, _), _ = attitude_biases.biases_from_attitude(t, w, f, Mounting(lever_arm_m=r), track)
     assert np.abs(accel).max() < 1e-4, accel
-    _, (unaware, _), _ = alignment.biases_from_attitude(t, w, f, Mounting(), track)
+    _, (unaware, _), _ = attitude_biases.biases_from_attitude(t, w, f, Mounting(), track)
     assert np.abs(unaware).max() > 5e-3, unaware
 
 
@@ -457,3 +457,87 @@ def test_a_car_circling_a_skidpad_under_a_plain_fix_is_moving():
     v = np.column_stack([8 * np.cos(rate * t), 8 * np.sin(rate * t), 0 * t]) \
         + rng.normal(0.0, 1.0, (len(t), 3)) * [1, 1, 0]
     assert (alignment.mean_speed({"t": t, "v_ned": v}, 5.0)[6:-6] > 6.0).all()
+
+
+def test_a_slow_robot_under_rtk_gets_its_heading_from_the_course(tmp_path):
+    """A ground robot: 20 s at rest, then 1.2 m/s (never 3) under 2 cm fixes at 10 Hz
+    (velocity by differences: about 0.3 m/s of noise per epoch). Its courses averaged over
+    COURSE_SPAN_S's 50 epochs hold the heading well below COURSE_SIGMA_DEG, so the course
+    speed is the least (1 m/s) and the heading at rest is measured (a fixed 3 m/s had left
+    it assumed 0) - while one epoch's course would still need 3 m/s."""
+    t = np.arange(0.0, 60.0 + 1e-9, 0.1)
+    speed = 1.2 * smoothstep((t - 20.0) / 3.0)
+    yaw = 70 * DEG
+    track = under_two_cm(track_from_velocity(t, np.column_stack(
+        [speed * np.cos(yaw), speed * np.sin(yaw), 0 * t])))
+    ref = dict(zip(("t", "lat", "lon", "h", "v_ned"), track))
+    assert alignment.course_speed(ref) == alignment.COURSE_SPEED_MIN
+    assert alignment.course_speed(ref, 0.0) == alignment.COURSE_SPEED     # one epoch's
+    path, motion, _ = ideal_flight(tmp_path, MOUNT, track=track)
+    flight = Flight.load(path, reference_imu=False)
+    heading = attitude.as_euler(flight.initial.q_nb)[0]
+    assert flight.recording["initial_heading"] == "course"
+    assert abs(heading - 70 * DEG) < 0.5 * DEG, np.degrees(heading)
+
+
+def test_a_rest_ends_where_its_imu_starts_to_move():
+    """A reference's rest that runs 0.4 s into the robot's setting off (its 1 s window mean
+    turned 0.4 deg/s, within REST_TURN's 1 deg/s): cut back to the last still window, and
+    the gyro bias over what is left is the still one's (it had moved 0.006 deg/s, 6 of its
+    standard errors). Still to the end, 200 noise draws are never cut (SETTLED_Z)."""
+    from mimunav.navigation.rests import settled_until
+    t = np.arange(0.005, 59.9, 0.01)
+    bias = np.radians([0.25, -0.40, 0.15])
+    f0 = np.array([0.0, 0.0, -9.81])
+    cut = []
+    for seed in range(200):
+        rng = np.random.default_rng(seed)
+        w = bias + rng.normal(0, np.radians(0.1), (len(t), 3))
+        f = f0 + rng.normal(0, 0.025, (len(t), 3))
+        cut.append(settled_until(t, w, f, 0.0, 59.9) < 59.9)
+    assert sum(cut) == 0
+    moving = t > 59.5
+    w[moving, 0] += np.radians(2.0) * (t[moving] - 59.5) / 0.4       # setting off
+    end = settled_until(t, w, f, 0.0, 59.9)
+    assert 58.0 <= end <= 59.5
+    kept = t <= end
+    se = np.radians(0.1) / math.sqrt(kept.sum())
+    assert abs(w[kept, 0].mean() - bias[0]) < 4 * se
+    assert abs(w[:, 0].mean() - bias[0]) > 4 * se                  # the whole reference rest
+
+
+def test_the_heading_at_rest_comes_from_courses_driven_straight(tmp_path):
+    """A car pulls out of its rest turning (40 deg at up to 12 deg/s, 1-5 m/s) and then
+    drives straight; its GNSS antenna sits 1.5 m ahead of the point that moves without side
+    slip, so while it turns the antenna's course runs w x r off its heading (the RTKLIB
+    drive's pull-out put its heading 2-3 deg from what its straight driving gives). The
+    heading at rest from the courses of straight driving (yaw rate under STRAIGHT_RATE) is
+    the truth's; the first courses, turning, would miss it by degrees."""
+    from mimunav.importers.recording import Recording
+    from mimunav.motion import truth
+    from mimunav.motion.vehicle import TrackMotion
+    t_tr = np.arange(0.0, 70.0 + 1e-9, 0.1)
+    speed = 1.0 * smoothstep((t_tr - 20.0) / 2.0) + 7.0 * smoothstep((t_tr - 27.0) / 8.0)
+    yaw = 50 * DEG + 40 * DEG * smoothstep((t_tr - 28.0) / 6.0)
+    t_tr, lat, lon, h, v = track_from_velocity(t_tr, np.column_stack(
+        [speed * np.cos(yaw), speed * np.sin(yaw), 0 * t_tr]))
+    motion = TrackMotion(t_tr, lat, lon, h, v)
+    t = np.arange(t_tr[0], t_tr[-1] + 1e-9, 0.01)
+    dth, dv = MOUNT.sensor_increments(truth.generate(motion, t))
+    arm_n = attitude.rotate(motion.kinematics(t_tr).q_nb, np.array([1.5, 0.0, 0.0]))
+    r_n, r_e = earth.radii(LAT0)
+    v_ant = v + np.gradient(arm_n, t_tr, axis=0)
+    epoch = 1_700_000_000_000_000_000
+    rec = Recording("pull-out", "a car pulling out turning", epoch + np.round(t[1:] * 1e9)
+                    .astype(np.int64), dth * 100, dv * 100, MOUNT,
+                    reference=dict(ns=epoch + np.round(t_tr * 1e9).astype(np.int64),
+                                   lat=lat + arm_n[:, 0] / (r_n + H0),
+                                   lon=lon + arm_n[:, 1] / ((r_e + H0) * math.cos(LAT0)),
+                                   h=h, v_ned=v_ant))
+    course_off = np.degrees(np.arctan2(v_ant[:, 1], v_ant[:, 0]) - yaw)
+    assert np.abs(course_off[(t_tr > 29) & (t_tr < 33)]).max() > 3      # turning: degrees off
+    write_log(rec, tmp_path / "pull-out.mcap")
+    flight = Flight.load(tmp_path / "pull-out.mcap", reference_imu=False)
+    heading = attitude.as_euler(flight.initial.q_nb)[0]
+    assert abs(heading - 50 * DEG) < 0.2 * DEG, np.degrees(heading)
+    assert "driving straight" in flight.recording["assumed"]["initial_state"]
