@@ -126,7 +126,8 @@ SETTLED_Z = 5.0     # a rest's last window whose mean lies this many times the s
 
 # the least scatter of a window's mean (rad/s x 3, m/s^2 x 3): below a navigation-grade
 # unit's 1 s noise (0.002 deg/h^0.5: 6e-7 rad/s; 0.01 m/s/h^0.5: 1.7e-4 m/s^2), above a
-# simulation's rounding - an ideal IMU's still windows agree to 1e-15 and had cut 6 s of rest
+# simulation's rounding - an ideal IMU's still windows agree to 1e-15 and had cut 6 s of rest,
+# and its quietest windows' spread of 0 had left no window quiet (no rest at all)
 SETTLED_FLOOR = np.array([1e-7] * 3 + [1e-6] * 3)
 
 
@@ -221,8 +222,9 @@ def quiet_stretches(t, w, f, track=None):
     # a track judges each stretch below (its positions show it still), so the spread may
     # be looser with one: the RTKLIB drive's idling start rest is 3.4 x its quietest stops
     loose = QUIET_SPREAD_TRACKED if track is not None and len(track["t"]) >= 2 else QUIET_SPREAD
-    steady = _close((spread_w <= loose * np.quantile(spread_w, 0.05))
-                    & (spread_f <= loose * np.quantile(spread_f, 0.05)), QUIET_HOLE)
+    steady = _close((spread_w <= max(loose * np.quantile(spread_w, 0.05), SETTLED_FLOOR[0]))
+                    & (spread_f <= max(loose * np.quantile(spread_f, 0.05), SETTLED_FLOOR[3])),
+                    QUIET_HOLE)
     # gravity judges every window, filled or not; a steady turn is no rest: the mean rate
     # judges each run (a hand-held phone's tremor had lifted half its 0.5 s windows of a
     # 30 s rest past QUIET_RATE, 0.67-1.08 deg/s about a 0.39 deg/s bias, and lost the rest)

@@ -255,7 +255,9 @@ def _finding_lines(doc):
         lines += ["", "Where each term acts (first spans; all in diagnosis.json):", ""]
         for f in doc["findings"]:
             for w in f["where"][:5]:
-                lines.append(f"- {f['label']}: {w['t0']:.1f}-{w['t1']:.1f} s, {w['condition']}")
+                d = 1 if w["t1"] - w["t0"] >= 1.0 else 2     # a span of one bin: 0.08 s
+                lines.append(f"- {f['label']}: {w['t0']:.{d}f}-{w['t1']:.{d}f} s, "
+                             f"{w['condition']}")
         lines.append("")
     else:
         lines += ["No term of the library is confirmed on the held-out segments.", ""]

@@ -541,3 +541,20 @@ def test_the_heading_at_rest_comes_from_courses_driven_straight(tmp_path):
     heading = attitude.as_euler(flight.initial.q_nb)[0]
     assert abs(heading - 50 * DEG) < 0.2 * DEG, np.degrees(heading)
     assert "driving straight" in flight.recording["assumed"]["initial_state"]
+
+
+def test_an_ideal_imus_rest_is_quiet():
+    """An ideal IMU (a simulation's exact outputs): still for 20 s up to rounding (1e-15),
+    then a steady turn whose outputs are exactly constant. The quietest twentieth's spread
+    is exactly 0, and 'at most 4 times it' had held no window of the rest - no rest, no
+    initial state (a new user's noise-free robot). Below SETTLED_FLOOR (under any real
+    unit's noise) a window is still: the rest is found; the steady turn is not one."""
+    t = np.arange(0.01, 40.0, 0.01)
+    rng = np.random.default_rng(1)
+    still = t < 20.0
+    w = np.where(still[:, None], 1e-3 + rng.normal(0, 1e-16, (len(t), 3)),
+                 [0.0, 0.0, np.radians(20.0)])
+    f = np.where(still[:, None], [0.0, 0.0, -9.81] + rng.normal(0, 1e-15, (len(t), 3)),
+                 [0.0, 2.0, -9.81])
+    rests = quiet_stretches(t, w, f)
+    assert len(rests) == 1 and rests[0][0] < 0.1 and 19.0 <= rests[0][1] <= 20.05, rests
