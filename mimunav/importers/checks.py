@@ -270,6 +270,11 @@ def _blocks(n, k):
 COURSE_CHECK_RATE = 0.02       # rad/s: the course must turn this much (std) to judge a gyro
 COURSE_CHECK_ACCEL = 0.3        # m/s^2: horizontal acceleration (std) to judge the axes
 COURSE_CHECK_YAW = math.radians(45.0)   # a forward axis this far off is a wrong mounting
+SIZE_RATIO = 1.25       # a car's IMU reads its track's horizontal acceleration at 1 up to
+#                         its body's lean and the road's camber (a few degrees of g: 0.92-
+#                         1.04 on the RTKLIB drive and a phone's); beyond 0.8-1.25 the
+#                         specific force is not the track's (a railway's cant took a train's
+#                         to 0.39, its angle 16 deg off the mounting) and no yaw is read
 DIAGNOSED_YAW = math.radians(20.0)      # the diagnosis' small-angle mounting term holds no
                                         # more (diagnosis.library.PHYSICAL_RANGE, 0.35 rad)
 
@@ -315,15 +320,27 @@ def _check_against_course(rec):
         return
     z_ref = z_track[sel]
     if np.std(z_ref) > COURSE_CHECK_ACCEL:
-        gain, coherence = acceleration_match(f_v[:, 0] + 1j * f_v[:, 1], z_ref)
+        z_imu = f_v[:, 0] + 1j * f_v[:, 1]
+        gain, coherence = acceleration_match(z_imu, z_ref)
         yaw = float(np.angle(gain))
+        if coherence > 0.5 and not 1 / SIZE_RATIO < abs(gain) < SIZE_RATIO:
+            rec.real["mounting_yaw_against_course"] = (
+                f"not measured: the accelerometers' horizontal specific force is "
+                f"{abs(gain):.2f} times the GNSS track's acceleration (coherence "
+                f"{coherence:.2f}; a car's IMU reads it at about 1, within {1 / SIZE_RATIO:.2f}-"
+                f"{SIZE_RATIO:.2f}): the vehicle's specific force is not its track's - a banked "
+                "track (a railway's cant), a vehicle that is no car - and its angle "
+                f"({-math.degrees(yaw):+.1f} deg) says nothing of the mounting")
+            return
         if coherence > 0.5:
+            se = _yaw_se(z_imu, z_ref)
             # said even when small. The specific force seen turned by yaw is the IMU turned
             # by -yaw about the vehicle's down axis from the mounting given, the sign the
             # diagnosis' `vector_vehicle` z gives (the RTKLIB drive: +6.1 deg here, +6.06
             # [5.05, 7.07] there)
             rec.real["mounting_yaw_against_course"] = (
-                f"{-math.degrees(yaw):+.1f} deg about the vehicle's down axis: the IMU turned "
+                f"{-math.degrees(yaw):+.1f} deg (standard error {math.degrees(se):.2g}) about "
+                "the vehicle's down axis: the IMU turned "
                 "so from the mounting given (positive: its forward axis to the right of the "
                 "vehicle's), from the accelerometers' horizontal specific force against the "
                 f"GNSS track's acceleration (coherence {coherence:.2f}, size ratio "
@@ -332,8 +349,10 @@ def _check_against_course(rec):
                 f"measures one within {math.degrees(DIAGNOSED_YAW):.0f} deg with its interval "
                 "(mounting_misalignment, a small-angle term)"
                 + ("" if abs(yaw) <= DIAGNOSED_YAW else ", not this one: import it turned back")
-                + f"; --mounting-rpy-deg {_turned_back(rec, yaw, square=False)} would turn it "
-                "back")
+                + ("; within twice its standard error of the mounting given: nothing to turn "
+                   "back" if abs(yaw) < 2 * se else
+                   f"; --mounting-rpy-deg {_turned_back(rec, yaw, square=False)} would turn it "
+                   "back"))
         if coherence > 0.5 and abs(yaw) > COURSE_CHECK_YAW:
             raise RecordingError(
                 f"{rec.name}: the accelerometers' horizontal specific force matches the GNSS "
@@ -343,6 +362,16 @@ def _check_against_course(rec):
                 f"the mounting turned back would be --mounting-rpy-deg {_turned_back(rec, yaw)}"
                 + (" - unless the vehicle drives in reverse most of the time (then import a "
                    "forward stretch)" if abs(yaw) > math.radians(135.0) else ""))
+
+
+def _yaw_se(z_imu, z_ref, blocks=10):
+    """The standard error (rad) of the angle of `acceleration_match`'s gain: the jackknife
+    over `blocks` consecutive blocks of the epochs."""
+    block = np.arange(len(z_ref)) * blocks // len(z_ref)
+    parts = np.array([np.angle(acceleration_match(z_imu[block != b], z_ref[block != b])[0])
+                      for b in range(blocks)])
+    parts = np.angle(np.exp(1j * (parts - np.angle(np.mean(np.exp(1j * parts))))))
+    return math.sqrt((blocks - 1) / blocks * np.sum(parts ** 2))
 
 
 def _check_yaw_rate(rec, yaw_rate, rate, car, t_imu, t_ref, half):

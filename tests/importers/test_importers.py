@@ -49,10 +49,11 @@ def test_rtklib_excerpt_reader_units_and_times():
 def test_rtklib_excerpt_import_follows_the_contract(tmp_path, capsys):
     out = tmp_path / "drive.mcap"
     assert main(["import", "rtklib", str(DRIVE), "-o", str(out)]) == 0
-    # the mounting's yaw against the course, measured and said (+2.0 deg on the excerpt,
-    # +6.1 on the whole drive, whose diagnosis finds +6.06 [5.05, 7.07] about down)
-    assert re.search(r"measured mounting yaw: [-+]\d+\.\d deg about the vehicle's down axis",
-                     capsys.readouterr().out)
+    # the mounting's yaw against the course, measured and said with its standard error
+    # (+1.8 deg, se 7, on the excerpt; +6.1, se 1, on the whole drive, whose diagnosis finds
+    # +6.06 [5.05, 7.07] about down)
+    assert re.search(r"measured mounting yaw: [-+]\d+\.\d deg \(standard error [0-9.]+\) "
+                     r"about the vehicle's down axis", capsys.readouterr().out)
     with FlightLog(out) as log:
         meta = log.metadata()
         assert meta["flight"]["source"] == "recording"
@@ -1161,3 +1162,25 @@ def test_an_upside_down_mounting_is_refused_for_a_vehicle_that_rests_upright(tmp
     rocket = rec("rocket")
     write_log(rocket, tmp_path / "rocket.mcap")
     assert "resting_tilt" not in rocket.real
+
+
+def test_a_vehicle_whose_specific_force_is_not_its_tracks_reads_no_mounting_yaw(tmp_path):
+    """The drive that turns once, its IMU's horizontal specific force 0.4 times the track's
+    acceleration (as a railway's cant leaves a train's: the lean takes up the turn): the
+    angle between the two is no mounting - it had been said as 'measured +18 deg, turn it
+    back' on a train mounted 2 deg off. Not measured, and the size ratio said."""
+    t_tr, lat, lon, h, v = one_turn_track(1.0, rate=4.0)
+    t = np.arange(t_tr[0], t_tr[-1] + 1e-9, 0.01)
+    dth, dv = MOUNT.sensor_increments(truth.generate(TrackMotion(t_tr, lat, lon, h, v), t))
+    f_v = attitude.rotate(MOUNT.q_vs, dv * 100.0)
+    f_v[:, :2] *= 0.4
+    epoch = 1_700_000_000_000_000_000
+    rec = Recording("banked", "", epoch + np.round(t[1:] * 1e9).astype(np.int64), dth * 100.0,
+                    attitude.rotate(np.conjugate(MOUNT.q_vs), f_v), MOUNT,
+                    reference=dict(ns=epoch + np.round(t_tr * 1e9).astype(np.int64), lat=lat,
+                                   lon=lon, h=h, v_ned=v))
+    write_log(rec, tmp_path / "banked.mcap")
+    said = rec.real["mounting_yaw_against_course"]
+    assert said.startswith("not measured: the accelerometers' horizontal specific force is "
+                           "0.40 times"), said
+    assert "--mounting-rpy-deg" not in said
