@@ -8,7 +8,8 @@ import numpy as np
 import quaternion
 
 from ..navigation import alignment
-from ..navigation.rests import acceleration_match, span_means, track_acceleration
+from ..navigation.rests import (TRACK_FORCE_RATIO, acceleration_match, follows_track,
+                                span_means, track_acceleration)
 from ..frames import attitude
 from .pairing import pair, trajectory_clock
 from .recording import G0, RecordingError, utc_text
@@ -270,11 +271,7 @@ def _blocks(n, k):
 COURSE_CHECK_RATE = 0.02       # rad/s: the course must turn this much (std) to judge a gyro
 COURSE_CHECK_ACCEL = 0.3        # m/s^2: horizontal acceleration (std) to judge the axes
 COURSE_CHECK_YAW = math.radians(45.0)   # a forward axis this far off is a wrong mounting
-SIZE_RATIO = 1.25       # a car's IMU reads its track's horizontal acceleration at 1 up to
-#                         its body's lean and the road's camber (a few degrees of g: 0.92-
-#                         1.04 on the RTKLIB drive and a phone's); beyond 0.8-1.25 the
-#                         specific force is not the track's (a railway's cant took a train's
-#                         to 0.39, its angle 16 deg off the mounting) and no yaw is read
+
 DIAGNOSED_YAW = math.radians(20.0)      # the diagnosis' small-angle mounting term holds no
                                         # more (diagnosis.library.PHYSICAL_RANGE, 0.35 rad)
 
@@ -323,13 +320,14 @@ def _check_against_course(rec):
         z_imu = f_v[:, 0] + 1j * f_v[:, 1]
         gain, coherence = acceleration_match(z_imu, z_ref)
         yaw = float(np.angle(gain))
-        if coherence > 0.5 and not 1 / SIZE_RATIO < abs(gain) < SIZE_RATIO:
+        if coherence > 0.5 and not follows_track(gain, coherence):
             rec.real["mounting_yaw_against_course"] = (
                 f"not measured: the accelerometers' horizontal specific force is "
-                f"{abs(gain):.2f} times the GNSS track's acceleration (coherence "
-                f"{coherence:.2f}; a car's IMU reads it at about 1, within {1 / SIZE_RATIO:.2f}-"
-                f"{SIZE_RATIO:.2f}): the vehicle's specific force is not its track's - a banked "
-                "track (a railway's cant), a vehicle that is no car - and its angle "
+                f"{abs(gain):.2f}-{abs(gain) / coherence ** 2:.2f} times the GNSS track's "
+                f"acceleration (the two least-squares slopes, coherence {coherence:.2f}; a "
+                f"car's IMU reads it at about 1, within {1 / TRACK_FORCE_RATIO:.2f}-"
+                f"{TRACK_FORCE_RATIO:.2f}): the vehicle's specific force is not its track's - "
+                "a banked track (a railway's cant), a vehicle that is no car - and its angle "
                 f"({-math.degrees(yaw):+.1f} deg) says nothing of the mounting")
             return
         if coherence > 0.5:

@@ -316,18 +316,28 @@ def acceleration_match(z_imu, z_track):
     return complex(cross / np.sum(abs(z_track) ** 2)), float(abs(cross) / power) if power else 0.0
 
 
+TRACK_FORCE_RATIO = 1.25   # a car's IMU reads its track's horizontal acceleration at 1 up to
+#                            its body's lean and the road's camber (a few degrees of g: 0.92-
+#                            1.07 on the RTKLIB drive, its excerpt and a phone's); beyond
+#                            0.8-1.25 the specific force is not the track's (a railway's cant
+#                            took a train's to 0.39) and its angle tells neither a mounting
+#                            nor a direction of travel
+
+
 def travel_sign(t, f, mounting, track, t0, span=DIRECTION_SPAN_S, undecided=1.0):
-    """+1 when the vehicle moves forward at t0 (s), -1 when it reverses: over t0 +- span the
-    IMU's horizontal specific force (vehicle x + 1j y, each less its mean) regressed on the
-    track's acceleration (along + 1j across, `track_acceleration`) gives a complex gain
-    near +1 driving forward and near -1 reversing (the course is the heading + 180 deg:
-    speed changes and the centripetal force both act the other way in the vehicle frame).
-    Either needs the gain's real part beyond +-0.5 with coherence above 0.5 and the track
-    accelerating by DIRECTION_ACCEL: an aircraft's coordinated turns put almost none of the
-    centripetal acceleration into its lateral axis (gain -0.03 to -0.24 on a simulated
-    copter-like flight) and stay forward. `undecided` where the data cannot tell (a
-    constant speed on a straight road; fewer than 5 epochs): forward (1) for an alignment,
-    which must face somewhere; 0 for a vote (`diagnosis.track.reversing`)."""
+    """+1 when the vehicle moves forward at t0 (s), -1 when it reverses (the course is the
+    heading + 180 deg: speed changes and the centripetal force act the other way in the
+    vehicle frame). Over t0 +- span, where the along-track acceleration varies by
+    DIRECTION_ACCEL: the IMU's forward specific force (vehicle x) regressed on it (each less
+    its mean), a gain beyond +-0.5 at a correlation beyond 0.5. Else the horizontal
+    specific force (x + 1j y) on the track's acceleration (along + 1j across,
+    `track_acceleration`): a complex gain whose real part lies beyond +-0.5 at coherence
+    above 0.5 - and whose size may be 1 (`follows_track`), the vehicle's specific force its
+    track's: a banked road, a railway's cant, an aircraft's coordinated turn take up the
+    centripetal force (gain -0.03 to -0.24 on a simulated copter-like flight).
+    `undecided` where the data cannot tell (a constant speed on a straight road; fewer than
+    5 epochs): forward (1) for an alignment, which must face somewhere; 0 for a vote
+    (`diagnosis.track.reversing`)."""
     k = np.flatnonzero((track["t"] >= t0 - span) & (track["t"] <= t0 + span))
     if len(k) < 5:
         return undecided
@@ -344,12 +354,35 @@ def travel_sign(t, f, mounting, track, t0, span=DIRECTION_SPAN_S, undecided=1.0)
     _, _, z_track = track_acceleration(grid, v)
     near = slice(*np.searchsorted(t, [t0 - span - step, t0 + span + step]))   # the IMU
     f_v = attitude.rotate(mounting.q_vs, means_around(t[near], f[near], grid, step / 2))
-    if not np.isfinite(f_v).all() or np.std(z_track) < DIRECTION_ACCEL:
+    if not np.isfinite(f_v).all():
+        return undecided
+    # along the track first: across it a banked road or a railway's cant takes up the turn
+    # (a train entering canted curves had read -1 there: three windows faced backwards)
+    along = z_track.real - z_track.real.mean()
+    if np.std(along) >= DIRECTION_ACCEL:
+        forward = f_v[:, 0] - f_v[:, 0].mean()
+        gain = float(forward @ along / (along @ along))
+        if abs(float(np.corrcoef(forward, along)[0, 1])) > 0.5 and abs(gain) > 0.5:
+            return float(np.sign(gain))
+    # at a steady speed, the turns - where the vehicle's specific force is its track's
+    # acceleration in size (TRACK_FORCE_RATIO): a flat road's car, not a canted track's
+    if np.std(z_track) < DIRECTION_ACCEL:
         return undecided
     gain, coherence = acceleration_match(f_v[:, 0] + 1j * f_v[:, 1], z_track)
-    if coherence > 0.5 and abs(gain.real) > 0.5:
+    if coherence > 0.5 and abs(gain.real) > 0.5 and follows_track(gain, coherence):
         return float(np.sign(gain.real))
     return undecided
+
+
+def follows_track(gain, coherence):
+    """Whether a vehicle's horizontal specific force is its track's acceleration in size
+    (`acceleration_match`'s gain and coherence): the gain is the least-squares slope on the
+    track, shrunk by the track's own noise, and gain / coherence^2 the reverse slope,
+    swollen by the IMU's; the true size lies between, and must reach into
+    1/TRACK_FORCE_RATIO .. TRACK_FORCE_RATIO (a noisy 10 Hz car track: 0.43 .. 0.99; a
+    canted railway's train at a steady speed: its lateral force a fraction of the turn's)."""
+    size = abs(gain)
+    return size <= TRACK_FORCE_RATIO and size / max(coherence, 1e-9) ** 2 >= 1 / TRACK_FORCE_RATIO
 
 
 def means_around(t, x, epochs, half):

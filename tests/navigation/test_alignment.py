@@ -558,3 +558,25 @@ def test_an_ideal_imus_rest_is_quiet():
                  [0.0, 2.0, -9.81])
     rests = quiet_stretches(t, w, f)
     assert len(rests) == 1 and rests[0][0] < 0.1 and 19.0 <= rests[0][1] <= 20.05, rests
+
+
+def test_a_train_entering_a_canted_curve_travels_forward():
+    """A train speeding up from 20 to 23 m/s into a curve whose cant is steeper than its
+    speed needs: its lateral specific force runs against the turn (f_y = -a_across), as a
+    reversing car's would, while its forward one follows its speed (f_x = a_along). The
+    along-track acceleration decides: forward (the horizontal force's complex gain had said
+    reversing, and three windows of a train faced backwards)."""
+    from mimunav.navigation.rests import track_acceleration, travel_sign
+    t_tr = np.arange(0.0, 20.0 + 1e-9, 0.2)
+    speed = 20.0 + 3.0 * smoothstep((t_tr - 6.0) / 8.0)
+    course = np.radians(30.0) + np.cumsum(np.r_[0.0, np.diff(t_tr)] * np.radians(5.0)
+                                          * smoothstep((t_tr - 4.0) / 6.0))
+    v = np.column_stack([speed * np.cos(course), speed * np.sin(course), 0 * t_tr])
+    _, _, z = track_acceleration(t_tr, v)
+    t = np.arange(0.0, 20.0, 0.01)
+    along, across = np.interp(t, t_tr, z.real), np.interp(t, t_tr, z.imag)
+    f = np.column_stack([along, -across, np.full_like(t, -9.81)])       # FRD, as mounted
+    track = {"t": t_tr, "v_ned": v}
+    assert travel_sign(t, f, Mounting(), track, 10.0, undecided=0.0) == 1.0
+    reversing = np.column_stack([-along, -across, np.full_like(t, -9.81)])
+    assert travel_sign(t, reversing, Mounting(), track, 10.0, undecided=0.0) == -1.0
