@@ -317,49 +317,56 @@ def _check_against_course(rec):
         return
     z_ref = z_track[sel]
     if np.std(z_ref) > COURSE_CHECK_ACCEL:
-        z_imu = f_v[:, 0] + 1j * f_v[:, 1]
-        gain, coherence = acceleration_match(z_imu, z_ref)
-        yaw = float(np.angle(gain))
-        if coherence > 0.5 and not follows_track(gain, coherence):
-            rec.real["mounting_yaw_against_course"] = (
-                f"not measured: the accelerometers' horizontal specific force is "
-                f"{abs(gain):.2f}-{abs(gain) / coherence ** 2:.2f} times the GNSS track's "
-                f"acceleration (the two least-squares slopes, coherence {coherence:.2f}; a "
-                f"car's IMU reads it at about 1, within {1 / TRACK_FORCE_RATIO:.2f}-"
-                f"{TRACK_FORCE_RATIO:.2f}): the vehicle's specific force is not its track's - "
-                "a banked track (a railway's cant), a vehicle that is no car - and its angle "
-                f"({-math.degrees(yaw):+.1f} deg) says nothing of the mounting")
-            return
-        if coherence > 0.5:
-            se = _yaw_se(z_imu, z_ref)
-            # said even when small. The specific force seen turned by yaw is the IMU turned
-            # by -yaw about the vehicle's down axis from the mounting given, the sign the
-            # diagnosis' `vector_vehicle` z gives (the RTKLIB drive: +6.1 deg here, +6.06
-            # [5.05, 7.07] there)
-            rec.real["mounting_yaw_against_course"] = (
-                f"{-math.degrees(yaw):+.1f} deg (standard error {math.degrees(se):.2g}) about "
-                "the vehicle's down axis: the IMU turned "
-                "so from the mounting given (positive: its forward axis to the right of the "
-                "vehicle's), from the accelerometers' horizontal specific force against the "
-                f"GNSS track's acceleration (coherence {coherence:.2f}, size ratio "
-                f"{abs(gain):.2f}; a car's body slip and lean take a few degrees): beyond "
-                f"{math.degrees(COURSE_CHECK_YAW):.0f} deg it is refused; `mimunav diagnose` "
-                f"measures one within {math.degrees(DIAGNOSED_YAW):.0f} deg with its interval "
-                "(mounting_misalignment, a small-angle term)"
-                + ("" if abs(yaw) <= DIAGNOSED_YAW else ", not this one: import it turned back")
-                + ("; within twice its standard error of the mounting given: nothing to turn "
-                   "back" if abs(yaw) < 2 * se else
-                   f"; --mounting-rpy-deg {_turned_back(rec, yaw, square=False)} would turn it "
-                   "back"))
-        if coherence > 0.5 and abs(yaw) > COURSE_CHECK_YAW:
-            raise RecordingError(
-                f"{rec.name}: the accelerometers' horizontal specific force matches the GNSS "
-                f"track's acceleration with the IMU turned {-math.degrees(yaw):+.0f} deg about "
-                f"the vehicle's down axis from the mounting given (coherence {coherence:.2f}): "
-                "the sensor axes or the mounting's yaw are off by that much; "
-                f"the mounting turned back would be --mounting-rpy-deg {_turned_back(rec, yaw)}"
-                + (" - unless the vehicle drives in reverse most of the time (then import a "
-                   "forward stretch)" if abs(yaw) > math.radians(135.0) else ""))
+        _mounting_yaw(rec, f_v[:, 0] + 1j * f_v[:, 1], z_ref)
+
+
+def _mounting_yaw(rec, z_imu, z_ref):
+    """The mounting's yaw from the IMU's horizontal specific force z_imu (vehicle x + 1j y,
+    m/s^2) against the track's acceleration z_ref (along + 1j across) at the same epochs:
+    said in rec.real (with its standard error, or why it is not measured), refused beyond
+    COURSE_CHECK_YAW."""
+    gain, coherence = acceleration_match(z_imu, z_ref)
+    yaw = float(np.angle(gain))
+    if coherence > 0.5 and not follows_track(gain, coherence):
+        rec.real["mounting_yaw_against_course"] = (
+            f"not measured: the accelerometers' horizontal specific force is "
+            f"{abs(gain):.2f}-{abs(gain) / coherence ** 2:.2f} times the GNSS track's "
+            f"acceleration (the two least-squares slopes, coherence {coherence:.2f}; a "
+            f"car's IMU reads it at about 1, within {1 / TRACK_FORCE_RATIO:.2f}-"
+            f"{TRACK_FORCE_RATIO:.2f}): the vehicle's specific force is not its track's - "
+            "a banked track (a railway's cant), a vehicle that is no car - and its angle "
+            f"({-math.degrees(yaw):+.1f} deg) says nothing of the mounting")
+        return
+    if coherence > 0.5:
+        se = _yaw_se(z_imu, z_ref)
+        # said even when small. The specific force seen turned by yaw is the IMU turned
+        # by -yaw about the vehicle's down axis from the mounting given, the sign the
+        # diagnosis' `vector_vehicle` z gives (the RTKLIB drive: +6.1 deg here, +6.06
+        # [5.05, 7.07] there)
+        rec.real["mounting_yaw_against_course"] = (
+            f"{-math.degrees(yaw):+.1f} deg (standard error {math.degrees(se):.2g}) about "
+            "the vehicle's down axis: the IMU turned "
+            "so from the mounting given (positive: its forward axis to the right of the "
+            "vehicle's), from the accelerometers' horizontal specific force against the "
+            f"GNSS track's acceleration (coherence {coherence:.2f}, size ratio "
+            f"{abs(gain):.2f}; a car's body slip and lean take a few degrees): beyond "
+            f"{math.degrees(COURSE_CHECK_YAW):.0f} deg it is refused; `mimunav diagnose` "
+            f"measures one within {math.degrees(DIAGNOSED_YAW):.0f} deg with its interval "
+            "(mounting_misalignment, a small-angle term)"
+            + ("" if abs(yaw) <= DIAGNOSED_YAW else ", not this one: import it turned back")
+            + ("; within twice its standard error of the mounting given: nothing to turn "
+               "back" if abs(yaw) < 2 * se else
+               f"; --mounting-rpy-deg {_turned_back(rec, yaw, square=False)} would turn it "
+               "back"))
+    if coherence > 0.5 and abs(yaw) > COURSE_CHECK_YAW:
+        raise RecordingError(
+            f"{rec.name}: the accelerometers' horizontal specific force matches the GNSS "
+            f"track's acceleration with the IMU turned {-math.degrees(yaw):+.0f} deg about "
+            f"the vehicle's down axis from the mounting given (coherence {coherence:.2f}): "
+            "the sensor axes or the mounting's yaw are off by that much; "
+            f"the mounting turned back would be --mounting-rpy-deg {_turned_back(rec, yaw)}"
+            + (" - unless the vehicle drives in reverse most of the time (then import a "
+               "forward stretch)" if abs(yaw) > math.radians(135.0) else ""))
 
 
 def _yaw_se(z_imu, z_ref, blocks=10):
