@@ -511,11 +511,11 @@ def reference_track(rec, epoch):
                 heading_known=rec.reference_heading_known)
 
 
-UPRIGHT_DEG = 60.0      # deg: a car, an aircraft, a ship or a copter at rest stands within
+UPRIGHT_DEG = 60.0      # deg: a car, a train, an aircraft, a ship or a copter at rest is within
 #                        this of level (a tail-dragger's 10-15 deg of pitch, a moored hull's
 #                        roll); beyond it the mounting given has the IMU's axes turned -
 #                        a z axis up taken as down reads a roll of 180
-RESTS_UPRIGHT = ("car", "aircraft", "multicopter", "ship")
+RESTS_UPRIGHT = ("car", "train", "aircraft", "multicopter", "ship")
 
 
 def resting_upright(rec, align):

@@ -4,5 +4,6 @@ reads (KINDS) and what can carry the IMU (VEHICLES)."""
 KINDS = ("rtklib", "ros2", "ulog", "dataflash", "table")
 # what can carry an IMU, as a recording declares it (`mimunav import --vehicle`, a table
 # spec's `vehicle`): a car's track gives its attitude (no side slip, the track level); the
-# others' tracks do not
-VEHICLES = ("car", "aircraft", "multicopter", "rocket", "pedestrian", "ship", "other")
+# others' tracks do not - a train's neither: its curves are canted, its body rolls into
+# them (3-6 deg) where a road car's model holds it level
+VEHICLES = ("car", "train", "aircraft", "multicopter", "rocket", "pedestrian", "ship", "other")

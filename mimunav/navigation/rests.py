@@ -25,14 +25,18 @@ STILL_TOLERANCE = 0.5       # m/s: a noisy reference shows rest when its speed's
 
 def rest_intervals(t_track, v_ned, t_first, t_last):
     """Rest periods of a track, [(t0, t1)] s: runs of epochs slower than STATIC_SPEED (m/s)
-    in their mean velocity over STATIC_AVERAGE_S (the displacement over it: a moving
-    vehicle's is not noise), each end that meets motion moved STATIC_MARGIN_S into the rest
+    in their mean horizontal velocity over STATIC_AVERAGE_S (the displacement over it: a
+    moving vehicle's is not noise) and vertically within STATIC_SPEED or
+    VERTICAL_NOISE_TIMES that mean's own noise (`_mean_noise`), each end that meets motion
+    moved STATIC_MARGIN_S into the rest
     from the neighbouring moving epoch; a run that starts the track starts at t_first (the
     IMU's first stamp), one that ends it ends at t_last. Only rests of at least MIN_STATIC_S
     are returned."""
     t_track = np.asarray(t_track, float)
     mean = means_around(t_track, np.asarray(v_ned, float), t_track, STATIC_AVERAGE_S / 2)
-    still = np.linalg.norm(mean, axis=1) <= STATIC_SPEED
+    still = (np.hypot(mean[:, 0], mean[:, 1]) <= STATIC_SPEED) & \
+        (np.abs(mean[:, 2]) <= max(STATIC_SPEED, VERTICAL_NOISE_TIMES *
+                                   _mean_noise(t_track, np.asarray(v_ned, float)[:, 2])))
     edges = np.flatnonzero(np.diff(np.concatenate([[0], still.astype(int), [0]])))
     out = []
     for a, b in zip(edges[::2], edges[1::2]):          # still[a:b]
@@ -44,6 +48,42 @@ def rest_intervals(t_track, v_ned, t_first, t_last):
     return out
 
 
+REST_BRIDGE_S = 2 * STATIC_MARGIN_S + 2 * STATIC_AVERAGE_S   # s: one noisy epoch's speed,
+#                            averaged and trimmed either side, breaks a rest by about this much
+#                            (a train's 90 s in a station had broken at 4.5, 19.5, 26.5 s);
+#                            `steady_runs` then judges the bridged span on the IMU
+
+
+def _bridged(rests):
+    """The rests [(t0, t1)] with those REST_BRIDGE_S or less apart joined."""
+    out = []
+    for t0, t1 in rests:
+        if out and t0 - out[-1][1] <= REST_BRIDGE_S:
+            out[-1] = (out[-1][0], t1)
+        else:
+            out.append((t0, t1))
+    return out
+
+
+VERTICAL_NOISE_TIMES = 4.0  # a vertical velocity differenced from noisy heights (1-3 m at
+#                            1 Hz: metres per second) judges a rest only beyond this many of
+#                            its own standard errors: a train's 90 s in a station had broken
+#                            into 2-6 s pieces by it, and its gyro bias came from one
+
+
+def _mean_noise(t, x):
+    """The white noise (1 sigma) of x's mean over STATIC_AVERAGE_S at epochs t: from the
+    second differences' MAD (a second difference of white noise has 6 times its variance),
+    over the root of the epochs averaged; 0 for fewer than 5 epochs."""
+    x = np.asarray(x, float)
+    if len(x) < 5:
+        return 0.0
+    d2 = x[2:] - 2 * x[1:-1] + x[:-2]
+    sigma = 1.4826 * float(np.median(np.abs(d2 - np.median(d2)))) / math.sqrt(6)
+    epochs = max(1.0, STATIC_AVERAGE_S / float(np.median(np.diff(t))))
+    return sigma / math.sqrt(epochs)
+
+
 def felt_at_rest(t, w, f, rests):
     """The rests [(t0, t1)] s (a reference's, `rest_intervals`) where the IMU feels one too:
     its mean specific force gravity's size (within REST_GRAVITY) and its mean rate about the
@@ -51,9 +91,10 @@ def felt_at_rest(t, w, f, rests):
     spins (a rocket's apogee under a stalled GNSS velocity) is no rest - and, within them,
     the runs where it holds still (`steady_runs`: a moored boat rocking on its mooring is
     still to its GNSS, and its mean rate is small, but its gyro bias from that 'rest' had
-    been 20 times the truth); ([kept], [(t0, t1, why not)])."""
+    been 20 times the truth) - reference rests a noisy epoch's speed split joined first
+    (`_bridged`), the IMU judging the gap; ([kept], [(t0, t1, why not)])."""
     kept, refused = [], []
-    for t0, t1 in rests:
+    for t0, t1 in _bridged(rests):
         k = (t >= t0) & (t <= t1)
         if not k.any():
             continue

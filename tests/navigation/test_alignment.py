@@ -580,3 +580,25 @@ def test_a_train_entering_a_canted_curve_travels_forward():
     assert travel_sign(t, f, Mounting(), track, 10.0, undecided=0.0) == 1.0
     reversing = np.column_stack([-along, -across, np.full_like(t, -9.81)])
     assert travel_sign(t, reversing, Mounting(), track, 10.0, undecided=0.0) == -1.0
+
+
+def test_a_rest_split_by_noisy_speeds_is_joined_where_the_imu_holds_still():
+    """A train's 90 s in a station under a 1 Hz fix whose speed spikes past STATIC_SPEED at
+    three epochs, and whose vertical velocity - differenced from heights with 2 m of noise
+    - is metres per second: the reference's rest had broken into 2-6 s pieces and the gyro
+    bias came from one of them. The vertical judges a rest only beyond its own noise, the
+    pieces a spike splits are joined, and the still IMU keeps the whole 0-90 s."""
+    from mimunav.navigation.rests import felt_at_rest
+    rng = np.random.default_rng(4)
+    t_tr = np.arange(0.0, 120.0 + 1e-9, 1.0)
+    speed = np.where(t_tr < 90.0, 0.0, 0.5 * (t_tr - 90.0))
+    v = np.column_stack([speed + rng.normal(0, 0.03, len(t_tr)), rng.normal(0, 0.03, len(t_tr)),
+                         np.gradient(rng.normal(0, 2.0, len(t_tr)), t_tr)])
+    v[[5, 20, 27], 0] += 0.5                                    # three spiky epochs
+    rests = rest_intervals(t_tr, v, 0.0, 120.0)
+    t = np.arange(0.005, 120.0, 0.01)
+    w = np.radians([0.02, -0.035, 0.025]) + rng.normal(0, np.radians(0.05), (len(t), 3))
+    f = np.column_stack([np.where(t < 90.0, 0.0, 0.5), np.zeros_like(t), np.full_like(t, -9.81)])
+    f = f + rng.normal(0, 0.02, f.shape)
+    kept, _ = felt_at_rest(t, w, f, rests)
+    assert kept and kept[0][0] == 0.0 and 86.0 <= kept[0][1] <= 90.0, (rests, kept)
