@@ -343,7 +343,7 @@ MODEL_STEP_Z = 3.0      # a stop's held pitch error (measured: a sigma) counts 3
 #                         normal bound: 0.3 % of the model's steps lie beyond)
 
 
-def model_excursions(spans, t, held_sd, f_model, q_vs):
+def model_excursions(spans, t, held_sd, f_model, q_vs, moving_sd=None):
     """(kept, set aside): the scan's excursions `spans` (`scan.excursions`) with those the
     vehicle model's own errors may make there set aside, the two it states for an
     accelerometer together (root sum square):
@@ -356,9 +356,13 @@ def model_excursions(spans, t, held_sd, f_model, q_vs):
         acceleration (passenger cars' bound, taken as one here, not as a sigma): a step of
         the horizontal specific force by a moves the output by up to 0.12 a (the RTKLIB
         drive's departure, +0.52 m/s^2 at z 12.5, is beyond its 0.22: it stays unexplained).
+      - a moving vehicle's pitch, from its smoothed vertical velocity over its speed: its
+        error at the window and at the baseline's, each up to MODEL_STEP_Z sigma
+        (`TrackMotion.moving_pitch_sd`; a train's from 1-3 m heights at 4 m/s, 0.64 m/s^2).
     t: the design's bin times (s); held_sd: the held pitch's 1 sigma at them (rad,
     `TrackMotion.held_pitch_sd`); f_model: the model's specific force in the bins (m/s^2,
-    MIMU sensor axes); q_vs: the MIMU's mounting (sensor to vehicle)."""
+    MIMU sensor axes); q_vs: the MIMU's mounting (sensor to vehicle); moving_sd: the moving
+    pitch's 1 sigma at the bins (rad; None: 0)."""
     turn_back = np.conj(q_vs)
     forward = quaternion.rotate_vectors(turn_back, np.array([1.0, 0.0, 0.0]))
     f_v = quaternion.rotate_vectors(q_vs, f_model)
@@ -373,16 +377,28 @@ def model_excursions(spans, t, held_sd, f_model, q_vs):
         i = "xyz".index(axis)
         held = G0 * abs(forward[i]) * _window_step(t, held_sd, span["peak_t0"])
         body = _window_step(t, tilt[:, i], span["peak_t0"])
-        bound = math.hypot(MODEL_STEP_Z * np.nan_to_num(held), np.nan_to_num(body))
+        moving = 0.0 if moving_sd is None else \
+            G0 * abs(forward[i]) * math.sqrt(2) * _window_peak(t, moving_sd, span["peak_t0"])
+        bound = math.hypot(MODEL_STEP_Z * np.nan_to_num(held), np.nan_to_num(body),
+                           MODEL_STEP_Z * moving)
         if abs(span["size"]) <= bound:
             aside.append(dict(span, bound=bound,
                               why=f"the step the vehicle model's own errors may make there "
                                   f"({MODEL_STEP_Z:g} sigma of a stop's held pitch, "
-                                  f"{MODEL_STEP_Z * held:.2g}; the body's tilt on its springs "
-                                  f"at most {body:.2g} m/s^2): the model's, not the IMU's"))
+                                  f"{MODEL_STEP_Z * np.nan_to_num(held):.2g}, and of a moving one's, "
+                                  f"{MODEL_STEP_Z * moving:.2g}; the body's tilt on its "
+                                  f"springs at most {body:.2g} m/s^2): the model's, not the "
+                                  "IMU's"))
         else:
             kept.append(span)
     return kept, aside
+
+
+def _window_peak(t, series, t0, window_s=2.0, reach=5.0):
+    """The series' largest value over the scan's window at t0 (s) and its baselines (within
+    `reach` s of it either side); 0 where no bin lies there."""
+    k = (t >= t0 - reach) & (t <= t0 + window_s + reach)
+    return float(np.nanmax(series[k])) if k.any() else 0.0
 
 
 def _window_step(t, series, t0, window_s=2.0, around=(-5, -4, 4, 5)):

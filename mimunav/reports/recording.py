@@ -146,7 +146,7 @@ def markdown(log_path, meta, channels, flight, docs, no_windows, doc, no_diagnos
     q = flight.initial.q_nb
     yaw, pitch, roll = (float(np.degrees(a)) for a in attitude.as_euler(q))
     lines += ["", f"Initial state at t = {flight.initial.t:.2f} s: roll {roll:.2f}, pitch "
-              f"{pitch:.2f}, heading {yaw % 360:.1f} deg, speed "
+              f"{pitch:.2f}, heading {round(yaw, 1) % 360 + 0.0:.1f} deg, speed "
               f"{np.linalg.norm(flight.initial.v_ned):.2f} m/s.", "",
               "## Channels (`mimunav info`)", "", "```", channels, "```", "",
               "## Free-inertial windows against the reference (`mimunav windows`)", ""]
