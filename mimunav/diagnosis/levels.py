@@ -14,6 +14,7 @@ from ..compensation.calibration_file import Calibration
 from ..errors import InputError
 from ..evaluation.flight import Flight, no_reference, refuse_gaps
 from . import navigation, sensor, track, vehicle_kind
+from ..motion.carrier import ALONG_COURSE
 
 LEVELS = ("sensor", "navigation", "track")
 
@@ -134,20 +135,21 @@ def fused_reference(flight):
 def unmeasured_heading(flight, vehicle=None):
     """Why the navigation level's findings cannot stand on this recording's initial state, or
     '': its heading was assumed (nothing measured it), or taken from the GNSS course - which
-    holds for a car, not for what else may carry an IMU (a walker's phone points anywhere, a
-    multicopter flies sideways). A simulation's initial state is the truth's."""
+    holds for a car or a train (`motion.carrier.ALONG_COURSE`), not for what else may carry
+    an IMU (a walker's phone points anywhere, a multicopter flies sideways). A simulation's
+    initial state is the truth's."""
     if flight.source != "recording":
         return ""
     heading = (flight.recording or {}).get("initial_heading") or _heading_from_text(flight)
     if heading == "reference":
         return ""
     kind, how = vehicle_of(flight, vehicle)
-    if heading == "course" and kind == vehicle_kind.LAND:
+    if heading == "course" and kind in ALONG_COURSE:
         return ""
     why = ((flight.recording or {}).get("assumed") or {}).get("initial_heading")
     said = ((why or "assumed: nothing measured it") if heading == "assumed" else
-            f"taken from the GNSS course, which is the heading of a car only, and this "
-            f"recording is not one ({how})")
+            f"taken from the GNSS course, which is the heading only of what moves along its "
+            f"forward axis (a car, a train), and this recording is neither ({how})")
     return (f"the initial heading was {said}: the MIMU's velocity error against the reference "
             "would fit that heading's error, not the MIMU's, so no finding is made from it")
 

@@ -22,6 +22,8 @@ The climbs are judged on the velocities' CLIMB_WINDOW_S means: a phone's 1 Hz al
 import numpy as np
 
 LAND = "car"
+ALONG_COURSE = (LAND, "train")     # what moves along its forward axis: its course its heading
+#                                    (a car without side slip, a train on its rails)
 MOVING_SPEED = 5.0          # m/s: 18 km/h - a car's drive reaches it most of the time it moves
 CAR_SPEED = 70.0            # m/s: 250 km/h
 GRADE = 0.3                 # 30 %: steeper than any public road (the steepest about 35 % over
