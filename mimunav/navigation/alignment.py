@@ -313,16 +313,18 @@ def _from_rest(t, w, f, mounting, track, interval, still_until=-math.inf):
 
 def _course_epochs(t, w_v, track, fast):
     """(the track's epochs whose courses give the heading, whether they drive straight):
-    the `fast` ones within COURSE_SEARCH_S of the first where the gyro's yaw rate (vehicle
-    axes w_v, rad/s at stamps t; its mean over +-0.5 s) is below STRAIGHT_RATE, else the
-    first COURSE_SPAN_S of them all."""
+    the first COURSE_SPAN_S's worth of the `fast` ones within COURSE_SEARCH_S of the first
+    where the gyro's yaw rate (vehicle axes w_v, rad/s at stamps t; its mean over +-0.5 s)
+    is below STRAIGHT_RATE, else the first COURSE_SPAN_S of them all. The earliest: an
+    aircraft's courses on its runway are its heading, in the air a crosswind crabs them."""
     if not len(fast):
         return fast, False
     t_k = track["t"][fast]
     rate = means_around(t, w_v[:, 2:], t_k, 0.5)[:, 0]
     straight = fast[(t_k <= t_k[0] + COURSE_SEARCH_S) & (np.abs(rate) < STRAIGHT_RATE)]
-    if len(straight):
-        return straight, True
+    if len(straight):           # the first COURSE_SPAN_S's worth of them: the earliest, an
+        step = float(np.median(np.diff(track["t"])))      # aircraft's still on its runway
+        return straight[:max(1, int(round(COURSE_SPAN_S / step)))], True
     return fast[t_k <= t_k[0] + COURSE_SPAN_S], False
 
 
