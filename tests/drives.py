@@ -6,7 +6,7 @@ import math
 import numpy as np
 import quaternion
 
-from mimunav.frames import earth
+from mimunav.frames import attitude, earth
 from mimunav.motion import truth
 from mimunav.importers.recording import Recording
 from mimunav.importers.write import write_log
@@ -150,3 +150,18 @@ def under_a_noisy_fix(track, rng, gyro_bias=np.zeros(3)):
     return Recording("noisy", "", epoch + np.round(t[1:] * 1e9).astype(np.int64), w, f, MOUNT,
                      reference=dict(ns=ns, lat=lat_n, lon=lon_n, h=h[k],
                                     v_ned=velocity_from_positions(ns, lat_n, lon_n, h[k])))
+
+
+class FacingMotion(TrackMotion):
+    """`TrackMotion` of a vehicle that faces heading_deg whichever way it moves along it (a
+    car backing out: its course heading_deg + 180); its body rates turned with it."""
+    heading_deg = 30.0
+
+    def kinematics(self, t):
+        from mimunav.motion.truth import Kinematics
+        kin = super().kinematics(t)
+        back = np.cos(attitude.as_euler(kin.q_nb)[0] - math.radians(self.heading_deg)) < 0
+        q = kin.q_nb.copy()
+        q[back] = q[back] * quaternion.from_rotation_vector([0.0, 0.0, math.pi])
+        flip = np.where(back[:, None], [-1.0, -1.0, 1.0], 1.0)
+        return Kinematics(kin.v_ned, kin.a_ned, q, kin.w_nb_b * flip, kin.dw_nb_b * flip)

@@ -206,7 +206,8 @@ def diagnose(flight, cal, alpha=0.05, reference=None, accuracy=None):
     diag.unexplained, the_models = model_excursions(
         diag.unexplained, diag.design.t, motion.held_pitch_sd(diag.design.t),
         diag.design.inputs[:, :3], flight.mimu_mounting.q_vs,
-        moving_sd=motion.moving_pitch_sd(diag.design.t))
+        moving_sd=np.where(motion.trusted(diag.design.t), motion.moving_pitch_sd(diag.design.t),
+                           0.0))      # crawling, the model is not judged (TRUSTED_SPEED)
     # a channel the model does not predict has its own errors in its residual: an excursion
     # there says nothing of the IMU (a 0.5 m-fix drive's accel.x, +2.84 m/s^2 at z 9.2)
     unfollowed = [u for u in diag.unexplained if not corr[u["channel"]] >= PREDICTED_CORRELATION]

@@ -520,12 +520,15 @@ RESTS_UPRIGHT = ("car", "train", "aircraft", "multicopter", "ship")
 
 def resting_upright(rec, align):
     """A vehicle that rests upright must level at its rest through the mounting given: a
-    declared car, aircraft, ship or copter beyond UPRIGHT_DEG of roll or pitch is refused
-    with the mounting that levels it (the yaw as given); an undeclared one is said in
-    rec.real["resting_tilt"] (it may be a rocket on its rail or a hand-held unit). Judged
-    only where the alignment found a rest (a moving vehicle banks)."""
-    if np.isnan(align.static[0]) or rec.vehicle in ("rocket", "pedestrian", "other"):
-        return
+    declared car, train, aircraft, ship or copter beyond UPRIGHT_DEG of roll or pitch is
+    refused with the mounting that levels it (the yaw as given); an undeclared one is said
+    in rec.real["resting_tilt"] (it may be a rocket on its rail or a hand-held unit).
+    Judged only where a rest starts the recording, whose attitude the alignment's is (a
+    moving vehicle banks: an aircraft's log starting in a 70 deg bank, its rest later, had
+    been refused as mounted 70 deg off)."""
+    if not align.at_rest_start or np.isnan(align.static[0]) or \
+            rec.vehicle in ("rocket", "pedestrian", "other"):
+        return                  # the attitude at t0 is its rest's only when a rest starts it
     _, pitch, roll = attitude.as_euler(attitude.from_wxyz(align.q_nb))
     if max(abs(roll), abs(pitch)) <= math.radians(UPRIGHT_DEG):
         return
@@ -537,7 +540,8 @@ def resting_upright(rec, align):
             f"--mounting-rpy-deg {math.degrees(roll_l):.1f} {math.degrees(pitch_l):.1f} "
             f"{math.degrees(yaw_l):.1f} (a table spec's mounting_rpy_deg)")
     if rec.vehicle in RESTS_UPRIGHT:
-        raise RecordingError(f"{rec.name}: a {rec.vehicle} rests upright (within "
+        article = "an" if rec.vehicle[0] in "aeiou" else "a"
+        raise RecordingError(f"{rec.name}: {article} {rec.vehicle} rests upright (within "
                              f"{UPRIGHT_DEG:g} deg of level), but {said}")
     rec.real["resting_tilt"] = (f"{said}: a vehicle that rests upright is not so mounted "
                                 "(declare it with --vehicle to have this refused)")

@@ -39,11 +39,11 @@ from .rests import (G0, MIN_STATIC_S, felt_at_rest, rate_mean_se, QUIET_WINDOW_S
 
 COURSE_SPEED = 3.0          # m/s: horizontal speed from which the GNSS course gives heading
 #                             where the track's velocity noise is not measured or large
-COURSE_SIGMA_DEG = 2.0      # deg: a course epoch's error from the velocity noise, at most -
-#                             what a 0.1 m/s plain fix makes at COURSE_SPEED (1.9 deg)
+COURSE_SIGMA_DEG = 2.0      # deg: the error of a course averaged over COURSE_SPAN_S, at
+#                             most - what one epoch of a 0.1 m/s plain fix makes at
+#                             COURSE_SPEED (1.9 deg)
 COURSE_SPEED_MIN = 1.0      # m/s: the least, however quiet the track: a walker's sway
 #                             (+-0.2 m/s across) turns a slower course by more than that
-                            # weave: 0.2; IMU noise in 1 s means: ~0.01)
 MOVING_HALF_WINDOW_MAX_S = 5.0  # s: the longest (the gyro's bias turns the increment by
                                 # b x 5 s: 0.1 deg for 0.02 deg/s left after the rest)
 MOVING_ACCEL_ERROR = 0.02       # m/s^2: the interval's acceleration error aimed at (0.1 deg)
@@ -146,8 +146,9 @@ def initial_alignment(t, w, f, mounting, track=None):
     case applies, an InputError says what the recording lacks."""
     if track is None or len(track["t"]) < 2:
         return _untracked(t, w, f, mounting)
-    rests, not_rests = felt_at_rest(t, w, f, rest_intervals(track["t"], track["v_ned"],
-                                                            float(t[0]), float(t[-1])))
+    heights = (track["t"], track["h"]) if "h" in track else None
+    rests, not_rests = felt_at_rest(t, w, f, rest_intervals(
+        track["t"], track["v_ned"], float(t[0]), float(t[-1]), h=track.get("h")), heights)
     if rests and rests[0][0] <= t[0]:
         return _from_rest(t, w, f, mounting, track, rests[0])
     # a noisy fix's differenced speed can hide a rest the IMU and the fix's positions show
@@ -257,18 +258,24 @@ def _from_rest(t, w, f, mounting, track, interval, still_until=-math.inf):
     # heading at rest; a track without attitude gives a course from the speed its noise allows
     moving = np.flatnonzero((speed >= COURSE_SPEED) & after)
     fast = moving if q_ref is not None else \
-        np.flatnonzero((speed >= course_speed(track)) & after)
+        np.flatnonzero((speed >= course_speed(track, interval)) & after)
     w_v = attitude.rotate(q_vs, w - w[rest].mean(axis=0))
     back = _reference_heading_back(t, w_v, t_end, track, moving)
     k, straight = _course_epochs(t, w_v, track, fast)
+    if len(k) and speed[k[0]] < COURSE_SPEED and \
+            travel_sign(t, f, mounting, track, float(track["t"][k[0]]), undecided=0.0) == 0:
+        # slower than COURSE_SPEED, which way it moves must be read off the data (a car
+        # backing out straight at 1.6 m/s had faced 180 deg off, taken as forward)
+        fast = moving
+        k, straight = _course_epochs(t, w_v, track, fast)
     if back is not None:
         yaw, i = back
         heading = "reference"
         notes.append(f"heading from the reference's attitude at t = {track['t'][i]:.2f} s, "
                      f"moving ({speed[i]:.1f} m/s), turned back to the rest by the gyro")
     elif len(fast):
-        # each fast epoch of the first COURSE_SPAN_S gives the heading at rest (its course
-        # less the gyro's yaw since): their circular mean weighted by speed^2, so one noisy
+        # each chosen epoch (`_course_epochs`) gives the heading at rest (its course less
+        # the gyro's yaw since): their circular mean weighted by speed^2, so one noisy
         # course (a plain fix's differenced velocity, ~1 m/s of noise) does not set it
         course = np.arctan2(track["v_ned"][k, 1], track["v_ned"][k, 0])
         if travel_sign(t, f, mounting, track, float(track["t"][k[0]])) < 0:
@@ -292,7 +299,7 @@ def _from_rest(t, w, f, mounting, track, interval, still_until=-math.inf):
     else:
         yaw, heading = 0.0, "assumed"
         notes.append(f"heading assumed 0 (the track never exceeds "
-                     f"{course_speed(track):.2g} m/s "
+                     f"{course_speed(track, interval):.2g} m/s "
                      "and carries no attitude)")
     q_nb = attitude.from_euler(np.array(yaw), np.array(pitch), np.array(roll))
     gyro_bias, accel_bias = _rest_biases(w[rest], f[rest], q_nb * q_vs, lat, h)
@@ -482,22 +489,33 @@ def moving_attitude(t, w, f, mounting, track, t0, half=MOVING_HALF_WINDOW_S):
     return attitude.as_wxyz(attitude.from_scipy(rot))
 
 
-def course_speed(track, span_s=COURSE_SPAN_S):
-    """The horizontal speed (m/s) from which the track's courses, averaged over the epochs
-    of span_s, give the heading at a rest's end: where the noise of its velocity
-    (`velocity_noise`, per axis) averaged so turns a course by COURSE_SIGMA_DEG, within
-    COURSE_SPEED_MIN .. COURSE_SPEED (unmeasured: COURSE_SPEED). An RTK robot's track
-    (0.13 m/s per 10 Hz epoch, 50 epochs in COURSE_SPAN_S) gives it its heading at 1.2 m/s
-    (a fixed 3 m/s had left it assumed); a plain fix's 0.1 m/s at 1 Hz keeps 3 m/s. What
-    takes one epoch's course or its rate (the moving alignment, the windows' starts, the
-    course checks) keeps COURSE_SPEED: at a walking pace a turn's w x r of an antenna
-    ahead of the axle runs the course off the heading (a pull-out's course rate had led
-    the gyro's by a second)."""
-    sigma_v = velocity_noise(track)
-    if sigma_v is None:
+def course_speed(track, rest):
+    """The horizontal speed (m/s) from which the track's courses, averaged over COURSE_SPAN_S,
+    give the heading at the end of the rest (t0, t1) s: where the noise of the velocity's
+    COURSE_SPAN_S means - measured at that rest, as the scatter of its consecutive blocks'
+    means (a still vehicle's velocity is its noise, time-correlated or not) - turns a course
+    by COURSE_SIGMA_DEG (at its 95 % upper bound), within COURSE_SPEED_MIN .. COURSE_SPEED;
+    COURSE_SPEED for a rest of fewer than 3 blocks. An RTK robot's differenced track (its 5 s means: millimetres per
+    second) gives it its heading at 1.2 m/s (a fixed 3 m/s had left it assumed); a
+    receiver's filtered Doppler (0.1 m/s correlated over 2 s: its 5 s means 0.09 m/s, where
+    second differences had read 0.018) keeps 2.6 m/s."""
+    t = np.asarray(track["t"], float)
+    n = int((rest[1] - rest[0]) // COURSE_SPAN_S)
+    k = np.flatnonzero((t >= rest[0]) & (t < rest[0] + n * COURSE_SPAN_S))
+    if n < 3 or len(k) < n:
         return COURSE_SPEED
-    epochs = max(1.0, span_s / float(np.median(np.diff(track["t"]))))
-    return float(np.clip(sigma_v / math.sqrt(epochs) / math.tan(math.radians(COURSE_SIGMA_DEG)),
+    block = ((t[k] - rest[0]) // COURSE_SPAN_S).astype(int)
+    counts = np.bincount(block, minlength=n)
+    if (counts == 0).any():
+        return COURSE_SPEED
+    v = np.asarray(track["v_ned"], float)[k, :2]
+    means = np.column_stack([np.bincount(block, v[:, i], n) for i in range(2)]) / counts[:, None]
+    # the scatter of n block means, at its 95 % upper bound (chi-square, n - 1 degrees of
+    # freedom): three blocks' scatter had read a correlated noise at half its size
+    from scipy.stats import chi2
+    sigma = float(np.max(np.std(means, axis=0, ddof=1))) * \
+        math.sqrt((n - 1) / chi2.ppf(0.05, n - 1))
+    return float(np.clip(sigma / math.tan(math.radians(COURSE_SIGMA_DEG)),
                          COURSE_SPEED_MIN, COURSE_SPEED))
 
 

@@ -23,23 +23,28 @@ DIRECTION_ACCEL = 0.1       # m/s^2: horizontal acceleration (std) that can tell
 STILL_TOLERANCE = 0.5       # m/s: a noisy reference shows rest when its speed's 2-sigma upper
 
 
-def rest_intervals(t_track, v_ned, t_first, t_last):
+def rest_intervals(t_track, v_ned, t_first, t_last, h=None):
     """Rest periods of a track, [(t0, t1)] s: runs of epochs slower than STATIC_SPEED (m/s)
     in their mean horizontal velocity over STATIC_AVERAGE_S (the displacement over it: a
     moving vehicle's is not noise) and vertically within STATIC_SPEED or
-    VERTICAL_NOISE_TIMES that mean's own noise (`_mean_noise`), each end that meets motion
-    moved STATIC_MARGIN_S into the rest
+    VERTICAL_NOISE_TIMES that mean's own noise (`_mean_noise`), and of these the longest
+    part that does not climb (`_level_part`: by the heights h, m, when given), each end that
+    meets motion moved STATIC_MARGIN_S into the rest
     from the neighbouring moving epoch; a run that starts the track starts at t_first (the
     IMU's first stamp), one that ends it ends at t_last. Only rests of at least MIN_STATIC_S
     are returned."""
     t_track = np.asarray(t_track, float)
+    v_d = np.asarray(v_ned, float)[:, 2]
     mean = means_around(t_track, np.asarray(v_ned, float), t_track, STATIC_AVERAGE_S / 2)
     still = (np.hypot(mean[:, 0], mean[:, 1]) <= STATIC_SPEED) & \
         (np.abs(mean[:, 2]) <= max(STATIC_SPEED, VERTICAL_NOISE_TIMES *
-                                   _mean_noise(t_track, np.asarray(v_ned, float)[:, 2])))
+                                   _mean_noise(t_track, v_d)))
     edges = np.flatnonzero(np.diff(np.concatenate([[0], still.astype(int), [0]])))
     out = []
     for a, b in zip(edges[::2], edges[1::2]):          # still[a:b]
+        a, b = _level_part(t_track, v_d, h, a, b)
+        if b - a < 2:
+            continue
         t0 = t_first if a == 0 else float(t_track[a - 1]) + STATIC_MARGIN_S
         t1 = t_last if b == len(still) else float(t_track[b]) - STATIC_MARGIN_S
         t0, t1 = max(t0, t_first), min(t1, t_last)
@@ -71,20 +76,73 @@ VERTICAL_NOISE_TIMES = 4.0  # a vertical velocity differenced from noisy heights
 #                            into 2-6 s pieces by it, and its gyro bias came from one
 
 
-def _mean_noise(t, x):
-    """The white noise (1 sigma) of x's mean over STATIC_AVERAGE_S at epochs t: from the
-    second differences' MAD (a second difference of white noise has 6 times its variance),
-    over the root of the epochs averaged; 0 for fewer than 5 epochs."""
+def _level_run(heights, t0, t1):
+    """The rest (t0, t1) s cut to its longest part that does not climb by the reference's
+    `heights` (t s, h m; None: as it is) - `_level_part` on the epochs inside it: a steady
+    climb the IMU does not feel (its start and end split the run, REST_HEAVE) is cut out."""
+    if heights is None:
+        return t0, t1
+    t_h, h = (np.asarray(x, float) for x in heights)
+    a, b = np.searchsorted(t_h, t0), np.searchsorted(t_h, t1, side="right")
+    if b - a < 3:
+        return t0, t1
+    a2, b2 = _level_part(t_h, h, h, a, b)
+    if b2 - a2 < 2:
+        return t0, t0
+    return (t0 if a2 == a else float(t_h[a2])), (t1 if b2 == b else float(t_h[b2 - 1]))
+
+
+def _level_part(t, v_d, h, a, b):
+    """(a, b): the longest part of the still run [a, b) of epochs t (s) that starts or ends
+    it and does not climb - its heights' least-squares slope (m/s, with `h`; else its mean
+    vertical velocity v_d) within STATIC_SPEED or VERTICAL_NOISE_TIMES its standard error
+    (`_epoch_noise` per epoch). Epoch by epoch a vertical from noisy heights hides a climb,
+    over a stretch it does not: a copter rising straight up at 2 m/s under 2 m heights at
+    1 Hz had been a 60 s rest, its climb's 2/60 m/s^2 read as an accelerometer bias.
+    (a, a) when no part holds."""
+    y = np.asarray(v_d if h is None else h, float)[a:b]
+    x = np.asarray(t, float)[a:b] - float(t[a])
+    sigma = _epoch_noise(np.asarray(v_d if h is None else h, float))
+
+    def level(sx, sy, sxx, sxy, count):
+        if h is None:                   # the mean vertical velocity
+            size, se = np.abs(sy / count), sigma / np.sqrt(count)
+        else:                           # the heights' slope
+            spread = np.maximum(sxx - sx ** 2 / count, 1e-12)
+            size, se = np.abs((sxy - sx * sy / count) / spread), sigma / np.sqrt(spread)
+        return (size <= np.maximum(STATIC_SPEED, VERTICAL_NOISE_TIMES * se)) & (count >= 2)
+    sums = [np.concatenate([[0.0], np.cumsum(z)]) for z in (x, y, x * x, x * y)]
+    n = np.arange(1, b - a + 1)
+    head = np.flatnonzero(level(*(c[1:] for c in sums), n))                  # [a, a + n)
+    tail = np.flatnonzero(level(*(c[-1] - c[:-1] for c in sums), n[::-1]))  # [a + k, b)
+    first = int(n[head[-1]]) if len(head) else 0
+    last = int(n[::-1][tail[0]]) if len(tail) else 0
+    if max(first, last) == 0:
+        return a, a
+    return (a, a + first) if first >= last else (b - last, b)
+
+
+def _epoch_noise(x):
+    """The white noise (1 sigma) of x epoch to epoch: its second differences' MAD (a second
+    difference of white noise has 6 times its variance); 0 for fewer than 5 epochs."""
     x = np.asarray(x, float)
     if len(x) < 5:
         return 0.0
     d2 = x[2:] - 2 * x[1:-1] + x[:-2]
-    sigma = 1.4826 * float(np.median(np.abs(d2 - np.median(d2)))) / math.sqrt(6)
+    return 1.4826 * float(np.median(np.abs(d2 - np.median(d2)))) / math.sqrt(6)
+
+
+def _mean_noise(t, x):
+    """The white noise (1 sigma) of x's mean over STATIC_AVERAGE_S at epochs t: from the
+    second differences' MAD (a second difference of white noise has 6 times its variance),
+    over the root of the epochs averaged; 0 for fewer than 5 epochs."""
+    if len(x) < 5:
+        return 0.0
     epochs = max(1.0, STATIC_AVERAGE_S / float(np.median(np.diff(t))))
-    return sigma / math.sqrt(epochs)
+    return _epoch_noise(x) / math.sqrt(epochs)
 
 
-def felt_at_rest(t, w, f, rests):
+def felt_at_rest(t, w, f, rests, heights=None):
     """The rests [(t0, t1)] s (a reference's, `rest_intervals`) where the IMU feels one too:
     its mean specific force gravity's size (within REST_GRAVITY) and its mean rate about the
     Earth's (within REST_RATE) - a reference that stands still while the IMU falls freely or
@@ -92,7 +150,8 @@ def felt_at_rest(t, w, f, rests):
     the runs where it holds still (`steady_runs`: a moored boat rocking on its mooring is
     still to its GNSS, and its mean rate is small, but its gyro bias from that 'rest' had
     been 20 times the truth) - reference rests a noisy epoch's speed split joined first
-    (`_bridged`), the IMU judging the gap; ([kept], [(t0, t1, why not)])."""
+    (`_bridged`), the IMU judging the gap, and each run cut to where the reference's
+    `heights` (t s, h m) do not climb (`_level_run`); ([kept], [(t0, t1, why not)])."""
     kept, refused = [], []
     for t0, t1 in _bridged(rests):
         k = (t >= t0) & (t <= t1)
@@ -106,8 +165,13 @@ def felt_at_rest(t, w, f, rests):
                                     f"{math.degrees(rate):.1f} deg/s there: no rest"))
             continue
         runs, tilt, turn = steady_runs(t, w, f, t0, t1)
-        runs = [(a, settled_until(t, w, f, a, b)) for a, b in runs]
-        kept += [(a, b) for a, b in runs if b - a >= MIN_STATIC_S]
+        cut = [_level_run(heights, a, settled_until(t, w, f, a, b)) for a, b in runs]
+        kept += [(a, b) for a, b in cut if b - a >= MIN_STATIC_S]
+        if runs and not any(b - a >= MIN_STATIC_S for a, b in cut):
+            refused.append((t0, t1, f"the reference stands still {t0:.2f}-{t1:.2f} s and the "
+                                    "IMU holds still there, but under "
+                                    f"{MIN_STATIC_S:g} s of it before the IMU starts to move "
+                                    "or the reference's heights climb: no rest"))
         if not runs:
             refused.append((t0, t1, f"the reference stands still {t0:.2f}-{t1:.2f} s but the IMU "
                                     f"does not: its 1 s means tilt up to {math.degrees(tilt):.2f} "
@@ -128,24 +192,31 @@ REST_TURN = math.radians(1.0)   # rad/s: its 1 s mean rates this close to their 
 #                                 that drive's worst (0.23 deg/s), where a hull rocking at
 #                                 2.5 deg/s lies beyond
 STEADY_WINDOW_S = 1.0           # s: the means judged
+REST_HEAVE = 0.15               # m/s^2: and their size this close to its mean - 3.5 x the
+#                                 idling RTKLIB drive's worst (0.043; a moored boat rocking
+#                                 0.13), where a copter lifting off at 1 m/s^2 lies beyond: a
+#                                 vertical start the direction of g does not show (its climb
+#                                 at a steady 2 m/s had been taken into its rest)
 
 
 def steady_runs(t, w, f, t0, t1):
     """([(a, b)] s: the runs of at least MIN_STATIC_S within [t0, t1] where the IMU holds
     still - consecutive STEADY_WINDOW_S means of specific force (m/s^2) within REST_TILT of
-    the run's mean direction so far and of rate (rad/s) within REST_TURN of its mean rate
-    so far, a window beyond either starting the next run -, the worst tilt (rad) and turn
+    the run's mean direction so far and REST_HEAVE of its mean size, and of rate (rad/s)
+    within REST_TURN of its mean rate so far, a window beyond any starting the next run -, the worst tilt (rad) and turn
     (rad/s) of the span's means about their mean). Run by run, so that a steady turn beside
     a rest is a run of its own (judged by its rate where that matters), not a share of one
     mean that neither holds. A span shorter than two windows is judged as one window."""
     n = max(int((t1 - t0) // STEADY_WINDOW_S), 1)
     filled, f_mean, w_mean = _window_means(t, (f, w), t0, t1, n)
-    up = f_mean / np.linalg.norm(f_mean, axis=1)[:, None]
+    size = np.linalg.norm(f_mean, axis=1)
+    up = f_mean / size[:, None]
     index = np.flatnonzero(filled)
     runs, first = [], 0
     for k in range(1, len(index) + 1):
         if k < len(index) and index[k] == index[k - 1] + 1 and \
-                _holds(up[first:k], w_mean[first:k], up[k], w_mean[k]):
+                _holds(up[first:k], w_mean[first:k], up[k], w_mean[k]) and \
+                abs(size[k] - size[first:k].mean()) <= REST_HEAVE:
             continue
         start = t0 + index[first] * STEADY_WINDOW_S
         end = t1 if index[k - 1] == n - 1 else t0 + (index[k - 1] + 1) * STEADY_WINDOW_S

@@ -439,27 +439,15 @@ def test_a_reversing_move_is_found_under_a_noisy_rtk_fix(tmp_path):
     reversing move is found and nothing of the forward one."""
     from mimunav.motion import vehicle
     from mimunav.diagnosis.track_reference import reversing, simulated_reference
-    from mimunav.motion.truth import Kinematics
+    from drives import FacingMotion
     rate = 10.0
     t_tr = np.arange(0.0, 90.0 + 1e-9, 1.0 / rate)
     speed = 8.0 * (smoothstep((t_tr - 5.0) / 4.0) - smoothstep((t_tr - 36.0) / 4.0)) - \
         5.0 * (smoothstep((t_tr - 46.0) / 4.0) - smoothstep((t_tr - 80.0) / 4.0))
     heading = np.array([math.cos(30 * DEG), math.sin(30 * DEG), 0.0])
     exact = track_from_velocity(t_tr, speed[:, None] * heading)
-    half_turn = quaternion.from_rotation_vector([0.0, 0.0, math.pi])
-
-    class Facing(TrackMotion):          # the vehicle faces 30 deg whichever way it moves
-        def kinematics(self, t):
-            kin = super().kinematics(t)
-            yaw = attitude.as_euler(kin.q_nb)[0]
-            back = np.cos(yaw - 30 * DEG) < 0
-            q = kin.q_nb.copy()
-            q[back] = q[back] * half_turn
-            flip = np.where(back[:, None], [-1.0, -1.0, 1.0], 1.0)
-            return Kinematics(kin.v_ned, kin.a_ned, q, kin.w_nb_b * flip, kin.dw_nb_b * flip)
-
     t = np.arange(0.0, 90.0 + 1e-9, 0.01)
-    dth, dv = MOUNT.sensor_increments(truth.generate(Facing(*exact), t))
+    dth, dv = MOUNT.sensor_increments(truth.generate(FacingMotion(*exact), t))
     fixes = under_two_cm(exact, sigma_m=0.05)
     epoch = 1_700_000_000_000_000_000
     reference = dict(ns=epoch + np.round(fixes[0] * 1e9).astype(np.int64), lat=fixes[1],

@@ -1184,3 +1184,21 @@ def test_a_vehicle_whose_specific_force_is_not_its_tracks_reads_no_mounting_yaw(
     assert said.startswith("not measured: the accelerometers' horizontal specific force is "
                            "0.40-0.40 times"), said
     assert "--mounting-rpy-deg" not in said
+
+
+def test_a_rest_found_later_does_not_judge_the_attitude_at_the_start():
+    """An aircraft's log that starts in a 70 deg bank and rests level later: the alignment's
+    attitude is the bank's at t0, its bias rest is elsewhere - no upright test there (a
+    review's case had been refused as mounted 70 deg off); the same attitude at a rest that
+    starts the recording is refused."""
+    from types import SimpleNamespace
+    from mimunav.importers.checks import resting_upright
+    banked = attitude.as_wxyz(attitude.from_euler(np.array(0.0), np.array(0.0),
+                                                  np.array(70 * DEG)))
+    rec = Recording("banked", "", np.arange(10) * 10_000_000, np.zeros((10, 3)),
+                    np.tile([0.0, 0.0, -9.8], (10, 1)), Mounting())
+    rec.vehicle = "aircraft"
+    resting_upright(rec, SimpleNamespace(static=(31.4, 60.0), at_rest_start=False, q_nb=banked))
+    with pytest.raises(RecordingError, match="an aircraft rests upright"):
+        resting_upright(rec, SimpleNamespace(static=(0.0, 20.0), at_rest_start=True,
+                                             q_nb=banked))

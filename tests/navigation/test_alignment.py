@@ -461,18 +461,19 @@ def test_a_car_circling_a_skidpad_under_a_plain_fix_is_moving():
 
 def test_a_slow_robot_under_rtk_gets_its_heading_from_the_course(tmp_path):
     """A ground robot: 20 s at rest, then 1.2 m/s (never 3) under 2 cm fixes at 10 Hz
-    (velocity by differences: about 0.3 m/s of noise per epoch). Its courses averaged over
-    COURSE_SPAN_S's 50 epochs hold the heading well below COURSE_SIGMA_DEG, so the course
-    speed is the least (1 m/s) and the heading at rest is measured (a fixed 3 m/s had left
-    it assumed 0) - while one epoch's course would still need 3 m/s."""
+    (velocity by differences: about 0.3 m/s of noise per epoch). Its velocity's 5 s means at
+    the rest scatter by millimetres per second, so its courses averaged over COURSE_SPAN_S
+    hold the heading well below COURSE_SIGMA_DEG: the course speed is the least (1 m/s) and
+    the heading at rest is measured (a fixed 3 m/s had left it assumed 0); a rest of two
+    blocks measures nothing and keeps 3 m/s."""
     t = np.arange(0.0, 60.0 + 1e-9, 0.1)
     speed = 1.2 * smoothstep((t - 20.0) / 3.0)
     yaw = 70 * DEG
     track = under_two_cm(track_from_velocity(t, np.column_stack(
         [speed * np.cos(yaw), speed * np.sin(yaw), 0 * t])))
     ref = dict(zip(("t", "lat", "lon", "h", "v_ned"), track))
-    assert alignment.course_speed(ref) == alignment.COURSE_SPEED_MIN
-    assert alignment.course_speed(ref, 0.0) == alignment.COURSE_SPEED     # one epoch's
+    assert alignment.course_speed(ref, (0.0, 19.0)) == alignment.COURSE_SPEED_MIN
+    assert alignment.course_speed(ref, (0.0, 14.0)) == alignment.COURSE_SPEED  # 2 blocks
     path, motion, _ = ideal_flight(tmp_path, MOUNT, track=track)
     flight = Flight.load(path, reference_imu=False)
     heading = attitude.as_euler(flight.initial.q_nb)[0]
@@ -602,3 +603,57 @@ def test_a_rest_split_by_noisy_speeds_is_joined_where_the_imu_holds_still():
     f = f + rng.normal(0, 0.02, f.shape)
     kept, _ = felt_at_rest(t, w, f, rests)
     assert kept and kept[0][0] == 0.0 and 86.0 <= kept[0][1] <= 90.0, (rests, kept)
+
+
+def test_a_car_backing_out_slowly_and_straight_keeps_its_heading():
+    """A car at rest facing 30 deg backs straight out, speeding up smoothly to 1.6 m/s (its
+    course 210 deg), stops, and drives off forward at 10 m/s; 2 cm fixes at 10 Hz. Below
+    COURSE_SPEED which way it moves must be read off the data, and a near-constant reversing
+    acceleration reads neither: the heading at rest had been -149.7 deg, its reversing
+    courses taken as forward. Undecided, the courses wait for COURSE_SPEED: 30 deg.
+    (A review's case, its numbers.)"""
+    from mimunav.motion import truth
+    from drives import FacingMotion
+    t_tr = np.arange(0.0, 90.0 + 1e-9, 0.1)
+    speed = -1.6 * (smoothstep((t_tr - 20.0) / 15.0) - smoothstep((t_tr - 50.0) / 5.0)) + \
+        10.0 * smoothstep((t_tr - 60.0) / 5.0)
+    exact = track_from_velocity(t_tr, speed[:, None] * [math.cos(30 * DEG),
+                                                        math.sin(30 * DEG), 0.0])
+    t = np.arange(0.0, 90.0 + 1e-9, 0.01)
+    dth, dv = MOUNT.sensor_increments(truth.generate(FacingMotion(*exact), t))
+    rng = np.random.default_rng(1)
+    fix = under_two_cm(exact)
+    align = alignment.initial_alignment(
+        t[1:], dth / 0.01 + rng.normal(0, 0.002, dth.shape),
+        dv / 0.01 + rng.normal(0, 0.02, dv.shape), MOUNT,
+        dict(zip(("t", "lat", "lon", "h", "v_ned"), fix)))
+    yaw = math.degrees(attitude.as_euler(attitude.from_wxyz(align.q_nb))[0])
+    assert align.heading == "course" and abs(yaw - 30.0) < 0.5, (yaw, align.method)
+
+
+def test_a_copters_steady_climb_is_no_rest():
+    """A copter at rest 0-20 s lifts off straight up (to 2 m/s over 2 s), climbs steadily to
+    60 s, then flies north; a 1 Hz fix with 2 m of height noise, its vertical by differences
+    (metres per second epoch by epoch, so the vertical judges a rest only beyond its own
+    noise). A steady climb is still to the IMU's direction of g, but its lift-off is not
+    to the size of g (REST_HEAVE) and its heights climb (`_level_run`): the rest ends at
+    the lift-off, and its accelerometer bias is the still one's (a review's case: the rest
+    had run through the climb, 2/60 m/s^2 read as a bias)."""
+    rng = np.random.default_rng(2)
+    t = np.arange(0.01, 100.0 + 1e-9, 0.01)
+    up_v = 2.0 * (smoothstep((t - 20) / 2) - smoothstep((t - 60) / 2))
+    up_a = np.gradient(up_v, t)
+    north_v = 5 * smoothstep((t - 62) / 3)
+    f = np.column_stack([np.gradient(north_v, t), 0 * t, -earth.gravity_ned(LAT0, H0)[2]
+                         - up_a]) + rng.normal(0, 0.02, (len(t), 3))
+    w = rng.normal(0, 0.002, (len(t), 3))
+    tt = np.arange(0.0, 100.0 + 1e-9, 1.0)
+    h = H0 + np.interp(tt, t, np.cumsum(up_v) * 0.01) + rng.normal(0, 2.0, len(tt))
+    north = np.interp(tt, t, np.cumsum(north_v) * 0.01) + rng.normal(0, 0.02, len(tt))
+    r_n, _ = earth.radii(LAT0)
+    track = dict(t=tt, lat=LAT0 + north / (r_n + H0), lon=np.full(len(tt), LON0), h=h,
+                 v_ned=np.column_stack([np.gradient(north, tt), rng.normal(0, 0.02, len(tt)),
+                                        -np.gradient(h, tt)]))
+    align = alignment.initial_alignment(t, w, f, Mounting(), track)
+    assert align.static[0] < 0.1 and 18.0 <= align.static[1] <= 20.5, align.static
+    assert abs(align.accel_bias[2]) < 0.003, align.accel_bias
