@@ -97,8 +97,8 @@ def add_import(sub):
     p.add_argument("--vehicle", choices=VEHICLES,
                    help="what carried the IMU (default: not declared - `diagnose` judges it "
                    "from the track): a car's track gives its attitude (no side slip: the track "
-                   "level); a train's (canted curves), an aircraft's, a multicopter's, a "
-                   "rocket's or a walker's does not")
+                   "level); a train's (canted curves), a two-wheeler's (it leans), an "
+                   "aircraft's, a multicopter's, a rocket's or a walker's does not")
     p.add_argument("--force", action="store_true", help="replace an existing output")
     p.add_argument("--spec-keys", action=_SpecKeys, help="table: print every key a spec may "
                    "hold (sections, units, time bases) and exit")

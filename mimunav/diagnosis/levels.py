@@ -149,7 +149,9 @@ def unmeasured_heading(flight, vehicle=None):
     why = ((flight.recording or {}).get("assumed") or {}).get("initial_heading")
     said = ((why or "assumed: nothing measured it") if heading == "assumed" else
             f"taken from the GNSS course, which is the heading only of what moves along its "
-            f"forward axis (a car, a train), and this recording is neither ({how})")
+            f"forward axis (a car, a train, a two-wheeler), and this recording is none of "
+            f"them ({how}" + ("; if it is one, say so: --vehicle" if "declared" not in how
+                              else "") + ")")
     return (f"the initial heading was {said}: the MIMU's velocity error against the reference "
             "would fit that heading's error, not the MIMU's, so no finding is made from it")
 

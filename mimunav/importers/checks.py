@@ -122,7 +122,7 @@ def _not_a_car(rec, t_track, v_ned):
     `motion.carrier.car_tests` fails on its track's velocities v_ned (m/s) at t_track (s
     from the IMU's first stamp) and its specific force and rate - or [] for a car."""
     if rec.vehicle:
-        return [] if rec.vehicle == LAND else [f"declared a {rec.vehicle}"]
+        return [] if rec.vehicle == LAND else [f"declared: {rec.vehicle}"]
     return car_tests(t_track, v_ned, (rec.imu_ns - rec.imu_ns[0]) / 1e9, rec.f, rec.w)[0]
 
 
@@ -511,11 +511,12 @@ def reference_track(rec, epoch):
                 heading_known=rec.reference_heading_known)
 
 
-UPRIGHT_DEG = 60.0      # deg: a car, a train, an aircraft, a ship or a copter at rest is within
-#                        this of level (a tail-dragger's 10-15 deg of pitch, a moored hull's
-#                        roll); beyond it the mounting given has the IMU's axes turned -
-#                        a z axis up taken as down reads a roll of 180
-RESTS_UPRIGHT = ("car", "train", "aircraft", "multicopter", "ship")
+UPRIGHT_DEG = 60.0      # deg: a car, a train, a two-wheeler on its stand (5-10 deg), an
+#                        aircraft, a ship or a copter at rest is within this of level (a
+#                        tail-dragger's 10-15 deg of pitch, a moored hull's roll); beyond
+#                        it the mounting given has the IMU's axes turned - a z axis up
+#                        taken as down reads a roll of 180
+RESTS_UPRIGHT = ("car", "train", "two-wheeler", "aircraft", "multicopter", "ship")
 
 
 def resting_upright(rec, align):

@@ -16,14 +16,22 @@ recording that cannot show it is not one):
     BODY_RATE       the IMU's roll and pitch rate - its 1 s mean rate across its mean down,
                     the median rate (a bias) removed - at most this in 95 % of the seconds
                     (a boat's roll, an aircraft's or a multicopter's manoeuvres exceed it)
+    LEAN_SHARE      where the track turns (its lateral acceleration beyond TURN_ACCEL at
+                    MOVING_SPEED or more), the IMU's 1 s mean specific force across its
+                    mean down at least this share of the track's horizontal acceleration,
+                    in the median: a car's IMU feels its turns sideways (its share 0.9-1.1
+                    with the body's roll), a motorcycle's or an aircraft's leans or banks
+                    into them and feels them little (a motorcycle's sparse bends had
+                    passed BODY_RATE: 4.5 deg/s of roll at the 95th percentile)
 The climbs are judged on the velocities' CLIMB_WINDOW_S means: a phone's 1 Hz altitudes
 (1 m of noise each) had climbed at 2.2 m/s on the spot by their differences.
 """
 import numpy as np
 
 LAND = "car"
-ALONG_COURSE = (LAND, "train")     # what moves along its forward axis: its course its heading
-#                                    (a car without side slip, a train on its rails)
+ALONG_COURSE = (LAND, "train", "two-wheeler")   # what moves along its forward axis: its
+#                                    course its heading (a car or a two-wheeler without
+#                                    side slip, a train on its rails)
 MOVING_SPEED = 5.0          # m/s: 18 km/h - a car's drive reaches it most of the time it moves
 CAR_SPEED = 70.0            # m/s: 250 km/h
 GRADE = 0.3                 # 30 %: steeper than any public road (the steepest about 35 % over
@@ -35,6 +43,10 @@ BODY_RATE = np.radians(5.0)  # rad/s: 3 x the most a car showed - its body and t
                             # it 0.2-1.6 deg/s (95 %; the RTKLIB and comma2k19 drives, an
                             # independent simulator's over hills); a moored-and-sailing
                             # boat's roll 10, a light aircraft's 17, a multicopter's 30
+LEAN_SHARE = 0.6            # of the track's horizontal acceleration, felt across the IMU's
+#                             down in its turns: a car 0.9-1.1, a coordinated lean or bank
+#                             near its longitudinal share (below 0.5 in a bend)
+TURN_ACCEL = 1.5            # m/s^2: a turn that shows it; 10 s of such turning at least
 CLIMB_WINDOW_S = 10.0       # s: the velocities' means the climbs are judged on (a climb on the
 #                             spot that decides, a multicopter's take-off, lasts longer)
 
@@ -72,11 +84,17 @@ def car_tests(t_track, v_ned, t=None, f=None, w=None):
     if body is not None and body > BODY_RATE:
         failed.append(f"its IMU rolls or pitches at {np.degrees(body):.1f} deg/s (95th "
                       f"percentile of 1 s means; a car at most {np.degrees(BODY_RATE):g})")
+    lean = None if f is None else _turn_share(np.asarray(t_track, float),
+                                              np.asarray(v_ned, float), t, f)
+    if lean is not None and lean < LEAN_SHARE:
+        failed.append(f"its IMU feels {lean:.2f} of its track's acceleration across its down "
+                      f"in its turns (median; a car's feels it all, at least {LEAN_SHARE:g}: "
+                      "it leans or banks into them)")
     numbers = [f"speed p95 {p95:.1f} m/s, p99 {p99:.1f} m/s", f"grade p99 {100 * grade:.0f} %",
                f"climb at standstill {still_climb:.1f} m/s"] + \
         ([f"load {load / 9.80665:.2f} g off 1 g (99.5 %)"] if load is not None else []) + \
         ([f"roll and pitch rate {np.degrees(body):.1f} deg/s (95 %)"] if body is not None
-         else [])
+         else []) + ([f"turns felt across {lean:.2f}"] if lean is not None else [])
     return failed, numbers
 
 
@@ -99,6 +117,38 @@ def _seconds(t, x):
     count = np.bincount(sec)
     return np.column_stack([np.bincount(sec, x[:, i]) for i in range(3)])[count > 0] / \
         count[count > 0, None]
+
+
+def _turn_share(t_track, v_ned, t, f):
+    """The median, over the track's epochs that turn (lateral acceleration beyond TURN_ACCEL
+    and its own noise at MOVING_SPEED or more, from its velocities' 1 s means), of the IMU's
+    1 s mean specific
+    force across its mean down (sensor axes: mounting-free) over the track's horizontal
+    acceleration there; None with under 10 s of such turning."""
+    v = _means(t_track, v_ned, 0.5)
+    ok = np.isfinite(v).all(axis=1)
+    if ok.sum() < 10:
+        return None
+    tt, v = t_track[ok], v[ok]
+    speed = np.hypot(v[:, 0], v[:, 1])
+    lateral = speed * np.gradient(np.unwrap(np.arctan2(v[:, 1], v[:, 0])), tt)
+    along = np.gradient(speed, tt)
+    # and beyond 4 times its own noise (epoch-to-epoch differences' MAD): a 0.5 m fix's
+    # differenced track turns at 3 m/s^2 of noise, and its 'turns' had read a car 0.23
+    step = np.diff(lateral)
+    noise = 1.4826 * float(np.median(np.abs(step - np.median(step)))) / np.sqrt(2)
+    turning = (np.abs(lateral) > max(TURN_ACCEL, 4 * noise)) & (speed >= MOVING_SPEED)
+    if turning.sum() * float(np.median(np.diff(tt))) < 10.0:
+        return None
+    sec = np.floor(t - t[0]).astype(int)
+    f_s = _seconds(t, f)
+    t_s = t[0] + np.unique(sec) + 0.5
+    up = f_s / np.linalg.norm(f_s, axis=1)[:, None]
+    down = np.median(up, axis=0)
+    down = down / np.linalg.norm(down)
+    across = np.linalg.norm(f_s - np.outer(f_s @ down, down), axis=1)
+    felt = np.interp(tt[turning], t_s, across)
+    return float(np.median(felt / np.hypot(lateral[turning], along[turning])))
 
 
 def _body_rate(t, f, w):

@@ -70,10 +70,12 @@ def test_a_declared_vehicle_is_taken_and_an_attitude_reference_is_used_as_attitu
 
 @pytest.mark.parametrize("heading, vehicle, stands", [
     ("reference", "pedestrian", True), ("course", "car", True), ("course", "train", True),
+    ("course", "two-wheeler", True),
     ("course", "pedestrian", False), ("assumed", "car", False)])
 def test_a_navigation_finding_needs_a_measured_heading(heading, vehicle, stands):
     """A course is a heading for what moves along its forward axis - a car, a train on its
-    rails (a declared train's had been refused as 'the heading of a car only')."""
+    rails, a two-wheeler (a declared train's had been refused as 'the heading of a car
+    only')."""
     flight = _flight(_ramp(3000, 1.4), recording={"initial_heading": heading,
                                                    "vehicle": vehicle})
     why = levels.unmeasured_heading(flight)

@@ -653,7 +653,7 @@ def test_the_gnss_course_judges_units_and_axes_without_a_reference_attitude(tmp_
                     f, mounting, reference=ref, vehicle=declared)
     if declared or wrong == "5 s at 80 m/s":
         write_log(rec, tmp_path / "not-a-car.mcap")
-        assert ("not made: not a car (declared a multicopter)" if declared else
+        assert ("not made: not a car (declared: multicopter)" if declared else
                 "not made: not a car (its speed's 99th percentile is 80 m/s") in \
             rec.real["course_checks"]
         return
