@@ -538,8 +538,9 @@ def resting_upright(rec, align):
     said = (f"at its rest {align.static[0]:.1f}-{align.static[1]:.1f} s the IMU, through the "
             f"mounting given, rests at roll {math.degrees(roll):+.1f}, pitch "
             f"{math.degrees(pitch):+.1f} deg; the mounting that levels it (the yaw as given): "
-            f"--mounting-rpy-deg {math.degrees(roll_l):.1f} {math.degrees(pitch_l):.1f} "
-            f"{math.degrees(yaw_l):.1f} (a table spec's mounting_rpy_deg)")
+            "--mounting-rpy-deg " + " ".join(f"{round(math.degrees(a), 1) + 0.0:.1f}"
+                                             for a in (roll_l, pitch_l, yaw_l))
+            + " (a table spec's mounting_rpy_deg)")
     if rec.vehicle in RESTS_UPRIGHT:
         article = "an" if rec.vehicle[0] in "aeiou" else "a"
         raise RecordingError(f"{rec.name}: {article} {rec.vehicle} rests upright (within "
