@@ -1202,3 +1202,23 @@ def test_a_rest_found_later_does_not_judge_the_attitude_at_the_start():
     with pytest.raises(RecordingError, match="an aircraft rests upright"):
         resting_upright(rec, SimpleNamespace(static=(0.0, 20.0), at_rest_start=True,
                                              q_nb=banked))
+
+
+def test_a_vehicle_that_banks_into_its_turns_reads_no_mounting_yaw(tmp_path):
+    """The drive that turns once, its IMU's force across its track -0.2 of the track's
+    lateral acceleration, along it all of it (a train on canted curves: 0.94 and -0.17):
+    the complex fit's angle (a train's +18.2 deg, truth +2) is no mounting - not measured,
+    the two gains said."""
+    t_tr, lat, lon, h, v = one_turn_track(1.0, rate=4.0)
+    t = np.arange(t_tr[0], t_tr[-1] + 1e-9, 0.01)
+    dth, dv = MOUNT.sensor_increments(truth.generate(TrackMotion(t_tr, lat, lon, h, v), t))
+    f_v = attitude.rotate(MOUNT.q_vs, dv * 100.0)
+    f_v[:, 1] *= -0.2
+    epoch = 1_700_000_000_000_000_000
+    rec = Recording("canted", "", epoch + np.round(t[1:] * 1e9).astype(np.int64), dth * 100.0,
+                    attitude.rotate(np.conjugate(MOUNT.q_vs), f_v), MOUNT,
+                    reference=dict(ns=epoch + np.round(t_tr * 1e9).astype(np.int64), lat=lat,
+                                   lon=lon, h=h, v_ned=v))
+    write_log(rec, tmp_path / "canted.mcap")
+    said = rec.real["mounting_yaw_against_course"]
+    assert said.startswith("not measured: turned by the") and "banks or leans" in said, said
