@@ -1164,21 +1164,27 @@ def test_an_upside_down_mounting_is_refused_for_a_vehicle_that_rests_upright(tmp
     assert "resting_tilt" not in rocket.real
 
 
+def _one_turn_felt(name, along, across):
+    """The drive that turns once (`one_turn_track`), its ideal IMU feeling `along` and
+    `across` times its track's horizontal acceleration and gravity (vehicle x, y), as a
+    Recording."""
+    t_tr, lat, lon, h, v = one_turn_track(1.0, rate=4.0)
+    t = np.arange(t_tr[0], t_tr[-1] + 1e-9, 0.01)
+    dth, dv = MOUNT.sensor_increments(truth.generate(TrackMotion(t_tr, lat, lon, h, v), t))
+    f_v = attitude.rotate(MOUNT.q_vs, dv * 100.0) * [along, across, 1.0]
+    epoch = 1_700_000_000_000_000_000
+    return Recording(name, "", epoch + np.round(t[1:] * 1e9).astype(np.int64), dth * 100.0,
+                     attitude.rotate(np.conjugate(MOUNT.q_vs), f_v), MOUNT,
+                     reference=dict(ns=epoch + np.round(t_tr * 1e9).astype(np.int64), lat=lat,
+                                    lon=lon, h=h, v_ned=v))
+
+
 def test_a_vehicle_whose_specific_force_is_not_its_tracks_reads_no_mounting_yaw(tmp_path):
     """The drive that turns once, its IMU's horizontal specific force 0.4 times the track's
     acceleration (as a railway's cant leaves a train's: the lean takes up the turn): the
     angle between the two is no mounting - it had been said as 'measured +18 deg, turn it
     back' on a train mounted 2 deg off. Not measured, and the size ratio said."""
-    t_tr, lat, lon, h, v = one_turn_track(1.0, rate=4.0)
-    t = np.arange(t_tr[0], t_tr[-1] + 1e-9, 0.01)
-    dth, dv = MOUNT.sensor_increments(truth.generate(TrackMotion(t_tr, lat, lon, h, v), t))
-    f_v = attitude.rotate(MOUNT.q_vs, dv * 100.0)
-    f_v[:, :2] *= 0.4
-    epoch = 1_700_000_000_000_000_000
-    rec = Recording("banked", "", epoch + np.round(t[1:] * 1e9).astype(np.int64), dth * 100.0,
-                    attitude.rotate(np.conjugate(MOUNT.q_vs), f_v), MOUNT,
-                    reference=dict(ns=epoch + np.round(t_tr * 1e9).astype(np.int64), lat=lat,
-                                   lon=lon, h=h, v_ned=v))
+    rec = _one_turn_felt("banked", 0.4, 0.4)
     write_log(rec, tmp_path / "banked.mcap")
     said = rec.real["mounting_yaw_against_course"]
     assert said.startswith("not measured: the accelerometers' horizontal specific force is "
@@ -1209,16 +1215,7 @@ def test_a_vehicle_that_banks_into_its_turns_reads_no_mounting_yaw(tmp_path):
     lateral acceleration, along it all of it (a train on canted curves: 0.94 and -0.17):
     the complex fit's angle (a train's +18.2 deg, truth +2) is no mounting - not measured,
     the two gains said."""
-    t_tr, lat, lon, h, v = one_turn_track(1.0, rate=4.0)
-    t = np.arange(t_tr[0], t_tr[-1] + 1e-9, 0.01)
-    dth, dv = MOUNT.sensor_increments(truth.generate(TrackMotion(t_tr, lat, lon, h, v), t))
-    f_v = attitude.rotate(MOUNT.q_vs, dv * 100.0)
-    f_v[:, 1] *= -0.2
-    epoch = 1_700_000_000_000_000_000
-    rec = Recording("canted", "", epoch + np.round(t[1:] * 1e9).astype(np.int64), dth * 100.0,
-                    attitude.rotate(np.conjugate(MOUNT.q_vs), f_v), MOUNT,
-                    reference=dict(ns=epoch + np.round(t_tr * 1e9).astype(np.int64), lat=lat,
-                                   lon=lon, h=h, v_ned=v))
+    rec = _one_turn_felt("canted", 1.0, -0.2)
     write_log(rec, tmp_path / "canted.mcap")
     said = rec.real["mounting_yaw_against_course"]
     assert said.startswith("not measured: turned by the") and "banks or leans" in said, said
