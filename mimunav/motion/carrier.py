@@ -140,12 +140,9 @@ def _turn_share(t_track, v_ned, t, f):
     turning = (np.abs(lateral) > max(TURN_ACCEL, 4 * noise)) & (speed >= MOVING_SPEED)
     if turning.sum() * float(np.median(np.diff(tt))) < 10.0:
         return None
-    sec = np.floor(t - t[0]).astype(int)
     f_s = _seconds(t, f)
-    t_s = t[0] + np.unique(sec) + 0.5
-    up = f_s / np.linalg.norm(f_s, axis=1)[:, None]
-    down = np.median(up, axis=0)
-    down = down / np.linalg.norm(down)
+    t_s = t[0] + np.unique(np.floor(t - t[0])) + 0.5
+    down = _down(f_s)
     across = np.linalg.norm(f_s - np.outer(f_s @ down, down), axis=1)
     felt = np.interp(tt[turning], t_s, across)
     return float(np.median(felt / np.hypot(lateral[turning], along[turning])))
@@ -156,12 +153,17 @@ def _body_rate(t, f, w):
     median of its specific force's directions), the median rate removed: what a car's body
     and road turn about its level axes."""
     f_s, w_s = _seconds(t, f), _seconds(t, w)
-    up = f_s / np.linalg.norm(f_s, axis=1)[:, None]
-    down = np.median(up, axis=0)
-    down = down / np.linalg.norm(down)
+    down = _down(f_s)
     w_s = w_s - np.median(w_s, axis=0)
     across = w_s - np.outer(w_s @ down, down)
     return float(np.percentile(np.linalg.norm(across, axis=1), 95))
+
+
+def _down(f_s):
+    """The IMU's mean down (sensor axes, unit): the median of the directions of its 1 s mean
+    specific forces f_s."""
+    down = np.median(f_s / np.linalg.norm(f_s, axis=1)[:, None], axis=0)
+    return down / np.linalg.norm(down)
 
 
 def _load(t, f):

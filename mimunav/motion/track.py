@@ -25,3 +25,16 @@ def velocity_from_positions(ns, lat, lon, h):
     wide = dt > max(VELOCITY_GAP_EPOCHS * np.median(dt), VELOCITY_GAP_S)
     v[np.concatenate([[False], wide]) | np.concatenate([wide, [False]])] = np.nan
     return v
+
+
+def white_noise(x):
+    """The white noise (1 sigma) of a series x (N,) or of each of its columns together
+    (N, k), epoch to epoch: its second differences' MAD, each column less its median
+    (1.4826 MAD; a second difference of white noise has 6 times its variance) - a slow
+    motion cancels in them, so what is left is the noise (an upper bound where the motion
+    turns sharply between epochs); 0 for fewer than 5 epochs."""
+    x = np.asarray(x, float)
+    if len(x) < 5:
+        return 0.0
+    d2 = x[2:] - 2 * x[1:-1] + x[:-2]
+    return 1.4826 * float(np.median(np.abs(d2 - np.median(d2, axis=0)))) / 6 ** 0.5

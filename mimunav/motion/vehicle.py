@@ -36,6 +36,7 @@ from ..kernels import njit
 from .truth import Kinematics, Motion
 from ..errors import InputError
 from .intervals import RunningIntegral, intervals
+from .track import white_noise
 
 HOLD_SPEED = 0.5            # m/s: below it the attitude holds and the rates are zero
 TRUSTED_SPEED = 2.0         # m/s: above it (or at rest) the attitude model is taken as valid
@@ -269,16 +270,12 @@ class TrackMotion(Motion):
 
 def _smoothed_noise(t, x, lam):
     """The error (1 sigma) of the smoothing spline of lambda `lam` through x at epochs t: the
-    white noise of x (its second differences' MAD: 6 times its variance; an upper bound for
-    velocities differenced from positions, whose noise cancels over a window) through the
+    white noise of x (`track.white_noise`; an upper bound for velocities differenced from
+    positions, whose noise cancels over a window) through the
     spline's equivalent kernel (Silverman 1984: bandwidth h = (lam dt)^(1/4); the integral
     of its square, as of its transfer function's 1 / (1 + lam dt w^4) squared over 2 pi,
     3 / (8 sqrt 2 h)): sigma sqrt(dt 3 / (8 sqrt 2 h)), dt the median step."""
-    x = np.asarray(x, float)
-    if len(x) < 5:
-        return 0.0
-    d2 = x[2:] - 2 * x[1:-1] + x[:-2]
-    sigma = 1.4826 * float(np.median(np.abs(d2 - np.median(d2)))) / math.sqrt(6)
+    sigma = white_noise(x)
     dt = float(np.median(np.diff(t)))
     h = max((lam * dt) ** 0.25, dt)
     return sigma * math.sqrt(min(1.0, dt * 3 / (8 * math.sqrt(2) * h)))

@@ -7,6 +7,7 @@ import math
 import numpy as np
 
 from ..frames import attitude, earth
+from ..motion.track import white_noise
 
 
 STATIC_SPEED = 0.2          # m/s: GNSS speed below which the vehicle is taken to be at rest
@@ -96,13 +97,13 @@ def _level_part(t, v_d, h, a, b):
     """(a, b): the longest part of the still run [a, b) of epochs t (s) that starts or ends
     it and does not climb - its heights' least-squares slope (m/s, with `h`; else its mean
     vertical velocity v_d) within STATIC_SPEED or VERTICAL_NOISE_TIMES its standard error
-    (`_epoch_noise` per epoch). Epoch by epoch a vertical from noisy heights hides a climb,
-    over a stretch it does not: a copter rising straight up at 2 m/s under 2 m heights at
+    (`motion.track.white_noise` per epoch). Epoch by epoch a vertical from noisy heights
+    hides a climb, over a stretch it does not: a copter rising straight up at 2 m/s under 2 m heights at
     1 Hz had been a 60 s rest, its climb's 2/60 m/s^2 read as an accelerometer bias.
     (a, a) when no part holds."""
     y = np.asarray(v_d if h is None else h, float)[a:b]
     x = np.asarray(t, float)[a:b] - float(t[a])
-    sigma = _epoch_noise(np.asarray(v_d if h is None else h, float))
+    sigma = white_noise(np.asarray(v_d if h is None else h, float))
 
     def level(sx, sy, sxx, sxy, count):
         if h is None:                   # the mean vertical velocity
@@ -122,16 +123,6 @@ def _level_part(t, v_d, h, a, b):
     return (a, a + first) if first >= last else (b - last, b)
 
 
-def _epoch_noise(x):
-    """The white noise (1 sigma) of x epoch to epoch: its second differences' MAD (a second
-    difference of white noise has 6 times its variance); 0 for fewer than 5 epochs."""
-    x = np.asarray(x, float)
-    if len(x) < 5:
-        return 0.0
-    d2 = x[2:] - 2 * x[1:-1] + x[:-2]
-    return 1.4826 * float(np.median(np.abs(d2 - np.median(d2)))) / math.sqrt(6)
-
-
 def _mean_noise(t, x):
     """The white noise (1 sigma) of x's mean over STATIC_AVERAGE_S at epochs t: from the
     second differences' MAD (a second difference of white noise has 6 times its variance),
@@ -139,7 +130,7 @@ def _mean_noise(t, x):
     if len(x) < 5:
         return 0.0
     epochs = max(1.0, STATIC_AVERAGE_S / float(np.median(np.diff(t))))
-    return _epoch_noise(x) / math.sqrt(epochs)
+    return white_noise(x) / math.sqrt(epochs)
 
 
 def felt_at_rest(t, w, f, rests, heights=None):
@@ -513,14 +504,11 @@ def span_means(x, lo, hi):
 
 def velocity_noise(track):
     """The reference velocity's white noise per horizontal axis (m/s), from the second
-    differences of its north and east velocities (MAD / 0.6745 / sqrt(6): a second
-    difference of white noise has 6 times its variance); the vehicle's own motion between
-    epochs adds to it, so it is an upper bound. None for fewer than 5 epochs."""
+    differences of its north and east velocities (`motion.track.white_noise`); the
+    vehicle's own motion between epochs adds to it, so it is an upper bound. None for fewer
+    than 5 epochs."""
     v = np.asarray(track["v_ned"], float)[:, :2]
-    if len(v) < 5:
-        return None
-    d2 = v[2:] - 2 * v[1:-1] + v[:-2]
-    return float(np.median(np.abs(d2 - np.median(d2, axis=0)))) / 0.6745 / math.sqrt(6)
+    return white_noise(v) if len(v) >= 5 else None
 
 
 def rate_mean_se(t, w, t0, t1):

@@ -173,3 +173,16 @@ def test_the_moving_pitchs_error_is_the_smoothed_verticals_over_the_speed():
             made.append(np.std(motion.kinematics(tt).v_ned[:, 2] - np.interp(tt, t, v[:, 2])))
             said.append(motion.moving_pitch_sd(np.array([100.0]))[0] * motion.speed([100.0])[0])
         assert np.mean(said) == pytest.approx(np.mean(made), rel=0.15), (rate, said, made)
+
+
+def test_the_white_noise_of_a_moving_series_is_its_noise():
+    """0.3 of white noise on a slow sine of amplitude 50 (a velocity while driving), and on
+    two columns at once: the second differences' MAD gives the noise, not the motion."""
+    from mimunav.motion.track import white_noise
+    t = np.arange(0.0, 600.0, 0.1)
+    rng = np.random.default_rng(3)
+    x = 50 * np.sin(2 * np.pi * t / 120.0) + rng.normal(0, 0.3, len(t))
+    assert white_noise(x) == pytest.approx(0.3, rel=0.05)
+    both = np.column_stack([x, 10 + rng.normal(0, 0.3, len(t))])
+    assert white_noise(both) == pytest.approx(0.3, rel=0.05)
+    assert white_noise(x[:4]) == 0.0
