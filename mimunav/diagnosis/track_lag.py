@@ -7,6 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..importers.pairing import parabola_min
 from .track_reference import CONSUMER_NOISE, GAP_MARGIN_S, in_band, simulated_reference
 from .track_navigation import window_ends, navigation_check
 
@@ -168,7 +169,7 @@ def time_lag(flight, reference=None):
         return out
     taus = np.arange(-LAG_SEARCH_S, LAG_SEARCH_S + 1e-12, LAG_STEP_S)
     mse = curves(taus)
-    values = np.array([_parabola_min(taus, mse[:, i]) for i in range(LAG_SEGMENTS)])
+    values = np.array([parabola_min(taus, mse[:, i]) for i in range(LAG_SEGMENTS)])
     lowest = mse.min(axis=0)
     if not np.isfinite(values).all():
         # a segment least at the search's edge is searched on to LAG_SEARCH_MAX_S: a lag
@@ -177,7 +178,7 @@ def time_lag(flight, reference=None):
         wide = np.concatenate([-side[::-1], taus, side])
         wide_mse = np.concatenate([curves(-side[::-1]), mse, curves(side)])
         for i in np.flatnonzero(~np.isfinite(values)):
-            values[i] = _parabola_min(wide, wide_mse[:, i])
+            values[i] = parabola_min(wide, wide_mse[:, i])
             lowest[i] = wide_mse[:, i].min()
     # a residual below the part's own white noise is the vehicle model's error, not a
     # precision: on a noise-free drive, straight segments (a yaw rate of the Earth's and the
@@ -252,16 +253,3 @@ class Segments:
         from scipy import stats
         mean, se = self.mean_and_se()
         return float(2 * stats.t.sf(abs(mean) / se, len(self.values) - 1))
-
-
-def _parabola_min(x, y):
-    """Abscissa of the minimum of y(x) on a uniform grid, refined by a parabola through the
-    smallest value and its neighbours; NaN when the smallest value is at either end of the
-    grid (the minimum is not bracketed: a parabola through the end and its two neighbours had
-    put a straight stretch's lag at -14.6 s for a +-0.5 s search)."""
-    j = int(np.argmin(y))
-    if j in (0, len(y) - 1):
-        return math.nan
-    a, b, c = y[j - 1], y[j], y[j + 1]
-    den = a - 2 * b + c
-    return float(x[j] + (0.5 * (a - c) / den if den > 0 else 0.0) * (x[1] - x[0]))

@@ -144,6 +144,12 @@ def clock_offset(rec):
     if found.get("lag_s") is None:
         return dict(found, offset_s=None)
     offset, se = _refined(rec, found["lag_s"])
+    if not math.isfinite(offset + se):
+        return {"offset_s": None,
+                "said": f"{found['said']}; not refined: the |w|^2 fit's least cost lies at the "
+                        f"edge of its +-{2 * GRID_S * 1e3:.0f} ms search about that peak (with "
+                        "the whole overlap or without one of its tenths), so the two do not "
+                        "agree on it: left as recorded"}
     return {"offset_s": offset, "offset_se_s": se,
             "said": f"{found['said']}; refined to {offset * 1e3 + 0.0:+.1f} ms "
                     f"(standard error {se * 1e3:.2g} ms)"}
@@ -255,7 +261,8 @@ def _lobe(r, k, floor):
 def _refined(rec, coarse_s, search_s=2 * GRID_S, step_s=0.001, blocks=10):
     """(offset s, its standard error s): the offset that best matches the two |w|^2 within
     +-search_s of coarse_s, on a grid of step_s refined by a parabola; the error by the
-    jackknife over `blocks` consecutive blocks of the overlap. Each gyro's bias b moves its
+    jackknife over `blocks` consecutive blocks of the overlap; NaN where the least cost, of
+    the whole or of a jackknife part, is at the search's edge (not bracketed). Each gyro's bias b moves its
     |w|^2 by 2 b.w + |b|^2, which a shift can partly mimic (a MEMS pair's 0.3 deg/s had made
     a fixed wing's offset 0.3 ms late): at each shift the difference is fitted on [the IMU's
     rates, 1] first - with w_r = C w, |w_r + b_r|^2 - |w + b|^2 = 2 (C'b_r - b).w + const,
@@ -276,19 +283,24 @@ def _refined(rec, coarse_s, search_s=2 * GRID_S, step_s=0.001, blocks=10):
         coef = np.linalg.lstsq(bias_columns, y, rcond=None)[0]
         return np.bincount(block, (y - bias_columns @ coef) ** 2, minlength=blocks)
     cost = np.array([left(d) for d in shifts])              # (shifts, blocks)
-    whole = _parabola_min(shifts, cost.sum(axis=1), step_s)
-    parts = np.array([_parabola_min(shifts, cost.sum(axis=1) - cost[:, b], step_s)
+    whole = parabola_min(shifts, cost.sum(axis=1))
+    parts = np.array([parabola_min(shifts, cost.sum(axis=1) - cost[:, b])
                       for b in range(blocks)])
     se = math.sqrt((blocks - 1) / blocks * np.sum((parts - parts.mean()) ** 2))
     return whole, se
 
 
-def _parabola_min(x, cost, step):
-    """The x of the least cost on the even grid x (spacing step), refined by a parabola."""
-    i = int(np.clip(np.argmin(cost), 1, len(x) - 2))
-    c_lo, mid, c_hi = cost[i - 1:i + 2]
-    curve = c_lo - 2 * mid + c_hi
-    return float(x[i] + (0.5 * step * (c_lo - c_hi) / curve if curve > 0 else 0.0))
+def parabola_min(x, y):
+    """Abscissa of the minimum of y(x) on a uniform grid x, refined by a parabola through the
+    smallest value and its neighbours; NaN when the smallest value is at either end of the
+    grid (the minimum is not bracketed: a parabola through the end and its two neighbours had
+    put a straight stretch's lag at -14.6 s for a +-0.5 s search)."""
+    j = int(np.argmin(y))
+    if j in (0, len(y) - 1):
+        return math.nan
+    a, b, c = y[j - 1], y[j], y[j + 1]
+    den = a - 2 * b + c
+    return float(x[j] + (0.5 * (a - c) / den if den > 0 else 0.0) * (x[1] - x[0]))
 
 
 def _pair_mountings(rec):

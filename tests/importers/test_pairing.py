@@ -195,3 +195,22 @@ def test_a_reference_trajectory_off_the_imus_clock_is_measured_by_its_attitude(f
     checks.check_recording(rec)
     assert "stamps +0.00 s late" in rec.real["reference_clock"]
     assert "shifted by" in rec.assumed["reference_time"]
+
+
+def test_parabola_min_is_exact_on_a_parabola_and_nan_unbracketed():
+    x = np.arange(-1.0, 1.0 + 1e-12, 0.1)
+    assert pairing.parabola_min(x, 3 * (x - 0.337) ** 2 + 2) == pytest.approx(0.337, abs=1e-12)
+    assert np.isnan(pairing.parabola_min(x, (x - 1.3) ** 2))        # least at the grid's end
+
+
+def test_a_refinement_that_disagrees_with_the_peak_leaves_the_clock_as_recorded(
+        pair_motion, monkeypatch):
+    """A peak 0.55 s from the truth (a coarse search misled): the |w|^2 fit's least lies at
+    the edge of its +-40 ms search, so the two disagree - not decided, not shifted (a
+    parabola through the edge and its neighbours had been taken: +426 ms, truth +50 ms)."""
+    rec = _recording(*pair_motion, late_s=0.05)
+    monkeypatch.setattr(pairing, "rate_lag",
+                        lambda *a: {"lag_s": 0.6, "said": "peak at +600 ms (test)"})
+    clock = pairing.clock_offset(rec)
+    assert clock["offset_s"] is None
+    assert "not refined" in clock["said"] and "+-40 ms" in clock["said"]
