@@ -10,7 +10,7 @@ from ..frames import attitude
 from ..frames.mounting import Mounting
 from .kinds import VEHICLES
 from ..errors import InputError
-from ..flightlog.stamps import mean_rate_hz
+from ..flightlog.stamps import mean_rate_hz, missing_samples
 
 
 UNKNOWN_ATTITUDE = np.full(4, np.nan)
@@ -209,3 +209,26 @@ def attitude_at(t, t_att, wxyz):
 
 def utc_text(ns):
     return np.datetime_as_string(np.datetime64(int(ns), "ns"), unit="s") + "Z"
+
+
+def rate_onto(t, t_w, w, what, unit_s=1.0):
+    """(keep (M,) bool, w at t[keep] (K, 3), said or None): a gyro sampled on its own clock
+    (times t_w) interpolated linearly onto the specific force's times t (both in units of
+    unit_s seconds; M samples). A specific force stamped inside a gap of the gyro's stamps
+    (`flightlog.stamps.missing_samples`) has no angular rate beside it: it is left out, so
+    the log shows the gap, not a rate drawn across it (2 s of a turn's gyro rows missing
+    had been bridged by a line: 16 deg of the turn's 86). `what` names the gyro in `said`."""
+    gaps = missing_samples(np.round((t_w - t_w[0]) * unit_s * 1e9).astype(np.int64))
+    keep = (t >= t_w[0]) & (t <= t_w[-1])
+    inside = keep.copy()
+    for k, _ in gaps:
+        keep &= ~((t > t_w[k]) & (t < t_w[k + 1]))
+    w_at = np.column_stack([np.interp(t[keep], t_w, w[:, i]) for i in range(w.shape[1])])
+    if not gaps:
+        return keep, w_at, None
+    k = max((g[0] for g in gaps), key=lambda j: t_w[j + 1] - t_w[j])
+    said = (f"{what} misses {sum(m for _, m in gaps)} samples in {len(gaps)} gaps (longest "
+            f"{(t_w[k + 1] - t_w[k]) * unit_s:.4g} s, from {(t_w[k] - t_w[0]) * unit_s:.6g} s "
+            f"of its record): the {int(np.sum(inside & ~keep))} specific-force samples inside "
+            "them left out")
+    return keep, w_at, said

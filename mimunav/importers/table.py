@@ -110,10 +110,11 @@ import os
 import numpy as np
 
 from ..frames import attitude
+from ..flightlog.stamps import mean_rate_hz
 from ..frames.mounting import Mounting
 from ..sensors.accuracy import Accuracy
 from .columns import check_keys
-from .recording import RecordingError, Recording
+from .recording import Recording, RecordingError, rate_onto
 from .table_reference import reference_of
 from .table_spec import KINDS, RANGE_KEYS, UNITS, Spec, unix_ns, unix_offset_s, unrepeated
 
@@ -169,10 +170,10 @@ def _imu(spec, section):
                                  f"{t_w[-1]:.6g} s) and the specific force's ({t_f[0]:.6g} .. "
                                  f"{t_f[-1]:.6g} s) of [{section}] do not overlap: are both "
                                  "time units right?")
-        t_f, f = t_f[inside], f[inside]
-        w = np.column_stack([np.interp(t_f, t_w, w[:, i]) for i in range(3)])
+        keep, w, gaps = rate_onto(t_f, t_w, w, f"[{section}] {rate_key}")
+        t_f, f = t_f[keep], f[keep]
         spec.notes[f"{section}_time"] = ("angular rate interpolated linearly onto the specific "
-                                         "force's stamps")
+                                         "force's stamps" + (f"; {gaps}" if gaps else ""))
     return _sampled(spec, section, t_f, (rate_key, force_key)), w, f
 
 
@@ -256,6 +257,13 @@ def clipped_note(w, f, rng):
             "as saturation)")
 
 
+def _rate_hz(t):
+    """The sample rate (Hz) of stamps t (s) as the log's metadata states it
+    (`flightlog.stamps.mean_rate_hz`: a phone's jittered 100 Hz read 100.1 by its median
+    step where `info` said 100.000)."""
+    return mean_rate_hz(np.round((t - t[0]) * 1e9).astype(np.int64))
+
+
 def read(path, mounting=None, root=None):
     """The recording a table spec describes, as a `Recording`; root: the folder of its data
     files instead of the spec's `root`."""
@@ -284,12 +292,11 @@ def read(path, mounting=None, root=None):
                       accuracy=section.get("accuracy"),
                       mounting_hint="mounting_rpy_deg = [{roll}, {pitch}, {yaw}] in the spec's "
                                     "[reference_imu]")
-        notes["reference_imu"] = (f"{len(t_r)} samples at {1.0 / np.median(np.diff(t_r)):.4g} "
+        notes["reference_imu"] = (f"{len(t_r)} samples at {_rate_hz(t_r):.4g} "
                                   f"Hz ({section.get('model', 'model not stated')})")
     _to_the_vehicles_attitude(spec, meta, reference, mounting, second)
     name = spec.doc.get("name", os.path.splitext(os.path.basename(path))[0])
-    rate = 1.0 / np.median(np.diff(t_f))
-    real = {"imu": f"{len(t_f)} samples at {rate:.4g} Hz from {spec.root}",
+    real = {"imu": f"{len(t_f)} samples at {_rate_hz(t_f):.4g} Hz from {spec.root}",
             "source": spec.doc.get("source", spec.root), "spec": spec.path, **notes}
     if clipped_note(w, f, rng):
         real["clipped"] = clipped_note(w, f, rng)

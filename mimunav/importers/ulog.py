@@ -20,7 +20,7 @@ import numpy as np
 
 from ..frames.mounting import Mounting
 from ..sensors.accuracy import AUTOPILOT_MEMS, AUTOPILOT_MEMS_SOURCE
-from .recording import RecordingError, Recording, attitude_at
+from .recording import Recording, RecordingError, attitude_at, rate_onto
 from ..errors import require
 
 GNSS_TOPICS = ("vehicle_gps_position", "sensor_gps")
@@ -61,15 +61,16 @@ def _instance(ulog, path, n):
     if inside.sum() < 2:
         raise RecordingError(f"{path}: sensor_accel and sensor_gyro of instance {n} do not "
                              "overlap in time")
-    f = np.column_stack([_field(acc, c) for c in "xyz"])[inside]
-    w = np.column_stack([np.interp(t_a[inside], t_g, _field(gyr, c)) for c in "xyz"])
+    keep, w, gaps = rate_onto(t_a, t_g, np.column_stack([_field(gyr, c) for c in "xyz"]),
+                              f"sensor_gyro:{n}", unit_s=1e-6)
+    f = np.column_stack([_field(acc, c) for c in "xyz"])[keep]
     temps = [np.asarray(d.data["temperature"], float) for d in (acc, gyr)
              if "temperature" in d.data]
     temps = np.concatenate(temps) if temps else np.array([])
     temps = temps[np.isfinite(temps)]
     text = (f"temperature {temps.min():.2f} to {temps.max():.2f} degC" if len(temps)
             else "no temperature")
-    return t_a[inside], w, f, text
+    return t_a[keep], w, f, text + (f"; {gaps}" if gaps else "")
 
 
 def read(path, mounting=None, instance=None, reference_instance=None):

@@ -380,6 +380,48 @@ def test_ulog_imu_instances_as_the_imu_and_as_the_reference_imu(tmp_path):
         ulog.read(str(path), instance=3)
 
 
+def test_a_gyro_on_its_own_clock_is_not_drawn_across_its_gaps(tmp_path):
+    """A phone's export: accelerometer and gyro in two files on two clocks, the gyro's rows
+    of 2 s inside a turn missing. The rate is interpolated onto the accelerometer's stamps
+    where the gyro has samples either side (exact for a rate linear in time); the
+    accelerometer's samples inside the gyro's gap are left out, so the log shows the gap
+    and the import says it (the line across it had made 16 deg of a turn's 86)."""
+    from mimunav.importers import table
+    from mimunav.importers.write import summary
+    t = np.arange(6000) * 0.01                                       # 100 Hz, 60 s
+    f = np.tile([0.0, 0.0, -9.8], (len(t), 1))
+    np.savetxt(tmp_path / "acc.csv", np.column_stack([t, f]), delimiter=",",
+               header="t,x,y,z", comments="")
+    t_g = t + 0.004                                                  # its own clock
+    w = np.column_stack([0.01 * t_g, -0.02 + 0 * t_g, 0.5 * np.sin(0.1 * t_g)])
+    kept = (t_g < 30.0) | (t_g > 32.0)                               # 2 s of rows missing
+    np.savetxt(tmp_path / "gyr.csv", np.column_stack([t_g, w])[kept], delimiter=",",
+               header="t,x,y,z", comments="")
+    (tmp_path / "spec.toml").write_text("""[imu]
+time = {file = "acc.csv", columns = ["t"]}
+specific_force = {file = "acc.csv", columns = ["x", "y", "z"]}
+angular_rate = {file = "gyr.csv", columns = ["x", "y", "z"], time = {file = "gyr.csv", columns = ["t"]}}
+axes = "FRD"
+[time]
+unix_offset_s = 1700000000.0
+""")
+    rec = table.read(tmp_path / "spec.toml")
+    t_imu = (rec.imu_ns - rec.imu_ns[0]) / 1e9 + t[1]                  # the first t inside
+    assert not np.any((t_imu > 30.0 - 0.004) & (t_imu < 32.0 + 0.004 - 0.01))
+    assert len(rec.imu_ns) == 6000 - 1 - 201        # before the gyro's first; 30.00-32.00
+    assert np.allclose(rec.w[:, 0], 0.01 * t_imu, atol=1e-12)
+    said = "\n".join(summary(rec, _Align(), "x.mcap"))
+    assert re.search(r"gaps: the IMU misses 201 samples in 1 gaps \(longest 2.02 s", said), said
+    assert "angular_rate misses 200 samples in 1 gaps" in said
+
+
+class _Align:
+    """The alignment a summary reports: no rest, no biases."""
+    t, method = 0.0, "test"
+    static = (math.nan, math.nan)
+    gyro_bias = accel_bias = np.zeros(3)
+
+
 ROS_HEADER = """================================================================================
 MSG: std_msgs/Header
 builtin_interfaces/Time stamp
