@@ -206,8 +206,9 @@ def _measured_how(basis, sensor, i):
 
 def bias_basis(flight):
     """What the import's alignment measured of each bias: the recording metadata's
-    `bias_basis` ({gyro: reference_attitude | course | vertical_earth_rate | none, accel: all
-    | along_gravity | none, gravity_sensor_axes: the rest's up in sensor axes}); for a log
+    `bias_basis` ({gyro: reference_attitude | course | vertical_earth_rate | earth_rate_left |
+    none, accel: all | along_gravity | none, gravity_sensor_axes: the rest's up in sensor
+    axes}); for a log
     imported before it was written, read from the alignment's words (the rest's gravity
     axis then unknown)."""
     given = (flight.recording or {}).get("bias_basis")

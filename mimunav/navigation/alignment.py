@@ -74,7 +74,8 @@ class Alignment:
     or a moving alignment's), and what the biases measured (`bias_basis`: gyro
     "reference_attitude" (the Earth rate removed with the reference's attitude), "course" (at
     the course's heading), "vertical_earth_rate" (its horizontal part, up to Omega cos(lat),
-    left in), "assumed" (removed at a heading and latitude assumed) or "none" (taken as 0);
+    left in), "earth_rate_left" (a rest's mean rate, the Earth's in it: no position, no
+    heading) or "none" (taken as 0);
     accel "all" (from the reference's attitude and velocity), "along_gravity" (a rest's:
     the part along gravity only, `gravity_sensor_axes` its up in sensor axes) or "none")."""
     t: float
@@ -142,7 +143,7 @@ def initial_alignment(t, w, f, mounting, track=None):
        faster than COURSE_SPEED.
     The biases come from the rest of case 1, else from the longest rest anywhere (with the
     Earth rate removed as far as the attitude there is known), else are 0. Without a track
-    a rest of MIN_STATIC_S at the start is assumed and position and heading are 0. When no
+    the first rest the IMU shows starts the state, position and heading 0 (`_untracked`). When no
     case applies, an InputError says what the recording lacks."""
     if track is None or len(track["t"]) < 2:
         return _untracked(t, w, f, mounting)
@@ -221,19 +222,31 @@ def _no_initial_state(t, track, speed, inside, half):
 
 
 def _untracked(t, w, f, mounting):
-    """No reference: a rest of MIN_STATIC_S assumed at the start, position and heading 0."""
-    t_end = t[0] + MIN_STATIC_S
-    rest = t <= t_end
-    if rest.sum() < 10:
-        raise InputError(f"fewer than 10 IMU samples in the first {MIN_STATIC_S:g} s: no level")
+    """No reference: the first rest the IMU itself shows (`quiet_stretches`) gives the level
+    and the gyro bias - the Earth's rate left in it (no position, no heading) - and the
+    state starts there, position and heading 0. A rest had been assumed for the first
+    MIN_STATIC_S, unchecked: a rate-table record starting at 20 deg/s read a gyro bias of
+    -11.3 deg/s (truth +0.26). Without one: InputError saying what the IMU does there."""
+    rests = quiet_stretches(t, w, f)
+    if not rests:
+        first = t <= t[0] + MIN_STATIC_S
+        raise InputError(
+            "no initial state: no GNSS track or reference, and the IMU shows no rest of "
+            f"{MIN_STATIC_S:g} s anywhere to level on (its first {MIN_STATIC_S:g} s: |mean w| "
+            f"{math.degrees(np.linalg.norm(w[first].mean(axis=0))):.3g} deg/s, |mean f| "
+            f"{np.linalg.norm(f[first].mean(axis=0)):.4g} m/s^2)")
+    t0, t1 = rests[0]
+    rest = (t >= t0) & (t <= t1)
     roll, pitch = level(attitude.rotate(mounting.q_vs, f[rest].mean(axis=0)))
     q_nb = attitude.from_euler(np.array(0.0), np.array(pitch), np.array(roll))
-    w_ie_s = attitude.rotate(np.conjugate(q_nb * mounting.q_vs), earth.earth_rate_ned(0.0))
-    return Alignment(float(t[0]), 0.0, 0.0, 0.0, np.zeros(3), attitude.as_wxyz(q_nb),
-                     w[rest].mean(axis=0) - w_ie_s, np.zeros(3), (float(t[0]), float(t_end)),
-                     f"rest assumed for the first {MIN_STATIC_S:g} s (no GNSS track); level "
-                     "from its mean specific force; position and heading assumed 0",
-                     bias_basis={"gyro": "assumed", "accel": "none"})
+    later = f"; the IMU moves before it, from {t[0]:.2f} s" if t0 > t[0] + QUIET_WINDOW_S else ""
+    return Alignment(float(t0), 0.0, 0.0, 0.0, np.zeros(3), attitude.as_wxyz(q_nb),
+                     w[rest].mean(axis=0), np.zeros(3), (float(t0), float(t1)),
+                     f"a rest {t0:.2f}-{t1:.2f} s judged from the IMU alone (no GNSS track)"
+                     f"{later}; level from its mean specific force; position and heading "
+                     "assumed 0; the Earth's rate (up to 7.3e-05 rad/s) left in the gyro bias: "
+                     "no position, no heading", at_rest_start=t0 <= t[0] + QUIET_WINDOW_S,
+                     bias_basis={"gyro": "earth_rate_left", "accel": "none"})
 
 
 def _from_rest(t, w, f, mounting, track, interval, still_until=-math.inf):

@@ -35,10 +35,12 @@ def earth_rate_left(rest, length):
     """m: the most a window of `length` s drifts from the Earth rate's horizontal part that
     the rest's gyro bias keeps where its heading was not known (`bias_basis` gyro
     "vertical_earth_rate"): a tilt growing at Omega cos(lat), g Omega cos(lat) length^3 / 6
-    (13 m at 60 s on a new user's ideal IMU, charged to it before); 0 otherwise."""
-    if (rest.bias_basis or {}).get("gyro") != "vertical_earth_rate":
+    (13 m at 60 s on a new user's ideal IMU, charged to it before); Omega where the whole
+    Earth rate was left in (no position: "earth_rate_left"); 0 otherwise."""
+    basis = (rest.bias_basis or {}).get("gyro")
+    if basis not in ("vertical_earth_rate", "earth_rate_left"):
         return 0.0
-    left = earth.OMEGA * abs(math.cos(rest.lat))
+    left = earth.OMEGA * (abs(math.cos(rest.lat)) if basis == "vertical_earth_rate" else 1.0)
     return G0 * left * length ** 3 / 6
 
 

@@ -151,7 +151,7 @@ def test_px4_v6c_autopilot_reference_and_imu_instances(tmp_path):
 
 def test_px4_sample_without_gnss(tmp_path):
     """pyulog's sample: 69 s of sensor_combined at 250 Hz, no GNSS and no global position:
-    imported with the rest assumed at the start and position 0, and says so - and that its
+    imported with the rest its IMU shows at the start and position 0, and says so - and that its
     vehicle_attitude is not used without a global position."""
     path = PX4 / "pyulog_sample.ulg"
     _need(path)

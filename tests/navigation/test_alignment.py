@@ -657,3 +657,27 @@ def test_a_copters_steady_climb_is_no_rest():
     align = alignment.initial_alignment(t, w, f, Mounting(), track)
     assert align.static[0] < 0.1 and 18.0 <= align.static[1] <= 20.5, align.static
     assert abs(align.accel_bias[2]) < 0.003, align.accel_bias
+
+
+def test_without_a_track_the_rest_is_the_one_the_imu_shows():
+    """No GNSS, no reference: a rate table's record that starts turning at 20 deg/s about
+    its vertical for 5 s and then stands 60 s. The state starts at the rest the IMU shows,
+    its gyro bias the rest's mean (the table's +0.26, -0.12, +0.22 deg/s); a rest assumed
+    for the first 2 s had read -11 deg/s. A record that never stands is refused, saying
+    what its IMU does."""
+    rng = np.random.default_rng(4)
+    t = np.arange(0.0, 65.0, 0.005)
+    bias = np.radians([0.26, -0.12, 0.22])
+    turning = t < 5.0
+    w = bias + rng.normal(0, 2e-4, (len(t), 3))
+    w[turning, 2] += math.radians(20.0)
+    f = np.array([0.0, 0.0, -9.80665]) + rng.normal(0, 5e-3, (len(t), 3))
+    align = alignment.initial_alignment(t, w, f, Mounting(), None)
+    assert 5.0 <= align.static[0] <= 6.0 and align.static[1] >= 60.0
+    assert align.t == align.static[0] and not align.at_rest_start
+    assert np.allclose(align.gyro_bias, bias, atol=1e-4)
+    assert align.bias_basis["gyro"] == "earth_rate_left"
+    assert "judged from the IMU alone" in align.method and "moves before it" in align.method
+    w[:, 2] += math.radians(20.0)                                   # turning throughout
+    with pytest.raises(InputError, match="no rest of 2 s anywhere.*40.2 deg/s"):
+        alignment.initial_alignment(t, w, f, Mounting(), None)
