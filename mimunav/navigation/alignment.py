@@ -226,15 +226,10 @@ def _untracked(t, w, f, mounting):
     and the gyro bias - the Earth's rate left in it (no position, no heading) - and the
     state starts there, position and heading 0. A rest had been assumed for the first
     MIN_STATIC_S, unchecked: a rate-table record starting at 20 deg/s read a gyro bias of
-    -11.3 deg/s (truth +0.26). Without one: InputError saying what the IMU does there."""
+    -11.3 deg/s (truth +0.26). Without one: `_unrested`."""
     rests = quiet_stretches(t, w, f)
     if not rests:
-        first = t <= t[0] + MIN_STATIC_S
-        raise InputError(
-            "no initial state: no GNSS track or reference, and the IMU shows no rest of "
-            f"{MIN_STATIC_S:g} s anywhere to level on (its first {MIN_STATIC_S:g} s: |mean w| "
-            f"{math.degrees(np.linalg.norm(w[first].mean(axis=0))):.3g} deg/s, |mean f| "
-            f"{np.linalg.norm(f[first].mean(axis=0)):.4g} m/s^2)")
+        return _unrested(t, w, f, mounting)
     t0, t1 = rests[0]
     rest = (t >= t0) & (t <= t1)
     roll, pitch = level(attitude.rotate(mounting.q_vs, f[rest].mean(axis=0)))
@@ -247,6 +242,27 @@ def _untracked(t, w, f, mounting):
                      "assumed 0; the Earth's rate (up to 7.3e-05 rad/s) left in the gyro bias: "
                      "no position, no heading", at_rest_start=t0 <= t[0] + QUIET_WINDOW_S,
                      bias_basis={"gyro": "earth_rate_left", "accel": "none"})
+
+
+def _unrested(t, w, f, mounting):
+    """No reference and no rest the IMU shows: a state at the start leveled on the first
+    MIN_STATIC_S's mean specific force, said to be no rest (its tilt as wrong as the motion
+    there makes it), biases not observed (0) - what a reference IMU beside it needs of a
+    state (two IMUs navigated alike), no more."""
+    first = t <= t[0] + MIN_STATIC_S
+    if first.sum() < 10:
+        raise InputError(f"fewer than 10 IMU samples in the first {MIN_STATIC_S:g} s: no level")
+    roll, pitch = level(attitude.rotate(mounting.q_vs, f[first].mean(axis=0)))
+    q_nb = attitude.from_euler(np.array(0.0), np.array(pitch), np.array(roll))
+    return Alignment(float(t[0]), 0.0, 0.0, 0.0, np.zeros(3), attitude.as_wxyz(q_nb),
+                     np.zeros(3), np.zeros(3), (math.nan, math.nan),
+                     "no GNSS track or reference, and the IMU shows no rest of "
+                     f"{MIN_STATIC_S:g} s anywhere (its first {MIN_STATIC_S:g} s: |mean w| "
+                     f"{math.degrees(np.linalg.norm(w[first].mean(axis=0))):.3g} deg/s, |mean f| "
+                     f"{np.linalg.norm(f[first].mean(axis=0)):.4g} m/s^2): level from their mean "
+                     "specific force, which is no rest's (the tilt unreliable); biases not "
+                     "observed; position and heading assumed 0", at_rest_start=False,
+                     bias_basis={"gyro": "none", "accel": "none"})
 
 
 def _from_rest(t, w, f, mounting, track, interval, still_until=-math.inf):
