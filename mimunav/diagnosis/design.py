@@ -271,8 +271,8 @@ def _drivable(term, cols):
     """Whether the flight drives the candidate's columns {channel: (nb, k)}: finite (a log
     without temperatures has none for the temperature terms), varying, and for a vibration
     rectification, vibrating."""
-    if not cols or not all(np.isfinite(x).all() for x in cols.values()):
-        return False
+    if not cols or not all(x.size and np.isfinite(x).all() for x in cols.values()):
+        return False                        # no bins (none usable), or not finite
     if term["effect"] == "vibration_rectification" and \
             not library.vibrating(next(iter(cols.values()))):
         return False                        # a flight without airframe vibration

@@ -127,6 +127,24 @@ def saturation(t, measured, predicted, rows, train, full_scale, steps=None, sigm
     return findings, clipped
 
 
+def at_declared_range(measured, predicted, declared):
+    """(N,) bool: the samples where a channel's output sits at its declared range
+    (SATURATION_OF_RANGE of it) or its input lies beyond it - clipped by the unit's own
+    limit, which is no finding but leaves the sample saying nothing of the other terms (a
+    rate table's 300 deg/s steps on a 250 deg/s gyro had been fitted: an asymmetric scale
+    read as 0.0012 rad/s of bias instability, a null twin's cross-coupling 'found' at p
+    1e-23). measured, predicted: (N, 6) as `saturation`'s, read a column at a time;
+    declared: {"accel": m/s^2,
+    "gyro": rad/s} of the ranges the log states (a channel not stated: none)."""
+    out = np.zeros(len(measured[:, 0]), bool)          # a column at a time (`samples.Columns`)
+    for c, (sensor, _) in enumerate(CHANNELS):
+        if sensor in declared:
+            limit = float(declared[sensor])
+            out |= (np.abs(measured[:, c]) >= SATURATION_OF_RANGE * limit) | \
+                (np.abs(predicted[:, c]) > limit)
+    return out
+
+
 def _clip_side(y, x, rows, train, sigma, full_scale):
     """The clip of one side: {level, half (95 %), beyond (N,) bool, slope} or None."""
     if not rows.any():
@@ -215,6 +233,21 @@ def quantization(t, measured, raw, gains, rows, sigma):
                      f"{sigma[c]:.3g} ('after': the white noise without it)"))
             break
     return findings
+
+
+DITHERED_STEPS = 0.5    # white noise (in steps) from which a quantized channel's mean error
+#                         is independent of its input: by Widrow's theorem its dependence is
+#                         at most q/pi exp(-2 pi^2 sigma^2 / q^2), 0.002 q here (a 16-bit gyro's
+#                         0.0076 deg/s step under 0.07 deg/s of noise had kept every gyro.z
+#                         term out of a rate table's diagnosis: its scales never tested)
+
+
+def undithered(steps, sigma):
+    """{channel index}: the quantized channels (steps (6,) SI, 0 where none) whose white
+    noise sigma (6,) is below DITHERED_STEPS of their step - their error then depends on
+    where the input falls between two steps, which terms of that channel alone would fit."""
+    steps = np.asarray(steps, float)
+    return set(np.flatnonzero(steps > np.asarray(sigma, float) / DITHERED_STEPS).tolist())
 
 
 def lattice_step(y):

@@ -120,7 +120,8 @@ class SensorDiagnosis:
 
 def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander=None,
              output_tests=True, noise=None, vibration=None, bin_s=FAST_BIN_S,
-             block_s=SPLIT_BLOCK_S, noise_shape=None, wander_steps=None, check_reference=True):
+             block_s=SPLIT_BLOCK_S, noise_shape=None, wander_steps=None, check_reference=True,
+             unusable_because=None):
     """Sensor-level diagnosis of `flight` (an `evaluation.Flight` with a reference IMU)
     against calibration `cal`. `candidates`: the library to test (default
     `library.candidates()`); `max_wander`: the largest wander level (random-walk step
@@ -142,7 +143,9 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
     the scan's); `wander_steps`: (6,) the largest step variance of each channel's bias
     wander per bin, SI units squared, whatever white variance the fit finds (`track`: a
     level capped by `max_wander` alone grows with the vehicle model's own errors, which
-    swell that white variance). Nothing here is random."""
+    swell that white variance); `unusable_because`: why most samples may be unusable, for
+    the refusal when too few are left (`track`: outside the motion its model trusts).
+    Nothing here is random."""
     if flight.mimu_platform is not None:
         raise InputError(f"{flight.path}: the MIMU turns on a platform (/mimu/platform); "
                          "this analysis does not follow the rotation yet - replay and table do")
@@ -154,14 +157,7 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
     output_tests = prep.output_tests
     design = prep.design
     if len(design.t) < 4 * block_s / bin_s:
-        inside = (prep.t >= flight.fog_t[0]) & (prep.t <= flight.fog_t[-1])
-        flagged = float(np.mean(~prep.usable[inside])) if inside.any() else 0.0
-        raise InputError(f"{flight.path}: {len(design.t) * bin_s:.1f} s of usable MIMU "
-                         f"samples inside the reference IMU's span; the sensor level needs "
-                         f"at least {4 * block_s:g} s" + (
-                             f" ({flagged:.0%} of the samples flagged unusable - saturated "
-                             "or wild - by the compensation: is the calibration this unit's?)"
-                             if flagged > 0.5 else ""))
+        raise _too_little(flight, prep, bin_s, block_s, unusable_because)
     train = outputs.block_index(design.t, block_s) % 2 == 0
     held = ~train
 
@@ -242,6 +238,11 @@ def _prepared(flight, cal, acc, candidates, output_tests, samples, bin_s, noise_
     usable[0] = False                       # the sample at the first stamp has no interval
     m = bins(t, flight.fog_t, bin_s)
     full_scale = library.full_scale(flight.mimu_range)
+    declared = {k: flight.mimu_range[key] for k, key in (("accel", "accel_m_s2"),
+                                                        ("gyro", "gyro_rad_s"))
+                if key in flight.mimu_range}
+    usable &= ~outputs.at_declared_range(spill.series("measured"), spill.series("predicted"),
+                                         declared)
     on_outputs, quantized = [], set()
     acc = measured_steps(flight, acc, spill)
     cands = library.candidates() if candidates is None else candidates
@@ -405,6 +406,20 @@ def stamp_tick(t):
     return None
 
 
+def _too_little(flight, prep, bin_s, block_s, because):
+    """The InputError of a flight with under four split blocks of usable bins: how much
+    there is, and why most samples are unusable when they are (`because`, else the
+    compensation's flags)."""
+    inside = (prep.t >= flight.fog_t[0]) & (prep.t <= flight.fog_t[-1])
+    flagged = float(np.mean(~prep.usable[inside])) if inside.any() else 0.0
+    return InputError(f"{flight.path}: {len(prep.design.t) * bin_s:.1f} s of usable MIMU "
+                      f"samples inside the reference IMU's span; the sensor level needs at "
+                      f"least {4 * block_s:g} s" + (
+                          f" ({flagged:.0%} of the samples unusable: "
+                          + (because or "flagged saturated or wild by the compensation - "
+                             "is the calibration this unit's?") + ")" if flagged > 0.5 else ""))
+
+
 def _output_findings(cal, samples, finite, full_scale):
     """(saturation and quantization findings, samples clipped (N,) bool, quantized channels
     {channel index}): the tests on the outputs themselves (`outputs`), on every sample the
@@ -426,7 +441,7 @@ def _output_findings(cal, samples, finite, full_scale):
     train = outputs.block_index(t, SPLIT_BLOCK_S) % 2 == 0
     clips, clipped = outputs.saturation(t, measured, predicted, rows, train, full_scale, steps,
                                         sigma if np.array_equal(live, rows) else None)
-    return clips + found, clipped, set(np.flatnonzero(steps))
+    return clips + found, clipped, outputs.undithered(steps, sigma)
 
 
 def _on_channels_only(term, channels):

@@ -84,6 +84,7 @@ from .design import CHANNELS
 from ..errors import InputError
 from ..evaluation.replay import compensated_mimu
 from ..compensation.effects import vibration_power
+from ..motion.vehicle import TRUSTED_SPEED
 from .track_reference import (CHECK_BIN_S, NOT_FOLLOWED, VEHICLE_MODEL_ACCURACY, in_band,
                               noise_floor, rate_noise_shape, reversing, simulated_reference,
                               wander_limit, wander_steps, model_excursions)
@@ -106,6 +107,8 @@ BIN_ERROR_TIMES = 2     # bins of the fit, in the track's error times: a wanderi
 MIN_PREDICTED = 3           # of six channels: fewer, and the reference cannot carry a verdict
 MIN_TRUSTED = 0.25          # fraction of the MIMU's samples inside the trusted motion
                            # search and the derivative filters reach no farther
+UNTRUSTED = ("outside the motion the vehicle model trusts (a car's, faster than "
+             f"{TRUSTED_SPEED:g} m/s, or at rest) or its bins - is the recording a car's?")
 SCALE_CHECK = 0.2           # a predicted channel recording 20 % more or less than the reference
 
 
@@ -201,7 +204,8 @@ def diagnose(flight, cal, alpha=0.05, reference=None, accuracy=None):
                            wander_steps=wander_steps(bin_s=bin_s),
                            vibration=vibration, bin_s=bin_s, block_s=block_s,
                            noise_shape=rate_noise_shape(ref, trusted, motion, bin_s),
-                           check_reference=False)     # its own check: `reference_check`
+                           check_reference=False,     # its own check: `reference_check`
+                           unusable_because=UNTRUSTED)
     diag.level = "track"
     diag.unexplained, the_models = model_excursions(
         diag.unexplained, diag.design.t, motion.held_pitch_sd(diag.design.t),

@@ -436,3 +436,35 @@ def test_every_finding_says_how_its_interval_was_made(carrier, spec, method):
     diag, key = _diagnose(carrier, spec)
     (f,) = diag.findings
     assert f["effect"] == key["effect"] and f["ci95_method"] == method
+
+
+def test_a_step_under_enough_noise_leaves_its_channels_terms_in():
+    """Widrow: with white noise of DITHERED_STEPS of a step the mean quantization error no
+    longer follows the input (here within 0.01 of a step along a slow ramp, against 0.2 of a
+    step under 0.1 step of noise): such a channel keeps its own terms, a coarser one not."""
+    rng = np.random.default_rng(2)
+    x = np.linspace(0.0, 3.0, 400_000)                       # the input, in steps
+    for noise, most in ((outputs.DITHERED_STEPS, 0.01), (0.1, None)):
+        y = x + rng.normal(0.0, noise, len(x))
+        error = (np.round(y) - y).reshape(40, -1).mean(axis=1)   # mean error along the ramp
+        if most is None:
+            assert np.ptp(error) > 0.4
+        else:
+            assert np.max(np.abs(error)) < most
+    steps = np.array([0.0, 0.0, 0.0, 1e-4, 1e-4, 1.3e-4])
+    sigma = np.array([0.01] * 3 + [1e-4, 1e-3, 5e-5])
+    assert outputs.undithered(steps, sigma) == {5}           # 1e-4 is dithered, 5e-5 is not
+
+
+def test_samples_at_a_declared_range_say_nothing_of_the_other_terms():
+    """A 250 deg/s gyro on a 300 deg/s step: the samples at its rail, and those whose input
+    lies beyond it, are left out of the fits; a range the log does not state leaves all."""
+    limit = math.radians(250.0)
+    predicted = np.zeros((5, 6))
+    predicted[:, 5] = np.radians([100.0, 249.0, 260.0, -300.0, 0.0])
+    measured = predicted.copy()
+    measured[:, 5] = np.clip(predicted[:, 5], -limit, limit)
+    measured[1, 5] = 0.985 * limit                              # at the rail by its output
+    got = outputs.at_declared_range(measured, predicted, {"gyro": limit})
+    assert got.tolist() == [False, True, True, True, False]
+    assert not outputs.at_declared_range(measured, predicted, {"accel": 80.0}).any()

@@ -796,3 +796,19 @@ def test_a_reference_too_noisy_to_predict_a_channel_says_nothing_of_it(tmp_path)
     assert not result["conclusive"] and result["findings"] == []
     assert not any("off by more than the diagnosis fits; the import" in r
                    for r in result["inconclusive_reasons"])
+
+
+def test_a_walk_declared_a_car_is_refused_in_a_line(tmp_path, capsys):
+    """A walk at 1.3 m/s throughout but for a few seconds' jog (its attitude recorded) told to
+    be a car: too little of it lies in motion the car model trusts (faster than 2 m/s, or at
+    rest); refused in one line saying so - it had ended in a traceback from an empty
+    design."""
+    t = np.arange(0.0, 140.0 + 1e-9, 0.25)
+    speed = 1.3 + 1.4 * (smoothstep((t - 60.0) / 2.0) - smoothstep((t - 64.0) / 2.0))  # a jog
+    v = np.column_stack([speed * math.cos(0.5), speed * math.sin(0.5), 0 * t])
+    path, _, _ = ideal_flight(tmp_path, MOUNT, track=track_from_velocity(t, v),
+                              with_attitude=True)
+    code = main(["diagnose", str(path), "--level", "track", "--vehicle", "car",
+                 "--json", str(tmp_path / "d.json")])
+    err = capsys.readouterr().err
+    assert code == 2 and "outside the motion the vehicle model trusts" in err, err
