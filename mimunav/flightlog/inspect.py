@@ -73,7 +73,8 @@ ATTITUDE = {"reference": "from the reference", "leveled": "leveled on the IMU's 
 
 def _recording_lines(meta):
     """An imported recording's initial heading and attitude - where they came from, which
-    decides what the diagnosis may find - and its reference's frame, when the metadata says."""
+    decides what the diagnosis may find -, the vehicle it declared, and its reference's
+    frame, when the metadata says."""
     rec = meta.get("recording") if isinstance(meta.get("recording"), dict) else {}
     assumed = rec.get("assumed") if isinstance(rec.get("assumed"), dict) else {}
     lines = []
@@ -83,6 +84,9 @@ def _recording_lines(meta):
         said = f"{heading} ({why})" if why else HEADING.get(heading, heading)
         leveled = ATTITUDE.get(rec.get("initial_attitude"))
         lines.append(f"heading   {said}" + (f"; attitude {leveled}" if leveled else ""))
+    if rec:
+        lines.append(f"vehicle   {rec['vehicle']} (declared)" if rec.get("vehicle") else
+                     "vehicle   not declared (the diagnosis judges it from the track)")
     frame = (meta.get("reference") or {}).get("frame") if isinstance(meta.get("reference"),
                                                                        dict) else None
     if frame:

@@ -13,7 +13,7 @@ from ..navigation.rests import (TRACK_FORCE_RATIO, acceleration_match, follows_t
 from ..frames import attitude
 from .pairing import pair, trajectory_clock
 from .recording import G0, RecordingError, utc_text
-from ..motion.carrier import LAND, car_tests
+from ..motion.carrier import ALONG_COURSE, LAND, car_tests
 from ..motion.track import velocity_from_positions
 
 
@@ -251,7 +251,10 @@ def velocity_lag_s(ref, search_s=1.0, v_pos=None):
         if step == LAG_STEPS:           # no shift settles it: no lag to give
             return None
         best += round(refine / dt) * dt
-    leave_one_out = -(np.sum(ea) - ea) / (np.sum(aa) - aa)
+    rest = np.sum(aa) - aa
+    if not np.all(rest > 0):            # one block holds all the acceleration: no jackknife
+        return float(best + np.clip(refine, -dt, dt)), math.inf
+    leave_one_out = -(np.sum(ea) - ea) / rest
     se = math.sqrt((LAG_BLOCKS - 1) * np.mean((leave_one_out - leave_one_out.mean()) ** 2))
     return float(best + np.clip(refine, -dt, dt)), se
 
@@ -512,9 +515,10 @@ def _local_mean(x, k, half=5):
 
 def reference_track(rec, epoch):
     """The trajectory the alignment takes heading from (t s since epoch, lat, lon, h,
-    v_ned; `what` it is, for messages; heading_known), the reference, else the GNSS fixes
-    (their velocity when recorded, else central differences of their positions), else
-    None."""
+    v_ned; `what` it is, for messages; heading_known; `faces_course`: False for a declared
+    vehicle that need not face its course, `motion.carrier.ALONG_COURSE` - a walker's
+    phone, a copter; `vehicle`), the reference, else the GNSS fixes (their velocity when
+    recorded, else central differences of their positions), else None."""
     src, what = rec.reference, "the reference"
     if src is None or len(src["ns"]) < 3:
         src, what = rec.fixes, "the GNSS fixes (no reference trajectory)"
@@ -529,7 +533,8 @@ def reference_track(rec, epoch):
     return dict(t=t[ok], lat=src["lat"][ok], lon=src["lon"][ok], h=src["h"][ok], v_ned=v[ok],
                 q_nb=None if q is None else np.asarray(q)[ok],
                 attitude_source=rec.reference_meta.get("source", "the reference"), what=what,
-                heading_known=rec.reference_heading_known)
+                heading_known=rec.reference_heading_known, vehicle=rec.vehicle,
+                faces_course=rec.vehicle is None or rec.vehicle in ALONG_COURSE)
 
 
 UPRIGHT_DEG = 60.0      # deg: a car, a train, a two-wheeler on its stand (5-10 deg), an

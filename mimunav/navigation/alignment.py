@@ -186,7 +186,10 @@ def initial_alignment(t, w, f, mounting, track=None):
         q_nb = moving_attitude(t, w - gyro_bias, f - accel_bias, mounting, track, t0, half)
         notes.append(f"moving alignment at t = {t0:.2f} s ({speed[fast[0]]:.1f} m/s): the "
                      f"IMU's velocity increment over {2 * half:.1f} s (turned by its gyro) "
-                     "matched to the reference's, forward axis to its velocity")
+                     "matched to the reference's, forward axis to its velocity"
+                     + ("" if track.get("faces_course", True) else
+                        f" - a {track.get('vehicle', 'vehicle')} need not face its course: "
+                        "its heading is no measurement"))
     else:
         raise _no_initial_state(t, track, speed, inside, half)
     lat, lon, h = (float(np.interp(t0, track["t"], x)) for x in (
@@ -265,6 +268,16 @@ def _unrested(t, w, f, mounting):
                      bias_basis={"gyro": "none", "accel": "none"})
 
 
+def _no_heading(track, interval):
+    """Why a rest's heading is assumed 0: a track without attitude that is too slow for its
+    course, or of a vehicle declared not to face its course."""
+    if not track.get("faces_course", True):
+        return (f"heading assumed 0 (a {track.get('vehicle', 'vehicle')}, as declared, need "
+                "not face its course, and the track carries no attitude)")
+    return (f"heading assumed 0 (the track never exceeds {course_speed(track, interval):.2g} "
+            "m/s and carries no attitude)")
+
+
 def _from_rest(t, w, f, mounting, track, interval, still_until=-math.inf):
     """Case 1 of `initial_alignment`: the rest `interval` (t0, t1) starts the recording; the
     IMU held still until `still_until` (s), so no course before it is the vehicle's (a
@@ -288,6 +301,8 @@ def _from_rest(t, w, f, mounting, track, interval, still_until=-math.inf):
     moving = np.flatnonzero((speed >= COURSE_SPEED) & after)
     fast = moving if q_ref is not None else \
         np.flatnonzero((speed >= course_speed(track, interval)) & after)
+    if q_ref is None and not track.get("faces_course", True):
+        fast = moving = fast[:0]            # a declared walker's course is not its heading
     w_v = attitude.rotate(q_vs, w - w[rest].mean(axis=0))
     back = _reference_heading_back(t, w_v, t_end, track, moving)
     k, straight = _course_epochs(t, w_v, track, fast)
@@ -327,9 +342,7 @@ def _from_rest(t, w, f, mounting, track, interval, still_until=-math.inf):
         notes.append(f"heading from the reference's attitude at t = {t_ref:.2f} s")
     else:
         yaw, heading = 0.0, "assumed"
-        notes.append(f"heading assumed 0 (the track never exceeds "
-                     f"{course_speed(track, interval):.2g} m/s "
-                     "and carries no attitude)")
+        notes.append(_no_heading(track, interval))
     q_nb = attitude.from_euler(np.array(yaw), np.array(pitch), np.array(roll))
     gyro_bias, accel_bias = _rest_biases(w[rest], f[rest], q_nb * q_vs, lat, h)
     true_north = heading != "assumed" and track.get("heading_known", True)

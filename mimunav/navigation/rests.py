@@ -288,7 +288,6 @@ QUIET_SPREAD = 3.0          # x the quietest twentieth's spread: still quiet (th
 QUIET_SPREAD_TRACKED = 4.0  # the same where a reference track also judges each stretch
 QUIET_HOLE = 2              # windows: a louder moment inside a rest does not split it
 QUIET_RATE = math.radians(1.0)      # rad/s: a resting consumer gyro's mean rate over a run (its bias) stays below
-QUIET_GRAVITY = 0.3         # m/s^2: |mean f| - g at rest, beyond a consumer accelerometer's bias
 G0 = 9.80665                # m/s^2, standard gravity (a resting IMU feels about this)
 REST_GRAVITY = 0.2 * G0     # m/s^2: | |mean f| - g | at a rest a reference shows, at most: beyond
                             # any MEMS part's bias (a consumer accelerometer's 0.05 g), far below
@@ -302,7 +301,8 @@ def quiet_stretches(t, w, f, track=None):
     QUIET_WINDOW_S windows whose gyro and specific-force-magnitude scatter are within
     QUIET_SPREAD (QUIET_SPREAD_TRACKED with a track) times
     the quietest twentieth of the recording's windows, whose mean rate is below QUIET_RATE and
-    whose mean specific force is gravity's size (QUIET_GRAVITY), and which the reference
+    whose mean specific force is gravity's size (REST_GRAVITY: a phone's 45 mg bias had
+    failed 0.3 m/s^2 and lost a minute on a table), and which the reference
     `track` (when it covers them) does not show moving: a run the reference shows at rest
     (`track_still`: a noisy plain GNSS fix, metres apart epoch to epoch, hid a 33 s rest
     behind its differenced speed), else its windows where the reference's speed is below
@@ -331,7 +331,7 @@ def quiet_stretches(t, w, f, track=None):
     # gravity judges every window, filled or not; a steady turn is no rest: the mean rate
     # judges each run (a hand-held phone's tremor had lifted half its 0.5 s windows of a
     # 30 s rest past QUIET_RATE, 0.67-1.08 deg/s about a 0.39 deg/s bias, and lost the rest)
-    quiet = steady & (np.abs(np.linalg.norm(cut(f).mean(axis=1), axis=1) - G0) < QUIET_GRAVITY)
+    quiet = steady & (np.abs(np.linalg.norm(cut(f).mean(axis=1), axis=1) - G0) < REST_GRAVITY)
     runs = [run for t0, t1 in _runs(quiet, cut(t)[:, 0], cut(t)[:, -1])
             for run in steady_runs(t, w, f, t0, t1)[0] if _mean_rate(t, w, *run) < QUIET_RATE]
     if track is None or len(track["t"]) < 2:

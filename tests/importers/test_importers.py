@@ -1261,3 +1261,29 @@ def test_a_vehicle_that_banks_into_its_turns_reads_no_mounting_yaw(tmp_path):
     write_log(rec, tmp_path / "canted.mcap")
     said = rec.real["mounting_yaw_against_course"]
     assert said.startswith("not measured: turned by the") and "banks or leans" in said, said
+
+
+@pytest.mark.parametrize("vehicle, heading", [("pedestrian", "assumed"), (None, "course")])
+def test_a_declared_walkers_course_is_not_its_heading(tmp_path, vehicle, heading):
+    """A phone at rest 20 s, then carried straight by a runner at 3.5 m/s: undeclared, its
+    course gives the heading (a car's would); declared a pedestrian, whose phone need not
+    face its course, the heading is assumed and said so (the course's 22.5 deg had been
+    printed for a walker facing 30) - and `info` says what was declared."""
+    from mimunav.flightlog.inspect import describe
+    t = np.arange(0.0, 90.0 + 1e-9, 1.0)
+    speed = 3.5 * np.clip((t - 20.0) / 5.0, 0.0, 1.0)
+    v = np.column_stack([speed * math.cos(0.5), speed * math.sin(0.5), 0 * t])
+    t_tr, lat, lon, h, v = track_from_velocity(t, v)
+    motion = TrackMotion(t_tr, lat, lon, h, v)
+    t_imu = np.arange(0.0, 90.0, 0.01)
+    run = truth.generate(motion, t_imu)
+    epoch = 1_700_000_000_000_000_000
+    rec = Recording("walk", "test", epoch + np.round(t_imu[1:] * 1e9).astype(np.int64),
+                    run.dtheta / 0.01, run.dv / 0.01, Mounting(), vehicle=vehicle,
+                    reference=dict(ns=epoch + np.round(t_tr * 1e9).astype(np.int64), lat=lat,
+                                   lon=lon, h=h, v_ned=v))
+    write_log(rec, tmp_path / "walk.mcap")
+    with FlightLog(tmp_path / "walk.mcap") as log:
+        assert log.metadata()["recording"]["initial_heading"] == heading
+        text = describe(log)
+    assert ("vehicle   pedestrian (declared)" if vehicle else "vehicle   not declared") in text
