@@ -450,8 +450,37 @@ def recording_checks(design, findings, held):
              "or lag, vibration, errors no term describes)"
              + (f"; each finding of the search judged with its interval {math.sqrt(lam):.2f}x "
                 f"wider: {dropped} of {len(kept)} set aside by it" if kept else "")
-             + " (the tests on the outputs - bias, saturation, quantization - have nulls of "
-             "their own and are not judged by it)"], dict(record, widened_by=math.sqrt(lam)))
+             + " (of the tests on the outputs, a bias's wander is set aside and its offset "
+             "judged with the same widening: `outputs_judged`)"],
+            dict(record, widened_by=math.sqrt(lam)))
+
+
+def outputs_judged(found, record):
+    """(kept, set aside) of the tests on the outputs (`outputs`) where the library's check
+    found the residual not the noise the tests assume (`record`'s widened_by above 1,
+    `recording_checks`): a bias's wander is set aside - a random walk follows whatever slow
+    structure no term describes (a rate table's cross-coupling on its rate steps had read as
+    0.0016 rad/s of bias instability, a helicopter's unmodelled 1.2 deg mounting as 0.00085
+    on gyro.y, at p < 1e-80); a bias's offset is judged with its interval as widened as the
+    search's (`_judged_wider`). A rail and a lattice (saturation, quantization) are read off
+    the outputs themselves and stand."""
+    factor = (record or {}).get("widened_by", 1.0)
+    if not factor > 1.0:
+        return found, []
+    why = (f"the residual stands out {factor ** 2:.1f} times the tests' chance level "
+           "(the library's check)")
+    kept, aside = [], []
+    for f in found:
+        if f["effect"] == "bias_instability":
+            aside.append(dict(f, library_inflation=record, rejected=(
+                f"{why}: a wander follows whatever slow structure no term describes - not "
+                "told from it, inconclusive")))
+        elif f["effect"] == "bias_shift":
+            ok, judged = _judged_wider(f, factor, 1, why, "library_inflation", record)
+            (kept if ok else aside).append(judged)
+        else:
+            kept.append(f)
+    return kept, aside
 
 
 def set_aside_reasons(rejected):

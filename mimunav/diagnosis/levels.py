@@ -83,8 +83,10 @@ def load(log_path, model_path=None, level="auto", vehicle=None, stream=False):
     if level != "track":
         refuse_gaps(flight)
     if level in ("navigation", "track") and flight.truth is None:
-        raise no_reference(log_path, f"the {level} level (and no /fog/imu for the "
-                                     "sensor level): nothing to diagnose against")
+        raise no_reference(log_path, f"the {level} level" + (
+            ": --level sensor diagnoses it against its reference IMU (/fog/imu)"
+            if flight.fog_t is not None and len(flight.fog_t) else
+            " (and no /fog/imu for the sensor level): nothing to diagnose against"))
     return flight, cal, level, why
 
 

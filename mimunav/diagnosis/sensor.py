@@ -81,8 +81,8 @@ from .samples import binned, sample_stage, temperature_references
 from .fitting import Fitter, term_test
 from .scan import SCAN_WINDOW_S, condition_masks, condition_map, near_spans, excursions
 from .confirmation import (Extremes, beta_of, beyond_range, beyond_range_reasons,
-                           confirm_chosen, recording_checks, set_aside_reasons, position_of,
-                           removal_sigma)
+                           confirm_chosen, outputs_judged, recording_checks, set_aside_reasons,
+                           position_of, removal_sigma)
 from .selection import select
 
 
@@ -175,6 +175,8 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
     conds = condition_masks(design, prep.norms)
     unexplained, on_outputs = _after_the_fit(design, (removed, fit_found), conds, findings,
                                              prep, alpha, cal, noise, output_tests)
+    on_outputs, outputs_aside = outputs_judged(on_outputs, library)
+    rejected = rejected + outputs_aside
     for f in on_outputs:
         if f["effect"] == "bias_shift":
             removed[:, CHANNELS.index((f["sensor"], f["axis"]))] -= f["coefficient"]

@@ -793,3 +793,27 @@ def test_a_calibrated_unit_bounds_its_linear_terms_by_the_seed_fit_residual():
     assert physical_limit(scale, full, calibrated=True) == pytest.approx(5e-3)
     assert physical_limit(dict(scale, sensor="gyro"), full, calibrated=True) == pytest.approx(2e-2)
     assert physical_limit(scale, full) == pytest.approx(0.05)
+
+
+def test_the_tests_on_the_outputs_beside_a_residual_that_is_not_noise():
+    """Where the library's check finds the residual beyond the tests' noise (its intervals
+    widened 2x): a bias's wander is set aside (a random walk follows any slow structure: a
+    helicopter's unmodelled mounting had read as bias instability at p 1e-84); a bias offset
+    is read with its interval as widened - kept when its held-out p still holds, set aside
+    when not; a lattice stands. Without the check's widening all stand as found."""
+    from mimunav.diagnosis.confirmation import outputs_judged
+    base = {"sensor": "gyro", "axis": "y", "heldout_threshold": 0.01}
+    wander = dict(base, effect="bias_instability", coefficient=8.5e-4, ci95=(7e-4, 9.5e-4),
+                  p_heldout=1e-84)
+    strong = dict(base, effect="bias_shift", coefficient=1.0, ci95=(0.95, 1.05), p_heldout=1e-20)
+    weak = dict(base, effect="bias_shift", axis="z", coefficient=0.1, ci95=(0.05, 0.15),
+                p_heldout=1e-4)
+    lattice = dict(base, effect="quantization", coefficient=1e-4, ci95=(1e-4, 1e-4))
+    found = [wander, strong, weak, lattice]
+    assert outputs_judged(found, None) == (found, [])
+    assert outputs_judged(found, {"lambda": 2.0, "widened_by": 1.0}) == (found, [])
+    kept, aside = outputs_judged(found, {"lambda": 4.0, "widened_by": 2.0})
+    assert [f["effect"] + f["axis"] for f in kept] == ["bias_shifty", "quantizationy"]
+    assert kept[0]["ci95"] == pytest.approx((0.9, 1.1))
+    assert [f["effect"] + f["axis"] for f in aside] == ["bias_instabilityy", "bias_shiftz"]
+    assert "a wander follows whatever slow structure" in aside[0]["rejected"]

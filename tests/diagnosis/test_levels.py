@@ -224,3 +224,22 @@ def test_a_lever_arm_against_a_trajectory_is_reported_in_the_vehicle_frame():
                                        SimpleNamespace(is_identity=True))
     assert limit({"effect": "lever_arm", "sensor": "imu"}) == library.TRAJECTORY_LEVER_ARM
     assert library.physical_limit({"effect": "lever_arm", "sensor": "imu"}, {}) == 1.0
+
+
+def test_a_pair_without_a_trajectory_is_sent_to_the_sensor_level(tmp_path):
+    """A rate table's two IMUs and no GNSS: --level navigation is refused naming the level
+    that works on it (it had said 'and no /fog/imu for the sensor level' of a log with one)."""
+    from mimunav.errors import InputError
+    from mimunav.frames.mounting import Mounting
+    from mimunav.importers.recording import Recording
+    from mimunav.importers.write import write_log
+    rng = np.random.default_rng(3)
+    t = np.arange(0.0, 60.0, 0.01)
+    w = np.column_stack([0.3 * np.sin(0.7 * t), 0.2 * np.cos(0.3 * t), 0.5 * np.sin(0.1 * t)])
+    f = np.tile([0.0, 0.0, -9.81], (len(t), 1))
+    ns = 1_700_000_000_000_000_000 + np.round(t * 1e9).astype(np.int64)
+    rec = Recording("pair", "test", ns, w + rng.normal(0, 1e-3, w.shape), f, Mounting(),
+                    reference_imu=dict(ns=ns, w=w, f=f, mounting=Mounting(), model="fog"))
+    write_log(rec, tmp_path / "pair.mcap")
+    with pytest.raises(InputError, match="navigation level: --level sensor diagnoses it"):
+        levels.load(tmp_path / "pair.mcap", level="navigation")

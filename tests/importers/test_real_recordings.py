@@ -316,7 +316,7 @@ def test_onspeed_cheap_imu_beside_a_quantized_vn300(tmp_path):
     """The light aircraft of shared/data/onspeed-vn300 (a cheap MEMS IMU beside a VN-300
     logged with 2 decimals, 30 s to a stall): the spec's per-column signs give two FRD
     triads whose 0.5 s means correlate on every axis; the VN-300 rows written twice are one
-    sample; the two boxes' turn (about 4.8 deg of pitch) is measured and, the attitude
+    sample; the two boxes' turn (about 4.3 deg of pitch) is measured and, the attitude
     being the VN-300's own, put on the cheap IMU's mounting; the VN-300's stamps lag by its
     data age and a few ms more (its README: tens of ms). The diagnosis against a MEMS
     reference charges nothing to the cheap IMU alone that the VN-300 could carry, and
@@ -326,7 +326,10 @@ def test_onspeed_cheap_imu_beside_a_quantized_vn300(tmp_path):
     assert "50 rows repeating" in rec.real["repeated [reference]"]
     check_recording(rec)
     yaw, pitch, roll = np.degrees(attitude.as_euler(rec.mounting.q_vs))
-    assert pitch == pytest.approx(4.8, abs=0.5) and abs(roll) < 1 and abs(yaw) < 1.5
+    # about 4.3 deg of pitch by the 1 s means about their own means, where no bias enters;
+    # 4.6-4.8 with gravity among the vectors - a 5 mg accelerometer bias difference across
+    # gravity reads as the 0.3-0.5 deg between the two
+    assert pitch == pytest.approx(4.3, abs=0.5) and abs(roll) < 1 and abs(yaw) < 1.5
     assert "IMU's mounting was turned" in rec.real["reference_imu_mounting"]
     assert "refined to" in rec.real["reference_imu_clock"]
     log = tmp_path / "onspeed.mcap"
@@ -339,7 +342,14 @@ def test_onspeed_cheap_imu_beside_a_quantized_vn300(tmp_path):
     diag = json.loads(out.read_text())
     assert diag["level"] == "sensor" and not diag["reference_agreement"]["failures"]
     assert diag["reference_accuracy"]["gyro_step"] == 0.01
-    assert "bias_shift accel.z" in [f["label"] for f in diag["findings"]]   # -0.32 m/s^2
+    # its accelerometer z offset against the VN-300 (-0.34 m/s^2 [-0.41, -0.26] by the
+    # offset test) is read with its interval widened as the library's terms are, the
+    # residual standing 39 times beyond the tests' noise: it then holds zero - set aside,
+    # its estimate said (it had been found at p 1e-18; a helicopter's like it missed its
+    # truth by 3 half-widths)
+    offset = [r for r in diag["not_confirmed"] if r["label"] == "bias_shift accel.z"]
+    assert offset and offset[0]["library_inflation"]["widened_by"] > 5, diag["not_confirmed"]
+    assert -0.45 < offset[0]["coefficient"] < -0.2
     for f in diag["findings"]:
         assert f["attribution"] in ("mimu-or-reference", "installation", "timing"), f["label"]
         if f["effect"] == "bias_shift":     # beside the import's, its reference named; the
