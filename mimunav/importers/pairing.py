@@ -9,14 +9,21 @@ at least PEAK_CORRELATION, and every lag beyond the peak's own lobe (where the c
 stays above SECOND_PEAK_SHARE of it, at most LOBE_MAX_S either side) at most that share,
 or the peak above the best of them by DISTINCT_Z standard errors (`peak_margin`); the peak
 is then refined to a millisecond with each gyro's bias fitted beside it (`_refined`), its
-standard error said. A recording whose IMUs
+standard error said. Each tenth of the overlap gives its own offset: a straight line through
+them, weighted by their own variances, measures a drift (a crystal's tens of ppm), taken
+when beyond DISTINCT_Z of its standard error and worth SMALL_OFFSET_S over the overlap - the
+stamps then corrected along the line. A recording whose IMUs
 hardly turn (|w| spread below TURNING_RATE) cannot be timed so: said, and left as recorded.
 
 Mounting: after the clock, the two IMUs' 1 s mean rates and specific forces in the vehicle
 frame (each through its own mounting) are turned onto each other (Wahba's problem, scipy's
-`align_vectors`). The turn is applied to the reference's mounting when the vectors span two
-directions (their second singular value at least SPAN_SHARE of the first: gravity alone
-leaves the yaw about it open) and refused with the measured turn otherwise. A triad
+`align_vectors`): first about their own means, where no bias of either IMU enters, and the
+turn is applied at any size when they span two directions (their second singular value at
+least SPAN_SHARE of the first); else with gravity among them (the rates about their means
+beside the specific forces as recorded), the turn applied beyond SMALL_TURN_DEG and kept
+within it (an accelerometer bias difference across gravity reads as tilt: the diagnosis
+fits both); refused with the measured turn where gravity alone is seen (it leaves the yaw
+about it open). A triad
 mirrored against the other IMU's (a column's sign, an axis order: no turn holds it) is
 refused naming it: a moving axis whose 1 s means run against the IMU's, as given or after
 the best turn (`_runs_against`). Where the reference's attitude is the reference IMU's own
@@ -29,7 +36,7 @@ import numpy as np
 from ..frames import attitude
 from ..frames.mounting import Mounting
 from ..navigation.rests import means_around
-from .recording import G0, RecordingError, utc_text
+from .recording import G0, RecordingError, at_range, utc_text
 
 SMALL_OFFSET_S = 0.001      # s: the refinement's step; a measured offset beyond it is
                             # corrected (whatever the user's own shift was: the result must
@@ -66,10 +73,14 @@ def pair(rec):
     _check_units(rec)
     clock = clock_offset(rec)
     rec.real["reference_imu_clock"] = clock["said"]
-    if clock["offset_s"] is not None and abs(clock["offset_s"]) > SMALL_OFFSET_S:
+    if "drift" in clock:
+        rec.shift_reference_imu(-clock["offset_s"], "measured: " + clock["said"],
+                                drift=-clock["drift"], at_s=clock["at_s"] + clock["offset_s"])
+    elif clock["offset_s"] is not None and abs(clock["offset_s"]) > SMALL_OFFSET_S:
         rec.shift_reference_imu(-clock["offset_s"], "measured: " + clock["said"])
     _check_overlap(rec)
-    _pair_mountings(rec)
+    _pair_mountings(rec, clock.get("offset_se_s", math.inf) if clock["offset_s"] is not None
+                    else math.inf)
 
 
 def _check_overlap(rec):
@@ -143,16 +154,26 @@ def clock_offset(rec):
                      "the reference's stamps")
     if found.get("lag_s") is None:
         return dict(found, offset_s=None)
-    offset, se = _refined(rec, found["lag_s"])
+    offset, se, (drift, drift_se, centre, at_centre) = _refined(rec, found["lag_s"])
     if not math.isfinite(offset + se):
         return {"offset_s": None,
                 "said": f"{found['said']}; not refined: the |w|^2 fit's least cost lies at the "
                         f"edge of its +-{2 * GRID_S * 1e3:.0f} ms search about that peak (with "
                         "the whole overlap or without one of its tenths), so the two do not "
                         "agree on it: left as recorded"}
+    said = f"{found['said']}; refined to {{:+.1f}} ms (standard error {se * 1e3:.2g} ms)"
+    span = (min(rec.imu_ns[-1], ref["ns"][-1]) - max(rec.imu_ns[0], ref["ns"][0])) / 1e9
+    if abs(drift) > DISTINCT_Z * drift_se and abs(drift) * span > SMALL_OFFSET_S:
+        return {"offset_s": at_centre, "offset_se_s": se, "drift": drift, "drift_se": drift_se,
+                "at_s": centre, "said": said.format(at_centre * 1e3 + 0.0)
+                + f" at {centre - rec.imu_ns[0] / 1e9:.1f} s of the IMU's record, drifting "
+                f"{drift * 1e6:+.1f} ppm (standard error {drift_se * 1e6:.2g} ppm, its blocks' "
+                f"own offsets): {drift * span * 1e3:+.1f} ms over the {span:.0f} s they share"}
+    said = said.format(offset * 1e3 + 0.0)
     return {"offset_s": offset, "offset_se_s": se,
-            "said": f"{found['said']}; refined to {offset * 1e3 + 0.0:+.1f} ms "
-                    f"(standard error {se * 1e3:.2g} ms)"}
+            "said": said + (f"; no drift beyond {DISTINCT_Z:g} standard errors "
+                            f"({drift * 1e6:+.2g} ppm, se {drift_se * 1e6:.2g})"
+                            if math.isfinite(drift_se) else "")}
 
 
 def trajectory_clock(rec):
@@ -287,7 +308,43 @@ def _refined(rec, coarse_s, search_s=2 * GRID_S, step_s=0.001, blocks=10):
     parts = np.array([parabola_min(shifts, cost.sum(axis=1) - cost[:, b])
                       for b in range(blocks)])
     se = math.sqrt((blocks - 1) / blocks * np.sum((parts - parts.mean()) ** 2))
-    return whole, se
+    own = np.array([parabola_min(shifts, cost[:, b]) for b in range(blocks)])
+    mids = np.array([grid[block == b].mean() for b in range(blocks)])
+    count = np.bincount(block, minlength=blocks)
+    return whole, se, _drift(mids, own, _offset_variances(cost, count, step_s))
+
+
+def _offset_variances(cost, count, step):
+    """(blocks,) the variance (s^2) of each block's least-cost offset: a least-squares cost
+    C(d) about its least C0 is C0 + C'' (d - d0)^2 / 2, and d0's variance 2 (C0 / n) / C''
+    (n samples); inf where the least is at the grid's end or the cost not curved up."""
+    out = np.full(cost.shape[1], np.inf)
+    for b in range(cost.shape[1]):
+        j = int(np.argmin(cost[:, b]))
+        if 0 < j < len(cost) - 1:
+            curve = (cost[j - 1, b] - 2 * cost[j, b] + cost[j + 1, b]) / step ** 2
+            if curve > 0:
+                out[b] = 2 * cost[j, b] / max(count[b], 1) / curve
+    return out
+
+
+def _drift(t, offsets, variances):
+    """(drift: the offsets' rate of change, s/s, its standard error, the weighted mean time
+    s, the offset there s) of a straight line through the blocks' own offsets (s) at their
+    mid-times t (s),
+    weighted by their variances - a block with little motion places its offset loosely -,
+    the error scaled up by the fit's own scatter where it exceeds them; blocks without a
+    least inside the search left out, (0, inf, nan, nan) with fewer than 5 left."""
+    ok = np.isfinite(offsets) & np.isfinite(variances)
+    if ok.sum() < 5:
+        return 0.0, math.inf, math.nan, math.nan
+    t, y, weight = t[ok], offsets[ok], 1.0 / variances[ok]
+    centre = float(np.sum(weight * t) / np.sum(weight))
+    x = t - centre
+    slope = float(np.sum(weight * x * y) / np.sum(weight * x * x))
+    intercept = float(np.sum(weight * y) / np.sum(weight))
+    chi2 = float(np.sum(weight * (y - intercept - slope * x) ** 2)) / (len(t) - 2)
+    return slope, math.sqrt(max(chi2, 1.0) / np.sum(weight * x * x)), centre, intercept
 
 
 def parabola_min(x, y):
@@ -303,22 +360,33 @@ def parabola_min(x, y):
     return float(x[j] + (0.5 * (a - c) / den if den > 0 else 0.0) * (x[1] - x[0]))
 
 
-def _pair_mountings(rec):
-    """Turn the reference IMU's mounting onto the IMU's where the 1 s means decide it
-    (module doc); say what was measured."""
+def _second_means(rec):
+    """([[IMU w, f], [reference w, f]] 1 s means over the overlap (rad/s, m/s^2, sensor
+    axes), (M,) bool: the seconds both fill and no clipped sample lies in - a rate table's
+    300 deg/s steps on a 250 deg/s gyro are no measure of the turn)."""
     ref = rec.reference_imu
     lo, hi = max(rec.imu_ns[0], ref["ns"][0]), min(rec.imu_ns[-1], ref["ns"][-1])
     mids = np.arange(lo + 500_000_000, hi - 500_000_000, 1_000_000_000) / 1e9
-    if len(mids) < 10:
-        rec.real["reference_imu_mounting"] = "not measured: under 10 s of overlap"
-        return
     means = [[means_around(ns / 1e9, x, mids, 0.5) for x in (w, f)]
              for ns, w, f in ((rec.imu_ns, rec.w, rec.f), (ref["ns"], ref["w"], ref["f"]))]
+    if len(mids) < 10:
+        return means, np.zeros(len(mids), bool)
     ok = np.isfinite(np.hstack([m for p in means for m in p])).all(axis=1)
+    clipped = at_range(rec.w, rec.f, rec.range).astype(float)[:, None]
+    return means, ok & ~(means_around(rec.imu_ns / 1e9, clipped, mids, 0.5)[:, 0] > 0)
+
+
+def _pair_mountings(rec, clock_se):
+    """Turn the reference IMU's mounting onto the IMU's where the 1 s means decide it
+    (module doc), a small turn only beyond what the clock's standard error clock_se (s) can
+    make of the rates (`_clock_turn_deg`); say what was measured."""
+    ref = rec.reference_imu
+    means, ok = _second_means(rec)
     if ok.sum() < 10:
         rec.real["reference_imu_mounting"] = "not measured: under 10 s of common samples"
         return
-    turn, angle, seen = _measured_turn(rec, means, ok)
+    turn, angle, how = _measured_turn(rec, means, ok)
+    seen = bool(how)
     # a triad mirrored (a sign, an axis order) is no turn: as given, or after the best turn,
     # one of its moving axes runs against the other IMU's - both triads as given first (the
     # turn is fitted on both: a mirrored accelerometer can turn the gyros against each other)
@@ -334,7 +402,9 @@ def _pair_mountings(rec):
     yaw, pitch, roll = (_angle_text(a) for a in attitude.as_euler(fixed))
     hint = ref.get("mounting_hint")
     said = (f"{angle:.1f} deg from the mounting given (1 s mean rates and specific forces in the "
-            "vehicle frame); the two would agree with the reference IMU at roll, pitch, yaw "
+            "vehicle frame" + (", about their own means: no bias of either IMU in it"
+                               if how == "free" else "") +
+            "); the two would agree with the reference IMU at roll, pitch, yaw "
             f"{roll}, {pitch}, {yaw} deg" + (f" ({hint.format(roll=roll, pitch=pitch, yaw=yaw)})"
                                             if hint else ""))
     attitude_of_reference = rec.reference_meta.get("attitude_of") == "reference_imu"
@@ -361,11 +431,14 @@ def _pair_mountings(rec):
             f"second direction - under {SPAN_SHARE:g} of it: a still or gently driven "
             "vehicle): the yaw given is taken for it - check it")
         return
-    if angle <= SMALL_TURN_DEG:
+    timing = _clock_turn_deg(means[0][0][ok], clock_se)
+    if angle <= SMALL_TURN_DEG and (how != "free" or not angle > DISTINCT_Z * timing):
         rec.real["reference_imu_mounting"] = (
-            f"measured {said}: kept (the diagnosis fits a turn this small; its tilt may be an "
-            f"accelerometer bias difference across gravity: {bias_alike} reads as "
-            f"{angle:.1f} deg)")
+            f"measured {said}: kept (the diagnosis fits a turn this small; " + (
+                f"its tilt may be an accelerometer bias difference across gravity: "
+                f"{bias_alike} reads as {angle:.1f} deg)" if how != "free" else
+                f"a clock known to {clock_se * 1e3:.2g} ms turns the rates by up to "
+                f"{timing:.2g} deg)"))
         return
     if not seen:
         raise RecordingError(
@@ -378,6 +451,18 @@ def _pair_mountings(rec):
             + (f": {hint.format(roll=roll, pitch=pitch, yaw=yaw)})" if hint else ")"))
     ref["mounting"] = Mounting(attitude.as_wxyz(fixed), ref["mounting"].lever_arm_m)
     rec.real["reference_imu_mounting"] = f"measured {said}: turned so"
+
+
+def _clock_turn_deg(w, clock_se):
+    """deg: how far a clock error of clock_se (s) turns the 1 s mean rates w (N, 3 rad/s, 1 s
+    apart) - a rate vector that changes direction at dw/dt moves by dw/dt clock_se - as the
+    rms of their change over the rms of their spread (5 ms between two IMUs' interval stamps
+    had turned a conical motion's rates 0.4 deg); inf for a clock not measured."""
+    if not math.isfinite(clock_se):
+        return math.inf
+    spread = float(np.sqrt(np.mean((w - w.mean(axis=0)) ** 2)))
+    change = float(np.sqrt(np.mean(np.gradient(w, axis=0) ** 2)))
+    return math.degrees(change / max(spread, 1e-12) * clock_se)
 
 
 AS_GIVEN_AGAINST = -0.5     # a moving axis whose 1 s means, mountings as given, correlate
@@ -403,28 +488,64 @@ def _runs_against(name, sensor, mine, theirs, when, columns):
 
 def _measured_turn(rec, means, ok):
     """(the turn of the reference's vehicle-frame vectors onto the IMU's, its angle in deg,
-    whether two directions decide it) from the 1 s means: rates (when the IMUs turn,
-    scaled to the specific forces' weight) and specific forces; with one direction seen,
-    the smallest turn of the mean specific force onto the IMU's (the tilt: the yaw about
-    it is left open)."""
+    how it was decided: "free" - by the 1 s means about their own means, where no bias of
+    either IMU enters (a constant difference), each kind scaled to unit rms; "with gravity"
+    - the rates about their means beside the specific forces as recorded, gravity among
+    them (an accelerometer bias difference across it then reads as tilt); "" - only one
+    direction seen: the smallest turn of the mean specific force onto the IMU's, the yaw
+    about it left open). Two directions are seen where the second singular value of the
+    vectors' cross-covariance is at least SPAN_SHARE of the first."""
     from scipy.spatial.transform import Rotation
     q_mine, q_ref = rec.mounting.q_vs, rec.reference_imu["mounting"].q_vs
     w_mine, f_mine = (attitude.rotate(q_mine, x[ok]) for x in means[0])
     w_ref, f_ref = (attitude.rotate(q_ref, x[ok]) for x in means[1])
+    f_mine = f_mine - _lever_force(w_mine, rec.mounting.lever_arm_m
+                                   - rec.reference_imu["mounting"].lever_arm_m)
     # each gyro's bias is a constant the turn must not fit: the rates about their means (a
     # MEMS pair's 0.3 deg/s bias difference, weighted up to g beside the specific forces,
-    # had turned a fixed wing's two aligned IMUs 1.1 deg apart; w - mean = C (w_r - mean))
-    w_mine, w_ref = w_mine - w_mine.mean(axis=0), w_ref - w_ref.mean(axis=0)
-    rms_w = float(np.sqrt(np.mean(w_mine ** 2)))
-    turning = rms_w >= TURNING_RATE
-    mine = np.vstack([w_mine * (G0 / rms_w), f_mine]) if turning else f_mine
-    theirs = np.vstack([w_ref * (G0 / rms_w), f_ref]) if turning else f_ref
-    singular = np.linalg.svd(mine.T @ theirs, compute_uv=False)
-    if singular[1] >= SPAN_SHARE * singular[0]:
-        turn, _ = Rotation.align_vectors(mine, theirs)
-        return turn, math.degrees(turn.magnitude()), True
+    # had turned a fixed wing's two aligned IMUs 1.1 deg apart; w - mean = C (w_r - mean));
+    # so the specific forces where they vary enough (a rate table's six positions: their
+    # 15-19 mg bias differences had read as 4.6 deg of tilt)
+    centred = [x - x.mean(axis=0) for x in (w_mine, w_ref, f_mine, f_ref)]
+    rms_w, rms_f = (float(np.sqrt(np.mean(x ** 2))) for x in (centred[0], centred[2]))
+    kinds = [(centred[0] / rms_w, centred[1] / rms_w)] if rms_w >= TURNING_RATE else []
+    kinds += [(centred[2] / rms_f, centred[3] / rms_f)] if rms_f >= MOVING_FORCE else []
+    if kinds:
+        turn = _wahba(np.vstack([k[0] for k in kinds]), np.vstack([k[1] for k in kinds]))
+        if turn is not None:
+            return turn, math.degrees(turn.magnitude()), "free"
+    mine = np.vstack([centred[0] * (G0 / rms_w), f_mine]) if rms_w >= TURNING_RATE else f_mine
+    theirs = np.vstack([centred[1] * (G0 / rms_w), f_ref]) if rms_w >= TURNING_RATE else f_ref
+    turn = _wahba(mine, theirs)
+    if turn is not None:
+        return turn, math.degrees(turn.magnitude()), "with gravity"
     turn, _ = Rotation.align_vectors([f_mine.mean(axis=0)], [f_ref.mean(axis=0)])
-    return turn, math.degrees(turn.magnitude()), False
+    return turn, math.degrees(turn.magnitude()), ""
+
+
+def _lever_force(w, r):
+    """(N, 3) m/s^2: the specific force a point r (m, vehicle frame) from the other IMU feels
+    beyond it on a body turning at the 1 s mean rates w (rad/s, vehicle frame, 1 s apart):
+    dw/dt x r + w x (w x r) (a rate table's 300 deg/s puts 2.7 m/s^2 on 0.1 m: read as a
+    turn of the boxes, 0.6 deg where they were aligned)."""
+    r = np.asarray(r, float)
+    if not np.any(r):
+        return np.zeros_like(w)
+    return np.cross(np.gradient(w, axis=0), r) + np.cross(w, np.cross(w, r))
+
+
+MOVING_FORCE = 0.3          # m/s^2: the 1 s mean specific forces' spread about their mean
+#                             from which they turn the boxes (`reference.MOVING_SPREAD`'s)
+
+
+def _wahba(mine, theirs):
+    """The turn of `theirs` (N, 3) onto `mine` (scipy Rotation) where the vectors span two
+    directions (SPAN_SHARE), else None."""
+    from scipy.spatial.transform import Rotation
+    singular = np.linalg.svd(mine.T @ theirs, compute_uv=False)
+    if not singular[1] >= SPAN_SHARE * singular[0]:
+        return None
+    return Rotation.align_vectors(mine, theirs)[0]
 
 
 def _angle_text(rad):

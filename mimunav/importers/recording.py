@@ -107,13 +107,19 @@ class Recording:
             raise RecordingError(f"{self.name}: vehicle {self.vehicle!r}: one of "
                                  f"{', '.join(VEHICLES)}")
 
-    def shift_reference_imu(self, offset_s, why):
-        """Add offset_s (s) to the reference IMU's stamps, saying so (`why`) in the assumed
-        metadata."""
+    def shift_reference_imu(self, offset_s, why, drift=0.0, at_s=0.0):
+        """Add offset_s (s) to the reference IMU's stamps - and drift (s/s) times their time
+        from at_s (s, the grid of `pairing`: stamps in s), a clock running at another rate -,
+        saying so (`why`) in the assumed metadata."""
         if self.reference_imu is None:
             raise InputError("--reference-imu-time-offset: the recording has no reference IMU "
                              "(--reference-imu-topic, [reference_imu], --reference-imu-instance)")
-        self.reference_imu["ns"] = self.reference_imu["ns"] + int(round(offset_s * 1e9))
+        ns = self.reference_imu["ns"]
+        slope = np.round(drift * (ns / 1e9 - at_s) * 1e9).astype(np.int64) if drift else 0
+        self.reference_imu["ns"] = ns + int(round(offset_s * 1e9)) + slope
+        if np.any(np.diff(self.reference_imu["ns"]) <= 0):
+            raise RecordingError(f"{self.name}: the reference IMU's stamps, shifted by the "
+                                 "clock measured, no longer increase")
         self._say_shift("reference_imu_time", offset_s, why)
 
     def shift_reference(self, offset_s, why):
@@ -232,3 +238,13 @@ def rate_onto(t, t_w, w, what, unit_s=1.0):
             f"of its record): the {int(np.sum(inside & ~keep))} specific-force samples inside "
             "them left out")
     return keep, w_at, said
+
+
+def at_range(w, f, rng):
+    """(N,) bool: the samples with an output at the sensor's range `rng` (a Recording's
+    `range`: gyro_rad_s, accel_m_s2; within 0.1 %) on some axis - clipped, or about to be."""
+    at = np.zeros(len(w), bool)
+    for x, key in ((w, "gyro_rad_s"), (f, "accel_m_s2")):
+        if key in rng:
+            at |= (np.abs(x) >= 0.999 * rng[key]).any(axis=1)
+    return at

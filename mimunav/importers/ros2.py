@@ -69,6 +69,10 @@ def topics(path):
     return {c.topic: summary.schemas[c.schema_id].name for c in summary.channels.values()}
 
 
+OPTION = {IMU: "--imu-topic (and a second IMU as --reference-imu-topic)",
+          NAV_SAT_FIX: "--fix-topic"}
+
+
 def _pick(path, available, schema, topic, required):
     found = [t for t, s in available.items() if s == schema]
     if topic is not None:
@@ -79,7 +83,8 @@ def _pick(path, available, schema, topic, required):
         return found[0]
     if not found and not required:
         return None
-    raise RecordingError(f"{path}: {len(found)} {schema} topics {found}; choose one by topic")
+    raise RecordingError(f"{path}: {len(found)} {schema} topics {found}; choose one by "
+                         f"{OPTION.get(schema, 'topic')}")
 
 
 def _messages(path, topic):

@@ -114,7 +114,7 @@ from ..flightlog.stamps import mean_rate_hz
 from ..frames.mounting import Mounting
 from ..sensors.accuracy import Accuracy
 from .columns import check_keys
-from .recording import Recording, RecordingError, rate_onto
+from .recording import Recording, RecordingError, at_range, rate_onto
 from .table_reference import reference_of
 from .table_spec import KINDS, RANGE_KEYS, UNITS, Spec, unix_ns, unix_offset_s, unrepeated
 
@@ -245,12 +245,9 @@ def sensor_range(spec, section="imu"):
 
 
 def clipped_note(w, f, rng):
-    """What the outputs say of the sensor's range: how many samples sit at it (within 0.1 %)
-    on some axis, or ''."""
-    at = np.zeros(len(w), bool)
-    for x, key in ((w, "gyro_rad_s"), (f, "accel_m_s2")):
-        if key in rng:
-            at |= (np.abs(x) >= 0.999 * rng[key]).any(axis=1)
+    """What the outputs say of the sensor's range: how many samples sit at it (`at_range`),
+    or ''."""
+    at = at_range(w, f, rng)
     if not at.any():
         return ""
     return (f"{int(at.sum())} samples at the range given (clipped: the diagnosis tests them "

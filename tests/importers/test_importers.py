@@ -188,7 +188,7 @@ def test_ros2_import_by_topic(tmp_path):
                   longitude=np.full(len(fix_ns), -105.1), altitude=np.full(len(fix_ns), 1600.0),
                   position_covariance=np.tile(np.eye(3).ravel(), (len(fix_ns), 1)),
                   position_covariance_type=np.full(len(fix_ns), 2, np.uint8))
-    with pytest.raises(RecordingError, match="choose one by topic"):
+    with pytest.raises(RecordingError, match="choose one by --imu-topic .and a second IMU as --reference-imu-topic."):
         ros2.read(bag)
     rec = ros2.read(bag, imu_topic="/imu/data")
     assert np.array_equal(rec.imu_ns, stamps) and np.allclose(rec.w, w) and np.allclose(rec.f, f)
