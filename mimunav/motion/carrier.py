@@ -71,11 +71,13 @@ def car_tests(t_track, v_ned, t=None, f=None, w=None):
     moving = speed > 2.0
     grade = float(np.percentile(climb[moving] / speed[moving], 99)) if moving.any() else 0.0
     if grade > GRADE:
-        failed.append(f"it climbs at {100 * grade:.0f} % of its horizontal speed (99th "
-                      f"percentile; a road at most {100 * GRADE:.0f} %)")
-    still_climb = float(climb[~moving].max()) if (~moving).any() else 0.0
-    if still_climb > STILL_CLIMB:
-        failed.append(f"it climbs at {still_climb:.1f} m/s while hardly moving horizontally")
+        failed.append(f"it climbs or descends at {100 * grade:.0f} % of its horizontal speed "
+                      f"(99th percentile; a road at most {100 * GRADE:.0f} %)")
+    still = np.flatnonzero(~moving)
+    k = still[np.argmax(climb[still])] if len(still) else None
+    if k is not None and climb[k] > STILL_CLIMB:
+        failed.append(f"it {'descends' if v[ok][k, 2] > 0 else 'climbs'} at {climb[k]:.1f} "
+                      "m/s while hardly moving horizontally")
     load = None if f is None else _load(t, f)
     if load is not None and load > LOAD:
         failed.append(f"its IMU's 1 s mean |specific force| is {load / 9.80665:.2f} g off 1 g "
@@ -91,7 +93,7 @@ def car_tests(t_track, v_ned, t=None, f=None, w=None):
                       f"in its turns (median; a car's feels it all, at least {LEAN_SHARE:g}: "
                       "it leans or banks into them)")
     numbers = [f"speed p95 {p95:.1f} m/s, p99 {p99:.1f} m/s", f"grade p99 {100 * grade:.0f} %",
-               f"climb at standstill {still_climb:.1f} m/s"] + \
+               f"climb at standstill {climb[k] if k is not None else 0.0:.1f} m/s"] + \
         ([f"load {load / 9.80665:.2f} g off 1 g (99.5 %)"] if load is not None else []) + \
         ([f"roll and pitch rate {np.degrees(body):.1f} deg/s (95 %)"] if body is not None
          else []) + ([f"turns felt across {lean:.2f}"] if lean is not None else [])

@@ -40,6 +40,18 @@ from . import windows as windows_report
 IDENTITY = "identity (the recorded /mimu/imu)"
 
 
+def _tilt_caveat(rec):
+    """What a roll and pitch leveled on the IMU's own specific force cannot tell apart: an
+    accelerometer bias across gravity (a rest measures it along gravity only) - 1 mg reads as
+    0.057 deg of tilt (a phone's 35 mg as 2 deg); '' where the reference gave the attitude or
+    the biases."""
+    basis = rec.get("bias_basis") if isinstance(rec.get("bias_basis"), dict) else {}
+    if rec.get("initial_attitude") != "leveled" or basis.get("accel") == "all":
+        return ""
+    return (" Roll and pitch are leveled on the IMU's own specific force: an accelerometer "
+            "bias across gravity, which no rest measures, reads as tilt - 1 mg as 0.057 deg.")
+
+
 def write(log_path, out_dir, force=False, progress=True, min_speed=None,
           lengths=windows.WINDOW_LENGTHS_S):
     """Run every part on the log at `log_path` and write the report folder `out_dir`;
@@ -146,8 +158,9 @@ def markdown(log_path, meta, channels, flight, docs, no_windows, doc, no_diagnos
     q = flight.initial.q_nb
     yaw, pitch, roll = (float(np.degrees(a)) for a in attitude.as_euler(q))
     lines += ["", f"Initial state at t = {flight.initial.t:.2f} s: roll {roll:.2f}, pitch "
-              f"{pitch:.2f}, heading {round(yaw, 1) % 360 + 0.0:.1f} deg, speed "
-              f"{np.linalg.norm(flight.initial.v_ned):.2f} m/s.", "",
+              f"{pitch:.2f}, heading {round(yaw, 1) % 360 + 0.0:.1f} deg "
+              f"({rec.get('initial_heading', 'heading source not stated')}), speed "
+              f"{np.linalg.norm(flight.initial.v_ned):.2f} m/s." + _tilt_caveat(rec), "",
               "## Channels (`mimunav info`)", "", "```", channels, "```", "",
               "## Free-inertial windows against the reference (`mimunav windows`)", ""]
     if not docs:

@@ -1,5 +1,6 @@
 """What carried an IMU (`motion.carrier.car_tests`), on tracks and IMUs made here."""
 import math
+import re
 
 import numpy as np
 
@@ -54,8 +55,11 @@ def test_a_noisy_altitude_is_no_climb_on_the_spot():
     climb = np.where((t > 20.0) & (t < 40.0), 2.0, 0.0)
     v[:, 2] = -climb + v[:, 2]
     failed, _ = car_tests(t, v)
-    assert any("while hardly moving" in x for x in failed), failed
+    assert any(re.search("climbs at 2.[0-9] m/s while hardly moving", x) for x in failed), failed
     assert STILL_CLIMB < 2.0
+    v[:, 2] = 2 * climb + v[:, 2]               # and one that comes down so: it descends
+    failed, _ = car_tests(t, v)                 # (a helicopter's descent had 'climbed')
+    assert any(re.search("descends at [12].[0-9] m/s while hardly moving", x) for x in failed), failed
 
 
 def test_the_tracks_ends_and_a_short_track_are_not_judged_on_half_windows():

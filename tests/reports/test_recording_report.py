@@ -1,5 +1,6 @@
 """`mimunav report recording` on the RTKLIB excerpt."""
 import json
+import re
 
 import numpy as np
 import pytest
@@ -23,6 +24,9 @@ def test_report_recording_of_the_excerpt_and_its_refusals(tmp_path):
     assert "| reference | RTKLIB solution (fix)" in text
     assert "independent of this IMU: yes" in text
     assert "| 10 |" in text                              # the 10 s windows' row
+    # its roll and pitch leveled at a rest: the accelerometer bias across gravity they hold
+    assert re.search(r"heading [0-9.]+ deg \(course\).*reads as tilt - 1 mg as 0.057 deg",
+                     text), text
     doc = json.loads((out / "diagnosis" / "diagnosis.json").read_text())
     assert doc["level"] == "track" and "conclusive" in doc
     # the excursions that set the contract verdict are listed (11 on the excerpt)
