@@ -110,9 +110,9 @@ def why_no_windows(truth, lengths, first, min_speed, max_gap, half):
     conditions = [
         (speed.max() >= min_speed, f"a horizontal speed of {min_speed:g} m/s at a window's "
                                    f"start (the reference peaks at {speed.max():.2f} m/s "
-                                   f"over +-{half:g} s: --min-speed)"),
+                                   f"over +-{half:.3g} s: --min-speed)"),
         (span > length, f"{length:g} s of reference after the rest and the alignment's "
-                        f"{half:g} s ({span:.1f} s: --lengths)")]
+                        f"{half:.3g} s ({span:.1f} s: --lengths)")]
     failed = [text for ok, text in conditions if not ok]
     met = [text for ok, text in conditions if ok]
     head = f"no free-inertial window of {length:g} s fits this recording: "
