@@ -34,3 +34,19 @@ def test_quiet_stretches_of_the_imu_alone_skip_the_free_fall():
     found = rests.quiet_stretches(t, w, f)
     assert found and all(t1 <= 10.0 + 1e-9 for _, t1 in found)
     assert sum(t1 - t0 for t0, t1 in found) > 8.0
+
+
+def test_a_phones_biased_accelerometer_on_a_table_is_at_rest():
+    """A phone's accelerometer 45 mg off along gravity (|f| 0.44 m/s^2 above g) lying 60 s
+    on a table, then carried: the table is a rest (0.3 m/s^2 had refused it and lost the
+    walk's import); the boost of `_rocket` and its coast stay none."""
+    rng = np.random.default_rng(8)
+    t = np.arange(1, 9001) / 100.0
+    f = np.tile([0.0, 0.0, -(G + 0.045 * G)], (len(t), 1)) + rng.normal(0, 0.02, (len(t), 3))
+    w = rng.normal(0, 0.002, (len(t), 3))
+    moving = t > 60.0
+    w[moving] += 0.3 * np.sin(2 * np.pi * 1.8 * t[moving])[:, None]
+    f[moving] += 2.0 * np.sin(2 * np.pi * 1.8 * t[moving])[:, None]
+    found = rests.quiet_stretches(t, w, f)
+    assert found and found[0][0] < 1.0 and 58.0 < found[0][1] <= 60.5, found
+    assert abs(0.045 * G) < rests.REST_GRAVITY
