@@ -463,13 +463,16 @@ def outputs_judged(found, record):
     0.0016 rad/s of bias instability, a helicopter's unmodelled 1.2 deg mounting as 0.00085
     on gyro.y, at p < 1e-80); a bias's offset is judged with its interval as widened as the
     search's (`_judged_wider`). A rail and a lattice (saturation, quantization) are read off
-    the outputs themselves and stand."""
+    the outputs themselves and stand. A test already rejected (`outputs.bias_tests`: a wander
+    that follows an input) is set aside whatever the check."""
+    aside = [f for f in found if f.get("rejected")]     # a wander that follows an input
+    found = [f for f in found if not f.get("rejected")]
     factor = (record or {}).get("widened_by", 1.0)
     if not factor > 1.0:
-        return found, []
+        return found, aside
     why = (f"the residual stands out {factor ** 2:.1f} times the tests' chance level "
            "(the library's check)")
-    kept, aside = [], []
+    kept = []
     for f in found:
         if f["effect"] == "bias_instability":
             aside.append(dict(f, library_inflation=record, rejected=(

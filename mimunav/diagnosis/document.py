@@ -7,7 +7,7 @@ import os
 import numpy as np
 
 from ..files import json_ready
-from . import navigation, outputs, sensor
+from . import bias_models, navigation, outputs, sensor
 
 
 FORMAT = "mimunav-diagnosis/1"
@@ -62,7 +62,7 @@ METHOD = {
                "thresholds over the library; "
                "the other blocks give the coefficient, its 95 % interval and the "
                "confirmation; saturation, quantization, bias shift and bias instability "
-               f"tested on the outputs and on {outputs.SPAN_S:g} s means of the bias over "
+               f"tested on the outputs and on {bias_models.SPAN_S:g} s means of the bias over "
                f"quiet flight (longer where a flight holds more than {outputs.MAX_SPANS} of "
                "them: a bias finding's note says how long) "
                "against the MEMS class of seed S1 Table 1"),

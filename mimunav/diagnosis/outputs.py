@@ -24,16 +24,14 @@ Each is held to the same family-wise alpha as the library; a clip must show on b
 the diagnosis' split (alternate SPLIT_BLOCK_S blocks).
 """
 import math
-from functools import lru_cache
 
 import numpy as np
 from scipy import stats
 
 from ..lab.runs import TURN_ON
-from ..lab.gls import flicker_covariance
 from ..lab.calibrate import standard_errors
-from ..sensors.noise import FLICKER_SPAN
 from ..compensation.effects import AXES
+from .bias_models import GM_TAU_S, SPAN_S, bias_models
 from .library import MIN_VARIANCE_SHARE
 from ..sensors.accuracy import Accuracy
 
@@ -52,7 +50,6 @@ QUANTIZATION_SHARE = MIN_VARIANCE_SHARE  # q^2/12 against the white noise varian
 QUANTIZATION_COHERENCE = 0.9     # |mean exp(2 pi i y/q)| on a lattice (jitter << q)
 QUANTIZATION_RESOLUTION = 1e-6   # relative half-width of a step read off the lattice: the
                                  # round-off of raw volts through the calibration and back
-GM_TAU_S = 100.0                 # correlation time the wander level is read with
 # the class's in-run instability: seed S1 Table 1's zero drift of a MEMS unit, the bound (a unit
 # anywhere inside its class is no bias_instability; the datasheet's typical 15 deg/h and
 # 0.5 mg, `calibration.INSTABILITY`, would call a unit at the class's edge one)
@@ -323,6 +320,7 @@ def bias_tests(design, fit, quiet, alpha_level, cal, skip=(), noise=None, carrie
         return []
     fit, span = np.where(quiet[:, None], fit, np.nan), bias_span(design.t)
     t_means, means = span_means(design.t, fit, span)
+    inputs = span_means(design.t, np.where(quiet[:, None], design.inputs, np.nan), span)[1]
     thermal = _temperature_means(design, quiet, span)
     se_cal = standard_errors(cal)
     measured = (noise or {}).get("instability", {})
@@ -342,8 +340,9 @@ def bias_tests(design, fit, quiet, alpha_level, cal, skip=(), noise=None, carrie
         white = float(np.nanvar(np.diff(fit[:, c])) / 2) * dt / span
         # the null's wander: the MIMU's (class or measured) and the reference's own
         wander = math.hypot(drift[sensor], reference)
-        m = bias_models(t_means[keep], means[keep, c], wander, offset, white,
-                         None if thermal is None else thermal[keep, c:c + 1], span)
+        model = (t_means[keep], means[keep, c], wander, offset, white,
+                 None if thermal is None else thermal[keep, c:c + 1], span)
+        m = bias_models(*model)
         passing = [k for k in ("shift", "wander") if m[k]["p"] < alpha_level]
         if not passing:
             continue
@@ -359,10 +358,43 @@ def bias_tests(design, fit, quiet, alpha_level, cal, skip=(), noise=None, carrie
                    "label": f"{EFFECT_OF[other]} {label}"}]
                  if other in passing
                  and m[best]["lr"] - m[other]["lr"] < stats.chi2.isf(0.05, 1) else [])
-        findings.append(_qualified(_bias_finding(
+        finding = _qualified(_bias_finding(
             best, m, means[keep, c], sensor, axis, where, p, alpha_level, offset, white, alike,
-            whose[sensor], wander, span), design, cal, removal))
+            whose[sensor], wander, span), design, cal, removal)
+        findings.append(judged_beside_inputs(finding, model, inputs[keep], alpha_level)
+                        if best == "wander" else finding)
     return findings
+
+
+INPUT_NAMES = ("f_x", "f_y", "f_z", "w_x", "w_y", "w_z")    # `design.Design.inputs`' columns
+
+
+def judged_beside_inputs(finding, model, inputs, alpha_level):
+    """The wander finding, `rejected` when it is no longer beyond alpha_level once the
+    reference's inputs (span means (m, 6), `INPUT_NAMES`) may enter linearly beside it - the
+    models `model` (`bias_models`' arguments) fitted again with them as nuisance columns: a
+    wander that follows an input is that input's term (a rate table's x <- z coupling, 0.002
+    on its rate steps, had read as 0.001 rad/s of bias instability and carried a null twin's
+    verdict), and a wander does not (a Gauss-Markov path beside a flight's inputs stays)."""
+    t, x, wander, offset, white, nuisance, span = model
+    ok = np.isfinite(inputs).all(axis=1)
+    cols = inputs[ok] - inputs[ok].mean(axis=0)
+    spread = cols.std(axis=0)
+    moving = spread > 1e-9 * max(float(np.abs(inputs[ok]).max()) if ok.any() else 0.0, 1e-12)
+    if not moving.any() or ok.sum() < moving.sum() + 5:
+        return finding
+    z = cols[:, moving] / spread[moving]
+    extra = z if nuisance is None else np.hstack([nuisance[ok], z])
+    again = bias_models(t[ok], x[ok], wander, offset, white, extra, span)
+    if again["wander"]["p"] < alpha_level:
+        return finding
+    r = [abs(float(np.corrcoef(x[ok], col)[0, 1])) for col in z.T]
+    name = np.array(INPUT_NAMES)[moving][int(np.argmax(r))]
+    finding["rejected"] = (
+        f"once the reference's inputs may enter linearly beside it, no wander is left (p "
+        f"{again['wander']['p']:.2g}; its means follow {name}, correlation {max(r):.2f}): a "
+        "term of the input, not a wander - not confirmed")
+    return finding
 
 
 def _qualified(finding, design, cal, removal):
@@ -423,8 +455,8 @@ def _bias_finding(best, m, x, sensor, axis, where, p, alpha_level, offset, white
              f"{span:g} s mean")
 
 
-FAST_S = 0.1        # the flicker's highest frequency in the class model, 1/FAST_S Hz (the
-                    # means' sinc makes faster terms negligible)
+
+
 def _temperature_means(design, quiet, span):
     """(m, 6) `span` (s) means over quiet flight of each channel's temperature_bias regressor
     (its temperature reading about the log's mean), or None when the library has none
@@ -440,8 +472,6 @@ def _temperature_means(design, quiet, span):
 
 
 EFFECT_OF = {"shift": "bias_shift", "wander": "bias_instability"}
-SPAN_S = 2.0        # the bias is read from SPAN_S means of quiet flight: what is faster (a
-                    # colored noise, flicker at seconds) is no bias instability nor offset
 MAX_SPANS = 900     # at most this many means (`bias_span`): the models' covariances are
                     # dense (m, m) and their eigendecompositions O(m^3) - 6 channels x 7 of
                     # them took a 48-minute flight's 1440 means to a minute and 0.3 GB;
@@ -480,112 +510,6 @@ def span_means(t, x, span=SPAN_S):
     full = span / float(np.median(np.diff(t)))
     means = np.where(count >= 0.5 * full, sums / np.maximum(count, 1), np.nan)
     return t[0] + (np.arange(n) + 0.5) * span, means
-
-
-def profiled_loglik(x, nuisance, cov):
-    """Gaussian log-likelihood of x under cov with the columns `nuisance` (m, k) at their
-    generalised-least-squares values (k = 0: none); and the fitted x."""
-    if nuisance.shape[1]:
-        inv = np.linalg.solve(cov, nuisance)
-        x = x - nuisance @ np.linalg.solve(nuisance.T @ inv, inv.T @ x)
-    _, logdet = np.linalg.slogdet(cov)
-    return -0.5 * (logdet + x @ np.linalg.solve(cov, x) + len(x) * math.log(2 * math.pi))
-
-
-def wander_profile(x, nuisance, base, corr, grid):
-    """`profiled_loglik` of x under s^2 corr + base for every s of `grid`, at once: with the
-    generalised eigenvectors V of (corr, base) (V' base V = I, V' corr V = diag(lam)) the
-    covariance is diagonal, diag(1 + s^2 lam), in y = V' x (scipy.linalg.eigh)."""
-    from scipy.linalg import eigh
-    lam, vec = eigh(corr, base)
-    lam = np.maximum(lam, 0.0)
-    _, logdet_base = np.linalg.slogdet(base)
-    y, z = vec.T @ x, vec.T @ nuisance
-    d = 1.0 + np.outer(grid ** 2, lam)                  # (g, m) the diagonal per s
-    if z.shape[1]:
-        a = np.einsum("mk,gm,ml->gkl", z, 1.0 / d, z)
-        b = np.einsum("mk,gm,m->gk", z, 1.0 / d, y)
-        beta = np.linalg.solve(a, b[:, :, None])[:, :, 0]
-        r = y[None, :] - beta @ z.T
-    else:
-        r = np.broadcast_to(y, d.shape)
-    quad = np.sum(r ** 2 / d, axis=1)
-    return -0.5 * (logdet_base + np.log(d).sum(axis=1) + quad + len(x) * math.log(2 * math.pi))
-
-
-FLICKER_LEVELS = (0.0, 0.25, 0.5, 0.75, 1.0)     # the unit's flicker, fractions of the class's
-
-
-def gm_mean_correlation(t, span, tau):
-    """Covariance, per unit variance, of the means over windows [t - span/2, t + span/2] of
-    a Gauss-Markov process of correlation time tau (closed form of the double integral of
-    exp(-|s - u| / tau)): for windows d >= span apart (r = span / tau)
-        (tau / span)^2 exp(-d / tau) 2 (cosh r - 1),
-    and for a window with itself 2 (tau / span)^2 (r - 1 + exp(-r)). Point values'
-    exp(-d / tau) overstate how much adjacent means differ (a random walk's mean over a
-    window differs from the next by 2/3 of its point difference's variance) and so
-    understated sigma by a fifth."""
-    r = span / tau
-    d = np.abs(t[:, None] - t[None, :])
-    out = (tau / span) ** 2 * np.exp(-d / tau) * 2 * (math.cosh(r) - 1)
-    np.fill_diagonal(out, 2 * (tau / span) ** 2 * (r - 1 + math.exp(-r)))
-    return out
-
-
-@lru_cache(maxsize=4)
-def _mean_correlations(t_bytes, span):
-    """(flicker covariance of unit instability, Gauss-Markov correlation) of the `span` (s)
-    means at the times t (s, float64 bytes): the same for every channel whose quiet means
-    are at the same times, so made once (read-only arrays)."""
-    t = np.frombuffer(t_bytes)
-    length = float(t[-1] - t[0]) + span
-    flicker = flicker_covariance(t - span / 2, t + span / 2,
-                                 1.0 / (FLICKER_SPAN * length), 1.0 / FAST_S)
-    corr = gm_mean_correlation(t, span, GM_TAU_S)
-    flicker.flags.writeable = corr.flags.writeable = False
-    return flicker, corr
-
-
-def bias_models(t, x, instability, offset, white, nuisance=None, span=SPAN_S):
-    """The class, shift and wander models of `bias_tests` on the `span` (s) means x at times
-    t (s), each
-    with the columns `nuisance` (m, k: the channel's temperature, so a slow thermal term
-    too weak for the library is not read as wander) at their best values:
-    {"shift": {"lr", "mu", "se"}, "wander": {"lr", "sigma", "lower", "upper"}}."""
-    n = len(x)
-    nuisance = np.zeros((n, 0)) if nuisance is None else nuisance
-    unit_flicker, corr = _mean_correlations(np.ascontiguousarray(t, float).tobytes(), span)
-    flicker = instability ** 2 * unit_flicker
-    ones = np.ones((n, 1))
-    base = flicker + white * np.eye(n)
-    turn_on = offset ** 2 * (ones @ ones.T)
-    l_class = profiled_loglik(x, nuisance, base + turn_on)
-    with_mean = np.hstack([ones, nuisance])
-    inv = np.linalg.solve(base, with_mean)
-    cov_mu = np.linalg.inv(with_mean.T @ inv)
-    mu = float((cov_mu @ inv.T @ x)[0])
-    l_shift = profiled_loglik(x, with_mean, base)
-    grid = instability * np.geomspace(1e-2, 1e3, 301)
-    ll = wander_profile(x, nuisance, base + turn_on, corr, grid)
-    # sigma and its interval with the unit's own flicker level b a nuisance within the class
-    # (0 <= b <= B, profiled on FLICKER_LEVELS): the class's flicker is the test's null, but a
-    # unit wanders as much as it does - fixed at B it took a fifth of a Gauss-Markov truth,
-    # left out it read a flicker unit's 1/f as a wander three times too large; and without
-    # the temperature, which once the wander is called would take part of it away
-    ridge = max(white, 1e-12 * (float(np.var(x)) + offset ** 2)) * np.eye(n)  # white ~ 0
-    plain = np.max([wander_profile(x, nuisance[:, :0], b ** 2 * flicker + ridge + turn_on,
-                                    corr, grid) for b in FLICKER_LEVELS], axis=0)
-    inside = grid[plain >= plain.max() - 0.5 * stats.chi2.isf(0.05, 1)]
-    lr_wander = max(2 * (ll.max() - l_class), 0.0)
-    # the offset's test: its GLS mean against the class's turn-on spread added to its own
-    # variance, z^2 = mu^2 / (se^2 + s0^2) ~ chi2(1) under the class (the likelihood ratio of
-    # a free mean against a random one is not nested: its chi2 would overstate it)
-    z2 = mu ** 2 / (cov_mu[0, 0] + offset ** 2)
-    return {"shift": {"lr": max(2 * (l_shift - l_class), 0.0), "mu": mu,
-                      "se": math.sqrt(cov_mu[0, 0]), "p": float(stats.chi2.sf(z2, 1))},
-            "wander": {"lr": lr_wander, "p": float(stats.chi2.sf(lr_wander, 1)),
-                       "sigma": float(grid[int(np.argmax(plain))]), "lower": float(inside[0]),
-                       "upper": float(inside[-1])}}
 
 
 def spans(t, rows, condition, gap_s=2.0, max_spans=20):

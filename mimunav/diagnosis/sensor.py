@@ -414,8 +414,10 @@ def _too_little(flight, prep, bin_s, block_s, because):
     compensation's flags)."""
     inside = (prep.t >= flight.fog_t[0]) & (prep.t <= flight.fog_t[-1])
     flagged = float(np.mean(~prep.usable[inside])) if inside.any() else 0.0
+    whose = "the vehicle model's" if because else "the reference IMU's"
+    level = "the track level" if because else "the sensor level"
     return InputError(f"{flight.path}: {len(prep.design.t) * bin_s:.1f} s of usable MIMU "
-                      f"samples inside the reference IMU's span; the sensor level needs at "
+                      f"samples inside {whose} span; {level} needs at "
                       f"least {4 * block_s:g} s" + (
                           f" ({flagged:.0%} of the samples unusable: "
                           + (because or "flagged saturated or wild by the compensation - "

@@ -438,7 +438,9 @@ def _pair_mountings(rec, clock_se):
                 f"its tilt may be an accelerometer bias difference across gravity: "
                 f"{bias_alike} reads as {angle:.1f} deg)" if how != "free" else
                 f"a clock known to {clock_se * 1e3:.2g} ms turns the rates by up to "
-                f"{timing:.2g} deg)"))
+                f"{timing:.2g} deg)" if math.isfinite(timing) else
+                "the clock between the two is not measured: a small turn of the rates is "
+                "not told from a time offset)"))
         return
     if not seen:
         raise RecordingError(

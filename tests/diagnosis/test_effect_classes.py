@@ -13,7 +13,7 @@ import pytest
 from mimunav.compensation import effects
 from mimunav.compensation.wild_values import wild_value_filter
 from mimunav.sensors.mimu import MimuUnit
-from mimunav.diagnosis import library, outputs, selection, sensor, transplant
+from mimunav.diagnosis import bias_models, library, outputs, selection, sensor, transplant
 from mimunav.diagnosis.design import FAST_BIN_S, bins
 from mimunav.diagnosis.selection import told_apart, select
 from places import SHARED
@@ -196,11 +196,11 @@ def test_bias_models_tell_an_offset_from_a_wander():
     t = np.arange(5, 200, 10.0)
     rng = np.random.default_rng(2)
     b, s0, white = 1e-4, 5e-5, 1e-12
-    shift = outputs.bias_models(t, 1e-3 + rng.normal(0, 1e-6, len(t)), b, s0, white)
+    shift = bias_models.bias_models(t, 1e-3 + rng.normal(0, 1e-6, len(t)), b, s0, white)
     assert shift["shift"]["lr"] > shift["wander"]["lr"] and shift["shift"]["lr"] > 30
     assert abs(shift["shift"]["mu"] - 1e-3) < 3 * shift["shift"]["se"]
-    gm = transplant.gauss_markov(t, 2e-3, outputs.GM_TAU_S, rng)
-    wander = outputs.bias_models(t, gm - gm.mean(), b, s0, white)
+    gm = transplant.gauss_markov(t, 2e-3, bias_models.GM_TAU_S, rng)
+    wander = bias_models.bias_models(t, gm - gm.mean(), b, s0, white)
     assert wander["wander"]["lr"] > wander["shift"]["lr"] and wander["wander"]["lr"] > 30
     assert wander["wander"]["lower"] <= 2e-3 <= wander["wander"]["upper"]
 
@@ -213,16 +213,16 @@ def test_bias_tests_hold_their_level_on_units_of_the_class():
     from mimunav.lab.gls import flicker_covariance
     from mimunav.sensors.noise import FLICKER_SPAN
     rng = np.random.default_rng(3)
-    t = np.arange(1.0, 120.0, outputs.SPAN_S)
+    t = np.arange(1.0, 120.0, bias_models.SPAN_S)
     b, s0, white = outputs.CLASS_DRIFT["gyro"], 5e-5, 1e-11
-    span = t[-1] - t[0] + outputs.SPAN_S
-    cov = b ** 2 * flicker_covariance(t - outputs.SPAN_S / 2, t + outputs.SPAN_S / 2,
-                                      1 / (FLICKER_SPAN * span), 1 / outputs.FAST_S) \
+    span = t[-1] - t[0] + bias_models.SPAN_S
+    cov = b ** 2 * flicker_covariance(t - bias_models.SPAN_S / 2, t + bias_models.SPAN_S / 2,
+                                      1 / (FLICKER_SPAN * span), 1 / bias_models.FAST_S) \
         + s0 ** 2 + white * np.eye(len(t))
     root = np.linalg.cholesky(cov)
     trials = 600
     p = np.array([[m[k]["p"] for k in ("shift", "wander")] for m in
-                  (outputs.bias_models(t, root @ rng.standard_normal(len(t)), b, s0, white)
+                  (bias_models.bias_models(t, root @ rng.standard_normal(len(t)), b, s0, white)
                    for _ in range(trials))])
     limit = 0.01 + 3 * math.sqrt(0.01 * 0.99 / trials)
     assert np.mean(p[:, 0] < 0.01) <= limit, np.mean(p[:, 0] < 0.01)
@@ -234,12 +234,12 @@ def test_wander_profile_by_eigenvectors_equals_the_direct_likelihood():
     t = np.arange(1.0, 100.0, 2.0)
     a = rng.standard_normal((len(t), len(t)))
     base = a @ a.T + len(t) * np.eye(len(t))
-    corr = np.exp(-np.abs(t[:, None] - t[None, :]) / outputs.GM_TAU_S)
+    corr = np.exp(-np.abs(t[:, None] - t[None, :]) / bias_models.GM_TAU_S)
     x, nuisance, grid = rng.standard_normal(len(t)), rng.standard_normal((len(t), 1)), \
         np.array([0.1, 1.0, 3.0])
     for cols in (nuisance, nuisance[:, :0]):
-        direct = [outputs.profiled_loglik(x, cols, s * s * corr + base) for s in grid]
-        assert np.allclose(outputs.wander_profile(x, cols, base, corr, grid), direct,
+        direct = [bias_models.profiled_loglik(x, cols, s * s * corr + base) for s in grid]
+        assert np.allclose(bias_models.wander_profile(x, cols, base, corr, grid), direct,
                            rtol=1e-10)
 
 
@@ -249,7 +249,7 @@ def test_gauss_markov_window_means_covariance_is_the_double_integral():
     from scipy import integrate
     span, tau = 2.0, 100.0
     t = np.array([0.0, 2.0, 7.0])
-    closed = outputs.gm_mean_correlation(t, span, tau)
+    closed = bias_models.gm_mean_correlation(t, span, tau)
     for i, j in ((0, 0), (0, 1), (0, 2)):
         numeric, _ = integrate.dblquad(
             lambda u, s: math.exp(-abs(s - u) / tau), t[i] - 1, t[i] + 1, t[j] - 1, t[j] + 1,
@@ -277,13 +277,13 @@ def test_bias_instability_sigma_recovers_a_gauss_markov_wander():
             if flicker:
                 path = path + noise.flicker(rng, len(t_full), 100.0, [flicker])[:, 0]
             x = path.reshape(len(tm), -1).mean(axis=1)
-            m = outputs.bias_models(tm, x, b, 0.002, 0.01 ** 2 / 200)
+            m = bias_models.bias_models(tm, x, b, 0.002, 0.01 ** 2 / 200)
             est.append(m["wander"]["sigma"])
             cover += m["wander"]["lower"] <= sigma <= m["wander"]["upper"]
         assert 0.85 < np.median(est) / sigma < 1.15, (sigma, np.median(est))
         assert cover >= 32, (sigma, cover)
     x = transplant.gauss_markov(tm, 0.085, 100.0, rng)
-    assert np.isfinite(outputs.bias_models(tm, x, b, 0.002, 0.0)["wander"]["sigma"])
+    assert np.isfinite(bias_models.bias_models(tm, x, b, 0.002, 0.0)["wander"]["sigma"])
 
 
 @pytest.mark.slow
@@ -468,3 +468,25 @@ def test_samples_at_a_declared_range_say_nothing_of_the_other_terms():
     got = outputs.at_declared_range(measured, predicted, {"gyro": limit})
     assert got.tolist() == [False, True, True, True, False]
     assert not outputs.at_declared_range(measured, predicted, {"accel": 80.0}).any()
+
+
+def test_a_wander_that_follows_an_input_is_that_inputs_term():
+    """A rate table's steps: the bias's 2 s means step with w_z (a 0.002 x <- z coupling on
+    +-10..50 deg/s plateaus) - with the inputs allowed beside it no wander is left, so none
+    is named (it had read as 0.001 rad/s of bias instability and carried a null twin's
+    verdict); a Gauss-Markov wander of 1.5e-3 rad/s beside the same steps stays."""
+    rng = np.random.default_rng(11)
+    t = np.arange(1.0, 600.0, bias_models.SPAN_S)
+    w_z = np.radians(np.repeat([10, -10, 50, -50, 0, 20, -20, 0, 40, -40], 30))[:len(t)]
+    inputs = np.column_stack([np.zeros((len(t), 2)), np.full(len(t), -9.81),
+                              np.zeros((len(t), 2)), w_z])
+    b, white = outputs.CLASS_DRIFT["gyro"], (2e-5) ** 2
+    for x, named in ((0.002 * w_z + rng.normal(0, 2e-5, len(t)), False),
+                     (transplant.gauss_markov(t, 1.5e-3, bias_models.GM_TAU_S, rng)
+                      + rng.normal(0, 2e-5, len(t)), True)):
+        assert bias_models.bias_models(t, x, b, 5e-5, white)["wander"]["p"] < 1e-6
+        finding = outputs.judged_beside_inputs({"effect": "bias_instability"},
+                                               (t, x, b, 5e-5, white, None, 2.0), inputs, 1e-4)
+        assert ("rejected" not in finding) == named, finding
+        if not named:
+            assert "follow w_z, correlation 1.00" in finding["rejected"]
