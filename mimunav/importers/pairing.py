@@ -299,19 +299,27 @@ def _refined(rec, coarse_s, search_s=2 * GRID_S, step_s=0.001, blocks=10):
     shifts = coarse_s + np.arange(-search_s, search_s + 1e-9, step_s)
     block = np.minimum(np.arange(len(grid)) * blocks // len(grid), blocks - 1)
 
-    def left(d):                # per block, what the bias columns leave of the difference
-        y = np.interp(grid + d, t_r, size_r) - np.sum(w ** 2, axis=1)
-        coef = np.linalg.lstsq(bias_columns, y, rcond=None)[0]
-        return np.bincount(block, (y - bias_columns @ coef) ** 2, minlength=blocks)
-    cost = np.array([left(d) for d in shifts])              # (shifts, blocks)
+    def left(d):                # per block, what the bias columns leave of the difference:
+        y = np.interp(grid + d, t_r, size_r) - np.sum(w ** 2, axis=1)     # fitted over all,
+        coef = np.linalg.lstsq(bias_columns, y, rcond=None)[0]            # and block by block
+        alone = [np.sum((y[k] - bias_columns[k] @ np.linalg.lstsq(
+            bias_columns[k], y[k], rcond=None)[0]) ** 2) for k in rows]
+        return np.bincount(block, (y - bias_columns @ coef) ** 2, minlength=blocks), alone
+    rows = [block == b for b in range(blocks)]
+    cost, own_cost = (np.array(x) for x in zip(*[left(d) for d in shifts]))  # (shifts, blocks)
     whole = parabola_min(shifts, cost.sum(axis=1))
     parts = np.array([parabola_min(shifts, cost.sum(axis=1) - cost[:, b])
                       for b in range(blocks)])
     se = math.sqrt((blocks - 1) / blocks * np.sum((parts - parts.mean()) ** 2))
-    own = np.array([parabola_min(shifts, cost[:, b]) for b in range(blocks)])
-    mids = np.array([grid[block == b].mean() for b in range(blocks)])
+    # each block's own offset from its own fit (a block's share of the overall fit moves
+    # with the others': still blocks had 'placed' 40.11 ms to 0.02 ms and bent a clock
+    # without drift by 25 ms), and only where the IMU turns in it
+    turning = np.array([np.std(np.linalg.norm(w[k], axis=1)) >= TURNING_RATE for k in rows])
+    own = np.array([parabola_min(shifts, own_cost[:, b]) if turning[b] else math.nan
+                    for b in range(blocks)])
+    mids = np.array([grid[k].mean() for k in rows])
     count = np.bincount(block, minlength=blocks)
-    return whole, se, _drift(mids, own, _offset_variances(cost, count, step_s))
+    return whole, se, _drift(mids, own, _offset_variances(own_cost, count, step_s))
 
 
 def _offset_variances(cost, count, step):
@@ -367,13 +375,31 @@ def _second_means(rec):
     ref = rec.reference_imu
     lo, hi = max(rec.imu_ns[0], ref["ns"][0]), min(rec.imu_ns[-1], ref["ns"][-1])
     mids = np.arange(lo + 500_000_000, hi - 500_000_000, 1_000_000_000) / 1e9
-    means = [[means_around(ns / 1e9, x, mids, 0.5) for x in (w, f)]
+    means = [[_window_means(ns, x, mids) for x in (w, f)]
              for ns, w, f in ((rec.imu_ns, rec.w, rec.f), (ref["ns"], ref["w"], ref["f"]))]
     if len(mids) < 10:
         return means, np.zeros(len(mids), bool)
     ok = np.isfinite(np.hstack([m for p in means for m in p])).all(axis=1)
     clipped = at_range(rec.w, rec.f, rec.range).astype(float)[:, None]
     return means, ok & ~(means_around(rec.imu_ns / 1e9, clipped, mids, 0.5)[:, 0] > 0)
+
+
+def _window_means(ns, x, mids, half=0.5):
+    """(M, 3) the means of x over [mid - half, mid + half] s exactly, each sample x the mean
+    over the interval its stamp ns ends: the difference of x's running integral read at the
+    window's edges (NaN beyond the record). Counting whole samples instead, two IMUs whose
+    stamps sat 17 us apart about a window's edge had each counted a different edge sample,
+    and a turn of 0.1 deg read where none was."""
+    t = ns / 1e9
+    step = np.diff(t, prepend=t[0] - np.median(np.diff(t)))
+    running = np.vstack([np.zeros(x.shape[1]), np.cumsum(x * step[:, None], axis=0)])
+    edges = np.concatenate([[t[0] - step[0]], t])
+    lo, hi = mids - half, mids + half
+    out = np.column_stack([(np.interp(hi, edges, running[:, i]) -
+                            np.interp(lo, edges, running[:, i])) / (2 * half)
+                           for i in range(x.shape[1])])
+    out[(lo < edges[0]) | (hi > edges[-1])] = np.nan
+    return out
 
 
 def _pair_mountings(rec, clock_se):
@@ -435,6 +461,9 @@ def _pair_mountings(rec, clock_se):
     if angle <= SMALL_TURN_DEG and (how != "free" or not angle > DISTINCT_Z * timing):
         rec.real["reference_imu_mounting"] = (
             f"measured {said}: kept (the diagnosis fits a turn this small; " + (
+                "the IMU's gyros and accelerometers turn onto the reference's by more than "
+                f"{TRIADS_AGREE_DEG:g} deg apart: its own triads differ)"
+                if how == "triads differ" else
                 f"its tilt may be an accelerometer bias difference across gravity: "
                 f"{bias_alike} reads as {angle:.1f} deg)" if how != "free" else
                 f"a clock known to {clock_se * 1e3:.2g} ms turns the rates by up to "
@@ -515,6 +544,13 @@ def _measured_turn(rec, means, ok):
     if kinds:
         turn = _wahba(np.vstack([k[0] for k in kinds]), np.vstack([k[1] for k in kinds]))
         if turn is not None:
+            # each triad alone, where it decides the turn: a MEMS unit's gyros turned against
+            # its own accelerometers take a compromise that fits neither (1 deg of gyro
+            # triad had turned an exact mounting 0.7 deg)
+            each = [_wahba(*k) for k in kinds] if len(kinds) == 2 else []
+            if any(e is not None and math.degrees((e.inv() * turn).magnitude())
+                   > TRIADS_AGREE_DEG for e in each):
+                return turn, math.degrees(turn.magnitude()), "triads differ"
             return turn, math.degrees(turn.magnitude()), "free"
     mine = np.vstack([centred[0] * (G0 / rms_w), f_mine]) if rms_w >= TURNING_RATE else f_mine
     theirs = np.vstack([centred[1] * (G0 / rms_w), f_ref]) if rms_w >= TURNING_RATE else f_ref
@@ -536,6 +572,9 @@ def _lever_force(w, r):
     return np.cross(np.gradient(w, axis=0), r) + np.cross(w, np.cross(w, r))
 
 
+TRIADS_AGREE_DEG = 0.2      # deg: a triad's own turn onto the reference's (where it alone
+#                             decides one) within this of both triads' (a unit's triads agree
+#                             to its 1-3 mrad misalignments), else they differ: no box turn
 MOVING_FORCE = 0.3          # m/s^2: the 1 s mean specific forces' spread about their mean
 #                             from which they turn the boxes (`reference.MOVING_SPREAD`'s)
 

@@ -249,3 +249,46 @@ def test_a_small_turn_between_the_boxes_is_measured_free_of_biases(pair_motion):
     assert np.degrees(np.linalg.norm(error)) < 0.05
     assert "about their own means" in rec.real["reference_imu_mounting"]
     assert rec.real["reference_imu_mounting"].endswith("turned so")
+
+
+def test_a_record_still_in_its_first_half_has_no_drift_and_no_turn():
+    """200 s at 200 Hz, still for the first 100 s, turning briskly at random after (smooth
+    rates of about 1 rad/s), one clock, the reference 20 ms late: no drift (each block's own
+    offset from its own fit, still blocks left out - a block's share of one overall fit had
+    placed still blocks to 0.02 ms and bent this clock by 25 ms, "-153 ppm"), and no turn of
+    the exact mounting (window means by the running integral: whole samples about a window's
+    edge had read a turn of 0.1 deg)."""
+    rng = np.random.default_rng(6)
+    t = np.arange(0.0, 200.0, 1.0 / RATE)
+    kernel = np.exp(-0.5 * (np.arange(-120, 121) / 60.0) ** 2)
+    kernel /= kernel.sum()
+    moving = np.clip((t - 100.0) / 5.0, 0.0, 1.0)[:, None]
+    w_true = 8 * moving * np.column_stack(
+        [np.convolve(rng.normal(0, 1, len(t) + 240), kernel, "valid")[:len(t)]
+         for _ in range(3)])
+    f = np.tile([0.0, 0.0, 9.80665], (len(t), 1))
+    ns = EPOCH_NS + np.round(t * 1e9).astype(np.int64)
+    flu = Mounting.from_axes("FLU")
+    rec = Recording("still", "test", ns, w_true + np.radians([0.3, -0.2, 0.4])
+                    + rng.normal(0, 2e-3, w_true.shape), f + rng.normal(0, 2e-2, f.shape), flu,
+                    reference_imu=dict(ns=ns + 20_000_000, w=w_true, f=f.copy(), mounting=flu,
+                                       model="nav"))
+    clock = pairing.clock_offset(rec)
+    assert "drift" not in clock and abs(clock["offset_s"] - 0.02) < 1e-4, clock["said"]
+    pairing.pair(rec)
+    error = attitude.rotation_vector_error(rec.reference_imu["mounting"].q_vs, flu.q_vs)
+    assert np.degrees(np.linalg.norm(error)) < 0.02, rec.real["reference_imu_mounting"]
+
+
+def test_gyros_turned_against_their_own_accelerometers_are_no_box_turn(pair_motion):
+    """The IMU's gyro triad 1 deg about z from its accelerometers (mountings given exactly):
+    the accelerometers alone decide a turn of 0, both together a compromise of 0.7 deg -
+    the triads differ, and the mounting is kept for the diagnosis, which fits each."""
+    from scipy.spatial.transform import Rotation
+    ns, w, f, w_r, f_r = pair_motion
+    rec = _recording(ns, Rotation.from_euler("z", 1.0, degrees=True).apply(w), f, w_r, f_r)
+    pairing.pair(rec)
+    assert "its own triads differ" in rec.real["reference_imu_mounting"]
+    error = attitude.rotation_vector_error(rec.reference_imu["mounting"].q_vs,
+                                           Mounting.from_rpy_deg((180.0, 0.0, 90.0)).q_vs)
+    assert np.degrees(np.linalg.norm(error)) < 1e-6
