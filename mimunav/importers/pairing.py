@@ -385,11 +385,9 @@ def _second_means(rec):
 
 
 def _window_means(ns, x, mids, half=0.5):
-    """(M, 3) the means of x over [mid - half, mid + half] s exactly, each sample x the mean
-    over the interval its stamp ns ends: the difference of x's running integral read at the
-    window's edges (NaN beyond the record). Counting whole samples instead, two IMUs whose
-    stamps sat 17 us apart about a window's edge had each counted a different edge sample,
-    and a turn of 0.1 deg read where none was."""
+    """(M, 3) the means of x (each sample the mean over the interval its stamp ns ends) over
+    [mid - half, mid + half] s exactly, by its running integral (NaN beyond the record): whole
+    samples about an edge 17 us apart had read a turn of 0.1 deg where none was."""
     t = ns / 1e9
     step = np.diff(t, prepend=t[0] - np.median(np.diff(t)))
     running = np.vstack([np.zeros(x.shape[1]), np.cumsum(x * step[:, None], axis=0)])
@@ -400,6 +398,21 @@ def _window_means(ns, x, mids, half=0.5):
                            for i in range(x.shape[1])])
     out[(lo < edges[0]) | (hi > edges[-1])] = np.nan
     return out
+
+
+def _turn_said(angle, how, rpy, hint):
+    """The measured turn in words: angle (deg), how (`_measured_turn`), the mounting (roll,
+    pitch, yaw text) that would hold it and the option that gives it."""
+    roll, pitch, yaw = rpy
+    return (f"{angle:.1f} deg from the mounting given (1 s mean rates and specific forces in the "
+            "vehicle frame" + (", about their own means: no bias of either IMU in it"
+                               if how == "free" else
+                               f"; the IMU's own gyros and accelerometers turn onto the "
+                               f"reference's more than {TRIADS_AGREE_DEG:g} deg apart: both "
+                               "together" if how == "triads differ" else "") +
+            "); the two would agree with the reference IMU at roll, pitch, yaw "
+            f"{roll}, {pitch}, {yaw} deg" + (f" ({hint.format(roll=roll, pitch=pitch, yaw=yaw)})"
+                                            if hint else ""))
 
 
 def _pair_mountings(rec, clock_se):
@@ -418,21 +431,15 @@ def _pair_mountings(rec, clock_se):
     # turn is fitted on both: a mirrored accelerometer can turn the gyros against each other)
     vehicle = [(attitude.rotate(rec.mounting.q_vs, means[0][k][ok]),
                 attitude.rotate(ref["mounting"].q_vs, means[1][k][ok])) for k in range(2)]
-    for (mine, theirs), sensor in zip(vehicle, ("gyro", "accel")):
-        _runs_against(rec.name, sensor, mine, theirs, "with the mountings given",
-                      f"{sensor} columns")
-    for (mine, theirs), sensor in zip(vehicle, ("gyro", "accel")):
-        _runs_against(rec.name, sensor, mine, turn.apply(theirs), "after the best turn between "
-                      "them (fitted on both triads)", "gyro and the accelerometer columns")
+    for when, columns, turned in (("with the mountings given", "{} columns", lambda x: x), (
+            "after the best turn between them (fitted on both triads)",
+            "gyro and the accelerometer columns", turn.apply)):
+        for (mine, theirs), sensor in zip(vehicle, ("gyro", "accel")):
+            _runs_against(rec.name, sensor, mine, turned(theirs), when, columns.format(sensor))
     fixed = attitude.from_scipy(turn) * ref["mounting"].q_vs
     yaw, pitch, roll = (_angle_text(a) for a in attitude.as_euler(fixed))
     hint = ref.get("mounting_hint")
-    said = (f"{angle:.1f} deg from the mounting given (1 s mean rates and specific forces in the "
-            "vehicle frame" + (", about their own means: no bias of either IMU in it"
-                               if how == "free" else "") +
-            "); the two would agree with the reference IMU at roll, pitch, yaw "
-            f"{roll}, {pitch}, {yaw} deg" + (f" ({hint.format(roll=roll, pitch=pitch, yaw=yaw)})"
-                                            if hint else ""))
+    said = _turn_said(angle, how, (roll, pitch, yaw), hint)
     attitude_of_reference = rec.reference_meta.get("attitude_of") == "reference_imu"
     if attitude_of_reference and seen:
         # the reference's attitude is of the reference IMU's axes: they stay, the IMU turns
@@ -562,10 +569,9 @@ def _measured_turn(rec, means, ok):
 
 
 def _lever_force(w, r):
-    """(N, 3) m/s^2: the specific force a point r (m, vehicle frame) from the other IMU feels
-    beyond it on a body turning at the 1 s mean rates w (rad/s, vehicle frame, 1 s apart):
-    dw/dt x r + w x (w x r) (a rate table's 300 deg/s puts 2.7 m/s^2 on 0.1 m: read as a
-    turn of the boxes, 0.6 deg where they were aligned)."""
+    """(N, 3) m/s^2: what a point r (m, vehicle frame) from the other IMU feels beyond it at
+    the 1 s mean rates w (rad/s, vehicle frame, 1 s apart), dw/dt x r + w x (w x r) (a rate
+    table's 300 deg/s on 0.1 m, 2.7 m/s^2, had read as 0.6 deg of turn)."""
     r = np.asarray(r, float)
     if not np.any(r):
         return np.zeros_like(w)
@@ -575,8 +581,7 @@ def _lever_force(w, r):
 TRIADS_AGREE_DEG = 0.2      # deg: a triad's own turn onto the reference's (where it alone
 #                             decides one) within this of both triads' (a unit's triads agree
 #                             to its 1-3 mrad misalignments), else they differ: no box turn
-MOVING_FORCE = 0.3          # m/s^2: the 1 s mean specific forces' spread about their mean
-#                             from which they turn the boxes (`reference.MOVING_SPREAD`'s)
+MOVING_FORCE = 0.3          # m/s^2: 1 s mean specific forces' spread that turns the boxes
 
 
 def _wahba(mine, theirs):

@@ -316,7 +316,7 @@ def test_onspeed_cheap_imu_beside_a_quantized_vn300(tmp_path):
     """The light aircraft of shared/data/onspeed-vn300 (a cheap MEMS IMU beside a VN-300
     logged with 2 decimals, 30 s to a stall): the spec's per-column signs give two FRD
     triads whose 0.5 s means correlate on every axis; the VN-300 rows written twice are one
-    sample; the two boxes' turn (about 4.3 deg of pitch) is measured and, the attitude
+    sample; the two boxes' turn (about 4.4 deg of pitch) is measured and, the attitude
     being the VN-300's own, put on the cheap IMU's mounting; the VN-300's stamps lag by its
     data age and a few ms more (its README: tens of ms). The diagnosis against a MEMS
     reference charges nothing to the cheap IMU alone that the VN-300 could carry, and
@@ -326,10 +326,11 @@ def test_onspeed_cheap_imu_beside_a_quantized_vn300(tmp_path):
     assert "50 rows repeating" in rec.real["repeated [reference]"]
     check_recording(rec)
     yaw, pitch, roll = np.degrees(attitude.as_euler(rec.mounting.q_vs))
-    # about 4.3 deg of pitch by the 1 s means about their own means, where no bias enters;
-    # 4.6-4.8 with gravity among the vectors - a 5 mg accelerometer bias difference across
-    # gravity reads as the 0.3-0.5 deg between the two
-    assert pitch == pytest.approx(4.3, abs=0.5) and abs(roll) < 1 and abs(yaw) < 1.5
+    # about 4.4 deg of pitch: 4.3 by the 1 s means about their own means, where no bias
+    # enters, 4.6-4.8 with gravity among the vectors (a 5 mg accelerometer bias difference
+    # across gravity reads as the difference); the cheap IMU's own triads differ by more than
+    # 0.2 deg, so the turn (beyond 3 deg) is taken from both kinds together
+    assert pitch == pytest.approx(4.4, abs=0.5) and abs(roll) < 1 and abs(yaw) < 1.5
     assert "IMU's mounting was turned" in rec.real["reference_imu_mounting"]
     assert "refined to" in rec.real["reference_imu_clock"]
     log = tmp_path / "onspeed.mcap"
