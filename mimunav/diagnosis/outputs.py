@@ -239,12 +239,17 @@ DITHERED_STEPS = 0.5    # white noise (in steps) from which a quantized channel'
 #                         term out of a rate table's diagnosis: its scales never tested)
 
 
-def undithered(steps, sigma):
-    """{channel index}: the quantized channels (steps (6,) SI, 0 where none) whose white
-    noise sigma (6,) is below DITHERED_STEPS of their step - their error then depends on
-    where the input falls between two steps, which terms of that channel alone would fit."""
+def undithered(steps, *sigmas):
+    """{channel index}: the quantized channels (steps (6,) SI, 0 where none) whose own white
+    noise before the quantizer is below DITHERED_STEPS of their step - their error then
+    depends on where the input falls between two steps, which terms of that channel alone
+    would fit. sigmas: (6,) estimates of the white noise after it, each holding more than the
+    unit's own (the residual's: the reference's noise too; the outputs' own differences: the
+    motion too) - the least of them, less the step's own q^2/12, is the unit's."""
     steps = np.asarray(steps, float)
-    return set(np.flatnonzero(steps > np.asarray(sigma, float) / DITHERED_STEPS).tolist())
+    after = np.min(np.asarray(sigmas, float), axis=0)
+    own = np.sqrt(np.maximum(after ** 2 - steps ** 2 / 12, 0.0))
+    return set(np.flatnonzero(steps > own / DITHERED_STEPS).tolist())
 
 
 def lattice_step(y):

@@ -445,7 +445,8 @@ def _output_findings(cal, samples, finite, full_scale):
     train = outputs.block_index(t, SPLIT_BLOCK_S) % 2 == 0
     clips, clipped = outputs.saturation(t, measured, predicted, rows, train, full_scale, steps,
                                         sigma if np.array_equal(live, rows) else None)
-    return clips + found, clipped, outputs.undithered(steps, sigma)
+    own = outputs.noise_sigma_of(lambda c: np.where(live, measured[:, c], np.nan), 6)
+    return clips + found, clipped, outputs.undithered(steps, sigma, own)
 
 
 def _on_channels_only(term, channels):

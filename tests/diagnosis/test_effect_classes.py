@@ -453,7 +453,11 @@ def test_a_step_under_enough_noise_leaves_its_channels_terms_in():
             assert np.max(np.abs(error)) < most
     steps = np.array([0.0, 0.0, 0.0, 1e-4, 1e-4, 1.3e-4])
     sigma = np.array([0.01] * 3 + [1e-4, 1e-3, 5e-5])
-    assert outputs.undithered(steps, sigma) == {5}           # 1e-4 is dithered, 5e-5 is not
+    assert outputs.undithered(steps, sigma) == {5}    # 1e-4 holds its step's own 2.9e-5
+    # (q / sqrt 12): 9.6e-5 before the quantizer, above half the step - dithered
+    noisy_reference = sigma + [0, 0, 0, 0, 0, 1e-3]          # a residual's: not the unit's
+    own = np.array([0.01] * 3 + [1e-3, 1e-3, 6e-5])          # the outputs' own differences
+    assert outputs.undithered(steps, noisy_reference, own) == {5}
 
 
 def test_samples_at_a_declared_range_say_nothing_of_the_other_terms():
