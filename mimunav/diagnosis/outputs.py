@@ -131,8 +131,8 @@ def at_declared_range(measured, predicted, declared):
     rate table's 300 deg/s steps on a 250 deg/s gyro had been fitted: an asymmetric scale
     read as 0.0012 rad/s of bias instability, a null twin's cross-coupling 'found' at p
     1e-23). measured, predicted: (N, 6) as `saturation`'s, read a column at a time;
-    declared: {"accel": m/s^2,
-    "gyro": rad/s} of the ranges the log states (a channel not stated: none)."""
+    declared: {"accel": m/s^2, "gyro": rad/s} of the ranges the log states (a channel not
+    stated: none)."""
     out = np.zeros(len(measured[:, 0]), bool)          # a column at a time (`samples.Columns`)
     for c, (sensor, _) in enumerate(CHANNELS):
         if sensor in declared:

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..importers.pairing import parabola_min
+from ..importers.series import parabola_min
 from .track_reference import CONSUMER_NOISE, GAP_MARGIN_S, in_band, simulated_reference
 from .track_navigation import window_ends, navigation_check
 

@@ -273,14 +273,14 @@ def refuse_gaps(flight, max_gap_s=MAX_GAP_S, warn_shorter=False):
     navigation would bridge the gap with one sample. With warn_shorter, the shorter gaps are
     reported on stderr."""
     from ..errors import warn
-    from ..flightlog.stamps import missing_samples
+    from ..flightlog.stamps import longest_gap, missing_samples
     t = flight.mimu_t
     if len(t) <= 10:
         return
     gaps = missing_samples(np.round(t * 1e9).astype(np.int64))
     if not gaps:
         return
-    k, n = max(gaps, key=lambda g: t[g[0] + 1] - t[g[0]])
+    k, n = longest_gap(t, gaps)
     if t[k + 1] - t[k] > max_gap_s:
         raise LogError(f"{flight.path}: the MIMU misses {n} samples between t = {t[k]:.3f} "
                        f"and {t[k + 1]:.3f} s ({sum(m for _, m in gaps)} in all): "

@@ -115,6 +115,12 @@ def missing_samples(t: np.ndarray, smoothing: float = 0.02) -> list[tuple]:
     return out
 
 
+def longest_gap(t, gaps):
+    """(k, samples missing) of the longest of `gaps` (`missing_samples`' [(k, n)]) by the
+    stamps t (any unit): the step t[k] -> t[k + 1]."""
+    return max(gaps, key=lambda g: t[g[0] + 1] - t[g[0]])
+
+
 FREE_RUNNING_CORRELATION = -0.25   # lag-1 correlation of the steps above which they jitter
 #                                    one by one: a stamp jittered about a grid lengthens one
 #                                    step and shortens the next (correlation -0.5), a

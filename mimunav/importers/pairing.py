@@ -35,8 +35,8 @@ import numpy as np
 
 from ..frames import attitude
 from ..frames.mounting import Mounting
-from ..navigation.rests import means_around
 from .recording import G0, RecordingError, at_range, utc_text
+from .series import masked_correlation, parabola_min, window_means
 
 SMALL_OFFSET_S = 0.001      # s: the refinement's step; a measured offset beyond it is
                             # corrected (whatever the user's own shift was: the result must
@@ -116,33 +116,6 @@ def _on_grid(t, x, grid):
     out = np.interp(grid, t, x)
     out[(grid < t[0]) | (grid > t[-1])] = np.nan
     return out
-
-
-def masked_correlation(x, y, min_overlap):
-    """(lags in samples, normalised correlation of x and y(. + lag) over each lag's overlap)
-    of two series on one grid with NaN where a series has no value; lags whose overlap is
-    shorter than min_overlap samples are NaN. By FFT: sums of products, of each series and
-    of its square, over the overlap of the two masks."""
-    mx, my = np.isfinite(x), np.isfinite(y)
-    x0, y0 = np.where(mx, x, 0.0), np.where(my, y, 0.0)
-    n = len(x) + len(y)
-    size = 1 << (n - 1).bit_length()
-
-    def corr(a, b):             # sum_i a[i] b[i + lag] for lag -len(a)+1 .. len(b)-1
-        full = np.fft.irfft(np.conj(np.fft.rfft(a, size)) * np.fft.rfft(b, size), size)
-        return np.concatenate([full[-(len(a) - 1):], full[:len(b)]]) if len(a) > 1 else \
-            full[:len(b)]
-    m = mx.astype(float), my.astype(float)
-    count = np.rint(corr(*m))
-    sx, sy = corr(x0, m[1]), corr(m[0], y0)
-    sxx, syy, sxy = corr(x0 * x0, m[1]), corr(m[0], y0 * y0), corr(x0, y0)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        cov = sxy - sx * sy / count
-        var = (sxx - sx * sx / count) * (syy - sy * sy / count)
-        r = cov / np.sqrt(var)
-    r[(count < min_overlap) | ~(var > 0)] = np.nan
-    lags = np.arange(-(len(x) - 1), len(y)) if len(x) > 1 else np.arange(len(y))
-    return lags, r
 
 
 def clock_offset(rec):
@@ -280,10 +253,11 @@ def _lobe(r, k, floor):
 
 
 def _refined(rec, coarse_s, search_s=2 * GRID_S, step_s=0.001, blocks=10):
-    """(offset s, its standard error s): the offset that best matches the two |w|^2 within
-    +-search_s of coarse_s, on a grid of step_s refined by a parabola; the error by the
-    jackknife over `blocks` consecutive blocks of the overlap; NaN where the least cost, of
-    the whole or of a jackknife part, is at the search's edge (not bracketed). Each gyro's bias b moves its
+    """(offset s, its standard error s, `_drift`'s line through the blocks' own offsets):
+    the offset that best matches the two |w|^2 within +-search_s of coarse_s, on a grid of
+    step_s refined by a parabola; the error by the jackknife over `blocks` consecutive blocks
+    of the overlap; NaN where the least cost, of the whole or of a jackknife part, is at the
+    search's edge (not bracketed). Each gyro's bias b moves its
     |w|^2 by 2 b.w + |b|^2, which a shift can partly mimic (a MEMS pair's 0.3 deg/s had made
     a fixed wing's offset 0.3 ms late): at each shift the difference is fitted on [the IMU's
     rates, 1] first - with w_r = C w, |w_r + b_r|^2 - |w + b|^2 = 2 (C'b_r - b).w + const,
@@ -299,13 +273,14 @@ def _refined(rec, coarse_s, search_s=2 * GRID_S, step_s=0.001, blocks=10):
     shifts = coarse_s + np.arange(-search_s, search_s + 1e-9, step_s)
     block = np.minimum(np.arange(len(grid)) * blocks // len(grid), blocks - 1)
 
+    rows = [block == b for b in range(blocks)]
+
     def left(d):                # per block, what the bias columns leave of the difference:
         y = np.interp(grid + d, t_r, size_r) - np.sum(w ** 2, axis=1)     # fitted over all,
         coef = np.linalg.lstsq(bias_columns, y, rcond=None)[0]            # and block by block
         alone = [np.sum((y[k] - bias_columns[k] @ np.linalg.lstsq(
             bias_columns[k], y[k], rcond=None)[0]) ** 2) for k in rows]
         return np.bincount(block, (y - bias_columns @ coef) ** 2, minlength=blocks), alone
-    rows = [block == b for b in range(blocks)]
     cost, own_cost = (np.array(x) for x in zip(*[left(d) for d in shifts]))  # (shifts, blocks)
     whole = parabola_min(shifts, cost.sum(axis=1))
     parts = np.array([parabola_min(shifts, cost.sum(axis=1) - cost[:, b])
@@ -355,19 +330,6 @@ def _drift(t, offsets, variances):
     return slope, math.sqrt(max(chi2, 1.0) / np.sum(weight * x * x)), centre, intercept
 
 
-def parabola_min(x, y):
-    """Abscissa of the minimum of y(x) on a uniform grid x, refined by a parabola through the
-    smallest value and its neighbours; NaN when the smallest value is at either end of the
-    grid (the minimum is not bracketed: a parabola through the end and its two neighbours had
-    put a straight stretch's lag at -14.6 s for a +-0.5 s search)."""
-    j = int(np.argmin(y))
-    if j in (0, len(y) - 1):
-        return math.nan
-    a, b, c = y[j - 1], y[j], y[j + 1]
-    den = a - 2 * b + c
-    return float(x[j] + (0.5 * (a - c) / den if den > 0 else 0.0) * (x[1] - x[0]))
-
-
 def _second_means(rec):
     """([[IMU w, f], [reference w, f]] 1 s means over the overlap (rad/s, m/s^2, sensor
     axes), (M,) bool: the seconds both fill and no clipped sample lies in - a rate table's
@@ -375,29 +337,13 @@ def _second_means(rec):
     ref = rec.reference_imu
     lo, hi = max(rec.imu_ns[0], ref["ns"][0]), min(rec.imu_ns[-1], ref["ns"][-1])
     mids = np.arange(lo + 500_000_000, hi - 500_000_000, 1_000_000_000) / 1e9
-    means = [[_window_means(ns, x, mids) for x in (w, f)]
+    means = [[window_means(ns, x, mids) for x in (w, f)]
              for ns, w, f in ((rec.imu_ns, rec.w, rec.f), (ref["ns"], ref["w"], ref["f"]))]
     if len(mids) < 10:
         return means, np.zeros(len(mids), bool)
     ok = np.isfinite(np.hstack([m for p in means for m in p])).all(axis=1)
     clipped = at_range(rec.w, rec.f, rec.range).astype(float)[:, None]
-    return means, ok & ~(means_around(rec.imu_ns / 1e9, clipped, mids, 0.5)[:, 0] > 0)
-
-
-def _window_means(ns, x, mids, half=0.5):
-    """(M, 3) the means of x (each sample the mean over the interval its stamp ns ends) over
-    [mid - half, mid + half] s exactly, by its running integral (NaN beyond the record): whole
-    samples about an edge 17 us apart had read a turn of 0.1 deg where none was."""
-    t = ns / 1e9
-    step = np.diff(t, prepend=t[0] - np.median(np.diff(t)))
-    running = np.vstack([np.zeros(x.shape[1]), np.cumsum(x * step[:, None], axis=0)])
-    edges = np.concatenate([[t[0] - step[0]], t])
-    lo, hi = mids - half, mids + half
-    out = np.column_stack([(np.interp(hi, edges, running[:, i]) -
-                            np.interp(lo, edges, running[:, i])) / (2 * half)
-                           for i in range(x.shape[1])])
-    out[(lo < edges[0]) | (hi > edges[-1])] = np.nan
-    return out
+    return means, ok & ~(window_means(rec.imu_ns, clipped, mids)[:, 0] > 0)
 
 
 def _turn_said(angle, how, rpy, hint):
@@ -467,16 +413,8 @@ def _pair_mountings(rec, clock_se):
     timing = _clock_turn_deg(means[0][0][ok], clock_se)
     if angle <= SMALL_TURN_DEG and (how != "free" or not angle > DISTINCT_Z * timing):
         rec.real["reference_imu_mounting"] = (
-            f"measured {said}: kept (the diagnosis fits a turn this small; " + (
-                "the IMU's gyros and accelerometers turn onto the reference's by more than "
-                f"{TRIADS_AGREE_DEG:g} deg apart: its own triads differ)"
-                if how == "triads differ" else
-                f"its tilt may be an accelerometer bias difference across gravity: "
-                f"{bias_alike} reads as {angle:.1f} deg)" if how != "free" else
-                f"a clock known to {clock_se * 1e3:.2g} ms turns the rates by up to "
-                f"{timing:.2g} deg)" if math.isfinite(timing) else
-                "the clock between the two is not measured: a small turn of the rates is "
-                "not told from a time offset)"))
+            f"measured {said}: kept (the diagnosis fits a turn this small; "
+            f"{_why_kept(how, angle, bias_alike, clock_se, timing)})")
         return
     if not seen:
         raise RecordingError(
@@ -489,6 +427,20 @@ def _pair_mountings(rec, clock_se):
             + (f": {hint.format(roll=roll, pitch=pitch, yaw=yaw)})" if hint else ")"))
     ref["mounting"] = Mounting(attitude.as_wxyz(fixed), ref["mounting"].lever_arm_m)
     rec.real["reference_imu_mounting"] = f"measured {said}: turned so"
+
+
+def _why_kept(how, angle, bias_alike, clock_se, timing):
+    """Why a small measured turn (deg, decided `how`: `_measured_turn`) is not taken."""
+    if how == "triads differ":
+        return ("the IMU's gyros and accelerometers turn onto the reference's by more than "
+                f"{TRIADS_AGREE_DEG:g} deg apart: its own triads differ")
+    if how != "free":
+        return (f"its tilt may be an accelerometer bias difference across gravity: "
+                f"{bias_alike} reads as {angle:.1f} deg")
+    if math.isfinite(timing):
+        return f"a clock known to {clock_se * 1e3:.2g} ms turns the rates by up to {timing:.2g} deg"
+    return ("the clock between the two is not measured: a small turn of the rates is not told "
+            "from a time offset")
 
 
 def _clock_turn_deg(w, clock_se):

@@ -10,7 +10,7 @@ from ..frames import attitude
 from ..frames.mounting import Mounting
 from .kinds import VEHICLES
 from ..errors import InputError
-from ..flightlog.stamps import mean_rate_hz, missing_samples
+from ..flightlog.stamps import longest_gap, mean_rate_hz, missing_samples
 
 
 UNKNOWN_ATTITUDE = np.full(4, np.nan)
@@ -232,7 +232,7 @@ def rate_onto(t, t_w, w, what, unit_s=1.0):
     w_at = np.column_stack([np.interp(t[keep], t_w, w[:, i]) for i in range(w.shape[1])])
     if not gaps:
         return keep, w_at, None
-    k = max((g[0] for g in gaps), key=lambda j: t_w[j + 1] - t_w[j])
+    k = longest_gap(t_w, gaps)[0]
     said = (f"{what} misses {sum(m for _, m in gaps)} samples in {len(gaps)} gaps (longest "
             f"{(t_w[k + 1] - t_w[k]) * unit_s:.4g} s, from {(t_w[k] - t_w[0]) * unit_s:.6g} s "
             f"of its record): the {int(np.sum(inside & ~keep))} specific-force samples inside "

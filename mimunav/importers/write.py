@@ -16,7 +16,7 @@ from ..navigation import alignment
 from ..flightlog import LogWriter
 from ..flightlog import schemas as S
 from .recording import UNKNOWN_ATTITUDE, heading_source
-from ..flightlog.stamps import mean_rate_hz, missing_samples, rate_segments
+from ..flightlog.stamps import longest_gap, mean_rate_hz, missing_samples, rate_segments
 from .checks import (differenced, positions_velocity, reference_track, check_recording,
                      resting_upright, velocity_lag_s)
 
@@ -145,7 +145,7 @@ def summary(rec, align, path):
     gaps = missing_samples(rec.imu_ns)
     if gaps:
         t = (rec.imu_ns - rec.imu_ns[0]) / 1e9
-        k = max((g[0] for g in gaps), key=lambda j: t[j + 1] - t[j])
+        k = longest_gap(t, gaps)[0]
         lines.append(f"gaps: the IMU misses {sum(m for _, m in gaps)} samples in {len(gaps)} "
                      f"gaps (longest {t[k + 1] - t[k]:.3g} s at t = {t[k]:.3f} s)"
                      + (f"; {rec.real['imu_time']}" if "misses" in rec.real.get("imu_time", "")

@@ -10,7 +10,7 @@ import quaternion
 
 from mimunav.frames import attitude
 from mimunav.frames.mounting import Mounting
-from mimunav.importers import checks, pairing
+from mimunav.importers import checks, pairing, series
 from mimunav.importers.recording import Recording, RecordingError
 from mimunav.motion import truth
 from mimunav.motion.profile import Profile
@@ -199,8 +199,8 @@ def test_a_reference_trajectory_off_the_imus_clock_is_measured_by_its_attitude(f
 
 def test_parabola_min_is_exact_on_a_parabola_and_nan_unbracketed():
     x = np.arange(-1.0, 1.0 + 1e-12, 0.1)
-    assert pairing.parabola_min(x, 3 * (x - 0.337) ** 2 + 2) == pytest.approx(0.337, abs=1e-12)
-    assert np.isnan(pairing.parabola_min(x, (x - 1.3) ** 2))        # least at the grid's end
+    assert series.parabola_min(x, 3 * (x - 0.337) ** 2 + 2) == pytest.approx(0.337, abs=1e-12)
+    assert np.isnan(series.parabola_min(x, (x - 1.3) ** 2))        # least at the grid's end
 
 
 def test_a_refinement_that_disagrees_with_the_peak_leaves_the_clock_as_recorded(
@@ -292,3 +292,17 @@ def test_gyros_turned_against_their_own_accelerometers_are_no_box_turn(pair_moti
     error = attitude.rotation_vector_error(rec.reference_imu["mounting"].q_vs,
                                            Mounting.from_rpy_deg((180.0, 0.0, 90.0)).q_vs)
     assert np.degrees(np.linalg.norm(error)) < 1e-6
+
+
+def test_window_means_are_exact_for_interval_means_of_a_ramp():
+    """Samples that are interval means of x(t) = 0.3 t - 2 (each the mean over the 5 ms its
+    stamp ends, stamps 1.7 ms off the windows' edges): a window's mean is x at its centre,
+    to rounding, whatever sample the edge cuts (counting whole samples is off by up to
+    0.3 x 5 ms / 2 here)."""
+    ns = 1_000_000_000 + 1_700_000 + np.arange(0, 4000) * 5_000_000
+    t_end = ns / 1e9
+    x = (0.3 * (t_end - 0.0025) - 2.0)[:, None] * [1.0, -2.0, 0.5]    # the interval means
+    mids = np.arange(2.0, 20.0, 1.0)
+    got = series.window_means(ns, x, mids)
+    assert np.allclose(got, (0.3 * mids - 2.0)[:, None] * [1.0, -2.0, 0.5], atol=1e-12)
+    assert np.isnan(series.window_means(ns, x, np.array([1.2]))).all()   # before the record
