@@ -51,6 +51,9 @@ DERIVATIVE_WINDOW_S = 0.05           # d/dt of measured outputs when a found ter
 # vibration lies at tens to hundreds of Hz.
 VIBRATION_CUTOFF_HZ = 10.0           # high-pass corner (4th-order Butterworth, zero phase)
 VIBRATION_WINDOW_S = 0.5             # the mean square's window (centred)
+VIBRATION_REGRESSOR = (f"the mean square, over a centred {VIBRATION_WINDOW_S:g} s window, of "
+                       f"the axis's specific force high-passed at {VIBRATION_CUTOFF_HZ:g} Hz "
+                       "(4th-order Butterworth, zero phase), (m/s^2)^2")
 
 
 @dataclass

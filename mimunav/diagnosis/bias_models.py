@@ -82,12 +82,15 @@ def _mean_correlations(t_bytes, span):
     return flicker, corr
 
 
-def bias_models(t, x, instability, offset, white, nuisance=None, span=SPAN_S):
+def bias_models(t, x, instability, offset, white, nuisance=None, span=SPAN_S,
+                about_mean=False):
     """The class, shift and wander models of `bias_tests` on the `span` (s) means x at times
     t (s), each
     with the columns `nuisance` (m, k: the channel's temperature, so a slow thermal term
     too weak for the library is not read as wander) at their best values:
-    {"shift": {"lr", "mu", "se"}, "wander": {"lr", "sigma", "lower", "upper"}}."""
+    {"shift": {"lr", "mu", "se"}, "wander": {"lr", "sigma", "lower", "upper"}}.
+    about_mean: the class and the wander carry a free mean too, so the wander's test asks
+    for a wander beyond an offset (the shift's entries are then those of no shift)."""
     n = len(x)
     nuisance = np.zeros((n, 0)) if nuisance is None else nuisance
     unit_flicker, corr = _mean_correlations(np.ascontiguousarray(t, float).tobytes(), span)
@@ -95,21 +98,22 @@ def bias_models(t, x, instability, offset, white, nuisance=None, span=SPAN_S):
     ones = np.ones((n, 1))
     base = flicker + white * np.eye(n)
     turn_on = offset ** 2 * (ones @ ones.T)
-    l_class = profiled_loglik(x, nuisance, base + turn_on)
     with_mean = np.hstack([ones, nuisance])
+    fixed = with_mean if about_mean else nuisance       # the columns class and wander carry
+    l_class = profiled_loglik(x, fixed, base + turn_on)
     inv = np.linalg.solve(base, with_mean)
     cov_mu = np.linalg.inv(with_mean.T @ inv)
     mu = float((cov_mu @ inv.T @ x)[0])
     l_shift = profiled_loglik(x, with_mean, base)
     grid = instability * np.geomspace(1e-2, 1e3, 301)
-    ll = wander_profile(x, nuisance, base + turn_on, corr, grid)
+    ll = wander_profile(x, fixed, base + turn_on, corr, grid)
     # sigma and its interval with the unit's own flicker level b a nuisance within the class
     # (0 <= b <= B, profiled on FLICKER_LEVELS): the class's flicker is the test's null, but a
     # unit wanders as much as it does - fixed at B it took a fifth of a Gauss-Markov truth,
     # left out it read a flicker unit's 1/f as a wander three times too large; and without
     # the temperature, which once the wander is called would take part of it away
     ridge = max(white, 1e-12 * (float(np.var(x)) + offset ** 2)) * np.eye(n)  # white ~ 0
-    plain = np.max([wander_profile(x, nuisance[:, :0], b ** 2 * flicker + ridge + turn_on,
+    plain = np.max([wander_profile(x, with_mean[:, :int(about_mean)], b ** 2 * flicker + ridge + turn_on,
                                     corr, grid) for b in FLICKER_LEVELS], axis=0)
     inside = grid[plain >= plain.max() - 0.5 * stats.chi2.isf(0.05, 1)]
     lr_wander = max(2 * (ll.max() - l_class), 0.0)

@@ -19,13 +19,39 @@ from .inference import median_inflation
 
 
 # ---- confirmation on held-out rows -------------------------------------------------------
-def confirm_chosen(design, chosen, train, held, alpha, full_scale, extremes):
+def confirmed(design, chosen, train, held, alpha, prep, recording):
+    """(findings, rejected, of them those the recording's checks set aside, doubts, the
+    library's record or None): the chosen terms through
+    `confirm_chosen` and, on a recording, `recording_checks`, refitted without those either
+    sets aside until none more is - a finding's coefficient is read beside the confirmed
+    terms only (a rate table's gyro.y <- w_z had read 0.0031 beside a mounting turn the
+    halves then set aside; alone it is the unit's 0.00107). Each term set aside is reported
+    as judged in the fit it was set aside from; the threshold stays alpha over the number
+    first chosen. prep: full_scale and extremes (`sensor._prepare`'s)."""
+    family, rejected, set_aside = len(chosen), [], []
+    while True:
+        findings, out = confirm_chosen(design, chosen, train, held, alpha, prep.full_scale,
+                                       prep.extremes, family)
+        doubts, record, aside = [], None, []
+        if recording:
+            findings, aside, doubts, record = recording_checks(design, findings, held)
+        rejected, set_aside = rejected + out + aside, set_aside + aside
+        if not (out or aside) or not findings:
+            return findings, rejected, set_aside, doubts, record
+        kept = {position_of(design, f) for f in findings}
+        chosen = [c for c in chosen if c["j"] in kept]
+
+
+def confirm_chosen(design, chosen, train, held, alpha, full_scale, extremes, family=None):
+    """(findings, rejected) of the chosen terms refitted together on the `held` rows (their
+    training coefficients from the `train` rows), each judged at alpha / family (default:
+    the number chosen)."""
     if not chosen:
         return [], []
     idx = [c["j"] for c in chosen]
     held_fitter = Fitter(design, held)
     cleaned = detrended(design, design.residual)
-    level = alpha / len(chosen)
+    level = alpha / (family or len(chosen))
     findings, rejected = [], []
     for c in chosen:
         j = c["j"]
@@ -45,6 +71,8 @@ def confirm_chosen(design, chosen, train, held, alpha, full_scale, extremes):
         for key in ("order", "window_s", "reference"):
             if key in term:
                 finding[key] = term[key]
+        if term["effect"] == "vibration_rectification":     # what its coefficient multiplies
+            finding["regressor"] = effects.VIBRATION_REGRESSOR
         p_ho, p_ref = math.exp(res["logp"]), math.exp(res["logp_ref"])
         finding.update(
             label=library.label(term), p_train=c["p_train"], holm_threshold=c["threshold"],

@@ -23,6 +23,7 @@ level, log contract section 3):
 Each is held to the same family-wise alpha as the library; a clip must show on both halves of
 the diagnosis' split (alternate SPLIT_BLOCK_S blocks).
 """
+import functools
 import math
 
 import numpy as np
@@ -351,36 +352,59 @@ def bias_tests(design, fit, quiet, alpha_level, cal, skip=(), noise=None, carrie
         passing = [k for k in ("shift", "wander") if m[k]["p"] < alpha_level]
         if not passing:
             continue
-        best = max(passing, key=lambda k: m[k]["lr"])      # the better fit of the two
-        p = m[best]["p"]
-        label = f"{sensor}.{axis}"
-        where = spans(design.t, quiet, f"{label}: quiet flight")
-        other = "wander" if best == "shift" else "shift"
-        # a Gauss-Markov wander slower than the flight is an offset on it: when the other
-        # model passes too and fits about as well (likelihood ratios within chi2(1) 95 %),
-        # the flight cannot tell them apart - named, as the library's look-alikes are
-        alike = ([{"effect": EFFECT_OF[other], "sensor": sensor, "axis": axis,
-                   "label": f"{EFFECT_OF[other]} {label}"}]
-                 if other in passing
-                 and m[best]["lr"] - m[other]["lr"] < stats.chi2.isf(0.05, 1) else [])
-        finding = _qualified(_bias_finding(
-            best, m, means[keep, c], sensor, axis, where, p, alpha_level, offset, white, alike,
-            whose[sensor], wander, span), design, cal, removal)
-        findings.append(judged_beside_inputs(finding, model, inputs[keep], alpha_level)
-                        if best == "wander" else finding)
+        named = functools.partial(_bias_finding, m=m, x=means[keep, c], sensor=sensor,
+                                  axis=axis, where=spans(design.t, quiet,
+                                                         f"{sensor}.{axis}: quiet flight"),
+                                  alpha_level=alpha_level, offset=offset, white=white,
+                                  whose=whose[sensor], drift=wander, span=span)
+        finding = _shift_or_wander(m, passing, named, model, inputs[keep], alpha_level)
+        findings.append(_qualified(finding, design, cal, removal))
     return findings
+
+
+def _shift_or_wander(m, passing, named, model, inputs, alpha_level):
+    """The bias finding of one channel whose models `m` (`bias_models`) pass as `passing`
+    ("shift", "wander"): the better fit of the two, the other listed as not told apart when
+    their likelihoods are within chi2(1)'s 95 %; a wander judged beside the inputs
+    (`judged_beside_inputs`, about a free mean when the offset passed), and the offset
+    named instead when they explain it about that offset. named(best, p=, alike=): the
+    finding (`_bias_finding` with the channel's arguments)."""
+    best = max(passing, key=lambda k: m[k]["lr"])
+    other = "wander" if best == "shift" else "shift"
+    sensor, axis = named.keywords["sensor"], named.keywords["axis"]
+    # a Gauss-Markov wander slower than the flight is an offset on it: when the other
+    # model passes too and fits about as well, the flight cannot tell them apart - named,
+    # as the library's look-alikes are
+    label = f"{EFFECT_OF[other]} {sensor}.{axis}"
+    alike = ([{"effect": EFFECT_OF[other], "sensor": sensor, "axis": axis, "label": label}]
+             if other in passing
+             and m[best]["lr"] - m[other]["lr"] < stats.chi2.isf(0.05, 1) else [])
+    finding = named(best, p=m[best]["p"], alike=alike)
+    if best == "shift":
+        return finding
+    finding = judged_beside_inputs(finding, model, inputs, alpha_level,
+                                   free_offset="shift" in passing)
+    if finding.get("rejected") and "shift" in passing:
+        finding = named("shift", p=m["shift"]["p"], alike=[])
+        finding["note"] += ("; a wander read beside it follows the reference's inputs about "
+                            "this offset: not a wander")
+    return finding
 
 
 INPUT_NAMES = ("f_x", "f_y", "f_z", "w_x", "w_y", "w_z")    # `design.Design.inputs`' columns
 
 
-def judged_beside_inputs(finding, model, inputs, alpha_level):
+def judged_beside_inputs(finding, model, inputs, alpha_level, free_offset=False):
     """The wander finding, `rejected` when it is no longer beyond alpha_level once the
     reference's inputs (span means (m, 6), `INPUT_NAMES`) may enter linearly beside it - the
     models `model` (`bias_models`' arguments) fitted again with them as nuisance columns: a
     wander that follows an input is that input's term (a rate table's x <- z coupling, 0.002
     on its rate steps, had read as 0.001 rad/s of bias instability and carried a null twin's
-    verdict), and a wander does not (a Gauss-Markov path beside a flight's inputs stays)."""
+    verdict), and a wander does not (a Gauss-Markov path beside a flight's inputs stays).
+    free_offset: an offset beyond the class's is established (its own test passed), so the
+    wander is judged about a free mean (`bias_models`' about_mean) - an uncalibrated part's
+    whole turn-on bias (a rate table's 0.0045 rad/s) had kept alive a wander that the
+    inputs explain about it."""
     t, x, wander, offset, white, nuisance, span = model
     ok = np.isfinite(inputs).all(axis=1)
     cols = inputs[ok] - inputs[ok].mean(axis=0)
@@ -390,7 +414,7 @@ def judged_beside_inputs(finding, model, inputs, alpha_level):
         return finding
     z = cols[:, moving] / spread[moving]
     extra = z if nuisance is None else np.hstack([nuisance[ok], z])
-    again = bias_models(t[ok], x[ok], wander, offset, white, extra, span)
+    again = bias_models(t[ok], x[ok], wander, offset, white, extra, span, free_offset)
     if again["wander"]["p"] < alpha_level:
         return finding
     r = [abs(float(np.corrcoef(x[ok], col)[0, 1])) for col in z.T]

@@ -7,7 +7,7 @@ specific forces differ by the rigid-body terms of their separation (vehicle axes
 and the MIMU reads them in its own axes, w_s = C_sv w_v, f_s = C_sv f_v.
 Samples are interval means (log contract): the reference's running integral
 (`intervals.RunningIntegral`) at the MIMU's interval ends, differenced - exact when the
-stamps coincide, the interval-mean meaning kept when they do not.
+stamps coincide, to fourth order in smooth motion when they do not (its cubic spline).
 """
 import numpy as np
 import quaternion
@@ -77,7 +77,7 @@ def predicted_at(t, fog_t, fog_w, fog_f, flight):
     w_v = attitude.rotate(flight.fog_mounting.q_vs, fog_w)
     f_v = attitude.rotate(flight.fog_mounting.q_vs, fog_f)
     reference = RunningIntegral(intervals(fog_t)[2], np.hstack([w_v, f_v]))
-    w_v, f_v = reference.means(t).reshape(len(t), 2, 3).transpose(1, 0, 2)
+    w_v, f_v = reference.means(t, smooth=True).reshape(len(t), 2, 3).transpose(1, 0, 2)
     dr = flight.mimu_mounting.lever_arm_m - flight.fog_mounting.lever_arm_m
     if np.any(dr):
         w_dot = derivative(t, w_v, TRANSFER_WINDOW_S)

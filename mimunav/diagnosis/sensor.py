@@ -70,7 +70,7 @@ import numpy as np
 from ..compensation.wild_values import REPLACED, UNUSABLE
 from ..compensation.effects import AXES
 from ..frames import attitude
-from . import library, outputs, wander
+from . import library, outputs, track_reference, wander
 from ..sensors.accuracy import accuracy_of
 from .reference import agreement
 from ..errors import InputError
@@ -81,7 +81,7 @@ from .samples import binned, sample_stage, temperature_references
 from .fitting import Fitter, term_test
 from .scan import SCAN_WINDOW_S, condition_masks, condition_map, near_spans, excursions
 from .confirmation import (Extremes, beta_of, beyond_range, beyond_range_reasons,
-                           confirm_chosen, outputs_judged, recording_checks, set_aside_reasons,
+                           confirmed, outputs_judged, set_aside_reasons,
                            position_of, removal_sigma)
 from .selection import select
 
@@ -143,7 +143,10 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
     the scan's); `wander_steps`: (6,) the largest step variance of each channel's bias
     wander per bin, SI units squared, whatever white variance the fit finds (`track`: a
     level capped by `max_wander` alone grows with the vehicle model's own errors, which
-    swell that white variance); `unusable_because`: why most samples may be unusable, for
+    swell that white variance; for a MEMS-grade reference the same cap by default: its
+    noise, in the residual and in its own input columns, would let a free wander fit the
+    bins' differences - a tractor's reference gyro.z scale read -0.22 and every turn an
+    excursion of 0.1 rad/s the two IMUs' outputs do not hold); `unusable_because`: why most samples may be unusable, for
     the refusal when too few are left (`track`: outside the motion its model trusts).
     Nothing here is random."""
     if flight.mimu_platform is not None:
@@ -164,12 +167,9 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
     # the all-rows fit, when first needed (look-alikes; ~1 s of Grams on a 10-minute flight)
     whole = cache(lambda: Fitter(design, np.ones(len(design.t), bool)))
     chosen, within, beyond = select(design, train, alpha, prep.full_scale, whole)
-    findings, rejected = confirm_chosen(design, chosen, train, held, alpha, prep.full_scale,
-                                        prep.extremes)
-    findings, aside, doubts, library = recording_checks(  # a real record's halves and noise
-        design, findings, held) if flight.source == "recording" \
-        else (findings, [], [], None)
-    rejected = rejected + aside + beyond_range(design, beyond)
+    findings, rejected, aside, doubts, library = confirmed(  # a record's halves and noise
+        design, chosen, train, held, alpha, prep, flight.source == "recording")
+    rejected = rejected + beyond_range(design, beyond)
     everything = whole()
     before, removed, fit_found = _residuals(design, everything, findings)
     conds = condition_masks(design, prep.norms)
@@ -277,7 +277,8 @@ def _prepared(flight, cal, acc, candidates, output_tests, samples, bin_s, noise_
                                            for x in (fit_shape, scan_shape))
     if max_wander is not None:
         design.levels = wander.LAMBDA_GRID[wander.LAMBDA_GRID <= max_wander]
-    design.wander_steps = wander_steps
+    design.wander_steps = wander_steps if wander_steps is not None or not acc.mems_grade \
+        else track_reference.wander_steps(bin_s=bin_s)
     measured = None if samples.streamed else spill.column("measured")
     return _Prepared(design, t, usable, binned_.norms[design.kept],
                      Extremes(binned_.centres, *binned_.extremes.T),

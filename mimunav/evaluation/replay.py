@@ -16,11 +16,12 @@ from ..errors import InputError
 from .flight import Flight, SecondMeans, compensated_whole
 
 
-def navigate(t, w, f, mounting, initial):
+def navigate(t, w, f, mounting, initial, whole_record=True):
     """Navigate sensor-axis rates w (rad/s) and specific forces f (m/s^2), interval means at
     stamps t (s), from the vehicle's initial state; returns the vehicle-origin Trajectory
-    at [initial t, t after it] (`VehicleNavigator` over one block)."""
-    nav = VehicleNavigator(mounting, initial)
+    at [initial t, t after it] (`VehicleNavigator` over one block; whole_record: False for
+    a piece of a longer record)."""
+    nav = VehicleNavigator(mounting, initial, whole_record=whole_record)
     return Trajectory.concatenate([nav.feed(t, w, f), nav.finish()])
 
 

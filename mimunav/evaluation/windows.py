@@ -23,10 +23,12 @@ import numpy as np
 
 from ..navigation import alignment
 from ..navigation.rests import quiet_stretches, velocity_noise
+from ..navigation.strapdown import check_median_force
 from .replay import compensated_mimu, navigate, resample
 from .flight import no_reference
 from ..errors import InputError
 from ..frames import attitude
+from ..motion.carrier import course_keys, declared
 from ..motion.trajectory import State
 
 WINDOW_LENGTHS_S = (10.0, 30.0, 60.0)
@@ -142,7 +144,7 @@ def run(flight, t0, length, w, f, t_imu=None, half=alignment.MOVING_HALF_WINDOW_
     initial = State(t_start, float(start.lat[0]), float(start.lon[0]), float(start.h[0]),
                     start.v_ned[0].copy(), attitude.from_wxyz(q_nb))
     sel = slice(k0, int(np.searchsorted(t, t_start + length, side="right")) + 1)
-    nav = navigate(t[sel], w[sel], f[sel], flight.mimu_mounting, initial)
+    nav = navigate(t[sel], w[sel], f[sel], flight.mimu_mounting, initial, whole_record=False)
     epochs = truth.t[(truth.t > t_start) & (truth.t <= min(t_start + length, nav.t[-1]))]
     err = resample(nav, epochs).position_error(resample(truth, epochs))
     return Window(t_start, length, epochs, err)
@@ -165,11 +167,18 @@ def run_all(flight, cal=None, lengths=WINDOW_LENGTHS_S, step=START_STEP_S, time_
     w, f, _ = compensated_mimu(flight, cal)
     max_gap = gap_allowed(flight.truth, max_gap)
     t = flight.mimu_t + time_shift_s
-    track = track_of(flight.truth)
+    check_median_force(t[1:], f[1:] * np.diff(t)[:, None])    # the whole record's, once
+    track = dict(track_of(flight.truth), **course_keys((flight.recording or {}).get("vehicle")))
+    half = moving_half(track)
+    if half and not track["faces_course"]:
+        raise InputError(
+            f"{flight.path}: the windows would start each from the reference's velocity, its "
+            f"course taken for the heading - and {declared(track['vehicle'])} need not face "
+            "its course (a balloon spins under its envelope, a walker's phone points "
+            "anywhere): a reference with attitude is needed")
     rest = alignment.initial_alignment(t, w, f, flight.mimu_mounting, track)
     w, f = w - rest.gyro_bias, f - rest.accel_bias
     out = {}
-    half = moving_half(track)
     if min_speed is None:
         min_speed = alignment.COURSE_SPEED if half else 0.0
     first = rest.navigable_from

@@ -13,7 +13,7 @@ from ..navigation.rests import (TRACK_FORCE_RATIO, acceleration_match, follows_t
 from ..frames import attitude
 from .pairing import pair, trajectory_clock
 from .recording import G0, RecordingError, utc_text
-from ..motion.carrier import ALONG_COURSE, LAND, car_tests
+from ..motion.carrier import LAND, car_tests, course_keys
 from ..motion.track import velocity_from_positions
 
 
@@ -533,8 +533,7 @@ def reference_track(rec, epoch):
     return dict(t=t[ok], lat=src["lat"][ok], lon=src["lon"][ok], h=src["h"][ok], v_ned=v[ok],
                 q_nb=None if q is None else np.asarray(q)[ok],
                 attitude_source=rec.reference_meta.get("source", "the reference"), what=what,
-                heading_known=rec.reference_heading_known, vehicle=rec.vehicle,
-                faces_course=rec.vehicle is None or rec.vehicle in ALONG_COURSE)
+                heading_known=rec.reference_heading_known, **course_keys(rec.vehicle))
 
 
 UPRIGHT_DEG = 60.0      # deg: a car, a train, a two-wheeler on its stand (5-10 deg), an

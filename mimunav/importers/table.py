@@ -112,6 +112,7 @@ import numpy as np
 from ..frames import attitude
 from ..flightlog.stamps import mean_rate_hz
 from ..frames.mounting import Mounting
+from ..motion.intervals import means_of_instants
 from ..sensors.accuracy import Accuracy
 from .columns import check_keys
 from .recording import Recording, RecordingError, at_range, rate_onto
@@ -174,29 +175,32 @@ def _imu(spec, section):
         t_f, f = t_f[keep], f[keep]
         spec.notes[f"{section}_time"] = ("angular rate interpolated linearly onto the specific "
                                          "force's stamps" + (f"; {gaps}" if gaps else ""))
-    return _sampled(spec, section, t_f, (rate_key, force_key)), w, f
+    return _sampled(spec, section, t_f, w, f, (rate_key, force_key))
 
 
-def _sampled(spec, section, t, keys):
-    """The stamps t (s) of an IMU section as the log contract means them - each sample the
-    mean over the interval its stamp ends: a logger's instantaneous samples (`sampling =
-    "instant"`) are the means, to second order, of the interval centred on them, so their
-    stamps move half a median interval later (read as means they lead by it: a 200 Hz
+def _sampled(spec, section, t, w, f, keys):
+    """(t s, w rad/s, f m/s^2) of an IMU section as the log contract means them - each sample
+    the mean over the interval its stamp ends: a logger's instantaneous samples (`sampling =
+    "instant"`) become the means of the intervals centred on them
+    (`intervals.means_of_instants`; outputs at the section's range stay as recorded), and
+    their stamps move half a median interval later (read as means they lead by it: a 200 Hz
     IMU by 2.5 ms, which the diagnosis then measures as a time skew)."""
     sampling = spec.section(section).get("sampling", "interval_mean")
     if sampling not in SAMPLING:
         raise RecordingError(f"{spec.path}: [{section}] sampling {sampling!r}: "
                              + " or ".join(f'"{k}"' for k in SAMPLING))
     if sampling == "interval_mean":
-        return t
+        return t, w, f
     if any(k.endswith("increment") for k in keys):
         raise RecordingError(f"{spec.path}: [{section}] sampling = \"instant\" belongs to "
                              "rates and specific forces: an increment is over its interval")
     half = 0.5 * float(np.median(np.diff(t)))
-    spec.notes[f"{section}_sampling"] = (f"instantaneous samples: stamps moved {half * 1e3:.4g} "
-                                         "ms later, to the end of the interval each is the "
-                                         "mean of")
-    return t + half
+    spec.notes[f"{section}_sampling"] = (
+        f"instantaneous samples: each made the mean of the interval centred on it (x[k-1] + "
+        f"22 x[k] + x[k+1]) / 24 and stamped {half * 1e3:.4g} ms later, at that interval's "
+        "end")
+    clipped = at_range(w, f, sensor_range(spec, section))
+    return (t + half, means_of_instants(t, w, clipped), means_of_instants(t, f, clipped))
 
 
 def _one_of(spec, section, rate, increment):

@@ -32,6 +32,21 @@ LAND = "car"
 ALONG_COURSE = (LAND, "train", "two-wheeler")   # what moves along its forward axis: its
 #                                    course its heading (a car or a two-wheeler without
 #                                    side slip, a train on its rails)
+
+
+def course_keys(vehicle):
+    """The keys of a track (`navigation.alignment`'s dict) that say what carries the IMU:
+    `vehicle`, the declared kind (None: not declared), and `faces_course`, whether its
+    course may stand for its heading - a declared kind of ALONG_COURSE, or one not declared
+    (the import's course checks judge it)."""
+    return {"vehicle": vehicle, "faces_course": vehicle is None or vehicle in ALONG_COURSE}
+
+
+def declared(vehicle):
+    """What carries the IMU, as declared (a `vehicle` kind), for messages."""
+    return f"a vehicle declared {vehicle!r}"
+
+
 MOVING_SPEED = 5.0          # m/s: 18 km/h - a car's drive reaches it most of the time it moves
 CAR_SPEED = 70.0            # m/s: 250 km/h
 GRADE = 0.3                 # 30 %: steeper than any public road (the steepest about 35 % over

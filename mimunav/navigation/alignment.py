@@ -32,6 +32,7 @@ from scipy.spatial.transform import Rotation
 from ..frames import attitude, earth
 from .attitude_biases import ATTITUDE_BIAS_WINDOW_S, biases_from_attitude
 from ..errors import InputError
+from ..motion.carrier import declared
 from .rests import (G0, MIN_STATIC_S, felt_at_rest, rate_mean_se, QUIET_WINDOW_S, STATIC_MARGIN_S, STATIC_SPEED, track_still,
                     means_around, quiet_stretches, rest_intervals, travel_sign, velocity_noise,
                     yaw_turned)
@@ -187,9 +188,9 @@ def initial_alignment(t, w, f, mounting, track=None):
         notes.append(f"moving alignment at t = {t0:.2f} s ({speed[fast[0]]:.1f} m/s): the "
                      f"IMU's velocity increment over {2 * half:.1f} s (turned by its gyro) "
                      "matched to the reference's, forward axis to its velocity"
-                     + ("" if track.get("faces_course", True) else
-                        f" - a {track.get('vehicle', 'vehicle')} need not face its course: "
-                        "its heading is no measurement"))
+                     + ("" if track.get("faces_course", True) else f" - "
+                        f"{declared(track.get('vehicle'))} need not face its course: its "
+                        "heading is assumed, no measurement"))
     else:
         raise _no_initial_state(t, track, speed, inside, half)
     lat, lon, h = (float(np.interp(t0, track["t"], x)) for x in (
@@ -198,7 +199,8 @@ def initial_alignment(t, w, f, mounting, track=None):
     notes.append(bias_note)
     return Alignment(t0, lat, lon, h, v0, q_nb, gyro_bias, accel_bias, static,
                      "; ".join(notes), at_rest_start=False,
-                     heading="reference" if q_ref is not None else "course",
+                     heading="reference" if q_ref is not None else "course"
+                     if track.get("faces_course", True) else "assumed",
                      attitude_from="reference" if q_ref is not None else "leveled",
                      bias_basis=basis)
 
@@ -272,8 +274,8 @@ def _no_heading(track, interval):
     """Why a rest's heading is assumed 0: a track without attitude that is too slow for its
     course, or of a vehicle declared not to face its course."""
     if not track.get("faces_course", True):
-        return (f"heading assumed 0 (a {track.get('vehicle', 'vehicle')}, as declared, need "
-                "not face its course, and the track carries no attitude)")
+        return (f"heading assumed 0 ({declared(track.get('vehicle'))} need not face its course, and the "
+                "track carries no attitude)")
     return (f"heading assumed 0 (the track never exceeds {course_speed(track, interval):.2g} "
             "m/s and carries no attitude)")
 

@@ -172,20 +172,30 @@ def _checked_inputs(t, dtheta, dv, check_units, t_prev=None, median=True):
                "in degrees, or rates rather than increments (rad)?",
             6: f"specific force {value:.4g} m/s^2 {at} exceeds {MAX_SPECIFIC_FORCE} m/s^2: "
                "are dv rates (m/s^2) rather than increments (m/s)?"}[problem])
-    if check_units and median and len(t) >= 100:
-        # median specific force over a subsample: near 1 g for anything flying on Earth
-        step = max(1, len(t) // 1000)
-        force = np.median(np.linalg.norm(dv[1::step], axis=1) / (t[1::step] - t[:-1:step]))
-        if 0.3 < force < 3.0:
-            raise IncrementError(
-                f"median specific force is {force:.3g} m/s^2, near 1 g expressed in g: dv "
-                "must be in m/s (specific force in m/s^2 times the interval) - or, for a "
-                "compensated MIMU, the calibration is another unit's")
-        if force > 20 * 9.8:
-            raise IncrementError(
-                f"median specific force is {force:.3g} m/s^2 (over 20 g for most of the "
-                "flight): are dv rates (m/s^2) rather than increments (m/s)?")
+    if check_units and median:
+        check_median_force(t, dv)
     return t, dtheta, dv
+
+
+def check_median_force(t, dv):
+    """An IncrementError when the median specific force of a whole record's increments dv
+    (m/s, (N, 3), over the intervals ending at t s) is not a specific force in m/s^2: near
+    1 g expressed in g, or over 20 g. Of a whole record only: a piece of one may lie in a
+    coast or a free fall (a balloon's burst: 2.6 m/s^2 over a window), which no units
+    error is. Fewer than 100 samples: not judged."""
+    if len(t) < 100:
+        return
+    step = max(1, len(t) // 1000)       # over a subsample: near 1 g for anything on Earth
+    force = np.median(np.linalg.norm(dv[1::step], axis=1) / (t[1::step] - t[:-1:step]))
+    if 0.3 < force < 3.0:
+        raise IncrementError(
+            f"median specific force is {force:.3g} m/s^2, near 1 g expressed in g: dv "
+            "must be in m/s (specific force in m/s^2 times the interval) - or, for a "
+            "compensated MIMU, the calibration is another unit's")
+    if force > 20 * 9.8:
+        raise IncrementError(
+            f"median specific force is {force:.3g} m/s^2 (over 20 g for most of the "
+            "flight): are dv rates (m/s^2) rather than increments (m/s)?")
 
 
 @njit(nogil=True)

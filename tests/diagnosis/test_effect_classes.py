@@ -51,6 +51,8 @@ def test_every_effect_class_is_named_with_its_truth_in_the_interval(carrier, spe
              == (key["effect"], key["sensor"], key["axis"])]
     assert named, [f["label"] for f in diag.findings]
     f = named[0]
+    if key["effect"] == "vibration_rectification":          # what its coefficient multiplies
+        assert "high-passed at 10 Hz" in f["regressor"]
     truth = np.atleast_1d(key.get("vector", key.get("coefficient")))
     lo, hi = (np.asarray(f["vector_ci95"]).T if "vector_ci95" in f
               else (np.atleast_1d(f["ci95"][0]), np.atleast_1d(f["ci95"][1])))
@@ -474,16 +476,22 @@ def test_samples_at_a_declared_range_say_nothing_of_the_other_terms():
     assert not outputs.at_declared_range(measured, predicted, {"accel": 80.0}).any()
 
 
+def _rate_steps():
+    """A rate table's 2 s means: times (s), w_z (rad/s) on +-10..50 deg/s plateaus, and the
+    inputs (`outputs.INPUT_NAMES`) of the unit level beneath them."""
+    t = np.arange(1.0, 600.0, bias_models.SPAN_S)
+    w_z = np.radians(np.repeat([10, -10, 50, -50, 0, 20, -20, 0, 40, -40], 30))[:len(t)]
+    return t, w_z, np.column_stack([np.zeros((len(t), 2)), np.full(len(t), -9.81),
+                                    np.zeros((len(t), 2)), w_z])
+
+
 def test_a_wander_that_follows_an_input_is_that_inputs_term():
     """A rate table's steps: the bias's 2 s means step with w_z (a 0.002 x <- z coupling on
     +-10..50 deg/s plateaus) - with the inputs allowed beside it no wander is left, so none
     is named (it had read as 0.001 rad/s of bias instability and carried a null twin's
     verdict); a Gauss-Markov wander of 1.5e-3 rad/s beside the same steps stays."""
     rng = np.random.default_rng(11)
-    t = np.arange(1.0, 600.0, bias_models.SPAN_S)
-    w_z = np.radians(np.repeat([10, -10, 50, -50, 0, 20, -20, 0, 40, -40], 30))[:len(t)]
-    inputs = np.column_stack([np.zeros((len(t), 2)), np.full(len(t), -9.81),
-                              np.zeros((len(t), 2)), w_z])
+    t, w_z, inputs = _rate_steps()
     b, white = outputs.CLASS_DRIFT["gyro"], (2e-5) ** 2
     for x, named in ((0.002 * w_z + rng.normal(0, 2e-5, len(t)), False),
                      (transplant.gauss_markov(t, 1.5e-3, bias_models.GM_TAU_S, rng)
@@ -494,3 +502,25 @@ def test_a_wander_that_follows_an_input_is_that_inputs_term():
         assert ("rejected" not in finding) == named, finding
         if not named:
             assert "follow w_z, correlation 1.00" in finding["rejected"]
+
+
+def test_a_wander_that_follows_an_input_about_an_offset_is_that_inputs_term():
+    """An uncalibrated part on a rate table: its 2 s bias means sit at its whole turn-on
+    offset (4.5e-3 rad/s) and step with w_z (its 0.002 x <- z coupling). The wander model
+    has no free mean, so the offset alone had kept the wander beside the inputs (named
+    bias_instability 0.001 rad/s where the truth is a constant); judged about a free mean
+    (the offset's own test passed) the inputs explain it. A Gauss-Markov wander on the same
+    offset stays."""
+    rng = np.random.default_rng(12)
+    t, w_z, inputs = _rate_steps()
+    b, white = outputs.CLASS_DRIFT["gyro"], (2e-5) ** 2
+    for x, named in ((4.5e-3 + 0.002 * w_z + rng.normal(0, 2e-5, len(t)), False),
+                     (4.5e-3 + transplant.gauss_markov(t, 1.5e-3, bias_models.GM_TAU_S, rng)
+                      + rng.normal(0, 2e-5, len(t)), True)):
+        model = (t, x, b, 5e-5, white, None, 2.0)
+        assert bias_models.bias_models(*model)["shift"]["p"] < 1e-6
+        held = outputs.judged_beside_inputs({"effect": "bias_instability"}, model, inputs, 1e-4)
+        assert "rejected" not in held                  # without the offset free: kept
+        finding = outputs.judged_beside_inputs({"effect": "bias_instability"}, model, inputs,
+                                               1e-4, free_offset=True)
+        assert ("rejected" not in finding) == named, finding

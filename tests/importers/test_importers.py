@@ -1287,3 +1287,10 @@ def test_a_declared_walkers_course_is_not_its_heading(tmp_path, vehicle, heading
         assert log.metadata()["recording"]["initial_heading"] == heading
         text = describe(log)
     assert ("vehicle   pedestrian (declared)" if vehicle else "vehicle   not declared") in text
+    if vehicle:         # nor do the free-inertial windows take its course for its heading
+        from mimunav.evaluation import windows
+        from mimunav.errors import InputError
+        from mimunav.evaluation.flight import Flight
+        with pytest.raises(InputError, match="'pedestrian' need not face its course"):
+            windows.run_all(Flight.load(tmp_path / "walk.mcap", reference_imu=False,
+                                        max_gap_s=np.inf), lengths=(10.0,))

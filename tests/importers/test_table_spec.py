@@ -306,7 +306,7 @@ def test_instantaneous_samples_are_stamped_at_the_end_of_the_interval_they_stand
     t, w, f = _imu(tmp_path, extra='sampling = "instant"')
     rec = table.read(tmp_path / "spec.toml")
     np.testing.assert_allclose((rec.imu_ns - 1_700_000_000e9) / 1e9, t + 0.005, atol=1e-6)
-    assert "moved 5 ms later" in rec.real["imu_sampling"]
+    assert "stamped 5 ms later" in rec.real["imu_sampling"]
     _imu(tmp_path, rate=RATES.replace("angular_rate", "angle_increment").replace(
         '"gx", "gy", "gz"', '"dx", "dy", "dz"'), extra='sampling = "instant"')
     with pytest.raises(RecordingError, match="an increment is over its interval"):
@@ -314,6 +314,28 @@ def test_instantaneous_samples_are_stamped_at_the_end_of_the_interval_they_stand
     _imu(tmp_path, extra='sampling = "instantaneous"')
     with pytest.raises(RecordingError, match="sampling 'instantaneous': \"interval_mean\" or"):
         table.read(tmp_path / "spec.toml")
+
+
+def test_instantaneous_samples_become_the_means_of_the_intervals_centred_on_them(tmp_path):
+    """Closed form: the mean of 0.2 sin(w t + p) over (t - T/2, t + T/2] is the sample times
+    sin(w T / 2) / (w T / 2); the import gives it to 1e-9 rad/s, where the samples as
+    recorded are off by (w T)^2 / 24 of the swing (3e-6 rad/s here, a 2 Hz swing at 200 Hz:
+    1.6e-4 of it, which a rate table's diagnosis read as a scale factor). Outputs at the
+    range given, and their neighbours, stay as recorded."""
+    t, w, _ = _imu(tmp_path, extra='sampling = "instant"\nrange = { angular_rate = '
+                                     '{ value = 0.199, unit = "rad/s" } }', clip=0.199)
+    rec = table.read(tmp_path / "spec.toml")
+    omega, step = 2 * np.pi * 0.3, 1.0 / RATE
+    sample = 0.2 * np.sin(omega * t[:, None] + [0.0, 1.0, 2.0])
+    mean = sample * np.sin(omega * step / 2) / (omega * step / 2)
+    clipped = (np.abs(w) >= 0.999 * 0.199).any(axis=1)        # within 0.1 %: at it
+    near = clipped | np.roll(clipped, 1) | np.roll(clipped, -1)
+    inner = ~near
+    inner[[0, -1]] = False
+    assert np.abs(rec.w[inner] - mean[inner]).max() < 1e-9
+    assert np.abs(w[inner] - mean[inner]).max() > 2e-6            # as recorded: off
+    np.testing.assert_allclose(rec.w[near], w[near], rtol=0, atol=1e-9)   # the CSV's digits
+    assert clipped.sum() > 100
 
 
 def test_a_receivers_speed_and_course_over_ground_are_its_velocity(tmp_path):

@@ -1,5 +1,6 @@
 """Strapdown navigator against truth: exact increments of analytic and profile motions."""
 
+import math
 from dataclasses import replace
 
 import numpy as np
@@ -340,3 +341,24 @@ def test_a_first_block_at_launch_g_is_not_taken_for_rates():
         strapdown.Navigator(start).step(t, dth, dv)
     nav = strapdown.Navigator(start, whole_record=False).step(t, dth, dv)
     assert nav.v_ned[-1, 0] == pytest.approx(200.0, rel=1e-3)      # 200 m/s^2 for 1 s
+
+
+def test_a_free_falling_piece_of_a_record_is_no_units_error():
+    """A balloon's burst: a window over its free fall has a median |f| of 2.6 m/s^2, where a
+    record in g has 1 (m/s^2 read as g). The check is of a whole record: a piece navigated as
+    one (`replay.navigate(whole_record=False)`, the free-inertial windows) is not judged on
+    its median, and the free fall falls at 9.8 m/s^2; the whole record in g is still refused."""
+    from mimunav.evaluation.replay import navigate
+    from mimunav.frames.mounting import Mounting
+    t = np.arange(1, 1001) / 100.0
+    w, f = np.zeros((1000, 3)), np.tile([0.0, 0.0, -2.6], (1000, 1))     # 0.27 g of drag
+    start = State(0.0, 0.7, 0.1, 20000.0, np.zeros(3), np.quaternion(1.0, 0, 0, 0))
+    with pytest.raises(strapdown.IncrementError, match="near 1 g expressed in g"):
+        navigate(t, w, f, Mounting(), start)
+    fell = navigate(t, w, f, Mounting(), start, whole_record=False)
+    s2 = math.sin(0.7) ** 2               # Somigliana, and 3.086e-6 s^-2 of free air
+    g = 9.7803253359 * (1 + 0.00193185265241 * s2) / math.sqrt(1 - 0.00669437999013 * s2) \
+        - 3.086e-6 * 20000.0
+    assert fell.v_ned[-1, 2] == pytest.approx(10 * (g - 2.6), rel=2e-3)
+    with pytest.raises(strapdown.IncrementError, match="near 1 g expressed in g"):
+        strapdown.check_median_force(t, f * 0.01)
