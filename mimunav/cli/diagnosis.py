@@ -138,6 +138,11 @@ def finding_line(f):
                  f"widened {halves['widened_by']:.2f}x" + (
                      f", held-out p {p_text(halves['p_heldout_widened'])} with it"
                      if "p_heldout_widened" in halves else ""))
+    noise = f.get("errors_in_variables")
+    if isinstance(noise, dict) and noise["widened_by"] > 1:
+        line += (f"\n    the reference's own noise moves it (errors in variables): with as much "
+                 f"again {_values(noise['noisier'])}, read back {_values(noise['read_back'])}"
+                 f" (sensor axes): interval widened {noise['widened_by']:.2f}x")
     if f.get("ci95_method") == "student-t over segments":     # the track level's lag
         line += ("\n    its interval: the scatter of the yaw rate's segments' lags (Student t), "
                  "not the bins' noise model - the library check does not widen it")
@@ -228,3 +233,8 @@ def add_diagnose(sub):
                    "bootstrap (the sensor and track levels draw nothing)")
     p.add_argument("--force", action="store_true", help="replace existing outputs")
     p.set_defaults(func=_diagnose)
+
+
+def _values(x):
+    """A coefficient or a vector's components, for a line of text."""
+    return ", ".join(f"{v:.4g}" for v in np.atleast_1d(x))

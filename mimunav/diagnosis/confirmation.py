@@ -390,13 +390,13 @@ def halves_verdict(findings, halves, absorbed=None):
         if p >= HALVES_ALPHA or factor <= 1.0:
             kept.append(dict(f, halves=dict(record, widened_by=1.0)))
             continue
-        ok, wide = _judged_wider(f, factor, len(diff), f"the recording's halves disagree "
+        ok, wide = judged_wider(f, factor, len(diff), f"the recording's halves disagree "
                                  f"(p {p:.2g})", "halves", record)
         (kept if ok else aside).append(wide)
     return kept, aside
 
 
-def _judged_wider(finding, factor, k, why, key, record, p_heldout=None):
+def judged_wider(finding, factor, k, why, key, record, p_heldout=None):
     """(kept, the finding with its intervals widened by factor and `record` under `key`,
     with the held-out p read with the wider interval - its chi-square (k dof) over factor^2:
     a chi-square reading of whatever test gave it): set aside (`rejected`: `why` and the
@@ -457,18 +457,19 @@ def recording_checks(design, findings, held):
     Beyond LIBRARY_INFLATION_LIMIT the residual is not the noise the tests assume (a
     reference's steps, its lag, vibration, errors the library has no term for): each
     finding's interval is widened by sqrt(lambda), judged as the halves' widening is
-    (`_judged_wider`), and the reason given - 'nothing else is missing' cannot be said."""
+    (`judged_wider`), and the reason given - 'nothing else is missing' cannot be said."""
     kept, aside = halves_check(design, findings)
     lam = library_inflation(design, held, [position_of(design, f) for f in kept])
     record = {"lambda": lam, "limit": LIBRARY_INFLATION_LIMIT, "widened_by": 1.0}
     if lam is None or not lam > LIBRARY_INFLATION_LIMIT:
         return [dict(f, library_inflation=record) for f in kept], aside, [], record
     beside = ("beside the library's findings, its other terms" if kept
-              else "with no term of the library found, its terms")
+              else "with none of the library's terms found (the outputs' own tests aside), "
+                   "its terms")
     why = (f"{beside} stand out {lam:.1f} times their chance level on the held-out blocks "
            f"(median test statistic; at most {LIBRARY_INFLATION_LIMIT:g} where the tests' "
            "noise model holds)")
-    judged = [_judged_wider(f, math.sqrt(lam), len(np.ravel(beta_of(f))), why,
+    judged = [judged_wider(f, math.sqrt(lam), len(np.ravel(beta_of(f))), why,
                             "library_inflation", record,
                             f.get("halves", {}).get("p_heldout_widened"))
               for f in kept]
@@ -490,7 +491,7 @@ def outputs_judged(found, record):
     structure no term describes (a rate table's cross-coupling on its rate steps had read as
     0.0016 rad/s of bias instability, a helicopter's unmodelled 1.2 deg mounting as 0.00085
     on gyro.y, at p < 1e-80); a bias's offset is judged with its interval as widened as the
-    search's (`_judged_wider`). A rail and a lattice (saturation, quantization) are read off
+    search's (`judged_wider`). A rail and a lattice (saturation, quantization) are read off
     the outputs themselves and stand. A test already rejected (`outputs.bias_tests`: a wander
     that follows an input) is set aside whatever the check."""
     aside = [f for f in found if f.get("rejected")]     # a wander that follows an input
@@ -507,7 +508,7 @@ def outputs_judged(found, record):
                 f"{why}: a wander follows whatever slow structure no term describes - not "
                 "told from it, inconclusive")))
         elif f["effect"] == "bias_shift":
-            ok, judged = _judged_wider(f, factor, 1, why, "library_inflation", record)
+            ok, judged = judged_wider(f, factor, 1, why, "library_inflation", record)
             (kept if ok else aside).append(judged)
         else:
             kept.append(f)

@@ -127,7 +127,7 @@ def diagnose(flight, cal, alpha=0.05, seed=0, reference=None):
     q_vs = flight.mimu_mounting.q_vs
     findings, rejected = ([in_vehicle_frame(f, q_vs) for f in x] for x in (findings, rejected))
     diag = NavigationDiagnosis(findings, rejected, tier, train, len(cands), cands, observed,
-                               epochs, [], beyond_small_angles(observed)
+                               epochs, [], beyond_small_angles(observed, flight.source)
                                + vehicle_kind.mounting_beyond_range(rejected, flight)
                                + ([] if findings else unsettled(rejected)
                                   + set_aside_reasons(rejected)
@@ -403,12 +403,17 @@ def _columns(cands, findings):
     return [column[f["label"]] for f in findings]
 
 
-def beyond_small_angles(observed):
+def beyond_small_angles(observed, source="simulation"):
     """[reason] when the velocity error (ne, 3) NED m/s at EPOCH_S epochs grows, over
     GROWTH_WINDOW_S windows, as a tilt beyond MAX_IMPLIED_TILT_RAD would make it in the
     horizontal, or as an accelerometer error of as many g in the vertical (the same 0.1 g:
     a hundred times a MEMS unit's bias class - another unit's calibration, a unit's error
-    the bias-wander nuisance would absorb and call nothing missing), else []."""
+    the bias-wander nuisance would absorb and call nothing missing), else []; source: the
+    flight's, whose remedy the reason names (a recording's /mimu/imu takes no calibration
+    of raw outputs: a reference IMU flown beside it)."""
+    remedy = ("calibrate the MIMU first" if source != "recording" else
+              "a recording's outputs are taken as recorded (no calibration of raw outputs "
+              "applies to them): diagnose against a reference IMU flown beside it")
     m = max(int(round(GROWTH_WINDOW_S / EPOCH_S)), 3)
     k = len(observed) // m
     if k < 1:
@@ -428,7 +433,7 @@ def beyond_small_angles(observed):
                        f"(median of {GROWTH_WINDOW_S:g} s slopes), as a {down / G0 * 1e3:.0f} "
                        "mg accelerometer error would - far beyond a MEMS unit's bias: the "
                        "calibration does not describe this unit, and the bias wander the "
-                       "fit takes as nuisance would hide it; calibrate the MIMU first")
+                       f"fit takes as nuisance would hide it; {remedy}")
     tilt = growth / G0
     if not tilt > MAX_IMPLIED_TILT_RAD:
         return reasons
@@ -436,7 +441,8 @@ def beyond_small_angles(observed):
             f"{GROWTH_WINDOW_S:g} s slopes), as a {np.degrees(tilt):.1f} deg tilt or a "
             f"{growth / G0 * 1e3:.0f} mg accelerometer bias would: beyond the small-angle error "
             f"equations of the navigation level (valid to {np.degrees(MAX_IMPLIED_TILT_RAD):.1f}"
-            " deg); calibrate the MIMU first or diagnose against a reference IMU"]
+            f" deg); {remedy}" + ("" if source == "recording"
+                                   else " or diagnose against a reference IMU")]
 
 
 def _confirm(tier, cands, chosen, train, alpha, seed, cond, limit, noisy):

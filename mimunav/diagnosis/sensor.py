@@ -70,7 +70,7 @@ import numpy as np
 from ..compensation.wild_values import REPLACED, UNUSABLE
 from ..compensation.effects import AXES
 from ..frames import attitude
-from . import library, outputs, track_reference, wander
+from . import errors_in_variables, library, outputs, track_reference, wander
 from ..sensors.accuracy import accuracy_of
 from .reference import agreement
 from ..errors import InputError
@@ -157,8 +157,7 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
               stamp_jitter(flight.fog_t, "the reference IMU's")]  # stamp's steps are 8 B each
     prep = _prepare(flight, cal, acc, candidates, output_tests, vibration, bin_s, noise_shape,
                     max_wander, wander_steps, check_reference)
-    output_tests = prep.output_tests
-    design = prep.design
+    output_tests, design = prep.output_tests, prep.design
     if len(design.t) < 4 * block_s / bin_s:
         raise _too_little(flight, prep, bin_s, block_s, unusable_because)
     train = outputs.block_index(design.t, block_s) % 2 == 0
@@ -167,8 +166,10 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
     # the all-rows fit, when first needed (look-alikes; ~1 s of Grams on a 10-minute flight)
     whole = cache(lambda: Fitter(design, np.ones(len(design.t), bool)))
     chosen, within, beyond = select(design, train, alpha, prep.full_scale, whole)
-    findings, rejected, aside, doubts, library = confirmed(  # a record's halves and noise
-        design, chosen, train, held, alpha, prep, flight.source == "recording")
+    findings, rejected, aside, doubts, library = _confirmed(
+        flight, design, chosen, (train, held, block_s), alpha, prep, acc.mems_grade,
+        lambda noisier: _prepare(noisier, cal, acc, candidates, False, vibration, bin_s,
+                                 noise_shape, max_wander, wander_steps, False).design)
     rejected = rejected + beyond_range(design, beyond)
     everything = whole()
     before, removed, fit_found = _residuals(design, everything, findings)
@@ -327,6 +328,23 @@ def _reference_column(flight, spill, c):
     if flight.stream_block is not None:
         return spill.column("reference", c)
     return (flight.fog_w if c < 3 else flight.fog_f)[:, c % 3]
+
+
+def _confirmed(flight, design, chosen, split, alpha, prep, mems_grade, remake):
+    """`confirmation.confirmed` (a record's halves and noise too), and beside a MEMS-grade
+    reference its findings read back to a noiseless reference (`errors_in_variables`: those
+    its noise can make set aside with the halves'); split: (train, held rows, block s);
+    remake(flight): the design of another flight as this one's was made."""
+    train, held, block_s = split
+    findings, rejected, aside, doubts, record = confirmed(
+        design, chosen, train, held, alpha, prep, flight.source == "recording")
+    if mems_grade and findings and flight.fog_w is not None:
+        again = remake(errors_in_variables.noisier(flight, errors_in_variables.white_per_sample(
+            design, 1.0 / float(np.median(np.diff(flight.fog_t))))))
+        findings, noisy = errors_in_variables.read_back(
+            design, again, findings, lambda d: outputs.block_index(d.t, block_s) % 2 == 1)
+        rejected, aside = rejected + noisy, aside + noisy
+    return findings, rejected, aside, doubts, record
 
 
 def _residuals(design, everything, findings):

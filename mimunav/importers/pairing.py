@@ -122,9 +122,9 @@ def clock_offset(rec):
     """{"offset_s": how late (s) the reference IMU's stamps are on the IMU's, or None when
     the data do not decide it, "said": what was measured} (module doc)."""
     ref = rec.reference_imu
-    found = rate_lag(_centres(rec.imu_ns), np.linalg.norm(rec.w, axis=1),
-                     _centres(ref["ns"]), np.linalg.norm(ref["w"], axis=1), "the two IMUs",
-                     "the reference's stamps")
+    found = _given_lobe(rec, rate_lag(
+        _centres(rec.imu_ns), np.linalg.norm(rec.w, axis=1), _centres(ref["ns"]),
+        np.linalg.norm(ref["w"], axis=1), "the two IMUs", "the reference's stamps"))
     if found.get("lag_s") is None:
         return dict(found, offset_s=None)
     offset, se, (drift, drift_se, centre, at_centre) = _refined(rec, found["lag_s"])
@@ -166,6 +166,27 @@ def trajectory_clock(rec):
     return dict(found, offset_s=found.get("lag_s"))
 
 
+def _given_lobe(rec, found):
+    """`rate_lag`'s `found` taken at its best lag within a lobe of zero, where the data alone
+    leave the peak among rivals (a swinging payload's |w| repeats every half swing, a rate
+    table's at each repeat of its steps) and an offset was given: the offset chooses the
+    lobe, the data then refine it and measure a drift (`clock_offset`), and the words say
+    which chose what; else `found`, its words naming the option with the peak's value."""
+    if "peak_lag_s" not in found:
+        return found
+    if rec.reference_imu_offset_given:
+        if "zero_lag_s" not in found:
+            return dict(found, said=f"{found['said']}; nor does the offset given put one of "
+                                    "its rivals within a lobe of zero")
+        return {"lag_s": found["zero_lag_s"],
+                "said": f"{found['zero_said']}: the data alone set no lag apart - the lobe "
+                        f"taken is the one the offset given picks ({found['said']})"}
+    return dict(found, said=f"{found['said']}; where the recording's own notes confirm the "
+                f"peak, --reference-imu-time-offset {-found['peak_lag_s']:+.3g} (or "
+                "time_offset_s in a table spec's [reference_imu]) picks its lobe, and the "
+                "import then refines it and measures a drift")
+
+
 def rate_lag(t_a, rate_a, t_b, rate_b, whose, late):
     """{"lag_s": how late (s) series b's times are on a's, to GRID_S, or None, "said",
     "ambiguous" when a peak is there but not alone}: two rotation-rate magnitudes (rad/s at
@@ -201,10 +222,20 @@ def rate_lag(t_a, rate_a, t_b, rate_b, whose, late):
                  f"error {se:.2g}, block jackknife)")
         rival = not margin > DISTINCT_Z * se
     if peak < PEAK_CORRELATION or rival or width > LOBE_MAX_S:
-        return {"lag_s": None, "said": f"not decided ({said}: at least {PEAK_CORRELATION:g} "
-                                       f"at one lag, at most {SECOND_PEAK_SHARE:g} of it "
-                                       f"beyond a lobe of at most +-{LOBE_MAX_S:g} s needed)",
-                "ambiguous": True}
+        out = {"lag_s": None, "said": f"not decided ({said}: at least {PEAK_CORRELATION:g} "
+                                      f"at one lag, at most {SECOND_PEAK_SHARE:g} of it "
+                                      f"beyond a lobe of at most +-{LOBE_MAX_S:g} s needed)",
+               "ambiguous": True}
+        if peak >= PEAK_CORRELATION and width <= LOBE_MAX_S:     # a peak among rivals
+            out["peak_lag_s"] = float(lags[k] * GRID_S)
+            near = np.abs(lags * GRID_S) <= width       # the best lag within a lobe of zero
+            i = int(np.flatnonzero(near)[np.nanargmax(r[near])]) \
+                if np.isfinite(r[near]).any() else k
+            if r[i] > SECOND_PEAK_SHARE * peak:         # one of the rivals lies there
+                out.update(zero_lag_s=float(lags[i] * GRID_S),
+                           zero_said=f"{whose} (|w|) correlate {r[i]:.2f} with {late} "
+                                     f"{lags[i] * GRID_S:+.2f} s late, {peak:.2f} at best")
+        return out
     return {"lag_s": float(lags[k] * GRID_S), "said": said}
 
 

@@ -77,6 +77,10 @@ class Recording:
     reference_imu: dict | None = None
     vehicle: str | None = None      # what carried the IMU, one of VEHICLES, when declared
     reference_shift_s: float = 0.0  # what --reference-time-offset (or a spec) added, s
+    reference_imu_offset_given: bool = False    # an offset of the reference IMU's stamps
+    #                                   was given (--reference-imu-time-offset, a spec's
+    #                                   [reference_imu] time_offset_s): it picks the clock's
+    #                                   lobe where the data find rivals (`pairing`)
     range: dict = field(default_factory=dict)   # the IMU's full scale when known: gyro_rad_s,
                                                 # accel_m_s2 (outputs at it are clipped)
     reference_heading_known: bool = True    # False: the reference lies in a local frame whose

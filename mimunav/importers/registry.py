@@ -45,6 +45,7 @@ def read(kind, source, mounting=None, **options):
         rec.vehicle = o["vehicle"]
     if o["reference_imu_time_offset"]:
         rec.shift_reference_imu(o["reference_imu_time_offset"], "command line")
+        rec.reference_imu_offset_given = True
     if o["reference_time_offset"]:
         rec.shift_reference(o["reference_time_offset"], "command line")
     return rec

@@ -314,7 +314,9 @@ def read(path, mounting=None, root=None):
                      model=spec.doc.get("model", "unknown"), reference=reference,
                      reference_meta=meta, real=real, assumed=assumed, reference_imu=second,
                      vehicle=spec.doc.get("vehicle"), range=rng,
-                     reference_heading_known=frame is None or frame.azimuth_known)
+                     reference_heading_known=frame is None or frame.azimuth_known,
+                     reference_imu_offset_given="time_offset_s" in spec.section(
+                         "reference_imu"))
 
 
 def _to_the_vehicles_attitude(spec, meta, reference, mounting, second):

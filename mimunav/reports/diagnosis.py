@@ -249,6 +249,14 @@ def _finding_lines(doc):
                     if "p_heldout_widened" in f["halves"] else "") + ")"
                 for f in wide) + "; the terms refitted on "
                 "each half are in diagnosis.json (`halves`)."]
+        noisy = [f for f in doc["findings"] if isinstance(f.get("errors_in_variables"), dict)]
+        if noisy:
+            lines += ["", "The reference is of MEMS grade: its own noise, in the residual and "
+                      "in the regressors, can bias a term (errors in variables). Refitted with "
+                      "as much noise again (SIMEX, one step), each interval was widened to hold "
+                      "the estimate read back to a noiseless reference: " + ", ".join(
+                          f"{f['label']} {f['errors_in_variables']['widened_by']:.2f}x"
+                          for f in noisy) + " (diagnosis.json: `errors_in_variables`)."]
         lines += [f"\n{f['label']}: the import measured {f['import_measured']['value']:.4g} "
                   f"{f['import_measured']['units']} - {f['import_measured']['basis']}."
                   for f in doc["findings"] if "import_measured" in f]

@@ -639,6 +639,10 @@ def test_navigation_level_is_inconclusive_beyond_small_angles():
         dv[:, 2] = b * tau * np.sinh(hour / tau)
         said = beyond_small_angles(dv)
         assert len(said) == reasons and all("vertical" in r for r in said), said
+    # a recording's outputs take no calibration of raw outputs: its remedy is a reference IMU
+    (recorded,) = beyond_small_angles(dv, "recording")
+    assert "reference IMU" in recorded and "calibrate the MIMU first" not in recorded
+    assert "calibrate the MIMU first" in said[0]
 
 
 def test_a_parked_flight_with_its_true_model_names_nothing_at_the_navigation_level(tmp_path):
