@@ -1,6 +1,7 @@
 """An ArduPilot DataFlash log written from a simulated flight, for the importer's tests: the
 record layout (0xA3 0x95, message id, packed fields; FMT records first) and the message
-formats of ArduPilot's libraries/AP_Logger/LogStructure.h (IMU, GPS, GPA, POS, XKF1, ATT),
+formats of ArduPilot's libraries/AP_Logger/LogStructure.h (IMU, GPS, GPA, POS, XKF1, ATT,
+PARM),
 read back by pymavlink's DFReader - not by code of this project."""
 import struct
 
@@ -24,6 +25,7 @@ FORMATS = {   # name: (id, format, columns) as in LogStructure.h (ArduPilot 4.x)
     "POS": (13, "QLLfff", "TimeUS,Lat,Lng,Alt,RelHomeAlt,RelOriginAlt"),
     "XKF1": (14, "QBccCfffffffccce", "TimeUS,C,Roll,Pitch,Yaw,VN,VE,VD,dPD,PN,PE,PD,GX,GY,GZ,OH"),
     "ATT": (15, "QccccCCCCB", "TimeUS,DesRoll,Roll,DesPitch,Pitch,DesYaw,Yaw,ErrRP,ErrYaw,AEKF"),
+    "PARM": (16, "QNff", "TimeUS,Name,Value,Default"),
 }
 LEAP_S = 18                 # GPS - UTC since 2017
 PROFILE = {"name": "copter-like", "start": {"latitude_deg": -35.36, "longitude_deg": 149.17,
@@ -60,15 +62,16 @@ class Writer:
         packed = []
         for c, col in zip(fmt, cols.split(",")):
             v = values.get(col, 0)
-            packed.append(int(round(v * SCALE[c])) if c in SCALE else
-                          (float(v) if c == "f" else int(v)))
+            packed.append(int(round(v * SCALE[c])) if c in SCALE else v.encode()
+                          if c in "nNZ" else (float(v) if c == "f" else int(v)))
         self.parts.append(HEAD + bytes([mid]) + struct.pack(
             "<" + "".join(STRUCT[c] for c in fmt), *packed))
         # the text form a ground station writes: scaled fields in their units, floats as
         # the float32 they are stored in, 7 significant digits (Mission Planner's)
         self.lines.append(", ".join([name] + [
             f"{p / SCALE[c]:.7f}" if c in SCALE else
-            f"{float(np.float32(p)):.7g}" if c == "f" else str(p)
+            f"{float(np.float32(p)):.7g}" if c == "f" else
+            p.decode() if isinstance(p, bytes) else str(p)
             for c, p in zip(fmt, packed)]))
 
     def bytes(self):
@@ -92,6 +95,9 @@ def flight(rate=400.0, seed=0, unix_start_s=1714550400.0, boot_s=93.25, text=Fal
     w = run.dtheta / dt[:, None]
     f = run.dv / dt[:, None]
     out = Writer()
+    for name, value in (("INS_GYRO_FILTER", 20.0), ("INS_ACCEL_FILTER", 10.0)):
+        out.add("PARM", TimeUS=int(boot_s * 1e6) - 1_000_000, Name=name, Value=value,
+                Default=value)
     boot_us = np.round((boot_s + t[1:]) * 1e6).astype(np.int64)
     for inst, (sw, sf) in enumerate(((2e-3, 2e-2), (4e-3, 4e-2))):
         wn = w + rng.normal(0, sw, w.shape) + [1e-3, -2e-3, 5e-4]

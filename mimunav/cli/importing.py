@@ -68,7 +68,7 @@ def add_import(sub):
     p.add_argument("--reference-imu-topic", help="ros2: a second sensor_msgs/msg/Imu topic, a "
                    "better IMU flown with it, as the reference IMU (/fog/imu: `diagnose` then "
                    "works at the sensor level)")
-    p.add_argument("--reference-imu-time-offset", type=number(-60.0, 60.0), default=0.0,
+    p.add_argument("--reference-imu-time-offset", type=number(-60.0, 60.0), default=None,
                    metavar="S", help="ros2, table, ulog, dataflash: added to the reference IMU's stamps, "
                    "s, before the import measures the two IMUs' offset from their rotation "
                    "rates and corrects what it measures (beyond 1 ms); a clock it cannot time "

@@ -45,7 +45,7 @@ GPS_STATUS = {0: "no GPS", 1: "no fix", 2: "2D", 3: "3D", 4: "DGPS", 5: "RTK flo
               6: "RTK fixed"}
 # NavSatStatus of /gnss/fix for each ArduPilot status: FIX 0, SBAS_FIX 1, GBAS_FIX 2
 NAV_SAT_STATUS = {3: 0, 4: 1, 5: 2, 6: 2}
-TYPES = ("IMU", "IMU2", "IMU3", "GPS", "GPS2", "GPA", "POS", "XKF1", "ATT")
+TYPES = ("IMU", "IMU2", "IMU3", "GPS", "GPS2", "GPA", "POS", "XKF1", "ATT", "PARM")
 
 
 BINARY_HEAD = b"\xa3\x95"        # a binary record's first two bytes (AP_Logger)
@@ -134,6 +134,9 @@ def _rows(log, path):
         if m is None:
             return rows
         kind = m.get_type()
+        if kind == "PARM":                      # a parameter: no time needed (2014's have none)
+            rows.setdefault(kind, []).append(m.to_dict())
+            continue
         d = _boot_time_us(m.to_dict(), kind, path)
         if kind in ("IMU2", "IMU3", "GPS2"):
             d["I"] = int(kind[-1]) - 1
@@ -253,8 +256,7 @@ def read(path, mounting=None, instance=0, reference="auto", reference_status=3,
     assumed.update(mounting="ArduPilot body frame FRD = vehicle frame" if mounting is None
                    else "given on the command line",
                    calibration="ArduPilot's on-board calibration, as logged",
-                   imu_values="filtered outputs at the logging rate (INS_*_FILTER low-pass), "
-                              "not interval means",
+                   imu_values=_imu_values(msgs.get("PARM")),
                    height="above mean sea level (geoid undulation not applied)")
     rate = 1e6 / np.median(np.diff(boot_us))
     span = (boot_us[-1] - boot_us[0]) / 1e6
@@ -263,6 +265,19 @@ def read(path, mounting=None, instance=0, reference="auto", reference_status=3,
                      w, f, mounting or Mounting(), model="ArduPilot autopilot IMU",
                      reference=ref, reference_meta=ref_meta, fixes=fixes, real=real,
                      assumed=assumed, reference_imu=second)
+
+
+def _imu_values(parm):
+    """What the IMU messages' values are, with the low-pass corners the log's parameters
+    set (INS_GYRO_FILTER, INS_ACCEL_FILTER, Hz; 0: none) when it holds them."""
+    said = "outputs at the logging rate, not interval means"
+    if parm is None:
+        return f"filtered {said} (INS_*_FILTER low-pass; the log holds no parameters)"
+    value = dict(zip(parm["Name"].tolist(), parm["Value"].tolist()))
+    corners = [f"{k} {value[k]:g} Hz" for k in ("INS_GYRO_FILTER", "INS_ACCEL_FILTER")
+               if k in value]
+    return (f"{said}, low-passed as the log's parameters say: {', '.join(corners)} (0: none)"
+            if corners else f"filtered {said} (INS_*_FILTER low-pass: not in its parameters)")
 
 
 def _fixes(gps, gpa, use, offset_us):

@@ -182,7 +182,7 @@ def _given_lobe(rec, found):
                 "said": f"{found['zero_said']}: the data alone set no lag apart - the lobe "
                         f"taken is the one the offset given picks ({found['said']})"}
     return dict(found, said=f"{found['said']}; where the recording's own notes confirm the "
-                f"peak, --reference-imu-time-offset {-found['peak_lag_s']:+.3g} (or "
+                f"peak, --reference-imu-time-offset {-found['peak_lag_s'] + 0.0:+.3g} (or "
                 "time_offset_s in a table spec's [reference_imu]) picks its lobe, and the "
                 "import then refines it and measures a drift")
 

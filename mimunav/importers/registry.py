@@ -10,7 +10,7 @@ from .kinds import KINDS
 OPTIONS = {
     "imu_instance": (("dataflash", "ulog"), None), "reference": (("dataflash",), "auto"),
     "reference_imu_instance": (("ulog", "dataflash"), None),
-    "reference_imu_time_offset": (("ros2", "table", "ulog", "dataflash"), 0.0),
+    "reference_imu_time_offset": (("ros2", "table", "ulog", "dataflash"), None),
     "reference_time_offset": (KINDS, 0.0),
     "gps_status": (("dataflash",), 3), "imu_topic": (("ros2",), None),
     "fix_topic": (("ros2",), None), "pose_topic": (("ros2",), None), "origin": (("ros2",), None),
@@ -43,7 +43,7 @@ def read(kind, source, mounting=None, **options):
     rec = READERS[kind](source, mounting, o)
     if o["vehicle"] is not None:
         rec.vehicle = o["vehicle"]
-    if o["reference_imu_time_offset"]:
+    if o["reference_imu_time_offset"] is not None:      # given, 0 too: it picks a lobe
         rec.shift_reference_imu(o["reference_imu_time_offset"], "command line")
         rec.reference_imu_offset_given = True
     if o["reference_time_offset"]:

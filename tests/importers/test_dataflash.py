@@ -44,7 +44,7 @@ def test_time_axes_units_and_the_autopilot_reference(log):
     q = np.array([np.quaternion(*row) for row in ref["q_nb"]])
     err = attitude.rotation_vector_error(q, tr.q_nb[k])
     assert np.abs(err).max() < np.radians(0.02)       # ATT in 0.01 deg
-    assert "filtered" in rec.assumed["imu_values"]
+    assert "INS_GYRO_FILTER 20 Hz, INS_ACCEL_FILTER 10 Hz" in rec.assumed["imu_values"]
     assert rec.real["imu_instances"] == "0, 1"
 
 
