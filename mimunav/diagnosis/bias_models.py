@@ -90,7 +90,8 @@ def bias_models(t, x, instability, offset, white, nuisance=None, span=SPAN_S,
     too weak for the library is not read as wander) at their best values:
     {"shift": {"lr", "mu", "se"}, "wander": {"lr", "sigma", "lower", "upper"}}.
     about_mean: the class and the wander carry a free mean too, so the wander's test asks
-    for a wander beyond an offset (the shift's entries are then those of no shift)."""
+    for a wander beyond an offset (the shift's likelihood ratio, against a class with its
+    mean free, is then no test of an offset)."""
     n = len(x)
     nuisance = np.zeros((n, 0)) if nuisance is None else nuisance
     unit_flicker, corr = _mean_correlations(np.ascontiguousarray(t, float).tobytes(), span)
@@ -113,8 +114,9 @@ def bias_models(t, x, instability, offset, white, nuisance=None, span=SPAN_S,
     # left out it read a flicker unit's 1/f as a wander three times too large; and without
     # the temperature, which once the wander is called would take part of it away
     ridge = max(white, 1e-12 * (float(np.var(x)) + offset ** 2)) * np.eye(n)  # white ~ 0
-    plain = np.max([wander_profile(x, with_mean[:, :int(about_mean)], b ** 2 * flicker + ridge + turn_on,
-                                    corr, grid) for b in FLICKER_LEVELS], axis=0)
+    plain = np.max([wander_profile(x, with_mean[:, :int(about_mean)],
+                                   b ** 2 * flicker + ridge + turn_on, corr, grid)
+                    for b in FLICKER_LEVELS], axis=0)
     inside = grid[plain >= plain.max() - 0.5 * stats.chi2.isf(0.05, 1)]
     lr_wander = max(2 * (ll.max() - l_class), 0.0)
     # the offset's test: its GLS mean against the class's turn-on spread added to its own

@@ -46,7 +46,8 @@ def noisier(flight, sigma):
     """The flight with white noise of sigma ({"gyro", "accel"}, SI, per sample) added to its
     reference IMU's outputs (a fixed draw, `SEED`)."""
     rng = np.random.default_rng(SEED)
-    return replace(flight, fog_w=flight.fog_w + rng.normal(0.0, sigma["gyro"], flight.fog_w.shape),
+    return replace(flight,
+                   fog_w=flight.fog_w + rng.normal(0.0, sigma["gyro"], flight.fog_w.shape),
                    fog_f=flight.fog_f + rng.normal(0.0, sigma["accel"], flight.fog_f.shape))
 
 
@@ -67,8 +68,8 @@ def read_back(design, again, findings, held_of):
     for f, j1, j2 in zip(findings, first, second):
         (b, cov), (b2, _) = fits[0].of(j1), fits[1].of(j2)
         half = 1.96 * np.sqrt(np.diag(cov))
-        # the truth lies between the fit (no noise of the reference) and the read-back (all
-        # the residual's white noise the reference's), each +- its own interval: widened so
+        # the truth lies between the fit (the reference's noise as recorded, none charged)
+        # and the read-back (all of the residual's white noise the reference's): widened so
         factor = 1.0 + float(np.max(np.abs(b2 - b) / half))
         record = {"noisier": b2.tolist(), "read_back": (2 * b - b2).tolist()}
         why = (f"the reference's own noise moves it (errors in variables): with as much "

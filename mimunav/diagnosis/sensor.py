@@ -146,8 +146,9 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
     swell that white variance; for a MEMS-grade reference the same cap by default: its
     noise, in the residual and in its own input columns, would let a free wander fit the
     bins' differences - a tractor's reference gyro.z scale read -0.22 and every turn an
-    excursion of 0.1 rad/s the two IMUs' outputs do not hold); `unusable_because`: why most samples may be unusable, for
-    the refusal when too few are left (`track`: outside the motion its model trusts).
+    excursion of 0.1 rad/s the two IMUs' outputs do not hold); `unusable_because`: why
+    most samples may be unusable, for the refusal when too few are left (`track`: outside
+    the motion its model trusts).
     Nothing here is random."""
     if flight.mimu_platform is not None:
         raise InputError(f"{flight.path}: the MIMU turns on a platform (/mimu/platform); "

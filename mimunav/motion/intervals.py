@@ -20,8 +20,9 @@ def intervals(t):
 
 def means_of_instants(t, x, raw=None):
     """Instantaneous samples x (N, k) at stamps t (s) as the means over the intervals centred
-    on them: (x[k-1] + 22 x[k] + x[k+1]) / 24, Simpson's correction - exact for motion
-    quadratic over three samples, where the sample itself is the mean only to second order
+    on them: x + T^2 x'' / 24 with x'' by central differences, (x[k-1] + 22 x[k] + x[k+1])
+    / 24 - exact for motion quadratic over three samples, where the sample itself is the
+    mean only to second order
     (off by x'' T^2 / 24: a 2 Hz swing sampled at 200 Hz, 1.6e-4 of its amplitude, read as a
     scale factor). Rows whose neighbours are not an even step away (within 1 %), the first
     and the last, and rows beside a `raw` (N,) bool row (a clipped output: its true value is

@@ -274,8 +274,8 @@ def _no_heading(track, interval):
     """Why a rest's heading is assumed 0: a track without attitude that is too slow for its
     course, or of a vehicle declared not to face its course."""
     if not track.get("faces_course", True):
-        return (f"heading assumed 0 ({declared(track.get('vehicle'))} need not face its course, and the "
-                "track carries no attitude)")
+        return (f"heading assumed 0 ({declared(track.get('vehicle'))} need not face its "
+                "course, and the track carries no attitude)")
     return (f"heading assumed 0 (the track never exceeds {course_speed(track, interval):.2g} "
             "m/s and carries no attitude)")
 
