@@ -95,7 +95,8 @@ def flight(rate=400.0, seed=0, unix_start_s=1714550400.0, boot_s=93.25, text=Fal
     w = run.dtheta / dt[:, None]
     f = run.dv / dt[:, None]
     out = Writer()
-    for name, value in (("INS_GYRO_FILTER", 20.0), ("INS_ACCEL_FILTER", 10.0)):
+    for name, value in (("INS_GYRO_FILTER", 20.0), ("INS_ACCEL_FILTER", 10.0),
+                        ("INS_POS2_X", 0.001)):             # instance 1, 1 mm forward
         out.add("PARM", TimeUS=int(boot_s * 1e6) - 1_000_000, Name=name, Value=value,
                 Default=value)
     boot_us = np.round((boot_s + t[1:]) * 1e6).astype(np.int64)

@@ -236,12 +236,16 @@ def read(path, mounting=None, instance=0, reference="auto", reference_status=3,
         real["imu_temperature"] = _temperature(imu)
     found = sorted({int(i) for i in msgs["IMU"].get("I", [0])})
     real["imu_instances"] = ", ".join(str(i) for i in found)
-    second = None
+    second, params = None, _params(msgs.get("PARM"))
     if reference_instance is not None:
         r_us, r_w, r_f, r_repeated, r_imu = _imu(msgs, reference_instance, path)
-        second = dict(ns=(r_us + offset_us) * 1000, w=r_w, f=r_f, mounting=Mounting(),
+        second = dict(ns=(r_us + offset_us) * 1000, w=r_w, f=r_f,
+                      mounting=Mounting(lever_arm_m=_position(params, reference_instance)),
                       model=f"ArduPilot autopilot IMU instance {reference_instance}",
                       accuracy=dict(AUTOPILOT_MEMS))
+        assumed["reference_imu_mounting"] = (
+            f"ArduPilot body frame FRD = vehicle frame; at INS_POS{reference_instance + 1} "
+            f"{_said_m(second['mounting'].lever_arm_m)} (the log's parameters)")
         assumed["reference_imu_accuracy"] = AUTOPILOT_MEMS_SOURCE
         real["reference_imu"] = (f"IMU instance {reference_instance} ({len(r_us)} samples; "
                                  f"{r_repeated} repeated stamps dropped"
@@ -253,27 +257,46 @@ def read(path, mounting=None, instance=0, reference="auto", reference_status=3,
         real["gnss"] = f"GPS ({', '.join(f'{k}: {v}' for k, v in counts.items())})"
     if ref is not None:
         real["reference"] = f"{len(ref['ns'])} epochs: {ref_meta['source']}"
-    assumed.update(mounting="ArduPilot body frame FRD = vehicle frame" if mounting is None
-                   else "given on the command line",
+    position = _position(params, instance)
+    assumed.update(mounting=("ArduPilot body frame FRD = vehicle frame" if mounting is None
+                             else "given on the command line")
+                   + f"; at INS_POS{instance + 1} {_said_m(position)} (the log's parameters)",
                    calibration="ArduPilot's on-board calibration, as logged",
-                   imu_values=_imu_values(msgs.get("PARM")),
+                   imu_values=_imu_values(params),
                    height="above mean sea level (geoid undulation not applied)")
     rate = 1e6 / np.median(np.diff(boot_us))
     span = (boot_us[-1] - boot_us[0]) / 1e6
     return Recording(name, f"ArduPilot DataFlash {os.path.basename(path)}: IMU {instance} "
                      f"{rate:.0f} Hz, {span:.1f} s", (boot_us + offset_us) * 1000,
-                     w, f, mounting or Mounting(), model="ArduPilot autopilot IMU",
+                     w, f, Mounting((mounting or Mounting()).attitude_wxyz, position),
+                     model="ArduPilot autopilot IMU",
                      reference=ref, reference_meta=ref_meta, fixes=fixes, real=real,
                      assumed=assumed, reference_imu=second)
 
 
-def _imu_values(parm):
+def _params(parm):
+    """{name: value} of the log's PARM messages (the last of each), or None without any."""
+    return None if parm is None else dict(zip(parm["Name"].tolist(), parm["Value"].tolist()))
+
+
+def _position(params, instance):
+    """(3,) m: where the log's parameters put IMU `instance` in the body frame (INS_POSn_X,
+    _Y, _Z; n = instance + 1; ArduPilot's FRD from the vehicle's origin), zeros where they
+    do not say."""
+    n = instance + 1
+    return np.array([float((params or {}).get(f"INS_POS{n}_{a}", 0.0)) for a in "XYZ"])
+
+
+def _said_m(position):
+    return "[" + ", ".join(f"{v:g}" for v in position) + "] m"
+
+
+def _imu_values(value):
     """What the IMU messages' values are, with the low-pass corners the log's parameters
-    set (INS_GYRO_FILTER, INS_ACCEL_FILTER, Hz; 0: none) when it holds them."""
+    (`_params`) set (INS_GYRO_FILTER, INS_ACCEL_FILTER, Hz; 0: none) when it holds them."""
     said = "outputs at the logging rate, not interval means"
-    if parm is None:
+    if value is None:
         return f"filtered {said} (INS_*_FILTER low-pass; the log holds no parameters)"
-    value = dict(zip(parm["Name"].tolist(), parm["Value"].tolist()))
     corners = [f"{k} {value[k]:g} Hz" for k in ("INS_GYRO_FILTER", "INS_ACCEL_FILTER")
                if k in value]
     return (f"{said}, low-passed as the log's parameters say: {', '.join(corners)} (0: none)"

@@ -199,6 +199,10 @@ def test_a_second_imu_instance_is_the_reference_imu_of_mems_grade(log, tmp_path)
     assert np.array_equal(ref["ns"], rec.imu_ns) and not np.allclose(ref["w"], rec.w)
     np.testing.assert_allclose(ref["w"].mean(axis=0), rec.w.mean(axis=0), atol=5e-4)
     assert "IMU instance 1" in rec.real["reference_imu"]
+    # where the log's parameters put each IMU (INS_POSn_*, absent: the origin)
+    np.testing.assert_allclose(ref["mounting"].lever_arm_m, [0.001, 0.0, 0.0], rtol=1e-6)  # f32
+    np.testing.assert_array_equal(rec.mounting.lever_arm_m, [0.0, 0.0, 0.0])
+    assert "at INS_POS2 [0.001, 0, 0] m" in rec.assumed["reference_imu_mounting"]
     out = tmp_path / "pair.mcap"
     assert main(["import", "dataflash", str(path), "--reference-imu-instance", "1",
                  "-o", str(out)]) == 0
