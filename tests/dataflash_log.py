@@ -82,11 +82,13 @@ class Writer:
         return ("ArduCopter V4.5.0 (test)\n" + "\n".join(self.lines) + "\n").encode()
 
 
-def flight(rate=400.0, seed=0, unix_start_s=1714550400.0, boot_s=93.25, text=False):
+def flight(rate=400.0, seed=0, unix_start_s=1714550400.0, boot_s=93.25, text=False,
+           gps_lag_ms=0):
     """(DataFlash bytes - binary, or with `text` the text form -, truth run, flight times t
     (s), UNIX time of t = 0) of PROFILE (the autopilot booted boot_s before t = 0):
     IMU instance 0 = interval means + white noise + a bias, instance 1 = the same at another
-    noise; GPS RTK fixed with GPA, POS, XKF1, ATT at 5 Hz from the truth."""
+    noise; GPS RTK fixed with GPA, POS, XKF1, ATT at 5 Hz from the truth; gps_lag_ms: the
+    GPS messages logged that long after their epochs, declared as GPS_DELAY_MS."""
     motion = Profile.from_dict(PROFILE).motion()
     t = np.arange(0.0, motion.t1 - 1e-9, 1.0 / rate)
     run = truth.generate(motion, t)
@@ -96,7 +98,8 @@ def flight(rate=400.0, seed=0, unix_start_s=1714550400.0, boot_s=93.25, text=Fal
     f = run.dv / dt[:, None]
     out = Writer()
     for name, value in (("INS_GYRO_FILTER", 20.0), ("INS_ACCEL_FILTER", 10.0),
-                        ("INS_POS2_X", 0.001)):             # instance 1, 1 mm forward
+                        ("INS_POS2_X", 0.001),              # instance 1, 1 mm forward
+                        ("GPS_DELAY_MS", float(gps_lag_ms))):
         out.add("PARM", TimeUS=int(boot_s * 1e6) - 1_000_000, Name=name, Value=value,
                 Default=value)
     boot_us = np.round((boot_s + t[1:]) * 1e6).astype(np.int64)
@@ -115,7 +118,7 @@ def flight(rate=400.0, seed=0, unix_start_s=1714550400.0, boot_s=93.25, text=Fal
         week, tow = divmod(gps_s, 604800.0)
         vn, ve, vd = tr.v_ned[k]
         us = int(round((boot_s + t[k]) * 1e6))
-        out.add("GPS", TimeUS=us, Status=6, GMS=int(round(tow * 1e3)), GWk=int(week), NSats=18,
+        out.add("GPS", TimeUS=us + 1000 * gps_lag_ms, Status=6, GMS=int(round(tow * 1e3)), GWk=int(week), NSats=18,
                 HDop=0.7, Lat=np.degrees(tr.lat[k]), Lng=np.degrees(tr.lon[k]), Alt=tr.h[k],
                 Spd=np.hypot(vn, ve), GCrs=np.degrees(np.arctan2(ve, vn)) % 360, VZ=vd)
         out.add("GPA", TimeUS=us, VDop=1.1, HAcc=0.02, VAcc=0.03, SAcc=0.05, SMS=0)

@@ -212,7 +212,7 @@ def read(path, mounting=None, instance=0, reference="auto", reference_status=3,
     boot_us, w, f, repeated, imu = _imu(msgs, instance, path)
     gps = _instance(msgs.get("GPS"), instance) or _instance(msgs.get("GPS"), 0)
     gpa = _instance(msgs.get("GPA"), instance) or _instance(msgs.get("GPA"), 0)
-    offset_us, assumed = 0, {}
+    offset_us, assumed, params = 0, {}, _params(msgs.get("PARM"))
     fixes = None
     if gps is not None:
         t_gps = gps["TimeUS"].astype(np.int64)
@@ -222,7 +222,8 @@ def read(path, mounting=None, instance=0, reference="auto", reference_status=3,
             gps_s = gps["GWk"][three_d] * 604800.0 + gps["GMS"][three_d] / 1e3
             unix_us = np.round(gps_to_unix_s(gps_s) * 1e6).astype(np.int64)
             offset_us = int(np.median(unix_us - t_gps[three_d]))
-            fixes = _fixes(gps, gpa, three_d, offset_us)
+            fixes = _fixes(gps, gpa, three_d, offset_us)        # at their epochs' own times
+            offset_us, assumed["time"] = _less_gps_lag(offset_us, params)
     if offset_us == 0:
         assumed["time"] = "no 3-D GPS fix: boot placed at the UNIX epoch"
     ref, ref_meta = _reference(msgs, fixes, reference, reference_status, offset_us, path)
@@ -236,7 +237,7 @@ def read(path, mounting=None, instance=0, reference="auto", reference_status=3,
         real["imu_temperature"] = _temperature(imu)
     found = sorted({int(i) for i in msgs["IMU"].get("I", [0])})
     real["imu_instances"] = ", ".join(str(i) for i in found)
-    second, params = None, _params(msgs.get("PARM"))
+    second = None
     if reference_instance is not None:
         r_us, r_w, r_f, r_repeated, r_imu = _imu(msgs, reference_instance, path)
         second = dict(ns=(r_us + offset_us) * 1000, w=r_w, f=r_f,
@@ -272,6 +273,22 @@ def read(path, mounting=None, instance=0, reference="auto", reference_status=3,
                      model="ArduPilot autopilot IMU",
                      reference=ref, reference_meta=ref_meta, fixes=fixes, real=real,
                      assumed=assumed, reference_imu=second)
+
+
+def _less_gps_lag(offset_us, params):
+    """(the boot clock's offset to UNIX time, us, what was assumed of it): a GPS message is
+    logged when the receiver's solution arrives, after its epoch by the lag GPS_DELAY_MS
+    declares (the EKF's delay: the log's parameters), so the boot time of an epoch is its
+    logging time less that lag; not declared (absent or 0: the driver's default), the
+    offset as the messages' logging times place it, said."""
+    lag_ms = float((params or {}).get("GPS_DELAY_MS", 0.0))
+    if lag_ms > 0:
+        return offset_us + int(round(lag_ms * 1000)), (
+            f"boot placed in UNIX time by the GPS messages' week time, each logged "
+            f"GPS_DELAY_MS {lag_ms:g} ms after its epoch (the log's parameters)")
+    return offset_us, ("boot placed in UNIX time by the GPS messages' week time at their "
+                       "logging (no GPS_DELAY_MS declared: the receiver's lag, if any, makes "
+                       "the IMU's UNIX times early by it)")
 
 
 def _params(parm):
