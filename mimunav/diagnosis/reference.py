@@ -86,6 +86,57 @@ def predicted_at(t, fog_t, fog_w, fog_f, flight):
     return attitude.rotate(q_sv, f_v), attitude.rotate(q_sv, w_v)
 
 
+TRANSFER_SHARE = 0.1    # the transfer's unfollowed error, as a share of the accelerometers'
+# white residual variance per bin, beyond which the diagnosis cannot conclude: a structured
+# error of that size over 10^5 bins is significant for every term it resembles (a tractor's
+# engine lines at 27-60 Hz across 2.2 cm: 0.02 m/s^2 per bin, 0.42 of that variance, had read
+# as accel.z <- f_x, f_y couplings of 0.02-0.04 holding 47-68 % of the residual; the foreign
+# flight with the longest lever arm, 31 cm, holds 0.0002 m/s^2 of it, 3e-4 of the variance)
+
+
+def unfollowed_vibration(fog_t, fog_w, dr, bin_s, mimu_rate):
+    """(m/s^2, Hz) or None: the rms over a bin (bin_s s) of the lever-arm transfer's error
+    that the reference's angular vibration leaves - the lines of its rates' spectrum that
+    stand out of its own floor (an engine's, a rotor's; noise and a count's steps are
+    flat), as angular acceleration (2 pi f)^2 P, times the share of it the transfer's
+    derivative (`derivative` over TRANSFER_WINDOW_S at the MIMU's rate mimu_rate Hz) misses,
+    through a bin's mean (sinc), times dr (m, the two IMUs apart) - and the frequency that
+    holds most of it; None without a lever arm or without such lines. fog_t s, fog_w rad/s
+    (N, 3) the reference's."""
+    from scipy.signal import welch
+    if not np.any(dr) or len(fog_t) < 1024:
+        return None
+    rate = 1.0 / float(np.median(np.diff(fog_t)))
+    f, p = welch(fog_w - fog_w.mean(axis=0), fs=rate, nperseg=1024, axis=0)
+    band = (f > 0.1 / TRANSFER_WINDOW_S) & (f < 0.5 * mimu_rate)
+    if band.sum() < 8:
+        return None
+    floor = np.median(p[band], axis=0)
+    # a line stands 5 of the floor's own relative errors (1 / sqrt(segments), Welch's
+    # halves-overlapping 1024s) above it: a white spectrum's scatter is no line
+    lines = p[band] > floor * (1.0 + 5.0 / np.sqrt(max(len(fog_t) // 512 - 1, 1)))
+    excess = np.where(lines, p[band] - floor, 0.0).sum(axis=1)
+    missed = _missed_share(f[band], mimu_rate) * np.sinc(f[band] * bin_s)
+    alpha = (2 * np.pi * f[band] * missed) ** 2 * excess * (f[1] - f[0])
+    if not alpha.sum() > 0:
+        return None
+    return (float(np.sqrt(alpha.sum()) * np.linalg.norm(dr)),
+            float(f[band][np.argmax(alpha)]))
+
+
+def _missed_share(f, rate):
+    """(F,) the rms error of the transfer's derivative (`derivative` over TRANSFER_WINDOW_S
+    at `rate` Hz) on a unit sinusoid of each frequency f (Hz), over its true derivative's
+    rms: ~0 within its band, ~1 where it smooths the motion away."""
+    t = np.arange(0.0, 1.0, 1.0 / rate)
+    x = np.sin(2 * np.pi * np.outer(t, f))
+    d = derivative(t, x, TRANSFER_WINDOW_S)
+    true = 2 * np.pi * f * np.cos(2 * np.pi * np.outer(t, f))
+    inner = slice(len(t) // 4, 3 * len(t) // 4)          # away from the ends' fits
+    return np.sqrt(np.mean((d - true)[inner] ** 2, axis=0)
+                   / np.maximum(np.mean(true[inner] ** 2, axis=0), 1e-300))
+
+
 def has_attitude(trajectory, t0, t1):
     """Whether `trajectory` carries an attitude (finite q_nb) at every sample that the span
     t0-t1 (s) interpolates between, and covers that span."""

@@ -72,7 +72,8 @@ from ..compensation.effects import AXES
 from ..frames import attitude
 from . import errors_in_variables, library, outputs, track_reference, wander
 from ..sensors.accuracy import accuracy_of
-from .reference import agreement
+from .reference import (TRANSFER_SHARE, TRANSFER_WINDOW_S, agreement,
+                        unfollowed_vibration)
 from ..errors import InputError
 from ..compensation.model import poly2
 from .design import (Binning, CHANNELS, Design, FAST_BIN_S, detrended, term_contribution,
@@ -161,8 +162,7 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
     output_tests, design = prep.output_tests, prep.design
     if len(design.t) < 4 * block_s / bin_s:
         raise _too_little(flight, prep, bin_s, block_s, unusable_because)
-    train = outputs.block_index(design.t, block_s) % 2 == 0
-    held = ~train
+    held = ~(train := outputs.block_index(design.t, block_s) % 2 == 0)
 
     # the all-rows fit, when first needed (look-alikes; ~1 s of Grams on a 10-minute flight)
     whole = cache(lambda: Fitter(design, np.ones(len(design.t), bool)))
@@ -191,7 +191,8 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
                            design.terms,
                            everything, outputs.bias_null(noise) if output_tests else None,
                            prep.compensated and (flight, *prep.compensated), library)
-    diag.inconclusive = [why for why in jitter + doubts if why]
+    diag.inconclusive = [why for why in jitter + doubts + [_transfer_doubt(flight, design)]
+                         if why]
     if not findings:        # what the halves set aside was there, but not the same throughout
         diag.inconclusive += set_aside_reasons(aside) + beyond_range_reasons(rejected)
     if prep.agreement is not None:
@@ -346,6 +347,27 @@ def _confirmed(flight, design, chosen, split, alpha, prep, mems_grade, remake):
             design, again, findings, lambda d: outputs.block_index(d.t, block_s) % 2 == 1)
         rejected, aside = rejected + noisy, aside + noisy
     return findings, rejected, aside, doubts, record
+
+
+def _transfer_doubt(flight, design):
+    """Why the accelerometers' findings cannot stand where the lever-arm transfer misses
+    the reference's angular vibration (`reference.unfollowed_vibration`) by more than
+    TRANSFER_SHARE of their white residual variance per bin, or ''."""
+    dr = flight.mimu_mounting.lever_arm_m - flight.fog_mounting.lever_arm_m
+    if flight.fog_w is None:
+        return ""
+    missed = unfollowed_vibration(flight.fog_t, flight.fog_w, dr, design.bin_s,
+                                  1.0 / float(np.median(np.diff(flight.mimu_t))))
+    white = max(float(np.nanvar(np.diff(design.residual[:, c]))) / 2
+                for c, (sensor, _) in enumerate(CHANNELS) if sensor == "accel")
+    if missed is None or not missed[0] ** 2 > TRANSFER_SHARE * white:
+        return ""
+    return (f"the lever-arm transfer cannot follow the reference's angular vibration at "
+            f"{missed[1]:.0f} Hz (its derivative is smoothed over {TRANSFER_WINDOW_S:g} s): "
+            f"across the {np.linalg.norm(dr) * 100:.3g} cm between the two IMUs it leaves "
+            f"about {missed[0]:.2g} m/s^2 per bin out of the prediction, "
+            f"{missed[0] ** 2 / white:.2g} of the accelerometers' white residual variance "
+            f"(at most {TRANSFER_SHARE:g}) - terms on the accelerometers may be its shadow")
 
 
 def _residuals(design, everything, findings):
