@@ -112,8 +112,8 @@ def unfollowed_vibration(fog_t, fog_w, dr, bin_s, mimu_rate):
     if band.sum() < 8:
         return None
     floor = np.median(p[band], axis=0)
-    # a line stands 5 of the floor's own relative errors (1 / sqrt(segments), Welch's
-    # halves-overlapping 1024s) above it: a white spectrum's scatter is no line
+    # a line stands 5 of the floor's own relative errors (1 / sqrt(segments): Welch's
+    # half-overlapping segments of 1024) above it - a white spectrum's scatter is no line
     lines = p[band] > floor * (1.0 + 5.0 / np.sqrt(max(len(fog_t) // 512 - 1, 1)))
     excess = np.where(lines, p[band] - floor, 0.0).sum(axis=1)
     missed = _missed_share(f[band], mimu_rate) * np.sinc(f[band] * bin_s)

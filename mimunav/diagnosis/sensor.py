@@ -352,9 +352,12 @@ def _confirmed(flight, design, chosen, split, alpha, prep, mems_grade, remake):
 def _transfer_doubt(flight, design):
     """Why the accelerometers' findings cannot stand where the lever-arm transfer misses
     the reference's angular vibration (`reference.unfollowed_vibration`) by more than
-    TRANSFER_SHARE of their white residual variance per bin, or ''."""
+    TRANSFER_SHARE of their white residual variance per bin, or '' (a recording's only)."""
     dr = flight.mimu_mounting.lever_arm_m - flight.fog_mounting.lever_arm_m
-    if flight.fog_w is None:
+    if flight.fog_w is None or flight.source != "recording":
+        # a simulated FOG's pulse count rings at tones no IMU beside it feels (a repeated-
+        # blocks flight: 341 Hz, 40 times the share), which its spectrum cannot tell from
+        # motion; a recording's reference is taken as moving where it has lines
         return ""
     missed = unfollowed_vibration(flight.fog_t, flight.fog_w, dr, design.bin_s,
                                   1.0 / float(np.median(np.diff(flight.mimu_t))))
