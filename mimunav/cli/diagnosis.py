@@ -175,10 +175,13 @@ def set_aside_line(w):
     words, key = stated_errors(w)
     stated = (f"the reference's (1 sigma {sigmas(key)}) and the calibration's"
               if key == "reference_1sigma" else f"{words} (1 sigma {sigmas(key)})")
-    return (f"  within the stated errors: {w['label']} {said}: significant against the "
+    head = (f"  within the stated errors: {w['label']} {said}: significant against the "
             f"noise alone (p {w['p_train']:.2g}), not once the stated errors that may share "
-            f"it - {stated} - are allowed: with them its 1 sigma is "
-            f"{sigmas('total_1sigma')}\n    {charge_text(w)}")
+            f"it - {stated} - are allowed: with them its 1 sigma is {sigmas('total_1sigma')}")
+    if max(w["total_1sigma"]) > w.get("physical_range", float("inf")):
+        head += (f", beyond its physical range {w['physical_range']:.3g}: the flight cannot "
+                 "identify it")
+    return f"{head}\n    {charge_text(w)}"
 
 
 def add_diagnose(sub):

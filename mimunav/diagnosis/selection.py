@@ -74,7 +74,7 @@ def select(design, train, alpha, full_scale, whole=None):
         # a look-alike the whole flight tells apart without either explaining the other
         # away stays a candidate of the next step
         excluded |= {best, *alternatives, *encompassed, *set_aside}
-    return chosen, [_within(design, j, r) for j, r in within.items()
+    return chosen, [_within(design, j, r, full_scale) for j, r in within.items()
                     if j not in {c["j"] for c in chosen}], beyond
 
 
@@ -194,14 +194,16 @@ def chargeable_accuracy(fitter, terms, j, log_level):
     return k, all(passes[first:])
 
 
-def _within(design, j, res):
+def _within(design, j, res, full_scale):
     """A term set aside (`term_test`'s logp_ref above the threshold): the stated 1 sigma along it
     - the reference's linear error (with the calibration's) for a term it can make
     (`reference_1sigma`), else the term's allowance (`Design.allowance`): the calibration's
     own (`calibration_1sigma`, a term the model carries) or the reference's gyro error through
     the lever-arm transfer (`transfer_1sigma`, a lever arm or proof-mass offset) - and the 1
     sigma the test used (`total_1sigma`: the estimate's with the reference's prior, or the
-    noise's plus the allowance, as `term_test` takes it)."""
+    noise's plus the allowance, as `term_test` takes it) and the term's physical range
+    (`physical_range`, `fitting.plausible`: a 1 sigma beyond it is a term the flight cannot
+    identify)."""
     ref = reference_direction(design, j)
     if ref is not None:
         stated = {"reference_1sigma": np.sqrt(np.diag(ref)).tolist()}
@@ -214,6 +216,7 @@ def _within(design, j, res):
     k, monotone = res["charged_at"]
     return {"label": library.label(design.terms[j]), **_describe_b(res["b"]), **stated,
             "total_1sigma": total.tolist(),
+            "physical_range": plausible(design, j, res["b"], full_scale)[1],
             "p_train": math.exp(res["logp"]),
             "charged_at_accuracy": k,
             "charged_at_1sigma": [k * v for v in next(iter(stated.values()))],

@@ -173,6 +173,12 @@ def test_a_set_aside_term_is_said_with_the_sigma_its_test_used():
     assert line.endswith("though not at every smaller value (the test is not monotone here)")
     assert "even 1e4 times smaller it would not pass" in set_aside_line(
         dict(w, charged_at_accuracy=0.0, charged_at_1sigma=[0.0]))
+    # a 1 sigma beyond the term's physical range is a term the flight cannot identify (a
+    # balloon's accel.z asymmetry at 1 sigma 531 had read as within the stated errors)
+    assert "physical range" not in set_aside_line(dict(w, physical_range=0.05))
+    first = set_aside_line(dict(w, total_1sigma=[531.0], physical_range=0.01)).split("\n")[0]
+    assert first.endswith("its 1 sigma is 531, beyond its physical range 0.01: the flight "
+                          "cannot identify it")
     # a term the model carries (g-sensitivity), set aside against the calibration's own
     # covariance: that is the stated sigma, not the reference's
     line = set_aside_line({"label": "g_sensitivity gyro.x <- f_z", "coefficient": 2e-5,
