@@ -19,7 +19,7 @@ from .inference import median_inflation
 
 
 # ---- confirmation on held-out rows -------------------------------------------------------
-def confirmed(design, chosen, train, held, alpha, prep, recording):
+def confirmed(design, chosen, train, held, alpha, prep, recording, family=None):
     """(findings, rejected, of them those the recording's checks set aside, doubts, the
     library's record or None): the chosen terms through
     `confirm_chosen` and, on a recording, `recording_checks`, refitted without those either
@@ -27,8 +27,8 @@ def confirmed(design, chosen, train, held, alpha, prep, recording):
     terms only (a rate table's gyro.y <- w_z had read 0.0031 beside a mounting turn the
     halves then set aside; alone it is the unit's 0.00107). Each term set aside is reported
     as judged in the fit it was set aside from; the threshold stays alpha over the number
-    first chosen. prep: full_scale and extremes (`sensor._prepare`'s)."""
-    family, rejected, set_aside = len(chosen), [], []
+    first chosen (or `family`). prep: full_scale and extremes (`sensor._prepare`'s)."""
+    family, rejected, set_aside = family or len(chosen), [], []
     while True:
         findings, out = confirm_chosen(design, chosen, train, held, alpha, prep.full_scale,
                                        prep.extremes, family)

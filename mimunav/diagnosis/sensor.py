@@ -338,15 +338,22 @@ def _confirmed(flight, design, chosen, split, alpha, prep, mems_grade, remake):
     its noise can make set aside with the halves'); split: (train, held rows, block s);
     remake(flight): the design of another flight as this one's was made."""
     train, held, block_s = split
-    findings, rejected, aside, doubts, record = confirmed(
-        design, chosen, train, held, alpha, prep, flight.source == "recording")
-    if mems_grade and findings and flight.fog_w is not None:
-        again = remake(errors_in_variables.noisier(flight, errors_in_variables.white_per_sample(
-            design, 1.0 / float(np.median(np.diff(flight.fog_t))))))
-        findings, noisy = errors_in_variables.read_back(
+    family, again, noisy = len(chosen), None, []
+    while True:         # those the noise can make leave the fit, as the checks' do
+        findings, rejected, aside, doubts, record = confirmed(
+            design, chosen, train, held, alpha, prep, flight.source == "recording", family)
+        if not (mems_grade and findings and flight.fog_w is not None):
+            break
+        again = again or remake(errors_in_variables.noisier(
+            flight, errors_in_variables.white_per_sample(
+                design, 1.0 / float(np.median(np.diff(flight.fog_t))))))
+        findings, made = errors_in_variables.read_back(
             design, again, findings, lambda d: outputs.block_index(d.t, block_s) % 2 == 1)
-        rejected, aside = rejected + noisy, aside + noisy
-    return findings, rejected, aside, doubts, record
+        if not made:
+            break
+        noisy += made
+        chosen = [c for c in chosen if c["j"] not in {position_of(design, f) for f in made}]
+    return findings, rejected + noisy, aside + noisy, doubts, record
 
 
 def _transfer_doubt(flight, design):
