@@ -83,12 +83,13 @@ class Writer:
 
 
 def flight(rate=400.0, seed=0, unix_start_s=1714550400.0, boot_s=93.25, text=False,
-           gps_lag_ms=0):
+           gps_lag_ms=0, lag_name="GPS_DELAY_MS"):
     """(DataFlash bytes - binary, or with `text` the text form -, truth run, flight times t
     (s), UNIX time of t = 0) of PROFILE (the autopilot booted boot_s before t = 0):
     IMU instance 0 = interval means + white noise + a bias, instance 1 = the same at another
     noise; GPS RTK fixed with GPA, POS, XKF1, ATT at 5 Hz from the truth; gps_lag_ms: the
-    GPS messages logged that long after their epochs, declared as GPS_DELAY_MS."""
+    GPS messages logged that long after their epochs, declared as lag_name (GPS_DELAY_MS
+    before ArduPilot 4.5, GPS1_DELAY_MS from it)."""
     motion = Profile.from_dict(PROFILE).motion()
     t = np.arange(0.0, motion.t1 - 1e-9, 1.0 / rate)
     run = truth.generate(motion, t)
@@ -99,7 +100,7 @@ def flight(rate=400.0, seed=0, unix_start_s=1714550400.0, boot_s=93.25, text=Fal
     out = Writer()
     for name, value in (("INS_GYRO_FILTER", 20.0), ("INS_ACCEL_FILTER", 10.0),
                         ("INS_POS2_X", 0.001),              # instance 1, 1 mm forward
-                        ("GPS_DELAY_MS", float(gps_lag_ms))):
+                        (lag_name, float(gps_lag_ms))):
         out.add("PARM", TimeUS=int(boot_s * 1e6) - 1_000_000, Name=name, Value=value,
                 Default=value)
     boot_us = np.round((boot_s + t[1:]) * 1e6).astype(np.int64)

@@ -210,7 +210,8 @@ def read(path, mounting=None, instance=0, reference="auto", reference_status=3,
         raise RecordingError(f"{path}: the reference IMU instance is the IMU's own")
     msgs, cut = _messages(path)
     boot_us, w, f, repeated, imu = _imu(msgs, instance, path)
-    gps = _instance(msgs.get("GPS"), instance) or _instance(msgs.get("GPS"), 0)
+    gps_instance = instance if _instance(msgs.get("GPS"), instance) else 0
+    gps = _instance(msgs.get("GPS"), gps_instance)
     gpa = _instance(msgs.get("GPA"), instance) or _instance(msgs.get("GPA"), 0)
     offset_us, assumed, params = 0, {}, _params(msgs.get("PARM"))
     fixes = None
@@ -223,7 +224,7 @@ def read(path, mounting=None, instance=0, reference="auto", reference_status=3,
             unix_us = np.round(gps_to_unix_s(gps_s) * 1e6).astype(np.int64)
             offset_us = int(np.median(unix_us - t_gps[three_d]))
             fixes = _fixes(gps, gpa, three_d, offset_us)        # at their epochs' own times
-            offset_us, assumed["time"] = _less_gps_lag(offset_us, params)
+            offset_us, assumed["time"] = _less_gps_lag(offset_us, params, gps_instance)
     if offset_us == 0:
         assumed["time"] = "no 3-D GPS fix: boot placed at the UNIX epoch"
     ref, ref_meta = _reference(msgs, fixes, reference, reference_status, offset_us, path)
@@ -275,20 +276,24 @@ def read(path, mounting=None, instance=0, reference="auto", reference_status=3,
                      assumed=assumed, reference_imu=second)
 
 
-def _less_gps_lag(offset_us, params):
+def _less_gps_lag(offset_us, params, gps_instance=0):
     """(the boot clock's offset to UNIX time, us, what was assumed of it): a GPS message is
-    logged when the receiver's solution arrives, after its epoch by the lag GPS_DELAY_MS
-    declares (the EKF's delay: the log's parameters), so the boot time of an epoch is its
-    logging time less that lag; not declared (absent or 0: the driver's default), the
-    offset as the messages' logging times place it, said."""
-    lag_ms = float((params or {}).get("GPS_DELAY_MS", 0.0))
+    logged when the receiver's solution arrives, after its epoch by the lag its delay
+    parameter declares (the EKF's delay: GPSn_DELAY_MS from ArduPilot 4.5, GPS_DELAY_MS and
+    GPS_DELAY_MS2 before), so the boot time of an epoch is its logging time less that lag;
+    not declared (absent or 0: the driver's default), the offset as the messages' logging
+    times place it, said."""
+    n = gps_instance + 1
+    names = (f"GPS{n}_DELAY_MS", "GPS_DELAY_MS" if n == 1 else f"GPS_DELAY_MS{n}")
+    name = next((k for k in names if k in (params or {})), names[0])
+    lag_ms = float((params or {}).get(name, 0.0))
     if lag_ms > 0:
         return offset_us + int(round(lag_ms * 1000)), (
             f"boot placed in UNIX time by the GPS messages' week time, each logged "
-            f"GPS_DELAY_MS {lag_ms:g} ms after its epoch (the log's parameters)")
+            f"{name} {lag_ms:g} ms after its epoch (the log's parameters)")
     return offset_us, ("boot placed in UNIX time by the GPS messages' week time at their "
-                       "logging (no GPS_DELAY_MS declared: the receiver's lag, if any, makes "
-                       "the IMU's UNIX times early by it)")
+                       f"logging (no {name} declared: the receiver's lag, if any, makes the "
+                       "IMU's UNIX times early by it)")
 
 
 def _params(parm):

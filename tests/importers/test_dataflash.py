@@ -49,17 +49,19 @@ def test_time_axes_units_and_the_autopilot_reference(log):
 
 
 @pytest.mark.slow
-def test_a_declared_gps_lag_places_the_boot_clock(tmp_path):
-    """GPS messages logged 65 ms after their epochs, GPS_DELAY_MS = 65 declared: the IMU's
-    UNIX times are the truth's to 1 us (placed by the messages' logging times they had been
-    65 ms early, as a tractor's log was), and the fixes stay at their epochs."""
-    data, run, t, unix_t0 = dataflash_log.flight(gps_lag_ms=65)
+@pytest.mark.parametrize("name", ["GPS_DELAY_MS", "GPS1_DELAY_MS"])
+def test_a_declared_gps_lag_places_the_boot_clock(tmp_path, name):
+    """GPS messages logged 65 ms after their epochs, the lag declared (its name before and
+    from ArduPilot 4.5): the IMU's UNIX times are the truth's to 1 us (placed by the
+    messages' logging times they had been 65 ms early, as a tractor's log was), and the
+    fixes stay at their epochs."""
+    data, run, t, unix_t0 = dataflash_log.flight(gps_lag_ms=65, lag_name=name)
     path = tmp_path / "lag.bin"
     path.write_bytes(data)
     rec = dataflash.read(str(path), reference="gnss", reference_status=6)
     assert abs(rec.imu_ns[0] - round((unix_t0 + t[1]) * 1e9)) < 1000
     assert abs(rec.fixes["ns"][0] - round(unix_t0 * 1e9)) < 1000
-    assert "GPS_DELAY_MS 65 ms" in rec.assumed["time"]
+    assert f"{name} 65 ms" in rec.assumed["time"]
 
 
 @pytest.mark.slow
