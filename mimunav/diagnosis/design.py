@@ -415,6 +415,12 @@ def reference_error(design, fit):
     return np.column_stack([design.ref_columns(c) @ g[gamma_slots(c)] for c in range(6)])
 
 
+def white_per_bin(resid):
+    """(k,) each column's white variance per bin of a residual (nb, k): half the variance of
+    its differences, which a slow wander or trend hardly moves; NaN rows left out."""
+    return np.nanvar(np.diff(resid, axis=0), axis=0) / 2
+
+
 def detrended(design, resid):
     """Residual with a piecewise-linear bias (knots every DETREND_KNOT_S) removed per
     channel: for display, the rms figures and the scan."""

@@ -23,8 +23,8 @@ from dataclasses import replace
 import numpy as np
 
 from . import library
-from .confirmation import judged_wider
-from .design import CHANNELS
+from .confirmation import judged_wider, position_of
+from .design import CHANNELS, white_per_bin
 from .fitting import Fitter
 
 SEED = 20240531             # the added noise's draw: fixed, so a diagnosis repeats exactly
@@ -39,7 +39,7 @@ def white_per_sample(design, rate_hz):
     noise whose bin means carry the whole white variance of the design's residual, the
     largest over each sensor's axes: var(diff(residual)) / 2 per bin of design.bin_s, times
     the reference samples in a bin."""
-    per_bin = np.nanvar(np.diff(design.residual, axis=0), axis=0) / 2
+    per_bin = white_per_bin(design.residual)
     n = max(design.bin_s * rate_hz, 1.0)
     return {sensor: float(np.sqrt(n * max(per_bin[c] for c, (s, _) in enumerate(CHANNELS)
                                           if s == sensor)))
@@ -63,8 +63,8 @@ def read_back(design, again, findings, held_of):
     widening is (`confirmation.judged_wider`: set aside where it then holds zero or its
     held-out p misses its limit); each carries `errors_in_variables` {"noisier",
     "read_back", "widened_by"}."""
-    labels = [f["label"] for f in findings]
-    first, second = ([_index(d, labels) for d in (design, again)])
+    first = [position_of(design, f) for f in findings]
+    second = _index(again, [f["label"] for f in findings])
     if None in second:
         return findings, []
     fits = [Fitter(d, held_of(d)).fit(idx) for d, idx in ((design, first), (again, second))]
@@ -93,6 +93,8 @@ def read_back(design, again, findings, held_of):
 
 
 def _index(design, labels):
+    """`confirmation.position_of` of each label in `design`, None where it has no such term
+    (the noisier flight's design is made anew)."""
     names = [library.label(t) for t in design.terms]
     return [names.index(x) if x in names else None for x in labels]
 

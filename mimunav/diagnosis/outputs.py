@@ -33,6 +33,7 @@ from ..lab.runs import TURN_ON
 from ..lab.calibrate import standard_errors
 from ..compensation.effects import AXES
 from .bias_models import GM_TAU_S, SPAN_S, bias_models
+from .design import white_per_bin
 from .library import MIN_VARIANCE_SHARE
 from ..sensors.accuracy import Accuracy
 
@@ -343,7 +344,7 @@ def bias_tests(design, fit, quiet, alpha_level, cal, skip=(), noise=None, carrie
         removal = 0.0 if carried is None else float(carried[c])
         offset = math.sqrt(TURN_ON[sensor] ** 2 + reference ** 2
                            + (se_cal.get(key) or 0.0) ** 2 + removal ** 2)
-        white = float(np.nanvar(np.diff(fit[:, c])) / 2) * dt / span
+        white = float(white_per_bin(fit[:, c])) * dt / span
         # the null's wander: the MIMU's (class or measured) and the reference's own
         wander = math.hypot(drift[sensor], reference)
         model = (t_means[keep], means[keep, c], wander, offset, white,

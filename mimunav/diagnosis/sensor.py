@@ -77,7 +77,7 @@ from .reference import (TRANSFER_SHARE, TRANSFER_WINDOW_S, agreement,
 from ..errors import InputError
 from ..compensation.model import poly2
 from .design import (Binning, CHANNELS, Design, FAST_BIN_S, detrended, term_contribution,
-                     make_design, reference_error, bins, calibration_prior)
+                     make_design, reference_error, bins, calibration_prior, white_per_bin)
 from .samples import binned, sample_stage, temperature_references
 from .fitting import Fitter, term_test
 from .scan import SCAN_WINDOW_S, condition_masks, condition_map, near_spans, excursions
@@ -368,8 +368,8 @@ def _transfer_doubt(flight, design):
         return ""
     missed = unfollowed_vibration(flight.fog_t, flight.fog_w, dr, design.bin_s,
                                   1.0 / float(np.median(np.diff(flight.mimu_t))))
-    white = max(float(np.nanvar(np.diff(design.residual[:, c]))) / 2
-                for c, (sensor, _) in enumerate(CHANNELS) if sensor == "accel")
+    white = max(float(v) for v, (sensor, _) in zip(white_per_bin(design.residual), CHANNELS)
+                if sensor == "accel")
     if missed is None or not missed[0] ** 2 > TRANSFER_SHARE * white:
         return ""
     return (f"the lever-arm transfer cannot follow the reference's angular vibration at "
