@@ -80,8 +80,13 @@ def _diagnosed(args, painter):
               + (f"; not a finding: {lag['not_a_finding']}" if "not_a_finding" in lag else ""))
     elif "not_estimated" in lag:
         print(f"  time lag from the yaw rate not estimated: {lag['not_estimated']}")
-    for u in doc["unexplained"][:10]:
-        print(f"  unexplained residual {excursion_text(u)}")
+    for line in unexplained_lines(doc["unexplained"]):
+        print(line)
+    shocks = doc.get("transfer_shocks_left_out", [])
+    if shocks:
+        print(f"  left out of the fit: {len(shocks)} span(s) where the lever-arm transfer misses "
+              "a shock (" + ", ".join(f"{u['t0']:.1f}-{u['t1']:.1f} s" for u in shocks[:5])
+              + (", ..." if len(shocks) > 5 else "") + ")")
     for u in doc.get("reference_check", {}).get("excursions_not_predicted", []):
         print(f"  on a channel the reference does not predict (says nothing of the IMU): "
               f"{excursion_text(u)}")
@@ -95,6 +100,22 @@ def _diagnosed(args, painter):
     if args.output:
         print(f"wrote {args.output}/diagnosis.md" + (" and CAL+found.json" if found else ""))
     return 0
+
+
+SHOWN_EXCURSIONS = 10      # the terminal's; the JSON and the report hold them all
+
+
+def unexplained_lines(unexplained):
+    """The terminal's lines of the scan's excursions: the SHOWN_EXCURSIONS largest |z| in time
+    order, and how many more there are."""
+    shown = sorted(sorted(unexplained, key=lambda u: -abs(u["z"]))[:SHOWN_EXCURSIONS],
+                   key=lambda u: u["t0"])
+    lines = [f"  unexplained residual {excursion_text(u)}" for u in shown]
+    if len(unexplained) > len(shown):
+        lines.append(f"  ... and {len(unexplained) - len(shown)} more unexplained residuals "
+                     f"(the {len(shown)} of the largest |z| shown; all in the JSON and the "
+                     "report)")
+    return lines
 
 
 def excursion_text(u):

@@ -214,45 +214,13 @@ def position_of(design, finding):
     return labels.index(finding["label"])
 
 
-def removal_sigma(design, fit, findings, rows):
-    """(6,) 1 sigma (SI) per channel of the mean over `rows` (bool, the design's bins) that
-    removing `findings` at their estimates leaves in a residual: each term's contribution is
-    taken out at its held-out estimate, and that estimate's error moves the channel's mean
-    (a mounting's tilt of g is an offset on a quiet flight - an 8 s cut of a light aircraft
-    read a 0.2 m/s^2 accelerometer bias shift off a roll of -2 deg [-4.1, +0.1] removed
-    with the gyros' mounting). `fit`: the all-rows `Fitter.fit` of the found terms (their
-    correlations); the standard errors are the findings' own (`finding_covariance`)."""
-    var = np.zeros(len(CHANNELS))
-    if not findings or not rows.any():
-        return var
-    for f in findings:
-        j = position_of(design, f)
-        cov = finding_covariance(design, f, fit.of(j)[1])
-        jac = np.column_stack([term_contribution(design, j, e)[rows].mean(axis=0)
-                               for e in np.eye(len(cov))])             # (6, k)
-        var += np.einsum("ck,kl,cl->c", jac, cov, jac)
-    return np.sqrt(var)
-
-
-def finding_covariance(design, finding, cov_all):
-    """Covariance (k, k) of a finding's parameters in the sensor axes (the fit's): its 95 %
-    half-widths / 1.96 (the held-out fit's, widened where a recording's halves disagreed)
-    as standard errors, correlated as in `cov_all` (the all-rows fit's, sensor axes); a
-    lever arm's interval is in the vehicle frame (`interval_estimate`)."""
-    ci = np.asarray(finding.get("vector_ci95", [finding["ci95"]]), float)
-    se = (ci[:, 1] - ci[:, 0]) / (2 * 1.959964)
-    turn = np.eye(len(se))
-    if finding.get("frame") == "vehicle":
-        turn = quaternion.as_rotation_matrix(attitude.from_wxyz(design.q_vs))
-    cov = turn @ np.atleast_2d(cov_all) @ turn.T
-    sd = np.sqrt(np.maximum(np.diag(cov), 1e-300))
-    cov = cov / np.outer(sd, sd) * np.outer(se, se)
-    return turn.T @ cov @ turn
-
-
 def beta_of(finding):
-    return np.asarray(finding.get("vector_sensor_axes",
-                                  finding.get("vector", [finding["coefficient"]])), float)
+    """A finding's coefficients in the sensor axes: its vector there, else its vector (a set
+    aside term's, in the fit's axes), else its one coefficient."""
+    for key in ("vector_sensor_axes", "vector"):
+        if key in finding:
+            return np.asarray(finding[key], float)
+    return np.asarray([finding["coefficient"]], float)
 
 
 def where_rows(contribution):

@@ -61,6 +61,8 @@ class Design:
                                 # column indices}) - what every `Fitter` filters, an
                                 # array or, for a flight that streams, a
                                 # `spill.ScratchMatrix`; each candidate's `columns` read them
+    shocks: list = field(default_factory=list)  # spans of the samples left out where the
+                                # lever-arm transfer misses a shock (`reference.transfer_shocks`)
     q_vs: np.ndarray = field(default_factory=lambda: np.array([1.0, 0, 0, 0]))   # MIMU
                                 # sensor -> vehicle (w, x, y, z): a lever arm is reported in
                                 # the vehicle frame of the metadata's lever_arm_m

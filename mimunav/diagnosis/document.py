@@ -31,6 +31,8 @@ def document(log_path, diag, alpha=0.05):
         if getattr(diag, "bias_null", None):
             doc["bias_null"] = json_ready(diag.bias_null)
         doc["within_reference_accuracy"] = json_ready(diag.within_reference)
+    if getattr(diag, "design", None) is not None and diag.design.shocks:
+        doc["transfer_shocks_left_out"] = json_ready(diag.design.shocks)
     if getattr(diag, "reference_check", None):
         doc["reference_check"] = json_ready(diag.reference_check)
     if getattr(diag, "level_choice", None):

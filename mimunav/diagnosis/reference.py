@@ -14,6 +14,7 @@ import quaternion
 
 from ..frames import attitude
 from ..compensation.effects import derivative
+from .design import white_per_bin
 from ..errors import InputError
 from ..evaluation.replay import resample
 from ..motion.intervals import RunningIntegral, intervals
@@ -94,11 +95,67 @@ TRANSFER_SHARE = 0.1    # the transfer's unfollowed error, as a share of the acc
 # flight with the longest lever arm, 31 cm, holds 0.0002 m/s^2 of it, 3e-4 of the variance)
 
 
+SHOCK_SIGMA = 5.0   # a bin's transfer miss beyond this many of its own robust scatter over
+                    # the record (the reference's noise through the derivatives) is motion the
+                    # transfer does not follow, not that noise
+
+
+def transfer_shocks(t, measured, predicted, lever, bins_of, usable):
+    """(N,) bool: the MIMU samples of the bins where the lever-arm transfer (`predicted_at`:
+    dw/dt smoothed over TRANSFER_WINDOW_S) misses the reference's angular acceleration -
+    the bins' own central difference of their mean rates less the bin mean of the
+    transfer's derivative, x `lever` (m, MIMU axes) - by more than SHOCK_SIGMA of that
+    miss's robust scatter and more than the accelerometers' own white noise over a bin
+    (their robust sigma of measured - predicted over the `usable` samples): a shock (a
+    rocket's landing at 9 g, a plane's catapult or the hands that carry it) whose bins tell
+    nothing of the accelerometers' terms - a rocket's landing across 22 cm had held the
+    library 4x above its chance level and set aside its true g-sensitivity. Bin means, not
+    samples: a logger's whole-ms stamps make a sample's central difference jump. t s;
+    measured, predicted (N, 6) read a column at a time; bins_of: (m, start) of
+    `design.bins`."""
+    m, start = bins_of
+    out = np.zeros(len(t), bool)
+    if not np.any(lever) or len(t) < start + 4 * m:
+        return out
+    w = np.column_stack([predicted[:, c] for c in (3, 4, 5)])
+    k = np.full(len(t), -1)
+    k[start:] = (np.arange(len(t) - start)) // m
+    ok = (k >= 0) & usable
+    count = np.bincount(k[ok], minlength=k.max() + 1).astype(float)
+    full = count > 0
+
+    def mean(x):
+        return np.bincount(k[ok], x[ok], minlength=len(count))[full] / count[full]
+    t_b = mean(t)
+    w_b = np.column_stack([mean(w[:, i]) for i in range(3)])
+    smooth = derivative(t, w, TRANSFER_WINDOW_S)
+    smooth_b = np.column_stack([mean(smooth[:, i]) for i in range(3)])
+    miss = np.zeros_like(w_b)
+    miss[1:-1] = np.cross((w_b[2:] - w_b[:-2]) / (t_b[2:] - t_b[:-2])[:, None]
+                          - smooth_b[1:-1], lever)
+    scatter = 1.4826 * np.median(np.abs(miss - np.median(miss, axis=0)), axis=0)
+    white = np.array([np.sqrt(white_per_bin(np.where(usable, measured[:, c] - predicted[:, c],
+                                                      np.nan)) / m) for c in range(3)])
+    shock = np.zeros(len(count), bool)
+    shock[full] = np.any(np.abs(miss) > np.maximum(SHOCK_SIGMA * scatter, white), axis=1)
+    out[ok] = shock[k[ok]]
+    return out
+
+
+def _undeclared_arm(rates):
+    """Words on a lever arm between two IMUs left undeclared, at the record's largest 1 s
+    mean |w| (rates (M, 3) rad/s): its w x (w x r) per cm (a rocket's undeclared 18 mm at
+    23 rad/s of spin had made 9.5 m/s^2 the clause did not name)."""
+    peak = float(np.max(np.linalg.norm(rates, axis=1))) if len(rates) else 0.0
+    return (f", or a lever arm between them is not declared (w x (w x r): at {peak:.3g} "
+            f"rad/s, 1 cm makes {peak ** 2 * 0.01:.2g} m/s^2)")
+
+
 def unfollowed_vibration(fog_t, fog_w, dr, bin_s, mimu_rate):
     """(m/s^2, Hz) or None: the rms over a bin (bin_s s) of the lever-arm transfer's error
     that the reference's angular vibration leaves - the lines of its rates' spectrum that
     stand out of its own floor (an engine's, a rotor's; noise and a count's steps are
-    flat), as angular acceleration (2 pi f)^2 P, times the share of it the transfer's
+    flat) in most of the record, as angular acceleration (2 pi f)^2 P, times the share of it the transfer's
     derivative (`derivative` over TRANSFER_WINDOW_S at the MIMU's rate mimu_rate Hz) misses,
     through a bin's mean (sinc), times dr (m, the two IMUs apart) - and the frequency that
     holds most of it; None without a lever arm or without such lines. fog_t s, fog_w rad/s
@@ -111,11 +168,20 @@ def unfollowed_vibration(fog_t, fog_w, dr, bin_s, mimu_rate):
     band = (f > 0.1 / TRANSFER_WINDOW_S) & (f < 0.5 * mimu_rate)
     if band.sum() < 8:
         return None
+    # a line is told by the segments' median spectrum: a vibration is what persists, and a
+    # shock's few segments (a rocket's ignition, chute openings, landing; their bins are
+    # the scan's excursions) are none - the mean had made a rocket's white reference
+    # 'vibrate' at 62 Hz; its power is the mean spectrum's (the median's correction for
+    # noise overstates a sinusoid's by 1 / ln 2)
+    typical = welch(fog_w - fog_w.mean(axis=0), fs=rate, nperseg=1024, axis=0,
+                    average="median")[1][band]
+    # it stands 5 of the floor's own relative errors (1 / sqrt(segments): Welch's half-
+    # overlapping segments of 1024; a median's sqrt(pi / 2) times a mean's) above it - a
+    # white spectrum's scatter is no line
+    spread = np.sqrt(np.pi / 2 / max(len(fog_t) // 512 - 1, 1))
+    lines = typical > np.median(typical, axis=0) * (1.0 + 5.0 * spread)
     floor = np.median(p[band], axis=0)
-    # a line stands 5 of the floor's own relative errors (1 / sqrt(segments): Welch's
-    # half-overlapping segments of 1024) above it - a white spectrum's scatter is no line
-    lines = p[band] > floor * (1.0 + 5.0 / np.sqrt(max(len(fog_t) // 512 - 1, 1)))
-    excess = np.where(lines, p[band] - floor, 0.0).sum(axis=1)
+    excess = np.where(lines, np.maximum(p[band] - floor, 0.0), 0.0).sum(axis=1)
     missed = _missed_share(f[band], mimu_rate) * np.sinc(f[band] * bin_s)
     alpha = (2 * np.pi * f[band] * missed) ** 2 * excess * (f[1] - f[0])
     if not alpha.sum() > 0:
@@ -268,7 +334,8 @@ def agreement(t, measured, predicted, usable, channels):
                 f"the reference IMU does not predict the MIMU's {label}: the {AGREEMENT_BIN_S:g} "
                 f"s means correlate {r:.2f} (at least {AGREEMENT_CORRELATION:g} needed) where the "
                 f"predicted ones spread by {spread:.3g} - the two IMUs' clocks, mountings or "
-                "units disagree, or they are not on one vehicle")
+                "units disagree, or they are not on one vehicle" + (
+                    _undeclared_arm(means[1][:, 3:]) if sensor == "accel" else ""))
     f_m, f_p = means[0][:, :3], means[1][:, :3]
     with np.errstate(invalid="ignore", divide="ignore"):
         cos = np.einsum("ij,ij->i", f_m, f_p) / (np.linalg.norm(f_m, axis=1) *

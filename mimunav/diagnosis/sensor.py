@@ -72,9 +72,10 @@ from ..compensation.effects import AXES
 from ..frames import attitude
 from . import errors_in_variables, library, outputs, track_reference, wander
 from ..sensors.accuracy import accuracy_of
-from .reference import (TRANSFER_SHARE, TRANSFER_WINDOW_S, agreement,
+from .reference import (TRANSFER_SHARE, TRANSFER_WINDOW_S, agreement, transfer_shocks,
                         unfollowed_vibration)
 from ..errors import InputError
+from ..flightlog.stamps import stamp_tick
 from ..compensation.model import poly2
 from .design import (Binning, CHANNELS, Design, FAST_BIN_S, detrended, term_contribution,
                      make_design, reference_error, bins, calibration_prior, white_per_bin)
@@ -83,7 +84,9 @@ from .fitting import Fitter, term_test
 from .scan import SCAN_WINDOW_S, condition_masks, condition_map, near_spans, excursions
 from .confirmation import (Extremes, beta_of, beyond_range, beyond_range_reasons,
                            confirmed, outputs_judged, set_aside_reasons,
-                           position_of, removal_sigma)
+                           position_of)
+from .removal import (beside_reference, reference_beyond_stated, removal_sigma,
+                      unconfirmed_offset)
 from .selection import select
 
 
@@ -175,8 +178,8 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
     everything = whole()
     before, removed, fit_found = _residuals(design, everything, findings)
     conds = condition_masks(design, prep.norms)
-    unexplained, on_outputs = _after_the_fit(design, (removed, fit_found), conds, findings,
-                                             prep, alpha, cal, noise, output_tests)
+    unexplained, on_outputs = _after_the_fit(design, (removed, fit_found), conds, (
+        findings, rejected + within), prep, alpha, cal, noise, output_tests)
     on_outputs, outputs_aside = outputs_judged(on_outputs, library)
     rejected = rejected + outputs_aside
     for f in on_outputs:
@@ -248,6 +251,11 @@ def _prepared(flight, cal, acc, candidates, output_tests, samples, bin_s, noise_
                 if key in flight.mimu_range}
     usable &= ~outputs.at_declared_range(spill.series("measured"), spill.series("predicted"),
                                          declared)
+    lever = attitude.rotate(np.conjugate(flight.mimu_mounting.q_vs),
+                            flight.mimu_mounting.lever_arm_m - flight.fog_mounting.lever_arm_m)
+    shocks = transfer_shocks(t, spill.series("measured"), spill.series("predicted"), lever, m,
+                             usable)
+    usable &= ~shocks
     on_outputs, quantized = [], set()
     acc = measured_steps(flight, acc, spill)
     cands = library.candidates() if candidates is None else candidates
@@ -262,8 +270,6 @@ def _prepared(flight, cal, acc, candidates, output_tests, samples, bin_s, noise_
         # terms of that channel alone would fit the lattice, not physics
         cands = [c for c in cands if not _on_channels_only(c, quantized)]
     prior = acc.prior(q_sf)
-    lever = attitude.rotate(np.conjugate(flight.mimu_mounting.q_vs),
-                            flight.mimu_mounting.lever_arm_m - flight.fog_mounting.lever_arm_m)
     terms = temperature_references(cands, samples, usable)
     binned_ = binned(samples, usable, m, terms, flight.stream_block if samples.streamed else None,
                      scratch=samples.streamed)
@@ -273,6 +279,7 @@ def _prepared(flight, cal, acc, candidates, output_tests, samples, bin_s, noise_
     design.bin_s = bin_s
     design.calibrated = not cal.is_identity
     design.reference = acc
+    design.shocks = outputs.spans(t, shocks, "the lever-arm transfer misses a shock: left out")
     if noise_shape is not None:
         fit_shape, scan_shape = noise_shape if isinstance(noise_shape, tuple) else \
             (noise_shape, noise_shape)
@@ -393,13 +400,17 @@ def _residuals(design, everything, findings):
     return before, removed, fit
 
 
-def _after_the_fit(design, residual, conds, findings, prep, alpha, cal, noise, output_tests):
+def _after_the_fit(design, residual, conds, terms, prep, alpha, cal, noise, output_tests):
     """(unexplained excursions, findings on the outputs): localized excursions of the
     residual (`residual`: the residual with the found terms removed and their all-rows fit,
     `_residuals`) against a local baseline (the constant of a bias_shift removed later
     does not move them), then the bias tests on quiet flight away from them, whose offset
-    null carries the found terms' removal error (`confirmation.removal_sigma`)."""
-    removed, fit_found = residual
+    null carries the found terms' removal error (`removal.removal_sigma`) and whose
+    offset's interval holds what the terms neither found nor ruled out would move it by
+    (`removal.unconfirmed_offset`), set aside where the reference's fitted error that the
+    residual was read after lies beyond its stated accuracy (`removal.beside_reference`).
+    terms: (findings, those not confirmed)."""
+    (removed, fit_found), (findings, unconfirmed) = residual, terms
     scanned = removed.copy()
     if output_tests:
         scanned[:, sorted(prep.quantized)] = 0.0    # a lattice's own error is no excursion
@@ -410,19 +421,18 @@ def _after_the_fit(design, residual, conds, findings, prep, alpha, cal, noise, o
         # either side) are left out of the bias tests - a 2 s bias pulse outside the
         # vocabulary had been named bias_instability beside the excursion it is
         quiet = conds["quiet"] & ~near_spans(design.t, unexplained, SCAN_WINDOW_S)
-        on_outputs += outputs.bias_tests(design, removed, quiet,
-                                         alpha / (len(design.terms) + 12), cal,
-                                         skip={(f["sensor"], f["axis"]) for f in
-                                               on_outputs + findings
-                                               if f["effect"] in OWN_OFFSET}, noise=noise,
-                                         carried=removal_sigma(design, fit_found, findings,
-                                                               quiet))
+        skip = {(f["sensor"], f["axis"]) for f in on_outputs + findings
+                if f["effect"] in OWN_OFFSET}
+        tested = outputs.bias_tests(
+            design, removed, quiet, alpha / (len(design.terms) + 12), cal, skip=skip,
+            noise=noise, carried=removal_sigma(design, fit_found, findings, quiet),
+            unconfirmed=unconfirmed_offset(design, unconfirmed, quiet, prep.full_scale))
+        on_outputs += beside_reference(tested, reference_beyond_stated(design, fit_found))
     return unexplained, on_outputs
 
 
 STAMP_JITTER = 0.25     # the stamps' error (robust sigma) over the period: beyond it a
                         # stamp does not tell which interval its sample averages
-TICKS_S = (1e-3, 1e-4, 1e-5, 1e-6)     # the whole units a logger may stamp in
 
 
 def stamp_jitter(t, whose):
@@ -448,16 +458,6 @@ def stamp_jitter(t, whose):
                 f"error) on a {period * 1e3:.3g} ms period: a stamp does not say which interval "
                 "its sample averages, and terms driven by fast motion may be that jitter")
     return ""
-
-
-def stamp_tick(t):
-    """The largest of TICKS_S the stamps t (s, from their first) are whole multiples of, or
-    None."""
-    rel = np.asarray(t, float) - t[0]
-    for tick in TICKS_S:
-        if np.all(np.abs(rel / tick - np.round(rel / tick)) < 1e-3):
-            return tick
-    return None
 
 
 def _too_little(flight, prep, bin_s, block_s, because):

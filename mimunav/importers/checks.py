@@ -11,6 +11,7 @@ from ..navigation import alignment
 from ..navigation.rests import (TRACK_FORCE_RATIO, acceleration_match, follows_track,
                                 span_means, track_acceleration)
 from ..frames import attitude
+from ..flightlog.stamps import rounded_clock
 from .pairing import pair, trajectory_clock
 from .recording import G0, RecordingError, utc_text
 from ..motion.carrier import LAND, car_tests, course_keys
@@ -45,6 +46,7 @@ def check_recording(rec):
     factor of ten or more from the attitude's own rate (deg/s read as rad/s)."""
     _check_overlap(rec)             # first: stamps in the wrong unit fail it, and it says so
     _check_rate(rec.name, "IMU", rec.imu_ns)
+    _uniform_clocks(rec)
     if rec.reference_imu is not None:
         _check_rate(rec.name, "reference IMU", rec.reference_imu["ns"])
         pair(rec)
@@ -73,6 +75,18 @@ def check_recording(rec):
                              "(deg/s or rad/s) right?")
     _check_heading_against_course(rec, q, ok)
     _check_reference_clock(rec)
+
+
+def _uniform_clocks(rec):
+    """The IMU's and the reference IMU's stamps, where they are whole ticks of a uniform
+    clock, replaced by that clock's times (`stamps.rounded_clock`) and said so."""
+    ns, said = rounded_clock(rec.imu_ns)
+    if ns is not None:
+        rec.imu_ns, rec.real["imu_stamps"] = ns, said
+    if rec.reference_imu is not None:
+        ns, said = rounded_clock(rec.reference_imu["ns"])
+        if ns is not None:
+            rec.reference_imu["ns"], rec.real["reference_imu_stamps"] = ns, said
 
 
 HEADING_OFF_COURSE_DEG = 10.0   # deg: a car's reference heading from its own course, the

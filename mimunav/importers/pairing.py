@@ -146,7 +146,10 @@ def clock_offset(rec):
     return {"offset_s": offset, "offset_se_s": se,
             "said": said + (f"; no drift beyond {DISTINCT_Z:g} standard errors "
                             f"({drift * 1e6:+.2g} ppm, se {drift_se * 1e6:.2g})"
-                            if math.isfinite(drift_se) else "")}
+                            if math.isfinite(drift_se) else
+                            "; no drift measured: fewer than 5 tenths of the overlap turn enough to place "
+                            f"an offset of their own (a crystal's 30 ppm would move it "
+                            f"{30e-6 * span * 1e3:.0f} ms over the {span:.0f} s they share)")}
 
 
 def trajectory_clock(rec):

@@ -254,8 +254,8 @@ def clipped_note(w, f, rng):
     at = at_range(w, f, rng)
     if not at.any():
         return ""
-    return (f"{int(at.sum())} samples at the range given (clipped: the diagnosis tests them "
-            "as saturation)")
+    return (f"{int(at.sum())} samples at the range given (clipped by the sensor's own limit: "
+            "the diagnosis leaves them out of every test, no finding)")
 
 
 def _rate_hz(t):

@@ -91,11 +91,12 @@ def read(path, mounting=None, instance=None, reference_instance=None):
         boot_us = np.asarray(imu.data["timestamp"], dtype=np.int64)
         w = np.column_stack([_field(imu, f"gyro_rad[{i}]") for i in range(3)])
         f = np.column_stack([_field(imu, f"accelerometer_m_s2[{i}]") for i in range(3)])
-        source = f"sensor_combined ({len(boot_us)} samples)"
+        source, topic = f"sensor_combined ({len(boot_us)} samples)", "sensor_combined"
     else:
         boot_us, w, f, temp = _instance(ulog, path, instance)
         source = (f"sensor_accel:{instance} with sensor_gyro:{instance} interpolated onto it "
                   f"({len(boot_us)} samples, {temp}; before PX4's calibration)")
+        topic = f"sensor_accel/sensor_gyro instance {instance}"
     gps = next((g for g in (_topic(ulog, n) for n in GNSS_TOPICS) if g is not None), None)
     assumed = {}
     offset_us, fixes = _gnss(gps) if gps is not None else (0, None)
@@ -129,10 +130,12 @@ def read(path, mounting=None, instance=None, reference_instance=None):
         assumed["reference"] = unused_reference(ulog)
     assumed.update(mounting="PX4 body frame FRD = vehicle frame" if mounting is None
                    else "given on the command line",
-                   calibration="PX4's on-board calibration, as logged")
+                   calibration="PX4's on-board calibration, as logged" if instance is None
+                   else "none: the instance's outputs before PX4's calibration (its CAL_* "
+                        "offsets and scales are not applied), used as recorded")
     rate = 1e6 / np.median(np.diff(boot_us[keep]))
     span = (boot_us[-1] - boot_us[0]) / 1e6
-    return Recording(name, f"PX4 ULog {os.path.basename(path)}: sensor_combined {rate:.0f} Hz, "
+    return Recording(name, f"PX4 ULog {os.path.basename(path)}: {topic} {rate:.0f} Hz, "
                      f"{span:.1f} s", (boot_us[keep] + offset_us) * 1000,
                      w[keep], f[keep], mounting or Mounting(), model="PX4 autopilot IMU",
                      reference=reference,

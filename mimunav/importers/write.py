@@ -156,7 +156,8 @@ def summary(rec, align, path):
         lines.append(f"measured mounting yaw: {rec.real['mounting_yaw_against_course']}")
     if "reference_clock" in rec.real:
         lines.append(f"measured clock offset: {rec.real['reference_clock']}")
-    for key in ("reference_imu_clock", "reference_imu_mounting"):     # said, not only stored
+    for key in ("imu_stamps", "reference_imu_stamps", "reference_imu_clock",
+                "reference_imu_mounting"):                           # said, not only stored
         if key in rec.real:
             lines.append(f"measured {key.replace('_', ' ')}: {rec.real[key]}")
     if "reference_heading" in rec.real:

@@ -35,6 +35,24 @@ def test_a_prediction_that_follows_passes_and_a_shifted_one_fails():
     assert sum("does not predict" in why for why in late["failures"]) >= 4
 
 
+def test_an_accelerometer_that_disagrees_names_an_undeclared_lever_arm_at_its_rates():
+    """A rocket's spin (up to 23 rad/s about its long axis y) with the reference 18 mm off
+    that axis and no lever arm declared: the MIMU's x reads w^2 r more than predicted and
+    fails; the words name the lever arm and what 1 cm makes at the largest 1 s rate,
+    22.5^2 x 0.01 = 5.1 m/s^2 (they had named clocks, mountings and units only)."""
+    t = np.arange(0.0, 60.0, 0.01)
+    spin = 23.0 * np.exp(-((t - 30.0) / 4.0) ** 2)          # the boost's spin-up and down
+    predicted = np.zeros((len(t), 6))
+    predicted[:, 1], predicted[:, 4] = -9.81 + 0.3 * np.sin(t), spin
+    predicted[:, 0] = 1.0 * np.sin(t / 3)
+    measured = predicted.copy()
+    measured[:, 0] -= spin ** 2 * 0.018
+    failed = agreement(t, measured, predicted, np.ones(len(t), bool), CHANNELS)["failures"]
+    assert len(failed) == 1 and "accel.x" in failed[0]
+    assert "a lever arm between them is not declared" in failed[0]
+    assert "at 22.5 rad/s, 1 cm makes 5.1 m/s^2" in failed[0]      # a 1 s mean's peak
+
+
 def test_a_quiet_channel_is_not_judged_and_a_turned_mounting_shows_in_gravity():
     t = np.arange(0.0, 60.0, 0.01)
     rng = np.random.default_rng(4)

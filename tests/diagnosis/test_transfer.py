@@ -96,7 +96,7 @@ def test_an_angular_vibration_the_transfer_cannot_follow_is_measured():
     times the share its derivative misses (a quartic Savitzky-Golay over 13 samples: its
     gain from scipy's coefficients) - a tractor's 27-60 Hz engine lines had made couplings
     of 0.02-0.04 on accel.z. White noise alone has no line to give, and two IMUs at one
-    point no transfer."""
+    point no transfer; nor does a shock, which persists nowhere."""
     from mimunav.diagnosis.reference import unfollowed_vibration
     rng = np.random.default_rng(2)
     t = np.arange(1, 400 * 600 + 1) / 400.0
@@ -116,4 +116,37 @@ def test_an_angular_vibration_the_transfer_cannot_follow_is_measured():
     quiet = unfollowed_vibration(t, rng.normal(0, 0.003, (len(t), 3)), np.array([0, 0.02, 0]),
                                  0.01, 400.0)
     assert quiet is None or quiet[0] < 0.05 * expected
+    # a shock (2 s of a 0.3 rad/s broadband jolt, a rocket's landing) persists nowhere: no
+    # line (its mean spectrum had read one at 62 Hz)
+    jolt = rng.normal(0, 0.003, (len(t), 3))
+    jolt[400 * 300:400 * 302] += rng.normal(0, 0.3, (800, 3)) * np.hanning(800)[:, None]
+    shock = unfollowed_vibration(t, jolt, np.array([0, 0.02, 0]), 0.01, 400.0)
+    assert shock is None or shock[0] < 0.05 * expected
     assert unfollowed_vibration(t, w, np.zeros(3), 0.01, 400.0) is None
+
+
+def test_a_shock_the_transfer_cannot_follow_is_left_out_and_nothing_else():
+    """`reference.transfer_shocks`: 60 s at 501.3 Hz (a flight computer's clock, which the
+    import puts back on its uniform times, `stamps.rounded_clock`), a smooth swing of 1
+    rad/s at 0.5 Hz, and at 30 s a landing's jolt (the rate about x steps by 3 rad/s within
+    4 ms and rings at 40 Hz for 0.2 s); across 22 cm the transfer's smoothed derivative
+    misses the jolt by tens of m/s^2, which is left out - the swing and the noise are not.
+    Two IMUs at one point: nothing."""
+    from mimunav.diagnosis.design import bins
+    from mimunav.diagnosis.reference import transfer_shocks
+    rng = np.random.default_rng(5)
+    t = t_true = np.arange(1, int(60 * 501.3)) / 501.3
+    w = np.zeros((len(t), 3))
+    w[:, 2] = np.sin(2 * np.pi * 0.5 * t_true)
+    after = np.clip((t_true - 30.0) / 0.004, 0.0, 1.0)
+    ring = np.where(t_true > 30.0, np.exp(-(t_true - 30.0) / 0.05), 0.0)
+    w[:, 0] = 3.0 * after + 2.0 * ring * np.sin(2 * np.pi * 40 * (t_true - 30.0))
+    predicted = np.hstack([np.tile([0.0, 0.0, -9.8], (len(t), 1)), w])
+    measured = predicted + rng.normal(0, [0.01] * 3 + [0.001] * 3, predicted.shape)
+    predicted[:, 3:] += rng.normal(0, 2e-4, (len(t), 3))     # the reference's own noise
+    usable = np.ones(len(t), bool)
+    m = bins(t, None, 0.01)
+    shocks = transfer_shocks(t, measured, predicted, np.array([0.0, 0.22, 0.018]), m, usable)
+    assert shocks[(t > 30.0) & (t < 30.03)].all()
+    assert not shocks[np.abs(t - 30.2) > 0.5].any()
+    assert not transfer_shocks(t, measured, predicted, np.zeros(3), m, usable).any()

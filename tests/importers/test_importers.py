@@ -373,6 +373,10 @@ def test_ulog_imu_instances_as_the_imu_and_as_the_reference_imu(tmp_path):
     assert np.allclose(rec.w[:, 0], 2.0 * t_us * 1e-8, rtol=1e-6)      # interpolated at the
     assert np.allclose(rec.f[:, 0], 0.2)                              # accelerometer stamps
     assert "temperature 31.00 to 31.00 degC" in rec.real["imu"]
+    # what was read and its calibration, said as they are (it had said sensor_combined and
+    # PX4's on-board calibration)
+    assert "sensor_accel/sensor_gyro instance 1 400 Hz" in rec.description
+    assert rec.assumed["calibration"].startswith("none: the instance's outputs before")
     ref = rec.reference_imu
     assert np.allclose(ref["f"][:, 0], 0.1) and np.allclose(ref["w"][:, 0],
                                                             (ref["ns"] / 1000) * 1e-8, rtol=1e-6)

@@ -328,3 +328,30 @@ def test_window_means_are_exact_for_interval_means_of_a_ramp():
     got = series.window_means(ns, x, mids)
     assert np.allclose(got, (0.3 * mids - 2.0)[:, None] * [1.0, -2.0, 0.5], atol=1e-12)
     assert np.isnan(series.window_means(ns, x, np.array([1.2]))).all()   # before the record
+
+
+def test_a_drift_the_motion_cannot_measure_is_said_unmeasured(pair_motion):
+    """Motion in the first 40 s only, then 110 s of steady rates (a rocket's rail and ground):
+    fewer than 5 of the overlap's tenths turn, so no drift is measured - and the words say
+    so, with what a crystal's 30 ppm would do over the record (4 ms over its 150 s)."""
+    ns, w, f, w_r, f_r = pair_motion
+    still = (ns - ns[0]) / 1e9 > 40.0
+    w, w_r = w.copy(), w_r.copy()
+    w[still], w_r[still] = w[still].mean(axis=0), w_r[still].mean(axis=0)
+    clock = pairing.clock_offset(_recording(ns, w, f, w_r, f_r, late_s=0.05))
+    assert "drift" not in clock
+    assert "no drift measured" in clock["said"] and "4 ms over the 150 s" in clock["said"]
+
+
+def test_an_imu_stamped_in_whole_ms_is_given_its_uniform_clock(pair_motion):
+    """The import's check puts a clock written in whole ms (a flight computer's millis() of
+    its IMU) back on its uniform times, for the IMU and for the reference IMU, and says so."""
+    ns, w, f, w_r, f_r = pair_motion
+    ns = ns[0] + (ns - ns[0]) * 998 // 1000                  # a 200.4 Hz clock: steps of 4.99 ms
+    rec = _recording((ns // 1_000_000) * 1_000_000, w, f, w_r, f_r)
+    rec.reference_imu["ns"] = (rec.reference_imu["ns"] // 1_000_000) * 1_000_000
+    checks.check_recording(rec)
+    for got in (rec.imu_ns, rec.reference_imu["ns"]):
+        assert np.ptp(np.diff(got)) <= 2                     # uniform to the ns's rounding
+    assert "whole 1 ms of a uniform" in rec.real["imu_stamps"]
+    assert "whole 1 ms of a uniform" in rec.real["reference_imu_stamps"]
