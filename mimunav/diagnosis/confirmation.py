@@ -526,13 +526,18 @@ def beyond_range_reasons(rejected):
 
 
 def _widened(finding, factor):
-    """The finding with every 95 % interval's half-widths about its estimate times factor."""
+    """The finding with every 95 % interval's half-widths about its estimate times factor
+    (an offset's other readings each about its own: `outputs.with_other_readings`)."""
     out = dict(finding)
 
     def wider(value, interval):
         lo, hi = interval
         return [value - factor * (value - lo), value + factor * (hi - value)]
     out["ci95"] = wider(finding["coefficient"], finding["ci95"])
+    if "ci95_alone" in finding:     # an offset read two ways: each reading's own, not the
+        parts = [wider(finding["coefficient"], finding["ci95_alone"])] + [   # distance
+            wider(o["coefficient"], o["ci95"]) for o in finding["other_readings"]]
+        out["ci95"] = [min(a for a, _ in parts), max(b for _, b in parts)]
     for vec, ci in (("vector", "vector_ci95"), ("vector_vehicle", "vector_vehicle_ci95")):
         if ci in finding:
             out[ci] = [wider(v, i) for v, i in zip(finding[vec], finding[ci])]

@@ -126,12 +126,16 @@ def saturation(t, measured, predicted, rows, train, full_scale, steps=None, sigm
 
 
 def _own_offset(y, x, rows):
-    """The channel's offset from its input, SI: the median of y - x over `rows` (a clip's
-    few samples do not move it). The input is judged beyond the output's reach as the
-    output would read it, offset included: a rocket's uncorrected 25 mg bias at its tilted
-    rest had put the reference beyond anything accel.z output, and flat - a clip 'found'
-    at its rest reading, 4.956 m/s^2, over 61,206 samples."""
-    return float(np.median((y - x)[rows])) if rows.any() else 0.0
+    """The channel's offset from its input, SI: the median of y - x over the `rows` whose
+    input lies inside the range the output reached (a clip's samples, however many, do not
+    move it). The input is judged beyond the output's reach as the output would read it,
+    offset included: a rocket's uncorrected 25 mg bias at its tilted rest had put the
+    reference beyond anything accel.z output, and flat - a clip 'found' at its rest
+    reading, 4.956 m/s^2, over 61,206 samples."""
+    if not rows.any():
+        return 0.0
+    inside = rows & (x >= np.min(y[rows])) & (x <= np.max(y[rows]))
+    return float(np.median((y - x)[inside if inside.any() else rows]))
 
 
 def at_declared_range(measured, predicted, declared):
@@ -300,8 +304,7 @@ def bias_null(noise=None):
                 "(diagnosis.outputs.CLASS_DRIFT)"]))}
 
 
-def bias_tests(design, fit, quiet, alpha_level, cal, skip=(), noise=None, carried=None,
-               unconfirmed=None):
+def bias_tests(design, fit, quiet, alpha_level, cal, skip=(), noise=None, carried=None):
     """bias_instability and bias_shift findings per channel, from the bias's `bias_span` means
     over quiet flight. fit: residual without the fitted reference error and confirmed terms
     (nb, 6) on the design's bins (what is left: the bias and the white noise); quiet (nb,)
@@ -314,10 +317,7 @@ def bias_tests(design, fit, quiet, alpha_level, cal, skip=(), noise=None, carrie
     file): a sensor's measured B replaces the class's zero drift as the null's wander, so
     the question becomes "more than this unit wanders at rest"; carried: (6,) SI, 1 sigma of
     each channel's quiet mean that the confirmed terms' removal leaves (their estimates'
-    error, `removal.removal_sigma`), a part of the offset's null; unconfirmed: ((6,),
-    (6,), 6 lists) the offset of each channel's quiet mean that the terms neither found nor
-    ruled out would make, its 1 sigma and their labels (`removal.unconfirmed_offset`):
-    an offset's interval holds the offset read without them too (`beside_unconfirmed`).
+    error, `removal.removal_sigma`), a part of the offset's null.
 
     Three models of the means x (m,) at times t, each Gaussian (`bias_models`):
       class   x ~ N(0, B^2 F + s0^2 11' + w I): a unit of the class - an in-run wander of
@@ -371,39 +371,8 @@ def bias_tests(design, fit, quiet, alpha_level, cal, skip=(), noise=None, carrie
                                   alpha_level=alpha_level, offset=offset, white=white,
                                   whose=whose[sensor], drift=wander, span=span)
         finding = _shift_or_wander(m, passing, named, model, inputs[keep], alpha_level)
-        if finding["effect"] == "bias_shift" and unconfirmed is not None:
-            finding = beside_unconfirmed(finding, *(u[c] for u in unconfirmed))
         findings.append(_qualified(finding, design, cal, removal))
     return findings
-
-
-HULL_GROWTH = 0.05      # an interval that grows less than this share is left as it was (its
-                        # printed four digits barely move; the note would be noise)
-
-
-def beside_unconfirmed(finding, shift, sigma, labels):
-    """The bias_shift `finding` with its 95 % interval the hull of its own and of the offset
-    read with the terms `labels` taken out (`removal.unconfirmed_offset`: they move the
-    quiet mean by `shift`, 1 sigma `sigma`, SI): terms neither found nor ruled out may be
-    there, and the data cannot say which reading holds. Set aside (`rejected`) when the
-    hull holds zero: the offset may be those terms' alone."""
-    mu, (lo, hi) = finding["coefficient"], finding["ci95"]
-    se = (hi - lo) / (2 * 1.959964)
-    other = mu - shift
-    half = 1.959964 * math.hypot(se, sigma)
-    hull = [min(lo, other - half), max(hi, other + half)]
-    if not labels or hull[1] - hull[0] <= (1 + HULL_GROWTH) * (hi - lo):
-        return finding
-    out = dict(finding, ci95=hull, beside_unconfirmed={
-        "terms": list(labels), "coefficient": other, "ci95": [other - half, other + half]})
-    out["note"] += (f"; with the terms not confirmed ({', '.join(labels)}) taken out it reads "
-                    f"{other:.4g} [{other - half:.4g}, {other + half:.4g}]: the interval "
-                    "holds both readings")
-    if hull[0] <= 0.0 <= hull[1]:
-        out["rejected"] = (f"with the terms not confirmed ({', '.join(labels)}) taken out the "
-                           f"offset reads {other:.4g}, and the interval of both readings "
-                           "holds zero - inconclusive")
-    return out
 
 
 def _shift_or_wander(m, passing, named, model, inputs, alpha_level):

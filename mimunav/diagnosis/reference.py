@@ -98,6 +98,8 @@ TRANSFER_SHARE = 0.1    # the transfer's unfollowed error, as a share of the acc
 SHOCK_SIGMA = 5.0   # a bin's transfer miss beyond this many of its own robust scatter over
                     # the record (the reference's noise through the derivatives) is motion the
                     # transfer does not follow, not that noise
+SHOCK_SHARE = 0.01  # a shock is rare: misses in more of the bins are the motion's own (an
+                    # engine's lines, which `unfollowed_vibration` judges), not left out
 
 
 def transfer_shocks(t, measured, predicted, lever, bins_of, usable):
@@ -109,35 +111,52 @@ def transfer_shocks(t, measured, predicted, lever, bins_of, usable):
     (their robust sigma of measured - predicted over the `usable` samples): a shock (a
     rocket's landing at 9 g, a plane's catapult or the hands that carry it) whose bins tell
     nothing of the accelerometers' terms - a rocket's landing across 22 cm had held the
-    library 4x above its chance level and set aside its true g-sensitivity. Bin means, not
-    samples: a logger's whole-ms stamps make a sample's central difference jump. t s;
+    library 4x above its chance level and set aside its true g-sensitivity. Bins amid
+    their four neighbours only (not across a gap); none when more than SHOCK_SHARE of them
+    miss. Bin means, not samples: a sample's central difference follows its stamp's error. t s;
     measured, predicted (N, 6) read a column at a time; bins_of: (m, start) of
     `design.bins`."""
     m, start = bins_of
     out = np.zeros(len(t), bool)
     if not np.any(lever) or len(t) < start + 4 * m:
         return out
-    w = np.column_stack([predicted[:, c] for c in (3, 4, 5)])
     k = np.full(len(t), -1)
     k[start:] = (np.arange(len(t) - start)) // m
     ok = (k >= 0) & usable
     count = np.bincount(k[ok], minlength=k.max() + 1).astype(float)
-    full = count > 0
+    full = count == m                   # whole bins: a part bin's mean is off its centre
 
     def mean(x):
         return np.bincount(k[ok], x[ok], minlength=len(count))[full] / count[full]
     t_b = mean(t)
-    w_b = np.column_stack([mean(w[:, i]) for i in range(3)])
-    smooth = derivative(t, w, TRANSFER_WINDOW_S)
-    smooth_b = np.column_stack([mean(smooth[:, i]) for i in range(3)])
+    # a column at a time (a long flight's spilled columns; `samples.Columns`)
+    w_b = np.column_stack([mean(predicted[:, c]) for c in (3, 4, 5)])
+    smooth_b = np.column_stack([mean(derivative(t, predicted[:, c][:, None],
+                                                TRANSFER_WINDOW_S)[:, 0]) for c in (3, 4, 5)])
+    # the bins' own derivative: the fourth-order central difference of their means (the
+    # second-order one errs by (2 pi f h)^2 / 6: 0.07 rad/s^2 on a 2 Hz, 2 rad/s swing)
+    h = float(np.median(np.diff(t_b)))
     miss = np.zeros_like(w_b)
-    miss[1:-1] = np.cross((w_b[2:] - w_b[:-2]) / (t_b[2:] - t_b[:-2])[:, None]
-                          - smooth_b[1:-1], lever)
-    scatter = 1.4826 * np.median(np.abs(miss - np.median(miss, axis=0)), axis=0)
+    miss[2:-2] = np.cross((w_b[:-4] - 8 * w_b[1:-3] + 8 * w_b[3:-1] - w_b[4:]) / (12 * h)
+                          - smooth_b[2:-2], lever)
+    ids = np.flatnonzero(full)
+    next_to = np.zeros(len(ids), bool)          # a bin amid its four neighbours, no gap
+    next_to[2:-2] = ids[4:] - ids[:-4] == 4
+    if next_to.sum() < 10:
+        return out
+    inner = miss[next_to]
+    # the scatter: the MAD's, floored by the central 98 %'s spread - a reference logged in
+    # steps (0.01 rad/s; a FOG's count) makes most misses equal and the MAD zero
+    lo, hi = np.percentile(inner, [1, 99], axis=0)
+    scatter = np.maximum(1.4826 * np.median(np.abs(inner - np.median(inner, axis=0)), axis=0),
+                         np.std(np.clip(inner, lo, hi), axis=0))
     white = np.array([np.sqrt(white_per_bin(np.where(usable, measured[:, c] - predicted[:, c],
                                                       np.nan)) / m) for c in range(3)])
+    beyond = next_to & np.any(np.abs(miss) > np.maximum(SHOCK_SIGMA * scatter, white), axis=1)
+    if beyond.sum() > SHOCK_SHARE * next_to.sum():
+        return out                  # no shock: the motion's own (`unfollowed_vibration`)
     shock = np.zeros(len(count), bool)
-    shock[full] = np.any(np.abs(miss) > np.maximum(SHOCK_SIGMA * scatter, white), axis=1)
+    shock[ids[beyond]] = True
     out[ok] = shock[k[ok]]
     return out
 
@@ -176,9 +195,9 @@ def unfollowed_vibration(fog_t, fog_w, dr, bin_s, mimu_rate):
     typical = welch(fog_w - fog_w.mean(axis=0), fs=rate, nperseg=1024, axis=0,
                     average="median")[1][band]
     # it stands 5 of the floor's own relative errors (1 / sqrt(segments): Welch's half-
-    # overlapping segments of 1024; a median's sqrt(pi / 2) times a mean's) above it - a
-    # white spectrum's scatter is no line
-    spread = np.sqrt(np.pi / 2 / max(len(fog_t) // 512 - 1, 1))
+    # overlapping segments of 1024; the median of exponential ordinates 1 / ln 2 times a
+    # mean's) above it - a white spectrum's scatter is no line
+    spread = 1.0 / (np.log(2.0) * np.sqrt(max(len(fog_t) // 512 - 1, 1)))
     lines = typical > np.median(typical, axis=0) * (1.0 + 5.0 * spread)
     floor = np.median(p[band], axis=0)
     excess = np.where(lines, np.maximum(p[band] - floor, 0.0), 0.0).sum(axis=1)

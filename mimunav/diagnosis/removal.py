@@ -3,8 +3,11 @@ the bias tests read (`outputs.bias_tests`): a found term's removal leaves its es
 (`removal_sigma`), and a term left in the residual is an offset there when its input is
 steady (`unconfirmed_offset`), and what the reference's fitted linear error took away is no
 reading when that fit lies beyond the reference's stated accuracy (`beside_reference`)."""
+import math
+
 import numpy as np
 import quaternion
+from scipy import stats
 
 from ..frames import attitude
 from . import library
@@ -39,33 +42,49 @@ def _mean_jacobian(design, j, k, rows):
                             for e in np.eye(k)])
 
 
-def unconfirmed_offset(design, terms, rows, full_scale):
-    """((6,) SI, (6,) SI 1 sigma, 6 lists of labels): the offset of each channel's mean over
-    `rows` (bool, the design's bins) that the terms tested and neither found nor ruled out
-    would make at their estimates - `terms`: those confirmation rejected or set aside and
-    those the selection found within the stated errors (their `total_1sigma`); a term
-    beyond its physical range is no physics and is left out. On a quiet flight a linear
+def _means_jacobian(design, fit, rows):
+    """(6, P): how each channel's mean over `rows` of what `fit` removes (the reference's
+    error gamma, then its terms) moves per unit of the fit's parameters."""
+    jac = np.zeros((len(CHANNELS), len(fit.beta)))
+    for c in range(len(CHANNELS)):
+        jac[c, gamma_slots(c)] = design.ref_columns(c)[rows].mean(axis=0)
+    for j, part in zip(fit.terms, fit.slices):
+        jac[:, part] = _mean_jacobian(design, j, part.stop - part.start, rows)
+    return jac
+
+
+def unconfirmed_offset(design, fitter, base, terms, rows, full_scale):
+    """((6,) SI, (6,) SI 1 sigma, 6 lists of labels): how much more of each channel's mean
+    over `rows` (bool, the design's bins) the fit removes when the terms neither found nor
+    ruled out join the found ones (`base`: the all-rows fit of the found terms) - `terms`:
+    those confirmation rejected or set aside and those the selection found within the
+    stated errors, refitted with the found terms and the reference's error by `fitter`
+    (the all-rows `Fitter`), so a term the reference's
+    error already carries moves nothing twice; a term beyond its physical range is no
+    physics and stays out - and the 1 sigma that refit adds. On a quiet flight a linear
     term of a steady input is an offset: a bias read without it carries it (a rate table's
     accel.z offset read -0.204 [-0.2175, -0.1906] m/s^2 beside a scale factor 0.0022 and a
     coupling to f_y the halves had not confirmed; the unit's bias is -0.1878)."""
     labels = [library.label(term) for term in design.terms]
-    shift, var, names = np.zeros(len(CHANNELS)), np.zeros(len(CHANNELS)), [[] for _ in CHANNELS]
+    idx, extra = list(base.terms), []
     for f in terms:
-        if f.get("label") not in labels or not rows.any() or not (
-                {"coefficient", "vector"} & f.keys()):
+        j = labels.index(f["label"]) if f.get("label") in labels else None
+        if j is None or j in idx + extra or not ({"coefficient", "vector"} & f.keys()):
             continue                # (a term not chosen as implausible carries no estimate)
-        j, b = labels.index(f["label"]), beta_of(f)
-        if not plausible(design, j, b, full_scale)[0]:
-            continue
-        cov = (np.diag(np.square(f["total_1sigma"])) if "total_1sigma" in f
-               else finding_covariance(design, f, np.eye(len(b))))
-        jac = _mean_jacobian(design, j, len(b), rows)
-        move = jac @ b
-        shift += move
-        var += np.einsum("ck,kl,cl->c", jac, cov, jac)
-        for c in np.flatnonzero(move):
-            names[c].append(f["label"])
-    return shift, np.sqrt(var), names
+        if plausible(design, j, beta_of(f), full_scale)[0]:
+            extra.append(j)
+    zeros = np.zeros(len(CHANNELS))
+    if not extra or not rows.any():
+        return zeros, zeros, [[] for _ in CHANNELS]
+    both = fitter.fit(idx + extra)
+    jac_base, jac_both = _means_jacobian(design, base, rows), _means_jacobian(design, both, rows)
+    shift = jac_both @ both.beta - jac_base @ base.beta
+    added = (np.einsum("cp,pq,cq->c", jac_both, both.cov, jac_both)
+             - np.einsum("cp,pq,cq->c", jac_base, base.cov, jac_base))
+    moved = np.column_stack([_mean_jacobian(design, j, len(both.of(j)[0]), rows) @ both.of(j)[0]
+                             for j in extra])
+    names = [[labels[j] for j, m in zip(extra, moved[c]) if m != 0.0] for c in range(6)]
+    return shift, np.sqrt(np.maximum(added, 0.0)), names
 
 
 def finding_covariance(design, finding, cov_all):
@@ -87,7 +106,6 @@ def finding_covariance(design, finding, cov_all):
 REFERENCE_BEYOND_SIGMA = 5.0    # the reference's fitted linear error this many of its stated
                                 # 1 sigma off: no draw of its prior (18 components: chance
                                 # ~1e-5 a fit) - something the model lacks is charged to it
-BIAS_EFFECTS = ("bias_shift", "bias_instability")
 
 
 def reference_beyond_stated(design, fit):
@@ -106,21 +124,107 @@ def reference_beyond_stated(design, fit):
     return out
 
 
-def beside_reference(findings, beyond):
-    """The bias findings (`outputs.bias_tests`), set aside (`rejected`) on a channel whose
-    row of the reference's fitted linear error lies beyond REFERENCE_BEYOND_SIGMA
-    (`reference_beyond_stated`): the quiet means they read are what that fit left - a
+def reference_held_offset(design, fit, rows):
+    """((6,) SI, 6 words): how much less of each channel's mean over `rows` the fit would
+    remove were the reference's fitted linear error (`fit.gamma()`) held to
+    REFERENCE_BEYOND_SIGMA of its stated 1 sigma (`design.prior`), component by component,
+    and words naming the component beyond (`reference_beyond_stated`; '' where none is) - a
     MEMS reference's accel.z scale fitted at -0.076 against its stated 0.0025, beside a
-    plane's 0.2 m lever arm left out in 99 deg/s of handling, took 0.74 m/s^2 from a quiet
-    mean and left a bias_shift of -0.64 [-0.83, -0.46] where the IMUs differ by +0.10."""
+    plane's 0.2 m lever arm left out in 99 deg/s of handling, had taken 0.74 m/s^2 from a
+    quiet mean and left a bias_shift of -0.64 [-0.83, -0.46] where the IMUs differ by +0.10.
+    The words name the reference beyond its stated accuracy or the model incomplete."""
+    gamma, sd = fit.gamma(), np.sqrt(np.clip(np.diag(design.prior), 0.0, None))
+    limit = REFERENCE_BEYOND_SIGMA * sd
+    beyond = np.where(sd > 0, gamma - np.clip(gamma, -limit, limit), 0.0)
+    shift = np.array([-design.ref_columns(c)[rows].mean(axis=0) @ beyond[gamma_slots(c)]
+                      if rows.any() else 0.0 for c in range(len(CHANNELS))])
+    words = [why if z > REFERENCE_BEYOND_SIGMA else ""
+             for z, why in reference_beyond_stated(design, fit)]
+    return shift, words
+
+
+def beside_reference(findings, beyond):
+    """The bias wander findings (`outputs.bias_tests`), set aside (`rejected`) on a channel
+    whose row of the reference's fitted linear error lies beyond REFERENCE_BEYOND_SIGMA
+    (`reference_beyond_stated`): the means they read are what that fit left, and a wander
+    has no second reading to hold beside it (an offset has: `reference_held_offset`)."""
     out = []
     for f in findings:
         z, words = beyond[CHANNELS.index((f["sensor"], f["axis"]))] \
             if (f["sensor"], f["axis"]) in CHANNELS else (0.0, "")
-        if f["effect"] in BIAS_EFFECTS and z > REFERENCE_BEYOND_SIGMA and not f.get("rejected"):
+        if f["effect"] == "bias_instability" and z > REFERENCE_BEYOND_SIGMA \
+                and not f.get("rejected"):
             f = dict(f, reference_fitted_beyond_stated=z, rejected=(
                 f"read after the reference's fitted linear error, which lies beyond its "
-                f"stated accuracy ({words}): something the model lacks is charged to the "
-                "reference, and the offset left is that fit's - inconclusive"))
+                f"stated accuracy ({words}): the reference is worse than stated or the model "
+                "lacks something charged to it - inconclusive"))
         out.append(f)
     return out
+
+
+def offset_readings(design, fitter, base, terms, rows, full_scale):
+    """Per channel (6): the other readings of its quiet offset, [(how much less it reads
+    (SI), the 1 sigma that adds (SI), words)] - with the terms neither found nor ruled out
+    (`unconfirmed_offset`) and with the reference's fitted error held to its stated
+    accuracy (`reference_held_offset`), where either moves it. base: the all-rows fit of
+    the found terms; terms: those not confirmed; the rest as `unconfirmed_offset`'s."""
+    shift, sigma, names = unconfirmed_offset(design, fitter, base, terms, rows, full_scale)
+    held, words = reference_held_offset(design, base, rows)
+    out = []
+    for c in range(len(CHANNELS)):
+        readings = [(shift[c], sigma[c], "with the terms not confirmed ("
+                     + ", ".join(names[c]) + ") fitted too")] if names[c] else []
+        if words[c]:
+            readings.append((held[c], 0.0, "with the reference's fitted error held to "
+                             f"{REFERENCE_BEYOND_SIGMA:g} sigma of its stated accuracy "
+                             f"({words[c]})"))
+        out.append(readings)
+    return out
+
+
+HULL_GROWTH = 0.05      # an interval that grows less than this share is left as it was (its
+                        # printed four digits barely move; the note would be noise)
+
+
+def with_other_readings(finding, readings):
+    """The bias_shift `finding` with its 95 % interval the hull of its own and of its other
+    readings [(how much less it reads, the 1 sigma that adds, words)]
+    (`offset_readings`): the data cannot say which reading holds. Its p is the
+    largest of the readings' (each against the class's offset, as `bias_models` tests it);
+    set aside (`rejected`) when the hull holds zero or that p misses its limit.
+    `ci95_alone` keeps its own interval, so that a later widening widens each reading's
+    and not the distance between them (`confirmation.judged_wider`)."""
+    mu, (lo, hi) = finding["coefficient"], finding["ci95"]
+    se, s0 = (hi - lo) / (2 * 1.959964), finding["normal_offset_1sigma"]
+    hull, others, p = [lo, hi], [], finding["p_heldout"]
+    for shift, sigma, words in readings:
+        other, half = mu - shift, 1.959964 * math.hypot(se, sigma)
+        if other - half >= lo and other + half <= hi:
+            continue                        # inside its own interval: nothing to add
+        hull = [min(hull[0], other - half), max(hull[1], other + half)]
+        p = max(p, float(stats.chi2.sf(other ** 2 / (se ** 2 + sigma ** 2 + s0 ** 2), 1)))
+        others.append({"coefficient": other, "ci95": [other - half, other + half],
+                       "reading": words})
+    if hull[1] - hull[0] <= (1 + HULL_GROWTH) * (hi - lo):
+        return finding
+    out = dict(finding, ci95=hull, ci95_alone=[lo, hi], other_readings=others,
+               p_train=max(finding["p_train"], p), p_heldout=p)
+    out["note"] += "".join(f"; {o['reading']} it reads {o['coefficient']:.4g} "
+                           f"[{o['ci95'][0]:.4g}, {o['ci95'][1]:.4g}]" for o in others) \
+        + ": the interval holds every reading"
+    if hull[0] <= 0.0 <= hull[1]:
+        out["rejected"] = ("the interval of its readings holds zero ("
+                           + "; ".join(f"{o['reading']} it reads {o['coefficient']:.4g}"
+                                       for o in others) + ") - inconclusive")
+    elif p >= finding["holm_threshold"]:
+        out["rejected"] = (f"{others[-1]['reading']} it reads {others[-1]['coefficient']:.4g}, "
+                           f"p {p:.2g} against the class's offset, above its limit "
+                           f"{finding['holm_threshold']:.2g} - inconclusive")
+    return out
+
+
+def read_every_way(findings, readings):
+    """The findings of the bias tests with each offset's interval holding its other
+    readings (`with_other_readings`; readings: per channel, `offset_readings`')."""
+    return [with_other_readings(f, readings[CHANNELS.index((f["sensor"], f["axis"]))])
+            if f["effect"] == "bias_shift" and not f.get("rejected") else f for f in findings]

@@ -85,8 +85,8 @@ from .scan import SCAN_WINDOW_S, condition_masks, condition_map, near_spans, exc
 from .confirmation import (Extremes, beta_of, beyond_range, beyond_range_reasons,
                            confirmed, outputs_judged, set_aside_reasons,
                            position_of)
-from .removal import (beside_reference, reference_beyond_stated, removal_sigma,
-                      unconfirmed_offset)
+from .removal import (beside_reference, offset_readings, read_every_way,
+                      reference_beyond_stated, removal_sigma)
 from .selection import select
 
 
@@ -175,11 +175,11 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
         lambda noisier: _prepare(noisier, cal, acc, candidates, False, vibration, bin_s,
                                  noise_shape, max_wander, wander_steps, False).design)
     rejected = rejected + beyond_range(design, beyond)
-    everything = whole()
-    before, removed, fit_found = _residuals(design, everything, findings)
+    before, removed, fit_found = _residuals(design, everything := whole(), findings)
     conds = condition_masks(design, prep.norms)
-    unexplained, on_outputs = _after_the_fit(design, (removed, fit_found), conds, (
-        findings, rejected + within), prep, alpha, cal, noise, output_tests)
+    unexplained, on_outputs, read_twice = _after_the_fit(
+        design, (removed, fit_found, everything), conds, (findings, rejected + within), prep,
+        alpha, cal, noise, output_tests)
     on_outputs, outputs_aside = outputs_judged(on_outputs, library)
     rejected = rejected + outputs_aside
     for f in on_outputs:
@@ -194,8 +194,8 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
                            design.terms,
                            everything, outputs.bias_null(noise) if output_tests else None,
                            prep.compensated and (flight, *prep.compensated), library)
-    diag.inconclusive = [why for why in jitter + doubts + [_transfer_doubt(flight, design)]
-                         if why]
+    diag.inconclusive = [why for why in jitter + doubts + read_twice
+                         + [_transfer_doubt(flight, design)] if why]
     if not findings:        # what the halves set aside was there, but not the same throughout
         diag.inconclusive += set_aside_reasons(aside) + beyond_range_reasons(rejected)
     if prep.agreement is not None:
@@ -401,17 +401,19 @@ def _residuals(design, everything, findings):
 
 
 def _after_the_fit(design, residual, conds, terms, prep, alpha, cal, noise, output_tests):
-    """(unexplained excursions, findings on the outputs): localized excursions of the
-    residual (`residual`: the residual with the found terms removed and their all-rows fit,
-    `_residuals`) against a local baseline (the constant of a bias_shift removed later
-    does not move them), then the bias tests on quiet flight away from them, whose offset
-    null carries the found terms' removal error (`removal.removal_sigma`) and whose
-    offset's interval holds what the terms neither found nor ruled out would move it by
-    (`removal.unconfirmed_offset`), set aside where the reference's fitted error that the
-    residual was read after lies beyond its stated accuracy (`removal.beside_reference`).
-    terms: (findings, those not confirmed)."""
-    (removed, fit_found), (findings, unconfirmed) = residual, terms
-    scanned = removed.copy()
+    """(unexplained excursions, findings on the outputs, why offsets read two ways were set
+    aside): localized excursions of the residual (`residual`: the residual with the found
+    terms removed, their all-rows fit and the all-rows `Fitter`; `_residuals`) against a
+    local baseline (the constant of a bias_shift removed later does not move them), then
+    the bias tests on quiet flight away from them, whose offset null carries the found
+    terms' removal error (`removal.removal_sigma`) and whose offset's interval holds its
+    other readings (`removal.offset_readings`: with the terms neither found nor ruled out,
+    with the reference's fitted error held to its stated accuracy); a wander read after a
+    reference error beyond it is set aside (`removal.beside_reference`). An offset set aside
+    for its readings makes the verdict inconclusive. terms: (findings, those not
+    confirmed)."""
+    (removed, fit_found, everything), (findings, unconfirmed) = residual, terms
+    scanned, read_twice = removed.copy(), []
     if output_tests:
         scanned[:, sorted(prep.quantized)] = 0.0    # a lattice's own error is no excursion
     unexplained = excursions(design, scanned, alpha)
@@ -425,10 +427,14 @@ def _after_the_fit(design, residual, conds, terms, prep, alpha, cal, noise, outp
                 if f["effect"] in OWN_OFFSET}
         tested = outputs.bias_tests(
             design, removed, quiet, alpha / (len(design.terms) + 12), cal, skip=skip,
-            noise=noise, carried=removal_sigma(design, fit_found, findings, quiet),
-            unconfirmed=unconfirmed_offset(design, unconfirmed, quiet, prep.full_scale))
-        on_outputs += beside_reference(tested, reference_beyond_stated(design, fit_found))
-    return unexplained, on_outputs
+            noise=noise, carried=removal_sigma(design, fit_found, findings, quiet))
+        tested = beside_reference(read_every_way(tested, offset_readings(
+            design, everything, fit_found, unconfirmed, quiet, prep.full_scale)),
+            reference_beyond_stated(design, fit_found))
+        on_outputs += tested
+        read_twice = [f"{f['label']}: {f['rejected']}" for f in tested if "rejected" in f
+                      and ("other_readings" in f or "reference_fitted_beyond_stated" in f)]
+    return unexplained, on_outputs, read_twice
 
 
 STAMP_JITTER = 0.25     # the stamps' error (robust sigma) over the period: beyond it a

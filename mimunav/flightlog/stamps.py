@@ -169,6 +169,9 @@ def _empty_slots(rel, period, smoothing):
 
 TICKS_S = (1e-3, 1e-4, 1e-5, 1e-6)     # the whole units a logger may stamp in
 CLOCK_RUN = 10          # samples: a shorter run between gaps keeps its stamps
+ROUNDING_SHARE = 0.55   # of a tick: how far a stamp rounded from a uniform clock lies from
+                        # the line fitted through them (the rounding's half tick, and the
+                        # line's own error); a stamp further off is timing, kept
 
 
 def stamp_tick(t):
@@ -184,8 +187,9 @@ def stamp_tick(t):
 def rounded_clock(ns):
     """(stamps ns (N,) int64, words) of a uniform clock behind stamps written in whole
     ticks (`stamp_tick`: a flight computer's millis() of a 501.3 Hz part), or (None, ''):
-    each run between gaps (a step beyond 1.5 periods) is fitted by a line over its samples,
-    and taken when every stamp lies within a tick of it and the steps are not all one -
+    each run between gaps is fitted by a line over its samples, and taken when every stamp
+    lies within ROUNDING_SHARE of a tick of it, the steps are not all one and the runs so
+    fitted hold most of the samples -
     the rounding's error (tick / sqrt 12 rms) made the lever-arm transfer's derivative
     jump by 0.13 rad/s^2 at each 1 ms step of a 0.5 Hz swing. Stamps that stray further
     (a scheduler's jitter) keep theirs."""
@@ -196,19 +200,24 @@ def rounded_clock(ns):
     tick, step = stamp_tick(t), np.diff(t)
     if not tick or np.ptp(step) < 0.5 * tick:
         return None, ""
-    period = float(np.median(step))
-    cuts = np.flatnonzero(step > 1.5 * period) + 1
-    out = t.copy()
+    # a gap: a step beyond the rounded steps' own spread (a period of 1.2 ticks steps by
+    # 1 and 2; a median step of 1 had made every 2 a gap)
+    cuts = np.flatnonzero(step > float(np.median(step)) + 1.5 * tick) + 1
+    out, fitted = t.copy(), 0
     for a, b in zip(np.r_[0, cuts], np.r_[cuts, len(t)]):
         if b - a < CLOCK_RUN:
             continue
         k = np.arange(b - a, dtype=float)
         line = np.polyval(np.polyfit(k, t[a:b], 1), k)
-        if np.max(np.abs(t[a:b] - line)) > 1.001 * tick:
+        if np.max(np.abs(t[a:b] - line)) > ROUNDING_SHARE * tick:
             return None, ""
-        out[a:b] = line
-    rate = (len(t) - len(cuts) - 1) / float(np.sum(np.diff(out)[step <= 1.5 * period]))
+        out[a:b], fitted = line, fitted + b - a
+    if fitted < 0.5 * len(t):
+        return None, ""
+    inside = np.ones(len(step), bool)
+    inside[cuts - 1] = False
+    rate = inside.sum() / float(np.sum(np.diff(out)[inside]))
     return ns[0] + np.round(out * 1e9).astype(np.int64), (
         f"stamped in whole {tick * 1e3:g} ms of a uniform {rate:.6g} Hz clock (every stamp "
-        f"within a tick of it, {len(cuts) + 1} run(s) between gaps): that clock's times are "
+        f"within half a tick of it, {len(cuts) + 1} run(s) between gaps): that clock's times are "
         f"used, not the rounding's (its error {tick / math.sqrt(12) * 1e3:.2g} ms rms)")

@@ -70,86 +70,107 @@ def test_a_lever_arms_interval_is_turned_from_the_vehicle_frame():
     assert sigma[:3] == pytest.approx([0.03, 0.01, 0.002], rel=1e-9)
 
 
-def _two_term_design(f_quiet, n=200):
-    """A stand-in design with accel.z's scale factor (column f_z) and its coupling to f_y
-    (column f_y), on a steady specific force `f_quiet` (3,) m/s^2."""
-    terms = [{"effect": "scale_factor", "sensor": "accel", "axis": "z"},
-             {"effect": "cross_coupling", "sensor": "accel", "axis": "z", "input_axis": "y"}]
-    columns = [{2: np.full((n, 1), f_quiet[2])}, {2: np.full((n, 1), f_quiet[1])}]
-    return SimpleNamespace(t=np.arange(n) * 0.01, channels=6, columns=columns, terms=terms,
-                           q_vs=np.array([1.0, 0, 0, 0]), calibrated=False)
+def _quiet_design(f_quiet, n=200, prior_sd=0.0025):
+    """A stand-in design on a steady specific force `f_quiet` (3,) m/s^2 with one term,
+    accel.z's scale factor (its column f_z): the reference's accelerometer inputs are
+    `f_quiet` on every bin, its prior `prior_sd` on every component."""
+    term = {"effect": "scale_factor", "sensor": "accel", "axis": "z"}
+    inputs = np.tile(np.r_[f_quiet, 0.0, 0.0, 0.0], (n, 1))
+    design = SimpleNamespace(t=np.arange(n) * 0.01, channels=6, terms=[term],
+                             columns=[{2: np.full((n, 1), f_quiet[2])}],
+                             prior=np.eye(18) * prior_sd ** 2, calibrated=False,
+                             q_vs=np.array([1.0, 0, 0, 0]))
+    design.ref_columns = lambda c: inputs[:, :3] if c < 3 else inputs[:, 3:]
+    return design
 
 
-def test_terms_not_confirmed_move_a_quiet_mean_by_their_steady_inputs():
-    """Closed form: a scale factor b1 (1 sigma s1, from its interval) on f_z = -g and a
-    coupling b2 on f_y = g/2 found within the stated errors (total 1 sigma s2) move accel.z's
-    quiet mean by -g b1 + g/2 b2, 1 sigma hypot(g s1, g/2 s2); a term beyond its physical
-    range (5 %) and a label the design lacks are left out; no other channel moves."""
-    design = _two_term_design(np.array([0.0, G / 2, -G]))
-    b1, s1, b2, s2 = 0.0022, 0.0013, -0.0025, 0.0009
-    rejected = {"label": "scale_factor accel.z", "coefficient": b1,
-                "ci95": [b1 - 1.959964 * s1, b1 + 1.959964 * s1]}
-    within = {"label": "cross_coupling accel.z <- f_y", "coefficient": b2,
-              "total_1sigma": [s2]}
-    absurd = dict(rejected, coefficient=0.3, ci95=[0.29, 0.31])
-    alien = dict(rejected, label="scale_factor gyro.x")
+def _fitted(gamma, terms=(), b=(), cov=None):
+    """A stand-in `Fit`: gamma (18,), the terms' indices and their coefficients."""
+    beta = np.r_[gamma, b]
+    slices = [slice(18 + i, 19 + i) for i in range(len(terms))]
+    cov = np.zeros((len(beta), len(beta))) if cov is None else cov
+    return SimpleNamespace(beta=beta, cov=cov, terms=list(terms), slices=slices,
+                           gamma=lambda: beta[:18], of=lambda j: (beta[slices[j]],
+                                                                  cov[slices[j], slices[j]]))
+
+
+def test_a_term_not_confirmed_moves_an_offset_by_what_its_refit_removes_once():
+    """Closed form: level on f_z = -g, the base fit's reference error takes accel.z's scale
+    as gamma_zz = 0.002; with accel.z's scale factor fitted too, the split is gamma_zz =
+    0.0005, b = 0.0015 - together they remove what gamma alone did, and the offset moves by
+    nothing (the term had been subtracted a second time: a 2000 ppm scale within the
+    stated errors set a true 0.047 m/s^2 offset aside). Split otherwise (gamma 0.0005, b
+    0.0025) it moves by -g x 0.001, with the 1 sigma the refit adds (g x 0.0004)."""
+    design = _quiet_design(np.array([0.0, 0.0, -G]))
+    gamma0, gamma1 = np.zeros(18), np.zeros(18)
+    gamma0[8], gamma1[8] = 0.002, 0.0005
+    base = _fitted(gamma0)
+    term = {"label": "scale_factor accel.z", "coefficient": 0.0015, "ci95": [0.0, 0.003]}
     rows = np.ones(200, bool)
-    shift, sigma, names = removal.unconfirmed_offset(design, [rejected, within, alien], rows,
-                                                     {"accel": 80.0, "gyro": 10.0})
-    assert shift[2] == pytest.approx(-G * b1 + G / 2 * b2, rel=1e-9)
-    assert sigma[2] == pytest.approx(math.hypot(G * s1, G / 2 * s2), rel=1e-9)
-    assert names[2] == ["scale_factor accel.z", "cross_coupling accel.z <- f_y"]
-    assert not np.delete(shift, 2).any() and not np.delete(sigma, 2).any()
-    only = removal.unconfirmed_offset(design, [absurd], rows, {"accel": 80.0, "gyro": 10.0})
-    assert not only[0].any() and only[2][2] == []
+    cov = np.zeros((19, 19))
+    cov[18, 18] = 0.0004 ** 2
+    for b, moved in ((0.0015, 0.0), (0.0025, -G * 0.001)):
+        fitter = SimpleNamespace(fit=lambda idx, b=b: _fitted(gamma1, idx, [b], cov))
+        shift, sigma, names = removal.unconfirmed_offset(design, fitter, base, [term], rows,
+                                                         {"accel": 80.0, "gyro": 10.0})
+        assert shift[2] == pytest.approx(moved, abs=1e-12)
+        assert sigma[2] == pytest.approx(G * 0.0004) and names[2] == ["scale_factor accel.z"]
+        assert not np.delete(shift, 2).any()
+    absurd = dict(term, coefficient=0.3)                    # beyond its physical range
+    none = removal.unconfirmed_offset(design, fitter, base, [absurd], rows,
+                                      {"accel": 80.0, "gyro": 10.0})
+    assert not none[0].any() and none[2][2] == []
 
 
-def _shift_finding(mu, lo, hi):
+def _shift_finding(mu, lo, hi, p=1e-20):
     return {"effect": "bias_shift", "sensor": "accel", "axis": "z", "coefficient": mu,
-            "ci95": [lo, hi], "note": "a constant"}
+            "ci95": [lo, hi], "note": "a constant", "normal_offset_1sigma": 0.002,
+            "p_train": p, "p_heldout": p, "holm_threshold": 1e-3}
 
 
-def test_an_offsets_interval_holds_the_reading_without_the_unconfirmed_terms():
-    """The rate table's null twin: -0.204 [-0.2175, -0.1906] m/s^2 read beside a scale factor
-    and a coupling not confirmed, which move the quiet mean by -0.0163 (1 sigma 0.004): the
-    interval becomes the hull of both readings and holds the unit's -0.1878."""
-    from mimunav.diagnosis.outputs import beside_unconfirmed
+def test_an_offsets_interval_holds_its_other_readings():
+    """The rate table's null twin: -0.204 [-0.2175, -0.1906] m/s^2, which the terms not
+    confirmed would move by -0.0163 (1 sigma 0.004): the interval becomes the hull of both
+    readings and holds the unit's -0.1878; its own interval is kept, and a later widening
+    widens each reading about itself. A reading inside its interval adds nothing; one
+    whose interval reaches zero sets the offset aside, and so does one whose p misses."""
+    from mimunav.diagnosis.confirmation import judged_wider
     f = _shift_finding(-0.204, -0.2175, -0.1906)
     se = (0.2175 - 0.1906) / (2 * 1.959964)
-    out = beside_unconfirmed(f, -0.0163, 0.004, ["scale_factor accel.z"])
+    out = removal.with_other_readings(f, [(-0.0163, 0.004, "with X fitted too")])
     other, half = -0.204 + 0.0163, 1.959964 * math.hypot(se, 0.004)
     assert out["ci95"] == pytest.approx([-0.2175, other + half])
     assert out["ci95"][0] <= -0.1878 <= out["ci95"][1] and "rejected" not in out
-    assert out["beside_unconfirmed"]["coefficient"] == pytest.approx(other)
-    assert f["ci95"] == [-0.2175, -0.1906]                  # the input is not changed
-    # no term, or a move the interval already holds: as it was
-    assert beside_unconfirmed(f, -0.0163, 0.004, []) is f
-    assert beside_unconfirmed(f, -1e-4, 1e-5, ["scale_factor accel.z"]) is f
-    # the offset may be the terms' alone: set aside
-    gone = beside_unconfirmed(_shift_finding(-0.03, -0.035, -0.025), -0.03, 0.002, ["x"])
+    assert out["other_readings"][0]["coefficient"] == pytest.approx(other)
+    assert out["ci95_alone"] == [-0.2175, -0.1906] and f["ci95"] == [-0.2175, -0.1906]
+    ok, wide = judged_wider(out, 2.0, 1, "test", "library_inflation", {})
+    assert wide["ci95"] == pytest.approx([-0.204 - 2 * (0.2175 - 0.204), other + 2 * half])
+    assert removal.with_other_readings(f, []) is f
+    assert removal.with_other_readings(f, [(-1e-4, 1e-5, "x")]) is f
+    gone = removal.with_other_readings(_shift_finding(-0.03, -0.035, -0.025),
+                                       [(-0.03, 0.002, "x")])
     assert gone["ci95"][0] < 0.0 < gone["ci95"][1] and "holds zero" in gone["rejected"]
+    weak = removal.with_other_readings(_shift_finding(-0.03, -0.035, -0.025),
+                                       [(-0.024, 0.0, "x")])      # reads -0.006: p 0.06
+    assert "rejected" in weak and weak["p_heldout"] > 0.01
 
 
-def test_a_bias_read_after_a_reference_error_beyond_its_stated_accuracy_is_set_aside():
-    """The reference's fitted linear error against its prior, channel by channel: accel.z's
-    scale fitted at -0.0759 under a stated 1 sigma of 0.0025 is 30 sigma off, so an offset
-    read on accel.z after it is set aside; gyro.x's row at 2 sigma leaves its offset be; a
-    component with no stated prior counts 0; a term other than the bias's is not judged."""
-    sd = np.full(18, 0.0025)
-    sd[9:] = 0.0                                    # gyros: no stated prior (pinned)
+def test_an_offset_read_after_a_reference_error_beyond_its_stated_accuracy_is_read_again():
+    """The reference's fitted linear error against its prior: accel.z's scale fitted at
+    -0.0759 under a stated 1 sigma of 0.0025 is 30 sigma off; held to 5 sigma (-0.0125) on
+    f_z = -g the quiet mean reads -g x (-0.0759 + 0.0125) = +0.62 m/s^2 more, and the words
+    name it; accel.x's row at 2 sigma moves nothing. A wander read there is set aside, an
+    offset is not (it is read both ways: `with_other_readings`)."""
+    design = _quiet_design(np.array([0.0, 0.0, -G]))
     gamma = np.zeros(18)
-    gamma[8] = -0.0759                              # accel.z <- f_z, the scale
-    gamma[1] = 2 * 0.0025                           # accel.x <- f_y: 2 sigma
-    gamma[9] = 1e-9
-    design = SimpleNamespace(prior=np.diag(sd ** 2))
-    beyond = removal.reference_beyond_stated(design, SimpleNamespace(gamma=lambda: gamma))
-    assert beyond[2][0] == pytest.approx(0.0759 / 0.0025)
-    assert "accel.z <- f_z -0.0759" in beyond[2][1]
-    assert beyond[0][0] == pytest.approx(2.0) and beyond[3][0] == 0.0
-    shift_z = {"effect": "bias_shift", "sensor": "accel", "axis": "z"}
-    shift_x = dict(shift_z, axis="x")
-    scale_z = {"effect": "scale_factor", "sensor": "accel", "axis": "z"}
-    out = removal.beside_reference([shift_z, shift_x, scale_z], beyond)
-    assert "beyond its stated accuracy" in out[0]["rejected"]
-    assert "rejected" not in out[1] and "rejected" not in out[2]
-    assert "rejected" not in shift_z                 # the input is not changed
+    gamma[8], gamma[1] = -0.0759, 2 * 0.0025
+    fit = _fitted(gamma)
+    shift, words = removal.reference_held_offset(design, fit, np.ones(200, bool))
+    assert shift[2] == pytest.approx(-G * (0.0759 - 5 * 0.0025))    # it reads mu - shift
+    assert "accel.z <- f_z -0.0759 (30 times its stated 1 sigma 0.0025)" in words[2]
+    assert shift[0] == 0.0 and words[0] == ""
+    beyond = removal.reference_beyond_stated(design, fit)
+    wander = {"effect": "bias_instability", "sensor": "accel", "axis": "z"}
+    offset = dict(wander, effect="bias_shift")
+    out = removal.beside_reference([wander, offset], beyond)
+    assert "beyond its stated accuracy" in out[0]["rejected"] and "rejected" not in out[1]

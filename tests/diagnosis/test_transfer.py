@@ -130,14 +130,18 @@ def test_a_shock_the_transfer_cannot_follow_is_left_out_and_nothing_else():
     import puts back on its uniform times, `stamps.rounded_clock`), a smooth swing of 1
     rad/s at 0.5 Hz, and at 30 s a landing's jolt (the rate about x steps by 3 rad/s within
     4 ms and rings at 40 Hz for 0.2 s); across 22 cm the transfer's smoothed derivative
-    misses the jolt by tens of m/s^2, which is left out - the swing and the noise are not.
-    Two IMUs at one point: nothing."""
+    misses the jolt by tens of m/s^2, which is left out - the swings (1 s of 2 rad/s at 2
+    Hz, 5.5 m/s^2 across the arm, which it follows) and the noise are not. Two IMUs at one
+    point, or a lever along the jolt's axis: nothing."""
     from mimunav.diagnosis.design import bins
     from mimunav.diagnosis.reference import transfer_shocks
     rng = np.random.default_rng(5)
     t = t_true = np.arange(1, int(60 * 501.3)) / 501.3
     w = np.zeros((len(t), 3))
     w[:, 2] = np.sin(2 * np.pi * 0.5 * t_true)
+    swing = (t_true > 10.0) & (t_true < 11.0)               # 2 Hz, 2 rad/s: 5.5 m/s^2 at
+    w[swing, 2] += 2.0 * np.sin(2 * np.pi * 2.0 * (t_true[swing] - 10.0)) \
+        * np.sin(np.pi * (t_true[swing] - 10.0)) ** 2       # 22 cm, followed
     after = np.clip((t_true - 30.0) / 0.004, 0.0, 1.0)
     ring = np.where(t_true > 30.0, np.exp(-(t_true - 30.0) / 0.05), 0.0)
     w[:, 0] = 3.0 * after + 2.0 * ring * np.sin(2 * np.pi * 40 * (t_true - 30.0))
@@ -150,3 +154,6 @@ def test_a_shock_the_transfer_cannot_follow_is_left_out_and_nothing_else():
     assert shocks[(t > 30.0) & (t < 30.03)].all()
     assert not shocks[np.abs(t - 30.2) > 0.5].any()
     assert not transfer_shocks(t, measured, predicted, np.zeros(3), m, usable).any()
+    # the jolt turns about x: a lever along x feels none of it
+    along = transfer_shocks(t, measured, predicted, np.array([0.22, 0.0, 0.0]), m, usable)
+    assert not along[(t > 30.0) & (t < 30.03)].any()

@@ -542,8 +542,8 @@ def test_stamps_in_whole_ms_of_a_uniform_clock_give_back_that_clock():
     """A flight computer's millis() of a 501.3 Hz part (steps of 1, 2 and 3 ms) with a 0.4 s
     gap: each run between gaps fitted by a line, every stamp within a tick of it, and the
     true times come back to a few microseconds (the rounding's own error is 0.29 ms rms);
-    the words say so. Exact stamps, and stamps that jitter by 3 ms (a scheduler's), keep
-    theirs."""
+    the words say so, and at 833 Hz (steps of 1 and 2 ms) too. Exact stamps, and stamps
+    that jitter by 3 ms or by 0.35 ms under the rounding (a scheduler's), keep theirs."""
     from mimunav.flightlog.stamps import rounded_clock
     true_s = 12.0 + np.arange(30000) / 501.3
     true_s = np.delete(true_s, np.arange(10000, 10200))            # 0.4 s lost
@@ -557,3 +557,10 @@ def test_stamps_in_whole_ms_of_a_uniform_clock_give_back_that_clock():
     rng = np.random.default_rng(0)
     jittered = np.sort(np.round((true_s + rng.uniform(-3e-3, 3e-3, len(true_s))) * 1e3))
     assert rounded_clock(np.unique(jittered * 1e6).astype(np.int64))[0] is None
+    # timing under a tick (+-0.35 ms on the whole-ms rounding): kept, not flattened
+    late = np.round((true_s + rng.uniform(-3.5e-4, 3.5e-4, len(true_s))) * 1e3) * 1e6
+    assert rounded_clock(late.astype(np.int64))[0] is None
+    # an 833 Hz part in whole ms steps by 1 and 2 ms: none of them is a gap
+    fast = (np.floor((5.0 + np.arange(20000) / 833.0) * 1e3) * 1e6).astype(np.int64)
+    clock, said = rounded_clock(fast)
+    assert "uniform 833 Hz clock" in said and "1 run(s)" in said
