@@ -406,16 +406,23 @@ def _pair_mountings(rec, clock_se):
         return
     turn, angle, how = _measured_turn(rec, means, ok)
     seen = bool(how)
-    # a triad mirrored (a sign, an axis order) is no turn: as given, or after the best turn,
-    # one of its moving axes runs against the other IMU's - both triads as given first (the
-    # turn is fitted on both: a mirrored accelerometer can turn the gyros against each other)
+    # a triad mirrored (a sign, an axis order) is no turn: after the best turn one of its
+    # moving axes runs against the other IMU's; named as given where an axis does so there
+    # too (the turn is fitted on both: a mirrored accelerometer can turn the gyros against
+    # each other) - as given alone, a turn of 180 deg runs two axes against (a FOG turned
+    # 180 deg in yaw had been refused as a reflection)
     vehicle = [(attitude.rotate(rec.mounting.q_vs, means[0][k][ok]),
                 attitude.rotate(ref["mounting"].q_vs, means[1][k][ok])) for k in range(2)]
-    for when, columns, turned in (("with the mountings given", "{} columns", lambda x: x), (
-            "after the best turn between them (fitted on both triads)",
-            "gyro and the accelerometer columns", turn.apply)):
-        for (mine, theirs), sensor in zip(vehicle, ("gyro", "accel")):
-            _runs_against(rec.name, sensor, mine, turned(theirs), when, columns.format(sensor))
+    said = {when: [why for (mine, theirs), sensor in zip(vehicle, ("gyro", "accel"))
+                   for why in [_runs_against(sensor, mine, turned(theirs), when,
+                                             columns.format(sensor))] if why]
+            for when, columns, turned in (
+                ("with the mountings given", "{} columns", lambda x: x),
+                ("after the best turn between them (fitted on both triads)",
+                 "gyro and the accelerometer columns", turn.apply))}
+    given, after = said.values()
+    if after:
+        raise RecordingError(f"{rec.name}: {(given or after)[0]}")
     fixed = attitude.from_scipy(turn) * ref["mounting"].q_vs
     yaw, pitch, roll = (_angle_text(a) for a in attitude.as_euler(fixed))
     hint = ref.get("mounting_hint")
@@ -493,21 +500,22 @@ AS_GIVEN_AGAINST = -0.5     # a moving axis whose 1 s means, mountings as given,
                             # below this runs against the other IMU's: a sign, not noise
 
 
-def _runs_against(name, sensor, mine, theirs, when, columns):
-    """Refuse (naming the triad and axis, and the `columns` to check) a moving axis - 1 s
-    means spread by 0.02 rad/s or 0.3 m/s^2 (`reference.MOVING_SPREAD`'s sizes) - whose
-    means (vehicle frame) run against the other IMU's: correlation below AS_GIVEN_AGAINST."""
+def _runs_against(sensor, mine, theirs, when, columns):
+    """Why the triads are a reflection (naming the triad and axis, and the `columns` to
+    check), or '': a moving axis - 1 s means spread by 0.02 rad/s or 0.3 m/s^2
+    (`reference.MOVING_SPREAD`'s sizes) - whose means (vehicle frame) run against the other
+    IMU's: correlation below AS_GIVEN_AGAINST."""
     spread = 0.02 if sensor == "gyro" else 0.3
     for i, axis in enumerate("xyz"):
         if min(np.std(mine[:, i]), np.std(theirs[:, i])) < spread:
             continue
         r = float(np.corrcoef(mine[:, i], theirs[:, i])[0, 1])
         if r < AS_GIVEN_AGAINST:
-            raise RecordingError(
-                f"{name}: {when}, the two IMUs' {sensor}s about the vehicle's {axis} axis run "
-                f"against each other (1 s means correlate {r:.2f}): a column's sign or the "
-                f"axes' order differs between the two IMUs - a reflection, which no mounting "
-                f"can turn: check the {columns}")
+            return (f"{when}, the two IMUs' {sensor}s about the vehicle's {axis} axis run "
+                    f"against each other (1 s means correlate {r:.2f}): a column's sign or the "
+                    f"axes' order differs between the two IMUs - a reflection, which no "
+                    f"mounting can turn: check the {columns}")
+    return ""
 
 
 def _measured_turn(rec, means, ok):

@@ -50,13 +50,16 @@ def test_a_clock_off_by_any_amount_is_found_and_shifted_back(pair_motion, late_s
     assert "shifted by" in rec.assumed["reference_imu_time"]
 
 
-def test_a_mounting_off_by_any_angle_is_turned_onto_the_imus(pair_motion):
-    rec = _recording(*pair_motion, rpy=(180.0, 0.0, 0.0))           # 90 deg off in yaw
+@pytest.mark.parametrize("rpy, off", [((180.0, 0.0, 0.0), 90.0), ((180.0, 0.0, -90.0), 180.0)])
+def test_a_mounting_off_by_any_angle_is_turned_onto_the_imus(pair_motion, rpy, off):
+    """90 and 180 deg off in yaw: measured and turned (at 180 deg two axes run against
+    each other as given, which is a turn, not the reflection it had been refused as)."""
+    rec = _recording(*pair_motion, rpy=rpy)
     pairing.pair(rec)
     error = attitude.rotation_vector_error(rec.reference_imu["mounting"].q_vs,
                                            Mounting.from_rpy_deg((180.0, 0.0, 90.0)).q_vs)
     assert np.degrees(np.linalg.norm(error)) < 0.1
-    assert "measured 90.0 deg" in rec.real["reference_imu_mounting"]
+    assert f"measured {off:.1f} deg" in rec.real["reference_imu_mounting"]
 
 
 @pytest.fixture(scope="module")
