@@ -105,17 +105,16 @@ SHOCK_SHARE = 0.01  # a shock is rare: misses in more of the bins are the motion
 def transfer_shocks(t, measured, predicted, lever, bins_of, usable):
     """(N,) bool: the MIMU samples of the bins where the lever-arm transfer (`predicted_at`:
     dw/dt smoothed over TRANSFER_WINDOW_S) misses the reference's angular acceleration -
-    the bins' own central difference of their mean rates less the bin mean of the
-    transfer's derivative, x `lever` (m, MIMU axes) - by more than SHOCK_SIGMA of that
-    miss's robust scatter and more than the accelerometers' own white noise over a bin
-    (their robust sigma of measured - predicted over the `usable` samples): a shock (a
-    rocket's landing at 9 g, a plane's catapult or the hands that carry it) whose bins tell
-    nothing of the accelerometers' terms - a rocket's landing across 22 cm had held the
-    library 4x above its chance level and set aside its true g-sensitivity. Bins amid
-    their four neighbours only (not across a gap); none when more than SHOCK_SHARE of them
-    miss. Bin means, not samples: a sample's central difference follows its stamp's error. t s;
-    measured, predicted (N, 6) read a column at a time; bins_of: (m, start) of
-    `design.bins`."""
+    whole bins' own (fourth-order central) difference of their mean rates less the bin mean
+    of the transfer's derivative, x `lever` (m, MIMU axes) - by more than SHOCK_SIGMA of
+    that miss's robust scatter and more than the accelerometers' own white noise over a bin
+    (from measured - predicted over the `usable` samples): a shock (a rocket's landing at
+    9 g, a plane's catapult or the hands that carry it) whose bins tell nothing of the
+    accelerometers' terms - a rocket's landing across 22 cm had held the library 4x above
+    its chance level and set aside its true g-sensitivity. Bins amid their four neighbours
+    only (not across a gap); none when more than SHOCK_SHARE of them miss. Bin means, not
+    samples: a sample's difference follows its stamp's error. t s; measured, predicted
+    (N, 6) read a column at a time; bins_of: (m, start) of `design.bins`."""
     m, start = bins_of
     out = np.zeros(len(t), bool)
     if not np.any(lever) or len(t) < start + 4 * m:

@@ -1,8 +1,10 @@
 """What a term found, or neither found nor ruled out, does to the means of quiet flight that
 the bias tests read (`outputs.bias_tests`): a found term's removal leaves its estimate's error
-(`removal_sigma`), and a term left in the residual is an offset there when its input is
-steady (`unconfirmed_offset`), and what the reference's fitted linear error took away is no
-reading when that fit lies beyond the reference's stated accuracy (`beside_reference`)."""
+(`removal_sigma`); a term left in the residual is an offset there when its input is steady
+(`unconfirmed_offset`), and so is the part of the reference's fitted linear error beyond its
+stated accuracy (`reference_held_offset`) - an offset is read every way they allow and its
+interval holds every reading (`offset_readings`, `with_other_readings`); a wander read
+after such a reference error is set aside (`beside_reference`)."""
 import math
 
 import numpy as np
@@ -59,9 +61,9 @@ def unconfirmed_offset(design, fitter, base, terms, rows, full_scale):
     ruled out join the found ones (`base`: the all-rows fit of the found terms) - `terms`:
     those confirmation rejected or set aside and those the selection found within the
     stated errors, refitted with the found terms and the reference's error by `fitter`
-    (the all-rows `Fitter`), so a term the reference's
-    error already carries moves nothing twice; a term beyond its physical range is no
-    physics and stays out - and the 1 sigma that refit adds. On a quiet flight a linear
+    (the all-rows `Fitter`), so a term the reference's error already carries moves nothing
+    twice; a term beyond its physical range is no physics and stays out - and the 1 sigma
+    that refit adds. On a quiet flight a linear
     term of a steady input is an offset: a bias read without it carries it (a rate table's
     accel.z offset read -0.204 [-0.2175, -0.1906] m/s^2 beside a scale factor 0.0022 and a
     coupling to f_y the halves had not confirmed; the unit's bias is -0.1878)."""
@@ -202,9 +204,10 @@ def with_other_readings(finding, readings):
         if other - half >= lo and other + half <= hi:
             continue                        # inside its own interval: nothing to add
         hull = [min(hull[0], other - half), max(hull[1], other + half)]
-        p = max(p, float(stats.chi2.sf(other ** 2 / (se ** 2 + sigma ** 2 + s0 ** 2), 1)))
+        p_other = float(stats.chi2.sf(other ** 2 / (se ** 2 + sigma ** 2 + s0 ** 2), 1))
+        p = max(p, p_other)
         others.append({"coefficient": other, "ci95": [other - half, other + half],
-                       "reading": words})
+                       "reading": words, "p": p_other})
     if hull[1] - hull[0] <= (1 + HULL_GROWTH) * (hi - lo):
         return finding
     out = dict(finding, ci95=hull, ci95_alone=[lo, hi], other_readings=others,
@@ -217,7 +220,8 @@ def with_other_readings(finding, readings):
                            + "; ".join(f"{o['reading']} it reads {o['coefficient']:.4g}"
                                        for o in others) + ") - inconclusive")
     elif p >= finding["holm_threshold"]:
-        out["rejected"] = (f"{others[-1]['reading']} it reads {others[-1]['coefficient']:.4g}, "
+        weakest = max(others, key=lambda o: o["p"])
+        out["rejected"] = (f"{weakest['reading']} it reads {weakest['coefficient']:.4g}, "
                            f"p {p:.2g} against the class's offset, above its limit "
                            f"{finding['holm_threshold']:.2g} - inconclusive")
     return out

@@ -195,7 +195,7 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
                            everything, outputs.bias_null(noise) if output_tests else None,
                            prep.compensated and (flight, *prep.compensated), library)
     diag.inconclusive = [why for why in jitter + doubts + read_twice
-                         + [_transfer_doubt(flight, design)] if why]
+                         + [transfer_doubt(flight, design, findings)] if why]
     if not findings:        # what the halves set aside was there, but not the same throughout
         diag.inconclusive += set_aside_reasons(aside) + beyond_range_reasons(rejected)
     if prep.agreement is not None:
@@ -363,11 +363,17 @@ def _confirmed(flight, design, chosen, split, alpha, prep, mems_grade, remake):
     return findings, rejected + noisy, aside + noisy, doubts, record
 
 
-def _transfer_doubt(flight, design):
+def transfer_doubt(flight, design, findings):
     """Why the accelerometers' findings cannot stand where the lever-arm transfer misses
     the reference's angular vibration (`reference.unfollowed_vibration`) by more than
-    TRANSFER_SHARE of their white residual variance per bin, or '' (a recording's only)."""
-    dr = flight.mimu_mounting.lever_arm_m - flight.fog_mounting.lever_arm_m
+    TRANSFER_SHARE of their white residual variance per bin, or '' (a recording's only).
+    The lever arm: the mountings' and a found one's (vehicle frame; its columns are the
+    transfer's - a hexacopter's undeclared 12 cm, found, missed its 52 Hz rotor lines by
+    0.026 m/s^2 a bin, and the null twin's verdict named an accel.z scale of -0.027 and a
+    coupling of -0.014 as missing physics, truth +0.004 and -0.002)."""
+    dr = flight.mimu_mounting.lever_arm_m - flight.fog_mounting.lever_arm_m + sum(
+        (np.asarray(f["vector"], float) for f in findings if f["effect"] == "lever_arm"),
+        np.zeros(3))
     if flight.fog_w is None or flight.source != "recording":
         # a simulated FOG's pulse count rings at tones no IMU beside it feels (a repeated-
         # blocks flight: 341 Hz, 40 times the share), which its spectrum cannot tell from

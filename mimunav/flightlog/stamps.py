@@ -189,10 +189,9 @@ def rounded_clock(ns):
     ticks (`stamp_tick`: a flight computer's millis() of a 501.3 Hz part), or (None, ''):
     each run between gaps is fitted by a line over its samples, and taken when every stamp
     lies within ROUNDING_SHARE of a tick of it, the steps are not all one and the runs so
-    fitted hold most of the samples -
-    the rounding's error (tick / sqrt 12 rms) made the lever-arm transfer's derivative
-    jump by 0.13 rad/s^2 at each 1 ms step of a 0.5 Hz swing. Stamps that stray further
-    (a scheduler's jitter) keep theirs."""
+    fitted hold most of the samples - the rounding's error (tick / sqrt 12 rms) made the
+    lever-arm transfer's derivative jump by 0.13 rad/s^2 at each 1 ms step of a 0.5 Hz
+    swing. Stamps that stray further (a scheduler's jitter) keep theirs."""
     ns = np.asarray(ns, np.int64)
     if len(ns) < CLOCK_RUN:
         return None, ""

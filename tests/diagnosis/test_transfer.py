@@ -4,6 +4,7 @@ elsewhere, by a lever-arm-like signature; that share of a lever arm or proof-mas
 the reference's stated accuracy, not physics the model lacks. And the false-alarm bench's
 reference senses everything through its drawn errors (`diagnosis.transplant.null_variant`)."""
 import dataclasses
+from types import SimpleNamespace
 from pathlib import Path
 
 import numpy as np
@@ -157,3 +158,23 @@ def test_a_shock_the_transfer_cannot_follow_is_left_out_and_nothing_else():
     # the jolt turns about x: a lever along x feels none of it
     along = transfer_shocks(t, measured, predicted, np.array([0.22, 0.0, 0.0]), m, usable)
     assert not along[(t > 30.0) & (t < 30.03)].any()
+
+
+def test_a_found_lever_arm_is_judged_as_a_declared_one():
+    """`sensor.transfer_doubt` on a recording whose reference carries a 50 Hz angular line
+    of 0.01 rad/s: with no lever arm declared and none found there is no transfer and no
+    doubt; a 12 cm lever arm found by the diagnosis (vehicle frame) is the transfer's own
+    columns, and the doubt names it (a hexacopter's undeclared 12 cm, found, had left its
+    null twin's verdict conclusive on wrong accelerometer terms)."""
+    from mimunav.diagnosis.sensor import transfer_doubt
+    from mimunav.frames.mounting import Mounting
+    rng = np.random.default_rng(3)
+    t = np.arange(1, 400 * 300 + 1) / 400.0
+    w = rng.normal(0, 0.003, (len(t), 3))
+    w[:, 0] += 0.01 * np.sin(2 * np.pi * 50 * t)
+    flight = SimpleNamespace(fog_t=t, fog_w=w, mimu_t=t, source="recording",
+                             mimu_mounting=Mounting(), fog_mounting=Mounting())
+    design = SimpleNamespace(residual=rng.normal(0, 0.003, (30000, 6)), bin_s=0.01)
+    assert transfer_doubt(flight, design, []) == ""
+    found = [{"effect": "lever_arm", "vector": [0.0, 0.12, 0.0]}]
+    assert "12 cm between the two IMUs" in transfer_doubt(flight, design, found)
