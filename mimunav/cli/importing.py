@@ -81,6 +81,10 @@ def add_import(sub):
     p.add_argument("--reference-imu-rpy-deg", type=number(-360.0, 360.0), nargs=3,
                    metavar=("ROLL", "PITCH", "YAW"), help="ros2: the reference IMU's sensor -> "
                    "vehicle (FRD) rotation, deg (default 180 0 0, REP-103)")
+    p.add_argument("--reference-imu-lever-arm-m", type=number(-100.0, 100.0), nargs=3,
+                   metavar=("X", "Y", "Z"), help="ros2, ulog, dataflash: the reference IMU's "
+                   "place in the vehicle frame (FRD), m, the IMU where its importer puts it "
+                   "(the origin, or the log's INS_POSn); w x (w x r) + dw/dt x r between them")
     _add_pose_options(p)
     p.add_argument("--reference-status", type=number(-1, 2, int),
                    help="ros2: NavSatFix fixes of at least this status (2 = GBAS_FIX, RTK "

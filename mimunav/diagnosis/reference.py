@@ -166,7 +166,8 @@ def _undeclared_arm(rates):
     23 rad/s of spin had made 9.5 m/s^2 the clause did not name)."""
     peak = float(np.max(np.linalg.norm(rates, axis=1))) if len(rates) else 0.0
     return (f", or a lever arm between them is not declared (w x (w x r): at {peak:.3g} "
-            f"rad/s, 1 cm makes {peak ** 2 * 0.01:.2g} m/s^2)")
+            f"rad/s, 1 cm makes {peak ** 2 * 0.01:.2g} m/s^2; declared at import: `mimunav "
+            "import` --reference-imu-lever-arm-m, or a table spec's lever_arm_m)")
 
 
 def unfollowed_vibration(fog_t, fog_w, dr, bin_s, mimu_rate):

@@ -143,8 +143,13 @@ def clock_offset(rec):
                 f"{drift * 1e6:+.1f} ppm (standard error {drift_se * 1e6:.2g} ppm, its blocks' "
                 f"own offsets): {drift * span * 1e3:+.1f} ms over the {span:.0f} s they share"}
     said = said.format(offset * 1e3 + 0.0)
+    small = abs(drift) > DISTINCT_Z * drift_se        # beyond its errors, but under 1 ms
     return {"offset_s": offset, "offset_se_s": se,
-            "said": said + (f"; no drift beyond {DISTINCT_Z:g} standard errors "
+            "said": said + (f"; a drift of {drift * 1e6:+.2g} ppm (se {drift_se * 1e6:.2g}): "
+                            f"{abs(drift) * span * 1e3:.2g} ms over the {span:.0f} s they "
+                            f"share, under {SMALL_OFFSET_S * 1e3:g} ms - not corrected"
+                            if small else
+                            f"; no drift beyond {DISTINCT_Z:g} standard errors "
                             f"({drift * 1e6:+.2g} ppm, se {drift_se * 1e6:.2g})"
                             if math.isfinite(drift_se) else
                             "; no drift measured: fewer than 5 tenths of the overlap turn enough to place "

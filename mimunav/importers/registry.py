@@ -17,6 +17,7 @@ OPTIONS = {
     "pose_azimuth": (("ros2",), None), "reference_independent": (("ros2",), None),
     "reference_status": (("ros2",), None), "reference_sigma": (("ros2",), np.inf),
     "reference_imu_topic": (("ros2",), None), "reference_imu_rpy_deg": (("ros2",), None),
+    "reference_imu_lever_arm_m": (("ros2", "ulog", "dataflash"), None),
     "solutions": (("rtklib",), ["fix"]), "root": (("table",), None),
     "vehicle": (KINDS, None)}
 
@@ -43,12 +44,29 @@ def read(kind, source, mounting=None, **options):
     rec = READERS[kind](source, mounting, o)
     if o["vehicle"] is not None:
         rec.vehicle = o["vehicle"]
+    if o["reference_imu_lever_arm_m"] is not None:
+        _place_reference_imu(rec, o["reference_imu_lever_arm_m"])
     if o["reference_imu_time_offset"] is not None:      # given, 0 too: it picks a lobe
         rec.shift_reference_imu(o["reference_imu_time_offset"], "command line")
         rec.reference_imu_offset_given = True
     if o["reference_time_offset"]:
         rec.shift_reference(o["reference_time_offset"], "command line")
     return rec
+
+
+def _place_reference_imu(rec, lever_arm_m):
+    """The reference IMU put at `lever_arm_m` (vehicle frame FRD, m; the IMU where its
+    importer put it), replacing what the log said, and said so; refused without one."""
+    from ..frames.mounting import Mounting
+    if rec.reference_imu is None:
+        raise InputError(f"{rec.name}: --reference-imu-lever-arm-m: the recording has no "
+                         "reference IMU to place")
+    was = rec.reference_imu["mounting"]
+    rec.reference_imu["mounting"] = Mounting(was.attitude_wxyz, lever_arm_m)
+    rec.assumed["reference_imu_lever_arm"] = (
+        f"{', '.join(f'{x:+.3f}' for x in lever_arm_m)} m (vehicle frame FRD, command line; "
+        f"the log's {', '.join(f'{x:+.3f}' for x in was.lever_arm_m)} m replaced), the IMU "
+        f"at {', '.join(f'{x:+.3f}' for x in rec.mounting.lever_arm_m)} m")
 
 
 def _rtklib(source, mounting, o):

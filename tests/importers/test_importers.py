@@ -382,6 +382,16 @@ def test_ulog_imu_instances_as_the_imu_and_as_the_reference_imu(tmp_path):
                                                             (ref["ns"] / 1000) * 1e-8, rtol=1e-6)
     with pytest.raises(RecordingError, match=r"instance 3 \(instances logged: \[0, 1\]\)"):
         ulog.read(str(path), instance=3)
+    # the reference IMU placed from the command line (a ULog states no instance's position)
+    from mimunav.importers import registry
+    placed = registry.read("ulog", str(path), imu_instance=1, reference_imu_instance=0,
+                           reference_imu_lever_arm_m=[0.1, -0.06, 0.03])
+    assert np.allclose(placed.reference_imu["mounting"].lever_arm_m, [0.1, -0.06, 0.03])
+    assert "+0.100, -0.060, +0.030 m (vehicle frame FRD" in placed.assumed[
+        "reference_imu_lever_arm"]
+    from mimunav.errors import InputError
+    with pytest.raises(InputError, match="no reference IMU to place"):
+        registry.read("ulog", str(path), imu_instance=1, reference_imu_lever_arm_m=[0, 0, 1])
 
 
 def test_a_gyro_on_its_own_clock_is_not_drawn_across_its_gaps(tmp_path):

@@ -259,6 +259,14 @@ def test_a_reference_clock_running_fast_is_measured_and_turned_back(pair_motion)
     assert re.search(r"drifting \+[45][0-9]\.[0-9] ppm", rec.real["reference_imu_clock"])
     steady = pairing.clock_offset(_recording(*pair_motion, late_s=0.05))
     assert "drift" not in steady and "no drift beyond 4 standard errors" in steady["said"]
+    # 4 ppm: beyond its errors, 0.6 ms over the 150 s - said as such, not as no drift
+    rec = _recording(*pair_motion, late_s=0.05)
+    rec.reference_imu["ns"] = rec.reference_imu["ns"] + \
+        np.round(4e-6 * (ns - ns[0])).astype(np.int64)
+    slow = pairing.clock_offset(rec)
+    assert "drift" not in slow and "no drift beyond" not in slow["said"]
+    assert re.search(r"a drift of \+[345]\.?[0-9]* ppm .*under 1 ms - not corrected",
+                     slow["said"])
 
 
 def test_a_small_turn_between_the_boxes_is_measured_free_of_biases(pair_motion):
