@@ -14,7 +14,7 @@ import quaternion
 
 from ..frames import attitude
 from ..compensation.effects import derivative
-from .design import white_per_bin
+from .outputs import noise_sigma_of
 from ..errors import InputError
 from ..evaluation.replay import resample
 from ..motion.intervals import RunningIntegral, intervals
@@ -108,7 +108,8 @@ def transfer_shocks(t, measured, predicted, lever, bins_of, usable):
     whole bins' own (fourth-order central) difference of their mean rates less the bin mean
     of the transfer's derivative, x `lever` (m, MIMU axes) - by more than SHOCK_SIGMA of
     that miss's robust scatter and more than the accelerometers' own white noise over a bin
-    (from measured - predicted over the `usable` samples): a shock (a rocket's landing at
+    (`outputs.noise_sigma_of` measured - predicted over the `usable` samples, robust to the
+    shocks themselves): a shock (a rocket's landing at
     9 g, a plane's catapult or the hands that carry it) whose bins tell nothing of the
     accelerometers' terms - a rocket's landing across 22 cm had held the library 4x above
     its chance level and set aside its true g-sensitivity. Bins amid their four neighbours
@@ -149,8 +150,8 @@ def transfer_shocks(t, measured, predicted, lever, bins_of, usable):
     lo, hi = np.percentile(inner, [1, 99], axis=0)
     scatter = np.maximum(1.4826 * np.median(np.abs(inner - np.median(inner, axis=0)), axis=0),
                          np.std(np.clip(inner, lo, hi), axis=0))
-    white = np.array([np.sqrt(white_per_bin(np.where(usable, measured[:, c] - predicted[:, c],
-                                                      np.nan)) / m) for c in range(3)])
+    white = noise_sigma_of(lambda c: np.where(usable, measured[:, c] - predicted[:, c],
+                                              np.nan), 3) / np.sqrt(m)
     beyond = next_to & np.any(np.abs(miss) > np.maximum(SHOCK_SIGMA * scatter, white), axis=1)
     if beyond.sum() > SHOCK_SHARE * next_to.sum():
         return out                  # no shock: the motion's own (`unfollowed_vibration`)
