@@ -9,7 +9,7 @@ import pytest
 from mimunav.errors import InputError, require
 from places import REPO
 
-EXTRAS = ("allantools", "statsmodels", "pyulog", "pymavlink", "mcap_ros2", "dask")
+EXTRAS = ("allantools", "statsmodels", "pyulog", "pymavlink", "mcap_ros2", "rosbags", "dask")
 # a meta-path finder that refuses the extras' packages, as on a machine without them
 HIDE = ("import sys, importlib.abc\n"
         "class Hidden(importlib.abc.MetaPathFinder):\n"

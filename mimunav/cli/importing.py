@@ -34,15 +34,17 @@ def add_import(sub):
                        "is real and what is assumed)")
     p.add_argument("kind", choices=KINDS,
                    help="rtklib: folder with imu_*.csv, its RTKLIB .tag and an RTKLIB .pos; "
-                   "ros2: an MCAP with sensor_msgs/msg/Imu (+ NavSatFix); ulog: a PX4 .ulg "
+                   "ros1, ros2: a ROS bag of either - a ROS 2 MCAP file, a rosbag2 folder "
+                   "(sqlite3 .db3 or MCAP) or a ROS 1 .bag - with sensor_msgs/msg/Imu (+ "
+                   "NavSatFix); ulog: a PX4 .ulg "
                    "(its EKF2 estimate as a reference that is not independent); dataflash: an "
                    "ArduPilot .bin or its text .log (IMU, GPS/GPA; reference EKF3 "
                    "POS/XKF1/ATT or the GPS); "
                    "table: a TOML spec of CSV / NumPy columns with units, axes, time base and "
                    "reference (its keys: mimunav import --spec-keys; example "
                    "tests/data/comma2k19.toml)")
-    p.add_argument("source", help="the folder (rtklib), file (ros2, ulog, dataflash) or spec "
-                   "(table)")
+    p.add_argument("source", help="the folder (rtklib, a rosbag2 folder), file (ros1/ros2, "
+                   "ulog, dataflash) or spec (table)")
     p.add_argument("--imu-instance", type=number(0, 9, int),
                    help="dataflash: the IMU instance (field I; IMU2 = 1), default 0; ulog: "
                    "the sensor_accel/sensor_gyro instance instead of sensor_combined")
@@ -58,19 +60,13 @@ def add_import(sub):
                    help="dataflash: the lowest GPS Status that serves as the gnss reference "
                    "(3 3D, 4 DGPS, 5 RTK float, 6 RTK fixed), default 3")
     p.add_argument("-o", "--output", required=True, help="log to write (.mcap)")
-    p.add_argument("--imu-topic", help="ros2: the sensor_msgs/msg/Imu topic (default: the only one)")
-    p.add_argument("--fix-topic", help="ros2: the sensor_msgs/msg/NavSatFix topic (default: the "
-                   "only one, if any)")
     p.add_argument("--mounting-rpy-deg", type=number(-360.0, 360.0), nargs=3, metavar=("ROLL", "PITCH", "YAW"),
                    help="sensor -> vehicle (FRD) rotation, deg (default: rtklib the README's "
-                   "180 0 180; ros2 180 0 0, REP-103 x forward, y left, z up; ulog and "
+                   "180 0 180; ros1/ros2 180 0 0, REP-103 x forward, y left, z up; ulog and "
                    "dataflash 0 0 0, the autopilot's FRD body frame; table: the spec's axes)")
-    p.add_argument("--reference-imu-topic", help="ros2: a second sensor_msgs/msg/Imu topic, a "
-                   "better IMU flown with it, as the reference IMU (/fog/imu: `diagnose` then "
-                   "works at the sensor level)")
     p.add_argument("--reference-imu-time-offset", type=number(-60.0, 60.0), default=None,
-                   metavar="S", help="ros2, table, ulog, dataflash: added to the reference IMU's stamps, "
-                   "s, before the import measures the two IMUs' offset from their rotation "
+                   metavar="S", help="ros1/ros2, table, ulog, dataflash: added to the "
+                   "reference IMU's stamps, s, before the import measures the two IMUs' offset from their rotation "
                    "rates and corrects what it measures (beyond 1 ms); a clock it cannot time "
                    "is left as given and said")
     p.add_argument("--reference-time-offset", type=number(-3600.0, 3600.0), default=0.0,
@@ -78,20 +74,11 @@ def add_import(sub):
                    "(and the GNSS fixes') stamps, s, before the import checks them against "
                    "the IMU's rotation (a shift of a second or more it measures is refused, "
                    "naming this option and the value that puts it back)")
-    p.add_argument("--reference-imu-rpy-deg", type=number(-360.0, 360.0), nargs=3,
-                   metavar=("ROLL", "PITCH", "YAW"), help="ros2: the reference IMU's sensor -> "
-                   "vehicle (FRD) rotation, deg (default 180 0 0, REP-103)")
     p.add_argument("--reference-imu-lever-arm-m", type=number(-100.0, 100.0), nargs=3,
-                   metavar=("X", "Y", "Z"), help="ros2, ulog, dataflash: the reference IMU's "
+                   metavar=("X", "Y", "Z"), help="ros1/ros2, ulog, dataflash: the reference IMU's "
                    "place in the vehicle frame (FRD), m, the IMU where its importer puts it "
                    "(the origin, or the log's INS_POSn); w x (w x r) + dw/dt x r between them")
-    _add_pose_options(p)
-    p.add_argument("--reference-status", type=number(-1, 2, int),
-                   help="ros2: NavSatFix fixes of at least this status (2 = GBAS_FIX, RTK "
-                   "grade) serve as the reference trajectory (/truth/state)")
-    p.add_argument("--reference-sigma", type=number(0.0, 1e4, open_low=True), default=np.inf,
-                   help="ros2: and with a horizontal sigma from position_covariance of at most "
-                   "this, m")
+    _add_ros_options(p)
     p.add_argument("--solutions", nargs="+", default=["fix"],
                    choices=("fix", "float", "sbas", "dgps", "single", "ppp"),
                    help="rtklib: the solution kinds (RTKLIB Q) that serve as the reference "
@@ -109,21 +96,39 @@ def add_import(sub):
     p.set_defaults(func=_import)
 
 
-def _add_pose_options(p):
-    """ros2: a pose topic as the reference, its frame's origin and azimuth."""
-    p.add_argument("--pose-topic", help="ros2: a nav_msgs/msg/Odometry or geometry_msgs/msg/"
-                   "PoseStamped topic (local ENU frame, or --pose-azimuth) as the reference; "
+def _add_ros_options(p):
+    """ros1/ros2: the topics, the reference IMU's mounting, the fixes or a pose topic as the
+    reference, its frame's origin and azimuth."""
+    p.add_argument("--imu-topic", help="ros1/ros2: the sensor_msgs/msg/Imu topic (default: the "
+                   "only one)")
+    p.add_argument("--fix-topic", help="ros1/ros2: the sensor_msgs/msg/NavSatFix topic "
+                   "(default: the only one, if any)")
+    p.add_argument("--reference-imu-topic", help="ros1/ros2: a second sensor_msgs/msg/Imu "
+                   "topic, a better IMU flown with it, as the reference IMU (/fog/imu: `diagnose` then "
+                   "works at the sensor level)")
+    p.add_argument("--reference-imu-rpy-deg", type=number(-360.0, 360.0), nargs=3,
+                   metavar=("ROLL", "PITCH", "YAW"), help="ros1/ros2: the reference IMU's "
+                   "sensor -> vehicle (FRD) rotation, deg (default 180 0 0, REP-103)")
+    p.add_argument("--reference-status", type=number(-1, 2, int),
+                   help="ros1/ros2: NavSatFix fixes of at least this status (2 = GBAS_FIX, RTK "
+                   "grade) serve as the reference trajectory (/truth/state)")
+    p.add_argument("--reference-sigma", type=number(0.0, 1e4, open_low=True), default=np.inf,
+                   help="ros1/ros2: and with a horizontal sigma from position_covariance of at "
+                   "most this, m")
+    p.add_argument("--pose-topic", help="ros1/ros2: a nav_msgs/msg/Odometry or geometry_msgs/msg/"
+                   "PoseStamped, PoseWithCovarianceStamped or TransformStamped (motion "
+                   "capture) topic (local ENU frame, or --pose-azimuth) as the reference; "
                    "needs --origin")
     p.add_argument("--origin", type=number(-360.0, 1e5), nargs=3,
                    metavar=("LAT_DEG", "LON_DEG", "H_M"),
-                   help="ros2: geodetic origin of the pose topic's frame (deg, deg, m)")
+                   help="ros1/ros2: geodetic origin of the pose topic's frame (deg, deg, m)")
     p.add_argument("--pose-azimuth", type=_azimuth, metavar="DEG|unknown",
-                   help="ros2: the pose topic's frame is level, z up, its x axis this far east "
-                   "of true north, deg (REP-103's ENU: 90). Not given (or 'unknown'): ENU is "
+                   help="ros1/ros2: the pose topic's frame is level, z up, its x axis this far "
+                   "east of true north, deg (REP-103's ENU: 90). Not given (or 'unknown'): ENU is "
                    "taken, but its heading measures nothing and no finding stands on it")
     p.add_argument("--reference-independent", metavar="TEXT",
-                   help="ros2: whether the reference (pose topic or fixes) is independent of "
-                   "this IMU, 'yes: why' (motion capture) or 'no: why' (a filter that fuses "
+                   help="ros1/ros2: whether the reference (pose topic or fixes) is independent "
+                   "of this IMU, 'yes: why' (motion capture) or 'no: why' (a filter that fuses "
                    "it); default: the importer's judgement")
 
 

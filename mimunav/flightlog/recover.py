@@ -31,7 +31,10 @@ _DECODE_ERRORS = (McapError, EOFError, ValueError, KeyError, struct.error, Index
 # first bytes of the recordings `mimunav import` reads, and the command for each
 FOREIGN_MAGIC = ((b"ULog\x01\x12\x35", "a PX4 ULog: `mimunav import ulog FILE -o LOG.mcap`"),
                  (b"\xa3\x95", "an ArduPilot DataFlash log: `mimunav import dataflash FILE -o "
-                               "LOG.mcap`"))
+                               "LOG.mcap`"),
+                 (b"#ROSBAG", "a ROS 1 bag: `mimunav import ros1 FILE -o LOG.mcap`"),
+                 (b"SQLite f", "an SQLite file, a rosbag2 .db3?: `mimunav import ros2 FOLDER -o "
+                               "LOG.mcap` of the folder with its metadata.yaml"))
 
 
 def foreign_hint(head: bytes) -> str:

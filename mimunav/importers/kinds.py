@@ -1,7 +1,8 @@
 """The names the importers and the command line share: the kinds of recording an importer
 reads (KINDS) and what can carry the IMU (VEHICLES)."""
 
-KINDS = ("rtklib", "ros2", "ulog", "dataflash", "table")
+KINDS = ("rtklib", "ros2", "ros1", "ulog", "dataflash", "table")
+ROS = ("ros2", "ros1")      # one importer: a ROS bag of either, told by its bytes
 # what can carry an IMU, as a recording declares it (`mimunav import --vehicle`, a table
 # spec's `vehicle`): a car's track gives its attitude (no side slip, the track level); the
 # others' tracks do not - a train's neither: its curves are canted, its body rolls into

@@ -3,21 +3,21 @@ given to an importer that does not read it is refused, not silently ignored."""
 import numpy as np
 
 from ..errors import InputError, require
-from .kinds import KINDS
+from .kinds import KINDS, ROS
 
 
 # option -> (the importers that read it, its default)
 OPTIONS = {
     "imu_instance": (("dataflash", "ulog"), None), "reference": (("dataflash",), "auto"),
     "reference_imu_instance": (("ulog", "dataflash"), None),
-    "reference_imu_time_offset": (("ros2", "table", "ulog", "dataflash"), None),
+    "reference_imu_time_offset": ((*ROS, "table", "ulog", "dataflash"), None),
     "reference_time_offset": (KINDS, 0.0),
-    "gps_status": (("dataflash",), 3), "imu_topic": (("ros2",), None),
-    "fix_topic": (("ros2",), None), "pose_topic": (("ros2",), None), "origin": (("ros2",), None),
-    "pose_azimuth": (("ros2",), None), "reference_independent": (("ros2",), None),
-    "reference_status": (("ros2",), None), "reference_sigma": (("ros2",), np.inf),
-    "reference_imu_topic": (("ros2",), None), "reference_imu_rpy_deg": (("ros2",), None),
-    "reference_imu_lever_arm_m": (("ros2", "ulog", "dataflash"), None),
+    "gps_status": (("dataflash",), 3), "imu_topic": (ROS, None),
+    "fix_topic": (ROS, None), "pose_topic": (ROS, None), "origin": (ROS, None),
+    "pose_azimuth": (ROS, None), "reference_independent": (ROS, None),
+    "reference_status": (ROS, None), "reference_sigma": (ROS, np.inf),
+    "reference_imu_topic": (ROS, None), "reference_imu_rpy_deg": (ROS, None),
+    "reference_imu_lever_arm_m": ((*ROS, "ulog", "dataflash"), None),
     "solutions": (("rtklib",), ["fix"]), "root": (("table",), None),
     "vehicle": (KINDS, None)}
 
@@ -34,7 +34,7 @@ def refuse_foreign(kind, options):
 
 def read(kind, source, mounting=None, **options):
     """The `importers.recording.Recording` of the recording at `source` (a folder for rtklib,
-    a file for ros2, ulog and dataflash, a TOML spec for table) read by the `kind` importer;
+    a file for ros1/ros2 (or a rosbag2 folder), ulog and dataflash, a TOML spec for table) read by the `kind` importer;
     mounting: the IMU's `Mounting` instead of the importer's default; options: OPTIONS by
     name (the others at their defaults; reference_imu_time_offset, s, is added to the
     reference IMU's stamps, reference_time_offset to the reference trajectory's and the
@@ -78,7 +78,7 @@ def _rtklib(source, mounting, o):
 
 def _ros2(source, mounting, o):
     from ..frames.mounting import Mounting
-    require("mcap_ros2", "import", "the ros2 importer")
+    require("mcap_ros2", "import", "the ros1/ros2 importer")
     from . import ros2
     return ros2.read(source, o["imu_topic"], o["fix_topic"], mounting=mounting,
                      reference_status=o["reference_status"],
@@ -108,5 +108,6 @@ def _ulog(source, mounting, o):
                      reference_instance=o["reference_imu_instance"])
 
 
-READERS = {"rtklib": _rtklib, "ros2": _ros2, "ulog": _ulog, "dataflash": _dataflash,
+READERS = {"rtklib": _rtklib, "ros2": _ros2, "ros1": _ros2, "ulog": _ulog,
+           "dataflash": _dataflash,
            "table": _table}

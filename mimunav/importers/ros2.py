@@ -1,5 +1,6 @@
-"""Any ROS 2 MCAP recording: the IMU from a `sensor_msgs/msg/Imu` topic and, when present,
-GNSS fixes from a `sensor_msgs/msg/NavSatFix` topic, decoded by mcap-ros2-support. The
+"""Any ROS recording - a ROS 2 MCAP file, a rosbag2 folder (sqlite3 or MCAP storage) or a
+ROS 1 .bag (`rosbag.open_bag`): the IMU from a `sensor_msgs/msg/Imu` topic and, when present,
+GNSS fixes from a `sensor_msgs/msg/NavSatFix` topic. The
 reference may be RTK-grade fixes (`reference_status`) or a pose topic
 (`nav_msgs/msg/Odometry`, `geometry_msgs/msg/PoseStamped`) in a local ENU frame placed at a
 given geodetic origin (REP-105 map/odom frames carry no geodetic origin of their own).
@@ -13,18 +14,13 @@ body (FLU, child frame) in that frame; Odometry twist in the child (body) frame.
 header.stamp (the sensor's time), log_time where a stamp is zero.
 """
 import math
-import os
-import struct
 
 import numpy as np
 import quaternion
-import zstandard
-from mcap.exceptions import McapError
-from mcap.reader import make_reader
-from mcap_ros2.decoder import DecoderFactory
 
 from ..frames.mounting import Mounting
 from .local_frame import LocalFrame
+from .rosbag import open_bag
 from .recording import RecordingError, Recording, unit_quaternions
 from ..motion.track import velocity_from_positions
 
@@ -32,41 +28,12 @@ IMU = "sensor_msgs/msg/Imu"
 NAV_SAT_FIX = "sensor_msgs/msg/NavSatFix"
 ODOMETRY = "nav_msgs/msg/Odometry"
 POSE_STAMPED = "geometry_msgs/msg/PoseStamped"
+POSE_COVARIANCE = "geometry_msgs/msg/PoseWithCovarianceStamped"
+TRANSFORM = "geometry_msgs/msg/TransformStamped"      # a motion-capture system's (vrpn, vicon)
+POSES = (ODOMETRY, POSE_STAMPED, POSE_COVARIANCE, TRANSFORM)
 FLU_TO_FRD = Mounting.from_axes("FLU")            # a half turn about x
 # q_FLU<-FRD: a half turn about x (Hamilton, scalar first); REP-103's ENU: `local_frame`
 Q_FLU_FRD = quaternion.quaternion(0.0, 1.0, 0.0, 0.0)
-
-
-# what a damaged or truncated MCAP raises from the mcap package's reader and decoders
-_DAMAGE = (McapError, EOFError, struct.error, ValueError, KeyError, IndexError,
-           zstandard.ZstdError)
-
-
-def _damaged(path, exc):
-    return RecordingError(f"{path}: damaged or truncated MCAP ({type(exc).__name__}: {exc}); "
-                          "`mimunav info LOG --recover OUT.mcap` keeps what is intact")
-
-
-def topics(path):
-    """{topic: schema name} of an MCAP file. A mimunav contract log (mimunav-log/1, whose
-    /gnss/fix holds radians) is refused: it needs no import."""
-    try:
-        with open(path, "rb") as fh:
-            reader = make_reader(fh)
-            summary = reader.get_summary()
-            if summary is None:
-                raise RecordingError(f"{path}: no summary section (truncated?); "
-                                     "`mimunav info LOG --recover OUT.mcap`")
-            flight = [m for m in reader.iter_metadata() if m.name == "flight"]
-    except RecordingError:
-        raise
-    except _DAMAGE as exc:
-        raise _damaged(path, exc) from None
-    if any(m.metadata.get("format") == "mimunav-log/1" for m in flight):
-        raise RecordingError(f"{path}: already a mimunav contract log (mimunav-log/1): use it "
-                             "as it is (info, windows, diagnose, report recording); the ros2 "
-                             "importer reads recordings in ROS conventions (NavSatFix in deg)")
-    return {c.topic: summary.schemas[c.schema_id].name for c in summary.channels.values()}
 
 
 OPTION = {IMU: "--imu-topic (and a second IMU as --reference-imu-topic)",
@@ -87,29 +54,14 @@ def _pick(path, available, schema, topic, required):
                          f"{OPTION.get(schema, 'topic')}")
 
 
-def _messages(path, topic):
-    with open(path, "rb") as fh:
-        reader = make_reader(fh, decoder_factories=[DecoderFactory()])
-        messages = reader.iter_decoded_messages(topics=[topic])
-        while True:
-            try:
-                _, _, message, ros = next(messages)
-            except StopIteration:
-                return
-            except _DAMAGE as exc:
-                raise _damaged(path, exc) from None
-            stamp = ros.header.stamp.sec * 1_000_000_000 + ros.header.stamp.nanosec
-            yield (stamp if stamp > 0 else message.log_time), ros
-
-
 def read(path, imu_topic=None, fix_topic=None, mounting=None, reference_status=None,
          reference_sigma_m=np.inf, pose_topic=None, origin=None, reference_imu_topic=None,
          reference_imu_mounting=None, pose_azimuth=None, reference_independent=None):
-    """The recording of a ROS 2 MCAP as a `Recording`. With `reference_status` (the lowest
-    NavSatStatus that counts: 2 = GBAS_FIX, RTK-grade) the fixes of at least that status
-    whose horizontal sigma (from position_covariance, when known) is at most
-    reference_sigma_m serve as the reference trajectory too, velocity from central
-    differences of their positions. With `pose_topic` (Odometry or PoseStamped) and
+    """The recording of a ROS bag (a file or a rosbag2 folder) as a `Recording`. With
+    `reference_status` (the lowest NavSatStatus that counts: 2 = GBAS_FIX, RTK-grade) the
+    fixes of at least that status whose horizontal sigma (from position_covariance, when
+    known) is at most reference_sigma_m serve as the reference trajectory too, velocity from
+    central differences of their positions. With `pose_topic` (Odometry or PoseStamped) and
     `origin` (lat deg, lon deg, h m of the pose frame's origin) the poses are the reference
     instead (`_pose_reference`): a z-up frame whose x axis points `pose_azimuth` (deg) east
     of north; not given (or "unknown"), REP-103's ENU is taken for it, but its heading is
@@ -117,31 +69,20 @@ def read(path, imu_topic=None, fix_topic=None, mounting=None, reference_status=N
     `reference_independent` ("yes: why" / "no: why") says whether the poses are independent
     of this IMU. With `reference_imu_topic` a second Imu topic (a better IMU
     flown with it; `reference_imu_mounting`, default REP-103 FLU) is the reference IMU."""
-    available = topics(path)
+    bag = open_bag(path)
+    available = bag.topics()
     imu_topic = _pick(path, available, IMU, imu_topic, required=True)
     fix_topic = _pick(path, available, NAV_SAT_FIX, fix_topic, required=False)
-    ns, w, f, dropped = _imu(path, imu_topic)
-    fixes = None
-    if fix_topic:
-        fx = [(ns_f, m.status.status, np.radians(m.latitude), np.radians(m.longitude), m.altitude,
-               *m.position_covariance) for ns_f, m in _messages(path, fix_topic)]
-        fx = np.asarray(fx, dtype=float)
-        good = np.isfinite(fx[:, 2:5]).all(axis=1) & (fx[:, 1] >= 0)
-        fx = fx[good][np.argsort(fx[good, 0], kind="stable")]
-        repeated = np.concatenate([[False], np.diff(fx[:, 0]) <= 0]) if len(fx) else []
-        fx = fx[~np.asarray(repeated, bool)]           # a repeated stamp: keep the first
-        if len(fx):
-            fixes = dict(ns=fx[:, 0].astype(np.int64), status=fx[:, 1].astype(np.int8),
-                         lat=fx[:, 2], lon=fx[:, 3], h=fx[:, 4], covariance=fx[:, 5:14])
+    ns, w, f, dropped = _imu(bag, imu_topic)
+    fixes, repeated = _fixes(bag, fix_topic) if fix_topic else (None, 0)
     reference, reference_meta, frame = _reference(
-        path, available, pose_topic, origin, pose_azimuth, reference_status, reference_sigma_m,
+        bag, available, pose_topic, origin, pose_azimuth, reference_status, reference_sigma_m,
         fixes, fix_topic)
-    name = os.path.splitext(os.path.basename(path))[0]
     real = {"imu": f"{imu_topic} ({len(ns) + dropped} messages; {dropped} repeated stamps "
-                   "dropped)", "source": os.path.basename(path)}
+                   "dropped)", "source": f"{bag.path.name} ({bag.container})"}
     if fixes is not None:
         real["gnss"] = (f"{fix_topic} ({len(fixes['ns'])} fixes with status >= 0; "
-                        f"{int(np.sum(repeated))} repeated stamps dropped)")
+                        f"{repeated} repeated stamps dropped)")
     assumed = {"mounting": "REP-103 body axes (x forward, y left, z up) -> FRD" if mounting is None
                else "given on the command line",
                "calibration": "none: the Imu messages are used as recorded"}
@@ -159,7 +100,7 @@ def read(path, imu_topic=None, fix_topic=None, mounting=None, reference_status=N
         topic = _pick(path, available, IMU, reference_imu_topic, required=True)
         if topic == imu_topic:
             raise RecordingError(f"{path}: the reference IMU's topic is the IMU's own ({topic})")
-        r_ns, r_w, r_f, r_dropped = _imu(path, topic)
+        r_ns, r_w, r_f, r_dropped = _imu(bag, topic)
         second = dict(ns=r_ns, w=r_w, f=r_f, mounting=reference_imu_mounting or FLU_TO_FRD,
                       model=f"reference IMU of {topic}",
                       mounting_hint="--reference-imu-rpy-deg {roll} {pitch} {yaw}")
@@ -169,14 +110,14 @@ def read(path, imu_topic=None, fix_topic=None, mounting=None, reference_status=N
                                              reference_imu_mounting is None else
                                              "given on the command line")
     rate = 1e9 / np.median(np.diff(ns))
-    return Recording(name, f"ROS 2 recording {os.path.basename(path)}: {imu_topic} {rate:.0f} Hz, "
+    return Recording(bag.path.stem, f"{bag.container} {bag.path.name}: {imu_topic} {rate:.0f} Hz, "
                      f"{(ns[-1] - ns[0]) / 1e9:.1f} s", ns, w, f, mounting or FLU_TO_FRD,
                      fixes=fixes, reference=reference, reference_meta=reference_meta,
                      real=real, assumed=assumed, reference_imu=second,
                      reference_heading_known=frame is None or frame.azimuth_known)
 
 
-def _reference(path, available, pose_topic, origin, pose_azimuth, reference_status,
+def _reference(bag, available, pose_topic, origin, pose_azimuth, reference_status,
                reference_sigma_m, fixes, fix_topic):
     """(reference, its metadata, its `local_frame.LocalFrame` or None) of `read`: the pose
     topic's in its frame, or the fixes of at least reference_status, or none."""
@@ -187,61 +128,30 @@ def _reference(path, available, pose_topic, origin, pose_azimuth, reference_stat
         frame = LocalFrame.from_axes(
             "z_up", origin, None if pose_azimuth in (None, "unknown") else float(pose_azimuth),
             taken=(90.0, "REP-103's ENU; --pose-azimuth DEG gives it"))
-        reference, meta = _pose_reference(path, available, pose_topic, frame)
+        reference, meta = _pose_reference(bag, available, pose_topic, frame)
         return reference, {**meta, "frame": frame.description}, frame
     if pose_azimuth is not None:
         raise RecordingError("--pose-azimuth is the azimuth of --pose-topic's frame: give the "
                              "pose topic too")
     if reference_status is not None:
         if fixes is None:
-            raise RecordingError(f"{path}: a reference from fixes needs a NavSatFix topic")
+            raise RecordingError(f"{bag.path}: a reference from fixes needs a NavSatFix topic")
         return (*_fix_reference(fixes, reference_status, reference_sigma_m, fix_topic), None)
     return None, {}, None
 
 
-def _imu_messages(path, topic):
-    """(stamp ns, the message's 37 float64: orientation (4), its covariance (9), angular
-    velocity (3), its covariance (9), linear acceleration (3), its covariance (9)) of each
-    message of an Imu topic, read from its CDR bytes (OMG XCDR1 as ROS 2 writes it: a 4-byte
-    encapsulation header, little- or big-endian by its second byte, then the fields aligned
-    to their size from the data's start: Header {int32 sec, uint32 nanosec, string frame_id:
-    uint32 length with its NUL, then the bytes}, then the float64 fields from the next
-    multiple of 8) - the same numbers mcap-ros2-support decodes (tests/importers), about 100
-    times faster (an hour at 100 Hz: ~5 s instead of ~8 min)."""
-    with open(path, "rb") as fh:
-        reader = make_reader(fh)
-        messages = reader.iter_messages(topics=[topic])
-        while True:
-            try:
-                _, channel, message = next(messages)
-                data = message.data
-                if channel.message_encoding != "cdr" or data[1] not in (0, 1):
-                    raise ValueError(f"{channel.message_encoding} encoding, header "
-                                     f"{data[:4].hex()}: not CDR")
-                end = "<" if data[1] == 1 else ">"
-                sec, nanosec, length = struct.unpack_from(end + "iII", data, 4)
-                start = 4 + (12 + length + 7) // 8 * 8
-                values = struct.unpack_from(end + "37d", data, start)
-            except StopIteration:
-                return
-            except _DAMAGE as exc:
-                raise _damaged(path, exc) from None
-            stamp = sec * 1_000_000_000 + nanosec
-            yield (stamp if stamp > 0 else message.log_time), values
-
-
-def _imu(path, topic):
+def _imu(bag, topic):
     """(stamps ns, w rad/s, f m/s^2 (N, 3) in the message frame, repeated stamps dropped) of
     an Imu topic, sorted by stamp; a topic whose covariance[0] = -1 (REP-145: not measured)
     says it lacks a gyro or an accelerometer is refused."""
-    rows = [(ns, *v[13:16], *v[25:28], v[16], v[28]) for ns, v in _imu_messages(path, topic)]
+    rows = [(ns, *v[13:16], *v[25:28], v[16], v[28]) for ns, v in bag.imu_values(topic)]
     if len(rows) < 2:
-        raise RecordingError(f"{path}: {topic} has {len(rows)} messages")
+        raise RecordingError(f"{bag.path}: {topic} has {len(rows)} messages")
     a = np.asarray(rows, dtype=object)
     for column, name in ((7, "angular_velocity"), (8, "linear_acceleration")):
         absent = a[:, column].astype(float) == -1
         if absent.mean() > 0.5:
-            raise RecordingError(f"{path}: {topic}'s {name}_covariance[0] = -1 in "
+            raise RecordingError(f"{bag.path}: {topic}'s {name}_covariance[0] = -1 in "
                                  f"{int(absent.sum())} of {len(a)} messages: the recorder says "
                                  f"it has no {name}; an inertial analysis needs both the gyro "
                                  "and the accelerometer")
@@ -250,6 +160,27 @@ def _imu(path, topic):
     ns, data = ns[order], a[order, 1:7].astype(float)
     keep = np.concatenate([[True], np.diff(ns) > 0])
     return ns[keep], data[keep, :3], data[keep, 3:], int((~keep).sum())
+
+
+def _fixes(bag, topic):
+    """(fixes: stamps ns, status, lat, lon rad, h m, position_covariance m^2, sorted by stamp -
+    None when no fix is finite -, the count of repeated stamps dropped) of a NavSatFix topic;
+    a fix of status -1 (NO_FIX) or with a coordinate not finite is left out."""
+    ns, rows = [], []
+    for ns_f, m in bag.messages(topic):
+        ns.append(ns_f)
+        rows.append((m.status.status, np.radians(m.latitude), np.radians(m.longitude),
+                     m.altitude, *m.position_covariance))
+    ns, fx = np.asarray(ns, dtype=np.int64), np.asarray(rows, dtype=float).reshape(-1, 13)
+    good = np.isfinite(fx[:, 1:4]).all(axis=1) & (fx[:, 0] >= 0)
+    order = np.argsort(ns[good], kind="stable")
+    ns, fx = ns[good][order], fx[good][order]
+    keep = np.concatenate([[True], np.diff(ns) > 0])[:len(ns)]   # a repeated stamp: the first
+    ns, fx = ns[keep], fx[keep]
+    if not len(ns):
+        return None, int((~keep).sum())
+    return dict(ns=ns, status=fx[:, 0].astype(np.int8), lat=fx[:, 1], lon=fx[:, 2], h=fx[:, 3],
+                covariance=fx[:, 4:13]), int((~keep).sum())
 
 
 def _fix_reference(fixes, status, sigma_m, topic):
@@ -275,31 +206,26 @@ def _fix_reference(fixes, status, sigma_m, topic):
     return dict(ns=ns[ok], lat=lat[ok], lon=lon[ok], h=h[ok], v_ned=v[ok]), meta
 
 
-def _pose_reference(path, available, topic, frame):
-    """An Odometry or PoseStamped topic as the reference: positions in the local `frame`
+def _pose_reference(bag, available, topic, frame):
+    """A pose topic (POSES: Odometry, PoseStamped, PoseWithCovarianceStamped,
+    TransformStamped) as the reference: positions in the local `frame`
     (`local_frame.LocalFrame`) -> geodetic, orientation (body FLU in that frame) -> q_nb
     (vehicle FRD -> NED), velocity from Odometry's body-frame twist, else central
     differences."""
     from ..frames import attitude
     schema = available.get(topic)
-    if schema not in (ODOMETRY, POSE_STAMPED):
-        raise RecordingError(f"{path}: {topic!r} is {schema or 'not a topic'}; a pose reference "
-                             f"needs {ODOMETRY} or {POSE_STAMPED}")
-    rows = []
-    for ns, m in _messages(path, topic):
-        pose = m.pose.pose if schema == ODOMETRY else m.pose
-        p, o = pose.position, pose.orientation
-        v = (m.twist.twist.linear.x, m.twist.twist.linear.y, m.twist.twist.linear.z) \
-            if schema == ODOMETRY else (np.nan,) * 3
-        cov = m.pose.covariance if schema == ODOMETRY else [0.0] * 36
-        v_cov = m.twist.covariance if schema == ODOMETRY else [0.0] * 36
-        rows.append((ns, p.x, p.y, p.z, o.w, o.x, o.y, o.z, *v, cov[0], cov[7], v_cov[0],
-                     v_cov[7]))
+    if schema not in POSES:
+        raise RecordingError(f"{bag.path}: {topic!r} is {schema or 'not a topic'}; a pose "
+                             f"reference needs one of {', '.join(POSES)}")
+    stamps, rows = [], []
+    for ns, m in bag.messages(topic):
+        stamps.append(ns)
+        rows.append((ns, *_pose_row(schema, m)))
     a = np.asarray(rows, dtype=float)
     if len(a) < 3 or not np.isfinite(a[:, 1:8]).all():
-        raise RecordingError(f"{path}: {topic} has {len(a)} poses (finite ones needed, >= 3)")
-    a = a[np.argsort(a[:, 0], kind="stable")]
-    ns = a[:, 0].astype(np.int64)
+        raise RecordingError(f"{bag.path}: {topic} has {len(a)} poses (finite ones needed, >= 3)")
+    order = np.argsort(stamps, kind="stable")
+    a, ns = a[order], np.asarray(stamps, dtype=np.int64)[order]
     q_lb = unit_quaternions(a[:, 4:8], f"{topic}: an orientation")
     sigma = np.sqrt(np.maximum(a[:, 11], 0) + np.maximum(a[:, 12], 0))
     t = (ns - ns[0]) / 1e9
@@ -320,6 +246,25 @@ def _pose_reference(path, available, topic, frame):
             "position_sigma_m": f"{np.median(sigma):.3g}" if np.any(sigma > 0) else "not stated",
             **velocity}
     return reference, meta
+
+
+def _pose_row(schema, m):
+    """(x, y, z m, qw, qx, qy, qz, body velocity x, y, z m/s (NaN: not given), position
+    variances xx, yy m^2 and velocity variances xx, yy (m/s)^2 (0: not stated)) of a pose
+    message of `schema` (POSES)."""
+    zero = [0.0] * 36
+    if schema == TRANSFORM:
+        p, o, cov = m.transform.translation, m.transform.rotation, zero
+    elif schema == POSE_STAMPED:
+        p, o, cov = m.pose.position, m.pose.orientation, zero
+    else:
+        p, o, cov = m.pose.pose.position, m.pose.pose.orientation, m.pose.covariance
+    if schema == ODOMETRY:
+        v = (m.twist.twist.linear.x, m.twist.twist.linear.y, m.twist.twist.linear.z)
+        v_cov = m.twist.covariance
+    else:
+        v, v_cov = (np.nan,) * 3, zero
+    return (p.x, p.y, p.z, o.w, o.x, o.y, o.z, *v, cov[0], cov[7], v_cov[0], v_cov[7])
 
 
 def _difference_velocity_sigma(sigma, t):
