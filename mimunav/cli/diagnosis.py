@@ -71,6 +71,8 @@ def _diagnosed(args, painter):
               f"{doc['candidates_tested']} candidates)")
         for reason in doc["inconclusive_reasons"]:
             print(f"  because {reason}")
+    if doc.get("bins", {}).get("why"):
+        print(f"  {doc['bins']['why']}")
     for f in doc["findings"]:
         print(finding_line(f))
     lag = doc.get("time_lag", {})

@@ -48,6 +48,8 @@ class Design:
     wander_steps: np.ndarray | None = None  # (6,) each channel's largest wander step
                                 # variance per bin, SI^2 (`diagnose`; None: no cap)
     bin_s: float = FAST_BIN_S   # the bins' length, s
+    bins_why: str = ""          # why they are longer than FAST_BIN_S (`vibration_bin_s`)
+    bins_doubt: str = ""        # why even the longest leave the diagnosis inconclusive
     shape: np.ndarray | None = None     # (nb, 6) each bin's white variance over its channel's
                                 # (`diagnose`'s noise_shape; None: constant)
     scan_shape: np.ndarray | None = None    # the same as the excursion scan judges it (None:
@@ -154,9 +156,84 @@ def bins(t, t_reference, bin_s=FAST_BIN_S):
     if p < 1 or abs(ratio - p) > 1e-3:
         return m, 0
     m = max(p, math.ceil(bin_s / dt / p - 1e-9) * p)     # never shorter than bin_s
+    shared = on_reference_stamps(t, t_reference)
+    return (m, (shared[1] + 1) % m) if shared is not None else (m, 0)
+
+
+# The bins' length where the reference is re-expressed on the MIMU's stamps (another clock):
+# that prediction errs at vibration frequencies (a hexacopter's 1 kHz FOG at its MIMU's
+# jittered host stamps: 3.5 % of its 52-208 Hz rotor lines' power), and the error sits in the
+# regressors and, with the opposite sign, in the residual - errors in variables, which bias
+# every linear term by its share of the regressors' variance: in 0.01 s bins the vibration
+# held 3.4 times the motion's variance, and the null twin read an accel.z scale of -0.027
+# (truth +0.004) and its 400 Hz twin a time skew of -1.6 ms (truth 0.05). The shortest of
+# VIBRATION_BIN_S whose bin means keep at most VIBRATION_SHARE of the motion's variance (at
+# that error size a bias under 1e-2 x 0.035 = 4e-4) is taken, the longest when none does.
+VIBRATION_BIN_S = (FAST_BIN_S, 0.02, 0.05, 0.1, 0.2)
+VIBRATION_SHARE = 0.01
+MOTION_HZ = 5.0     # a vehicle's motion lies below it; above it an engine's, a rotor's, a road's
+
+
+def on_reference_stamps(t, t_reference):
+    """(p, phase): the reference's stamps a subset of the MIMU's stamps t (s), one in p of
+    them from MIMU sample `phase` on, or None when they are not (another clock)."""
+    dt = float(np.median(np.diff(t)))
+    if t_reference is None or len(t_reference) < 2:
+        return None
+    ratio = float(np.median(np.diff(t_reference))) / dt
+    p = round(ratio)
+    if p < 1 or abs(ratio - p) > 1e-3:
+        return None
     i = np.clip(np.searchsorted(t, t_reference), 0, len(t) - 1)   # the MIMU stamp at or
     on = np.flatnonzero(np.abs(t[i] - t_reference) < 1e-3 * dt)  # after each reference one
-    return (m, int((i[on[0]] + 1) % m)) if len(on) else (m, 0)
+    return (p, int(i[on[0]])) if len(on) else None
+
+
+def vibration_share(t_reference, f_reference, bin_s):
+    """The variance of bin_s-long bin means of the reference's specific force (m/s^2, (N, 3))
+    above MOTION_HZ - its vibration, each line through the bin mean's sinc - over its
+    variance below it (the motion), from its Welch spectrum (10 s segments); 0 without
+    motion or samples enough."""
+    from scipy.signal import welch
+    rate = 1.0 / float(np.median(np.diff(t_reference)))
+    n = min(int(10 * rate), len(t_reference) // 4)
+    if n < 16 or rate <= 2 * MOTION_HZ:
+        return 0.0
+    f, p = welch(f_reference - f_reference.mean(axis=0), fs=rate, nperseg=n, axis=0)
+    p = p.sum(axis=1)
+    motion = p[(f > 0) & (f <= MOTION_HZ)].sum()
+    above = f > MOTION_HZ
+    vibration = (p[above] * np.sinc(f[above] * bin_s) ** 2).sum()
+    return float(vibration / motion) if motion > 0 else 0.0
+
+
+def vibration_bin_s(t, t_reference, f_reference):
+    """(bin_s, why or '', doubt or ''): FAST_BIN_S where the reference's stamps are the MIMU's
+    (t s) or it does not vibrate, else the shortest of VIBRATION_BIN_S whose bin means keep
+    at most VIBRATION_SHARE of the motion's variance in the reference's specific force
+    (`vibration_share`; t_reference s, f_reference m/s^2 (N, 3)); the longest when none
+    does, and then the doubt that makes the diagnosis inconclusive (an 8 s cut of a light
+    aircraft, its engine 0.2 of its motion in 0.2 s bins, had stood 'no-missing-physics'
+    beside scale factors of 0.2-1.4 the selection could not choose)."""
+    if on_reference_stamps(t, t_reference) is not None or f_reference is None:
+        return FAST_BIN_S, "", ""
+    share = vibration_share(t_reference, f_reference, FAST_BIN_S)
+    if share <= VIBRATION_SHARE:
+        return FAST_BIN_S, "", ""
+    chosen = next((b for b in VIBRATION_BIN_S
+                   if vibration_share(t_reference, f_reference, b) <= VIBRATION_SHARE),
+                  VIBRATION_BIN_S[-1])
+    left = vibration_share(t_reference, f_reference, chosen)
+    why = (f"bins of {chosen:g} s, not {FAST_BIN_S:g} s: the reference, re-expressed on the "
+           f"MIMU's stamps (another clock), vibrates above {MOTION_HZ:g} Hz with {share:.2g} "
+           f"times its motion's variance in {FAST_BIN_S:g} s bins, {left:.2g} in these: its "
+           "re-expression's error there would bias every linear term")
+    doubt = "" if left <= VIBRATION_SHARE else (
+        f"the reference's vibration keeps {left:.2g} of its motion's variance even in "
+        f"{chosen:g} s bins (at most {VIBRATION_SHARE:g}): its re-expression on the MIMU's "
+        "stamps (another clock) may bias every linear term - the recording's motion is too "
+        "small beside its vibration")
+    return chosen, why, doubt
 
 
 class Binning:

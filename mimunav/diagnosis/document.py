@@ -35,6 +35,8 @@ def document(log_path, diag, alpha=0.05):
         doc["transfer_shocks_left_out"] = json_ready(diag.design.shocks)
     if getattr(diag, "reference_check", None):
         doc["reference_check"] = json_ready(diag.reference_check)
+    if getattr(getattr(diag, "design", None), "bins_why", ""):
+        doc["bins"] = {"bin_s": diag.design.bin_s, "why": diag.design.bins_why}
     if getattr(diag, "level_choice", None):
         doc["level_choice"] = diag.level_choice
     if getattr(diag, "library_inflation", None):

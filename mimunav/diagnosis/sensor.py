@@ -77,7 +77,7 @@ from .reference import (TRANSFER_SHARE, TRANSFER_WINDOW_S, agreement, transfer_s
 from ..errors import InputError
 from ..flightlog.stamps import stamp_tick
 from ..compensation.model import poly2
-from .design import (Binning, CHANNELS, Design, FAST_BIN_S, detrended, term_contribution,
+from .design import (Binning, CHANNELS, Design, detrended, term_contribution, vibration_bin_s,
                      make_design, reference_error, bins, calibration_prior, white_per_bin)
 from .samples import binned, sample_stage, temperature_references
 from .fitting import Fitter, term_test
@@ -123,7 +123,7 @@ class SensorDiagnosis:
 
 
 def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander=None,
-             output_tests=True, noise=None, vibration=None, bin_s=FAST_BIN_S,
+             output_tests=True, noise=None, vibration=None, bin_s=None,
              block_s=SPLIT_BLOCK_S, noise_shape=None, wander_steps=None, check_reference=True,
              unusable_because=None):
     """Sensor-level diagnosis of `flight` (an `evaluation.Flight` with a reference IMU)
@@ -131,16 +131,17 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
     `library.candidates()`); `max_wander`: the largest wander level (random-walk step
     variance over the white variance of a bin) the fits may choose - for a reference whose
     own errors are structured and would otherwise pass for wander (`track`); `accuracy`:
-    the reference's `sensors.accuracy.Accuracy` (default: the
-    log's metadata, else Table 4); `output_tests`: also test the effects that are no
+    the reference's `sensors.accuracy.Accuracy` (default: the log's metadata, else Table
+    4); `output_tests`: also test the effects that are no
     regressor (`outputs`: saturation, quantization, the bias's wander and level against the
     MEMS class - not for a reference made from a vehicle's track); `noise`: the unit's
     measured random errors for those bias tests (`outputs.bias_tests`); `vibration`: (N, 3)
     the MIMU's vibration power, (m/s^2)^2, when its outputs in `flight` were filtered into
     the reference's band (`track`: a smoothed track's); `bin_s`, `block_s`: the bins' and
-    the split blocks' lengths (s) - longer where the reference's own error is correlated
-    over more than a bin (`track`: a smoothed track's rates), so that bins are independent
-    as the fit assumes and the held-out blocks do not share the training blocks' noise;
+    the split blocks' lengths (s; bin_s None: `design.vibration_bin_s`) - longer where the
+    reference's own error is correlated over more than a bin (`track`: a smoothed track's
+    rates), so that bins are independent as the fit assumes and the held-out blocks do not
+    share the training blocks' noise;
     `noise_shape`: (N, 6) each sample's white variance relative to its channel's, where the
     reference's own error varies along the record (`track`: a yaw rate from the course
     errs as 1/speed): the fit weighs and the scan judges each bin by it (a pair: the fit's,
@@ -163,10 +164,9 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
     prep = _prepare(flight, cal, acc, candidates, output_tests, vibration, bin_s, noise_shape,
                     max_wander, wander_steps, check_reference)
     output_tests, design = prep.output_tests, prep.design
-    if len(design.t) < 4 * block_s / bin_s:
+    if len(design.t) < 4 * block_s / (bin_s := design.bin_s):
         raise _too_little(flight, prep, bin_s, block_s, unusable_because)
     held = ~(train := outputs.block_index(design.t, block_s) % 2 == 0)
-
     # the all-rows fit, when first needed (look-alikes; ~1 s of Grams on a 10-minute flight)
     whole = cache(lambda: Fitter(design, np.ones(len(design.t), bool)))
     chosen, within, beyond = select(design, train, alpha, prep.full_scale, whole)
@@ -195,7 +195,7 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
                            everything, outputs.bias_null(noise) if output_tests else None,
                            prep.compensated and (flight, *prep.compensated), library)
     diag.inconclusive = [why for why in jitter + doubts + read_twice
-                         + [transfer_doubt(flight, design, findings)] if why]
+                         + [transfer_doubt(flight, design, findings), design.bins_doubt] if why]
     if not findings:        # what the halves set aside was there, but not the same throughout
         diag.inconclusive += set_aside_reasons(aside) + beyond_range_reasons(rejected)
     if prep.agreement is not None:
@@ -229,12 +229,17 @@ def _prepare(flight, cal, acc, candidates, output_tests, vibration, bin_s, noise
     no test on the outputs - and the diagnosis says why), the tests on the outputs
     themselves, the design of the candidates on the bins with the stated accuracies as
     priors."""
+    why = doubt = ""
+    if bin_s is None:
+        bin_s, why, doubt = vibration_bin_s(flight.mimu_t, flight.fog_t, flight.fog_f)
     with tempfile.TemporaryDirectory(prefix="mimunav-diagnose-") \
             if flight.stream_block is not None else nullcontext() as folder:
         samples = sample_stage(flight, cal, folder)
         samples.vibration = vibration
-        return _prepared(flight, cal, acc, candidates, output_tests, samples, bin_s,
+        prep = _prepared(flight, cal, acc, candidates, output_tests, samples, bin_s,
                          noise_shape, max_wander, wander_steps, check_reference)
+    prep.design.bins_why, prep.design.bins_doubt = why, doubt
+    return prep
 
 
 def _prepared(flight, cal, acc, candidates, output_tests, samples, bin_s, noise_shape,

@@ -36,7 +36,7 @@ import numpy as np
 from ..frames import attitude
 from ..frames.mounting import Mounting
 from .recording import G0, RecordingError, at_range, utc_text
-from .series import masked_correlation, parabola_min, window_means
+from .series import masked_correlation, on_grid, parabola_min, peak_margin, window_means
 
 SMALL_OFFSET_S = 0.001      # s: the refinement's step; a measured offset beyond it is
                             # corrected (whatever the user's own shift was: the result must
@@ -48,7 +48,13 @@ SECOND_PEAK_SHARE = 0.8     # the peak's lobe ends where the correlation falls b
 #                             share of the peak; no lag beyond it may reach it again
 LOBE_MAX_S = 30.0           # s: a lobe wider than this either side is no peak (the motion
 #                             hardly changes over the record: nothing to time it by)
-TURNING_RATE = 0.02         # rad/s: |w|'s spread below which nothing times the two clocks
+TURNING_RATE = 0.02         # rad/s: 1 s mean rates' spread below which the rates do not
+#                             turn the mounting
+MOTION_SNR = 5.0            # |w| times the two clocks where its spread is beyond this many
+#                             of its own noise (`_turns`; white noise alone reads 1): a fixed
+#                             0.02 rad/s had left a ship's 0.32 s unmeasured, its seas
+#                             rolling it 5 deg/s but |w| spread 0.018 rad/s, and the lag then
+#                             read as a gyro scale of -0.04 (cos(2 pi 0.32 s / 8 s) - 1)
 SPAN_SHARE = 0.05           # second singular value over the first: two directions seen
 DISTINCT_Z = 4.0            # a rival peak above that share is no rival when the peak
 #                             stands above it by this many standard errors (`peak_margin`):
@@ -111,11 +117,15 @@ def _centres(ns):
     return ns / 1e9 - 0.5 * np.median(np.diff(ns)) / 1e9
 
 
-def _on_grid(t, x, grid):
-    """x (at times t, s) at the grid times (s); NaN outside t's span."""
-    out = np.interp(grid, t, x)
-    out[(grid < t[0]) | (grid > t[-1])] = np.nan
-    return out
+def _turns(x):
+    """Whether the series x (its NaNs aside) moves beyond MOTION_SNR of its own noise: its
+    standard deviation against the robust sigma of its first differences over sqrt 2 (a
+    quantized series whose differences are mostly 0: any spread)."""
+    x = x[np.isfinite(x)]
+    if len(x) < 3:
+        return False
+    noise = float(np.median(np.abs(np.diff(x)))) / (0.6745 * math.sqrt(2.0))
+    return float(np.std(x)) > MOTION_SNR * noise
 
 
 def clock_offset(rec):
@@ -203,10 +213,11 @@ def rate_lag(t_a, rate_a, t_b, rate_b, whose, late):
     stamps."""
     lo, hi = min(t_a[0], t_b[0]), max(t_a[-1], t_b[-1])
     grid = np.arange(lo, hi, GRID_S)
-    a, b = _on_grid(t_a, rate_a, grid), _on_grid(t_b, rate_b, grid)
-    if max(np.nanstd(a), np.nanstd(b)) < TURNING_RATE:
-        return {"lag_s": None, "said": f"not measured: neither turns (|w| spread below "
-                                       f"{TURNING_RATE:g} rad/s); the stamps taken as recorded"}
+    a, b = on_grid(t_a, rate_a, grid), on_grid(t_b, rate_b, grid)
+    if not (_turns(a) or _turns(b)):
+        return {"lag_s": None, "said": f"not measured: neither turns (|w| spread within "
+                                       f"{MOTION_SNR:g} times its own noise); the stamps taken "
+                                       "as recorded"}
     shorter = min(np.isfinite(a).sum(), np.isfinite(b).sum())
     need = max(0.5 * shorter, 10.0 / GRID_S)
     lags, r = masked_correlation(a, b, need)
@@ -245,28 +256,6 @@ def rate_lag(t_a, rate_a, t_b, rate_b, whose, late):
                                      f"{lags[i] * GRID_S:+.2f} s late, {peak:.2f} at best")
         return out
     return {"lag_s": float(lags[k] * GRID_S), "said": said}
-
-
-def peak_margin(a, b, lag, rival, blocks=20):
-    """(how much higher the correlation of a and b(. + lag) is than at lag `rival`, its
-    standard error): a and b on one grid (NaN: no value), lags in samples; the error by the
-    jackknife over `blocks` consecutive blocks of a's grid, each left out in turn (blocks
-    of the recording, longer than its motion stays correlated)."""
-    def pairs(shift):
-        i = np.arange(len(a))
-        i = i[(i + shift >= 0) & (i + shift < len(b))]
-        i = i[np.isfinite(a[i]) & np.isfinite(b[i + shift])]
-        return i, a[i], b[i + shift]
-    (i_p, x_p, y_p), (i_r, x_r, y_r) = pairs(lag), pairs(rival)
-    block_p, block_r = (np.minimum(i * blocks // len(a), blocks - 1) for i in (i_p, i_r))
-
-    def margin(out=-1):
-        keep_p, keep_r = block_p != out, block_r != out
-        return (np.corrcoef(x_p[keep_p], y_p[keep_p])[0, 1]
-                - np.corrcoef(x_r[keep_r], y_r[keep_r])[0, 1])
-    parts = np.array([margin(q) for q in range(blocks)])
-    se = math.sqrt((blocks - 1) / blocks * np.sum((parts - parts.mean()) ** 2))
-    return float(margin()), se
 
 
 def _lobe(r, k, floor):
@@ -328,7 +317,7 @@ def _refined(rec, coarse_s, search_s=2 * GRID_S, step_s=0.001, blocks=10):
     # each block's own offset from its own fit (a block's share of the overall fit moves
     # with the others': still blocks had 'placed' 40.11 ms to 0.02 ms and bent a clock
     # without drift by 25 ms), and only where the IMU turns in it
-    turning = np.array([np.std(np.linalg.norm(w[k], axis=1)) >= TURNING_RATE for k in rows])
+    turning = np.array([_turns(np.linalg.norm(w[k], axis=1)) for k in rows])
     own = np.array([parabola_min(shifts, own_cost[:, b]) if turning[b] else math.nan
                     for b in range(blocks)])
     mids = np.array([grid[k].mean() for k in rows])

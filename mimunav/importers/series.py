@@ -1,6 +1,6 @@
 """Numbers over sampled series the importers' checks share: a correlation over every lag
-with gaps masked, the least of a cost on a grid refined by a parabola, and window means read
-off a running integral."""
+with gaps masked, how far its peak stands above a rival (jackknifed), the least of a cost on
+a grid refined by a parabola, window means read off a running integral, a series on a grid."""
 import math
 
 import numpy as np
@@ -60,3 +60,32 @@ def window_means(ns, x, mids, half=0.5):
                            for i in range(x.shape[1])])
     out[(lo < edges[0]) | (hi > edges[-1])] = np.nan
     return out
+
+
+def on_grid(t, x, grid):
+    """x (at times t, s) at the grid times (s); NaN outside t's span."""
+    out = np.interp(grid, t, x)
+    out[(grid < t[0]) | (grid > t[-1])] = np.nan
+    return out
+
+
+def peak_margin(a, b, lag, rival, blocks=20):
+    """(how much higher the correlation of a and b(. + lag) is than at lag `rival`, its
+    standard error): a and b on one grid (NaN: no value), lags in samples; the error by the
+    jackknife over `blocks` consecutive blocks of a's grid, each left out in turn (blocks
+    of the recording, longer than its motion stays correlated)."""
+    def pairs(shift):
+        i = np.arange(len(a))
+        i = i[(i + shift >= 0) & (i + shift < len(b))]
+        i = i[np.isfinite(a[i]) & np.isfinite(b[i + shift])]
+        return i, a[i], b[i + shift]
+    (i_p, x_p, y_p), (i_r, x_r, y_r) = pairs(lag), pairs(rival)
+    block_p, block_r = (np.minimum(i * blocks // len(a), blocks - 1) for i in (i_p, i_r))
+
+    def margin(out=-1):
+        keep_p, keep_r = block_p != out, block_r != out
+        return (np.corrcoef(x_p[keep_p], y_p[keep_p])[0, 1]
+                - np.corrcoef(x_r[keep_r], y_r[keep_r])[0, 1])
+    parts = np.array([margin(q) for q in range(blocks)])
+    se = math.sqrt((blocks - 1) / blocks * np.sum((parts - parts.mean()) ** 2))
+    return float(margin()), se

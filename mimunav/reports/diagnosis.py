@@ -91,6 +91,8 @@ def _verdict_lines(doc, cal_label):
              f"Model: `{cal_label}`. Verdict: {verdict} "
              f"({doc['candidates_tested']} candidate terms, family-wise alpha {doc['alpha']}).",
              "", doc["method"] + ".", ""]
+    if doc.get("bins", {}).get("why"):
+        lines += [doc["bins"]["why"][0].upper() + doc["bins"]["why"][1:] + ".", ""]
     if not doc["conclusive"]:
         lines += ["**Inconclusive**: this recording cannot support a verdict on missing "
                   "physics (the contract's verdict field says "

@@ -114,6 +114,32 @@ def test_a_periodic_motion_leaves_the_clock_as_recorded():
     assert np.array_equal(rec.reference_imu["ns"], ns + 1_000_000_000)
 
 
+def test_a_ships_gentle_roll_times_the_clocks():
+    """An irregular sea rolls a ship at 0.1-0.17 Hz by a few deg/s: |w| spreads by less than
+    0.02 rad/s, but far beyond the gyros' own noise, and its irregular swell sets one lag
+    apart - 0.32 s is measured (a fixed 0.02 rad/s had left it unmeasured, and the lag then
+    read as a gyro scale of -0.04)."""
+    rng = np.random.default_rng(6)
+    t = np.arange(0.0, 600.0, 1.0 / RATE)
+    roll = sum(0.012 * np.sin(2 * np.pi * t / period + rng.uniform(0, 2 * np.pi))
+               for period in (6.0, 7.3, 8.1, 9.4, 10.0))
+    pitch = sum(0.004 * np.sin(2 * np.pi * t / period + rng.uniform(0, 2 * np.pi))
+                for period in (5.5, 7.0))
+    w = np.column_stack([roll, pitch, 0 * t])
+    assert np.std(np.linalg.norm(w, axis=1)) < 0.02
+    f = np.tile([0.0, 0.0, -9.81], (len(t), 1)) + rng.normal(0, 0.01, (len(t), 3))
+    ns = EPOCH_NS + np.round(t * 1e9).astype(np.int64)
+    rec = Recording("ship", "test", ns, w + rng.normal(0, 1e-3, w.shape), f, Mounting(),
+                    reference_imu=dict(ns=ns + 320_000_000, w=w + rng.normal(0, 1e-5, w.shape),
+                                       f=f.copy(), mounting=Mounting(), model="nav"))
+    pairing.pair(rec)
+    found = re.search(r"refined to ([-+0-9.]+) ms \(standard error ([0-9.]+) ms",
+                      rec.real["reference_imu_clock"])
+    assert found and abs(float(found[1]) - 320.0) < 3 * float(found[2]) < 2.0, \
+        rec.real["reference_imu_clock"]
+    assert np.abs((rec.reference_imu["ns"] - ns) / 1e9).max() < 0.002
+
+
 def test_an_offset_given_picks_the_lobe_the_data_then_refine():
     """A swing's |w| repeats every half swing: the data alone leave the peak among rivals.
     An offset given that puts it in its own lobe of zero picks that lobe; the data then

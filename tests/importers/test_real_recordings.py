@@ -345,11 +345,14 @@ def test_onspeed_cheap_imu_beside_a_quantized_vn300(tmp_path):
     assert diag["reference_accuracy"]["gyro_step"] == 0.01
     # its accelerometer z offset against the VN-300 (-0.34 m/s^2 [-0.41, -0.26] by the
     # offset test) is read with its interval widened as the library's terms are, the
-    # residual standing 39 times beyond the tests' noise: it then holds zero - set aside,
-    # its estimate said (it had been found at p 1e-18; a helicopter's like it missed its
-    # truth by 3 half-widths)
-    offset = [r for r in diag["not_confirmed"] if r["label"] == "bias_shift accel.z"]
-    assert offset and offset[0]["library_inflation"]["widened_by"] > 5, diag["not_confirmed"]
+    # residual standing beyond the tests' noise (39 times in 0.01 s bins; 5 times in the
+    # 0.2 s bins the VN-300's vibration on another clock chooses): the verdict is
+    # inconclusive and the offset, set aside or found, is no finding on the cheap IMU alone
+    # (it had been found at p 1e-18; a helicopter's like it missed its truth by 3 half-widths)
+    assert diag["bins"]["bin_s"] > 0.02 and not diag["conclusive"]
+    offset = [r for r in diag["not_confirmed"] + diag["findings"]
+              if r["label"] == "bias_shift accel.z"]
+    assert offset and offset[0]["library_inflation"]["widened_by"] > 2, diag["not_confirmed"]
     assert -0.45 < offset[0]["coefficient"] < -0.2
     for f in diag["findings"]:
         assert f["attribution"] in ("mimu-or-reference", "installation", "timing"), f["label"]
@@ -369,21 +372,18 @@ def test_onspeed_cheap_imu_beside_a_quantized_vn300(tmp_path):
     assert main(["diagnose", str(cut), "--json", str(cut_out)]) == 0
     whole = {f["label"]: f["ci95"] for f in diag["findings"] if f["effect"] == "bias_shift"}
     cut_doc = json.loads(cut_out.read_text())
-    # beside their library findings the library's other terms stand out 35 (30 s) and 21
-    # (8 s) times their chance level: the tests' noise model does not hold here (a reference
-    # in 0.01 steps, a lag, a cheap unit's errors) - said, and the library's findings judged
-    # with intervals sqrt(lambda) wider: the cut's 6.5 deg [2.2, 10.8] yaw mounting (held-out
-    # p 0.007), which the whole 30 s did not name and the import's box-to-box measurement
-    # (within 1.5 deg, above) contradicts, is set aside - by that check, or (the clock
-    # refined with the gyros' biases beside it: 7.4 ms, not 8.9) by the halves first
-    for doc in (diag, cut_doc):
-        assert any("times their chance level" in r for r in doc["inconclusive_reasons"]), doc
-        assert doc["library_inflation"]["lambda"] > doc["library_inflation"]["limit"]
+    # beside its library findings the library's other terms stand out 5 times their chance
+    # level over the 30 s (35 times in 0.01 s bins): the tests' noise model does not hold
+    # here (a reference in 0.01 steps, a lag, a cheap unit's errors) - said, and the
+    # library's findings judged with intervals sqrt(lambda) wider. The 8 s cut's motion is
+    # too small beside the engine for any bins to average it out (0.2 of it left in 0.2 s
+    # bins): inconclusive, said; its 6.5 deg [2.2, 10.8] yaw mounting of 0.01 s bins (held-
+    # out p 0.007), which the whole 30 s did not name and the import's box-to-box
+    # measurement (within 1.5 deg, above) contradicts, is no finding
+    assert any("times their chance level" in r for r in diag["inconclusive_reasons"]), diag
+    assert diag["library_inflation"]["lambda"] > diag["library_inflation"]["limit"]
+    assert any("even in 0.2 s bins" in r for r in cut_doc["inconclusive_reasons"]), cut_doc
     assert "mounting_misalignment imu.all" not in [f["label"] for f in cut_doc["findings"]]
-    aside = [r for r in cut_doc["not_confirmed"] if r["label"] == "mounting_misalignment imu.all"]
-    assert aside, cut_doc["not_confirmed"]
-    judged = aside[0].get("library_inflation") or aside[0]["halves"]
-    assert judged.get("lambda", 0) > 3 or judged.get("p_heldout_widened", 0) > 0.05, aside
     for f in cut_doc["findings"]:
         if f["effect"] == "bias_shift":
             lo, hi = whole.get(f["label"], (np.inf, -np.inf))
