@@ -1,10 +1,11 @@
 """Peak memory of the commands that read a whole flight, against the flight's length.
 
     python bench/memory.py [--minutes 5 20] [--commands compensate replay table diagnose
-                                                    diagnose-report]
+                                                    diagnose-report diagnose-navigation]
 
 diagnose-report is `mimunav diagnose LOG -o DIR`: the diagnosis and its report folder (the
-figures, the model's navigation with and without the found terms).
+figures, the model's navigation with and without the found terms); diagnose-navigation is
+`mimunav diagnose LOG --level navigation` (every candidate's velocity-error signature).
 
 Each command's wall time beside it (the 2-hour line extrapolates it too).
 
@@ -37,7 +38,8 @@ from mimunav.sensors.mimu import MimuUnit                    # noqa: E402
 EPOCH_NS = 1_767_225_600 * 10**9
 LAT, LON, H = math.radians(45.0), math.radians(7.0), 300.0
 BLOCK = 200_000
-COMMANDS = ("compensate", "replay", "table", "simulate", "diagnose", "diagnose-report")
+COMMANDS = ("compensate", "replay", "table", "simulate", "diagnose", "diagnose-report",
+            "diagnose-navigation")
 
 
 def parked_log(path, minutes, unit, rate=1000.0, seed=0):
@@ -127,7 +129,9 @@ def commands(kind, log, cal, tmp, minutes):
            "diagnose": ["diagnose", log, "--model", cal, "--json", f"{tmp}/diagnosis.json",
                         "--force"],
            "diagnose-report": ["diagnose", log, "--model", cal, "-o", f"{tmp}/report",
-                               "--force"]}
+                               "--force"],
+           "diagnose-navigation": ["diagnose", log, "--model", cal, "--level", "navigation",
+                                   "--json", f"{tmp}/navigation.json", "--force"]}
     return out[kind]
 
 
@@ -154,7 +158,8 @@ def main():
     for kind in args.commands:
         slope = (results[(kind, n1)] - results[(kind, n0)]) / (n1 - n0) * 1e6     # MB / M
         per_m = (seconds[(kind, n1)] - seconds[(kind, n0)]) / (n1 - n0) * 1e6    # s / M
-        name = "diagnose -o" if kind == "diagnose-report" else kind
+        name = {"diagnose-report": "diagnose -o",
+                "diagnose-navigation": "diagnose --level navigation"}.get(kind, kind)
         rows.append((f"peak memory of `mimunav {name}` against the flight's length (parked, "
                      "1 kHz)",
                      f"{results[(kind, n0)]:.0f} MB at {args.minutes[0]:g} min, "

@@ -168,3 +168,29 @@ def signature(model, regressor, k):
     for (sens, i), x in regressor.items():
         d[sens][:, i, :] = x
     return model.velocity(d["accel"], d["gyro"])
+
+
+# the navigation level's nuisance: bias wander as hats with knots this far apart, s
+WANDER_KNOT_S = 60.0
+NUISANCE_KNOTS = 8      # wander knots whose signatures are built at once: an hour at 200 Hz
+#                         held all 61 of a channel at every 10 ms bin (6 x 0.5 GB, 7 GB peak)
+
+
+def nuisance(model, at):
+    """Signatures (len(at), 3, q) at the bins `at` of what the navigation level does not
+    test: piecewise-linear (wandering) accelerometer and gyro biases, the initial attitude
+    error; built NUISANCE_KNOTS columns at a time (each column's is its own)."""
+    t = model.t
+    knots = np.arange(t[0], t[-1] + WANDER_KNOT_S, WANDER_KNOT_S)
+    keep = [k for k in knots if np.clip(1 - np.abs(t - k) / WANDER_KNOT_S, 0, None).sum() > 0.5]
+    cols = []                                           # the hats sum to 1: constants included
+    for i in range(3):
+        for sens in ("accel", "gyro"):
+            for a in range(0, len(keep), NUISANCE_KNOTS):
+                part = np.asarray(keep[a:a + NUISANCE_KNOTS])
+                hat = np.clip(1 - np.abs((t[:, None] - part[None, :]) / WANDER_KNOT_S), 0, None)
+                cols.append(signature(model, {(sens, i): hat}, len(part))[at])
+    phi0 = np.cumsum(np.cross(model.f_n[:, :, None], np.eye(3)[None], axisa=1, axisb=1,
+                              axisc=1) * model.dt[:, None, None], axis=0)
+    cols.append(phi0[at])
+    return np.concatenate(cols, axis=2)

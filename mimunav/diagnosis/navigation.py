@@ -16,7 +16,7 @@ The fit is on velocity-error increments over EPOCH_S (white accelerometer noise 
 independent increments; gyro noise and wander give correlated ones, handled by HAC blocks of
 BLOCK_S with Satterthwaite's degrees of freedom, `inference`), with nuisance signatures:
 constant accelerometer and gyro biases, the initial attitude error, and a piecewise-linear
-bias wander of both with knots every WANDER_KNOT_S. Selection, Holm thresholds, held-out
+bias wander of both with knots every `error_equations.WANDER_KNOT_S`. Selection, Holm thresholds, held-out
 confirmation and block-bootstrap stability are those of the sensor level (`sensor`).
 """
 from dataclasses import dataclass
@@ -31,14 +31,13 @@ from . import inference, library, vehicle_kind
 from .confirmation import (alternative_of, beta_of, effect_size, estimate, set_aside_reasons,
                            halves_verdict, rms_in, term_spans, where_rows, Extremes)
 from .design import term_contribution
-from .error_equations import (EARTH_RADIUS_M, G0, error_model, independent_inputs,
+from .error_equations import (EARTH_RADIUS_M, G0, error_model, independent_inputs, nuisance,
                               observed_error, recorded_bias, signature)
 from .inference import Tier
 from ..errors import InputError
 
 EPOCH_S = 1.0
 BLOCK_S = 30.0
-WANDER_KNOT_S = 60.0
 MIN_EPOCHS = 40                 # shortest reference overlap, in epochs
 CHANNELS = ("north", "east", "down")
 SEGMENTS = 10                   # contiguous segments: even ones train, odd ones held out
@@ -75,21 +74,6 @@ class NavigationDiagnosis:
     biases_removed: dict | None = None  # a recording's import-measured biases, taken out
     variance_inflation: dict | None = None  # training / held-out lambda beside the chosen
     reference_kind: str = "truth (/truth/state)"
-
-
-def nuisance(model):
-    """Signatures (nb, 3, q) of what the navigation level does not test: piecewise-linear
-    (wandering) accelerometer and gyro biases, the initial attitude error."""
-    t = model.t
-    knots = np.arange(t[0], t[-1] + WANDER_KNOT_S, WANDER_KNOT_S)
-    hat = np.clip(1 - np.abs((t[:, None] - knots[None, :]) / WANDER_KNOT_S), 0, None)
-    hat = hat[:, hat.sum(axis=0) > 0.5]                 # the hats sum to 1: constants included
-    cols = [signature(model, {(sens, i): hat}, hat.shape[1])
-            for i in range(3) for sens in ("accel", "gyro")]
-    phi0 = np.cumsum(np.cross(model.f_n[:, :, None], np.eye(3)[None], axisa=1, axisb=1,
-                              axisc=1) * model.dt[:, None, None], axis=0)
-    cols.append(phi0)
-    return np.concatenate(cols, axis=2)
 
 
 def diagnose(flight, cal, alpha=0.05, seed=0, reference=None):
@@ -294,7 +278,7 @@ def _tier(flight, cal, reference, terms=None):
     observed = resample(nav, epochs).velocity_error(resample(reference, epochs))
     at = np.clip(np.searchsorted(model.t, epochs), 0, len(model.t) - 1)
     increments = lambda x: np.diff(x[at], axis=0)                            # noqa: E731
-    z = increments(nuisance(model))
+    z = np.diff(nuisance(model, at), axis=0)
     tier = Tier("navigation", epochs[1:], np.diff(observed, axis=0), [], [],
                 knot_s=(t1 - t0,) * 3, linear=[z[:, c, :] for c in range(3)], block_s=BLOCK_S,
                 kept=np.ones(len(epochs) - 1, bool))

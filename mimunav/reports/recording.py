@@ -128,9 +128,14 @@ def _windows(flight, doc, lengths, min_speed, progress):
 
 
 def _sigma_m(text):
-    """A stated sigma with its unit, or what the metadata says instead of a number."""
+    """A stated sigma with its unit when it is a bare number, else what the metadata says
+    ('0.5 m (DGNSS)' as it is: it had read '0.5 m (DGNSS) m')."""
     text = str(text or "not stated")
-    return _cell(text + " m" if text[:1].isdigit() else text)
+    try:
+        float(text)
+    except ValueError:
+        return _cell(text)
+    return _cell(text + " m")
 
 
 def markdown(log_path, meta, channels, flight, docs, no_windows, doc, no_diagnosis, elapsed):
@@ -176,7 +181,7 @@ def markdown(log_path, meta, channels, flight, docs, no_windows, doc, no_diagnos
         lines += ["![windows](windows.png)", "",
                   "Windows overlap (the count of disjoint ones in brackets): percentiles over "
                   "them are not independent samples. The reference's own position error ("
-                  + (f"sigma {_cell(ref['position_sigma_m'])} m" if "position_sigma_m" in ref
+                  + (f"sigma {_sigma_m(ref['position_sigma_m'])}" if "position_sigma_m" in ref
                      else "its size not stated") + ") is part of every window's error.", ""]
     lines += ["## Diagnosis (`mimunav diagnose`)", ""]
     if doc is None:
@@ -221,4 +226,4 @@ def _rpy(mounting):
 def _cell(x):
     if isinstance(x, dict):
         x = "; ".join(f"{k}: {v}" for k, v in x.items())
-    return str(x).replace("|", "/").replace("\n", " ")
+    return str(x).replace("|", "\\|").replace("\n", " ")     # a table cell: |w| kept
