@@ -34,6 +34,8 @@ def open_bag(path):
     """The bag at `path`: an MCAP file, a rosbag2 folder (or a file in it) or a ROS 1 .bag,
     told by its first bytes and its folder, not by its name's extension."""
     path = Path(path)
+    if not path.exists():
+        raise RecordingError(f"{path}: no such file or folder")
     if path.is_file():
         with open(path, "rb") as fh:
             head = fh.read(len(ROS1_MAGIC))

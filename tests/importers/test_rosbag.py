@@ -217,6 +217,8 @@ def test_a_damaged_or_foreign_bag_is_said_in_one_line(bags, tmp_path, capsys):
                 bag.write(c, int(ns), ts.serialize_ros1(msg, kind)[:-8])
     with pytest.raises(RecordingError, match=r"short.bag: .*an Imu message of 304 bytes, 312 expected"):
         ros2.read(tmp_path / "short.bag")
+    with pytest.raises(RecordingError, match="missing.bag: no such file or folder"):
+        ros2.read(tmp_path / "missing.bag")
     (tmp_path / "notes.bag").write_text("not a bag\n")
     assert main(["import", "ros1", str(tmp_path / "notes.bag"), "-o",
                  str(tmp_path / "x.mcap")]) == 2
