@@ -710,6 +710,26 @@ def test_the_scan_judges_each_window_against_its_own_and_its_baselines_noise():
     assert excursions(design, x, 0.05) == []
 
 
+def test_stops_judged_by_their_own_scale_where_the_moving_law_overstates_the_noise():
+    """The shape's law for moving bins is a model: where it overstates the moving noise (a
+    pose-referenced car: its moving steps under the shape spread 3 times less than its stops'),
+    the stops' windows are judged by their own robust scale. A null residual, white at the
+    floor (variance 1) at stops of 30 s every 120 s, and moving bins whose shape says 100 but
+    hold 11: no excursion (on one scale across them, stops' noise stood out at z 8-9)."""
+    from types import SimpleNamespace
+    from mimunav.diagnosis.scan import excursions
+    rng = np.random.default_rng(7)
+    t = np.arange(0.0, 1800.0, 0.1)
+    stopped = (t % 120.0) < 30.0
+    shape = np.where(stopped, 1.0, 100.0)
+    x = rng.normal(0.0, 1.0, (len(t), 6)) * np.sqrt(np.where(stopped, 1.0, 11.0))[:, None]
+    design = SimpleNamespace(t=t, shape=np.repeat(shape[:, None], 6, axis=1))
+    assert excursions(design, x, 0.05) == []
+    x[np.flatnonzero((t >= 1210.0) & (t < 1212.0)), 5] += 4.0     # a real step, 16 sigma of
+    found = excursions(design, x, 0.05)                          # a 2 s window at rest
+    assert [(e["channel"], e["t0"] <= 1210.0 <= e["t1"]) for e in found] == [("gyro.z", True)]
+
+
 def test_an_accelerometer_step_within_the_vehicle_models_own_error_is_the_models():
     """`model_excursions`: a stop 10-20 s whose held pitch errs by 2 mrad (1 sigma), a MIMU
     mounted 90 deg in yaw (its y axis forward): an accel.y window at the departure (all its
