@@ -1,5 +1,6 @@
 """Commands on a log itself: info, compensate, cut."""
 import sys
+from pathlib import Path
 
 from .options import span
 
@@ -25,6 +26,9 @@ def _info(args):
         with FlightLog(args.log) as log:
             print(describe(log, unreadable))
     except LogError as exc:
+        if Path(args.log).is_dir():     # a folder: nothing to scan
+            print(f"mimunav info: {exc}", file=sys.stderr)
+            return 2
         report = scan(args.log)         # a file that is no MCAP at all: that one error
         print(f"mimunav info: {exc}", file=sys.stderr)
         print(describe_scan(report))

@@ -55,6 +55,9 @@ class FlightLog:
         self.path = os.fspath(path)
         self.skip_damaged = skip_damaged
         self.damaged = {}
+        if os.path.isdir(self.path):
+            from .recover import folder_hint
+            raise LogError(f"{self.path}: a folder, not a log file{folder_hint(self.path)}")
         self._fh = open(self.path, "rb")
         head = self._fh.read(len(MAGIC))
         self._fh.seek(0)

@@ -37,6 +37,16 @@ FOREIGN_MAGIC = ((b"ULog\x01\x12\x35", "a PX4 ULog: `mimunav import ulog FILE -o
                                "LOG.mcap` of the folder with its metadata.yaml"))
 
 
+def folder_hint(path) -> str:
+    """'; it looks like ...: import it' for a folder mimunav imports (a rosbag2 folder, an
+    RTKLIB drive's), else ''."""
+    if os.path.isfile(os.path.join(path, "metadata.yaml")):
+        return "; it looks like a rosbag2 folder: `mimunav import ros2 FOLDER -o LOG.mcap`"
+    if any(name.endswith(".pos") for name in os.listdir(path)):
+        return "; it looks like an RTKLIB drive: `mimunav import rtklib FOLDER -o LOG.mcap`"
+    return ""
+
+
 def foreign_hint(head: bytes) -> str:
     """'; it looks like ...: import it' for the first bytes of a recording mimunav imports,
     else ''."""

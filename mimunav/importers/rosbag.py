@@ -47,7 +47,8 @@ def open_bag(path):
             return RosbagsBag(path, path.parent, "rosbag2 folder")
         raise RecordingError(f"{path}: neither an MCAP file, a ROS 1 bag (its first bytes "
                              f"{head!r}, not {ROS1_MAGIC!r}) nor a file of a rosbag2 folder "
-                             "(no metadata.yaml beside it)")
+                             "(no metadata.yaml beside it: `ros2 bag reindex FOLDER` writes "
+                             "it)")
     if (path / "metadata.yaml").is_file():
         return RosbagsBag(path, path, "rosbag2 folder")
     raise RecordingError(f"{path}: not a ROS bag: a file (MCAP, ROS 1 .bag) or a rosbag2 "

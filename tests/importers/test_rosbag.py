@@ -227,6 +227,9 @@ def test_a_damaged_or_foreign_bag_is_said_in_one_line(bags, tmp_path, capsys):
     # a bag given where a contract log belongs: the import that reads it is named
     assert main(["info", str(root / "r.bag")]) == 2
     assert "a ROS 1 bag: `mimunav import ros1 FILE -o LOG.mcap`" in capsys.readouterr().err
+    assert main(["info", str(root / "r2")]) == 2
+    assert "a folder, not a log file; it looks like a rosbag2 folder: `mimunav import ros2 " \
+        "FOLDER -o LOG.mcap`" in capsys.readouterr().err
     db3 = next((root / "r2").glob("*.db3"))
     assert main(["diagnose", str(db3)]) == 2
     assert "`mimunav import ros2 FOLDER -o LOG.mcap`" in capsys.readouterr().err
