@@ -109,6 +109,8 @@ def read(path, imu_topic=None, fix_topic=None, mounting=None, reference_status=N
         assumed["reference_imu_mounting"] = ("REP-103 body axes -> FRD" if
                                              reference_imu_mounting is None else
                                              "given on the command line")
+        assumed["reference_imu_lever_arm"] = ("none: the two IMUs taken at one point "
+                                              "(--reference-imu-lever-arm-m X Y Z places it)")
     rate = 1e9 / np.median(np.diff(ns))
     return Recording(bag.path.stem, f"{bag.container} {bag.path.name}: {imu_topic} {rate:.0f} Hz, "
                      f"{(ns[-1] - ns[0]) / 1e9:.1f} s", ns, w, f, mounting or FLU_TO_FRD,
@@ -216,7 +218,11 @@ def _pose_reference(bag, available, topic, frame):
     schema = available.get(topic)
     if schema not in POSES:
         raise RecordingError(f"{bag.path}: {topic!r} is {schema or 'not a topic'}; a pose "
-                             f"reference needs one of {', '.join(POSES)}")
+                             f"reference needs one of {', '.join(POSES)}" + (
+                                 " - positions alone (a total station's PointStamped): write "
+                                 "them to a CSV, and `mimunav import table` reads them as "
+                                 "[reference] position_local" if schema and "Point" in schema
+                                 else ""))
     stamps, rows = [], []
     for ns, m in bag.messages(topic):
         stamps.append(ns)

@@ -99,6 +99,9 @@ def rosbags_messages(r, ts, ros1):
                                                              covariance=np.zeros(36)))))
         kind = "geometry_msgs/msg/PoseWithCovarianceStamped"
         out.append(("/amcl", kind, ns, T[kind](header=header(ns, k, "map"), pose=with_cov)))
+        kind = "geometry_msgs/msg/PointStamped"
+        out.append(("/leica", kind, ns, T[kind](header=header(ns, k, "map"), point=T[
+            "geometry_msgs/msg/Point"](x=r["odom"][k, 0], y=r["odom"][k, 1], z=0.0))))
         kind = "geometry_msgs/msg/TransformStamped"
         out.append(("/vicon", kind, ns, T[kind](
             header=header(ns, k, "world"), child_frame_id="body",
@@ -153,6 +156,7 @@ def test_every_container_gives_the_numbers_written(bags):
         assert np.array_equal(rec.fixes["lat"], np.radians(r["fix"]["latitude"])), name
         assert np.array_equal(rec.fixes["covariance"], r["fix"]["covariance"]), name
         assert container in rec.real["source"] and container in rec.description
+        assert rec.assumed["reference_imu_lever_arm"].startswith("none: the two IMUs")
 
 
 @pytest.mark.slow
@@ -173,6 +177,8 @@ def test_a_ros1_pose_reference_is_placed_as_a_ros2_ones(bags):
         other = reference("r.bag", topic)
         for key in ("ns", "lat", "lon", "h", "q_nb"):
             assert np.array_equal(np.asarray(refs[0][key]), np.asarray(other[key])), key
+    with pytest.raises(RecordingError, match="PointStamped.*import table.*position_local"):
+        reference("r.bag", "/leica")                 # positions alone: the table importer's
     heading = np.degrees(np.arctan2(refs[0]["v_ned"][:, 1], refs[0]["v_ned"][:, 0]))
     np.testing.assert_allclose(heading, 60.0, atol=0.01)
     assert np.array_equal(refs[0]["ns"], r["odom_ns"])
@@ -215,7 +221,8 @@ def test_a_damaged_or_foreign_bag_is_said_in_one_line(bags, tmp_path, capsys):
         for topic, kind, ns, msg in rosbags_messages(r, ts, ros1=True)[:40]:
             if topic == "/imu":
                 bag.write(c, int(ns), ts.serialize_ros1(msg, kind)[:-8])
-    with pytest.raises(RecordingError, match=r"short.bag: .*an Imu message of 304 bytes, 312 expected"):
+    with pytest.raises(RecordingError,
+                       match=r"short.bag: .*an Imu message of 304 bytes, 312 expected"):
         ros2.read(tmp_path / "short.bag")
     with pytest.raises(RecordingError, match="missing.bag: no such file or folder"):
         ros2.read(tmp_path / "missing.bag")
