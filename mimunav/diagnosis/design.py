@@ -194,13 +194,24 @@ def vibration_share(t_reference, f_reference, bin_s):
     above MOTION_HZ - its vibration, each line through the bin mean's sinc - over its
     variance below it (the motion), from its Welch spectrum (10 s segments); 0 without
     motion or samples enough."""
+    return _share(_spectrum(t_reference, f_reference), bin_s)
+
+
+def _spectrum(t_reference, f_reference):
+    """(frequencies Hz, the three axes' summed Welch power) of `vibration_share`, or None."""
     from scipy.signal import welch
     rate = 1.0 / float(np.median(np.diff(t_reference)))
     n = min(int(10 * rate), len(t_reference) // 4)
     if n < 16 or rate <= 2 * MOTION_HZ:
-        return 0.0
+        return None
     f, p = welch(f_reference - f_reference.mean(axis=0), fs=rate, nperseg=n, axis=0)
-    p = p.sum(axis=1)
+    return f, p.sum(axis=1)
+
+
+def _share(spectrum, bin_s):
+    if spectrum is None:
+        return 0.0
+    f, p = spectrum
     motion = p[(f > 0) & (f <= MOTION_HZ)].sum()
     above = f > MOTION_HZ
     vibration = (p[above] * np.sinc(f[above] * bin_s) ** 2).sum()
@@ -214,16 +225,17 @@ def vibration_bin_s(t, t_reference, f_reference):
     (`vibration_share`; t_reference s, f_reference m/s^2 (N, 3)); the longest when none
     does, and then the doubt that makes the diagnosis inconclusive (an 8 s cut of a light
     aircraft, its engine 0.2 of its motion in 0.2 s bins, had stood 'no-missing-physics'
-    beside scale factors of 0.2-1.4 the selection could not choose)."""
+    beside scale factors of 0.2-1.4 the selection could not choose). The spectrum once."""
     if on_reference_stamps(t, t_reference) is not None or f_reference is None:
         return FAST_BIN_S, "", ""
-    share = vibration_share(t_reference, f_reference, FAST_BIN_S)
+    spectrum = _spectrum(t_reference, f_reference)
+    shares = {b: _share(spectrum, b) for b in VIBRATION_BIN_S}
+    share = shares[FAST_BIN_S]
     if share <= VIBRATION_SHARE:
         return FAST_BIN_S, "", ""
-    chosen = next((b for b in VIBRATION_BIN_S
-                   if vibration_share(t_reference, f_reference, b) <= VIBRATION_SHARE),
+    chosen = next((b for b in VIBRATION_BIN_S if shares[b] <= VIBRATION_SHARE),
                   VIBRATION_BIN_S[-1])
-    left = vibration_share(t_reference, f_reference, chosen)
+    left = shares[chosen]
     why = (f"bins of {chosen:g} s, not {FAST_BIN_S:g} s: the reference, re-expressed on the "
            f"MIMU's stamps (another clock), vibrates above {MOTION_HZ:g} Hz with {share:.2g} "
            f"times its motion's variance in {FAST_BIN_S:g} s bins, {left:.2g} in these: its "

@@ -18,9 +18,9 @@ from mcap.exceptions import McapError
 from mcap.reader import make_reader
 
 from ..errors import require
+from ..flightlog.writer import MAGIC
 from .recording import RecordingError
 
-MCAP_MAGIC = b"\x89MCAP"
 ROS1_MAGIC = b"#ROSBAG V2.0"
 IMU_FLOATS = 37              # orientation (4), its covariance (9), angular velocity (3), its
 #                              covariance (9), linear acceleration (3), its covariance (9)
@@ -39,7 +39,7 @@ def open_bag(path):
     if path.is_file():
         with open(path, "rb") as fh:
             head = fh.read(len(ROS1_MAGIC))
-        if head.startswith(MCAP_MAGIC):
+        if head.startswith(MAGIC[:5]):          # an MCAP of any version
             return McapBag(path)
         if head == ROS1_MAGIC:
             return RosbagsBag(path, path, "ROS 1 bag")
