@@ -17,6 +17,18 @@ term's axes), then judged as the halves' widening is: set aside where it holds z
 that null flight, a size_effect of -0.022 m read -0.27 with the noise doubled: far from
 linear, and nothing). A tractor's two autopilot IMUs' true lever arm of 1.8 cm stays, its
 interval four times wider, now holding the truth it had missed by 0.2 mm.
+
+Beside a reference of any grade in a recording, the terms whose regressors hold the
+reference's derivatives (`DIFFERENTIATED`) take the same check with the noise added equal to
+the reference's own, measured (`reference_white_noise`): its differentiated noise can hold
+most of a regressor where the motion hardly excites it (a car's roll and pitch: a lever arm's
+vertical component), and there the bias is far from linear in the noise - a ROS car's exact
+40 cm lever arm beside a tactical IMU (0.1 deg/sqrt h, 100 Hz) read -0.235 m at p < 1e-300 on
+a null. The share s of a term's regressor that the added noise makes (its sum of squares
+over the regressor's) reads it back exactly for one regressor whose noise both attenuates
+it and biases it by c (b(m) = (beta S + c m V) / (S + m V) at m times the noise, s = V /
+(S + V)): beta = (2 b - b'(1 + s)) / (1 - s); the linear read-back is its s -> 0 limit
+(Fuller, Measurement Error Models, 1987, 1.1: the reliability ratio 1 - s).
 """
 from dataclasses import replace
 
@@ -27,6 +39,21 @@ from .confirmation import judged_wider, position_of
 from .design import CHANNELS, white_per_bin
 from .fitting import Fitter
 
+DIFFERENTIATED = ("lever_arm", "size_effect", "time_skew")   # regressors made of the
+#                             reference's angular acceleration or its outputs' derivatives
+NOISE_WINDOW_S = 5.0        # the reference's white noise is read in windows this long, ...
+NOISE_DECILE = 10           # ... at their first decile: the quietest (a rest, a straight road)
+#                             hold its noise alone, where a rotor's or an engine's vibration
+#                             swells the rest (a hexacopter's FOG: 1.1e-4 rad/s, 7.7e-3 m/s^2
+#                             per 1 kHz sample, its datasheet's ARW and noise density exactly;
+#                             a car's tactical IMU at 100 Hz 0.95 of its 2.9e-4 rad/s - the
+#                             decile of 500-sample variances sits ~10 % below their mean)
+SHARE_MAX = 0.9             # a regressor 90 % the reference's noise: read back 10x amplified,
+#                             the term is not measurable against this reference
+SHARE_SMALL = 0.1           # below it a shift within SHIFT_Z is no bias shown (the bias is
+#                             at most (1 + s) / (1 - s) = 1.2 times the shift); above it the
+#                             read-back is made whatever the shift (at s = 0.6 the shift is a
+#                             quarter of the bias)
 SEED = 20240531             # the added noise's draw: fixed, so a diagnosis repeats exactly
 SHIFT_Z = 3.0               # a shift of the estimate beyond 3 of its sds is a bias shown: one
 #                             draw's own scatter is about one sd (an independent review's toy
@@ -46,6 +73,23 @@ def white_per_sample(design, rate_hz):
             for sensor in ("gyro", "accel")}
 
 
+def reference_white_noise(fog_t, fog_w, fog_f):
+    """{"gyro": rad/s, "accel": m/s^2}: the reference IMU's own white noise, 1 sigma per
+    sample, from its outputs at stamps fog_t (s) alone: var(diff(x)) / 2 per axis over
+    windows of NOISE_WINDOW_S, its NOISE_DECILE-th percentile over the windows, the largest
+    over the axes (the whole record one window when it is shorter)."""
+    n = max(int(round(NOISE_WINDOW_S / float(np.median(np.diff(fog_t))))), 2)
+    out = {}
+    for sensor, x in (("gyro", fog_w), ("accel", fog_f)):
+        d = np.diff(x, axis=0)
+        d = d[np.isfinite(d).all(axis=1)]
+        m = max(len(d) // n, 1)
+        per_window = np.var(d[:m * n].reshape(m, -1, 3) if len(d) >= n else d[None], axis=1)
+        out[sensor] = float(np.sqrt(np.max(np.percentile(per_window, NOISE_DECILE, axis=0))
+                                    / 2))
+    return out
+
+
 def noisier(flight, sigma):
     """The flight with white noise of sigma ({"gyro", "accel"}, SI, per sample) added to its
     reference IMU's outputs (a fixed draw, `SEED`)."""
@@ -55,14 +99,18 @@ def noisier(flight, sigma):
                    fog_f=flight.fog_f + rng.normal(0.0, sigma["accel"], flight.fog_f.shape))
 
 
-def read_back(design, again, findings, held_of):
+def read_back(design, again, findings, held_of, added, own=False):
     """(kept, set aside) of the library's `findings` on `design` given `again`, the design of
-    the flight with the reference's noise doubled (`noisier`): each term refitted with the
+    the flight with noise added to its reference (`noisier`): each term refitted with the
     others on the held-out rows (`held_of(design)`) of both; its interval widened to hold
     the estimate read back to a noiseless reference too (module doc), judged as the halves'
     widening is (`confirmation.judged_wider`: set aside where it then holds zero or its
     held-out p misses its limit); each carries `errors_in_variables` {"noisier",
-    "read_back", "widened_by"}."""
+    "read_back", "widened_by", "share", "added_per_sample", "own"}. added: the noise
+    added, {"gyro" rad/s, "accel" m/s^2} 1 sigma per reference sample; own: it is the
+    reference's own (`reference_white_noise`), read back through each coefficient's
+    regressor share (module doc) - else the residual's whole white noise
+    (`white_per_sample`), read back linearly."""
     first = [position_of(design, f) for f in findings]
     second = _index(again, [f["label"] for f in findings])
     if None in second:
@@ -72,24 +120,48 @@ def read_back(design, again, findings, held_of):
     for f, j1, j2 in zip(findings, first, second):
         (b, cov), (b2, _) = fits[0].of(j1), fits[1].of(j2)
         sd = np.sqrt(np.diag(cov))
+        share = _shares(design, again, j1, j2, held_of(design)) if own else np.zeros(len(b))
         # b2 - b holds the draw's own scatter, about the fit's sd (the noise doubled: var b2
         # ~ 2 var b, cov ~ var b): a shift within SHIFT_Z of it is no bias shown - no widening
         shift = float(np.max(np.abs(b2 - b) / sd))
-        if shift <= SHIFT_Z:
-            kept.append(dict(f, errors_in_variables={"noisier": b2.tolist(),
-                                                     "shift_z": shift, "widened_by": 1.0}))
+        record = {"noisier": b2.tolist(), "shift_z": shift, "share": share.tolist(),
+                  "added_per_sample": added, "own": own}
+        if shift <= SHIFT_Z and share.max() <= SHARE_SMALL:
+            kept.append(dict(f, errors_in_variables=dict(record, widened_by=1.0)))
+            continue
+        if share.max() >= SHARE_MAX:
+            aside.append(dict(f, errors_in_variables=record, rejected=(
+                f"the reference's own noise ({_said_noise(added)} per sample, measured) "
+                f"makes {share.max():.0%} of its regressor (errors in variables): not "
+                f"measurable against this reference - inconclusive")))
             continue
         # the truth lies between the fit (the reference's noise as recorded, none charged)
-        # and the read-back (all of the residual's white noise the reference's): widened so
-        factor = 1.0 + float(np.max(np.abs(b2 - b) / (1.96 * sd)))
-        record = {"noisier": b2.tolist(), "read_back": (2 * b - b2).tolist(), "shift_z": shift}
+        # and the read-back: widened so
+        back = (2 * b - b2 * (1 + share)) / (1 - share)
+        factor = 1.0 + float(np.max(np.abs(back - b) / (1.96 * sd)))
+        record["read_back"] = back.tolist()
         why = (f"the reference's own noise moves it (errors in variables): with as much "
-               f"again it reads {_said(b2)} against {_said(b)}, read back to a noiseless "
-               f"reference {_said(2 * b - b2)}")
+               f"again{' (' + _said_noise(added) + ', measured)' if own else ''} it "
+               f"reads {_said(b2)} against {_said(b)}, read back to a noiseless "
+               f"reference {_said(back)}")
         ok, judged = judged_wider(f, factor, len(b), why, "errors_in_variables", record,
                                   f.get("halves", {}).get("p_heldout_widened"))
         (kept if ok else aside).append(judged)
     return kept, aside
+
+
+def _shares(design, again, j1, j2, rows):
+    """(k,) of term j1 of `design` (j2 of `again`, the same flight's with noise added to its
+    reference): the sum of squares the added noise makes in each of its regressors, over
+    theirs, on the bins of `rows` both designs hold."""
+    _, a, b = np.intersect1d(design.t, again.t, return_indices=True)
+    a, b = a[rows[a]], b[rows[a]]
+    added = total = 0.0
+    for c, x in design.columns[j1].items():
+        if c in again.columns[j2]:
+            added = added + np.sum((again.columns[j2][c][b] - x[a]) ** 2, axis=0)
+            total = total + np.sum(x[a] ** 2, axis=0)
+    return np.atleast_1d(added / np.maximum(total, 1e-300))
 
 
 def _index(design, labels):
@@ -97,6 +169,10 @@ def _index(design, labels):
     (the noisier flight's design is made anew)."""
     names = [library.label(t) for t in design.terms]
     return [names.index(x) if x in names else None for x in labels]
+
+
+def _said_noise(sigma):
+    return f"{sigma['gyro']:.2g} rad/s, {sigma['accel']:.2g} m/s^2"
 
 
 def _said(x):

@@ -348,22 +348,30 @@ def _reference_column(flight, spill, c):
 
 
 def _confirmed(flight, design, chosen, split, alpha, prep, mems_grade, remake):
-    """`confirmation.confirmed` (a record's halves and noise too), and beside a MEMS-grade
-    reference its findings read back to a noiseless reference (`errors_in_variables`: those
-    its noise can make set aside with the halves'); split: (train, held rows, block s);
+    """`confirmation.confirmed` (a record's halves and noise too), and its findings read back
+    to a noiseless reference (`errors_in_variables`: those its noise can make set aside with
+    the halves'): beside a MEMS-grade reference all of them, with the residual's white noise
+    added; beside any other in a recording those whose regressors hold its derivatives,
+    with its own noise added (`reference_white_noise`). split: (train, held rows, block s);
     remake(flight): the design of another flight as this one's was made."""
     train, held, block_s = split
     family, again, noisy = len(chosen), None, []
     while True:         # those the noise can make leave the fit, as the checks' do
         findings, rejected, aside, doubts, record = confirmed(
             design, chosen, train, held, alpha, prep, flight.source == "recording", family)
-        if not (mems_grade and findings and flight.fog_w is not None):
+        own = not mems_grade and flight.source == "recording"
+        if not findings or flight.fog_w is None or not (mems_grade or own and any(
+                f["effect"] in errors_in_variables.DIFFERENTIATED for f in findings)):
             break
-        again = again or remake(errors_in_variables.noisier(
-            flight, errors_in_variables.white_per_sample(
-                design, 1.0 / float(np.median(np.diff(flight.fog_t))))))
+        if again is None:
+            added = errors_in_variables.reference_white_noise(
+                flight.fog_t, flight.fog_w, flight.fog_f) if own else \
+                errors_in_variables.white_per_sample(
+                    design, 1.0 / float(np.median(np.diff(flight.fog_t))))
+            again = remake(errors_in_variables.noisier(flight, added))
         findings, made = errors_in_variables.read_back(
-            design, again, findings, lambda d: outputs.block_index(d.t, block_s) % 2 == 1)
+            design, again, findings, lambda d: outputs.block_index(d.t, block_s) % 2 == 1,
+            added, own)
         if not made:
             break
         noisy += made

@@ -253,10 +253,14 @@ def _finding_lines(doc):
                 "each half are in diagnosis.json (`halves`)."]
         noisy = [f for f in doc["findings"] if isinstance(f.get("errors_in_variables"), dict)]
         if noisy:
-            lines += ["", "The reference is of MEMS grade: its own noise, in the residual and "
-                      "in the regressors, can bias a term (errors in variables). Refitted with "
-                      "as much noise again (SIMEX, one step), each interval was widened to hold "
-                      "the estimate read back to a noiseless reference: " + ", ".join(
+            own = noisy[0]["errors_in_variables"].get("own")
+            lines += ["", ("The reference's own noise (measured in its quietest windows) "
+                           "enters the residual and, differentiated, the regressors of a lever "
+                           "arm, a proof-mass offset and a time skew: it" if own else "The reference is of MEMS "
+                           "grade: its own noise, in the residual and in the regressors,") +
+                      " can bias a term (errors in variables). Refitted with as much noise "
+                      "again (SIMEX, one step), each interval was widened to hold the estimate "
+                      "read back to a noiseless reference: " + ", ".join(
                           f"{f['label']} {f['errors_in_variables']['widened_by']:.2f}x"
                           for f in noisy) + " (diagnosis.json: `errors_in_variables`)."]
         lines += [f"\n{f['label']}: the import measured {f['import_measured']['value']:.4g} "
