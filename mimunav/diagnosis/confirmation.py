@@ -81,7 +81,8 @@ def confirm_chosen(design, chosen, train, held, alpha, full_scale, extremes, fam
             attribution=_attribution(term, p_ref < level, res["linear"],
                                      _reference_may_carry(design, j, b_ho) or (
                                          p_ref >= level
-                                         and design.allowance_of[j] == "reference")),
+                                         and design.allowance_of[j] in ("reference",
+                                                                        "clock"))),
             named_on=c.get("named_on", "training half"),
             indistinguishable_from=[alternative_of(design.terms[a]) for a in c["alternatives"]],
             not_chosen_as_implausible=c["implausible"])

@@ -39,10 +39,11 @@ class Design:
     along: list                 # per candidate: (18, k) map to gamma if linear, else None
     allowance: list = field(default_factory=list)   # per candidate: (k, k) the stated
                                 # covariance of its coefficient that is no physics the model
-                                # lacks: the calibration's (`model_allowance`) or the
+                                # lacks: the calibration's (`model_allowance`), the
                                 # reference's through the lever-arm transfer (`transfer_allowance`)
-    allowance_of: list = field(default_factory=list)    # per candidate: whose ("calibration",
-                                # "reference", or None when it has none)
+                                # and its clock's (`add_clock_allowance`)
+    allowance_of: list = field(default_factory=list)    # per candidate: whose
+                                # ("calibration", "reference", "clock"; None: it has none)
     levels: np.ndarray = field(default_factory=lambda: wander.LAMBDA_GRID)   # wander levels
                                 # the fits may choose from
     wander_steps: np.ndarray | None = None  # (6,) each channel's largest wander step
@@ -456,6 +457,30 @@ def transfer_allowance(columns, w, w_dot, d, cov):
     s = np.vstack([signatures[:, c, :] for c in chans])
     b = np.linalg.lstsq(x, s, rcond=None)[0]             # (k, 9)
     return b @ cov @ b.T
+
+
+def add_clock_allowance(design, clock_se):
+    """Add to each candidate's allowance the covariance it takes from the reference IMU's
+    clock, which the import measured to clock_se (s, 1 sigma): a clock off by d moves every
+    channel's residual by d times its predicted output's rate of change - time_skew
+    imu.all's regressor, the signature - and a candidate fits B d of that on its own
+    channels (least squares, as `transfer_allowance`): B clock_se^2 B'. A gyro's
+    g-sensitivity on a roll or pitch oscillation is such a shift (f_y ~ g phi, dw_x/dt ~
+    -Omega^2 phi): a ship's 1.74e-3 rad/s per g moved the clock the import measured on the
+    two IMUs' |w| by 2.1 ms (its standard error 1.8 ms), and the diagnosis then named a
+    time skew of the accelerometers and a g-sensitivity of the other oscillating axis."""
+    names = [library.label(t) for t in design.terms]
+    if "time_skew imu.all" not in names:
+        return
+    signature = design.columns[names.index("time_skew imu.all")]
+    for j, cols in enumerate(design.columns):
+        chans = [c for c in cols if c in signature]
+        xx = sum(cols[c].T @ cols[c] for c in chans)
+        xs = sum(cols[c].T @ signature[c] for c in chans)
+        b = np.linalg.lstsq(xx, xs, rcond=None)[0]                      # (k, 1)
+        if np.any(b):
+            design.allowance[j] = design.allowance[j] + clock_se ** 2 * (b @ b.T)
+            design.allowance_of[j] = design.allowance_of[j] or "clock"
 
 
 def transfer_signatures(w, w_dot, d):

@@ -105,6 +105,9 @@ def stated_errors(w):
     if "transfer_1sigma" in w:
         return ("the reference's stated gyro error carried by the lever-arm transfer",
                 "transfer_1sigma")
+    if "clock_1sigma" in w:
+        return ("the reference IMU's clock, as the import measured it (its standard error)",
+                "clock_1sigma")
     return "the calibration's stated covariance", "calibration_1sigma"
 
 

@@ -199,7 +199,8 @@ def _within(design, j, res, full_scale):
     - the reference's linear error (with the calibration's) for a term it can make
     (`reference_1sigma`), else the term's allowance (`Design.allowance`): the calibration's
     own (`calibration_1sigma`, a term the model carries) or the reference's gyro error through
-    the lever-arm transfer (`transfer_1sigma`, a lever arm or proof-mass offset) - and the 1
+    the lever-arm transfer (`transfer_1sigma`, a lever arm or proof-mass offset) or its clock
+    as the import measured it (`clock_1sigma`, `add_clock_allowance`) - and the 1
     sigma the test used (`total_1sigma`: the estimate's with the reference's prior, or the
     noise's plus the allowance, as `term_test` takes it) and the term's physical range
     (`physical_range`, `fitting.plausible`: a 1 sigma beyond it is a term the flight cannot
@@ -209,8 +210,8 @@ def _within(design, j, res, full_scale):
         stated = {"reference_1sigma": np.sqrt(np.diag(ref)).tolist()}
         total = np.sqrt(np.diag(res["cov"]))
     else:
-        key = ("transfer_1sigma" if design.allowance_of[j] == "reference"
-               else "calibration_1sigma")
+        key = {"reference": "transfer_1sigma", "clock": "clock_1sigma"}.get(
+            design.allowance_of[j], "calibration_1sigma")
         stated = {key: np.sqrt(np.diag(design.allowance[j])).tolist()}
         total = np.sqrt(np.diag(res["cov"]) + np.diag(design.allowance[j]))
     k, monotone = res["charged_at"]

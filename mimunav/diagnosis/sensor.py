@@ -77,8 +77,9 @@ from .reference import (TRANSFER_SHARE, TRANSFER_WINDOW_S, agreement, transfer_s
 from ..errors import InputError
 from ..flightlog.stamps import stamp_tick
 from ..compensation.model import poly2
-from .design import (Binning, CHANNELS, Design, detrended, term_contribution, vibration_bin_s,
-                     make_design, reference_error, bins, calibration_prior, white_per_bin)
+from .design import (Binning, CHANNELS, Design, add_clock_allowance, detrended,
+                     term_contribution, vibration_bin_s, make_design, reference_error, bins,
+                     calibration_prior, white_per_bin)
 from .samples import binned, sample_stage, temperature_references
 from .fitting import Fitter, term_test
 from .scan import SCAN_WINDOW_S, condition_masks, condition_map, near_spans, excursions
@@ -283,6 +284,9 @@ def _prepared(flight, cal, acc, candidates, output_tests, samples, bin_s, noise_
                      scratch=samples.streamed)
     design = make_design(binned_, terms, prior + calibration_prior(cal), cal,
                          transfer=(lever, prior[9:, 9:]))
+    clock_se = (flight.recording or {}).get("reference_imu_clock_se_s")
+    if clock_se:                    # the reference's clock, as measured by the import
+        add_clock_allowance(design, clock_se)
     design.q_vs = flight.mimu_mounting.attitude_wxyz
     design.bin_s = bin_s
     design.calibrated = not cal.is_identity

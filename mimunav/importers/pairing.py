@@ -85,8 +85,9 @@ def pair(rec):
     elif clock["offset_s"] is not None and abs(clock["offset_s"]) > SMALL_OFFSET_S:
         rec.shift_reference_imu(-clock["offset_s"], "measured: " + clock["said"])
     _check_overlap(rec)
-    _pair_mountings(rec, clock.get("offset_se_s", math.inf) if clock["offset_s"] is not None
-                    else math.inf)
+    clock_se = clock.get("offset_se_s", math.inf) if clock["offset_s"] is not None else math.inf
+    rec.reference_imu_clock_se_s = clock_se if math.isfinite(clock_se) else None
+    _pair_mountings(rec, clock_se)
 
 
 def _check_overlap(rec):

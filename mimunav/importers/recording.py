@@ -81,6 +81,8 @@ class Recording:
     #                                   was given (--reference-imu-time-offset, a spec's
     #                                   [reference_imu] time_offset_s): it picks the clock's
     #                                   lobe where the data find rivals (`pairing`)
+    reference_imu_clock_se_s: float | None = None   # the standard error (s) of the
+    #                                   reference IMU's clock where `pairing` measured it
     range: dict = field(default_factory=dict)   # the IMU's full scale when known: gyro_rad_s,
                                                 # accel_m_s2 (outputs at it are clipped)
     reference_heading_known: bool = True    # False: the reference lies in a local frame whose

@@ -82,6 +82,7 @@ def write_log(rec, path, force=False):
                                    "initial_attitude": align.attitude_from,
                                    "bias_basis": align.bias_basis,
                                    "reference_heading_known": rec.reference_heading_known,
+                                   "reference_imu_clock_se_s": rec.reference_imu_clock_se_s,
                                    "vehicle": rec.vehicle})
         channels = [("/mimu/imu", S.IMU, "mimu", rec.imu_ns, S.imu_fields(rec.w, rec.f))]
         if rec.reference_imu is not None:
