@@ -18,11 +18,14 @@ that null flight, a size_effect of -0.022 m read -0.27 with the noise doubled: f
 linear, and nothing). A tractor's two autopilot IMUs' true lever arm of 1.8 cm stays, its
 interval four times wider, now holding the truth it had missed by 0.2 mm.
 
-Beside a reference of any grade in a recording, the terms whose regressors hold the
-reference's derivatives (`DIFFERENTIATED`) take the same check with the noise added equal to
-the reference's own, measured (`reference_white_noise`): its differentiated noise can hold
-most of a regressor where the motion hardly excites it (a car's roll and pitch: a lever arm's
-vertical component), and there the bias is far from linear in the noise - a ROS car's exact
+Beside a reference of any grade in a recording, the findings take the same check with the
+noise added equal to the reference's own, measured (`reference_white_noise`), where its
+noise is differentiated: in a lever arm's transfer (dw/dt x dr, in every accelerometer's
+prediction: on a null car the columns of accel.z's scale and of accel.x <- f_z read 0.98
+and 0.42 on their training half, beyond range) or in a finding's regressors
+(`DIFFERENTIATED`). That noise can hold most of a regressor where the motion hardly excites
+it (a car's roll and pitch: a lever arm's vertical component), and there the bias is far
+from linear in the noise - a ROS car's exact
 40 cm lever arm beside a tactical IMU (0.1 deg/sqrt h, 100 Hz) read -0.235 m at p < 1e-300 on
 a null. The share s of a term's regressor that the added noise makes (its sum of squares
 over the regressor's) reads it back exactly for one regressor whose noise both attenuates

@@ -354,9 +354,11 @@ def _reference_column(flight, spill, c):
 def _confirmed(flight, design, chosen, split, alpha, prep, mems_grade, remake):
     """`confirmation.confirmed` (a record's halves and noise too), and its findings read back
     to a noiseless reference (`errors_in_variables`: those its noise can make set aside with
-    the halves'): beside a MEMS-grade reference all of them, with the residual's white noise
-    added; beside any other in a recording those whose regressors hold its derivatives,
-    with its own noise added (`reference_white_noise`). split: (train, held rows, block s);
+    the halves'): beside a MEMS-grade reference with the residual's white noise added;
+    beside any other in a recording with its own noise added (`reference_white_noise`),
+    where a lever arm's transfer carries that noise, differentiated, into every
+    accelerometer's prediction or a finding's regressors hold its derivatives
+    (`errors_in_variables.DIFFERENTIATED`). split: (train, held rows, block s);
     remake(flight): the design of another flight as this one's was made."""
     train, held, block_s = split
     family, again, noisy = len(chosen), None, []
@@ -364,8 +366,9 @@ def _confirmed(flight, design, chosen, split, alpha, prep, mems_grade, remake):
         findings, rejected, aside, doubts, record = confirmed(
             design, chosen, train, held, alpha, prep, flight.source == "recording", family)
         own = not mems_grade and flight.source == "recording"
-        if not findings or flight.fog_w is None or not (mems_grade or own and any(
-                f["effect"] in errors_in_variables.DIFFERENTIATED for f in findings)):
+        if not findings or flight.fog_w is None or not (mems_grade or own and (
+                np.any(flight.mimu_mounting.lever_arm_m - flight.fog_mounting.lever_arm_m)
+                or any(f["effect"] in errors_in_variables.DIFFERENTIATED for f in findings))):
             break
         if again is None:
             added = errors_in_variables.reference_white_noise(
