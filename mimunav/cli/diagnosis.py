@@ -151,6 +151,9 @@ def finding_line(f):
     if "import_measured" in f:
         m = f["import_measured"]
         line += f"\n    the import measured {m['value']:.4g} {m['units']}: {m['basis']}"
+    if "scale_alike" in f:
+        from ..diagnosis.document import scale_alike_text
+        line += "\n    " + scale_alike_text(f["scale_alike"])
     if "mounting_rpy_deg" in f:
         line += ("\n    the mounting that holds it (sensor -> vehicle roll, pitch, yaw): "
                  f"--mounting-rpy-deg {' '.join(f'{a:g}' for a in f['mounting_rpy_deg'])} "

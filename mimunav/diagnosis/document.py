@@ -96,6 +96,16 @@ def dumps(doc):
     return json.dumps(doc, indent=1, allow_nan=False, default=float) + "\n"
 
 
+def scale_alike_text(alike):
+    """The words of a bias found on an axis that reads gravity (`levels.beside_the_scales`)."""
+    mean = alike["mean_input_m_s2"]
+    return (f"read at a mean input of {mean:+.3g} m/s^2 on this axis (spread "
+            f"{alike['spread_m_s2']:.2g}): a scale error k of the axis is in it as k x "
+            f"{mean:+.3g} (0.5 % makes {0.005 * abs(mean):.2g} m/s^2) - no scale was found "
+            "on this axis, and only the input's spread tells the two apart; the offset at "
+            "zero input is this less that")
+
+
 def stated_errors(w):
     """(words, key of their 1 sigma) of the stated errors a set-aside term was tested
     against (`selection._within`'s keys)."""

@@ -18,7 +18,7 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 
 from ..files import atomic_folder
-from ..diagnosis.document import charge_text, dumps, stated_errors
+from ..diagnosis.document import charge_text, dumps, scale_alike_text, stated_errors
 from ..diagnosis.design import term_contribution
 from ..diagnosis import library
 from ..diagnosis.inference import p_text
@@ -263,6 +263,8 @@ def _finding_lines(doc):
                       "read back to a noiseless reference: " + ", ".join(
                           f"{f['label']} {f['errors_in_variables']['widened_by']:.2f}x"
                           for f in noisy) + " (diagnosis.json: `errors_in_variables`)."]
+        lines += [f"\n{f['label']}: {scale_alike_text(f['scale_alike'])}."
+                  for f in doc["findings"] if "scale_alike" in f]
         lines += [f"\n{f['label']}: the import measured {f['import_measured']['value']:.4g} "
                   f"{f['import_measured']['units']} - {f['import_measured']['basis']}."
                   for f in doc["findings"] if "import_measured" in f]

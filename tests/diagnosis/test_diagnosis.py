@@ -804,6 +804,14 @@ def test_a_calibrated_unit_bounds_its_linear_terms_by_the_seed_fit_residual():
     assert physical_limit(scale, full, calibrated=True) == pytest.approx(5e-3)
     assert physical_limit(dict(scale, sensor="gyro"), full, calibrated=True) == pytest.approx(2e-2)
     assert physical_limit(scale, full) == pytest.approx(0.05)
+    # a gyro's g-sensitivity: seed S1 Table 2's class (0.01-0.04 (deg/s)/g, bound 0.1) for a
+    # calibrated unit; a consumer part as recorded to 2.5 times the largest typical
+    # datasheet value (0.2 (deg/s)/g): two simulators' 0.112 and 0.3 (deg/s)/g fit within
+    g_sens = {"effect": "g_sensitivity", "sensor": "gyro", "axis": "y", "input_axis": "x"}
+    per_g = math.radians(1.0) / 9.80665
+    assert physical_limit(g_sens, full, calibrated=True) == pytest.approx(0.1 * per_g)
+    assert physical_limit(g_sens, full) == pytest.approx(0.5 * per_g)
+    assert 0.3 * per_g < physical_limit(g_sens, full)
 
 
 def test_the_tests_on_the_outputs_beside_a_residual_that_is_not_noise():

@@ -243,3 +243,26 @@ def test_a_pair_without_a_trajectory_is_sent_to_the_sensor_level(tmp_path):
     write_log(rec, tmp_path / "pair.mcap")
     with pytest.raises(InputError, match="navigation level: --level sensor diagnoses it"):
         levels.load(tmp_path / "pair.mcap", level="navigation")
+
+
+def test_a_bias_on_an_axis_that_reads_gravity_says_a_scale_error_is_in_it():
+    """A rail car's accel.z reads -9.81 m/s^2 give or take 0.03: a bias b and a scale error k
+    of it are one number there, b + k (-9.81) (its 0.20 m/s^2 bias with +0.4 % read 0.161).
+    The finding says so, with the mean and spread of its input; a level axis' bias does
+    not, nor a bias whose axis' scale was found beside it."""
+    from mimunav.diagnosis.document import scale_alike_text
+    from mimunav.diagnosis.levels import beside_the_scales
+    rng = np.random.default_rng(2)
+    inputs = np.column_stack([rng.normal(0, 0.3, 1000), rng.normal(0, 0.3, 1000),
+                              -9.81 + rng.normal(0, 0.03, 1000), np.zeros((1000, 3))])
+    found = [{"effect": "bias_shift", "sensor": "accel", "axis": a} for a in "xz"]
+    beside_the_scales(found, inputs)
+    assert "scale_alike" not in found[0]
+    alike = found[1]["scale_alike"]
+    assert alike["mean_input_m_s2"] == pytest.approx(-9.81, abs=0.01)
+    assert alike["spread_m_s2"] == pytest.approx(0.03, rel=0.1)
+    assert "k x -9.81" in scale_alike_text(alike) and "0.049 m/s^2" in scale_alike_text(alike)
+    with_scale = [{"effect": "bias_shift", "sensor": "accel", "axis": "z"},
+                  {"effect": "scale_factor", "sensor": "accel", "axis": "z"}]
+    beside_the_scales(with_scale, inputs)
+    assert "scale_alike" not in with_scale[0]
