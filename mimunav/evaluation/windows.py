@@ -247,9 +247,10 @@ def reference_floor(meta, length, measured_sigma_v=None, half=None):
     `measured_sigma_v` (per axis, `alignment.velocity_noise`: 2-D sqrt(2) times it) when
     given, and said ("estimated"). With `half` (s, a moving alignment on the reference's
     velocity) its tilt adds sqrt(2) a length^2 / 2, a = sqrt(2) sigma_axis / (2 half) the
-    error of the interval's mean acceleration. Unstated sigmas are left out and named; a
-    reference attitude's own error (g sigma_tilt length^2 / 2) is not included: no source
-    states it."""
+    error of the interval's mean acceleration (`alignment_tilt_m`, with `alignment_half_s`:
+    it grows as length^2 and soon is most of the floor). Unstated sigmas are left out and
+    named; a reference attitude's own error (g sigma_tilt length^2 / 2) is not included: no
+    source states it."""
     def number(key):            # a leading number: "3 (horizontalAccuracy column)" is 3
         said = re.match(r"\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)",
                         str(meta.get(key, "")))
@@ -264,9 +265,12 @@ def reference_floor(meta, length, measured_sigma_v=None, half=None):
     if sigma_p is None and sigma_v is None:
         return {"horizontal_m": None, "not_stated": missing, "estimated": estimated}
     terms = 2 * (sigma_p or 0.0) ** 2 + ((sigma_v or 0.0) * length) ** 2
+    out = {"not_stated": missing, "estimated": estimated}
     if half and sigma_v:        # a difference of two velocities: sqrt(2) sigma_v, 2-D already
-        terms += (math.sqrt(2) * sigma_v / (2 * half) * length ** 2 / 2) ** 2
-    return {"horizontal_m": math.sqrt(terms), "not_stated": missing, "estimated": estimated}
+        tilt = math.sqrt(2) * sigma_v / (2 * half) * length ** 2 / 2
+        terms += tilt ** 2
+        out.update(alignment_tilt_m=tilt, alignment_half_s=half)
+    return {"horizontal_m": math.sqrt(terms), **out}
 
 
 def _percentiles(x):

@@ -15,6 +15,7 @@ import numpy as np
 from ..navigation import alignment
 from ..flightlog import LogWriter
 from ..flightlog import schemas as S
+from ..sensors.accuracy import Accuracy
 from .recording import UNKNOWN_ATTITUDE, heading_source
 from ..flightlog.stamps import longest_gap, mean_rate_hz, missing_samples, rate_segments
 from .checks import (differenced, positions_velocity, reference_track, check_recording,
@@ -157,6 +158,10 @@ def summary(rec, align, path):
         lines.append(f"measured mounting yaw: {rec.real['mounting_yaw_against_course']}")
     if "reference_clock" in rec.real:
         lines.append(f"measured clock offset: {rec.real['reference_clock']}")
+    if rec.reference_imu is not None:
+        stated = rec.reference_imu.get("accuracy")
+        accuracy = Accuracy.from_dict(stated, "stated to the import") if stated else Accuracy()
+        lines.append(f"reference IMU accuracy: {accuracy.grade_said()}")
     for key in ("imu_stamps", "reference_imu_stamps", "reference_imu_clock",
                 "reference_imu_mounting"):                           # said, not only stored
         if key in rec.real:

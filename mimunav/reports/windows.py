@@ -55,6 +55,10 @@ def markdown_table(doc, label=None):
         floor = row.get("reference_floor", {})
         notes = [f"{k} sigma not stated" for k in floor.get("not_stated", [])] + \
             [f"{k} sigma estimated from the track" for k in floor.get("estimated", [])]
+        if floor.get("alignment_tilt_m"):
+            notes.append(f"of it {floor['alignment_tilt_m']:.3g} m from the window's alignment "
+                         f"on the reference's velocity over +-{floor['alignment_half_s']:g} s "
+                         "(its tilt, grown as length^2 / 2)")
         if row.get("earth_rate_left_m"):
             notes.append(f"and the rest's bias keeps the Earth rate's horizontal part (no "
                          f"heading there): up to {row['earth_rate_left_m']:.3g} m of drift")

@@ -68,6 +68,19 @@ class Accuracy:
         return self.gyro_bias > FOG_GYRO_BIAS * 1.000001 or \
             self.accel_bias > FOG_ACCEL_BIAS * 1.000001
 
+    def grade_said(self):
+        """What the diagnosis will take this reference to be, in words: FOG grade, or MEMS
+        grade and why (its stated bias stability beyond seed S1 Table 4's)."""
+        stated = (f"gyro bias {np.degrees(self.gyro_bias) * 3600:.5g} deg/h, accelerometer "
+                  f"bias {self.accel_bias / 9.80665 * 1e6:.5g} ug ({self.source})")
+        if not self.mems_grade:
+            return (f"{stated}: within seed S1 Table 4's FOG-IMU (1 deg/h, 100 ug), so what "
+                    "the two IMUs disagree on beyond its stated errors is the MIMU's")
+        return (f"{stated}: less stable than seed S1 Table 4's FOG-IMU (1 deg/h, 100 ug), so "
+                "the diagnosis takes it as of MEMS grade - any term it finds may be the "
+                "reference's (`mimu-or-reference`) and its noise is charged to it (`mimunav "
+                "diagnose --reference-accuracy` states others)")
+
     def bias_sigma(self, sensor):
         """1 sigma of the reference's own bias-shaped error on one axis of `sensor` (SI): its
         bias stability and its logging step's uniform error (step / sqrt 12) together."""

@@ -28,6 +28,17 @@ def test_a_reference_less_stable_than_table_4_is_of_mems_grade():
         Accuracy.parse("gyro_step=2")
 
 
+def test_the_grade_a_stated_accuracy_makes_is_said():
+    """A rail trial's reference stated at 1.0004 deg/h made every finding `mimu-or-reference`
+    with no word at import: the import now says which grade the diagnosis will take and why."""
+    fog = Accuracy().grade_said()
+    assert "gyro bias 1 deg/h" in fog and "within seed S1 Table 4's FOG-IMU" in fog
+    stated = Accuracy.from_dict({"gyro_bias": 4.85e-6, "accel_bias": 1e-3}, "stated")
+    said = stated.grade_said()
+    assert "gyro bias 1.0004 deg/h" in said and "accelerometer bias 101.97 ug" in said
+    assert "of MEMS grade" in said and "--reference-accuracy" in said
+
+
 class _Halves:
     """A stand-in for `fitting.Fitter` that returns given (b, cov) per half."""
     values = {}

@@ -54,6 +54,7 @@ def test_reference_floor_of_a_window_from_the_stated_sigmas():
     # velocity difference: (v(t0 + 2) - v(t0 - 2)) / 4 s per axis, over 10^2 / 2 s^2
     est = windows.reference_floor({"position_sigma_m": "0.5"}, 10.0, 0.3, 2.0)
     assert est["estimated"] == ["velocity"] and est["not_stated"] == []
+    assert est["alignment_tilt_m"] == pytest.approx(2 * 0.3 / 4.0 * 50.0)     # 2-D rms
     tilt = (rng.normal(0, 0.3, (n, 2)) - rng.normal(0, 0.3, (n, 2))) / 4.0 * 50.0
     start_v = rng.normal(0, 0.3, (n, 2)) * 10.0
     ends = rng.normal(0, 0.5 / math.sqrt(2), (n, 2)) - rng.normal(0, 0.5 / math.sqrt(2), (n, 2))
