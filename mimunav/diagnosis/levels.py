@@ -111,6 +111,12 @@ def diagnose(flight, cal, level, alpha=0.05, seed=0, accuracy=None, noise=None, 
             diag.inconclusive = list(getattr(diag, "inconclusive", None) or []) + [unmeasured]
     else:
         diag = track.diagnose(flight, cal, alpha=alpha, accuracy=accuracy)
+        contradicted = vehicle_kind.contradicted_car(flight, vehicle_of(flight, vehicle))
+        if contradicted:
+            diag.rejected = diag.rejected + [dict(f, rejected=contradicted)
+                                             for f in diag.findings]
+            diag.findings = []
+            diag.inconclusive = list(getattr(diag, "inconclusive", None) or []) + [contradicted]
     fused = fused_reference(flight)
     if fused and not diag.findings:
         diag.inconclusive = list(getattr(diag, "inconclusive", None) or []) + [fused]
@@ -153,9 +159,9 @@ def unmeasured_heading(flight, vehicle=None):
     why = ((flight.recording or {}).get("assumed") or {}).get("initial_heading")
     said = ((why or "assumed: nothing measured it") if heading == "assumed" else
             f"taken from the GNSS course, which is the heading only of what moves along its "
-            f"forward axis (a car, a train, a two-wheeler), and this recording is none of "
-            f"them ({how}" + ("; if it is one, say so: --vehicle" if "declared" not in how
-                              else "") + ")")
+            f"forward axis (a car, a train, a two-wheeler), and this recording is not known "
+            f"to be one of them ({how}" + ("; if it is one, say so: --vehicle"
+                                          if "declared" not in how else "") + ")")
     return (f"the initial heading was {said}: the MIMU's velocity error against the reference "
             "would fit that heading's error, not the MIMU's, so no finding is made from it")
 

@@ -185,7 +185,7 @@ def untestable(cands, noisy):
             "only a simulation's exact truth with attitude gives their inputs otherwise - and "
             "cannot be told from the noise the velocity error shares with them: 'nothing "
             "found' does not cover them; a reference IMU beside it (the sensor level) or, "
-            "for a car, its track (--level track) can test them"]
+            "if a car carried it, its track (--level track) can test them"]
 
 
 def unsettled(rejected):

@@ -23,11 +23,32 @@ def kind(flight):
         return said, f"declared {said} (recording metadata)"
     if flight.truth is None or len(flight.truth) < 10:
         return "other", "not a car: no reference track to judge it from"
-    w, f = (None, None) if flight.mimu_imu is None else flight.mimu_imu
-    failed, numbers = car_tests(flight.truth.t, flight.truth.v_ned, flight.mimu_t, f, w)
+    failed, numbers = _car_tests(flight)
     if failed:
         return "other", f"judged not a car: {'; '.join(failed)}"
     return LAND, "judged a car: " + ", ".join(numbers)
+
+
+def contradicted_car(flight, kind_how):
+    """Why a car declared (kind_how: `levels.vehicle_of`'s (kind, how)) is not what the
+    recording's track and IMU show (`motion.carrier.car_tests` failed), or '': the track
+    level's vehicle model - no side slip, no lean - would charge a motorcycle's lean to its
+    gyros (a 39 deg lean read as a gyro.z excursion of z -21 and a scale of 0.157)."""
+    kind, how = kind_how
+    if kind != LAND or not how.startswith("declared") or flight.truth is None \
+            or len(flight.truth) < 10:
+        return ""
+    failed, _ = _car_tests(flight)
+    if not failed:
+        return ""
+    return (f"{how}, but its track and IMU are not a car's: {'; '.join(failed)} - the track "
+            "level's vehicle model (no side slip, no lean) does not hold, so none of its "
+            "findings stands")
+
+
+def _car_tests(flight):
+    w, f = (None, None) if flight.mimu_imu is None else flight.mimu_imu
+    return car_tests(flight.truth.t, flight.truth.v_ned, flight.mimu_t, f, w)
 
 
 SMALL_ANGLE_MOUNTING = math.radians(20.0)   # library.PHYSICAL_RANGE's mounting_misalignment

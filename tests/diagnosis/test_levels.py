@@ -68,6 +68,23 @@ def test_a_declared_vehicle_is_taken_and_an_attitude_reference_is_used_as_attitu
     assert level == "navigation" and "carries the vehicle's attitude" in why
 
 
+def test_a_car_declared_against_its_data_is_said_and_the_track_levels_findings_fall():
+    """A motorcycle declared a car (--vehicle car): its track turns while its IMU feels none
+    of that turn across its down (it leans into it) - the track level's no-lean model had
+    charged the lean to the gyros, unsaid. The declaration is taken, and contradicted in
+    words with the failed tests; a real car's declaration is not."""
+    t = np.arange(3000) * 0.1
+    yaw = 0.5 * np.sin(2 * np.pi * t / 20.0)
+    v = 15.0 * np.column_stack([np.cos(yaw), np.sin(yaw), np.zeros_like(t)])
+    bike = _flight(v)                                   # its IMU reads 1 g down only
+    said = vehicle_kind.contradicted_car(bike, levels.vehicle_of(bike, "car"))
+    assert said.startswith("declared car (--vehicle), but its track and IMU are not a car's")
+    assert "across its down" in said and "none of its findings stands" in said
+    car = _flight(_ramp(3000, 15.0))
+    assert vehicle_kind.contradicted_car(car, levels.vehicle_of(car, "car")) == ""
+    assert vehicle_kind.contradicted_car(bike, levels.vehicle_of(bike, "train")) == ""
+
+
 @pytest.mark.parametrize("heading, vehicle, stands", [
     ("reference", "pedestrian", True), ("course", "car", True), ("course", "train", True),
     ("course", "two-wheeler", True),
