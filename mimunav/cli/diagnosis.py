@@ -204,6 +204,10 @@ def set_aside_line(w):
     head = (f"  within the stated errors: {w['label']} {said}: significant against the "
             f"noise alone (p {w['p_train']:.2g}), not once the stated errors that may share "
             f"it - {stated} - are allowed: with them its 1 sigma is {sigmas('total_1sigma')}")
+    if "with_the_clock_fitted" in w:
+        c = w["with_the_clock_fitted"]
+        head += (f"; with the reference's clock fitted beside it (time_skew imu.all free) it "
+                 f"reads {_values(c['value'])} (1 sigma {_values(c['sd'])}), p {c['p']:.2g}")
     if max(w["total_1sigma"]) > w.get("physical_range", float("inf")):
         head += (f", beyond its physical range {w['physical_range']:.3g}: the flight cannot "
                  "identify it")

@@ -1,36 +1,35 @@
-"""A reference IMU of MEMS grade: its own white noise enters the residual (through the
-prediction, `reference.predicted_at`) and the regressors made of the same prediction - errors
-in variables. Where the reference is far quieter than the MIMU (a FOG) the bias this makes is
-negligible; where the two are alike it is not: a lever arm's and a proof-mass offset's
-regressors hold the reference's angular acceleration, a time skew's its derivative, and a
-simulated flight whose reference carried a consumer part's noise (0.002 rad/s, 0.04 m/s^2 per
-1 kHz sample) had a size_effect accel.x found beside nothing missing.
+"""A reference IMU's own white noise enters the residual (through the prediction,
+`reference.predicted_at`) and the regressors made of the same prediction - errors in variables.
+Where the reference is far quieter than the MIMU (a FOG) the bias this makes is small unless
+the motion hardly excites a regressor (below); where the two are alike it is not: a lever arm's
+and a proof-mass offset's regressors hold the reference's angular acceleration, a time skew's
+its derivative, and a simulated flight whose reference carried a consumer part's noise (0.002
+rad/s, 0.04 m/s^2 per 1 kHz sample) had a size_effect accel.x found beside nothing missing.
 
-The check is one step of SIMEX (simulation-extrapolation: Cook & Stefanski, JASA 89, 1994):
-the reference's outputs with as much white noise again, the found terms refitted on the same
-held-out blocks. A bias linear in the noise's variance doubles, so 2 b - b' reads the
-estimate back to a noiseless reference; the noise added per sample is the largest the
-residual allows - all of each sensor's white residual variance (`white_per_sample`) charged
-to the reference -, so the truth lies between b and that read-back, and the finding's
-interval is widened to hold both (by 1 + |b' - b| / its half-width, the largest over the
-term's axes), then judged as the halves' widening is: set aside where it holds zero (on
-that null flight, a size_effect of -0.022 m read -0.27 with the noise doubled: far from
-linear, and nothing). A tractor's two autopilot IMUs' true lever arm of 1.8 cm stays, its
-interval four times wider, now holding the truth it had missed by 0.2 mm.
+Beside a MEMS-grade reference the check is one step of SIMEX (simulation-extrapolation: Cook &
+Stefanski, JASA 89, 1994): the reference's outputs with as much white noise again, the found
+terms refitted on the same held-out blocks. A bias linear in the noise's variance doubles, so 2
+b - b' reads the estimate back to a noiseless reference; the noise added per sample is the
+largest the residual allows - all of each sensor's white residual variance (`white_per_sample`)
+charged to the reference -, so the truth lies between b and that read-back, and the finding's
+interval is widened to hold both (by 1 + |b' - b| / its half-width, the largest over the term's
+axes), then judged as the halves' widening is: set aside where it holds zero (on that null
+flight, a size_effect of -0.022 m read -0.27 with the noise doubled: far from linear, and
+nothing). A tractor's two autopilot IMUs' true lever arm of 1.8 cm stays, its interval four
+times wider, now holding the truth it had missed by 0.2 mm.
 
-Beside a reference of any grade in a recording, the findings take the same check with the
-noise added equal to the reference's own, measured (`reference_white_noise`), where its
-noise is differentiated: in a lever arm's transfer (dw/dt x dr, in every accelerometer's
-prediction: on a null car the columns of accel.z's scale and of accel.x <- f_z read 0.98
-and 0.42 on their training half, beyond range) or in a finding's regressors
-(`DIFFERENTIATED`). That noise can hold most of a regressor where the motion hardly excites
-it (a car's roll and pitch: a lever arm's vertical component), and there the bias is far
-from linear in the noise - a ROS car's exact
-40 cm lever arm beside a tactical IMU (0.1 deg/sqrt h, 100 Hz) read -0.235 m at p < 1e-300 on
-a null. The share s of a term's regressor that the added noise makes (its sum of squares
-over the regressor's) reads it back exactly for one regressor whose noise both attenuates
-it and biases it by c (b(m) = (beta S + c m V) / (S + m V) at m times the noise, s = V /
-(S + V)): beta = (2 b - b'(1 + s)) / (1 - s); the linear read-back is its s -> 0 limit
+Beside a reference of any grade in a recording, the findings take the same check with the noise
+added equal to the reference's own, measured (`reference_white_noise`), where its noise is
+differentiated: in a lever arm's transfer (dw/dt x dr, in every accelerometer's prediction: on
+a null car the columns of accel.z's scale and of accel.x <- f_z read 0.98 and 0.42 on their
+training half, beyond range) or in a finding's regressors (`DIFFERENTIATED`). That noise can
+hold most of a regressor where the motion hardly excites it (a car's roll and pitch: a lever
+arm's vertical component), and there the bias is far from linear in the noise - a ROS car's
+exact 40 cm lever arm beside a tactical IMU (0.1 deg/sqrt h, 100 Hz) read -0.235 m at p <
+1e-300 on a null. The share s of a term's regressor that the added noise makes (its sum of
+squares over the regressor's) reads it back exactly for one regressor whose noise both
+attenuates it and biases it by c (b(m) = (beta S + c m V) / (S + m V) at m times the noise, s =
+V / (S + V)): beta = (2 b - b'(1 + s)) / (1 - s); the linear read-back is its s -> 0 limit
 (Fuller, Measurement Error Models, 1987, 1.1: the reliability ratio 1 - s).
 """
 from dataclasses import replace

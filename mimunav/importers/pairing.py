@@ -290,9 +290,10 @@ def _lobe(r, k, floor):
 def _refined(rec, coarse_s, search_s=2 * GRID_S, step_s=0.001, blocks=10):
     """(offset s, its standard error s, `_drift`'s line through the blocks' own offsets):
     the offset that best matches the two |w|^2 (means over REFINE_WINDOW_S) within
-    +-search_s of coarse_s, on a grid of step_s refined by a parabola; the error by the jackknife over `blocks` consecutive blocks
-    of the overlap; NaN where the least cost, of the whole or of a jackknife part, is at the
-    search's edge (not bracketed). Each gyro's bias b moves its
+    +-search_s of coarse_s, on a grid of step_s refined by a parabola; the error by the
+    jackknife over `blocks` consecutive blocks of the overlap; NaN where the least cost, of
+    the whole or of a jackknife part, is at the search's edge (not bracketed). Each gyro's
+    bias b moves its
     |w|^2 by 2 b.w + |b|^2, which a shift can partly mimic (a MEMS pair's 0.3 deg/s had made
     a fixed wing's offset 0.3 ms late): at each shift the difference is fitted on [the IMU's
     rates, 1] first - with w_r = C w, |w_r + b_r|^2 - |w + b|^2 = 2 (C'b_r - b).w + const,

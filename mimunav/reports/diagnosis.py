@@ -256,8 +256,9 @@ def _finding_lines(doc):
             own = noisy[0]["errors_in_variables"].get("own")
             lines += ["", ("The reference's own noise (measured in its quietest windows) "
                            "enters the residual and, differentiated, the regressors of a lever "
-                           "arm, a proof-mass offset and a time skew: it" if own else "The reference is of MEMS "
-                           "grade: its own noise, in the residual and in the regressors,") +
+                           "arm, a proof-mass offset and a time skew: it" if own else
+                           "The reference is of MEMS grade: its own noise, in the residual "
+                           "and in the regressors,") +
                       " can bias a term (errors in variables). Refitted with as much noise "
                       "again (SIMEX, one step), each interval was widened to hold the estimate "
                       "read back to a noiseless reference: " + ", ".join(
