@@ -56,6 +56,11 @@ SHARE_SMALL = 0.1           # below it a shift within SHIFT_Z is no bias shown (
 #                             at most (1 + s) / (1 - s) = 1.2 times the shift); above it the
 #                             read-back is made whatever the shift (at s = 0.6 the shift is a
 #                             quarter of the bias)
+NOT_READ_BACK = ("the findings were not read back to a noiseless reference (errors in "
+                 "variables): the recording streams (its reference IMU is read block by block, "
+                 "not held to add noise to), and the reference's own noise may make or bias "
+                 "them (a lever arm, a proof-mass offset, a time skew; beside a lever arm any "
+                 "accelerometer term; beside a MEMS-grade reference any term)")
 SEED = 20240531             # the added noise's draw: fixed, so a diagnosis repeats exactly
 SHIFT_Z = 3.0               # a shift of the estimate beyond 3 of its sds is a bias shown: one
 #                             draw's own scatter is about one sd (an independent review's toy
@@ -73,6 +78,20 @@ def white_per_sample(design, rate_hz):
     return {sensor: float(np.sqrt(n * max(per_bin[c] for c, (s, _) in enumerate(CHANNELS)
                                           if s == sensor)))
             for sensor in ("gyro", "accel")}
+
+
+def at_risk(flight, findings, mems_grade):
+    """Whether the reference's own noise may make or bias `findings` (module doc): any
+    finding beside a MEMS-grade reference; beside another in a recording, any where a lever
+    arm's transfer differentiates its rates into the accelerometers' prediction, else those
+    whose regressors hold derivatives (`DIFFERENTIATED`)."""
+    if not findings:
+        return False
+    if mems_grade:
+        return True
+    lever = flight.mimu_mounting.lever_arm_m - flight.fog_mounting.lever_arm_m
+    return flight.source == "recording" and bool(
+        np.any(lever) or any(f["effect"] in DIFFERENTIATED for f in findings))
 
 
 def reference_white_noise(fog_t, fog_w, fog_f):

@@ -366,9 +366,10 @@ def _confirmed(flight, design, chosen, split, alpha, prep, mems_grade, remake):
         findings, rejected, aside, doubts, record = confirmed(
             design, chosen, train, held, alpha, prep, flight.source == "recording", family)
         own = not mems_grade and flight.source == "recording"
-        if not findings or flight.fog_w is None or not (mems_grade or own and (
-                np.any(flight.mimu_mounting.lever_arm_m - flight.fog_mounting.lever_arm_m)
-                or any(f["effect"] in errors_in_variables.DIFFERENTIATED for f in findings))):
+        if not errors_in_variables.at_risk(flight, findings, mems_grade):
+            break
+        if flight.fog_w is None:        # streamed: its reference is not held to add noise to
+            doubts = doubts + [errors_in_variables.NOT_READ_BACK]
             break
         if again is None:
             added = errors_in_variables.reference_white_noise(

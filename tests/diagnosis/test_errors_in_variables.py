@@ -114,3 +114,25 @@ def test_the_read_back_through_the_regressors_share_finds_the_truth(monkeypatch)
     one, two = designs(0.95)
     kept, aside = errors_in_variables.read_back(one, two, [finding], every, added, own=True)
     assert kept == [] and "not measurable against this reference" in aside[0]["rejected"]
+
+
+def test_the_findings_the_references_noise_may_make_are_those_read_back():
+    """Beside a MEMS-grade reference every finding; beside another in a recording every one
+    where a lever arm's transfer differentiates its rates, else a lever arm, proof-mass
+    offset or time skew only; a simulation's FOG none. (A streamed recording, whose
+    reference is not held, says it could not read them back: `NOT_READ_BACK`.)"""
+    from mimunav.frames.mounting import Mounting
+
+    def flight(lever, source="recording"):
+        return SimpleNamespace(mimu_mounting=Mounting(), source=source,
+                               fog_mounting=Mounting((1.0, 0.0, 0.0, 0.0), lever))
+    bias = [{"effect": "bias_shift"}]
+    skew = [{"effect": "time_skew"}]
+    assert errors_in_variables.at_risk(flight([0.0, 0.0, 0.0]), bias, True)
+    assert not errors_in_variables.at_risk(flight([0.0, 0.0, 0.0]), bias, False)
+    assert errors_in_variables.at_risk(flight([0.0, 0.0, 0.0]), skew, False)
+    assert errors_in_variables.at_risk(flight([0.4, -0.25, -0.3]), bias, False)
+    assert not errors_in_variables.at_risk(flight([0.4, -0.25, -0.3], "simulation"), skew,
+                                           False)
+    assert not errors_in_variables.at_risk(flight([0.4, 0.0, 0.0]), [], True)
+    assert "streams" in errors_in_variables.NOT_READ_BACK
