@@ -18,7 +18,7 @@ flight, a size_effect of -0.022 m read -0.27 with the noise doubled: far from li
 nothing). A tractor's two autopilot IMUs' true lever arm of 1.8 cm stays, its interval four
 times wider, now holding the truth it had missed by 0.2 mm.
 
-Beside a reference of any grade in a recording, the findings take the same check with the noise
+Beside a reference of higher grade in a recording, the findings take the same check with the noise
 added equal to the reference's own, measured (`reference_white_noise`), where its noise is
 differentiated: in a lever arm's transfer (dw/dt x dr, in every accelerometer's prediction: on
 a null car the columns of accel.z's scale and of accel.x <- f_z read 0.98 and 0.42 on their

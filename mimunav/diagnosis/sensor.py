@@ -354,11 +354,9 @@ def _reference_column(flight, spill, c):
 def _confirmed(flight, design, chosen, split, alpha, prep, mems_grade, remake):
     """`confirmation.confirmed` (a record's halves and noise too), and its findings read back
     to a noiseless reference (`errors_in_variables`: those its noise can make set aside with
-    the halves'): beside a MEMS-grade reference with the residual's white noise added;
-    beside any other in a recording with its own noise added (`reference_white_noise`),
-    where a lever arm's transfer carries that noise, differentiated, into every
-    accelerometer's prediction or a finding's regressors hold its derivatives
-    (`errors_in_variables.DIFFERENTIATED`). split: (train, held rows, block s);
+    the halves') where they are at risk (`errors_in_variables.at_risk`): beside a MEMS-grade
+    reference with the residual's white noise added (an upper bound), beside another in a
+    recording with its own (`reference_white_noise`). split: (train, held rows, block s);
     remake(flight): the design of another flight as this one's was made."""
     train, held, block_s = split
     family, again, noisy = len(chosen), None, []

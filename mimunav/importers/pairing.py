@@ -43,12 +43,10 @@ SMALL_OFFSET_S = 0.001      # s: the refinement's step; a measured offset beyond
                             # not depend on it), a smaller one left to the time_skew term
 SMALL_TURN_DEG = 3.0        # deg: within this its mounting_misalignment term carries a turn
 GRID_S = 0.02               # s: the coarse search's grid (50 Hz: |w| of a vehicle's motion)
-REFINE_WINDOW_S = 0.1       # s: the refinement compares |w|^2 as means over windows this long
-#                             (running integrals), not interpolated: a sample's noise, halved
-#                             in variance midway between samples by a linear interpolation,
-#                             had pulled a rail car's 100 Hz reference to lags half a sample
-#                             off (44.0 ms for 43.0, standard error 0.16 ms; 42.0 from another
-#                             start); over 0.1 s windows 43.05-43.2 from every start
+REFINE_WINDOW_S = 0.1       # s: |w|^2 compared as means over windows this long, not
+#                             interpolated (halved in variance midway between samples, the
+#                             noise had pulled a rail car's 43.0 ms to 44.0, se 0.16 ms; 42.0
+#                             from another start): 43.05-43.2 from every start
 PEAK_CORRELATION = 0.5      # the |w| correlation at the peak, at least
 SECOND_PEAK_SHARE = 0.8     # the peak's lobe ends where the correlation falls below this
 #                             share of the peak; no lag beyond it may reach it again
@@ -368,14 +366,15 @@ def _drift(t, offsets, variances):
 
 
 def _second_means(rec):
-    """([[IMU w, f], [reference w, f]] 1 s means over the overlap (rad/s, m/s^2, sensor
-    axes), (M,) bool: the seconds both fill and no clipped sample lies in - a rate table's
-    300 deg/s steps on a 250 deg/s gyro are no measure of the turn)."""
+    """([[IMU w, f, `_lever_force`], [reference w, f]] 1 s means over the overlap (rad/s,
+    m/s^2, sensor axes; the lever force's vehicle frame), (M,) bool: the seconds both fill and
+    no clipped sample lies in (a rate table's 300 deg/s steps on a 250 deg/s gyro)."""
     ref = rec.reference_imu
     lo, hi = max(rec.imu_ns[0], ref["ns"][0]), min(rec.imu_ns[-1], ref["ns"][-1])
     mids = np.arange(lo + 500_000_000, hi - 500_000_000, 1_000_000_000) / 1e9
     means = [[window_means(ns, x, mids) for x in (w, f)]
              for ns, w, f in ((rec.imu_ns, rec.w, rec.f), (ref["ns"], ref["w"], ref["f"]))]
+    means[0].append(_lever_force(rec, mids))
     if len(mids) < 10:
         return means, np.zeros(len(mids), bool)
     ok = np.isfinite(np.hstack([m for p in means for m in p])).all(axis=1)
@@ -532,10 +531,9 @@ def _measured_turn(rec, means, ok):
     vectors' cross-covariance is at least SPAN_SHARE of the first."""
     from scipy.spatial.transform import Rotation
     q_mine, q_ref = rec.mounting.q_vs, rec.reference_imu["mounting"].q_vs
-    w_mine, f_mine = (attitude.rotate(q_mine, x[ok]) for x in means[0])
+    w_mine, f_mine = (attitude.rotate(q_mine, x[ok]) for x in means[0][:2])
     w_ref, f_ref = (attitude.rotate(q_ref, x[ok]) for x in means[1])
-    f_mine = f_mine - _lever_force(w_mine, rec.mounting.lever_arm_m
-                                   - rec.reference_imu["mounting"].lever_arm_m)
+    f_mine = f_mine - means[0][2][ok]
     # each gyro's bias is a constant the turn must not fit: the rates about their means (a
     # MEMS pair's 0.3 deg/s bias difference, weighted up to g beside the specific forces,
     # had turned a fixed wing's two aligned IMUs 1.1 deg apart; w - mean = C (w_r - mean));
@@ -565,19 +563,24 @@ def _measured_turn(rec, means, ok):
     return turn, math.degrees(turn.magnitude()), ""
 
 
-def _lever_force(w, r):
-    """(N, 3) m/s^2: what a point r (m, vehicle frame) from the other IMU feels beyond it at
-    the 1 s mean rates w (rad/s, vehicle frame, 1 s apart), dw/dt x r + w x (w x r) (a rate
-    table's 300 deg/s on 0.1 m, 2.7 m/s^2, had read as 0.6 deg of turn)."""
-    r = np.asarray(r, float)
+def _lever_force(rec, mids, half=0.5):
+    """(M, 3) m/s^2, vehicle frame: means over [mid - half, mid + half] (s) of what the IMU
+    feels beyond the reference IMU, r from it: dw/dt x r + w x (w x r) at its rates sample by
+    sample (dw/dt's mean: the rate's change across). Of 1 s mean rates, a foot's strides
+    (+-10 rad/s, 6 cm) lost w x (w x r) and turned an exact mounting 6.6 deg."""
+    r = rec.mounting.lever_arm_m - rec.reference_imu["mounting"].lever_arm_m
     if not np.any(r):
-        return np.zeros_like(w)
-    return np.cross(np.gradient(w, axis=0), r) + np.cross(w, np.cross(w, r))
+        return np.zeros((len(mids), 3))
+    w = attitude.rotate(rec.mounting.q_vs, rec.w)
+    t = rec.imu_ns / 1e9
+    edges = [np.column_stack([np.interp(mids + side, t, w[:, i]) for i in range(3)])
+             for side in (-half, half)]
+    return np.cross((edges[1] - edges[0]) / (2 * half), r) + \
+        window_means(rec.imu_ns, np.cross(w, np.cross(w, r)), mids, half)
 
 
-TRIADS_AGREE_DEG = 0.2      # deg: a triad's own turn onto the reference's (where it alone
-#                             decides one) within this of both triads' (a unit's triads agree
-#                             to its 1-3 mrad misalignments), else they differ: no box turn
+TRIADS_AGREE_DEG = 0.2      # deg: a triad's own turn within this of both triads' (a unit's
+#                             agree to its 1-3 mrad misalignments), else they differ: no turn
 MOVING_FORCE = 0.3          # m/s^2: 1 s mean specific forces' spread that turns the boxes
 
 
