@@ -238,9 +238,10 @@ def vibration_bin_s(t, t_reference, f_reference):
                   VIBRATION_BIN_S[-1])
     left = shares[chosen]
     why = (f"bins of {chosen:g} s, not {FAST_BIN_S:g} s: the reference, re-expressed on the "
-           f"MIMU's stamps (another clock), vibrates above {MOTION_HZ:g} Hz with {share:.2g} "
-           f"times its motion's variance in {FAST_BIN_S:g} s bins, {left:.2g} in these: its "
-           "re-expression's error there would bias every linear term")
+           f"MIMU's stamps (another clock), moves above {MOTION_HZ:g} Hz (a vibration, or "
+           f"motion as fast as a foot's strides) with {share:.2g} times its slower motion's "
+           f"variance in {FAST_BIN_S:g} s bins, {left:.2g} in these: its re-expression's "
+           "error there would bias every linear term")
     doubt = "" if left <= VIBRATION_SHARE else (
         f"the reference's vibration keeps {left:.2g} of its motion's variance even in "
         f"{chosen:g} s bins (at most {VIBRATION_SHARE:g}): its re-expression on the MIMU's "

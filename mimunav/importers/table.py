@@ -53,7 +53,8 @@ refused, naming the nearest known one.
                                  its stamp ends, as the log contract says) or "instant" (the
                                  value at its stamp, as most loggers sample: the stamps move
                                  half an interval later)
-    [time]    unix_offset_s      UNIX time = device time + offset (s), or
+    [time] (required; a logger without UTC states unix_offset_s = 0: its clock's epoch)
+              unix_offset_s      UNIX time = device time + offset (s), or
               gps_week_tow       {file, time}: rows of (GPS week, time of week s) stamped in
                                  device time; the offset is their median difference, the GPS -
                                  UTC leap seconds of that date removed

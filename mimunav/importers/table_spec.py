@@ -210,7 +210,8 @@ def unix_offset_s(spec):
                                  f"week) and N device times; got {rows.shape}, {device.shape}")
         gps_s = rows[:, 0] * 604800.0 + rows[:, 1]
         return float(np.median(gps_to_unix_s(gps_s) - device))
-    raise RecordingError(f"{spec.path}: [time] needs unix_offset_s or gps_week_tow")
+    raise RecordingError(f"{spec.path}: [time] needs unix_offset_s or gps_week_tow (a logger "
+                         "without UTC: unix_offset_s = 0, its own clock as the epoch)")
 
 
 def unix_ns(spec, t, offset, where):
