@@ -385,13 +385,18 @@ def model_excursions(spans, t, held_sd, f_model, q_vs, moving_sd=None):
             aside.append(dict(span, bound=bound,
                               why=f"the step the vehicle model's own errors may make there "
                                   f"({MODEL_STEP_Z:g} sigma of a stop's held pitch, "
-                                  f"{MODEL_STEP_Z * np.nan_to_num(held):.2g}, and of a moving one's, "
-                                  f"{MODEL_STEP_Z * moving:.2g}; the body's tilt on its "
-                                  f"springs at most {body:.2g} m/s^2): the model's, not the "
-                                  "IMU's"))
+                                  f"{_said_step(MODEL_STEP_Z * np.nan_to_num(held))}, and of "
+                                  f"a moving one's, {_said_step(MODEL_STEP_Z * moving)}; the "
+                                  f"body's tilt on its springs at most {body:.2g} m/s^2): the "
+                                  "model's, not the IMU's"))
         else:
             kept.append(span)
     return kept, aside
+
+
+def _said_step(x):
+    """A model step's size in words: m/s^2, or 'none here' (no stop, no moving pitch there)."""
+    return f"{x:.2g} m/s^2" if x > 0 else "none here"
 
 
 def _window_peak(t, series, t0, window_s=2.0, reach=5.0):
