@@ -255,8 +255,9 @@ def clipped_note(w, f, rng):
     at = at_range(w, f, rng)
     if not at.any():
         return ""
-    return (f"{int(at.sum())} samples at the range given (clipped by the sensor's own limit: "
-            "the diagnosis leaves them out of every test, no finding)")
+    return (f"{int(at.sum())} samples at the range given or within 0.1 % of it on some axis "
+            "(clipped by the sensor's own limit, or about to be: the diagnosis leaves them out "
+            "of every test, no finding)")
 
 
 def _rate_hz(t):
