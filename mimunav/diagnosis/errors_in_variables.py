@@ -99,15 +99,13 @@ def reference_white_noise(fog_t, fog_w, fog_f):
     sample, from its outputs at stamps fog_t (s) alone: var(diff(x)) / 2 per axis over
     windows of NOISE_WINDOW_S, its NOISE_DECILE-th percentile over the windows, the largest
     over the axes (the whole record one window when it is shorter)."""
-    n = max(int(round(NOISE_WINDOW_S / float(np.median(np.diff(fog_t))))), 2)
+    n = max(int(round(NOISE_WINDOW_S / float(np.median(np.diff(fog_t))))), 3)
     out = {}
     for sensor, x in (("gyro", fog_w), ("accel", fog_f)):
-        d = np.diff(x, axis=0)
-        d = d[np.isfinite(d).all(axis=1)]
-        m = max(len(d) // n, 1)
-        per_window = np.var(d[:m * n].reshape(m, -1, 3) if len(d) >= n else d[None], axis=1)
-        out[sensor] = float(np.sqrt(np.max(np.percentile(per_window, NOISE_DECILE, axis=0))
-                                    / 2))
+        per_window = np.array([white_per_bin(x[a:a + n]) for a in range(0, max(len(x) - n, 0)
+                                                                         + 1, n)])
+        out[sensor] = float(np.sqrt(np.max(np.nanpercentile(per_window, NOISE_DECILE,
+                                                            axis=0))))
     return out
 
 

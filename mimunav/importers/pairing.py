@@ -43,10 +43,8 @@ SMALL_OFFSET_S = 0.001      # s: the refinement's step; a measured offset beyond
                             # not depend on it), a smaller one left to the time_skew term
 SMALL_TURN_DEG = 3.0        # deg: within this its mounting_misalignment term carries a turn
 GRID_S = 0.02               # s: the coarse search's grid (50 Hz: |w| of a vehicle's motion)
-REFINE_WINDOW_S = 0.1       # s: |w|^2 compared as means over windows this long, not
-#                             interpolated (halved in variance midway between samples, the
-#                             noise had pulled a rail car's 43.0 ms to 44.0, se 0.16 ms; 42.0
-#                             from another start): 43.05-43.2 from every start
+REFINE_WINDOW_S = 0.1       # s: |w|^2 as means over windows this long, not interpolated
+#                             (noise halved midway between samples had read 43.0 ms 44.0)
 PEAK_CORRELATION = 0.5      # the |w| correlation at the peak, at least
 SECOND_PEAK_SHARE = 0.8     # the peak's lobe ends where the correlation falls below this
 #                             share of the peak; no lag beyond it may reach it again
