@@ -75,6 +75,8 @@ def _diagnosed(args, painter):
         print(f"  {doc['bins']['why']}")
     for f in doc["findings"]:
         print(finding_line(f))
+    for line in clock_lines(doc.get("reference_clock")):
+        print(line)
     lag = doc.get("time_lag", {})
     if "tau_s" in lag:
         print(f"  time lag from the yaw rate: {lag['tau_s'] * 1e3:.1f} ms "
@@ -188,26 +190,35 @@ def not_confirmed_lines(doc):
             and r["rejected"] not in said]
 
 
+def clock_lines(clock):
+    """The reference IMU's clock as the diagnosis read it (`confirmation.clock_reading`), for
+    the terminal: [] where it was not fitted."""
+    if not clock:
+        return []
+    return [f"  the reference IMU's clock, fitted beside the findings as time_skew imu.all "
+            f"(positive: the MIMU lags): {clock['fitted_s'] * 1e3:+.3g} ms (1 sigma "
+            f"{clock['sd_s'] * 1e3:.2g}; on the data alone {clock['data_s'] * 1e3:+.3g} +- "
+            f"{clock['data_sd_s'] * 1e3:.2g} ms, the import measured it to "
+            f"{clock['import_1sigma_s'] * 1e3:.2g} ms)"]
+
+
 def set_aside_line(w):
     """A term set aside as within the stated accuracies (`within_reference_accuracy`), for
     the terminal: its value, its p against the noise alone, the reference's stated 1 sigma
     along it and the 1 sigma the test used - the estimate's with the reference's and the
     calibration's stated errors as priors, which can exceed both."""
-    from ..diagnosis.document import charge_text, stated_errors
+    from ..diagnosis.document import charge_text, clock_words, stated_errors, stated_sigma
     value = w.get("coefficient", w.get("vector"))
     said = (f"{value:.4g}" if isinstance(value, float) else
             "[" + ", ".join(f"{v:.3g}" for v in value) + "]")
     sigmas = lambda key: ", ".join(f"{v:.3g}" for v in w[key])     # noqa: E731
     words, key = stated_errors(w)
     stated = (f"the reference's (1 sigma {sigmas(key)}) and the calibration's"
-              if key == "reference_1sigma" else f"{words} (1 sigma {sigmas(key)})")
+              if key == "reference_1sigma" else f"{words} (1 sigma {stated_sigma(w)})") \
+        + clock_words(w)
     head = (f"  within the stated errors: {w['label']} {said}: significant against the "
             f"noise alone (p {w['p_train']:.2g}), not once the stated errors that may share "
             f"it - {stated} - are allowed: with them its 1 sigma is {sigmas('total_1sigma')}")
-    if "with_the_clock_fitted" in w:
-        c = w["with_the_clock_fitted"]
-        head += (f"; with the reference's clock fitted beside it (time_skew imu.all free) it "
-                 f"reads {_values(c['value'])} (1 sigma {_values(c['sd'])}), p {c['p']:.2g}")
     if max(w["total_1sigma"]) > w.get("physical_range", float("inf")):
         head += (f", beyond its physical range {w['physical_range']:.3g}: the flight cannot "
                  "identify it")

@@ -43,6 +43,8 @@ def document(log_path, diag, alpha=0.05):
         doc["library_inflation"] = json_ready(diag.library_inflation)
     if getattr(diag, "reference_agreement", None):
         doc["reference_agreement"] = json_ready(diag.reference_agreement)
+    if getattr(diag, "reference_clock", None):
+        doc["reference_clock"] = json_ready(diag.reference_clock)
     if getattr(diag, "time_lag", None):
         doc["time_lag"] = json_ready(diag.time_lag)
     reasons = getattr(diag, "inconclusive", None) or []
@@ -115,10 +117,27 @@ def stated_errors(w):
     if "transfer_1sigma" in w:
         return ("the reference's stated gyro error carried by the lever-arm transfer",
                 "transfer_1sigma")
-    if "clock_1sigma" in w:
-        return ("the reference IMU's clock, as the import measured it (its standard error)",
-                "clock_1sigma")
-    return "the calibration's stated covariance", "calibration_1sigma"
+    if "calibration_1sigma" in w:
+        return "the calibration's stated covariance", "calibration_1sigma"
+    return "the reference IMU's clock (fitted beside it, as the import measured it)", \
+        "clock_1sigma_s"
+
+
+def stated_sigma(w, values=None):
+    """The 1 sigma values of `stated_errors(w)` (or `values` in their units), in words."""
+    key = stated_errors(w)[1]
+    said = ", ".join(f"{v:.3g}" for v in (w[key] if values is None else values))
+    return said + " s" if key == "clock_1sigma_s" else said
+
+
+def clock_words(w):
+    """', with the reference IMU's clock fitted beside it (the import's 1 sigma, ms)' where a
+    set-aside term was read so (`selection._within`'s clock_1sigma_s) beside other stated
+    errors; else ''."""
+    if "clock_1sigma_s" not in w or stated_errors(w)[1] == "clock_1sigma_s":
+        return ""
+    return (", with the reference IMU's clock fitted beside it (the import measured it to "
+            f"{w['clock_1sigma_s'][0] * 1e3:.2g} ms)")
 
 
 def charge_text(w):
@@ -134,7 +153,7 @@ def charge_text(w):
                 "smaller it would not pass the selection's test on this flight")
     said = (f"the MIMU and the reference disagree along it: it would pass the selection's "
             f"test with {whose} at {k:.2g} of the stated (1 sigma "
-            + ", ".join(f"{v:.3g}" for v in w["charged_at_1sigma"]) + ")")
+            + stated_sigma(w, w["charged_at_1sigma"]) + ")")
     if not w.get("charged_at_monotone", True):
         said += ", though not at every smaller value (the test is not monotone here)"
     return said

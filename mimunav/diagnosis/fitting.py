@@ -72,17 +72,36 @@ class Fitter:
             loglik = np.where(over, -np.inf, loglik)
         return g, r, loglik, theta
 
-    def _level(self, c, cols, factor=1.0):
+    def _level(self, c, cols, factor=1.0, shift=None):
         """(Gram, r, log-likelihood) of channel c at the wander level of maximum marginal
-        likelihood (`_profile`); kept per (channel, columns in their order, factor): a
+        likelihood (`_profile`); kept per (channel, columns in their order, factor, shift): a
         selection step fits every candidate with the same chosen terms on the channels the
-        candidate does not touch, and the likelihood ratio refits the fit's own model."""
-        key = (c, tuple(cols), factor)
+        candidate does not touch, and the likelihood ratio refits the fit's own model.
+        shift: (column, beta) - the residual less beta times that column (`_shifted`)."""
+        key = (c, tuple(cols), factor, shift)
         if key not in self._levels:
-            g, r, loglik, _ = self._profile(c, cols, factor)
+            g, r, loglik, _ = self._profile(c, cols, factor, None if shift is None else
+                                            self._shifted(c, *shift))
             best = int(np.argmax(loglik))
             self._levels[key] = g[best], float(r[best]), float(loglik[best])
         return self._levels[key]
+
+    def _shifted(self, c, x, beta):
+        """Channel c's Grams at every wander level with the residual y - beta x_x (x: a
+        column index of the channel)."""
+        return _less(self.gram[c], x, beta)
+
+    def _nuisance_shift(self, c, terms):
+        """(column, beta) of the design's nuisance on channel c fitted with `terms` (its
+        estimate from `fit`, the six channels together: the clock is one for them), or None
+        where none acts on c. One nuisance at most (the reference's clock)."""
+        acting = [n for n in self.design.nuisance if n in self.slot[c] and n not in terms]
+        if not acting:
+            return None
+        key = ("nuisance", tuple(terms))
+        if key not in self._levels:
+            self._levels[key] = float(self.fit(terms).of(acting[0])[0][0])
+        return self.slot[c][acting[0]][0], self._levels[key]
 
     def _columns(self, c, terms):
         return [i for j in terms if j in self.slot[c] for i in self.slot[c][j]]
@@ -90,10 +109,13 @@ class Fitter:
     def likelihood_ratio(self, terms, j):
         """2 (max log-likelihood with candidate j - without it), the other `terms` in both and
         each channel's wander level profiled in each (the reference error under its prior,
-        marginalised: `_level`)."""
-        return 2 * sum(self._level(c, self._columns(c, terms + [j]))[2]
-                       - self._level(c, self._columns(c, terms))[2]
-                       for c in self.design.columns[j])
+        marginalised: `_level`); a nuisance (`Design.nuisance`, the reference's clock) held
+        at its estimate without j, from all channels (`_nuisance_shift`): j's channel cannot
+        fit it alone, and it is not refitted with j - a ratio no larger than the full one."""
+        return 2 * sum(self._level(c, self._columns(c, terms + [j]), shift=shift)[2]
+                       - self._level(c, self._columns(c, terms), shift=shift)[2]
+                       for c in self.design.columns[j]
+                       for shift in [self._nuisance_shift(c, terms)])
 
     def profile_interval(self, terms, j, sd, chi2=CHI2_95_1DOF):
         """95 % profile-likelihood interval of the one-parameter candidate j of one channel,
@@ -110,16 +132,14 @@ class Fitter:
         (x,) = self._columns(c, [j])
         others = list(cols)
         others.remove(x)                    # one occurrence: a twin's column stays
-        g = self.gram[c]
-        _, _, loglik, theta = self._profile(c, cols)
+        shift = self._nuisance_shift(c, terms)      # the clock held at its estimate
+        g = self.gram[c] if shift is None else self._shifted(c, *shift)
+        _, _, loglik, theta = self._profile(c, cols, gram=g)
         best = int(np.argmax(loglik))
         top, centre = float(loglik[best]), float(theta[best, 3 + cols.index(x)])
 
         def deficit(beta):                  # 2 (max - profile at beta) - chi2
-            held = g.copy()                 # the Grams of the residual y - beta x
-            held[:, 0, :] -= beta * g[:, x, :]
-            held[:, :, 0] = held[:, 0, :]
-            held[:, 0, 0] = g[:, 0, 0] - 2 * beta * g[:, 0, x] + beta ** 2 * g[:, x, x]
+            held = _less(g, x, beta)        # the Grams of the residual y - beta x
             return 2 * (top - float(np.max(self._profile(c, others, gram=held)[2]))) - chi2
 
         def edge(direction):                # the first crossing, stepping out by sd / 2
@@ -137,12 +157,15 @@ class Fitter:
             lo, hi = min(lo, 0.0), max(hi, 0.0)     # interval (a profile of several tops)
         return lo, hi
 
-    def fit(self, terms, pinned=False, accuracy=1.0):
+    def fit(self, terms, pinned=False, accuracy=1.0, clock=1.0):
         """`Fit` of the candidates `terms` (indices) with the reference error gamma under its
         prior (`pinned`: gamma held at zero - the candidates against the noise alone;
-        `accuracy`: the prior's 1 sigma as a multiple of the stated one); parameters
-        [gamma (18), terms...]."""
+        `accuracy`: the prior's 1 sigma as a multiple of the stated one) and the design's
+        nuisances under theirs (`Design.nuisance`, the reference's clock; `clock`: their
+        1 sigma as a multiple of the stated); parameters [gamma (18), terms..., nuisances]."""
         factor = prior_factor(pinned, accuracy)
+        nuisance = [n for n in self.design.nuisance if n not in terms]
+        terms = list(terms) + nuisance
         k = [self.design.k[j] for j in terms]
         offsets = 18 + np.concatenate([[0], np.cumsum(k)]).astype(int)
         size = offsets[-1]
@@ -157,9 +180,22 @@ class Fitter:
             a[np.ix_(slots, slots)] += g[np.ix_(cols, cols)] / r
             h[slots] += g[cols, 0] / r
         a[:18, :18] += self.precision * factor
+        for n in nuisance:
+            o = offsets[terms.index(n)]
+            a[o:o + k[terms.index(n)], o:o + k[terms.index(n)]] += \
+                1.0 / max(clock ** 2 * self.design.nuisance[n], 1e-300)
         cov = _covariance(a)
         beta = cov @ h
         return Fit(beta, cov, [slice(o, o + kj) for o, kj in zip(offsets, k)], list(terms))
+
+
+def _less(g, x, beta):
+    """Grams (levels, cols, cols) of [y, X] made those of [y - beta x_x, X]."""
+    held = g.copy()
+    held[:, 0, :] -= beta * g[:, x, :]
+    held[:, :, 0] = held[:, 0, :]
+    held[:, 0, 0] = g[:, 0, 0] - 2 * beta * g[:, 0, x] + beta ** 2 * g[:, x, x]
+    return held
 
 
 def prior_factor(pinned=False, accuracy=1.0):
@@ -228,7 +264,9 @@ def term_test(fitter, terms, j):
     (wander level profiled with and without it: a slow term must beat the wander it would
     otherwise be), by Wald when it acts on several (one parameter shared by the channels:
     time skew); a linear one by Wald twice: with the reference error under its prior, and
-    with it held at zero (the evidence against the noise alone)."""
+    with it held at zero (the evidence against the noise alone). The design's nuisances
+    (the reference's clock) are in every fit; a one-channel term's likelihood ratio is
+    of models without them, so it must also pass Wald's test with them."""
     design = fitter.design
     b, cov = fitter.fit(terms).of(j)
     ref = reference_direction(design, j)
@@ -236,8 +274,9 @@ def term_test(fitter, terms, j):
         stat = max(fitter.likelihood_ratio([i for i in terms if i != j], j), 0.0)
         logp = float(stats.chi2.logsf(stat, len(b)))
         logp_ref = logp
-        if design.allowance[j].any():   # must also beat the stated uncertainty that is no
-            # missing physics: the calibration's own, or the reference's through the transfer
+        if design.allowance[j].any() or shares_a_nuisance(design, j):
+            # must also beat the stated uncertainty that is no missing physics: the
+            # calibration's own, the reference's through the transfer, its clock's (fitted)
             logp_ref = max(logp, wald(b, cov + design.allowance[j])[1])
         return {"b": b, "cov": cov, "stat": stat, "logp": logp, "logp_ref": logp_ref,
                 "linear": False}
@@ -251,6 +290,14 @@ def term_test(fitter, terms, j):
     _, logp_ref = wald(b, cov)
     return {"b": b, "cov": cov, "stat": stat, "logp": logp, "logp_ref": logp_ref,
             "linear": True}
+
+
+def shares_a_nuisance(design, j):
+    """Candidate j acts on a channel a nuisance of the design acts on (`Design.nuisance`):
+    its likelihood-ratio test, of a model without the nuisance, is against the noise alone,
+    and its estimate (`Fitter.fit`) is read with the nuisance fitted."""
+    return j not in design.nuisance and any(
+        c in design.columns[n] for n in design.nuisance for c in design.columns[j])
 
 
 def plausible(design, j, b, full_scale):

@@ -9,7 +9,8 @@ import numpy as np
 from scipy import optimize
 
 from . import library
-from .fitting import Fitter, plausible, reference_direction, term_test, wald
+from .fitting import (Fitter, plausible, reference_direction, shares_a_nuisance, term_test,
+                      wald)
 
 
 MAX_TERMS = 6
@@ -31,7 +32,7 @@ def select(design, train, alpha, full_scale, whole=None):
         current = [c["j"] for c in chosen]
         tests, implausible, significant = {}, [], {}
         for j in range(m):
-            if j in excluded:
+            if j in excluded or j in design.nuisance:
                 continue
             res = term_test(fitter, current + [j], j)
             # a term must beat the stated accuracies (the reference's for a linear term, the
@@ -39,8 +40,7 @@ def select(design, train, alpha, full_scale, whole=None):
             if res["logp_ref"] > math.log(alpha / max(m - step, 1)):
                 if res["logp"] < math.log(alpha / m) and j not in within:
                     within[j] = dict(res, charged_at=chargeable_accuracy(
-                        fitter, current + [j], j, math.log(alpha / max(m - step, 1))),
-                        clock_fitted=_with_the_clock(fitter, current, j))
+                        fitter, current + [j], j, math.log(alpha / max(m - step, 1))))
                 continue
             res = dict(res, logp=res["logp_ref"])
             significant[j] = res
@@ -177,11 +177,13 @@ def chargeable_accuracy(fitter, terms, j, log_level):
             return wald(*fitter.fit(terms, accuracy=k).of(j))[1]
     else:
         res = term_test(fitter, terms, j)
-        if res["logp"] > log_level or not design.allowance[j].any():
+        clocked = shares_a_nuisance(design, j)
+        if res["logp"] > log_level or not (design.allowance[j].any() or clocked):
             return 0.0, True
-        b, cov = res["b"], res["cov"]
 
-        def logp(k):
+        def logp(k):        # the clock's prior scaled too, where it is fitted beside j
+            b, cov = fitter.fit(terms, clock=max(k, 1e-4)).of(j) if clocked else \
+                (res["b"], res["cov"])
             return wald(b, cov + k ** 2 * design.allowance[j])[1]
     grid = np.logspace(0.0, -4.0, 25)
     passes = [logp(k) <= log_level for k in grid]
@@ -200,8 +202,9 @@ def _within(design, j, res, full_scale):
     - the reference's linear error (with the calibration's) for a term it can make
     (`reference_1sigma`), else the term's allowance (`Design.allowance`): the calibration's
     own (`calibration_1sigma`, a term the model carries) or the reference's gyro error through
-    the lever-arm transfer (`transfer_1sigma`, a lever arm or proof-mass offset) or its clock
-    as the import measured it (`clock_1sigma`, `add_clock_allowance`) - and the 1
+    the lever-arm transfer (`transfer_1sigma`, a lever arm or proof-mass offset); and the
+    reference's clock fitted beside it, under the import's 1 sigma (`clock_1sigma_s`,
+    `design.add_clock_nuisance`) - and the 1
     sigma the test used (`total_1sigma`: the estimate's with the reference's prior, or the
     noise's plus the allowance, as `term_test` takes it) and the term's physical range
     (`physical_range`, `fitting.plausible`: a 1 sigma beyond it is a term the flight cannot
@@ -211,13 +214,15 @@ def _within(design, j, res, full_scale):
         stated = {"reference_1sigma": np.sqrt(np.diag(ref)).tolist()}
         total = np.sqrt(np.diag(res["cov"]))
     else:
-        key = {"reference": "transfer_1sigma", "clock": "clock_1sigma"}.get(
-            design.allowance_of[j], "calibration_1sigma")
-        stated = {key: np.sqrt(np.diag(design.allowance[j])).tolist()}
+        key = "transfer_1sigma" if design.allowance_of[j] == "reference" else \
+            "calibration_1sigma"
+        stated = {key: np.sqrt(np.diag(design.allowance[j])).tolist()} \
+            if design.allowance[j].any() or not shares_a_nuisance(design, j) else {}
         total = np.sqrt(np.diag(res["cov"]) + np.diag(design.allowance[j]))
+    if shares_a_nuisance(design, j):    # the reference's clock, fitted beside it
+        stated["clock_1sigma_s"] = [float(np.sqrt(v)) for v in design.nuisance.values()]
     k, monotone = res["charged_at"]
-    clock = {"with_the_clock_fitted": res["clock_fitted"]} if res.get("clock_fitted") else {}
-    return {"label": library.label(design.terms[j]), **_describe_b(res["b"]), **stated, **clock,
+    return {"label": library.label(design.terms[j]), **_describe_b(res["b"]), **stated,
             "total_1sigma": total.tolist(),
             "physical_range": plausible(design, j, res["b"], full_scale)[1],
             "p_train": math.exp(res["logp"]),
@@ -233,23 +238,6 @@ def _within(design, j, res, full_scale):
                     "smaller) it would pass this test at the selection's threshold on the "
                     "training half - a finding would still need the plausibility, look-alike "
                     "and held-out checks"}
-
-
-def _with_the_clock(fitter, current, j):
-    """{"value", "sd", "p"}: candidate j refitted with the reference's clock free beside it
-    (time_skew imu.all, a nuisance), where its allowance is the clock's (`design.
-    add_clock_allowance`), else None. A ship's hidden gyro.x <- f_y g-sensitivity, within the
-    clock's 1.8 ms, read 1.77e-4 +- 6.8e-6 (truth 1.78e-4) so, and the other oscillating
-    axis' 2.9e-5 (p 0.1). Read given the terms chosen so far: a reading, not a finding."""
-    design = fitter.design
-    names = [library.label(t) for t in design.terms]
-    if design.allowance_of[j] != "clock" or "time_skew imu.all" not in names or \
-            design.terms[j]["effect"] == "time_skew" or reference_direction(design, j) is not None:
-        return None             # a time skew is the clock's own kind; a linear term is tested
-    clock = names.index("time_skew imu.all")  # against the reference's prior, not the clock
-    res = term_test(fitter, [i for i in current if i != clock] + [clock, j], j)
-    return {"value": res["b"].tolist(), "sd": np.sqrt(np.diag(res["cov"])).tolist(),
-            "p": math.exp(res["logp"])}
 
 
 def _describe_b(b):

@@ -77,15 +77,15 @@ from .reference import (TRANSFER_SHARE, TRANSFER_WINDOW_S, agreement, transfer_s
 from ..errors import InputError
 from ..flightlog.stamps import stamp_tick
 from ..compensation.model import poly2
-from .design import (Binning, CHANNELS, Design, add_clock_allowance, detrended,
+from .design import (Binning, CHANNELS, Design, add_clock_nuisance, detrended,
                      term_contribution, vibration_bin_s, make_design, reference_error, bins,
                      calibration_prior, white_per_bin)
 from .samples import binned, sample_stage, temperature_references
 from .fitting import Fitter, term_test
 from .scan import SCAN_WINDOW_S, condition_masks, condition_map, near_spans, excursions
 from .confirmation import (Extremes, beta_of, beyond_range, beyond_range_reasons,
-                           confirmed, outputs_judged, set_aside_reasons,
-                           position_of)
+                           clock_doubt, clock_reading, confirmed, out_of_the_shadow,
+                           outputs_judged, set_aside_reasons, position_of)
 from .removal import (beside_reference, offset_readings, read_every_way,
                       reference_beyond_stated, removal_sigma)
 from .selection import select
@@ -124,6 +124,8 @@ class SensorDiagnosis:
                                 # the calibration, for the report; None: the flight streamed
     library_inflation: dict = None  # a recording's: the library beside the findings
                                     # (`confirmation.recording_checks`), None when not measured
+    reference_clock: dict = None    # the reference IMU's clock beside the findings
+                                    # (`confirmation.clock_reading`), None when not fitted
 
 
 def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander=None,
@@ -163,16 +165,13 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
         raise InputError(f"{flight.path}: the MIMU turns on a platform (/mimu/platform); "
                          "this analysis does not follow the rotation yet - replay and table do")
     acc = accuracy_of(flight.fog_meta, accuracy)
-    jitter = [stamp_jitter(flight.mimu_t, "the MIMU's"),  # before the bins are held: a
-              stamp_jitter(flight.fog_t, "the reference IMU's")]  # stamp's steps are 8 B each
     prep = _prepare(flight, cal, acc, candidates, output_tests, vibration, bin_s, noise_shape,
                     max_wander, wander_steps, check_reference)
     output_tests, design = prep.output_tests, prep.design
     if len(design.t) < 4 * block_s / (bin_s := design.bin_s):
         raise _too_little(flight, prep, bin_s, block_s, unusable_because)
     held = ~(train := outputs.block_index(design.t, block_s) % 2 == 0)
-    # the all-rows fit, when first needed (look-alikes; ~1 s of Grams on a 10-minute flight)
-    whole = cache(lambda: Fitter(design, np.ones(len(design.t), bool)))
+    whole = cache(lambda: Fitter(design, np.ones(len(design.t), bool)))    # all rows, as needed
     chosen, within, beyond = select(design, train, alpha, prep.full_scale, whole)
     findings, rejected, aside, doubts, library = _confirmed(
         flight, design, chosen, (train, held, block_s), alpha, prep, acc.mems_grade,
@@ -185,21 +184,22 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
         design, (removed, fit_found, everything), conds, (findings, rejected + within), prep,
         alpha, cal, noise, output_tests)
     on_outputs, outputs_aside = outputs_judged(on_outputs, library)
-    rejected = rejected + outputs_aside
-    for f in on_outputs:
-        if f["effect"] == "bias_shift":
-            removed[:, CHANNELS.index((f["sensor"], f["axis"]))] -= f["coefficient"]
-    findings = findings + on_outputs
+    shadow = transfer_doubt(flight, design, findings := findings + on_outputs)
+    findings, shadowed = out_of_the_shadow(findings, shadow)
+    rejected = rejected + outputs_aside + shadowed
+    for f in (f for f in on_outputs if f["effect"] == "bias_shift"):
+        removed[:, CHANNELS.index((f["sensor"], f["axis"]))] -= f["coefficient"]
     after = detrended(design, removed)
     diag = SensorDiagnosis(findings, unexplained, rejected, within, design, train, conds,
                            {"before": condition_map(design, before, conds),
                             "after": condition_map(design, after, conds)},
                            before, after, design.reference.as_dict(), len(design.terms),
-                           design.terms,
-                           everything, outputs.bias_null(noise) if output_tests else None,
-                           prep.compensated and (flight, *prep.compensated), library)
-    diag.inconclusive = [why for why in jitter + doubts + read_twice
-                         + [transfer_doubt(flight, design, findings), design.bins_doubt] if why]
+                           design.terms, everything,
+                           outputs.bias_null(noise) if output_tests else None,
+                           prep.compensated and (flight, *prep.compensated), library,
+                           clock := clock_reading(everything, fit_found.terms))
+    diag.inconclusive = [why for why in prep.jitter + doubts + read_twice
+                         + [shadow, design.bins_doubt, clock_doubt(clock)] if why]
     if not findings:        # what the halves set aside was there, but not the same throughout
         diag.inconclusive += set_aside_reasons(aside) + beyond_range_reasons(rejected)
     if prep.agreement is not None:
@@ -223,6 +223,7 @@ class _Prepared:
     quantized: set              # channels found quantized
     output_tests: bool          # the tests on the outputs were made
     agreement: dict | None      # `reference.agreement`, when checked
+    jitter: list = dataclasses.field(default_factory=list)  # why stamps jitter (`stamp_jitter`), or ''
 
 
 def _prepare(flight, cal, acc, candidates, output_tests, vibration, bin_s, noise_shape,
@@ -234,6 +235,8 @@ def _prepare(flight, cal, acc, candidates, output_tests, vibration, bin_s, noise
     themselves, the design of the candidates on the bins with the stated accuracies as
     priors."""
     why = doubt = ""
+    jitter = [stamp_jitter(flight.mimu_t, "the MIMU's"),  # before the bins are held: a
+              stamp_jitter(flight.fog_t, "the reference IMU's")]  # stamp's steps are 8 B each
     if bin_s is None:
         bin_s, why, doubt = vibration_bin_s(flight.mimu_t, flight.fog_t, flight.fog_f)
     with tempfile.TemporaryDirectory(prefix="mimunav-diagnose-") \
@@ -242,7 +245,7 @@ def _prepare(flight, cal, acc, candidates, output_tests, vibration, bin_s, noise
         samples.vibration = vibration
         prep = _prepared(flight, cal, acc, candidates, output_tests, samples, bin_s,
                          noise_shape, max_wander, wander_steps, check_reference)
-    prep.design.bins_why, prep.design.bins_doubt = why, doubt
+    prep.design.bins_why, prep.design.bins_doubt, prep.jitter = why, doubt, jitter
     return prep
 
 
@@ -286,7 +289,7 @@ def _prepared(flight, cal, acc, candidates, output_tests, samples, bin_s, noise_
                          transfer=(lever, prior[9:, 9:]))
     clock_se = (flight.recording or {}).get("reference_imu_clock_se_s")
     if clock_se:                    # the reference's clock, as measured by the import
-        add_clock_allowance(design, clock_se)
+        add_clock_nuisance(design, clock_se)
     design.q_vs = flight.mimu_mounting.attitude_wxyz
     design.bin_s = bin_s
     design.calibrated = not cal.is_identity

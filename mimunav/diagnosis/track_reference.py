@@ -102,8 +102,12 @@ def simulated_reference(flight, backward=None):
     stamps = np.concatenate([[motion.t0], t[inside]])
     run = truth_mod.generate(motion, stamps)
     dt = np.diff(stamps)[:, None]
+    # the vehicle model's outputs are on the track's clock: the reference IMU's, as the
+    # import measured it, is not theirs to fit (`design.add_clock_nuisance`)
     ref = replace(flight, fog_t=t[inside], fog_w=run.dtheta / dt, fog_f=run.dv / dt,
-                  fog_mounting=Mounting())
+                  fog_mounting=Mounting(), recording={
+                      k: v for k, v in (flight.recording or {}).items()
+                      if k != "reference_imu_clock_se_s"})
     backward = reversing(flight) if backward is None else backward
     # not within edge_s of where the track or the IMU ends: the smoothing is one-sided
     # there, and beyond the IMU's own ends its banded outputs hold still (an IMU ending in

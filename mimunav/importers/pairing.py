@@ -12,8 +12,8 @@ is then refined to a millisecond with each gyro's bias fitted beside it (`_refin
 standard error said. Each tenth of the overlap gives its own offset: a straight line through
 them, weighted by their own variances, measures a drift (a crystal's tens of ppm), taken
 when beyond DISTINCT_Z of its standard error and worth SMALL_OFFSET_S over the overlap - the
-stamps then corrected along the line. A recording whose IMUs
-hardly turn (|w| spread below TURNING_RATE) cannot be timed so: said, and left as recorded.
+stamps then corrected along the line. A recording whose IMUs hardly turn (|w| spread below
+TURNING_RATE) cannot be timed so: said, and left as recorded.
 
 Mounting: after the clock, the two IMUs' 1 s mean rates and specific forces in the vehicle
 frame (each through its own mounting) are turned onto each other (Wahba's problem, scipy's
@@ -23,11 +23,11 @@ least SPAN_SHARE of the first); else with gravity among them (the rates about th
 beside the specific forces as recorded), the turn applied beyond SMALL_TURN_DEG and kept
 within it (an accelerometer bias difference across gravity reads as tilt: the diagnosis
 fits both); refused with the measured turn where gravity alone is seen (it leaves the yaw
-about it open). A triad
-mirrored against the other IMU's (a column's sign, an axis order: no turn holds it) is
-refused naming it: a moving axis whose 1 s means run against the IMU's, as given or after
-the best turn (`_runs_against`). Where the reference's attitude is the reference IMU's own
-(`attitude_of`), the turn goes to the IMU's mounting instead.
+about it open). A triad mirrored against the other IMU's (a column's sign, an axis order: no
+turn holds it) is refused naming it: a moving axis whose 1 s means run against the IMU's, as
+given or after the best turn (`_runs_against`). The turn goes to the IMU's mounting instead
+where the reference's attitude is the reference IMU's own (`attitude_of`) or holds it and
+not the IMU's (`attitude_check`).
 """
 import math
 
@@ -36,6 +36,7 @@ import numpy as np
 from ..frames import attitude
 from ..frames.mounting import Mounting
 from .recording import G0, RecordingError, at_range, utc_text
+from .attitude_check import wahba, whose_turn
 from .series import masked_correlation, on_grid, parabola_min, peak_margin, window_means
 
 SMALL_OFFSET_S = 0.001      # s: the refinement's step; a measured offset beyond it is
@@ -366,7 +367,8 @@ def _drift(t, offsets, variances):
 def _second_means(rec):
     """([[IMU w, f, `_lever_force`], [reference w, f]] 1 s means over the overlap (rad/s,
     m/s^2, sensor axes; the lever force's vehicle frame), (M,) bool: the seconds both fill and
-    no clipped sample lies in (a rate table's 300 deg/s steps on a 250 deg/s gyro)."""
+    no clipped sample lies in (a rate table's 300 deg/s steps on a 250 deg/s gyro), (M,) their
+    mid-times (s)."""
     ref = rec.reference_imu
     lo, hi = max(rec.imu_ns[0], ref["ns"][0]), min(rec.imu_ns[-1], ref["ns"][-1])
     mids = np.arange(lo + 500_000_000, hi - 500_000_000, 1_000_000_000) / 1e9
@@ -374,25 +376,25 @@ def _second_means(rec):
              for ns, w, f in ((rec.imu_ns, rec.w, rec.f), (ref["ns"], ref["w"], ref["f"]))]
     means[0].append(_lever_force(rec, mids))
     if len(mids) < 10:
-        return means, np.zeros(len(mids), bool)
+        return means, np.zeros(len(mids), bool), mids
     ok = np.isfinite(np.hstack([m for p in means for m in p])).all(axis=1)
     clipped = at_range(rec.w, rec.f, rec.range).astype(float)[:, None]
-    return means, ok & ~(window_means(rec.imu_ns, clipped, mids)[:, 0] > 0)
+    return means, ok & ~(window_means(rec.imu_ns, clipped, mids)[:, 0] > 0), mids
 
 
 def _turn_said(angle, how, rpy, hint):
     """The measured turn in words: angle (deg), how (`_measured_turn`), the mounting (roll,
-    pitch, yaw text) that would hold it and the option that gives it."""
-    roll, pitch, yaw = rpy
+    pitch, yaw text; None: not said) that would hold it and the option that gives it."""
+    roll, pitch, yaw = rpy or (None,) * 3
     return (f"{angle:.1f} deg from the mounting given (1 s mean rates and specific forces in the "
             "vehicle frame" + (", about their own means: no bias of either IMU in it"
                                if how == "free" else
                                f"; the IMU's own gyros and accelerometers turn onto the "
                                f"reference's more than {TRIADS_AGREE_DEG:g} deg apart: both "
-                               "together" if how == "triads differ" else "") +
-            "); the two would agree with the reference IMU at roll, pitch, yaw "
-            f"{roll}, {pitch}, {yaw} deg" + (f" ({hint.format(roll=roll, pitch=pitch, yaw=yaw)})"
-                                            if hint else ""))
+                               "together" if how == "triads differ" else "") + ")" + (
+                "; the two would agree with the reference IMU at roll, pitch, yaw "
+                f"{roll}, {pitch}, {yaw} deg" if rpy else "") +
+            (f" ({hint.format(roll=roll, pitch=pitch, yaw=yaw)})" if rpy and hint else ""))
 
 
 def _pair_mountings(rec, clock_se):
@@ -400,7 +402,7 @@ def _pair_mountings(rec, clock_se):
     (module doc), a small turn only beyond what the clock's standard error clock_se (s) can
     make of the rates (`_clock_turn_deg`); say what was measured."""
     ref = rec.reference_imu
-    means, ok = _second_means(rec)
+    means, ok, mids = _second_means(rec)
     if ok.sum() < 10:
         rec.real["reference_imu_mounting"] = "not measured: under 10 s of common samples"
         return
@@ -428,15 +430,19 @@ def _pair_mountings(rec, clock_se):
     hint = ref.get("mounting_hint")
     said = _turn_said(angle, how, (roll, pitch, yaw), hint)
     attitude_of_reference = rec.reference_meta.get("attitude_of") == "reference_imu"
-    if attitude_of_reference and seen:
-        # the reference's attitude is of the reference IMU's axes: they stay, the IMU turns
+    whose, held = whose_turn(rec.reference, mids[ok], [(vehicle[0][0], vehicle[1][0] - means[
+        0][2][ok]), (vehicle[0][1], vehicle[1][1])], angle, (TURNING_RATE, MOVING_FORCE), SPAN_SHARE)
+    if (attitude_of_reference or whose == "imu") and seen:
+        # the reference's attitude is of the reference IMU's axes, or holds them: they stay
         mine = np.conjugate(attitude.from_scipy(turn)) * rec.mounting.q_vs
         rec.mounting = Mounting(attitude.as_wxyz(mine), rec.mounting.lever_arm_m)
         yaw, pitch, roll = (_angle_text(a) for a in attitude.as_euler(mine))
         rec.real["reference_imu_mounting"] = (
-            f"measured {said}: the reference's attitude is the reference IMU's (attitude_of), "
-            f"so the IMU's mounting was turned instead, to roll, pitch, yaw {roll}, {pitch}, "
-            f"{yaw} deg")
+            f"measured {_turn_said(angle, how, None, None)}: " + (
+                "the reference's attitude is the reference IMU's (attitude_of)"
+                if attitude_of_reference else held)
+            + f", so the IMU's mounting was turned instead, to roll, pitch, yaw {roll}, "
+            f"{pitch}, {yaw} deg")
         rec.assumed["mounting"] = f"measured against the reference IMU: roll, pitch, yaw " \
                                   f"{roll}, {pitch}, {yaw} deg"
         return
@@ -467,7 +473,8 @@ def _pair_mountings(rec, clock_se):
             f"pitch, yaw {roll}, {pitch}, {yaw} deg"
             + (f": {hint.format(roll=roll, pitch=pitch, yaw=yaw)})" if hint else ")"))
     ref["mounting"] = Mounting(attitude.as_wxyz(fixed), ref["mounting"].lever_arm_m)
-    rec.real["reference_imu_mounting"] = f"measured {said}: turned so"
+    rec.real["reference_imu_mounting"] = f"measured {said}: turned so" + (f" ({held})" if held
+                                                                          else "")
 
 
 def _why_kept(how, angle, bias_alike, clock_se, timing):
@@ -542,19 +549,20 @@ def _measured_turn(rec, means, ok):
     kinds = [(centred[0] / rms_w, centred[1] / rms_w)] if rms_w >= TURNING_RATE else []
     kinds += [(centred[2] / rms_f, centred[3] / rms_f)] if rms_f >= MOVING_FORCE else []
     if kinds:
-        turn = _wahba(np.vstack([k[0] for k in kinds]), np.vstack([k[1] for k in kinds]))
+        turn = wahba(np.vstack([k[0] for k in kinds]), np.vstack([k[1] for k in kinds]),
+                     SPAN_SHARE)
         if turn is not None:
             # each triad alone, where it decides the turn: a MEMS unit's gyros turned against
             # its own accelerometers take a compromise that fits neither (1 deg of gyro
             # triad had turned an exact mounting 0.7 deg)
-            each = [_wahba(*k) for k in kinds] if len(kinds) == 2 else []
+            each = [wahba(*k, SPAN_SHARE) for k in kinds] if len(kinds) == 2 else []
             if any(e is not None and math.degrees((e.inv() * turn).magnitude())
                    > TRIADS_AGREE_DEG for e in each):
                 return turn, math.degrees(turn.magnitude()), "triads differ"
             return turn, math.degrees(turn.magnitude()), "free"
     mine = np.vstack([centred[0] * (G0 / rms_w), f_mine]) if rms_w >= TURNING_RATE else f_mine
     theirs = np.vstack([centred[1] * (G0 / rms_w), f_ref]) if rms_w >= TURNING_RATE else f_ref
-    turn = _wahba(mine, theirs)
+    turn = wahba(mine, theirs, SPAN_SHARE)
     if turn is not None:
         return turn, math.degrees(turn.magnitude()), "with gravity"
     turn, _ = Rotation.align_vectors([f_mine.mean(axis=0)], [f_ref.mean(axis=0)])
@@ -580,16 +588,6 @@ def _lever_force(rec, mids, half=0.5):
 TRIADS_AGREE_DEG = 0.2      # deg: a triad's own turn within this of both triads' (a unit's
 #                             agree to its 1-3 mrad misalignments), else they differ: no turn
 MOVING_FORCE = 0.3          # m/s^2: 1 s mean specific forces' spread that turns the boxes
-
-
-def _wahba(mine, theirs):
-    """The turn of `theirs` (N, 3) onto `mine` (scipy Rotation) where the vectors span two
-    directions (SPAN_SHARE), else None."""
-    from scipy.spatial.transform import Rotation
-    singular = np.linalg.svd(mine.T @ theirs, compute_uv=False)
-    if not singular[1] >= SPAN_SHARE * singular[0]:
-        return None
-    return Rotation.align_vectors(mine, theirs)[0]
 
 
 def _angle_text(rad):

@@ -18,7 +18,8 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 
 from ..files import atomic_folder
-from ..diagnosis.document import charge_text, dumps, scale_alike_text, stated_errors
+from ..diagnosis.document import (charge_text, clock_words, dumps, scale_alike_text,
+                                  stated_errors, stated_sigma)
 from ..diagnosis.design import term_contribution
 from ..diagnosis import library
 from ..diagnosis.inference import p_text
@@ -323,7 +324,7 @@ def _residual_lines(doc):
                   "them, so it is not charged to physics the model lacks.", ""]
         lines += [f"- {w['label']}: {_vec(w.get('vector', [w.get('coefficient')]))}, total "
                   f"1 sigma {_vec(w.get('total_1sigma', []))} ("
-                  + f"{stated_errors(w)[0]}: 1 sigma {_vec(w[stated_errors(w)[1]])}"
+                  + f"{stated_errors(w)[0]}: 1 sigma {stated_sigma(w)}{clock_words(w)}"
                   + f"; p train against the noise alone {w['p_train']:.2g}); "
                   + charge_text(w)
                   for w in doc["within_reference_accuracy"]]

@@ -125,7 +125,7 @@ def test_a_size_effect_that_replaces_a_lever_arm_is_chosen_once(monkeypatch):
     terms = [{"effect": "lever_arm", "sensor": "imu", "axis": "all"},
              {"effect": "size_effect", "sensor": "accel", "axis": "x"},
              {"effect": "bias_shift", "sensor": "accel", "axis": "y"}]
-    design = SimpleNamespace(terms=terms, calibrated=False)
+    design = SimpleNamespace(terms=terms, calibrated=False, nuisance={})
 
     def test(fitter, chosen, j):
         others = [i for i in chosen if i != j]
@@ -551,36 +551,3 @@ def test_a_bias_beside_a_lattice_is_still_tested():
     assert lo <= 1e-3 <= hi, found["bias_shift gyro.y"]
     coarse = [f["label"] for f in sensor.diagnose(with_gyro_y(0.01, 0.0), cal).findings]
     assert "bias_shift gyro.y" not in coarse and "quantization gyro.y" in coarse
-
-
-def test_a_term_within_the_clocks_error_is_read_again_with_the_clock_fitted(monkeypatch):
-    """The selection's bookkeeping, with the fits stubbed: two g-sensitivities and a time
-    skew are significant against the noise but within the import's clock error (their
-    allowance the clock's: `design.add_clock_allowance`). Each g-sensitivity is read again
-    with time_skew imu.all fitted beside it - one stands (a ship's gyro.x <- f_y read
-    1.77e-4 so, its truth 1.78e-4), the other falls (2.9e-5, p 0.1) - and the time skew,
-    the clock's own kind, is not."""
-    from types import SimpleNamespace
-    terms = [{"effect": "time_skew", "sensor": "imu", "axis": "all"},
-             {"effect": "g_sensitivity", "sensor": "gyro", "axis": "x", "input_axis": "y"},
-             {"effect": "g_sensitivity", "sensor": "gyro", "axis": "y", "input_axis": "x"}]
-    design = SimpleNamespace(terms=terms, calibrated=False, allowance_of=["clock"] * 3,
-                             allowance=[np.eye(1) * 1e-8] * 3)
-    with_clock = {1: (1.77e-4, -30.0), 2: (2.9e-5, -2.3)}
-
-    def test(fitter, chosen, j):
-        b, logp = with_clock[j] if j in with_clock and 0 in chosen and j != 0 else (1e-4, -25.0)
-        return {"b": np.array([b]), "cov": np.eye(1) * 4.6e-11, "stat": -logp, "logp": logp,
-                "logp_ref": -1.0 if 0 not in chosen or j == 0 else logp, "linear": False}
-    monkeypatch.setattr(selection, "Fitter", lambda design, rows: SimpleNamespace(design=design))
-    monkeypatch.setattr(selection, "term_test", test)
-    monkeypatch.setattr(selection, "reference_direction", lambda design, j: None)
-    monkeypatch.setattr(selection, "chargeable_accuracy", lambda *a: (0.0, True))
-    monkeypatch.setattr(selection, "plausible", lambda design, j, b, full_scale: (True, 1.0))
-    chosen, within, _ = select(design, np.ones(10, bool), 0.05, {})
-    assert chosen == []
-    read = {w["label"]: w.get("with_the_clock_fitted") for w in within}
-    assert read["time_skew imu.all"] is None
-    assert read["g_sensitivity gyro.x <- f_y"]["value"] == [1.77e-4]
-    assert read["g_sensitivity gyro.x <- f_y"]["p"] == pytest.approx(np.exp(-30.0))
-    assert read["g_sensitivity gyro.y <- f_x"]["p"] == pytest.approx(np.exp(-2.3))

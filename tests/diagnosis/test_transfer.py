@@ -178,35 +178,3 @@ def test_a_found_lever_arm_is_judged_as_a_declared_one():
     assert transfer_doubt(flight, design, []) == ""
     found = [{"effect": "lever_arm", "vector": [0.0, 0.12, 0.0]}]
     assert "12 cm between the two IMUs" in transfer_doubt(flight, design, found)
-
-
-def test_the_clock_the_import_measured_is_an_allowance_of_every_term_it_can_make():
-    """A clock off by d moves each channel by d times its predicted output's rate of change
-    (time_skew imu.all's regressor). On a pure roll oscillation phi = phi0 sin(Omega t) the
-    gyro.x reads phi' and its rate of change is -Omega^2 phi = -(Omega^2 / g) f_y: a gyro.x
-    g-sensitivity to f_y is that shift exactly, so with the clock known to 1.8 ms its
-    allowance is (Omega^2 / g)^2 (1.8 ms)^2 - at a ship's 8.2 s roll 1.1e-4 (rad/s)/(m/s^2),
-    its hidden 1.74e-3 rad/s per g; a term the shift does not resemble (an accelerometer's
-    bias) takes none; the time skew itself takes the clock's variance."""
-    from mimunav.diagnosis.design import add_clock_allowance
-    t = np.arange(0.0, 600.0, 0.01)
-    omega, g, phi0 = 2 * np.pi / 8.2, 9.81, np.radians(4.0)
-    phi = phi0 * np.sin(omega * t)
-    w_x_dot = -omega ** 2 * phi
-    f_y = g * phi
-    zero = np.zeros((len(t), 1))
-    skew = {c: zero for c in range(6)}
-    skew[3] = w_x_dot[:, None]                                          # gyro.x
-    skew[1] = np.cos(omega * t)[:, None] * 1e-3                         # accel.y: a little
-    terms = [{"effect": "time_skew", "sensor": "imu", "axis": "all"},
-             {"effect": "g_sensitivity", "sensor": "gyro", "axis": "x", "input_axis": "y"},
-             {"effect": "bias_shift", "sensor": "accel", "axis": "x"}]
-    design = SimpleNamespace(terms=terms, columns=[skew, {3: f_y[:, None]},
-                                                    {0: np.ones((len(t), 1))}],
-                             allowance=[np.zeros((1, 1))] * 3, allowance_of=[None] * 3)
-    add_clock_allowance(design, 1.8e-3)
-    assert design.allowance[0][0, 0] == pytest.approx(1.8e-3 ** 2)
-    assert np.sqrt(design.allowance[1][0, 0]) == pytest.approx(omega ** 2 / g * 1.8e-3,
-                                                               rel=1e-6)
-    assert design.allowance[2][0, 0] == 0.0
-    assert design.allowance_of == ["clock", "clock", None]

@@ -455,3 +455,36 @@ def test_a_feet_strides_beside_a_lever_arm_leave_the_mounting_as_given():
     pairing.pair(rec)
     error = attitude.rotation_vector_error(rec.reference_imu["mounting"].q_vs, half_turn.q_vs)
     assert np.degrees(np.linalg.norm(error)) < 0.2, rec.real["reference_imu_mounting"]
+
+
+@pytest.mark.parametrize("imu_rpy, ref_rpy", [((182.0, -1.5, 3.0), (180.0, 0.0, 90.0)),
+                                              ((180.0, 0.0, 0.0), (177.0, 2.0, 93.0))])
+def test_a_turn_between_the_imus_goes_to_the_one_the_attitude_contradicts(imu_rpy, ref_rpy):
+    """The IMU given in FLU (roll 180) and the reference IMU at roll, pitch, yaw 180, 0, 90,
+    beside the truth's attitude at 10 Hz: where the IMU is truly 3.9 deg off that, its own
+    mounting is turned onto its truth (it had been the reference IMU's, turned away from
+    its own truth by the IMU's error, and the words named the reference's section); where
+    the reference IMU is off, the reference's is, as before. The words say how far the
+    attitude lies from each."""
+    motion = Profile.load(FLIGHTS / "diagnosis-proof.toml").motion()
+    t = np.arange(0.0, min(motion.t1, 150.0), 1.0 / RATE)
+    run = truth.generate(motion, t)
+    (dth, dv), (dth_r, dv_r) = (Mounting.from_rpy_deg(rpy).sensor_increments(run)
+                                for rpy in (imu_rpy, ref_rpy))
+    ns = EPOCH_NS + np.round(t[1:] * 1e9).astype(np.int64)
+    k = slice(0, None, int(RATE / 10))
+    traj = run.trajectory
+    rec = Recording("turned", "test", ns, dth * RATE, dv * RATE, Mounting.from_axes("FLU"),
+                    reference=dict(ns=EPOCH_NS + np.round(traj.t[k] * 1e9).astype(np.int64),
+                                   lat=traj.lat[k], lon=traj.lon[k], h=traj.h[k],
+                                   v_ned=traj.v_ned[k], q_nb=quaternion.as_float_array(
+                                       traj.q_nb[k])),
+                    reference_imu=dict(ns=ns, w=dth_r * RATE, f=dv_r * RATE, model="nav",
+                                       mounting=Mounting.from_rpy_deg((180.0, 0.0, 90.0))))
+    pairing.pair(rec)
+    for mounting, rpy in ((rec.mounting, imu_rpy), (rec.reference_imu["mounting"], ref_rpy)):
+        error = attitude.rotation_vector_error(mounting.q_vs, Mounting.from_rpy_deg(rpy).q_vs)
+        assert np.degrees(np.linalg.norm(error)) < 0.1, rec.real["reference_imu_mounting"]
+    said = rec.real["reference_imu_mounting"]
+    assert re.search(r"the reference's attitude lies \d\.\d deg from the IMU", said), said
+    assert ("the IMU's mounting was turned instead" in said) == (imu_rpy[0] != 180.0)

@@ -1,0 +1,96 @@
+"""Which of two IMUs a reference's attitude holds. A turn measured between a recording's
+IMU and its reference IMU (`pairing`) says only that one of the two mountings given is off;
+where the reference trajectory carries an attitude, the vehicle-frame angular rate and
+specific force that it and the velocity make are compared with each IMU's, turned into the
+vehicle frame by its mounting, so that the turn goes onto the IMU the attitude contradicts
+(a car's consumer IMU given 3.9 deg off its true mounting had turned its OXTS reference IMU
+instead, and the words sent the user to the reference's section).
+"""
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from ..frames import attitude
+from ..sensors.mimu import G0
+from .series import window_means
+
+# an IMU the attitude holds lies within this share of the turn measured between the two
+# from it, and the other beyond it: the turn is then that IMU's mounting
+HOLDS_SHARE = 0.5
+
+
+def attitude_means(reference, mids):
+    """(w rad/s, f m/s^2) (M, 3): means over [mid - 0.5, mid + 0.5] s (`mids`, s) of the
+    angular rate and the specific force, vehicle axes (FRD), that the reference's attitude
+    q_nb (vehicle -> NED) and NED velocity make: the rate of the turn between successive
+    attitudes (the Earth's and the transport rate in it: near constants, which the
+    comparison's centring removes) and C_bn (dv/dt - g_n), g_n = (0, 0, G0) down; None
+    without an attitude."""
+    q, v = reference.get("q_nb"), reference.get("v_ned")
+    if q is None or v is None:
+        return None
+    ok = np.isfinite(q).all(axis=1) & np.isfinite(v).all(axis=1)
+    if ok.sum() < 3:
+        return None
+    ns, q_nb, v = reference["ns"][ok], attitude.from_wxyz(q[ok]), v[ok]
+    step = np.diff(ns / 1e9)[:, None]
+    # conj(q_k) q_k+1: the turn over the step in the body frame at its start
+    w = attitude.rotation_vector_error(np.conjugate(q_nb[:-1]), np.conjugate(q_nb[1:])) / step
+    f_ned = np.diff(v, axis=0) / step - np.array([0.0, 0.0, G0])
+    f = attitude.rotate(np.conjugate(q_nb[1:]), f_ned)
+    return window_means(ns[1:], w, mids), window_means(ns[1:], f, mids)
+
+
+def angle_from_attitude(predicted, imu, spreads, span_share):
+    """The angle (deg) of the turn that best takes the attitude's vehicle-frame vectors
+    `predicted` (w, f) onto an IMU's `imu` (w, f), both (M, 3) 1 s means: about their own
+    means (no bias of either enters), each kind scaled to the attitude's rms, a kind left
+    out where the attitude's spread is under `spreads` (rad/s, m/s^2); None where the rows
+    hold too little of a second direction (second singular value under span_share of the
+    first)."""
+    a, b = [], []
+    for mine, theirs, least in zip(imu, predicted, spreads):
+        x, y = theirs - theirs.mean(axis=0), mine - mine.mean(axis=0)
+        rms = float(np.sqrt(np.mean(x ** 2)))
+        if rms >= least:
+            a.append(y / rms)
+            b.append(x / rms)
+    if not a:
+        return None
+    turn = wahba(np.vstack(a), np.vstack(b), span_share)
+    return None if turn is None else float(np.degrees(turn.magnitude()))
+
+
+def wahba(mine, theirs, span_share):
+    """The turn of `theirs` (N, 3) onto `mine` (scipy Rotation: Wahba's problem) where the
+    vectors span two directions (second singular value of their cross-covariance at least
+    span_share of the first), else None."""
+    singular = np.linalg.svd(mine.T @ theirs, compute_uv=False)
+    if not singular[1] >= span_share * singular[0]:
+        return None
+    return Rotation.align_vectors(mine, theirs)[0]
+
+
+def whose_turn(reference, mids, imus, turn_deg, spreads, span_share):
+    """("imu" | "reference" | None, words): which mounting a turn of turn_deg (deg) measured
+    between the IMU and the reference IMU belongs to, as the reference's attitude holds it:
+    the one whose vehicle-frame 1 s means (`imus`: [(w, f) of the IMU, of the reference IMU]
+    at `mids`, s) lie beyond HOLDS_SHARE of the turn from the attitude's, the other within,
+    over the seconds all hold (at least 10); None (the words say why) where the attitude is
+    missing or does not decide it."""
+    predicted = attitude_means(reference, mids) if reference is not None else None
+    if predicted is None:
+        return None, ""
+    rows = np.isfinite(np.hstack([*predicted, *(x for imu in imus for x in imu)])).all(axis=1)
+    angles = [angle_from_attitude([x[rows] for x in predicted], [x[rows] for x in imu],
+                                  spreads, span_share) if rows.sum() >= 10 else None
+              for imu in imus]
+    if None in angles:
+        return None, "the reference's attitude does not turn enough to tell which is off"
+    said = (f"the reference's attitude lies {angles[0]:.1f} deg from the IMU and "
+            f"{angles[1]:.1f} deg from the reference IMU")
+    within = [a <= HOLDS_SHARE * turn_deg for a in angles]
+    if within == [False, True]:
+        return "imu", said
+    if within == [True, False]:
+        return "reference", said
+    return None, said + ": it does not tell which is off"
