@@ -185,9 +185,12 @@ def not_confirmed_lines(doc):
     test, the physical range, a recording's halves or its library check), each with why, for
     the terminal - those not already said among the reasons the diagnosis is inconclusive."""
     said = " ".join(doc.get("inconclusive_reasons", []))
+    rejected = [r for r in doc.get("not_confirmed", []) if r.get("rejected")]
+    again = [r.get("label", r.get("effect", "?")) for r in rejected if r["rejected"] in said]
     return [f"  not confirmed: {r.get('label', r.get('effect', '?'))}: {r['rejected']}"
-            for r in doc.get("not_confirmed", []) if r.get("rejected")
-            and r["rejected"] not in said]
+            for r in rejected if r["rejected"] not in said] + (
+        [f"  not confirmed, for a reason the diagnosis is inconclusive: {', '.join(again)}"]
+        if again else [])
 
 
 def clock_lines(clock):
@@ -219,10 +222,16 @@ def set_aside_line(w):
     head = (f"  within the stated errors: {w['label']} {said}: significant against the "
             f"noise alone (p {w['p_train']:.2g}), not once the stated errors that may share "
             f"it - {stated} - are allowed: with them its 1 sigma is {sigmas('total_1sigma')}")
+    tests_differ = w.get("charged_at_accuracy") == 0 and key != "reference_1sigma"
+    if tests_differ:        # no smaller stated error lets it pass: not theirs to share
+        head = (f"  set aside: {w['label']} {said}: its likelihood ratio against the noise "
+                f"alone is significant (p {w['p_train']:.2g}), its estimate's Wald test is not "
+                f"(1 sigma {sigmas('total_1sigma')}), with {words} as stated or 1e4 times "
+                "smaller: the two tests disagree on this flight - not a finding")
     if max(w["total_1sigma"]) > w.get("physical_range", float("inf")):
         head += (f", beyond its physical range {w['physical_range']:.3g}: the flight cannot "
                  "identify it")
-    return f"{head}\n    {charge_text(w)}"
+    return head if tests_differ else f"{head}\n    {charge_text(w)}"
 
 
 def add_diagnose(sub):

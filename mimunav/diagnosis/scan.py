@@ -158,8 +158,10 @@ def condition_map(design, x, conds, seconds=MAP_SECONDS):
     share = {k: np.bincount(sec, m.astype(float), minlength=n) / count for k, m in conds.items()}
     quiet = full & (share["quiet"] > 0.5)
     quiet = quiet if quiet.sum() >= 10 else full
-    ref = np.sqrt(np.mean(means[quiet] ** 2, axis=0))
     out = np.full((len(conds), 6), np.nan)
+    if quiet.sum() < 10:            # no quiet flight to measure against (short bins' seconds
+        return out                  # not half full): nothing to map, said as NaN
+    ref = np.sqrt(np.mean(means[quiet] ** 2, axis=0))
     for r, key in enumerate(conds):
         mask = full & (share[key] > 0.5)
         if mask.sum() >= 10:

@@ -12,8 +12,9 @@ from ..navigation.rests import (TRACK_FORCE_RATIO, acceleration_match, follows_t
                                 span_means, track_acceleration)
 from ..frames import attitude
 from ..flightlog.stamps import rounded_clock
-from .pairing import pair, trajectory_clock
+from .pairing import GRID_S, pair, trajectory_clock
 from .recording import G0, RecordingError, utc_text
+from .velocity_check import check_acceleration_scale, check_velocity
 from ..motion.carrier import LAND, car_tests, course_keys
 from ..motion.track import velocity_from_positions
 
@@ -47,6 +48,7 @@ def check_recording(rec):
     _check_overlap(rec)             # first: stamps in the wrong unit fail it, and it says so
     _check_rate(rec.name, "IMU", rec.imu_ns)
     _uniform_clocks(rec)
+    check_velocity(rec)
     if rec.reference_imu is not None:
         _check_rate(rec.name, "reference IMU", rec.reference_imu["ns"])
         pair(rec)
@@ -60,7 +62,8 @@ def check_recording(rec):
     t_ref = ref["ns"][ok]
     k = np.clip(np.searchsorted(rec.imu_ns, t_ref), 0, len(rec.imu_ns) - 1)
     q_ns = attitude.from_wxyz(q[ok]) * rec.mounting.q_vs
-    f_n = np.median(attitude.rotate(q_ns, _local_mean(rec.f, k)), axis=0)
+    f_ned = attitude.rotate(q_ns, _local_mean(rec.f, k))
+    f_n = np.median(f_ned, axis=0)
     if f_n[2] > -0.8 * g or np.hypot(f_n[0], f_n[1]) > 0.3 * g:
         raise RecordingError(f"{rec.name}: the specific force turned into NED by the mounting and "
                              f"the reference attitude is {np.round(f_n, 2).tolist()} m/s^2 in the "
@@ -73,6 +76,7 @@ def check_recording(rec):
         raise RecordingError(f"{rec.name}: the gyro's rates reach {imu_rate:.3g}, the reference "
                              f"attitude turns at up to {ref_rate:.3g} rad/s: is the gyro's unit "
                              "(deg/s or rad/s) right?")
+    check_acceleration_scale(rec, t_ref / 1e9, ref["v_ned"][ok], f_ned)
     _check_heading_against_course(rec, q, ok)
     _check_reference_clock(rec)
 
@@ -144,10 +148,15 @@ def _check_reference_clock(rec):
     """The reference attitude's turn rate against the IMU's (`pairing.trajectory_clock`):
     said in rec.real["reference_clock"]; a decided lag of REFUSED_OFFSET_S or more refused,
     naming the shift that puts it back (a reference IMU re-timed by the import leaves its
-    device's solution on the old clock: 2.5 s off on the light aircraft's)."""
+    device's solution on the old clock: 2.5 s off on the light aircraft's); one of two grid
+    steps (GRID_S) or more, shifted back - the trajectory's stamps, not the fixes', whose
+    clock it did not measure (a motion-capture pose 0.3 s late had been left as stamped,
+    and every free-inertial window read 22.7 m where its truth was 1.47 m)."""
     clock = trajectory_clock(rec)
     rec.real["reference_clock"] = clock["said"]
     late = clock["offset_s"]
+    if late is not None and 2 * GRID_S <= abs(late) < REFUSED_OFFSET_S:
+        rec.shift_reference(-late, "measured: " + clock["said"], fixes=False)
     if late is not None and abs(late) >= REFUSED_OFFSET_S:
         raise RecordingError(
             f"{rec.name}: the reference's attitude turns as the IMU does only with its stamps "

@@ -77,7 +77,8 @@ class Accuracy:
             return (f"{stated}: within seed S1 Table 4's FOG-IMU (1 deg/h, 100 ug), so what "
                     "the two IMUs disagree on beyond its stated errors is the MIMU's")
         return (f"{stated}: less stable than seed S1 Table 4's FOG-IMU (1 deg/h, 100 ug), so "
-                "the diagnosis takes it as of MEMS grade - any term it finds may be the "
+                "the diagnosis treats it as it treats a MEMS-grade reference, whatever its "
+                "class (a tactical unit too) - any term it finds may be the "
                 "reference's (`mimu-or-reference`) and its noise is charged to it (`mimunav "
                 "diagnose --reference-accuracy` states others)")
 

@@ -132,7 +132,7 @@ def test_the_terminal_names_the_terms_not_confirmed_and_why():
     """A recording with a finding kept, one term set aside by its library check (the RTKLIB
     drive's kind) and one beyond its physical range (comma2k19's accel.x scale at the track
     level): the terminal names both and why; what the inconclusive reasons already say is
-    not said twice."""
+    not said twice - the terms set aside for it are named in one line."""
     aside = {"label": "scale_factor accel.x", "coefficient": 0.04,
              "library_inflation": {"lambda": 8.4, "widened_by": 2.9},
              "rejected": "its interval widened 2.90x holds zero - inconclusive"}
@@ -147,7 +147,8 @@ def test_the_terminal_names_the_terms_not_confirmed_and_why():
         "range 0.05"]
     doc = dict(doc, findings=[], inconclusive_reasons=[
         "scale_factor accel.x: its interval widened 2.90x holds zero - inconclusive"])
-    assert [line.split(":")[1] for line in not_confirmed_lines(doc)] == [" scale_factor accel.y"]
+    assert not_confirmed_lines(doc)[1:] == [
+        "  not confirmed, for a reason the diagnosis is inconclusive: scale_factor accel.x"]
 
 
 def test_a_set_aside_term_is_said_with_the_sigma_its_test_used():
@@ -186,6 +187,16 @@ def test_a_set_aside_term_is_said_with_the_sigma_its_test_used():
                            "p_train": 1e-4})
     first = line.split("\n")[0]
     assert "reference" not in first and "covariance (1 sigma 1e-05)" in first
+    # a term no smaller stated error lets pass (a hexacopter's gyro.x x^2 beside the clock:
+    # its likelihood ratio and its estimate's Wald test disagree) is not said to be within
+    # the stated errors
+    line = set_aside_line({"label": "scale_nonlinearity gyro.x (x^2)", "coefficient": 0.00127,
+                           "clock_1sigma_s": [6.9e-5], "total_1sigma": [0.000565],
+                           "p_train": 0.00024, "charged_at_accuracy": 0.0,
+                           "charged_at_1sigma": [0.0]})
+    assert line.startswith("  set aside: scale_nonlinearity gyro.x (x^2) 0.00127: its "
+                           "likelihood ratio against the noise alone is significant (p 0.00024)")
+    assert line.endswith("the two tests disagree on this flight - not a finding")
 
 
 def test_time_shift_is_exact_for_linear_motion_and_has_the_contract_sign():

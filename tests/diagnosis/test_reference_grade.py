@@ -30,13 +30,15 @@ def test_a_reference_less_stable_than_table_4_is_of_mems_grade():
 
 def test_the_grade_a_stated_accuracy_makes_is_said():
     """A rail trial's reference stated at 1.0004 deg/h made every finding `mimu-or-reference`
-    with no word at import: the import now says which grade the diagnosis will take and why."""
+    with no word at import: the import now says which grade the diagnosis will take and why
+    (a tactical unit is not called MEMS: it is treated as one)."""
     fog = Accuracy().grade_said()
     assert "gyro bias 1 deg/h" in fog and "within seed S1 Table 4's FOG-IMU" in fog
     stated = Accuracy.from_dict({"gyro_bias": 4.85e-6, "accel_bias": 1e-3}, "stated")
     said = stated.grade_said()
     assert "gyro bias 1.0004 deg/h" in said and "accelerometer bias 101.97 ug" in said
-    assert "of MEMS grade" in said and "--reference-accuracy" in said
+    assert "as it treats a MEMS-grade reference, whatever its class (a tactical unit too)" \
+        in said and "--reference-accuracy" in said
 
 
 class _Halves:

@@ -241,3 +241,34 @@ def test_resampling_goes_the_short_way_across_the_antimeridian_and_between_q_and
     lon_u = unwrapped_longitude(np.r_[written.lon[:2], np.nan, written.lon[2:]])
     assert np.isnan(lon_u[2]) and np.isnan(lon_u).sum() == 1
     np.testing.assert_allclose(np.delete(lon_u, 2), lon, rtol=0, atol=1e-12)
+
+
+def test_a_recordings_reference_imu_is_levelled_on_its_own_specific_force():
+    """An imported recording whose shared start was levelled on the MIMU's specific force
+    (its 2 mg horizontal biases: 0.13 deg of tilt) over a 30 s rest: the reference IMU, level
+    and still for 60 s, is navigated from its own levelling over that rest and stays within
+    a metre, its heading the shared one. Navigated from the MIMU's tilt it would run
+    0.5 g sin(0.13 deg) t^2 = 40 m away; a simulated flight keeps its (true) start."""
+    from dataclasses import replace
+    from mimunav.evaluation.replay import navigate_fog, reference_initial
+    from mimunav.frames import attitude, earth
+    from mimunav.frames.mounting import Mounting
+    from mimunav.motion.trajectory import State
+    lat, h, rate = np.radians(47.0), 300.0, 100.0
+    t = np.arange(0.0, 60.0, 1.0 / rate) + 1.0 / rate
+    true = attitude.from_euler(np.radians(30.0), 0.0, 0.0)     # level, heading 30 deg
+    f = np.tile(-earth.gravity_ned(lat, h), (len(t), 1))
+    w = np.tile(attitude.rotate(np.conjugate(true), earth.earth_rate_ned(lat)), (len(t), 1))
+    tilted = attitude.from_euler(np.radians(30.0), np.radians(0.13), 0.0)
+    flight = Flight("rec.mcap", "rec", 0, State(0.0, lat, 0.1, h, np.zeros(3), tilted),
+                    t, None, Mounting(), {}, t, w, f, Mounting(), None,
+                    source="recording", recording={"initial_attitude": "leveled",
+                                                   "static_s": [0.0, 30.0]})
+    start = reference_initial(flight)
+    yaw, pitch, roll = attitude.as_euler(start.q_nb)
+    assert np.degrees(yaw) == pytest.approx(30.0, abs=1e-9)
+    assert abs(pitch) < 1e-9 and abs(roll) < 1e-9
+    end = navigate_fog(flight)
+    drift = earth.ned_difference(end.lat[-1], end.lon[-1], end.h[-1], lat, 0.1, h)
+    assert np.linalg.norm(drift) < 1.0, drift
+    assert reference_initial(replace(flight, source="simulation")) is flight.initial

@@ -231,12 +231,15 @@ def test_a_reference_trajectory_off_the_imus_clock_is_measured_by_its_attitude(f
     """The reference's attitude turns as the IMU does: its stamps late by seconds are
     refused naming --reference-time-offset and the value that puts them back (a light
     aircraft's VN-300 solution was left 2.5 s off when its IMU was re-timed); given that
-    shift, the import goes on; a lag under a second is said (to the 20 ms grid), left to
-    the diagnosis."""
+    shift, the import goes on; a lag under a second is measured (to the 20 ms grid) and
+    shifted back (a motion-capture pose 0.3 s late had been left as stamped)."""
     rec = _with_reference(flown, late_s)
     if abs(late_s) < checks.REFUSED_OFFSET_S:
+        first = rec.reference["ns"][0] - int(round(late_s * 1e9))
         checks.check_recording(rec)
         assert f"stamps {late_s:+.2f} s late" in rec.real["reference_clock"]
+        assert f"shifted by {-late_s:+.4f} s (measured" in rec.assumed["reference_time"]
+        assert abs(rec.reference["ns"][0] - first) < 0.011e9
         return
     back = re.escape(f"--reference-time-offset {-late_s:+.2f} ")
     with pytest.raises(RecordingError, match=back):

@@ -1,0 +1,109 @@
+"""A reference's motion judged by itself and the IMU (`importers.velocity_check`): an up
+velocity given as down, or north and east swapped, is refused naming the axes; a true one,
+one the positions' noise cannot judge, or one whose axes share a slow trend goes through;
+positions a thousand times off the IMU's specific force are refused."""
+import numpy as np
+import pytest
+
+from mimunav.frames import earth
+from mimunav.importers.recording import Recording, RecordingError
+from mimunav.importers.velocity_check import check_acceleration_scale, check_velocity
+from mimunav.frames.mounting import Mounting
+
+
+def _drive(height_noise_m=0.0, seed=3):
+    """A car's 10 Hz reference over 300 s: a 400 m circle at 10 m/s over hills of 5 m
+    (wavelength 250 m), positions exact (or heights with white noise) and the velocity its
+    exact derivative, NED."""
+    t = np.arange(0.0, 300.0, 0.1)
+    r = 400.0 / (2 * np.pi)                         # m: the circle's radius
+    a = 10.0 * t / r                                # rad along it at 10 m/s
+    d_ned = np.column_stack([r * np.sin(a), r * (1 - np.cos(a)),
+                             -5.0 * np.sin(2 * np.pi * 10.0 * t / 250.0)])
+    v = np.column_stack([10.0 * np.cos(a), 10.0 * np.sin(a),
+                         -5.0 * 2 * np.pi * 10.0 / 250.0 * np.cos(2 * np.pi * 10.0 * t / 250.0)])
+    lat, lon, h = earth.ned_offset_to_geodetic(d_ned, np.radians(48.0), np.radians(8.0), 200.0)
+    h = h + np.random.default_rng(seed).normal(0.0, height_noise_m, len(t))
+    return dict(ns=1_700_000_000_000_000_000 + np.round(t * 1e9).astype(np.int64),
+                lat=lat, lon=lon, h=h, v_ned=v)
+
+
+def _recording(ref):
+    ns = ref["ns"]
+    return Recording("drive", "test", ns, np.zeros((len(ns), 3)), np.zeros((len(ns), 3)),
+                     Mounting(), reference=ref)
+
+
+def test_a_velocity_that_follows_its_positions_goes_through():
+    """A true velocity, with exact or noisy heights, and a still reference (all zero, where
+    a turned sign reads the same) go through."""
+    check_velocity(_recording(_drive()))
+    check_velocity(_recording(_drive(height_noise_m=0.5)))
+    still = _drive()
+    still["lat"], still["lon"], still["h"] = (np.full_like(still[k], still[k][0])
+                                              for k in ("lat", "lon", "h"))
+    still["v_ned"] = np.zeros_like(still["v_ned"])
+    check_velocity(_recording(still))
+
+
+def test_an_up_velocity_given_as_down_is_refused():
+    ref = _drive()
+    ref["v_ned"][:, 2] *= -1.0
+    with pytest.raises(RecordingError, match=r"down velocity runs against its positions' "
+                                             r"\(rms difference from their central differences 1\.8 m/s, "
+                                             r"0\.0001\d with its sign turned\)"):
+        check_velocity(_recording(ref))
+
+
+def test_north_and_east_swapped_are_refused_naming_the_axis_followed():
+    ref = _drive()
+    ref["v_ned"] = ref["v_ned"][:, [1, 0, 2]]
+    with pytest.raises(RecordingError, match="north and east velocities match its positions' "
+                                             "east and north"):
+        check_velocity(_recording(ref))
+
+
+def test_heights_too_noisy_to_judge_the_vertical_leave_it_as_given():
+    """Heights with 0.5 m of white noise at 10 Hz: their differences' noise (3.5 m/s) hides
+    the hills' 1.3 m/s, so the vertical is not judged - a flipped one goes through too."""
+    ref = _drive(height_noise_m=0.5)
+    ref["v_ned"][:, 2] *= -1.0
+    check_velocity(_recording(ref))
+
+
+def test_two_axes_that_share_a_trend_are_not_taken_for_a_swap():
+    """An aircraft slowing eastward (30 -> 20 m/s) while its descent steepens (0 -> 4 m/s)
+    over 300 s: its down and east velocities correlate at -1, yet each matches its own
+    axis of the positions - a light aircraft's VN-300 solution had been refused so."""
+    ref = _drive()
+    t = (ref["ns"] - ref["ns"][0]) / 1e9
+    d_ned = np.column_stack([np.zeros_like(t), 30.0 * t - t ** 2 / 60.0, t ** 2 / 150.0])
+    ref["lat"], ref["lon"], ref["h"] = earth.ned_offset_to_geodetic(
+        d_ned, np.radians(48.0), np.radians(8.0), 2000.0)
+    ref["v_ned"] = np.column_stack([np.zeros_like(t), 30.0 - t / 30.0, t / 75.0])
+    check_velocity(_recording(ref))
+
+
+@pytest.mark.parametrize("lean, unit, refused", [(1.0, 1.0, False), (1.2, 1.0, False),
+                                                  (1.0, 1e-3, True), (1.0, 1e3, True)])
+def test_positions_a_thousand_times_off_the_imus_specific_force_are_refused(lean, unit,
+                                                                            refused):
+    """The circle's horizontal acceleration (1.6 m/s^2 toward its centre) against an IMU
+    whose horizontal specific force in NED reads it `lean` times (1.2: a body's lean), the
+    reference's velocity as given or in a unit 1000 times off either way; and a steady drive
+    (both round-off, coherent 1e4 apart) is not judged."""
+    ref = _drive()
+    t = (ref["ns"] - ref["ns"][0]) / 1e9
+    r = 400.0 / (2 * np.pi)
+    a = 10.0 * t / r
+    f_ned = np.column_stack([-lean * 10.0 ** 2 / r * np.sin(a),
+                             lean * 10.0 ** 2 / r * np.cos(a), np.full_like(t, -9.81)])
+    rec = _recording(ref)
+    steady = np.column_stack([1e-5 * np.cos(t), np.zeros_like(t), np.full_like(t, -9.81)])
+    v_steady = np.column_stack([10.0 + 1e-9 * np.sin(t), np.zeros_like(t), np.zeros_like(t)])
+    check_acceleration_scale(rec, t, v_steady * unit, steady)
+    if refused:
+        with pytest.raises(RecordingError, match="a factor of 1000"):
+            check_acceleration_scale(rec, t, ref["v_ned"] * unit, f_ned)
+    else:
+        check_acceleration_scale(rec, t, ref["v_ned"] * unit, f_ned)
