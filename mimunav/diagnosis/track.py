@@ -109,6 +109,8 @@ MIN_TRUSTED = 0.25          # fraction of the MIMU's samples inside the trusted 
                            # search and the derivative filters reach no farther
 UNTRUSTED = ("outside the motion the vehicle model trusts (a car's, faster than "
              f"{TRUSTED_SPEED:g} m/s, or at rest) or its bins - is the recording a car's?")
+FINER_THAN_TIMING = "finer than the track reference's timing"   # a skew within half a
+#                             sample: set aside, and no reason for an inconclusive verdict
 SCALE_CHECK = 0.2           # a predicted channel recording 20 % more or less than the reference
 
 
@@ -387,7 +389,7 @@ def screen(diag, flight, cal):
             # the reference is a smoothed GNSS track: its own timing is not known to better
             # than half an IMU sample (a 0.23 ms 'skew' of an ideal drive was this)
             why = (f"{finding['coefficient'] * 1e3:.2g} ms is within half a sample interval "
-                   f"({half_sample * 1e3:.2g} ms): finer than the track reference's timing")
+                   f"({half_sample * 1e3:.2g} ms): {FINER_THAN_TIMING}")
         elif not fit["heldout_rms_after"] < fit["heldout_rms_before"]:
             why = (f"does not lower the held-out residual where it acts "
                    f"({fit['heldout_rms_before']:.4g} -> {fit['heldout_rms_after']:.4g} "
@@ -402,6 +404,7 @@ def screen(diag, flight, cal):
             kept.append(finding)
         else:
             diag.rejected.append(dict(finding, rejected=why))
-            demoted.append(f"{finding['label']} {why}")
+            if not why.endswith(FINER_THAN_TIMING):    # no physics left unsaid: not a reason
+                demoted.append(f"{finding['label']} {why}")
     diag.findings = kept
     return reasons, demoted

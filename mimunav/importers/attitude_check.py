@@ -10,6 +10,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ..frames import attitude
+from ..frames.mounting import Mounting
 from ..sensors.mimu import G0
 from .series import window_means
 
@@ -94,3 +95,24 @@ def whose_turn(reference, mids, imus, turn_deg, spreads, span_share):
     if within == [True, False]:
         return "reference", said
     return None, said + ": it does not tell which is off"
+
+
+def turn_the_imu(rec, turn, measured, why):
+    """Put a turn measured between the IMU and the reference IMU (`turn`: scipy Rotation of
+    the reference's vehicle-frame vectors onto the IMU's) on the IMU's mounting, the
+    reference IMU's kept, saying so in rec.real / rec.assumed: `measured` the turn in words,
+    `why` the IMU's (the reference's attitude is its own, or holds it)."""
+    mine = np.conjugate(attitude.from_scipy(turn)) * rec.mounting.q_vs
+    rec.mounting = Mounting(attitude.as_wxyz(mine), rec.mounting.lever_arm_m)
+    yaw, pitch, roll = (angle_text(a) for a in attitude.as_euler(mine))
+    rec.real["reference_imu_mounting"] = (
+        f"measured {measured}: {why}, so the IMU's mounting was turned instead, to roll, "
+        f"pitch, yaw {roll}, {pitch}, {yaw} deg")
+    rec.assumed["mounting"] = (f"measured against the reference IMU: roll, pitch, yaw {roll}, "
+                               f"{pitch}, {yaw} deg")
+
+
+def angle_text(rad):
+    """An angle in deg to 0.1 for a command line: -180 written 180, no -0.0."""
+    deg = round(float(np.degrees(float(rad))), 1)
+    return f"{180.0 if deg == -180.0 else deg + 0.0:.1f}"

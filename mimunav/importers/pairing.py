@@ -36,7 +36,7 @@ import numpy as np
 from ..frames import attitude
 from ..frames.mounting import Mounting
 from .recording import G0, RecordingError, at_range, utc_text
-from .attitude_check import wahba, whose_turn
+from .attitude_check import angle_text, turn_the_imu, wahba, whose_turn
 from .series import masked_correlation, on_grid, parabola_min, peak_margin, window_means
 
 SMALL_OFFSET_S = 0.001      # s: the refinement's step; a measured offset beyond it is
@@ -426,25 +426,13 @@ def _pair_mountings(rec, clock_se):
     if after:
         raise RecordingError(f"{rec.name}: {(given or after)[0]}")
     fixed = attitude.from_scipy(turn) * ref["mounting"].q_vs
-    yaw, pitch, roll = (_angle_text(a) for a in attitude.as_euler(fixed))
+    yaw, pitch, roll = (angle_text(a) for a in attitude.as_euler(fixed))
     hint = ref.get("mounting_hint")
     said = _turn_said(angle, how, (roll, pitch, yaw), hint)
-    attitude_of_reference = rec.reference_meta.get("attitude_of") == "reference_imu"
-    whose, held = whose_turn(rec.reference, mids[ok], [(vehicle[0][0], vehicle[1][0] - means[
-        0][2][ok]), (vehicle[0][1], vehicle[1][1])], angle, (TURNING_RATE, MOVING_FORCE), SPAN_SHARE)
-    if (attitude_of_reference or whose == "imu") and seen:
-        # the reference's attitude is of the reference IMU's axes, or holds them: they stay
-        mine = np.conjugate(attitude.from_scipy(turn)) * rec.mounting.q_vs
-        rec.mounting = Mounting(attitude.as_wxyz(mine), rec.mounting.lever_arm_m)
-        yaw, pitch, roll = (_angle_text(a) for a in attitude.as_euler(mine))
-        rec.real["reference_imu_mounting"] = (
-            f"measured {_turn_said(angle, how, None, None)}: " + (
-                "the reference's attitude is the reference IMU's (attitude_of)"
-                if attitude_of_reference else held)
-            + f", so the IMU's mounting was turned instead, to roll, pitch, yaw {roll}, "
-            f"{pitch}, {yaw} deg")
-        rec.assumed["mounting"] = f"measured against the reference IMU: roll, pitch, yaw " \
-                                  f"{roll}, {pitch}, {yaw} deg"
+    if rec.reference_meta.get("attitude_of") == "reference_imu" and seen:
+        # the reference's attitude is of the reference IMU's axes: they stay, the IMU turns
+        turn_the_imu(rec, turn, _turn_said(angle, how, None, None),
+                     "the reference's attitude is the reference IMU's (attitude_of)")
         return
     # an accelerometer bias difference b across gravity tilts the mean specific force by
     # b / g: a small measured tilt may be that, not the boxes' turn (the diagnosis fits both)
@@ -472,6 +460,11 @@ def _pair_mountings(rec, clock_se):
             f"give its mounting (its tilt as the data show it, the yaw as given: roll, "
             f"pitch, yaw {roll}, {pitch}, {yaw} deg"
             + (f": {hint.format(roll=roll, pitch=pitch, yaw=yaw)})" if hint else ")"))
+    whose, held = whose_turn(rec.reference, mids[ok], [(vehicle[0][0], vehicle[1][0] - means[
+        0][2][ok]), (vehicle[0][1], vehicle[1][1])], angle, (TURNING_RATE, MOVING_FORCE), SPAN_SHARE)
+    if whose == "imu":      # the reference's attitude holds the reference IMU, not the IMU
+        turn_the_imu(rec, turn, _turn_said(angle, how, None, None), held)
+        return
     ref["mounting"] = Mounting(attitude.as_wxyz(fixed), ref["mounting"].lever_arm_m)
     rec.real["reference_imu_mounting"] = f"measured {said}: turned so" + (f" ({held})" if held
                                                                           else "")
@@ -588,9 +581,3 @@ def _lever_force(rec, mids, half=0.5):
 TRIADS_AGREE_DEG = 0.2      # deg: a triad's own turn within this of both triads' (a unit's
 #                             agree to its 1-3 mrad misalignments), else they differ: no turn
 MOVING_FORCE = 0.3          # m/s^2: 1 s mean specific forces' spread that turns the boxes
-
-
-def _angle_text(rad):
-    """An angle in deg to 0.1 for a command line: -180 written 180, no -0.0."""
-    deg = round(math.degrees(float(rad)), 1)
-    return f"{180.0 if deg == -180.0 else deg + 0.0:.1f}"

@@ -832,3 +832,23 @@ def test_a_walk_declared_a_car_is_refused_in_a_line(tmp_path, capsys):
                  "--json", str(tmp_path / "d.json")])
     err = capsys.readouterr().err
     assert code == 2 and "outside the motion the vehicle model trusts" in err, err
+
+
+def test_a_time_skew_finer_than_the_tracks_timing_is_no_reason_to_be_inconclusive():
+    """A 2 ms time skew at 100 Hz (within half a sample: finer than a smoothed GNSS track's
+    timing) is set aside and said so - but it is no physics left unsaid, so it is not among
+    the reasons an otherwise clean track-level diagnosis is inconclusive (a KITTI-like
+    drive's null had listed it under 'because'); a term that fails its navigation check is."""
+    from types import SimpleNamespace
+    from mimunav.diagnosis import track
+    skew = {"effect": "time_skew", "sensor": "imu", "axis": "all"}
+    design = SimpleNamespace(terms=[skew], columns=[{0: None, 3: None}])
+    check = {"unpredicted_inputs": [], "slope_1s": {}, "trusted_fraction": 1.0}
+    finding = dict(skew, label="time_skew imu.all", coefficient=0.002,
+                   fit={"heldout_rms_before": 1.0, "heldout_rms_after": 0.9})
+    diag = SimpleNamespace(reference_check=check, design=design, findings=[finding],
+                           rejected=[])
+    flight = SimpleNamespace(mimu_t=np.arange(0.0, 10.0, 0.01))
+    reasons, demoted = track.screen(diag, flight, None)
+    assert diag.findings == [] and reasons == [] and demoted == []
+    assert diag.rejected[0]["rejected"].endswith("finer than the track reference's timing")
