@@ -15,8 +15,11 @@ from ..sensors.mimu import G0
 from .series import window_means
 
 # an IMU the attitude holds lies within this share of the turn measured between the two
-# from it, and the other beyond it: the turn is then that IMU's mounting
-HOLDS_SHARE = 0.5
+# from it (a mounting given right lies a reference attitude's own error from it: 0.0 deg on
+# the trials' cars and quadrotor); one beyond it is off. The turn goes to the one that is
+# off; where both are, each is turned onto the attitude (their turn between them then the
+# one measured, the attitude's own error in both)
+HOLDS_SHARE = 0.25
 
 
 def attitude_means(reference, mids):
@@ -41,8 +44,8 @@ def attitude_means(reference, mids):
     return window_means(ns[1:], w, mids), window_means(ns[1:], f, mids)
 
 
-def angle_from_attitude(predicted, imu, spreads, span_share):
-    """The angle (deg) of the turn that best takes the attitude's vehicle-frame vectors
+def turn_from_attitude(predicted, imu, spreads, span_share):
+    """The turn (scipy Rotation) that best takes the attitude's vehicle-frame vectors
     `predicted` (w, f) onto an IMU's `imu` (w, f), both (M, 3) 1 s means: about their own
     means (no bias of either enters), each kind scaled to the attitude's rms, a kind left
     out where the attitude's spread is under `spreads` (rad/s, m/s^2); None where the rows
@@ -57,8 +60,7 @@ def angle_from_attitude(predicted, imu, spreads, span_share):
             b.append(x / rms)
     if not a:
         return None
-    turn = wahba(np.vstack(a), np.vstack(b), span_share)
-    return None if turn is None else float(np.degrees(turn.magnitude()))
+    return wahba(np.vstack(a), np.vstack(b), span_share)
 
 
 def wahba(mine, theirs, span_share):
@@ -72,29 +74,52 @@ def wahba(mine, theirs, span_share):
 
 
 def whose_turn(reference, mids, imus, turn_deg, spreads, span_share):
-    """("imu" | "reference" | None, words): which mounting a turn of turn_deg (deg) measured
-    between the IMU and the reference IMU belongs to, as the reference's attitude holds it:
-    the one whose vehicle-frame 1 s means (`imus`: [(w, f) of the IMU, of the reference IMU]
-    at `mids`, s) lie beyond HOLDS_SHARE of the turn from the attitude's, the other within,
-    over the seconds all hold (at least 10); None (the words say why) where the attitude is
-    missing or does not decide it."""
+    """("imu" | "reference" | "both" | None, words, [the turn of the attitude's vectors onto
+    each IMU's]): which mounting a turn of turn_deg (deg) measured between the IMU and the
+    reference IMU belongs to, as the reference's attitude holds it: the one whose
+    vehicle-frame 1 s means (`imus`: [(w, f) of the IMU, of the reference IMU] at `mids`, s)
+    lie beyond HOLDS_SHARE of the turn from the attitude's, the other within, over the
+    seconds all hold (at least 10); "both" where both lie beyond it; None (the words say
+    why) where the attitude is missing or does not decide it."""
     predicted = attitude_means(reference, mids) if reference is not None else None
     if predicted is None:
-        return None, ""
+        return None, "", []
     rows = np.isfinite(np.hstack([*predicted, *(x for imu in imus for x in imu)])).all(axis=1)
-    angles = [angle_from_attitude([x[rows] for x in predicted], [x[rows] for x in imu],
-                                  spreads, span_share) if rows.sum() >= 10 else None
-              for imu in imus]
-    if None in angles:
-        return None, "the reference's attitude does not turn enough to tell which is off"
+    turns = [turn_from_attitude([x[rows] for x in predicted], [x[rows] for x in imu],
+                                spreads, span_share) if rows.sum() >= 10 else None
+             for imu in imus]
+    if None in turns:
+        return None, "the reference's attitude does not turn enough to tell which is off", []
+    angles = [float(np.degrees(turn.magnitude())) for turn in turns]
     said = (f"the reference's attitude lies {angles[0]:.1f} deg from the IMU and "
             f"{angles[1]:.1f} deg from the reference IMU")
     within = [a <= HOLDS_SHARE * turn_deg for a in angles]
-    if within == [False, True]:
-        return "imu", said
-    if within == [True, False]:
-        return "reference", said
-    return None, said + ": it does not tell which is off"
+    whose = {(False, True): "imu", (True, False): "reference",
+             (False, False): "both"}.get(tuple(within))
+    return whose, said + ("" if whose else ": it does not tell which is off"), turns
+
+
+def turn_both(rec, turns, said):
+    """Turn each IMU's mounting onto the reference's attitude (`whose_turn`'s "both": it
+    holds neither mounting given; `turns`: the attitude's vectors onto each IMU's), saying
+    so in rec.real / rec.assumed (`said`: how far the attitude lies from each)."""
+    ref = rec.reference_imu
+    rpy = []
+    for turn, who in zip(turns, ("imu", "reference")):
+        mounting = rec.mounting if who == "imu" else ref["mounting"]
+        q_vs = np.conjugate(attitude.from_scipy(turn)) * mounting.q_vs
+        turned = Mounting(attitude.as_wxyz(q_vs), mounting.lever_arm_m)
+        if who == "imu":
+            rec.mounting = turned
+        else:
+            ref["mounting"] = turned
+        yaw, pitch, roll = (angle_text(x) for x in attitude.as_euler(q_vs))
+        rpy.append(f"{roll}, {pitch}, {yaw}")
+    rec.real["reference_imu_mounting"] = (
+        f"{said}: it holds neither mounting given, so each was turned onto it - the IMU's "
+        f"to roll, pitch, yaw {rpy[0]} deg, the reference IMU's to {rpy[1]} deg")
+    rec.assumed["mounting"] = f"measured against the reference's attitude: roll, pitch, " \
+                              f"yaw {rpy[0]} deg"
 
 
 def turn_the_imu(rec, turn, measured, why):

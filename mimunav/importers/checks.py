@@ -145,18 +145,20 @@ def _not_a_car(rec, t_track, v_ned):
 
 
 def _check_reference_clock(rec):
-    """The reference attitude's turn rate against the IMU's (`pairing.trajectory_clock`):
-    said in rec.real["reference_clock"]; a decided lag of REFUSED_OFFSET_S or more refused,
-    naming the shift that puts it back (a reference IMU re-timed by the import leaves its
-    device's solution on the old clock: 2.5 s off on the light aircraft's); one of two grid
-    steps (GRID_S) or more, shifted back - the trajectory's stamps, not the fixes', whose
-    clock it did not measure (a motion-capture pose 0.3 s late had been left as stamped,
-    and every free-inertial window read 22.7 m where its truth was 1.47 m)."""
+    """The reference attitude's turn rate against the IMU's (`pairing.trajectory_clock`),
+    said in rec.real["reference_clock"]: a decided lag of REFUSED_OFFSET_S or more refused,
+    naming the shift that puts it back (the light aircraft's VN-300 solution: 2.5 s); one of
+    two grid steps (GRID_S) or more said with that option, not applied: the data cannot tell
+    the clocks' offset (a mocap pose 0.3 s late) from the IMU's latency (a phone's 40 ms,
+    erased when shifted at import), physics the diagnosis reports as a time skew."""
     clock = trajectory_clock(rec)
     rec.real["reference_clock"] = clock["said"]
     late = clock["offset_s"]
     if late is not None and 2 * GRID_S <= abs(late) < REFUSED_OFFSET_S:
-        rec.shift_reference(-late, "measured: " + clock["said"], fixes=False)
+        rec.real["reference_clock"] += ("; not applied: the diagnosis takes it as the IMU's "
+                                        "time skew (an IMU's latency is physics to report); "
+                                        "if it is the two clocks' offset, " + _advice(
+                                            rec, rec.reference_shift_s - late, ".2f")[2:])
     if late is not None and abs(late) >= REFUSED_OFFSET_S:
         raise RecordingError(
             f"{rec.name}: the reference's attitude turns as the IMU does only with its stamps "
@@ -165,9 +167,8 @@ def _check_reference_clock(rec):
 
 
 FELT_GRAVITY_SHARE = 0.05   # of the recording's 1 s means: at least this share (and 3 s)
-                            # feels gravity's size - a vehicle on Earth spends some time on
-                            # the ground, hovering, cruising or under a parachute; a coasting
-                            # rocket's free fall (|f| near 0) is no units error
+                            # feels gravity's size - a vehicle spends some time on the ground,
+                            # hovering, cruising or under a parachute; a coast is no unit error
 
 
 def _gravity_sized(rec):

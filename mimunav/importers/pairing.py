@@ -36,7 +36,7 @@ import numpy as np
 from ..frames import attitude
 from ..frames.mounting import Mounting
 from .recording import G0, RecordingError, at_range, utc_text
-from .attitude_check import angle_text, turn_the_imu, wahba, whose_turn
+from .attitude_check import angle_text, turn_both, turn_the_imu, wahba, whose_turn
 from .series import masked_correlation, on_grid, parabola_min, peak_margin, window_means
 
 SMALL_OFFSET_S = 0.001      # s: the refinement's step; a measured offset beyond it is
@@ -460,8 +460,12 @@ def _pair_mountings(rec, clock_se):
             f"give its mounting (its tilt as the data show it, the yaw as given: roll, "
             f"pitch, yaw {roll}, {pitch}, {yaw} deg"
             + (f": {hint.format(roll=roll, pitch=pitch, yaw=yaw)})" if hint else ")"))
-    whose, held = whose_turn(rec.reference, mids[ok], [(vehicle[0][0], vehicle[1][0] - means[
-        0][2][ok]), (vehicle[0][1], vehicle[1][1])], angle, (TURNING_RATE, MOVING_FORCE), SPAN_SHARE)
+    imus = [(vehicle[0][0], vehicle[1][0] - means[0][2][ok]), (vehicle[0][1], vehicle[1][1])]
+    whose, held, turns = whose_turn(rec.reference, mids[ok], imus, angle,
+                                    (TURNING_RATE, MOVING_FORCE), SPAN_SHARE)
+    if whose == "both":     # the attitude holds neither mounting given: each onto it
+        turn_both(rec, turns, f"measured {_turn_said(angle, how, None, None)}; {held}")
+        return
     if whose == "imu":      # the reference's attitude holds the reference IMU, not the IMU
         turn_the_imu(rec, turn, _turn_said(angle, how, None, None), held)
         return

@@ -128,14 +128,14 @@ class Recording:
                                  "clock measured, no longer increase")
         self._say_shift("reference_imu_time", offset_s, why)
 
-    def shift_reference(self, offset_s, why, fixes=True):
-        """Add offset_s (s) to the reference trajectory's and (`fixes`) the GNSS fixes'
-        stamps, saying so (`why`) in the assumed metadata."""
+    def shift_reference(self, offset_s, why):
+        """Add offset_s (s) to the reference trajectory's and the GNSS fixes' stamps, saying
+        so (`why`) in the assumed metadata."""
         if self.reference is None and self.fixes is None:
             raise InputError("--reference-time-offset: the recording has no reference "
                              "trajectory or GNSS fixes")
         step = int(round(offset_s * 1e9))
-        for part in (self.reference, self.fixes if fixes else None):
+        for part in (self.reference, self.fixes):
             if part is not None:
                 part["ns"] = np.asarray(part["ns"], dtype=np.int64) + step
         self.reference_shift_s += offset_s
