@@ -446,10 +446,9 @@ def out_of_the_shadow(findings, shadow):
     """(kept, set aside) of `findings` where the lever-arm transfer misses the reference's
     angular vibration (`shadow`: `sensor.transfer_doubt`'s words; '' where it does not):
     each finding on the accelerometers (an accelerometer's or the unit's) is set aside with
-    them, its shadow's size beside it - a quadrotor's 97-143 Hz rotor lines across a 4.7 cm
-    lever arm had named an accel.z scale of -0.012 where +0.003 was hidden, and on its null
-    twin a time skew of the accelerometers and an accel.z bias of +0.087 m/s^2 (truth
-    -0.057), all at p < 1e-300."""
+    them - a quadrotor's rotor lines across a 4.7 cm lever arm had named an accel.z scale of
+    -0.012 where +0.003 was hidden, and on its null twin a time skew of the accelerometers
+    and an accel.z bias of +0.087 m/s^2 (truth -0.057), all at p < 1e-300."""
     if not shadow:
         return findings, []
     on = [f.get("sensor") in ("accel", "imu") for f in findings]
@@ -459,7 +458,9 @@ def out_of_the_shadow(findings, shadow):
 
 def clock_doubt(clock):
     """Why a diagnosis whose clock reading (`clock_reading`) is contradicted is inconclusive;
-    None where it is not (or there is none)."""
+    None where it is not (or there is none). Not asked in the shadow of an unfollowed
+    vibration (`out_of_the_shadow`): that is clock-shaped on the accelerometers (a
+    quadrotor's reference read 19 sigma off its import's clock, its true offset 0)."""
     if not (clock and clock["contradicted"]):
         return None
     return (f"the reference IMU's clock, fitted beside the findings, reads "

@@ -199,7 +199,8 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
                            prep.compensated and (flight, *prep.compensated), library,
                            clock := clock_reading(everything, fit_found.terms))
     diag.inconclusive = [why for why in prep.jitter + doubts + read_twice
-                         + [shadow, design.bins_doubt, clock_doubt(clock)] if why]
+                         + [shadow, design.bins_doubt, not shadow and clock_doubt(clock)]
+                         if why]
     if not findings:        # what the halves set aside was there, but not the same throughout
         diag.inconclusive += set_aside_reasons(aside) + beyond_range_reasons(rejected)
     if prep.agreement is not None:

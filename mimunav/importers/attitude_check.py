@@ -4,7 +4,8 @@ where the reference trajectory carries an attitude, the vehicle-frame angular ra
 specific force that it and the velocity make are compared with each IMU's, turned into the
 vehicle frame by its mounting, so that the turn goes onto the IMU the attitude contradicts
 (a car's consumer IMU given 3.9 deg off its true mounting had turned its OXTS reference IMU
-instead, and the words sent the user to the reference's section).
+instead, and the words sent the user to the reference's section), and onto both where it
+holds neither.
 """
 import numpy as np
 from scipy.spatial.transform import Rotation
