@@ -28,7 +28,7 @@ class Fitter:
     def __init__(self, design, rows):
         self.design, self.rows = design, rows
         self.gram, self.logdet, self.slot = [], [], []
-        self._levels = {}
+        self._levels, self._nuisances = {}, {}    # `_level`'s, `_nuisance_shift`'s
         for c in range(6):
             x, slot = design.channel_columns[c]
             gram, logdet, self.n = wander.grams(
@@ -98,10 +98,10 @@ class Fitter:
         acting = [n for n in self.design.nuisance if n in self.slot[c] and n not in terms]
         if not acting:
             return None
-        key = ("nuisance", tuple(terms))
-        if key not in self._levels:
-            self._levels[key] = float(self.fit(terms).of(acting[0])[0][0])
-        return self.slot[c][acting[0]][0], self._levels[key]
+        key = tuple(terms)
+        if key not in self._nuisances:
+            self._nuisances[key] = float(self.fit(terms).of(acting[0])[0][0])
+        return self.slot[c][acting[0]][0], self._nuisances[key]
 
     def _columns(self, c, terms):
         return [i for j in terms if j in self.slot[c] for i in self.slot[c][j]]
@@ -181,9 +181,8 @@ class Fitter:
             h[slots] += g[cols, 0] / r
         a[:18, :18] += self.precision * factor
         for n in nuisance:
-            o = offsets[terms.index(n)]
-            a[o:o + k[terms.index(n)], o:o + k[terms.index(n)]] += \
-                1.0 / max(clock ** 2 * self.design.nuisance[n], 1e-300)
+            span = slice(offsets[terms.index(n)], offsets[terms.index(n) + 1])
+            a[span, span] += 1.0 / max(clock ** 2 * self.design.nuisance[n], 1e-300)
         cov = _covariance(a)
         beta = cov @ h
         return Fit(beta, cov, [slice(o, o + kj) for o, kj in zip(offsets, k)], list(terms))
@@ -265,8 +264,9 @@ def term_test(fitter, terms, j):
     otherwise be), by Wald when it acts on several (one parameter shared by the channels:
     time skew); a linear one by Wald twice: with the reference error under its prior, and
     with it held at zero (the evidence against the noise alone). The design's nuisances
-    (the reference's clock) are in every fit; a one-channel term's likelihood ratio is
-    of models without them, so it must also pass Wald's test with them."""
+    (the reference's clock) are in every fit; a one-channel term's likelihood ratio holds
+    them at their estimates (`likelihood_ratio`), blind to their uncertainty, so it must
+    also pass Wald's test with them fitted."""
     design = fitter.design
     b, cov = fitter.fit(terms).of(j)
     ref = reference_direction(design, j)
@@ -294,8 +294,8 @@ def term_test(fitter, terms, j):
 
 def shares_a_nuisance(design, j):
     """Candidate j acts on a channel a nuisance of the design acts on (`Design.nuisance`):
-    its likelihood-ratio test, of a model without the nuisance, is against the noise alone,
-    and its estimate (`Fitter.fit`) is read with the nuisance fitted."""
+    its likelihood ratio holds the nuisance at its estimate, its Wald test (`Fitter.fit`)
+    fits it too - `term_test` asks both."""
     return j not in design.nuisance and any(
         c in design.columns[n] for n in design.nuisance for c in design.columns[j])
 

@@ -104,23 +104,13 @@ def turn_both(rec, turns, said):
     """Turn each IMU's mounting onto the reference's attitude (`whose_turn`'s "both": it
     holds neither mounting given; `turns`: the attitude's vectors onto each IMU's), saying
     so in rec.real / rec.assumed (`said`: how far the attitude lies from each)."""
-    ref = rec.reference_imu
-    rpy = []
-    for turn, who in zip(turns, ("imu", "reference")):
-        mounting = rec.mounting if who == "imu" else ref["mounting"]
-        q_vs = np.conjugate(attitude.from_scipy(turn)) * mounting.q_vs
-        turned = Mounting(attitude.as_wxyz(q_vs), mounting.lever_arm_m)
-        if who == "imu":
-            rec.mounting = turned
-        else:
-            ref["mounting"] = turned
-        yaw, pitch, roll = (angle_text(x) for x in attitude.as_euler(q_vs))
-        rpy.append(f"{roll}, {pitch}, {yaw}")
+    rec.mounting, mine = turned_back(rec.mounting, turns[0])
+    rec.reference_imu["mounting"], theirs = turned_back(rec.reference_imu["mounting"], turns[1])
     rec.real["reference_imu_mounting"] = (
         f"{said}: it holds neither mounting given, so each was turned onto it - the IMU's "
-        f"to roll, pitch, yaw {rpy[0]} deg, the reference IMU's to {rpy[1]} deg")
+        f"to roll, pitch, yaw {mine} deg, the reference IMU's to {theirs} deg")
     rec.assumed["mounting"] = f"measured against the reference's attitude: roll, pitch, " \
-                              f"yaw {rpy[0]} deg"
+                              f"yaw {mine} deg"
 
 
 def turn_the_imu(rec, turn, measured, why):
@@ -128,14 +118,19 @@ def turn_the_imu(rec, turn, measured, why):
     the reference's vehicle-frame vectors onto the IMU's) on the IMU's mounting, the
     reference IMU's kept, saying so in rec.real / rec.assumed: `measured` the turn in words,
     `why` the IMU's (the reference's attitude is its own, or holds it)."""
-    mine = np.conjugate(attitude.from_scipy(turn)) * rec.mounting.q_vs
-    rec.mounting = Mounting(attitude.as_wxyz(mine), rec.mounting.lever_arm_m)
-    yaw, pitch, roll = (angle_text(a) for a in attitude.as_euler(mine))
+    rec.mounting, rpy = turned_back(rec.mounting, turn)
     rec.real["reference_imu_mounting"] = (
         f"measured {measured}: {why}, so the IMU's mounting was turned instead, to roll, "
-        f"pitch, yaw {roll}, {pitch}, {yaw} deg")
-    rec.assumed["mounting"] = (f"measured against the reference IMU: roll, pitch, yaw {roll}, "
-                               f"{pitch}, {yaw} deg")
+        f"pitch, yaw {rpy} deg")
+    rec.assumed["mounting"] = f"measured against the reference IMU: roll, pitch, yaw {rpy} deg"
+
+
+def turned_back(mounting, turn):
+    """(the `Mounting` that takes back `turn` - a scipy Rotation of other vectors onto this
+    IMU's vehicle-frame ones -, its roll, pitch, yaw in words, deg)."""
+    q_vs = np.conjugate(attitude.from_scipy(turn)) * mounting.q_vs
+    yaw, pitch, roll = (angle_text(x) for x in attitude.as_euler(q_vs))
+    return Mounting(attitude.as_wxyz(q_vs), mounting.lever_arm_m), f"{roll}, {pitch}, {yaw}"
 
 
 def angle_text(rad):

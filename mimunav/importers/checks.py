@@ -14,7 +14,7 @@ from ..frames import attitude
 from ..flightlog.stamps import rounded_clock
 from .pairing import GRID_S, pair, trajectory_clock
 from .recording import G0, RecordingError, utc_text
-from .velocity_check import check_acceleration_scale, check_velocity
+from .velocity_check import check_acceleration_scale, check_velocity, positions_velocity
 from ..motion.carrier import LAND, car_tests, course_keys
 from ..motion.track import velocity_from_positions
 
@@ -224,12 +224,6 @@ def differenced(ref, v_pos=None):
     v_pos = positions_velocity(ref) if v_pos is None else v_pos
     ok = np.isfinite(v).all(axis=1) & np.isfinite(v_pos).all(axis=1)
     return bool(ok.any()) and bool(np.abs(v[ok] - v_pos[ok]).max() < 1e-3)
-
-
-def positions_velocity(ref):
-    """(M, 3) m/s: the central differences of a reference's positions
-    (`velocity_from_positions`), for `differenced` and `velocity_lag_s` to share."""
-    return velocity_from_positions(ref["ns"], ref["lat"], ref["lon"], ref["h"])
 
 
 def velocity_lag_s(ref, search_s=1.0, v_pos=None):

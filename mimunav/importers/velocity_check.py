@@ -29,13 +29,20 @@ MIN_MOTION = 0.05   # m/s: an axis whose velocity differs from its positions' by
 #                     this speed a sign makes 5 cm a second, below a GNSS fix's error)
 
 
+def positions_velocity(ref):
+    """(M, 3) m/s: the central differences of a reference's positions
+    (`velocity_from_positions`), for this check, `checks.differenced` and
+    `checks.velocity_lag_s` to share."""
+    return velocity_from_positions(ref["ns"], ref["lat"], ref["lon"], ref["h"])
+
+
 def misfits(ref):
     """{"given": (3,), "negated": (3,), "swapped": (2,)} rms (m/s) of the reference's
     velocity less its positions' central differences per NED axis - as given, each axis
     negated, and north and east swapped (the better of either sign) - over the epochs both
     hold; None with fewer than MIN_EPOCHS such epochs."""
     v = np.asarray(ref["v_ned"], float)
-    v_pos = velocity_from_positions(ref["ns"], ref["lat"], ref["lon"], ref["h"])
+    v_pos = positions_velocity(ref)
     ok = np.isfinite(v).all(axis=1) & np.isfinite(v_pos).all(axis=1)
     if ok.sum() < MIN_EPOCHS:
         return None

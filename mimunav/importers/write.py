@@ -18,8 +18,9 @@ from ..flightlog import schemas as S
 from ..sensors.accuracy import Accuracy
 from .recording import UNKNOWN_ATTITUDE, heading_source
 from ..flightlog.stamps import longest_gap, mean_rate_hz, missing_samples, rate_segments
-from .checks import (differenced, positions_velocity, reference_track, check_recording,
+from .checks import (differenced, reference_track, check_recording,
                      resting_upright, velocity_lag_s)
+from .velocity_check import positions_velocity
 
 
 WRITE_BLOCK_S = 10.0        # s: channels are written interleaved in blocks of this much time
