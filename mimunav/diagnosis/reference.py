@@ -13,6 +13,7 @@ import numpy as np
 import quaternion
 
 from ..frames import attitude
+from ..frames.mounting import runs_against
 from ..compensation.effects import derivative
 from .outputs import noise_sigma_of
 from ..errors import InputError
@@ -330,8 +331,9 @@ def agreement(t, measured, predicted, usable, channels):
     predicted means spread by MOVING_SPREAD) must correlate to AGREEMENT_CORRELATION; the
     specific forces' means must point within GRAVITY_ANGLE_DEG of each other (the median
     over the seconds). A clock offset of seconds, a mounting turned by tens of degrees,
-    another vehicle's topic fail one of them; a quiet channel is not judged (its correlation
-    is its noise's)."""
+    another vehicle's topic fail one of them; a quiet channel is judged only for a sign
+    (`frames.mounting.runs_against`: its means and their differences run against the
+    prediction) - else its correlation is its noise's."""
     sec = np.floor((t - t[0]) / AGREEMENT_BIN_S).astype(int)
     keep = usable.copy()                # a column at a time: x[:, c] (`samples.Columns`)
     for c in range(6):
@@ -349,6 +351,12 @@ def agreement(t, measured, predicted, usable, channels):
             else float("nan")
         label = f"{sensor}.{axis}"
         out["channels"][label] = {"correlation": r, "predicted_spread": spread}
+        if spread < MOVING_SPREAD[sensor] and runs_against(m, p):
+            out["failures"].append(
+                f"the MIMU's {label} runs against the reference IMU's prediction: the "
+                f"{AGREEMENT_BIN_S:g} s means correlate {r:.2f}, their differences too, where "
+                f"the predicted ones spread by only {spread:.3g} - a column's sign or the axes' "
+                "order differs between the two IMUs (a reflection, which no mounting turns)")
         if spread >= MOVING_SPREAD[sensor] and not r >= AGREEMENT_CORRELATION:
             out["failures"].append(
                 f"the reference IMU does not predict the MIMU's {label}: the {AGREEMENT_BIN_S:g} "

@@ -7,7 +7,7 @@ import json
 import math
 import re
 
-from ..motion.carrier import LAND, car_tests
+from ..motion.carrier import LAND, car_tests, contradiction
 
 
 def declared(recording_meta):
@@ -15,12 +15,16 @@ def declared(recording_meta):
     return (recording_meta or {}).get("vehicle")
 
 
-def kind(flight):
+def kind(flight, vehicle=None):
     """(kind, how): `LAND` or another of `importers.kinds.VEHICLES` ("other" when judged),
-    and how it was known - declared, or judged with the numbers of the tests that decided."""
-    said = declared(flight.recording)
+    and how it was known - declared (`vehicle`, the command line's, over the metadata's),
+    with what its track and IMU contradict of it (`motion.carrier.contradiction`), or judged
+    with the numbers of the tests that decided."""
+    said = vehicle or declared(flight.recording)
     if said:
-        return said, f"declared {said} (recording metadata)"
+        how = f"declared {said} ({'--vehicle' if vehicle else 'recording metadata'})"
+        contra = _contradiction(flight, said)
+        return said, how + (f", but {contra}" if contra else "")
     if flight.truth is None or len(flight.truth) < 10:
         return "other", "not a car: no reference track to judge it from"
     failed, numbers = _car_tests(flight)
@@ -30,20 +34,22 @@ def kind(flight):
 
 
 def contradicted_car(flight, kind_how):
-    """Why a car declared (kind_how: `levels.vehicle_of`'s (kind, how)) is not what the
-    recording's track and IMU show (`motion.carrier.car_tests` failed), or '': the track
-    level's vehicle model - no side slip, no lean - would charge a motorcycle's lean to its
-    gyros (a 39 deg lean read as a gyro.z excursion of z -21 and a scale of 0.157)."""
+    """Why a car declared (kind_how: `kind`'s (kind, how)) is not what the recording's track
+    and IMU show (`motion.carrier.car_tests` failed), or '': the track level's vehicle
+    model - no side slip, no lean - would charge a motorcycle's lean to its gyros (a 39 deg
+    lean read as a gyro.z excursion of z -21 and a scale of 0.157)."""
     kind, how = kind_how
-    if kind != LAND or not how.startswith("declared") or flight.truth is None \
-            or len(flight.truth) < 10:
+    if kind != LAND or not how.startswith("declared") or ", but " not in how:
         return ""
-    failed, _ = _car_tests(flight)
-    if not failed:
+    return (f"{how} - the track level's vehicle model (no side slip, no lean) does not hold, "
+            "so none of its findings stands")
+
+
+def _contradiction(flight, vehicle):
+    if flight.truth is None or len(flight.truth) < 10:
         return ""
-    return (f"{how}, but its track and IMU are not a car's: {'; '.join(failed)} - the track "
-            "level's vehicle model (no side slip, no lean) does not hold, so none of its "
-            "findings stands")
+    w, f = (None, None) if flight.mimu_imu is None else flight.mimu_imu
+    return contradiction(vehicle, flight.truth.t, flight.truth.v_ned, flight.mimu_t, f, w)
 
 
 def _car_tests(flight):

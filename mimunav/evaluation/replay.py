@@ -9,7 +9,7 @@ import numpy as np
 
 from ..frames import attitude, earth
 from ..navigation import strapdown
-from ..navigation.alignment import level
+from ..navigation.rest_biases import level
 from ..compensation.wild_values import CLIP_RUN, SATURATED, flag_counts
 from ..frames.mounting import Mounting
 from ..motion.trajectory import Trajectory
@@ -235,13 +235,14 @@ def navigate_mimu(flight, w, f):
     return Trajectory.concatenate([nav.feed(flight.mimu_t, w, f), nav.finish()])
 
 
-def navigate_mimu_at(flight, cal, at):
+def navigate_mimu_at(flight, cal, at, less=(0.0, 0.0)):
     """The MIMU through `cal` navigated from the flight's initial state, kept at times `at`
     (s, increasing): block by block when the flight streams (`replay` without the reference
-    IMU, the flags' counts or the checks)."""
+    IMU, the flags' counts or the checks); `less` (gyro rad/s, accel m/s^2, sensor axes)
+    taken out of its outputs first."""
     nav, keep = _mimu_navigator(flight), Sampler(at)
     for t, w, f, _ in flight.mimu_blocks(cal):
-        keep.add(nav.feed(t, w, f))
+        keep.add(nav.feed(t, w - less[0], f - less[1]))
     keep.add(nav.finish())
     return keep.trajectory()
 

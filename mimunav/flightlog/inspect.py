@@ -68,7 +68,8 @@ HEADING = {"reference": "from the reference's attitude", "course": "from the GNS
            "car's heading; of what is not a car, only its course)",
            "assumed": "assumed: nothing measured it"}
 ATTITUDE = {"reference": "from the reference", "leveled": "leveled on the IMU's own specific "
-            "force"}
+            "force", "reference_level": "leveled on the reference's attitude at a rest (the "
+            "accelerometers' bias across gravity measured against it)"}
 
 
 def _recording_lines(meta):

@@ -70,3 +70,22 @@ class Mounting:
         q_sv = np.conjugate(self.q_vs)
         dv = run.dv_at(self.lever_arm_m) if np.any(self.lever_arm_m) else run.dv
         return attitude.rotate(q_sv, run.dtheta), attitude.rotate(q_sv, dv)
+
+
+AGAINST = -0.5          # a correlation below this is a sign between two series, not noise
+MIN_MEANS = 30          # means at least: 30 independent noises correlate below AGAINST by
+#                         chance at p ~ 0.2 %, and their differences must do so too
+
+
+def runs_against(mine, theirs):
+    """Whether one axis' means of two IMUs (N,: 1 s means in one frame, a mounting applied
+    to each) run against each other - a mirrored axis, a column's sign that no mounting
+    turns: their correlation and that of their first differences both below AGAINST (a slow
+    bias drift moves the means, not their differences). Judged where the axis moves too
+    little for a correlation to be read otherwise: a FOG's gyro y column signed wrong on an
+    AUV, its pitch rate's means spread 0.009 rad/s, correlated -0.9999, had passed."""
+    mine, theirs = np.asarray(mine, float), np.asarray(theirs, float)
+    if len(mine) < MIN_MEANS or min(np.std(np.diff(mine)), np.std(np.diff(theirs))) == 0:
+        return False
+    return bool(np.corrcoef(mine, theirs)[0, 1] < AGAINST and
+                np.corrcoef(np.diff(mine), np.diff(theirs))[0, 1] < AGAINST)

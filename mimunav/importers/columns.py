@@ -27,17 +27,24 @@ def check_keys(path, doc, known, where, elsewhere=None):
                                  f"{', '.join(known)})")
 
 
-def load_spec(path, columns, notes=None):
+def load_spec(path, columns, notes=None, rows=None):
     """A numeric array from a CSV (header row optional) or a NumPy file (.npy, .npz with one
     array, or an extension-less .npy as comma2k19 stores them) - or from every file a glob
     pattern matches, their rows in the order of their names (KITTI's oxts/data/*.txt, a file
     per epoch). A CSV's last line cut short (a logger stopped mid-write) is left out and said
-    in `notes`; any other line whose column count differs is refused."""
+    in `notes`; any other line whose column count differs is refused. rows {column name:
+    text or [texts]}: only the rows whose text in each named column is one of those (a
+    logger writing several sensors' rows to one file: Android GnssLogger's MessageType
+    UncalAccel, UncalGyro); without it, a file whose rows are of interleaved kinds is
+    refused, naming them (its gyro rows had been read as specific force where no two stamps
+    collided)."""
     files = files_of(path)
-    joined = _joined(files, columns) if len(files) > 1 else None
+    joined = _joined(files, columns) if len(files) > 1 and rows is None else None
     if joined is not None:
         return joined
     tables = [_load_one(one, notes) for one in files]
+    tables = [(data[_rows_where(one, rows, len(data))], names)
+              for one, (data, names) in zip(files, tables)]
     widths = [data.shape[1] for data, _ in tables]
     if len(set(widths)) > 1:        # one table split in files: one layout throughout
         odd = min(range(len(files)), key=widths.count)
@@ -107,6 +114,75 @@ def _load_one(path, notes):
     return data.reshape(len(data), -1), names
 
 
+KIND_CHANGES = 0.25     # of a layout's rows: a text column that changes this often between
+#                         neighbouring rows interleaves kinds of row (a status column runs)
+
+
+def _rows_where(path, rows, n):
+    """The mask of a file's n data rows that `rows` keeps (`load_spec`); all without it, but
+    a CSV whose first LAYOUT_LINES rows interleave kinds in a text column is refused."""
+    if not path.endswith((".csv", ".txt")):
+        if rows:
+            raise RecordingError(f"{path}: `rows` picks a CSV's rows by a text column; a "
+                                 "NumPy file has none")
+        return np.ones(n, bool)
+    if not rows:
+        _refuse_interleaved(path, *_text_rows(path, LAYOUT_LINES))
+        return np.ones(n, bool)
+    names, cells = _text_rows(path)
+    if not isinstance(rows, dict):
+        raise RecordingError(f"{path}: rows {rows!r}: a table {{column name = text or [texts]}}")
+    keep = np.ones(len(cells), bool)
+    for name, wanted in rows.items():
+        if names is None or name not in names:
+            raise RecordingError(f"{path}: rows: column {name!r} not among {names}")
+        k = names.index(name)
+        wanted = {str(w) for w in (wanted if isinstance(wanted, list) else [wanted])}
+        keep &= np.array([k < len(r) and r[k].strip() in wanted for r in cells])
+    if len(keep) != n:
+        raise RecordingError(f"{path}: {len(keep)} text rows, {n} numeric rows: `rows` cannot "
+                             "pick among them")
+    if not keep.any():
+        raise RecordingError(f"{path}: no row is {rows}")
+    return keep
+
+
+def _refuse_interleaved(path, names, cells):
+    """Refuse a table whose text column (2-8 values) changes between KIND_CHANGES of its
+    neighbouring rows: rows of several kinds, each a sensor's, one read as another's."""
+    for k, name in enumerate(names or []):
+        text = [r[k].strip() for r in cells if k < len(r)]
+        if len(text) < 20 or any(_number(x) for x in text):
+            continue
+        kinds = sorted(set(text))
+        if 2 <= len(kinds) <= 8 and \
+                sum(a != b for a, b in zip(text, text[1:])) >= KIND_CHANGES * len(text):
+            raise RecordingError(
+                f"{path}: its rows are of {len(kinds)} kinds interleaved (column {name!r}: "
+                f"{', '.join(map(repr, kinds))}), each kind its own quantity: pick one per "
+                f"column source with rows = {{{name} = {kinds[0]!r}}}".replace("'", '"'))
+
+
+def _text_rows(path, limit=None, first_is_data=None):
+    """(the header's names or None, the data rows as lists of text cells) of a CSV - its
+    first `limit` lines only, when given -, the rows `load_spec` reads: comment lines and a
+    last line cut short left out; a header's row is data where first_is_data(its cells)."""
+    sep, skip, header = _csv_layout(path)
+    with open(path, newline="") as fh, text_file(path):
+        lines = fh.readlines()[skip:] if limit is None else \
+            [line for _, line in zip(range(skip + limit), fh)][skip:]
+    rows = [r for r in (csv.reader(lines, delimiter=sep) if sep else (x.split() for x in lines))
+            if any(c.strip() for c in r) and not r[0].lstrip().startswith("#")]
+    if header and first_is_data is not None and rows and first_is_data(rows[0]):
+        header = False
+    names = header_names(path, sep, skip) if header else None
+    if header and lines and not lines[0].lstrip().startswith("#"):
+        rows.pop(0)                                 # the header row (a '#' one is left out)
+    if rows and len(rows[-1]) != len(rows[0]) and limit is None:
+        rows.pop()                                  # cut short (`load_spec` says so)
+    return names, rows
+
+
 def _picked(path, data, names, columns):
     """The `columns` of a file's numbers: header names (a header's '#' no part of one) or
     0-based indices; all for None."""
@@ -158,9 +234,12 @@ def _csv_layout(path):
     return sep, k, False
 
 
-def load_date_times(path, column, zone=None):
-    """`_date_times` of a file, or of every file a glob pattern matches (`files_of`)."""
-    return np.concatenate([_date_times(one, column, zone) for one in files_of(path)])
+def load_date_times(path, column, zone=None, rows=None):
+    """`_date_times` of a file, or of every file a glob pattern matches (`files_of`), the
+    rows `rows` keeps (`load_spec`)."""
+    times = [_date_times(one, column, zone) for one in files_of(path)]
+    return np.concatenate([x[_rows_where(one, rows, len(x))]
+                           for one, x in zip(files_of(path), times)])
 
 
 def _date_times(path, column, zone=None):
@@ -173,24 +252,13 @@ def _date_times(path, column, zone=None):
         raise RecordingError(f"{path}: no such file")
     if not path.endswith((".csv", ".txt")):
         raise RecordingError(f"{path}: date-times are read from a CSV, not a NumPy file")
-    sep, skip, header = _csv_layout(path)
-    with open(path, newline="") as fh, text_file(path):
-        lines = fh.readlines()[skip:]
-    rows = [r for r in (csv.reader(lines, delimiter=sep) if sep else (x.split() for x in lines))
-            if any(c.strip() for c in r) and not r[0].lstrip().startswith("#")]
-    if header and isinstance(column, int) and rows and column < len(rows[0]) and \
-            _date_time(rows[0][column]):
-        header = False              # a first row of date-times is data (KITTI's timestamps)
-    names = header_names(path, sep, skip) if header else None
-    if header and lines and not lines[0].lstrip().startswith("#"):
-        rows.pop(0)                                 # the header row (a '#' one is left out)
+    names, rows = _text_rows(path, first_is_data=lambda row: isinstance(column, int) and
+                             column < len(row) and _date_time(row[column]))
     if isinstance(column, str):
         column = column.lstrip("#").strip()         # a header's '#' is no part of a name
         if names is None or column not in names:
             raise RecordingError(f"{path}: column {column!r} not among {names}")
         column = names.index(column)
-    if rows and len(rows[-1]) != len(rows[0]):
-        rows.pop()                                  # cut short (`load_spec` says so)
     out = np.empty(len(rows))
     for k, row in enumerate(rows):
         text = row[column].strip() if column < len(row) else ""

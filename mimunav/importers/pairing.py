@@ -34,7 +34,7 @@ import math
 import numpy as np
 
 from ..frames import attitude
-from ..frames.mounting import Mounting
+from ..frames.mounting import AGAINST, Mounting, runs_against
 from .recording import G0, RecordingError, at_range, utc_text
 from .attitude_check import angle_text, turn_both, turn_the_imu, wahba, whose_turn
 from .series import masked_correlation, on_grid, parabola_min, peak_margin, window_means
@@ -500,21 +500,19 @@ def _clock_turn_deg(w, clock_se):
     return math.degrees(change / max(spread, 1e-12) * clock_se)
 
 
-AS_GIVEN_AGAINST = -0.5     # a moving axis whose 1 s means, mountings as given, correlate
-                            # below this runs against the other IMU's: a sign, not noise
-
-
 def _runs_against(sensor, mine, theirs, when, columns):
     """Why the triads are a reflection (naming the triad and axis, and the `columns` to
     check), or '': a moving axis - 1 s means spread by 0.02 rad/s or 0.3 m/s^2
     (`reference.MOVING_SPREAD`'s sizes) - whose means (vehicle frame) run against the other
-    IMU's: correlation below AS_GIVEN_AGAINST."""
+    IMU's: correlation below AGAINST; a quieter one where `mounting.runs_against`
+    (its differences too)."""
     spread = 0.02 if sensor == "gyro" else 0.3
     for i, axis in enumerate("xyz"):
-        if min(np.std(mine[:, i]), np.std(theirs[:, i])) < spread:
+        if min(np.std(mine[:, i]), np.std(theirs[:, i])) < spread and \
+                not runs_against(mine[:, i], theirs[:, i]):     # a quiet axis: a sign only
             continue
         r = float(np.corrcoef(mine[:, i], theirs[:, i])[0, 1])
-        if r < AS_GIVEN_AGAINST:
+        if r < AGAINST:
             return (f"{when}, the two IMUs' {sensor}s about the vehicle's {axis} axis run "
                     f"against each other (1 s means correlate {r:.2f}): a column's sign or the "
                     f"axes' order differs between the two IMUs - a reflection, which no "

@@ -37,7 +37,7 @@ SECTION_KEYS = {
                   "independent", "position_sigma_m", "time_offset_s", "position_local",
                   "velocity_local", "local_frame", "ground_speed", "course")}
 SOURCE_KEYS = ("file", "columns", "unit", "scale", "offset", "time", "rotates", "age",
-               "zone")
+               "zone", "rows")
 FRAME_KEYS = ("axes", "origin", "azimuth_deg")          # [reference] local_frame = {...}
 RANGE_KEYS = ("angular_rate", "specific_force")
 ELSEWHERE = {**{key: "in [reference] local_frame = {" + key + " = ...}" for key in FRAME_KEYS},
@@ -111,7 +111,8 @@ class Spec:
             raise RecordingError(f"{self.path}: {where}: `zone` belongs to date-times "
                                  "(unit = \"iso8601\")")
         x = self._date_times(source, where) if unit == "iso8601" else \
-            load_spec(os.path.join(self.root, source["file"]), source.get("columns"), self.notes)
+            load_spec(os.path.join(self.root, source["file"]), source.get("columns"), self.notes,
+                      source.get("rows"))
         if width == 1 and x.ndim == 2 and x.shape[1] == 1:
             x = x[:, 0]
         if (x.ndim == 1 and width != 1) or (x.ndim == 2 and x.shape[1] != width) or x.ndim > 2:
@@ -147,7 +148,7 @@ class Spec:
         if len(columns) != 1 or source.get("scale", 1.0) != 1.0:
             raise RecordingError(f"{self.path}: {where}: date-times are one column, unscaled")
         return load_date_times(os.path.join(self.root, source["file"]), columns[0],
-                               source.get("zone"))
+                               source.get("zone"), source.get("rows"))
 
     def finite_rows(self, where, *columns):
         """The columns (equal lengths) with every row that is not finite in any of them left

@@ -6,7 +6,7 @@ degrees - and position_covariance ENU m^2), the `flight` metadata with an `initi
 from `navigation.alignment.initial_alignment`, `sensor/mimu`, and `recording` (what is
 real, what was assumed; the biases the alignment measured, sensor axes, and in words the
 diagnosis reads: `initial_heading` reference | course | assumed, `initial_attitude`
-reference | leveled, `bias_basis` as `alignment.Alignment`'s).
+reference | leveled | reference_level, `bias_basis` as `alignment.Alignment`'s).
 """
 import json
 
@@ -169,6 +169,8 @@ def summary(rec, align, path):
             lines.append(f"measured {key.replace('_', ' ')}: {rec.real[key]}")
     if "reference_heading" in rec.real:
         lines.append(f"measured heading: {rec.real['reference_heading']}")
+    if "vehicle" in rec.real:
+        lines.append(f"warning: {rec.real['vehicle']}")
     if "course_checks" in rec.real:
         lines.append(f"course checks: {rec.real['course_checks']}")
     if "resting_tilt" in rec.real:

@@ -115,6 +115,35 @@ def car_tests(t_track, v_ned, t=None, f=None, w=None):
     return failed, numbers
 
 
+WALKING_SPEED = 12.5        # m/s: the fastest 100 m ever run peaked near 12.4 m/s; a walk
+#                             1-2 m/s, a run 3-6 (99th percentile of its 10 s means)
+TRACK_LIKE_A_CAR = ("train",)   # whose track and IMU pass these tests as a car's do: a
+#                             train's canted curves are felt across its down in part
+
+
+def contradiction(vehicle, t_track, v_ned, t=None, f=None, w=None):
+    """Why a declared `vehicle` (one of `importers.kinds.VEHICLES`) is not what its track and
+    IMU show (`car_tests`' arguments), or '': a car that fails a car test; a walker faster
+    than WALKING_SPEED; any other kind (but TRACK_LIKE_A_CAR) whose track and IMU pass every
+    car test, the turns felt across its down made too - none of them feels its turns all
+    sideways at a car's speeds without leaving its track (an independent trial's car drive
+    declared a pedestrian at 25 m/s and 3 m/s^2 turns had gone without a word)."""
+    failed, numbers = car_tests(t_track, v_ned, t, f, w)
+    if vehicle == LAND:
+        return f"its track and IMU are not a car's: {'; '.join(failed)}" if failed else ""
+    v = _means(np.asarray(t_track, float), np.asarray(v_ned, float), CLIMB_WINDOW_S / 2)
+    v = v[np.isfinite(v).all(axis=1)]
+    fastest = float(np.percentile(np.hypot(v[:, 0], v[:, 1]), 99)) if len(v) else 0.0
+    if vehicle == "pedestrian" and fastest > WALKING_SPEED:
+        return (f"its speed's 99th percentile is {fastest:.1f} m/s: no one walks or runs "
+                f"faster than {WALKING_SPEED:g}")
+    felt = f is not None and w is not None and \
+        _turn_share(np.asarray(t_track, float), np.asarray(v_ned, float), t, f) is not None
+    if vehicle in TRACK_LIKE_A_CAR or failed or not felt:
+        return ""
+    return f"its track and IMU pass every test of a car's ({', '.join(numbers)})"
+
+
 def _means(t, x, half):
     """Means of the rows of x (M, k) within +-half s of each of its epochs t (s); NaN where
     that window runs past the track's ends (a one-sided window over one-sided differences:

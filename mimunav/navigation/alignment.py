@@ -5,7 +5,9 @@ specific force is the reaction to gravity, f^b = C_bn (0, 0, -g), so
     roll  = atan2(-f_y, -f_z),   pitch = atan2(f_x, sqrt(f_y^2 + f_z^2))     (vehicle axes);
 the gyro bias is the static mean rate less the Earth rate C_bn w_ie^n; of the accelerometer
 bias only the part along gravity is observable at rest: (|f| - g) f/|f| with the normal
-gravity g at the track's position (none without a track). Heading is not
+gravity g at the track's position (none without a track) - unless the reference carries the
+vehicle's attitude at the rest: then its level is taken, and the whole bias measured against
+it (`rest_biases`). Heading is not
 observable this way from a consumer gyro (Earth rate 0.004 deg/s against a bias of
 0.1-1 deg/s), so it comes from the GNSS course once the vehicle moves: a car does not slide
 sideways, its forward axis points along its velocity (the non-holonomic assumption), and the
@@ -30,10 +32,11 @@ import quaternion
 from scipy.spatial.transform import Rotation
 
 from ..frames import attitude, earth
-from .attitude_biases import ATTITUDE_BIAS_WINDOW_S, biases_from_attitude
 from ..errors import InputError
 from ..motion.carrier import declared
-from .rests import (G0, MIN_STATIC_S, felt_at_rest, rate_mean_se, QUIET_WINDOW_S, STATIC_MARGIN_S, STATIC_SPEED, track_still,
+from .rest_biases import (ACROSS_GRAVITY, biases_at_a_rest, horizontal_earth_rate, level,
+                          reference_attitude, rest_biases, up_at_rest)
+from .rests import (MIN_STATIC_S, felt_at_rest, QUIET_WINDOW_S, STATIC_MARGIN_S, STATIC_SPEED, track_still,
                     means_around, quiet_stretches, rest_intervals, travel_sign, velocity_noise,
                     yaw_turned)
 
@@ -72,7 +75,8 @@ class Alignment:
     moves along its forward axis, true of a car, not of a walker's phone or a multicopter;
     "assumed" - nothing measured it, 0), where the attitude came from (`attitude_from`:
     "reference" - taken whole from it; "leveled" - from the IMU's own specific force, a rest's
-    or a moving alignment's), and what the biases measured (`bias_basis`: gyro
+    or a moving alignment's; "reference_level" - roll and pitch the reference's at a rest,
+    the heading as `heading` says), and what the biases measured (`bias_basis`: gyro
     "reference_attitude" (the Earth rate removed with the reference's attitude), "course" (at
     the course's heading), "vertical_earth_rate" (its horizontal part, up to Omega cos(lat),
     left in), "earth_rate_left" (a rest's mean rate, the Earth's in it: no position, no
@@ -110,32 +114,13 @@ def unwrapped_longitude(lon):
     return lon
 
 
-def level(f_v):
-    """(roll, pitch) rad of a vehicle at rest from its mean specific force f_v (m/s^2,
-    vehicle FRD axes)."""
-    fx, fy, fz = f_v
-    return math.atan2(-fy, -fz), math.atan2(fx, math.hypot(fy, fz))
-
-
-def reference_attitude(track, t0):
-    """q_nb (wxyz) of the reference at its first epoch at or after t0 with a finite attitude,
-    and that epoch (s); (None, None) when the reference carries no attitude."""
-    q = track.get("q_nb")
-    if q is None:
-        return None, None
-    ok = np.flatnonzero(np.isfinite(q).all(axis=1) & (track["t"] >= t0))
-    if not len(ok):
-        return None, None
-    return np.asarray(q[ok[0]], float), float(track["t"][ok[0]])
-
-
 def initial_alignment(t, w, f, mounting, track=None):
     """Initial state of a recording: t s, w rad/s, f m/s^2 (sensor axes), `track` the
     reference {t s, lat, lon rad, h m, v_ned m/s, optional q_nb wxyz of the vehicle (NaN rows:
     unknown), heading_known (False: its north is no true north)}. In order of preference:
 
     1. a rest that starts the recording (MIN_STATIC_S or more): level from its mean specific
-       force, heading from the reference's attitude once moving, turned back by the gyro
+       force (from the reference's attitude where it has one there), heading from the reference's attitude once moving, turned back by the gyro
        (else the course of straight driving less the gyro's yaw since), state at the first
        IMU stamp; the rest ends where the IMU starts to move (`rests.settled_until`);
     2. the reference's own attitude at its first epoch with one (an autopilot's estimate,
@@ -290,13 +275,14 @@ def _from_rest(t, w, f, mounting, track, interval, still_until=-math.inf):
     rest = (t >= t[0]) & (t <= t_end)
     if rest.sum() < 10:
         raise InputError(f"fewer than 10 IMU samples in the rest {t[0]:.2f}-{t_end:.2f} s")
-    roll, pitch = level(attitude.rotate(q_vs, f[rest].mean(axis=0)))
-    notes = [f"level from the mean specific force over the rest {t[0]:.2f}-{t_end:.2f} s"]
+    q_ref, t_ref = reference_attitude(track, float(t[0]))
+    level_known = q_ref is not None and t_ref <= t_end      # the reference's level at rest
+    roll, pitch, notes = _rest_level(t, f[rest].mean(axis=0), q_vs, t_end,
+                                     (q_ref, t_ref) if level_known else None)
     lat, lon, h = (float(np.interp(t[0], track["t"], x)) for x in (
         track["lat"], unwrapped_longitude(track["lon"]), track["h"]))
     speed = mean_speed(track, moving_half_window(track))
     after = track["t"] > max(t_end, still_until)
-    q_ref, t_ref = reference_attitude(track, float(t[0]))
     # an INS's heading is taken once the vehicle moves as a car's course would give one
     # (COURSE_SPEED: where it has converged), else its course at that speed, else its
     # heading at rest; a track without attitude gives a course from the speed its noise allows
@@ -320,24 +306,8 @@ def _from_rest(t, w, f, mounting, track, interval, still_until=-math.inf):
         notes.append(f"heading from the reference's attitude at t = {track['t'][i]:.2f} s, "
                      f"moving ({speed[i]:.1f} m/s), turned back to the rest by the gyro")
     elif len(fast):
-        # each chosen epoch (`_course_epochs`) gives the heading at rest (its course less
-        # the gyro's yaw since): their circular mean weighted by speed^2, so one noisy
-        # course (a plain fix's differenced velocity, ~1 m/s of noise) does not set it
-        course = np.arctan2(track["v_ned"][k, 1], track["v_ned"][k, 0])
-        if travel_sign(t, f, mounting, track, float(track["t"][k[0]])) < 0:
-            course = course + math.pi               # it drives off in reverse
-            notes.append("reversing (the horizontal specific force opposes the track's "
-                         "acceleration)")
-        at_rest = course - np.array([yaw_turned(t, w_v, t_end, float(x))
-                                     for x in track["t"][k]])
-        weight = speed[k] ** 2          # a course's noise falls as the speed rises
-        yaw = math.atan2(np.sum(weight * np.sin(at_rest)), np.sum(weight * np.cos(at_rest)))
-        heading = "course"
-        notes.append(f"heading from the GNSS course over {len(k)} epoch(s) from t = "
-                     f"{track['t'][k[0]]:.2f} s ({speed[k[0]]:.1f} m/s"
-                     + (f", driving straight: yaw rate under {math.degrees(STRAIGHT_RATE):g} "
-                        "deg/s" if straight else ", turning: none drove straight") +
-                     ") less the gyro's yaw since the rest (non-holonomic: no side slip)")
+        yaw, heading = _heading_from_course(t, f, w_v, mounting, track, (k, straight), speed,
+                                            t_end, notes), "course"
     elif q_ref is not None:
         yaw = float(attitude.as_euler(attitude.from_wxyz(q_ref))[0])
         heading = "reference"
@@ -346,20 +316,60 @@ def _from_rest(t, w, f, mounting, track, interval, still_until=-math.inf):
         yaw, heading = 0.0, "assumed"
         notes.append(_no_heading(track, interval))
     q_nb = attitude.from_euler(np.array(yaw), np.array(pitch), np.array(roll))
-    gyro_bias, accel_bias = _rest_biases(w[rest], f[rest], q_nb * q_vs, lat, h)
+    gyro_bias, accel_bias = rest_biases(w[rest], f[rest], q_nb * q_vs, lat, h, level_known)
+    if level_known:
+        notes.append(ACROSS_GRAVITY)
     true_north = heading != "assumed" and track.get("heading_known", True)
     if not true_north:              # no true heading: the Earth rate's vertical part only
-        gyro_bias = gyro_bias + _horizontal_earth_rate(q_nb * q_vs, lat)
+        gyro_bias = gyro_bias + horizontal_earth_rate(q_nb * q_vs, lat)
         notes.append("only the Earth rate's vertical part removed from the gyro bias (up to "
                      f"{earth.OMEGA * math.cos(lat):.1e} rad/s of it remain: "
                      + ("no heading)" if heading == "assumed" else
                         "the reference's frame has no known azimuth)"))
     basis = {"gyro": {"reference": "reference_attitude", "course": "course"}.get(
                  heading, "vertical_earth_rate") if true_north else "vertical_earth_rate",
-             "accel": "along_gravity", "gravity_sensor_axes": _up(f[rest])}
+             "accel": "all" if level_known else "along_gravity",
+             "gravity_sensor_axes": up_at_rest(f[rest])}
     return Alignment(float(t[0]), lat, lon, h, np.zeros(3), attitude.as_wxyz(q_nb),
                      gyro_bias, accel_bias, (float(t[0]), float(t_end)), "; ".join(notes),
-                     heading=heading, bias_basis=basis)
+                     heading=heading, bias_basis=basis,
+                     attitude_from="reference_level" if level_known else "leveled")
+
+
+def _heading_from_course(t, f, w_v, mounting, track, chosen, speed, t_end, notes):
+    """The heading (rad) at the rest's end t_end (s) from the track's courses at its
+    `chosen` epochs (`_course_epochs`' (indices, straight)), each less the gyro's yaw since
+    (vehicle-axis rates w_v, rad/s): their circular mean weighted by speed^2, so one noisy
+    course (a plain fix's differenced velocity, ~1 m/s of noise) does not set it; how,
+    appended to `notes`."""
+    k, straight = chosen
+    course = np.arctan2(track["v_ned"][k, 1], track["v_ned"][k, 0])
+    if travel_sign(t, f, mounting, track, float(track["t"][k[0]])) < 0:
+        course = course + math.pi               # it drives off in reverse
+        notes.append("reversing (the horizontal specific force opposes the track's "
+                     "acceleration)")
+    at_rest = course - np.array([yaw_turned(t, w_v, t_end, float(x)) for x in track["t"][k]])
+    weight = speed[k] ** 2          # a course's noise falls as the speed rises
+    notes.append(f"heading from the GNSS course over {len(k)} epoch(s) from t = "
+                 f"{track['t'][k[0]]:.2f} s ({speed[k[0]]:.1f} m/s"
+                 + (f", driving straight: yaw rate under {math.degrees(STRAIGHT_RATE):g} "
+                    "deg/s" if straight else ", turning: none drove straight") +
+                 ") less the gyro's yaw since the rest (non-holonomic: no side slip)")
+    return math.atan2(np.sum(weight * np.sin(at_rest)), np.sum(weight * np.cos(at_rest)))
+
+
+def _rest_level(t, f_mean, q_vs, t_end, reference=None):
+    """(roll, pitch rad, [the note]) of the vehicle at the rest from t[0] to t_end (s): the
+    reference's (q_nb wxyz, epoch s) where it has an attitude there, else leveled on the
+    IMU's mean specific force f_mean (m/s^2, sensor axes) through the mounting q_vs."""
+    if reference is not None:
+        _, pitch, roll = attitude.as_euler(attitude.from_wxyz(reference[0]))
+        return float(roll), float(pitch), [f"level from the reference's attitude at t = "
+                                           f"{reference[1]:.2f} s in the rest {t[0]:.2f}-"
+                                           f"{t_end:.2f} s"]
+    roll, pitch = level(attitude.rotate(q_vs, f_mean))
+    return roll, pitch, [f"level from the mean specific force over the rest {t[0]:.2f}-"
+                         f"{t_end:.2f} s"]
 
 
 def _course_epochs(t, w_v, track, fast):
@@ -403,99 +413,6 @@ def _reference_heading_back(t, w_v, t_end, track, k):
         if len(j) else quaternion.one
     q_rest = attitude.from_wxyz(np.asarray(q[k[0]], float)) * np.conjugate(dq)
     return float(attitude.as_euler(q_rest)[0]), int(k[0])
-
-
-def _rest_biases(w, f, q_ns, lat, h):
-    """Gyro bias (mean rate less the Earth rate in sensor axes, q_ns the sensor's attitude)
-    and the accelerometer bias along gravity ((|f| - g) f/|f|) of samples at rest."""
-    w_ie_s = attitude.rotate(np.conjugate(q_ns), earth.earth_rate_ned(lat))
-    f_rest = f.mean(axis=0)
-    norm = np.linalg.norm(f_rest)
-    return (w.mean(axis=0) - w_ie_s,
-            (norm - float(earth.normal_gravity(lat, h))) * f_rest / norm)
-
-
-def biases_at_a_rest(t, w, f, mounting, track, rests, quiet=None):
-    """(gyro bias, accel bias, (t0, t1), note, bias_basis as `Alignment`'s) of the longest
-    rest anywhere in the recording; zeros and (nan, nan) without one. The Earth rate is
-    removed with the reference's attitude there when it has one and a true north; else only
-    its vertical part (the level is known, the heading is not), leaving at most
-    Omega cos(lat) = 7.3e-5 rad/s."""
-    where = "the rest"
-    if not rests:           # `quiet`: the IMU's quiet stretches when already found
-        rests = quiet_stretches(t, w, f, track) if quiet is None else quiet
-        where = "the IMU's quietest stretch (no reference rest; judged from the IMU alone)"
-    none = f"no rest of {MIN_STATIC_S:g} s in the reference and no quiet stretch of " \
-           f"{MIN_STATIC_S:g} s in the IMU"
-    moving = biases_from_attitude(t, w, f, mounting, track) if rests else None
-    if rests:               # a rest's gyro bias against the reference attitude's: the better
-        t0, t1 = max(rests, key=lambda r: r[1] - r[0])
-        se, scatter = rate_mean_se(t, w, t0, t1)
-        if moving is not None and scatter > REST_SCATTER and \
-                np.linalg.norm(moving[0][1]) < np.linalg.norm(se):
-            rests = []
-            none = (f"the rest {t0:.2f}-{t1:.2f} s measures the gyro bias less well than the "
-                    "reference's attitude does: its 1 s means scatter "
-                    f"{scatter:.1f} times what its samples' noise predicts - the IMU moves "
-                    "there - (standard errors "
-                    + ", ".join(f"{math.degrees(x) * 3600:.0f}" for x in se) + " deg/h)")
-    if not rests:
-        moving = biases_from_attitude(t, w, f, mounting, track) if moving is None else moving
-        if moving is None:
-            return (np.zeros(3), np.zeros(3), (math.nan, math.nan),
-                    f"biases taken as 0: {none}", {"gyro": "none", "accel": "none"})
-        gyro, accel, n = moving
-        return (gyro[0], accel[0], (math.nan, math.nan),
-                f"{none}: biases from the reference's attitude and velocity, the medians of "
-                f"{n} {ATTITUDE_BIAS_WINDOW_S:g} s windows' differences (standard errors: gyro "
-                + ", ".join(f"{math.degrees(x) * 3600:.0f}" for x in gyro[1])
-                + " deg/h, accelerometer " + ", ".join(f"{x / G0 * 1e3:.2g}" for x in accel[1])
-                + " mg; the reference's own errors and any time lag in it)"
-                + ("" if track.get("heading_known", True) else
-                   "; the Earth rate's horizontal part left in the gyro's: the reference's "
-                   "frame has no known azimuth"),
-                {"gyro": "reference_attitude" if track.get("heading_known", True) else
-                 "vertical_earth_rate", "accel": "all"})
-    t0, t1 = max(rests, key=lambda r: r[1] - r[0])
-    k = (t >= t0) & (t <= t1)
-    lat, h = (float(np.interp(0.5 * (t0 + t1), track["t"], track[x])) for x in ("lat", "h"))
-    q_ref, _ = reference_attitude(track, t0)
-    true_north = q_ref is not None and track.get("heading_known", True)
-    if q_ref is not None:
-        q_nb = attitude.from_wxyz(q_ref)
-    else:
-        roll, pitch = level(attitude.rotate(mounting.q_vs, f[k].mean(axis=0)))
-        q_nb = attitude.from_euler(np.array(0.0), np.array(pitch), np.array(roll))
-    note = "its Earth rate removed with the reference's attitude" if true_north else (
-        "only the Earth rate's vertical part removed (heading unknown there: up to "
-        f"{earth.OMEGA * math.cos(lat):.1e} rad/s of it remain)")
-    gyro_bias, accel_bias = _rest_biases(w[k], f[k], q_nb * mounting.q_vs, lat, h)
-    if not true_north:              # take the horizontal Earth rate back out of the removal
-        gyro_bias = gyro_bias + _horizontal_earth_rate(q_nb * mounting.q_vs, lat)
-    basis = {"gyro": "reference_attitude" if true_north else "vertical_earth_rate",
-             "accel": "along_gravity", "gravity_sensor_axes": _up(f[k])}
-    return (gyro_bias, accel_bias, (t0, t1),
-            f"biases from {where} {t0:.2f}-{t1:.2f} s ({note})", basis)
-
-
-REST_SCATTER = 2.0      # a rest is given up for the reference's attitude only where its 1 s
-#   means scatter more than twice what its samples' noise predicts (it moves: the moored
-#   hull's tens); a still rest is kept - the attitude's standard error counts its noise
-#   only, not the gyro's scale times a drive's mean turn (an independent review: a still
-#   30 s stop given up for a loop's attitude had left 134 deg/h on z, the rest 4)
-
-
-def _horizontal_earth_rate(q_ns, lat):
-    """The Earth rate's horizontal part in sensor axes (rad/s) at the attitude q_ns: what a
-    removal at an unmeasured heading must put back (up to Omega cos(lat) = 7.3e-5 rad/s)."""
-    w_n = earth.earth_rate_ned(lat)
-    return attitude.rotate(np.conjugate(q_ns), np.array([w_n[0], w_n[1], 0.0]))
-
-
-def _up(f):
-    """The up direction in sensor axes of specific forces f (m/s^2) at a rest: their mean's."""
-    mean = f.mean(axis=0)
-    return [float(x) for x in mean / np.linalg.norm(mean)]
 
 
 def moving_attitude(t, w, f, mounting, track, t0, half=MOVING_HALF_WINDOW_S):

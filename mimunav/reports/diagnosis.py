@@ -50,7 +50,8 @@ def write(out_dir, doc, diag, flight, cal, cal_found, cal_label, force=False, pa
             own = getattr(diag, "compensated", None)     # the sensor level's, of this flight
             outputs = own[1:] if own and own[0] is flight else None
             model = SimpleNamespace(result=cache(lambda: model_navigation(flight, cal, outputs)))
-        gain = pool.submit(navigation_gain, flight, cal_found, model, doc["findings"], cal)
+        gain = pool.submit(navigation_gain, flight, cal_found, model, doc["findings"], cal,
+                           diag.level)
         if diag.level in ("sensor", "track"):
             painter.draw(_residual_map, diag.residual_map, str(tmp / "residual-map.png"))
             painter.draw(_timeline, _timeline_lines(diag, doc), str(tmp / "timeline.png"))

@@ -7,6 +7,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
+from ..diagnosis.error_equations import recorded_bias
 from ..diagnosis.levels import alignment_said, leveled_on_its_outputs
 from ..frames import attitude
 from ..evaluation.replay import (comparison_times, navigate_fog, navigate_mimu,
@@ -16,13 +17,31 @@ from .plots import figure, on_screen, save
 
 def model_navigation(flight, cal, compensated=None):
     """(comparison times t (s), the reference's trajectory at t, the position error (t, 3) m
-    NED of the MIMU through `cal` at t): the truth, else the FOG-IMU navigated, is the
-    reference. compensated: the MIMU's (w rad/s, f m/s^2) through `cal` when already at
-    hand. Block by block when the flight streams (only the states at t are kept). Needs
-    nothing a diagnosis finds."""
+    NED of the MIMU through `cal` at t, a recording's outputs less the biases its import
+    measured - `import_biases`): the truth, else the FOG-IMU navigated, is the reference.
+    compensated: the MIMU's (w rad/s, f m/s^2) through `cal` when already at hand. Block by
+    block when the flight streams (only the states at t are kept). Needs nothing a diagnosis
+    finds."""
     t = comparison_times(flight)
     ref = resample(flight.truth, t) if flight.truth is not None else navigate_fog(flight, at=t)
-    return t, ref, _navigated(flight, cal, t, compensated).position_error(ref)
+    return t, ref, _navigated(flight, cal, t, compensated,
+                              import_biases(flight)).position_error(ref)
+
+
+def import_biases(flight, findings=(), level="navigation"):
+    """(gyro rad/s, accel m/s^2; sensor axes) the biases a recording's import measured at a
+    rest (`diagnosis.error_equations.recorded_bias`), which the navigation level and
+    `windows` take out of the outputs as recorded - a consumer unit's 0.5-1 deg/s gyro
+    biases left in had tumbled the report's navigation to 4,016,748 m. With the found terms
+    (`findings`) of the sensor or the track level, an axis whose constant bias was found
+    keeps only that finding: it is the whole bias there (the navigation level's findings lie
+    beside the import's, fitted after their removal)."""
+    biases = [recorded_bias(flight, "gyro_bias_static_rad_s").copy(),
+              recorded_bias(flight, "accel_bias_m_s2").copy()]
+    for f in findings if level in ("sensor", "track") else ():
+        if f["effect"] == "bias_shift" and f.get("sensor") in ("gyro", "accel"):
+            biases[f["sensor"] == "accel"]["xyz".index(f["axis"])] = 0.0
+    return tuple(biases)
 
 
 def model_navigation_beside(flight, cal):
@@ -32,14 +51,15 @@ def model_navigation_beside(flight, cal):
     return SimpleNamespace(result=cache(lambda: model_navigation(flight, cal)))
 
 
-def _navigated(flight, cal, at, outputs=None):
-    """The MIMU through `cal` navigated, at times `at` (s): from `outputs` (w, f) if given."""
+def _navigated(flight, cal, at, outputs=None, less=(0.0, 0.0)):
+    """The MIMU through `cal` navigated, at times `at` (s): from `outputs` (w, f) if given;
+    `less` (gyro rad/s, accel m/s^2) taken out of its outputs first."""
     if outputs is not None:
-        return resample(navigate_mimu(flight, *outputs), at)
-    return navigate_mimu_at(flight, cal, at)
+        return resample(navigate_mimu(flight, outputs[0] - less[0], outputs[1] - less[1]), at)
+    return navigate_mimu_at(flight, cal, at, less)
 
 
-def navigation_gain(flight, cal_found, model, findings=(), cal=None):
+def navigation_gain(flight, cal_found, model, findings=(), cal=None, level="navigation"):
     """Position error (m, 3-D) against the truth (else the FOG-IMU) at the end and its
     maximum, for the model (`model`: what `model_navigation_beside` returns, awaited first;
     `cal`: its calibration, whose own found mounting is noted, `_model_tilt`) and the model
@@ -65,7 +85,8 @@ def navigation_gain(flight, cal_found, model, findings=(), cal=None):
             f"{' '.join(f'{a:g}' for a in rpy)}" + (", and cut it again," if cut else ",")
             + " to navigate with it")}
     elif cal_found is not None:
-        errors["model+found"] = _navigated(flight, cal_found, t).position_error(ref)
+        errors["model+found"] = _navigated(flight, cal_found, t, less=import_biases(
+            flight, findings, level)).position_error(ref)
     k = on_screen(len(t))
     for name, err in errors.items():
         norm = np.linalg.norm(err, axis=1)
@@ -119,9 +140,9 @@ def navigation_lines(doc, cal_label=""):
     nav = doc["navigation"]
     lines = ["", f"## Navigation error against the {nav['reference']} (navigation.png)", "",
               "Free-inertial over the whole record from the initial state, the MIMU's outputs "
-              "through the model alone (on an imported recording, its outputs as recorded: "
-              "the biases the import measured at a rest are not removed): every error the "
-              "model does not hold grows into it.", "",
+              "through the model alone (on an imported recording, its outputs as recorded "
+              "less the biases its import measured at a rest, as the diagnosis and `windows` "
+              "take them): every error the model does not hold grows into it.", "",
               "| compensation | end 3-D error, m | max 3-D error, m |", "|---|---|---|"]
     for name in ("model", "model+found"):
         if "end_m" in nav.get(name, {}):

@@ -177,3 +177,23 @@ def test_a_finding_is_read_beside_the_confirmed_terms_only(recording, monkeypatc
     assert calls[-1] == [found["j"]] and len(calls) == 2     # read again, without it
     assert [f["label"] for f in rejected] == ["g2_sensitivity gyro.x <- f_zz"]
     assert kept[0]["coefficient"] == alone[0]["coefficient"] != joint[0]["coefficient"]
+
+
+def test_a_quiet_channel_with_its_sign_flipped_fails_and_a_drift_does_not():
+    """An AUV's pitch rate, its 1 s means spread 0.009 rad/s (under the 0.02 a moving channel
+    needs), with the reference's gyro column signed wrong: the means and their differences
+    run against the prediction (-0.99) - a reflection, named; the same channel's bias
+    drifting against a still prediction, its differences noise, is not judged."""
+    t = np.arange(0.0, 300.0, 0.01)
+    rng = np.random.default_rng(7)
+    predicted = _motion(t)
+    predicted[:, 4] = 0.012 * np.sin(2 * np.pi * t / 40.0)
+    measured = predicted + rng.normal(0, [0.05] * 3 + [0.005] * 3, (len(t), 6))
+    measured[:, 4] = -predicted[:, 4] + rng.normal(0, 0.005, len(t))
+    failed = agreement(t, measured, predicted, np.ones(len(t), bool), CHANNELS)["failures"]
+    assert len(failed) == 1 and "gyro.y runs against" in failed[0] and "sign" in failed[0]
+    still = predicted.copy()
+    still[:, 4] = 1e-4 * np.sin(2 * np.pi * t / 600.0)          # a quiet channel's wander
+    drifting = still + rng.normal(0, [0.05] * 3 + [0.005] * 3, (len(t), 6))
+    drifting[:, 4] -= 2e-3 * t / t[-1]                           # its bias drifts the other way
+    assert agreement(t, drifting, still, np.ones(len(t), bool), CHANNELS)["failures"] == []

@@ -189,6 +189,18 @@ def test_a_mirrored_triad_is_refused_naming_it(pair_motion):
     with pytest.raises(RecordingError, match="gyros about the vehicle.s y axis run against"):
         pairing.pair(_recording(ns, w, f, mirrored, f_r))
     pairing.pair(_recording(ns, w, f, w_r, f_r))            # the true one passes
+    # an axis too quiet for a correlation's size (its 1 s means spread under 0.02 rad/s, an
+    # AUV's pitch rate) with its sign flipped: still a reflection, its means and their
+    # differences both running against the other IMU's (it had passed as 'measured 0.0 deg')
+    q_ref = Mounting.from_rpy_deg((180.0, 0.0, 90.0)).q_vs
+    yaw_rate = attitude.rotate(q_ref, w_r)[:, 2]          # the flight's gentle yaw: 0.016
+    n = int(RATE)
+    assert np.std(yaw_rate[:len(yaw_rate) // n * n].reshape(-1, n).mean(axis=1)) < 0.02
+    column = int(np.argmax(np.abs(attitude.rotate(q_ref, np.eye(3))[:, 2])))
+    sign = np.ones(3)
+    sign[column] = -1.0
+    with pytest.raises(RecordingError, match="gyros about the vehicle.s z axis run against"):
+        pairing.pair(_recording(ns, w, f, w_r * sign, f_r))
     # its mounting given 90 deg off as well: no axis runs against another as given, but
     # after the best turn one does
     with pytest.raises(RecordingError, match="after the best turn.*gyros about.*check the "

@@ -381,3 +381,45 @@ course = { file = "ref.csv", columns = ["bearing"], unit = "deg" }
                     + over_ground.splitlines()[0] + "\n")
     with pytest.raises(RecordingError, match="ground_speed alone"):
         table.read(spec)
+
+
+def test_a_file_of_two_sensors_rows_is_refused_unpicked_and_read_by_rows(tmp_path):
+    """Android GnssLogger writes its accelerometer's and its gyro's rows to one file, told by
+    a MessageType column, each on its own stamps: read whole, the gyro's rows had been
+    specific force (refused only by chance, where two stamps collided). Unpicked it is
+    refused naming the kinds and the key; picked with `rows`, each quantity is its own
+    rows, on its own clock."""
+    t = np.arange(1, N + 1) / RATE
+    w = 0.2 * np.sin(2 * np.pi * 0.3 * t[:, None] + [0.0, 1.0, 2.0])
+    f = np.tile([0.5, 0.0, -9.8], (N, 1))
+    lines = ["MessageType,tick,x,y,z"]
+    for k in range(N):
+        lines.append("UncalAccel," + ",".join(f"{v:.10g}" for v in [t[k] * 1e5, *f[k]]))
+        lines.append("UncalGyro," + ",".join(f"{v:.10g}" for v in [t[k] * 1e5 + 300, *w[k]]))
+    (tmp_path / "imu.csv").write_text("\n".join(lines) + "\n")
+
+    def time(rows):
+        return f'{{ file = "imu.csv", columns = ["tick"], unit = "us", scale = 10{rows} }}'
+
+    def source(rows):
+        return f'{{ file = "imu.csv", columns = ["x", "y", "z"]{rows}, time = {time(rows)} }}'
+    picked = (', rows = {MessageType = "UncalGyro"}', ', rows = {MessageType = "UncalAccel"}')
+    for rows in (("", ""), picked):
+        (tmp_path / "spec.toml").write_text(
+            f'name = "t"\n[imu]\ntime = {time(rows[1])}\nangular_rate = {source(rows[0])}\n'
+            f'specific_force = {source(rows[1])}\naxes = "FRD"\n[time]\n'
+            'unix_offset_s = 1700000000.0\n')
+        if not rows[0]:
+            with pytest.raises(RecordingError, match='2 kinds interleaved .column "MessageType": '
+                               '"UncalAccel", "UncalGyro".*rows = {MessageType = "UncalAccel"}'):
+                table.read(tmp_path / "spec.toml")
+            continue
+        rec = table.read(tmp_path / "spec.toml")
+        # the gyro's own stamps 3 ms later: interpolated onto the force's, the first force
+        # sample before the first rate left out
+        assert len(rec.imu_ns) == N - 1 and np.allclose(rec.f, f[0])
+        assert np.allclose(rec.w, w[1:], atol=2e-3)
+    (tmp_path / "spec.toml").write_text((tmp_path / "spec.toml").read_text().replace(
+        '"UncalGyro"', '"UncalMag"'))
+    with pytest.raises(RecordingError, match='no row is'):
+        table.read(tmp_path / "spec.toml")

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import quaternion
 
-from mimunav.navigation import alignment, attitude_biases
+from mimunav.navigation import alignment, attitude_biases, rest_biases
 from mimunav.navigation.rests import MIN_STATIC_S, STATIC_SPEED, quiet_stretches, rest_intervals
 from mimunav.frames import attitude, earth
 from mimunav.evaluation import windows
@@ -69,18 +69,49 @@ def test_after_a_rest_the_heading_is_the_references_attitude_turned_back_not_the
     align = alignment.initial_alignment(flight.mimu_t, w, f, flight.mimu_mounting, ref)
     heading, _, _ = attitude.as_euler(attitude.from_wxyz(np.asarray(align.q_nb)[None]))
     assert align.heading == "reference" and "turned back to the rest" in align.method
-    # leveled on its own outputs; the gyro bias's Earth rate removed at the reference's
-    # attitude, the accelerometer's along gravity only: what the log's metadata says
-    assert align.attitude_from == "leveled" and align.bias_basis["gyro"] == "reference_attitude"
+    # leveled on the reference's attitude at the rest; the gyro bias's Earth rate removed
+    # at it, the accelerometer's whole bias measured against it: what the metadata says
+    assert align.attitude_from == "reference_level"
+    assert align.bias_basis["gyro"] == "reference_attitude"
     up = np.asarray(align.bias_basis["gravity_sensor_axes"])
-    assert align.bias_basis["accel"] == "along_gravity"
+    assert align.bias_basis["accel"] == "all"
     assert np.allclose(up, f[0] / np.linalg.norm(f[0]), atol=1e-6)
     assert flight.recording["bias_basis"]["gyro"] == "reference_attitude"   # the import too
-    assert flight.recording["initial_attitude"] == "leveled"
-    t_k = float(align.method.split("attitude at t = ")[1].split(" s")[0])
+    assert flight.recording["initial_attitude"] == "reference_level"
+    t_k = float(align.method.split("heading from the reference's attitude at t = ")[1]
+                .split(" s")[0])
     at_rest, at_k = attitude.as_euler(motion.kinematics(np.array([0.0, t_k])).q_nb)[0]
     assert at_k - at_rest > 5 * DEG             # it had turned by then: the turn-back counts
     assert abs(heading[0] - (at_rest + 10 * DEG)) < 0.01 * DEG, np.degrees(heading)
+
+
+@pytest.mark.parametrize("with_attitude", [True, False])
+def test_a_rest_beside_a_reference_attitude_measures_the_whole_accelerometer_bias(
+        tmp_path, with_attitude):
+    """The synthetic drive's exact increments plus an accelerometer bias of 40 mg across
+    gravity and 10 mg along it (a phone's): with the reference's attitude at the rest, its
+    level gives the whole bias (an independent trial's windows beside that attitude had
+    kept 41 mg: 21 m at 10 s, 1.3 m levelled on the IMU); without it, only the part along
+    gravity (T&W 10.2.1) - across it the bias reads as tilt, and the level holds it."""
+    bias = np.array([0.3, -0.25, 0.1])
+    path, motion, run = ideal_flight(tmp_path, MOUNT, accel_bias=bias,
+                                     with_attitude=with_attitude)
+    flight = Flight.load(path, reference_imu=False)
+    w, f = flight.mimu_imu
+    align = alignment.initial_alignment(flight.mimu_t, w, f, flight.mimu_mounting,
+                                        windows.track_of(flight.truth))
+    q_true = motion.kinematics(np.array([0.0])).q_nb[0]
+    up = attitude.rotate(np.conjugate(q_true * MOUNT.q_vs), np.array([0.0, 0.0, -1.0]))
+    if with_attitude:
+        assert np.allclose(align.accel_bias, bias, atol=1e-4), align.accel_bias
+        err = attitude.rotation_vector_error(attitude.from_wxyz(np.asarray(align.q_nb)), q_true)
+        assert np.abs(err[:2]).max() < 1e-4
+        assert align.bias_basis["accel"] == "all" and align.attitude_from == "reference_level"
+        return
+    # along gravity (to |b_across|^2 / 2g = 8 mm/s^2), nothing of the 0.39 m/s^2 across it
+    across = align.accel_bias - (align.accel_bias @ up) * up
+    assert abs(align.accel_bias @ up - bias @ up) < 0.01 and np.linalg.norm(across) < 0.01
+    assert align.bias_basis["accel"] == "along_gravity" and align.attitude_from == "leveled"
 
 
 def test_a_frame_of_unknown_azimuth_leaves_the_earth_rates_horizontal_part_in_the_gyro_bias(
@@ -285,7 +316,7 @@ def test_a_turn_on_the_spot_inside_a_rest_is_not_rest():
                  v_ned=1.5 * rng.standard_normal((len(tt), 3)) * [1, 1, 0])
     rests = quiet_stretches(t, w, f, track)
     assert rests and all(a >= 11.0 or b <= 10.0 for a, b in rests), rests
-    bias = alignment.biases_at_a_rest(t, w, f, Mounting(), track, [], None)[0]
+    bias = rest_biases.biases_at_a_rest(t, w, f, Mounting(), track, [], None)[0]
     assert np.abs(np.degrees(bias)).max() < 0.05, np.degrees(bias)
 
 
@@ -353,7 +384,7 @@ def test_a_gently_rocking_rest_gives_way_to_the_reference_attitude():
     exact increments; in still water the rest gives it."""
     for amplitude, basis in ((0.6, "the reference's attitude and velocity"), (0.0, "the rest")):
         t, w, f, track, bias = _rocking_hull(amplitude)
-        gyro, _, _, note, _ = alignment.biases_at_a_rest(t, w, f, Mounting(), track,
+        gyro, _, _, note, _ = rest_biases.biases_at_a_rest(t, w, f, Mounting(), track,
                                                          [(0.0, 59.9)])
         assert f"biases from {basis}" in note, note
         assert np.abs(gyro - bias).max() < 2e-6, (amplitude, gyro - bias)
@@ -441,7 +472,7 @@ def test_a_still_rest_is_kept_beside_a_turning_drives_attitude():
     k = slice(0, None, 10)
     track = dict(t=t[k], lat=lat[k], lon=lon[k], h=np.full(len(t[k]), H0), v_ned=v[k],
                  q_nb=rot[k].as_quat()[:, [3, 0, 1, 2]])
-    gyro, _, static, note, _ = alignment.biases_at_a_rest(t, w, f, Mounting(), track,
+    gyro, _, static, note, _ = rest_biases.biases_at_a_rest(t, w, f, Mounting(), track,
                                                           [(0.0, 29.0)])
     assert static == (0.0, 29.0) and note.startswith("biases from the rest"), note
     assert np.abs(np.degrees(gyro - bias) * 3600).max() < 20.0

@@ -51,3 +51,26 @@ def test_a_found_mounting_is_not_navigated_from_a_self_leveled_state():
     assert "-5.73 about the right" in nav["model"]["note"]
     assert "The model's row: its calibration holds a found mounting" in "\n".join(
         navigation_lines({"navigation": nav, "level": "track"}))
+
+
+def test_the_imports_biases_leave_the_outputs_the_report_navigates():
+    """A recording's outputs as recorded less the biases its import measured at a rest, as
+    the navigation level and `windows` take them (a consumer unit's 0.5-1 deg/s gyro biases
+    left in had tumbled the report's navigation to 4,016,748 m): all of them for the model
+    and for the navigation level's findings, which lie beside them; with the sensor or track
+    level's found constant bias on an axis, that finding alone - it is the whole bias."""
+    from mimunav.reports.navigation_gain import import_biases
+    flight = SimpleNamespace(mimu_raw=None, recording={
+        "gyro_bias_static_rad_s": [0.01, -0.02, 0.03], "accel_bias_m_s2": [0.4, 0.1, -0.2]})
+    gyro, accel = import_biases(flight)
+    assert gyro.tolist() == [0.01, -0.02, 0.03] and accel.tolist() == [0.4, 0.1, -0.2]
+    found = [{"effect": "bias_shift", "sensor": "gyro", "axis": "y"},
+             {"effect": "bias_shift", "sensor": "accel", "axis": "x"},
+             {"effect": "scale_factor", "sensor": "gyro", "axis": "z"}]
+    gyro, accel = import_biases(flight, found, "sensor")
+    assert gyro.tolist() == [0.01, 0.0, 0.03] and accel.tolist() == [0.0, 0.1, -0.2]
+    gyro, accel = import_biases(flight, found, "navigation")
+    assert gyro.tolist() == [0.01, -0.02, 0.03] and accel.tolist() == [0.4, 0.1, -0.2]
+    assert flight.recording["gyro_bias_static_rad_s"] == [0.01, -0.02, 0.03]   # untouched
+    raw = SimpleNamespace(mimu_raw=object(), recording=flight.recording)     # a raw log's
+    assert [b.tolist() for b in import_biases(raw)] == [[0.0] * 3, [0.0] * 3]
