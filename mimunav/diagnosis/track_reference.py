@@ -362,23 +362,40 @@ def model_excursions(spans, t, held_sd, f_model, q_vs, moving_sd=None):
         drive's departure, +0.52 m/s^2 at z 12.5, is beyond its 0.22: it stays unexplained).
       - a moving vehicle's pitch, from its smoothed vertical velocity over its speed: its
         error at the window and at the baseline's, each up to MODEL_STEP_Z sigma
-        (`TrackMotion.moving_pitch_sd`; a train's from 1-3 m heights at 4 m/s, 0.64 m/s^2).
+        (`TrackMotion.moving_pitch_sd`; a train's from 1-3 m heights at 4 m/s, 0.64 m/s^2);
+    and for a gyro, the rate of that tilt: its change over the window, at most the gradient
+    times the change of the horizontal specific force, on the axis as it lies in the vehicle.
     t: the design's bin times (s); held_sd: the held pitch's 1 sigma at them (rad,
     `TrackMotion.held_pitch_sd`); f_model: the model's specific force in the bins (m/s^2,
     MIMU sensor axes); q_vs: the MIMU's mounting (sensor to vehicle); moving_sd: the moving
     pitch's 1 sigma at the bins (rad; None: 0)."""
     turn_back = np.conj(q_vs)
-    forward = quaternion.rotate_vectors(turn_back, np.array([1.0, 0.0, 0.0]))
+    forward, right = quaternion.rotate_vectors(turn_back, np.eye(3)[:2])
     f_v = quaternion.rotate_vectors(q_vs, f_model)
     tilt = quaternion.rotate_vectors(turn_back, BODY_TILT_GRADIENT * np.column_stack(
         [f_v[:, 0], f_v[:, 1], np.zeros(len(f_v))]))          # sensor axes
+    # the body's roll and pitch rates on its springs, at most k = BODY_TILT_GRADIENT / g
+    # per (m/s^2)/s of the horizontal specific force's change: roll -k df_y/dt about the
+    # forward axis, pitch k df_x/dt about the right (a tilted phone's gyro.x and gyro.y
+    # had read them at every onset, z 9-14, as unexplained: its drive without springs none)
+    rates = BODY_TILT_GRADIENT / G0 * np.gradient(f_v[:, :2], t, axis=0) \
+        if len(t) > 1 else np.zeros((len(t), 2))       # a window's mean: its tilt's change
     kept, aside = [], []
     for span in spans:
         sensor, axis = span["channel"].split(".")
-        if sensor != "accel":
-            kept.append(span)
-            continue
         i = "xyz".index(axis)
+        if sensor == "gyro":
+            bound = abs(forward[i]) * _window_step(t, rates[:, 1], span["peak_t0"]) + \
+                abs(right[i]) * _window_step(t, rates[:, 0], span["peak_t0"])
+            bound = float(np.nan_to_num(bound))
+            if abs(span["size"]) <= bound:
+                aside.append(dict(span, bound=bound, why=(
+                    f"the rate of the body's roll and pitch on its springs (at most "
+                    f"{math.degrees(BODY_TILT_GRADIENT):g} deg/g) may make {bound:.2g} rad/s "
+                    "there: the model's, not the IMU's")))
+            else:
+                kept.append(span)
+            continue
         held = G0 * abs(forward[i]) * _window_step(t, held_sd, span["peak_t0"])
         body = _window_step(t, tilt[:, i], span["peak_t0"])
         moving = 0.0 if moving_sd is None else \

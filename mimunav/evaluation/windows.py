@@ -248,7 +248,8 @@ def reference_floor(meta, length, measured_sigma_v=None, half=None):
     given, and said ("estimated"). With `half` (s, a moving alignment on the reference's
     velocity) its tilt adds sqrt(2) a length^2 / 2, a = sqrt(2) sigma_axis / (2 half) the
     error of the interval's mean acceleration (`alignment_tilt_m`, with `alignment_half_s`:
-    it grows as length^2 and soon is most of the floor). Unstated sigmas are left out and
+    it grows as length^2 and soon is most of the floor; `position_ends_m` the position's
+    part, sqrt(2) sigma_p). Unstated sigmas are left out and
     named; a reference attitude's own error (g sigma_tilt length^2 / 2) is not included: no
     source states it."""
     def number(key):            # a leading number: "3 (horizontalAccuracy column)" is 3
@@ -266,6 +267,8 @@ def reference_floor(meta, length, measured_sigma_v=None, half=None):
         return {"horizontal_m": None, "not_stated": missing, "estimated": estimated}
     terms = 2 * (sigma_p or 0.0) ** 2 + ((sigma_v or 0.0) * length) ** 2
     out = {"not_stated": missing, "estimated": estimated}
+    if sigma_p:             # the ends' errors taken independent: a drift shared by both is
+        out["position_ends_m"] = math.sqrt(2) * sigma_p      # less (an INS+DVL's, 6 cm in 10 s)
     if half and sigma_v:        # a difference of two velocities: sqrt(2) sigma_v, 2-D already
         tilt = math.sqrt(2) * sigma_v / (2 * half) * length ** 2 / 2
         terms += tilt ** 2

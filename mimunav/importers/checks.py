@@ -13,7 +13,8 @@ from ..navigation.rests import (TRACK_FORCE_RATIO, acceleration_match, along_acr
                                 track_acceleration)
 from ..frames import attitude
 from ..flightlog.stamps import rounded_clock
-from .pairing import GRID_S, pair, trajectory_clock
+from .imu_clock import GRID_S, trajectory_clock
+from .pairing import pair
 from .recording import G0, RecordingError, utc_text
 from .vehicle_check import check_declared_vehicle
 from .velocity_check import check_acceleration_scale, check_velocity, positions_velocity
@@ -148,7 +149,7 @@ def _not_a_car(rec, t_track, v_ned):
 
 
 def _check_reference_clock(rec):
-    """The reference attitude's turn rate against the IMU's (`pairing.trajectory_clock`),
+    """The reference attitude's turn rate against the IMU's (`imu_clock.trajectory_clock`),
     said in rec.real["reference_clock"]: a decided lag of REFUSED_OFFSET_S or more refused,
     naming the shift that puts it back (the light aircraft's VN-300 solution: 2.5 s); one of
     two grid steps (GRID_S) or more said with that option, not applied: the data cannot tell

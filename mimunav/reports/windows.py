@@ -55,6 +55,10 @@ def markdown_table(doc, label=None):
         floor = row.get("reference_floor", {})
         notes = [f"{k} sigma not stated" for k in floor.get("not_stated", [])] + \
             [f"{k} sigma estimated from the track" for k in floor.get("estimated", [])]
+        if floor.get("position_ends_m"):
+            notes.append(f"of it {floor['position_ends_m']:.3g} m the stated position sigma at "
+                         "both ends, taken independent: a reference whose error drifts slowly "
+                         "errs less within a window")
         if floor.get("alignment_tilt_m"):
             notes.append(f"of it {floor['alignment_tilt_m']:.3g} m from the window's alignment "
                          f"on the reference's velocity over +-{floor['alignment_half_s']:g} s "

@@ -48,7 +48,16 @@ def test_reference_floor_of_a_window_from_the_stated_sigmas():
     assert floor["not_stated"] == []
     only_p = windows.reference_floor({"position_sigma_m": "0.5"}, 60.0)
     assert only_p == {"horizontal_m": pytest.approx(0.5 * math.sqrt(2)),
+                      "position_ends_m": pytest.approx(0.5 * math.sqrt(2)),
                       "not_stated": ["velocity"], "estimated": []}
+    # the position's part is said as the stated sigma at both ends, taken independent (an
+    # INS+DVL's 1.41 m for every length read as the floor, its drift over 10 s 6 cm)
+    row = {"windows": 3, "disjoint": 1, "median_rate_m_s": 0.1, "reference_floor": only_p,
+           "horizontal_m": {"p50": 1.0, "p68": 1.0, "p95": 1.0, "max": 1.0},
+           "vertical_m": {"p50": 0.1, "p95": 0.1}}
+    from mimunav.reports.windows import markdown_table
+    assert "0.707 m the stated position sigma at both ends, taken independent" in \
+        markdown_table({"summary": {"60": row}})
     # an unstated velocity sigma from the track's noise (0.3 m/s per axis), said; with a
     # moving alignment over +-2 s its tilt, checked by a Monte Carlo of the alignment's
     # velocity difference: (v(t0 + 2) - v(t0 - 2)) / 4 s per axis, over 10^2 / 2 s^2

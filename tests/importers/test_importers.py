@@ -1161,7 +1161,7 @@ def test_a_robots_bumps_do_not_hide_its_turns_from_the_clock():
     1-2 deg/s of 'bias instability'. The peak stands 0.059 above that rival, 5 of its
     jackknife standard errors: decided (a steady wave's next period stays undecided: the
     test below)."""
-    from mimunav.importers.pairing import rate_lag
+    from mimunav.importers.imu_clock import rate_lag
     rng = np.random.default_rng(50)
     t = np.arange(0.0, 480.0, 0.005)
     turns = sum(a * np.exp(-0.5 * ((t - c) / 2.0) ** 8)
@@ -1182,7 +1182,7 @@ def test_a_cars_slow_turns_time_two_clocks_and_a_hulls_waves_do_not():
     peak - a 2.5 s offset measured at 1.00 was left undecided and the diagnosis
     inconclusive. The lobe is where the correlation stays above that share: decided, 2.50 s.
     A hull's waves (period 6 s) correlate again a period away: not decided."""
-    from mimunav.importers.pairing import rate_lag
+    from mimunav.importers.imu_clock import rate_lag
     rng = np.random.default_rng(48)
     t = np.arange(0.0, 480.0, 0.01)
     turns = sum(np.exp(-0.5 * ((t - c) / w) ** 2) * a for c, w, a in zip(

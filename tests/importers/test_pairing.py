@@ -10,7 +10,7 @@ import quaternion
 
 from mimunav.frames import attitude
 from mimunav.frames.mounting import Mounting
-from mimunav.importers import checks, pairing, series
+from mimunav.importers import checks, imu_clock, pairing, series
 from mimunav.importers.recording import Recording, RecordingError
 from mimunav.motion import truth
 from mimunav.motion.profile import Profile
@@ -85,7 +85,7 @@ def test_a_mems_pairs_gyro_biases_neither_turn_nor_time_them(gentle_pair):
     37.3). The offset's standard error (jackknife over blocks) covers its error."""
     ns, w, f, w_r, f_r = gentle_pair
     rec = _recording(ns, w + np.radians([1.0, -0.8, 1.2]), f, w_r, f_r, late_s=0.037)
-    clock = pairing.clock_offset(rec)
+    clock = imu_clock.clock_offset(rec)
     assert 0 < clock["offset_se_s"] < 5e-4                # 20 seeds: sd 0.21 ms, se 0.19
     assert abs(clock["offset_s"] - 0.037) < 3 * clock["offset_se_s"]
     pairing.pair(rec)
@@ -277,9 +277,9 @@ def test_a_refinement_that_disagrees_with_the_peak_leaves_the_clock_as_recorded(
     the edge of its +-40 ms search, so the two disagree - not decided, not shifted (a
     parabola through the edge and its neighbours had been taken: +426 ms, truth +50 ms)."""
     rec = _recording(*pair_motion, late_s=0.05)
-    monkeypatch.setattr(pairing, "rate_lag",
+    monkeypatch.setattr(imu_clock, "rate_lag",
                         lambda *a: {"lag_s": 0.6, "said": "peak at +600 ms (test)"})
-    clock = pairing.clock_offset(rec)
+    clock = imu_clock.clock_offset(rec)
     assert clock["offset_s"] is None
     assert "not refined" in clock["said"] and "+-40 ms" in clock["said"]
 
@@ -294,19 +294,19 @@ def test_a_reference_clock_running_fast_is_measured_and_turned_back(pair_motion)
     rec = _recording(*pair_motion, late_s=0.05)
     rec.reference_imu["ns"] = rec.reference_imu["ns"] + \
         np.round(50e-6 * (ns - ns[0])).astype(np.int64)
-    clock = pairing.clock_offset(rec)
+    clock = imu_clock.clock_offset(rec)
     assert abs(clock["drift"] - 50e-6) < 4 * clock["drift_se"] and clock["drift_se"] < 5e-6
     pairing.pair(rec)
     end = 4 * (clock["offset_se_s"] + 75.0 * clock["drift_se"])          # s, at 75 s out
     assert np.max(np.abs(rec.reference_imu["ns"] - ns)) / 1e9 < min(end, 1.5e-3)
     assert re.search(r"drifting \+[45][0-9]\.[0-9] ppm", rec.real["reference_imu_clock"])
-    steady = pairing.clock_offset(_recording(*pair_motion, late_s=0.05))
+    steady = imu_clock.clock_offset(_recording(*pair_motion, late_s=0.05))
     assert "drift" not in steady and "no drift beyond 4 standard errors" in steady["said"]
     # 4 ppm: beyond its errors, 0.6 ms over the 150 s - said as such, not as no drift
     rec = _recording(*pair_motion, late_s=0.05)
     rec.reference_imu["ns"] = rec.reference_imu["ns"] + \
         np.round(4e-6 * (ns - ns[0])).astype(np.int64)
-    slow = pairing.clock_offset(rec)
+    slow = imu_clock.clock_offset(rec)
     assert "drift" not in slow and "no drift beyond" not in slow["said"]
     assert re.search(r"a drift of \+[345]\.?[0-9]* ppm .*under 1 ms - not corrected",
                      slow["said"])
@@ -349,7 +349,7 @@ def test_a_record_still_in_its_first_half_has_no_drift_and_no_turn():
                     + rng.normal(0, 2e-3, w_true.shape), f + rng.normal(0, 2e-2, f.shape), flu,
                     reference_imu=dict(ns=ns + 20_000_000, w=w_true, f=f.copy(), mounting=flu,
                                        model="nav"))
-    clock = pairing.clock_offset(rec)
+    clock = imu_clock.clock_offset(rec)
     assert "drift" not in clock and abs(clock["offset_s"] - 0.02) < 1e-4, clock["said"]
     pairing.pair(rec)
     error = attitude.rotation_vector_error(rec.reference_imu["mounting"].q_vs, flu.q_vs)
@@ -392,7 +392,7 @@ def test_a_drift_the_motion_cannot_measure_is_said_unmeasured(pair_motion):
     still = (ns - ns[0]) / 1e9 > 40.0
     w, w_r = w.copy(), w_r.copy()
     w[still], w_r[still] = w[still].mean(axis=0), w_r[still].mean(axis=0)
-    clock = pairing.clock_offset(_recording(ns, w, f, w_r, f_r, late_s=0.05))
+    clock = imu_clock.clock_offset(_recording(ns, w, f, w_r, f_r, late_s=0.05))
     assert "drift" not in clock
     assert "no drift measured" in clock["said"] and "4 ms over the 150 s" in clock["said"]
 
@@ -432,7 +432,7 @@ def test_a_reference_at_half_the_rate_is_timed_whatever_the_lag_s_phase(late_s):
                     reference_imu=dict(ns=ns_r, w=dth_r * 100 + rng.normal(0, 3e-4, dth_r.shape),
                                        f=dv_r * 100, mounting=Mounting.from_rpy_deg(
                                            (180.0, 0.0, 90.0)), model="tactical"))
-    clock = pairing.clock_offset(rec)
+    clock = imu_clock.clock_offset(rec)
     assert abs(clock["offset_s"] - late_s) < 3 * clock["offset_se_s"], clock
 
 
@@ -474,18 +474,21 @@ def test_a_feet_strides_beside_a_lever_arm_leave_the_mounting_as_given():
     assert np.degrees(np.linalg.norm(error)) < 0.2, rec.real["reference_imu_mounting"]
 
 
-def _attitude_pair(imu_rpy, ref_rpy):
-    """The proof flight's first 150 s: the IMU truly at imu_rpy, given in FLU (roll 180); the
-    reference IMU truly at ref_rpy, given at 180, 0, 90; the truth's attitude at 10 Hz."""
+def _attitude_pair(imu_rpy, ref_rpy, lever_arm_m=(0.0, 0.0, 0.0), given=None):
+    """The proof flight's first 150 s: the IMU truly at imu_rpy (and lever_arm_m, declared),
+    given in FLU (roll 180) or at `given`; the reference IMU truly at ref_rpy, given at 180,
+    0, 90; the truth's attitude at 10 Hz."""
     motion = Profile.load(FLIGHTS / "diagnosis-proof.toml").motion()
     t = np.arange(0.0, min(motion.t1, 150.0), 1.0 / RATE)
     run = truth.generate(motion, t)
-    (dth, dv), (dth_r, dv_r) = (Mounting.from_rpy_deg(rpy).sensor_increments(run)
-                                for rpy in (imu_rpy, ref_rpy))
+    (dth, dv), (dth_r, dv_r) = (Mounting.from_rpy_deg(rpy, arm).sensor_increments(run)
+                                for rpy, arm in ((imu_rpy, lever_arm_m), (ref_rpy, (0, 0, 0))))
     ns = EPOCH_NS + np.round(t[1:] * 1e9).astype(np.int64)
     k = slice(0, None, int(RATE / 10))
     traj = run.trajectory
-    return Recording("turned", "test", ns, dth * RATE, dv * RATE, Mounting.from_axes("FLU"),
+    mounting = Mounting.from_axes("FLU", lever_arm_m) if given is None else \
+        Mounting.from_rpy_deg(given, lever_arm_m)
+    return Recording("turned", "test", ns, dth * RATE, dv * RATE, mounting,
                      reference=dict(ns=EPOCH_NS + np.round(traj.t[k] * 1e9).astype(np.int64),
                                     lat=traj.lat[k], lon=traj.lon[k], h=traj.h[k],
                                     v_ned=traj.v_ned[k], q_nb=quaternion.as_float_array(
@@ -511,6 +514,22 @@ def test_a_turn_between_the_imus_goes_to_the_one_the_attitude_contradicts(imu_rp
     said = rec.real["reference_imu_mounting"]
     assert re.search(r"the reference's attitude lies \d\.\d deg from the IMU", said), said
     assert ("the IMU's mounting was turned instead" in said) == (imu_rpy[0] != 180.0)
+
+
+def test_an_imu_mounting_given_far_off_beside_a_lever_arm_is_measured_as_from_near():
+    """The IMU truly at 180, -2, 91 with a 0.85 m lever arm from the reference IMU, given at
+    180, 0, 0 (91 deg off in yaw), the attitude holding the reference IMU: the lever force
+    is the IMU's rates in its vehicle frame, which the given mounting put on the wrong axes
+    - turned once the turn is measured, then measured again: the same mounting as from a
+    guess near it (an AUV's 2.15 deg of pitch, given FRD, against 0.02 given right)."""
+    arm = (0.85, 0.05, 0.12)
+    for given in ((180.0, 0.0, 0.0), (180.0, 0.0, 90.0)):
+        rec = _attitude_pair((180.0, -2.0, 91.0), (180.0, 0.0, 90.0), arm, given)
+        pairing.pair(rec)
+        error = attitude.rotation_vector_error(
+            rec.mounting.q_vs, Mounting.from_rpy_deg((180.0, -2.0, 91.0)).q_vs)
+        assert np.degrees(np.linalg.norm(error)) < 0.1, (given, rec.real["reference_imu_mounting"])
+        assert "the IMU's mounting was turned instead" in rec.real["reference_imu_mounting"]
 
 
 def test_a_turn_the_attitude_holds_for_neither_imu_turns_both_onto_it():
