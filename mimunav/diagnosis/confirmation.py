@@ -558,13 +558,7 @@ def beyond_range(design, beyond):
                      else estimate(term, c["b"], c["b"] - half, c["b"] + half),
                      label=library.label(term), p_train=c["p_train"], beyond_range=c["limit"])
         size = float(np.linalg.norm(c["b"]))
-        said = (f"{math.degrees(size):.1f} deg, beyond the {math.degrees(c['limit']):.0f} deg "
-                "a small-angle term holds: either the mounting given is off by more than the "
-                "diagnosis fits (this estimate falls short of such a turn: turn it back at "
-                "import - --mounting-rpy-deg, or the spec's mounting_rpy_deg - and diagnose "
-                "again), or the reference cannot carry the term here"
-                if term["effect"] == "mounting_misalignment" else
-                f"{size:.3g} {entry['units']}, beyond its physical range ({c['limit']:.3g})")
+        said = library.beyond_range_said(term, size, c["limit"], entry["units"])
         out.append(dict(entry, rejected=f"significant on the training half (p "
                                         f"{c['p_train']:.2g}) at {said}: not chosen"))
     return out

@@ -233,3 +233,22 @@ def order(term):
     if term["effect"] == "scale_nonlinearity":
         return term["order"]
     return 2 if term["effect"] in SECOND_ORDER else 1
+
+
+def beyond_range_said(term, size, limit, units):
+    """A term's estimate `size` (its norm, in `units`) beyond its physical range `limit`, in
+    words: for a mounting or a lever arm, what a given value wrong by more than the term
+    holds would be, and where to give it again."""
+    if term["effect"] == "mounting_misalignment":
+        return (f"{math.degrees(size):.1f} deg, beyond the {math.degrees(limit):.0f} deg a "
+                "small-angle term holds: either the mounting given is off by more than the "
+                "diagnosis fits (this estimate falls short of such a turn: turn it back at "
+                "import - --mounting-rpy-deg, or the spec's mounting_rpy_deg - and diagnose "
+                "again), or the reference cannot carry the term here")
+    if term["effect"] == "lever_arm":
+        return (f"{size:.3g} m, beyond the {limit:g} m a unit's place is mis-measured by: a "
+                "lever arm between the two IMUs declared with a sign wrong errs by twice it "
+                "- check the lever arms given at import (a table spec's lever_arm_m of [imu] "
+                "and [reference_imu]; `mimunav import --reference-imu-lever-arm-m`) - or the "
+                "reference cannot carry the term here")
+    return f"{size:.3g} {units}, beyond its physical range ({limit:.3g})"

@@ -16,15 +16,24 @@ from .fitting import (Fitter, plausible, reference_direction, shares_a_nuisance,
 MAX_TERMS = 6
 
 
+def _beyond(implausible, significant):
+    """The `implausible` candidates' tests (`significant`: their fits and ranges), as
+    `select` returns them beyond their physical range."""
+    return [dict(j=j, b=significant[j]["b"], cov=significant[j]["cov"],
+                 p_train=math.exp(significant[j]["logp"]), limit=significant[j]["limit"])
+            for j in implausible]
+
+
 # ---- selection on training rows ----------------------------------------------------------
 def select(design, train, alpha, full_scale, whole=None):
     """Forward selection with Holm's step-down thresholds over the library; `whole`: a
     callable giving the all-rows `Fitter` (look-alikes the training rows cannot tell apart
     are compared on it, `told_apart`). Returns (chosen: [dict], within: linear terms
     significant but inside the reference's accuracy, beyond: [{j, b, cov, p_train, limit}]
-    the candidates still significant when the selection stopped, given the chosen, whose
-    estimate lies beyond their physical range - not chosen, never dropped silently: a
-    mounting turned 30 deg fits its small-angle term at 0.40 rad, beyond 0.35)."""
+    the candidates still significant when the selection stopped - nothing left to choose, or
+    MAX_TERMS chosen -, given the chosen before its last step, whose estimate lies beyond
+    their physical range - not chosen, never dropped silently: a mounting turned 30 deg fits
+    its small-angle term at 0.40 rad, beyond 0.35; a lever arm signed wrong, 1.7 m)."""
     m = len(design.terms)
     chosen, excluded, within, beyond = [], set(), {}, []
     fitter = Fitter(design, train)
@@ -52,10 +61,8 @@ def select(design, train, alpha, full_scale, whole=None):
             tests[j] = res
         threshold = alpha / max(m - step, 1)
         passing = [j for j, r in tests.items() if r["logp"] <= math.log(threshold)]
+        beyond = _beyond(implausible, significant)      # as the selection stops, said
         if not passing:
-            beyond = [dict(j=j, b=significant[j]["b"], cov=significant[j]["cov"],
-                           p_train=math.exp(significant[j]["logp"]),
-                           limit=significant[j]["limit"]) for j in implausible]
             break
         best, alternatives = _encompassing(fitter, current, passing, tests, threshold,
                                            full_scale)

@@ -89,3 +89,46 @@ def peak_margin(a, b, lag, rival, blocks=20):
     parts = np.array([margin(q) for q in range(blocks)])
     se = math.sqrt((blocks - 1) / blocks * np.sum((parts - parts.mean()) ** 2))
     return float(margin()), se
+
+
+STAMP_JITTER = 1e-4     # the stamped intervals' rms spread over their median below which
+#                         they are taken as they are: nothing to decide (a crystal's steps)
+STAMP_NOISE_SHARE = 0.5     # the increments' |dv| / dt scatters this much less with a steady
+#                             interval than with the stamped ones: the stamps are the noise
+
+
+def increment_intervals(t, dv):
+    """(the intervals (s, (N,)) velocity increments dv (m/s, (N, 3)) stamped at t (s) span,
+    what was decided, or '') - where the stamped intervals jitter, whether the increments
+    follow them: an IMU sampled at jittered instants integrates over the jittered intervals
+    (|dv| ~ |f| dt: the stamps are right), a logger that stamps a steady IMU on its own read
+    jitters its stamps alone (|dv| does not follow: dividing by them makes rate noise - a
+    glider's 100 us of stamp jitter at 200 Hz had hidden a g-sensitivity behind rate noise).
+    Judged on the scatter of |dv| / dt between neighbouring samples (motion nearly cancels;
+    gravity makes |dv| large on any vehicle), stamped against the intervals' median; where
+    the steady one scatters under STAMP_NOISE_SHARE of the stamped, the mean interval is
+    taken between samples within half a median interval of it (a gap keeps its stamped
+    length)."""
+    stamped = np.diff(t, prepend=t[0] - np.median(np.diff(t)))
+    step = float(np.median(stamped))
+    near = np.abs(stamped - step) < 0.5 * step
+    spread = float(np.std(stamped[near])) / step if near.sum() > 10 else 0.0
+    if spread < STAMP_JITTER or step <= 0:
+        return stamped, ""
+    size = np.linalg.norm(dv, axis=1)
+
+    def scatter(dt):            # robust sigma of |dv| / dt between neighbours, where near
+        x = np.diff(size / dt)[near[1:] & near[:-1]]
+        return 1.4826 * float(np.median(np.abs(x - np.median(x))))
+    steady = np.where(near, float(np.mean(stamped[near])), stamped)   # the clock's own step
+    as_stamped, as_steady = scatter(stamped), scatter(steady)
+    if not as_steady < STAMP_NOISE_SHARE * as_stamped:
+        return stamped, (f"the stamped intervals jitter by {spread:.1e} of their median and the "
+                         f"velocity increments follow them (|dv|/dt scatters {as_stamped:.3g} "
+                         f"m/s^2 with them, {as_steady:.3g} with a steady interval): each "
+                         "increment divided by its stamped interval")
+    return steady, (f"the stamped intervals jitter by {spread:.1e} of their median, but the "
+                    f"velocity increments do not follow them (|dv|/dt scatters {as_stamped:.3g} "
+                    f"m/s^2 with them, {as_steady:.3g} with a steady one): the stamps' jitter is "
+                    f"the logger's, each increment divided by the mean interval "
+                    f"{steady[near][0] * 1e3:.4g} ms (gaps by their own), the stamps kept")

@@ -120,6 +120,7 @@ from ..motion.intervals import means_of_instants
 from ..sensors.accuracy import Accuracy
 from .columns import check_keys
 from .recording import Recording, RecordingError, at_range, rate_onto
+from .series import increment_intervals
 from .table_reference import reference_of
 from .table_spec import KINDS, RANGE_KEYS, UNITS, Spec, unix_ns, unix_offset_s, unrepeated
 
@@ -164,8 +165,15 @@ def _imu(spec, section):
                              *spec.finite_rows(f"[{section}] {force_key}", t_f, f))
         t_w, w = unrepeated(spec, f"[{section}] {rate_key}",
                              *spec.finite_rows(f"[{section}] {rate_key}", t_w, w))
-    f = _per_second(t_f, f) if force_key == "velocity_increment" else f
-    w = _per_second(t_w, w) if rate_key == "angle_increment" else w
+    dt_f = None
+    if force_key == "velocity_increment":
+        dt_f, said = increment_intervals(t_f, f)
+        if said:
+            spec.notes[f"{section}_intervals"] = said
+        f = _per_second(t_f, f, dt_f)
+    if rate_key == "angle_increment":       # on the force's clock, the force's intervals
+        one_clock = len(t_w) == len(t_f) and np.array_equal(t_w, t_f)
+        w = _per_second(t_w, w, dt_f if one_clock else None)
     if len(t_w) != len(t_f) or np.any(t_w != t_f):
         if np.any(np.diff(t_w) <= 0):
             raise RecordingError(f"{path}: [{section}] {rate_key} times do not increase")
@@ -216,14 +224,15 @@ def _one_of(spec, section, rate, increment):
     return given[0]
 
 
-def _per_second(t, x):
-    """Increments x over the intervals their stamps t (s) end, divided by those intervals (the
-    first sample's by the median interval)."""
-    dt = np.diff(t, prepend=t[0] - np.median(np.diff(t)))
-    if np.any(dt <= 0):
+def _per_second(t, x, dt=None):
+    """Increments x over the intervals their stamps t (s) end, divided by those intervals
+    (`dt`, s, when decided otherwise: `increment_intervals`; the first sample's by the median
+    interval)."""
+    stamped = np.diff(t, prepend=t[0] - np.median(np.diff(t)))
+    if np.any(stamped <= 0):
         raise RecordingError(f"increments' times do not increase (at row "
-                             f"{int(np.argmax(dt <= 0))})")
-    return x / dt[:, None]
+                             f"{int(np.argmax(stamped <= 0))})")
+    return x / (stamped if dt is None else dt)[:, None]
 
 
 def sensor_range(spec, section="imu"):
@@ -279,6 +288,8 @@ def read(path, mounting=None, root=None):
     notes = spec.notes
     given = mounting is not None
     spec_mounting, how = _mounting(spec)
+    if given and not np.any(mounting.lever_arm_m):  # a rotation given (--mounting-rpy-deg):
+        mounting = Mounting(mounting.attitude_wxyz, spec_mounting.lever_arm_m)  # the spec's arm
     mounting = mounting or spec_mounting
     reference, frame = reference_of(spec, offset)
     rng = sensor_range(spec)
@@ -309,7 +320,8 @@ def read(path, mounting=None, root=None):
     if reference is not None:
         real["reference"] = f"{meta.get('source', 'reference columns')} " \
                             f"({len(reference['ns'])} epochs)"
-    assumed = {"mounting": "given on the command line" if given else how,
+    assumed = {"mounting": (f"given on the command line, the lever arm "
+                            f"{mounting.lever_arm_m.tolist()} m the spec's") if given else how,
                "time": spec.section("time").get("note", "as the spec's [time] says"),
                "calibration": "none: the outputs are used as recorded"}
     if ref_how:

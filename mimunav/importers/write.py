@@ -163,7 +163,8 @@ def summary(rec, align, path):
         stated = rec.reference_imu.get("accuracy")
         accuracy = Accuracy.from_dict(stated, "stated to the import") if stated else Accuracy()
         lines.append(f"reference IMU accuracy: {accuracy.grade_said()}")
-    for key in ("imu_stamps", "reference_imu_stamps", "reference_imu_clock",
+    for key in ("imu_stamps", "reference_imu_stamps", "imu_intervals",
+                "reference_imu_intervals", "reference_imu_clock",
                 "reference_imu_mounting"):                           # said, not only stored
         if key in rec.real:
             lines.append(f"measured {key.replace('_', ' ')}: {rec.real[key]}")

@@ -825,6 +825,23 @@ def test_a_calibrated_unit_bounds_its_linear_terms_by_the_seed_fit_residual():
     assert 0.3 * per_g < physical_limit(g_sens, full)
 
 
+def test_a_lever_arm_beyond_its_range_names_the_lever_arms_given():
+    """An AUV's 0.85 m lever arm declared with its sign wrong (a 1.7 m error) fitted its
+    lever_arm term at 1.68 m, beyond the 1 m a unit's place is mis-measured by, and was set
+    aside unsaid but for a list in the JSON: the words name the sign and where the arms are
+    given; a mounting names its option; another term its range."""
+    from mimunav.diagnosis.library import beyond_range_said
+    arm = {"effect": "lever_arm", "sensor": "imu", "axis": "all"}
+    said = beyond_range_said(arm, 1.68, 1.0, "m")
+    assert said.startswith("1.68 m, beyond the 1 m") and "sign wrong errs by twice" in said
+    assert "lever_arm_m of [imu] and [reference_imu]" in said
+    assert "--reference-imu-lever-arm-m" in said
+    turn = beyond_range_said({"effect": "mounting_misalignment"}, 0.40, 0.35, "rad")
+    assert turn.startswith("22.9 deg, beyond the 20 deg") and "--mounting-rpy-deg" in turn
+    assert beyond_range_said({"effect": "size_effect"}, 1.69, 0.05, "m") == \
+        "1.69 m, beyond its physical range (0.05)"
+
+
 def test_the_tests_on_the_outputs_beside_a_residual_that_is_not_noise():
     """Where the library's check finds the residual beyond the tests' noise (its intervals
     widened 2x): a bias's wander is set aside (a random walk follows any slow structure: a

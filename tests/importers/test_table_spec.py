@@ -423,3 +423,44 @@ def test_a_file_of_two_sensors_rows_is_refused_unpicked_and_read_by_rows(tmp_pat
         '"UncalGyro"', '"UncalMag"'))
     with pytest.raises(RecordingError, match='no row is'):
         table.read(tmp_path / "spec.toml")
+
+
+def test_a_mounting_given_on_the_command_line_keeps_the_specs_lever_arm(tmp_path):
+    """`--mounting-rpy-deg`, the turn the diagnosis itself recommends, gives a rotation: the
+    spec's lever arm stays (it had become [0, 0, 0] without a word, a 1 m arm lost), and
+    the metadata says whose each part is."""
+    from mimunav.frames.mounting import Mounting
+    _imu(tmp_path, extra="lever_arm_m = [0.95, 0.12, -0.25]")
+    rec = table.read(tmp_path / "spec.toml", Mounting.from_rpy_deg((180.0, 2.5, 90.0)))
+    assert rec.mounting.lever_arm_m.tolist() == [0.95, 0.12, -0.25]
+    assert np.allclose(rec.mounting.attitude_wxyz,
+                       Mounting.from_rpy_deg((180.0, 2.5, 90.0)).attitude_wxyz)
+    assert "the lever arm [0.95, 0.12, -0.25] m the spec's" in rec.assumed["mounting"]
+
+
+@pytest.mark.parametrize("jitter", ["sampling", "stamps", "none"])
+def test_increments_are_divided_by_the_intervals_they_span(jitter):
+    """Velocity increments of a vehicle at rest tilting gently, 200 Hz: an IMU sampled at
+    jittered instants integrates over the jittered intervals (|dv| follows them: divided by
+    them); a logger that stamps a steady IMU on its own reads jitters its stamps alone (100
+    us here: |dv| does not follow - divided by the median interval, said; a glider's had
+    turned into rate noise that hid a g-sensitivity); steady stamps are taken as they are."""
+    from mimunav.importers.series import increment_intervals
+    rng = np.random.default_rng(11)
+    n, step = 20000, 0.005
+    true = np.full(n, step) + (rng.normal(0, 1e-4, n) if jitter == "sampling" else 0.0)
+    t_true = np.cumsum(true)
+    f = np.column_stack([0.3 * np.sin(t_true / 7), 0.2 * np.cos(t_true / 5),
+                         np.full(n, -9.81)])
+    dv = f * true[:, None] + rng.normal(0, 2e-5, (n, 3))
+    t = t_true + (rng.normal(0, 1e-4, n) if jitter == "stamps" else 0.0)
+    dt, said = increment_intervals(t, dv)
+    rate = np.linalg.norm(dv / dt[:, None], axis=1)
+    assert np.std(rate) < 0.05, (jitter, np.std(rate), said)        # 9.81 m/s^2 +- noise
+    if jitter == "stamps":
+        assert "do not follow them" in said and "mean interval 5 ms" in said
+        assert np.allclose(dt[1:], step, rtol=1e-3)
+    elif jitter == "sampling":
+        assert "follow them" in said and "do not" not in said
+    else:
+        assert said == ""
