@@ -162,7 +162,8 @@ def read_back(design, again, findings, held_of, added, own=False):
         why = (f"the reference's own noise moves it (errors in variables): with as much "
                f"again{' (' + _said_noise(added) + ', measured)' if own else ''} it "
                f"reads {_said(b2)} against {_said(b)}, read back to a noiseless "
-               f"reference {_said(back)}")
+               f"reference {_said(back)}"
+               + (" (sensor axes x, y, z)" if len(np.atleast_1d(b)) == 3 else ""))
         ok, judged = judged_wider(f, factor, len(b), why, "errors_in_variables", record,
                                   f.get("halves", {}).get("p_heldout_widened"))
         (kept if ok else aside).append(judged)

@@ -13,6 +13,8 @@ from ..errors import InputError
 
 FOG_GYRO_BIAS = 1.0 * np.pi / 180 / 3600    # rad/s: seed S1 Table 4, <= 1 deg/h
 FOG_ACCEL_BIAS = 100e-6 * 9.80665           # m/s^2: seed S1 Table 4, ~100 ug
+STATED_ROUNDING = 1.01      # a stated stability within 1 % of those is theirs: a value
+#                             written to 3 digits in another unit rounds by up to 0.5 %
 
 
 # An autopilot's own IMUs (a second instance as the reference IMU of a PX4 or ArduPilot
@@ -65,8 +67,18 @@ class Accuracy:
     @property
     def mems_grade(self):
         """Less stable than seed S1 Table 4's FOG-IMU: the reference may carry MEMS physics."""
-        return self.gyro_bias > FOG_GYRO_BIAS * 1.000001 or \
-            self.accel_bias > FOG_ACCEL_BIAS * 1.000001
+        return bool(self._beyond_table_4())
+
+    def _beyond_table_4(self):
+        """[the stated bias stabilities beyond seed S1 Table 4's FOG-IMU, in words] - beyond
+        its 1 deg/h or 100 ug by more than STATED_ROUNDING (1 deg/h written 4.85e-6 rad/s
+        is 1.0004 deg/h: it had made a FOG-grade unit MEMS-grade)."""
+        out = []
+        if self.gyro_bias > FOG_GYRO_BIAS * STATED_ROUNDING:
+            out.append("its gyro bias beyond 1 deg/h")
+        if self.accel_bias > FOG_ACCEL_BIAS * STATED_ROUNDING:
+            out.append("its accelerometer bias beyond 100 ug")
+        return out
 
     def grade_said(self):
         """What the diagnosis will take this reference to be, in words: FOG grade, or MEMS
@@ -76,7 +88,8 @@ class Accuracy:
         if not self.mems_grade:
             return (f"{stated}: within seed S1 Table 4's FOG-IMU (1 deg/h, 100 ug), so what "
                     "the two IMUs disagree on beyond its stated errors is the MIMU's")
-        return (f"{stated}: less stable than seed S1 Table 4's FOG-IMU (1 deg/h, 100 ug), so "
+        return (f"{stated}: less stable than seed S1 Table 4's FOG-IMU ("
+                f"{' and '.join(self._beyond_table_4())}), so "
                 "the diagnosis treats it as it treats a MEMS-grade reference, whatever its "
                 "class (a tactical unit too) - any term it finds may be the "
                 "reference's (`mimu-or-reference`) and its noise is charged to it (`mimunav "

@@ -39,6 +39,12 @@ def test_the_grade_a_stated_accuracy_makes_is_said():
     assert "gyro bias 1.0004 deg/h" in said and "accelerometer bias 101.97 ug" in said
     assert "as it treats a MEMS-grade reference, whatever its class (a tactical unit too)" \
         in said and "--reference-accuracy" in said
+    # only what lies beyond is named; 1 deg/h written 4.85e-6 rad/s is Table 4's, rounded
+    # (it had made a glider's FOG-grade unit MEMS-grade, and its 1 m lever arm unfound)
+    assert "(its accelerometer bias beyond 100 ug)" in said and "gyro bias beyond" not in said
+    rounded = Accuracy.from_dict({"gyro_bias": 4.85e-6, "accel_bias": 9.8e-4}, "stated")
+    assert not rounded.mems_grade and "within seed S1 Table 4's" in rounded.grade_said()
+    assert Accuracy.from_dict({"gyro_bias": 4.9e-6}, "stated").mems_grade      # 1.01 deg/h
 
 
 class _Halves:

@@ -545,3 +545,22 @@ def test_a_turn_the_attitude_holds_for_neither_imu_turns_both_onto_it():
         assert np.degrees(np.linalg.norm(error)) < 0.1, rec.real["reference_imu_mounting"]
     assert "it holds neither mounting given, so each was turned onto it" in \
         rec.real["reference_imu_mounting"]
+
+
+def test_an_attitudes_force_is_turned_by_the_attitude_in_the_middle_of_its_step():
+    """A glider circling at 0.25 rad/s and 28 m/s (7 m/s^2 inward), its reference at 25 Hz:
+    the step's mean force, from the velocity's difference, is the body's at the step's
+    middle - turned by its end's attitude it leaned half a step's turn (0.29 deg) forward,
+    and both IMUs' mountings had been turned by it onto the attitude."""
+    from mimunav.importers.attitude_check import attitude_means
+    t = np.arange(0.0, 60.0, 0.04)
+    yaw = 0.25 * t
+    v = 28.0 * np.column_stack([np.cos(yaw), np.sin(yaw), 0.0 * t])
+    q = attitude.from_euler(yaw, 0.0 * t, 0.0 * t)      # level, facing along the track
+    reference = dict(ns=np.round(t * 1e9).astype(np.int64), v_ned=v,
+                     q_nb=quaternion.as_float_array(q))
+    mids = np.arange(2.0, 58.0, 1.0)
+    w, f = attitude_means(reference, mids)
+    assert np.allclose(w, [0.0, 0.0, 0.25], atol=1e-9)
+    # inward (body right, +y) 28 x 0.25 = 7 m/s^2 and 1 g up; none along the body's x
+    assert np.allclose(f, [0.0, 7.0, -9.80665], atol=2e-3), f[:2]
