@@ -123,7 +123,7 @@ def _pair_mountings(rec, clock_se):
     if ok.sum() < 10:
         rec.real["reference_imu_mounting"] = "not measured: under 10 s of common samples"
         return
-    turn, angle, how = _measured_turn(rec, means, ok)
+    turn, angle, how, apart = _measured_turn(rec, means, ok)
     seen = bool(how)
     # a triad mirrored (a sign, an axis order) is no turn: after the best turn one of its
     # moving axes runs against the other IMU's; named as given where an axis does so there
@@ -140,8 +140,8 @@ def _pair_mountings(rec, clock_se):
                 ("after the best turn between them (fitted on both triads)",
                  "gyro and the accelerometer columns", turn.apply))}
     given, after = said.values()
-    if after:
-        raise RecordingError(f"{rec.name}: {(given or after)[0]}")
+    if after or apart:
+        raise RecordingError(f"{rec.name}: {(given or after or [apart])[0]}")
     fixed = attitude.from_scipy(turn) * ref["mounting"].q_vs
     yaw, pitch, roll = (angle_text(a) for a in attitude.as_euler(fixed))
     hint = ref.get("mounting_hint")
@@ -204,7 +204,7 @@ def _for_the_imu(rec, turn, means, ok, mids):
     given = rec.mounting
     rec.mounting = turned_back(given, turn)[0]
     again = [means[0][0], means[0][1], _lever_force(rec, mids)]
-    rest, _, _ = _measured_turn(rec, [again, means[1]], ok)
+    rest = _measured_turn(rec, [again, means[1]], ok)[0]
     rec.mounting = given
     return turn * rest
 
@@ -257,8 +257,10 @@ def _runs_against(sensor, mine, theirs, when, columns):
 
 def _measured_turn(rec, means, ok):
     """(the turn of the reference's vehicle-frame vectors onto the IMU's, its angle in deg,
-    how it was decided: "free" - by the 1 s means about their own means, where no bias of
-    either IMU enters (a constant difference), each kind scaled to unit rms; "with gravity"
+    how it was decided, why the two triads' own turns lie too far apart for any mounting
+    (`_triads_apart`) or ''; how: "free" - by the 1 s means about their own means, where
+    no bias of either IMU enters (a constant difference), each kind scaled to unit rms;
+    "triads differ" - so, but the triads' own turns lie apart; "with gravity"
     - the rates about their means beside the specific forces as recorded, gravity among
     them (an accelerometer bias difference across it then reads as tilt); "" - only one
     direction seen: the smallest turn of the mean specific force onto the IMU's, the yaw
@@ -288,15 +290,41 @@ def _measured_turn(rec, means, ok):
             each = [wahba(*k, SPAN_SHARE) for k in kinds] if len(kinds) == 2 else []
             if any(e is not None and math.degrees((e.inv() * turn).magnitude())
                    > TRIADS_AGREE_DEG for e in each):
-                return turn, math.degrees(turn.magnitude()), "triads differ"
-            return turn, math.degrees(turn.magnitude()), "free"
+                return turn, math.degrees(turn.magnitude()), "triads differ", \
+                    _triads_apart(each, kinds)
+            return turn, math.degrees(turn.magnitude()), "free", ""
     mine = np.vstack([centred[0] * (G0 / rms_w), f_mine]) if rms_w >= TURNING_RATE else f_mine
     theirs = np.vstack([centred[1] * (G0 / rms_w), f_ref]) if rms_w >= TURNING_RATE else f_ref
     turn = wahba(mine, theirs, SPAN_SHARE)
     if turn is not None:
-        return turn, math.degrees(turn.magnitude()), "with gravity"
+        return turn, math.degrees(turn.magnitude()), "with gravity", ""
     turn, _ = Rotation.align_vectors([f_mine.mean(axis=0)], [f_ref.mean(axis=0)])
-    return turn, math.degrees(turn.magnitude()), ""
+    return turn, math.degrees(turn.magnitude()), "", ""
+
+
+def _triads_apart(each, kinds):
+    """Why the two IMUs' gyro triads turn onto each other otherwise than their accelerometer
+    triads do, by more than TRIADS_APART_DEG, or '' (`each`: each triad's own turn, None
+    where its vectors hold one direction only - then the other's turn must take that
+    direction onto its own; `kinds`: the triads' vectors (mine, theirs)): no mounting turns
+    one triad of a rigid unit without the other - one triad's column sign or axis order
+    differs (a glider's gyro z signed wrong had been turned 70 deg as a 'mounting', then
+    refused as a specific force not pointing up; a gyro triad's x and y swapped, 67 deg)."""
+    decided = [e for e in each if e is not None]
+    if len(each) != 2 or not decided:
+        return ""
+    if len(decided) == 2:
+        apart = math.degrees((each[0].inv() * each[1]).magnitude())
+    else:                       # the undecided triad's one direction, turned by the other's
+        mine, theirs = kinds[each.index(None)]
+        u, _, vt = np.linalg.svd(mine.T @ theirs)
+        apart = math.degrees(math.acos(np.clip(u[:, 0] @ decided[0].apply(vt[0]), -1, 1)))
+    if apart <= TRIADS_APART_DEG:
+        return ""
+    return (f"the two IMUs' gyros and their accelerometers turn onto each other {apart:.0f} deg "
+            "apart: no mounting turns one triad of a unit without the other - a column's "
+            "sign or the axes' order differs between one IMU's gyros and its accelerometers: "
+            "check the gyro and the accelerometer columns of both IMUs")
 
 
 def _lever_force(rec, mids, half=0.5):
@@ -315,6 +343,8 @@ def _lever_force(rec, mids, half=0.5):
         window_means(rec.imu_ns, np.cross(w, np.cross(w, r)), mids, half)
 
 
+TRIADS_APART_DEG = 5.0      # deg: a unit's two triads lie within their few mrad of each
+#                             other; turns this far apart are no mounting, but a sign
 TRIADS_AGREE_DEG = 0.2      # deg: a triad's own turn within this of both triads' (a unit's
 #                             agree to its 1-3 mrad misalignments), else they differ: no turn
 MOVING_FORCE = 0.3          # m/s^2: 1 s mean specific forces' spread that turns the boxes

@@ -564,3 +564,15 @@ def test_an_attitudes_force_is_turned_by_the_attitude_in_the_middle_of_its_step(
     assert np.allclose(w, [0.0, 0.0, 0.25], atol=1e-9)
     # inward (body right, +y) 28 x 0.25 = 7 m/s^2 and 1 g up; none along the body's x
     assert np.allclose(f, [0.0, 7.0, -9.80665], atol=2e-3), f[:2]
+
+
+def test_a_gyro_triad_turned_against_its_own_accelerometers_is_no_mounting(pair_motion):
+    """The IMU's gyro columns x and y swapped (one negated: a turn of that triad alone by 90
+    deg), its accelerometers right: no mounting turns one triad of a unit without the other
+    (its rates here span one direction, which the accelerometers' turn must take onto the
+    reference's). It had been 'measured 66.9 deg from the mounting given' and turned so."""
+    ns, w, f, w_r, f_r = pair_motion
+    swapped = np.column_stack([w[:, 1], -w[:, 0], w[:, 2]])
+    with pytest.raises(RecordingError, match="gyros and their accelerometers turn onto each "
+                                             "other 90 deg apart.*columns of both IMUs"):
+        pairing.pair(_recording(ns, swapped, f, w_r, f_r))
