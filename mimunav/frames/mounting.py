@@ -80,12 +80,24 @@ MIN_MEANS = 30          # means at least: 30 independent noises correlate below 
 def runs_against(mine, theirs):
     """Whether one axis' means of two IMUs (N,: 1 s means in one frame, a mounting applied
     to each) run against each other - a mirrored axis, a column's sign that no mounting
-    turns: their correlation and that of their first differences both below AGAINST (a slow
-    bias drift moves the means, not their differences). Judged where the axis moves too
-    little for a correlation to be read otherwise: a FOG's gyro y column signed wrong on an
+    turns: their correlation and that of their first differences both below AGAINST, the
+    most influential 1 % of the seconds left out (a slow bias drift moves the means, not
+    their differences). Judged where the axis moves too little for a correlation to be
+    read otherwise: a FOG's gyro y column signed wrong on an
     AUV, its pitch rate's means spread 0.009 rad/s, correlated -0.9999, had passed."""
     mine, theirs = np.asarray(mine, float), np.asarray(theirs, float)
     if len(mine) < MIN_MEANS or min(np.std(np.diff(mine)), np.std(np.diff(theirs))) == 0:
         return False
-    return bool(np.corrcoef(mine, theirs)[0, 1] < AGAINST and
-                np.corrcoef(np.diff(mine), np.diff(theirs))[0, 1] < AGAINST)
+    return bool(_sturdy_correlation(mine, theirs) < AGAINST and
+                _sturdy_correlation(np.diff(mine), np.diff(theirs)) < AGAINST)
+
+
+def _sturdy_correlation(a, b):
+    """The correlation of two series with their most influential 1 % of points (at least
+    one: the largest |products| about their means) left out - one opposite spike in quiet
+    noise had made a plain correlation run against (an independent review), while a sign
+    holds over every second that moves."""
+    a, b = a - a.mean(), b - b.mean()
+    keep = np.argsort(np.abs(a * b))[:len(a) - max(1, len(a) // 100)]
+    a, b = a[keep], b[keep]
+    return float(np.sum(a * b) / np.sqrt(np.sum(a * a) * np.sum(b * b)))

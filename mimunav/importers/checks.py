@@ -8,6 +8,7 @@ import numpy as np
 import quaternion
 
 from ..navigation import alignment
+from ..navigation.rest_biases import level
 from ..navigation.rests import (TRACK_FORCE_RATIO, acceleration_match, along_across_gains,
                                 follows_track, match_angle_se, span_means,
                                 track_acceleration)
@@ -551,21 +552,27 @@ ON_GRADES_DEG = {"car": 20.0, "train": 20.0}    # deg: where it can rest - the s
 
 def resting_upright(rec, align):
     """A vehicle that rests upright must level at its rest through the mounting given: a
-    declared car, train, aircraft, ship or copter beyond UPRIGHT_DEG (ON_GRADES_DEG) of roll or pitch is
-    refused with the mounting that levels it (the yaw as given); an undeclared one is said
+    declared car, train, aircraft, ship or copter beyond UPRIGHT_DEG (a car's or a
+    train's ON_GRADES_DEG) of roll or pitch is refused with the mounting that levels it
+    (the yaw as given); an undeclared one is said
     in rec.real["resting_tilt"] (it may be a rocket on its rail or a hand-held unit).
-    Judged only where a rest starts the recording, whose attitude the alignment's is (a
-    moving vehicle banks: an aircraft's log starting in a 70 deg bank, its rest later, had
+    Judged on the IMU's own specific force there (a reference's level, which the alignment
+    may take, had let a phone 30 deg off through as 0.5 g of accelerometer bias), only
+    where a rest starts the recording (a moving vehicle banks: an aircraft's log starting in a 70 deg bank, its rest later, had
     been refused as mounted 70 deg off)."""
     if not align.at_rest_start or np.isnan(align.static[0]) or \
             rec.vehicle in ("rocket", "pedestrian", "other"):
         return                  # the attitude at t0 is its rest's only when a rest starts it
-    _, pitch, roll = attitude.as_euler(attitude.from_wxyz(align.q_nb))
+    up = (getattr(align, "bias_basis", None) or {}).get("gravity_sensor_axes")  # its own
+    if up is None:              # level, not the reference's the alignment may have taken
+        _, pitch, roll = attitude.as_euler(attitude.from_wxyz(align.q_nb))
+    else:
+        roll, pitch = level(attitude.rotate(rec.mounting.q_vs, np.asarray(up, float)))
     limit = ON_GRADES_DEG.get(rec.vehicle, UPRIGHT_DEG)
     if max(abs(roll), abs(pitch)) <= math.radians(limit):
         return
-    level = attitude.from_euler(np.array(0.0), np.array(pitch), np.array(roll))
-    yaw_l, pitch_l, roll_l = attitude.as_euler(level * rec.mounting.q_vs)
+    tilt = attitude.from_euler(np.array(0.0), np.array(pitch), np.array(roll))
+    yaw_l, pitch_l, roll_l = attitude.as_euler(tilt * rec.mounting.q_vs)
     said = (f"at its rest {align.static[0]:.1f}-{align.static[1]:.1f} s the IMU, through the "
             f"mounting given, rests at roll {math.degrees(roll):+.1f}, pitch "
             f"{math.degrees(pitch):+.1f} deg; the mounting that levels it (the yaw as given): "

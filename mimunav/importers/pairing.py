@@ -203,9 +203,11 @@ def _for_the_imu(rec, turn, means, ok, mids):
         return turn
     given = rec.mounting
     rec.mounting = turned_back(given, turn)[0]
-    again = [means[0][0], means[0][1], _lever_force(rec, mids)]
-    rest = _measured_turn(rec, [again, means[1]], ok)[0]
-    rec.mounting = given
+    try:
+        again = [means[0][0], means[0][1], _lever_force(rec, mids)]
+        rest = _measured_turn(rec, [again, means[1]], ok)[0]
+    finally:
+        rec.mounting = given
     return turn * rest
 
 

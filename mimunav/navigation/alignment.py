@@ -36,9 +36,9 @@ from ..errors import InputError
 from ..motion.carrier import declared
 from .rest_biases import (ACROSS_GRAVITY, biases_at_a_rest, horizontal_earth_rate, level,
                           reference_attitude, rest_biases, up_at_rest)
-from .rests import (MIN_STATIC_S, felt_at_rest, QUIET_WINDOW_S, STATIC_MARGIN_S, STATIC_SPEED, track_still,
-                    means_around, quiet_stretches, rest_intervals, travel_sign, velocity_noise,
-                    yaw_turned)
+from .rests import (MIN_STATIC_S, QUIET_WINDOW_S, STATIC_MARGIN_S, STATIC_SPEED, felt_at_rest,
+                    means_around, quiet_stretches, rest_intervals, track_still, travel_sign,
+                    velocity_noise, yaw_turned)
 
 
 COURSE_SPEED = 3.0          # m/s: horizontal speed from which the GNSS course gives heading
@@ -120,7 +120,8 @@ def initial_alignment(t, w, f, mounting, track=None):
     unknown), heading_known (False: its north is no true north)}. In order of preference:
 
     1. a rest that starts the recording (MIN_STATIC_S or more): level from its mean specific
-       force (from the reference's attitude where it has one there), heading from the reference's attitude once moving, turned back by the gyro
+       force (from the reference's attitude where it has one there), heading from the
+       reference's attitude once moving, turned back by the gyro
        (else the course of straight driving less the gyro's yaw since), state at the first
        IMU stamp; the rest ends where the IMU starts to move (`rests.settled_until`);
     2. the reference's own attitude at its first epoch with one (an autopilot's estimate,
@@ -318,7 +319,7 @@ def _from_rest(t, w, f, mounting, track, interval, still_until=-math.inf):
     q_nb = attitude.from_euler(np.array(yaw), np.array(pitch), np.array(roll))
     gyro_bias, accel_bias = rest_biases(w[rest], f[rest], q_nb * q_vs, lat, h, level_known)
     if level_known:
-        notes.append(ACROSS_GRAVITY)
+        notes.append(ACROSS_GRAVITY + _tilt_alike(accel_bias, f[rest].mean(axis=0)))
     true_north = heading != "assumed" and track.get("heading_known", True)
     if not true_north:              # no true heading: the Earth rate's vertical part only
         gyro_bias = gyro_bias + horizontal_earth_rate(q_nb * q_vs, lat)
@@ -356,6 +357,23 @@ def _heading_from_course(t, f, w_v, mounting, track, chosen, speed, t_end, notes
                     "deg/s" if straight else ", turning: none drove straight") +
                  ") less the gyro's yaw since the rest (non-holonomic: no side slip)")
     return math.atan2(np.sum(weight * np.sin(at_rest)), np.sum(weight * np.cos(at_rest)))
+
+
+MEMS_ACCEL_BIAS = 0.1 * 9.80665     # m/s^2: a consumer accelerometer's bias, at most (a
+#                                    phone's 40-60 mg); across gravity beyond it, a tilt
+
+
+def _tilt_alike(accel_bias, f_mean):
+    """'' or, where the bias measured across gravity (m/s^2, sensor axes; the rest's mean
+    specific force f_mean) is beyond MEMS_ACCEL_BIAS, that it more likely is the mounting
+    given tilted by its angle (taken out as bias all the same: the navigation beside the
+    reference's attitude sees it so, while the vehicle is level)."""
+    up = f_mean / np.linalg.norm(f_mean)
+    across = float(np.linalg.norm(accel_bias - (accel_bias @ up) * up))
+    if across <= MEMS_ACCEL_BIAS:
+        return ""
+    return (f" - {across / 9.80665 * 1e3:.0f} mg of it, beyond a MEMS part's 100 mg: more "
+            f"likely the mounting given tilted by {math.degrees(across / 9.80665):.1f} deg")
 
 
 def _rest_level(t, f_mean, q_vs, t_end, reference=None):

@@ -100,9 +100,11 @@ def biases_at_a_rest(t, w, f, mounting, track, rests, quiet=None):
     k = (t >= t0) & (t <= t1)
     lat, h = (float(np.interp(0.5 * (t0 + t1), track["t"], track[x])) for x in ("lat", "h"))
     q_ref, t_ref = reference_attitude(track, t0)
-    level_known = q_ref is not None and t_ref <= t1     # the reference's level at the rest
-    true_north = q_ref is not None and track.get("heading_known", True)
-    if q_ref is not None:
+    level_known = q_ref is not None and t_ref <= t1     # the reference's attitude at the rest
+    # (one after it had removed the Earth rate at a heading the vehicle had turned from:
+    # 21 deg/h left after a 180 deg turn, an independent review)
+    true_north = level_known and track.get("heading_known", True)
+    if level_known:
         q_nb = attitude.from_wxyz(q_ref)
     else:
         roll, pitch = level(attitude.rotate(mounting.q_vs, f[k].mean(axis=0)))

@@ -197,3 +197,19 @@ def test_a_quiet_channel_with_its_sign_flipped_fails_and_a_drift_does_not():
     drifting = still + rng.normal(0, [0.05] * 3 + [0.005] * 3, (len(t), 6))
     drifting[:, 4] -= 2e-3 * t / t[-1]                           # its bias drifts the other way
     assert agreement(t, drifting, still, np.ones(len(t), bool), CHANNELS)["failures"] == []
+
+
+def test_one_opposite_second_in_quiet_noise_is_no_sign():
+    """Two quiet axes of independent noise with one second where they jump apart (a knock
+    felt by one, an opposite spike): no sign between them - a plain correlation had read
+    it as one in 200 of 200 draws (an independent review); a real sign still is."""
+    from mimunav.frames.mounting import runs_against
+    rng = np.random.default_rng(5)
+    refused = 0
+    for _ in range(50):
+        a, b = rng.normal(0, 1e-3, 300), rng.normal(0, 1e-3, 300)
+        a[150], b[150] = 0.5, -0.5
+        refused += runs_against(a, b)
+    assert refused == 0
+    signal = np.sin(np.arange(300) / 3.0) * 5e-3
+    assert runs_against(signal + rng.normal(0, 3e-4, 300), -signal + rng.normal(0, 3e-4, 300))

@@ -1365,3 +1365,33 @@ def test_a_declared_vehicle_the_drive_contradicts_is_said_at_import(tmp_path, de
         == (says is not None)
     assert Flight.load(tmp_path / "weave.mcap", reference_imu=False).recording.get(
         "vehicle") == declared
+
+
+def test_a_tilted_mounting_beside_a_reference_attitude_is_judged_on_the_imus_own_level(
+        tmp_path):
+    """The synthetic drive's IMU declared 12 deg off in roll, its reference carrying the
+    car's attitude: the rest takes the reference's level for the alignment and the whole
+    accelerometer bias against it, and says that 207 mg across gravity is more likely the
+    mounting tilted 12 deg; at 30 deg the IMU's own specific force through the mounting
+    judges whether a car rests so (the reference's level had been judged)."""
+    t_tr, lat, lon, h, v = straight_track()
+    motion = TrackMotion(t_tr, lat, lon, h, v)
+    t = np.arange(t_tr[0], t_tr[-1] + 1e-9, 0.01)
+    dth, dv = MOUNT.sensor_increments(truth.generate(motion, t))
+    epoch = 1_700_000_000_000_000_000
+    ref = dict(ns=epoch + np.round(t_tr * 1e9).astype(np.int64), lat=lat, lon=lon, h=h, v_ned=v,
+               q_nb=quaternion.as_float_array(motion.kinematics(t_tr).q_nb))
+    def tilted(deg):
+        return Mounting(attitude.as_wxyz(quaternion.from_rotation_vector([deg * DEG, 0, 0])
+                                         * MOUNT.q_vs))
+    rec = Recording("tilted", "", epoch + np.round(t[1:] * 1e9).astype(np.int64), dth * 100.0,
+                    dv * 100.0, tilted(12.0), reference=ref, vehicle="car")
+    align = write_log(rec, tmp_path / "tilted.mcap")
+    assert re.search(r"20[0-9] mg of it, beyond a MEMS part's 100 mg: more likely the "
+                     r"mounting given tilted by 1[12]\.[0-9] deg", align.method), align.method
+    rec.mounting = MOUNT                                    # given right: no word of it
+    assert "beyond a MEMS part" not in write_log(rec, tmp_path / "right.mcap").method
+    from mimunav.importers.checks import resting_upright
+    rec.mounting = tilted(30.0)
+    with pytest.raises(RecordingError, match="a car rests upright .within 20 deg.*roll [+-]30"):
+        resting_upright(rec, align)
