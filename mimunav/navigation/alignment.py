@@ -35,7 +35,7 @@ from ..frames import attitude, earth
 from ..errors import InputError
 from ..motion.carrier import declared
 from .rest_biases import (ACROSS_GRAVITY, biases_at_a_rest, horizontal_earth_rate, level,
-                          reference_attitude, rest_biases, up_at_rest)
+                          reference_attitude, reference_level, rest_biases, up_at_rest)
 from .rests import (MIN_STATIC_S, QUIET_WINDOW_S, STATIC_MARGIN_S, STATIC_SPEED, felt_at_rest,
                     means_around, quiet_stretches, rest_intervals, track_still, travel_sign,
                     velocity_noise, yaw_turned)
@@ -279,7 +279,8 @@ def _from_rest(t, w, f, mounting, track, interval, still_until=-math.inf):
     q_ref, t_ref = reference_attitude(track, float(t[0]))
     level_known = q_ref is not None and t_ref <= t_end      # the reference's level at rest
     roll, pitch, notes = _rest_level(t, f[rest].mean(axis=0), q_vs, t_end,
-                                     (q_ref, t_ref) if level_known else None)
+                                     reference_level(track, float(t[0]), t_end)
+                                     if level_known else None)
     lat, lon, h = (float(np.interp(t[0], track["t"], x)) for x in (
         track["lat"], unwrapped_longitude(track["lon"]), track["h"]))
     speed = mean_speed(track, moving_half_window(track))
@@ -378,13 +379,13 @@ def _tilt_alike(accel_bias, f_mean):
 
 def _rest_level(t, f_mean, q_vs, t_end, reference=None):
     """(roll, pitch rad, [the note]) of the vehicle at the rest from t[0] to t_end (s): the
-    reference's (q_nb wxyz, epoch s) where it has an attitude there, else leveled on the
-    IMU's mean specific force f_mean (m/s^2, sensor axes) through the mounting q_vs."""
+    reference's mean level there (`rest_biases.reference_level`'s (roll, pitch, epochs))
+    where it has an attitude there, else leveled on the IMU's mean specific force f_mean
+    (m/s^2, sensor axes) through the mounting q_vs."""
     if reference is not None:
-        _, pitch, roll = attitude.as_euler(attitude.from_wxyz(reference[0]))
-        return float(roll), float(pitch), [f"level from the reference's attitude at t = "
-                                           f"{reference[1]:.2f} s in the rest {t[0]:.2f}-"
-                                           f"{t_end:.2f} s"]
+        roll, pitch, epochs = reference
+        return roll, pitch, [f"level from the reference's attitude over the rest "
+                             f"{t[0]:.2f}-{t_end:.2f} s (the mean of its {epochs} epochs)"]
     roll, pitch = level(attitude.rotate(q_vs, f_mean))
     return roll, pitch, [f"level from the mean specific force over the rest {t[0]:.2f}-"
                          f"{t_end:.2f} s"]

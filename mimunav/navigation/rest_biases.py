@@ -38,6 +38,23 @@ def reference_attitude(track, t0):
     return np.asarray(q[ok[0]], float), float(track["t"][ok[0]])
 
 
+def reference_level(track, t0, t1):
+    """(roll, pitch rad, epochs) of the reference's mean level over its attitudes within
+    [t0, t1] s - the mean of the up directions they give in the vehicle frame, C_bn (0, 0,
+    -1) - or None without one there: one epoch's (an INS still converging, 0.3 deg of
+    tilt: 5 mg of 'measured' bias) had been taken, an independent review."""
+    q = track.get("q_nb")
+    if q is None:
+        return None
+    k = np.flatnonzero(np.isfinite(q).all(axis=1) & (track["t"] >= t0) & (track["t"] <= t1))
+    if not len(k):
+        return None
+    up = attitude.rotate(np.conjugate(attitude.from_wxyz(np.asarray(q[k], float))),
+                         np.array([0.0, 0.0, -1.0])).mean(axis=0)
+    roll, pitch = level(up)
+    return roll, pitch, len(k)
+
+
 def rest_biases(w, f, q_ns, lat, h, level_known=False):
     """Gyro bias (mean rate less the Earth rate in sensor axes, q_ns the sensor's attitude)
     and accelerometer bias of samples at rest: along gravity only ((|f| - g) f/|f|) where
@@ -105,7 +122,9 @@ def biases_at_a_rest(t, w, f, mounting, track, rests, quiet=None):
     # 21 deg/h left after a 180 deg turn, an independent review)
     true_north = level_known and track.get("heading_known", True)
     if level_known:
-        q_nb = attitude.from_wxyz(q_ref)
+        yaw = attitude.as_euler(attitude.from_wxyz(q_ref))[0]
+        roll, pitch, _ = reference_level(track, t0, t1)
+        q_nb = attitude.from_euler(np.array(yaw), np.array(pitch), np.array(roll))
     else:
         roll, pitch = level(attitude.rotate(mounting.q_vs, f[k].mean(axis=0)))
         q_nb = attitude.from_euler(np.array(0.0), np.array(pitch), np.array(roll))

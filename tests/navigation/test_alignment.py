@@ -714,3 +714,24 @@ def test_without_a_track_the_rest_is_the_one_the_imu_shows():
     align = alignment.initial_alignment(t, w, f, Mounting(), None)
     assert np.isnan(align.static[0]) and not np.any(align.gyro_bias)
     assert re.search("no rest of 2 s anywhere.*40.2 deg/s.*no rest's", align.method)
+
+
+def test_the_references_level_at_a_rest_is_its_mean_over_the_rest(tmp_path):
+    """A reference attitude whose first epoch at the rest is 0.5 deg off in roll (an INS
+    still converging) and right after: the rest's level and the accelerometer bias measured
+    against it come from the mean over the rest's epochs (20 s at 4 Hz: 0.006 deg off, 0.1
+    mg), not the first epoch's (0.5 deg: 8.6 mg of bias that is none)."""
+    path, motion, run = ideal_flight(tmp_path, MOUNT, with_attitude=True)
+    flight = Flight.load(path, reference_imu=False)
+    w, f = flight.mimu_imu
+    track = windows.track_of(flight.truth)
+    first = np.flatnonzero(track["t"] >= flight.mimu_t[0])[0]
+    track["q_nb"][first] = quaternion.as_float_array(
+        attitude.from_wxyz(track["q_nb"][first]) * quaternion.from_rotation_vector(
+            [0.5 * DEG, 0.0, 0.0]))
+    align = alignment.initial_alignment(flight.mimu_t, w, f, flight.mimu_mounting, track)
+    assert align.attitude_from == "reference_level" and "the mean of its" in align.method
+    assert np.linalg.norm(align.accel_bias) < 0.2e-3 * 9.80665, align.accel_bias
+    bias = rest_biases.biases_at_a_rest(flight.mimu_t, w, f, flight.mimu_mounting, track,
+                                        [align.static])[1]
+    assert np.linalg.norm(bias) < 0.2e-3 * 9.80665, bias
