@@ -554,12 +554,12 @@ def resting_upright(rec, align):
     """A vehicle that rests upright must level at its rest through the mounting given: a
     declared car, train, aircraft, ship or copter beyond UPRIGHT_DEG (a car's or a
     train's ON_GRADES_DEG) of roll or pitch is refused with the mounting that levels it
-    (the yaw as given); an undeclared one is said
-    in rec.real["resting_tilt"] (it may be a rocket on its rail or a hand-held unit).
-    Judged on the IMU's own specific force there (a reference's level, which the alignment
-    may take, had let a phone 30 deg off through as 0.5 g of accelerometer bias), only
-    where a rest starts the recording (a moving vehicle banks: an aircraft's log starting in a 70 deg bank, its rest later, had
-    been refused as mounted 70 deg off)."""
+    (the yaw as given); an undeclared one is said in rec.real["resting_tilt"] (it may be a
+    rocket on its rail or a hand-held unit). Judged on the IMU's own specific force there
+    (a reference's level, which the alignment may take, had let a phone 30 deg off through
+    as 0.5 g of accelerometer bias), only where a rest starts the recording (a moving
+    vehicle banks: an aircraft's log starting in a 70 deg bank, its rest later, had been
+    refused as mounted 70 deg off)."""
     if not align.at_rest_start or np.isnan(align.static[0]) or \
             rec.vehicle in ("rocket", "pedestrian", "other"):
         return                  # the attitude at t0 is its rest's only when a rest starts it
