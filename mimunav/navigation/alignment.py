@@ -277,10 +277,9 @@ def _from_rest(t, w, f, mounting, track, interval, still_until=-math.inf):
     if rest.sum() < 10:
         raise InputError(f"fewer than 10 IMU samples in the rest {t[0]:.2f}-{t_end:.2f} s")
     q_ref, t_ref = reference_attitude(track, float(t[0]))
-    level_known = q_ref is not None and t_ref <= t_end      # the reference's level at rest
-    roll, pitch, notes = _rest_level(t, f[rest].mean(axis=0), q_vs, t_end,
-                                     reference_level(track, float(t[0]), t_end)
-                                     if level_known else None)
+    at_rest = reference_level(track, float(t[0]), t_end)   # the reference's level at rest
+    level_known = at_rest is not None
+    roll, pitch, notes = _rest_level(t, f[rest].mean(axis=0), q_vs, t_end, at_rest)
     lat, lon, h = (float(np.interp(t[0], track["t"], x)) for x in (
         track["lat"], unwrapped_longitude(track["lon"]), track["h"]))
     speed = mean_speed(track, moving_half_window(track))

@@ -116,14 +116,14 @@ def biases_at_a_rest(t, w, f, mounting, track, rests, quiet=None):
     t0, t1 = max(rests, key=lambda r: r[1] - r[0])
     k = (t >= t0) & (t <= t1)
     lat, h = (float(np.interp(0.5 * (t0 + t1), track["t"], track[x])) for x in ("lat", "h"))
-    q_ref, t_ref = reference_attitude(track, t0)
-    level_known = q_ref is not None and t_ref <= t1     # the reference's attitude at the rest
-    # (one after it had removed the Earth rate at a heading the vehicle had turned from:
-    # 21 deg/h left after a 180 deg turn, an independent review)
+    at_rest = reference_level(track, t0, t1)    # the reference's attitude at the rest (one
+    # after it had removed the Earth rate at a heading the vehicle had turned from: 21
+    # deg/h left after a 180 deg turn, an independent review)
+    level_known = at_rest is not None
     true_north = level_known and track.get("heading_known", True)
     if level_known:
-        yaw = attitude.as_euler(attitude.from_wxyz(q_ref))[0]
-        roll, pitch, _ = reference_level(track, t0, t1)
+        roll, pitch, _ = at_rest
+        yaw = attitude.as_euler(attitude.from_wxyz(reference_attitude(track, t0)[0]))[0]
         q_nb = attitude.from_euler(np.array(yaw), np.array(pitch), np.array(roll))
     else:
         roll, pitch = level(attitude.rotate(mounting.q_vs, f[k].mean(axis=0)))
