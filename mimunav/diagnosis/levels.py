@@ -36,7 +36,7 @@ def choose(flight, level="auto", vehicle=None):
     if _has_attitude(flight):
         return "navigation", "the reference trajectory carries the vehicle's attitude"
     if flight.source == "recording" or np.isnan(flight.truth.q_nb[0].w):
-        kind, how = vehicle_kind.kind(flight, vehicle)
+        kind, how, _ = vehicle_kind.kind(flight, vehicle)
         if kind == vehicle_kind.LAND:
             return "track", f"a reference track without attitude, of a car ({how})"
         return "navigation", (f"a reference track without attitude, not of a car ({how}): the "
@@ -68,7 +68,7 @@ def load(log_path, model_path=None, level="auto", vehicle=None, stream=False):
     if flight.stream_block is not None and level != "sensor":       # those levels hold it
         flight = Flight.load(log_path, reference_imu=False, max_gap_s=np.inf)
     if level == "track" and flight.truth is not None:
-        kind, how = vehicle_kind.kind(flight, vehicle)
+        kind, how, _ = vehicle_kind.kind(flight, vehicle)
         if kind != vehicle_kind.LAND:
             raise InputError(f"{log_path}: --level track models a car (no side slip, roll 0); "
                              f"this recording is not one ({how}): --level navigation, or "
@@ -103,7 +103,7 @@ def diagnose(flight, cal, level, alpha=0.05, seed=0, accuracy=None, noise=None, 
             diag.inconclusive = list(getattr(diag, "inconclusive", None) or []) + [unmeasured]
     else:
         diag = track.diagnose(flight, cal, alpha=alpha, accuracy=accuracy)
-        contradicted = vehicle_kind.contradicted_car(flight, vehicle_kind.kind(flight, vehicle))
+        contradicted = vehicle_kind.contradicted_car(vehicle_kind.kind(flight, vehicle))
         if contradicted:
             diag.rejected = diag.rejected + [dict(f, rejected=contradicted)
                                              for f in diag.findings]
@@ -145,7 +145,7 @@ def unmeasured_heading(flight, vehicle=None):
     heading = (flight.recording or {}).get("initial_heading") or _heading_from_text(flight)
     if heading == "reference":
         return ""
-    kind, how = vehicle_kind.kind(flight, vehicle)
+    kind, how, _ = vehicle_kind.kind(flight, vehicle)
     if heading == "course" and kind in ALONG_COURSE:
         return ""
     why = ((flight.recording or {}).get("assumed") or {}).get("initial_heading")

@@ -31,7 +31,7 @@ def select(design, train, alpha, full_scale, whole=None):
     are compared on it, `told_apart`). Returns (chosen: [dict], within: linear terms
     significant but inside the reference's accuracy, beyond: [{j, b, cov, p_train, limit}]
     the candidates still significant when the selection stopped - nothing left to choose, or
-    MAX_TERMS chosen -, given the chosen before its last step, whose estimate lies beyond
+    MAX_TERMS chosen -, given the terms chosen by then, whose estimate lies beyond
     their physical range - not chosen, never dropped silently: a mounting turned 30 deg fits
     its small-angle term at 0.40 rad, beyond 0.35; a lever arm signed wrong, 1.7 m)."""
     m = len(design.terms)
@@ -39,26 +39,8 @@ def select(design, train, alpha, full_scale, whole=None):
     fitter = Fitter(design, train)
     for step in range(MAX_TERMS):
         current = [c["j"] for c in chosen]
-        tests, implausible, significant = {}, [], {}
-        for j in range(m):
-            if j in excluded or j in design.nuisance:
-                continue
-            res = term_test(fitter, current + [j], j)
-            # a term must beat the stated accuracies (the reference's for a linear term, the
-            # calibration's own for one the model carries) at the selection's threshold
-            if res["logp_ref"] > math.log(alpha / max(m - step, 1)):
-                if res["logp"] < math.log(alpha / m) and j not in within:
-                    within[j] = dict(res, charged_at=chargeable_accuracy(
-                        fitter, current + [j], j, math.log(alpha / max(m - step, 1))))
-                continue
-            res = dict(res, logp=res["logp_ref"])
-            significant[j] = res
-            ok, limit = plausible(design, j, res["b"], full_scale)
-            if not ok:
-                implausible.append(j)
-                significant[j] = dict(res, limit=limit)
-                continue
-            tests[j] = res
+        tests, implausible, significant = _step_tests(fitter, current, excluded, within, step,
+                                                      alpha, full_scale)
         threshold = alpha / max(m - step, 1)
         passing = [j for j, r in tests.items() if r["logp"] <= math.log(threshold)]
         beyond = _beyond(implausible, significant)      # as the selection stops, said
@@ -82,8 +64,43 @@ def select(design, train, alpha, full_scale, whole=None):
         # a look-alike the whole flight tells apart without either explaining the other
         # away stays a candidate of the next step
         excluded |= {best, *alternatives, *encompassed, *set_aside}
+    else:           # MAX_TERMS chosen: what lies beyond its range given all of them
+        _, implausible, significant = _step_tests(fitter, [c["j"] for c in chosen], excluded,
+                                                  dict(within), MAX_TERMS, alpha, full_scale)
+        beyond = _beyond(implausible, significant)
     return chosen, [_within(design, j, r, full_scale) for j, r in within.items()
                     if j not in {c["j"] for c in chosen}], beyond
+
+
+def _step_tests(fitter, current, excluded, within, step, alpha, full_scale):
+    """(tests, implausible, significant) of a selection step given the terms `current`:
+    each candidate's test with the stated accuracies where it beats them at the step's
+    Holm threshold, those beyond their physical range (`significant` holds both, the latter
+    with their `limit`); a linear term significant only without the stated accuracies is
+    added to `within` with the accuracy it could be charged at."""
+    design = fitter.design
+    m = len(design.terms)
+    tests, implausible, significant = {}, [], {}
+    for j in range(m):
+        if j in excluded or j in design.nuisance:
+            continue
+        res = term_test(fitter, current + [j], j)
+        # a term must beat the stated accuracies (the reference's for a linear term, the
+        # calibration's own for one the model carries) at the selection's threshold
+        if res["logp_ref"] > math.log(alpha / max(m - step, 1)):
+            if res["logp"] < math.log(alpha / m) and j not in within:
+                within[j] = dict(res, charged_at=chargeable_accuracy(
+                    fitter, current + [j], j, math.log(alpha / max(m - step, 1))))
+            continue
+        res = dict(res, logp=res["logp_ref"])
+        significant[j] = res
+        ok, limit = plausible(design, j, res["b"], full_scale)
+        if not ok:
+            implausible.append(j)
+            significant[j] = dict(res, limit=limit)
+            continue
+        tests[j] = res
+    return tests, implausible, significant
 
 
 def _whole_unit_or_one_axis(fitter, best, tests, significant, level):

@@ -6,6 +6,7 @@ judged from the reference track and the IMU (`motion.carrier`: its tests and lim
 import json
 import math
 import re
+from typing import NamedTuple
 
 from ..motion.carrier import LAND, car_tests, contradiction
 
@@ -15,34 +16,41 @@ def declared(recording_meta):
     return (recording_meta or {}).get("vehicle")
 
 
+class Carrier(NamedTuple):
+    """What carried the IMU: `kind`, `LAND` or another of `importers.kinds.VEHICLES`
+    ("other" when judged); `how` it was known, in words; `contradiction`: what the track and
+    IMU contradict of a declared kind (`motion.carrier.contradiction`), or ''."""
+    kind: str
+    how: str
+    contradiction: str = ""
+
+
 def kind(flight, vehicle=None):
-    """(kind, how): `LAND` or another of `importers.kinds.VEHICLES` ("other" when judged),
-    and how it was known - declared (`vehicle`, the command line's, over the metadata's),
-    with what its track and IMU contradict of it (`motion.carrier.contradiction`), or judged
-    with the numbers of the tests that decided."""
+    """The `Carrier` of `flight`: declared (`vehicle`, the command line's, over the
+    metadata's), with what its track and IMU contradict of it, or judged with the numbers of
+    the tests that decided."""
     said = vehicle or declared(flight.recording)
     if said:
         how = f"declared {said} ({'--vehicle' if vehicle else 'recording metadata'})"
         contra = _contradiction(flight, said)
-        return said, how + (f", but {contra}" if contra else "")
+        return Carrier(said, how + (f", but {contra}" if contra else ""), contra)
     if flight.truth is None or len(flight.truth) < 10:
-        return "other", "not a car: no reference track to judge it from"
+        return Carrier("other", "not a car: no reference track to judge it from")
     failed, numbers = _car_tests(flight)
     if failed:
-        return "other", f"judged not a car: {'; '.join(failed)}"
-    return LAND, "judged a car: " + ", ".join(numbers)
+        return Carrier("other", f"judged not a car: {'; '.join(failed)}")
+    return Carrier(LAND, "judged a car: " + ", ".join(numbers))
 
 
-def contradicted_car(flight, kind_how):
-    """Why a car declared (kind_how: `kind`'s (kind, how)) is not what the recording's track
-    and IMU show (`motion.carrier.car_tests` failed), or '': the track level's vehicle
-    model - no side slip, no lean - would charge a motorcycle's lean to its gyros (a 39 deg
-    lean read as a gyro.z excursion of z -21 and a scale of 0.157)."""
-    kind, how = kind_how
-    if kind != LAND or not how.startswith("declared") or ", but " not in how:
+def contradicted_car(carrier):
+    """Why a car declared (`carrier`: `kind`'s) is not what the recording's track and IMU
+    show (`motion.carrier.car_tests` failed), or '': the track level's vehicle model - no
+    side slip, no lean - would charge a motorcycle's lean to its gyros (a 39 deg lean read
+    as a gyro.z excursion of z -21 and a scale of 0.157)."""
+    if carrier.kind != LAND or not carrier.contradiction:
         return ""
-    return (f"{how} - the track level's vehicle model (no side slip, no lean) does not hold, "
-            "so none of its findings stands")
+    return (f"{carrier.how} - the track level's vehicle model (no side slip, no lean) does "
+            "not hold, so none of its findings stands")
 
 
 def _contradiction(flight, vehicle):

@@ -66,11 +66,12 @@ CLIMB_WINDOW_S = 10.0       # s: the velocities' means the climbs are judged on 
 #                             spot that decides, a multicopter's take-off, lasts longer)
 
 
-def car_tests(t_track, v_ned, t=None, f=None, w=None):
+def car_tests(t_track, v_ned, t=None, f=None, w=None, moving=True):
     """([the tests the track fails, said], [the numbers that passed them]) of a reference
     track's NED velocities v_ned (m/s, (M, 3)) at its epochs t_track (s) and the IMU's
     specific force f (m/s^2) and rate w (rad/s) (sensor axes, (N, 3)) at its stamps t (s) -
-    None: not recorded (a raw /mimu/raw), the load and the body rate not tested."""
+    None: not recorded (a raw /mimu/raw), the load and the body rate not tested; `moving`
+    False: MOVING_SPEED not tested (a car parked or in a jam is a car still)."""
     v = _means(np.asarray(t_track, float), np.asarray(v_ned, float), CLIMB_WINDOW_S / 2)
     ok = np.isfinite(v).all(axis=1)
     if not ok.any():
@@ -78,7 +79,7 @@ def car_tests(t_track, v_ned, t=None, f=None, w=None):
     speed, climb = np.hypot(v[ok, 0], v[ok, 1]), np.abs(v[ok, 2])
     failed, numbers = [], []
     p95, p99 = float(np.percentile(speed, 95)), float(np.percentile(speed, 99))
-    if p95 < MOVING_SPEED:
+    if moving and p95 < MOVING_SPEED:
         failed.append(f"its speed's 95th percentile is {p95:.1f} m/s (a car's drive reaches "
                       f"{MOVING_SPEED:g})")
     if p99 > CAR_SPEED:
@@ -121,16 +122,22 @@ TRACK_LIKE_A_CAR = ("train",)   # whose track and IMU pass these tests as a car'
 #                             train's canted curves are felt across its down in part
 
 
+ON_THE_GROUND = {"aircraft": " - as an aircraft's do that only taxied"}   # what else passes
+
+
 def contradiction(vehicle, t_track, v_ned, t=None, f=None, w=None):
     """Why a declared `vehicle` (one of `importers.kinds.VEHICLES`) is not what its track and
-    IMU show (`car_tests`' arguments), or '': a car that fails a car test; a walker faster
-    than WALKING_SPEED; any other kind (but TRACK_LIKE_A_CAR) whose track and IMU pass every
-    car test, the turns felt across its down made too - none of them feels its turns all
-    sideways at a car's speeds without leaving its track (an independent trial's car drive
-    declared a pedestrian at 25 m/s and 3 m/s^2 turns had gone without a word)."""
-    failed, numbers = car_tests(t_track, v_ned, t, f, w)
-    if vehicle == LAND:
+    IMU show (`car_tests`' arguments), or '': a car that fails a car test (but its speed's:
+    parked, it is a car still, an independent review); a walker faster than WALKING_SPEED;
+    any other kind (but TRACK_LIKE_A_CAR) whose track and IMU pass every car test, the turns
+    felt across its down made too - none of them feels its turns all sideways at a car's
+    speeds without leaving its track (an independent trial's car drive declared a pedestrian
+    at 25 m/s and 3 m/s^2 turns had gone without a word; an aircraft that only taxied does,
+    and the words say so)."""
+    if vehicle == LAND:         # one that hardly moved is not judged by its speed
+        failed, _ = car_tests(t_track, v_ned, t, f, w, moving=False)
         return f"its track and IMU are not a car's: {'; '.join(failed)}" if failed else ""
+    failed, numbers = car_tests(t_track, v_ned, t, f, w)
     v = _means(np.asarray(t_track, float), np.asarray(v_ned, float), CLIMB_WINDOW_S / 2)
     v = v[np.isfinite(v).all(axis=1)]
     fastest = float(np.percentile(np.hypot(v[:, 0], v[:, 1]), 99)) if len(v) else 0.0
@@ -141,7 +148,8 @@ def contradiction(vehicle, t_track, v_ned, t=None, f=None, w=None):
         _turn_share(np.asarray(t_track, float), np.asarray(v_ned, float), t, f) is not None
     if vehicle in TRACK_LIKE_A_CAR or failed or not felt:
         return ""
-    return f"its track and IMU pass every test of a car's ({', '.join(numbers)})"
+    return (f"its track and IMU pass every test of a car's ({', '.join(numbers)})"
+            + (ON_THE_GROUND.get(vehicle, "")))
 
 
 def _means(t, x, half):

@@ -140,6 +140,31 @@ def test_a_size_effect_that_replaces_a_lever_arm_is_chosen_once(monkeypatch):
     assert [c["j"] for c in chosen] == [1]
 
 
+def test_beyond_range_at_the_last_step_is_judged_given_every_term_chosen(monkeypatch):
+    """The selection's bookkeeping, with the fits stubbed and MAX_TERMS 1: a lever arm beyond
+    its range is significant alone but explained by the term chosen at the last step; it is
+    no longer listed as beyond its range (it had been, judged before the last choice), while
+    a term beyond its range that stays significant given the choice is."""
+    from types import SimpleNamespace
+    terms = [{"effect": "bias_shift", "sensor": "accel", "axis": "x"},
+             {"effect": "lever_arm", "sensor": "imu", "axis": "all"},
+             {"effect": "scale_factor", "sensor": "gyro", "axis": "z"}]
+    design = SimpleNamespace(terms=terms, calibrated=False, nuisance={})
+
+    def test(fitter, chosen, j):
+        logp = {0: -80.0, 1: 0.0 if 0 in chosen and j != 0 else -40.0, 2: -30.0}[j]
+        return {"b": np.array([2.0]), "cov": np.eye(1), "stat": -logp, "logp": logp,
+                "logp_ref": logp, "linear": False}
+    monkeypatch.setattr(selection, "MAX_TERMS", 1)
+    monkeypatch.setattr(selection, "Fitter", lambda design, rows: SimpleNamespace(design=design))
+    monkeypatch.setattr(selection, "term_test", test)
+    monkeypatch.setattr(selection, "plausible", lambda design, j, b, full_scale:
+                        (j == 0, 1.0))
+    chosen, _, beyond = select(design, np.ones(10, bool), 0.05, {})
+    assert [c["j"] for c in chosen] == [0]
+    assert [b["j"] for b in beyond] == [2]
+
+
 def test_the_whole_flight_names_the_look_alike_that_encompasses_the_others(monkeypatch):
     """`told_apart` with the fits stubbed by who adds to whom on the whole flight: 1 and 2
     each add to 0 (0 adding nothing to them), 2 adds to 1 and 1 nothing to 2, 3 and 2
