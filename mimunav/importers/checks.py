@@ -14,7 +14,8 @@ from ..navigation.rests import (TRACK_FORCE_RATIO, acceleration_match, along_acr
                                 track_acceleration)
 from ..frames import attitude
 from ..flightlog.stamps import rounded_clock
-from .imu_clock import GRID_S, trajectory_clock
+from .aliasing import aliased
+from .imu_clock import GRID_S, late_or_early, trajectory_clock
 from .pairing import pair
 from .recording import G0, RecordingError, utc_text
 from .vehicle_check import check_declared_vehicle
@@ -42,6 +43,9 @@ def _check_rate(name, which, ns):
                              "stamps' time unit")
 
 
+ATTITUDE_AS = "quaternion's convention (body -> NED or ECEF)"   # what may be wrong of it
+
+
 def check_recording(rec):
     """Refuse a recording whose IMU cannot be in the units and axes the import says: a
     rate below MIN_IMU_RATE_HZ (either IMU); the
@@ -57,6 +61,7 @@ def check_recording(rec):
     if rec.reference_imu is not None:
         _check_rate(rec.name, "reference IMU", rec.reference_imu["ns"])
         pair(rec)
+        rec.aliased = aliased(rec)
     g = _gravity_sized(rec)
     ref = rec.reference
     q = None if ref is None else ref.get("q_nb")
@@ -73,7 +78,8 @@ def check_recording(rec):
         raise RecordingError(f"{rec.name}: the specific force turned into NED by the mounting and "
                              f"the reference attitude is {np.round(f_n, 2).tolist()} m/s^2 in the "
                              f"median, not [0, 0, -{g:.1f}]: the sensor axes, the mounting or "
-                             "the attitude quaternion's convention (body -> NED or ECEF) is wrong")
+                             "the attitude's " + rec.reference_meta.get("attitude_as",
+                                                                         ATTITUDE_AS) + " is wrong")
     rate = attitude.turn_rate(t_ref / 1e9, attitude.from_wxyz(q[ok]))
     ref_rate = float(np.percentile(rate, 99))
     imu_rate = float(np.percentile(np.linalg.norm(_local_mean(rec.w, k), axis=1), 99))
@@ -167,7 +173,7 @@ def _check_reference_clock(rec):
     if late is not None and abs(late) >= REFUSED_OFFSET_S:
         raise RecordingError(
             f"{rec.name}: the reference's attitude turns as the IMU does only with its stamps "
-            f"{late:+.2f} s late ({clock['said']}): the two time bases differ by that much"
+            f"{late_or_early(late)} ({clock['said']}): the two time bases differ by that much"
             + _advice(rec, rec.reference_shift_s - late, ".2f"))
 
 

@@ -142,6 +142,12 @@ def _given_lobe(rec, found):
                 "import then refines it and measures a drift")
 
 
+def late_or_early(seconds):
+    """How late (positive) or early stamps are, in words: "0.05 s late", "3.22 s early" (a
+    helicopter's reference "-3.22 s late" had read as late)."""
+    return f"{abs(seconds):.2f} s {'early' if seconds < 0 else 'late'}"
+
+
 def rate_lag(t_a, rate_a, t_b, rate_b, whose, late):
     """{"lag_s": how late (s) series b's times are on a's, to GRID_S, or None, "said",
     "ambiguous" when a peak is there but not alone}: two rotation-rate magnitudes (rad/s at
@@ -169,8 +175,8 @@ def rate_lag(t_a, rate_a, t_b, rate_b, whose, late):
     away[lobe] = False
     j = int(np.nanargmax(np.where(away, r, np.nan))) if np.isfinite(r[away]).any() else None
     second = float(r[j]) if j is not None else -1.0
-    said = (f"{whose} (|w|) correlate {peak:.2f} with {late} {lags[k] * GRID_S:+.2f} s "
-            f"late, {second:.2f} at best beyond the peak's lobe (+-{width:.2g} s)")
+    said = (f"{whose} (|w|) correlate {peak:.2f} with {late} {late_or_early(lags[k] * GRID_S)}, "
+            f"{second:.2f} at best beyond the peak's lobe (+-{width:.2g} s)")
     rival = second > SECOND_PEAK_SHARE * peak
     if rival and peak >= PEAK_CORRELATION and width <= LOBE_MAX_S:
         margin, se = peak_margin(a, b, lags[k], lags[j])
@@ -190,7 +196,7 @@ def rate_lag(t_a, rate_a, t_b, rate_b, whose, late):
             if r[i] > SECOND_PEAK_SHARE * peak:         # one of the rivals lies there
                 out.update(zero_lag_s=float(lags[i] * GRID_S),
                            zero_said=f"{whose} (|w|) correlate {r[i]:.2f} with {late} "
-                                     f"{lags[i] * GRID_S:+.2f} s late, {peak:.2f} at best")
+                                     f"{late_or_early(lags[i] * GRID_S)}, {peak:.2f} at best")
         return out
     return {"lag_s": float(lags[k] * GRID_S), "said": said}
 

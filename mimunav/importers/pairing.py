@@ -32,6 +32,10 @@ from .series import window_means
 
 SMALL_TURN_DEG = 3.0        # deg: within this its mounting_misalignment term carries a turn
 SPAN_SHARE = 0.05           # second singular value over the first: two directions seen
+FREE = ("free", "gyros")    # how a turn is measured free of either IMU's biases
+ARM_ROUNDS = 3              # a lever arm not given, fitted in turn with the mounting's turn
+TURN_BLOCKS = 20            # blocks of the seconds a measured turn's error is jackknifed over
+#                             (longer than the motion stays correlated on a drive or a flight)
 
 def pair(rec):
     """Check the recording's reference IMU against its IMU and correct its clock and
@@ -99,13 +103,19 @@ def _second_means(rec):
     return means, ok & ~(window_means(rec.imu_ns, clipped, mids)[:, 0] > 0), mids
 
 
-def _turn_said(angle, how, rpy, hint):
-    """The measured turn in words: angle (deg), how (`_measured_turn`), the mounting (roll,
-    pitch, yaw text; None: not said) that would hold it and the option that gives it."""
+def _turn_said(angle, how, rpy, hint, se=math.inf):
+    """The measured turn in words: angle (deg, its standard error se where known), how
+    (`_measured_turn`), the mounting (roll, pitch, yaw text; None: not said) that would hold
+    it and the option that gives it."""
     roll, pitch, yaw = rpy or (None,) * 3
-    return (f"{angle:.1f} deg from the mounting given (1 s mean rates and specific forces in the "
+    return (f"{angle:.1f} deg " + (f"(standard error {se:.2g}) " if math.isfinite(se) else "")
+            + "from the mounting given (1 s mean rates and specific forces in the "
             "vehicle frame" + (", about their own means: no bias of either IMU in it"
                                if how == "free" else
+                               ", the rates about their own means: the gyros alone, the "
+                               "accelerometers' own turn more than "
+                               f"{TRIADS_AGREE_DEG:g} deg from theirs (a lever arm not given, "
+                               "or forces no turn holds)" if how == "gyros" else
                                f"; the IMU's own gyros and accelerometers turn onto the "
                                f"reference's more than {TRIADS_AGREE_DEG:g} deg apart: both "
                                "together" if how == "triads differ" else "") + ")" + (
@@ -123,7 +133,8 @@ def _pair_mountings(rec, clock_se):
     if ok.sum() < 10:
         rec.real["reference_imu_mounting"] = "not measured: under 10 s of common samples"
         return
-    turn, angle, how, apart = _measured_turn(rec, means, ok)
+    _fit_arm(rec, means, ok, mids)
+    turn, angle, how, apart, se = _measured_turn(rec, means, ok)
     seen = bool(how)
     # a triad mirrored (a sign, an axis order) is no turn: after the best turn one of its
     # moving axes runs against the other IMU's; named as given where an axis does so there
@@ -145,7 +156,7 @@ def _pair_mountings(rec, clock_se):
     fixed = attitude.from_scipy(turn) * ref["mounting"].q_vs
     yaw, pitch, roll = (angle_text(a) for a in attitude.as_euler(fixed))
     hint = ref.get("mounting_hint")
-    said = _turn_said(angle, how, (roll, pitch, yaw), hint)
+    said = _turn_said(angle, how, (roll, pitch, yaw), hint, se)
     if rec.reference_meta.get("attitude_of") == "reference_imu" and seen:
         # the reference's attitude is of the reference IMU's axes: they stay, the IMU turns
         turn_the_imu(rec, _for_the_imu(rec, turn, means, ok, mids),
@@ -164,10 +175,11 @@ def _pair_mountings(rec, clock_se):
             "vehicle): the yaw given is taken for it - check it")
         return
     timing = _clock_turn_deg(means[0][0][ok], clock_se)
-    if angle <= SMALL_TURN_DEG and (how != "free" or not angle > DISTINCT_Z * timing):
+    if angle <= SMALL_TURN_DEG and (how not in FREE or
+                                    not angle > DISTINCT_Z * max(timing, se)):
         rec.real["reference_imu_mounting"] = (
             f"measured {said}: kept (the diagnosis fits a turn this small; "
-            f"{_why_kept(how, angle, bias_alike, clock_se, timing)})")
+            f"{_why_kept(how, angle, bias_alike, (clock_se, timing), se)})")
         return
     if not seen:
         raise RecordingError(
@@ -211,14 +223,19 @@ def _for_the_imu(rec, turn, means, ok, mids):
     return turn * rest
 
 
-def _why_kept(how, angle, bias_alike, clock_se, timing):
-    """Why a small measured turn (deg, decided `how`: `_measured_turn`) is not taken."""
+def _why_kept(how, angle, bias_alike, clock, se):
+    """Why a small measured turn (deg, decided `how`: `_measured_turn`, its standard error
+    se) is not taken; clock: (the clock's standard error, s; the turn it makes, deg)."""
+    clock_se, timing = clock
     if how == "triads differ":
         return ("the IMU's gyros and accelerometers turn onto the reference's by more than "
                 f"{TRIADS_AGREE_DEG:g} deg apart: its own triads differ")
-    if how != "free":
+    if how not in FREE:
         return (f"its tilt may be an accelerometer bias difference across gravity: "
                 f"{bias_alike} reads as {angle:.1f} deg")
+    if se >= timing:
+        return (f"it lies within {DISTINCT_Z:g} of its standard errors ({se:.2g} deg, "
+                f"jackknifed over {TURN_BLOCKS} blocks of the seconds)")
     if math.isfinite(timing):
         return f"a clock known to {clock_se * 1e3:.2g} ms turns the rates by up to {timing:.2g} deg"
     return ("the clock between the two is not measured: a small turn of the rates is not told "
@@ -260,9 +277,15 @@ def _runs_against(sensor, mine, theirs, when, columns):
 def _measured_turn(rec, means, ok):
     """(the turn of the reference's vehicle-frame vectors onto the IMU's, its angle in deg,
     how it was decided, why the two triads' own turns lie too far apart for any mounting
-    (`_triads_apart`) or ''; how: "free" - by the 1 s means about their own means, where
+    (`_triads_apart`) or '', its standard error (deg, `_turn_se_deg`; inf but FREE); how:
+    "free" - by the 1 s means about their own means, where
     no bias of either IMU enters (a constant difference), each kind scaled to unit rms;
-    "triads differ" - so, but the triads' own turns lie apart; "with gravity"
+    "gyros" - so, the gyros' own turn where the triads' own turns lie apart and the gyros
+    hold theirs to a DISTINCT_Z-th of TRIADS_AGREE_DEG (a rigid body turns at one rate
+    everywhere, while the accelerometers feel a lever arm not given - a motorcycle's 40 cm
+    had pulled an exact mounting 0.3 deg, charged to the unit as a cross-coupling of its
+    gyros - and forces the turn cannot hold: a rotor's vibration rectified);
+    "triads differ" - so, but the gyros do not decide (the turn of both); "with gravity"
     - the rates about their means beside the specific forces as recorded, gravity among
     them (an accelerometer bias difference across it then reads as tilt); "" - only one
     direction seen: the smallest turn of the mean specific force onto the IMU's, the yaw
@@ -282,43 +305,90 @@ def _measured_turn(rec, means, ok):
     rms_w, rms_f = (float(np.sqrt(np.mean(x ** 2))) for x in (centred[0], centred[2]))
     kinds = [(centred[0] / rms_w, centred[1] / rms_w)] if rms_w >= TURNING_RATE else []
     kinds += [(centred[2] / rms_f, centred[3] / rms_f)] if rms_f >= MOVING_FORCE else []
+    # each triad alone, where it decides the turn: a MEMS unit's gyros turned against its
+    # own accelerometers take a compromise that fits neither (1 deg of gyro triad had turned
+    # an exact mounting 0.7 deg); both weighed by how tightly each holds its own
+    each = [_own_turn(k) for k in kinds] if len(kinds) == 2 else []
+    kinds = _weighed(kinds, [se for _, se in each])
     if kinds:
         turn = wahba(np.vstack([k[0] for k in kinds]), np.vstack([k[1] for k in kinds]),
                      SPAN_SHARE)
         if turn is not None:
-            # each triad alone, where it decides the turn: a MEMS unit's gyros turned against
-            # its own accelerometers take a compromise that fits neither (1 deg of gyro
-            # triad had turned an exact mounting 0.7 deg)
-            each = [wahba(*k, SPAN_SHARE) for k in kinds] if len(kinds) == 2 else []
             if any(e is not None and math.degrees((e.inv() * turn).magnitude())
-                   > TRIADS_AGREE_DEG for e in each):
-                return turn, math.degrees(turn.magnitude()), "triads differ", \
-                    _triads_apart(each, kinds)
-            return turn, math.degrees(turn.magnitude()), "free", ""
+                   > max(TRIADS_AGREE_DEG, DISTINCT_Z * se) for e, se in each):
+                apart, (gyros, se) = _triads_apart(each, kinds), each[0]
+                if not apart and rms_w >= TURNING_RATE and gyros is not None and \
+                        DISTINCT_Z * se < TRIADS_AGREE_DEG:
+                    return gyros, math.degrees(gyros.magnitude()), "gyros", "", se
+                return turn, math.degrees(turn.magnitude()), "triads differ", apart, math.inf
+            return turn, math.degrees(turn.magnitude()), "free", "", _turn_se_deg(kinds, turn)
     mine = np.vstack([centred[0] * (G0 / rms_w), f_mine]) if rms_w >= TURNING_RATE else f_mine
     theirs = np.vstack([centred[1] * (G0 / rms_w), f_ref]) if rms_w >= TURNING_RATE else f_ref
     turn = wahba(mine, theirs, SPAN_SHARE)
     if turn is not None:
-        return turn, math.degrees(turn.magnitude()), "with gravity", ""
+        return turn, math.degrees(turn.magnitude()), "with gravity", "", math.inf
     turn, _ = Rotation.align_vectors([f_mine.mean(axis=0)], [f_ref.mean(axis=0)])
-    return turn, math.degrees(turn.magnitude()), "", ""
+    return turn, math.degrees(turn.magnitude()), "", "", math.inf
+
+
+def _turn_se_deg(kinds, turn):
+    """deg: the standard error of the free `turn` fitted to `kinds` ([(mine, theirs)], rows
+    the seconds), jackknifed over TURN_BLOCKS consecutive blocks of the seconds, each left
+    out in turn - all three axes of the turn together (a glider's two aligned IMUs had read
+    0.1 deg and been turned; the measured turn needs its own noise beside the clock's)."""
+    n = len(kinds[0][0])
+    block = np.minimum(np.arange(n) * TURN_BLOCKS // n, TURN_BLOCKS - 1)
+    parts = []
+    for b in range(TURN_BLOCKS):
+        keep = block != b
+        part = wahba(*(np.vstack([k[i][keep] for k in kinds]) for i in (0, 1)), SPAN_SHARE)
+        if part is None:
+            return math.inf
+        parts.append((part * turn.inv()).as_rotvec())
+    parts = np.array(parts)
+    spread = (TURN_BLOCKS - 1) / TURN_BLOCKS * np.sum((parts - parts.mean(axis=0)) ** 2)
+    return math.degrees(math.sqrt(spread))
+
+
+def _own_turn(kind):
+    """(one triad's own turn of theirs onto mine, its standard error in deg: `_turn_se_deg`),
+    (None, inf) where its vectors hold one direction only (`wahba`)."""
+    turn = wahba(*kind, SPAN_SHARE)
+    return (None, math.inf) if turn is None else (turn, _turn_se_deg([kind], turn))
+
+
+def _weighed(kinds, se):
+    """The triads' vectors `kinds` [(mine, theirs)] each scaled by the inverse of its own
+    turn's standard error (deg; as they are where one is not finite): the turn fitted to
+    them weighs each by its precision (a car's gyro triad, its roll rates a quarter of its
+    yaw rates and a third of them noise, had pulled an exact accelerometer triad's turn
+    1.6 deg)."""
+    if len(se) != 2 or not all(math.isfinite(e) and e > 0 for e in se):
+        return kinds
+    scale = [min(se) / e for e in se]
+    return [(mine * k, theirs * k) for (mine, theirs), k in zip(kinds, scale)]
 
 
 def _triads_apart(each, kinds):
     """Why the two IMUs' gyro triads turn onto each other otherwise than their accelerometer
-    triads do, by more than TRIADS_APART_DEG, or '' (`each`: each triad's own turn, None
-    where its vectors hold one direction only - then the other's turn must take that
+    triads do, by more than TRIADS_APART_DEG, or '' (`each`: each triad's `_own_turn`, None
+    where it is not decided - then the other's turn must take that
     direction onto its own; `kinds`: the triads' vectors (mine, theirs)): no mounting turns
     one triad of a rigid unit without the other - one triad's column sign or axis order
     differs (a glider's gyro z signed wrong had been turned 70 deg as a 'mounting', then
     refused as a specific force not pointing up; a gyro triad's x and y swapped, 67 deg)."""
-    decided = [e for e in each if e is not None]
+    # a triad decides its turn where its error cannot make TRIADS_APART_DEG (a car's gyro
+    # triad, roll rates a quarter of its yaw rates and a third of them noise, had read 8
+    # deg apart from an exact accelerometer triad and been refused)
+    turns = [e if e is not None and DISTINCT_Z * se < TRIADS_APART_DEG else None
+             for e, se in each]
+    decided = [e for e in turns if e is not None]
     if len(each) != 2 or not decided:
         return ""
     if len(decided) == 2:
-        apart = math.degrees((each[0].inv() * each[1]).magnitude())
+        apart = math.degrees((turns[0].inv() * turns[1]).magnitude())
     else:                       # the undecided triad's one direction, turned by the other's
-        mine, theirs = kinds[each.index(None)]
+        mine, theirs = kinds[turns.index(None)]
         u, _, vt = np.linalg.svd(mine.T @ theirs)
         apart = math.degrees(math.acos(np.clip(u[:, 0] @ decided[0].apply(vt[0]), -1, 1)))
     if apart <= TRIADS_APART_DEG:
@@ -329,12 +399,51 @@ def _triads_apart(each, kinds):
             "check the gyro and the accelerometer columns of both IMUs")
 
 
-def _lever_force(rec, mids, half=0.5):
+def _fit_arm(rec, means, ok, mids):
+    """Where no lever arm between the two IMUs is given and the motion moves them both,
+    the arm r (m, vehicle frame) that, with the turn, fits the IMU's 1 s mean specific
+    forces about their means (least squares, alternating with `_measured_turn` ARM_ROUNDS
+    times): where it stands beyond DISTINCT_Z of its error (chi-square over its three axes),
+    its force replaces the lever force of the means (`means[0][2]`) and is said in
+    rec.real["reference_imu_lever_arm"] - the turn is fitted free of it (a motorcycle's 40
+    cm, not given, had pulled an exact mounting 0.3 deg, charged to the unit as a
+    cross-coupling of its gyros). The diagnosis fits the arm itself (`lever_arm`)."""
+    if np.any(rec.mounting.lever_arm_m - rec.reference_imu["mounting"].lever_arm_m):
+        return
+    columns = np.stack([_lever_force(rec, mids, r)[ok] for r in np.eye(3)], axis=2)
+    design = (columns - columns.mean(axis=0)).reshape(-1, 3)
+    mine, theirs = (attitude.rotate(q, x[ok]) for q, x in (
+        (rec.mounting.q_vs, means[0][1]), (rec.reference_imu["mounting"].q_vs, means[1][1])))
+    if np.linalg.matrix_rank(design) < 3:
+        return
+    given, arm = means[0][2], np.zeros(3)
+    for _ in range(ARM_ROUNDS):
+        turn = _measured_turn(rec, means, ok)[0]
+        gap = mine - turn.apply(theirs)
+        arm, *_ = np.linalg.lstsq(design, (gap - gap.mean(axis=0)).ravel(), rcond=None)
+        means[0][2] = np.einsum("mij,j->mi", np.stack(
+            [_lever_force(rec, mids, r) for r in np.eye(3)], axis=2), arm)
+    misfit = (gap - gap.mean(axis=0)).ravel() - design @ arm
+    cov = np.linalg.inv(design.T @ design) * float(misfit @ misfit) / max(len(misfit) - 6, 1)
+    if not float(arm @ np.linalg.solve(cov, arm)) > DISTINCT_Z ** 2:
+        means[0][2] = given
+        return
+    rec.real["reference_imu_lever_arm"] = (
+        f"none given; the IMU's 1 s mean specific forces fit one of "
+        f"[{', '.join(f'{x:+.3f}' for x in arm)}] m (vehicle frame, from the reference IMU; "
+        f"standard errors {', '.join(f'{x:.2g}' for x in np.sqrt(np.diag(cov)))}), its force "
+        "taken out of the mounting's measurement - the diagnosis fits it (lever_arm); give "
+        "it if it is known (a table spec's lever_arm_m, ros2's --reference-imu-lever-arm-m)")
+
+
+def _lever_force(rec, mids, r=None, half=0.5):
     """(M, 3) m/s^2, vehicle frame: means over [mid - half, mid + half] (s) of what the IMU
-    feels beyond the reference IMU, r from it: dw/dt x r + w x (w x r) at its rates sample by
-    sample (dw/dt's mean: the rate's change across). Of 1 s mean rates, a foot's strides
-    (+-10 rad/s, 6 cm) lost w x (w x r) and turned an exact mounting 6.6 deg."""
-    r = rec.mounting.lever_arm_m - rec.reference_imu["mounting"].lever_arm_m
+    feels beyond the reference IMU, r from it (m, vehicle frame; None: the mountings' lever
+    arms): dw/dt x r + w x (w x r) at its rates sample by sample (dw/dt's mean: the rate's
+    change across). Of 1 s mean rates, a foot's strides (+-10 rad/s, 6 cm) lost w x (w x r)
+    and turned an exact mounting 6.6 deg."""
+    if r is None:
+        r = rec.mounting.lever_arm_m - rec.reference_imu["mounting"].lever_arm_m
     if not np.any(r):
         return np.zeros((len(mids), 3))
     w = attitude.rotate(rec.mounting.q_vs, rec.w)

@@ -85,6 +85,9 @@ class Recording:
     #                                   reference IMU's clock where `pairing` measured it
     range: dict = field(default_factory=dict)   # the IMU's full scale when known: gyro_rad_s,
                                                 # accel_m_s2 (outputs at it are clipped)
+    sampled_at_instants: bool = False   # the IMU's samples were instantaneous, made interval
+    #                                     means at import (`aliasing` asks what they folded)
+    aliased: dict = field(default_factory=dict)     # {sensor: why} (`aliasing.aliased`)
     reference_heading_known: bool = True    # False: the reference lies in a local frame whose
                                             # azimuth is not known (`local_frame`)
 

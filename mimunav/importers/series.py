@@ -96,47 +96,112 @@ STAMP_JITTER = 1e-4     # the stamped intervals' rms spread over their median be
 STEADY_SPAN = 250      # intervals either side whose mean is a sample's steady interval: a
 #                        logger's 100 us of jitter averages to 4 us (0.1 % at 200 Hz), and a
 #                        rate switched mid-record (200 -> 250 Hz) blurs over 2.5 s only
+BURST_SPAN = 100     # samples whose mean interval is a logger's typical one: bursts of up
+#                      to a few samples (0.1 ms apart, then the rest) vary it by a few %
+BURST_SHARE = 0.1    # share of intervals beyond half a typical one above which the stamps
+#                      come in bursts (a record's gaps are a few in a thousand)
+NEIGHBOURS = 5       # samples either side whose mean |dv| a gap's increment is held against
 STAMP_NOISE_SHARE = 0.5     # the increments' |dv| / dt scatters this much less with a steady
 #                             interval than with the stamped ones: the stamps are the noise
 
 
 def increment_intervals(t, dv):
     """(the intervals (s, (N,)) velocity increments dv (m/s, (N, 3)) stamped at t (s) span,
-    what was decided, or '') - where the stamped intervals jitter, whether the increments
-    follow them: an IMU sampled at jittered instants integrates over the jittered intervals
-    (|dv| ~ |f| dt: the stamps are right), a logger that stamps a steady IMU on its own read
-    jitters its stamps alone (|dv| does not follow: dividing by them makes rate noise - a
-    glider's 100 us of stamp jitter at 200 Hz had hidden a g-sensitivity behind rate noise).
-    Judged on the scatter of |dv| / dt between neighbouring samples (motion nearly cancels;
-    gravity makes |dv| large on any vehicle), stamped against the intervals' median; where
-    the steady one scatters under STAMP_NOISE_SHARE of the stamped, the mean of the
-    STEADY_SPAN intervals either side is taken between samples within half a median
-    interval of it (a gap keeps its stamped length; one global mean had read a rate
-    switched from 200 to 250 Hz 11 % off, an independent review)."""
-    stamped = np.diff(t, prepend=t[0] - np.median(np.diff(t)))
-    step = float(np.median(stamped))
+    what was decided, or ''): where the stamps jitter, whether the increments follow them
+    (`_jitter_judged`); after a gap in the stamps, whether the increment spans the gap or
+    its own interval only (`_gaps_judged`). A logger reading a steady IMU in bursts (stamps
+    0.1 ms apart, then 9.9 ms: more than BURST_SHARE of its intervals beyond half a typical
+    one, `_typical_interval`) has no typical interval to tell a gap by (its median, 0.1 ms,
+    had made every other increment 50 times its rate, without a word): its increments are
+    each taken as one interval's, and the words say so."""
+    step = _typical_interval(t)
+    stamped = np.diff(t, prepend=t[0] - step)
     near = np.abs(stamped - step) < 0.5 * step
+    bursts = near.mean() < 1.0 - BURST_SHARE     # read in bursts: no interval is a gap alone
+    near = stamped > 0 if bursts else near
+    size = np.linalg.norm(dv, axis=1)
+    intervals, said = _jitter_judged(stamped, near, size, step, bursts)
+    if step <= 0 or bursts:
+        return intervals, said
+    intervals, gaps = _gaps_judged(stamped, intervals, near, size)
+    return intervals, "; ".join(x for x in (said, gaps) if x)
+
+
+def _jitter_judged(stamped, near, size, step, bursts):
+    """(intervals s, words) - whether increments of sizes |dv| `size` (m/s) follow their
+    stamped intervals where these jitter: an IMU sampled at jittered instants integrates
+    over the jittered intervals (|dv| ~ |f| dt: the stamps are right), a logger that stamps a
+    steady IMU on its own read jitters its stamps alone (|dv| does not follow: dividing by
+    them makes rate noise - a glider's 100 us of stamp jitter at 200 Hz had hidden a
+    g-sensitivity behind rate noise). Judged on the scatter of |dv| / dt between
+    neighbouring samples (motion nearly cancels; gravity makes |dv| large on any vehicle),
+    stamped against a steady interval; where the steady one scatters under
+    STAMP_NOISE_SHARE of the stamped, the mean of the STEADY_SPAN intervals either side
+    (weighted by a triangle) is taken between samples `near` a typical interval `step` (a
+    gap keeps its stamped length here; one global mean had read a rate switched from 200 to
+    250 Hz 11 % off, an independent review); over all of them where they come in `bursts`."""
     spread = float(np.std(stamped[near])) / step if near.sum() > 10 else 0.0
     if spread < STAMP_JITTER or step <= 0:
         return stamped, ""
-    size = np.linalg.norm(dv, axis=1)
+    jitter = (f"the stamped intervals come in bursts ({spread:.2g} of a typical one, "
+              f"{step * 1e3:.4g} ms, in rms)" if bursts else
+              f"the stamped intervals jitter by {spread:.1e} of their typical one")
 
     def scatter(dt):            # robust sigma of |dv| / dt between neighbours, where near
         x = np.diff(size / dt)[near[1:] & near[:-1]]
         return 1.4826 * float(np.median(np.abs(x - np.median(x))))
-    steady = np.where(near, _local_mean(stamped, near, STEADY_SPAN), stamped)   # its clock's
+    half = STEADY_SPAN // 2     # twice a box of half the span: a burst's ripple falls as 1/n^2
+    smooth = _local_mean(_local_mean(stamped, near, half), near, half)
+    steady = np.where(near, smooth, stamped)   # its clock's
     as_stamped, as_steady = scatter(stamped), scatter(steady)
     if not as_steady < STAMP_NOISE_SHARE * as_stamped:
-        return stamped, (f"the stamped intervals jitter by {spread:.1e} of their median and the "
-                         f"velocity increments follow them (|dv|/dt scatters {as_stamped:.3g} "
-                         f"m/s^2 with them, {as_steady:.3g} with a steady interval): each "
-                         "increment divided by its stamped interval")
-    return steady, (f"the stamped intervals jitter by {spread:.1e} of their median, but the "
-                    f"velocity increments do not follow them (|dv|/dt scatters {as_stamped:.3g} "
-                    f"m/s^2 with them, {as_steady:.3g} with a steady one): the stamps' jitter is "
-                    f"the logger's, each increment divided by the mean interval of the "
-                    f"{2 * STEADY_SPAN + 1} around it ({np.median(steady[near]) * 1e3:.4g} ms "
-                    "in the median; gaps by their own), the stamps kept")
+        return stamped, (f"{jitter} and the velocity increments follow them (|dv|/dt scatters "
+                         f"{as_stamped:.3g} m/s^2 with them, {as_steady:.3g} with a steady "
+                         "interval): each increment divided by its stamped interval")
+    return steady, (f"{jitter}, but the velocity increments do not follow them (|dv|/dt "
+                    f"scatters {as_stamped:.3g} m/s^2 with them, {as_steady:.3g} with a steady "
+                    "one): the stamps' jitter is the logger's, each increment divided by the "
+                    f"mean interval of the {2 * STEADY_SPAN + 1} around it "
+                    f"({np.median(steady[near]) * 1e3:.4g} ms in the median" +
+                    ("; a dropped sample cannot be told from the bursts: its increment is "
+                     "taken as one interval's" if bursts else "") + "), the stamps kept")
+
+
+def _gaps_judged(stamped, intervals, near, size):
+    """(intervals s, words): where the stamps leave a gap (an interval beyond half a typical
+    one longer: not `near`), whether the increment after it spans the gap (an IMU that
+    accumulates until read: |dv| about the gap's intervals times its neighbours') or its own
+    interval only (a logger that dropped rows: about once) - judged on the median over the
+    gaps of log(|dv| / its neighbours') / log(gap / steady interval), 1 or 0. Divided by
+    the gap or by the steady interval around it (a helicopter's 0.5 % of dropped rows,
+    each increment after one divided by the gap, had halved those samples' rates and read
+    as gyro scale factors of -0.2 %, p 5e-113)."""
+    gap = ~near & (stamped > 0) & (stamped > np.median(stamped[near]))
+    if not gap.any() or near.sum() < 10:
+        return intervals, ""
+    steady = _local_mean(intervals, near, STEADY_SPAN)
+    neighbours = _local_mean(size, near, NEIGHBOURS)
+    span = stamped[gap] / steady[gap]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        share = np.log(size[gap] / neighbours[gap]) / np.log(span)
+    share = float(np.nanmedian(share)) if np.isfinite(share).any() else 1.0
+    seen = (f"{int(gap.sum())} gaps in the stamps ({float(np.median(span)):.3g} intervals "
+            f"long in the median); the increment after each is "
+            f"{float(np.median(size[gap] / neighbours[gap])):.3g} times its neighbours' in the "
+            "median")
+    if share > 0.5:
+        return intervals, f"{seen}: it spans the gap, divided by it"
+    out = intervals.copy()
+    out[gap] = steady[gap]
+    return out, (f"{seen}: it holds its own interval only (the rows were dropped), divided by "
+                 "the steady interval - the motion in the gaps is not recorded")
+
+
+def _typical_interval(t):
+    """(s) the median over the record of the mean interval across BURST_SPAN samples (all
+    of them on a short record): a logger's bursts even out over it, a gap stays rare."""
+    k = max(min(BURST_SPAN, (len(t) - 1) // 4), 1)
+    return float(np.median((t[k:] - t[:-k]) / k))
 
 
 def _local_mean(x, keep, span):

@@ -297,6 +297,9 @@ def read(path, mounting=None, root=None):
             if k in ("source", "independent", "position_sigma_m", "attitude_of")}
     if frame is not None:
         meta["frame"] = frame.description
+    if "attitude_rpy" in spec.section("reference"):     # what a wrong attitude may be
+        meta["attitude_as"] = ("attitude_rpy columns' order (roll, pitch, yaw of body -> NED: "
+                               "turned by yaw, then pitch, then roll) or unit")
     second, ref_how = None, None
     if spec.section("reference_imu"):
         t_r, w_r, f_r = _imu(spec, "reference_imu")
@@ -333,7 +336,8 @@ def read(path, mounting=None, root=None):
                      vehicle=spec.doc.get("vehicle"), range=rng,
                      reference_heading_known=frame is None or frame.azimuth_known,
                      reference_imu_offset_given="time_offset_s" in spec.section(
-                         "reference_imu"))
+                         "reference_imu"),
+                     sampled_at_instants=spec.section("imu").get("sampling") == "instant")
 
 
 def _to_the_vehicles_attitude(spec, meta, reference, mounting, second):

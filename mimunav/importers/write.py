@@ -85,7 +85,7 @@ def write_log(rec, path, force=False):
                                    "bias_basis": align.bias_basis,
                                    "reference_heading_known": rec.reference_heading_known,
                                    "reference_imu_clock_se_s": rec.reference_imu_clock_se_s,
-                                   "vehicle": rec.vehicle})
+                                   "vehicle": rec.vehicle, "aliased": rec.aliased})
         channels = [("/mimu/imu", S.IMU, "mimu", rec.imu_ns, S.imu_fields(rec.w, rec.f))]
         if rec.reference_imu is not None:
             ref_imu = rec.reference_imu
@@ -165,9 +165,10 @@ def summary(rec, align, path):
         lines.append(f"reference IMU accuracy: {accuracy.grade_said()}")
     for key in ("imu_stamps", "reference_imu_stamps", "imu_intervals",
                 "reference_imu_intervals", "reference_imu_clock",
-                "reference_imu_mounting"):                           # said, not only stored
+                "reference_imu_mounting", "reference_imu_lever_arm", "aliasing"):  # said too
         if key in rec.real:
             lines.append(f"measured {key.replace('_', ' ')}: {rec.real[key]}")
+    lines += [f"warning: {why}" for why in rec.aliased.values()]
     if "reference_heading" in rec.real:
         lines.append(f"measured heading: {rec.real['reference_heading']}")
     if "vehicle" in rec.real:

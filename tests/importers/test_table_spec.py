@@ -466,6 +466,60 @@ def test_increments_are_divided_by_the_intervals_they_span(jitter):
         assert said == ""
 
 
+@pytest.mark.parametrize("burst", [2, 3])
+def test_increments_stamped_in_bursts_are_divided_by_the_steady_interval(burst):
+    """A logger that reads a steady 200 Hz IMU in bursts of 2 or 3 samples stamps them 0.1
+    ms apart, then the rest of the period: its median interval (0.1 ms) had made 2 of 3
+    increments 50 times their rate without a word. Each is divided by the steady interval.
+    A dropped sample cannot be told from the bursts (its increment, spanning two intervals
+    here, is taken as one's): said."""
+    from mimunav.importers.series import increment_intervals
+    rng = np.random.default_rng(13)
+    n, step = 20001, 0.005
+    true = np.full(n, step)
+    true[12000] = 2 * step                         # a sample dropped: its increment spans both
+    t_true = np.cumsum(true)
+    first = np.repeat(t_true[::burst], burst)[:n]  # each burst stamped at its first sample
+    t = first + 1e-4 * (np.arange(n) % burst)
+    f = np.column_stack([0.3 * np.sin(t_true / 7), np.zeros(n), np.full(n, -9.81)])
+    dv = f * true[:, None] + rng.normal(0, 2e-5, (n, 3))
+    dt, said = increment_intervals(t, dv)
+    rate = np.linalg.norm(dv / dt[:, None], axis=1)
+    assert "come in bursts" in said and "do not follow them" in said, said
+    assert "a dropped sample cannot be told" in said
+    error = np.abs(rate / 9.81 - 1)
+    assert error[12000] > 0.9 and np.delete(error, [0, 12000]).max() < 0.01, error
+
+
+@pytest.mark.parametrize("lost", ["dropped", "accumulated"])
+def test_the_increment_after_a_gap_is_divided_by_what_it_spans(lost):
+    """A 400 Hz IMU whose logger lost 0.5 % of its rows and 0.2 s at once, stamps exact:
+    where the rows were dropped the increment after each gap holds its own interval (a
+    helicopter's, divided by the gap, had halved those rates and read as gyro scale factors
+    of -0.2 %); where the IMU accumulates until read, it spans the gap. Both read 1 g."""
+    from mimunav.importers.series import increment_intervals
+    rng = np.random.default_rng(14)
+    n, step = 40000, 0.0025
+    t_all = np.arange(n) * step
+    f = np.column_stack([0.5 * np.sin(t_all / 3), np.zeros(n), np.full(n, -9.81)])
+    dv_all = f * step + rng.normal(0, 1e-5, (n, 3))
+    keep = rng.random(n) > 0.005
+    keep[20000:20080] = False
+    keep[0] = True
+    if lost == "dropped":
+        dv = dv_all[keep]
+    else:                   # each kept row carries the increments since the last kept one
+        group = np.cumsum(keep) - keep              # the kept row at or after each
+        dv = np.zeros((keep.sum() + 1, 3))
+        np.add.at(dv, group, dv_all)
+        dv = dv[:-1]
+    dt, said = increment_intervals(t_all[keep], dv)
+    rate = np.linalg.norm(dv / dt[:, None], axis=1)
+    assert "gaps in the stamps" in said and ("own interval only" in said) == (lost == "dropped")
+    error = np.abs(rate[1:] / np.linalg.norm(f[keep][1:], axis=1) - 1)
+    assert np.percentile(error, 99.9) < 0.01, (said, np.sort(error)[-5:])
+
+
 def test_a_rate_switched_mid_record_keeps_each_parts_interval():
     """A logger's stamp jitter (100 us) on an IMU switched from 200 to 250 Hz mid-record:
     each increment is divided by the steady interval around it, not by one mean of both
