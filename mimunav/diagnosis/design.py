@@ -174,6 +174,8 @@ def bins(t, t_reference, bin_s=FAST_BIN_S):
 # that error size a bias under 1e-2 x 0.035 = 4e-4) is taken, the longest when none does.
 VIBRATION_BIN_S = (FAST_BIN_S, 0.02, 0.05, 0.1, 0.2)
 VIBRATION_SHARE = 0.01
+WHOLE_PERIODS_S = 0.5   # s: the longest bin of whole periods of a line (`whole_periods`): its
+#                         means keep motion at 1 Hz at sinc(0.5) = 0.64 of its size
 MOTION_HZ = 5.0     # a vehicle's motion lies below it; above it an engine's, a rotor's, a road's
 
 
@@ -223,33 +225,59 @@ def _share(spectrum, bin_s):
 
 def vibration_bin_s(t, t_reference, f_reference):
     """(bin_s, why or '', doubt or ''): FAST_BIN_S where the reference's stamps are the MIMU's
-    (t s) or it does not vibrate, else the shortest of VIBRATION_BIN_S whose bin means keep
-    at most VIBRATION_SHARE of the motion's variance in the reference's specific force
-    (`vibration_share`; t_reference s, f_reference m/s^2 (N, 3)); the longest when none
-    does, and then the doubt that makes the diagnosis inconclusive (an 8 s cut of a light
-    aircraft, its engine 0.2 of its motion in 0.2 s bins, had stood 'no-missing-physics'
-    beside scale factors of 0.2-1.4 the selection could not choose). The spectrum once."""
+    (t s) or it does not vibrate, else the shortest of VIBRATION_BIN_S and of the whole
+    periods of its strongest line (`whole_periods`) whose bin means keep at most
+    VIBRATION_SHARE of the motion's variance in the reference's specific force
+    (`vibration_share`, at the length `bins` makes of it; t_reference s, f_reference m/s^2
+    (N, 3)); the one that keeps least when none does, and then the doubt that makes the
+    diagnosis inconclusive (an 8 s cut of a light aircraft, its engine 0.2 of its motion in
+    0.2 s bins, had stood 'no-missing-physics' beside scale factors of 0.2-1.4 the
+    selection could not choose). The spectrum once."""
     if on_reference_stamps(t, t_reference) is not None or f_reference is None:
         return FAST_BIN_S, "", ""
     spectrum = _spectrum(t_reference, f_reference)
-    shares = {b: _share(spectrum, b) for b in VIBRATION_BIN_S}
+    dt = float(np.median(np.diff(t)))
+    candidates = sorted(set(VIBRATION_BIN_S) | set(whole_periods(spectrum)))
+    shares = {b: _share(spectrum, bins(t, t_reference, b)[0] * dt) for b in candidates}
     share = shares[FAST_BIN_S]
     if share <= VIBRATION_SHARE:
         return FAST_BIN_S, "", ""
-    chosen = next((b for b in VIBRATION_BIN_S if shares[b] <= VIBRATION_SHARE),
-                  VIBRATION_BIN_S[-1])
+    chosen = next((b for b in candidates if shares[b] <= VIBRATION_SHARE),
+                  min(candidates, key=shares.get))
     left = shares[chosen]
-    why = (f"bins of {chosen:g} s, not {FAST_BIN_S:g} s: the reference, re-expressed on the "
+    why = (f"bins of {chosen:.3g} s, not {FAST_BIN_S:g} s: the reference, re-expressed on the "
            f"MIMU's stamps (another clock), moves above {MOTION_HZ:g} Hz (a vibration, or "
            f"motion as fast as a foot's strides) with {share:.2g} times its slower motion's "
            f"variance in {FAST_BIN_S:g} s bins, {left:.2g} in these: its re-expression's "
            "error there would bias every linear term")
     doubt = "" if left <= VIBRATION_SHARE else (
         f"the reference's vibration keeps {left:.2g} of its motion's variance even in "
-        f"{chosen:g} s bins (at most {VIBRATION_SHARE:g}): its re-expression on the MIMU's "
+        f"{chosen:.3g} s bins (at most {VIBRATION_SHARE:g}): its re-expression on the MIMU's "
         "stamps (another clock) may bias every linear term - the recording's motion is too "
         "small beside its vibration")
     return chosen, why, doubt
+
+
+def whole_periods(spectrum):
+    """(s) whole numbers of periods, up to WHOLE_PERIODS_S, of the strongest line above
+    MOTION_HZ in `spectrum` (`_spectrum`; its frequency refined by a parabola through the
+    peak and its neighbours): a bin that long holds whole cycles of the line and of its
+    harmonics - a rotor's or an engine's lines - and its mean cancels them (a helicopter's
+    6.6 Hz once-per-rev kept 0.57 of its motion's variance in 0.2 s bins, 1.3 cycles, and
+    every diagnosis of it was inconclusive); [] without such a line."""
+    if spectrum is None:
+        return []
+    f, p = spectrum
+    above = np.flatnonzero(f > MOTION_HZ)
+    if len(above) < 3:
+        return []
+    k = int(above[np.argmax(p[above])])
+    if k + 1 >= len(f) or k == 0:
+        return []
+    a, b, c = p[k - 1], p[k], p[k + 1]
+    den = a - 2 * b + c
+    line = f[k] + (0.5 * (a - c) / den if den < 0 else 0.0) * (f[1] - f[0])
+    return [n / line for n in range(1, int(WHOLE_PERIODS_S * line) + 1)]
 
 
 class Binning:

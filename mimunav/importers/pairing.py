@@ -145,7 +145,7 @@ def _pair_mountings(rec, clock_se):
                 attitude.rotate(ref["mounting"].q_vs, means[1][k][ok])) for k in range(2)]
     said = {when: [why for (mine, theirs), sensor in zip(vehicle, ("gyro", "accel"))
                    for why in [_runs_against(sensor, mine, turned(theirs), when,
-                                             columns.format(sensor))] if why]
+                                             columns.format(sensor), _axis_names(rec))] if why]
             for when, columns, turned in (
                 ("with the mountings given", "{} columns", lambda x: x),
                 ("after the best turn between them (fitted on both triads)",
@@ -254,10 +254,27 @@ def _clock_turn_deg(w, clock_se):
     return math.degrees(change / max(spread, 1e-12) * clock_se)
 
 
-def _runs_against(sensor, mine, theirs, when, columns):
-    """Why the triads are a reflection (naming the triad and axis, and the `columns` to
-    check), or '': a moving axis - 1 s means spread by 0.02 rad/s or 0.3 m/s^2
-    (`reference.MOVING_SPREAD`'s sizes) - whose means (vehicle frame) run against the other
+def _axis_names(rec):
+    """[for the vehicle's x, y, z: the sensor axis of each IMU along it, in words] - a
+    reflection named about the vehicle's axis alone had left a user to turn it back through
+    a 93 deg mounting to find the column (a motorcycle's MIMU y)."""
+    names = []
+    for axis in np.eye(3):
+        each = []
+        for whose, mounting in (("the IMU's", rec.mounting),
+                                ("the reference IMU's", rec.reference_imu["mounting"])):
+            along = attitude.rotate(mounting.q_vs.inverse(), axis)
+            i = int(np.argmax(np.abs(along)))
+            each.append(f"{whose} {'+-'[int(along[i] < 0)]}{'xyz'[i]}")
+        names.append(f"{each[0]} and {each[1]} sensor axis along it")
+    return names
+
+
+def _runs_against(sensor, mine, theirs, when, columns, names=None):
+    """Why the triads are a reflection (naming the triad and axis - with `names`, each
+    IMU's sensor axis along it: `_axis_names` -, and the `columns` to check), or '': a
+    moving axis - 1 s means spread by 0.02 rad/s or 0.3 m/s^2 (`reference.MOVING_SPREAD`'s
+    sizes) - whose means (vehicle frame) run against the other
     IMU's: correlation below AGAINST; a quieter one where `mounting.runs_against`
     (its differences too)."""
     spread = 0.02 if sensor == "gyro" else 0.3
@@ -267,7 +284,8 @@ def _runs_against(sensor, mine, theirs, when, columns):
             continue
         r = float(np.corrcoef(mine[:, i], theirs[:, i])[0, 1])
         if r < AGAINST:
-            return (f"{when}, the two IMUs' {sensor}s about the vehicle's {axis} axis run "
+            where = f" ({names[i]})" if names else ""
+            return (f"{when}, the two IMUs' {sensor}s about the vehicle's {axis} axis{where} run "
                     f"against each other (1 s means correlate {r:.2f}): a column's sign or the "
                     f"axes' order differs between the two IMUs - a reflection, which no "
                     f"mounting can turn: check the {columns}")

@@ -298,8 +298,8 @@ def read(path, mounting=None, root=None):
     if frame is not None:
         meta["frame"] = frame.description
     if "attitude_rpy" in spec.section("reference"):     # what a wrong attitude may be
-        meta["attitude_as"] = ("attitude_rpy columns' order (roll, pitch, yaw of body -> NED: "
-                               "turned by yaw, then pitch, then roll) or unit")
+        meta["attitude_as"] = ("columns' order (attitude_rpy: roll, pitch, yaw of body -> "
+                               "NED, turned by yaw, then pitch, then roll) or unit")
     second, ref_how = None, None
     if spec.section("reference_imu"):
         t_r, w_r, f_r = _imu(spec, "reference_imu")

@@ -120,6 +120,10 @@ def test_a_term_not_confirmed_moves_an_offset_by_what_its_refit_removes_once():
     none = removal.unconfirmed_offset(design, fitter, base, [absurd], rows,
                                       {"accel": 80.0, "gyro": 10.0})
     assert not none[0].any() and none[2][2] == []
+    pushed = SimpleNamespace(fit=lambda idx: _fitted(gamma1, idx, [0.3], cov))
+    none = removal.unconfirmed_offset(design, pushed, base, [term], rows,   # refit: absurd
+                                      {"accel": 80.0, "gyro": 10.0})
+    assert not none[0].any() and none[2][2] == []
 
 
 def _shift_finding(mu, lo, hi, p=1e-20):

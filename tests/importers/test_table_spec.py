@@ -156,6 +156,9 @@ attitude_rpy = { file = "ref.csv", columns = ["r", "p", "y"], unit = "deg" }
         rec.real["reference_height_time"]
     assert np.allclose(got["h"], 0.3048 * (1000.5 + 10 * t[20:-1]), atol=0.02)
     assert np.allclose(np.abs(np.sum(got["q_nb"] * q[20:-1], axis=1)), 1.0, atol=1e-9)
+    # what a refusal of this attitude names (a helicopter's yaw, pitch, roll order had been
+    # blamed on a quaternion's convention)
+    assert rec.reference_meta["attitude_as"].startswith("columns' order (attitude_rpy")
 
 
 def test_text_columns_and_dropped_rows_are_refused_saying_why(tmp_path, capsys):
