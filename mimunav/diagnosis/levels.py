@@ -128,10 +128,11 @@ def set_aside_aliased(diag, flight):
     said = json.loads(said) if isinstance(said, str) else said
     if not said:
         return
-    hit = [(f.get("sensor") in said or (f.get("sensor") == "imu" and "accel" in said))
+    hit = [(f.get("sensor") in said or f.get("sensor") == "imu")     # the unit's: both
            and f.get("effect") != "bias_shift" for f in diag.findings]     # folded tones
     #                                                       average to nothing: no constant
-    diag.rejected = diag.rejected + [dict(f, rejected=said.get(f["sensor"], said.get("accel")))
+    diag.rejected = diag.rejected + [dict(f, rejected=said.get(f["sensor"],
+                                                               "; ".join(said.values())))
                                      for f, h in zip(diag.findings, hit) if h]
     diag.findings = [f for f, h in zip(diag.findings, hit) if not h]
     diag.inconclusive = list(getattr(diag, "inconclusive", None) or []) + list(said.values())

@@ -317,6 +317,9 @@ MOVING_SPREAD = {"accel": 0.3, "gyro": 0.02}    # m/s^2, rad/s: spread of a chan
                                 # 1 s means from which a correlation can be judged: 30x the
                                 # white noise of a seed S1 Table 1 MEMS part's 1 s mean (0.01
                                 # m/s^2, 7e-4 rad/s) and 10x a consumer part's
+BIAS_CLASS = 0.1 * 9.80665     # m/s^2 per axis: an accelerometer bias a MEMS part may carry
+#                                (a consumer part's 0.1 g): a constant difference beyond it
+#                                on an axis is no bias
 GRAVITY_ANGLE_DEG = 5.0     # the 1 s mean specific forces differ in direction by at most
                             # this (the median over the seconds: a clipped boost does not move
                             # it): a tilt larger than the diagnosis' small-angle terms (a few
@@ -372,8 +375,56 @@ def agreement(t, measured, predicted, usable, channels):
         if np.isfinite(cos).any() else float("nan")
     out["gravity_angle_deg"] = angle
     if not angle <= GRAVITY_ANGLE_DEG:
-        out["failures"].append(
-            f"the specific forces of the MIMU and of the reference IMU (turned by both "
-            f"mountings) are {angle:.1f} deg apart (median of the {AGREEMENT_BIN_S:g} s means; "
-            f"at most {GRAVITY_ANGLE_DEG:g}): a mounting or an axis is wrong")
+        said = (f"the specific forces of the MIMU and of the reference IMU (turned by both "
+                f"mountings) are {angle:.1f} deg apart (median of the {AGREEMENT_BIN_S:g} s "
+                f"means; at most {GRAVITY_ANGLE_DEG:g})")
+        turn = free_turn(means[0], means[1])
+        free = None if turn is None else float(np.degrees(turn.magnitude()))
+        d, down = np.nanmedian(f_m - f_p, axis=0), np.nanmedian(f_p, axis=0)
+        down = down / np.linalg.norm(down)
+        across = np.linalg.norm(d - (d @ down) * down)
+        # the constant left once the turn is taken: a tilt's gravity leak is not a bias
+        rows = np.isfinite(f_m).all(axis=1) & np.isfinite(f_p).all(axis=1)
+        const = None if turn is None else np.median(f_m[rows] - turn.apply(f_p[rows]), axis=0)
+        bias = None if const is None else float(np.linalg.norm(const))
+        if free is not None and free <= GRAVITY_ANGLE_DEG and \
+                np.max(np.abs(const)) <= BIAS_CLASS:
+            out["gravity_note"] = (f"{said}, but about their means they turn onto each other "
+                                   f"by {free:.2f} deg (a turn the diagnosis' small-angle "
+                                   f"terms fit), and beside that turn differ by a constant "
+                                   f"{bias:.3g} m/s^2 (a MEMS accelerometer's bias, which "
+                                   "the bias terms fit)")
+        else:
+            out["failures"].append(
+                f"{said}: a mounting or an axis is wrong" + (
+                    "" if free is not None else
+                    f" - or an accelerometer bias of {across:.3g} m/s^2 across gravity, which "
+                    "reads the same (the motion holds too little of a second direction to "
+                    "tell them)"))
     return out
+
+
+def free_turn(mine, theirs):
+    """The turn (scipy Rotation) of theirs onto mine, two IMUs' 1 s means (M, 6: accel
+    m/s^2 then gyro rad/s, one set of axes) about their own means, where no bias of either
+    enters - each kind scaled to unit rms, as `importers.pairing` measures it - or None
+    where they do not span two directions (second singular value under a tenth of the
+    first) or move too little (MOVING_SPREAD): an IMU whose accelerometers are 80 mg off had
+    been refused as 5.8 deg of tilt its mounting did not have."""
+    from scipy.spatial.transform import Rotation
+    rows = np.isfinite(mine).all(axis=1) & np.isfinite(theirs).all(axis=1)
+    stacks = [[], []]
+    for cols, spread in ((slice(0, 3), MOVING_SPREAD["accel"]),
+                         (slice(3, 6), MOVING_SPREAD["gyro"])):
+        a, b = (x[rows, cols] - x[rows, cols].mean(axis=0) for x in (mine, theirs))
+        rms = float(np.sqrt(np.mean(b ** 2))) if len(b) else 0.0
+        if rms >= spread:
+            stacks[0].append(a / rms)
+            stacks[1].append(b / rms)
+    if not stacks[0]:
+        return None
+    a, b = np.vstack(stacks[0]), np.vstack(stacks[1])
+    singular = np.linalg.svd(a.T @ b, compute_uv=False)
+    if not singular[1] >= 0.1 * singular[0]:
+        return None
+    return Rotation.align_vectors(a, b)[0]

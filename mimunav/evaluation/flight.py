@@ -365,7 +365,7 @@ def no_reference(path, what):
     could serve as one when it has /gnss/fix."""
     with FlightLog(path) as log:
         fixes = "/gnss/fix" in log.channels
-    hint = ("; its /gnss/fix can serve when the import takes it as the reference: ros2 "
+    hint = ("; its /gnss/fix can serve when the import takes it as the reference: ros1 or ros2 "
             "--reference-status 2 (RTK grade), rtklib --solutions, dataflash --reference gnss, "
             "table a [reference] section" if fixes else "")
     return InputError(f"{path}: no reference trajectory (/truth/state) for {what}{hint}")

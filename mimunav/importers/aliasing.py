@@ -38,10 +38,11 @@ def aliased(rec):
         return {}
     out, said = {}, []
     for sensor, mine, theirs in (("gyro", rec.w, ref["w"]), ("accel", rec.f, ref["f"])):
-        slope, folded, own = _folded(rec.imu_ns, mine, rate, theirs, ref_rate)
-        words = (f"{NAMES[sensor]}: the reference IMU's power above {rate / 2:.4g} Hz folded about it "
-                 f"{folded / own:.2g} of the IMU's own sample scatter, found in the IMU's "
-                 f"spectrum at {slope:.2f} of its size")
+        slope, folded, own = _folded(mine, rate, theirs, ref_rate)
+        words = (f"{NAMES[sensor]}: the reference IMU's power above {rate / 2:.4g} Hz, folded "
+                 f"into the IMU's band, {folded / own:.2g} of the IMU's own sample scatter"
+                 + (f", found in the IMU's spectrum at {slope:.2f} of its size"
+                    if folded > 0.01 * own else ""))
         said.append(words)
         if slope > FOLDED_SLOPE and folded > ALIAS_SHARE * own:
             out[sensor] = (f"the IMU's instantaneous samples at {rate:.4g} Hz fold vibration "
@@ -51,25 +52,30 @@ def aliased(rec):
     return out
 
 
-def _folded(ns, mine, rate, theirs, ref_rate):
-    """(slope, folded power, own scatter): the IMU's power spectrum (its samples unfiltered
-    back from `means_of_instants`, summed over the axes - what a turn between the two keeps)
-    beyond the reference's, regressed on the reference's folded about the IMU's Nyquist
-    frequency (with an intercept: the IMU's white noise); the folded power (x the slope's
-    reading of 1) and the IMU's sample variance about its 1 s means, all (unit)^2."""
-    n = int(SEGMENT_S * rate)
-    f, p_mine = signal.welch(mine, fs=rate, nperseg=min(n, len(mine)), axis=0)
+def _folded(mine, rate, theirs, ref_rate):
+    """(slope, folded power, own scatter), (unit)^2 and 1: the IMU's power spectrum (Welch,
+    summed over its axes - what a turn between the two keeps; its samples unfiltered back
+    from `motion.intervals.means_of_instants`, whose (x[k-1] + 22 x[k] + x[k+1]) / 24 passes
+    (22 + 2 cos(2 pi f / rate)) / 24) beyond the reference's, regressed on the reference's
+    power above the IMU's Nyquist frequency folded onto the frequency each part aliases to,
+    |f - rate round(f / rate)| (every fold: a multicopter's 80-120 Hz motor lines fall on
+    20 Hz at 50 Hz), with an intercept (the IMU's white noise); the folded power (what a
+    slope of 1 would read) and the IMU's sample variance about its 1 s means."""
+    f, p_mine = signal.welch(mine, fs=rate, nperseg=min(int(SEGMENT_S * rate), len(mine)),
+                             axis=0)
     g, p_ref = signal.welch(theirs, fs=ref_rate, nperseg=min(int(SEGMENT_S * ref_rate),
                                                              len(theirs)), axis=0)
     p_mine = p_mine.sum(axis=1) / ((22.0 + 2.0 * np.cos(2 * np.pi * f / rate)) / 24.0) ** 2
     p_ref = p_ref.sum(axis=1)
     direct = np.interp(f, g, p_ref)
-    mirror = rate - f
-    folded = np.where(mirror <= g[-1], np.interp(mirror, g, p_ref), 0.0)
+    above = g > rate / 2
+    alias = np.abs(g[above] - rate * np.round(g[above] / rate))
+    df, dg = float(f[1] - f[0]), float(g[1] - g[0])
+    at = np.clip(np.round(alias / df).astype(int), 0, len(f) - 1)
+    folded = np.bincount(at, p_ref[above] * dg, minlength=len(f)) / df
     band = (f > 0) & (f < rate / 2)
     x = np.column_stack([folded[band], np.ones(band.sum())])
     slope = float(np.linalg.lstsq(x, (p_mine - direct)[band], rcond=None)[0][0])
-    df = float(f[1] - f[0])
     k = max(int(round(rate)), 1)
     smooth = np.column_stack([np.convolve(mine[:, i], np.ones(k) / k, mode="same")
                               for i in range(3)])

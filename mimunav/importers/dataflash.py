@@ -45,7 +45,10 @@ GPS_STATUS = {0: "no GPS", 1: "no fix", 2: "2D", 3: "3D", 4: "DGPS", 5: "RTK flo
               6: "RTK fixed"}
 # NavSatStatus of /gnss/fix for each ArduPilot status: FIX 0, SBAS_FIX 1, GBAS_FIX 2
 NAV_SAT_STATUS = {3: 0, 4: 1, 5: 2, 6: 2}
-TYPES = ("IMU", "IMU2", "IMU3", "GPS", "GPS2", "GPA", "POS", "XKF1", "ATT", "PARM")
+EKF_VELOCITY = {"XKF1": "EKF3", "NKF1": "EKF2", "EKF1": "EKF1"}   # its velocity, newest first:
+#                       ArduPilot up to 4.0 logs EKF2 as NKF1, 3.x EKF1 (an older log's had
+#                       been left for the GPS fixes without a word)
+TYPES = ("IMU", "IMU2", "IMU3", "GPS", "GPS2", "GPA", "POS", "ATT", "PARM") + tuple(EKF_VELOCITY)
 
 
 BINARY_HEAD = b"\xa3\x95"        # a binary record's first two bytes (AP_Logger)
@@ -357,9 +360,13 @@ def _fixes(gps, gpa, use, offset_us):
 
 def _reference(msgs, fixes, kind, min_status, offset_us, path):
     """(reference dict or None, its metadata) of the chosen kind (`read`)."""
-    ekf = all(k in msgs for k in ("POS", "XKF1"))
+    name = next((k for k in EKF_VELOCITY if k in msgs), None)
+    ekf = "POS" in msgs and name is not None
+    fallback = ""
     if kind == "auto":
         kind = "ekf" if ekf else ("gnss" if fixes is not None else "none")
+        fallback = "" if ekf else (f" - the log holds no EKF estimate (POS with one of "
+                                   f"{', '.join(EKF_VELOCITY)})")
     if kind == "none":
         return None, {}
     if kind == "gnss":
@@ -372,15 +379,16 @@ def _reference(msgs, fixes, kind, min_status, offset_us, path):
                                  "needs at least 3")
         sigma = np.sqrt(fixes["covariance"][use, 0] + fixes["covariance"][use, 4])
         meta = {"source": f"GPS fixes of status >= {GPS_STATUS.get(min_status, min_status)}, "
-                          "velocity from ground speed, course and VZ",
+                          "velocity from ground speed, course and VZ" + fallback,
                 "independent": "yes: GNSS only",
                 "position_sigma_m": f"{np.median(sigma):.3g}"}
         if fixes["speed_sigma"] is not None:
             meta["velocity_sigma_m_s"] = f"{np.median(fixes['speed_sigma'][use]):.3g}"
         return {k: fixes[k][use] for k in ("ns", "lat", "lon", "h", "v_ned")}, meta
     if not ekf:
-        raise RecordingError(f"{path}: an autopilot reference needs POS and XKF1 messages")
-    pos, xkf = msgs["POS"], msgs["XKF1"]
+        raise RecordingError(f"{path}: an autopilot reference needs POS and one of "
+                             f"{', '.join(EKF_VELOCITY)} (the EKF's velocity) messages")
+    pos, xkf = msgs["POS"], msgs[name]
     vel = {k: v[xkf["C"] == 0] for k, v in xkf.items()} if "C" in xkf else xkf   # core 0
     t = pos["TimeUS"].astype(np.int64)
     t_v = vel["TimeUS"].astype(float)
@@ -391,7 +399,8 @@ def _reference(msgs, fixes, kind, min_status, offset_us, path):
         q = attitude_at(t, att["TimeUS"].astype(float), attitude.as_wxyz(
             attitude.from_euler(np.radians(att["Yaw"]), np.radians(att["Pitch"]),
                                 np.radians(att["Roll"]))))
-    meta = {"source": "autopilot estimate (ArduPilot EKF3: POS, XKF1 core 0, ATT)",
+    meta = {"source": f"autopilot estimate (ArduPilot: POS and ATT of the active EKF, "
+                      f"velocity from {EKF_VELOCITY[name]}'s {name} core 0)",
             "independent": "no: the autopilot fuses this IMU"}
     return dict(ns=(t + offset_us) * 1000, lat=np.radians(pos["Lat"]), lon=np.radians(pos["Lng"]),
                 h=pos["Alt"].astype(float), v_ned=v, q_nb=q), meta

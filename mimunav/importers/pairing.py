@@ -32,7 +32,6 @@ from .series import window_means
 
 SMALL_TURN_DEG = 3.0        # deg: within this its mounting_misalignment term carries a turn
 SPAN_SHARE = 0.05           # second singular value over the first: two directions seen
-FREE = ("free", "gyros")    # how a turn is measured free of either IMU's biases
 ARM_ROUNDS = 3              # a lever arm not given, fitted in turn with the mounting's turn
 TURN_BLOCKS = 20            # blocks of the seconds a measured turn's error is jackknifed over
 #                             (longer than the motion stays correlated on a drive or a flight)
@@ -112,10 +111,6 @@ def _turn_said(angle, how, rpy, hint, se=math.inf):
             + "from the mounting given (1 s mean rates and specific forces in the "
             "vehicle frame" + (", about their own means: no bias of either IMU in it"
                                if how == "free" else
-                               ", the rates about their own means: the gyros alone, the "
-                               "accelerometers' own turn more than "
-                               f"{TRIADS_AGREE_DEG:g} deg from theirs (a lever arm not given, "
-                               "or forces no turn holds)" if how == "gyros" else
                                f"; the IMU's own gyros and accelerometers turn onto the "
                                f"reference's more than {TRIADS_AGREE_DEG:g} deg apart: both "
                                "together" if how == "triads differ" else "") + ")" + (
@@ -175,7 +170,7 @@ def _pair_mountings(rec, clock_se):
             "vehicle): the yaw given is taken for it - check it")
         return
     timing = _clock_turn_deg(means[0][0][ok], clock_se)
-    if angle <= SMALL_TURN_DEG and (how not in FREE or
+    if angle <= SMALL_TURN_DEG and (how != "free" or
                                     not angle > DISTINCT_Z * max(timing, se)):
         rec.real["reference_imu_mounting"] = (
             f"measured {said}: kept (the diagnosis fits a turn this small; "
@@ -230,7 +225,7 @@ def _why_kept(how, angle, bias_alike, clock, se):
     if how == "triads differ":
         return ("the IMU's gyros and accelerometers turn onto the reference's by more than "
                 f"{TRIADS_AGREE_DEG:g} deg apart: its own triads differ")
-    if how not in FREE:
+    if how != "free":
         return (f"its tilt may be an accelerometer bias difference across gravity: "
                 f"{bias_alike} reads as {angle:.1f} deg")
     if se >= timing:
@@ -295,15 +290,13 @@ def _runs_against(sensor, mine, theirs, when, columns, names=None):
 def _measured_turn(rec, means, ok):
     """(the turn of the reference's vehicle-frame vectors onto the IMU's, its angle in deg,
     how it was decided, why the two triads' own turns lie too far apart for any mounting
-    (`_triads_apart`) or '', its standard error (deg, `_turn_se_deg`; inf but FREE); how:
+    (`_triads_apart`) or '', its standard error (deg, `_turn_se_deg`; inf but "free"); how:
     "free" - by the 1 s means about their own means, where
     no bias of either IMU enters (a constant difference), each kind scaled to unit rms;
-    "gyros" - so, the gyros' own turn where the triads' own turns lie apart and the gyros
-    hold theirs to a DISTINCT_Z-th of TRIADS_AGREE_DEG (a rigid body turns at one rate
-    everywhere, while the accelerometers feel a lever arm not given - a motorcycle's 40 cm
-    had pulled an exact mounting 0.3 deg, charged to the unit as a cross-coupling of its
-    gyros - and forces the turn cannot hold: a rotor's vibration rectified);
-    "triads differ" - so, but the gyros do not decide (the turn of both); "with gravity"
+    "triads differ" - so, but the triads' own turns lie apart beyond their errors (the
+    turn of both, kept for the diagnosis: which triad is the unit's is not told by the data
+    - an independent review: gyros turned 1 deg against their own accelerometers had turned
+    an exact mounting 1 deg when the gyros' turn was taken); "with gravity"
     - the rates about their means beside the specific forces as recorded, gravity among
     them (an accelerometer bias difference across it then reads as tilt); "" - only one
     direction seen: the smallest turn of the mean specific force onto the IMU's, the yaw
@@ -334,11 +327,8 @@ def _measured_turn(rec, means, ok):
         if turn is not None:
             if any(e is not None and math.degrees((e.inv() * turn).magnitude())
                    > max(TRIADS_AGREE_DEG, DISTINCT_Z * se) for e, se in each):
-                apart, (gyros, se) = _triads_apart(each, kinds), each[0]
-                if not apart and rms_w >= TURNING_RATE and gyros is not None and \
-                        DISTINCT_Z * se < TRIADS_AGREE_DEG:
-                    return gyros, math.degrees(gyros.magnitude()), "gyros", "", se
-                return turn, math.degrees(turn.magnitude()), "triads differ", apart, math.inf
+                return turn, math.degrees(turn.magnitude()), "triads differ", \
+                    _triads_apart(each, kinds), math.inf
             return turn, math.degrees(turn.magnitude()), "free", "", _turn_se_deg(kinds, turn)
     mine = np.vstack([centred[0] * (G0 / rms_w), f_mine]) if rms_w >= TURNING_RATE else f_mine
     theirs = np.vstack([centred[1] * (G0 / rms_w), f_ref]) if rms_w >= TURNING_RATE else f_ref
@@ -421,7 +411,7 @@ def _fit_arm(rec, means, ok, mids):
     """Where no lever arm between the two IMUs is given and the motion moves them both,
     the arm r (m, vehicle frame) that, with the turn, fits the IMU's 1 s mean specific
     forces about their means (least squares, alternating with `_measured_turn` ARM_ROUNDS
-    times): where it stands beyond DISTINCT_Z of its error (chi-square over its three axes),
+    times): where its size stands beyond DISTINCT_Z of its error along it (`_arm_cov`),
     its force replaces the lever force of the means (`means[0][2]`) and is said in
     rec.real["reference_imu_lever_arm"] - the turn is fitted free of it (a motorcycle's 40
     cm, not given, had pulled an exact mounting 0.3 deg, charged to the unit as a
@@ -441,17 +431,33 @@ def _fit_arm(rec, means, ok, mids):
         arm, *_ = np.linalg.lstsq(design, (gap - gap.mean(axis=0)).ravel(), rcond=None)
         means[0][2] = np.einsum("mij,j->mi", np.stack(
             [_lever_force(rec, mids, r) for r in np.eye(3)], axis=2), arm)
-    misfit = (gap - gap.mean(axis=0)).ravel() - design @ arm
-    cov = np.linalg.inv(design.T @ design) * float(misfit @ misfit) / max(len(misfit) - 6, 1)
-    if not float(arm @ np.linalg.solve(cov, arm)) > DISTINCT_Z ** 2:
-        means[0][2] = given
+    cov = _arm_cov(design, (gap - gap.mean(axis=0)).ravel())
+    size = float(np.linalg.norm(arm))
+    along = arm / max(size, 1e-12)          # its error along itself: a 20-block jackknife's
+    if not size > DISTINCT_Z * math.sqrt(float(along @ cov @ along)):   # full chi-square
+        means[0][2] = given                 # had taken a light aircraft's 0.24 +- 0.2 m
         return
     rec.real["reference_imu_lever_arm"] = (
         f"none given; the IMU's 1 s mean specific forces fit one of "
         f"[{', '.join(f'{x:+.3f}' for x in arm)}] m (vehicle frame, from the reference IMU; "
-        f"standard errors {', '.join(f'{x:.2g}' for x in np.sqrt(np.diag(cov)))}), its force "
-        "taken out of the mounting's measurement - the diagnosis fits it (lever_arm); give "
-        "it if it is known (a table spec's lever_arm_m, ros2's --reference-imu-lever-arm-m)")
+        f"jackknifed standard errors {', '.join(f'{x:.2g}' for x in np.sqrt(np.diag(cov)))}, "
+        "which leave out the model's own errors - a motorcycle's read 2.6 cm off at 0.5 mm): "
+        "a first reading, its force only kept out of the mounting's measurement - the "
+        "diagnosis measures the arm (lever_arm); give it if it is known (a table spec's "
+        "lever_arm_m, ros2's --reference-imu-lever-arm-m)")
+
+
+def _arm_cov(design, gap):
+    """(3, 3) m^2: the covariance of the least-squares arm of `gap` (3 M,) on `design` (3 M,
+    3; rows the seconds' three axes), jackknifed over TURN_BLOCKS consecutive blocks of the
+    seconds (the 1 s means' misfit is correlated over seconds: its white formula had given
+    a motorcycle's arm 0.5 mm where it lay 26 mm off)."""
+    n = len(gap) // 3
+    block = np.repeat(np.minimum(np.arange(n) * TURN_BLOCKS // n, TURN_BLOCKS - 1), 3)
+    parts = np.array([np.linalg.lstsq(design[block != b], gap[block != b], rcond=None)[0]
+                      for b in range(TURN_BLOCKS)])
+    centred = parts - parts.mean(axis=0)
+    return (TURN_BLOCKS - 1) / TURN_BLOCKS * centred.T @ centred + 1e-12 * np.eye(3)
 
 
 def _lever_force(rec, mids, r=None, half=0.5):

@@ -95,6 +95,10 @@ def read(path, imu_topic=None, fix_topic=None, mounting=None, reference_status=N
         assumed["reference_frame"] = frame.description
     if reference is not None:
         real["reference"] = f"{len(reference['ns'])} epochs: {reference_meta['source']}"
+    elif fixes is not None:     # said: a tractor's RTK fixes had been left out without a word
+        real["reference"] = (f"none: the {len(fixes['ns'])} fixes of {fix_topic} are kept as "
+                             "GNSS fixes, not taken as the reference trajectory "
+                             "(--reference-status 2 takes the RTK-grade ones)")
     second = None
     if reference_imu_topic is not None:
         topic = _pick(path, available, IMU, reference_imu_topic, required=True)

@@ -153,6 +153,8 @@ def summary(rec, align, path):
                      f"gaps (longest {t[k + 1] - t[k]:.3g} s at t = {t[k]:.3f} s)"
                      + (f"; {rec.real['imu_time']}" if "misses" in rec.real.get("imu_time", "")
                         else ""))
+    if "reference" in rec.real:
+        lines.append(f"reference: {rec.real['reference']}")
     if "clipped" in rec.real:
         lines.append(f"clipped: {rec.real['clipped']}")
     if "mounting_yaw_against_course" in rec.real:

@@ -183,7 +183,8 @@ def _agreement_lines(check):
     judged = "judged where the predicted means spread beyond the noise"
     return ["## Does the reference IMU predict the MIMU?", "",
             f"Correlation of the recorded and predicted {check['bin_s']:g} s means ({judged}); "
-            f"the mean specific forces are {check['gravity_angle_deg']:.2f} deg apart.", "",
+            f"the mean specific forces are {check['gravity_angle_deg']:.2f} deg apart"
+            + (f" ({check['gravity_note']})." if check.get("gravity_note") else "."), "",
             "| channel | " + " | ".join(chans) + " |", "|" + "---|" * (len(chans) + 1),
             "| correlation | " + " | ".join("n/a" if v["correlation"] is None else
                                            f"{v['correlation']:.3f}" for v in chans.values())

@@ -44,6 +44,10 @@ def earth_rate_left(rest, length):
     return G0 * left * length ** 3 / 6
 
 
+TILT_SAID_DEG = 0.1      # deg: the reference tilt error the floor's note sizes (a tactical
+#                          INS holds 0.01-0.05, an autopilot's filter 0.1-1)
+
+
 def markdown_table(doc, label=None):
     head = "| variant | " if label else "| "
     lines = [head + "window s | windows (disjoint) | horizontal error p50 / p68 / p95 / max, m "
@@ -63,6 +67,12 @@ def markdown_table(doc, label=None):
             notes.append(f"of it {floor['alignment_tilt_m']:.3g} m from the window's alignment "
                          f"on the reference's velocity over +-{floor['alignment_half_s']:g} s "
                          "(its tilt, grown as length^2 / 2)")
+        if floor.get("horizontal_m") is not None and not floor.get("alignment_tilt_m"):
+            # the start's attitude is the reference's: its error is in every window, unstated
+            notes.append(f"a lower bound: the reference attitude's own error at each start "
+                         f"is not stated and not counted - {TILT_SAID_DEG:g} deg of it adds "
+                         f"{G0 * math.radians(TILT_SAID_DEG) * float(length) ** 2 / 2:.2g} m "
+                         "(g tilt length^2 / 2; an autopilot's filter can err by more)")
         if row.get("earth_rate_left_m"):
             notes.append(f"and the rest's bias keeps the Earth rate's horizontal part (no "
                          f"heading there): up to {row['earth_rate_left_m']:.3g} m of drift")

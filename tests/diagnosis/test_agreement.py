@@ -66,6 +66,37 @@ def test_a_quiet_channel_is_not_judged_and_a_turned_mounting_shows_in_gravity():
     assert len(wrong["failures"]) == 1 and "20.0 deg apart (median" in wrong["failures"][0]
 
 
+def test_an_accelerometer_bias_is_no_tilt_where_the_motion_tells_them_apart():
+    """An IMU whose accelerometers read 80, -60, 50 mg off beside an exact mounting: its mean
+    specific force lies 5.8 deg from the reference's, and had been refused as 'a mounting
+    or an axis is wrong'. About their means the two turn onto each other by nothing: said
+    as a constant difference, no failure. A true 8 deg tilt still fails, and at rest (no
+    second direction) the failure names the bias that would read the same."""
+    t = np.arange(0.0, 60.0, 0.01)
+    rng = np.random.default_rng(6)
+    predicted = _motion(t)
+    biased = predicted + [0.785, -0.588, 0.49, 0, 0, 0] + rng.normal(0, 0.02, (len(t), 6))
+    usable = np.ones(len(t), bool)
+    check = agreement(t, biased, predicted, usable, CHANNELS)
+    assert check["gravity_angle_deg"] > 5.0 and check["failures"] == []
+    assert "by 0.0" in check["gravity_note"] and "a constant 1.09 m/s^2" in check["gravity_note"]
+    # a true 4.5 deg tilt beside a -0.8 m/s^2 bias (8.8 deg apart): both said, each its own
+    # size (the tilt's gravity leak had doubled the bias, and the tilt been called no
+    # mounting - an independent review)
+    from scipy.spatial.transform import Rotation
+    turn = Rotation.from_euler("y", 4.5, degrees=True)
+    both = np.hstack([turn.apply(predicted[:, :3]) - [0.8, 0, 0], turn.apply(predicted[:, 3:])])
+    note = agreement(t, both, predicted, usable, CHANNELS)["gravity_note"]
+    assert "by 4.5" in note and "a constant 0.8 m/s^2" in note, note
+    turn = Rotation.from_euler("x", 8.0, degrees=True)
+    tilted = np.hstack([turn.apply(predicted[:, :3]), turn.apply(predicted[:, 3:])])
+    failed = agreement(t, tilted, predicted, usable, CHANNELS)["failures"]
+    assert any("deg apart" in why and "a mounting or an axis is wrong" in why for why in failed)
+    still = np.tile([0.0, 0.0, -9.81, 0.0, 0.0, 0.0], (len(t), 1))
+    resting = agreement(t, still + [0.785, -0.588, 0.49, 0, 0, 0], still, usable, CHANNELS)
+    assert "or an accelerometer bias of 0.981 m/s^2 across gravity" in resting["failures"][0]
+
+
 @pytest.fixture(scope="module")
 def recording():
     """The repeated-blocks flight with a hidden gyro g-sensitivity, the unit's true model."""

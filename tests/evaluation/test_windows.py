@@ -56,8 +56,12 @@ def test_reference_floor_of_a_window_from_the_stated_sigmas():
            "horizontal_m": {"p50": 1.0, "p68": 1.0, "p95": 1.0, "max": 1.0},
            "vertical_m": {"p50": 0.1, "p95": 0.1}}
     from mimunav.reports.windows import markdown_table
-    assert "0.707 m the stated position sigma at both ends, taken independent" in \
-        markdown_table({"summary": {"60": row}})
+    said = markdown_table({"summary": {"60": row}})
+    assert "0.707 m the stated position sigma at both ends, taken independent" in said
+    # a floor that leaves out the reference attitude's error at each start says so, sized
+    # (an autopilot's EKF: 0.022 m at 10 s read as its floor, its own part 2.3 m)
+    assert f"a lower bound: the reference attitude's own error at each start is not stated " \
+        f"and not counted - 0.1 deg of it adds {9.80665 * math.radians(0.1) * 1800:.2g} m" in said
     # an unstated velocity sigma from the track's noise (0.3 m/s per axis), said; with a
     # moving alignment over +-2 s its tilt, checked by a Monte Carlo of the alignment's
     # velocity difference: (v(t0 + 2) - v(t0 - 2)) / 4 s per axis, over 10^2 / 2 s^2

@@ -203,6 +203,18 @@ def test_a_text_log_reads_as_its_binary_and_damage_is_counted_not_printed(log, t
     assert len(damaged.imu_ns) >= len(binary.imu_ns) - 2
 
 
+@pytest.mark.slow
+def test_an_older_ekfs_velocity_message_is_the_reference_too(tmp_path):
+    """ArduPilot up to 4.0 logs EKF2's velocity as NKF1 (3.x: EKF1), in XKF1's layout: the
+    same reference, named (an older log's had been left for the GPS fixes without a word)."""
+    data, *_ = dataflash_log.flight(text=True)
+    (tmp_path / "new.log").write_bytes(data)
+    (tmp_path / "old.log").write_bytes(data.replace(b"XKF1", b"NKF1"))
+    new, old = (dataflash.read(str(tmp_path / name)) for name in ("new.log", "old.log"))
+    np.testing.assert_allclose(old.reference["v_ned"], new.reference["v_ned"])
+    assert "velocity from EKF2's NKF1 core 0" in old.reference_meta["source"]
+
+
 def test_a_second_imu_instance_is_the_reference_imu_of_mems_grade(log, tmp_path):
     """--reference-imu-instance 1: instance 1 is the reference IMU (its own samples, the
     body frame, the log's clock - the two IMUs' clocks measured equal), stated of MEMS

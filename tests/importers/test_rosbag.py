@@ -157,6 +157,9 @@ def test_every_container_gives_the_numbers_written(bags):
         assert np.array_equal(rec.fixes["covariance"], r["fix"]["covariance"]), name
         assert container in rec.real["source"] and container in rec.description
         assert rec.assumed["reference_imu_lever_arm"].startswith("none: the two IMUs")
+        # fixes not taken as the reference are said so (a tractor's had gone without a word)
+        assert rec.reference is None and rec.real["reference"].startswith(
+            f"none: the {len(r['fix_ns'])} fixes of /fix are kept as GNSS fixes")
 
 
 @pytest.mark.slow
