@@ -156,6 +156,9 @@ def finding_line(f):
     if "scale_alike" in f:
         from ..diagnosis.document import scale_alike_text
         line += "\n    " + scale_alike_text(f["scale_alike"])
+    if "band_left_out" in f:
+        from ..diagnosis.document import band_text
+        line += "\n    " + band_text(f["band_left_out"])
     if "mounting_rpy_deg" in f:
         line += ("\n    the mounting that holds it (sensor -> vehicle roll, pitch, yaw): "
                  f"--mounting-rpy-deg {' '.join(f'{a:g}' for a in f['mounting_rpy_deg'])} "

@@ -108,6 +108,15 @@ def scale_alike_text(alike):
             "zero input is this less that")
 
 
+def band_text(band):
+    """The words of a vibration rectification beside vibration below its regressor's corner
+    (`levels.beside_the_band`)."""
+    return (f"per the vibration power above {band['corner_hz']:g} Hz (its regressor's corner); "
+            f"{band['share']:.0%} of the reference's vibration lies below it (strongest at "
+            f"{band['line_hz']:.3g} Hz): what rectifies there reads into this coefficient, so "
+            "a coefficient per the whole vibration is smaller by up to that share")
+
+
 def stated_errors(w):
     """(words, key of their 1 sigma) of the stated errors a set-aside term was tested
     against (`selection._within`'s keys)."""

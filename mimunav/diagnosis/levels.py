@@ -16,7 +16,9 @@ from ..compensation.calibration_file import Calibration
 from ..errors import InputError
 from ..evaluation.flight import Flight, no_reference, refuse_gaps
 from . import navigation, sensor, track, vehicle_kind
+from ..compensation.effects import VIBRATION_CUTOFF_HZ
 from ..motion.carrier import ALONG_COURSE
+from .design import MOTION_HZ
 from ..sensors.mimu import G0
 
 LEVELS = ("sensor", "navigation", "track")
@@ -94,6 +96,7 @@ def diagnose(flight, cal, level, alpha=0.05, seed=0, accuracy=None, noise=None, 
     if level == "sensor":
         diag = sensor.diagnose(flight, cal, alpha=alpha, accuracy=accuracy, noise=noise)
         set_aside_aliased(diag, flight)
+        beside_the_band(diag.findings, flight)
         beside_the_imports_biases(diag.findings, flight, cal)
         beside_the_scales(diag.findings, diag.design.inputs)
         return diag
@@ -216,6 +219,35 @@ def beside_the_imports_biases(findings, flight, cal):
 
 SCALED_INPUT = 0.5 * G0     # m/s^2: an accelerometer whose mean input is beyond it reads
 #                             a scale error k as a bias of k times that mean
+
+
+def beside_the_band(findings, flight):
+    """Give each vibration rectification found `band_left_out` where the reference IMU's
+    vibration (its specific force's power above design.MOTION_HZ, Welch over 10 s, summed
+    over its axes) lies below the regressor's corner (`effects.VIBRATION_CUTOFF_HZ`) by more
+    than BAND_SHARE: its coefficient is per the power above the corner, and what rectifies
+    below it reads into it (a helicopter's 6.6 Hz once-per-rev: 0.0096 per the power above
+    10 Hz where its rectification of the whole vibration was 0.008)."""
+    vre = [f for f in findings if f["effect"] == "vibration_rectification"]
+    if not vre or flight.fog_f is None or len(flight.fog_t) < 64:
+        return
+    from scipy.signal import welch
+    rate = 1.0 / float(np.median(np.diff(flight.fog_t)))
+    hz, power = welch(flight.fog_f - flight.fog_f.mean(axis=0), fs=rate,
+                      nperseg=min(int(10 * rate), len(flight.fog_t)), axis=0)
+    power = power.sum(axis=1)
+    vibration = hz > MOTION_HZ
+    below = vibration & (hz < VIBRATION_CUTOFF_HZ)
+    share = float(power[below].sum() / max(power[vibration].sum(), 1e-300))
+    if share <= BAND_SHARE:
+        return
+    line = float(hz[below][np.argmax(power[below])])
+    for f in vre:
+        f["band_left_out"] = {"share": share, "corner_hz": VIBRATION_CUTOFF_HZ, "line_hz": line}
+
+
+BAND_SHARE = 0.2    # of the vibration's power below the regressor's corner: a fifth of it
+#                     rectifying unseen moves the coefficient by up to a fifth
 
 
 def beside_the_scales(findings, inputs):

@@ -18,7 +18,7 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 
 from ..files import atomic_folder
-from ..diagnosis.document import (charge_text, clock_words, dumps, scale_alike_text,
+from ..diagnosis.document import (band_text, charge_text, clock_words, dumps, scale_alike_text,
                                   stated_errors, stated_sigma)
 from ..diagnosis.design import term_contribution
 from ..diagnosis import library
@@ -269,6 +269,8 @@ def _finding_lines(doc):
                           for f in noisy) + " (diagnosis.json: `errors_in_variables`)."]
         lines += [f"\n{f['label']}: {scale_alike_text(f['scale_alike'])}."
                   for f in doc["findings"] if "scale_alike" in f]
+        lines += [f"\n{f['label']}: {band_text(f['band_left_out'])}."
+                  for f in doc["findings"] if "band_left_out" in f]
         lines += [f"\n{f['label']}: the import measured {f['import_measured']['value']:.4g} "
                   f"{f['import_measured']['units']} - {f['import_measured']['basis']}."
                   for f in doc["findings"] if "import_measured" in f]
