@@ -418,8 +418,8 @@ def _fit_arm(rec, means, ok, mids):
     cross-coupling of its gyros). The diagnosis fits the arm itself (`lever_arm`)."""
     if np.any(rec.mounting.lever_arm_m - rec.reference_imu["mounting"].lever_arm_m):
         return
-    columns = np.stack([_lever_force(rec, mids, r)[ok] for r in np.eye(3)], axis=2)
-    design = (columns - columns.mean(axis=0)).reshape(-1, 3)
+    unit = np.stack([_lever_force(rec, mids, r) for r in np.eye(3)], axis=2)  # (M, 3, 3)
+    design = (unit[ok] - unit[ok].mean(axis=0)).reshape(-1, 3)
     mine, theirs = (attitude.rotate(q, x[ok]) for q, x in (
         (rec.mounting.q_vs, means[0][1]), (rec.reference_imu["mounting"].q_vs, means[1][1])))
     if np.linalg.matrix_rank(design) < 3:
@@ -429,8 +429,7 @@ def _fit_arm(rec, means, ok, mids):
         turn = _measured_turn(rec, means, ok)[0]
         gap = mine - turn.apply(theirs)
         arm, *_ = np.linalg.lstsq(design, (gap - gap.mean(axis=0)).ravel(), rcond=None)
-        means[0][2] = np.einsum("mij,j->mi", np.stack(
-            [_lever_force(rec, mids, r) for r in np.eye(3)], axis=2), arm)
+        means[0][2] = np.einsum("mij,j->mi", unit, arm)
     cov = _arm_cov(design, (gap - gap.mean(axis=0)).ravel())
     size = float(np.linalg.norm(arm))
     along = arm / max(size, 1e-12)          # its error along itself: a 20-block jackknife's

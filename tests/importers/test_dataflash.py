@@ -23,6 +23,12 @@ def log(tmp_path_factory):
     return path, run, t, unix_t0
 
 
+@pytest.fixture(scope="module")
+def text_log():
+    """The fixture's flight as a ground station writes it: the text `.log` (bytes)."""
+    return dataflash_log.flight(text=True)[0]
+
+
 @pytest.mark.slow
 def test_time_axes_units_and_the_autopilot_reference(log):
     path, run, t, unix_t0 = log
@@ -175,16 +181,15 @@ def test_a_2014_log_stamped_in_ms_with_its_old_gps_message(tmp_path):
 
 
 @pytest.mark.slow
-def test_a_text_log_reads_as_its_binary_and_damage_is_counted_not_printed(log, tmp_path,
-                                                                         capsys):
+def test_a_text_log_reads_as_its_binary_and_damage_is_counted_not_printed(log, text_log,
+                                                                         tmp_path, capsys):
     """The text form of the same flight (`.log`, as a ground station writes it: values to 7
     digits) gives the binary's recording; bytes pymavlink cannot read in a binary log are
     said once in the metadata, not printed byte by byte."""
     path = log[0]
     binary = dataflash.read(str(path))
-    data, *_ = dataflash_log.flight(text=True)
     text_path = tmp_path / "flight.log"
-    text_path.write_bytes(data)
+    text_path.write_bytes(text_log)
     text = dataflash.read(str(text_path))
     assert np.array_equal(text.imu_ns, binary.imu_ns)
     np.testing.assert_allclose(text.w, binary.w, rtol=1e-6, atol=1e-9)
@@ -204,12 +209,11 @@ def test_a_text_log_reads_as_its_binary_and_damage_is_counted_not_printed(log, t
 
 
 @pytest.mark.slow
-def test_an_older_ekfs_velocity_message_is_the_reference_too(tmp_path):
+def test_an_older_ekfs_velocity_message_is_the_reference_too(text_log, tmp_path):
     """ArduPilot up to 4.0 logs EKF2's velocity as NKF1 (3.x: EKF1), in XKF1's layout: the
     same reference, named (an older log's had been left for the GPS fixes without a word)."""
-    data, *_ = dataflash_log.flight(text=True)
-    (tmp_path / "new.log").write_bytes(data)
-    (tmp_path / "old.log").write_bytes(data.replace(b"XKF1", b"NKF1"))
+    (tmp_path / "new.log").write_bytes(text_log)
+    (tmp_path / "old.log").write_bytes(text_log.replace(b"XKF1", b"NKF1"))
     new, old = (dataflash.read(str(tmp_path / name)) for name in ("new.log", "old.log"))
     np.testing.assert_allclose(old.reference["v_ned"], new.reference["v_ned"])
     assert "velocity from EKF2's NKF1 core 0" in old.reference_meta["source"]
