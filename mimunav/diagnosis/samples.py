@@ -88,7 +88,7 @@ def _streamed_stage(flight, cal, spill, inside):
     stuck, a = 0, 0
     with FlightLog(flight.path) as log, closing(spill), \
             tqdm(total=len(t), desc="diagnose: samples", unit="sample", unit_scale=True,
-                 leave=False) as bar:
+                 leave=False, disable=None) as bar:     # a terminal's only (not a log's)
         _reference(log, flight, spill)
         for raw, f, w, block_flags in compensated_blocks(log, cal, flight.stream_block):
             b = a + len(raw)
@@ -200,7 +200,7 @@ def binned(samples, usable, bins, terms, block=None, scratch=False):
               [effects.HYSTERESIS_SLOPE_WINDOW_S / 2]) + NEAR_HALO_S
     out = twins = None
     for a in tqdm(range(start, start + n, step), desc="diagnose: bins", unit="block",
-                  disable=block is None, leave=False):
+                  disable=True if block is None else None, leave=False):
         piece = _block_bins(samples, usable, a, min(a + step, start + n), m, terms, far)
         if out is None:
             out, twins = _allocated(piece, n // m, scratch)

@@ -192,7 +192,7 @@ def run_all(flight, cal=None, lengths=WINDOW_LENGTHS_S, step=START_STEP_S, time_
             half or alignment.MOVING_HALF_WINDOW_S))
     if progress:
         from tqdm import tqdm
-        todo = tqdm(todo, desc="windows", unit="window")
+        todo = tqdm(todo, desc="windows", unit="window", disable=None)   # a terminal's only
     for length, t0 in todo:
         out.setdefault(length, []).append(run(flight, t0, length, w, f, t,
                                               half or alignment.MOVING_HALF_WINDOW_S))
