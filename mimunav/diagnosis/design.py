@@ -199,11 +199,12 @@ def vibration_share(t_reference, f_reference, bin_s):
     above MOTION_HZ - its vibration, each line through the bin mean's sinc - over its
     variance below it (the motion), from its Welch spectrum (10 s segments); 0 without
     motion or samples enough."""
-    return _share(_spectrum(t_reference, f_reference), bin_s)
+    return _share(reference_spectrum(t_reference, f_reference), bin_s)
 
 
-def _spectrum(t_reference, f_reference):
-    """(frequencies Hz, the three axes' summed Welch power) of `vibration_share`, or None."""
+def reference_spectrum(t_reference, f_reference):
+    """(frequencies Hz, the three axes' summed Welch power, 10 s segments) of a reference's
+    specific force f_reference (m/s^2, (N, 3)) at t_reference (s), or None (too short)."""
     from scipy.signal import welch
     rate = 1.0 / float(np.median(np.diff(t_reference)))
     n = min(int(10 * rate), len(t_reference) // 4)
@@ -235,7 +236,7 @@ def vibration_bin_s(t, t_reference, f_reference):
     selection could not choose). The spectrum once."""
     if on_reference_stamps(t, t_reference) is not None or f_reference is None:
         return FAST_BIN_S, "", ""
-    spectrum = _spectrum(t_reference, f_reference)
+    spectrum = reference_spectrum(t_reference, f_reference)
     dt = float(np.median(np.diff(t)))
     candidates = sorted(set(VIBRATION_BIN_S) | set(whole_periods(spectrum)))
     shares = {b: _share(spectrum, bins(t, t_reference, b)[0] * dt) for b in candidates}
@@ -260,7 +261,7 @@ def vibration_bin_s(t, t_reference, f_reference):
 
 def whole_periods(spectrum):
     """(s) whole numbers of periods, up to WHOLE_PERIODS_S, of the strongest line above
-    MOTION_HZ in `spectrum` (`_spectrum`; its frequency refined by a parabola through the
+    MOTION_HZ in `spectrum` (`reference_spectrum`; its frequency refined by a parabola through the
     peak and its neighbours): a bin that long holds whole cycles of the line and of its
     harmonics - a rotor's or an engine's lines - and its mean cancels them (a helicopter's
     6.6 Hz once-per-rev kept 0.57 of its motion's variance in 0.2 s bins, 1.3 cycles, and

@@ -18,7 +18,7 @@ from ..evaluation.flight import Flight, no_reference, refuse_gaps
 from . import navigation, sensor, track, vehicle_kind
 from ..compensation.effects import VIBRATION_CUTOFF_HZ
 from ..motion.carrier import ALONG_COURSE
-from .design import MOTION_HZ
+from .design import MOTION_HZ, reference_spectrum
 from ..sensors.mimu import G0
 
 LEVELS = ("sensor", "navigation", "track")
@@ -223,19 +223,18 @@ SCALED_INPUT = 0.5 * G0     # m/s^2: an accelerometer whose mean input is beyond
 
 def beside_the_band(findings, flight):
     """Give each vibration rectification found `band_left_out` where the reference IMU's
-    vibration (its specific force's power above design.MOTION_HZ, Welch over 10 s, summed
-    over its axes) lies below the regressor's corner (`effects.VIBRATION_CUTOFF_HZ`) by more
+    vibration (its specific force's power above design.MOTION_HZ,
+    `design.reference_spectrum`) lies below the regressor's corner (`effects.VIBRATION_CUTOFF_HZ`) by more
     than BAND_SHARE: its coefficient is per the power above the corner, and what rectifies
     below it reads into it (a helicopter's 6.6 Hz once-per-rev: 0.0096 per the power above
     10 Hz where its rectification of the whole vibration was 0.008)."""
     vre = [f for f in findings if f["effect"] == "vibration_rectification"]
     if not vre or flight.fog_f is None or len(flight.fog_t) < 64:
         return
-    from scipy.signal import welch
-    rate = 1.0 / float(np.median(np.diff(flight.fog_t)))
-    hz, power = welch(flight.fog_f - flight.fog_f.mean(axis=0), fs=rate,
-                      nperseg=min(int(10 * rate), len(flight.fog_t)), axis=0)
-    power = power.sum(axis=1)
+    spectrum = reference_spectrum(flight.fog_t, flight.fog_f)
+    if spectrum is None:
+        return
+    hz, power = spectrum
     vibration = hz > MOTION_HZ
     below = vibration & (hz < VIBRATION_CUTOFF_HZ)
     share = float(power[below].sum() / max(power[vibration].sum(), 1e-300))

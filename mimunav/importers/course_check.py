@@ -4,7 +4,7 @@ horizontal specific force against the track's acceleration (the mounting's yaw; 
 triad). Both series are 1 s means: the IMU's over its samples, the track's over its epochs
 (a 10 Hz track's course rate, differenced epoch by epoch, is mostly noise: a tractor's
 correlated 0.16 with its yaw rate, and 2 s of clock offset had passed as "follows as
-stamped").
+stamped"; `motion.carrier.epoch_means`).
 """
 import math
 
@@ -17,7 +17,7 @@ from ..navigation.rests import (TRACK_FORCE_RATIO, acceleration_match, along_acr
                                 track_acceleration)
 from ..frames import attitude
 from .recording import RecordingError
-from ..motion.carrier import LAND, car_tests
+from ..motion.carrier import LAND, car_tests, epoch_means
 
 
 def not_a_car(rec, t_track, v_ned):
@@ -66,7 +66,7 @@ def check_against_course(rec, track):
                                      "that follows it at 0.1-10 times its size still checks "
                                      "the gyro's unit")
     t = track["t"]
-    speed, course_rate, z_track = (second_means(t, x)
+    speed, course_rate, z_track = (epoch_means(t, x[:, None], 0.5)[:, 0]   # as the IMU's
                                    for x in track_acceleration(t, track["v_ned"]))
     t_imu = (rec.imu_ns - epoch) / 1e9
     sel = (speed > alignment.COURSE_SPEED) & (t > t_imu[0] + 0.5) & (t < t_imu[-1] - 0.5) \
@@ -85,16 +85,6 @@ def check_against_course(rec, track):
     z_ref = z_track[sel]
     if np.std(z_ref) > COURSE_CHECK_ACCEL:
         _mounting_yaw(rec, f_v[:, 0] + 1j * f_v[:, 1], z_ref)
-
-
-def second_means(t, x, half=0.5):
-    """(M,) the means of x (M,), real or complex, over its epochs within +-half s of each of
-    its epochs t (s): as the IMU's 1 s means are made; NaN where one in the window is."""
-    c = np.concatenate([[0.0], np.cumsum(np.where(np.isfinite(x), x, 0.0))])
-    bad = np.concatenate([[0], np.cumsum(~np.isfinite(x))])
-    lo, hi = np.searchsorted(t, t - half), np.searchsorted(t, t + half, "right")
-    out = (c[hi] - c[lo]) / np.maximum(hi - lo, 1)
-    return np.where(bad[hi] - bad[lo] > 0, np.nan, out)
 
 
 def _mounting_yaw(rec, z_imu, z_ref):

@@ -72,7 +72,7 @@ def car_tests(t_track, v_ned, t=None, f=None, w=None, moving=True):
     specific force f (m/s^2) and rate w (rad/s) (sensor axes, (N, 3)) at its stamps t (s) -
     None: not recorded (a raw /mimu/raw), the load and the body rate not tested; `moving`
     False: MOVING_SPEED not tested (a car parked or in a jam is a car still)."""
-    v = _means(np.asarray(t_track, float), np.asarray(v_ned, float), CLIMB_WINDOW_S / 2)
+    v = epoch_means(np.asarray(t_track, float), np.asarray(v_ned, float), CLIMB_WINDOW_S / 2)
     ok = np.isfinite(v).all(axis=1)
     if not ok.any():
         return [f"its track is shorter than the {CLIMB_WINDOW_S:g} s the tests need"], []
@@ -138,7 +138,7 @@ def contradiction(vehicle, t_track, v_ned, t=None, f=None, w=None):
         failed, _ = car_tests(t_track, v_ned, t, f, w, moving=False)
         return f"its track and IMU are not a car's: {'; '.join(failed)}" if failed else ""
     failed, numbers = car_tests(t_track, v_ned, t, f, w)
-    v = _means(np.asarray(t_track, float), np.asarray(v_ned, float), CLIMB_WINDOW_S / 2)
+    v = epoch_means(np.asarray(t_track, float), np.asarray(v_ned, float), CLIMB_WINDOW_S / 2)
     v = v[np.isfinite(v).all(axis=1)]
     fastest = float(np.percentile(np.hypot(v[:, 0], v[:, 1]), 99)) if len(v) else 0.0
     if vehicle == "pedestrian" and fastest > WALKING_SPEED:
@@ -152,8 +152,9 @@ def contradiction(vehicle, t_track, v_ned, t=None, f=None, w=None):
             + (ON_THE_GROUND.get(vehicle, "")))
 
 
-def _means(t, x, half):
-    """Means of the rows of x (M, k) within +-half s of each of its epochs t (s); NaN where
+def epoch_means(t, x, half):
+    """Means of the rows of x (M, k), real or complex, within +-half s of each of its epochs
+    t (s), the finite ones; NaN where
     that window runs past the track's ends (a one-sided window over one-sided differences:
     a 1 Hz track's last epoch had 'climbed 1.7 m/s' on 2 m of height noise)."""
     c = np.vstack([np.zeros((1, x.shape[1])), np.nancumsum(x, axis=0)])
@@ -179,7 +180,7 @@ def _turn_share(t_track, v_ned, t, f):
     1 s mean specific
     force across its mean down (sensor axes: mounting-free) over the track's horizontal
     acceleration there; None with under 10 s of such turning."""
-    v = _means(t_track, v_ned, 0.5)
+    v = epoch_means(t_track, v_ned, 0.5)
     ok = np.isfinite(v).all(axis=1)
     if ok.sum() < 10:
         return None
