@@ -82,7 +82,8 @@ from .design import (Binning, CHANNELS, Design, add_clock_nuisance, detrended,
                      calibration_prior, white_per_bin)
 from .samples import binned, sample_stage, temperature_references
 from .fitting import Fitter, term_test
-from .scan import SCAN_WINDOW_S, condition_masks, condition_map, near_spans, excursions
+from .scan import (SCAN_WINDOW_S, condition_masks, condition_map, excursions,
+                   excursions_left_out, near_spans)
 from .confirmation import (Extremes, beta_of, beyond_range, beyond_range_reasons,
                            clock_doubt, clock_reading, confirmed, out_of_the_shadow,
                            outputs_judged, set_aside_reasons, position_of)
@@ -445,10 +446,16 @@ def _after_the_fit(design, residual, conds, terms, prep, alpha, cal, noise, outp
     for its readings makes the verdict inconclusive. terms: (findings, those not
     confirmed)."""
     (removed, fit_found, everything), (findings, unconfirmed) = residual, terms
-    scanned, read_twice = removed.copy(), []
-    if output_tests:
-        scanned[:, sorted(prep.quantized)] = 0.0    # a lattice's own error is no excursion
-    unexplained = excursions(design, scanned, alpha)
+    read_twice = []
+
+    def scanned(x):                 # the residual as the scan reads it
+        x = x.copy()
+        if output_tests:
+            x[:, sorted(prep.quantized)] = 0.0      # a lattice's own error is no excursion
+        return x
+    unexplained = excursions_left_out(
+        design, lambda rows: scanned(_residuals(design, Fitter(design, rows), findings)[1]),
+        alpha, excursions(design, scanned(removed), alpha))
     on_outputs = list(prep.on_outputs)
     if output_tests:
         # an excursion is no wander of the bias, and no offset: its bins (and a scan window
