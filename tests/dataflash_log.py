@@ -1,7 +1,7 @@
 """An ArduPilot DataFlash log written from a simulated flight, for the importer's tests: the
 record layout (0xA3 0x95, message id, packed fields; FMT records first) and the message
 formats of ArduPilot's libraries/AP_Logger/LogStructure.h (IMU, GPS, GPA, POS, XKF1, ATT,
-PARM),
+PARM, VIBE),
 read back by pymavlink's DFReader - not by code of this project."""
 import struct
 
@@ -26,6 +26,7 @@ FORMATS = {   # name: (id, format, columns) as in LogStructure.h (ArduPilot 4.x)
     "XKF1": (14, "QBccCfffffffccce", "TimeUS,C,Roll,Pitch,Yaw,VN,VE,VD,dPD,PN,PE,PD,GX,GY,GZ,OH"),
     "ATT": (15, "QccccCCCCB", "TimeUS,DesRoll,Roll,DesPitch,Pitch,DesYaw,Yaw,ErrRP,ErrYaw,AEKF"),
     "PARM": (16, "QNff", "TimeUS,Name,Value,Default"),
+    "VIBE": (17, "QBfffI", "TimeUS,IMU,VibeX,VibeY,VibeZ,Clip"),
 }
 LEAP_S = 18                 # GPS - UTC since 2017
 PROFILE = {"name": "copter-like", "start": {"latitude_deg": -35.36, "longitude_deg": 149.17,
@@ -83,13 +84,16 @@ class Writer:
 
 
 def flight(rate=400.0, seed=0, unix_start_s=1714550400.0, boot_s=93.25, text=False,
-           gps_lag_ms=0, lag_name="GPS_DELAY_MS"):
+           gps_lag_ms=0, lag_name="GPS_DELAY_MS", clip=None, lost=()):
     """(DataFlash bytes - binary, or with `text` the text form -, truth run, flight times t
     (s), UNIX time of t = 0) of PROFILE (the autopilot booted boot_s before t = 0):
     IMU instance 0 = interval means + white noise + a bias, instance 1 = the same at another
     noise; GPS RTK fixed with GPA, POS, XKF1, ATT at 5 Hz from the truth; gps_lag_ms: the
     GPS messages logged that long after their epochs, declared as lag_name (GPS_DELAY_MS
-    before ArduPilot 4.5, GPS1_DELAY_MS from it)."""
+    before ArduPilot 4.5, GPS1_DELAY_MS from it). clip: (t0, t1 s, m/s^2): instance 0's
+    AccZ short by that much in [t0, t1) - its sensor at range inside the logged values -, and
+    its VIBE clip count (both instances' logged at 10 Hz) up by 18 at the next record.
+    lost: [(instance, t0, t1 s)]: that instance's IMU records in [t0, t1) not written."""
     motion = Profile.from_dict(PROFILE).motion()
     t = np.arange(0.0, motion.t1 - 1e-9, 1.0 / rate)
     run = truth.generate(motion, t)
@@ -107,10 +111,19 @@ def flight(rate=400.0, seed=0, unix_start_s=1714550400.0, boot_s=93.25, text=Fal
     for inst, (sw, sf) in enumerate(((2e-3, 2e-2), (4e-3, 4e-2))):
         wn = w + rng.normal(0, sw, w.shape) + [1e-3, -2e-3, 5e-4]
         fn = f + rng.normal(0, sf, f.shape) + [0.02, -0.01, 0.03]
-        for k in range(len(boot_us)):
+        if clip is not None and inst == 0:
+            fn[(t[1:] >= clip[0]) & (t[1:] < clip[1]), 2] += clip[2]
+        written = np.ones(len(boot_us), bool)
+        for i, t0, t1 in lost:
+            written &= (i != inst) | (t[1:] < t0) | (t[1:] >= t1)
+        for k in np.flatnonzero(written):
             out.add("IMU", TimeUS=boot_us[k], I=inst, GyrX=wn[k, 0], GyrY=wn[k, 1],
                     GyrZ=wn[k, 2], AccX=fn[k, 0], AccY=fn[k, 1], AccZ=fn[k, 2],
                     T=41.0 + 0.01 * t[k + 1], GHz=rate, AHz=rate)
+    for k in range(0, len(t), int(rate / 10)) if clip is not None else ():
+        for inst in (0, 1):
+            out.add("VIBE", TimeUS=int(round((boot_s + t[k]) * 1e6)), IMU=inst, VibeX=0.5,
+                    VibeY=0.5, VibeZ=0.8, Clip=18 * (inst == 0 and t[k] >= clip[1]))
     tr = run.trajectory
     yaw, pitch, roll = attitude.as_euler(tr.q_nb)
     for k in range(0, len(t), int(rate / 5)):

@@ -86,11 +86,8 @@ def _diagnosed(args, painter):
         print(f"  time lag from the yaw rate not estimated: {lag['not_estimated']}")
     for line in unexplained_lines(doc["unexplained"]):
         print(line)
-    shocks = doc.get("transfer_shocks_left_out", [])
-    if shocks:
-        print(f"  left out of the fit: {len(shocks)} span(s) where the lever-arm transfer misses "
-              "a shock (" + ", ".join(f"{u['t0']:.1f}-{u['t1']:.1f} s" for u in shocks[:5])
-              + (", ..." if len(shocks) > 5 else "") + ")")
+    for line in left_out_lines(doc):
+        print(line)
     for u in doc.get("reference_check", {}).get("excursions_not_predicted", []):
         print(f"  on a channel the reference does not predict (says nothing of the IMU): "
               f"{excursion_text(u)}")
@@ -107,6 +104,19 @@ def _diagnosed(args, painter):
 
 
 SHOWN_EXCURSIONS = 10      # the terminal's; the JSON and the report hold them all
+LEFT_OUT = (("transfer_shocks_left_out", "the lever-arm transfer misses a shock"),
+            ("clips_counted_left_out", "the IMU's own clip counter rose"),
+            ("gaps_left_out", "an IMU misses samples (either IMU's stamps step over a gap)"))
+
+
+def left_out_lines(doc):
+    """The terminal's lines of the spans the fit left out, and why (LEFT_OUT)."""
+    for key, where in LEFT_OUT:
+        spans = doc.get(key, [])
+        if spans:
+            yield (f"  left out of the fit: {len(spans)} span(s) where {where} ("
+                   + ", ".join(f"{u['t0']:.1f}-{u['t1']:.1f} s" for u in spans[:5])
+                   + (", ..." if len(spans) > 5 else "") + ")")
 
 
 def unexplained_lines(unexplained):

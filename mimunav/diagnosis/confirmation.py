@@ -444,7 +444,7 @@ def clock_reading(fitter, given):
 
 def out_of_the_shadow(findings, shadow):
     """(kept, set aside) of `findings` where the lever-arm transfer misses the reference's
-    angular vibration (`shadow`: `sensor.transfer_doubt`'s words; '' where it does not):
+    angular vibration (`shadow`: `reference.transfer_doubt`'s words; '' where it does not):
     each finding on the accelerometers (an accelerometer's or the unit's) is set aside with
     them - a quadrotor's rotor lines across a 4.7 cm lever arm had named an accel.z scale of
     -0.012 where +0.003 was hidden, and on its null twin a time skew of the accelerometers

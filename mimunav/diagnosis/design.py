@@ -68,6 +68,10 @@ class Design:
                                 # `spill.ScratchMatrix`; each candidate's `columns` read them
     shocks: list = field(default_factory=list)  # spans of the samples left out where the
                                 # lever-arm transfer misses a shock (`reference.transfer_shocks`)
+    clips_counted: list = field(default_factory=list)  # spans of the samples left out
+                                # where the IMU counted clips of its own (`outputs.counted_clips`)
+    gaps: list = field(default_factory=list)    # spans of the samples left out beside a gap
+                                # of either IMU's stamps (`reference.across_gaps`)
     q_vs: np.ndarray = field(default_factory=lambda: np.array([1.0, 0, 0, 0]))   # MIMU
                                 # sensor -> vehicle (w, x, y, z): a lever arm is reported in
                                 # the vehicle frame of the metadata's lever_arm_m

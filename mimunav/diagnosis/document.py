@@ -31,8 +31,10 @@ def document(log_path, diag, alpha=0.05):
         if getattr(diag, "bias_null", None):
             doc["bias_null"] = json_ready(diag.bias_null)
         doc["within_reference_accuracy"] = json_ready(diag.within_reference)
-    if getattr(diag, "design", None) is not None and diag.design.shocks:
-        doc["transfer_shocks_left_out"] = json_ready(diag.design.shocks)
+    for key, spans in (("transfer_shocks_left_out", "shocks"),
+                       ("clips_counted_left_out", "clips_counted"), ("gaps_left_out", "gaps")):
+        if getattr(getattr(diag, "design", None), spans, None):
+            doc[key] = json_ready(getattr(diag.design, spans))
     if getattr(diag, "reference_check", None):
         doc["reference_check"] = json_ready(diag.reference_check)
     if getattr(getattr(diag, "design", None), "bins_why", ""):

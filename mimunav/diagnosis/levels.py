@@ -57,8 +57,8 @@ def _has_attitude(flight):
 def load(log_path, model_path=None, level="auto", vehicle=None, stream=False):
     """(flight, calibration, level, why) of the log at `log_path` for the diagnosis: the
     calibration file at `model_path` (required for a raw /mimu/raw; the identity for a
-    recorded /mimu/imu without one) and the level (`choose`). Gaps are refused unless the
-    track level takes the log: it leaves their surroundings out (`track_reference.near_gaps`)
+    recorded /mimu/imu without one) and the level (`choose`). Gaps are refused at the
+    navigation level only: the sensor and track levels leave their surroundings out
     instead of navigating across them. The track level is refused for a vehicle that is
     not a car. stream: a long flight diagnosed at the sensor level is read from its log block
     by block (`Flight.load(stream=True)`, `sensor.diagnose`) instead of held."""
@@ -77,8 +77,9 @@ def load(log_path, model_path=None, level="auto", vehicle=None, stream=False):
             raise InputError(f"{log_path}: --level track models a car (no side slip, roll 0); "
                              f"this recording is not one ({how}): --level navigation, or "
                              "--vehicle car if it is a car")
-    if level != "track":
-        refuse_gaps(flight)
+    if level == "navigation":   # the sensor level leaves the samples beside a gap out
+        refuse_gaps(flight)     # (`reference.across_gaps`), the track level their
+                                # surroundings (`track_reference.near_gaps`)
     if level in ("navigation", "track") and flight.truth is None:
         raise no_reference(log_path, f"the {level} level" + (
             ": --level sensor diagnoses it against its reference IMU (/fog/imu)"

@@ -563,3 +563,15 @@ def spans(t, rows, condition, gap_s=2.0, max_spans=20):
     starts, ends = np.r_[idx[0], idx[breaks + 1]], np.r_[idx[breaks], idx[-1]]
     return [{"t0": float(t[a]), "t1": float(t[b]), "condition": condition}
             for a, b in list(zip(starts, ends))[:max_spans]]
+
+
+def counted_clips(t, recording):
+    """(N,) bool: the samples at times t (s) inside a span where the recording's IMU - or
+    its reference IMU - counted clipped samples of its own (the `recording` metadata's
+    clip_spans_s, `importers.clip_counts`): short of the motion without being flat or at a
+    range, so no test here finds them."""
+    out = np.zeros(len(t), bool)
+    for t0, t1, _ in (recording or {}).get("clip_spans_s") or []:
+        out |= (t >= t0) & (t <= t1)
+    return out
+

@@ -15,6 +15,7 @@ import quaternion
 from ..frames import attitude
 from ..frames.mounting import runs_against
 from ..compensation.effects import derivative
+from .design import CHANNELS, white_per_bin
 from .outputs import noise_sigma_of
 from ..errors import InputError
 from ..evaluation.replay import resample
@@ -61,6 +62,24 @@ def inside_reference(flight):
     if inside.sum() < 2:
         raise InputError(f"{flight.path}: the reference IMU does not cover the MIMU's samples")
     return inside
+
+
+def across_gaps(t, fog_t):
+    """(N,) bool over the MIMU's stamps t (s): the samples whose interval (t[k-1], t[k]] comes
+    within DERIVATIVE_WINDOW_S of a gap of either IMU - a step of its stamps (s) longer than
+    DERIVATIVE_WINDOW_S and three of its median steps. Across a gap the reference's interval
+    mean is its one sample after it and its derivative spans both sides: a reference IMU
+    silent for 60 s had been bridged, and the flight's turns read as excursions of z 1400
+    (the sensor level leaves these samples out; it navigates nothing across a gap)."""
+    t, out = np.asarray(t, float), np.zeros(len(t), bool)
+    before = np.concatenate([[t[0]], t[:-1]])
+    for s in (t, np.asarray(fog_t, float)):
+        step = np.diff(s)
+        if len(step) < 2:
+            continue
+        for k in np.flatnonzero(step > max(DERIVATIVE_WINDOW_S, 3.0 * np.median(step))):
+            out |= (t > s[k] - DERIVATIVE_WINDOW_S) & (before < s[k + 1] + DERIVATIVE_WINDOW_S)
+    return out
 
 
 def counted_outputs(flight, fog_t, x):
@@ -428,3 +447,33 @@ def free_turn(mine, theirs):
     if not singular[1] >= 0.1 * singular[0]:
         return None
     return Rotation.align_vectors(a, b)[0]
+
+
+def transfer_doubt(flight, design, findings):
+    """Why the accelerometers' findings cannot stand where the lever-arm transfer misses
+    the reference's angular vibration (`reference.unfollowed_vibration`) by more than
+    TRANSFER_SHARE of their white residual variance per bin, or '' (a recording's only).
+    The lever arm: the mountings' and a found one's (vehicle frame; its columns are the
+    transfer's - a hexacopter's undeclared 12 cm, found, missed its 52 Hz rotor lines by
+    0.026 m/s^2 a bin, and the null twin's verdict named an accel.z scale of -0.027 and a
+    coupling of -0.014 as missing physics, truth +0.004 and -0.002)."""
+    dr = flight.mimu_mounting.lever_arm_m - flight.fog_mounting.lever_arm_m + sum(
+        (np.asarray(f["vector"], float) for f in findings if f["effect"] == "lever_arm"),
+        np.zeros(3))
+    if flight.fog_w is None or flight.source != "recording":
+        # a simulated FOG's pulse count rings at tones no IMU beside it feels (a repeated-
+        # blocks flight: 341 Hz, 40 times the share), which its spectrum cannot tell from
+        # motion; a recording's reference is taken as moving where it has lines
+        return ""
+    missed = unfollowed_vibration(flight.fog_t, flight.fog_w, dr, design.bin_s,
+                                  1.0 / float(np.median(np.diff(flight.mimu_t))))
+    white = max(float(v) for v, (sensor, _) in zip(white_per_bin(design.residual), CHANNELS)
+                if sensor == "accel")
+    if missed is None or not missed[0] ** 2 > TRANSFER_SHARE * white:
+        return ""
+    return (f"the lever-arm transfer cannot follow the reference's angular vibration at "
+            f"{missed[1]:.0f} Hz (its derivative is smoothed over {TRANSFER_WINDOW_S:g} s): "
+            f"across the {np.linalg.norm(dr) * 100:.3g} cm between the two IMUs it leaves "
+            f"about {missed[0]:.2g} m/s^2 per bin out of the prediction, "
+            f"{missed[0] ** 2 / white:.2g} of the accelerometers' white residual variance "
+            f"(at most {TRANSFER_SHARE:g}) - terms on the accelerometers may be its shadow")

@@ -72,14 +72,13 @@ from ..compensation.effects import AXES
 from ..frames import attitude
 from . import errors_in_variables, library, outputs, track_reference, wander
 from ..sensors.accuracy import accuracy_of
-from .reference import (TRANSFER_SHARE, TRANSFER_WINDOW_S, agreement, transfer_shocks,
-                        unfollowed_vibration)
+from .reference import across_gaps, agreement, transfer_doubt, transfer_shocks
 from ..errors import InputError
 from ..flightlog.stamps import stamp_tick
 from ..compensation.model import poly2
 from .design import (Binning, CHANNELS, Design, add_clock_nuisance, detrended,
                      term_contribution, vibration_bin_s, make_design, reference_error, bins,
-                     calibration_prior, white_per_bin)
+                     calibration_prior)
 from .samples import binned, sample_stage, temperature_references
 from .fitting import Fitter, term_test
 from .scan import (SCAN_WINDOW_S, condition_masks, condition_map, excursions,
@@ -87,8 +86,9 @@ from .scan import (SCAN_WINDOW_S, condition_masks, condition_map, excursions,
 from .confirmation import (Extremes, beta_of, beyond_range, beyond_range_reasons,
                            clock_doubt, clock_reading, confirmed, out_of_the_shadow,
                            outputs_judged, set_aside_reasons, position_of)
-from .removal import (beside_reference, offset_readings, read_every_way,
-                      reference_beyond_stated, removal_sigma)
+from .removal import (REFERENCE_BEYOND_SIGMA, beside_reference, held_excursions,
+                      offset_readings, read_every_way, reference_beyond_stated,
+                      removal_sigma)
 from .selection import select
 
 
@@ -269,7 +269,9 @@ def _prepared(flight, cal, acc, candidates, output_tests, samples, bin_s, noise_
                             flight.mimu_mounting.lever_arm_m - flight.fog_mounting.lever_arm_m)
     shocks = transfer_shocks(t, spill.series("measured"), spill.series("predicted"), lever, m,
                              usable)
-    usable &= ~shocks
+    counted = outputs.counted_clips(t, flight.recording)
+    gapped = across_gaps(t, flight.fog_t)
+    usable &= ~shocks & ~counted & ~gapped
     on_outputs, quantized = [], set()
     acc = measured_steps(flight, acc, spill)
     cands = library.candidates() if candidates is None else candidates
@@ -297,6 +299,9 @@ def _prepared(flight, cal, acc, candidates, output_tests, samples, bin_s, noise_
     design.calibrated = not cal.is_identity
     design.reference = acc
     design.shocks = outputs.spans(t, shocks, "the lever-arm transfer misses a shock: left out")
+    design.clips_counted = outputs.spans(t, counted, "the IMU's own clip counter rose: left out",
+                                         gap_s=0.5)
+    design.gaps = outputs.spans(t, gapped, "an IMU misses samples: left out", gap_s=0.5)
     if noise_shape is not None:
         fit_shape, scan_shape = noise_shape if isinstance(noise_shape, tuple) else \
             (noise_shape, noise_shape)
@@ -390,43 +395,14 @@ def _confirmed(flight, design, chosen, split, alpha, prep, mems_grade, remake):
     return findings, rejected + noisy, aside + noisy, doubts, record
 
 
-def transfer_doubt(flight, design, findings):
-    """Why the accelerometers' findings cannot stand where the lever-arm transfer misses
-    the reference's angular vibration (`reference.unfollowed_vibration`) by more than
-    TRANSFER_SHARE of their white residual variance per bin, or '' (a recording's only).
-    The lever arm: the mountings' and a found one's (vehicle frame; its columns are the
-    transfer's - a hexacopter's undeclared 12 cm, found, missed its 52 Hz rotor lines by
-    0.026 m/s^2 a bin, and the null twin's verdict named an accel.z scale of -0.027 and a
-    coupling of -0.014 as missing physics, truth +0.004 and -0.002)."""
-    dr = flight.mimu_mounting.lever_arm_m - flight.fog_mounting.lever_arm_m + sum(
-        (np.asarray(f["vector"], float) for f in findings if f["effect"] == "lever_arm"),
-        np.zeros(3))
-    if flight.fog_w is None or flight.source != "recording":
-        # a simulated FOG's pulse count rings at tones no IMU beside it feels (a repeated-
-        # blocks flight: 341 Hz, 40 times the share), which its spectrum cannot tell from
-        # motion; a recording's reference is taken as moving where it has lines
-        return ""
-    missed = unfollowed_vibration(flight.fog_t, flight.fog_w, dr, design.bin_s,
-                                  1.0 / float(np.median(np.diff(flight.mimu_t))))
-    white = max(float(v) for v, (sensor, _) in zip(white_per_bin(design.residual), CHANNELS)
-                if sensor == "accel")
-    if missed is None or not missed[0] ** 2 > TRANSFER_SHARE * white:
-        return ""
-    return (f"the lever-arm transfer cannot follow the reference's angular vibration at "
-            f"{missed[1]:.0f} Hz (its derivative is smoothed over {TRANSFER_WINDOW_S:g} s): "
-            f"across the {np.linalg.norm(dr) * 100:.3g} cm between the two IMUs it leaves "
-            f"about {missed[0]:.2g} m/s^2 per bin out of the prediction, "
-            f"{missed[0] ** 2 / white:.2g} of the accelerometers' white residual variance "
-            f"(at most {TRANSFER_SHARE:g}) - terms on the accelerometers may be its shadow")
-
-
-def _residuals(design, everything, findings):
+def _residuals(design, everything, findings, pinned=False):
     """(before, removed, fit): (nb, 6) the residual less the reference's fitted error
     without the found terms, detrended, and less the fitted error and the found terms with
-    them (the all-rows `Fitter` everything), and that all-rows fit of the found terms."""
+    them (the all-rows `Fitter` everything), and that all-rows fit of the found terms;
+    pinned: the reference's error held at zero in that fit."""
     before = detrended(design, design.residual - reference_error(design, everything.fit([])))
     found = [position_of(design, f) for f in findings]
-    fit = everything.fit(found)
+    fit = everything.fit(found, pinned=pinned)
     removed = design.residual - reference_error(design, fit)
     for f, j in zip(findings, found):
         removed = removed - term_contribution(design, j, beta_of(f))
@@ -456,6 +432,10 @@ def _after_the_fit(design, residual, conds, terms, prep, alpha, cal, noise, outp
     unexplained = excursions_left_out(
         design, lambda rows: scanned(_residuals(design, Fitter(design, rows), findings)[1]),
         alpha, excursions(design, scanned(removed), alpha))
+    beyond = reference_beyond_stated(design, fit_found)
+    if max(z for z, _ in beyond) > REFERENCE_BEYOND_SIGMA:
+        unexplained, read_twice = held_excursions(unexplained, excursions(design, scanned(
+            _residuals(design, everything, findings, pinned=True)[1]), alpha), beyond)
     on_outputs = list(prep.on_outputs)
     if output_tests:
         # an excursion is no wander of the bias, and no offset: its bins (and a scan window
@@ -468,11 +448,10 @@ def _after_the_fit(design, residual, conds, terms, prep, alpha, cal, noise, outp
             design, removed, quiet, alpha / (len(design.terms) + 12), cal, skip=skip,
             noise=noise, carried=removal_sigma(design, fit_found, findings, quiet))
         tested = beside_reference(read_every_way(tested, offset_readings(
-            design, everything, fit_found, unconfirmed, quiet, prep.full_scale)),
-            reference_beyond_stated(design, fit_found))
+            design, everything, fit_found, unconfirmed, quiet, prep.full_scale)), beyond)
         on_outputs += tested
-        read_twice = [f"{f['label']}: {f['rejected']}" for f in tested if "rejected" in f
-                      and ("other_readings" in f or "reference_fitted_beyond_stated" in f)]
+        read_twice += [f"{f['label']}: {f['rejected']}" for f in tested if "rejected" in f
+                       and ("other_readings" in f or "reference_fitted_beyond_stated" in f)]
     return unexplained, on_outputs, read_twice
 
 

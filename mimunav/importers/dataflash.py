@@ -38,6 +38,7 @@ import numpy as np
 from ..frames import attitude
 from ..frames.mounting import Mounting
 from ..sensors.accuracy import AUTOPILOT_MEMS, AUTOPILOT_MEMS_SOURCE
+from .clip_counts import clip_spans, clips_said, merged
 from .recording import Recording, RecordingError, attitude_at, gps_to_unix_s
 from ..errors import require
 
@@ -48,7 +49,8 @@ NAV_SAT_STATUS = {3: 0, 4: 1, 5: 2, 6: 2}
 EKF_VELOCITY = {"XKF1": "EKF3", "NKF1": "EKF2", "EKF1": "EKF1"}   # its velocity, newest first:
 #                       ArduPilot up to 4.0 logs EKF2 as NKF1, 3.x EKF1 (an older log's had
 #                       been left for the GPS fixes without a word)
-TYPES = ("IMU", "IMU2", "IMU3", "GPS", "GPS2", "GPA", "POS", "ATT", "PARM") + tuple(EKF_VELOCITY)
+TYPES = ("IMU", "IMU2", "IMU3", "GPS", "GPS2", "GPA", "POS", "ATT", "PARM",
+         "VIBE") + tuple(EKF_VELOCITY)
 
 
 BINARY_HEAD = b"\xa3\x95"        # a binary record's first two bytes (AP_Logger)
@@ -232,15 +234,7 @@ def read(path, mounting=None, instance=0, reference="auto", reference_status=3,
         assumed["time"] = "no 3-D GPS fix: boot placed at the UNIX epoch"
     ref, ref_meta = _reference(msgs, fixes, reference, reference_status, offset_us, path)
     name = os.path.splitext(os.path.basename(path))[0]
-    real = {"imu": f"IMU instance {instance} ({len(boot_us)} samples; "
-                   f"{repeated} repeated stamps dropped)",
-            "source": os.path.abspath(path)}
-    if cut:
-        real["file"] = cut
-    if _temperature(imu):
-        real["imu_temperature"] = _temperature(imu)
-    found = sorted({int(i) for i in msgs["IMU"].get("I", [0])})
-    real["imu_instances"] = ", ".join(str(i) for i in found)
+    real = _real(path, msgs, instance, len(boot_us), repeated, imu, cut)
     second = None
     if reference_instance is not None:
         r_us, r_w, r_f, r_repeated, r_imu = _imu(msgs, reference_instance, path)
@@ -269,6 +263,10 @@ def read(path, mounting=None, instance=0, reference="auto", reference_status=3,
                    calibration="ArduPilot's on-board calibration, as logged",
                    imu_values=_imu_values(params),
                    height="above mean sea level (geoid undulation not applied)")
+    clips = _clip_counts(msgs.get("VIBE"), [instance, reference_instance], offset_us * 1000)
+    if clips:
+        real["clipped"] = clips_said(clips, "the autopilot (VIBE.Clip)",
+                                     (boot_us[0] + offset_us) * 1000)
     rate = 1e6 / np.median(np.diff(boot_us))
     span = (boot_us[-1] - boot_us[0]) / 1e6
     return Recording(name, f"ArduPilot DataFlash {os.path.basename(path)}: IMU {instance} "
@@ -276,7 +274,39 @@ def read(path, mounting=None, instance=0, reference="auto", reference_status=3,
                      w, f, Mounting((mounting or Mounting()).attitude_wxyz, position),
                      model="ArduPilot autopilot IMU",
                      reference=ref, reference_meta=ref_meta, fixes=fixes, real=real,
-                     assumed=assumed, reference_imu=second)
+                     assumed=assumed, reference_imu=second, clip_spans_ns=clips)
+
+
+def _clip_counts(vibe, instances, offset_ns):
+    """[(t0, t1 ns since boot + offset_ns, clips)] where the VIBE clip counter of one of
+    `instances` (None: left out) rose (`clip_counts`): `Clip` of the records of that `IMU`
+    (ArduPilot 4.0 on), or `Clip0`..`Clip2` of every record (3.3-3.6); none without VIBE."""
+    spans = []
+    for i in (i for i in instances if i is not None and vibe is not None):
+        if "IMU" in vibe and "Clip" in vibe:
+            keep = vibe["IMU"] == i
+            us, totals = vibe["TimeUS"][keep], vibe["Clip"][keep]
+        elif f"Clip{i}" in vibe:
+            us, totals = vibe["TimeUS"], vibe[f"Clip{i}"]
+        else:
+            continue
+        spans += [(a * 1000 + offset_ns, b * 1000 + offset_ns, n)
+                  for a, b, n in clip_spans(us, totals)]
+    return merged(spans)
+
+
+def _real(path, msgs, instance, samples, repeated, imu, cut):
+    """The `real` metadata of `read`'s IMU: its samples, source, temperature, the file's
+    damage (`cut`) and the instances the log holds."""
+    real = {"imu": f"IMU instance {instance} ({samples} samples; {repeated} repeated stamps "
+                   "dropped)", "source": os.path.abspath(path)}
+    if cut:
+        real["file"] = cut
+    if _temperature(imu):
+        real["imu_temperature"] = _temperature(imu)
+    found = sorted({int(i) for i in msgs["IMU"].get("I", [0])})
+    real["imu_instances"] = ", ".join(str(i) for i in found)
+    return real
 
 
 def _less_gps_lag(offset_us, params, gps_instance=0):

@@ -120,9 +120,9 @@ def _turn_said(angle, how, rpy, hint, se=math.inf):
 
 
 def _pair_mountings(rec, clock_se):
-    """Turn the reference IMU's mounting onto the IMU's where the 1 s means decide it
-    (module doc), a small turn only beyond what the clock's standard error clock_se (s) can
-    make of the rates (`_clock_turn_deg`); say what was measured."""
+    """Turn the reference IMU's mounting onto the IMU's where the 1 s means decide it (module
+    doc), a small turn only beyond what the clock's standard error clock_se (s) can make of
+    the rates (`_clock_turn_deg`); say what was measured."""
     ref = rec.reference_imu
     means, ok, mids = _second_means(rec)
     if ok.sum() < 10:
@@ -132,10 +132,9 @@ def _pair_mountings(rec, clock_se):
     turn, angle, how, apart, se = _measured_turn(rec, means, ok)
     seen = bool(how)
     # a triad mirrored (a sign, an axis order) is no turn: after the best turn one of its
-    # moving axes runs against the other IMU's; named as given where an axis does so there
-    # too (the turn is fitted on both: a mirrored accelerometer can turn the gyros against
-    # each other) - as given alone, a turn of 180 deg runs two axes against (a FOG turned
-    # 180 deg in yaw had been refused as a reflection)
+    # moving axes runs against the other IMU's; named as given where an axis does so there too
+    # (a mirrored accelerometer can turn the gyros against each other) - as given alone, a turn
+    # of 180 deg runs two axes against (a FOG turned 180 deg in yaw had been refused as one)
     vehicle = [(attitude.rotate(rec.mounting.q_vs, means[0][k][ok]),
                 attitude.rotate(ref["mounting"].q_vs, means[1][k][ok])) for k in range(2)]
     said = {when: [why for (mine, theirs), sensor in zip(vehicle, ("gyro", "accel"))
@@ -185,6 +184,8 @@ def _pair_mountings(rec, clock_se):
             f"give its mounting (its tilt as the data show it, the yaw as given: roll, "
             f"pitch, yaw {roll}, {pitch}, {yaw} deg"
             + (f": {hint.format(roll=roll, pitch=pitch, yaw=yaw)})" if hint else ")"))
+    if how == "free" and _halves_apart(rec, means, ok, said):
+        return
     imus = [(vehicle[0][0], vehicle[1][0] - means[0][2][ok]), (vehicle[0][1], vehicle[1][1])]
     whose, held, turns = whose_turn(rec.reference, mids[ok], imus, angle,
                                     (TURNING_RATE, MOVING_FORCE), SPAN_SHARE)
@@ -198,6 +199,31 @@ def _pair_mountings(rec, clock_se):
     ref["mounting"] = Mounting(attitude.as_wxyz(fixed), ref["mounting"].lever_arm_m)
     rec.real["reference_imu_mounting"] = f"measured {said}: turned so" + (f" ({held})" if held
                                                                           else "")
+
+
+def _halves_apart(rec, means, ok, said):
+    """Whether the free turns of the recording's first and second halves of seconds
+    (`_measured_turn`) lie apart beyond DISTINCT_Z of their standard errors together and
+    beyond SMALL_TURN_DEG - one unit moved against the other during the recording, and no
+    one mounting holds it (a phone that turned 15 deg in its holder halfway had been given
+    the mean of its two mountings, true at no time); if so, the mountings given are kept
+    and the import says why beside the whole turn (`said`)."""
+    half = np.flatnonzero(ok)[ok.sum() // 2]
+    turns = [_measured_turn(rec, means, ok & side) for side in
+             (np.arange(len(ok)) < half, np.arange(len(ok)) >= half)]
+    if any(how != "free" for _, _, how, _, _ in turns):
+        return False
+    (first, a1, *_, se1), (second, a2, *_, se2) = turns
+    apart = math.degrees((first.inv() * second).magnitude())
+    se = math.hypot(se1, se2)
+    if not (apart > DISTINCT_Z * se and apart > SMALL_TURN_DEG):
+        return False
+    rec.real["reference_imu_mounting"] = (
+        f"measured {said}, but not taken: the first half's turn ({a1:.1f} deg) and the second "
+        f"half's ({a2:.1f} deg) lie {apart:.1f} deg apart (standard error {se:.2g}): one unit "
+        "moved against the other during the recording, and no one mounting holds both halves "
+        "(import the spans where each holds one apart) - the mountings given are kept")
+    return True
 
 
 def _for_the_imu(rec, turn, means, ok, mids):

@@ -47,6 +47,10 @@ ELSEWHERE = {**{key: "in [reference] local_frame = {" + key + " = ...}" for key 
              **{key: "at the spec's top level, beside `name`" for key in SECTION_KEYS[""]}}
 
 
+MAY_BE_EMPTY = ("ground_speed", "course")   # a receiver leaves them empty where it has no
+#   fix of them (Android's Location.csv at a standstill: hasBearing false): read as not
+#   given - for that epoch, the velocity of the positions' differences (`table_reference`)
+
 class Spec:
     """A parsed table spec: `column(section, key)` loads a quantity in SI units."""
 
@@ -123,6 +127,8 @@ class Spec:
                                  "any row: a column of text (ISO 8601 date-times such as "
                                  "2023-08-04 17:47:58-04:00 are read with unit = \"iso8601\", "
                                  "UNIX time: [time] unix_offset_s = 0)")
+        if kind in MAY_BE_EMPTY:        # an empty cell: not given, as a negative value is
+            x = np.where(np.isfinite(x), x, -1.0)
         if not np.isfinite(x).all() and self.doc.get("nonfinite", "refuse") != "drop":
             raise RecordingError(f"{self.path}: {where} from {source['file']} holds values that "
                                  f"are not finite (first at data row "

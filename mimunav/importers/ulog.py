@@ -20,12 +20,16 @@ import numpy as np
 
 from ..frames.mounting import Mounting
 from ..sensors.accuracy import AUTOPILOT_MEMS, AUTOPILOT_MEMS_SOURCE
+from .clip_counts import clip_spans, clips_said, merged
 from .recording import Recording, RecordingError, attitude_at, rate_onto
 from ..errors import require
 
 GNSS_TOPICS = ("vehicle_gps_position", "sensor_gps")
 REFERENCE_TOPICS = ("vehicle_global_position", "vehicle_local_position", "vehicle_attitude")
 INSTANCE_TOPICS = ("sensor_accel", "sensor_gyro")
+CLIP_TOPICS = {"vehicle_imu_status": 0, "sensor_accel": 1, "sensor_gyro": 1, "sensor_combined": 2}
+CLIP_FIELDS = [f"{s}_clipping[{i}]" for s in ("accel", "gyro") for i in range(3)] + [
+    f"clip_counter[{i}]" for i in range(3)]
 
 
 def _topic(ulog, name):
@@ -81,7 +85,8 @@ def read(path, mounting=None, instance=None, reference_instance=None):
     ULog = require("pyulog", "import", "the ulog importer").ULog
     try:
         ulog = ULog(path, message_name_filter_list=["sensor_combined", *GNSS_TOPICS,
-                                                    *REFERENCE_TOPICS, *INSTANCE_TOPICS])
+                                                    *REFERENCE_TOPICS, *INSTANCE_TOPICS,
+                                                    "vehicle_imu_status"])
     except Exception as exc:            # pyulog raises its own and struct errors
         raise RecordingError(f"{path}: not a readable ULog ({exc})") from None
     if instance is None:
@@ -133,6 +138,12 @@ def read(path, mounting=None, instance=None, reference_instance=None):
                    calibration="PX4's on-board calibration, as logged" if instance is None
                    else "none: the instance's outputs before PX4's calibration (its CAL_* "
                         "offsets and scales are not applied), used as recorded")
+    clips, topics = _clip_counts(ulog, None if instance is None else
+                                 [instance, reference_instance])
+    clips = [(a + offset_us * 1000, b + offset_us * 1000, n) for a, b, n in clips]
+    if clips:
+        real["clipped"] = clips_said(clips, f"PX4 ({topics})",
+                                     (boot_us[keep][0] + offset_us) * 1000)
     rate = 1e6 / np.median(np.diff(boot_us[keep]))
     span = (boot_us[-1] - boot_us[0]) / 1e6
     return Recording(name, f"PX4 ULog {os.path.basename(path)}: {topic} {rate:.0f} Hz, "
@@ -142,7 +153,45 @@ def read(path, mounting=None, instance=None, reference_instance=None):
                      reference_meta=({"source": "autopilot estimate (PX4 EKF2)",
                                       "independent": "no: the autopilot fuses this IMU"}
                                      if reference is not None else {}),
-                     fixes=fixes, real=real, assumed=assumed, reference_imu=second)
+                     fixes=fixes, real=real, assumed=assumed, reference_imu=second,
+                     clip_spans_ns=clips)
+
+
+def _clip_counts(ulog, instances):
+    """([(t0, t1 ns since boot, clips)] where a clip count of one of `instances` rose
+    (`clip_counts`; None: of every instance, sensor_combined's being one of them), the
+    topics counted): of each instance the first of CLIP_TOPICS it logs - the running
+    totals of vehicle_imu_status, the counts of each sensor_accel / sensor_gyro sample
+    period (clip_counter, PX4's msg/SensorAccel.msg), sensor_combined's clipped axes of each
+    sample (a bit an axis) -, so that one clip is counted once."""
+    found = {}
+    for d in ulog.data_list:
+        rank = CLIP_TOPICS.get(d.name)
+        wanted = instances is None or (d.multi_id in instances and d.name != "sensor_combined")
+        if rank is not None and wanted and (totals := _clip_totals(d)) is not None:
+            found.setdefault(d.multi_id, []).append((rank, d.name, d.data["timestamp"], totals))
+    spans, topics = [], set()
+    for each in found.values():
+        first = min(rank for rank, *_ in each)
+        for rank, name, us, totals in each:
+            counted = clip_spans(us, totals) if rank == first else []
+            spans += [(a * 1000, b * 1000, n) for a, b, n in counted]
+            topics |= {name} if counted else set()
+    return merged(spans), ", ".join(sorted(topics))
+
+
+def _clip_totals(data):
+    """(N, k) running clip totals of a topic of CLIP_TOPICS, None where it logs no count."""
+    if data.name == "sensor_combined":
+        bits = [np.asarray(data.data[k], np.uint8) for k in ("accelerometer_clipping",
+                                                             "gyro_clipping") if k in data.data]
+        return np.cumsum(sum(np.unpackbits(b[:, None], axis=1).sum(axis=1) for b in bits),
+                         dtype=float) if bits else None
+    fields = [k for k in CLIP_FIELDS if k in data.data]
+    if not fields:
+        return None
+    counts = np.column_stack([np.asarray(data.data[k], float) for k in fields])
+    return counts if data.name == "vehicle_imu_status" else np.cumsum(counts, axis=0)
 
 
 def _gnss(gps):

@@ -85,7 +85,9 @@ def write_log(rec, path, force=False):
                                    "bias_basis": align.bias_basis,
                                    "reference_heading_known": rec.reference_heading_known,
                                    "reference_imu_clock_se_s": rec.reference_imu_clock_se_s,
-                                   "vehicle": rec.vehicle, "aliased": rec.aliased})
+                                   "vehicle": rec.vehicle, "aliased": rec.aliased,
+                                   "clip_spans_s": [[(a - epoch) / 1e9, (b - epoch) / 1e9, n]
+                                                    for a, b, n in rec.clip_spans_ns]})
         channels = [("/mimu/imu", S.IMU, "mimu", rec.imu_ns, S.imu_fields(rec.w, rec.f))]
         if rec.reference_imu is not None:
             ref_imu = rec.reference_imu

@@ -178,3 +178,39 @@ def test_an_offset_read_after_a_reference_error_beyond_its_stated_accuracy_is_re
     offset = dict(wander, effect="bias_shift")
     out = removal.beside_reference([wander, offset], beyond)
     assert "beyond its stated accuracy" in out[0]["rejected"] and "rejected" not in out[1]
+
+
+def test_an_offset_the_reference_held_reading_moves_is_set_aside():
+    """The reading with the reference's fitted error held to its stated accuracy (a phone
+    beside a tactical INS: the INS's accel.z scale fitted 66 times its stated 1e-3, the
+    phone's offset read 0.84 m/s^2 where its bias was 0.20): where it moves the offset out
+    of its own interval, the offset is set aside, naming that reading; where it stays
+    inside, the finding is left as it is."""
+    held = "with the reference's fitted error held to 5 sigma of its stated accuracy (x)"
+    f = _shift_finding(0.84, 0.83, 0.85)
+    out = removal.with_other_readings(f, [(0.59, 0.0, held, removal.REFERENCE_HELD)])
+    assert out["rejected"].startswith(held + " it reads 0.25: the reference is worse")
+    assert out["ci95"][0] < 0.25 and out["other_readings"][0]["coefficient"] == \
+        pytest.approx(0.25)
+    assert removal.with_other_readings(f, [(0.0, 0.0, held, removal.REFERENCE_HELD)]) is f
+    unconfirmed = removal.with_other_readings(f, [(0.59, 0.0, "with the terms x")])
+    assert "rejected" not in unconfirmed           # another reading widens, it sets nothing aside
+
+
+def test_an_excursion_only_the_reference_error_beyond_its_accuracy_makes_is_set_aside():
+    """Where the reference's fitted error lies beyond 5 sigma of its stated accuracy, an
+    excursion stands only if the residual read with that error held at zero shows one on
+    its channel, overlapping it; the others are set aside with the reference's words."""
+    spans = [{"channel": "accel.x", "t0": 63.0, "t1": 65.0},
+             {"channel": "accel.z", "t0": 100.0, "t1": 102.0}]
+    held = [{"channel": "accel.z", "t0": 101.0, "t1": 103.0},
+            {"channel": "accel.x", "t0": 300.0, "t1": 302.0}]
+    beyond = [(41.0, "accel.x <- f_z 0.041 (41 times its stated 1 sigma 0.001)")] + \
+        [(0.5, "")] * 5
+    kept, why = removal.held_excursions(spans, held, beyond)
+    assert kept == spans[1:]
+    assert why == ["1 excursion(s) (accel.x 63.0-65.0 s) stand only with the reference's "
+                   "fitted error, which lies beyond its stated accuracy (accel.x <- f_z 0.041 "
+                   "(41 times its stated 1 sigma 0.001)): the reference is worse than stated "
+                   "or the model lacks something charged to it - set aside"]
+    assert removal.held_excursions(spans[1:], held, beyond) == (spans[1:], [])

@@ -161,12 +161,12 @@ def test_a_shock_the_transfer_cannot_follow_is_left_out_and_nothing_else():
 
 
 def test_a_found_lever_arm_is_judged_as_a_declared_one():
-    """`sensor.transfer_doubt` on a recording whose reference carries a 50 Hz angular line
+    """`reference.transfer_doubt` on a recording whose reference carries a 50 Hz angular line
     of 0.01 rad/s: with no lever arm declared and none found there is no transfer and no
     doubt; a 12 cm lever arm found by the diagnosis (vehicle frame) is the transfer's own
     columns, and the doubt names it (a hexacopter's undeclared 12 cm, found, had left its
     null twin's verdict conclusive on wrong accelerometer terms)."""
-    from mimunav.diagnosis.sensor import transfer_doubt
+    from mimunav.diagnosis.reference import transfer_doubt
     from mimunav.frames.mounting import Mounting
     rng = np.random.default_rng(3)
     t = np.arange(1, 400 * 300 + 1) / 400.0

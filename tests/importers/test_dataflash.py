@@ -251,3 +251,35 @@ def test_a_second_imu_instance_is_the_reference_imu_of_mems_grade(log, tmp_path)
     assert accuracy.mems_grade and accuracy.gyro_scale == AUTOPILOT_MEMS["gyro_scale"]
     with pytest.raises(RecordingError, match="the IMU's own"):
         dataflash.read(str(path), instance=1, reference_instance=1)
+
+
+@pytest.mark.slow
+def test_clips_counted_and_either_imus_gaps_are_left_out_of_the_diagnosis(tmp_path, capsys):
+    """IMU 0's accelerometer at its range inside the logged values for 0.1 s (AccZ short by
+    3 m/s^2, neither flat nor at a range: no test on the outputs finds it), and its VIBE clip
+    count up by 18 at the next record; IMU 1 (the reference) silent 30-40 s, IMU 0 45-46 s.
+    The import says the clips; the diagnosis against IMU 1 leaves out the clipped span and
+    the samples beside each gap, and finds no unexplained residual. Before, the clip was an
+    accel.z excursion of 0.14 m/s^2 over its 2 s window, a reference silent for 60 s had
+    been bridged (excursions of z 1400 in it) and a gap in the MIMU refused the sensor level,
+    which navigates nothing across it."""
+    data = dataflash_log.flight(rate=100.0, clip=(20.0, 20.1, -3.0),
+                                lost=[(1, 30.0, 40.0), (0, 45.0, 46.0)])[0]
+    path, out = tmp_path / "clipped.bin", tmp_path / "clipped.mcap"
+    path.write_bytes(data)
+    assert main(["import", "dataflash", str(path), "--reference-imu-instance", "1",
+                 "-o", str(out)]) == 0
+    said = capsys.readouterr().out
+    assert "clipped: 18 samples counted clipped by the autopilot (VIBE.Clip) in 1 span(s)" in said
+    assert main(["diagnose", str(out), "--json", str(tmp_path / "d.json")]) in (0, 1)
+    doc = json.loads((tmp_path / "d.json").read_text())
+    first = 0.01                                    # t = 0 is the first stamp, at 10 ms
+    (span,) = doc["clips_counted_left_out"]
+    assert span["t0"] <= 20.0 - first + 1e-6 and 20.1 - first <= span["t1"] <= 20.25, span
+    gaps = [(g["t0"] + first, g["t1"] + first) for g in doc["gaps_left_out"]]
+    assert [(round(a, 1), round(b, 1)) for a, b in gaps] == [(29.9, 40.1), (44.9, 45.0),
+                                                            (46.0, 46.1)], gaps
+    assert doc["unexplained"] == [], doc["unexplained"]
+    printed = capsys.readouterr().out
+    assert "where the IMU's own clip counter rose" in printed
+    assert "where an IMU misses samples" in printed

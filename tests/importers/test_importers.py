@@ -353,11 +353,16 @@ def test_ulog_imu_instances_as_the_imu_and_as_the_reference_imu(tmp_path):
     own clock 1 ms after the accelerometers, rates linear in time so interpolation is
     exact): --imu-instance 1 takes instance 1's outputs with its gyro interpolated onto its
     accelerometer's stamps, its temperature said; --reference-imu-instance 0 makes instance
-    0 the reference IMU; an instance not logged is named."""
+    0 the reference IMU; an instance not logged is named. Their clip counts
+    (vehicle_imu_status, running totals at 10 Hz): instance 1's accelerometer counts 7 clips
+    in the record at 6.0 s, its gyro 2 at 7.5 s; instance 2 (neither IMU) counts 5 at 6.5 s."""
     acc = [("uint64_t", "timestamp"), ("uint64_t", "timestamp_sample"), ("float", "x"),
            ("float", "y"), ("float", "z"), ("float", "temperature")]
-    formats = {"sensor_accel": acc, "sensor_gyro": acc}
-    topics = [("sensor_accel", 0), ("sensor_gyro", 0), ("sensor_accel", 1), ("sensor_gyro", 1)]
+    status = [("uint64_t", "timestamp"), ("uint32_t[3]", "accel_clipping"),
+              ("uint32_t[3]", "gyro_clipping")]
+    formats = {"sensor_accel": acc, "sensor_gyro": acc, "vehicle_imu_status": status}
+    topics = [("sensor_accel", 0), ("sensor_gyro", 0), ("sensor_accel", 1), ("sensor_gyro", 1),
+              ("vehicle_imu_status", 1), ("vehicle_imu_status", 2)]
     rows, n = [], 2000
     for k in range(n):
         t_us = 5_000_000 + k * 2500
@@ -366,6 +371,10 @@ def test_ulog_imu_instances_as_the_imu_and_as_the_reference_imu(tmp_path):
             rows.append((2 * inst, "<QQ4f", (t_us, t_us, 0.1 * s, 0.2, -9.8, 30.0 + inst)))
             g = t_us + 1000                                     # the gyro's own clock
             rows.append((2 * inst + 1, "<QQ4f", (g, g, s * g * 1e-8, -0.01, 0.02, 31.0)))
+        if k % 40 == 0:
+            rows.append((4, "<Q6I", (t_us, 0, 7 * (t_us >= 6_000_000), 0, 0, 0,
+                                     2 * (t_us >= 7_500_000))))
+            rows.append((5, "<Q6I", (t_us, 5 * (t_us >= 6_500_000), 0, 0, 0, 0, 0)))
     path = tmp_path / "two.ulg"
     path.write_bytes(ulog_bytes(formats, topics, rows))
     rec = ulog.read(str(path), instance=1, reference_instance=0)
@@ -380,6 +389,11 @@ def test_ulog_imu_instances_as_the_imu_and_as_the_reference_imu(tmp_path):
     ref = rec.reference_imu
     assert np.allclose(ref["f"][:, 0], 0.1) and np.allclose(ref["w"][:, 0],
                                                             (ref["ns"] / 1000) * 1e-8, rtol=1e-6)
+    boot_ns = rec.imu_ns[0] - 5_000_000_000
+    assert [(round((a - boot_ns) / 1e9, 2), round((b - boot_ns) / 1e9, 2), k)
+            for a, b, k in rec.clip_spans_ns] == [(5.9, 6.1, 7), (7.4, 7.6, 2)]
+    assert rec.real["clipped"].startswith("9 samples counted clipped by PX4 "
+                                          "(vehicle_imu_status) in 2 span(s) (0.90-")
     with pytest.raises(RecordingError, match=r"instance 3 \(instances logged: \[0, 1\]\)"):
         ulog.read(str(path), instance=3)
     # the reference IMU placed from the command line (a ULog states no instance's position)

@@ -657,3 +657,22 @@ def test_a_gyro_triad_turned_against_its_own_accelerometers_is_no_mounting(pair_
     with pytest.raises(RecordingError, match="gyros and their accelerometers turn onto each "
                                              "other 90 deg apart.*columns of both IMUs"):
         pairing.pair(_recording(ns, swapped, f, w_r, f_r))
+
+
+def test_a_unit_that_moved_in_its_mount_is_not_given_one_mean_mounting(pair_motion):
+    """The reference IMU's mounting given 90 deg off in yaw, and the unit turned 15 deg more
+    about its z axis from 80 s on (a phone turning in its holder): the halves' turns lie
+    apart beyond their errors, so no mounting is taken - the mean of the two, true at no
+    time, had been - and the words give both halves."""
+    from scipy.spatial.transform import Rotation
+    ns, w, f, w_r, f_r = pair_motion
+    later = (ns - ns[0]) / 1e9 >= 80.0
+    turn = Rotation.from_euler("z", 15.0, degrees=True)
+    w_r, f_r = w_r.copy(), f_r.copy()
+    w_r[later], f_r[later] = turn.apply(w_r[later]), turn.apply(f_r[later])
+    rec = _recording(ns, w, f, w_r, f_r, rpy=(180.0, 0.0, 0.0))
+    pairing.pair(rec)
+    said = rec.real["reference_imu_mounting"]
+    assert "but not taken" in said and "moved against the other" in said, said
+    assert np.allclose(rec.reference_imu["mounting"].q_vs.components,
+                       Mounting.from_rpy_deg((180.0, 0.0, 0.0)).q_vs.components)

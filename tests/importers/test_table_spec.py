@@ -380,6 +380,13 @@ course = { file = "ref.csv", columns = ["bearing"], unit = "deg" }
     v = table.read(spec).reference["v_ned"]
     assert np.abs(v[:50, :2]).max() < 1e-6 and \
         np.allclose(v[50:, 0], speed[50:] * np.cos(course[50:]))
+    # Android leaves the bearing empty where it has none (hasBearing false): not given too
+    # (it had been refused as not finite, or its rows dropped with every standstill)
+    lines = (tmp_path / "ref.csv").read_text().splitlines()
+    lines[1:51] = [line.rsplit(",", 1)[0] + "," for line in lines[1:51]]
+    (tmp_path / "ref.csv").write_text("\n".join(lines) + "\n")
+    empty = table.read(spec).reference["v_ned"]
+    assert len(empty) == n and np.array_equal(empty, v)
     spec.write_text(SPEC.format(rate=RATES, force=FORCES, extra="") + section
                     + over_ground.splitlines()[0] + "\n")
     with pytest.raises(RecordingError, match="ground_speed alone"):
