@@ -97,6 +97,7 @@ def diagnose(flight, cal, level, alpha=0.05, seed=0, accuracy=None, noise=None, 
     if level == "sensor":
         diag = sensor.diagnose(flight, cal, alpha=alpha, accuracy=accuracy, noise=noise)
         set_aside_aliased(diag, flight)
+        set_aside_moved(diag, flight)
         beside_the_band(diag.findings, flight)
         beside_the_imports_biases(diag.findings, flight, cal)
         beside_the_scales(diag.findings, diag.design.inputs)
@@ -130,16 +131,30 @@ def set_aside_aliased(diag, flight):
     scale of +1.6 % at p 7e-14; truth 0)."""
     said = (flight.recording or {}).get("aliased") or {}
     said = json.loads(said) if isinstance(said, str) else said
-    if not said:
-        return
-    hit = [(f.get("sensor") in said or f.get("sensor") == "imu")     # the unit's: both
-           and f.get("effect") != "bias_shift" for f in diag.findings]     # folded tones
-    #                                                       average to nothing: no constant
-    diag.rejected = diag.rejected + [dict(f, rejected=said.get(f["sensor"],
-                                                               "; ".join(said.values())))
-                                     for f, h in zip(diag.findings, hit) if h]
-    diag.findings = [f for f, h in zip(diag.findings, hit) if not h]
-    diag.inconclusive = list(getattr(diag, "inconclusive", None) or []) + list(said.values())
+    if said:
+        _set_aside(diag, lambda f: (f.get("sensor") in said or f.get("sensor") == "imu")
+                   and f.get("effect") != "bias_shift",        # the unit's: both; folded tones
+                   lambda f: said.get(f["sensor"], "; ".join(said.values())),  # average to
+                   list(said.values()))                                        # no constant
+
+
+def set_aside_moved(diag, flight):
+    """Every finding of the sensor level set aside where the import found one IMU turned
+    against the other during the recording (the recording's `reference_imu_moved`:
+    `importers.pairing`): no one mounting holds the pair, and what the turn leaves reads as
+    the unit's terms (an independent review: a reference turned 15 deg halfway had named a
+    saturation accel.x on the MIMU at p < 1e-300)."""
+    said = (flight.recording or {}).get("reference_imu_moved")
+    if said:
+        _set_aside(diag, lambda f: True, lambda f: said, [said])
+
+
+def _set_aside(diag, hit, why, reasons):
+    """The findings `hit` (a test of one) moved to the rejected with `why` (of one), and
+    `reasons` added to the diagnosis's inconclusive ones."""
+    diag.rejected = diag.rejected + [dict(f, rejected=why(f)) for f in diag.findings if hit(f)]
+    diag.findings = [f for f in diag.findings if not hit(f)]
+    diag.inconclusive = list(getattr(diag, "inconclusive", None) or []) + reasons
 
 
 def fused_reference(flight):

@@ -53,6 +53,6 @@ def clips_said(spans, source, t0_ns=0):
     first = ", ".join(f"{(a - t0_ns) / 1e9:.2f}-{(b - t0_ns) / 1e9:.2f} s" for a, b, _ in
                       spans[:3]) + (", ..." if len(spans) > 3 else "")
     return (f"{sum(n for *_, n in spans)} samples counted clipped by {source} in "
-            f"{len(spans)} span(s) ({first}): the sensor reached its range inside the "
-            "logged values, which are then short of the motion without being flat; the "
+            f"{len(spans)} span(s) ({first}): a sensor counted reached its range inside "
+            "its logged values, which are then short of the motion without being flat; the "
             "diagnosis leaves these spans out")

@@ -265,7 +265,9 @@ def read(path, mounting=None, instance=0, reference="auto", reference_status=3,
                    height="above mean sea level (geoid undulation not applied)")
     clips = _clip_counts(msgs.get("VIBE"), [instance, reference_instance], offset_us * 1000)
     if clips:
-        real["clipped"] = clips_said(clips, "the autopilot (VIBE.Clip)",
+        real["clipped"] = clips_said(clips, "the autopilot (VIBE.Clip of IMU "
+                                     f"{instance}" + ("" if reference_instance is None else
+                                                      f" or {reference_instance}") + ")",
                                      (boot_us[0] + offset_us) * 1000)
     rate = 1e6 / np.median(np.diff(boot_us))
     span = (boot_us[-1] - boot_us[0]) / 1e6

@@ -218,11 +218,15 @@ def _halves_apart(rec, means, ok, said):
     se = math.hypot(se1, se2)
     if not (apart > DISTINCT_Z * se and apart > SMALL_TURN_DEG):
         return False
-    rec.real["reference_imu_mounting"] = (
-        f"measured {said}, but not taken: the first half's turn ({a1:.1f} deg) and the second "
-        f"half's ({a2:.1f} deg) lie {apart:.1f} deg apart (standard error {se:.2g}): one unit "
-        "moved against the other during the recording, and no one mounting holds both halves "
-        "(import the spans where each holds one apart) - the mountings given are kept")
+    rec.reference_imu_moved = (
+        f"the first half's turn between the two IMUs ({a1:.1f} deg) and the second half's "
+        f"({a2:.1f} deg) lie {apart:.1f} deg apart (standard error {se:.2g}): one unit moved "
+        "against the other during the recording, and no one mounting holds both halves "
+        "(import the spans where each holds one apart)")
+    rec.real["reference_imu_mounting"] = (f"measured {said}, but not taken: "
+                                          f"{rec.reference_imu_moved} - the mountings given "
+                                          "are kept, and the sensor level sets its findings "
+                                          "aside")
     return True
 
 

@@ -88,6 +88,7 @@ class Recording:
     sampled_at_instants: bool = False   # the IMU's samples were instantaneous, made interval
     #                                     means at import (`aliasing` asks what they folded)
     aliased: dict = field(default_factory=dict)     # {sensor: why} (`aliasing.aliased`)
+    reference_imu_moved: str = ""   # why no one mounting holds the pair (`pairing`), or ''
     clip_spans_ns: list = field(default_factory=list)   # [(t0, t1 ns, clips)] where an IMU's
     #                                     own clip counter rose (`clip_counts`), on imu_ns's clock
     reference_heading_known: bool = True    # False: the reference lies in a local frame whose

@@ -127,8 +127,8 @@ class Spec:
                                  "any row: a column of text (ISO 8601 date-times such as "
                                  "2023-08-04 17:47:58-04:00 are read with unit = \"iso8601\", "
                                  "UNIX time: [time] unix_offset_s = 0)")
-        if kind in MAY_BE_EMPTY:        # an empty cell: not given, as a negative value is
-            x = np.where(np.isfinite(x), x, -1.0)
+        empty = ~np.isfinite(x) if kind in MAY_BE_EMPTY else np.zeros(np.shape(x), bool)
+        x = np.where(empty, 0.0, x)     # an empty cell: not given, as a negative value is
         if not np.isfinite(x).all() and self.doc.get("nonfinite", "refuse") != "drop":
             raise RecordingError(f"{self.path}: {where} from {source['file']} holds values that "
                                  f"are not finite (first at data row "
@@ -136,7 +136,8 @@ class Spec:
                                  ", counted from 0 after any header line); `nonfinite = "
                                  "\"drop\"` at the spec's top level, beside `name`, leaves such "
                                  "rows out (and counts them)")
-        x = (x * scale + offset) * UNITS[unit]
+        x = np.where(empty, -1.0, (x * scale + offset) * UNITS[unit])   # (after its scale
+        #                                 and offset: a course from east had read 91 deg there)
         if "age" in source:             # the data's age when the row was written: its time
             if kind != "time":          # is the row's less the age
                 raise RecordingError(f"{self.path}: {where}: `age` belongs to a time column")

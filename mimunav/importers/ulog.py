@@ -160,7 +160,7 @@ def read(path, mounting=None, instance=None, reference_instance=None):
 def _clip_counts(ulog, instances):
     """([(t0, t1 ns since boot, clips)] where a clip count of one of `instances` rose
     (`clip_counts`; None: of every instance, sensor_combined's being one of them), the
-    topics counted): of each instance the first of CLIP_TOPICS it logs - the running
+    topics and instances counted, said): of each instance the first of CLIP_TOPICS it logs - the running
     totals of vehicle_imu_status, the counts of each sensor_accel / sensor_gyro sample
     period (clip_counter, PX4's msg/SensorAccel.msg), sensor_combined's clipped axes of each
     sample (a bit an axis) -, so that one clip is counted once."""
@@ -170,14 +170,18 @@ def _clip_counts(ulog, instances):
         wanted = instances is None or (d.multi_id in instances and d.name != "sensor_combined")
         if rank is not None and wanted and (totals := _clip_totals(d)) is not None:
             found.setdefault(d.multi_id, []).append((rank, d.name, d.data["timestamp"], totals))
-    spans, topics = [], set()
-    for each in found.values():
+    spans, topics, which = [], set(), set()
+    for instance, each in found.items():
         first = min(rank for rank, *_ in each)
         for rank, name, us, totals in each:
             counted = clip_spans(us, totals) if rank == first else []
             spans += [(a * 1000, b * 1000, n) for a, b, n in counted]
             topics |= {name} if counted else set()
-    return merged(spans), ", ".join(sorted(topics))
+            which |= {instance} if counted else set()
+    said = (f"{', '.join(sorted(topics))} of instance {', '.join(map(str, sorted(which)))}"
+            + ("; sensor_combined's instance is not logged, so these may be another's"
+               if instances is None else ""))
+    return merged(spans), said
 
 
 def _clip_totals(data):

@@ -183,9 +183,9 @@ def test_an_offset_read_after_a_reference_error_beyond_its_stated_accuracy_is_re
 def test_an_offset_the_reference_held_reading_moves_is_set_aside():
     """The reading with the reference's fitted error held to its stated accuracy (a phone
     beside a tactical INS: the INS's accel.z scale fitted 66 times its stated 1e-3, the
-    phone's offset read 0.84 m/s^2 where its bias was 0.20): where it moves the offset out
-    of its own interval, the offset is set aside, naming that reading; where it stays
-    inside, the finding is left as it is."""
+    phone's offset read 0.84 m/s^2 where its bias was 0.20): where it lies outside the
+    offset's own interval, the offset is set aside, naming that reading; inside, it widens
+    the interval (or, inside with its own interval, leaves the finding as it is)."""
     held = "with the reference's fitted error held to 5 sigma of its stated accuracy (x)"
     f = _shift_finding(0.84, 0.83, 0.85)
     out = removal.with_other_readings(f, [(0.59, 0.0, held, removal.REFERENCE_HELD)])
@@ -193,6 +193,8 @@ def test_an_offset_the_reference_held_reading_moves_is_set_aside():
     assert out["ci95"][0] < 0.25 and out["other_readings"][0]["coefficient"] == \
         pytest.approx(0.25)
     assert removal.with_other_readings(f, [(0.0, 0.0, held, removal.REFERENCE_HELD)]) is f
+    near = removal.with_other_readings(f, [(0.005, 0.0, held, removal.REFERENCE_HELD)])
+    assert "rejected" not in near and near["ci95"][0] < 0.83    # inside: it widens only
     unconfirmed = removal.with_other_readings(f, [(0.59, 0.0, "with the terms x")])
     assert "rejected" not in unconfirmed           # another reading widens, it sets nothing aside
 

@@ -810,7 +810,9 @@ def test_a_reference_too_noisy_to_predict_a_channel_says_nothing_of_it(tmp_path)
     """The independent drive under 0.5 m fixes at 10 Hz (its IMU turned 10 deg in yaw): the
     vehicle model predicts only some channels, and an excursion on one it does not predict
     (accel.x at the departure, +2.8 m/s^2) is its own error - set aside, not an unexplained
-    residual; the mounting, fitted far beyond the small-angle range on this reference, is
+    residual (or set aside where it stands only with the model's fitted error, 7 times its
+    stated here: `removal.held_excursions`); the mounting, fitted far beyond the small-angle
+    range on this reference, is
     not said to be 'off by more than the diagnosis fits' (the truth is 10 deg)."""
     import subprocess
     import sys
@@ -826,8 +828,10 @@ def test_a_reference_too_noisy_to_predict_a_channel_says_nothing_of_it(tmp_path)
     check = result["reference_check"]
     predicted = {c for c, r in check["correlation_1s"].items() if r >= check["threshold"]}
     assert {u["channel"] for u in result["unexplained"]} <= predicted
-    assert check["excursions_not_predicted"] and \
-        {u["channel"] for u in check["excursions_not_predicted"]}.isdisjoint(predicted)
+    aside = [r for r in result["inconclusive_reasons"]      # or set aside beside the
+             if "accel.x" in r and "stand only with the reference's fitted error" in r]
+    assert check["excursions_not_predicted"] or aside       # reference's error beyond its
+    assert {u["channel"] for u in check["excursions_not_predicted"]}.isdisjoint(predicted)
     assert not result["conclusive"] and result["findings"] == []
     assert not any("off by more than the diagnosis fits; the import" in r
                    for r in result["inconclusive_reasons"])

@@ -393,7 +393,7 @@ def test_ulog_imu_instances_as_the_imu_and_as_the_reference_imu(tmp_path):
     assert [(round((a - boot_ns) / 1e9, 2), round((b - boot_ns) / 1e9, 2), k)
             for a, b, k in rec.clip_spans_ns] == [(5.9, 6.1, 7), (7.4, 7.6, 2)]
     assert rec.real["clipped"].startswith("9 samples counted clipped by PX4 "
-                                          "(vehicle_imu_status) in 2 span(s) (0.90-")
+                                          "(vehicle_imu_status of instance 1) in 2 span(s) (0.90-")
     with pytest.raises(RecordingError, match=r"instance 3 \(instances logged: \[0, 1\]\)"):
         ulog.read(str(path), instance=3)
     # the reference IMU placed from the command line (a ULog states no instance's position)

@@ -674,5 +674,16 @@ def test_a_unit_that_moved_in_its_mount_is_not_given_one_mean_mounting(pair_moti
     pairing.pair(rec)
     said = rec.real["reference_imu_mounting"]
     assert "but not taken" in said and "moved against the other" in said, said
+    assert rec.reference_imu_moved in said and "15.0 deg apart" in rec.reference_imu_moved
+    # the sensor level sets every finding aside with those words (an independent review: a
+    # saturation accel.x had been named on the MIMU at p < 1e-300)
+    from types import SimpleNamespace
+    from mimunav.diagnosis.levels import set_aside_moved
+    found = {"effect": "saturation", "sensor": "accel", "axis": "x"}
+    diag = SimpleNamespace(findings=[found], rejected=[], inconclusive=["other"])
+    set_aside_moved(diag, SimpleNamespace(recording={"reference_imu_moved":
+                                                     rec.reference_imu_moved}))
+    assert diag.findings == [] and diag.rejected == [dict(found, rejected=rec.reference_imu_moved)]
+    assert diag.inconclusive == ["other", rec.reference_imu_moved]
     assert np.allclose(rec.reference_imu["mounting"].q_vs.components,
                        Mounting.from_rpy_deg((180.0, 0.0, 0.0)).q_vs.components)

@@ -387,6 +387,19 @@ course = { file = "ref.csv", columns = ["bearing"], unit = "deg" }
     (tmp_path / "ref.csv").write_text("\n".join(lines) + "\n")
     empty = table.read(spec).reference["v_ned"]
     assert len(empty) == n and np.array_equal(empty, v)
+    # ... however the course's column is scaled: counted from east (an independent review:
+    # the empty cells had been read as 91 deg, the offset put on their mark)
+    east = ref.copy()
+    east[:, 4], east[:, 5] = speed * 3.6, 90.0 - east[:, 5]     # its speed given throughout
+    np.savetxt(tmp_path / "ref.csv", east, delimiter=",", header="tick,lat,lon,h,kmh,bearing",
+               comments="")
+    lines = (tmp_path / "ref.csv").read_text().splitlines()
+    lines[1:51] = [line.rsplit(",", 1)[0] + "," for line in lines[1:51]]
+    (tmp_path / "ref.csv").write_text("\n".join(lines) + "\n")
+    spec.write_text(spec.read_text().replace('columns = ["bearing"], unit = "deg"',
+                                             'columns = ["bearing"], unit = "deg", scale = -1, '
+                                             'offset = 90'))
+    assert np.allclose(table.read(spec).reference["v_ned"], v)
     spec.write_text(SPEC.format(rate=RATES, force=FORCES, extra="") + section
                     + over_ground.splitlines()[0] + "\n")
     with pytest.raises(RecordingError, match="ground_speed alone"):
