@@ -573,6 +573,7 @@ def beyond_range_reasons(rejected):
             and r["effect"] == "mounting_misalignment"]
 
 
+
 def _widened(finding, factor):
     """The finding with every 95 % interval's half-widths about its estimate times factor
     (an offset's other readings each about its own: `outputs.with_other_readings`)."""

@@ -76,7 +76,7 @@ def clock_offset(rec):
         return dict(found, offset_s=None)
     offset, se, (drift, drift_se, centre, at_centre) = _refined(rec, found["lag_s"])
     if not math.isfinite(offset + se):
-        return {"offset_s": None,
+        return {"offset_s": None, "peak_lag_s": found["lag_s"],
                 "said": f"{found['said']}; not refined: the |w|^2 fit's least cost lies at the "
                         f"edge of its +-{2 * GRID_S * 1e3:.0f} ms search about that peak (with "
                         "the whole overlap or without one of its tenths), so the two do not "

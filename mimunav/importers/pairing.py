@@ -27,7 +27,7 @@ from ..frames.mounting import AGAINST, Mounting, runs_against
 from .recording import G0, RecordingError, at_range, utc_text
 from .attitude_check import (angle_text, turn_both, turn_the_imu, turned_back, wahba,
                              whose_turn)
-from .imu_clock import DISTINCT_Z, SMALL_OFFSET_S, TURNING_RATE, clock_offset
+from .imu_clock import DISTINCT_Z, GRID_S, SMALL_OFFSET_S, TURNING_RATE, clock_offset
 from .series import window_means
 
 SMALL_TURN_DEG = 3.0        # deg: within this its mounting_misalignment term carries a turn
@@ -51,6 +51,9 @@ def pair(rec):
     _check_units(rec)
     clock = clock_offset(rec)
     rec.real["reference_imu_clock"] = clock["said"]
+    if clock["offset_s"] is None and not abs(clock.get("peak_lag_s", math.inf)) <= GRID_S:
+        rec.reference_imu_clock_open = clock["said"]    # the stamps are not where the data
+        #                                                 peak: the sensor level stops short
     if "drift" in clock:
         rec.shift_reference_imu(-clock["offset_s"], "measured: " + clock["said"],
                                 drift=-clock["drift"], at_s=clock["at_s"] + clock["offset_s"])

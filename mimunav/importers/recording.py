@@ -89,6 +89,8 @@ class Recording:
     #                                     means at import (`aliasing` asks what they folded)
     aliased: dict = field(default_factory=dict)     # {sensor: why} (`aliasing.aliased`)
     reference_imu_moved: str = ""   # why no one mounting holds the pair (`pairing`), or ''
+    reference_imu_clock_open: str = ""  # the clock search's words where it left the stamps
+    #                                     as given without finding them its peak (`pairing`)
     clip_spans_ns: list = field(default_factory=list)   # [(t0, t1 ns, clips)] where an IMU's
     #                                     own clip counter rose (`clip_counts`), on imu_ns's clock
     reference_heading_known: bool = True    # False: the reference lies in a local frame whose

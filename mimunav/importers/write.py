@@ -87,6 +87,7 @@ def write_log(rec, path, force=False):
                                    "reference_imu_clock_se_s": rec.reference_imu_clock_se_s,
                                    "vehicle": rec.vehicle, "aliased": rec.aliased,
                                    "reference_imu_moved": rec.reference_imu_moved,
+                                   "reference_imu_clock_open": rec.reference_imu_clock_open,
                                    "clip_spans_s": [[(a - epoch) / 1e9, (b - epoch) / 1e9, n]
                                                     for a, b, n in rec.clip_spans_ns]})
         channels = [("/mimu/imu", S.IMU, "mimu", rec.imu_ns, S.imu_fields(rec.w, rec.f))]

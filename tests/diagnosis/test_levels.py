@@ -337,3 +337,23 @@ def test_a_rectification_beside_vibration_below_its_corner_says_its_band():
     alone = [{"effect": "vibration_rectification", "sensor": "accel", "axis": "z"}]
     levels.beside_the_band(alone, SimpleNamespace(fog_t=t, fog_f=f))
     assert "band_left_out" not in alone[0]
+
+
+def test_findings_beside_a_clock_the_import_could_not_decide_are_set_aside():
+    """A train's IMU 1.5 s off its reference, the import's clock search not decided and the
+    stamps kept as given: the sensor level had named a 3.5 deg mounting and an accel.x offset
+    of -0.54 m/s^2 (truth: the mounting exact, the offset 0.012) and never the clock. Every
+    finding is set aside with the import's words and the option that gives the clock; where
+    the import left nothing open (the data peak at the stamps given) nothing is set aside."""
+    found = [{"effect": "mounting_misalignment", "sensor": "imu", "axis": "all"}]
+    said = "not decided (the two IMUs (|w|) correlate 0.93 ...)"
+    diag = SimpleNamespace(findings=list(found), rejected=[], inconclusive=[])
+    levels.set_aside_undecided_clock(diag, SimpleNamespace(recording={
+        "reference_imu_clock_open": said}))
+    assert diag.findings == [] and diag.rejected[0]["effect"] == "mounting_misalignment"
+    (why,) = diag.inconclusive
+    assert said in why and "--reference-imu-time-offset" in why
+    kept = SimpleNamespace(findings=list(found), rejected=[], inconclusive=[])
+    levels.set_aside_undecided_clock(kept, SimpleNamespace(recording={
+        "reference_imu_clock_open": ""}))
+    assert kept.findings == found and kept.inconclusive == []
