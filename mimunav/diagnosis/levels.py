@@ -19,6 +19,7 @@ from . import navigation, sensor, track, vehicle_kind
 from ..compensation.effects import VIBRATION_CUTOFF_HZ
 from ..motion.carrier import ALONG_COURSE
 from .design import MOTION_HZ, reference_spectrum
+from .library import apart_reasons
 from ..sensors.mimu import G0
 
 LEVELS = ("sensor", "navigation", "track")
@@ -99,6 +100,7 @@ def diagnose(flight, cal, level, alpha=0.05, seed=0, accuracy=None, noise=None, 
         set_aside_aliased(diag, flight)
         set_aside_moved(diag, flight)
         set_aside_undecided_clock(diag, flight)
+        set_aside_apart(diag, flight)
         beside_the_band(diag.findings, flight)
         beside_the_imports_biases(diag.findings, flight, cal)
         beside_the_scales(diag.findings, diag.design.inputs)
@@ -164,6 +166,17 @@ def set_aside_undecided_clock(diag, flight):
                f"({said}); where the recording's own notes confirm it, "
                "--reference-imu-time-offset S at import gives it")
         _set_aside(diag, lambda f: True, lambda f: why, [why])
+
+
+def set_aside_apart(diag, flight):
+    """The sensor level's findings on the accelerometers (and the unit's) set aside where a
+    lever arm fitted beyond its range lies between two IMUs given at one point
+    (`library.apart_reasons`, already among the inconclusive reasons): the transfer it
+    leaves out is in every accelerometer's residual (a train's cab IMU 8.3 m from its INS
+    had a time skew of -0.2 s named on its accelerometers in the arm's place)."""
+    why = apart_reasons(diag.rejected, flight)
+    if why:
+        _set_aside(diag, lambda f: f.get("sensor") in ("accel", "imu"), lambda f: why[0], [])
 
 
 def _set_aside(diag, hit, why, reasons):

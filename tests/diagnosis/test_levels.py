@@ -357,3 +357,26 @@ def test_findings_beside_a_clock_the_import_could_not_decide_are_set_aside():
     levels.set_aside_undecided_clock(kept, SimpleNamespace(recording={
         "reference_imu_clock_open": ""}))
     assert kept.findings == found and kept.inconclusive == []
+
+
+def test_accelerometer_findings_beside_an_arm_beyond_range_between_imus_at_one_point():
+    """A train's cab IMU 8.3 m from its INS, no arm given: beside the arm fitted beyond range
+    a time skew of -0.2 s had been named on the accelerometers. Those findings (and the
+    unit's) are set aside with the arm's words; the gyros' stay; with an arm given nothing
+    is set aside."""
+    from mimunav.frames.mounting import Mounting
+    arm = {"effect": "lever_arm", "sensor": "imu", "axis": "all", "label": "lever_arm imu.all",
+           "beyond_range": 1.0, "rejected": "significant on the training half (p 0) at 8.3 m"}
+    skew = {"effect": "time_skew", "sensor": "accel", "axis": "all"}
+    gyro = {"effect": "bias_shift", "sensor": "gyro", "axis": "x"}
+    def flight(arm_m):
+        return SimpleNamespace(mimu_mounting=Mounting(lever_arm_m=arm_m), fog_mounting=Mounting())
+    diag = SimpleNamespace(findings=[skew, gyro], rejected=[arm], inconclusive=[])
+    levels.set_aside_apart(diag, flight([0.0, 0.0, 0.0]))
+    assert diag.findings == [gyro] and diag.rejected[0] is arm
+    (aside,) = diag.rejected[1:]
+    assert aside["effect"] == "time_skew" and aside["rejected"].endswith(
+        "no lever arm was given between the two IMUs")
+    given = SimpleNamespace(findings=[skew, gyro], rejected=[arm], inconclusive=[])
+    levels.set_aside_apart(given, flight([8.0, 0.0, 0.0]))
+    assert given.findings == [skew, gyro] and given.rejected == [arm]
