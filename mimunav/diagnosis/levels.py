@@ -149,7 +149,7 @@ def set_aside_moved(diag, flight):
     saturation accel.x on the MIMU at p < 1e-300)."""
     said = (flight.recording or {}).get("reference_imu_moved")
     if said:
-        _set_aside(diag, lambda f: True, lambda f: said, [said])
+        _set_aside(diag, lambda f: True, lambda f: said, [said + _excursions_too(diag)])
 
 
 def set_aside_undecided_clock(diag, flight):
@@ -165,7 +165,7 @@ def set_aside_undecided_clock(diag, flight):
         why = (f"the import could not decide the reference IMU's clock against the IMU's "
                f"({said}); where the recording's own notes confirm it, "
                "--reference-imu-time-offset S at import gives it")
-        _set_aside(diag, lambda f: True, lambda f: why, [why])
+        _set_aside(diag, lambda f: True, lambda f: why, [why + _excursions_too(diag)])
 
 
 def set_aside_apart(diag, flight):
@@ -177,6 +177,17 @@ def set_aside_apart(diag, flight):
     why = apart_reasons(diag.rejected, flight)
     if why:
         _set_aside(diag, lambda f: f.get("sensor") in ("accel", "imu"), lambda f: why[0], [])
+
+
+def _excursions_too(diag):
+    """The diagnosis's excursions, taken out of it (read on a geometry or a clock that does
+    not hold, they locate nothing: a train's 1.5 s clock had left one of z -48) and named in
+    words to end a reason with, or ''."""
+    spans, diag.unexplained = list(getattr(diag, "unexplained", None) or []), []
+    return "" if not spans else (
+        f"; its {len(spans)} excursion(s) set aside with it ("
+        + ", ".join(f"{u['channel']} {u['t0']:.1f}-{u['t1']:.1f} s" for u in spans[:3])
+        + (", ..." if len(spans) > 3 else "") + ")")
 
 
 def _set_aside(diag, hit, why, reasons):

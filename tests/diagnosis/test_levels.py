@@ -343,16 +343,20 @@ def test_findings_beside_a_clock_the_import_could_not_decide_are_set_aside():
     """A train's IMU 1.5 s off its reference, the import's clock search not decided and the
     stamps kept as given: the sensor level had named a 3.5 deg mounting and an accel.x offset
     of -0.54 m/s^2 (truth: the mounting exact, the offset 0.012) and never the clock. Every
-    finding is set aside with the import's words and the option that gives the clock; where
-    the import left nothing open (the data peak at the stamps given) nothing is set aside."""
+    finding is set aside with the import's words and the option that gives the clock, and
+    so are its excursions (one of z -48.5 there); where the import left nothing open (the
+    data peak at the stamps given) nothing is set aside."""
     found = [{"effect": "mounting_misalignment", "sensor": "imu", "axis": "all"}]
     said = "not decided (the two IMUs (|w|) correlate 0.93 ...)"
-    diag = SimpleNamespace(findings=list(found), rejected=[], inconclusive=[])
+    spans = [{"channel": "accel.x", "t0": 40.1, "t1": 42.1, "z": -48.5}]
+    diag = SimpleNamespace(findings=list(found), rejected=[], inconclusive=[], unexplained=spans)
     levels.set_aside_undecided_clock(diag, SimpleNamespace(recording={
         "reference_imu_clock_open": said}))
     assert diag.findings == [] and diag.rejected[0]["effect"] == "mounting_misalignment"
     (why,) = diag.inconclusive
     assert said in why and "--reference-imu-time-offset" in why
+    assert diag.unexplained == [] and why.endswith(
+        "; its 1 excursion(s) set aside with it (accel.x 40.1-42.1 s)")    # a wrong clock's
     kept = SimpleNamespace(findings=list(found), rejected=[], inconclusive=[])
     levels.set_aside_undecided_clock(kept, SimpleNamespace(recording={
         "reference_imu_clock_open": ""}))
