@@ -173,17 +173,23 @@ def set_aside_apart(diag, flight):
     lever arm fitted beyond its range lies between two IMUs given at one point
     (`library.apart_reasons`, already among the inconclusive reasons): the transfer it
     leaves out is in every accelerometer's residual (a train's cab IMU 8.3 m from its INS
-    had a time skew of -0.2 s named on its accelerometers in the arm's place)."""
+    had a time skew of -0.2 s named on its accelerometers in the arm's place); so are the
+    accelerometers' excursions, named at the end of the arm's reason."""
     why = apart_reasons(diag.rejected, flight)
     if why:
         _set_aside(diag, lambda f: f.get("sensor") in ("accel", "imu"), lambda f: why[0], [])
+        diag.inconclusive = [w + _excursions_too(diag, "accel.") if w == why[0] else w
+                             for w in diag.inconclusive]
 
 
-def _excursions_too(diag):
-    """The diagnosis's excursions, taken out of it (read on a geometry or a clock that does
-    not hold, they locate nothing: a train's 1.5 s clock had left one of z -48) and named in
-    words to end a reason with, or ''."""
-    spans, diag.unexplained = list(getattr(diag, "unexplained", None) or []), []
+def _excursions_too(diag, channels=""):
+    """The diagnosis's excursions on the channels named starting `channels` ('': all), taken
+    out of it (read on a geometry or a clock that does not hold, they locate nothing: a
+    train's 1.5 s clock had left one of z -48) and named in words to end a reason with, or
+    ''."""
+    every = list(getattr(diag, "unexplained", None) or [])
+    spans = [u for u in every if u["channel"].startswith(channels)]
+    diag.unexplained = [u for u in every if not u["channel"].startswith(channels)]
     return "" if not spans else (
         f"; its {len(spans)} excursion(s) set aside with it ("
         + ", ".join(f"{u['channel']} {u['t0']:.1f}-{u['t1']:.1f} s" for u in spans[:3])

@@ -366,8 +366,8 @@ def test_findings_beside_a_clock_the_import_could_not_decide_are_set_aside():
 def test_accelerometer_findings_beside_an_arm_beyond_range_between_imus_at_one_point():
     """A train's cab IMU 8.3 m from its INS, no arm given: beside the arm fitted beyond range
     a time skew of -0.2 s had been named on the accelerometers. Those findings (and the
-    unit's) are set aside with the arm's words; the gyros' stay; with an arm given nothing
-    is set aside."""
+    unit's) are set aside with the arm's words, the accelerometers' excursions named at its
+    end; the gyros' stay; with an arm given nothing is set aside."""
     from mimunav.frames.mounting import Mounting
     arm = {"effect": "lever_arm", "sensor": "imu", "axis": "all", "label": "lever_arm imu.all",
            "beyond_range": 1.0, "rejected": "significant on the training half (p 0) at 8.3 m"}
@@ -375,9 +375,16 @@ def test_accelerometer_findings_beside_an_arm_beyond_range_between_imus_at_one_p
     gyro = {"effect": "bias_shift", "sensor": "gyro", "axis": "x"}
     def flight(arm_m):
         return SimpleNamespace(mimu_mounting=Mounting(lever_arm_m=arm_m), fog_mounting=Mounting())
-    diag = SimpleNamespace(findings=[skew, gyro], rejected=[arm], inconclusive=[])
+    spans = [{"channel": "accel.x", "t0": 40.0, "t1": 42.0}, {"channel": "gyro.z", "t0": 9.0,
+                                                              "t1": 11.0}]
+    from mimunav.diagnosis.library import apart_reasons
+    (reason,) = apart_reasons([arm], flight([0.0, 0.0, 0.0]))     # as the sensor level says
+    diag = SimpleNamespace(findings=[skew, gyro], rejected=[arm], inconclusive=[reason],
+                           unexplained=list(spans))
     levels.set_aside_apart(diag, flight([0.0, 0.0, 0.0]))
     assert diag.findings == [gyro] and diag.rejected[0] is arm
+    assert diag.unexplained == spans[1:] and diag.inconclusive == [
+        reason + "; its 1 excursion(s) set aside with it (accel.x 40.0-42.0 s)"]
     (aside,) = diag.rejected[1:]
     assert aside["effect"] == "time_skew" and aside["rejected"].endswith(
         "no lever arm was given between the two IMUs")
