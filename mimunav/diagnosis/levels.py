@@ -20,6 +20,7 @@ from ..compensation.effects import VIBRATION_CUTOFF_HZ
 from ..motion.carrier import ALONG_COURSE
 from .design import MOTION_HZ, reference_spectrum
 from .library import apart_reasons
+from .scan import spans_said
 from ..sensors.mimu import G0
 
 LEVELS = ("sensor", "navigation", "track")
@@ -171,15 +172,14 @@ def set_aside_undecided_clock(diag, flight):
 def set_aside_apart(diag, flight):
     """The sensor level's findings on the accelerometers (and the unit's) set aside where a
     lever arm fitted beyond its range lies between two IMUs given at one point
-    (`library.apart_reasons`, already among the inconclusive reasons): the transfer it
+    (`library.apart_reasons`: a reason the diagnosis cannot conclude): the transfer it
     leaves out is in every accelerometer's residual (a train's cab IMU 8.3 m from its INS
     had a time skew of -0.2 s named on its accelerometers in the arm's place); so are the
     accelerometers' excursions, named at the end of the arm's reason."""
     why = apart_reasons(diag.rejected, flight)
     if why:
-        _set_aside(diag, lambda f: f.get("sensor") in ("accel", "imu"), lambda f: why[0], [])
-        diag.inconclusive = [w + _excursions_too(diag, "accel.") if w == why[0] else w
-                             for w in diag.inconclusive]
+        _set_aside(diag, lambda f: f.get("sensor") in ("accel", "imu"), lambda f: why[0],
+                   [why[0] + _excursions_too(diag, "accel.")])
 
 
 def _excursions_too(diag, channels=""):
@@ -190,10 +190,8 @@ def _excursions_too(diag, channels=""):
     every = list(getattr(diag, "unexplained", None) or [])
     spans = [u for u in every if u["channel"].startswith(channels)]
     diag.unexplained = [u for u in every if not u["channel"].startswith(channels)]
-    return "" if not spans else (
-        f"; its {len(spans)} excursion(s) set aside with it ("
-        + ", ".join(f"{u['channel']} {u['t0']:.1f}-{u['t1']:.1f} s" for u in spans[:3])
-        + (", ..." if len(spans) > 3 else "") + ")")
+    return f"; its {len(spans)} excursion(s) set aside with it ({spans_said(spans)})" \
+        if spans else ""
 
 
 def _set_aside(diag, hit, why, reasons):

@@ -71,15 +71,19 @@ def across_gaps(t, fog_t):
     mean is its one sample after it and its derivative spans both sides: a reference IMU
     silent for 60 s had been bridged, and the flight's turns read as excursions of z 1400
     (the sensor level leaves these samples out; it navigates nothing across a gap)."""
-    t, out = np.asarray(t, float), np.zeros(len(t), bool)
-    before = np.concatenate([[t[0]], t[:-1]])
+    t, edges = np.asarray(t, float), np.zeros(len(t) + 1, int)
     for s in (t, np.asarray(fog_t, float)):
         step = np.diff(s)
         if len(step) < 2:
             continue
-        for k in np.flatnonzero(step > max(DERIVATIVE_WINDOW_S, 3.0 * np.median(step))):
-            out |= (t > s[k] - DERIVATIVE_WINDOW_S) & (before < s[k + 1] + DERIVATIVE_WINDOW_S)
-    return out
+        k = np.flatnonzero(step > max(DERIVATIVE_WINDOW_S, 3.0 * np.median(step)))
+        # sample i is near (t[i] > gap start - margin and t[i-1] < gap end + margin): the
+        # samples from the first after the start to the one after the last before the end
+        first = np.searchsorted(t, s[k] - DERIVATIVE_WINDOW_S, "right")
+        last = np.searchsorted(t, s[k + 1] + DERIVATIVE_WINDOW_S, "left")
+        np.add.at(edges, first, 1)
+        np.add.at(edges, np.minimum(last, len(t) - 1) + 1, -1)
+    return np.cumsum(edges[:-1]) > 0
 
 
 def counted_outputs(flight, fog_t, x):

@@ -17,6 +17,7 @@ from .confirmation import beta_of, position_of
 from ..compensation.effects import AXES
 from .design import CHANNELS, gamma_slots, term_contribution
 from .fitting import plausible
+from .scan import overlaps, spans_said
 
 
 def removal_sigma(design, fit, findings, rows):
@@ -180,14 +181,11 @@ def held_excursions(spans, held, beyond):
     that error's shape, not the IMU's (a phone beside a tactical INS: its coupling fitted
     41 times its stated 1 sigma left excursions of z 11 at the drive's two sharpest turns,
     where the two IMUs' outputs agree)."""
-    def stands(s):
-        return any(o["channel"] == s["channel"] and o["t0"] < s["t1"] and s["t0"] < o["t1"]
-                   for o in held)
-    aside = [s for s in spans if not stands(s)]
-    named = ", ".join(f"{s['channel']} {s['t0']:.1f}-{s['t1']:.1f} s" for s in aside[:3])
+    stands = [any(overlaps(s, o) for o in held) for s in spans]
+    aside = [s for s, kept in zip(spans, stands) if not kept]
     words = "; ".join(why for z, why in beyond if z > REFERENCE_BEYOND_SIGMA)
-    return [s for s in spans if stands(s)], [
-        f"{len(aside)} excursion(s) ({named}{', ...' if len(aside) > 3 else ''}) stand only "
+    return [s for s, kept in zip(spans, stands) if kept], [
+        f"{len(aside)} excursion(s) ({spans_said(aside)}) stand only "
         f"with the reference's fitted error, which lies beyond its stated accuracy ({words}): "
         "the reference is worse than stated or the model lacks something charged to it - "
         "set aside"] if aside else []

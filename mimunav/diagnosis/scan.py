@@ -97,6 +97,19 @@ def excursions(design, x, alpha):
     return spans
 
 
+def overlaps(a, b, margin_s=0.0):
+    """Whether spans a and b {"channel", "t0", "t1"} (s) lie on one channel and overlap, or
+    come within margin_s of each other."""
+    return (a["channel"] == b["channel"] and a["t0"] < b["t1"] + margin_s
+            and b["t0"] < a["t1"] + margin_s)
+
+
+def spans_said(spans, shown=3):
+    """The spans {"channel", "t0", "t1"} in words, the first `shown` of them."""
+    return ", ".join(f"{u['channel']} {u['t0']:.1f}-{u['t1']:.1f} s" for u in spans[:shown]) \
+        + (", ..." if len(spans) > shown else "")
+
+
 ECHO_S = 5.0    # s: an excursion shows, halved and reversed, in the windows whose baselines
 #                 hold it (4 and 5 s away): a span stands where either stands again
 
@@ -118,9 +131,7 @@ def excursions_left_out(design, residual_on, alpha, spans):
     if not spans:
         return spans
     again = excursions(design, residual_on(~near_spans(design.t, spans, SCAN_WINDOW_S)), alpha)
-    return [first for first in spans
-            if any(s["channel"] == first["channel"] and s["t0"] < first["t1"] + ECHO_S
-                   and first["t0"] < s["t1"] + ECHO_S for s in again)]
+    return [first for first in spans if any(overlaps(first, s, ECHO_S) for s in again)]
 
 
 STRATUM_WINDOWS = 30    # windows a stratum needs for its own robust scale

@@ -71,7 +71,6 @@ from ..compensation.wild_values import REPLACED, UNUSABLE
 from ..compensation.effects import AXES
 from ..frames import attitude
 from . import errors_in_variables, library, outputs, track_reference, wander
-from .library import apart_reasons
 from ..sensors.accuracy import accuracy_of
 from .reference import across_gaps, agreement, transfer_doubt, transfer_shocks
 from ..errors import InputError
@@ -205,7 +204,6 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
                          if why]
     if not findings:        # what the halves set aside was there, but not the same throughout
         diag.inconclusive += set_aside_reasons(aside) + beyond_range_reasons(rejected)
-    diag.inconclusive += apart_reasons(rejected, flight)
     if prep.agreement is not None:
         diag.reference_agreement = prep.agreement
         diag.inconclusive = diag.inconclusive + prep.agreement["failures"]
