@@ -5,7 +5,8 @@ specific force that it and the velocity make are compared with each IMU's, turne
 vehicle frame by its mounting, so that the turn goes onto the IMU the attitude contradicts
 (a car's consumer IMU given 3.9 deg off its true mounting had turned its OXTS reference IMU
 instead, and the words sent the user to the reference's section), and onto both where it
-holds neither.
+holds neither. And whether the attitude holds its own IMU at all, axis by axis
+(`check_rates_along`): a sign of its angles read wrong turns it against the gyro.
 """
 import numpy as np
 import quaternion
@@ -14,6 +15,7 @@ from scipy.spatial.transform import Rotation
 from ..frames import attitude
 from ..frames.mounting import Mounting
 from ..sensors.mimu import G0
+from .recording import RecordingError
 from .series import window_means
 
 # an IMU the attitude holds lies within this share of the turn measured between the two
@@ -141,3 +143,75 @@ def angle_text(rad):
     """An angle in deg to 0.1 for a command line: -180 written 180, no -0.0."""
     deg = round(float(np.degrees(float(rad))), 1)
     return f"{180.0 if deg == -180.0 else deg + 0.0:.1f}"
+
+
+# a vehicle axis about which the attitude's 1 s mean rate and the gyro's correlate below minus
+# this runs against it: where an axis turns, a mounting and a convention read right correlate
+# near +1 (the Earth's rate and the gyro's bias are constants, centred out; comma2k19's car
+# 0.98-1.00 on all three, the VN-300's light aircraft 1.00); an angle read as its negative,
+# or a mounting 180 deg off about another axis, near -1. Over 20 s or more, white noise
+# reaches -0.5 with odds under 1 %
+RUNS_AGAINST = 0.5
+MIN_SECONDS = 20
+TURNS = 0.002   # rad/s: an axis is judged where the attitude's 1 s mean rate spreads this much
+#   (its std): 40 times a MEMS gyro's bias wander over minutes (10 deg/h), 8 times what a
+#   tactical INS's attitude noise (0.01 deg an epoch) makes of it; a noisier axis correlates
+#   near 0, not -1. A car's bumps turn its roll axis 0.004 (comma2k19; a noise test on the
+#   series' own differences had passed over all three axes there, a car's 1 s means varying
+#   as fast as they spread)
+AXES = "xyz"
+
+
+def rates_along(reference, ns, w, mounting):
+    """{axis: (correlation, gain, seconds)} of the vehicle axes (FRD) about which the
+    reference's attitude turns (TURNS, over MIN_SECONDS or more): its 1 s mean rates
+    (`attitude_means`) against an IMU's (w rad/s at stamps ns, sensor axes, turned into the
+    vehicle frame by `mounting`), both about their own means; the gain is the IMU's rate per
+    the attitude's (1 for the two read alike, -1 for a sign read wrong)."""
+    mids = np.arange(ns[0] / 1e9 + 1.0, ns[-1] / 1e9 - 1.0, 1.0)
+    predicted = attitude_means(reference, mids) if len(mids) >= MIN_SECONDS else None
+    if predicted is None:
+        return {}
+    mine = attitude.rotate(mounting.q_vs, window_means(ns, w, mids))
+    rows = np.isfinite(predicted[0]).all(axis=1) & np.isfinite(mine).all(axis=1)
+    out = {}
+    for i, axis in enumerate(AXES):
+        x, y = predicted[0][rows, i], mine[rows, i]
+        x, y = x - x.mean(), y - y.mean()
+        if rows.sum() < MIN_SECONDS or not np.std(x) >= TURNS:
+            continue
+        out[axis] = (float(np.corrcoef(x, y)[0, 1]), float(x @ y / (x @ x)), int(rows.sum()))
+    return out
+
+
+def check_rates_along(rec):
+    """Refuse (RecordingError) a reference attitude that turns against the gyro of its own
+    IMU - the reference IMU where there is one, else the IMU - about a vehicle axis
+    (`rates_along`; correlation below -RUNS_AGAINST): an angle's sign read wrong (an INS's
+    roll and pitch: x and y; a yaw counted counter-clockwise: z, and y where it pitches;
+    the quaternion's conjugate: z at least), or that IMU's mounting 180 deg off about the axis that follows.
+    An IMU's trial on a train, its INS's roll and pitch read as their negatives, had been
+    taken, and the windows then charged the MEMS with 6-40 times its error. Said in
+    rec.real["reference_attitude_rates"] otherwise."""
+    own = rec.reference_imu
+    whose, ns, w, mounting = (("the IMU's", rec.imu_ns, rec.w, rec.mounting) if own is None else
+                              ("the reference IMU's", own["ns"], own["w"], own["mounting"]))
+    along = rates_along(rec.reference, ns, w, mounting)
+    if not along:
+        return
+    said = "; ".join(f"{axis}: correlation {r:+.2f}, gain {gain:+.2f}"
+                     for axis, (r, gain, _) in along.items())
+    said = (f"the reference's attitude against {whose} gyro, 1 s mean rates about the vehicle "
+            f"axes that turn ({TURNS:g} rad/s or more) over "
+            f"{max(n for *_, n in along.values())} s ({said})")
+    against = [axis for axis, (r, *_) in along.items() if r < -RUNS_AGAINST]
+    if against:
+        raise RecordingError(
+            f"{rec.name}: {said}: it turns against that gyro about {' and '.join(against)}: is a "
+            "sign of the attitude's angles read wrong (roll and pitch as their negatives turn "
+            "it against about x and y; a yaw counted counter-clockwise about z; the "
+            "quaternion's conjugate about z at least - `scale = -1` on an angle's column in a "
+            f"table spec), or is {whose} mounting 180 deg off about an axis that follows? "
+            "(A motion that repeats - a ship's roll - runs against itself with stamps half a "
+            "period off: the clock too.)")
+    rec.real["reference_attitude_rates"] = said

@@ -12,6 +12,7 @@ from ..navigation.rest_biases import level
 from ..frames import attitude
 from ..flightlog.stamps import rounded_clock
 from .aliasing import aliased
+from .attitude_check import check_rates_along
 from .course_check import REFUSED_OFFSET_S, check_against_course, local_mean, not_a_car, \
     offset_advice
 from .imu_clock import GRID_S, late_or_early, trajectory_clock
@@ -19,7 +20,7 @@ from .pairing import pair
 from .recording import G0, RecordingError, utc_text
 from .vehicle_check import check_declared_vehicle
 from .velocity_check import check_acceleration_scale, check_velocity, positions_velocity
-from ..motion.carrier import LAND, course_keys
+from ..motion.carrier import ALONG_COURSE, EITHER_END, course_keys
 from ..motion.track import velocity_from_positions
 
 
@@ -89,6 +90,7 @@ def check_recording(rec):
     check_acceleration_scale(rec, t_ref / 1e9, ref["v_ned"][ok], f_ned)
     _check_heading_against_course(rec, q, ok)
     _check_reference_clock(rec)
+    check_rates_along(rec)      # after the clock: seconds off refuse as such first
 
 
 def _uniform_clocks(rec):
@@ -115,32 +117,40 @@ FAST_S = 5.0                    # m/s: a course from differenced fixes holds to 
 
 
 def _check_heading_against_course(rec, q, ok):
-    """A car's reference heading must follow its own course (no side slip), in the mean
-    over its fast epochs: refused beyond HEADING_OFF_COURSE_DEG (JUDGED_OFF_COURSE_DEG for
-    a recording judged a car, not declared one) - a yaw in another convention;
-    a car reversing for most of its fast epochs reads 180 and is refused too, saying so;
-    said in rec.real otherwise. Not judged for what is not a car (it may fly sideways)."""
-    if not_a_car(rec, (np.asarray(rec.reference["ns"], np.int64) - int(rec.imu_ns[0])) / 1e9,
-                  rec.reference["v_ned"]):
+    """What moves along its forward axis - declared a car, a train or a two-wheeler
+    (`motion.carrier.ALONG_COURSE`), or judged a car - must have its reference heading
+    follow its own course (no side slip), in the mean over its fast epochs: refused beyond
+    HEADING_OFF_COURSE_DEG (JUDGED_OFF_COURSE_DEG for a recording judged a car, not
+    declared one) - a yaw in another convention; a car reversing for most of its fast
+    epochs reads 180 and is refused too, saying so; a train runs either end first, so its
+    mean is taken modulo 180 deg (`carrier.EITHER_END`); said in rec.real otherwise. Not
+    judged for anything else (it may fly sideways). A train's heading counted
+    counter-clockwise had been taken (trial: not judged, "declared: train")."""
+    declared = rec.vehicle in ALONG_COURSE
+    if not declared and not_a_car(rec, (np.asarray(rec.reference["ns"], np.int64)
+                                        - int(rec.imu_ns[0])) / 1e9, rec.reference["v_ned"]):
         return
     v = rec.reference["v_ned"][ok]
     fast = np.hypot(v[:, 0], v[:, 1]) > FAST_S
     if fast.sum() < 20:
         return
     heading = attitude.as_euler(attitude.from_wxyz(q[ok][fast]))[0]
-    off = np.angle(np.exp(1j * (heading - np.arctan2(v[fast, 1], v[fast, 0]))))
-    mean = math.degrees(float(np.angle(np.mean(np.exp(1j * off)))))
+    ends = 2 if rec.vehicle in EITHER_END else 1    # an axial mean: 0 and 180 deg alike
+    off = heading - np.arctan2(v[fast, 1], v[fast, 0])
+    mean = round(math.degrees(float(np.angle(np.mean(np.exp(1j * ends * off))))) / ends,
+                 1) + 0.0       # no -0.0
     said = (f"the reference's heading lies {mean:+.1f} deg from its own course (circular "
-            f"mean over {int(fast.sum())} epochs faster than {FAST_S:g} m/s)")
-    limit = HEADING_OFF_COURSE_DEG if rec.vehicle == LAND else JUDGED_OFF_COURSE_DEG
-    if abs(mean) > limit:
+            f"mean over {int(fast.sum())} epochs faster than {FAST_S:g} m/s"
+            + (", modulo 180 deg: it runs either end first)" if ends == 2 else ")"))
+    what = f"a {rec.vehicle}" if declared else "a car"
+    if abs(mean) > (HEADING_OFF_COURSE_DEG if declared else JUDGED_OFF_COURSE_DEG):
         raise RecordingError(
-            f"{rec.name}: {said}, and a car moves along its heading: is the attitude's yaw in "
+            f"{rec.name}: {said}, and {what} moves along its heading: is the attitude's yaw in "
             "the convention the import reads (a heading from north, clockwise; a yaw from "
             "east, counter-clockwise, is heading = 90 deg - yaw: `scale` and `offset` in a "
             "table spec, the offset in the column's unit - 1.5707963 in rad)?"
             + (" Or does it drive in reverse most of the time?" if abs(mean) > 150 else "")
-            + ("" if rec.vehicle == LAND else " (Judged a car from its track; if it is not "
+            + ("" if declared else " (Judged a car from its track; if it is not "
                "one, declare what it is: --vehicle, or the spec's `vehicle`.)"))
     rec.real["reference_heading"] = said
 

@@ -32,6 +32,8 @@ LAND = "car"
 ALONG_COURSE = (LAND, "train", "two-wheeler")   # what moves along its forward axis: its
 #                                    course its heading (a car or a two-wheeler without
 #                                    side slip, a train on its rails)
+EITHER_END = ("train",)             # what runs either end first: its course its heading or
+#                                    the heading's opposite
 
 
 def course_keys(vehicle):

@@ -747,14 +747,17 @@ def test_the_gnss_course_judges_units_and_axes_without_a_reference_attitude(tmp_
 
 
 @pytest.mark.parametrize("yaw_off_deg, vehicle", [(0.0, "car"), (90.0, "car"), (26.6, "car"),
-                                                 (26.6, None), (90.0, None)])
+                                                 (26.6, None), (90.0, None), (26.6, "train"),
+                                                 (180.0, "train"), (-170.0, "car")])
 def test_a_cars_reference_heading_must_follow_its_course(tmp_path, yaw_off_deg, vehicle):
     """The weaving synthetic drive with its attitude: as it is, the import says how far the
     reference's heading lies from the course (0); a yaw read in another convention (KITTI's,
     from east: 90 deg off; its pi/2 offset given in deg as 90 rad: 26.6) is refused, naming
     the convention - it had been imported silently, and a free-inertial window ended 42 m
     off instead of 1.8. Judged a car, not declared, 26.6 deg passes (a light aircraft's
-    crab), 90 is refused, naming how to declare what it is."""
+    crab), 90 is refused, naming how to declare what it is. Declared a train, it is judged
+    too (it had been passed over: not a car) - modulo 180 deg, as a train runs either end
+    first; a car 170 deg off is asked whether it drives in reverse."""
     t_tr, lat, lon, h, v = straight_track()
     motion = TrackMotion(t_tr, lat, lon, h, v)
     t = np.arange(t_tr[0], t_tr[-1] + 1e-9, 0.01)
@@ -766,14 +769,16 @@ def test_a_cars_reference_heading_must_follow_its_course(tmp_path, yaw_off_deg, 
                q_nb=quaternion.as_float_array(q))
     rec = Recording("car", "", epoch + np.round(t[1:] * 1e9).astype(np.int64), dth * 100.0,
                     dv * 100.0, MOUNT, reference=ref, vehicle=vehicle)
-    if yaw_off_deg == 0.0 or (yaw_off_deg < 30 and vehicle is None):
+    seen = (yaw_off_deg + 90.0) % 180.0 - 90.0 if vehicle == "train" else yaw_off_deg
+    if seen == 0.0 or (yaw_off_deg < 30 and vehicle is None):
         write_log(rec, tmp_path / "car.mcap")
-        assert f"heading lies {yaw_off_deg:+.1f} deg from its own course" in \
+        assert f"heading lies {seen:+.1f} deg from its own course" in \
             rec.real["reference_heading"]
         return
-    with pytest.raises(RecordingError, match=re.escape(f"heading lies {yaw_off_deg:+.1f} deg "
+    with pytest.raises(RecordingError, match=re.escape(f"heading lies {seen:+.1f} deg "
                                                        "from its own course") + ".*yaw from east"
-                       + (".*Judged a car.*--vehicle" if vehicle is None else "")):
+                       + (".*Judged a car.*--vehicle" if vehicle is None else "")
+                       + (".*in reverse" if abs(seen) > 150 else "")):
         write_log(rec, tmp_path / "car.mcap")
 
 

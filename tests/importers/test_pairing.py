@@ -694,3 +694,37 @@ def test_a_unit_that_moved_in_its_mount_is_not_given_one_mean_mounting(pair_moti
     assert diag.inconclusive == ["other", rec.reference_imu_moved]
     assert np.allclose(rec.reference_imu["mounting"].q_vs.components,
                        Mounting.from_rpy_deg((180.0, 0.0, 0.0)).q_vs.components)
+
+
+@pytest.mark.parametrize("read_as, against", [("as recorded", ""), ("roll and pitch negated", "x and y"),
+                                              ("yaw counter-clockwise", "y and z"),
+                                              ("ENU pitch and yaw", "y and z"),
+                                              ("conjugate", "z")])
+@pytest.mark.parametrize("own", ["reference IMU", "IMU"])
+def test_an_attitude_whose_angles_turn_against_its_own_gyro_is_refused(read_as, against, own):
+    """The proof flight's attitude beside its IMUs, every mounting given right: read as
+    recorded, each vehicle axis's 1 s mean rate follows the gyro's (correlation +1.00); a sign
+    of its angles read wrong turns it against the gyro about the axes named - the
+    reference IMU's where there is one, else the IMU's - and the recording is refused
+    (a train's INS read with roll and pitch negated had been taken: the up-vector test
+    passes a few degrees of tilt, and the clock's test compares |w| only)."""
+    rec = _attitude_pair((180.0, 0.0, 0.0), (180.0, 0.0, 90.0))
+    if own == "IMU":
+        rec.reference_imu = None
+    q = attitude.from_wxyz(rec.reference["q_nb"])
+    yaw, pitch, roll = attitude.as_euler(q)
+    q = {"as recorded": q, "conjugate": np.conjugate(q),
+         "roll and pitch negated": attitude.from_euler(yaw, -pitch, -roll),
+         "yaw counter-clockwise": attitude.from_euler(-yaw, pitch, roll),
+         "ENU pitch and yaw": attitude.from_euler(np.pi / 2 - yaw, -pitch, roll)}[read_as]
+    rec.reference["q_nb"] = quaternion.as_float_array(q)
+    if not against:
+        checks.check_recording(rec)
+        said = rec.real["reference_attitude_rates"]
+        assert f"against the {own}'s gyro" in said
+        assert said.count("correlation +1.00, gain +1.00") == 3, said
+        return
+    with pytest.raises(RecordingError, match=f"against the {own}'s gyro.*it turns against that "
+                                             f"gyro about {against}: is a sign of the "
+                                             "attitude's angles read wrong"):
+        checks.check_recording(rec)
