@@ -156,8 +156,8 @@ def _check_heading_against_course(rec, q, ok):
 
 
 def _check_reference_clock(rec):
-    """The reference attitude's turn rate against the IMU's (`imu_clock.trajectory_clock`),
-    said in rec.real["reference_clock"]: a decided lag of REFUSED_OFFSET_S or more refused,
+    """The reference trajectory's clock against the IMU's (`imu_clock.trajectory_clock`:
+    its attitude's turn rate, else its specific force along the vehicle's x axis), said in rec.real["reference_clock"]: a decided lag of REFUSED_OFFSET_S or more refused,
     naming the shift that puts it back (the light aircraft's VN-300 solution: 2.5 s); one of
     two grid steps (GRID_S) or more said with that option, not applied: the data cannot tell
     the clocks' offset (a mocap pose 0.3 s late) from the IMU's latency (a phone's 40 ms,
@@ -172,7 +172,7 @@ def _check_reference_clock(rec):
                                             rec, rec.reference_shift_s - late, ".2f")[2:])
     if late is not None and abs(late) >= REFUSED_OFFSET_S:
         raise RecordingError(
-            f"{rec.name}: the reference's attitude turns as the IMU does only with its stamps "
+            f"{rec.name}: the reference's trajectory moves as the IMU does only with its stamps "
             f"{late_or_early(late)} ({clock['said']}): the two time bases differ by that much"
             + offset_advice(rec, rec.reference_shift_s - late, ".2f"))
 

@@ -12,13 +12,16 @@ standard error said. Each tenth of the overlap gives its own offset: a straight 
 them, weighted by their own variances, measures a drift (a crystal's tens of ppm), taken
 when beyond DISTINCT_Z of its standard error and worth SMALL_OFFSET_S over the overlap - the
 stamps then corrected along the line. A recording whose IMUs hardly turn (|w| spread below
-TURNING_RATE) cannot be timed so: said, and left as recorded.
+TURNING_RATE) cannot be timed so: said, and left as recorded. A reference trajectory's
+|w| that leaves its clock undecided (a train's or a car's turns repeat) is tried again by
+the specific force along the vehicle's x axis (`_along_force_lag`).
 """
 import math
 
 import numpy as np
 
 from ..frames import attitude
+from .attitude_check import attitude_means
 from .series import masked_correlation, on_grid, parabola_min, peak_margin, window_means
 
 SMALL_OFFSET_S = 0.001      # s: the refinement's step; a measured offset beyond it is
@@ -71,7 +74,7 @@ def clock_offset(rec):
     ref = rec.reference_imu
     found = _given_lobe(rec, rate_lag(
         _centres(rec.imu_ns), np.linalg.norm(rec.w, axis=1), _centres(ref["ns"]),
-        np.linalg.norm(ref["w"], axis=1), "the two IMUs", "the reference's stamps"))
+        np.linalg.norm(ref["w"], axis=1), "the two IMUs (|w|)", "the reference's stamps"))
     if found.get("lag_s") is None:
         return dict(found, offset_s=None)
     offset, se, (drift, drift_se, centre, at_centre) = _refined(rec, found["lag_s"])
@@ -108,7 +111,9 @@ def trajectory_clock(rec):
     """{"offset_s": how late (s) the reference trajectory's stamps are on the IMU's, to
     GRID_S, or None when the data do not decide it, "said"}: the IMU's |w| against the turn
     rate of the reference's attitude (between successive attitudes, at their mid-times;
-    steps over twice the median left out), by the module doc's rule."""
+    steps over twice the median left out), by the module doc's rule; where that leaves it
+    undecided, the specific force along the vehicle's x axis (`_along_force_lag`) by the
+    same rule."""
     ref = rec.reference
     ok = np.isfinite(ref["q_nb"]).all(axis=1)
     t = ref["ns"][ok] / 1e9
@@ -117,8 +122,36 @@ def trajectory_clock(rec):
     keep = step <= 2 * np.median(step)
     found = rate_lag(_centres(rec.imu_ns), np.linalg.norm(rec.w, axis=1),
                      (0.5 * (t[1:] + t[:-1]))[keep], rate[keep],
-                     "the IMU's and the reference attitude's turn rates", "the reference's stamps")
+                     "the IMU's and the reference attitude's turn rates (|w|)",
+                     "the reference's stamps")
+    if found.get("lag_s") is None:
+        along = _along_force_lag(rec)
+        if along.get("lag_s") is not None:
+            found = dict(along, said=f"{along['said']}, where their turn rates left it "
+                                     f"{found['said']}")
     return dict(found, offset_s=found.get("lag_s"))
+
+
+FORCE_STEP_S = 0.1      # s: the 1 s means of `_along_force_lag` slide this far a step
+
+
+def _along_force_lag(rec):
+    """`rate_lag` of the IMU's specific force along the vehicle's x axis (turned by its
+    mounting) against what the reference's attitude and velocity make of it
+    (`attitude_check.attitude_means`), both 1 s means every FORCE_STEP_S: a train's or a
+    car's starts and stops happen once, where its turns repeat (a reference trajectory
+    stamped in GPS time, 18 s from its IMU's UTC, had been left "not decided" - the |w| of
+    a train's curves peaking there at 1.00 and 0.93 10 s on - and taken as stamped)."""
+    ref_s, imu_s = rec.reference["ns"] / 1e9, rec.imu_ns / 1e9
+    mids_ref = np.arange(ref_s[0] + 0.5, ref_s[-1] - 0.5, FORCE_STEP_S)
+    mids_imu = np.arange(imu_s[0] + 0.5, imu_s[-1] - 0.5, FORCE_STEP_S)
+    predicted = attitude_means(rec.reference, mids_ref)
+    if predicted is None or len(mids_ref) < 3 or len(mids_imu) < 3:
+        return {"lag_s": None}
+    mine = attitude.rotate(rec.mounting.q_vs, window_means(rec.imu_ns, rec.f, mids_imu))
+    return rate_lag(mids_imu, mine[:, 0], mids_ref, predicted[1][:, 0],
+                    "the IMU's and the reference's specific force along the vehicle's x axis "
+                    "(1 s means)", "the reference's stamps")
 
 
 def _given_lobe(rec, found):
@@ -175,7 +208,7 @@ def rate_lag(t_a, rate_a, t_b, rate_b, whose, late):
     away[lobe] = False
     j = int(np.nanargmax(np.where(away, r, np.nan))) if np.isfinite(r[away]).any() else None
     second = float(r[j]) if j is not None else -1.0
-    said = (f"{whose} (|w|) correlate {peak:.2f} with {late} {late_or_early(lags[k] * GRID_S)}, "
+    said = (f"{whose} correlate {peak:.2f} with {late} {late_or_early(lags[k] * GRID_S)}, "
             f"{second:.2f} at best beyond the peak's lobe (+-{width:.2g} s)")
     rival = second > SECOND_PEAK_SHARE * peak
     if rival and peak >= PEAK_CORRELATION and width <= LOBE_MAX_S:
@@ -195,7 +228,7 @@ def rate_lag(t_a, rate_a, t_b, rate_b, whose, late):
                 if np.isfinite(r[near]).any() else k
             if r[i] > SECOND_PEAK_SHARE * peak:         # one of the rivals lies there
                 out.update(zero_lag_s=float(lags[i] * GRID_S),
-                           zero_said=f"{whose} (|w|) correlate {r[i]:.2f} with {late} "
+                           zero_said=f"{whose} correlate {r[i]:.2f} with {late} "
                                      f"{late_or_early(lags[i] * GRID_S)}, {peak:.2f} at best")
         return out
     return {"lag_s": float(lags[k] * GRID_S), "said": said}

@@ -782,6 +782,35 @@ def test_a_cars_reference_heading_must_follow_its_course(tmp_path, yaw_off_deg, 
         write_log(rec, tmp_path / "car.mcap")
 
 
+@pytest.mark.parametrize("late_s", [18.0, -3.0, 0.0])
+def test_a_trajectory_whose_turns_repeat_is_timed_by_its_starts_and_stops(tmp_path, late_s):
+    """The weaving drive (its turns repeat every 10 s) with its attitude, declared a train,
+    the reference's stamps late by late_s: the turn rates |w| peak at the true lag with a
+    rival 10 s on (0.93), undecided; the specific force along the vehicle's x axis (the
+    start from rest happens once) decides it - 18 s (GPS time read as UTC) had been left
+    "not decided" and taken as stamped. Seconds off are refused naming the shift."""
+    t_tr, lat, lon, h, v = straight_track(duration=150.0)
+    motion = TrackMotion(t_tr, lat, lon, h, v)
+    t = np.arange(t_tr[0], t_tr[-1] + 1e-9, 0.01)
+    dth, dv = MOUNT.sensor_increments(truth.generate(motion, t))
+    epoch = 1_700_000_000_000_000_000
+    ref = dict(ns=epoch + np.round((t_tr + late_s) * 1e9).astype(np.int64), lat=lat, lon=lon,
+               h=h, v_ned=v, q_nb=quaternion.as_float_array(motion.kinematics(t_tr).q_nb))
+    rec = Recording("train", "", epoch + np.round(t[1:] * 1e9).astype(np.int64), dth * 100.0,
+                    dv * 100.0, MOUNT, reference=ref, vehicle="train")
+    timed = re.escape(f"the IMU's and the reference's specific force along the vehicle's x "
+                      f"axis (1 s means) correlate 1.00 with the reference's stamps "
+                      f"{abs(late_s):.2f} s {'early' if late_s < 0 else 'late'}") + \
+        ".*where their turn rates left it not decided"
+    if late_s == 0.0:
+        write_log(rec, tmp_path / "train.mcap")
+        assert re.search(timed, rec.real["reference_clock"]), rec.real["reference_clock"]
+        return
+    with pytest.raises(RecordingError, match=timed + ".*" + re.escape(
+            f"--reference-time-offset {-late_s:+.2f}")):
+        write_log(rec, tmp_path / "train.mcap")
+
+
 def test_a_shift_given_on_the_command_line_is_counted_in_the_advice(tmp_path):
     """Right stamps shifted by --reference-time-offset +1.0 (a new user following advice that
     did not apply): the refusal names the whole shift from the recording's stamps - none - not
