@@ -121,6 +121,7 @@ def diagnose(flight, cal, level, alpha=0.05, seed=0, accuracy=None, noise=None, 
                                              for f in diag.findings]
             diag.findings = []
             diag.inconclusive = list(getattr(diag, "inconclusive", None) or []) + [contradicted]
+    set_aside_trajectory_clock(diag, flight)
     fused = fused_reference(flight)
     if fused and not diag.findings:
         diag.inconclusive = list(getattr(diag, "inconclusive", None) or []) + [fused]
@@ -161,19 +162,35 @@ def set_aside_undecided_clock(diag, flight):
     offset of -0.54 m/s^2 at p < 1e-300, the clock never named). Where the data peak at the
     stamps as given, among rivals (a train's slow turns), its findings stand beside the
     clock the sensor level fits."""
-    said = (flight.recording or {}).get("reference_imu_clock_open")
+    _set_aside_open_clock(diag, flight, "reference_imu_clock_open", "reference IMU's",
+                          "--reference-imu-time-offset")
+
+
+def set_aside_trajectory_clock(diag, flight):
+    """Every finding of the navigation and track levels set aside where the import could not
+    decide the reference trajectory's clock against the IMU's and the data peak away from
+    its stamps (the recording's `reference_clock_open`: `importers.checks`): the trajectory
+    they fit against may be that far off (a ship's MEMS 0.7 s ahead, its rolls repeating,
+    had a 7 m lever arm named conclusively, the clock unnamed)."""
+    _set_aside_open_clock(diag, flight, "reference_clock_open", "reference trajectory's",
+                          "--reference-time-offset")
+
+
+def _set_aside_open_clock(diag, flight, key, whose, option):
+    """Every finding set aside, with the import's words (the recording's `key`) on the
+    clock of `whose` it left open and the import's `option` that gives it."""
+    said = (flight.recording or {}).get(key)
     if said:
-        why = (f"the import could not decide the reference IMU's clock against the IMU's "
-               f"({said}); where the recording's own notes confirm it, "
-               "--reference-imu-time-offset S at import gives it")
+        why = (f"the import could not decide the {whose} clock against the IMU's ({said}); "
+               f"where the recording's own notes confirm it, {option} S at import gives it")
         _set_aside(diag, lambda f: True, lambda f: why, [why + _excursions_too(diag)])
 
 
 def set_aside_apart(diag, flight):
     """The sensor level's findings on the accelerometers (and the unit's) set aside where a
-    lever arm fitted beyond its range lies between two IMUs given at one point
-    (`library.apart_reasons`: a reason the diagnosis cannot conclude): the transfer it
-    leaves out is in every accelerometer's residual (a train's cab IMU 8.3 m from its INS
+    lever arm fitted beyond its range lies between the two IMUs, given at one point or
+    wrong by that much (`library.apart_reasons`: a reason the diagnosis cannot conclude):
+    the transfer it leaves out is in every accelerometer's residual (a train's cab IMU 8.3 m from its INS
     had a time skew of -0.2 s named on its accelerometers in the arm's place); so are the
     accelerometers' excursions, named at the end of the arm's reason."""
     why = apart_reasons(diag.rejected, flight)

@@ -256,12 +256,15 @@ def beyond_range_said(term, size, limit, units):
 
 def apart_reasons(rejected, flight):
     """Why no finding on the accelerometers can stand: a lever arm fitted beyond its physical
-    range (`beyond_range`) between two IMUs the flight's mountings give at one point (their
-    lever arms' difference all zero) - the data put them apart, and every term is
-    fitted through the transfer that arm leaves out (a train's cab IMU 8.3 m from its INS,
-    no arm given: its arm fitted at 8.2 m and passed over, a time skew of -0.2 s named in
-    its place and the verdict conclusive)."""
-    if np.any(flight.mimu_mounting.lever_arm_m - flight.fog_mounting.lever_arm_m):
-        return []
-    return [f"{r['label']} {r['rejected']} - and no lever arm was given between the two IMUs"
+    range (`beyond_range`) between the two IMUs - given at one point (their lever arms'
+    difference all zero: the data put them apart) or given wrong by that much - every term
+    is fitted through the transfer that arm leaves out (a train's cab IMU 8.3 m from its
+    INS, no arm given: its arm fitted at 8.2 m and passed over, a time skew of -0.2 s named
+    in its place and the verdict conclusive; a flight's reference declared 5 m from where it
+    was: its arm fitted at 5.01 m, and a time skew, three cross-couplings and two bias
+    instabilities of the accelerometers named beside it)."""
+    given = bool(np.any(flight.mimu_mounting.lever_arm_m - flight.fog_mounting.lever_arm_m))
+    return [f"{r['label']} {r['rejected']} - " + (
+                "the lever arm given between the two IMUs is off by that much" if given else
+                "and no lever arm was given between the two IMUs")
             for r in rejected if "beyond_range" in r and r["effect"] == "lever_arm"]

@@ -351,7 +351,8 @@ GRAVITY_ANGLE_DEG = 5.0     # the 1 s mean specific forces differ in direction b
 
 def agreement(t, measured, predicted, usable, channels):
     """Whether the reference's prediction follows the recorded MIMU: {"bin_s", "channels":
-    {label: {"correlation", "predicted_spread"}}, "gravity_angle_deg", "failures": [why]} from
+    {label: {"correlation", "predicted_spread"}}, "gravity_angle_deg", "failures": [why],
+    "failed": [the sensor of each failure: "accel" or "gyro"]} from
     the AGREEMENT_BIN_S means of the usable samples (t s; measured and predicted (N, 6):
     accel m/s^2 then gyro rad/s, MIMU axes; read as x[:, c]). A channel that moves (its
     predicted means spread by MOVING_SPREAD) must correlate to AGREEMENT_CORRELATION; the
@@ -369,7 +370,7 @@ def agreement(t, measured, predicted, usable, channels):
     means = [np.column_stack([np.bincount(sec[keep], x[:, c][keep], minlength=len(count))
                               for c in range(6)])[full] / count[full, None]
              for x in (measured, predicted)]
-    out = {"bin_s": AGREEMENT_BIN_S, "channels": {}, "failures": []}
+    out = {"bin_s": AGREEMENT_BIN_S, "channels": {}, "failures": [], "failed": []}
     for c, (sensor, axis) in enumerate(channels):
         m, p = means[0][:, c], means[1][:, c]
         spread = float(np.std(p)) if len(p) >= 5 else 0.0
@@ -378,12 +379,14 @@ def agreement(t, measured, predicted, usable, channels):
         label = f"{sensor}.{axis}"
         out["channels"][label] = {"correlation": r, "predicted_spread": spread}
         if spread < MOVING_SPREAD[sensor] and runs_against(m, p):
+            out["failed"].append(sensor)
             out["failures"].append(
                 f"the MIMU's {label} runs against the reference IMU's prediction: the "
                 f"{AGREEMENT_BIN_S:g} s means correlate {r:.2f}, their differences too, where "
                 f"the predicted ones spread by only {spread:.3g} - a column's sign or the axes' "
                 "order differs between the two IMUs (a reflection, which no mounting turns)")
         if spread >= MOVING_SPREAD[sensor] and not r >= AGREEMENT_CORRELATION:
+            out["failed"].append(sensor)
             out["failures"].append(
                 f"the reference IMU does not predict the MIMU's {label}: the {AGREEMENT_BIN_S:g} "
                 f"s means correlate {r:.2f} (at least {AGREEMENT_CORRELATION:g} needed) where the "
@@ -418,6 +421,7 @@ def agreement(t, measured, predicted, usable, channels):
                                    f"{bias:.3g} m/s^2 (a MEMS accelerometer's bias, which "
                                    "the bias terms fit)")
         else:
+            out["failed"].append("accel")
             out["failures"].append(
                 f"{said}: a mounting or an axis is wrong" + (
                     "" if free is not None else

@@ -17,6 +17,7 @@ from .course_check import REFUSED_OFFSET_S, check_against_course, local_mean, no
     offset_advice
 from .imu_clock import GRID_S, late_or_early, trajectory_clock
 from .pairing import pair
+from .trajectory_point import check_trajectory_point
 from .recording import G0, RecordingError, utc_text
 from .vehicle_check import check_declared_vehicle
 from .velocity_check import check_acceleration_scale, check_velocity, positions_velocity
@@ -91,6 +92,7 @@ def check_recording(rec):
     _check_heading_against_course(rec, q, ok)
     _check_reference_clock(rec)
     check_rates_along(rec)      # after the clock: seconds off refuse as such first
+    check_trajectory_point(rec)     # once the attitude and its clock hold
 
 
 def _uniform_clocks(rec):
@@ -161,10 +163,20 @@ def _check_reference_clock(rec):
     naming the shift that puts it back (the light aircraft's VN-300 solution: 2.5 s); one of
     two grid steps (GRID_S) or more said with that option, not applied: the data cannot tell
     the clocks' offset (a mocap pose 0.3 s late) from the IMU's latency (a phone's 40 ms,
-    erased when shifted at import), physics the diagnosis reports as a time skew."""
+    erased when shifted at import), physics the diagnosis reports as a time skew. Not
+    decided, the data peaking among rivals none of which lies at the stamps (within a lobe
+    of them: `imu_clock.rate_lag`'s zero_lag_s): rec.reference_clock_open (a ship's MEMS
+    0.7 s off, its rolls repeating every 10 s, had the navigation level conclude on a lever
+    arm, the clock unnamed); a motion that repeats exactly, stamped right, peaks anywhere
+    among rivals, one of them at the stamps: not open."""
     clock = trajectory_clock(rec)
     rec.real["reference_clock"] = clock["said"]
     late = clock["offset_s"]
+    near = clock.get("zero_lag_s", clock.get("peak_lag_s"))    # the best lag within a
+    if late is None and near is not None and abs(near) > GRID_S:  # lobe of the stamps
+        rec.reference_clock_open = clock["said"]    # the data peak away from the stamps
+        #                                             among rivals: the navigation and track
+        #                                             levels stop short (`diagnosis.levels`)
     if late is not None and 2 * GRID_S <= abs(late) < REFUSED_OFFSET_S:
         rec.real["reference_clock"] += ("; not applied: the diagnosis takes it as the IMU's "
                                         "time skew (an IMU's latency is physics to report); "

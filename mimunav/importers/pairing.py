@@ -21,6 +21,7 @@ not the IMU's (`attitude_check`).
 import math
 
 import numpy as np
+import quaternion
 
 from ..frames import attitude
 from ..frames.mounting import AGAINST, Mounting, runs_against
@@ -28,6 +29,7 @@ from .recording import G0, RecordingError, at_range, utc_text
 from .attitude_check import (angle_text, turn_both, turn_the_imu, turned_back, wahba,
                              whose_turn)
 from .imu_clock import DISTINCT_Z, GRID_S, SMALL_OFFSET_S, TURNING_RATE, clock_offset
+from .lever import arm_cov, lever_force, unit_forces
 from .series import window_means
 
 SMALL_TURN_DEG = 3.0        # deg: within this its mounting_misalignment term carries a turn
@@ -124,14 +126,25 @@ def _turn_said(angle, how, rpy, hint, se=math.inf):
 
 def _pair_mountings(rec, clock_se):
     """Turn the reference IMU's mounting onto the IMU's where the 1 s means decide it (module
-    doc), a small turn only beyond what the clock's standard error clock_se (s) can make of
-    the rates (`_clock_turn_deg`); say what was measured."""
-    ref = rec.reference_imu
+    doc; `_turn_mountings`), a lever arm not given fitted first (`_fit_arm`) and said in the
+    vehicle frame the IMU ends in (a ship's MEMS turned 90 deg from its mounting given had
+    its arm read in the frame before the turn: [0.0, -11.8, -8.0] m for [12, 0, -8])."""
     means, ok, mids = _second_means(rec)
     if ok.sum() < 10:
         rec.real["reference_imu_mounting"] = "not measured: under 10 s of common samples"
         return
-    _fit_arm(rec, means, ok, mids)
+    arm = _fit_arm(rec, means, ok, mids)
+    before = rec.mounting.q_vs
+    _turn_mountings(rec, clock_se, means, ok, mids)
+    if arm is not None:
+        _say_arm(rec, *arm, rec.mounting.q_vs * np.conjugate(before))
+
+
+def _turn_mountings(rec, clock_se, means, ok, mids):
+    """Turn the reference IMU's mounting onto the IMU's where the 1 s means (`_second_means`)
+    decide it, a small turn only beyond what the clock's standard error clock_se (s) can make
+    of the rates (`_clock_turn_deg`); say what was measured."""
+    ref = rec.reference_imu
     turn, angle, how, apart, se = _measured_turn(rec, means, ok)
     seen = bool(how)
     # a triad mirrored (a sign, an axis order) is no turn: after the best turn one of its
@@ -444,31 +457,41 @@ def _fit_arm(rec, means, ok, mids):
     """Where no lever arm between the two IMUs is given and the motion moves them both,
     the arm r (m, vehicle frame) that, with the turn, fits the IMU's 1 s mean specific
     forces about their means (least squares, alternating with `_measured_turn` ARM_ROUNDS
-    times): where its size stands beyond DISTINCT_Z of its error along it (`_arm_cov`),
-    its force replaces the lever force of the means (`means[0][2]`) and is said in
-    rec.real["reference_imu_lever_arm"] - the turn is fitted free of it (a motorcycle's 40
-    cm, not given, had pulled an exact mounting 0.3 deg, charged to the unit as a
+    times): where its size stands beyond DISTINCT_Z of its error along it (`lever.arm_cov`),
+    its force replaces the lever force of the means (`means[0][2]`) and it is returned with
+    its covariance (m^2; else None) - the turn is fitted free of it (a motorcycle's 40 cm,
+    not given, had pulled an exact mounting 0.3 deg, charged to the unit as a
     cross-coupling of its gyros). The diagnosis fits the arm itself (`lever_arm`)."""
     if np.any(rec.mounting.lever_arm_m - rec.reference_imu["mounting"].lever_arm_m):
-        return
-    unit = np.stack([_lever_force(rec, mids, r) for r in np.eye(3)], axis=2)  # (M, 3, 3)
+        return None
+    unit = unit_forces(rec.imu_ns, attitude.rotate(rec.mounting.q_vs, rec.w), mids)
     design = (unit[ok] - unit[ok].mean(axis=0)).reshape(-1, 3)
     mine, theirs = (attitude.rotate(q, x[ok]) for q, x in (
         (rec.mounting.q_vs, means[0][1]), (rec.reference_imu["mounting"].q_vs, means[1][1])))
     if np.linalg.matrix_rank(design) < 3:
-        return
+        return None
     given, arm = means[0][2], np.zeros(3)
     for _ in range(ARM_ROUNDS):
         turn = _measured_turn(rec, means, ok)[0]
         gap = mine - turn.apply(theirs)
         arm, *_ = np.linalg.lstsq(design, (gap - gap.mean(axis=0)).ravel(), rcond=None)
         means[0][2] = np.einsum("mij,j->mi", unit, arm)
-    cov = _arm_cov(design, (gap - gap.mean(axis=0)).ravel())
+    cov = arm_cov(design, (gap - gap.mean(axis=0)).ravel())
     size = float(np.linalg.norm(arm))
     along = arm / max(size, 1e-12)          # its error along itself: a 20-block jackknife's
     if not size > DISTINCT_Z * math.sqrt(float(along @ cov @ along)):   # full chi-square
         means[0][2] = given                 # had taken a light aircraft's 0.24 +- 0.2 m
-        return
+        return None
+    return arm, cov
+
+
+def _say_arm(rec, arm, cov, turn):
+    """Say the arm fitted (`_fit_arm`: arm m, cov m^2, in the IMU's vehicle frame as it was
+    given) in rec.real["reference_imu_lever_arm"], turned into the IMU's vehicle frame as it
+    ends (`turn`: quaternion from the one to the other)."""
+    arm = attitude.rotate(turn, arm)
+    c = quaternion.as_rotation_matrix(turn)
+    cov = c @ cov @ c.T
     rec.real["reference_imu_lever_arm"] = (
         f"none given; the IMU's 1 s mean specific forces fit one of "
         f"[{', '.join(f'{x:+.3f}' for x in arm)}] m (vehicle frame, from the reference IMU; "
@@ -479,35 +502,13 @@ def _fit_arm(rec, means, ok, mids):
         "lever_arm_m, ros2's --reference-imu-lever-arm-m)")
 
 
-def _arm_cov(design, gap):
-    """(3, 3) m^2: the covariance of the least-squares arm of `gap` (3 M,) on `design` (3 M,
-    3; rows the seconds' three axes), jackknifed over TURN_BLOCKS consecutive blocks of the
-    seconds (the 1 s means' misfit is correlated over seconds: its white formula had given
-    a motorcycle's arm 0.5 mm where it lay 26 mm off)."""
-    n = len(gap) // 3
-    block = np.repeat(np.minimum(np.arange(n) * TURN_BLOCKS // n, TURN_BLOCKS - 1), 3)
-    parts = np.array([np.linalg.lstsq(design[block != b], gap[block != b], rcond=None)[0]
-                      for b in range(TURN_BLOCKS)])
-    centred = parts - parts.mean(axis=0)
-    return (TURN_BLOCKS - 1) / TURN_BLOCKS * centred.T @ centred + 1e-12 * np.eye(3)
-
-
-def _lever_force(rec, mids, r=None, half=0.5):
-    """(M, 3) m/s^2, vehicle frame: means over [mid - half, mid + half] (s) of what the IMU
-    feels beyond the reference IMU, r from it (m, vehicle frame; None: the mountings' lever
-    arms): dw/dt x r + w x (w x r) at its rates sample by sample (dw/dt's mean: the rate's
-    change across). Of 1 s mean rates, a foot's strides (+-10 rad/s, 6 cm) lost w x (w x r)
-    and turned an exact mounting 6.6 deg."""
+def _lever_force(rec, mids, r=None):
+    """(M, 3) m/s^2, vehicle frame: the 1 s means of what the IMU feels beyond the reference
+    IMU (`lever.lever_force` at the IMU's rates), r from it (m, vehicle frame; None: the
+    mountings' lever arms)."""
     if r is None:
         r = rec.mounting.lever_arm_m - rec.reference_imu["mounting"].lever_arm_m
-    if not np.any(r):
-        return np.zeros((len(mids), 3))
-    w = attitude.rotate(rec.mounting.q_vs, rec.w)
-    t = rec.imu_ns / 1e9
-    edges = [np.column_stack([np.interp(mids + side, t, w[:, i]) for i in range(3)])
-             for side in (-half, half)]
-    return np.cross((edges[1] - edges[0]) / (2 * half), r) + \
-        window_means(rec.imu_ns, np.cross(w, np.cross(w, r)), mids, half)
+    return lever_force(rec.imu_ns, attitude.rotate(rec.mounting.q_vs, rec.w), mids, r)
 
 
 TRIADS_APART_DEG = 5.0      # deg: a unit's two triads lie within their few mrad of each

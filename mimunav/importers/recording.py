@@ -91,6 +91,8 @@ class Recording:
     reference_imu_moved: str = ""   # why no one mounting holds the pair (`pairing`), or ''
     reference_imu_clock_open: str = ""  # the clock search's words where it left the stamps
     #                                     as given without finding them its peak (`pairing`)
+    reference_clock_open: str = ""  # the same of the reference trajectory's clock, where the
+    #                                 data peak away from its stamps among rivals (`checks`)
     clip_spans_ns: list = field(default_factory=list)   # [(t0, t1 ns, clips)] where an IMU's
     #                                     own clip counter rose (`clip_counts`), on imu_ns's clock
     reference_heading_known: bool = True    # False: the reference lies in a local frame whose

@@ -88,6 +88,7 @@ def write_log(rec, path, force=False):
                                    "vehicle": rec.vehicle, "aliased": rec.aliased,
                                    "reference_imu_moved": rec.reference_imu_moved,
                                    "reference_imu_clock_open": rec.reference_imu_clock_open,
+                                   "reference_clock_open": rec.reference_clock_open,
                                    "clip_spans_s": [[(a - epoch) / 1e9, (b - epoch) / 1e9, n]
                                                     for a, b, n in rec.clip_spans_ns]})
         channels = [("/mimu/imu", S.IMU, "mimu", rec.imu_ns, S.imu_fields(rec.w, rec.f))]
@@ -171,7 +172,8 @@ def summary(rec, align, path):
         lines.append(f"reference IMU accuracy: {accuracy.grade_said()}")
     for key in ("imu_stamps", "reference_imu_stamps", "imu_intervals",
                 "reference_imu_intervals", "reference_imu_clock",
-                "reference_imu_mounting", "reference_imu_lever_arm", "aliasing"):  # said too
+                "reference_imu_mounting", "reference_imu_lever_arm", "aliasing",
+                "reference_attitude_rates", "reference_point"):     # said too
         if key in rec.real:
             lines.append(f"measured {key.replace('_', ' ')}: {rec.real[key]}")
     lines += [f"warning: {why}" for why in rec.aliased.values()]

@@ -244,3 +244,55 @@ def test_one_opposite_second_in_quiet_noise_is_no_sign():
     assert refused == 0
     signal = np.sin(np.arange(300) / 3.0) * 5e-3
     assert runs_against(signal + rng.normal(0, 3e-4, 300), -signal + rng.normal(0, 3e-4, 300))
+
+
+@pytest.fixture(scope="module")
+def gyro_scaled():
+    """The proof flight with a hidden gyro.z scale of 0.5 %, the unit's true model."""
+    hidden = HiddenPhysics({"effect": "scale_factor", "sensor": "gyro", "axis": "z",
+                            "coefficient": 5e-3})
+    flight, _, _, cal = concealed.recording(str(FLIGHTS / "diagnosis-proof.toml"), None, 43,
+                                            hidden=hidden, calibrate=False)
+    return flight, cal
+
+
+def _only_the_gyro_scale(d):
+    """The diagnosis `d` names the hidden gyro.z scale alone, its interval over the truth,
+    and concludes nothing on the accelerometers."""
+    assert [f["label"] for f in d.findings] == ["scale_factor gyro.z"], d.findings
+    lo, hi = d.findings[0]["ci95"]
+    assert lo < 5e-3 < hi
+    assert d.inconclusive       # said "inconclusive", the contract verdict beside it
+
+
+@pytest.mark.slow
+def test_the_gyros_are_tested_where_only_the_accelerometers_disagree(gyro_scaled):
+    """The reference IMU's accelerometer x read backwards in time (a lever arm not declared
+    on a rolling ship had put a 14 m transfer's forces beside its prediction, correlating
+    0.84): the accelerometers' predictions fail the agreement, the gyros' do not - the
+    gyros' terms free of specific force are tested and the scale found (every candidate
+    had been dropped), the accelerometers' and the unit's not, and the diagnosis is
+    inconclusive, saying why."""
+    flight, cal = gyro_scaled
+    fog_f = flight.fog_f.copy()
+    fog_f[:, 0] = fog_f[::-1, 0]
+    d = sensor.diagnose(replace(flight, fog_f=fog_f), cal)
+    failed = d.reference_agreement["failures"]
+    assert failed and d.reference_agreement["failed"] == ["accel"] * len(failed), failed
+    assert set(failed) <= set(d.inconclusive)
+    _only_the_gyro_scale(d)
+
+
+@pytest.mark.slow
+def test_an_arm_declared_metres_off_sets_the_accelerometers_findings_aside(gyro_scaled):
+    """The reference IMU declared 5 m from where it is: the predictions still correlate
+    1.00 (a 15 g flight), the lever arm fits at 5.01 m, beyond its range - and a time skew,
+    cross-couplings and bias instabilities of the accelerometers had been named beside it,
+    conclusive. They are set aside with the arm's words; the gyro.z scale stands."""
+    from mimunav.diagnosis import levels
+    flight, cal = gyro_scaled
+    moved = replace(flight, fog_mounting=Mounting(
+        flight.fog_mounting.attitude_wxyz, flight.fog_mounting.lever_arm_m + [5.0, 0.0, 0.0]))
+    d = levels.diagnose(moved, cal, "sensor")
+    assert any("is off by that much" in why and "lever_arm" in why for why in d.inconclusive)
+    _only_the_gyro_scale(d)

@@ -2,6 +2,7 @@
 offset found over the whole overlap at any size and taken only from an unambiguous peak, the
 mounting measured at any angle and taken only where the motion decides it. A clock seconds
 off had been "measured" as +34 ms by a search over +-1 s."""
+import math
 import re
 
 import numpy as np
@@ -728,3 +729,96 @@ def test_an_attitude_whose_angles_turn_against_its_own_gyro_is_refused(read_as, 
                                              f"gyro about {against}: is a sign of the "
                                              "attitude's angles read wrong"):
         checks.check_recording(rec)
+
+
+@pytest.mark.parametrize("declared", ["from the trajectory's point", "from the IMU",
+                                      "from the IMU, no reference IMU"])
+def test_a_trajectory_off_the_origin_is_found_and_moved_onto_it(declared):
+    """The proof flight's truth (the reference IMU's point) and the IMU 3.3 m from it: with
+    the arms declared from the trajectory's point it stays; declared from the IMU (the
+    reference IMU at minus the arm: a survey ship's user had, and its windows read 13 times
+    the MEMS's error) the forces place the trajectory at the reference IMU, and it is moved
+    onto the origin by that arm; without a reference IMU, by the arm measured. Oracle: the
+    IMU navigated 30 s free-inertial from the trajectory (the project's strapdown, through
+    its lever arm) ends on it within 2 cm, 10 cm by an arm measured (its x standard error
+    0.11 m) - 2.7 m off where nothing was moved."""
+    from mimunav.evaluation.replay import navigate
+    from mimunav.motion.trajectory import State
+    arm = np.array([3.0, -0.5, 1.2])
+    rec = _attitude_pair((180.0, 0.0, 0.0), (180.0, 0.0, 90.0), tuple(arm))
+    if declared != "from the trajectory's point":
+        rec.mounting = Mounting(rec.mounting.attitude_wxyz, (0.0, 0.0, 0.0))
+        rec.reference_imu["mounting"] = Mounting(rec.reference_imu["mounting"].attitude_wxyz,
+                                                 tuple(-arm))
+    if declared.endswith("no reference IMU"):
+        rec.reference_imu = None
+    checks.check_recording(rec)
+    said = rec.real["reference_point"]
+    assert {"from the trajectory's point": "at the origin, as /truth/state is",
+            "from the IMU": "the reference IMU's point as given, not the origin",
+            "from the IMU, no reference IMU": "moved onto the origin by the arm measured"}[
+        declared] in said, said
+    ref = rec.reference
+    t_ref, t = ((ns - rec.imu_ns[0]) / 1e9 for ns in (ref["ns"], rec.imu_ns))
+    k0, k1 = 100, 400
+    start = State(float(t_ref[k0]), float(ref["lat"][k0]), float(ref["lon"][k0]),
+                  float(ref["h"][k0]), ref["v_ned"][k0].copy(), attitude.from_wxyz(ref["q_nb"][k0]))
+    sel = (t >= t_ref[k0] - 1e-9) & (t <= t_ref[k1] + 0.1)
+    nav = navigate(t[sel], rec.w[sel], rec.f[sel], rec.mounting, start, whole_record=False)
+    j = int(np.searchsorted(nav.t, t_ref[k1] - 1e-6))
+    r_n, r_e = 6.37e6, 6.37e6 * math.cos(ref["lat"][k1])
+    off = [(nav.lat[j] - ref["lat"][k1]) * r_n, (nav.lon[j] - ref["lon"][k1]) * r_e,
+           nav.h[j] - ref["h"][k1]]
+    assert np.linalg.norm(off) < (0.1 if rec.reference_imu is None else 0.02), off
+
+
+@pytest.mark.parametrize("late_s", [0.7, 0.0])
+def test_a_trajectory_whose_motion_repeats_leaves_its_clock_open_for_the_levels(late_s):
+    """A ship rolling 8 deg every 10 s on the spot, its reference trajectory stamped late_s
+    late: the turn rates repeat every 5 s and nothing happens once, so no lag is decided;
+    0.7 s late, the data peak away from the stamps and the clock is left open - the
+    navigation and track levels then set their findings aside with the import's words (a
+    ship's MEMS 0.7 s off had a 7 m lever arm named conclusively at the navigation level,
+    the clock unnamed); stamped right, nothing is left open."""
+    from types import SimpleNamespace
+    from mimunav.diagnosis.levels import set_aside_trajectory_clock
+    t = np.arange(0.0, 300.0, 1.0 / RATE)
+    roll = math.radians(8.0) * np.sin(2 * np.pi * t / 10.0)
+    q = attitude.from_euler(0 * t, 0 * t, roll)
+    w = np.column_stack([np.gradient(roll, t), 0 * t, 0 * t])
+    f = attitude.rotate(np.conjugate(q), np.tile([0.0, 0.0, -9.80665], (len(t), 1)))
+    ns = EPOCH_NS + np.round(t * 1e9).astype(np.int64)
+    k = slice(0, None, int(RATE / 10))
+    ref = dict(ns=ns[k] + int(round(late_s * 1e9)), lat=np.full(len(t[k]), 0.7),
+               lon=np.full(len(t[k]), 0.2), h=np.full(len(t[k]), 10.0),
+               v_ned=np.zeros((len(t[k]), 3)), q_nb=quaternion.as_float_array(q[k]))
+    rec = Recording("ship", "test", ns, w, f, Mounting(), reference=ref, vehicle="ship")
+    checks.check_recording(rec)
+    assert rec.real["reference_clock"].startswith("not decided"), rec.real["reference_clock"]
+    if late_s == 0.0:
+        assert rec.reference_clock_open == ""
+        return
+    assert rec.reference_clock_open == rec.real["reference_clock"]
+    found = {"effect": "lever_arm", "sensor": "imu", "axis": "all"}
+    diag = SimpleNamespace(findings=[found], rejected=[], inconclusive=[])
+    set_aside_trajectory_clock(diag, SimpleNamespace(recording={
+        "reference_clock_open": rec.reference_clock_open}))
+    assert diag.findings == [] and diag.rejected[0]["rejected"] == diag.inconclusive[0]
+    assert "could not decide the reference trajectory's clock" in diag.inconclusive[0]
+    assert "--reference-time-offset S" in diag.inconclusive[0]
+
+
+@pytest.mark.parametrize("given", [(180.0, 0.0, 0.0), (180.0, 0.0, 90.0)])
+def test_an_arm_not_given_is_read_in_the_frame_the_imu_ends_in(given):
+    """The IMU truly at 180, -2, 91 and 2.55 m from the reference IMU, no arm given, its
+    mounting given 91 deg off (or 2 deg) and the attitude holding the reference IMU: the
+    import turns the IMU's mounting, and the arm it read is said in the vehicle frame the
+    IMU ends in - a ship's had been read in the frame before the turn ([0.0, -11.8, -8.0]
+    m for [12, 0, -8])."""
+    arm = (2.5, 0.4, -1.2)
+    rec = _attitude_pair((180.0, -2.0, 91.0), (180.0, 0.0, 90.0), arm, given)
+    rec.mounting = Mounting(rec.mounting.attitude_wxyz, (0.0, 0.0, 0.0))
+    pairing.pair(rec)
+    said = rec.real["reference_imu_lever_arm"]
+    read = [float(x) for x in re.search(r"fit one of \[([^\]]+)\]", said).group(1).split(",")]
+    assert np.allclose(read, arm, atol=0.05), said

@@ -1,0 +1,148 @@
+"""Where on the vehicle a reference trajectory lies. `/truth/state` is the trajectory of the
+vehicle frame's origin, the point the mountings' lever arms are counted from
+(shared/spec/log-format.md); a recording's reference is an INS's solution at its own IMU (or
+the point it was told to output). A user who puts the origin at the IMU under test and gives
+the reference IMU's arm from it has the trajectory at the reference IMU, not at the origin
+(a survey ship's INS 14.4 m from its MEMS: the free-inertial windows charged the MEMS with 13
+times its error as the ship rolled, and the navigation level found a "lever arm" whose
+interval missed the 12 m along x).
+
+The data say where: an IMU's 1 s mean specific forces in the vehicle frame, less what the
+reference's attitude and velocity make of them at the trajectory's point
+(`attitude_check.attitude_means`), are the lever force from that point to the IMU,
+dw/dt x r + w x (w x r) (`lever`), linear in r; fitted with a constant beside it (the IMU's
+bias), its error jackknifed over blocks of the seconds. The reference IMU is used where there
+is one (an INS's own: its noise the smaller), else the IMU. A point found off the origin is
+moved onto it (`moved_to_origin`): by the reference IMU's point as given where the measured
+one lies there, else by the measured point.
+"""
+import math
+
+import numpy as np
+
+from ..frames import attitude, earth
+from .attitude_check import attitude_means
+from .imu_clock import DISTINCT_Z
+from .lever import arm_cov, unit_forces
+from .series import window_means
+
+# m: a point measured within this of a point given (the origin, the reference IMU's) is that
+# point - the fit's own model errors beside its jackknifed error: an IMU's scale and
+# misalignment on the forces, the attitude's errors, the clock between the two (an arm
+# between two IMUs 14.4 m apart read 0.21 m off at 8 of its standard errors)
+SAME_POINT_M = 0.3
+MIN_SECONDS = 30
+
+
+def measured_point(rec):
+    """(the trajectory's point p, m, vehicle frame FRD - from the origin -, its (3, 3)
+    covariance, the IMU whose forces measured it in words), or why it is not measured:
+    fewer than MIN_SECONDS seconds in common, or rates that do not span three directions
+    of the arm."""
+    whose, ns, w, f, mounting = _own_imu(rec)
+    ref_s = rec.reference["ns"] / 1e9
+    lo, hi = max(ns[0] / 1e9, ref_s[0]) + 1.0, min(ns[-1] / 1e9, ref_s[-1]) - 1.0
+    mids = np.arange(lo, hi, 1.0)
+    short = (f"under {MIN_SECONDS} s of the reference's attitude and velocity beside "
+             f"{whose}'s samples")
+    predicted = attitude_means(rec.reference, mids) if len(mids) >= MIN_SECONDS else None
+    if predicted is None:
+        return short
+    w_v = attitude.rotate(mounting.q_vs, w)
+    unit = unit_forces(ns, w_v, mids)
+    gap = attitude.rotate(mounting.q_vs, window_means(ns, f, mids)) - predicted[1]
+    rows = np.isfinite(gap).all(axis=1) & np.isfinite(unit).all(axis=(1, 2))
+    if rows.sum() < MIN_SECONDS:
+        return short
+    design = (unit[rows] - unit[rows].mean(axis=0)).reshape(-1, 3)
+    gap = (gap[rows] - gap[rows].mean(axis=0)).ravel()
+    if np.linalg.matrix_rank(design) < 3 or np.linalg.cond(design) > 1e6:
+        return "the rates do not turn the vehicle about three axes enough to place it"
+    arm = np.linalg.lstsq(design, gap, rcond=None)[0]       # r = the IMU's point - p
+    return mounting.lever_arm_m - arm, arm_cov(design, gap), whose
+
+
+def _own_imu(rec):
+    """(in words, stamps ns, w rad/s, f m/s^2, `Mounting`) of the reference IMU where there
+    is one, else of the IMU."""
+    own = rec.reference_imu
+    return (("the IMU", rec.imu_ns, rec.w, rec.f, rec.mounting) if own is None else
+            ("the reference IMU", own["ns"], own["w"], own["f"], own["mounting"]))
+
+
+def check_trajectory_point(rec):
+    """Measure the reference trajectory's point (`measured_point`) and say it in
+    rec.real["reference_point"]; where it lies off the origin beyond SAME_POINT_M and
+    DISTINCT_Z of its error, and its error is within SAME_POINT_M every way, move the
+    trajectory onto the origin (`moved_to_origin`) - by the reference IMU's point as given
+    where the measured one lies within those of it. (A car's gentle drive, its 1 Hz
+    reference's forces misfit at the IMU's, had placed its point 13 km off, standard
+    errors 1.7 km, and been moved by it.)"""
+    measured = measured_point(rec)
+    if isinstance(measured, str):
+        rec.real["reference_point"] = f"not measured ({measured}): taken at the origin"
+        return
+    p, cov, whose = measured
+    said = (f"the reference trajectory's point measured at "
+            f"[{', '.join(f'{x:+.3f}' for x in p)}] m (vehicle frame FRD, from the origin; "
+            f"standard errors {', '.join(f'{x:.2g}' for x in np.sqrt(np.diag(cov)))}, "
+            f"jackknifed; by {whose}'s specific forces)")
+    if _same(p, np.zeros(3), cov):
+        rec.real["reference_point"] = said + ": at the origin, as /truth/state is"
+        return
+    if not np.sqrt(np.linalg.eigvalsh(cov)).max() <= SAME_POINT_M:
+        rec.real["reference_point"] = (f"{said}: not placed to {SAME_POINT_M:g} m (the motion "
+                                       "turns the vehicle too little); taken at the origin")
+        return
+    own = rec.reference_imu
+    given = None if own is None else own["mounting"].lever_arm_m
+    if given is not None and np.any(given) and _same(p, given, cov):
+        moved_to_origin(rec, given)
+        rec.real["reference_point"] = (
+            f"{said}: the reference IMU's point as given, not the origin - the trajectory "
+            "moved onto the origin by that arm (positions - C_nb r, velocities - "
+            "C_nb (w x r)), as /truth/state is")
+        return
+    moved_to_origin(rec, p)
+    rec.real["reference_point"] = (
+        f"{said}: not the origin" + ("" if given is None else
+                                     ", nor the reference IMU's point as given") +
+        " - the trajectory moved onto the origin by the arm measured (positions - C_nb r, "
+        "velocities - C_nb (w x r)); where the trajectory's point is known, give the lever "
+        "arms from it")
+
+
+def _same(p, q, cov):
+    """Whether the measured point p lies at the point q: within SAME_POINT_M or DISTINCT_Z
+    of its standard error along the difference (cov: its covariance, m^2)."""
+    d = p - q
+    size = float(np.linalg.norm(d))
+    if size <= SAME_POINT_M:
+        return True
+    along = d / size
+    return size <= DISTINCT_Z * math.sqrt(float(along @ cov @ along))
+
+
+def moved_to_origin(rec, r):
+    """The reference trajectory (positions, NED velocities; its attitude kept) moved from
+    its point r (m, vehicle frame) to the origin: - C_nb r, - C_nb (w x r), w the body rate
+    at each epoch (`_own_imu`'s rates, vehicle frame, over the epoch's interval; epochs
+    without an attitude take the nearest one's)."""
+    ref = rec.reference
+    q = np.asarray(ref["q_nb"], float)
+    ok = np.isfinite(q).all(axis=1)
+    nearest = np.flatnonzero(ok)[np.clip(np.searchsorted(np.flatnonzero(ok),
+                                                         np.arange(len(q))), 0, ok.sum() - 1)]
+    q_nb = attitude.from_wxyz(q[nearest])
+    t = ref["ns"] / 1e9
+    half = 0.5 * float(np.median(np.diff(t)))
+    _, ns, w, _, mounting = _own_imu(rec)
+    w_v = window_means(ns, attitude.rotate(mounting.q_vs, w), t, half)
+    w_v = np.where(np.isfinite(w_v), w_v, 0.0)
+    d_ned = attitude.rotate(q_nb, np.broadcast_to(-np.asarray(r, float), (len(t), 3)))
+    r_n, r_e = earth.radii(ref["lat"])      # an offset of metres: first order in it
+    ref["lat"], ref["lon"], ref["h"] = (ref["lat"] + d_ned[:, 0] / (r_n + ref["h"]),
+                                        ref["lon"] + d_ned[:, 1] / ((r_e + ref["h"])
+                                                                    * np.cos(ref["lat"])),
+                                        ref["h"] - d_ned[:, 2])
+    ref["v_ned"] = ref["v_ned"] - attitude.rotate(q_nb, np.cross(w_v, r))
