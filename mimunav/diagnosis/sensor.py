@@ -280,10 +280,10 @@ def _prepared(flight, cal, acc, candidates, output_tests, samples, bin_s, noise_
                                          declared)
     lever = attitude.rotate(np.conjugate(flight.mimu_mounting.q_vs),
                             flight.mimu_mounting.lever_arm_m - flight.fog_mounting.lever_arm_m)
+    gapped = across_gaps(t, flight.fog_t)       # first: a gap's bins are no shock's
     shocks = transfer_shocks(t, spill.series("measured"), spill.series("predicted"), lever, m,
-                             usable)
+                             usable & ~gapped)
     counted = outputs.counted_clips(t, flight.recording)
-    gapped = across_gaps(t, flight.fog_t)
     usable &= ~shocks & ~counted & ~gapped
     on_outputs, quantized = [], set()
     acc = measured_steps(flight, acc, spill)

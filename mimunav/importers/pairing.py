@@ -146,6 +146,8 @@ def _turn_mountings(rec, clock_se, means, ok, mids):
     of the rates (`_clock_turn_deg`); say what was measured."""
     ref = rec.reference_imu
     turn, angle, how, apart, se = _measured_turn(rec, means, ok)
+    if in_theirs := _arm_in_their_frame(rec, means, ok, mids, turn):   # the IMU's frame off
+        turn, angle, how, apart, se = _measured_turn(rec, means, ok)
     seen = bool(how)
     # a triad mirrored (a sign, an axis order) is no turn: after the best turn one of its
     # moving axes runs against the other IMU's; named as given where an axis does so there too
@@ -167,10 +169,13 @@ def _turn_mountings(rec, clock_se, means, ok, mids):
     yaw, pitch, roll = (angle_text(a) for a in attitude.as_euler(fixed))
     hint = ref.get("mounting_hint")
     said = _turn_said(angle, how, (roll, pitch, yaw), hint, se)
-    if rec.reference_meta.get("attitude_of") == "reference_imu" and seen:
-        # the reference's attitude is of the reference IMU's axes: they stay, the IMU turns
+    if rec.reference_meta.get("attitude_of") == "reference_imu" and seen or in_theirs:
+        # the reference's attitude is of the reference IMU's axes, or the arm given holds in
+        # them: they stay, the IMU turns
         turn_the_imu(rec, _for_the_imu(rec, turn, means, ok, mids),
                      _turn_said(angle, how, None, None),
+                     "the lever arm given fits the IMU's forces only in the reference IMU's "
+                     "frame (turned by the turn between the two)" if in_theirs else
                      "the reference's attitude is the reference IMU's (attitude_of)")
         return
     # an accelerometer bias difference b across gravity tilts the mean specific force by
@@ -215,6 +220,47 @@ def _turn_mountings(rec, clock_se, means, ok, mids):
     ref["mounting"] = Mounting(attitude.as_wxyz(fixed), ref["mounting"].lever_arm_m)
     rec.real["reference_imu_mounting"] = f"measured {said}: turned so" + (f" ({held})" if held
                                                                           else "")
+
+
+ARM_FRAME_DEG = 5.0      # deg: the gyros' own turn from which the lever arm given is asked
+#                          which IMU's frame it holds in (a smaller turn moves its force
+#                          less than the misfit's noise)
+ARM_FRAME_SHARE = 0.5    # the arm in the reference IMU's frame must leave at most this share
+#                          of the accelerometers' misfit that it leaves in the IMU's
+
+
+def _arm_in_their_frame(rec, means, ok, mids, both):
+    """Whether the lever arm given holds in the reference IMU's frame rather than in the
+    IMU's (the IMU's mounting the one off): where the gyros' own turn between the two (rates
+    hold no arm; where they span one direction only, `both` - the turn measured on both
+    triads) reaches ARM_FRAME_DEG, the arm's force computed with the arm turned by it
+    leaves at most ARM_FRAME_SHARE of the accelerometers' misfit (after each one's best turn)
+    that the arm as given leaves; its force then replaces `means[0][2]`. A mounting given
+    far off puts the IMU's rates on other axes than the arm's, and their force turns its
+    accelerometers' triad away from its gyros' (a ship's MEMS turned 90 or 180 deg in yaw,
+    its 14.4 m arm given: refused as triads 26-29 deg apart - "a reflection"; the proof
+    flight's IMU 90 deg off, 9.4 m away: the reference IMU turned instead, 8.5 deg of pitch
+    in its turn)."""
+    r = rec.mounting.lever_arm_m - rec.reference_imu["mounting"].lever_arm_m
+    if not np.any(r):
+        return False
+    q_mine, q_ref = rec.mounting.q_vs, rec.reference_imu["mounting"].q_vs
+    mine, theirs = (attitude.rotate(q, x[0][ok]) for q, x in ((q_mine, means[0]),
+                                                                (q_ref, means[1])))
+    gyros = wahba(mine - mine.mean(axis=0), theirs - theirs.mean(axis=0), SPAN_SHARE) or both
+    if math.degrees(gyros.magnitude()) < ARM_FRAME_DEG:
+        return False
+    forces = [means[0][2], _lever_force(rec, mids, gyros.apply(r))]
+    misfit = []
+    for force in forces:
+        turn = _measured_turn(rec, [[means[0][0], means[0][1], force], means[1]], ok)[0]
+        gap = attitude.rotate(q_mine, means[0][1][ok]) - force[ok] - \
+            turn.apply(attitude.rotate(q_ref, means[1][1][ok]))
+        misfit.append(float(np.sqrt(np.mean((gap - gap.mean(axis=0)) ** 2))))
+    if not misfit[1] <= ARM_FRAME_SHARE * misfit[0]:
+        return False
+    means[0][2] = forces[1]
+    return True
 
 
 def _halves_apart(rec, means, ok, said):

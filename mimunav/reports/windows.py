@@ -18,7 +18,7 @@ def document(flight, results, rest, cal_label, time_shift_s):
     half = windows.moving_half(track)
     static = [None if np.isnan(x) else x for x in rest.static]
     return {"format": "mimunav-windows/1", "log": flight.path, "calibration": cal_label,
-            "time_shift_s": time_shift_s,
+            "time_shift_s": time_shift_s, "doubts": doubts(flight, time_shift_s),
             "rest": {"t0_s": static[0], "t1_s": static[1], "alignment": rest.method,
                      "gyro_bias_rad_s": rest.gyro_bias.tolist(),
                      "accel_bias_m_s2": rest.accel_bias.tolist()},
@@ -29,6 +29,20 @@ def document(flight, results, rest, cal_label, time_shift_s):
             "windows": {f"{length:g}": [{"t0_s": w.t0, "end_ned_m": w.error_ned[-1].tolist()}
                                         for w in wins] for length, wins in results.items()},
             "frames": "errors NED m, window navigated minus reference; t0 s since the epoch"}
+
+
+def doubts(flight, time_shift_s):
+    """[why the windows' errors may not be the IMU's], from the recording's metadata: a
+    reference trajectory's clock the import left open (`importers.checks`: the data peak
+    away from its stamps) - each window then compares the IMU with where the reference was
+    a lag away (a ship's MEMS 0.7 s off had its 60 s windows read 695 m, silently; 17 m
+    once shifted). Not said once a --time-shift is given."""
+    said = (flight.recording or {}).get("reference_clock_open")
+    if not said or time_shift_s:
+        return []
+    return [f"the import could not decide the reference trajectory's clock against the IMU's "
+            f"({said}): these errors hold the lag too - where the recording's own notes give "
+            "it, --time-shift S here (or --reference-time-offset S at import)"]
 
 
 def earth_rate_left(rest, length):
@@ -82,6 +96,7 @@ def markdown_table(doc, label=None):
                      f"| {length} | {row['windows']} ({row['disjoint']}) | {h['p50']:.3g} / "
                      f"{h['p68']:.3g} / {h['p95']:.3g} / {h['max']:.3g} | {v['p50']:.3g} / "
                      f"{v['p95']:.3g} | {row['median_rate_m_s']:.3g} | {cell} |")
+    lines += [f"\nwarning: {why}" for why in doc.get("doubts", [])]
     return "\n".join(lines) + "\n"
 
 

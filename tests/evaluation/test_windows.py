@@ -241,3 +241,24 @@ def test_the_earth_rate_a_rest_without_heading_keeps_is_said_beside_the_floor():
                                                     "estimated": []},
         "earth_rate_left_m": left}
     assert f"up to {left:.3g} m of drift" in markdown_table({"summary": {"60": row}})
+
+
+def test_windows_on_a_trajectory_clock_the_import_left_open_say_so():
+    """A recording whose reference trajectory's clock the import left open (the data peak
+    0.7 s from its stamps among rivals: a ship's rolls) - its windows hold the lag: a ship's
+    60 s windows had read 695 m with no word (17 m once shifted). The table ends in a
+    warning naming --time-shift; once a shift is given, nothing is said."""
+    from types import SimpleNamespace
+    from mimunav.reports.windows import doubts, markdown_table
+    flight = SimpleNamespace(recording={"reference_clock_open": "not decided (... 0.70 s "
+                                                                "early ...)"})
+    (why,) = doubts(flight, 0.0)
+    assert "could not decide the reference trajectory's clock" in why and "0.70 s early" in why
+    assert "--time-shift S here" in why
+    assert doubts(flight, -0.7) == [] and doubts(SimpleNamespace(recording={}), 0.0) == []
+    row = {"windows": 3, "disjoint": 1, "horizontal_m": dict.fromkeys(
+        ("p50", "p68", "p95", "max"), 1.0), "vertical_m": {"p50": 0.1, "p95": 0.2},
+        "median_rate_m_s": 0.1, "reference_floor": {"horizontal_m": 2.0, "not_stated": [],
+                                                    "estimated": []}}
+    assert markdown_table({"summary": {"60": row}, "doubts": [why]}).endswith(
+        f"\nwarning: {why}\n")

@@ -822,3 +822,23 @@ def test_an_arm_not_given_is_read_in_the_frame_the_imu_ends_in(given):
     said = rec.real["reference_imu_lever_arm"]
     read = [float(x) for x in re.search(r"fit one of \[([^\]]+)\]", said).group(1).split(",")]
     assert np.allclose(read, arm, atol=0.05), said
+
+
+@pytest.mark.parametrize("imu_rpy, ref_rpy", [((180.0, 0.0, 90.0), (180.0, 0.0, 90.0)),
+                                              ((180.0, 0.0, 180.0), (180.0, 0.0, 90.0)),
+                                              ((180.0, 0.0, 0.0), (175.0, 3.0, 60.0))])
+def test_the_lever_arm_given_tells_which_mounting_is_off(imu_rpy, ref_rpy):
+    """The IMU 9.4 m from the reference IMU, the arm given, the IMU given in FLU (roll 180)
+    and the reference IMU at 180, 0, 90, no attitude to tell which is off: where the IMU is
+    truly 90 or 180 deg off, the arm's force fits only with the arm turned into the
+    reference IMU's frame, so the IMU's mounting is the one turned (the reference IMU's had
+    been turned instead, 90.5 deg off its truth, and a ship's 14.4 m arm had its import
+    refused as "a reflection"); where the reference IMU is off, it is turned, as before."""
+    rec = _attitude_pair(imu_rpy, ref_rpy, (8.0, 0.5, -5.0), (180.0, 0.0, 0.0))
+    rec.reference = None
+    pairing.pair(rec)
+    for mounting, rpy in ((rec.mounting, imu_rpy), (rec.reference_imu["mounting"], ref_rpy)):
+        error = attitude.rotation_vector_error(mounting.q_vs, Mounting.from_rpy_deg(rpy).q_vs)
+        assert np.degrees(np.linalg.norm(error)) < 0.2, rec.real["reference_imu_mounting"]
+    assert ("the lever arm given fits the IMU's forces only in the reference IMU's frame" in
+            rec.real["reference_imu_mounting"]) == (imu_rpy != (180.0, 0.0, 0.0))
