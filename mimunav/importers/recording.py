@@ -91,6 +91,8 @@ class Recording:
     reference_imu_moved: str = ""   # why no one mounting holds the pair (`pairing`), or ''
     reference_imu_clock_open: str = ""  # the clock search's words where it left the stamps
     #                                     as given without finding them its peak (`pairing`)
+    imu_point_off: str = ""     # where the IMU's forces place the trajectory's point off the
+    #                             reference IMU's (`trajectory_point`), or ''
     reference_clock_open: str = ""  # the same of the reference trajectory's clock, where the
     #                                 data peak away from its stamps among rivals (`checks`)
     clip_spans_ns: list = field(default_factory=list)   # [(t0, t1 ns, clips)] where an IMU's

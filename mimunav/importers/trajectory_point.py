@@ -34,12 +34,12 @@ SAME_POINT_M = 0.3
 MIN_SECONDS = 30
 
 
-def measured_point(rec):
+def measured_point(rec, the_imu=False):
     """(the trajectory's point p, m, vehicle frame FRD - from the origin -, its (3, 3)
     covariance, the IMU whose forces measured it in words), or why it is not measured:
     fewer than MIN_SECONDS seconds in common, or rates that do not span three directions
-    of the arm."""
-    whose, ns, w, f, mounting = _own_imu(rec)
+    of the arm. By `_own_imu`'s, or the IMU's where the_imu."""
+    whose, ns, w, f, mounting = _own_imu(rec, the_imu)
     ref_s = rec.reference["ns"] / 1e9
     lo, hi = max(ns[0] / 1e9, ref_s[0]) + 1.0, min(ns[-1] / 1e9, ref_s[-1]) - 1.0
     mids = np.arange(lo, hi, 1.0)
@@ -62,11 +62,11 @@ def measured_point(rec):
     return mounting.lever_arm_m - arm, arm_cov(design, gap), whose
 
 
-def _own_imu(rec):
+def _own_imu(rec, the_imu=False):
     """(in words, stamps ns, w rad/s, f m/s^2, `Mounting`) of the reference IMU where there
-    is one, else of the IMU."""
+    is one, else (or where the_imu) of the IMU."""
     own = rec.reference_imu
-    return (("the IMU", rec.imu_ns, rec.w, rec.f, rec.mounting) if own is None else
+    return (("the IMU", rec.imu_ns, rec.w, rec.f, rec.mounting) if own is None or the_imu else
             ("the reference IMU", own["ns"], own["w"], own["f"], own["mounting"]))
 
 
@@ -83,6 +83,7 @@ def check_trajectory_point(rec):
         rec.real["reference_point"] = f"not measured ({measured}): taken at the origin"
         return
     p, cov, whose = measured
+    _check_the_imus_point(rec, p, cov)
     said = (f"the reference trajectory's point measured at "
             f"[{', '.join(f'{x:+.3f}' for x in p)}] m (vehicle frame FRD, from the origin; "
             f"standard errors {', '.join(f'{x:.2g}' for x in np.sqrt(np.diag(cov)))}, "
@@ -110,6 +111,27 @@ def check_trajectory_point(rec):
         " - the trajectory moved onto the origin by the arm measured (positions - C_nb r, "
         "velocities - C_nb (w x r)); where the trajectory's point is known, give the lever "
         "arms from it")
+
+
+def _check_the_imus_point(rec, p, cov):
+    """Where the reference IMU placed the trajectory's point (p m, cov m^2), the IMU's own
+    forces place it too: where the two lie apart (`_same`), the IMU is not where its lever
+    arm given puts it against the reference IMU, and what is navigated from the IMU against
+    the trajectory (the windows, the navigation level) carries that arm's transfer - said
+    in rec.imu_point_off (a ship's MEMS 14.4 m from its INS, no arm given: its windows had
+    charged it with the swinging of that arm, with no word)."""
+    if rec.reference_imu is None:
+        return
+    mine = measured_point(rec, the_imu=True)
+    if isinstance(mine, str) or _same(mine[0], p, mine[1] + cov):
+        return
+    off = mine[0] - p
+    rec.imu_point_off = (
+        f"the IMU's own specific forces place the reference trajectory's point "
+        f"{', '.join(f'{x:+.3f}' for x in off)} m (vehicle frame FRD; standard errors "
+        f"{', '.join(f'{x:.2g}' for x in np.sqrt(np.diag(mine[1] + cov)))}) from where the "
+        "reference IMU's do: the IMU lies that much the other way from where its lever arm "
+        "given puts it (a table spec's lever_arm_m, ros2's --reference-imu-lever-arm-m)")
 
 
 def _same(p, q, cov):

@@ -36,13 +36,17 @@ def doubts(flight, time_shift_s):
     reference trajectory's clock the import left open (`importers.checks`: the data peak
     away from its stamps) - each window then compares the IMU with where the reference was
     a lag away (a ship's MEMS 0.7 s off had its 60 s windows read 695 m, silently; 17 m
-    once shifted). Not said once a --time-shift is given."""
-    said = (flight.recording or {}).get("reference_clock_open")
-    if not said or time_shift_s:
-        return []
-    return [f"the import could not decide the reference trajectory's clock against the IMU's "
-            f"({said}): these errors hold the lag too - where the recording's own notes give "
-            "it, --time-shift S here (or --reference-time-offset S at import)"]
+    once shifted; not said once a --time-shift is given); an IMU its own forces place
+    elsewhere than its lever arm given (the recording's `imu_point_off`)."""
+    said, out = (flight.recording or {}).get("reference_clock_open"), []
+    if said and not time_shift_s:
+        out.append(f"the import could not decide the reference trajectory's clock against the "
+                   f"IMU's ({said}): these errors hold the lag too - where the recording's own "
+                   "notes give it, --time-shift S here (or --reference-time-offset S at import)")
+    off = (flight.recording or {}).get("imu_point_off")
+    if off:         # `importers.trajectory_point`: the IMU not where its arm says
+        out.append(f"{off}: these errors hold that arm's transfer too")
+    return out
 
 
 def earth_rate_left(rest, length):

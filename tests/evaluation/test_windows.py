@@ -256,6 +256,9 @@ def test_windows_on_a_trajectory_clock_the_import_left_open_say_so():
     assert "could not decide the reference trajectory's clock" in why and "0.70 s early" in why
     assert "--time-shift S here" in why
     assert doubts(flight, -0.7) == [] and doubts(SimpleNamespace(recording={}), 0.0) == []
+    # an IMU its own forces place off its lever arm given (`importers.trajectory_point`)
+    (off,) = doubts(SimpleNamespace(recording={"imu_point_off": "the IMU's own ... 12 m"}), 0.0)
+    assert off == "the IMU's own ... 12 m: these errors hold that arm's transfer too"
     row = {"windows": 3, "disjoint": 1, "horizontal_m": dict.fromkeys(
         ("p50", "p68", "p95", "max"), 1.0), "vertical_m": {"p50": 0.1, "p95": 0.2},
         "median_rate_m_s": 0.1, "reference_floor": {"horizontal_m": 2.0, "not_stated": [],

@@ -842,3 +842,23 @@ def test_the_lever_arm_given_tells_which_mounting_is_off(imu_rpy, ref_rpy):
         assert np.degrees(np.linalg.norm(error)) < 0.2, rec.real["reference_imu_mounting"]
     assert ("the lever arm given fits the IMU's forces only in the reference IMU's frame" in
             rec.real["reference_imu_mounting"]) == (imu_rpy != (180.0, 0.0, 0.0))
+
+
+@pytest.mark.parametrize("given", [True, False])
+def test_an_imu_its_own_forces_place_off_its_arm_is_said(given):
+    """The IMU 3.3 m from the reference IMU (the trajectory's point), its arm given or not:
+    given, nothing is said; not given, the IMU's own forces place the trajectory's point
+    the arm's opposite from where the reference IMU's do, and the import says so (a ship's
+    MEMS 14.4 m from its INS, no arm given: its windows charged it with that arm's
+    transfer, with no word)."""
+    arm = np.array([3.0, -0.5, 1.2])
+    rec = _attitude_pair((180.0, 0.0, 0.0), (180.0, 0.0, 90.0), tuple(arm))
+    if not given:
+        rec.mounting = Mounting(rec.mounting.attitude_wxyz, (0.0, 0.0, 0.0))
+    checks.check_recording(rec)
+    if given:
+        assert rec.imu_point_off == ""
+        return
+    off = [float(x) for x in re.search(r"place the reference trajectory's point ([^m]+) m",
+                                       rec.imu_point_off).group(1).split(",")]
+    assert np.allclose(off, -arm, atol=0.1), rec.imu_point_off
