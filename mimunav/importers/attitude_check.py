@@ -162,21 +162,48 @@ TURNS = 0.002   # rad/s: an axis is judged where the attitude's 1 s mean rate sp
 AXES = "xyz"
 
 
-def rates_along(reference, ns, w, mounting):
-    """{axis: (correlation, gain, seconds)} of the vehicle axes (FRD) about which the
-    reference's attitude turns (TURNS, over MIN_SECONDS or more): its 1 s mean rates
-    (`attitude_means`) against an IMU's (w rad/s at stamps ns, sensor axes, turned into the
-    vehicle frame by `mounting`), both about their own means; the gain is the IMU's rate per
-    the attitude's (1 for the two read alike, -1 for a sign read wrong)."""
-    mids = np.arange(ns[0] / 1e9 + 1.0, ns[-1] / 1e9 - 1.0, 1.0)
-    predicted = attitude_means(reference, mids) if len(mids) >= MIN_SECONDS else None
-    if predicted is None:
+SPAN_S = 1.0    # s: the rates are compared over spans between attitude epochs this long or
+#   more, the gyro's mean over exactly each span: means over whole seconds beside a 1 Hz
+#   attitude's turns between epochs had folded a car's bumps (1.4 s) into a correlation of
+#   -0.57 about x (an independent review)
+
+MAX_STEP_RAD = 1.0  # rad: a step between attitude epochs turning more than this is not told
+#   from its turn the other way round (pi: either way); the first order of a step's rotation
+#   vector as the integral of its rates holds to a few per cent below it
+
+
+def rates_along(reference, ns, w, mounting, late_s=0.0):
+    """{axis: (correlation, gain, spans)} of the vehicle axes (FRD) about which the
+    reference's attitude turns (TURNS, over MIN_SECONDS spans or more): over successive
+    spans between its epochs k and k + n (n the fewest steps spanning SPAN_S; the epochs
+    moved late_s s earlier, how late its stamps are), the turn conj(q_k) q_k+n as a rotation
+    vector per second against an IMU's mean rate over exactly that span (w rad/s at stamps
+    ns, sensor axes, turned into the vehicle frame by `mounting`), both about their own
+    means; the gain is the IMU's rate per the attitude's (1 for the two read alike, -1 for a
+    sign read wrong). The span's turn is the sum of its steps' (conj(q_j) q_j+1, each in the
+    body frame at its start): one rotation over a second had wrapped a 400 deg/s roll. Spans
+    over a gap (longer than 1.5 times the median) or with a step over MAX_STEP_RAD are left
+    out."""
+    q = reference.get("q_nb")
+    ok = np.zeros(0, bool) if q is None else np.isfinite(q).all(axis=1)
+    if ok.sum() < MIN_SECONDS:
         return {}
-    mine = attitude.rotate(mounting.q_vs, window_means(ns, w, mids))
-    rows = np.isfinite(predicted[0]).all(axis=1) & np.isfinite(mine).all(axis=1)
+    t, q_nb = reference["ns"][ok] / 1e9 - late_s, attitude.from_wxyz(q[ok])
+    n = max(1, int(np.ceil(SPAN_S / float(np.median(np.diff(t))) - 1e-6)))
+    k = np.arange(0, len(t) - n, n)
+    span = t[k + n] - t[k]
+    # conj(q_j) q_j+1: each step's turn in the body frame at its start, summed over a span
+    step = attitude.rotation_vector_error(np.conjugate(q_nb[:-1]), np.conjugate(q_nb[1:]))
+    turned = np.vstack([np.zeros(3), np.cumsum(step, axis=0)])
+    predicted = (turned[k + n] - turned[k]) / span[:, None]
+    mine = attitude.rotate(mounting.q_vs, window_means(ns, w, t[k] + span / 2, span / 2))
+    steep = np.concatenate([[0], np.cumsum(np.linalg.norm(step, axis=1) > MAX_STEP_RAD)])
+    steep = steep[k + n] > steep[k]
+    rows = (np.isfinite(predicted).all(axis=1) & np.isfinite(mine).all(axis=1)
+            & (span <= 1.5 * np.median(span)) & ~steep)
     out = {}
     for i, axis in enumerate(AXES):
-        x, y = predicted[0][rows, i], mine[rows, i]
+        x, y = predicted[rows, i], mine[rows, i]
         x, y = x - x.mean(), y - y.mean()
         if rows.sum() < MIN_SECONDS or not np.std(x) >= TURNS:
             continue
@@ -184,34 +211,49 @@ def rates_along(reference, ns, w, mounting):
     return out
 
 
-def check_rates_along(rec):
+def check_rates_along(rec, lags_s=(0.0,)):
     """Refuse (RecordingError) a reference attitude that turns against the gyro of its own
     IMU - the reference IMU where there is one, else the IMU - about a vehicle axis
-    (`rates_along`; correlation below -RUNS_AGAINST): an angle's sign read wrong (an INS's
-    roll and pitch: x and y; a yaw counted counter-clockwise: z, and y where it pitches;
-    the quaternion's conjugate: z at least), or that IMU's mounting 180 deg off about the axis that follows.
-    An IMU's trial on a train, its INS's roll and pitch read as their negatives, had been
-    taken, and the windows then charged the MEMS with 6-40 times its error. Said in
-    rec.real["reference_attitude_rates"] otherwise."""
+    (`rates_along`; correlation below -RUNS_AGAINST) at every lag of lags_s (s, how late
+    its stamps may be: the clock check's decided lag, else the stamps and its best rival -
+    a motion that repeats runs against itself half a period off: a car's 1.4 s bounce, its
+    reference 0.7 s late, had been refused as a sign read wrong): an angle's sign read
+    wrong (an INS's roll and pitch: x and y; a yaw counted counter-clockwise: z, and y
+    where it pitches; the quaternion's conjugate: z at least), or that IMU's mounting 180
+    deg off about the axis that follows. An IMU's trial on a train, its INS's roll and
+    pitch read as their negatives, had been taken, and the windows then charged the MEMS
+    with 6-40 times its error. Said in rec.real["reference_attitude_rates"] otherwise."""
     own = rec.reference_imu
     whose, ns, w, mounting = (("the IMU's", rec.imu_ns, rec.w, rec.mounting) if own is None else
                               ("the reference IMU's", own["ns"], own["w"], own["mounting"]))
-    along = rates_along(rec.reference, ns, w, mounting)
-    if not along:
+    tried = [(late, rates_along(rec.reference, ns, w, mounting, late)) for late in lags_s]
+    tried = [(late, along) for late, along in tried if along]
+    if not tried:
         return
+    words = [(late, along, _rates_said(whose, late, along)) for late, along in tried]
+    holds = [(late, said) for late, along, said in words
+             if not any(r < -RUNS_AGAINST for r, *_ in along.values())]
+    if holds:
+        rec.real["reference_attitude_rates"] = holds[0][1]
+        return
+    _, along, said = words[0]
+    against = [axis for axis, (r, *_) in along.items() if r < -RUNS_AGAINST]
+    raise RecordingError(
+        f"{rec.name}: {said}: it turns against that gyro about {' and '.join(against)}"
+        + (f" (and with its stamps taken {', '.join(f'{x:+.2f}' for x, *_ in words[1:])} s "
+           "late too)" if len(words) > 1 else "") + ": is a "
+        "sign of the attitude's angles read wrong (roll and pitch as their negatives turn "
+        "it against about x and y; a yaw counted counter-clockwise about z; the "
+        "quaternion's conjugate about z at least - `scale = -1` on an angle's column in a "
+        f"table spec), or is {whose} mounting 180 deg off about an axis that follows?")
+
+
+def _rates_said(whose, late, along):
+    """The words of `rates_along`'s correlations and gains, its stamps taken late s late."""
     said = "; ".join(f"{axis}: correlation {r:+.2f}, gain {gain:+.2f}"
                      for axis, (r, gain, _) in along.items())
-    said = (f"the reference's attitude against {whose} gyro, 1 s mean rates about the vehicle "
-            f"axes that turn ({TURNS:g} rad/s or more) over "
-            f"{max(n for *_, n in along.values())} s ({said})")
-    against = [axis for axis, (r, *_) in along.items() if r < -RUNS_AGAINST]
-    if against:
-        raise RecordingError(
-            f"{rec.name}: {said}: it turns against that gyro about {' and '.join(against)}: is a "
-            "sign of the attitude's angles read wrong (roll and pitch as their negatives turn "
-            "it against about x and y; a yaw counted counter-clockwise about z; the "
-            "quaternion's conjugate about z at least - `scale = -1` on an angle's column in a "
-            f"table spec), or is {whose} mounting 180 deg off about an axis that follows? "
-            "(A motion that repeats - a ship's roll - runs against itself with stamps half a "
-            "period off: the clock too.)")
-    rec.real["reference_attitude_rates"] = said
+    return (f"the reference's attitude against {whose} gyro, mean rates over spans of "
+            f"{SPAN_S:g} s or more between its epochs"
+            + (f" (its stamps taken {late:+.2f} s late: the clock's)" if late else "")
+            + f", about the vehicle axes that turn ({TURNS:g} rad/s or more), "
+            f"{max(n for *_, n in along.values())} spans ({said})")

@@ -90,8 +90,8 @@ def check_recording(rec):
                              "(deg/s or rad/s) right?")
     check_acceleration_scale(rec, t_ref / 1e9, ref["v_ned"][ok], f_ned)
     _check_heading_against_course(rec, q, ok)
-    _check_reference_clock(rec)
-    check_rates_along(rec)      # after the clock: seconds off refuse as such first
+    check_rates_along(rec, _check_reference_clock(rec))     # after the clock: seconds off
+    #                                                         refuse as such first
     check_trajectory_point(rec)     # once the attitude and its clock hold
 
 
@@ -168,7 +168,9 @@ def _check_reference_clock(rec):
     of them: `imu_clock.rate_lag`'s zero_lag_s): rec.reference_clock_open (a ship's MEMS
     0.7 s off, its rolls repeating every 10 s, had the navigation level conclude on a lever
     arm, the clock unnamed); a motion that repeats exactly, stamped right, peaks anywhere
-    among rivals, one of them at the stamps: not open."""
+    among rivals, one of them at the stamps: not open. Returns the lags (s) the reference's
+    stamps may be late by: the decided one, else 0 and the data's best lags near the stamps
+    and anywhere."""
     clock = trajectory_clock(rec)
     rec.real["reference_clock"] = clock["said"]
     late = clock["offset_s"]
@@ -187,6 +189,10 @@ def _check_reference_clock(rec):
             f"{rec.name}: the reference's trajectory moves as the IMU does only with its stamps "
             f"{late_or_early(late)} ({clock['said']}): the two time bases differ by that much"
             + offset_advice(rec, rec.reference_shift_s - late, ".2f"))
+    if late is not None:
+        return [late]
+    rivals = (clock.get(key) for key in ("zero_lag_s", "peak_lag_s"))
+    return [0.0] + sorted({x for x in rivals if x is not None and abs(x) > GRID_S})
 
 
 FELT_GRAVITY_SHARE = 0.05   # of the recording's 1 s means: at least this share (and 3 s)

@@ -93,6 +93,8 @@ class Recording:
     #                                     as given without finding them its peak (`pairing`)
     imu_point_off: str = ""     # where the IMU's forces place the trajectory's point off the
     #                             reference IMU's (`trajectory_point`), or ''
+    trajectory_point_off: str = ""  # where the reference trajectory's point is measured off
+    #                                 the origin and left there (`trajectory_point`), or ''
     reference_clock_open: str = ""  # the same of the reference trajectory's clock, where the
     #                                 data peak away from its stamps among rivals (`checks`)
     clip_spans_ns: list = field(default_factory=list)   # [(t0, t1 ns, clips)] where an IMU's

@@ -73,11 +73,12 @@ def _own_imu(rec, the_imu=False):
 def check_trajectory_point(rec):
     """Measure the reference trajectory's point (`measured_point`) and say it in
     rec.real["reference_point"]; where it lies off the origin beyond SAME_POINT_M and
-    DISTINCT_Z of its error, and its error is within SAME_POINT_M every way, move the
-    trajectory onto the origin (`moved_to_origin`) - by the reference IMU's point as given
-    where the measured one lies within those of it. (A car's gentle drive, its 1 Hz
-    reference's forces misfit at the IMU's, had placed its point 13 km off, standard
-    errors 1.7 km, and been moved by it.)"""
+    DISTINCT_Z of its error, and its error is within SAME_POINT_M every way: where it lies
+    at the reference IMU's point as given (nonzero), move the trajectory onto the origin by
+    that arm (`moved_to_origin`); else say it in rec.trajectory_point_off too, the
+    trajectory left where it is. (A car's gentle drive, its 1 Hz reference's forces misfit
+    at the IMU's, had placed its point 13 km off, standard errors 1.7 km, and been moved
+    by it.)"""
     measured = measured_point(rec)
     if isinstance(measured, str):
         rec.real["reference_point"] = f"not measured ({measured}): taken at the origin"
@@ -104,13 +105,17 @@ def check_trajectory_point(rec):
             "moved onto the origin by that arm (positions - C_nb r, velocities - "
             "C_nb (w x r)), as /truth/state is")
         return
-    moved_to_origin(rec, p)
     rec.real["reference_point"] = (
         f"{said}: not the origin" + ("" if given is None else
                                      ", nor the reference IMU's point as given") +
-        " - the trajectory moved onto the origin by the arm measured (positions - C_nb r, "
-        "velocities - C_nb (w x r)); where the trajectory's point is known, give the lever "
-        "arms from it")
+        " - left where it is, taken at the origin: a point measured is not moved by (a "
+        "reference stamped late, sampled at 1-2 Hz, an IMU's mounting tilted a little or an "
+        "INS yawed in the hull place it metres off); where the trajectory's point is known, "
+        "give the lever arms from it (a table spec's lever_arm_m, ros2's "
+        "--reference-imu-lever-arm-m)")
+    rec.trajectory_point_off = (
+        f"the reference trajectory's point measured {np.linalg.norm(p):.2f} m off the origin "
+        "and left there (measured reference point)")
 
 
 def _check_the_imus_point(rec, p, cov):

@@ -90,6 +90,7 @@ def write_log(rec, path, force=False):
                                    "reference_imu_clock_open": rec.reference_imu_clock_open,
                                    "reference_clock_open": rec.reference_clock_open,
                                    "imu_point_off": rec.imu_point_off,
+                                   "trajectory_point_off": rec.trajectory_point_off,
                                    "clip_spans_s": [[(a - epoch) / 1e9, (b - epoch) / 1e9, n]
                                                     for a, b, n in rec.clip_spans_ns]})
         channels = [("/mimu/imu", S.IMU, "mimu", rec.imu_ns, S.imu_fields(rec.w, rec.f))]
@@ -178,8 +179,7 @@ def summary(rec, align, path):
         if key in rec.real:
             lines.append(f"measured {key.replace('_', ' ')}: {rec.real[key]}")
     lines += [f"warning: {why}" for why in rec.aliased.values()]
-    if rec.imu_point_off:
-        lines.append(f"warning: {rec.imu_point_off}")
+    lines += [f"warning: {why}" for why in (rec.imu_point_off, rec.trajectory_point_off) if why]
     if "reference_heading" in rec.real:
         lines.append(f"measured heading: {rec.real['reference_heading']}")
     if "vehicle" in rec.real:

@@ -37,7 +37,8 @@ def doubts(flight, time_shift_s):
     away from its stamps) - each window then compares the IMU with where the reference was
     a lag away (a ship's MEMS 0.7 s off had its 60 s windows read 695 m, silently; 17 m
     once shifted; not said once a --time-shift is given); an IMU its own forces place
-    elsewhere than its lever arm given (the recording's `imu_point_off`)."""
+    elsewhere than its lever arm given (the recording's `imu_point_off`); a trajectory
+    whose point is measured off the origin (`trajectory_point_off`)."""
     said, out = (flight.recording or {}).get("reference_clock_open"), []
     if said and not time_shift_s:
         out.append(f"the import could not decide the reference trajectory's clock against the "
@@ -46,6 +47,9 @@ def doubts(flight, time_shift_s):
     off = (flight.recording or {}).get("imu_point_off")
     if off:         # `importers.trajectory_point`: the IMU not where its arm says
         out.append(f"{off}: these errors hold that arm's transfer too")
+    off = (flight.recording or {}).get("trajectory_point_off")
+    if off:         # `importers.trajectory_point`: measured, not moved by
+        out.append(f"{off}: these errors may hold the transfer of an arm from that point")
     return out
 
 

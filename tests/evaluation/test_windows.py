@@ -259,6 +259,9 @@ def test_windows_on_a_trajectory_clock_the_import_left_open_say_so():
     # an IMU its own forces place off its lever arm given (`importers.trajectory_point`)
     (off,) = doubts(SimpleNamespace(recording={"imu_point_off": "the IMU's own ... 12 m"}), 0.0)
     assert off == "the IMU's own ... 12 m: these errors hold that arm's transfer too"
+    # a trajectory whose point is measured off the origin, left there
+    (off,) = doubts(SimpleNamespace(recording={"trajectory_point_off": "... 3.30 m off"}), 0.0)
+    assert off == "... 3.30 m off: these errors may hold the transfer of an arm from that point"
     row = {"windows": 3, "disjoint": 1, "horizontal_m": dict.fromkeys(
         ("p50", "p68", "p95", "max"), 1.0), "vertical_m": {"p50": 0.1, "p95": 0.2},
         "median_rate_m_s": 0.1, "reference_floor": {"horizontal_m": 2.0, "not_stated": [],

@@ -738,10 +738,12 @@ def test_a_trajectory_off_the_origin_is_found_and_moved_onto_it(declared):
     the arms declared from the trajectory's point it stays; declared from the IMU (the
     reference IMU at minus the arm: a survey ship's user had, and its windows read 13 times
     the MEMS's error) the forces place the trajectory at the reference IMU, and it is moved
-    onto the origin by that arm; without a reference IMU, by the arm measured. Oracle: the
-    IMU navigated 30 s free-inertial from the trajectory (the project's strapdown, through
-    its lever arm) ends on it within 2 cm, 10 cm by an arm measured (its x standard error
-    0.11 m) - 2.7 m off where nothing was moved."""
+    onto the origin by that arm; without a reference IMU the point measured is said and
+    warned of, and nothing moved by it (a late or 1 Hz reference, a tilted mounting place it
+    metres off). Oracle: the IMU navigated 30 s free-inertial from the trajectory (the
+    project's strapdown, through its lever arm) ends on it within 2 cm once moved; left
+    where it is, the trajectory is the one given (bit for bit) and the IMU ends 2.7 m off
+    it - the arm's transfer the warning names."""
     from mimunav.evaluation.replay import navigate
     from mimunav.motion.trajectory import State
     arm = np.array([3.0, -0.5, 1.2])
@@ -752,13 +754,17 @@ def test_a_trajectory_off_the_origin_is_found_and_moved_onto_it(declared):
                                                  tuple(-arm))
     if declared.endswith("no reference IMU"):
         rec.reference_imu = None
+    given = {k: np.array(v, copy=True) for k, v in rec.reference.items()}
     checks.check_recording(rec)
     said = rec.real["reference_point"]
     assert {"from the trajectory's point": "at the origin, as /truth/state is",
             "from the IMU": "the reference IMU's point as given, not the origin",
-            "from the IMU, no reference IMU": "moved onto the origin by the arm measured"}[
-        declared] in said, said
+            "from the IMU, no reference IMU": "left where it is"}[declared] in said, said
+    left = declared.endswith("no reference IMU")
+    assert bool(rec.trajectory_point_off) == left, rec.trajectory_point_off
     ref = rec.reference
+    if left:
+        assert all(np.array_equal(given[k], ref[k], equal_nan=True) for k in given)
     t_ref, t = ((ns - rec.imu_ns[0]) / 1e9 for ns in (ref["ns"], rec.imu_ns))
     k0, k1 = 100, 400
     start = State(float(t_ref[k0]), float(ref["lat"][k0]), float(ref["lon"][k0]),
@@ -769,7 +775,10 @@ def test_a_trajectory_off_the_origin_is_found_and_moved_onto_it(declared):
     r_n, r_e = 6.37e6, 6.37e6 * math.cos(ref["lat"][k1])
     off = [(nav.lat[j] - ref["lat"][k1]) * r_n, (nav.lon[j] - ref["lon"][k1]) * r_e,
            nav.h[j] - ref["h"][k1]]
-    assert np.linalg.norm(off) < (0.1 if rec.reference_imu is None else 0.02), off
+    if left:
+        assert 2.0 < np.linalg.norm(off) < 4.0, off
+    else:
+        assert np.linalg.norm(off) < 0.02, off
 
 
 @pytest.mark.parametrize("late_s", [0.7, 0.0])
