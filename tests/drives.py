@@ -62,12 +62,21 @@ def one_turn_track(edge_s, rate=10.0, duration=120.0):
     return track_from_velocity(t, v)
 
 
-def ideal_flight(tmp_path, mounting, gyro_bias=np.zeros(3), rate=100.0, lag=0.0, track=None,
-                  with_attitude=False, accel_bias=np.zeros(3), reference_every=1):
-    """A log of the synthetic drive (or `track`): the ideal IMU of its TrackMotion (exact
-    increments, interval means) at `mounting` plus a gyro bias, stamped `lag` s late; every
-    `reference_every`-th epoch of the track as /truth/state (with the motion's attitude when
-    with_attitude)."""
+def ideal_flight(tmp_path, mounting, **drive):
+    """A log of `ideal_recording(mounting, **drive)`: (its path, motion, truth run)."""
+    rec, motion, run = ideal_recording(mounting, **drive)
+    tmp_path.mkdir(parents=True, exist_ok=True)
+    path = tmp_path / "synthetic.mcap"
+    write_log(rec, path)
+    return path, motion, run
+
+
+def ideal_recording(mounting, gyro_bias=np.zeros(3), rate=100.0, lag=0.0, track=None,
+                    with_attitude=False, accel_bias=np.zeros(3), reference_every=1):
+    """(Recording, motion, truth run) of the synthetic drive (or `track`): the ideal IMU of
+    its TrackMotion (exact increments, interval means) at `mounting` plus a gyro bias,
+    stamped `lag` s late; every `reference_every`-th epoch of the track as /truth/state (with
+    the motion's attitude when with_attitude)."""
     t_tr, lat, lon, h, v = straight_track() if track is None else track
     motion = TrackMotion(t_tr, lat, lon, h, v)
     t = np.arange(t_tr[0], t_tr[-1] + 1e-9, 1.0 / rate)
@@ -83,10 +92,7 @@ def ideal_flight(tmp_path, mounting, gyro_bias=np.zeros(3), rate=100.0, lag=0.0,
     rec = Recording("synthetic", "synthetic drive",
                     epoch + np.round((t[1:] + lag) * 1e9).astype(np.int64),
                     w, f, mounting, reference=reference)
-    tmp_path.mkdir(parents=True, exist_ok=True)
-    path = tmp_path / "synthetic.mcap"
-    write_log(rec, path)
-    return path, motion, run
+    return rec, motion, run
 
 
 MOUNT = Mounting.from_rpy_deg((180.0, 0.0, 180.0))

@@ -15,7 +15,7 @@ import numpy as np
 from ..compensation.calibration_file import Calibration
 from ..errors import InputError
 from ..evaluation.flight import Flight, no_reference, refuse_gaps
-from . import navigation, sensor, track, vehicle_kind
+from . import navigation, skew, track, vehicle_kind
 from ..compensation.effects import VIBRATION_CUTOFF_HZ
 from ..motion.carrier import ALONG_COURSE
 from .design import MOTION_HZ, reference_spectrum
@@ -97,7 +97,7 @@ def diagnose(flight, cal, level, alpha=0.05, seed=0, accuracy=None, noise=None, 
     for the sensor level's bias tests; vehicle (navigation level) what carried the IMU, when
     the command line says."""
     if level == "sensor":
-        diag = sensor.diagnose(flight, cal, alpha=alpha, accuracy=accuracy, noise=noise)
+        diag = skew.diagnose(flight, cal, alpha=alpha, accuracy=accuracy, noise=noise)
         set_aside_aliased(diag, flight)
         set_aside_moved(diag, flight)
         set_aside_undecided_clock(diag, flight)

@@ -47,18 +47,31 @@ TRANSFER_WINDOW_S = 0.03        # d/dt of the reference rate in the lever-arm tr
 def predicted_mimu(flight):
     """(f m/s^2, w rad/s, inside) the MIMU should have read at its stamps, MIMU sensor axes,
     from the flight's reference IMU (`/fog/imu`, `counted_outputs`) and both mountings
-    (`predicted_at`); inside (N,) bool: the stamps inside the reference's span."""
+    (`predicted_lagged`); inside (N,) bool: the stamps inside the reference's span."""
     inside = inside_reference(flight)
     fog_t = flight.fog_t
-    return (*predicted_at(flight.mimu_t, fog_t, counted_outputs(flight, fog_t, flight.fog_w),
-                          counted_outputs(flight, fog_t, flight.fog_f), flight), inside)
+    return (*predicted_lagged(flight.mimu_t, fog_t,
+                              counted_outputs(flight, fog_t, flight.fog_w),
+                              counted_outputs(flight, fog_t, flight.fog_f), flight), inside)
+
+
+def predicted_lagged(t, fog_t, fog_w, fog_f, flight):
+    """`predicted_at`, each triad's at its stamps t less its lag (flight.mimu_lag_s: the
+    accelerometers', the gyros'; s): what a triad lagging so behind its stamps reads -
+    the interval means over (t[k-1] - lag, t[k] - lag]."""
+    lag_f, lag_w = flight.mimu_lag_s
+    f, w = predicted_at(t - lag_f, fog_t, fog_w, fog_f, flight)
+    if lag_w != lag_f:
+        w = predicted_at(t - lag_w, fog_t, fog_w, fog_f, flight)[1]
+    return f, w
 
 
 def inside_reference(flight):
-    """(N,) bool: the MIMU's stamps inside the reference IMU's span; an InputError when fewer
-    than two are."""
+    """(N,) bool: the MIMU's stamps inside the reference IMU's span, each triad's lag
+    (flight.mimu_lag_s) taken off them; an InputError when fewer than two are."""
     t = flight.mimu_t
-    inside = (t > flight.fog_t[0]) & (t <= flight.fog_t[-1])
+    inside = (t - max(flight.mimu_lag_s) > flight.fog_t[0]) & \
+        (t - min(flight.mimu_lag_s) <= flight.fog_t[-1])
     if inside.sum() < 2:
         raise InputError(f"{flight.path}: the reference IMU does not cover the MIMU's samples")
     return inside

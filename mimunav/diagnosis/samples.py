@@ -27,8 +27,8 @@ from ..evaluation.replay import compensated_mimu, stuck_inside_range, warn_stuck
 from ..flightlog import FlightLog
 from .design import Binning
 from .spill import ScratchMatrix, Spill
-from .reference import (DERIVATIVE_WINDOW_S, counted_outputs, inside_reference, predicted_at,
-                        predicted_mimu)
+from .reference import (DERIVATIVE_WINDOW_S, counted_outputs, inside_reference,
+                        predicted_lagged, predicted_mimu)
 
 
 PREDICTION_HALO_S = 1.0     # MIMU samples either side of a streamed block its prediction is
@@ -97,10 +97,12 @@ def _streamed_stage(flight, cal, spill, inside):
                 break
             lo = int(np.searchsorted(t, t[a] - PREDICTION_HALO_S))
             hi = int(np.searchsorted(t, t[b - 1] + PREDICTION_HALO_S, "right"))
-            i0 = max(int(np.searchsorted(fog_t, t[lo], "right")) - 2, 0)  # an interval before
-            i1 = min(int(np.searchsorted(fog_t, t[hi - 1])) + 2, len(fog_t))    # and after
+            i0 = max(int(np.searchsorted(fog_t, t[lo] - max(flight.mimu_lag_s), "right"))
+                     - 2, 0)                                        # an interval before
+            i1 = min(int(np.searchsorted(fog_t, t[hi - 1] - min(flight.mimu_lag_s))) + 2,
+                     len(fog_t))                                    # and after
             reference = spill.span("reference", i0, i1)
-            f_p, w_p = (x[a - lo:b - lo] for x in predicted_at(
+            f_p, w_p = (x[a - lo:b - lo] for x in predicted_lagged(
                 t[lo:hi], fog_t[i0:i1], reference[:, :3], reference[:, 3:], flight))
             _add(spill, f, w, f_p, w_p, raw["accel_temperature"], raw["gyro_frequency"],
                  np.hstack([raw["accel_volts"], raw["gyro_volts"]]))

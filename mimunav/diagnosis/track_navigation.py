@@ -37,12 +37,12 @@ def navigation_check(flight, cal, finding, baseline):
     tripled its navigation error). Writes finding["navigation_check"] when it ran.
     baseline: `window_ends` without it."""
     ends = window_ends(flight, cal, [finding])
-    both = [] if ends is None or baseline is None else sorted(set(ends) & set(baseline))
-    n = len(both)
+    pairs = [] if ends is None or baseline is None else paired_starts(ends, baseline)
+    n = len(pairs)
     if n < MIN_CHECK_WINDOWS:
         return (f"cannot be checked in navigation: {n} free-inertial {CHECK_WINDOW_S:g} s "
                 f"windows (need {MIN_CHECK_WINDOWS})")
-    ends, baseline = (np.array([x[t0] for t0 in both]) for x in (ends, baseline))
+    ends, baseline = (np.array([x[k] for x in pairs]) for k in (0, 1))
     paired = float(np.median(ends - baseline))
     before, after = float(np.median(baseline)), float(np.median(ends))
     finding["navigation_check"] = {
@@ -57,6 +57,27 @@ def navigation_check(flight, cal, finding, baseline):
                 f"end error goes {before:.4g} -> {after:.4g} m (median paired change "
                 f"{paired:+.3g} m)")
     return None
+
+
+PAIR_S = CHECK_WINDOW_S / 10    # windows starting this near one another span nine tenths
+# of the same motion: compared as a pair (a lag removed moves every start with the IMU's
+# stamps - a drive's -41 ms had left no start in common, "0 windows")
+
+
+def paired_starts(ends, baseline):
+    """[(end error with, without)] of the windows of `ends` and `baseline` ({start s: m},
+    `window_ends`) paired by start: each baseline window with the nearest start of `ends`
+    within PAIR_S, each used once."""
+    starts = np.array(sorted(ends))
+    pairs, used = [], set()
+    for t0 in sorted(baseline):
+        if len(starts) == 0:
+            break
+        k = int(np.argmin(np.abs(starts - t0)))
+        if abs(starts[k] - t0) <= PAIR_S and k not in used:
+            used.add(k)
+            pairs.append((ends[starts[k]], baseline[t0]))
+    return pairs
 
 
 def window_ends(flight, cal, findings):

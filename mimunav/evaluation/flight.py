@@ -60,6 +60,10 @@ class Flight:
     fog_seconds: object = None          # SecondMeans of the reference IMU (f, w), when known
     recording: dict | None = None       # the log's `recording` metadata (an imported one's:
                                         # what is real, what assumed, the alignment's biases)
+    mimu_lag_s: tuple = (0.0, 0.0)      # the lag (s) of the MIMU's accelerometer and gyro
+                                        # samples behind their stamps that the sensor level's
+                                        # prediction is made at (`diagnosis.skew`): a time
+                                        # skew's, positive when the triad lags
 
     @classmethod
     def load(cls, path, reference_imu=True, max_gap_s=None, stream=False):

@@ -134,9 +134,7 @@ def _rows_where(path, rows, n):
         raise RecordingError(f"{path}: rows {rows!r}: a table {{column name = text or [texts]}}")
     keep = np.ones(len(cells), bool)
     for name, wanted in rows.items():
-        if names is None or name not in names:
-            raise RecordingError(f"{path}: rows: column {name!r} not among {names}")
-        k = names.index(name)
+        k = _row_column(path, names, name)
         wanted = {str(w) for w in (wanted if isinstance(wanted, list) else [wanted])}
         keep &= np.array([k < len(r) and r[k].strip() in wanted for r in cells])
     if len(keep) != n:
@@ -145,6 +143,19 @@ def _rows_where(path, rows, n):
     if not keep.any():
         raise RecordingError(f"{path}: no row is {rows}")
     return keep
+
+
+def _row_column(path, names, name):
+    """The 0-based index of the column `rows` names by `name`: a header's name, or the
+    index itself in digits (a TOML key is text: rows = {"1" = "3"}, a file without a
+    header)."""
+    if names is not None and name in names:
+        return names.index(name)
+    if name.isdigit():
+        return int(name)
+    raise RecordingError(f"{path}: rows: column {name!r} " + (
+        f"not among the header's {names}" if names is not None else
+        "named, but the file has no header: give its 0-based index, rows = {\"1\" = \"3\"}"))
 
 
 def _refuse_interleaved(path, names, cells):

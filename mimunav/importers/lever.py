@@ -32,13 +32,14 @@ def unit_forces(ns, w_v, mids):
 
 
 def arm_cov(design, gap):
-    """(3, 3) m^2: the covariance of the least-squares arm of `gap` (3 M,) on `design` (3 M,
-    3; rows the seconds' three axes), jackknifed over ARM_BLOCKS consecutive blocks of the
-    seconds (the 1 s means' misfit is correlated over seconds: its white formula had given
-    a motorcycle's arm 0.5 mm where it lay 26 mm off)."""
+    """(k, k): the covariance of the least-squares arm (m^2) of `gap` (3 M,) on `design` (3 M,
+    k: the arm's 3 columns, then any others; rows the seconds' three axes), jackknifed over
+    ARM_BLOCKS consecutive blocks of the seconds (the 1 s means' misfit is correlated over
+    seconds: its white formula had given a motorcycle's arm 0.5 mm where it lay 26 mm
+    off)."""
     n = len(gap) // 3
     block = np.repeat(np.minimum(np.arange(n) * ARM_BLOCKS // n, ARM_BLOCKS - 1), 3)
     parts = np.array([np.linalg.lstsq(design[block != b], gap[block != b], rcond=None)[0]
                       for b in range(ARM_BLOCKS)])
     centred = parts - parts.mean(axis=0)
-    return (ARM_BLOCKS - 1) / ARM_BLOCKS * centred.T @ centred + 1e-12 * np.eye(3)
+    return (ARM_BLOCKS - 1) / ARM_BLOCKS * centred.T @ centred + 1e-12 * np.eye(len(centred.T))

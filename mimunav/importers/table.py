@@ -13,7 +13,8 @@ a path string or a table:
 `columns` picks CSV columns by header name or 0-based index, or NumPy columns by index
 (default: all); `file` may be a glob pattern ("oxts/data/*.txt": a file per epoch, their rows
 in the order of their names). `rows = {MessageType = "UncalAccel"}` keeps only the rows
-whose text in that CSV column is that (or one of a list): a logger writing several sensors'
+whose text in that CSV column is that (or one of a list; a headerless file's column by its
+0-based index, `rows = {1 = "3"}`: NCLT's RTK fixes only): a logger writing several sensors'
 rows to one file (Android GnssLogger's) - such a file is refused without it. `scale`
 multiplies the column before its unit converts it (a logger's counts: a time in ticks of
 10 us is `unit = "us", scale = 10`; a gyro in 0.01 deg/s steps is `unit = "deg/s", scale =

@@ -56,7 +56,7 @@ def test_reference_moved_to_the_mimu_mounting_matches_its_exact_increments():
     _, dth_fog, dv_fog = fm.fog
     flight = SimpleNamespace(path="x", mimu_t=t, mimu_mounting=mount, fog_t=fm.fog[0],
                              fog_w=dth_fog * 1000.0, fog_f=dv_fog * 1000.0, fog_mounting=Mounting(),
-                             source="simulation")
+                             source="simulation", mimu_lag_s=(0.0, 0.0))
     f_p, w_p, inside = predicted_mimu(flight)
     k = inside & (t > 0.1) & (t < t[-1] - 0.1)
     assert np.abs(w_p[k] - w[k]).max() < 1e-9

@@ -871,3 +871,16 @@ def test_a_time_skew_finer_than_the_tracks_timing_is_no_reason_to_be_inconclusiv
     reasons, demoted = track.screen(diag, flight, None)
     assert diag.findings == [] and reasons == [] and demoted == []
     assert diag.rejected[0]["rejected"].endswith("finer than the track reference's timing")
+
+
+def test_windows_moved_by_a_lag_removed_are_paired_by_their_nearest_start():
+    """A lag removed moves every window's start with the IMU's stamps (an independent
+    trial's drive, -41 ms: 30.28, 35.28, ... s became 29.5, 34.5, ...); paired by exact
+    start none had been in common - "0 windows", the lag refused. Each pairs with the
+    nearest start within a tenth of the window, once; a start 5 s away pairs with none."""
+    from mimunav.diagnosis.track_navigation import paired_starts
+    baseline = {30.28 + 5 * k: float(k) for k in range(6)}
+    ends = {29.5 + 5 * k: 10.0 + k for k in range(6)}
+    assert paired_starts(ends, baseline) == [(10.0 + k, float(k)) for k in range(6)]
+    assert paired_starts({29.5: 1.0}, {30.28: 0.0, 30.9: 2.0}) == [(1.0, 0.0)]
+    assert paired_starts({35.0: 1.0}, {30.28: 0.0}) == []

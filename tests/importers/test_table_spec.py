@@ -448,6 +448,32 @@ def test_a_file_of_two_sensors_rows_is_refused_unpicked_and_read_by_rows(tmp_pat
         table.read(tmp_path / "spec.toml")
 
 
+def test_a_headerless_files_rows_are_picked_by_a_columns_index(tmp_path):
+    """A headerless CSV (NCLT's gps_rtk.csv: utime, mode, ...) picks its rows by the
+    column's 0-based index, a TOML key in digits; a name on it had been refused "column '1'
+    not among None", and now says the file has no header."""
+    t = np.arange(1, N + 1) / RATE
+    mode = np.where(np.arange(N) % 7 == 3, 2, 3)         # a float fix now and then
+    w = 0.2 * np.sin(2 * np.pi * 0.3 * t[:, None] + [0.0, 1.0, 2.0])
+    lines = [",".join([f"{t[k] * 1e5:.10g}", str(mode[k])] + [f"{v:.10g}" for v in w[k]])
+             for k in range(N)]
+    (tmp_path / "imu.csv").write_text("\n".join(lines) + "\n")
+    for key in ('"1"', "mode"):
+        rows = f'rows = {{{key} = "3"}}'
+        time = f'{{ file = "imu.csv", columns = [0], unit = "us", scale = 10, {rows} }}'
+        triad = f'file = "imu.csv", columns = [2, 3, 4], {rows}, time = {time}'
+        (tmp_path / "spec.toml").write_text(
+            f'name = "t"\n[imu]\ntime = {time}\nangular_rate = {{ {triad} }}\n'
+            f'specific_force = {{ {triad}, unit = "g" }}\naxes = "FRD"\n'
+            '[time]\nunix_offset_s = 0\n')
+        if key == "mode":
+            with pytest.raises(RecordingError, match="the file has no header: give its 0-based"):
+                table.read(tmp_path / "spec.toml")
+            continue
+        rec = table.read(tmp_path / "spec.toml")
+        assert np.allclose(rec.w, w[mode == 3]) and np.allclose(rec.f, w[mode == 3] * 9.80665)
+
+
 def test_a_mounting_given_on_the_command_line_keeps_the_specs_lever_arm(tmp_path):
     """`--mounting-rpy-deg`, the turn the diagnosis itself recommends, gives a rotation: the
     spec's lever arm stays (it had become [0, 0, 0] without a word, a 1 m arm lost), and
