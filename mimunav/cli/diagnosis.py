@@ -106,7 +106,9 @@ def _diagnosed(args, painter):
 SHOWN_EXCURSIONS = 10      # the terminal's; the JSON and the report hold them all
 LEFT_OUT = (("transfer_shocks_left_out", "the lever-arm transfer misses a shock"),
             ("clips_counted_left_out", "the IMU's own clip counter rose"),
-            ("gaps_left_out", "an IMU misses samples (either IMU's stamps step over a gap)"))
+            ("gaps_left_out", "an IMU misses samples (either IMU's stamps step over a gap)"),
+            ("refuted_fixes_left_out", "a reference fix lay off the IMU's own forces (the "
+                                       "fix left out of the track)"))
 
 
 def left_out_lines(doc):
@@ -115,7 +117,8 @@ def left_out_lines(doc):
         spans = doc.get(key, [])
         if spans:
             yield (f"  left out of the fit: {len(spans)} span(s) where {where} ("
-                   + ", ".join(f"{u['t0']:.1f}-{u['t1']:.1f} s" for u in spans[:5])
+                   + ", ".join(f"{u['t0']:.1f}" + ("" if u["t1"] == u["t0"] else
+                                                   f"-{u['t1']:.1f}") + " s" for u in spans[:5])
                    + (", ..." if len(spans) > 5 else "") + ")")
 
 

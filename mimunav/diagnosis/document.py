@@ -32,7 +32,8 @@ def document(log_path, diag, alpha=0.05):
             doc["bias_null"] = json_ready(diag.bias_null)
         doc["within_reference_accuracy"] = json_ready(diag.within_reference)
     for key, spans in (("transfer_shocks_left_out", "shocks"),
-                       ("clips_counted_left_out", "clips_counted"), ("gaps_left_out", "gaps")):
+                       ("clips_counted_left_out", "clips_counted"), ("gaps_left_out", "gaps"),
+                       ("refuted_fixes_left_out", "fixes_refuted")):
         if getattr(getattr(diag, "design", None), spans, None):
             doc[key] = json_ready(getattr(diag.design, spans))
     if getattr(diag, "reference_check", None):

@@ -85,6 +85,7 @@ from ..errors import InputError
 from ..evaluation.replay import compensated_mimu
 from ..compensation.effects import vibration_power
 from ..motion.vehicle import TRUSTED_SPEED
+from .track_fixes import refuted_fixes, worst_of_runs
 from .track_reference import (CHECK_BIN_S, NOT_FOLLOWED, VEHICLE_MODEL_ACCURACY, in_band,
                               noise_floor, rate_noise_shape, reversing, simulated_reference,
                               wander_limit, wander_steps, model_excursions)
@@ -209,6 +210,10 @@ def diagnose(flight, cal, alpha=0.05, reference=None, accuracy=None):
                            check_reference=False,     # its own check: `reference_check`
                            unusable_because=UNTRUSTED)
     diag.level = "track"
+    diag.design.fixes_refuted = [
+        {"t0": t_fix, "t1": t_fix, "condition": f"a reference fix the IMU's forces place "
+                                                f"{off:.2g} m off: left out of the track"}
+        for t_fix, off in worst_of_runs(refuted_fixes(flight))]
     diag.unexplained, the_models = model_excursions(
         diag.unexplained, diag.design.t, motion.held_pitch_sd(diag.design.t),
         diag.design.inputs[:, :3], flight.mimu_mounting.q_vs,

@@ -15,6 +15,7 @@ from ..sensors.mimu import DEG, G0
 from ..motion.vehicle import HOLD_SPEED, TRUSTED_SPEED, TrackMotion
 from ..sensors.accuracy import Accuracy
 from .design import CHANNELS
+from .track_fixes import refuted_fixes, without_refuted, worst_of_runs
 from ..errors import InputError
 
 
@@ -93,8 +94,9 @@ def simulated_reference(flight, backward=None):
     tr = flight.truth
     if tr is None:
         raise InputError(f"{flight.path}: no /truth/state to simulate the reference IMU from")
-    motion = TrackMotion(tr.t, tr.lat, tr.lon, tr.h, tr.v_ned,
-                         differenced=velocity_is_differenced(tr))
+    differenced = velocity_is_differenced(tr)
+    tr = without_refuted(tr, worst_of_runs(refuted_fixes(flight)), differenced)
+    motion = TrackMotion(tr.t, tr.lat, tr.lon, tr.h, tr.v_ned, differenced=differenced)
     t = flight.mimu_t
     inside = (t > motion.t0) & (t <= motion.t1)
     if inside.sum() < 2:
