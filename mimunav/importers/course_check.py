@@ -148,8 +148,10 @@ def _mounting_yaw(rec, z_imu, z_ref):
             f"measures one within {math.degrees(DIAGNOSED_YAW):.0f} deg with its interval "
             "(mounting_misalignment, a small-angle term)"
             + ("" if abs(yaw) <= DIAGNOSED_YAW else ", not this one: import it turned back")
-            + ("; within twice its standard error or a car's body slip of the mounting "
-               "given: nothing to turn back" if abs(yaw) < max(2 * se, BODY_SLIP) else
+            + (f"; within twice its standard error or a car's body slip "
+               f"({math.degrees(BODY_SLIP):.0f} deg) of the mounting given, the import turns "
+               "nothing: the diagnosis tells a mounting's yaw from the slip"
+               if abs(yaw) < max(2 * se, BODY_SLIP) else
                f"; --mounting-rpy-deg {_turned_back(rec, yaw, square=False)} would turn it "
                "back"))
     if coherence > 0.5 and abs(yaw) > COURSE_CHECK_YAW:

@@ -21,6 +21,9 @@ from ..motion.track import velocity_from_positions
 from .recording import RecordingError
 
 AXES = ("enu", "ned", "z_up", "z_down")
+FAR_M = 100e3   # positions further from the origin are no local frame's: its tangent plane
+# lies d^2 / 2R above the Earth there (785 m at 100 km; a UTM easting and northing given as
+# local, 4100 km off, had been refused as a wrong axis or quaternion convention)
 # the frame's own axes -> NED at its origin, before the azimuth turn: x north, y west, z up
 # (z_up: turned half a turn about x) or NED itself (z_down)
 _Q_LEVEL = {"z_up": quaternion.quaternion(0.0, 1.0, 0.0, 0.0),
@@ -39,6 +42,11 @@ class LocalFrame:
     q_n0l: np.quaternion
     azimuth_known: bool
     description: str
+
+    @property
+    def z_down(self):
+        """Whether the frame's z axis points down (ned, z_down)."""
+        return bool(attitude.rotate(self.q_n0l, np.array([[0.0, 0.0, 1.0]]))[0, 2] > 0)
 
     @classmethod
     def from_axes(cls, axes, origin, azimuth_deg=None, how_given="--origin LAT_DEG LON_DEG H_M",
@@ -79,6 +87,13 @@ class LocalFrame:
         and attitudes q_lb (quaternion array, body -> frame axes)."""
         lat0, lon0 = math.radians(self.lat_deg), math.radians(self.lon_deg)
         ned = attitude.rotate(self.q_n0l, np.asarray(p_l, float))
+        far = float(np.median(np.hypot(ned[:, 0], ned[:, 1])))
+        if far > FAR_M:
+            raise RecordingError(
+                f"the positions lie {far / 1e3:.0f} km from the local frame's origin (the "
+                "median): a local frame is its origin's tangent plane - give positions from "
+                "the origin (a UTM easting and northing less the origin's), or latitude and "
+                "longitude")
         lat, lon, h = earth.ned_offset_to_geodetic(ned, lat0, lon0, self.h_m)
         # the frame is the origin's tangent plane; each epoch's NED is turned from it by the
         # arc travelled (0.22 deg at 25 km): C_nk_n0 = C_en(k)^T C_en(origin)

@@ -95,7 +95,8 @@ refused, naming the nearest known one.
                                  (| "body_to_local", the default beside position_local); the
                                  body is the vehicle's FRD axes, or an IMU's own (attitude_of)
               or attitude_rpy    deg | rad: roll, pitch, yaw of body -> NED (yaw, then pitch,
-                                 then roll: the aerospace z-y-x sequence)
+                                 then roll: the aerospace z-y-x sequence); beside
+                                 position_local, of body -> a local frame whose z is down
               attitude_of        "vehicle" (default), "reference_imu": the attitude is the
                                  reference IMU's own axes' (an INS's solution), so a turn
                                  measured between the two IMUs is the IMU's mounting; or "imu":

@@ -34,7 +34,7 @@ def reference_of(spec, offset):
                              " sort the reference by time or drop its repeated rows")
     if frame is not None:
         q_lb = _attitude_given(spec, col["attitude_wxyz"], ("body_to_local",)) \
-            if "attitude_wxyz" in col else None
+            if "attitude_wxyz" in col else _local_rpy(spec, frame, col.get("attitude_rpy"))
         ref = frame.place(ns, col["position_local"], col.get("velocity_local"), q_lb)
     else:
         ref = _geodetic(spec, ns, col)
@@ -59,11 +59,12 @@ def _position_keys(spec):
         raise RecordingError(f"{where} gives {' and '.join(velocities)}: one velocity")
     if "position_local" in keys:
         other = [k for k in keys if k in ("position_ecef", "velocity_ned", "velocity_ecef",
-                                          "attitude_rpy", "ground_speed", "course") + GEODETIC]
+                                          "ground_speed", "course") + GEODETIC]
         if other:
             raise RecordingError(f"{where} gives position_local and {', '.join(other)}: in a "
                                  "local frame, velocity_local and attitude_wxyz (rotates = "
-                                 "\"body_to_local\") are its velocity and attitude")
+                                 "\"body_to_local\") or attitude_rpy are its velocity and "
+                                 "attitude")
         return keys
     if "velocity_local" in keys:
         raise RecordingError(f"{where} gives velocity_local without position_local")
@@ -74,6 +75,20 @@ def _position_keys(spec):
         raise RecordingError(f"{where} has no {', '.join(missing)} (give latitude, longitude "
                              "and height, position_ecef, or position_local with local_frame)")
     return keys
+
+
+def _local_rpy(spec, frame, rpy):
+    """The body -> frame quaternions of roll, pitch, yaw (rad, (M, 3); None: not given) in a
+    local frame whose z is down, the aerospace z-y-x turns as to NED (NCLT's ground truth);
+    a z-up frame's angles have no such convention and are refused."""
+    if rpy is None:
+        return None
+    if not frame.z_down:
+        raise RecordingError(f"{spec.path}: [reference] attitude_rpy in a local frame needs "
+                             "its z down (axes \"ned\" or \"z_down\"): roll, pitch, yaw of "
+                             "the body to it, z-y-x; a z-up frame's attitude is attitude_wxyz "
+                             "with rotates = \"body_to_local\"")
+    return attitude.from_euler(rpy[:, 2], rpy[:, 1], rpy[:, 0])
 
 
 def _local_frame_of(spec):

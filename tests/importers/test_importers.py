@@ -853,7 +853,7 @@ def test_the_import_measures_the_mountings_yaw_against_the_course(tmp_path, caps
             assert log.metadata()["recording"]["real"]["mounting_yaw_against_course"] == said
         # 2 deg is measured, but within a car's body slip: no turn advised (two trials'
         # drives mounted exactly had read -2.2 deg at 2.8 sigma and been told to turn it)
-        assert ("nothing to turn back" in said) == (yaw < 3.0), said
+        assert ("the import turns nothing" in said) == (yaw < 3.0), said
     assert re.search("--mounting-rpy-deg -?180 0 -?180 would turn it back", said), said
     # diagnosed as recorded (noise-free), the roll and pitch rates' Earth-rate means (0.2
     # times the part's noise) are too still to call their 1.22 and 0.87 times the prediction

@@ -161,9 +161,41 @@ def test_an_unknown_azimuth_makes_the_logs_initial_heading_assumed(tmp_path):
     (lambda s: s.replace("[reference]\n", '[reference]\nlatitude = "truth.csv"\n'),
      "position_local and latitude"),
     (lambda s: s.replace('qz"] }', 'qz"], rotates = "body_to_ned" }'), "body_to_local"),
+    (lambda s: s.replace('columns = ["x", "y", "z"] }',      # a UTM easting and northing
+                         'columns = ["x", "y", "z"], offset = [4.1e6, 5e5, 0] }'),
+     "lie 4130 km from the local frame's origin"),
+    (lambda s: s.replace('attitude_wxyz = { file = "truth.csv", columns = ["qw", "qx", "qy", '
+                         '"qz"] }', 'attitude_rpy = { file = "truth.csv", columns = ["qx", '
+                         '"qy", "qz"], unit = "rad" }'), "attitude_rpy in a local frame needs"),
 ])
 def test_a_local_frame_given_wrong_is_refused_naming_what_it_needs(tmp_path, edit, match):
     _room(tmp_path)
     (tmp_path / "spec.toml").write_text(edit((tmp_path / "spec.toml").read_text()))
     with pytest.raises(RecordingError, match=match):
         table.read(tmp_path / "spec.toml")
+
+
+def test_roll_pitch_yaw_in_a_z_down_local_frame_are_its_attitude(tmp_path):
+    """The room's walk written in the frame with the same x and z down (NCLT's ground truth:
+    x, y, z and roll, pitch, yaw in a local NED): its roll, pitch and yaw, the z-y-x turns
+    of the body to that frame, give the attitude the quaternions to the z-up frame give (a
+    new user had converted them with a script of his own: refused beside position_local)."""
+    _room(tmp_path)
+    given = table.read(tmp_path / "spec.toml").reference
+    rows = np.loadtxt(tmp_path / "truth.csv", delimiter=",", skiprows=1)
+    q_down = np.quaternion(0, 1, 0, 0) * quaternion.from_float_array(rows[:, 4:8])
+    yaw, pitch, roll = attitude.as_euler(q_down)
+    down = np.column_stack([rows[:, 0], rows[:, 1], -rows[:, 2], -rows[:, 3], roll, pitch, yaw])
+    (tmp_path / "down.csv").write_text("t,x,y,z,roll,pitch,yaw\n" + "\n".join(
+        ",".join(f"{v:.12g}" for v in row) for row in down) + "\n")
+    text = (tmp_path / "spec.toml").read_text().replace("truth.csv", "down.csv").replace(
+        'attitude_wxyz = { file = "down.csv", columns = ["qw", "qx", "qy", "qz"] }',
+        'attitude_rpy = { file = "down.csv", columns = ["roll", "pitch", "yaw"], unit = "rad" }'
+    ).replace('axes = "z_up"', 'axes = "z_down"')
+    (tmp_path / "spec.toml").write_text(text)
+    ref = table.read(tmp_path / "spec.toml").reference
+    np.testing.assert_allclose(ref["lat"], given["lat"], atol=1e-12)
+    np.testing.assert_allclose(ref["lon"], given["lon"], atol=1e-12)
+    same = np.minimum(np.abs(ref["q_nb"] - given["q_nb"]).max(axis=1),
+                      np.abs(ref["q_nb"] + given["q_nb"]).max(axis=1))
+    assert same.max() < 1e-9
