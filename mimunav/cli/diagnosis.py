@@ -82,6 +82,10 @@ def _diagnosed(args, painter):
         print(f"  time lag from the yaw rate: {lag['tau_s'] * 1e3:.1f} ms "
               f"[{lag['ci95'][0] * 1e3:.1f}, {lag['ci95'][1] * 1e3:.1f}] (positive: the IMU lags)"
               + (f"; not a finding: {lag['not_a_finding']}" if "not_a_finding" in lag else ""))
+        for stray in lag.get("segments_set_aside", []):
+            print(f"    a segment set aside: its lag {stray['lag_s'] * 1e3:+.1f} ms (standard "
+                  f"error {stray['se_s'] * 1e3:.2g}) lies {abs(stray['z']):.0f} standard "
+                  "deviations from the others': the vehicle model fails there")
     elif "not_estimated" in lag:
         print(f"  time lag from the yaw rate not estimated: {lag['not_estimated']}")
     for line in unexplained_lines(doc["unexplained"]):

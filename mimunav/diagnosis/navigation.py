@@ -184,7 +184,8 @@ def untestable(cands, noisy):
             "nonlinearity, misalignment, time skew) are made of the MIMU's own outputs here - "
             "only a simulation's exact truth with attitude gives their inputs otherwise - and "
             "cannot be told from the noise the velocity error shares with them: 'nothing "
-            "found' does not cover them; a reference IMU beside it (the sensor level) or, "
+            "found' does not cover them; a reference IMU of gyros and accelerometers beside "
+            "it (the sensor level) or, "
             "if a car carried it, its track (--level track) can test them"]
 
 

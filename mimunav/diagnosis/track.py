@@ -294,6 +294,8 @@ def _time_lag(diag, flight, cal, corr, outputs, reference, alpha):
             "segments_s": segments.values.tolist(),
             "segments_se_s": np.sqrt(segments.variances).tolist(),
             "segments_unplaced": segments.unplaced,
+            "segments_set_aside": [{"lag_s": v, "se_s": se, "z": z}
+                                   for v, se, z in segments.strays],
             "channel": "gyro.z (the vehicle's yaw rate, the model's best channel)",
             "sign": "positive: the IMU's samples describe motion tau s earlier than their "
                     "stamps (it lags), as time_skew"})

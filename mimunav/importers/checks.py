@@ -159,7 +159,8 @@ def _check_heading_against_course(rec, q, ok):
 
 def _check_reference_clock(rec):
     """The reference trajectory's clock against the IMU's (`imu_clock.trajectory_clock`:
-    its attitude's turn rate, else its specific force along the vehicle's x axis), said in rec.real["reference_clock"]: a decided lag of REFUSED_OFFSET_S or more refused,
+    its attitude's turn rate, else its specific force along the vehicle's x axis), said in
+    rec.real["reference_clock"]: a decided lag of REFUSED_OFFSET_S or more refused,
     naming the shift that puts it back (the light aircraft's VN-300 solution: 2.5 s); one of
     two grid steps (GRID_S) or more said with that option, not applied: the data cannot tell
     the clocks' offset (a mocap pose 0.3 s late) from the IMU's latency (a phone's 40 ms,
@@ -179,6 +180,10 @@ def _check_reference_clock(rec):
         rec.reference_clock_open = clock["said"]    # the data peak away from the stamps
         #                                             among rivals: the navigation and track
         #                                             levels stop short (`diagnosis.levels`)
+    if late is not None and 0 < abs(late) < 2 * GRID_S:
+        rec.real["reference_clock"] += (f"; within two steps of the {GRID_S:g} s grid: not "
+                                        "applied - the diagnosis measures a lag this small "
+                                        "finer, as the IMU's time skew")
     if late is not None and 2 * GRID_S <= abs(late) < REFUSED_OFFSET_S:
         rec.real["reference_clock"] += ("; not applied: the diagnosis takes it as the IMU's "
                                         "time skew (an IMU's latency is physics to report); "

@@ -222,8 +222,17 @@ def _one_of(spec, section, rate, increment):
     given = [k for k in (rate, increment) if spec.has(section, k)]
     if len(given) != 1:
         raise RecordingError(f"{spec.path}: [{section}] needs {rate} or {increment}"
-                             + (" - not both" if len(given) == 2 else ""))
+                             + (" - not both" if len(given) == 2 else "") + (
+                                 GYROS_ALONE if section == "reference_imu" and not given and
+                                 rate == "specific_force" else ""))
     return given[0]
+
+
+GYROS_ALONE = (": the sensor level predicts the IMU's accelerometers from the reference "
+               "IMU's too, and a reference of gyros alone (a FOG's angle increments without "
+               "accelerometers) is not read yet - leave [reference_imu] out and diagnose "
+               "against [reference]'s trajectory (the track level for a car, else the "
+               "navigation level)")
 
 
 def _per_second(t, x, dt=None):

@@ -199,3 +199,19 @@ def test_roll_pitch_yaw_in_a_z_down_local_frame_are_its_attitude(tmp_path):
     same = np.minimum(np.abs(ref["q_nb"] - given["q_nb"]).max(axis=1),
                       np.abs(ref["q_nb"] + given["q_nb"]).max(axis=1))
     assert same.max() < 1e-9
+
+
+def test_a_reference_of_gyros_alone_is_refused_naming_what_can_be_done(tmp_path):
+    """A reference IMU of gyros alone (KAIST's FOG: angle increments, no accelerometers) is
+    not read: the refusal says why and what diagnoses the IMU instead (a new user had been
+    told only that it needs specific_force, and the navigation level's words then sent him
+    back to a reference IMU)."""
+    _room(tmp_path, reference_imu_axes="FRD")
+    text = (tmp_path / "spec.toml").read_text()
+    gyros_only = text.replace('specific_force = { file = "ref.csv", columns = ["ax", "ay", '
+                              '"az"] }\n', "")
+    assert gyros_only != text
+    (tmp_path / "spec.toml").write_text(gyros_only)
+    with pytest.raises(RecordingError, match=r"\[reference_imu\] needs specific_force or "
+                       "velocity_increment: .*a reference of gyros alone .* is not read yet"):
+        table.read(tmp_path / "spec.toml")
