@@ -191,6 +191,8 @@ def finding_line(f):
         line += (f"\n    the reference's own noise moves it (errors in variables): with as much "
                  f"again {_values(noise['noisier'])}, read back {_values(noise['read_back'])}"
                  f" (sensor axes): interval widened {noise['widened_by']:.2f}x")
+    if isinstance(f.get("shifted"), dict):                   # a skew beyond the linear term
+        line += f"\n    {f['shifted']['said']}"
     if f.get("ci95_method") == "student-t over segments":     # the track level's lag
         line += ("\n    its interval: the scatter of the yaw rate's segments' lags (Student t), "
                  "not the bins' noise model - the library check does not widen it")

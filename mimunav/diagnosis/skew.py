@@ -16,15 +16,20 @@ LINEAR_SKEW_S (or MAX_PASSES). The finding reported is the shift plus its remain
 The lag so reached is checked by the data (`lag_checked`): the triad's residual against
 the exactly shifted prediction, on a grid of lags, must be least at it. Where the fit's
 wander takes a slow skew's signal for the bias's (a gentle flight's accelerometers 80 ms
-late: 41 ms, the remainder then -1.3 ms, while the residual is least at 80 ms), the
-skew is set aside and the diagnosis says where the residual is least.
+late: 41 ms, the remainder then -1.3 ms, while the residual is least at 80 ms), the lag
+is the residual's least itself (`direct_lag`: 84.9 ms [72.3, 97.4] there), its interval
+from blocks of the record, and the diagnosis is made again at it; where that cannot place
+it either, the skew and the triad's findings are set aside, saying where the residual is
+least.
 """
 import math
 from dataclasses import replace
 
 import numpy as np
+from scipy import stats
 
 from ..evaluation.replay import compensated_mimu
+from ..importers.series import parabola_min
 from . import library, sensor
 from .design import MOTION_HZ
 from .reference import predicted_mimu
@@ -39,6 +44,7 @@ CHECK_BIN_S = 1 / (2 * MOTION_HZ)   # the check's bins: the motion's band, the v
 # above it averaged out; their first differences take out a bias's slow wander
 CHECK_GRID = (0.0, 0.25, 0.5, 0.75, 0.9, 1.0, 1.1, 1.25, 1.5, 2.0)  # x the lag reached: a
 # lag read at half or twice the data's shows, one within 10 % of it does not
+DIRECT_BLOCKS = 8   # contiguous blocks whose own least lags give the direct lag's interval
 CHECK_Z = 4.0       # a lag of the grid whose residual lies below the one reached by this many
 # of the statistic's relative standard errors, sqrt(2 / bins), is where the data put it
 
@@ -51,13 +57,27 @@ def diagnose(flight, cal, **options):
     while (skew := _beyond_linear(diag)) is not None and passes < MAX_PASSES:
         firsts.setdefault(skew["sensor"], skew)
         shifts[skew["sensor"]] += skew["coefficient"]
-        lag = tuple(sum(shifts[s] * TRIADS[s][k] for s in TRIADS) for k in (0, 1))
-        diag = sensor.diagnose(replace(flight, mimu_lag_s=lag), cal, **options)
+        diag = sensor.diagnose(replace(flight, mimu_lag_s=_lags(shifts)), cal, **options)
         passes += 1
     unsettled = _beyond_linear(diag) or lag_checked(flight, cal, shifts)
+    direct = None
+    if unsettled is not None and "least_at_s" in unsettled:     # the data's own lag
+        name = unsettled["sensor"]
+        direct = direct_lag(flight, cal, name, 2 * max(abs(unsettled["least_at_s"]),
+                                                       abs(shifts[name])))
+        if direct is not None and not direct["ci95"][0] <= 0 <= direct["ci95"][1]:
+            shifts[name], unsettled = direct["lag_s"], None
+            diag = sensor.diagnose(replace(flight, mimu_lag_s=_lags(shifts)), cal, **options)
+            passes += 1
     for name, first in firsts.items():
-        _fold(diag, first, shifts[name], passes, unsettled)
+        _fold(diag, first, shifts[name], passes, unsettled,
+              direct if direct is not None and unsettled is None else None)
     return diag
+
+
+def _lags(shifts):
+    """(accelerometers', gyros') lags (s) of the shifts per TRIADS key."""
+    return tuple(sum(shifts[s] * TRIADS[s][k] for s in TRIADS) for k in (0, 1))
 
 
 def lag_checked(flight, cal, shifts):
@@ -73,17 +93,19 @@ def lag_checked(flight, cal, shifts):
         lag = shifts[name]
         grid = lag * np.asarray(CHECK_GRID)
         cols = np.flatnonzero(np.repeat(TRIADS[name], 3))
-        stat = [_residual_steps(flight, measured, cols, name, x) for x in grid]
+        stat = [tuple(x.sum() for x in _residual_steps(flight, measured, cols, name, x))
+                for x in grid]
+        stat = [(total / n, n) for total, n in stat]
         (best, n_bins), (at, _) = min(stat), stat[CHECK_GRID.index(1.0)]
         if at > best * (1 + CHECK_Z * math.sqrt(2 / n_bins)):
             return {"sensor": name, "least_at_s": float(grid[stat.index(min(stat))])}
     return None
 
 
-def _residual_steps(flight, measured, cols, name, lag):
-    """(mean square of the first differences of CHECK_BIN_S means of measured - predicted,
-    the number of those differences) over the columns `cols`, the triad `name` lagging by
-    `lag` s."""
+def _residual_steps(flight, measured, cols, name, lag, blocks=1):
+    """(sum of squares of the first differences of CHECK_BIN_S means of measured -
+    predicted, the number of those differences), each (blocks,) over that many contiguous
+    blocks of them, over the columns `cols`, the triad `name` lagging by `lag` s."""
     lags = tuple(lag * m for m in TRIADS[name])
     f_p, w_p, inside = predicted_mimu(replace(flight, mimu_lag_s=lags))
     r = (measured - np.hstack([f_p, w_p]))[inside][:, cols]
@@ -93,7 +115,31 @@ def _residual_steps(flight, measured, cols, name, lag):
     means = np.stack([np.bincount(k, r[:, c]) for c in range(len(cols))], 1)[count > 0]
     steps = np.diff(means / count[count > 0, None], axis=0)
     steps = steps[np.all(np.isfinite(steps), axis=1)]
-    return float(np.mean(steps ** 2)), steps.size
+    block = np.arange(len(steps)) * blocks // max(len(steps), 1)
+    return (np.bincount(block, np.sum(steps ** 2, axis=1), blocks),
+            np.bincount(block, minlength=blocks) * steps.shape[1])
+
+
+def direct_lag(flight, cal, name, reach_s):
+    """The lag (s) of the triad `name` where its residual against the exactly lagged
+    prediction is least (`_residual_steps`), searched from 0 to reach_s in steps of
+    LINEAR_SKEW_S / 2 and refined by a parabola, with its 95 % interval from DIRECT_BLOCKS
+    contiguous blocks' own least lags (Student t): {"sensor", "lag_s", "ci95", "blocks_s"}; None
+    where the whole record's or a block's least lies at the search's end."""
+    w, f, _ = compensated_mimu(flight, cal, per_sample=True, warn=False)
+    measured = np.hstack([f, w])
+    cols = np.flatnonzero(np.repeat(TRIADS[name], 3))
+    grid = np.arange(0.0, abs(reach_s) + 1e-12, LINEAR_SKEW_S / 2) * np.sign(reach_s)
+    sums = np.array([_residual_steps(flight, measured, cols, name, x, DIRECT_BLOCKS)[0]
+                     for x in grid])                            # (lags, blocks)
+    lag = parabola_min(grid, sums.sum(axis=1))
+    blocks = np.array([parabola_min(grid, sums[:, b]) for b in range(DIRECT_BLOCKS)])
+    if not np.isfinite(lag) or not np.isfinite(blocks).all():
+        return None
+    half = stats.t.ppf(0.975, DIRECT_BLOCKS - 1) * blocks.std(ddof=1) / math.sqrt(
+        DIRECT_BLOCKS)
+    return {"sensor": name, "lag_s": float(lag), "ci95": [float(lag - half), float(lag + half)],
+            "blocks_s": blocks.tolist()}
 
 
 def _beyond_linear(diag):
@@ -104,13 +150,25 @@ def _beyond_linear(diag):
     return max(skews, key=lambda f: abs(f["coefficient"]), default=None)
 
 
-def _fold(diag, first, shift, passes, unsettled):
+def _fold(diag, first, shift, passes, unsettled, direct=None):
     """The `shift` (s) applied for first's triad into the diagnosis: its skew finding is the
     shift plus the last pass's remainder (found, or fitted beside the findings where it is
-    no longer significant); `unsettled`: a skew still beyond LINEAR_SKEW_S after the passes
-    - then the triad's findings are set aside, the diagnosis inconclusive."""
+    no longer significant) - or, where the shift is the data's own least (`direct`:
+    `direct_lag`), that lag and its blocks' interval; `unsettled`: a skew still beyond
+    LINEAR_SKEW_S after the passes, or a lag the residual does not put where the fit did
+    (no `direct_lag` either) - then the triad's findings are set aside, the diagnosis
+    inconclusive."""
     said = (f"the prediction shifted by {shift * 1e3:.4g} ms over {passes} pass(es): a time "
             f"skew beyond {LINEAR_SKEW_S * 1e3:.2g} ms is no linear term (-tau df/dt)")
+    if direct is not None and direct["sensor"] == first["sensor"]:
+        diag.findings = [f for f in diag.findings if f["label"] != first["label"]] + [dict(
+            first, coefficient=direct["lag_s"], ci95=direct["ci95"], shifted={
+                "lag_s": shift, "passes": passes, "said": said + "; the lag where the residual "
+                "against the exactly shifted prediction is least, its interval from "
+                f"{DIRECT_BLOCKS} blocks' own (the fit's bias wander had taken part of it)"},
+            ci95_method=f"the residual's least over exact shifts; {DIRECT_BLOCKS} blocks, "
+                        "Student t")]
+        return
     if unsettled is not None and unsettled["sensor"] == first["sensor"]:
         why = f"time_skew {first['sensor']}.all: {said}, " + (  # the remainder's second
             f"and its remainder {unsettled['coefficient'] * 1e3:.3g} ms still is: the lag "
