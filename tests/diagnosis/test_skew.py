@@ -57,3 +57,19 @@ def test_the_lag_is_the_residuals_least_where_the_fit_cannot_place_it(late_accel
     direct = skew.direct_lag(flight, cal, "accel", 2 * LAG_S)
     lo, hi = direct["ci95"]
     assert direct["sensor"] == "accel" and lo < LAG_S < hi and hi - lo < 1e-3, direct
+
+
+@pytest.mark.slow
+def test_a_streamed_flights_skew_beyond_the_linear_term_is_said_unchecked(late_accelerometers,
+                                                                          monkeypatch):
+    """A flight that streams is not held, so the lag reached is not checked against the
+    exactly shifted residual: the skew is reported as refitted, and the diagnosis says it
+    was not checked (the diagnosis itself run here on the held flight)."""
+    from dataclasses import replace
+    flight, cal = late_accelerometers
+    held = skew.sensor.diagnose
+    monkeypatch.setattr(skew.sensor, "diagnose",
+                        lambda fl, c, **kw: held(replace(fl, stream_block=None), c, **kw))
+    d = skew.diagnose(replace(flight, stream_block=10 ** 6), cal)
+    assert [f["label"] for f in d.findings] == ["time_skew accel.all"]
+    assert any("not checked against the exactly shifted residual" in w for w in d.inconclusive)
