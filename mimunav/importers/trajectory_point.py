@@ -100,7 +100,10 @@ def check_trajectory_point(rec):
                                        "turns the vehicle too little); taken at the origin")
         return      # test: a car's point known to 2 km had been said "at the origin"
     if _same(p, np.zeros(3), cov):
-        rec.real["reference_point"] = said + ": at the origin, as /truth/state is"
+        rec.real["reference_point"] = said + (
+            f": at the origin, as /truth/state is (within {SAME_POINT_M:g} m or "
+            f"{DISTINCT_Z:g} standard errors of it: the fit's own model errors - an IMU's "
+            "scale, misalignment and bias on the forces, a clock between the two - reach that)")
         return
     own = rec.reference_imu
     given = None if own is None else own["mounting"].lever_arm_m

@@ -395,3 +395,20 @@ def test_accelerometer_findings_beside_an_arm_beyond_range_between_imus_at_one_p
     assert given.findings == [gyro] and given.rejected[0] is arm
     assert given.rejected[1]["rejected"].endswith(
         "the lever arm given between the two IMUs is off by that much")
+
+
+def test_a_clock_timed_by_the_same_motions_leaves_the_latency_untested():
+    """Where the import timed the reference IMU by the motions the diagnosis reads (a clock
+    nuisance) and nothing is found, the MIMU's latency went into that clock: inconclusive,
+    saying so (a motorcycle's MEMS 30 ms late had read no-missing-physics). A finding
+    stands on its own; without a clock fitted there is nothing to say."""
+    from types import SimpleNamespace
+    clock = {"import_1sigma_s": 2.7e-5}
+    for findings, reference_clock, said in (([], clock, True), ([{"label": "x"}], clock, False),
+                                             ([], None, False)):
+        diag = SimpleNamespace(reference_clock=reference_clock, findings=findings,
+                               inconclusive=[])
+        levels.latency_untested(diag)
+        assert bool(diag.inconclusive) == said
+        assert not said or "latency against the reference IMU) is not tested" in \
+            diag.inconclusive[0]
