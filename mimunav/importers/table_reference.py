@@ -159,6 +159,13 @@ def _geodetic(spec, ns, col):
         given = (speed >= 0) & (course >= 0) & np.isfinite(speed) & np.isfinite(course)
         v = np.column_stack([np.where(given, speed * np.cos(course), v[:, 0]),
                              np.where(given, speed * np.sin(course), v[:, 1]), v[:, 2]])
+        # a speed without its course (Android leaves the bearing empty at a stand): the
+        # positions' differences no longer than it - a phone's 3 m fixes had made a walker
+        # standing at 0.01-0.07 m/s move at 0.3-0.8 m/s, and no rest was found
+        sized = ~given & (speed >= 0) & np.isfinite(speed)
+        across = np.hypot(v[:, 0], v[:, 1])
+        scale = np.minimum(1.0, speed / np.where(across > 0, across, np.inf))
+        v[sized, :2] *= scale[sized, None]
     ref = dict(ns=ns, lat=lat, lon=lon, h=h, v_ned=v)
     if "attitude_wxyz" in col:
         ref["q_nb"] = _attitude_ned(spec, col["attitude_wxyz"], lat, lon)

@@ -199,5 +199,22 @@ def summary(rec, align, path):
     else:
         lines.append(f"gyro bias at rest {align.static[0]:.1f}-{align.static[1]:.1f} s (sensor "
                      "axes) " + ", ".join(f"{np.degrees(b):+.4f}" for b in align.gyro_bias)
-                     + " deg/s")
+                     + " deg/s" + _rest_scatter(rec, align))
     return lines
+
+
+def _rest_scatter(rec, align):
+    """' (95 % within ... deg/s ...)' of the rest's gyro bias: Student t over its 1 s means
+    (a hand that sways at a stand moves it: a walker's 2 s rest had read a bias 0.38 deg/s
+    off with no word; 1 s means, since a still unit's noise is white over them); '' with
+    fewer than two seconds."""
+    t = (rec.imu_ns - rec.imu_ns[0]) / 1e9
+    edges = np.arange(align.static[0], align.static[1] + 1e-9, 1.0)
+    means = [rec.w[(t > a) & (t <= a + 1.0)].mean(axis=0) for a in edges[:-1]]
+    if len(means) < 2:
+        return ""
+    from scipy import stats
+    half = stats.t.ppf(0.975, len(means) - 1) * np.std(means, axis=0, ddof=1) / np.sqrt(
+        len(means))
+    return " (95 % within " + ", ".join(f"{np.degrees(x):.2g}" for x in half) + \
+        f" deg/s: Student t over its {len(means)} 1 s means)"

@@ -448,6 +448,36 @@ def test_a_file_of_two_sensors_rows_is_refused_unpicked_and_read_by_rows(tmp_pat
         table.read(tmp_path / "spec.toml")
 
 
+def test_a_speed_without_its_course_keeps_its_size(tmp_path):
+    """A phone standing with its Location's bearing empty and its speed 0.01-0.07 m/s (the
+    receiver's Doppler), its 3 m fixes scattering: the horizontal velocity is the positions'
+    differences made no longer than the speed (they alone had made the walker move at
+    0.3-0.8 m/s, and no rest was found: the whole import refused)."""
+    _imu(tmp_path)
+    n = 100
+    rng = np.random.default_rng(2)
+    t = np.arange(1, n + 1) / 1.0
+    lat = 47.0 + rng.normal(0, 3.0, n) / 6.371e6 * 180 / np.pi
+    lon = 8.0 + rng.normal(0, 3.0, n) / 6.371e6 * 180 / np.pi / np.cos(np.radians(47.0))
+    speed = rng.uniform(0.01, 0.07, n)
+    lines = ["tick,lat,lon,h,speed,bearing"] + [         # the last 10 s moving north
+        f"{t[k] * 1e5:.10g},{lat[k]:.10f},{lon[k]:.10f},400.0,{speed[k]:.3f},"
+        + ("0" if k >= n - 10 else "") for k in range(n)]
+    (tmp_path / "ref.csv").write_text("\n".join(lines) + "\n")
+    (tmp_path / "spec.toml").write_text(SPEC.format(rate=RATES, force=FORCES, extra="") + """
+[reference]
+time = { file = "ref.csv", columns = ["tick"], unit = "us", scale = 10 }
+latitude = { file = "ref.csv", columns = ["lat"], unit = "deg" }
+longitude = { file = "ref.csv", columns = ["lon"], unit = "deg" }
+height = { file = "ref.csv", columns = ["h"], unit = "m" }
+ground_speed = { file = "ref.csv", columns = ["speed"], unit = "m/s" }
+course = { file = "ref.csv", columns = ["bearing"], unit = "deg" }
+""")
+    v = table.read(tmp_path / "spec.toml").reference["v_ned"]
+    assert np.allclose(np.hypot(v[:, 0], v[:, 1]), np.round(speed, 3), atol=1e-9)
+    assert np.allclose(v[-10:, 0], np.round(speed[-10:], 3)) and not np.any(v[-10:, 1])
+
+
 def test_a_headerless_files_rows_are_picked_by_a_columns_index(tmp_path):
     """A headerless CSV (NCLT's gps_rtk.csv: utime, mode, ...) picks its rows by the
     column's 0-based index, a TOML key in digits; a name on it had been refused "column '1'
