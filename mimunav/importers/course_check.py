@@ -17,7 +17,7 @@ from ..navigation.rests import (TRACK_FORCE_RATIO, acceleration_match, along_acr
                                 track_acceleration)
 from ..frames import attitude
 from .recording import RecordingError
-from ..motion.carrier import LAND, car_tests, epoch_means
+from ..motion.carrier import ALONG_COURSE, LAND, car_tests, epoch_means
 
 
 def not_a_car(rec, t_track, v_ned):
@@ -60,11 +60,12 @@ def check_against_course(rec, track):
         return
     failed = not_a_car(rec, track["t"], track["v_ned"])
     if failed:
-        rec.real["course_checks"] = (f"not made: not a car ({'; '.join(failed)}), so it need "
-                                     "not move along its forward axis, and its course judges "
-                                     "neither the IMU's axes nor its clock - but a yaw rate "
-                                     "that follows it at 0.1-10 times its size still checks "
-                                     "the gyro's unit")
+        rec.real["course_checks"] = (f"not made: not a car ({'; '.join(failed)}), so " + (
+            "its lean or cant tilts its sideways force out of the level plane the checks "
+            "assume, though its course is its heading (the initial state takes it)"
+            if rec.vehicle in ALONG_COURSE else "it need not move along its forward axis")
+            + ", and its course judges neither the IMU's axes nor its clock - but a yaw rate "
+            "that follows it at 0.1-10 times its size still checks the gyro's unit")
     t = track["t"]
     speed, course_rate, z_track = (epoch_means(t, x[:, None], 0.5)[:, 0]   # as the IMU's
                                    for x in track_acceleration(t, track["v_ned"]))
