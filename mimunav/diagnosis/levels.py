@@ -101,8 +101,8 @@ def diagnose(flight, cal, level, alpha=0.05, seed=0, accuracy=None, noise=None, 
         set_aside_aliased(diag, flight)
         set_aside_moved(diag, flight)
         set_aside_undecided_clock(diag, flight)
-        latency_untested(diag)
         set_aside_apart(diag, flight)
+        latency_untested(diag)      # once the set-asides have left what stands
         beside_the_band(diag.findings, flight)
         beside_the_imports_biases(diag.findings, flight, cal)
         beside_the_scales(diag.findings, diag.design.inputs)

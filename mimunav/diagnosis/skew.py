@@ -63,8 +63,9 @@ def diagnose(flight, cal, **options):
     direct = None
     if unsettled is not None and "least_at_s" in unsettled:     # the data's own lag
         name = unsettled["sensor"]
-        direct = direct_lag(flight, cal, name, 2 * max(abs(unsettled["least_at_s"]),
-                                                       abs(shifts[name])))
+        direct = direct_lag(flight, cal, name, math.copysign(      # the least's side: a lag
+            2 * max(abs(unsettled["least_at_s"]), abs(shifts[name])),  # may lead (negative)
+            unsettled["least_at_s"]))
         if direct is not None and not direct["ci95"][0] <= 0 <= direct["ci95"][1]:
             shifts[name], unsettled = direct["lag_s"], None
             diag = sensor.diagnose(replace(flight, mimu_lag_s=_lags(shifts)), cal, **options)

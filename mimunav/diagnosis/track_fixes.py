@@ -24,6 +24,12 @@ FIX_FLOOR_M = 0.3   # a fix is refuted only off by more than an RTK fix can be: 
 # IMU's jerks and vibration), an independent trial's float fixes (1.5 m) by 0.6-2.8 m
 RAYLEIGH_MEDIAN = 1.1774    # sqrt(2 ln 2): a Rayleigh variable's median over its scale
 MAX_STEP_S = 2.0        # a longer step between fixes is an outage: no difference across it
+MAX_HAT_S = 1.0     # s: a wider hat's half is not judged - the spike of the IMU's own errors
+# grows with its square (an independent review: 0.5 Hz fixes, an accelerometer scale of 5 %,
+# an 8 m/s^2 stop: an exact fix refuted "0.35 m off")
+RELATIVE_SHARE = 0.1    # of the acceleration under the hat: the spike the IMU's own errors can
+# make where it changes - a scale of a few %, a mounting yaw up to 5 deg, a lag of 0.1 s
+# against the hat (the review's 1 Hz stop, scale 1.10 and 0.1 s late: 0.27 m at most)
 HAT_S = 0.5     # s: a hat's half at least, so that the IMU's samples resolve it (25 of a
 # 50 Hz IMU) - the vehicle's jerk over it the IMU feels as well
 
@@ -56,9 +62,13 @@ def refuted_fixes(flight):
                            usable, m)
     if judged.sum() < 10:
         return []
-    off = miss * ((t[q] - t[p]) / 2) ** 2 / 3       # m: a fix off by e spikes 3 e / H^2
-    limit = max(OFF_Z * np.median(off[judged]) / RAYLEIGH_MEDIAN, FIX_FLOOR_M)
-    return [(float(t[k[j]]), float(off[j])) for j in np.flatnonzero(judged & (off > limit))]
+    half = (t[q] - t[p]) / 2
+    judged &= half <= MAX_HAT_S
+    off = miss * half ** 2 / 3                      # m: a fix off by e spikes 3 e / H^2
+    own = RELATIVE_SHARE * np.hypot(*track.T) * half ** 2 / 3   # what the IMU's own
+    limit = max(OFF_Z * np.median(off[judged]) / RAYLEIGH_MEDIAN, FIX_FLOOR_M)  # errors make
+    return [(float(t[k[j]]), float(off[j]))
+            for j in np.flatnonzero(judged & (off > np.maximum(limit, own)))]
 
 
 def _spikes(apart, sizes, slow, usable, m):

@@ -63,10 +63,12 @@ def pair(rec):
         rec.shift_reference_imu(-clock["offset_s"], "measured: " + clock["said"])
     if rec.reference_imu_offset_given and clock["offset_s"] is not None and \
             abs(clock["offset_s"]) > SMALL_OFFSET_S:
+        late = clock["offset_s"] > 0        # the reference IMU's stamps late on the IMU's
         rec.real["reference_imu_clock"] += (
-            f"; {clock['offset_s'] * 1e3:+.1f} ms beside the offset given: that far off, or "
-            "the IMU lags the reference IMU by that much - a latency the diagnosis cannot "
-            "test once the clock is shifted")
+            f"; the data put the reference IMU's stamps {abs(clock['offset_s']) * 1e3:.1f} ms "
+            f"{'late' if late else 'early'} beside the offset given: it is that far off, or "
+            f"the IMU {'leads' if late else 'lags'} the reference IMU by that much - a "
+            "latency the diagnosis cannot test once the clock is shifted")
     _check_overlap(rec)
     clock_se = clock.get("offset_se_s", math.inf) if clock["offset_s"] is not None else math.inf
     rec.reference_imu_clock_se_s = clock_se if math.isfinite(clock_se) else None

@@ -210,7 +210,8 @@ def _rest_scatter(rec, align):
     fewer than two seconds."""
     t = (rec.imu_ns - rec.imu_ns[0]) / 1e9
     edges = np.arange(align.static[0], align.static[1] + 1e-9, 1.0)
-    means = [rec.w[(t > a) & (t <= a + 1.0)].mean(axis=0) for a in edges[:-1]]
+    means = [rec.w[k].mean(axis=0) for a in edges[:-1]
+             if (k := (t > a) & (t <= a + 1.0)).any()]        # a second in a gap: none
     if len(means) < 2:
         return ""
     from scipy import stats
