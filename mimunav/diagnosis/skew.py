@@ -17,8 +17,8 @@ The lag so reached is checked by the data (`lag_checked`): the triad's residual 
 the exactly shifted prediction, on a grid of lags, must be least at it. Where the fit's
 wander takes a slow skew's signal for the bias's (a gentle flight's accelerometers 80 ms
 late: 41 ms, the remainder then -1.3 ms, while the residual is least at 80 ms), the lag
-is the residual's least itself (`direct_lag`: 84.9 ms [72.3, 97.4] there), its interval
-from blocks of the record, and the diagnosis is made again at it; where that cannot place
+is the residual's least itself (`direct_lag`), its interval jackknifed over blocks of the
+record, and the diagnosis is made again at it; where that cannot place
 it either, the skew and the triad's findings are set aside, saying where the residual is
 least.
 """
@@ -129,23 +129,26 @@ def _residual_steps(flight, measured, cols, name, lag, blocks=1):
 def direct_lag(flight, cal, name, reach_s):
     """The lag (s) of the triad `name` where its residual against the exactly lagged
     prediction is least (`_residual_steps`), searched from 0 to reach_s in steps of
-    LINEAR_SKEW_S / 2 and refined by a parabola, with its 95 % interval from DIRECT_BLOCKS
-    contiguous blocks' own least lags (Student t): {"sensor", "lag_s", "ci95", "blocks_s"}; None
-    where the whole record's or a block's least lies at the search's end."""
+    LINEAR_SKEW_S / 2 and refined by a parabola, with its 95 % interval by the jackknife over
+    DIRECT_BLOCKS contiguous blocks (each left out of the summed residual in turn, Student t:
+    a block in a long rest, its residual flat, moves no part - its own least would lie
+    anywhere): {"sensor", "lag_s", "ci95", "jackknife_s"}; None where the whole record's or
+    a part's least lies at the search's end."""
     w, f, _ = compensated_mimu(flight, cal, per_sample=True, warn=False)
     measured = np.hstack([f, w])
     cols = np.flatnonzero(np.repeat(TRIADS[name], 3))
     grid = np.arange(0.0, abs(reach_s) + 1e-12, LINEAR_SKEW_S / 2) * np.sign(reach_s)
     sums = np.array([_residual_steps(flight, measured, cols, name, x, DIRECT_BLOCKS)[0]
                      for x in grid])                            # (lags, blocks)
-    lag = parabola_min(grid, sums.sum(axis=1))
-    blocks = np.array([parabola_min(grid, sums[:, b]) for b in range(DIRECT_BLOCKS)])
-    if not np.isfinite(lag) or not np.isfinite(blocks).all():
+    total = sums.sum(axis=1)
+    lag = parabola_min(grid, total)
+    parts = np.array([parabola_min(grid, total - sums[:, b]) for b in range(DIRECT_BLOCKS)])
+    if not np.isfinite(lag) or not np.isfinite(parts).all():
         return None
-    half = stats.t.ppf(0.975, DIRECT_BLOCKS - 1) * blocks.std(ddof=1) / math.sqrt(
-        DIRECT_BLOCKS)
+    se = math.sqrt((DIRECT_BLOCKS - 1) / DIRECT_BLOCKS * np.sum((parts - parts.mean()) ** 2))
+    half = stats.t.ppf(0.975, DIRECT_BLOCKS - 1) * se
     return {"sensor": name, "lag_s": float(lag), "ci95": [float(lag - half), float(lag + half)],
-            "blocks_s": blocks.tolist()}
+            "jackknife_s": parts.tolist()}
 
 
 def _beyond_linear(diag):
@@ -170,10 +173,10 @@ def _fold(diag, first, shift, passes, unsettled, direct=None):
         diag.findings = [f for f in diag.findings if f["label"] != first["label"]] + [dict(
             first, coefficient=direct["lag_s"], ci95=direct["ci95"], shifted={
                 "lag_s": shift, "passes": passes, "said": said + "; the lag where the residual "
-                "against the exactly shifted prediction is least, its interval from "
-                f"{DIRECT_BLOCKS} blocks' own (the fit's bias wander had taken part of it)"},
-            ci95_method=f"the residual's least over exact shifts; {DIRECT_BLOCKS} blocks, "
-                        "Student t")]
+                "against the exactly shifted prediction is least, its interval jackknifed over "
+                f"{DIRECT_BLOCKS} blocks (the fit's bias wander had taken part of it)"},
+            ci95_method=f"the residual's least over exact shifts; jackknife over "
+                        f"{DIRECT_BLOCKS} blocks, Student t")]
         return
     if unsettled is not None and unsettled["sensor"] == first["sensor"]:
         why = f"time_skew {first['sensor']}.all: {said}, " + (  # the remainder's second

@@ -51,8 +51,8 @@ def test_the_lag_reached_is_checked_against_the_exactly_shifted_residual(late_ac
 def test_the_lag_is_the_residuals_least_where_the_fit_cannot_place_it(late_accelerometers):
     """The lag measured by the residual alone (`direct_lag`: the exactly shifted prediction,
     no linear term, no bias wander to take its slow part): least at 80 ms, its interval
-    from eight blocks' own least lags over the truth and under 1 ms wide here (a gentle
-    flight's, where the fit had read 41 ms: 84.9 ms [72.3, 97.4])."""
+    jackknifed over eight blocks over the truth and under 1 ms wide here (a gentle
+    flight's, where the fit had read 41 ms: 84.9 ms [71.6, 98.1])."""
     flight, cal = late_accelerometers
     direct = skew.direct_lag(flight, cal, "accel", 2 * LAG_S)
     lo, hi = direct["ci95"]
