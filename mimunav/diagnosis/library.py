@@ -268,3 +268,27 @@ def apart_reasons(rejected, flight):
                 "the lever arm given between the two IMUs is off by that much" if given else
                 "and no lever arm was given between the two IMUs")
             for r in rejected if "beyond_range" in r and r["effect"] == "lever_arm"]
+
+
+# the gyros' effects a unit's own mounting misalignment and time skew make too: without
+# the accelerometers beside them they cannot be told apart (a MIMU mounted 1 deg off, its
+# accelerometers failing the agreement, had been named four gyro cross-couplings; a unit's
+# time skew, a gyro time skew)
+UNIT_LOOKALIKES = ("cross_coupling", "time_skew")
+
+
+def on_agreeing_gyros(cands, failed):
+    """(the candidates that stand where the reference does not predict the MIMU's `failed`
+    sensors ("accel", "gyro": `reference.agreement`), [why gyro candidates are not
+    tested]): none where a gyro fails; where only the accelerometers do, the gyros' terms
+    driven by no specific force (`inputs`) and not UNIT_LOOKALIKES - a lever arm
+    not declared leaves the rates as they are (a ship's 14 m, not given, had left its
+    gyro.z scale of 1 % untested: every candidate dropped)."""
+    if "gyro" in failed:
+        return [], []
+    gyros = [c for c in cands if c["sensor"] == "gyro" and
+             all(s == "gyro" for s, _ in (inputs(c) or ()))]
+    kept = [c for c in gyros if c["effect"] not in UNIT_LOOKALIKES]
+    return kept, [] if len(kept) == len(gyros) else [
+        f"the gyros' {' and '.join(UNIT_LOOKALIKES)} not tested: with the accelerometers "
+        "failing they cannot be told from the unit's mounting_misalignment and time_skew"]

@@ -235,7 +235,7 @@ def _prepare(flight, cal, acc, candidates, output_tests, vibration, bin_s, noise
     spilled to scratch files for as long as this runs), whether the reference predicts the
     MIMU at all (`reference.agreement`: when it does not, no test on the outputs and no
     candidate but the gyros' free of specific force where only the accelerometers fail -
-    `_on_agreeing_gyros` - and the diagnosis says why), the tests on the outputs
+    `library.on_agreeing_gyros` - and the diagnosis says why), the tests on the outputs
     themselves, the design of the candidates on the bins with the stated accuracies as
     priors."""
     why = doubt = ""
@@ -251,30 +251,6 @@ def _prepare(flight, cal, acc, candidates, output_tests, vibration, bin_s, noise
                          noise_shape, max_wander, wander_steps, check_reference)
     prep.design.bins_why, prep.design.bins_doubt, prep.jitter = why, doubt, jitter
     return prep
-
-
-# the gyros' effects a unit's own mounting misalignment and time skew make too: without
-# the accelerometers beside them they cannot be told apart (a MIMU mounted 1 deg off, its
-# accelerometers failing the agreement, had been named four gyro cross-couplings; a unit's
-# time skew, a gyro time skew)
-UNIT_LOOKALIKES = ("cross_coupling", "time_skew")
-
-
-def _on_agreeing_gyros(cands, failed):
-    """(the candidates that stand where the reference does not predict the MIMU's `failed`
-    sensors ("accel", "gyro": `reference.agreement`), [why gyro candidates are not
-    tested]): none where a gyro fails; where only the accelerometers do, the gyros' terms
-    driven by no specific force (`library.inputs`) and not UNIT_LOOKALIKES - a lever arm
-    not declared leaves the rates as they are (a ship's 14 m, not given, had left its
-    gyro.z scale of 1 % untested: every candidate dropped)."""
-    if "gyro" in failed:
-        return [], []
-    gyros = [c for c in cands if c["sensor"] == "gyro" and
-             all(s == "gyro" for s, _ in (library.inputs(c) or ()))]
-    kept = [c for c in gyros if c["effect"] not in UNIT_LOOKALIKES]
-    return kept, [] if len(kept) == len(gyros) else [
-        f"the gyros' {' and '.join(UNIT_LOOKALIKES)} not tested: with the accelerometers "
-        "failing they cannot be told from the unit's mounting_misalignment and time_skew"]
 
 
 def _prepared(flight, cal, acc, candidates, output_tests, samples, bin_s, noise_shape,
@@ -304,8 +280,8 @@ def _prepared(flight, cal, acc, candidates, output_tests, samples, bin_s, noise_
     check = agreement(t, spill.series("measured"), spill.series("predicted"), usable,
                       CHANNELS) if check_reference else None
     if check is not None and check["failures"]:
-        output_tests, (cands, check["untested"]) = False, _on_agreeing_gyros(cands,
-                                                                             check["failed"])
+        output_tests = False
+        cands, check["untested"] = library.on_agreeing_gyros(cands, check["failed"])
     if output_tests:
         on_outputs, clipped, quantized = _output_findings(cal, samples, finite, full_scale)
         usable = usable & ~clipped

@@ -44,7 +44,7 @@ CHECK_BIN_S = 1 / (2 * MOTION_HZ)   # the check's bins: the motion's band, the v
 # above it averaged out; their first differences take out a bias's slow wander
 CHECK_GRID = (0.0, 0.25, 0.5, 0.75, 0.9, 1.0, 1.1, 1.25, 1.5, 2.0)  # x the lag reached: a
 # lag read at half or twice the data's shows, one within 10 % of it does not
-DIRECT_BLOCKS = 8   # contiguous blocks whose own least lags give the direct lag's interval
+DIRECT_BLOCKS = 8   # contiguous blocks the direct lag's interval is jackknifed over
 CHECK_Z = 4.0       # a lag of the grid whose residual lies below the one reached by this many
 # of the statistic's relative standard errors, sqrt(2 / bins), is where the data put it
 
@@ -59,11 +59,13 @@ def diagnose(flight, cal, **options):
         shifts[skew["sensor"]] += skew["coefficient"]
         diag = sensor.diagnose(replace(flight, mimu_lag_s=_lags(shifts)), cal, **options)
         passes += 1
-    unsettled = _beyond_linear(diag) or lag_checked(flight, cal, shifts)
+    held = firsts and flight.stream_block is None       # a streamed flight is not held
+    measured = measured_outputs(flight, cal) if held else None
+    unsettled = _beyond_linear(diag) or (lag_checked(flight, measured, shifts) if held else None)
     direct = None
     if unsettled is not None and "least_at_s" in unsettled:     # the data's own lag
         name = unsettled["sensor"]
-        direct = direct_lag(flight, cal, name, math.copysign(      # the least's side: a lag
+        direct = direct_lag(flight, measured, name, math.copysign(      # the least's side: a lag
             2 * max(abs(unsettled["least_at_s"]), abs(shifts[name])),  # may lead (negative)
             unsettled["least_at_s"]))
         if direct is not None and not direct["ci95"][0] <= 0 <= direct["ci95"][1]:
@@ -86,15 +88,18 @@ def _lags(shifts):
     return tuple(sum(shifts[s] * TRIADS[s][k] for s in TRIADS) for k in (0, 1))
 
 
-def lag_checked(flight, cal, shifts):
-    """None where the residual of each triad shifted (`shifts`: s per TRIADS key) against
-    the exactly lagged prediction is least at its lag among CHECK_GRID times it; else
-    {"sensor": the triad, "least_at_s": the lag where the residual is least} (module doc).
-    A streamed flight is not held, so not checked (None)."""
-    if flight.stream_block is not None:
-        return None
+def measured_outputs(flight, cal):
+    """(N, 6): the held flight's MIMU through `cal`, specific force m/s^2 then rate rad/s
+    (sensor axes) - what `lag_checked` and `direct_lag` compare with the predictions."""
     w, f, _ = compensated_mimu(flight, cal, per_sample=True, warn=False)
-    measured = np.hstack([f, w])
+    return np.hstack([f, w])
+
+
+def lag_checked(flight, measured, shifts):
+    """None where the residual of each triad shifted (`shifts`: s per TRIADS key) of the
+    `measured_outputs` against the exactly lagged prediction is least at its lag among
+    CHECK_GRID times it; else {"sensor": the triad, "least_at_s": the lag where the residual
+    is least} (module doc)."""
     for name in (n for n in TRIADS if shifts[n]):
         lag = shifts[name]
         grid = lag * np.asarray(CHECK_GRID)
@@ -126,16 +131,14 @@ def _residual_steps(flight, measured, cols, name, lag, blocks=1):
             np.bincount(block, minlength=blocks) * steps.shape[1])
 
 
-def direct_lag(flight, cal, name, reach_s):
-    """The lag (s) of the triad `name` where its residual against the exactly lagged
-    prediction is least (`_residual_steps`), searched from 0 to reach_s in steps of
-    LINEAR_SKEW_S / 2 and refined by a parabola, with its 95 % interval by the jackknife over
-    DIRECT_BLOCKS contiguous blocks (each left out of the summed residual in turn, Student t:
-    a block in a long rest, its residual flat, moves no part - its own least would lie
-    anywhere): {"sensor", "lag_s", "ci95", "jackknife_s"}; None where the whole record's or
+def direct_lag(flight, measured, name, reach_s):
+    """The lag (s) of the triad `name` where its residual (`measured`: `measured_outputs`)
+    against the exactly lagged prediction is least (`_residual_steps`), searched from 0 to
+    reach_s in steps of LINEAR_SKEW_S / 2 and refined by a parabola, with its 95 % interval
+    by the jackknife over DIRECT_BLOCKS contiguous blocks (each left out of the summed
+    residual in turn, Student t: a block in a long rest, its residual flat, moves no part -
+    its own least would lie anywhere): {"sensor", "lag_s", "ci95", "jackknife_s"}; None where the whole record's or
     a part's least lies at the search's end."""
-    w, f, _ = compensated_mimu(flight, cal, per_sample=True, warn=False)
-    measured = np.hstack([f, w])
     cols = np.flatnonzero(np.repeat(TRIADS[name], 3))
     grid = np.arange(0.0, abs(reach_s) + 1e-12, LINEAR_SKEW_S / 2) * np.sign(reach_s)
     sums = np.array([_residual_steps(flight, measured, cols, name, x, DIRECT_BLOCKS)[0]

@@ -117,7 +117,7 @@ def _hat_means(t, x, p, m, q):
     difference of positions at those times puts on the acceleration."""
     dt = np.diff(t, prepend=t[0] - (t[1] - t[0]))
     a0 = np.vstack([np.zeros(2), np.cumsum(x * dt[:, None], axis=0)])
-    a1 = np.vstack([np.zeros(2), np.cumsum(x * (t * dt)[:, None], axis=0)])
+    a1 = np.vstack([np.zeros(2), np.cumsum(x * ((t - dt / 2) * dt)[:, None], axis=0)])
     edges = np.concatenate([[t[0] - dt[0]], t])
 
     def at(cumulative, s):

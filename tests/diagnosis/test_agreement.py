@@ -9,7 +9,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from mimunav.diagnosis import concealed, sensor
+from mimunav.diagnosis import concealed, library, sensor
 from mimunav.diagnosis.design import CHANNELS
 from mimunav.diagnosis.reference import AGREEMENT_CORRELATION, agreement
 from mimunav.frames.mounting import Mounting
@@ -315,6 +315,6 @@ def test_a_tilted_unit_beside_failing_accelerometers_is_named_no_gyro_coupling()
     d = sensor.diagnose(replace(flight, fog_f=fog_f), cal)
     assert d.reference_agreement["failed"] and set(d.reference_agreement["failed"]) == {"accel"}
     named = [f["label"] for f in d.findings]
-    assert not any(f["sensor"] == "gyro" and f["effect"] in sensor.UNIT_LOOKALIKES
+    assert not any(f["sensor"] == "gyro" and f["effect"] in library.UNIT_LOOKALIKES
                    for f in d.findings), named
     assert any("cross_coupling and time_skew not tested" in why for why in d.inconclusive)

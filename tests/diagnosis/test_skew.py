@@ -41,9 +41,9 @@ def test_the_lag_reached_is_checked_against_the_exactly_shifted_residual(late_ac
     signal: 41 ms, then a remainder of -1.3 ms) is refused, with where the residual is
     least."""
     flight, cal = late_accelerometers
-    assert skew.lag_checked(flight, cal, {"accel": LAG_S, "gyro": 0.0, "imu": 0.0}) \
-        is None
-    half = skew.lag_checked(flight, cal, {"accel": LAG_S / 2, "gyro": 0.0, "imu": 0.0})
+    measured = skew.measured_outputs(flight, cal)
+    assert skew.lag_checked(flight, measured, {"accel": LAG_S, "gyro": 0.0, "imu": 0.0}) is None
+    half = skew.lag_checked(flight, measured, {"accel": LAG_S / 2, "gyro": 0.0, "imu": 0.0})
     assert half["sensor"] == "accel" and abs(half["least_at_s"] - LAG_S) < 0.011
 
 
@@ -54,7 +54,7 @@ def test_the_lag_is_the_residuals_least_where_the_fit_cannot_place_it(late_accel
     jackknifed over eight blocks over the truth and under 1 ms wide here (a gentle
     flight's, where the fit had read 41 ms: 84.9 ms [71.6, 98.1])."""
     flight, cal = late_accelerometers
-    direct = skew.direct_lag(flight, cal, "accel", 2 * LAG_S)
+    direct = skew.direct_lag(flight, skew.measured_outputs(flight, cal), "accel", 2 * LAG_S)
     lo, hi = direct["ci95"]
     assert direct["sensor"] == "accel" and lo < LAG_S < hi and hi - lo < 1e-3, direct
 

@@ -949,3 +949,21 @@ def test_a_segment_far_from_the_others_lag_is_set_aside_and_a_scatter_is_not():
     assert len(drive.without_strays().values) == 10
     mean, (lo, hi) = drive.mean_and_interval()
     assert abs(mean - 0.1122) < 1e-3 and abs(lo - 0.0999) < 1e-3
+
+
+def test_a_fixs_second_difference_is_the_hat_mean_of_the_acceleration():
+    """The identity the refuted fixes stand on, against a closed form: positions x = t^4 /
+    12 (acceleration t^2) at knots 1 s apart, uneven, against the hat means
+    (`track_fixes._hat_means`) of the acceleration's exact interval means at 100 Hz
+    ((t_k^3 - t_(k-1)^3) / 3 dt): within 2e-6 (each sample's first moment its interval's:
+    taken at its stamp, 0.3 % short)."""
+    from mimunav.diagnosis.track_fixes import _hat_means
+    t = np.arange(0.01, 20.0 + 1e-9, 0.01)
+    a = (t ** 3 - (t - 0.01) ** 3) / 3 / 0.01
+    knots = np.array([2.0, 3.0, 4.5, 5.2, 7.0, 9.0, 9.8])
+    x = knots ** 4 / 12
+    p, m, q = knots[:-2], knots[1:-1], knots[2:]
+    divided = 2 * ((x[2:] - x[1:-1]) / (q - m) - (x[1:-1] - x[:-2]) / (m - p)) / (q - p)
+    hat = _hat_means(t, np.column_stack([a, -a]), p, m, q)
+    assert np.allclose(hat[:, 0], divided, rtol=1e-5) and np.allclose(hat[:, 1], -divided,
+                                                                      rtol=1e-5)
