@@ -92,12 +92,8 @@ def _diagnosed(args, painter):
         print(line)
     for line in left_out_lines(doc):
         print(line)
-    for u in doc.get("reference_check", {}).get("excursions_not_predicted", []):
-        print(f"  on a channel the reference does not predict (says nothing of the IMU): "
-              f"{excursion_text(u)}")
-    for u in doc.get("reference_check", {}).get("excursions_of_the_model", []):
-        print(f"  the vehicle model's own: {excursion_text(u)} within {u['bound']:.2g} "
-              f"{u['units']}, {u['why']}")
+    for line in set_aside_excursion_lines(doc.get("reference_check", {})):
+        print(line)
     for w in doc.get("within_reference_accuracy", []):
         print(set_aside_line(w))
     for line in not_confirmed_lines(doc):
@@ -124,6 +120,21 @@ def left_out_lines(doc):
                    + ", ".join(f"{u['t0']:.1f}" + ("" if u["t1"] == u["t0"] else
                                                    f"-{u['t1']:.1f}") + " s" for u in spans[:5])
                    + (", ..." if len(spans) > 5 else "") + ")")
+
+
+def set_aside_excursion_lines(check):
+    """The terminal's lines of the excursions the track level's reference check set aside
+    (`check`: the document's reference_check): on channels it does not predict, at fixes
+    the IMU refuted, within the vehicle model's own errors."""
+    for u in check.get("excursions_not_predicted", []):
+        yield ("  on a channel the reference does not predict (says nothing of the IMU): "
+               + excursion_text(u))
+    for u in check.get("excursions_at_refuted_fixes", []):
+        yield ("  at a reference fix left out (the reference's step, not the IMU's): "
+               + excursion_text(u))
+    for u in check.get("excursions_of_the_model", []):
+        yield (f"  the vehicle model's own: {excursion_text(u)} within {u['bound']:.2g} "
+               f"{u['units']}, {u['why']}")
 
 
 def unexplained_lines(unexplained):
@@ -216,15 +227,13 @@ def not_confirmed_lines(doc):
 
 
 def clock_lines(clock):
-    """The reference IMU's clock as the diagnosis read it (`confirmation.clock_reading`), for
-    the terminal: [] where it was not fitted."""
+    """The reference IMU's clock as the diagnosis read it (`document.clock_text`), for the
+    terminal: [] where it was not fitted."""
+    from ..diagnosis.document import clock_text
     if not clock:
         return []
-    return [f"  the reference IMU's clock, fitted beside the findings as time_skew imu.all "
-            f"(positive: the MIMU lags): {clock['fitted_s'] * 1e3:+.3g} ms (1 sigma "
-            f"{clock['sd_s'] * 1e3:.2g}; on the data alone {clock['data_s'] * 1e3:+.3g} +- "
-            f"{clock['data_sd_s'] * 1e3:.2g} ms, the import measured it to "
-            f"{clock['import_1sigma_s'] * 1e3:.2g} ms)"]
+    return [f"  {clock_text(clock)}"] + ([f"    {clock['latency']}"] if clock.get("latency")
+                                         else [])
 
 
 def set_aside_line(w):

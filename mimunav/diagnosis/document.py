@@ -169,3 +169,14 @@ def charge_text(w):
     if not w.get("charged_at_monotone", True):
         said += ", though not at every smaller value (the test is not monotone here)"
     return said
+
+
+def clock_text(clock):
+    """The reference IMU's clock as the diagnosis read it beside the findings
+    (`confirmation.clock_reading`), in words; what it leaves untested apart (its
+    `latency`, `levels.latency_untested`)."""
+    return (f"the reference IMU's clock, fitted beside the findings as time_skew imu.all "
+            f"(positive: the MIMU lags): {clock['fitted_s'] * 1e3:+.3g} ms (1 sigma "
+            f"{clock['sd_s'] * 1e3:.2g}; on the data alone {clock['data_s'] * 1e3:+.3g} +- "
+            f"{clock['data_sd_s'] * 1e3:.2g} ms, the import measured it to "
+            f"{clock['import_1sigma_s'] * 1e3:.2g} ms)")

@@ -236,15 +236,25 @@ def block_scores(tier, j, terms, rows):
 
 def wald_from_blocks(s, q, weights):
     """Wald statistic per bootstrap replicate from block sums weighted by how often each
-    block was drawn (weights (R, nb))."""
-    ss = weights @ s                                    # (R, k)
-    qq = np.einsum("rb,bij->rij", weights, q)
-    beta = np.linalg.solve(qq, ss[:, :, None])[:, :, 0]
-    g = s[None, :, :] - np.einsum("bij,rj->rbi", q, beta)        # block scores at beta
-    meat = np.einsum("rb,rbi,rbj->rij", weights, g, g)
-    inv = np.linalg.inv(qq)
-    cov = inv @ meat @ inv
-    return np.einsum("ri,rij,rj->r", beta, np.linalg.inv(cov), beta) / s.shape[1]
+    block was drawn (weights (R, nb)); NaN in a replicate whose sandwich covariance is
+    singular - a k-dimensional term's scores span at most one fewer dimension than the
+    blocks drawn (they sum to zero at the fit), so 3 of 6 blocks cannot test a lever arm
+    (a quarter of the replicates of a 90 s flight's 6 blocks had made every replicate fail,
+    and a lever arm right to 2 cm was never chosen)."""
+    out = np.full(len(weights), np.nan)
+    for r, w in enumerate(weights):
+        if np.count_nonzero(w) <= s.shape[1]:
+            continue
+        qq = np.einsum("b,bij->ij", w, q)
+        try:
+            beta = np.linalg.solve(qq, w @ s)
+            g = s - q @ beta                                    # block scores at beta
+            inv = np.linalg.inv(qq)
+            cov = inv @ np.einsum("b,bi,bj->ij", w, g, g) @ inv
+            out[r] = beta @ np.linalg.solve(cov, beta) / s.shape[1]
+        except np.linalg.LinAlgError:
+            continue
+    return out
 
 
 def holm_threshold(alpha, m, step):

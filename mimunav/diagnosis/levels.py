@@ -114,6 +114,7 @@ def diagnose(flight, cal, level, alpha=0.05, seed=0, accuracy=None, noise=None, 
             diag.rejected = diag.rejected + [dict(f, rejected=unmeasured) for f in diag.findings]
             diag.findings = []
             diag.inconclusive = list(getattr(diag, "inconclusive", None) or []) + [unmeasured]
+        set_aside_unapplied_lag(diag, flight)
     else:
         diag = track.diagnose(flight, cal, alpha=alpha, accuracy=accuracy)
         contradicted = vehicle_kind.contradicted_car(vehicle_kind.kind(flight, vehicle))
@@ -169,18 +170,22 @@ def set_aside_undecided_clock(diag, flight):
 
 def latency_untested(diag):
     """Where the import timed the reference IMU by these same motions (the clock fitted as a
-    nuisance: `design.add_clock_nuisance`) and nothing was found: inconclusive, saying that
-    the MIMU's latency against it went into that clock, untested. An independent trial's
+    nuisance: `design.add_clock_nuisance`): that the MIMU's latency against it went into that
+    clock, untested - beside the clock's reading, and where nothing was found as why the
+    diagnosis is inconclusive. An independent trial's
     motorcycle, its MEMS 30 ms late against its INS (whose IMU ran 0.3 s off, given), had
     the import shift the INS's IMU by the 30 ms too and the verdict read no-missing-physics."""
     clock = diag.reference_clock
-    if clock is None or diag.findings:
+    if clock is None:
         return
-    diag.inconclusive = diag.inconclusive + [
-        "time_skew imu.all (the MIMU's latency against the reference IMU) is not tested: the "
-        "import timed the reference IMU by these same motions (to 1 sigma "
-        f"{clock['import_1sigma_s'] * 1e3:.2g} ms, the recording's reference_imu_time), which "
-        "takes such a latency into that clock - 'nothing found' does not cover it"]
+    said = ("time_skew imu.all (the MIMU's latency against the reference IMU) is not tested: "
+            "the import timed the reference IMU by these same motions (to 1 sigma "
+            f"{clock['import_1sigma_s'] * 1e3:.2g} ms, the recording's reference_imu_time), "
+            "which takes such a latency into that clock")
+    if diag.findings:           # said beside the clock (a phone 20 ms late had gone unsaid)
+        clock["latency"] = said
+        return
+    diag.inconclusive = diag.inconclusive + [said + " - 'nothing found' does not cover it"]
 
 
 def set_aside_trajectory_clock(diag, flight):
@@ -201,6 +206,24 @@ def _set_aside_open_clock(diag, flight, key, whose, option):
         why = (f"the import could not decide the {whose} clock against the IMU's ({said}); "
                f"where the recording's own notes confirm it, {option} S at import gives it")
         _set_aside(diag, lambda f: True, lambda f: why, [why + _excursions_too(diag)])
+
+
+def set_aside_unapplied_lag(diag, flight):
+    """The navigation level's findings set aside where the import measured the reference
+    trajectory's clock off the IMU's by two grid steps or more and left it to the diagnosis
+    as the IMU's latency (the recording's `reference_clock_unapplied_s`): this level cannot
+    test a time skew (its regressor is made of the MIMU's outputs), and its terms would fit
+    what that lag makes - 'nothing found' does not cover it either (a mocap pose 0.2 s late,
+    so left, had a g2_sensitivity blamed and the import's words promise a time skew)."""
+    late = (flight.recording or {}).get("reference_clock_unapplied_s")
+    if late:
+        why = (f"the import measured the reference trajectory's stamps {abs(late) * 1e3:.0f} ms "
+               f"{'late' if late > 0 else 'early'} on the IMU's and left it as the IMU's "
+               "latency, which this level cannot test (its time skew regressor is made of the "
+               "MIMU's outputs): its terms would fit what that lag makes - where it is the two "
+               "clocks' offset, --reference-time-offset at import takes it out; a reference "
+               "IMU beside it (the sensor level), or a car's track (--level track), measures it")
+        _set_aside(diag, lambda f: True, lambda f: why, [why])
 
 
 def set_aside_apart(diag, flight):

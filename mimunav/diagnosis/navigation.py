@@ -563,7 +563,8 @@ def _select(tiers, cands, train, alpha):
 def _stability(tier, cands, c, train, rng):
     """Share of block-bootstrap replicates of the training rows in which the chosen term (or
     a candidate it cannot be told from) has the smallest p-value among its tier's ten
-    strongest competitors."""
+    strongest competitors - of the replicates in which each of them can be tested
+    (`inference.wald_from_blocks`); 0 where none can."""
     winners = {c["j"], *c["alternatives"]}
     pvals, weights = [], None
     for j in c["competitors"]:
@@ -571,10 +572,11 @@ def _stability(tier, cands, c, train, rng):
         if weights is None:
             weights = rng.multinomial(len(s), np.full(len(s), 1 / len(s)), size=BOOTSTRAP)
         with np.errstate(all="ignore"):
-            try:
-                w = inference.wald_from_blocks(s, q, weights.astype(float))
-            except np.linalg.LinAlgError:
-                w = np.zeros(BOOTSTRAP)
-        pvals.append(stats.f.sf(np.nan_to_num(w), s.shape[1], len(s) - 1))
-    best = np.asarray(c["competitors"])[np.argmin(np.array(pvals), axis=0)]
+            w = inference.wald_from_blocks(s, q, weights.astype(float))
+        pvals.append(stats.f.sf(w, s.shape[1], len(s) - 1))
+    pvals = np.array(pvals)
+    tested = np.all(np.isfinite(pvals), axis=0)
+    if not tested.any():
+        return 0.0
+    best = np.asarray(c["competitors"])[np.argmin(pvals[:, tested], axis=0)]
     return float(np.isin(best, list(winners)).mean())

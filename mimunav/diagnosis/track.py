@@ -105,6 +105,8 @@ BIN_ERROR_TIMES = 2     # bins of the fit, in the track's error times: a wanderi
 # A choice measured there and on the independent drives (bench/track_drive.py: level nulls
 # quiet 6 of 6, the noise-free reference's gyro.z excursion gone; the effects as before), not
 # a derived constant.
+REFUTED_REACH_S = 2.0       # s: a refuted fix's step reaches the excursions' 2 s windows this
+#                             far either side (the scan's window length, `scan.excursions`)
 MIN_PREDICTED = 3           # of six channels: fewer, and the reference cannot carry a verdict
 MIN_TRUSTED = 0.25          # fraction of the MIMU's samples inside the trusted motion
                            # search and the derivative filters reach no farther
@@ -222,7 +224,8 @@ def diagnose(flight, cal, alpha=0.05, reference=None, accuracy=None):
     # a channel the model does not predict has its own errors in its residual: an excursion
     # there says nothing of the IMU (a 0.5 m-fix drive's accel.x, +2.84 m/s^2 at z 9.2)
     unfollowed = [u for u in diag.unexplained if not corr[u["channel"]] >= PREDICTED_CORRELATION]
-    diag.unexplained = [u for u in diag.unexplained if u not in unfollowed]
+    at_fixes = beside_refuted_fixes(diag.unexplained, diag.design.fixes_refuted, bin_s)
+    diag.unexplained = [u for u in diag.unexplained if u not in unfollowed + at_fixes]
     diag.reference_check = {
         "correlation_1s": corr, "threshold": PREDICTED_CORRELATION, "slope_1s": slopes,
         "model_error_1s": spread, "model_error_threshold": MODEL_ERROR_SHARE,
@@ -236,6 +239,7 @@ def diagnose(flight, cal, alpha=0.05, reference=None, accuracy=None):
         "bin_s": bin_s, "block_s": block_s,
         "reversing_s": float(reversing_s),
         "excursions_of_the_model": the_models, "excursions_not_predicted": unfollowed,
+        "excursions_at_refuted_fixes": at_fixes,
         "usable_s": float(len(diag.design.t) * np.median(np.diff(diag.design.t)))}
     reasons, demoted = screen(diag, flight, cal)
     demoted += _time_lag(diag, flight, cal, corr, outputs, (ref, trusted, motion), alpha)
@@ -248,6 +252,19 @@ def diagnose(flight, cal, alpha=0.05, reference=None, accuracy=None):
                          + vehicle_kind.mounting_beyond_range(diag.rejected, flight)
                          + ([] if diag.findings else demoted + untested(diag)))
     return diag
+
+
+def beside_refuted_fixes(spans, fixes, bin_s):
+    """The excursions `spans` (`scan.excursions`: t0, t1 s) within REFUTED_REACH_S (or two
+    bins of bin_s s) of a reference fix the IMU's forces refuted (`fixes`: t0 s): the fix
+    is left out of the track, but the track still steps there where the reference jumped
+    (an INS back from a GNSS outage, 1.9 m at once), and its smoothing spreads the step
+    over the seconds around - the reference's, not the IMU's (gyro.z and accel.y had been
+    charged at z 25 in the 2 s before such a jump)."""
+    reach = max(REFUTED_REACH_S, 2 * bin_s)
+    times = np.array([f["t0"] for f in fixes])
+    return [u for u in spans
+            if len(times) and np.any((times >= u["t0"] - reach) & (times <= u["t1"] + reach))]
 
 
 def _library(unpredicted, spread):

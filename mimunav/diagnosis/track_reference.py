@@ -360,8 +360,9 @@ def model_excursions(spans, t, held_sd, f_model, q_vs, moving_sd=None):
         accel.x -0.019 m/s^2 at its first departure, z -7.3 on a drive with no error);
       - the body's tilt on its springs, at most BODY_TILT_GRADIENT per g of horizontal
         acceleration (passenger cars' bound, taken as one here, not as a sigma): a step of
-        the horizontal specific force by a moves the output by up to 0.12 a (the RTKLIB
-        drive's departure, +0.52 m/s^2 at z 12.5, is beyond its 0.22: it stays unexplained).
+        the horizontal specific force by a moves a horizontal output by up to 0.12 a, the
+        vertical by 0.12 a^2 / g (the RTKLIB drive's departure, +0.52 m/s^2 at z 12.5, is
+        beyond its 0.22: it stays unexplained).
       - a moving vehicle's pitch, from its smoothed vertical velocity over its speed: its
         error at the window and at the baseline's, each up to MODEL_STEP_Z sigma
         (`TrackMotion.moving_pitch_sd`; a train's from 1-3 m heights at 4 m/s, 0.64 m/s^2);
@@ -374,8 +375,11 @@ def model_excursions(spans, t, held_sd, f_model, q_vs, moving_sd=None):
     turn_back = np.conj(q_vs)
     forward, right = quaternion.rotate_vectors(turn_back, np.eye(3)[:2])
     f_v = quaternion.rotate_vectors(q_vs, f_model)
+    # tilted by theta = k a, the body's forward and right axes take g theta, its down the
+    # acceleration itself a theta (a car pitching 0.4 deg per m/s^2 had its accel.z read
+    # -0.12 m/s^2 at z 16 at every hard start and stop)
     tilt = quaternion.rotate_vectors(turn_back, BODY_TILT_GRADIENT * np.column_stack(
-        [f_v[:, 0], f_v[:, 1], np.zeros(len(f_v))]))          # sensor axes
+        [f_v[:, 0], f_v[:, 1], (f_v[:, 0] ** 2 + f_v[:, 1] ** 2) / G0]))    # sensor axes
     # the body's roll and pitch rates on its springs, at most k = BODY_TILT_GRADIENT / g
     # per (m/s^2)/s of the horizontal specific force's change: roll -k df_y/dt about the
     # forward axis, pitch k df_x/dt about the right (a tilted phone's gyro.x and gyro.y

@@ -28,7 +28,7 @@ from .replay import compensated_mimu, navigate, resample
 from .flight import no_reference
 from ..errors import InputError
 from ..frames import attitude
-from ..motion.carrier import course_keys, declared
+from ..motion.carrier import course_keys, declared, recorded_kind
 from ..motion.trajectory import State
 
 WINDOW_LENGTHS_S = (10.0, 30.0, 60.0)
@@ -73,8 +73,10 @@ def starts(truth, length, step=START_STEP_S, first=0.0, min_speed=alignment.COUR
            max_gap=MAX_GAP_S, t_imu=None, parked=(), half=alignment.MOVING_HALF_WINDOW_S):
     """Window starts (s) on a grid of `step` from `first`: moving faster than min_speed
     (m/s, horizontal; the track's velocity averaged over the alignment interval, t0 +-
-    half: a walker's 4 m fixes had passed 3 m/s epoch by epoch while it stood), the whole window (and the alignment interval before it) covered
-    without a gap longer than max_gap (s) in the reference or in the IMU's stamps t_imu,
+    half: a walker's 4 m fixes had passed 3 m/s epoch by epoch while it stood), the whole
+    window (and the alignment interval before it) covered without a gap longer than max_gap
+    (s) in the reference or in the IMU's stamps t_imu, and the alignment interval without a
+    step of the reference beyond GAP_STEPS of its median step,
     the alignment interval (t0 +- half s) outside the rests `parked` [(t0, t1) s] (a noisy
     fix's differenced speed passes the speed gate while the car stands: its course, and so
     the window's heading, is noise)."""
@@ -85,12 +87,19 @@ def starts(truth, length, step=START_STEP_S, first=0.0, min_speed=alignment.COUR
     wide = [np.diff(t) > max_gap for t in gaps]
     gap_start = np.concatenate([t[:-1][w] for t, w in zip(gaps, wide)])
     gap_end = np.concatenate([t[1:][w] for t, w in zip(gaps, wide)])
+    # the start state is the reference's at t0: no step beyond GAP_STEPS of its own in the
+    # alignment interval (a multicopter's window started inside a 0.5 s mocap dropout, its
+    # state interpolated across it, had ended 76 m off where its neighbours ended 22 m off)
+    steps = np.diff(truth.t)
+    missed = steps > GAP_STEPS * float(np.median(steps)) if len(steps) else steps > 0
     out = []
     for t0 in grid:
         if np.interp(t0, truth.t, speed) < min_speed:
             continue
         # a gap [start, end] that meets the window with its alignment interval
         if np.any((gap_end > t0 - half) & (gap_start < t0 + length)):
+            continue
+        if np.any(missed & (truth.t[1:] > t0 - half) & (truth.t[:-1] < t0 + half)):
             continue
         if any(a - half < t0 < b + half for a, b in parked):
             continue
@@ -168,7 +177,7 @@ def run_all(flight, cal=None, lengths=WINDOW_LENGTHS_S, step=START_STEP_S, time_
     max_gap = gap_allowed(flight.truth, max_gap)
     t = flight.mimu_t + time_shift_s
     check_median_force(t[1:], f[1:] * np.diff(t)[:, None])    # the whole record's, once
-    track = dict(track_of(flight.truth), **course_keys((flight.recording or {}).get("vehicle")))
+    track = dict(track_of(flight.truth), **course_keys(*recorded_kind(flight.recording or {})))
     half = moving_half(track)
     if half and not track["faces_course"]:
         raise InputError(

@@ -156,11 +156,18 @@ def _long_steps(steps, period):
 
 @njit()
 def _empty_slots(rel, period, smoothing):
-    """Per step k -> k + 1, the empty grid slots between the two stamps."""
+    """Per step k -> k + 1, the empty grid slots between the two stamps. A stamp that
+    rounds past an empty slot into the one its successor rounds to is late, not after a
+    missed sample: it takes the empty slot (an INS's stamps late by up to 6.5 ms on a
+    10 ms grid had read as 156 missed samples and 100.6 Hz where none was missed)."""
     gaps = np.zeros(len(rel) - 1, np.int64)
     slot, phase = 0, 0.0
     for k in range(1, len(rel)):
-        step = max(1, int(round((rel[k] - phase) / period)) - slot)
+        nearest = int(round((rel[k] - phase) / period))
+        step = max(1, nearest - slot)
+        if step > 1 and k + 1 < len(rel) and \
+                int(round((rel[k + 1] - phase) / period)) <= nearest:
+            step -= 1
         gaps[k - 1] = step - 1
         slot += step
         phase += smoothing * (rel[k] - period * slot - phase)

@@ -8,6 +8,8 @@ instead, and the words sent the user to the reference's section), and onto both 
 holds neither. And whether the attitude holds its own IMU at all, axis by axis
 (`check_rates_along`): a sign of its angles read wrong turns it against the gyro.
 """
+import math
+
 import numpy as np
 import quaternion
 from scipy.spatial.transform import Rotation
@@ -15,6 +17,7 @@ from scipy.spatial.transform import Rotation
 from ..frames import attitude
 from ..frames.mounting import Mounting
 from ..sensors.mimu import G0
+from .lever import lever_force
 from .recording import RecordingError
 from .series import window_means
 
@@ -257,3 +260,73 @@ def _rates_said(whose, late, along):
             + (f" (its stamps taken {late:+.2f} s late: the clock's)" if late else "")
             + f", about the vehicle axes that turn ({TURNS:g} rad/s or more), "
             f"{max(n for *_, n in along.values())} spans ({said})")
+
+
+# deg: without a reference IMU, the IMU's mounting is turned onto the reference's attitude
+# where its rates and forces lie further than this from it (and TURN_Z of its standard
+# error): a reference attitude's own error (0.1-0.5 deg) and an IMU's scale and misalignment
+# (0.5-1 % of the rates: 0.3-0.6 deg of turn) stay within it
+ATTITUDE_TURN_DEG = 1.0
+TURN_Z = 4.0                # standard errors (the clock's and the pairing's DISTINCT_Z)
+TURN_SPAN_SHARE = 0.05      # second singular value over the first: two directions seen
+SPREADS = (0.02, 0.3)       # rad/s, m/s^2: a kind of 1 s means that spreads less is left out
+#                             (the pairing's TURNING_RATE and MOVING_FORCE)
+JACKKNIFE_BLOCKS = 10
+
+
+def mounting_against_attitude(rec):
+    """Without a reference IMU, the IMU's mounting measured against the reference's
+    attitude: the turn of the vehicle-frame 1 s mean rates and specific forces that the
+    attitude and velocity make (`attitude_means`) onto the IMU's (turned by the mounting
+    given; the lever arm's transfer taken out of its forces, `lever.lever_force`), both
+    about their own means (no bias enters; `turn_from_attitude`), its standard error
+    jackknifed over JACKKNIFE_BLOCKS blocks. Turned onto it beyond ATTITUDE_TURN_DEG and
+    TURN_Z standard errors, said in rec.real / rec.assumed; kept otherwise, said too. A
+    quadrotor's IMU given 10 deg off its mocap body had passed with the rates' gains at
+    0.88, and its 3.8 deg off been charged to the accelerometers as 0.3 m/s^2 of bias."""
+    ref = rec.reference
+    if rec.reference_imu is not None or ref is None or ref.get("q_nb") is None:
+        return
+    lo = max(rec.imu_ns[0], ref["ns"][0]) / 1e9 + 1.0
+    hi = min(rec.imu_ns[-1], ref["ns"][-1]) / 1e9 - 1.0
+    mids = np.arange(lo, hi, 1.0)
+    predicted = attitude_means(ref, mids) if len(mids) >= MIN_SECONDS else None
+    if predicted is None:
+        return
+    w_v = attitude.rotate(rec.mounting.q_vs, rec.w)
+    mine = (window_means(rec.imu_ns, w_v, mids),
+            attitude.rotate(rec.mounting.q_vs, window_means(rec.imu_ns, rec.f, mids))
+            - lever_force(rec.imu_ns, w_v, mids, rec.mounting.lever_arm_m))
+    rows = np.isfinite(np.hstack([*predicted, *mine])).all(axis=1)
+    theirs, mine = [x[rows] for x in predicted], [x[rows] for x in mine]
+    turn = turn_from_attitude(theirs, mine, SPREADS, TURN_SPAN_SHARE)
+    if rows.sum() < MIN_SECONDS or turn is None:
+        rec.real["mounting_against_attitude"] = (
+            "not measured: the reference's attitude and velocity make 1 s means that spread "
+            f"about fewer than two directions (second singular value under {TURN_SPAN_SHARE:g} "
+            f"of the first) or over under {MIN_SECONDS} s")
+        return
+    block = np.arange(len(theirs[0])) * JACKKNIFE_BLOCKS // len(theirs[0])
+    parts = [turn_from_attitude([x[block != b] for x in theirs], [x[block != b] for x in mine],
+                                SPREADS, TURN_SPAN_SHARE) for b in range(JACKKNIFE_BLOCKS)]
+    if any(p is None for p in parts):
+        return
+    off = np.array([(p * turn.inv()).as_rotvec() for p in parts])
+    se = math.degrees(math.sqrt((JACKKNIFE_BLOCKS - 1) / JACKKNIFE_BLOCKS
+                                * np.sum((off - off.mean(axis=0)) ** 2)))
+    angle = math.degrees(turn.magnitude())
+    said = (f"the IMU's 1 s mean rates and specific forces, turned by the mounting given, lie "
+            f"{angle:.2f} deg (standard error {se:.2g}, jackknifed) from those of the "
+            "reference's attitude and velocity")
+    if angle <= max(ATTITUDE_TURN_DEG, TURN_Z * se):
+        rec.real["mounting_against_attitude"] = (
+            f"{said}: within {ATTITUDE_TURN_DEG:g} deg or {TURN_Z:g} standard errors - the "
+            "mounting as given")
+        return
+    rec.mounting, rpy = turned_back(rec.mounting, turn)
+    rec.real["mounting_against_attitude"] = (
+        f"{said}: turned onto the attitude, to roll, pitch, yaw {rpy} deg (the IMU against "
+        "the frame the reference's attitude is of; if that is the vehicle's, the mounting "
+        "given is off)")
+    rec.assumed["mounting"] = (f"measured against the reference's attitude: roll, pitch, "
+                               f"yaw {rpy} deg")

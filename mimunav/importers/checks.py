@@ -12,7 +12,7 @@ from ..navigation.rest_biases import level
 from ..frames import attitude
 from ..flightlog.stamps import rounded_clock
 from .aliasing import aliased
-from .attitude_check import check_rates_along
+from .attitude_check import check_rates_along, mounting_against_attitude
 from .course_check import REFUSED_OFFSET_S, check_against_course, local_mean, not_a_car, \
     offset_advice
 from .imu_clock import GRID_S, late_or_early, trajectory_clock
@@ -21,7 +21,7 @@ from .trajectory_point import check_trajectory_point
 from .recording import G0, RecordingError, utc_text
 from .vehicle_check import check_declared_vehicle
 from .velocity_check import check_acceleration_scale, check_velocity, positions_velocity
-from ..motion.carrier import ALONG_COURSE, EITHER_END, course_keys
+from ..motion.carrier import ALONG_COURSE, EITHER_END, car_tests, course_keys
 from ..motion.track import velocity_from_positions
 
 
@@ -29,12 +29,15 @@ from ..motion.track import velocity_from_positions
 # sensor_gyro topics logged at 1 Hz), not the interval means a strapdown navigator needs -
 # a vehicle turns and vibrates faster; consumer IMUs are logged at 50-1000 Hz
 MIN_IMU_RATE_HZ = 10.0
+RATE_TOLERANCE = 0.01       # a stream at that rate whose stamps jitter passes (KITTI's 10 Hz
+#                             synced rows: median interval 0.100003 s had been refused)
 
 
 def _check_rate(name, which, ns):
-    """Refuse an IMU whose median sample rate is below MIN_IMU_RATE_HZ."""
+    """Refuse an IMU whose median sample rate is below MIN_IMU_RATE_HZ (less
+    RATE_TOLERANCE)."""
     rate = 1e9 / float(np.median(np.diff(ns)))
-    if rate < MIN_IMU_RATE_HZ:
+    if rate < MIN_IMU_RATE_HZ * (1 - RATE_TOLERANCE):
         raise RecordingError(f"{name}: the {which} has {len(ns)} samples at {rate:.3g} Hz (median "
                              f"interval); below {MIN_IMU_RATE_HZ:g} Hz they are status snapshots, "
                              "not increments a navigator can integrate: choose the IMU's "
@@ -92,6 +95,7 @@ def check_recording(rec):
     _check_heading_against_course(rec, q, ok)
     check_rates_along(rec, _check_reference_clock(rec))     # after the clock: seconds off
     #                                                         refuse as such first
+    mounting_against_attitude(rec)
     check_trajectory_point(rec)     # once the attitude and its clock hold
 
 
@@ -185,6 +189,7 @@ def _check_reference_clock(rec):
                                         "applied - the diagnosis measures a lag this small "
                                         "finer, as the IMU's time skew")
     if late is not None and 2 * GRID_S <= abs(late) < REFUSED_OFFSET_S:
+        rec.reference_clock_unapplied_s = late
         rec.real["reference_clock"] += ("; not applied: the diagnosis takes it as the IMU's "
                                         "time skew (an IMU's latency is physics to report); "
                                         "if it is the two clocks' offset, " + offset_advice(
@@ -343,7 +348,21 @@ def reference_track(rec, epoch):
     return dict(t=t[ok], lat=src["lat"][ok], lon=src["lon"][ok], h=src["h"][ok], v_ned=v[ok],
                 q_nb=None if q is None else np.asarray(q)[ok],
                 attitude_source=rec.reference_meta.get("source", "the reference"), what=what,
-                heading_known=rec.reference_heading_known, **course_keys(rec.vehicle))
+                heading_known=rec.reference_heading_known,
+                **course_keys(rec.vehicle, faces_course(rec, t[ok], v[ok])))
+
+
+def faces_course(rec, t, v_ned):
+    """Whether the vehicle's course may stand for its heading: as declared
+    (`motion.carrier.course_keys`: None), else judged by its track (velocities v_ned m/s at
+    t s from the IMU's first stamp) and IMU - not where they show it no car
+    (`motion.carrier.car_tests`; a multicopter's figure eights, judged no car, had still
+    been given its course as heading, 90 deg off), its speed aside: a slow robot or a
+    walker still moves along its forward axis."""
+    if rec.vehicle is not None:
+        return None
+    return not car_tests(t, v_ned, (rec.imu_ns - rec.imu_ns[0]) / 1e9, rec.f, rec.w,
+                         moving=False)[0]
 
 
 UPRIGHT_DEG = 60.0      # deg: a car, a train, a two-wheeler on its stand (5-10 deg), an

@@ -141,7 +141,10 @@ def _rows_where(path, rows, n):
         raise RecordingError(f"{path}: {len(keep)} text rows, {n} numeric rows: `rows` cannot "
                              "pick among them")
     if not keep.any():
-        raise RecordingError(f"{path}: no row is {rows}")
+        raise RecordingError(f"{path}: no row is {rows}" + (
+            " - a file of one row (a glob of one file per epoch) cannot drop its epoch by "
+            "`rows`: the keys another file gives (its times) would keep it; gather the "
+            "epochs into one table first" if len(keep) == 1 else ""))
     return keep
 
 

@@ -12,7 +12,7 @@ from mcap.reader import make_reader
 from ..errors import InputError
 from ..frames import attitude
 from ..frames.mounting import Mounting
-from ..motion.carrier import course_keys
+from ..motion.carrier import course_keys, recorded_kind
 from ..navigation.alignment import initial_alignment
 from ..flightlog import FlightLog, LayoutError, LogWriter
 from ..flightlog.reader import PAYLOAD
@@ -121,7 +121,7 @@ def _realigned(log, truth, t_ref, t0, t1, epoch, meta):
              "v_ned": np.asarray(truth["velocity_ned"], float)[inside],
              "heading_known": (meta.get("recording") or {}).get("reference_heading_known",
                                                                  True) is not False,
-             **course_keys((meta.get("recording") or {}).get("vehicle"))}
+             **course_keys(*recorded_kind(meta.get("recording") or {}))}
     mounting = Mounting.from_dict(meta.get("sensor/mimu", {}).get("mounting", {}))
     # the biases the import measured over the whole recording (its rest) hold for the span:
     # taken out first, where the span alone may hold no rest to measure them

@@ -7,11 +7,12 @@ shorter record (masked: each lag's correlation over its own overlap) must peak o
 at least PEAK_CORRELATION, and every lag beyond the peak's own lobe (where the correlation
 stays above SECOND_PEAK_SHARE of it, at most LOBE_MAX_S either side) at most that share,
 or the peak above the best of them by DISTINCT_Z standard errors (`peak_margin`); the peak
-is then refined to a millisecond with each gyro's bias fitted beside it (`_refined`), its
-standard error said. Each tenth of the overlap gives its own offset: a straight line through
-them, weighted by their own variances, measures a drift (a crystal's tens of ppm), taken
-when beyond DISTINCT_Z of its standard error and worth SMALL_OFFSET_S over the overlap - the
-stamps then corrected along the line. A recording whose IMUs hardly turn (|w| spread below
+is then refined to a millisecond with the two gyro triads' biases and scales fitted beside
+it (`_refined`), its standard error said (widened by what their misalignment could move).
+Each tenth of the overlap gives its own offset: a straight line through them, weighted by
+their own variances, measures a drift (a crystal's tens of ppm), taken when beyond
+DISTINCT_Z of its standard error and worth SMALL_OFFSET_S over the overlap - the stamps
+then corrected along the line. A recording whose IMUs hardly turn (|w| spread below
 TURNING_RATE) cannot be timed so: said, and left as recorded. A reference trajectory's
 |w| that leaves its clock undecided (a train's or a car's turns repeat) is tried again by
 the specific force along the vehicle's x axis (`_along_force_lag`).
@@ -29,6 +30,9 @@ SMALL_OFFSET_S = 0.001      # s: the refinement's step; a measured offset beyond
                             # not depend on it), a smaller one left to the time_skew term
 GRID_S = 0.02               # s: the coarse search's grid (50 Hz: |w| of a vehicle's motion)
 REFINE_WINDOW_S = 0.1       # s: |w|^2 as means over windows this long, not interpolated
+JACKKNIFE_BLOCKS = 30       # the refined offset's standard error by the jackknife over this
+                            # many blocks: with 10, its spread over 20 seeds of a gentle
+                            # flight (information in a few turns) reached 7 standard errors
 #                             (noise halved midway between samples had read 43.0 ms 44.0)
 PEAK_CORRELATION = 0.5      # the |w| correlation at the peak, at least
 SECOND_PEAK_SHARE = 0.8     # the peak's lobe ends where the correlation falls below this
@@ -256,17 +260,16 @@ def _lobe(r, k, floor):
     return slice(lo, hi + 1), width
 
 
-def _refined(rec, coarse_s, search_s=2 * GRID_S, step_s=0.001, blocks=10):
+def _refined(rec, coarse_s, search_s=2 * GRID_S, step_s=0.001, blocks=10,
+             jackknife_blocks=JACKKNIFE_BLOCKS):
     """(offset s, its standard error s, `_drift`'s line through the blocks' own offsets):
     the offset that best matches the two |w|^2 (means over REFINE_WINDOW_S) within
-    +-search_s of coarse_s, on a grid of step_s refined by a parabola; the error by the
-    jackknife over `blocks` consecutive blocks of the overlap; NaN where the least cost, of
-    the whole or of a jackknife part, is at the search's edge (not bracketed). Each gyro's
-    bias b moves its
-    |w|^2 by 2 b.w + |b|^2, which a shift can partly mimic (a MEMS pair's 0.3 deg/s had made
-    a fixed wing's offset 0.3 ms late): at each shift the difference is fitted on [the IMU's
-    rates, 1] first - with w_r = C w, |w_r + b_r|^2 - |w + b|^2 = 2 (C'b_r - b).w + const,
-    whatever the mounting C - and the cost is what that fit leaves."""
+    +-search_s of coarse_s, on a grid of step_s refined by a parabola, with what the two
+    gyros' own errors make of |w|^2 fitted at each shift first (`_gyro_error_columns`:
+    biases and scales); the error by the jackknife over `jackknife_blocks` consecutive
+    blocks of the overlap, widened by how far a misalignment's products move the offset;
+    the drift from `blocks` of them; NaN where the least cost, of the whole or of a
+    jackknife part, is at the search's edge (not bracketed)."""
     ref, half = rec.reference_imu, REFINE_WINDOW_S / 2
     t, t_r = rec.imu_ns / 1e9, ref["ns"] / 1e9
     lo = max(t[0], t_r[0] - coarse_s) + search_s + half
@@ -274,24 +277,29 @@ def _refined(rec, coarse_s, search_s=2 * GRID_S, step_s=0.001, blocks=10):
     grid = np.arange(lo, hi, 0.01)
     w = window_means(rec.imu_ns, rec.w, grid, half)
     size = window_means(rec.imu_ns, np.sum(rec.w ** 2, axis=1)[:, None], grid, half)[:, 0]
-    bias_columns = np.column_stack([w, np.ones(len(grid))])
+    columns, products = _gyro_error_columns(rec.imu_ns, rec.w, grid, half)
     size_r = np.sum(ref["w"] ** 2, axis=1)[:, None]
     shifts = coarse_s + np.arange(-search_s, search_s + 1e-9, step_s)
-    block = np.minimum(np.arange(len(grid)) * blocks // len(grid), blocks - 1)
-
+    block, fine = (np.minimum(np.arange(len(grid)) * n // len(grid), n - 1)
+                   for n in (blocks, jackknife_blocks))
     rows = [block == b for b in range(blocks)]
 
-    def left(d):                # per block, what the bias columns leave of the difference:
-        y = window_means(ref["ns"], size_r, grid + d, half)[:, 0] - size      # fitted over all,
-        coef = np.linalg.lstsq(bias_columns, y, rcond=None)[0]            # and block by block
-        alone = [np.sum((y[k] - bias_columns[k] @ np.linalg.lstsq(
-            bias_columns[k], y[k], rcond=None)[0]) ** 2) for k in rows]
-        return np.bincount(block, (y - bias_columns @ coef) ** 2, minlength=blocks), alone
-    cost, own_cost = (np.array(x) for x in zip(*[left(d) for d in shifts]))  # (shifts, blocks)
+    def left(d):                # what the columns leave of the difference, fitted over
+        y = window_means(ref["ns"], size_r, grid + d, half)[:, 0] - size       # all, and
+        r2 = (y - columns @ np.linalg.lstsq(columns, y, rcond=None)[0]) ** 2  # block by block
+        alone = [np.sum((y[k] - columns[k] @ np.linalg.lstsq(
+            columns[k], y[k], rcond=None)[0]) ** 2) for k in rows]
+        with_products = np.column_stack([columns, products])
+        return (np.bincount(fine, r2, minlength=jackknife_blocks), alone,
+                np.sum((y - with_products @ np.linalg.lstsq(with_products, y, rcond=None)[0])
+                       ** 2))
+    cost, own_cost, cost_products = (np.array(x) for x in zip(*[left(d) for d in shifts]))
     whole = parabola_min(shifts, cost.sum(axis=1))
     parts = np.array([parabola_min(shifts, cost.sum(axis=1) - cost[:, b])
-                      for b in range(blocks)])
-    se = math.sqrt((blocks - 1) / blocks * np.sum((parts - parts.mean()) ** 2))
+                      for b in range(jackknife_blocks)])
+    se = math.hypot(math.sqrt((jackknife_blocks - 1) / jackknife_blocks
+                              * np.sum((parts - parts.mean()) ** 2)),
+                    parabola_min(shifts, cost_products) - whole)
     # each block's own offset from its own fit (a block's share of the overall fit moves
     # with the others': still blocks had 'placed' 40.11 ms to 0.02 ms and bent a clock
     # without drift by 25 ms), and only where the IMU turns in it
@@ -301,6 +309,25 @@ def _refined(rec, coarse_s, search_s=2 * GRID_S, step_s=0.001, blocks=10):
     mids = np.array([grid[k].mean() for k in rows])
     count = np.bincount(block, minlength=blocks)
     return whole, se, _drift(mids, own, _offset_variances(own_cost, count, step_s))
+
+
+def _gyro_error_columns(ns, w, grid, half):
+    """((len(grid), 7), (len(grid), 3)) what the two gyro triads' own errors make of
+    |w_r|^2 - |w|^2, as window means (half-width half, s) about the grid's times (s) of the
+    IMU's rates w (rad/s, stamps ns). With w_r = C w (any mounting C) and the IMU's
+    w' = S w + b (its scale and misalignment S, bias b), the difference is
+    w'.A w' + 2 c.w' + const: first the squares w_i^2 (A's diagonal: the scales), the
+    rates and 1, then apart the products w_x w_y, w_x w_z, w_y w_z (a misalignment). A
+    shift mimics part of each: a MEMS pair's 0.3 deg/s had made a fixed wing's offset 0.3 ms
+    late, a 2 % scale a gentle flight's 2 ms late (standard error 1.2), its 1 %
+    misalignment 1.2 ms late. But on a car the products are the shift's own signature (its
+    roll rate follows its lateral acceleration's rate of change: w_x w_z ~ v w_z dw_z/dt;
+    a phone beside an INS read 2.5 ms off with them, 5 standard errors): the offset is
+    taken without them, and how far they move it is counted into its error."""
+    i, j = np.triu_indices(3, 1)
+    return (np.column_stack([window_means(ns, w ** 2, grid, half),
+                             window_means(ns, w, grid, half), np.ones(len(grid))]),
+            window_means(ns, w[:, i] * w[:, j], grid, half))
 
 
 def _offset_variances(cost, count, step):

@@ -95,6 +95,9 @@ class Recording:
     #                             reference IMU's (`trajectory_point`), or ''
     trajectory_point_off: str = ""  # where the reference trajectory's point is measured off
     #                                 the origin and left there (`trajectory_point`), or ''
+    reference_clock_unapplied_s: float | None = None    # the reference trajectory's lag
+    #                                   (s, its stamps late) the import measured and left to
+    #                                   the diagnosis as the IMU's latency, not applied
     reference_clock_open: str = ""  # the same of the reference trajectory's clock, where the
     #                                 data peak away from its stamps among rivals (`checks`)
     clip_spans_ns: list = field(default_factory=list)   # [(t0, t1 ns, clips)] where an IMU's

@@ -100,10 +100,15 @@ def check_trajectory_point(rec):
                                        "turns the vehicle too little); taken at the origin")
         return      # test: a car's point known to 2 km had been said "at the origin"
     if _same(p, np.zeros(3), cov):
+        size = float(np.linalg.norm(p))
+        apart = size > DISTINCT_Z * math.sqrt(float(p @ cov @ p)) / max(size, 1e-12)
         rec.real["reference_point"] = said + (
-            f": at the origin, as /truth/state is (within {SAME_POINT_M:g} m or "
+            f": taken at the origin, as /truth/state is (within {SAME_POINT_M:g} m or "
             f"{DISTINCT_Z:g} standard errors of it: the fit's own model errors - an IMU's "
-            "scale, misalignment and bias on the forces, a clock between the two - reach that)")
+            "scale, misalignment and bias on the forces, a clock between the two - reach that)"
+            + (f"; but {size:.3f} m off it, beyond {DISTINCT_Z:g} standard errors: where those "
+               "errors are small, a lever arm given is off by that much (the diagnosis's "
+               "lever_arm term tests it)" if apart else ""))
         return
     own = rec.reference_imu
     given = None if own is None else own["mounting"].lever_arm_m

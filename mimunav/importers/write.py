@@ -44,6 +44,34 @@ def _reference_metadata(rec, known):
     return meta
 
 
+def _recording_metadata(rec, align, assumed, heading, track):
+    """The log's `recording` metadata record: what the import measured (`real`) and assumed,
+    the alignment's biases (sensor axes: gyro rad/s, accelerometer m/s^2) and rest (s from
+    the IMU's first stamp), the initial heading's source, and what the checks decided."""
+    epoch = int(rec.imu_ns[0])
+    return {"real": json.dumps(rec.real), "assumed": json.dumps(assumed),
+            "gyro_bias_static_rad_s": list(map(float, align.gyro_bias)),
+            "accel_bias_m_s2": list(map(float, align.accel_bias)),
+            "static_s": (None if np.isnan(align.static[0]) else
+                         [float(align.static[0]), float(align.static[1])]),
+            "observed_max": {"gyro_rad_s": float(np.abs(rec.w).max()),
+                             "accel_m_s2": float(np.abs(rec.f).max())},
+            "initial_heading": heading, "initial_attitude": align.attitude_from,
+            "bias_basis": align.bias_basis,
+            "reference_heading_known": rec.reference_heading_known,
+            "reference_imu_clock_se_s": rec.reference_imu_clock_se_s,
+            "vehicle": rec.vehicle, "aliased": rec.aliased,
+            "faces_course": None if track is None else track["faces_course"],
+            "reference_imu_moved": rec.reference_imu_moved,
+            "reference_imu_clock_open": rec.reference_imu_clock_open,
+            "reference_clock_open": rec.reference_clock_open,
+            "reference_clock_unapplied_s": rec.reference_clock_unapplied_s,
+            "imu_point_off": rec.imu_point_off,
+            "trajectory_point_off": rec.trajectory_point_off,
+            "clip_spans_s": [[(a - epoch) / 1e9, (b - epoch) / 1e9, n]
+                             for a, b, n in rec.clip_spans_ns]}
+
+
 def write_log(rec, path, force=False):
     """Write `rec` as a contract log at `path` (atomically; an existing file only with
     force), after `check_recording`. Returns the initial alignment (`alignment.Alignment`)."""
@@ -51,7 +79,8 @@ def write_log(rec, path, force=False):
     epoch = int(rec.imu_ns[0])
     t = (rec.imu_ns - epoch) / 1e9
     ref = rec.reference
-    align = alignment.initial_alignment(t, rec.w, rec.f, rec.mounting, reference_track(rec, epoch))
+    track = reference_track(rec, epoch)
+    align = alignment.initial_alignment(t, rec.w, rec.f, rec.mounting, track)
     resting_upright(rec, align)
     initial = {"t": float(align.t), "latitude": float(align.lat), "longitude": float(align.lon),
                "height": float(align.h), "velocity_ned": list(map(float, align.v_ned)),
@@ -72,27 +101,7 @@ def write_log(rec, path, force=False):
         log.metadata("sensor/mimu", {
             "model": rec.model, "sample_rate_hz": f"{rate:.6g}",
             "mounting": rec.mounting.as_dict(), **({"range": rec.range} if rec.range else {})})
-        log.metadata("recording", {"real": json.dumps(rec.real), "assumed": json.dumps(assumed),
-                                   "gyro_bias_static_rad_s": list(map(float, align.gyro_bias)),
-                                   "accel_bias_m_s2":
-                                       list(map(float, align.accel_bias)),
-                                   "static_s": (None if np.isnan(align.static[0]) else
-                                                [float(align.static[0]), float(align.static[1])]),
-                                   "observed_max": {"gyro_rad_s": float(np.abs(rec.w).max()),
-                                                    "accel_m_s2": float(np.abs(rec.f).max())},
-                                   "initial_heading": heading,
-                                   "initial_attitude": align.attitude_from,
-                                   "bias_basis": align.bias_basis,
-                                   "reference_heading_known": rec.reference_heading_known,
-                                   "reference_imu_clock_se_s": rec.reference_imu_clock_se_s,
-                                   "vehicle": rec.vehicle, "aliased": rec.aliased,
-                                   "reference_imu_moved": rec.reference_imu_moved,
-                                   "reference_imu_clock_open": rec.reference_imu_clock_open,
-                                   "reference_clock_open": rec.reference_clock_open,
-                                   "imu_point_off": rec.imu_point_off,
-                                   "trajectory_point_off": rec.trajectory_point_off,
-                                   "clip_spans_s": [[(a - epoch) / 1e9, (b - epoch) / 1e9, n]
-                                                    for a, b, n in rec.clip_spans_ns]})
+        log.metadata("recording", _recording_metadata(rec, align, assumed, heading, track))
         channels = [("/mimu/imu", S.IMU, "mimu", rec.imu_ns, S.imu_fields(rec.w, rec.f))]
         if rec.reference_imu is not None:
             ref_imu = rec.reference_imu
@@ -175,7 +184,8 @@ def summary(rec, align, path):
     for key in ("imu_stamps", "reference_imu_stamps", "imu_intervals",
                 "reference_imu_intervals", "reference_imu_clock",
                 "reference_imu_mounting", "reference_imu_lever_arm", "aliasing",
-                "reference_attitude_rates", "reference_point"):     # said too
+                "reference_attitude_rates", "mounting_against_attitude",
+                "reference_point"):     # said too
         if key in rec.real:
             lines.append(f"measured {key.replace('_', ' ')}: {rec.real[key]}")
     lines += [f"warning: {why}" for why in rec.aliased.values()]

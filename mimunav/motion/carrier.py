@@ -36,17 +36,28 @@ EITHER_END = ("train",)             # what runs either end first: its course its
 #                                    the heading's opposite
 
 
-def course_keys(vehicle):
+def course_keys(vehicle, judged=None):
     """The keys of a track (`navigation.alignment`'s dict) that say what carries the IMU:
     `vehicle`, the declared kind (None: not declared), and `faces_course`, whether its
-    course may stand for its heading - a declared kind of ALONG_COURSE, or one not declared
-    (the import's course checks judge it)."""
-    return {"vehicle": vehicle, "faces_course": vehicle is None or vehicle in ALONG_COURSE}
+    course may stand for its heading - a declared kind of ALONG_COURSE, or for one not
+    declared what the import judged (`judged`: True, False; None: not judged, taken as
+    facing it)."""
+    return {"vehicle": vehicle, "faces_course": vehicle in ALONG_COURSE if vehicle else
+            judged is not False}
+
+
+def recorded_kind(recording):
+    """(vehicle, judged) of `course_keys` from a log's `recording` metadata: the kind
+    declared, and whether the import judged that its course faces its heading (None in a
+    log written before it said so)."""
+    return recording.get("vehicle"), recording.get("faces_course")
 
 
 def declared(vehicle):
-    """What carries the IMU, as declared (a `vehicle` kind), for messages."""
-    return f"a vehicle declared {vehicle!r}"
+    """What carries the IMU, as declared (a `vehicle` kind; None: judged by the import no
+    car, `course_keys`), for messages."""
+    return f"a vehicle declared {vehicle!r}" if vehicle else \
+        "a vehicle its track and IMU judge no car (the import's course checks)"
 
 
 MOVING_SPEED = 5.0          # m/s: 18 km/h - a car's drive reaches it most of the time it moves
@@ -80,7 +91,10 @@ def car_tests(t_track, v_ned, t=None, f=None, w=None, moving=True):
         return [f"its track is shorter than the {CLIMB_WINDOW_S:g} s the tests need"], []
     speed, climb = np.hypot(v[ok, 0], v[ok, 1]), np.abs(v[ok, 2])
     failed, numbers = [], []
-    p95, p99 = float(np.percentile(speed, 95)), float(np.percentile(speed, 99))
+    # its speed over 1 s, not the size of its 10 s mean velocity: a multicopter's figure
+    # eights at 3.8 m/s had 'moved' at 0.3 m/s
+    v_1s = epoch_means(np.asarray(t_track, float), np.asarray(v_ned, float), 0.5)
+    p95, p99 = (float(np.nanpercentile(np.hypot(v_1s[:, 0], v_1s[:, 1]), q)) for q in (95, 99))
     if moving and p95 < MOVING_SPEED:
         failed.append(f"its speed's 95th percentile is {p95:.1f} m/s (a car's drive reaches "
                       f"{MOVING_SPEED:g})")

@@ -18,8 +18,8 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 
 from ..files import atomic_folder
-from ..diagnosis.document import (band_text, charge_text, clock_words, dumps, scale_alike_text,
-                                  stated_errors, stated_sigma)
+from ..diagnosis.document import (band_text, charge_text, clock_text, clock_words, dumps,
+                                  scale_alike_text, stated_errors, stated_sigma)
 from ..diagnosis.design import term_contribution
 from ..diagnosis import library
 from ..diagnosis.inference import p_text
@@ -124,10 +124,21 @@ def _inflation_lines(doc):
     return []
 
 
+def _clock_lines(doc):
+    """The reference IMU's clock as the diagnosis read it beside the findings, and what it
+    leaves untested."""
+    clock = doc.get("reference_clock")
+    if not clock:
+        return []
+    text, latency = clock_text(clock), clock.get("latency")
+    return [text[0].upper() + text[1:] + "."
+            + (f" The {latency[0].lower()}{latency[1:]}." if latency else ""), ""]
+
+
 def _reference_lines(doc):
     """What the reference predicts (the sensor level's agreement, the track level's check)
     and the time lag."""
-    lines = _agreement_lines(doc.get("reference_agreement"))
+    lines = _agreement_lines(doc.get("reference_agreement")) + _clock_lines(doc)
     check = doc.get("reference_check")
     if check:
         corr = check["correlation_1s"]
@@ -305,6 +316,15 @@ def _residual_lines(doc):
                   "the IMU.", ""]
         lines += [f"- {u['channel']}: {u['t0']:.1f}-{u['t1']:.1f} s, z = {u['z']:.1f}, "
                   f"{u['size']:+.3g} {u['units']}" for u in others]
+        lines.append("")
+    steps = doc.get("reference_check", {}).get("excursions_at_refuted_fixes", [])
+    if steps:
+        lines += ["## Excursions at reference fixes left out", "",
+                  "The IMU's forces refuted a reference fix near these (left out of the track); "
+                  "where the reference jumped, its track still steps there, which its smoothing "
+                  "spreads over the seconds around: the reference's, not the IMU's.", ""]
+        lines += [f"- {u['channel']}: {u['t0']:.1f}-{u['t1']:.1f} s, z = {u['z']:.1f}, "
+                  f"{u['size']:+.3g} {u['units']}" for u in steps]
         lines.append("")
     stops = doc.get("reference_check", {}).get("excursions_of_the_model", [])
     if stops:

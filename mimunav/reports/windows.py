@@ -36,7 +36,9 @@ def doubts(flight, time_shift_s):
     reference trajectory's clock the import left open (`importers.checks`: the data peak
     away from its stamps) - each window then compares the IMU with where the reference was
     a lag away (a ship's MEMS 0.7 s off had its 60 s windows read 695 m, silently; 17 m
-    once shifted; not said once a --time-shift is given); an IMU its own forces place
+    once shifted; not said once a --time-shift is given), or one it measured and left as the
+    IMU's latency (`reference_clock_unapplied_s`: a mocap pose 0.2 s late read 58 m where
+    0.5 m were the IMU's); an IMU its own forces place
     elsewhere than its lever arm given (the recording's `imu_point_off`); a trajectory
     whose point is measured off the origin (`trajectory_point_off`)."""
     said, out = (flight.recording or {}).get("reference_clock_open"), []
@@ -44,6 +46,13 @@ def doubts(flight, time_shift_s):
         out.append(f"the import could not decide the reference trajectory's clock against the "
                    f"IMU's ({said}): these errors hold the lag too - where the recording's own "
                    "notes give it, --time-shift S here (or --reference-time-offset S at import)")
+    late = (flight.recording or {}).get("reference_clock_unapplied_s")
+    if late and not time_shift_s:   # `importers.checks`: measured, left as the IMU's latency
+        out.append(f"the import measured the reference trajectory's stamps "
+                   f"{abs(late) * 1e3:.0f} ms {'late' if late > 0 else 'early'} on the IMU's "
+                   "and left it as the IMU's latency: these errors hold that lag - where it is "
+                   f"the two clocks' offset, --time-shift {late:+.3f} here (or "
+                   "--reference-time-offset at import) takes it out")
     off = (flight.recording or {}).get("imu_point_off")
     if off:         # `importers.trajectory_point`: the IMU not where its arm says
         out.append(f"{off}: these errors hold that arm's transfer too")

@@ -401,14 +401,38 @@ def test_a_clock_timed_by_the_same_motions_leaves_the_latency_untested():
     """Where the import timed the reference IMU by the motions the diagnosis reads (a clock
     nuisance) and nothing is found, the MIMU's latency went into that clock: inconclusive,
     saying so (a motorcycle's MEMS 30 ms late had read no-missing-physics). A finding
-    stands on its own; without a clock fitted there is nothing to say."""
+    stands on its own, the latency said untested beside the clock (a phone 20 ms late had
+    gone unsaid); without a clock fitted there is nothing to say."""
     from types import SimpleNamespace
-    clock = {"import_1sigma_s": 2.7e-5}
-    for findings, reference_clock, said in (([], clock, True), ([{"label": "x"}], clock, False),
-                                             ([], None, False)):
-        diag = SimpleNamespace(reference_clock=reference_clock, findings=findings,
-                               inconclusive=[])
+    for findings, fitted, said in (([], True, True), ([{"label": "x"}], True, False),
+                                   ([], False, False)):
+        clock = {"import_1sigma_s": 2.7e-5} if fitted else None
+        diag = SimpleNamespace(reference_clock=clock, findings=findings, inconclusive=[])
         levels.latency_untested(diag)
         assert bool(diag.inconclusive) == said
         assert not said or "latency against the reference IMU) is not tested" in \
             diag.inconclusive[0]
+        assert ("is not tested" in clock.get("latency", "")) == bool(fitted and findings) \
+            if fitted else True
+
+
+def test_a_lag_the_import_left_as_latency_stops_the_navigation_level():
+    """The import measured the reference trajectory 0.2 s late and left it as the IMU's
+    latency (`reference_clock_unapplied_s`): the navigation level cannot test a time skew,
+    so its findings are set aside and the verdict is inconclusive, naming the offset that
+    takes it out (a mocap pose 0.2 s late had a g2_sensitivity blamed); the windows say
+    the lag is in their errors, with the --time-shift that removes it, unless one is given."""
+    from types import SimpleNamespace
+    from mimunav.reports.windows import doubts
+    flight = SimpleNamespace(recording={"reference_clock_unapplied_s": 0.2})
+    diag = SimpleNamespace(findings=[{"label": "x"}], rejected=[], inconclusive=[])
+    levels.set_aside_unapplied_lag(diag, flight)
+    assert not diag.findings and diag.rejected[0]["rejected"] == diag.inconclusive[0]
+    assert "200 ms late" in diag.inconclusive[0] and "--reference-time-offset" in \
+        diag.inconclusive[0]
+    said = doubts(flight, 0.0)
+    assert len(said) == 1 and "--time-shift +0.200" in said[0]
+    assert doubts(flight, 0.2) == []
+    clean = SimpleNamespace(findings=[{"label": "x"}], rejected=[], inconclusive=[])
+    levels.set_aside_unapplied_lag(clean, SimpleNamespace(recording={}))
+    assert clean.findings and not clean.inconclusive

@@ -761,6 +761,15 @@ def test_an_accelerometer_step_within_the_vehicle_models_own_error_is_the_models
     kept, aside = model_excursions(spans, t, np.zeros_like(t), pushing, q_vs)
     assert [u["size"] for u in aside] == [0.2] and [u["size"] for u in kept] == [0.5]
     assert aside[0]["bound"] == pytest.approx(BODY_TILT_GRADIENT * 2.0, rel=1e-6)
+    # its down takes the acceleration itself, tilted: k a^2 / g on accel.z (4 m/s^2 of
+    # braking: 0.2 m/s^2; a car pitching 0.4 deg per m/s^2 had read -0.12 at z 16 there)
+    braking = still.copy()
+    braking[(t >= 30.0) & (t < 32.0), 1] = 4.0
+    spans = [{"channel": "accel.z", "peak_t0": 30.0, "size": size, "z": 9.0, "t0": 30.0,
+              "t1": 32.0, "units": "m/s^2"} for size in (-0.12, 0.3)]
+    kept, aside = model_excursions(spans, t, np.zeros_like(t), braking, q_vs)
+    assert [u["size"] for u in aside] == [-0.12] and [u["size"] for u in kept] == [0.3]
+    assert aside[0]["bound"] == pytest.approx(BODY_TILT_GRADIENT * 16.0 / 9.80665, rel=1e-6)
     # and the rate of that tilt on the gyros about the vehicle's level axes: the forward
     # specific force ramping 0 -> 2 m/s^2 over the window pitches the body by up to k 2 m/s^2
     # (k = 7 deg/g), a window mean rate of k 2 / 2 s about the vehicle's right axis (sensor
@@ -967,3 +976,18 @@ def test_a_fixs_second_difference_is_the_hat_mean_of_the_acceleration():
     hat = _hat_means(t, np.column_stack([a, -a]), p, m, q)
     assert np.allclose(hat[:, 0], divided, rtol=1e-5) and np.allclose(hat[:, 1], -divided,
                                                                       rtol=1e-5)
+
+
+def test_an_excursion_beside_a_refuted_fix_is_the_references_step():
+    """`track.beside_refuted_fixes`: an INS back from an outage jumps 1.9 m at 150.3 s (a
+    fix its IMU's forces refute, left out of the track); the track's smoothing spreads that
+    step over the seconds before, where gyro.z and accel.y had been charged at z 25. Those
+    within 2 s (or two bins) of a refuted fix are the reference's; one far off is not."""
+    from mimunav.diagnosis.track import beside_refuted_fixes
+    spans = [{"channel": "gyro.z", "t0": 148.2, "t1": 150.2},
+             {"channel": "accel.z", "t0": 130.2, "t1": 132.2}]
+    fixes = [{"t0": 150.3, "t1": 150.3}]
+    assert beside_refuted_fixes(spans, fixes, 0.5) == spans[:1]
+    assert beside_refuted_fixes(spans, [], 0.5) == []
+    assert beside_refuted_fixes(spans, fixes, 10.0) == spans
+

@@ -124,6 +124,25 @@ def test_windows_leave_out_every_window_an_imu_gap_meets(tmp_path):
     assert len(early) and early.max() + 10.0 <= 100.0 and early.max() > 85.0
 
 
+def test_no_window_starts_where_the_reference_misses_epochs():
+    """A 100 Hz reference missing 0.5 s (a mocap dropout, under the 1 s a window may hold):
+    no window's alignment interval meets it - its start state would be interpolated across
+    the dropout (a multicopter's window started there ended 76 m off, its neighbours 22)."""
+    t_tr, lat, lon, h, v = straight_track()
+    from mimunav.motion.trajectory import Trajectory
+    fine = np.arange(t_tr[0], t_tr[-1], 0.01)
+    keep = (fine < 70.0) | (fine > 70.5)
+    fine = fine[keep]
+    at = [np.interp(fine, t_tr, x) for x in (lat, lon, h)]
+    v_fine = np.column_stack([np.interp(fine, t_tr, v[:, i]) for i in range(3)])
+    truth = Trajectory(fine, *at, v_fine, quaternion.from_float_array(
+        np.tile([1.0, 0.0, 0.0, 0.0], (len(fine), 1))))
+    got = windows.starts(truth, 10.0, step=0.05, max_gap=1.0)
+    half = alignment.MOVING_HALF_WINDOW_S
+    assert len(got) and not np.any((got + half > 70.0) & (got - half < 70.5)), got
+    assert np.any((got > 60.0) & (got < 70.5)) or np.any(got + 10.0 > 70.5)
+
+
 def test_windows_of_a_reversing_vehicle_face_backwards(tmp_path):
     """The synthetic drive driven in reverse (the vehicle faces 180 deg from its course;
     its ideal IMU is that of the track's motion mounted turned half a turn in yaw): each

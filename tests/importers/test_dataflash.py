@@ -85,15 +85,21 @@ def test_gnss_reference_keeps_the_fixes_status_and_accuracy(log):
 
 @pytest.mark.slow
 def test_import_and_windows_through_the_cli(log, tmp_path, capsys):
-    """Free-inertial 10 s windows restarted from each reference: with the GNSS reference
-    (levelled at the rest, which cancels the horizontal accelerometer bias) under 1 m; with
-    the autopilot's attitude at the rest, the horizontal bias |b_h| = 0.022 m/s^2 is
+    """Free-inertial 10 s windows restarted from each reference: with the autopilot's
+    attitude at the rest, the horizontal bias |b_h| = 0.022 m/s^2 is
     measured against its level and removed - left in, it acted in full, 0.5 |b_h| T^2 =
     1.1 m. A course, VZ or time-base mistake gives tens of metres. Its progress bar is a
     terminal's: to a file (here captured) none is written (a captured log had held one
-    line of hundreds of updates)."""
+    line of hundreds of updates). The GNSS reference carries no attitude, and the flight
+    banks into its turns and climbs - judged no car, its course is no heading (a wind's
+    crab): its windows are refused, naming what they need."""
     path = log[0]
-    for kind, lo, hi in (("gnss", 0.0, 1.0), ("ekf", 0.0, 0.5)):
+    out = tmp_path / "gnss.mcap"
+    assert main(["import", "dataflash", str(path), "-o", str(out), "--reference", "gnss"]) == 0
+    capsys.readouterr()
+    assert main(["windows", str(out), "-o", str(tmp_path / "w-gnss")]) == 2
+    assert "judge no car" in capsys.readouterr().err
+    for kind, lo, hi in (("ekf", 0.0, 0.5),):
         out = tmp_path / f"{kind}.mcap"
         assert main(["import", "dataflash", str(path), "-o", str(out), "--reference", kind]) == 0
         capsys.readouterr()
