@@ -310,6 +310,10 @@ def mounting_against_attitude(rec):
     parts = [turn_from_attitude([x[block != b] for x in theirs], [x[block != b] for x in mine],
                                 SPREADS, TURN_SPAN_SHARE) for b in range(JACKKNIFE_BLOCKS)]
     if any(p is None for p in parts):
+        rec.real["mounting_against_attitude"] = (
+            f"not measured: without one of {JACKKNIFE_BLOCKS} blocks of the record the 1 s "
+            "means spread too little to place a turn, so its error is not known - the "
+            "mounting as given")
         return
     off = np.array([(p * turn.inv()).as_rotvec() for p in parts])
     se = math.degrees(math.sqrt((JACKKNIFE_BLOCKS - 1) / JACKKNIFE_BLOCKS
