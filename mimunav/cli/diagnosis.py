@@ -164,7 +164,10 @@ def finding_line(f):
     from ..diagnosis.inference import p_text
     units = "" if f["units"] == "1" else f" {f['units']}"
     line = (f"  {f['label']}: {f['coefficient']:.4g}{units} "
-            f"[{f['ci95'][0]:.4g}, {f['ci95'][1]:.4g}] (held-out p {p_text(f['p_heldout'])}"
+            f"[{f['ci95'][0]:.4g}, {f['ci95'][1]:.4g}] ("
+            + ("its largest component, of a vector of size "
+               f"{float(np.linalg.norm(f['vector'])):.4g}{units}; " if "vector" in f else "")
+            + f"held-out p {p_text(f['p_heldout'])}"
             + (f", removes {f['effect_size']['heldout_variance_removed']:.2%} of the held-out "
                "residual variance as the fit weighs it" if "effect_size" in f else "")
             + f"; {f.get('attribution', 'navigation level')})")

@@ -49,6 +49,8 @@ VEHICLE_MODEL_ACCURACY = Accuracy(gyro_scale=5e-3, accel_scale=BODY_TILT_GRADIEN
 # though it hardly varies (`_carried_channels`)
 CHECK_BIN_S = 1.0
 IMU_GAP_S = 0.1            # an IMU step this long is a gap (a car moves ~3 m): not interpolated
+IMU_GAP_STEPS = 2.5         # nor shorter than this many of the IMU's own steps (a 10 Hz IMU's
+#                             every step had been a gap, and nothing left to compare)
 REFERENCE_GAP_S = 2.0      # a reference step this long is an outage (1 Hz fixes are not)
 GAP_MARGIN_S = 2.0         # s left out on each side of a gap: the 1 s bins, the 0.5 s lag
 # Noise of the consumer part (shared/data/rtklib-drive/README: the author's settings, an
@@ -230,14 +232,16 @@ def reversing(flight, step_s=1.0):
 
 def near_gaps(t, t_reference):
     """(N,) bool over the MIMU's stamps t (s): within GAP_MARGIN_S of a gap - an IMU step
-    longer than IMU_GAP_S or a reference step longer than REFERENCE_GAP_S. Across a gap the
+    longer than IMU_GAP_S and IMU_GAP_STEPS of its median, or a reference step longer than
+    REFERENCE_GAP_S. Across a gap the
     simulated reference IMU is an interval mean over the whole gap and the derivative
     filters, the lag search and the 1 s bins would mix its two sides (a 5 s IMU gap turned
     a clear 80 ms lag into an inconclusive one), so those samples are left out instead of
     the recording being refused."""
     t = np.asarray(t, float)
     step, ref_step = np.diff(t), np.diff(t_reference)
-    edges = [(t[k], t[k + 1]) for k in np.flatnonzero(step > IMU_GAP_S)]
+    longest = max(IMU_GAP_S, IMU_GAP_STEPS * float(np.median(step))) if len(step) else IMU_GAP_S
+    edges = [(t[k], t[k + 1]) for k in np.flatnonzero(step > longest)]
     edges += [(t_reference[k], t_reference[k + 1])
               for k in np.flatnonzero(ref_step > REFERENCE_GAP_S)]
     near = np.zeros(len(t), bool)

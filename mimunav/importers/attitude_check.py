@@ -276,21 +276,32 @@ JACKKNIFE_BLOCKS = 10
 
 def mounting_against_attitude(rec):
     """Without a reference IMU, the IMU's mounting measured against the reference's
-    attitude: the turn of the vehicle-frame 1 s mean rates and specific forces that the
-    attitude and velocity make (`attitude_means`) onto the IMU's (turned by the mounting
-    given; the lever arm's transfer taken out of its forces, `lever.lever_force`), both
-    about their own means (no bias enters; `turn_from_attitude`), its standard error
+    attitude: the turn of the vehicle-frame 1 s mean rates that the attitude makes
+    (`attitude_means`) onto the IMU's (turned by the mounting given), both about their own
+    means (no bias enters; `turn_from_attitude`) - with the specific forces too (the lever
+    arm's transfer taken out, `lever.lever_force`) only where the rates span fewer than two
+    directions (a car's: its forces' lever transfer is small; a quadrotor's, an arm given
+    0.1-0.2 m wrong had turned an exact mounting 1.2-4.5 deg) -, its standard error
     jackknifed over JACKKNIFE_BLOCKS blocks. Turned onto it beyond ATTITUDE_TURN_DEG and
-    TURN_Z standard errors, said in rec.real / rec.assumed; kept otherwise, said too. A
+    TURN_Z standard errors, said in rec.real / rec.assumed; kept otherwise, said too. The
+    reference's stamps taken as late as the clock check measured and left
+    (`reference_clock_unapplied_s`: a phone's 2 deg yaw against an INS 0.5 s off had read a
+    0.4 deg pitch with it), not measured where that clock is undecided. A
     quadrotor's IMU given 10 deg off its mocap body had passed with the rates' gains at
     0.88, and its 3.8 deg off been charged to the accelerometers as 0.3 m/s^2 of bias."""
     ref = rec.reference
     if rec.reference_imu is not None or ref is None or ref.get("q_nb") is None:
         return
-    lo = max(rec.imu_ns[0], ref["ns"][0]) / 1e9 + 1.0
-    hi = min(rec.imu_ns[-1], ref["ns"][-1]) / 1e9 - 1.0
+    if rec.reference_clock_open:
+        rec.real["mounting_against_attitude"] = (
+            "not measured: the reference's clock against the IMU's is not decided (measured "
+            "clock offset) - the mounting as given")
+        return
+    late = rec.reference_clock_unapplied_s or 0.0      # measured, left as the IMU's latency
+    lo = max(rec.imu_ns[0] / 1e9, ref["ns"][0] / 1e9 - late) + 1.0
+    hi = min(rec.imu_ns[-1] / 1e9, ref["ns"][-1] / 1e9 - late) - 1.0
     mids = np.arange(lo, hi, 1.0)
-    predicted = attitude_means(ref, mids) if len(mids) >= MIN_SECONDS else None
+    predicted = attitude_means(ref, mids + late) if len(mids) >= MIN_SECONDS else None
     if predicted is None:
         return
     w_v = attitude.rotate(rec.mounting.q_vs, rec.w)
@@ -299,7 +310,9 @@ def mounting_against_attitude(rec):
             - lever_force(rec.imu_ns, w_v, mids, rec.mounting.lever_arm_m))
     rows = np.isfinite(np.hstack([*predicted, *mine])).all(axis=1)
     theirs, mine = [x[rows] for x in predicted], [x[rows] for x in mine]
-    turn = turn_from_attitude(theirs, mine, SPREADS, TURN_SPAN_SHARE)
+    if _rate_turn(mine[:1], theirs[:1]) is not None:   # the rates alone, where they span
+        theirs, mine = theirs[:1], mine[:1]             # two directions
+    turn = _rate_turn(mine, theirs)
     if rows.sum() < MIN_SECONDS or turn is None:
         rec.real["mounting_against_attitude"] = (
             "not measured: the reference's attitude and velocity make 1 s means that spread "
@@ -307,8 +320,8 @@ def mounting_against_attitude(rec):
             f"of the first) or over under {MIN_SECONDS} s")
         return
     block = np.arange(len(theirs[0])) * JACKKNIFE_BLOCKS // len(theirs[0])
-    parts = [turn_from_attitude([x[block != b] for x in theirs], [x[block != b] for x in mine],
-                                SPREADS, TURN_SPAN_SHARE) for b in range(JACKKNIFE_BLOCKS)]
+    parts = [_rate_turn([x[block != b] for x in mine], [x[block != b] for x in theirs])
+             for b in range(JACKKNIFE_BLOCKS)]
     if any(p is None for p in parts):
         rec.real["mounting_against_attitude"] = (
             f"not measured: without one of {JACKKNIFE_BLOCKS} blocks of the record the 1 s "
@@ -319,9 +332,16 @@ def mounting_against_attitude(rec):
     se = math.degrees(math.sqrt((JACKKNIFE_BLOCKS - 1) / JACKKNIFE_BLOCKS
                                 * np.sum((off - off.mean(axis=0)) ** 2)))
     angle = math.degrees(turn.magnitude())
-    said = (f"the IMU's 1 s mean rates and specific forces, turned by the mounting given, lie "
-            f"{angle:.2f} deg (standard error {se:.2g}, jackknifed) from those of the "
-            "reference's attitude and velocity")
+    axis_se = np.degrees(np.sqrt((JACKKNIFE_BLOCKS - 1) / JACKKNIFE_BLOCKS
+                                 * np.sum((off - off.mean(axis=0)) ** 2, axis=0)))
+    said = (f"the IMU's 1 s mean rates{' and specific forces' if len(mine) > 1 else ''}, "
+            f"turned by the mounting given, lie "
+            f"{angle:.2f} deg (standard error {se:.2g}, jackknifed; about the vehicle's x, y, "
+            "z: " + ", ".join(f"{a:+.2f} +- {e:.2g}" for a, e in
+                              zip(np.degrees(turn.as_rotvec()), axis_se))
+            + " deg) from those of the reference's attitude and velocity"
+            + (f" (its stamps taken {abs(late) * 1e3:.0f} ms {'late' if late > 0 else 'early'}:"
+               " the clock's)" if late else ""))
     if angle <= max(ATTITUDE_TURN_DEG, TURN_Z * se):
         rec.real["mounting_against_attitude"] = (
             f"{said}: within {ATTITUDE_TURN_DEG:g} deg or {TURN_Z:g} standard errors - the "
@@ -334,3 +354,10 @@ def mounting_against_attitude(rec):
         "given is off)")
     rec.assumed["mounting"] = (f"measured against the reference's attitude: roll, pitch, "
                                f"yaw {rpy} deg")
+
+
+def _rate_turn(mine, theirs):
+    """The turn (scipy Rotation) of the attitude's vehicle-frame 1 s means `theirs` onto the
+    IMU's `mine` (lists of (M, 3): the rates, and the specific forces where given), about
+    their own means (`turn_from_attitude`), or None."""
+    return turn_from_attitude(theirs, mine, SPREADS[:len(theirs)], TURN_SPAN_SHARE)

@@ -83,7 +83,12 @@ def check_recording(rec):
                              f"the reference attitude is {np.round(f_n, 2).tolist()} m/s^2 in the "
                              f"median, not [0, 0, -{g:.1f}]: the sensor axes, the mounting or "
                              "the attitude's " + rec.reference_meta.get("attitude_as",
-                                                                         ATTITUDE_AS) + " is wrong")
+                                                                         ATTITUDE_AS) + " is wrong"
+                             + ("; or the attitude is not the reference IMU's own (attitude_of "
+                                "= \"reference_imu\" turned it by that IMU's mounting onto the "
+                                "vehicle: is it the vehicle's, attitude_of = \"vehicle\"?)"
+                                if rec.reference_meta.get("attitude_of") == "reference_imu"
+                                else ""))
     rate = attitude.turn_rate(t_ref / 1e9, attitude.from_wxyz(q[ok]))
     ref_rate = float(np.percentile(rate, 99))
     imu_rate = float(np.percentile(np.linalg.norm(local_mean(rec.w, k), axis=1), 99))
@@ -186,13 +191,16 @@ def _check_reference_clock(rec):
         #                                             levels stop short (`diagnosis.levels`)
     if late is not None and 0 < abs(late) < 2 * GRID_S:
         rec.real["reference_clock"] += (f"; within two steps of the {GRID_S:g} s grid: not "
-                                        "applied - the diagnosis measures a lag this small "
-                                        "finer, as the IMU's time skew")
+                                        "applied - the sensor and track levels measure a lag "
+                                        "this small finer, as the IMU's time skew (the "
+                                        "navigation level cannot test one)")
     if late is not None and 2 * GRID_S <= abs(late) < REFUSED_OFFSET_S:
         rec.reference_clock_unapplied_s = late
-        rec.real["reference_clock"] += ("; not applied: the diagnosis takes it as the IMU's "
-                                        "time skew (an IMU's latency is physics to report); "
-                                        "if it is the two clocks' offset, " + offset_advice(
+        rec.real["reference_clock"] += ("; not applied: left as the IMU's latency (physics "
+                                        "to report), which the track level measures as a "
+                                        "time skew and the navigation level cannot (it stops "
+                                        "short on it); if it is the two clocks' offset, "
+                                        + offset_advice(
                                             rec, rec.reference_shift_s - late, ".2f")[2:])
     if late is not None and abs(late) >= REFUSED_OFFSET_S:
         raise RecordingError(

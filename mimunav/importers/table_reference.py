@@ -29,9 +29,16 @@ def reference_of(spec, offset):
     ns = unix_ns(spec, col["time"], offset, "[reference] time")
     back = np.flatnonzero(np.diff(ns) <= 0)
     if len(back):
+        step = float(np.median(np.diff(ns))) / 1e9
+        deepest = float(-np.diff(ns)[back].max()) / 1e9
         raise RecordingError(f"{spec.path}: [reference] time does not increase at data row "
-                             f"{back[0] + 1} (0-based, after the header; {len(back)} such rows):"
-                             " sort the reference by time or drop its repeated rows")
+                             f"{back[0] + 1} (0-based, after the header; {len(back)} such rows)"
+                             + (f": its stamps step back by at most {deepest * 1e3:.3g} ms, "
+                                f"under half its {step * 1e3:.3g} ms step - a jittered stamp, "
+                                "whose rows sorting would reorder: stamp the rows on a uniform "
+                                "clock (their index times the step) or drop the late ones"
+                                if 0 < deepest < 0.5 * step else
+                                ": sort the reference by time or drop its repeated rows"))
     if frame is not None:
         q_lb = _attitude_given(spec, col["attitude_wxyz"], ("body_to_local",)) \
             if "attitude_wxyz" in col else _local_rpy(spec, frame, col.get("attitude_rpy"))

@@ -126,6 +126,9 @@ def test_a_mounting_finding_gives_its_turn_about_the_vehicle_axes_too():
     line = finding_line(dict(found, label="mounting_misalignment imu.all", p_heldout=1e-9))
     assert "(rad, sensor axes x, y, z)" in line
     assert f"forward, right, down axes {np.degrees(phi_v[0]):+.2f} deg" in line
+    # the headline's coefficient is the largest component (the contract's), said so beside
+    # the vector's size (a lever arm's z had read as its size)
+    assert f"its largest component, of a vector of size {np.linalg.norm(phi):.4g} rad" in line
 
 
 def test_the_terminal_names_the_terms_not_confirmed_and_why():

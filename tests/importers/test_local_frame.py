@@ -215,3 +215,27 @@ def test_a_reference_of_gyros_alone_is_refused_naming_what_can_be_done(tmp_path)
     with pytest.raises(RecordingError, match=r"\[reference_imu\] needs specific_force or "
                        "velocity_increment: .*a reference of gyros alone .* is not read yet"):
         table.read(tmp_path / "spec.toml")
+
+
+def test_stamps_jittered_back_are_not_told_to_be_sorted(tmp_path):
+    """A reference whose stamps jitter so that some step back by a fraction of a step (an
+    INS's late stamps): refused, but not with "sort it" - that would reorder its samples;
+    the words say the stamps jitter and what to do. Rows out of order by steps keep the
+    sort advice."""
+    _room(tmp_path)
+    path = tmp_path / "truth.csv"
+    lines = path.read_text().splitlines()
+    t = np.array([float(line.split(",")[0]) for line in lines[1:]])
+    t[100::50] += 0.0102                  # 10 ms steps: these land just past the next stamp
+    path.write_text("\n".join([lines[0]] + [",".join([f"{x:.12g}"] + line.split(",")[1:])
+                                            for x, line in zip(t, lines[1:])]) + "\n")
+    with pytest.raises(RecordingError, match="jittered stamp") as raised:
+        table.read(str(tmp_path / "spec.toml"))
+    assert "sort the reference" not in str(raised.value)
+    t[100::50] -= 0.0102
+    t[200], t[201] = t[201], t[200]
+    t[300], t[302] = t[302], t[300]
+    path.write_text("\n".join([lines[0]] + [",".join([f"{x:.12g}"] + line.split(",")[1:])
+                                            for x, line in zip(t, lines[1:])]) + "\n")
+    with pytest.raises(RecordingError, match="sort the reference by time"):
+        table.read(str(tmp_path / "spec.toml"))
