@@ -948,3 +948,32 @@ def test_an_imu_off_the_attitude_without_a_reference_imu_is_turned_onto_it(imu_r
                                            Mounting.from_rpy_deg(imu_rpy).q_vs)
     assert np.degrees(np.linalg.norm(error)) < 0.1, said
     assert ("turned onto the attitude" in said) == (imu_rpy != (180.0, 0.0, 0.0)), said
+
+
+def test_a_lever_arm_given_wrong_does_not_turn_a_hovering_imus_mounting():
+    """A multicopter swinging about all three axes over one spot (rates to 0.5 rad/s), its
+    IMU 0.25 m from the reference's point but given at it, mounted exactly as given: its
+    rates span three directions, so the mounting is measured on them alone and kept - the
+    forces, which carry the arm's transfer w x (w x r) + dw/dt x r, had turned quadrotors'
+    exact mountings by 1.2-4.5 deg."""
+    t = np.arange(0.0, 120.0, 1.0 / RATE)
+    yaw, pitch, roll = (a * np.sin(2 * np.pi * t / p + c)
+                        for a, p, c in ((0.5, 11.0, 0.0), (0.3, 7.0, 1.0), (0.4, 5.0, 2.0)))
+    q_nb = attitude.from_euler(yaw, pitch, roll)
+    dt = 1.0 / RATE
+    w = attitude.rotation_vector_error(np.conjugate(q_nb[:-1]), np.conjugate(q_nb[1:])) / dt
+    w_dot = np.gradient(w, dt, axis=0)
+    arm = np.array([0.15, -0.1, 0.17])
+    f = attitude.rotate(np.conjugate(q_nb[1:]), np.tile([0.0, 0.0, -9.80665], (len(w), 1))) \
+        + np.cross(w_dot, arm) + np.cross(w, np.cross(w, arm))
+    ns = EPOCH_NS + np.round(t[1:] * 1e9).astype(np.int64)
+    k = slice(0, None, 2)
+    rec = Recording("hover", "test", ns, w, f, Mounting(),
+                    reference=dict(ns=EPOCH_NS + np.round(t[k] * 1e9).astype(np.int64),
+                                   lat=np.full(len(t[k]), 0.8), lon=np.full(len(t[k]), 0.15),
+                                   h=np.full(len(t[k]), 400.0), v_ned=np.zeros((len(t[k]), 3)),
+                                   q_nb=quaternion.as_float_array(q_nb[k])))
+    checks.check_recording(rec)
+    said = rec.real["mounting_against_attitude"]
+    assert said.startswith("the IMU's 1 s mean rates, turned") and "as given" in said, said
+    assert float(re.search(r"lie ([0-9.]+) deg", said)[1]) < 0.1
