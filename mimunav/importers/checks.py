@@ -191,9 +191,10 @@ def _check_reference_clock(rec):
         #                                             levels stop short (`diagnosis.levels`)
     if late is not None and 0 < abs(late) < 2 * GRID_S:
         rec.real["reference_clock"] += (f"; within two steps of the {GRID_S:g} s grid: not "
-                                        "applied - the sensor and track levels measure a lag "
-                                        "this small finer, as the IMU's time skew (the "
-                                        "navigation level cannot test one)")
+                                        "applied - left as the IMU's time skew, which the "
+                                        "sensor level measures finer (the track level's "
+                                        "yaw-rate lag may not resolve it, the navigation "
+                                        "level cannot test it)")
     if late is not None and 2 * GRID_S <= abs(late) < REFUSED_OFFSET_S:
         rec.reference_clock_unapplied_s = late
         rec.real["reference_clock"] += ("; not applied: left as the IMU's latency (physics "

@@ -30,7 +30,7 @@ def reference_of(spec, offset):
     back = np.flatnonzero(np.diff(ns) <= 0)
     if len(back):
         step = float(np.median(np.diff(ns))) / 1e9
-        deepest = float(-np.diff(ns)[back].max()) / 1e9
+        deepest = float(-np.diff(ns)[back].min()) / 1e9
         raise RecordingError(f"{spec.path}: [reference] time does not increase at data row "
                              f"{back[0] + 1} (0-based, after the header; {len(back)} such rows)"
                              + (f": its stamps step back by at most {deepest * 1e3:.3g} ms, "

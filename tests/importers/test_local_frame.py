@@ -227,12 +227,15 @@ def test_stamps_jittered_back_are_not_told_to_be_sorted(tmp_path):
     lines = path.read_text().splitlines()
     t = np.array([float(line.split(",")[0]) for line in lines[1:]])
     t[100::50] += 0.0102                  # 10 ms steps: these land just past the next stamp
+    t[425] += 0.014                       # and one 4 ms past it: the deepest step back
     path.write_text("\n".join([lines[0]] + [",".join([f"{x:.12g}"] + line.split(",")[1:])
                                             for x, line in zip(t, lines[1:])]) + "\n")
     with pytest.raises(RecordingError, match="jittered stamp") as raised:
         table.read(str(tmp_path / "spec.toml"))
     assert "sort the reference" not in str(raised.value)
+    assert "step back by at most 4 ms" in str(raised.value), str(raised.value)
     t[100::50] -= 0.0102
+    t[425] -= 0.014
     t[200], t[201] = t[201], t[200]
     t[300], t[302] = t[302], t[300]
     path.write_text("\n".join([lines[0]] + [",".join([f"{x:.12g}"] + line.split(",")[1:])

@@ -950,12 +950,17 @@ def test_an_imu_off_the_attitude_without_a_reference_imu_is_turned_onto_it(imu_r
     assert ("turned onto the attitude" in said) == (imu_rpy != (180.0, 0.0, 0.0)), said
 
 
-def test_a_lever_arm_given_wrong_does_not_turn_a_hovering_imus_mounting():
+@pytest.mark.parametrize("scale, late_s", [((1.0, 1.0, 1.0), 0.0), ((1.15, 0.9, 1.05), 0.0),
+                                           ((1.0, 1.0, 1.0), 0.02)])
+def test_a_lever_arm_given_wrong_does_not_turn_a_hovering_imus_mounting(scale, late_s):
     """A multicopter swinging about all three axes over one spot (rates to 0.5 rad/s), its
     IMU 0.25 m from the reference's point but given at it, mounted exactly as given: its
     rates span three directions, so the mounting is measured on them alone and kept - the
     forces, which carry the arm's transfer w x (w x r) + dw/dt x r, had turned quadrotors'
-    exact mountings by 1.2-4.5 deg."""
+    exact mountings by 1.2-4.5 deg. A cheap gyro's unequal scales (15 %, -10 %, 5 %) are no
+    turn either: the rotation of the polar decomposition of the rates' map leaves them out
+    (Wahba's fit of the rates read 0.12 deg, standard error 0.68); nor is an IMU 20 ms late
+    (its -d dw/dt is antisymmetric against the rates: fitted beside them, its error said)."""
     t = np.arange(0.0, 120.0, 1.0 / RATE)
     yaw, pitch, roll = (a * np.sin(2 * np.pi * t / p + c)
                         for a, p, c in ((0.5, 11.0, 0.0), (0.3, 7.0, 1.0), (0.4, 5.0, 2.0)))
@@ -968,7 +973,9 @@ def test_a_lever_arm_given_wrong_does_not_turn_a_hovering_imus_mounting():
         + np.cross(w_dot, arm) + np.cross(w, np.cross(w, arm))
     ns = EPOCH_NS + np.round(t[1:] * 1e9).astype(np.int64)
     k = slice(0, None, 2)
-    rec = Recording("hover", "test", ns, w, f, Mounting(),
+    if late_s:
+        w = np.column_stack([np.interp(t[1:] - late_s, t[1:], w[:, i]) for i in range(3)])
+    rec = Recording("hover", "test", ns, w * np.array(scale), f, Mounting(),
                     reference=dict(ns=EPOCH_NS + np.round(t[k] * 1e9).astype(np.int64),
                                    lat=np.full(len(t[k]), 0.8), lon=np.full(len(t[k]), 0.15),
                                    h=np.full(len(t[k]), 400.0), v_ned=np.zeros((len(t[k]), 3)),
@@ -976,4 +983,36 @@ def test_a_lever_arm_given_wrong_does_not_turn_a_hovering_imus_mounting():
     checks.check_recording(rec)
     said = rec.real["mounting_against_attitude"]
     assert said.startswith("the IMU's 1 s mean rates, turned") and "as given" in said, said
-    assert float(re.search(r"lie ([0-9.]+) deg", said)[1]) < 0.1
+    angle = float(re.search(r"lie ([0-9.]+) deg", said)[1])
+    se = float(re.search(r"standard error ([0-9.e-]+)", said)[1])
+    assert angle < 0.02 and se < 0.01 if not late_s else angle < max(3 * se, 0.02), said
+
+
+@pytest.mark.parametrize("dropouts", [False, True])
+def test_a_mounting_off_the_attitude_is_measured_across_the_references_dropouts(dropouts):
+    """The swinging multicopter's IMU mounted 3 deg off in yaw: measured 3 deg and turned -
+    with the mocap's pose lost for 0.5-2 s five times too: the seconds over a dropout, whose
+    turn is spread over the step, are left out (they had doubled the standard error and
+    kept a 3.9 deg error as given)."""
+    t = np.arange(0.0, 120.0, 1.0 / RATE)
+    yaw, pitch, roll = (a * np.sin(2 * np.pi * t / p + c)
+                        for a, p, c in ((0.5, 11.0, 0.0), (0.3, 7.0, 1.0), (0.4, 5.0, 2.0)))
+    q_nb = attitude.from_euler(yaw, pitch, roll)
+    w = attitude.rotation_vector_error(np.conjugate(q_nb[:-1]), np.conjugate(q_nb[1:])) * RATE
+    f = attitude.rotate(np.conjugate(q_nb[1:]), np.tile([0.0, 0.0, -9.80665], (len(w), 1)))
+    q_sv = np.conjugate(Mounting.from_rpy_deg((0.0, 0.0, 3.0)).q_vs)
+    k = np.arange(0, len(t), 2)
+    if dropouts:
+        for a, b in ((20.0, 21.0), (40.0, 42.0), (60.0, 60.5), (80.0, 81.5), (100.0, 101.0)):
+            k = k[(t[k] < a) | (t[k] > b)]
+    rec = Recording("hover", "test", EPOCH_NS + np.round(t[1:] * 1e9).astype(np.int64),
+                    attitude.rotate(q_sv, w), attitude.rotate(q_sv, f), Mounting(),
+                    reference=dict(ns=EPOCH_NS + np.round(t[k] * 1e9).astype(np.int64),
+                                   lat=np.full(len(k), 0.8), lon=np.full(len(k), 0.15),
+                                   h=np.full(len(k), 400.0), v_ned=np.zeros((len(k), 3)),
+                                   q_nb=quaternion.as_float_array(q_nb[k])))
+    checks.check_recording(rec)
+    said = rec.real["mounting_against_attitude"]
+    assert "turned onto the attitude" in said, said
+    assert abs(float(re.search(r"lie ([0-9.]+) deg", said)[1]) - 3.0) < 0.02, said
+    assert float(re.search(r"standard error ([0-9.e-]+)", said)[1]) < 0.01, said
