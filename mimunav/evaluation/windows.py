@@ -91,7 +91,9 @@ def starts(truth, length, step=START_STEP_S, first=0.0, min_speed=alignment.COUR
     # alignment interval (a multicopter's window started inside a 0.5 s mocap dropout, its
     # state interpolated across it, had ended 76 m off where its neighbours ended 22 m off)
     steps = np.diff(truth.t)
-    missed = steps > GAP_STEPS * float(np.median(steps)) if len(steps) else steps > 0
+    missed = np.flatnonzero(steps > GAP_STEPS * float(np.median(steps))) if len(steps) else \
+        np.zeros(0, int)
+    missed_from, missed_to = truth.t[missed], truth.t[missed + 1]
     out = []
     for t0 in grid:
         if np.interp(t0, truth.t, speed) < min_speed:
@@ -99,7 +101,7 @@ def starts(truth, length, step=START_STEP_S, first=0.0, min_speed=alignment.COUR
         # a gap [start, end] that meets the window with its alignment interval
         if np.any((gap_end > t0 - half) & (gap_start < t0 + length)):
             continue
-        if np.any(missed & (truth.t[1:] > t0 - half) & (truth.t[:-1] < t0 + half)):
+        if np.any((missed_to > t0 - half) & (missed_from < t0 + half)):
             continue
         if any(a - half < t0 < b + half for a, b in parked):
             continue
