@@ -79,9 +79,11 @@ def _diagnosed(args, painter):
         print(line)
     lag = doc.get("time_lag", {})
     if "tau_s" in lag:
+        interval = f"[{lag['ci95'][0] * 1e3:.1f}, {lag['ci95'][1] * 1e3:.1f}]"
         print(f"  time lag from the yaw rate: {lag['tau_s'] * 1e3:.1f} ms "
-              f"[{lag['ci95'][0] * 1e3:.1f}, {lag['ci95'][1] * 1e3:.1f}] (positive: the IMU lags)"
-              + (f"; not a finding: {lag['not_a_finding']}" if "not_a_finding" in lag else ""))
+              + (f"{interval} (positive: the IMU lags)" if "not_a_finding" not in lag else
+                 f"(positive: the IMU lags); not a finding, and its segments' interval "
+                 f"{interval} no measure of it: {lag['not_a_finding']}"))
         for stray in lag.get("segments_set_aside", []):
             print(f"    a segment set aside: its lag {stray['lag_s'] * 1e3:+.1f} ms (standard "
                   f"error {stray['se_s'] * 1e3:.2g}) lies {abs(stray['z']):.0f} standard "

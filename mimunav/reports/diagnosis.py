@@ -182,7 +182,8 @@ def _reference_lines(doc):
         if "relative_to" in lag:
             lines += [f"The lag is relative to {lag['relative_to']}.", ""]
         if "not_a_finding" in lag:
-            lines += [f"The lag is not a finding: {lag['not_a_finding']}.", ""]
+            lines += [f"The lag is not a finding, and its interval no measure of it: "
+                      f"{lag['not_a_finding']}.", ""]
     return lines
 
 
