@@ -27,6 +27,7 @@ from ..navigation.strapdown import check_median_force
 from .replay import compensated_mimu, navigate, resample
 from .flight import no_reference
 from ..errors import InputError
+from ..flightlog.stamps import missed_spans
 from ..frames import attitude
 from ..motion.carrier import course_keys, declared, recorded_kind
 from ..motion.trajectory import State
@@ -90,10 +91,7 @@ def starts(truth, length, step=START_STEP_S, first=0.0, min_speed=alignment.COUR
     # the start state is the reference's at t0: no step beyond GAP_STEPS of its own in the
     # alignment interval (a multicopter's window started inside a 0.5 s mocap dropout, its
     # state interpolated across it, had ended 76 m off where its neighbours ended 22 m off)
-    steps = np.diff(truth.t)
-    missed = np.flatnonzero(steps > GAP_STEPS * float(np.median(steps))) if len(steps) else \
-        np.zeros(0, int)
-    missed_from, missed_to = truth.t[missed], truth.t[missed + 1]
+    missed_from, missed_to = missed_spans(truth.t, GAP_STEPS)
     out = []
     for t0 in grid:
         if np.interp(t0, truth.t, speed) < min_speed:

@@ -116,6 +116,20 @@ def missing_samples(t: np.ndarray, smoothing: float = 0.02) -> list[tuple]:
     return out
 
 
+MISSED_STEPS = 2.5      # a step this many median steps long has missed epochs (one missed
+#                         of a 1 Hz track, 2 s, passes: its jitter alone reaches 1.5)
+
+
+def missed_spans(t, steps=MISSED_STEPS):
+    """(starts, ends) (s, as t): the steps between successive stamps t longer than `steps`
+    median steps - where a channel missed epochs (a reference's dropout)."""
+    t = np.asarray(t, float)
+    step = np.diff(t)
+    k = np.flatnonzero(step > steps * float(np.median(step))) if len(step) else \
+        np.zeros(0, int)
+    return t[k], t[k + 1]
+
+
 def longest_gap(t, gaps):
     """(k, samples missing) of the longest of `gaps` (`missing_samples`' [(k, n)]) by the
     stamps t (any unit): the step t[k] -> t[k + 1]."""

@@ -14,6 +14,7 @@ import numpy as np
 import quaternion
 from scipy.spatial.transform import Rotation
 
+from ..flightlog.stamps import missed_spans
 from ..frames import attitude
 from ..frames.mounting import Mounting
 from ..sensors.mimu import G0
@@ -309,12 +310,14 @@ def mounting_against_attitude(rec):
             attitude.rotate(rec.mounting.q_vs, window_means(rec.imu_ns, rec.f, mids))
             - lever_force(rec.imu_ns, w_v, mids, rec.mounting.lever_arm_m))
     rows = np.isfinite(np.hstack([*predicted, *mine])).all(axis=1) & \
-        ~_over_gaps(ref["ns"] / 1e9 - late, mids)
+        ~_over_gaps(*missed_spans(ref["ns"] / 1e9 - late), mids)
     change = np.gradient(predicted[0], mids, axis=0)[rows]     # rad/s^2: the rates' change
     theirs, mine = [x[rows] for x in predicted], [x[rows] for x in mine]
-    if _rate_turn(mine[:1], theirs[:1], change) is not None:   # the rates alone, where they
-        theirs, mine = theirs[:1], mine[:1]                     # span two directions
-    turn = _rate_turn(mine, theirs, change)
+    turn = _rate_turn(mine[:1], theirs[:1], change)     # the rates alone, where they span
+    if turn is not None:                                # two directions
+        theirs, mine = theirs[:1], mine[:1]
+    else:
+        turn = _rate_turn(mine, theirs, change)
     if rows.sum() < MIN_SECONDS or turn is None:
         rec.real["mounting_against_attitude"] = (
             "not measured: the reference's attitude and velocity make 1 s means that spread "
@@ -373,15 +376,12 @@ def _rate_turn(mine, theirs, change):
     return turn_from_attitude(theirs, mine, SPREADS[:len(theirs)], TURN_SPAN_SHARE)
 
 
-def _over_gaps(t, mids, half=0.5):
-    """(M,) bool: the seconds [mid - half, mid + half] (`mids`, s) that hold a step of the
-    reference's epochs t (s) beyond 2.5 of its median - its turn over a dropout is spread
-    over the step (a mocap's 0.5-2 s dropouts had doubled the turn's standard error)."""
-    step = np.diff(t)
-    if not len(step):
-        return np.zeros(len(mids), bool)
-    k = np.flatnonzero(step > 2.5 * float(np.median(step)))
-    return np.array([bool(np.any((t[k + 1] > m - half) & (t[k] < m + half))) for m in mids])
+def _over_gaps(starts, ends, mids, half=0.5):
+    """(M,) bool: the seconds [mid - half, mid + half] (`mids`, s) that meet a span the
+    reference missed epochs in (`flightlog.stamps.missed_spans`, s) - its turn over a
+    dropout is spread over the step (a mocap's 0.5-2 s dropouts had doubled the turn's
+    standard error)."""
+    return np.array([bool(np.any((ends > m - half) & (starts < m + half))) for m in mids])
 
 
 def _jackknifed(turn, parts, model):

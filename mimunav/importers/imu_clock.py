@@ -278,6 +278,7 @@ def _refined(rec, coarse_s, search_s=2 * GRID_S, step_s=0.001, blocks=10,
     w = window_means(rec.imu_ns, rec.w, grid, half)
     size = window_means(rec.imu_ns, np.sum(rec.w ** 2, axis=1)[:, None], grid, half)[:, 0]
     columns, products = _gyro_error_columns(rec.imu_ns, rec.w, grid, half)
+    with_products = np.column_stack([columns, products])
     size_r = np.sum(ref["w"] ** 2, axis=1)[:, None]
     shifts = coarse_s + np.arange(-search_s, search_s + 1e-9, step_s)
     block, fine = (np.minimum(np.arange(len(grid)) * n // len(grid), n - 1)
@@ -289,7 +290,6 @@ def _refined(rec, coarse_s, search_s=2 * GRID_S, step_s=0.001, blocks=10,
         r2 = (y - columns @ np.linalg.lstsq(columns, y, rcond=None)[0]) ** 2  # block by block
         alone = [np.sum((y[k] - columns[k] @ np.linalg.lstsq(
             columns[k], y[k], rcond=None)[0]) ** 2) for k in rows]
-        with_products = np.column_stack([columns, products])
         return (np.bincount(fine, r2, minlength=jackknife_blocks), alone,
                 np.sum((y - with_products @ np.linalg.lstsq(with_products, y, rcond=None)[0])
                        ** 2))

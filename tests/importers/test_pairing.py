@@ -950,6 +950,27 @@ def test_an_imu_off_the_attitude_without_a_reference_imu_is_turned_onto_it(imu_r
     assert ("turned onto the attitude" in said) == (imu_rpy != (180.0, 0.0, 0.0)), said
 
 
+def _swinging(t):
+    """(q_nb, w rad/s body FRD at t[1:]) of a multicopter swinging about all three axes over
+    one spot: yaw, pitch, roll sinusoids (0.5, 0.3, 0.4 rad at 11, 7, 5 s); the body rates
+    in closed form from the Euler angles' rates (p = phi' - psi' sin theta, q = theta' cos
+    phi + psi' cos theta sin phi, r = psi' cos theta cos phi - theta' sin phi), each
+    interval's mean by Simpson's rule over it - not from the attitudes the code turns."""
+    waves = ((0.5, 11.0, 0.0), (0.3, 7.0, 1.0), (0.4, 5.0, 2.0))
+
+    def angles(x, order=0):
+        return [a * (2 * np.pi / p) ** order * np.sin(2 * np.pi * x / p + c + order * np.pi / 2)
+                for a, p, c in waves]
+
+    def rates(x):
+        (_, theta, phi), (dpsi, dtheta, dphi) = angles(x), angles(x, 1)
+        return np.column_stack([dphi - dpsi * np.sin(theta),
+                                dtheta * np.cos(phi) + dpsi * np.cos(theta) * np.sin(phi),
+                                dpsi * np.cos(theta) * np.cos(phi) - dtheta * np.sin(phi)])
+    w = (rates(t[:-1]) + 4 * rates((t[:-1] + t[1:]) / 2) + rates(t[1:])) / 6
+    return attitude.from_euler(*angles(t)), w
+
+
 @pytest.mark.parametrize("scale, late_s", [((1.0, 1.0, 1.0), 0.0), ((1.15, 0.9, 1.05), 0.0),
                                            ((1.0, 1.0, 1.0), 0.02)])
 def test_a_lever_arm_given_wrong_does_not_turn_a_hovering_imus_mounting(scale, late_s):
@@ -962,12 +983,8 @@ def test_a_lever_arm_given_wrong_does_not_turn_a_hovering_imus_mounting(scale, l
     (Wahba's fit of the rates read 0.12 deg, standard error 0.68); nor is an IMU 20 ms late
     (its -d dw/dt is antisymmetric against the rates: fitted beside them, its error said)."""
     t = np.arange(0.0, 120.0, 1.0 / RATE)
-    yaw, pitch, roll = (a * np.sin(2 * np.pi * t / p + c)
-                        for a, p, c in ((0.5, 11.0, 0.0), (0.3, 7.0, 1.0), (0.4, 5.0, 2.0)))
-    q_nb = attitude.from_euler(yaw, pitch, roll)
-    dt = 1.0 / RATE
-    w = attitude.rotation_vector_error(np.conjugate(q_nb[:-1]), np.conjugate(q_nb[1:])) / dt
-    w_dot = np.gradient(w, dt, axis=0)
+    q_nb, w = _swinging(t)
+    w_dot = np.gradient(w, 1.0 / RATE, axis=0)
     arm = np.array([0.15, -0.1, 0.17])
     f = attitude.rotate(np.conjugate(q_nb[1:]), np.tile([0.0, 0.0, -9.80665], (len(w), 1))) \
         + np.cross(w_dot, arm) + np.cross(w, np.cross(w, arm))
@@ -995,10 +1012,7 @@ def test_a_mounting_off_the_attitude_is_measured_across_the_references_dropouts(
     turn is spread over the step, are left out (they had doubled the standard error and
     kept a 3.9 deg error as given)."""
     t = np.arange(0.0, 120.0, 1.0 / RATE)
-    yaw, pitch, roll = (a * np.sin(2 * np.pi * t / p + c)
-                        for a, p, c in ((0.5, 11.0, 0.0), (0.3, 7.0, 1.0), (0.4, 5.0, 2.0)))
-    q_nb = attitude.from_euler(yaw, pitch, roll)
-    w = attitude.rotation_vector_error(np.conjugate(q_nb[:-1]), np.conjugate(q_nb[1:])) * RATE
+    q_nb, w = _swinging(t)
     f = attitude.rotate(np.conjugate(q_nb[1:]), np.tile([0.0, 0.0, -9.80665], (len(w), 1)))
     q_sv = np.conjugate(Mounting.from_rpy_deg((0.0, 0.0, 3.0)).q_vs)
     k = np.arange(0, len(t), 2)
