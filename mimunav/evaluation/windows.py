@@ -31,6 +31,7 @@ from ..flightlog.stamps import missed_spans
 from ..frames import attitude
 from ..motion.carrier import course_keys, declared, recorded_kind
 from ..motion.trajectory import State
+from ..motion.track import position_jumps
 
 WINDOW_LENGTHS_S = (10.0, 30.0, 60.0)
 START_STEP_S = 5.0
@@ -71,7 +72,8 @@ def track_of(truth):
 
 
 def starts(truth, length, step=START_STEP_S, first=0.0, min_speed=alignment.COURSE_SPEED,
-           max_gap=MAX_GAP_S, t_imu=None, parked=(), half=alignment.MOVING_HALF_WINDOW_S):
+           max_gap=MAX_GAP_S, t_imu=None, parked=(), half=alignment.MOVING_HALF_WINDOW_S,
+           jumps=()):
     """Window starts (s) on a grid of `step` from `first`: moving faster than min_speed
     (m/s, horizontal; the track's velocity averaged over the alignment interval, t0 +-
     half: a walker's 4 m fixes had passed 3 m/s epoch by epoch while it stood), the whole
@@ -80,7 +82,10 @@ def starts(truth, length, step=START_STEP_S, first=0.0, min_speed=alignment.COUR
     step of the reference beyond GAP_STEPS of its median step,
     the alignment interval (t0 +- half s) outside the rests `parked` [(t0, t1) s] (a noisy
     fix's differenced speed passes the speed gate while the car stands: its course, and so
-    the window's heading, is noise)."""
+    the window's heading, is noise), and no step of the reference off its own velocity
+    (`jumps`, s: `reference_jumps`) from the alignment interval to the window's end (an
+    INS's 2.3 m jump back to its fixes after an outage had made a 10 s window's 3.46 m,
+    its neighbours' 0.55 m, with no word)."""
     end = truth.t[-1] if t_imu is None else min(truth.t[-1], t_imu[-1])    # both must cover it
     grid = np.arange(max(first, truth.t[0] + half), end - length, step)
     speed = alignment.mean_speed({"t": truth.t, "v_ned": truth.v_ned}, half)   # not one epoch
@@ -102,6 +107,8 @@ def starts(truth, length, step=START_STEP_S, first=0.0, min_speed=alignment.COUR
         if np.any((missed_to > t0 - half) & (missed_from < t0 + half)):
             continue
         if any(a - half < t0 < b + half for a, b in parked):
+            continue
+        if any(t0 - half < t_j <= t0 + length for t_j in jumps):
             continue
         out.append(float(t0))
     return np.asarray(out)
@@ -132,8 +139,8 @@ def why_no_windows(truth, lengths, first, min_speed, max_gap, half):
     if failed:
         return head + "it lacks " + "; ".join(failed) + \
             (f" (it has {'; '.join(met)}{gap})" if met else gap)
-    return head + f"it has {'; '.join(met)}, but the gaps (the reference's and the IMU's) " \
-        f"and the rests at standstill leave no window{gap}"
+    return head + f"it has {'; '.join(met)}, but the gaps (the reference's and the IMU's), " \
+        f"the rests at standstill and the reference's jumps leave no window{gap}"
 
 
 def run(flight, t0, length, w, f, t_imu=None, half=alignment.MOVING_HALF_WINDOW_S):
@@ -192,9 +199,10 @@ def run_all(flight, cal=None, lengths=WINDOW_LENGTHS_S, step=START_STEP_S, time_
         min_speed = alignment.COURSE_SPEED if half else 0.0
     first = rest.navigable_from
     parked = quiet_stretches(t, w, f, track) if half else ()
+    jumps = [t_j for t_j, _ in reference_jumps(flight.truth)]
     todo = [(length, t0) for length in lengths
             for t0 in starts(flight.truth, length, step, first, min_speed, max_gap, t, parked,
-                             half or alignment.MOVING_HALF_WINDOW_S)]
+                             half or alignment.MOVING_HALF_WINDOW_S, jumps)]
     if not todo:
         raise InputError(f"{flight.path}: " + why_no_windows(
             flight.truth, lengths, first, min_speed, max_gap,
@@ -206,6 +214,12 @@ def run_all(flight, cal=None, lengths=WINDOW_LENGTHS_S, step=START_STEP_S, time_
         out.setdefault(length, []).append(run(flight, t0, length, w, f, t,
                                               half or alignment.MOVING_HALF_WINDOW_S))
     return out, rest
+
+
+def reference_jumps(truth):
+    """[(t s, m)]: the reference's steps off its own velocity (`motion.track.position_jumps`),
+    which no window spans."""
+    return position_jumps(truth.t, truth.lat, truth.lon, truth.h, truth.v_ned)
 
 
 def moving_half(track):

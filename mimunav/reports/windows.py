@@ -19,6 +19,8 @@ def document(flight, results, rest, cal_label, time_shift_s):
     static = [None if np.isnan(x) else x for x in rest.static]
     return {"format": "mimunav-windows/1", "log": flight.path, "calibration": cal_label,
             "time_shift_s": time_shift_s, "doubts": doubts(flight, time_shift_s),
+            "reference_jumps": [{"t_s": t_j, "off_m": off}
+                                for t_j, off in windows.reference_jumps(flight.truth)],
             "rest": {"t0_s": static[0], "t1_s": static[1], "alignment": rest.method,
                      "gyro_bias_rad_s": rest.gyro_bias.tolist(),
                      "accel_bias_m_s2": rest.accel_bias.tolist()},
@@ -79,6 +81,9 @@ TILT_SAID_DEG = 0.1      # deg: the reference tilt error the floor's note sizes 
 #                          INS holds 0.01-0.05, an autopilot's filter 0.1-1)
 
 
+JUMPS_SAID = 5          # the reference's jumps named in the note; the JSON holds them all
+
+
 def markdown_table(doc, label=None):
     head = "| variant | " if label else "| "
     lines = [head + "window s | windows (disjoint) | horizontal error p50 / p68 / p95 / max, m "
@@ -114,6 +119,13 @@ def markdown_table(doc, label=None):
                      f"{h['p68']:.3g} / {h['p95']:.3g} / {h['max']:.3g} | {v['p50']:.3g} / "
                      f"{v['p95']:.3g} | {row['median_rate_m_s']:.3g} | {cell} |")
     lines += [f"\nwarning: {why}" for why in doc.get("doubts", [])]
+    jumps = doc.get("reference_jumps", [])
+    if jumps:
+        said = ", ".join(f"{j['t_s']:.2f} s ({j['off_m']:.3g} m)" for j in jumps[:JUMPS_SAID])
+        lines.append(f"\nnote: the reference's position steps off its own velocity at "
+                     f"{len(jumps)} epoch{'s' if len(jumps) > 1 else ''} ({said}"
+                     f"{', ...' if len(jumps) > JUMPS_SAID else ''}): no window spans one "
+                     "(an INS back on its fixes after an outage; a fix's jump)")
     return "\n".join(lines) + "\n"
 
 

@@ -143,6 +143,32 @@ def test_no_window_starts_where_the_reference_misses_epochs():
     assert np.any((got > 60.0) & (got < 70.5)) or np.any(got + 10.0 > 70.5)
 
 
+def test_no_window_spans_a_jump_of_the_reference(tmp_path):
+    """The synthetic drive's reference moved 2 m north from t = 60 s on, its velocity left as
+    it was (an INS back on its fixes after an outage): no window's alignment interval or run
+    meets 60 s, the others stay at the ideal IMU's alignment error, and the document names
+    the jump and its size; without the jump windows do span 60 s."""
+    from dataclasses import replace
+    from mimunav.reports import windows as report
+    path, _, _ = ideal_flight(tmp_path, MOUNT)
+    flight = Flight.load(path, reference_imu=False)
+    tr = flight.truth
+    spans = lambda res: [w.t0 for w in res[10.0] if w.t0 - half < 60.0 <= w.t0 + 10.0]  # noqa
+    half = alignment.MOVING_HALF_WINDOW_S
+    plain, _ = windows.run_all(flight, lengths=(10.0,), step=2.5)
+    assert spans(plain)
+    north = 2.0 / (6378137.0 + float(tr.h[0]))                  # rad: 2 m, to a part in 1e3
+    jumped = replace(flight, truth=replace(tr, lat=np.where(tr.t >= 60.0, tr.lat + north,
+                                                            tr.lat)))
+    results, rest = windows.run_all(jumped, lengths=(10.0,), step=2.5)
+    assert not spans(results) and len(results[10.0]) >= len(plain[10.0]) - 6
+    assert max(w.horizontal[-1] for w in results[10.0]) < 0.05
+    doc = report.document(jumped, results, rest, None, 0.0)
+    (jump,) = doc["reference_jumps"]
+    assert abs(jump["t_s"] - 60.0) < 0.5 and abs(jump["off_m"] - 2.0) < 0.01, jump
+    assert "no window spans one" in report.markdown_table(doc)
+
+
 def test_windows_of_a_reversing_vehicle_face_backwards(tmp_path):
     """The synthetic drive driven in reverse (the vehicle faces 180 deg from its course;
     its ideal IMU is that of the track's motion mounted turned half a turn in yaw): each
