@@ -202,6 +202,11 @@ def finding_line(f):
                  f"widened {halves['widened_by']:.2f}x" + (
                      f", held-out p {p_text(halves['p_heldout_widened'])} with it"
                      if "p_heldout_widened" in halves else ""))
+    untested = f.get("untested")
+    if isinstance(untested, dict) and untested["widened_by"] > 1:
+        from ..diagnosis.untested import UNTESTED
+        line += (f"\n    beside {untested['term']}, {UNTESTED}: interval widened "
+                 f"{untested['widened_by']:.2f}x")
     noise = f.get("errors_in_variables")
     if isinstance(noise, dict) and noise["widened_by"] > 1:
         line += (f"\n    the reference's own noise moves it (errors in variables): with as much "
@@ -267,7 +272,9 @@ def set_aside_line(w):
     if max(w["total_1sigma"]) > w.get("physical_range", float("inf")):
         head += (f", beyond its physical range {w['physical_range']:.3g}: the flight cannot "
                  "identify it")
-    return head if tests_differ else f"{head}\n    {charge_text(w)}"
+    option = ("; where the reference's errors are known better, --reference-accuracy "
+              "states them" if key == "reference_1sigma" else "")
+    return head if tests_differ else f"{head}\n    {charge_text(w)}{option}"
 
 
 def add_diagnose(sub):

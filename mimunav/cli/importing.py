@@ -74,6 +74,16 @@ def add_import(sub):
                    "(and the GNSS fixes') stamps, s, before the import checks them against "
                    "the IMU's rotation (a shift of a second or more it measures is refused, "
                    "naming this option and the value that puts it back)")
+    p.add_argument("--sampling", choices=("interval_mean", "instant"), default="interval_mean",
+                   help="ros1/ros2: what the Imu messages' values are - the mean over the "
+                   "interval their stamp ends (default, the log contract's), or instantaneous "
+                   "samples at their stamp (made interval means: each the mean of the interval "
+                   "centred on it, stamped half a step later); both IMUs alike")
+    p.add_argument("--lever-arm-m", type=number(-100.0, 100.0), nargs=3,
+                   metavar=("X", "Y", "Z"), help="every importer: the IMU's place in the "
+                   "vehicle frame (FRD), m, from the vehicle origin - the point the reference "
+                   "trajectory describes (an INS's, an antenna's, a motion-capture body's); "
+                   "replaces the importer's or the spec's (default: at the origin)")
     p.add_argument("--reference-imu-lever-arm-m", type=number(-100.0, 100.0), nargs=3,
                    metavar=("X", "Y", "Z"), help="ros1/ros2, ulog, dataflash: the reference IMU's "
                    "place in the vehicle frame (FRD), m, the IMU where its importer puts it "

@@ -498,7 +498,8 @@ def recording_checks(design, findings, held):
     dropped = sum(not ok for ok, _ in judged)
     return ([f for ok, f in judged if ok], aside + [f for ok, f in judged if not ok],
             [why + ": the residual is not the noise the tests assume (the reference's steps "
-             "or lag, vibration, errors no term describes)"
+             "or lag, a GNSS antenna's lever arm not given, vibration, errors no term "
+             "describes)"
              + (f"; each finding of the search judged with its interval {math.sqrt(lam):.2f}x "
                 f"wider: {dropped} of {len(kept)} set aside by it" if kept else "")
              + " (of the tests on the outputs, a bias's wander is set aside and its offset "

@@ -58,6 +58,8 @@ class Design:
     scan_shape: np.ndarray | None = None    # the same as the excursion scan judges it (None:
                                 # `shape`'s)
     reference: object = None    # the reference's `sensors.accuracy.Accuracy` (`_reference_may_carry`)
+    arm_given: bool = True      # a lever arm given between the MIMU and the reference IMU
+                                # (`library.physical_limit`: else one vehicle's)
     calibrated: bool = False    # the MIMU compensated by a calibration of the unit (not
                                 # a recording's outputs taken as they are): `physical_limit`
     channel_columns: list = field(default_factory=list)  # per channel c: ((nb, 4 + k)

@@ -302,5 +302,6 @@ def shares_a_nuisance(design, j):
 
 def plausible(design, j, b, full_scale):
     """(within the physical range, the range) of candidate j's coefficient b."""
-    limit = library.physical_limit(design.terms[j], full_scale, design.calibrated)
+    limit = library.physical_limit(design.terms[j], full_scale, design.calibrated,
+                                   design.arm_given)
     return float(np.linalg.norm(b)) <= limit, limit

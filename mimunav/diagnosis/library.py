@@ -208,12 +208,18 @@ def full_scale(mimu_range):
             "gyro": float(mimu_range.get("gyro_rad_s", MimuUnit.range_gyro))}
 
 
-def physical_limit(term, full_scale, calibrated=False):
+def physical_limit(term, full_scale, calibrated=False, arm_given=True):
     """The largest plausible magnitude of the term's coefficient (vector: its norm);
     `full_scale`: {"accel": m/s^2, "gyro": rad/s} of the MIMU (for nonlinearity);
     `calibrated`: the MIMU's outputs are compensated by a calibration of the unit (not the
-    identity of a recording's outputs), which bounds its linear terms (CALIBRATED_RANGE)."""
+    identity of a recording's outputs), which bounds its linear terms (CALIBRATED_RANGE);
+    `arm_given`: a lever arm was given between the MIMU and its reference - else the arm is
+    anywhere in one vehicle (TRAJECTORY_LEVER_ARM), not a place mis-measured (a survey
+    ship's MEMS 1.58 m from its INS, no arm given, had its arm refused at 1 m and two gyro
+    cross-couplings of 0.026 named in its place)."""
     effect = term["effect"]
+    if effect == "lever_arm" and not arm_given:
+        return TRAJECTORY_LEVER_ARM
     if effect == "scale_nonlinearity":
         x = full_scale[term["sensor"]]
         return NONLINEARITY_OF_RANGE / x ** (term["order"] - 1)
@@ -245,6 +251,9 @@ def beyond_range_said(term, size, limit, units):
                 "diagnosis fits (this estimate falls short of such a turn: turn it back at "
                 "import - --mounting-rpy-deg, or the spec's mounting_rpy_deg - and diagnose "
                 "again), or the reference cannot carry the term here")
+    if term["effect"] == "lever_arm" and limit >= TRAJECTORY_LEVER_ARM:
+        return (f"{size:.3g} m, beyond the {limit:g} m of one vehicle: the reference cannot "
+                "carry the term here")
     if term["effect"] == "lever_arm":
         return (f"{size:.3g} m, beyond the {limit:g} m a unit's place is mis-measured by: a "
                 "lever arm between the two IMUs declared with a sign wrong errs by twice it "

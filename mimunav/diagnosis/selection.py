@@ -150,7 +150,8 @@ def _encompassing(fitter, current, passing, tests, level, full_scale, contenders
     alike = [j for j in ranked if j != best and not adds(j, best) and not adds(best, j)]
     group = [best] + alike
     def share(j):                       # the fitted size over the term's physical range
-        limit = library.physical_limit(design.terms[j], full_scale, design.calibrated)
+        limit = library.physical_limit(design.terms[j], full_scale, design.calibrated,
+                                       design.arm_given)
         return float(np.linalg.norm(tests[j]["b"])) / limit if np.isfinite(limit) else 0.0
     named = min(group, key=lambda j: (library.order(design.terms[j]), share(j),
                                       tests[j]["logp"]))

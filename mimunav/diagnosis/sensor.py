@@ -300,6 +300,7 @@ def _prepared(flight, cal, acc, candidates, output_tests, samples, bin_s, noise_
     design.q_vs = flight.mimu_mounting.attitude_wxyz
     design.bin_s = bin_s
     design.calibrated = not cal.is_identity
+    design.arm_given = bool(np.any(lever))
     design.reference = acc
     design.shocks = outputs.spans(t, shocks, "the lever-arm transfer misses a shock: left out")
     design.clips_counted = outputs.spans(t, counted, "the IMU's own clip counter rose: left out",

@@ -272,6 +272,10 @@ TURN_Z = 4.0                # standard errors (the clock's and the pairing's DIS
 TURN_SPAN_SHARE = 0.05      # second singular value over the first: two directions seen
 SPREADS = (0.02, 0.3)       # rad/s, m/s^2: a kind of 1 s means that spreads less is left out
 #                             (the pairing's TURNING_RATE and MOVING_FORCE)
+RATES_ALONE_SPREAD = 0.005  # rad/s: the rates alone, about three directions, spread at least
+#                             this - 30 times a MEMS gyro's noise over 1 s (0.01 deg/s/rtHz:
+#                             1.7e-4 rad/s), whose turn the jackknife then weighs (a survey
+#                             ship's waves, 0.0195 rad/s over 1318 s, had been left out at 0.02)
 JACKKNIFE_BLOCKS = 10
 
 
@@ -322,7 +326,8 @@ def mounting_against_attitude(rec):
         rec.real["mounting_against_attitude"] = (
             "not measured: the reference's attitude and velocity make 1 s means that spread "
             f"about fewer than two directions (second singular value under {TURN_SPAN_SHARE:g} "
-            f"of the first) or over under {MIN_SECONDS} s")
+            f"of the first; its rates alone {_spread_said(theirs[0])}) or over under "
+            f"{MIN_SECONDS} s ({int(rows.sum())} s)")
         return
     block = np.arange(len(theirs[0])) * JACKKNIFE_BLOCKS // len(theirs[0])
     parts = [_rate_turn([x[block != b] for x in mine], [x[block != b] for x in theirs],
@@ -339,14 +344,32 @@ def mounting_against_attitude(rec):
     plain = _rate_turn(mine, theirs, None)
     se, axis_se = _jackknifed(turn, parts, np.zeros(3) if plain is None else
                               (plain * turn.inv()).as_rotvec())
-    angle = math.degrees(turn.magnitude())
-    said = _turn_said(len(mine) > 1, turn, se, axis_se, late)
+    _turn_or_keep(rec, turn, math.degrees(turn.magnitude()), se,
+                  _turn_said(len(mine) > 1, turn, se, axis_se, late))
+
+
+def _turn_or_keep(rec, turn, angle, se, said):
+    """The IMU's mounting turned by `turn` (scipy Rotation, `angle` deg, standard error `se`
+    deg; `said`: its words) beyond ATTITUDE_TURN_DEG and TURN_Z standard errors, kept as
+    given otherwise - said, with the mounting it would turn to where it is measured beyond
+    TURN_Z standard errors (rec.mounting_off_kept)."""
+    kept, rpy = turned_back(rec.mounting, turn)
     if angle <= max(ATTITUDE_TURN_DEG, TURN_Z * se):
         rec.real["mounting_against_attitude"] = (
             f"{said}: within {ATTITUDE_TURN_DEG:g} deg or {TURN_Z:g} standard errors - the "
             "mounting as given")
+        if angle > TURN_Z * se:     # measured, within what the reference's attitude may err
+            rec.mounting_off_kept = (
+                f"the import measured the IMU {angle:.2f} deg (standard error {se:.2g}) off "
+                f"its mounting given against the reference's attitude and kept the one given "
+                f"(within {ATTITUDE_TURN_DEG:g} deg, which a reference attitude's own error "
+                f"may reach); where that attitude is better, --mounting-rpy-deg {rpy.replace(',', '')} "
+                "at import turns it")
+            rec.real["mounting_against_attitude"] += (
+                f" (turned, it would be roll, pitch, yaw {rpy} deg: --mounting-rpy-deg where "
+                "the reference's attitude is known to better than that)")
         return
-    rec.mounting, rpy = turned_back(rec.mounting, turn)
+    rec.mounting = kept
     rec.real["mounting_against_attitude"] = (
         f"{said}: turned onto the attitude, to roll, pitch, yaw {rpy} deg (the IMU against "
         "the frame the reference's attitude is of; if that is the vehicle's, the mounting "
@@ -369,11 +392,23 @@ def _rate_turn(mine, theirs, change):
         x, y = (v[0] - v[0].mean(axis=0) for v in (theirs, mine))
         spread = np.linalg.svd(x, compute_uv=False)
         if len(x) >= 10 and spread[2] >= TURN_SPAN_SHARE * spread[0] and \
-                np.sqrt(np.mean(x ** 2)) >= SPREADS[0]:
+                np.sqrt(np.mean(x ** 2)) >= RATES_ALONE_SPREAD:
             lagged = x if change is None else np.column_stack([x, change - change.mean(axis=0)])
             u, _, vt = np.linalg.svd(np.linalg.lstsq(lagged, y, rcond=None)[0][:3].T)
             return Rotation.from_matrix(u @ np.diag([1, 1, np.linalg.det(u @ vt)]) @ vt)
     return turn_from_attitude(theirs, mine, SPREADS[:len(theirs)], TURN_SPAN_SHARE)
+
+
+def _spread_said(rates):
+    """How the attitude's 1 s mean rates (M, 3) rad/s spread about their mean: rms and the
+    singular values over the first, against what the rates alone need (`_rate_turn`)."""
+    x = rates - rates.mean(axis=0)
+    if len(x) < 3:
+        return "too few"
+    spread = np.linalg.svd(x, compute_uv=False)
+    return (f"spread {np.sqrt(np.mean(x ** 2)):.3g} rad/s rms (at least {RATES_ALONE_SPREAD:g} "
+            f"needed), singular values 1 : {spread[1] / spread[0]:.2g} : "
+            f"{spread[2] / spread[0]:.2g} (three directions needed)")
 
 
 def _over_gaps(starts, ends, mids, half=0.5):
@@ -400,9 +435,13 @@ def _turn_said(forces, turn, se, axis_se, late):
     `forces`), the reference taken late s late."""
     return (f"the IMU's 1 s mean rates{' and specific forces' if forces else ''}, turned by "
             f"the mounting given, lie {math.degrees(turn.magnitude()):.2f} deg (standard error "
-            f"{se:.2g}: jackknifed, with what a lag would turn; about the vehicle's x, y, z: "
+            f"{se:.2g}: jackknifed, with what a lag would turn; the IMU turned from its "
+            "mounting given about the vehicle's forward, right, down axes by "
+            # `turn` takes the attitude's means onto the IMU's: the IMU's own turn is its
+            # inverse (an IMU turned -1 deg about down had read +1.00, and a user acting on
+            # it doubled the error)
             + ", ".join(f"{a:+.2f} +- {e:.2g}" for a, e in
-                        zip(np.degrees(turn.as_rotvec()), axis_se))
+                        zip(np.degrees(turn.inv().as_rotvec()), axis_se))
             + " deg) from those of the reference's attitude and velocity"
             + (f" (its stamps taken {abs(late) * 1e3:.0f} ms {'late' if late > 0 else 'early'}:"
                " the clock's)" if late else ""))

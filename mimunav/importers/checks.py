@@ -88,7 +88,7 @@ def check_recording(rec):
                                 "= \"reference_imu\" turned it by that IMU's mounting onto the "
                                 "vehicle: is it the vehicle's, attitude_of = \"vehicle\"?)"
                                 if rec.reference_meta.get("attitude_of") == "reference_imu"
-                                else ""))
+                                else "") + _upside_down(rec, f_n, g))
     rate = attitude.turn_rate(t_ref / 1e9, attitude.from_wxyz(q[ok]))
     ref_rate = float(np.percentile(rate, 99))
     imu_rate = float(np.percentile(np.linalg.norm(local_mean(rec.w, k), axis=1), 99))
@@ -191,10 +191,8 @@ def _check_reference_clock(rec):
         #                                             levels stop short (`diagnosis.levels`)
     if late is not None and 0 < abs(late) < 2 * GRID_S:
         rec.real["reference_clock"] += (f"; within two steps of the {GRID_S:g} s grid: not "
-                                        "applied - left as the IMU's time skew, which the "
-                                        "sensor level measures finer (the track level's "
-                                        "yaw-rate lag may not resolve it, the navigation "
-                                        "level cannot test it)")
+                                        "applied - left as the IMU's time skew, which "
+                                        + skew_measured_by(rec))
     if late is not None and 2 * GRID_S <= abs(late) < REFUSED_OFFSET_S:
         rec.reference_clock_unapplied_s = late
         rec.real["reference_clock"] += ("; not applied: left as the IMU's latency (physics "
@@ -212,6 +210,31 @@ def _check_reference_clock(rec):
         return [late]
     rivals = (clock.get(key) for key in ("zero_lag_s", "peak_lag_s"))
     return [0.0] + sorted({x for x in rivals if x is not None and abs(x) > GRID_S})
+
+
+def skew_measured_by(rec):
+    """Which level measures the IMU's time skew against the reference, in words: not the
+    sensor level where the import timed the reference IMU against the IMU by the same
+    motions (`pairing`: such a latency went into that clock - the diagnosis then says it
+    is not tested, where the import had said the sensor level measures it finer)."""
+    track = "the track level's yaw-rate lag may not resolve it, the navigation level cannot"
+    if rec.reference_imu is not None and rec.reference_imu_clock_se_s:
+        return ("no level tests here: the import timed the reference IMU against the IMU by "
+                "these same motions (measured reference imu clock), which takes such a "
+                f"latency into that clock ({track} test it)")
+    return f"the sensor level measures finer ({track} test it)"
+
+
+def _upside_down(rec, f_n, g):
+    """Where the specific force turned into NED reads down (f_n m/s^2, g its size): the
+    mounting that turns the IMU's z half a turn about its x - z down where z up was taken (a
+    ROS topic's FRD IMU read by REP-103's FLU had been refused naming no option)."""
+    if f_n[2] < 0.8 * g:
+        return ""
+    q_vs = rec.mounting.q_vs * np.quaternion(0.0, 1.0, 0.0, 0.0)
+    yaw, pitch, roll = (round(float(np.degrees(x)), 1) + 0.0 for x in attitude.as_euler(q_vs))
+    return (f" - it reads down: if the IMU's z points down where up was taken (FRD read as "
+            f"FLU), --mounting-rpy-deg {roll:g} {pitch:g} {yaw:g}")
 
 
 FELT_GRAVITY_SHARE = 0.05   # of the recording's 1 s means: at least this share (and 3 s)

@@ -15,6 +15,15 @@ from .recording import RecordingError, text_file
 LAYOUT_LINES = 200          # lines a table's layout is read from: comments, header, first data
 
 
+UTM_NOT_READ = (
+    "UTM grid coordinates are not read: convert them to latitude and longitude (deg; "
+    "pyproj's Transformer from the zone's EPSG:326zz, 327zz south) - and an attitude in the "
+    "grid's axes is not one to north: its yaw less the grid convergence (the grid's north "
+    "lies about (lon - lon0) sin(lat) from true north: 0.9 deg at 1.5 deg of longitude off "
+    "the central meridian, 36 N); nor are its distances the ground's (scale factor 0.9996 "
+    "on the central meridian: 0.4 m per km); ")
+
+
 def check_keys(path, doc, known, where, elsewhere=None):
     """Refuse a key of `doc` not among `known`, naming where it belongs when `elsewhere`
     {key: where it stands} knows it, else the nearest known one."""
@@ -22,6 +31,7 @@ def check_keys(path, doc, known, where, elsewhere=None):
         if key not in known:
             near = difflib.get_close_matches(key, known, n=1, cutoff=0.5)
             hint = (f"it belongs {elsewhere[key]}; " if elsewhere and key in elsewhere else
+                    UTM_NOT_READ if "utm" in key.lower() else
                     f"did you mean {near[0]!r}? " if near else "")
             raise RecordingError(f"{path}: {where} has an unknown key {key!r} ({hint}known: "
                                  f"{', '.join(known)})")

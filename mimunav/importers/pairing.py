@@ -553,7 +553,7 @@ def _say_arm(rec, arm, cov, turn):
         "which leave out the model's own errors - a motorcycle's read 2.6 cm off at 0.5 mm): "
         "a first reading, its force only kept out of the mounting's measurement - the "
         "diagnosis measures the arm (lever_arm); give it if it is known (a table spec's "
-        "lever_arm_m, ros2's --reference-imu-lever-arm-m)")
+        "lever_arm_m; --reference-imu-lever-arm-m, or --lever-arm-m for the IMU)")
 
 
 def _lever_force(rec, mids, r=None):

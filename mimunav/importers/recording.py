@@ -93,6 +93,8 @@ class Recording:
     #                                     as given without finding them its peak (`pairing`)
     imu_point_off: str = ""     # where the IMU's forces place the trajectory's point off the
     #                             reference IMU's (`trajectory_point`), or ''
+    mounting_off_kept: str = ""     # a mounting measured off the reference's attitude beyond
+    #                                 its standard errors and kept as given (`attitude_check`)
     trajectory_point_off: str = ""  # where the reference trajectory's point is measured off
     #                                 the origin and left there (`trajectory_point`), or ''
     reference_clock_unapplied_s: float | None = None    # the reference trajectory's lag

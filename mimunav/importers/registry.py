@@ -18,6 +18,7 @@ OPTIONS = {
     "reference_status": (ROS, None), "reference_sigma": (ROS, np.inf),
     "reference_imu_topic": (ROS, None), "reference_imu_rpy_deg": (ROS, None),
     "reference_imu_lever_arm_m": ((*ROS, "ulog", "dataflash"), None),
+    "lever_arm_m": (KINDS, None), "sampling": (ROS, "interval_mean"),
     "solutions": (("rtklib",), ["fix"]), "root": (("table",), None),
     "vehicle": (KINDS, None)}
 
@@ -44,6 +45,10 @@ def read(kind, source, mounting=None, **options):
     rec = READERS[kind](source, mounting, o)
     if o["vehicle"] is not None:
         rec.vehicle = o["vehicle"]
+    if o["sampling"] == "instant":
+        _interval_means(rec)
+    if o["lever_arm_m"] is not None:
+        _place_imu(rec, o["lever_arm_m"])
     if o["reference_imu_lever_arm_m"] is not None:
         _place_reference_imu(rec, o["reference_imu_lever_arm_m"])
     if o["reference_imu_time_offset"] is not None:      # given, 0 too: it picks a lobe
@@ -52,6 +57,47 @@ def read(kind, source, mounting=None, **options):
     if o["reference_time_offset"]:
         rec.shift_reference(o["reference_time_offset"], "command line")
     return rec
+
+
+def _interval_means(rec):
+    """Both IMUs' samples, read as instantaneous (`--sampling instant`), made the interval
+    means the log contract holds: each the mean of the interval centred on it
+    (`motion.intervals.means_of_instants`) and stamped half a median step later, at that
+    interval's end - the ROS messages' convention is not stated, and a 100 Hz IMU's read as
+    means beside a 200 Hz one's had put 2.5 ms between two exact clocks."""
+    from ..motion.intervals import means_of_instants
+    said = []
+    for name, imu in (("IMU", None), ("reference IMU", rec.reference_imu)):
+        if name == "reference IMU" and imu is None:
+            continue
+        ns = rec.imu_ns if imu is None else imu["ns"]
+        t = (ns - ns[0]) / 1e9
+        half = int(round(0.5e9 * float(np.median(np.diff(t)))))
+        w, f = (means_of_instants(t, x) for x in ((rec.w, rec.f) if imu is None else
+                                                   (imu["w"], imu["f"])))
+        if imu is None:
+            rec.imu_ns, rec.w, rec.f = ns + half, w, f
+        else:
+            imu.update(ns=ns + half, w=w, f=f)
+        said.append(f"the {name}'s stamped {half / 1e6:.4g} ms later")
+    rec.sampled_at_instants = True
+    rec.assumed["sampling"] = ("instantaneous samples (--sampling instant): each made the mean "
+                               "of the interval centred on it, (x[k-1] + 22 x[k] + x[k+1]) / "
+                               "24, " + ", ".join(said) + ", at that interval's end")
+
+
+def _place_imu(rec, lever_arm_m):
+    """The IMU put at `lever_arm_m` (vehicle frame FRD, m, from the vehicle origin: the point
+    the reference trajectory describes), replacing what the importer or the spec said, and
+    said so (a ship's MEMS 1.5 m from the INS whose pose was its reference had no option
+    to say so in a ROS bag)."""
+    from ..frames.mounting import Mounting
+    was = rec.mounting.lever_arm_m
+    rec.mounting = Mounting(rec.mounting.attitude_wxyz, lever_arm_m)
+    rec.assumed["lever_arm"] = (
+        f"{', '.join(f'{x:+.3f}' for x in lever_arm_m)} m (vehicle frame FRD, from the point "
+        f"the reference trajectory describes; command line, the importer's "
+        f"{', '.join(f'{x:+.3f}' for x in was)} m replaced)")
 
 
 def _place_reference_imu(rec, lever_arm_m):

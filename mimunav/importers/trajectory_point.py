@@ -112,9 +112,11 @@ def check_trajectory_point(rec):
             f": taken at the origin, as /truth/state is (within {SAME_POINT_M:g} m or "
             f"{DISTINCT_Z:g} standard errors of it: the fit's own model errors - an IMU's "
             "scale, misalignment and bias on the forces, a clock between the two - reach that)"
-            + (f"; but {size:.3f} m off it, beyond {DISTINCT_Z:g} standard errors: where those "
-               "errors are small, a lever arm given is off by that much (the diagnosis's "
-               "lever_arm term tests it)" if apart else ""))
+            + (f"; {size:.3f} m from it is beyond {DISTINCT_Z:g} standard errors, which leave "
+               "those model errors out: not a measure of the point (a car's height had read "
+               "0.056 m, standard error 0.0095, at its exact origin) - a lever arm given may "
+               "be off by as much, which the diagnosis's lever_arm term tests"
+               if apart else ""))
         return
     own = rec.reference_imu
     given = None if own is None else own["mounting"].lever_arm_m
@@ -128,11 +130,12 @@ def check_trajectory_point(rec):
     rec.real["reference_point"] = (
         f"{said}: not the origin" + ("" if given is None else
                                      ", nor the reference IMU's point as given") +
-        " - left where it is, taken at the origin: a point measured is not moved by (a "
-        "reference stamped late, sampled at 1-2 Hz, an IMU's mounting tilted a little or an "
-        "INS yawed in the hull place it metres off); where the trajectory's point is known, "
-        "give the lever arms from it (a table spec's lever_arm_m, ros2's "
-        "--reference-imu-lever-arm-m)")
+        " - the trajectory is not moved, and its point is taken for the vehicle origin: a "
+        "point measured is not moved by (a reference stamped late, sampled at 1-2 Hz, an "
+        "IMU's mounting tilted a little or an INS yawed in the hull place it metres off); "
+        "where the trajectory's point is known, give the lever arms from it (--lever-arm-m "
+        "for the IMU, --reference-imu-lever-arm-m for a reference IMU; a table spec's "
+        "lever_arm_m)")
     rec.trajectory_point_off = (
         f"the reference trajectory's point measured {np.linalg.norm(p):.2f} m off the origin "
         "and left there (measured reference point)")
@@ -156,7 +159,8 @@ def _check_the_imus_point(rec, p, cov):
         f"{', '.join(f'{x:+.3f}' for x in off)} m (vehicle frame FRD; standard errors "
         f"{', '.join(f'{x:.2g}' for x in np.sqrt(np.diag(mine[1] + cov)))}) from where the "
         "reference IMU's do: the IMU lies that much the other way from where its lever arm "
-        "given puts it (a table spec's lever_arm_m, ros2's --reference-imu-lever-arm-m)")
+        "given puts it (--lever-arm-m, --reference-imu-lever-arm-m; a table spec's "
+        "lever_arm_m)")
 
 
 def _same(p, q, cov):

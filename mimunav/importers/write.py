@@ -68,6 +68,7 @@ def _recording_metadata(rec, align, assumed, heading, track):
             "reference_clock_unapplied_s": rec.reference_clock_unapplied_s,
             "imu_point_off": rec.imu_point_off,
             "trajectory_point_off": rec.trajectory_point_off,
+            "mounting_off_kept": rec.mounting_off_kept,
             "clip_spans_s": [[(a - epoch) / 1e9, (b - epoch) / 1e9, n]
                              for a, b, n in rec.clip_spans_ns]}
 

@@ -42,7 +42,9 @@ def doubts(flight, time_shift_s):
     IMU's latency (`reference_clock_unapplied_s`: a mocap pose 0.2 s late read 58 m where
     0.5 m were the IMU's); an IMU its own forces place
     elsewhere than its lever arm given (the recording's `imu_point_off`); a trajectory
-    whose point is measured off the origin (`trajectory_point_off`)."""
+    whose point is measured off the origin (`trajectory_point_off`); a mounting measured off
+    the reference's attitude and kept (`mounting_off_kept`: a KAIST-layout drive's 1.00 deg,
+    standard error 0.007, had its 10 s windows at 0.49 m, 0.20 m once turned)."""
     said, out = (flight.recording or {}).get("reference_clock_open"), []
     if said and not time_shift_s:
         out.append(f"the import could not decide the reference trajectory's clock against the "
@@ -58,6 +60,9 @@ def doubts(flight, time_shift_s):
     off = (flight.recording or {}).get("imu_point_off")
     if off:         # `importers.trajectory_point`: the IMU not where its arm says
         out.append(f"{off}: these errors hold that arm's transfer too")
+    kept = (flight.recording or {}).get("mounting_off_kept")
+    if kept:        # `importers.attitude_check`: measured, within the attitude's own error
+        out.append(f"{kept}: these errors hold that turn's")
     off = (flight.recording or {}).get("trajectory_point_off")
     if off:         # `importers.trajectory_point`: measured, not moved by
         out.append(f"{off}: these errors may hold the transfer of an arm from that point")

@@ -125,7 +125,7 @@ def test_a_size_effect_that_replaces_a_lever_arm_is_chosen_once(monkeypatch):
     terms = [{"effect": "lever_arm", "sensor": "imu", "axis": "all"},
              {"effect": "size_effect", "sensor": "accel", "axis": "x"},
              {"effect": "bias_shift", "sensor": "accel", "axis": "y"}]
-    design = SimpleNamespace(terms=terms, calibrated=False, nuisance={})
+    design = SimpleNamespace(terms=terms, calibrated=False, arm_given=True, nuisance={})
 
     def test(fitter, chosen, j):
         others = [i for i in chosen if i != j]
@@ -149,7 +149,7 @@ def test_beyond_range_at_the_last_step_is_judged_given_every_term_chosen(monkeyp
     terms = [{"effect": "bias_shift", "sensor": "accel", "axis": "x"},
              {"effect": "lever_arm", "sensor": "imu", "axis": "all"},
              {"effect": "scale_factor", "sensor": "gyro", "axis": "z"}]
-    design = SimpleNamespace(terms=terms, calibrated=False, nuisance={})
+    design = SimpleNamespace(terms=terms, calibrated=False, arm_given=True, nuisance={})
 
     def test(fitter, chosen, j):
         logp = {0: -80.0, 1: 0.0 if 0 in chosen and j != 0 else -40.0, 2: -30.0}[j]

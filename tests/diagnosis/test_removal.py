@@ -78,7 +78,7 @@ def _quiet_design(f_quiet, n=200, prior_sd=0.0025):
     inputs = np.tile(np.r_[f_quiet, 0.0, 0.0, 0.0], (n, 1))
     design = SimpleNamespace(t=np.arange(n) * 0.01, channels=6, terms=[term],
                              columns=[{2: np.full((n, 1), f_quiet[2])}],
-                             prior=np.eye(18) * prior_sd ** 2, calibrated=False,
+                             prior=np.eye(18) * prior_sd ** 2, calibrated=False, arm_given=True,
                              q_vs=np.array([1.0, 0, 0, 0]))
     design.ref_columns = lambda c: inputs[:, :3] if c < 3 else inputs[:, 3:]
     return design

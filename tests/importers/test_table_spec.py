@@ -58,6 +58,13 @@ def test_a_tick_scale_gives_the_time_base_and_an_unknown_key_is_named(tmp_path):
                                                     extra="colums = 3"))
     with pytest.raises(RecordingError, match=r"\[imu\] has an unknown key 'colums'"):
         table.read(tmp_path / "spec.toml")
+    # a UTM grid (KAIST's poses): not the nearest key (position_ecef had been offered), but
+    # what to do and what a grid's yaw and distances are not
+    (tmp_path / "spec.toml").write_text(SPEC.format(rate=RATES, force=FORCES,
+                                                    extra="position_utm = 3"))
+    with pytest.raises(RecordingError, match="UTM grid coordinates are not read: convert "
+                       "them to latitude and longitude .* grid convergence"):
+        table.read(tmp_path / "spec.toml")
 
 
 def test_increments_are_divided_by_their_intervals(tmp_path):

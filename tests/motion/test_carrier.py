@@ -30,14 +30,20 @@ def test_a_car_is_a_car_and_a_rolling_hull_is_not():
     pitch rate ~0 in the numbers; the same track under a hull rolling 8 deg at 6 s (8.4 deg/s
     of roll rate at its peak - a boat had passed every test of the track and been diagnosed
     as a car, its accelerometers 'read 0.44 of the model'): not a car, the reason in
-    numbers; with 1 deg of roll the hull passes (BODY_RATE: 3 x a real car's)."""
+    numbers; so is one rolling 2 deg at 6 s (2.1 deg/s at its peak, within BODY_RATE: by its
+    median, 1.7 deg/s - a survey ship's waves had passed at 3.5 deg/s at the 95th percentile
+    and been answered by a car's model); with 0.5 deg of roll the hull passes (a real car's
+    median 0.2-0.45)."""
     failed, numbers = car_tests(*_drive())
     assert failed == [] and "roll and pitch rate 0.0 deg/s" in numbers[-1]
     failed, _ = car_tests(*_drive(roll_deg=8.0))
-    assert len(failed) == 1 and "rolls or pitches at" in failed[0]
+    assert len(failed) == 2 and "rolls or pitches at" in failed[0]
     rate = float(failed[0].split("at ")[1].split(" deg/s")[0])
     assert math.radians(rate) > BODY_RATE and 6.0 < rate < 8.4
-    assert car_tests(*_drive(roll_deg=1.0))[0] == []
+    failed, _ = car_tests(*_drive(roll_deg=2.0))
+    assert len(failed) == 1 and "half the time (median" in failed[0], failed
+    assert 1.3 < float(failed[0].split("at ")[1].split(" deg/s")[0]) < 2.0, failed
+    assert car_tests(*_drive(roll_deg=0.5))[0] == []
 
 
 def test_a_noisy_altitude_is_no_climb_on_the_spot():
