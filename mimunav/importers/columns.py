@@ -17,11 +17,12 @@ LAYOUT_LINES = 200          # lines a table's layout is read from: comments, hea
 
 UTM_NOT_READ = (
     "UTM grid coordinates are not read: convert them to latitude and longitude (deg; "
-    "pyproj's Transformer from the zone's EPSG:326zz, 327zz south) - and an attitude in the "
-    "grid's axes is not one to north: its yaw less the grid convergence (the grid's north "
-    "lies about (lon - lon0) sin(lat) from true north: 0.9 deg at 1.5 deg of longitude off "
-    "the central meridian, 36 N); nor are its distances the ground's (scale factor 0.9996 "
-    "on the central meridian: 0.4 m per km); ")
+    "pyproj's Transformer from the zone's EPSG:326zz, 327zz south) - and a heading in the "
+    "grid's axes is not one from true north: true heading = grid heading + (lon - lon0) "
+    "sin(lat), lon0 the zone's central meridian (the grid's north lies that far clockwise "
+    "of true north: -0.95 deg at 1.6 deg of longitude west of it, 36.4 N; an ENU yaw, "
+    "counter-clockwise, takes the opposite sign); nor are its distances the ground's (scale "
+    "factor 0.9996 on the central meridian: 0.4 m per km); ")
 
 
 def check_keys(path, doc, known, where, elsewhere=None):

@@ -47,6 +47,10 @@ def read(kind, source, mounting=None, **options):
         rec.vehicle = o["vehicle"]
     if o["sampling"] == "instant":
         _interval_means(rec)
+    elif kind in ROS:
+        rec.assumed["sampling"] = ("the Imu messages' values taken as means over the "
+                                   "interval their stamp ends (--sampling instant reads them "
+                                   "as instantaneous samples at their stamp)")
     if o["lever_arm_m"] is not None:
         _place_imu(rec, o["lever_arm_m"])
     if o["reference_imu_lever_arm_m"] is not None:

@@ -98,7 +98,8 @@ def check_trajectory_point(rec):
     said = (f"the reference trajectory's point measured at "
             f"[{', '.join(f'{x:+.3f}' for x in p)}] m (vehicle frame FRD, from the origin; "
             f"standard errors {', '.join(f'{x:.2g}' for x in np.sqrt(np.diag(cov)))}, "
-            f"jackknifed; by {whose}'s specific forces)")
+            f"jackknifed, which leave the fit's model errors out; by {whose}'s specific "
+            "forces)")
     if not np.sqrt(np.linalg.eigvalsh(cov)).max() <= SAME_POINT_M:   # before the origin's
         rec.real["reference_point"] = (f"{said}: not placed to {SAME_POINT_M:g} m (the motion "
                                        "turns the vehicle too little, or the reference's "
@@ -113,8 +114,7 @@ def check_trajectory_point(rec):
             f"{DISTINCT_Z:g} standard errors of it: the fit's own model errors - an IMU's "
             "scale, misalignment and bias on the forces, a clock between the two - reach that)"
             + (f"; {size:.3f} m from it is beyond {DISTINCT_Z:g} standard errors, which leave "
-               "those model errors out: not a measure of the point (a car's height had read "
-               "0.056 m, standard error 0.0095, at its exact origin) - a lever arm given may "
+               "those model errors out: not a measure of the point - a lever arm given may "
                "be off by as much, which the diagnosis's lever_arm term tests"
                if apart else ""))
         return

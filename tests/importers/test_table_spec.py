@@ -59,11 +59,13 @@ def test_a_tick_scale_gives_the_time_base_and_an_unknown_key_is_named(tmp_path):
     with pytest.raises(RecordingError, match=r"\[imu\] has an unknown key 'colums'"):
         table.read(tmp_path / "spec.toml")
     # a UTM grid (KAIST's poses): not the nearest key (position_ecef had been offered), but
-    # what to do and what a grid's yaw and distances are not
+    # what to do and what a grid's heading and distances are not - with the convergence's
+    # sign a heading takes (an independent check: grid 32.97 deg, true 32.00, at -0.97)
     (tmp_path / "spec.toml").write_text(SPEC.format(rate=RATES, force=FORCES,
                                                     extra="position_utm = 3"))
-    with pytest.raises(RecordingError, match="UTM grid coordinates are not read: convert "
-                       "them to latitude and longitude .* grid convergence"):
+    with pytest.raises(RecordingError, match=r"UTM grid coordinates are not read: convert "
+                       r"them to latitude and longitude .* true heading = grid heading \+ "
+                       r"\(lon - lon0\) sin\(lat\)"):
         table.read(tmp_path / "spec.toml")
 
 
