@@ -29,8 +29,15 @@ def refuse_foreign(kind, options):
     given = [f"--{name.replace('_', '-')}" for name, (kinds, default) in OPTIONS.items()
              if kind not in kinds and options.get(name, default) != default]
     if given:
+        said = [SPEC_SAYS[g] for g in given if kind == "table" and g in SPEC_SAYS]
         raise InputError(f"{', '.join(given)}: not read by the {kind} importer "
-                         f"(see `mimunav import --help`: each option names its importers)")
+                         f"(see `mimunav import --help`: each option names its importers"
+                         + "".join(f"; {x}" for x in said) + ")")
+
+
+SPEC_SAYS = {"--sampling": "a table spec says it as its [imu] sampling = \"instant\"",
+             "--reference-imu-lever-arm-m": "a table spec gives it as its [reference_imu] "
+                                            "lever_arm_m"}
 
 
 def read(kind, source, mounting=None, **options):

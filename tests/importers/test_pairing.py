@@ -1124,3 +1124,16 @@ def test_instantaneous_samples_read_as_such_put_no_lag_between_two_exact_clocks(
         said = rec.real["reference_imu_clock"]
         refined = float(re.search(r"refined to ([-+0-9.]+) ms", said)[1])
         assert abs(abs(refined) - lag_ms) < 0.3, said
+
+
+def test_an_option_the_importer_does_not_read_is_refused_naming_the_specs_key():
+    """--sampling given to the table importer: refused (not silently ignored), naming where
+    a spec says it - a user of a ROS option on a CSV had been told only that it is not read."""
+    from mimunav.errors import InputError
+    from mimunav.importers.registry import refuse_foreign
+    with pytest.raises(InputError, match=r"--sampling: not read by the table importer .*"
+                       r"\[imu\] sampling = \"instant\""):
+        refuse_foreign("table", {"sampling": "instant"})
+    refuse_foreign("ros1", {"sampling": "instant"})
+    with pytest.raises(InputError, match=r"--sampling: not read by the ulog importer \(see"):
+        refuse_foreign("ulog", {"sampling": "instant"})
