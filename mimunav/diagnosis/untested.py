@@ -29,11 +29,11 @@ def beside_untested(tier, cands, findings, noisy, held):
     if not findings or not others:
         return findings, []
     base = inference.fit(tier, given, held)
+    alone = [(base.beta[base.slices[k]], base.interval(k)) for k in range(len(findings))]
     widest = [(1.0, None, None)] * len(findings)
     for label, pos in others:
         fit = inference.fit(tier, given + [pos], held)
-        for k in range(len(findings)):
-            b0, (lo0, hi0) = base.beta[base.slices[k]], base.interval(k)
+        for k, (b0, (lo0, hi0)) in enumerate(alone):
             lo, hi = fit.interval(k)
             need = float(np.max(np.maximum(hi - b0, b0 - lo)
                                 / np.maximum((hi0 - lo0) / 2, 1e-300)))

@@ -56,8 +56,9 @@ def position_jumps(t, lat, lon, h, v_ned):
     """[(t s, m)]: the epochs where a track's position steps off what its own velocity
     carries it - the step's miss of the velocity's Hermite quadrature over it,
         dp - (v0 + v1) dt / 2 - (a0 - a1) dt^2 / 12,    a = dv/dt (central differences),
-    exact to fifth order in smooth motion (the trapezoid alone misses dt^3 jerk / 12: 0.3 m
-    on a 1 Hz track braking), per NED axis against its robust sigma over the track (1.4826
+    its end accelerations from the velocities' central differences - far closer than the
+    trapezoid alone in smooth motion (which misses dt^3 jerk / 12: 0.3 m on a 1 Hz track
+    braking; tests/motion/test_position_jumps.py), per NED axis against its robust sigma over the track (1.4826
     MAD; the horizontal and the vertical of a GNSS fix err differently), beyond JUMP_Z of it
     and beyond JUMP_FLOOR_M in size. An INS's position jumping back to its fixes after an
     outage, with a velocity that never jumped, steps by the whole jump (an independent trial's
