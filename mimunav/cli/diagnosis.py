@@ -5,7 +5,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..importers.kinds import VEHICLES
-from .options import SEED, probability
+from .options import LEVELS, SEED, probability
 
 
 def _diagnose(args):
@@ -285,7 +285,7 @@ def add_diagnose(sub):
                        "the effect vocabulary (log contract section 3)")
     p.add_argument("log", help="flight log (MCAP) with /mimu/raw or /mimu/imu, and /fog/imu "
                    "(sensor level) or /truth/state (navigation and track levels)")
-    p.add_argument("--level", choices=("auto", "sensor", "navigation", "track"), default="auto",
+    p.add_argument("--level", choices=LEVELS, default="auto",
                    help="sensor: MIMU outputs (m/s^2, rad/s) against the FOG-IMU's; navigation: "
                    "NED velocity error (m/s) against /truth/state; track: MIMU outputs against "
                    "the ideal IMU simulated along a car's /truth/state without attitude (a "

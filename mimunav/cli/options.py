@@ -37,6 +37,10 @@ COUNT = number(1, 100000, int)
 SECONDS = number(0.0, 86400.0, open_low=True)
 
 
+LEVELS = ("auto", "sensor", "navigation", "track")     # `diagnosis.levels.LEVELS` and auto,
+#                                                        named here: the parser loads no level
+
+
 def probability(text):
     """argparse type: a number strictly between 0 and 1."""
     import argparse
@@ -164,3 +168,4 @@ def variant_paths(specs):
 def variants(specs):
     from ..compensation.calibration_file import Calibration
     return {name: Calibration.load(path) for name, path in variant_paths(specs).items()}
+

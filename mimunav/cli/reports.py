@@ -1,6 +1,7 @@
 """The report command: generated reports into a folder."""
 from ..errors import InputError
-from .options import COUNT, SEED, number
+from ..importers.kinds import VEHICLES
+from .options import COUNT, LEVELS, SEED, number
 
 
 def _report(args):
@@ -12,9 +13,15 @@ def _report(args):
                              "LOG.mcap -o DIR (a log from mimunav import ...)")
         if args.output == "reports":
             raise InputError("report recording needs its own folder: -o DIR")
-        md = recording.write(args.log, args.output, force=args.force, min_speed=args.min_speed)
+        md = recording.write(args.log, args.output, force=args.force, min_speed=args.min_speed,
+                             level=args.level, vehicle=args.vehicle)
         print(f"wrote {md}")
         return 0
+    given = [o for o, v in (("--level", args.level != "auto"), ("--vehicle", args.vehicle),
+                            ("--min-speed", args.min_speed is not None)) if v]
+    if given:
+        raise InputError(f"{', '.join(given)}: options of report recording, not of report "
+                         f"{args.kind}")
     if args.kind == "rotation-calibration":
         from ..reports import rotation_calibration
         md, png = rotation_calibration.write(args.output, n_units=args.units,
@@ -51,6 +58,12 @@ def add_report(sub):
     p.add_argument("--min-speed", type=number(0.0, 1000.0), help="recording: horizontal speed (m/s) a window "
                    "needs at its start (default: 3, the alignment's course speed, when the "
                    "reference has no attitude; 0 when it has one)")
+    p.add_argument("--level", choices=LEVELS, default="auto",
+                   help="recording: the diagnosis' level, as mimunav diagnose --level "
+                   "(default auto)")
+    p.add_argument("--vehicle", choices=VEHICLES,
+                   help="recording: what carried the IMU, over the recording's metadata, as "
+                   "mimunav diagnose --vehicle")
     p.add_argument("-o", "--output", default="reports", help="folder (default: reports)")
     p.add_argument("--units", type=COUNT, default=20, help="number of drawn units")
     p.add_argument("--seed", type=SEED, default=1000, help="seed of the first unit")

@@ -73,6 +73,20 @@ def load(log_path, model_path=None, level="auto", vehicle=None, stream=False):
     level, why = choose(flight, level, vehicle)
     if flight.stream_block is not None and level != "sensor":       # those levels hold it
         flight = Flight.load(log_path, reference_imu=False, max_gap_s=np.inf)
+    refuse_level(flight, log_path, level, vehicle)
+    return flight, cal, level, why
+
+
+def refuse_level(flight, log_path, level, vehicle=None):
+    """Raise `InputError` when `flight` (of the log at `log_path`) cannot be diagnosed at
+    `level`: the sensor level without a reference IMU, the navigation and track levels
+    without a reference trajectory, the track level for what is no car (`vehicle` declared
+    over the metadata), the navigation level across gaps."""
+    if level == "sensor" and (flight.fog_t is None or not len(flight.fog_t)):
+        raise InputError(f"{log_path}: the sensor level needs a reference IMU (/fog/imu) and "
+                         "the log has none" + (": --level navigation or track diagnoses it "
+                                               "against its reference trajectory"
+                                               if flight.truth is not None else ""))
     if level == "track" and flight.truth is not None:
         kind, how, _ = vehicle_kind.kind(flight, vehicle)
         if kind != vehicle_kind.LAND:
@@ -87,7 +101,6 @@ def load(log_path, model_path=None, level="auto", vehicle=None, stream=False):
             ": --level sensor diagnoses it against its reference IMU (/fog/imu)"
             if flight.fog_t is not None and len(flight.fog_t) else
             " (and no /fog/imu for the sensor level): nothing to diagnose against"))
-    return flight, cal, level, why
 
 
 def diagnose(flight, cal, level, alpha=0.05, seed=0, accuracy=None, noise=None, vehicle=None):

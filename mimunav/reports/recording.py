@@ -25,7 +25,7 @@ import numpy as np
 
 from ..frames import attitude
 from ..evaluation import windows
-from ..evaluation.flight import Flight, no_reference, refuse_gaps
+from ..evaluation.flight import Flight, no_reference
 from ..compensation.calibration_file import Calibration
 from ..diagnosis import levels
 from ..diagnosis.document import document
@@ -53,9 +53,10 @@ def _tilt_caveat(rec):
 
 
 def write(log_path, out_dir, force=False, progress=True, min_speed=None,
-          lengths=windows.WINDOW_LENGTHS_S):
+          lengths=windows.WINDOW_LENGTHS_S, level="auto", vehicle=None):
     """Run every part on the log at `log_path` and write the report folder `out_dir`;
-    returns the markdown's path. min_speed (m/s) and lengths (s) as `mimunav windows`."""
+    returns the markdown's path. min_speed (m/s) and lengths (s) as `mimunav windows`;
+    level and vehicle as `mimunav diagnose --level --vehicle` (`levels.choose`)."""
     refuse_inputs([out_dir], [log_path])
     if os.path.exists(out_dir) and not force:       # before the work, not after it
         raise FileExistsError(f"{out_dir} exists; use --force to replace it")
@@ -73,10 +74,9 @@ def write(log_path, out_dir, force=False, progress=True, min_speed=None,
         if flight.truth is None and flight.fog_t is None:
             raise no_reference(log_path, "the track level, and no reference IMU "
                                           "(/fog/imu) for the sensor level")
-        level, why = levels.choose(flight)
-        if level != "track":            # the track level leaves the gaps' surroundings out
-            refuse_gaps(flight)
-        diag = levels.diagnose(flight, cal, level)
+        level, why = levels.choose(flight, level, vehicle)
+        levels.refuse_level(flight, log_path, level, vehicle)
+        diag = levels.diagnose(flight, cal, level, vehicle=vehicle)
         diag.level_choice = why
         doc = document(Path(log_path).name, diag)
     except InputError as exc:

@@ -33,6 +33,15 @@ def test_report_recording_of_the_excerpt_and_its_refusals(tmp_path):
     assert text.count("- unexplained residual ") == len(doc["unexplained"]) > 0
     assert (out / "windows.png").stat().st_size > 0
     assert main(["report", "recording", str(log), "-o", str(out)]) == 2      # no --force
+    # the level a diagnosis names (`--level track`, `--vehicle`) is the report's to take too
+    assert main(["report", "recording", str(log), "-o", str(tmp_path / "sensor"),
+                 "--level", "sensor"]) == 0
+    text = (tmp_path / "sensor" / "recording.md").read_text()
+    assert "the sensor level needs a reference IMU (/fog/imu)" in text
+    assert main(["report", "recording", str(log), "-o", str(tmp_path / "walk"),
+                 "--level", "track", "--vehicle", "pedestrian"]) == 0
+    assert "--level track models a car" in (tmp_path / "walk" / "recording.md").read_text()
+    assert main(["report", "calibration", "--vehicle", "car"]) == 2
     bare = tmp_path / "bare.mcap"                        # no /truth/state
     flight = Flight.load(log, reference_imu=False)
     rec = Recording("bare", "", flight.epoch_ns + np.round(flight.mimu_t * 1e9).astype(np.int64),
