@@ -16,13 +16,9 @@ LAYOUT_LINES = 200          # lines a table's layout is read from: comments, hea
 
 
 UTM_NOT_READ = (
-    "UTM grid coordinates are not read: convert them to latitude and longitude (deg; "
-    "pyproj's Transformer from the zone's EPSG:326zz, 327zz south) - and a heading in the "
-    "grid's axes is not one from true north: true heading = grid heading + (lon - lon0) "
-    "sin(lat), lon0 the zone's central meridian (the grid's north lies that far clockwise "
-    "of true north: -0.95 deg at 1.6 deg of longitude west of it, 36.4 N; an ENU yaw, "
-    "counter-clockwise, takes the opposite sign); nor are its distances the ground's (scale "
-    "factor 0.9996 on the central meridian: 0.4 m per km); ")
+    "UTM grid coordinates are [reference] position_utm = {file = ..., columns = [easting, "
+    "northing, height], zone = 1-60, hemisphere = \"N\" or \"S\"}, and an attitude in the "
+    "grid's axes rotates = \"body_to_utm\"; ")
 
 
 def check_keys(path, doc, known, where, elsewhere=None):
@@ -32,7 +28,7 @@ def check_keys(path, doc, known, where, elsewhere=None):
         if key not in known:
             near = difflib.get_close_matches(key, known, n=1, cutoff=0.5)
             hint = (f"it belongs {elsewhere[key]}; " if elsewhere and key in elsewhere else
-                    UTM_NOT_READ if "utm" in key.lower() else
+                    UTM_NOT_READ if "utm" in key.lower() and key != "position_utm" else
                     f"did you mean {near[0]!r}? " if near else "")
             raise RecordingError(f"{path}: {where} has an unknown key {key!r} ({hint}known: "
                                  f"{', '.join(known)})")

@@ -83,6 +83,9 @@ refused, naming the nearest known one.
                              z_down only: y completes a right-handed frame), or "unknown" -
                              then the reference's heading measures nothing, and no finding
                              stands on it}
+              or position_utm    m: easting, northing and ellipsoidal height on a UTM grid
+                                 (WGS-84), its source naming it: {file, columns, zone = 1-60,
+                                 hemisphere = "N" | "S"} (`frames.utm`)
               velocity_ned  m/s  or  velocity_ecef  m/s  (else central differences of position)
               or velocity_local  m/s in the local frame's axes
               or ground_speed  m/s | km/h | kn  with  course  deg | rad from true north,
@@ -92,8 +95,15 @@ refused, naming the nearest known one.
                                  negative (iOS's "invalid", -1) or empty, the positions'
                                  differences for that epoch
               attitude_wxyz      unit quaternions with `rotates` = "body_to_ecef" | "body_to_ned"
-                                 (| "body_to_local", the default beside position_local); the
-                                 body is the vehicle's FRD axes, or an IMU's own (attitude_of)
+                                 (| "body_to_local", the default beside position_local; |
+                                 "body_to_utm", the grid's east, north, up, the default beside
+                                 position_utm: turned by the grid's convergence); the body is
+                                 the vehicle's FRD axes, or an IMU's own (attitude_of)
+              or attitude_matrix 1: the rotation matrix's nine elements R11 R12 R13 R21 ... R33,
+                                 the first row first (a 3x4 pose [R | t] row by row: columns
+                                 [0, 1, 2, 4, 5, 6, 8, 9, 10]), `rotates` as attitude_wxyz's
+              body_axes          the vehicle directions of the attitude's body x, y, z
+                                 (default "FRD"; a ROS or KAIST body "FLU", a camera "RDF")
               or attitude_rpy    deg | rad: roll, pitch, yaw of body -> NED (yaw, then pitch,
                                  then roll: the aerospace z-y-x sequence); beside
                                  position_local, of body -> a local frame whose z is down
@@ -115,6 +125,7 @@ import os
 
 import numpy as np
 
+from ..errors import InputError
 from ..frames import attitude
 from ..flightlog.stamps import mean_rate_hz
 from ..frames.mounting import Mounting
@@ -361,7 +372,20 @@ def _to_the_vehicles_attitude(spec, meta, reference, mounting, second):
     if of not in ATTITUDE_OF:
         raise RecordingError(f"{spec.path}: [reference] attitude_of {of!r}: "
                              + " or ".join(f'"{k}"' for k in ATTITUDE_OF))
+    body = spec.section("reference").get("body_axes")
+    if body is not None and of != "vehicle":
+        raise RecordingError(f"{spec.path}: [reference] body_axes names the vehicle's axes the "
+                             f"attitude is of; attitude_of = {of!r} says they are that IMU's "
+                             "own, which its mounting turns: one of them")
     if of == "vehicle":
+        if body is not None and reference is not None and "q_nb" in reference:
+            try:
+                q_vb = Mounting.from_axes(body).q_vs    # the attitude's body -> vehicle FRD
+            except InputError as exc:
+                raise RecordingError(f"{spec.path}: [reference] body_axes: {exc}") from None
+            reference["q_nb"] = attitude.as_wxyz(attitude.from_wxyz(reference["q_nb"])
+                                                 * np.conjugate(q_vb))
+            meta["attitude_axes"] = f"the vehicle's, given as {body} (body_axes)"
         return
     if of == "reference_imu" and second is None:
         raise RecordingError(f"{spec.path}: [reference] attitude_of = \"reference_imu\" needs "

@@ -1,11 +1,12 @@
 """The [reference] section of a table spec (`importers.table`): an external trajectory -
-geodetic or ECEF positions, or positions in a local level frame placed at its geodetic origin
-(`local_frame`) - with its velocity and attitude, as a `Recording`'s reference dict.
+geodetic, ECEF or UTM grid positions (`frames.utm`), or positions in a local level frame placed
+at its geodetic origin (`local_frame`) - with its velocity and attitude (a quaternion, roll,
+pitch and yaw, or a rotation matrix), as a `Recording`'s reference dict.
 """
 import numpy as np
 import quaternion
 
-from ..frames import attitude, earth
+from ..frames import attitude, earth, utm
 from ..motion.track import velocity_from_positions
 from .columns import check_keys
 from .local_frame import AXES, LocalFrame
@@ -13,8 +14,13 @@ from .recording import RecordingError, unit_quaternions
 from .table_spec import FRAME_KEYS, unix_ns, unrepeated
 
 QUANTITIES = ("position_ecef", "latitude", "longitude", "height", "position_local",
-              "velocity_ned", "velocity_ecef", "velocity_local", "ground_speed", "course",
-              "attitude_wxyz", "attitude_rpy")
+              "position_utm", "velocity_ned", "velocity_ecef", "velocity_local", "ground_speed",
+              "course", "attitude_wxyz", "attitude_rpy", "attitude_matrix")
+ATTITUDES = ("attitude_wxyz", "attitude_rpy", "attitude_matrix")
+ORTHONORMAL = 1e-3      # a rotation matrix's |R R^T - I| at most this (its rows written to
+#                         6 digits hold 1e-6; a scaled or sheared one is no attitude)
+_Q_NED_ENU = quaternion.from_rotation_matrix(np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0],
+                                                       [0.0, 0.0, -1.0]]))  # ENU -> NED
 GEODETIC = ("latitude", "longitude", "height")
 
 
@@ -26,6 +32,8 @@ def reference_of(spec, offset):
     keys = ["time"] + _position_keys(spec)
     frame = _local_frame_of(spec) if "position_local" in keys else None
     col = _columns(spec, keys)
+    if "attitude_matrix" in col:
+        col["attitude_wxyz"] = _matrix_quaternions(spec, col.pop("attitude_matrix"))
     ns = unix_ns(spec, col["time"], offset, "[reference] time")
     back = np.flatnonzero(np.diff(ns) <= 0)
     if len(back):
@@ -54,8 +62,9 @@ def _position_keys(spec):
     local frame), velocity and attitude in that kind's frames."""
     keys = [k for k in QUANTITIES if spec.has("reference", k)]
     where = f"{spec.path}: [reference]"
-    if "attitude_wxyz" in keys and "attitude_rpy" in keys:
-        raise RecordingError(f"{where} gives attitude_wxyz and attitude_rpy: one of them")
+    attitudes = [k for k in ATTITUDES if k in keys]
+    if len(attitudes) > 1:
+        raise RecordingError(f"{where} gives {' and '.join(attitudes)}: one of them")
     over_ground = [k for k in ("ground_speed", "course") if k in keys]
     if len(over_ground) == 1:
         raise RecordingError(f"{where} gives {over_ground[0]} alone: ground_speed and course "
@@ -75,6 +84,13 @@ def _position_keys(spec):
         return keys
     if "velocity_local" in keys:
         raise RecordingError(f"{where} gives velocity_local without position_local")
+    if "position_utm" in keys:
+        other = [k for k in keys if k in ("position_ecef",) + GEODETIC]
+        if other:
+            raise RecordingError(f"{where} gives position_utm and {', '.join(other)}: one "
+                                 "kind of position (position_utm's third column is the "
+                                 "ellipsoidal height)")
+        return keys
     if "position_ecef" in keys:
         return [k for k in keys if k not in GEODETIC]
     missing = [k for k in GEODETIC if k not in keys]
@@ -151,8 +167,11 @@ def _columns(spec, keys):
 def _geodetic(spec, ns, col):
     """The reference dict of geodetic or ECEF positions, NED or ECEF velocities (else central
     differences) and an attitude to NED or ECEF (or roll, pitch, yaw)."""
+    convergence = None
     if "position_ecef" in col:
         lat, lon, h = earth.ecef_to_geodetic(col["position_ecef"])
+    elif "position_utm" in col:
+        lat, lon, h, convergence = _from_utm(spec, col["position_utm"])
     else:
         lat, lon, h = col["latitude"], col["longitude"], col["height"]
     if "velocity_ned" in col:
@@ -175,7 +194,7 @@ def _geodetic(spec, ns, col):
         v[sized, :2] *= scale[sized, None]
     ref = dict(ns=ns, lat=lat, lon=lon, h=h, v_ned=v)
     if "attitude_wxyz" in col:
-        ref["q_nb"] = _attitude_ned(spec, col["attitude_wxyz"], lat, lon)
+        ref["q_nb"] = _attitude_ned(spec, col["attitude_wxyz"], lat, lon, convergence)
     if "attitude_rpy" in col:           # roll, pitch, yaw of body -> NED (z-y-x turns)
         rpy = col["attitude_rpy"]
         ref["q_nb"] = attitude.as_wxyz(attitude.from_euler(rpy[:, 2], rpy[:, 1], rpy[:, 0]))
@@ -200,13 +219,63 @@ def _onto(spec, key, t):
     return out[:, 0] if x.ndim == 1 else out
 
 
-def _attitude_ned(spec, wxyz, lat, lon):
-    """The reference attitude `wxyz` (its spec's `rotates`) as q_nb (body -> NED, wxyz)."""
-    q = _attitude_given(spec, wxyz, ("body_to_ned", "body_to_ecef"))
-    if _rotates(spec) == "body_to_ecef":
+def _attitude_ned(spec, wxyz, lat, lon, convergence=None):
+    """The reference attitude `wxyz` (its spec's `rotates`) as q_nb (body -> NED, wxyz); beside
+    UTM positions, `convergence` (rad, `utm.to_geodetic`) turns an attitude in the grid's
+    axes (east, north, up of the grid: "body_to_utm", their default) into true ones."""
+    rotations = ("body_to_ned", "body_to_ecef")
+    if convergence is not None:
+        rotations = ("body_to_utm",) + rotations
+    q = _attitude_given(spec, wxyz, rotations)
+    if _rotates(spec, rotations[0]) == "body_to_ecef":
         q_en = quaternion.from_rotation_matrix(earth.ned_to_ecef_matrix(lat, lon))
         q = np.conjugate(q_en) * q
+    elif _rotates(spec, rotations[0]) == "body_to_utm":
+        # grid north lies the convergence clockwise of true north: the grid's axes turn
+        # into true east, north, up by -convergence about up
+        half = -0.5 * np.asarray(convergence, float)
+        q_true_grid = quaternion.from_float_array(np.column_stack(
+            [np.cos(half), np.zeros_like(half), np.zeros_like(half), np.sin(half)]))
+        q = _Q_NED_ENU * q_true_grid * q
     return attitude.as_wxyz(q)
+
+
+def _from_utm(spec, enh):
+    """(lat rad, lon rad, h m, convergence rad) of [reference] position_utm's easting,
+    northing (m, in its source's zone and hemisphere) and ellipsoidal height (m)."""
+    source = spec.section("reference")["position_utm"]
+    zone = source.get("zone") if isinstance(source, dict) else None
+    hemisphere = source.get("hemisphere") if isinstance(source, dict) else None
+    if not (isinstance(zone, int) and not isinstance(zone, bool) and 1 <= zone <= 60) or \
+            hemisphere not in ("N", "S"):
+        raise RecordingError(f"{spec.path}: [reference] position_utm needs its grid: "
+                             "{file = ..., columns = [easting, northing, height], zone = 1-60, "
+                             f"hemisphere = \"N\" or \"S\"}} (got zone {zone!r}, hemisphere "
+                             f"{hemisphere!r})")
+    lat, lon, convergence = utm.to_geodetic(enh[:, 0], enh[:, 1], zone, hemisphere == "N")
+    spec.notes["reference_utm"] = (
+        f"UTM zone {zone}{hemisphere} (WGS-84) to latitude and longitude; the grid's "
+        f"convergence {np.degrees(np.median(convergence)):+.3f} deg (median: grid north "
+        "clockwise of true north)")
+    return lat, lon, enh[:, 2], convergence
+
+
+def _matrix_quaternions(spec, rows):
+    """[reference] attitude_matrix's rows (M, 9: R11 R12 R13 R21 ... R33, the first row
+    first) as w, x, y, z rows; a matrix further than ORTHONORMAL from a rotation refused,
+    naming the worst row (a scaled or sheared one, a transposed layout still orthonormal
+    is caught by the import's attitude checks against the IMU's rates)."""
+    r = np.asarray(rows, float).reshape(-1, 3, 3)
+    off = np.abs(np.einsum("kij,klj->kil", r, r) - np.eye(3)).max(axis=(1, 2))
+    det = np.linalg.det(r)
+    bad = (off > ORTHONORMAL) | (det < 0)
+    if bad.any():
+        k = int(np.argmax(bad))
+        raise RecordingError(f"{spec.path}: [reference] attitude_matrix row {k} is no "
+                             f"rotation (|R R^T - I| {off[k]:.2g}, det {det[k]:.3g}): nine "
+                             "columns R11 R12 R13 R21 ... R33 of a proper rotation, the first "
+                             "row first")
+    return attitude.as_wxyz(quaternion.from_rotation_matrix(r, nonorthogonal=True))
 
 
 def _attitude_given(spec, wxyz, rotations):
@@ -214,11 +283,13 @@ def _attitude_given(spec, wxyz, rotations):
     its `rotates` one of `rotations` (the first the default)."""
     rotates = _rotates(spec, rotations[0])
     if rotates not in rotations:
-        raise RecordingError(f"{spec.path}: [reference] attitude_wxyz rotates {rotates!r}: "
+        raise RecordingError(f"{spec.path}: [reference] attitude rotates {rotates!r}: "
                              f"{' or '.join(rotations)} for these positions")
     return unit_quaternions(wxyz, f"{spec.path}: [reference] attitude_wxyz")
 
 
 def _rotates(spec, default="body_to_ned"):
-    source = spec.section("reference").get("attitude_wxyz")
+    """The `rotates` of the [reference] attitude given as a quaternion or a matrix."""
+    section = spec.section("reference")
+    source = section.get("attitude_wxyz", section.get("attitude_matrix"))
     return source.get("rotates", default) if isinstance(source, dict) else default

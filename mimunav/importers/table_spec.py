@@ -20,10 +20,12 @@ KINDS = {"time": ("s", "ms", "us", "ns", "iso8601"), "angular_rate": ("rad/s", "
          "height": ("m", "mm", "ft"), "position_ecef": ("m",), "velocity_ned": ("m/s",),
          "velocity_ecef": ("m/s",), "attitude_wxyz": ("1",), "attitude_rpy": ("deg", "rad"),
          "position_local": ("m", "mm", "ft"), "velocity_local": ("m/s",),
-         "ground_speed": ("m/s", "km/h", "kn"), "course": ("deg", "rad")}
+         "ground_speed": ("m/s", "km/h", "kn"), "course": ("deg", "rad"),
+         "position_utm": ("m",), "attitude_matrix": ("1",)}
 WIDTH = {"angular_rate": 3, "specific_force": 3, "angle_increment": 3, "velocity_increment": 3,
          "position_ecef": 3, "velocity_ned": 3, "velocity_ecef": 3, "attitude_wxyz": 4,
-         "attitude_rpy": 3, "position_local": 3, "velocity_local": 3}
+         "attitude_rpy": 3, "position_local": 3, "velocity_local": 3, "position_utm": 3,
+         "attitude_matrix": 9}
 # every key a spec may hold, by where it stands (an unknown one is refused, the nearest named)
 IMU_KEYS = ("time", "angular_rate", "specific_force", "angle_increment", "velocity_increment",
             "axes", "mounting_rpy_deg", "lever_arm_m", "range", "time_offset_s", "sampling")
@@ -35,9 +37,10 @@ SECTION_KEYS = {
     "reference": ("time", "latitude", "longitude", "height", "position_ecef", "velocity_ned",
                   "velocity_ecef", "attitude_wxyz", "attitude_rpy", "attitude_of", "source",
                   "independent", "position_sigma_m", "time_offset_s", "position_local",
-                  "velocity_local", "local_frame", "ground_speed", "course")}
+                  "velocity_local", "local_frame", "ground_speed", "course", "position_utm",
+                  "attitude_matrix", "body_axes")}
 SOURCE_KEYS = ("file", "columns", "unit", "scale", "offset", "time", "rotates", "age",
-               "zone", "rows")
+               "zone", "rows", "hemisphere")
 FRAME_KEYS = ("axes", "origin", "azimuth_deg")          # [reference] local_frame = {...}
 RANGE_KEYS = ("angular_rate", "specific_force")
 ELSEWHERE = {**{key: "in [reference] local_frame = {" + key + " = ...}" for key in FRAME_KEYS},
@@ -111,9 +114,9 @@ class Spec:
         width = WIDTH.get(kind, 1)
         scale = _scale(self.path, source.get("scale", 1.0), width, where)
         offset = _scale(self.path, source.get("offset", 0.0), width, where, "offset")
-        if "zone" in source and unit != "iso8601":
+        if "zone" in source and unit != "iso8601" and kind != "position_utm":
             raise RecordingError(f"{self.path}: {where}: `zone` belongs to date-times "
-                                 "(unit = \"iso8601\")")
+                                 "(unit = \"iso8601\") and to position_utm")
         x = self._date_times(source, where) if unit == "iso8601" else \
             load_spec(os.path.join(self.root, source["file"]), source.get("columns"), self.notes,
                       source.get("rows"))

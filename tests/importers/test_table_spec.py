@@ -58,14 +58,13 @@ def test_a_tick_scale_gives_the_time_base_and_an_unknown_key_is_named(tmp_path):
                                                     extra="colums = 3"))
     with pytest.raises(RecordingError, match=r"\[imu\] has an unknown key 'colums'"):
         table.read(tmp_path / "spec.toml")
-    # a UTM grid (KAIST's poses): not the nearest key (position_ecef had been offered), but
-    # what to do and what a grid's heading and distances are not - with the convergence's
-    # sign a heading takes (an independent check: grid 32.97 deg, true 32.00, at -0.97)
+    # a UTM grid named otherwise (KAIST's poses): not the nearest key (position_ecef had been
+    # offered), but the key that reads it
     (tmp_path / "spec.toml").write_text(SPEC.format(rate=RATES, force=FORCES,
-                                                    extra="position_utm = 3"))
-    with pytest.raises(RecordingError, match=r"UTM grid coordinates are not read: convert "
-                       r"them to latitude and longitude .* true heading = grid heading \+ "
-                       r"\(lon - lon0\) sin\(lat\)"):
+                                                    extra="utm_easting = 3"))
+    with pytest.raises(RecordingError, match=r"UTM grid coordinates are \[reference\] "
+                       r"position_utm = \{file = ..., columns = \[easting, northing, height\], "
+                       r"zone = 1-60"):
         table.read(tmp_path / "spec.toml")
 
 
