@@ -510,6 +510,28 @@ def test_a_stamp_late_past_half_a_period_is_no_missed_sample():
     assert sum(m for _, m in missing_samples(holed)) == 3
 
 
+def test_stamps_jittered_by_a_third_of_a_period_miss_no_more_samples_than_the_span_holds():
+    """A quadruped's IMU stamped on a 10 ms grid 2.5 ms rms off it, one in twelve late by
+    7 ms more on average (steps of 0-31 ms, its offsets skewed late as the real file's): the
+    slots cannot place every stamp, and the period fitted from the span over them had
+    settled at 9.8 ms with 45-70 'missed' samples in 2400 where none was - the span holds
+    no missing sample, so at most the end stamps' jitter may read as one or two; four taken
+    out are counted, and the rate is read within 0.1 Hz."""
+    from mimunav.flightlog.stamps import free_running, mean_rate_hz, missing_samples, \
+        rate_segments
+    for seed in range(1, 6):
+        rng = np.random.default_rng(seed)
+        offset = rng.normal(0, 2.5e6, 2400)
+        late = rng.random(2400) < 0.08
+        offset[late] += rng.exponential(7e6, late.sum())
+        stamps = np.round(np.sort(np.arange(2400) * 10e6 + offset)).astype(np.int64)
+        assert not free_running(np.diff(stamps).astype(float), rate_segments(stamps)[0][2])
+        assert sum(m for _, m in missing_samples(stamps)) <= 2
+        assert abs(mean_rate_hz(stamps) - 100.0) < 0.1
+        held = np.delete(stamps, [500, 1500, 1501, 1502])
+        assert 4 <= sum(m for _, m in missing_samples(held)) <= 6
+
+
 def test_a_free_running_samplers_jitter_is_no_gap():
     """A sampler whose intervals jitter one by one (a phone's sensor events: 10 ms +- 1.5 ms
     each, clipped to 5-16 ms, so its phase wanders without bound) - a grid's slots had read
