@@ -37,15 +37,22 @@ def excursions(design, x, alpha):
     z 10-25 on null drives). Returns spans [{"t0", "t1", "channel", "z", "size", "units",
     "peak_t0"}] (overlapping windows merged; z and size - the effect: the window's mean less
     its baseline's, in the channel's SI units - of the window of largest |z|, which starts
-    at peak_t0 s)."""
+    at peak_t0 s). Bins further apart than SCAN_WINDOW_S (a 1 Hz track's 4-6 s) stretch
+    the scan's second to half their median spacing, so a window holds one bin and its
+    baseline its neighbours' (`scan_unit_s`)."""
     t = design.t
-    sec = outputs.block_index(t, 1.0)
+    unit = scan_unit_s(t)
+    sec = outputs.block_index(t, unit)
     n = sec.max() + 1
     counts = np.bincount(sec, minlength=n).astype(float)
     length = int(round(SCAN_WINDOW_S))
     kernel = np.ones(length)
     win_counts = np.convolve(counts, kernel, "valid")
-    full = win_counts >= 0.5 * np.median(win_counts)
+    # a window holds half the median window's bins, and one at least: bins longer than the
+    # window (a 1 Hz track's 4 s) leave half the windows empty, the median 0, and an empty
+    # window's 'mean' of 0 against its neighbours' bins had stood out as an excursion where
+    # no bin lies, twice for each real one
+    full = (win_counts > 0) & (win_counts >= 0.5 * np.median(win_counts))
     nwin = len(win_counts)
     z_limit = stats.t.isf(alpha / (2 * nwin * 6), SCAN_DOF)
     spans = []
@@ -82,19 +89,26 @@ def excursions(design, x, alpha):
         # away): keep only windows that are the largest within that reach
         largest = np.abs(z) >= _running_max(np.abs(z), 6)
         for w_id in np.flatnonzero((np.abs(z) > z_limit) & largest):
-            t0 = t[0] + w_id
+            t0 = t[0] + w_id * unit
             peak = {"z": float(z[w_id]), "size": float(size[w_id]), "peak_t0": float(t0)}
             if spans and spans[-1]["channel"] == ch and spans[-1]["t1"] >= t0 - 1e-9:
-                spans[-1]["t1"] = t0 + SCAN_WINDOW_S
+                spans[-1]["t1"] = t0 + SCAN_WINDOW_S * unit
                 if abs(peak["z"]) > abs(spans[-1]["z"]):
                     spans[-1].update(peak)
             else:
-                spans.append({"t0": float(t0), "t1": float(t0 + SCAN_WINDOW_S), "channel": ch,
-                              **peak})
+                spans.append({"t0": float(t0), "t1": float(t0 + SCAN_WINDOW_S * unit),
+                              "channel": ch, **peak})
     for s in spans:
         s["units"] = "m/s^2" if CHANNELS[s["channel"]][0] == "accel" else "rad/s"
         s["channel"] = f"{CHANNELS[s['channel']][0]}.{CHANNELS[s['channel']][1]}"
     return spans
+
+
+def scan_unit_s(t):
+    """The scan's second (s) over bins at times t (s): 1, or half the bins' median spacing
+    where that is longer than SCAN_WINDOW_S."""
+    spacing = float(np.median(np.diff(t))) if len(t) > 1 else 0.0
+    return max(1.0, 0.5 * spacing) if spacing > SCAN_WINDOW_S else 1.0
 
 
 def overlaps(a, b, margin_s=0.0):

@@ -226,7 +226,8 @@ def _csv_layout(path):
     else whitespace when the first data line is whitespace-separated numbers (KITTI's, TUM's
     text tables). Lines starting with '#' before the data are comments; the last of them is
     the header when it names as many columns as the data has ('# timestamp tx ty tz ...'),
-    and a first line that is not all numbers is one too."""
+    and a first line that is not all numbers is one too (over whitespace-separated numbers,
+    as many names as they have columns: a text table's header without its '#')."""
     with open(path) as fh, text_file(path):
         lines = [line for _, line in zip(range(LAYOUT_LINES), fh)]
     sep, skip = ",", 0
@@ -243,6 +244,9 @@ def _csv_layout(path):
     if not skip and "," not in data and len(data.split()) > 1 and \
             all(_number(x) for x in data.split()):
         sep = None
+    if sep is not None and not skip and "," not in data and \
+            _spaced_numbers(lines[k + 1:], len(data.split())):
+        return None, k, True        # a header of names over a text table (GTSAM's KITTI)
 
     def cells(line):
         return line.split() if sep is None else line.split(sep)
@@ -253,6 +257,15 @@ def _csv_layout(path):
     if len(named) == len(cells(data)) and not all(_number(x) for x in named):
         return sep, k - 1, True
     return sep, k, False
+
+
+def _spaced_numbers(lines, width):
+    """Whether the first of `lines` that holds anything is `width` (> 1) numbers separated
+    by whitespace, no comma."""
+    first = next((line.strip() for line in lines if line.strip()), "")
+    cells = first.split()
+    return width > 1 and "," not in first and len(cells) == width and \
+        all(_number(x) for x in cells)
 
 
 def load_date_times(path, column, zone=None, rows=None):

@@ -34,3 +34,18 @@ def test_an_excursion_left_out_of_the_fit_makes_no_excursion_elsewhere():
     found = excursions_left_out(design, residual_on, 0.05, every)
     assert found == every[:1]                   # as the all-rows fit read it (0.35 of 1.0)
     assert excursions_left_out(design, residual_on, 0.05, []) == []
+
+
+def test_bins_longer_than_the_window_stand_out_only_where_they_lie():
+    """A 1 Hz track's 4 s bins: a 2 s window holds one bin or none. One bin 0.2 rad/s off (20
+    times the others' noise) stands out once, in the windows that hold it - an empty
+    window is no mean of 0 (two 'excursions' 11 s apart, where no bin lies, each the bin 5 s
+    off, had been listed for every real one)."""
+    rng = np.random.default_rng(8)
+    t = 7.9 + 4.01 * np.arange(110)
+    x = rng.normal(0.0, 0.01, (len(t), 6))
+    x[50, 5] += 0.2
+    found = excursions(SimpleNamespace(t=t, shape=None), x, 0.05)
+    assert [e["channel"] for e in found] == ["gyro.z"]
+    assert found[0]["t0"] <= t[50] < found[0]["t1"]
+    assert abs(found[0]["size"] - 0.2) < 0.05

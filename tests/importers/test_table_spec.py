@@ -256,6 +256,10 @@ def test_text_tables_separated_by_spaces_with_comment_lines_and_zoned_date_times
     got = columns.load_spec(str(tmp_path / "groundtruth.txt"), ["tx", "timestamp", "qw"])
     np.testing.assert_allclose(got, [[0.1 * k, 1305031098.6659 + 0.01 * k, 1.0]
                                      for k in range(4)])
+    # GTSAM's KITTI text tables: the names' line without its '#'
+    (tmp_path / "named.txt").write_text("timestamp tx ty tz qx qy qz qw\n" + rows + "\n")
+    np.testing.assert_allclose(columns.load_spec(str(tmp_path / "named.txt"), ["tx", "qw"]),
+                               [[0.1 * k, 1.0] for k in range(4)])
     (tmp_path / "bare.txt").write_text("# no names here\n" + rows + "\n")
     assert columns.load_spec(str(tmp_path / "bare.txt"), [1]).ravel().tolist() == \
         pytest.approx([0.0, 0.1, 0.2, 0.3])
