@@ -99,25 +99,65 @@ def missing_samples(t: np.ndarray, smoothing: float = 0.02) -> list[tuple]:
         if period <= 0:
             continue
         rel = (t[a:b + 1] - int(t[a])).astype(float)
-        if free_running(np.diff(rel), period):
+        if free_running(np.diff(rel)):
             out += [(int(a + k), n) for k, n in _long_steps(np.diff(rel), period)]
             continue
-        gaps = _empty_slots(rel, period, smoothing)
-        # the period again as the stamps' slope on their slots within the runs between
-        # gaps, until the slots hold: the median of 100-step means takes lost samples into
-        # the period (2 % lost: 10.2 ms for 10, and half of them missed); the span over the
-        # slots had taken the gaps' own count into it - a quadruped's stamps jittered by
-        # 3.4 ms rms on 10 ms had settled at 9.81 ms and 45 'missed' samples where the span
-        # holds none
-        for _ in range(5):
-            period, sigma = _period_within_runs(rel, gaps)
-            again = _empty_slots(rel, period, smoothing)
-            if np.array_equal(again, gaps):
-                break
-            gaps = again
-        gaps = _held_by_the_span(rel, gaps, period, sigma, np.diff(rel))
+        refitted = _refitted(rel, _near_step(np.diff(rel), period), smoothing)
+        gaps = _over_the_span(rel, _empty_slots(rel, period, smoothing), smoothing) \
+            if refitted is None else refitted
         out += [(int(a + k), int(gaps[k])) for k in np.flatnonzero(gaps)]
     return out
+
+
+REFIT_RANGE = 0.5       # the refitted period stays within this share of the first estimate:
+#                         the median of 100-step means is long by the share of samples lost
+#                         (10 % lost: 10 %), never by half; beyond it the stamps are no grid
+#                         of one sample each (a host stamping a 400 Hz part's reads in bursts
+#                         every 16 ms had refitted to the 20 us inside a burst: 50 kHz)
+
+
+def _near_step(steps, period):
+    """The median of the steps (ns) within half a period of `period` (ns), twice: a grid's
+    step, which lost samples (steps of two periods and more) do not lengthen - the median
+    of 100-step means is long by the share lost (10 % lost: 11.1 ms for 10)."""
+    for _ in range(2):
+        near = np.abs(steps - period) < 0.5 * period
+        if near.any():
+            period = float(np.median(steps[near]))
+    return period
+
+
+def _refitted(rel, first, smoothing):
+    """The gaps of grid-jittered stamps rel (ns) from the first estimate of their period
+    `first` (ns, `_near_step`), the period refitted as the stamps' slope on their slots
+    within the runs between gaps until the slots hold - the span over the slots takes the
+    gaps' own count into it (a quadruped's stamps jittered by 3.4 ms rms on 10 ms had
+    settled at 9.81 ms and 45 'missed' samples where the span holds none) -, kept to as
+    many as the span holds (`_held_by_the_span`); None where the refit leaves REFIT_RANGE
+    of the first estimate."""
+    period = first
+    gaps = _empty_slots(rel, period, smoothing)
+    for _ in range(5):
+        period, sigma = _period_within_runs(rel, gaps)
+        if not abs(period / first - 1) <= REFIT_RANGE:
+            return None
+        again = _empty_slots(rel, period, smoothing)
+        if np.array_equal(again, gaps):
+            break
+        gaps = again
+    return _held_by_the_span(rel, gaps, period, sigma, np.diff(rel))
+
+
+def _over_the_span(rel, gaps, smoothing):
+    """The gaps of stamps rel (ns) whose slot refit failed (`_refitted`): the period as the
+    span over the slots, until the slots hold (the refit before the slope within runs)."""
+    for _ in range(5):
+        slots = len(rel) - 1 + int(gaps.sum())
+        again = _empty_slots(rel, rel[-1] / slots, smoothing)
+        if np.array_equal(again, gaps):
+            break
+        gaps = again
+    return gaps
 
 
 def _period_within_runs(rel, gaps):
@@ -130,7 +170,10 @@ def _period_within_runs(rel, gaps):
     count = np.bincount(run).astype(float)
     d_slot = slot - (np.bincount(run, slot) / count)[run]
     d_rel = rel - (np.bincount(run, rel) / count)[run]
-    period = float((d_slot * d_rel).sum() / (d_slot * d_slot).sum())
+    spread = float((d_slot * d_slot).sum())
+    if spread == 0:                     # every run a single stamp: no slope
+        return math.nan, math.nan
+    period = float((d_slot * d_rel).sum() / spread)
     return period, float(np.sqrt(np.mean((d_rel - period * d_slot) ** 2)))
 
 
@@ -174,22 +217,34 @@ def longest_gap(t, gaps):
     return max(gaps, key=lambda g: t[g[0] + 1] - t[g[0]])
 
 
-FREE_RUNNING_CORRELATION = -0.25   # lag-1 correlation of the steps above which they jitter
-#                                    one by one: a stamp jittered about a grid lengthens one
-#                                    step and shortens the next (correlation -0.5), a
-#                                    free-running sampler's steps are independent (0)
+FREE_RUNNING_SPREAD = 1.7     # a grid's spans of SPAN_STEPS steps scatter as its single
+#                               steps do (both the jitter of two end stamps), a free-running
+#                               sampler's as sqrt(SPAN_STEPS) = 2.8 times them: grids 0.96-1.2
+#                               (up to 10 % lost), phones 2.8-3.3; the steps' lag-1
+#                               correlation had read a quadruped's late-tailed grid -0.29
+#                               against a limit of -0.25, a draw of its kind above it (39
+#                               'missed' samples in 2400)
+SPAN_STEPS = 8
 
 
-def free_running(steps, period):
+def free_running(steps):
     """Whether the steps (ns, one rate) jitter interval by interval rather than about a grid:
-    the lag-1 correlation of the steps within half a period of it (gaps left out) above
-    FREE_RUNNING_CORRELATION; False for steps that do not jitter."""
-    near = np.abs(steps - period) < 0.5 * period
-    pairs = near[:-1] & near[1:]
-    x, y = steps[:-1][pairs], steps[1:][pairs]
-    if len(x) < 10 or np.std(x) == 0 or np.std(y) == 0:
+    the robust spread (MAD) of the spans of SPAN_STEPS steps over that of single steps
+    above FREE_RUNNING_SPREAD - a grid's phase stays bounded, a free-running sampler's
+    wanders -, both of steps within half a median step of it (a span over a lost sample is
+    a period longer: 5 % lost had read a grid free running); False for steps that do not
+    jitter, or too few spans to tell."""
+    steps = np.asarray(steps, float)
+    step = float(np.median(steps)) if len(steps) else 0.0
+    near = np.abs(steps - step) < 0.5 * step
+    whole = np.convolve(near, np.ones(SPAN_STEPS), "valid") == SPAN_STEPS
+    if whole.sum() < 10 * SPAN_STEPS:
         return False
-    return float(np.corrcoef(x, y)[0, 1]) > FREE_RUNNING_CORRELATION
+    spans = np.convolve(steps, np.ones(SPAN_STEPS), "valid")[whole]
+    single = np.median(np.abs(steps[near] - np.median(steps[near])))
+    if single == 0:
+        return False
+    return float(np.median(np.abs(spans - np.median(spans))) / single) > FREE_RUNNING_SPREAD
 
 
 def _long_steps(steps, period):

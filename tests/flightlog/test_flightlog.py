@@ -516,20 +516,45 @@ def test_stamps_jittered_by_a_third_of_a_period_miss_no_more_samples_than_the_sp
     slots cannot place every stamp, and the period fitted from the span over them had
     settled at 9.8 ms with 45-70 'missed' samples in 2400 where none was - the span holds
     no missing sample, so at most the end stamps' jitter may read as one or two; four taken
-    out are counted, and the rate is read within 0.1 Hz."""
-    from mimunav.flightlog.stamps import free_running, mean_rate_hz, missing_samples, \
-        rate_segments
-    for seed in range(1, 6):
+    out are counted, and the rate is read within 0.1 Hz. Its phase stays bounded: no
+    free-running sampler (the steps' lag-1 correlation, -0.29 on the real file, had classed
+    one draw in six free running, and 39 samples 'missed')."""
+    from mimunav.flightlog.stamps import free_running, mean_rate_hz, missing_samples
+    for seed in range(6):
         rng = np.random.default_rng(seed)
         offset = rng.normal(0, 2.5e6, 2400)
         late = rng.random(2400) < 0.08
         offset[late] += rng.exponential(7e6, late.sum())
         stamps = np.round(np.sort(np.arange(2400) * 10e6 + offset)).astype(np.int64)
-        assert not free_running(np.diff(stamps).astype(float), rate_segments(stamps)[0][2])
+        assert not free_running(np.diff(stamps).astype(float))
         assert sum(m for _, m in missing_samples(stamps)) <= 2
         assert abs(mean_rate_hz(stamps) - 100.0) < 0.1
         held = np.delete(stamps, [500, 1500, 1501, 1502])
         assert 4 <= sum(m for _, m in missing_samples(held)) <= 6
+
+
+def test_a_grids_lost_samples_and_a_hosts_bursts_are_read_for_what_they_are():
+    """5 % of a 100 Hz grid's samples lost (2 ms rms of jitter): every one counted and the
+    rate 100 Hz - a period from the median of 100-step means is 5 % long, and the spans over
+    lost samples had read the grid as free running (168 counted, 96.7 Hz). A host stamping a
+    400 Hz part's reads in bursts every 16 ms (20 us apart, or all alike): no grid of one
+    sample each - the slot refit had settled on the 20 us inside a burst (50 kHz, three
+    million 'missed'), or divided by zero; read no worse than the span over the slots."""
+    from mimunav.flightlog.stamps import free_running, mean_rate_hz, missing_samples
+    rng = np.random.default_rng(10)
+    stamps = np.sort(np.arange(10000) * 10e6 + rng.normal(0, 2e6, 10000))
+    lost = rng.choice(np.arange(1, 9999), 500, replace=False)
+    held = np.delete(stamps, lost).astype(np.int64)
+    assert not free_running(np.diff(held).astype(float))
+    assert sum(m for _, m in missing_samples(held)) == 500
+    assert abs(mean_rate_hz(held) - 100.0) < 0.05
+    true = np.arange(24000) * 2.5e6
+    reads = np.arange(0, true[-1] + 16e6, 16e6)
+    read = np.searchsorted(reads, true)
+    first = np.r_[0, np.flatnonzero(np.diff(read)) + 1]
+    within = np.arange(len(true)) - np.repeat(first, np.diff(np.r_[first, len(true)]))
+    for burst in ((reads[read] + within * 20e3).astype(np.int64), reads[read].astype(np.int64)):
+        assert mean_rate_hz(burst) < 500.0
 
 
 def test_a_free_running_samplers_jitter_is_no_gap():
@@ -542,7 +567,7 @@ def test_a_free_running_samplers_jitter_is_no_gap():
     rng = np.random.default_rng(45)
     steps = np.clip(rng.normal(10e6, 1.5e6, 66000), 5e6, 16e6)
     stamps = np.concatenate([[0], np.cumsum(steps)]).astype(np.int64)
-    assert free_running(np.diff(stamps).astype(float), 10e6)
+    assert free_running(np.diff(stamps).astype(float))
     lone = [5000, 15000, 25000, 35000, 45000, 55000]
     held = np.delete(stamps, lone + [60000, 60001, 60002, 60003])
     found = dict(missing_samples(held))
@@ -553,7 +578,7 @@ def test_a_free_running_samplers_jitter_is_no_gap():
     assert len(found) >= len(truth) - 1
     # a grid's jitter is not free running: its steps alternate long and short
     grid = np.arange(5000) * 10_000_000 + rng.uniform(-3e6, 3e6, 5000)
-    assert not free_running(np.diff(np.sort(grid)), 10e6)
+    assert not free_running(np.diff(np.sort(grid)))
 
 
 def test_a_channels_rate_is_its_mean_over_the_span_missing_samples_counted():
