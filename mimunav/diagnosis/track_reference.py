@@ -202,7 +202,7 @@ def reversing(flight, step_s=1.0):
     alignment.STATIC_SPEED, as the alignment finds rests (a differenced RTK fix's speed at
     rest is noise of tenths of m/s, rarely below vehicle.REST_SPEED: a drive forward, a
     stop and backwards had been one move, judged forward) - and each move is judged whole:
-    reversing when most of the `alignment.travel_sign` verdicts that decide on a step_s grid
+    reversing when most of the `travel.travel_sign` verdicts that decide on a step_s grid
     of its epochs faster than alignment.COURSE_SPEED say so (at a constant speed on a
     straight road none decides: such verdicts had counted as forward). The vehicle model
     takes the attitude from the velocity, so reversing it faces the wrong way and predicts
@@ -210,7 +210,8 @@ def reversing(flight, step_s=1.0):
     inconclusive, '1 of 6 channels predicted', and its lag averaged with the reversed
     stretch's)."""
     from ..navigation import alignment
-    from ..navigation.rests import STATIC_AVERAGE_S, STATIC_SPEED, means_around, travel_sign
+    from ..navigation.rests import STATIC_AVERAGE_S, STATIC_SPEED, means_around
+    from ..navigation.travel import travel_sign
     from ..evaluation.windows import track_of
     t, tr = flight.mimu_t, flight.truth
     track = track_of(tr)

@@ -12,9 +12,9 @@ import numpy as np
 import quaternion
 
 from ..navigation import alignment
-from ..navigation.rests import (TRACK_FORCE_RATIO, acceleration_match, along_across_gains,
-                                follows_track, match_angle_se, span_means,
-                                track_acceleration)
+from ..navigation.rests import span_means
+from ..navigation.travel import (TRACK_FORCE_RATIO, acceleration_match, along_across_gains,
+                                 follows_track, match_angle_se, track_acceleration)
 from ..frames import attitude
 from .recording import RecordingError
 from ..motion.carrier import ALONG_COURSE, LAND, car_tests, epoch_means

@@ -16,7 +16,8 @@ COHERENT) - a unit of the positions (mm and m confused) reads a thousand times o
 import numpy as np
 
 from ..motion.track import velocity_from_positions
-from ..navigation.rests import acceleration_match, span_means
+from ..navigation.rests import span_means
+from ..navigation.travel import acceleration_match
 from .recording import RecordingError
 
 AXES = ("north", "east", "down")
@@ -82,7 +83,7 @@ def check_velocity(rec):
 
 
 SCALE_LIMIT = 10.0  # the two sizes of one motion, either way: an IMU's specific force reads a
-#                     track's acceleration at 0.8-1.25 (`rests.TRACK_FORCE_RATIO`) where the
+#                     track's acceleration at 0.8-1.25 (`travel.TRACK_FORCE_RATIO`) where the
 #                     vehicle leans and the road cants; a unit's factor is 1000 (mm) or 100
 COHERENT = 0.5      # coherence of the two, at least, for them to be compared at all
 MOVING = 0.1        # m/s^2: the larger of the two's rms about its mean, at least (a steady

@@ -13,6 +13,8 @@ import json
 import numpy as np
 
 from ..navigation import alignment
+from ..navigation.rest_biases import heading_held
+from ..navigation.rests import vertical_rate_said
 from ..flightlog import LogWriter
 from ..flightlog import schemas as S
 from ..sensors.accuracy import Accuracy
@@ -210,8 +212,22 @@ def summary(rec, align, path):
     else:
         lines.append(f"gyro bias at rest {align.static[0]:.1f}-{align.static[1]:.1f} s (sensor "
                      "axes) " + ", ".join(f"{np.degrees(b):+.4f}" for b in align.gyro_bias)
-                     + " deg/s" + _rest_scatter(rec, align))
+                     + " deg/s" + _rest_scatter(rec, align) + _about_the_vertical(rec, align))
     return lines
+
+
+def _about_the_vertical(rec, align):
+    """'' or, where the rest's rate about the vertical reaches `rests.QUIET_RATE` and no
+    reference heading shows it held there (`rest_biases.heading_held`), that this part is a
+    bias or a steady turn (`rests.vertical_rate_said`)."""
+    t = (rec.imu_ns - rec.imu_ns[0]) / 1e9
+    ref = rec.reference or {}
+    if "q_nb" in ref and heading_held(
+            {"t": (np.asarray(ref["ns"], np.int64) - rec.imu_ns[0]) / 1e9,
+             "q_nb": np.asarray(ref["q_nb"], float)}, t, rec.w, rec.f, *align.static):
+        return ""
+    said = vertical_rate_said(t, rec.w, rec.f, *align.static)
+    return f"; {said[2:]}" if said and said not in align.method else ""
 
 
 def _rest_scatter(rec, align):

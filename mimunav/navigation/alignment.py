@@ -37,8 +37,9 @@ from ..motion.carrier import declared
 from .rest_biases import (ACROSS_GRAVITY, biases_at_a_rest, horizontal_earth_rate, level,
                           reference_attitude, reference_level, rest_biases, up_at_rest)
 from .rests import (MIN_STATIC_S, QUIET_WINDOW_S, STATIC_MARGIN_S, STATIC_SPEED, felt_at_rest,
-                    means_around, quiet_stretches, rest_intervals, track_still, travel_sign,
-                    velocity_noise, yaw_turned)
+                    means_around, quiet_stretches, rest_intervals, track_still, velocity_noise,
+                    vertical_rate_said, yaw_turned)
+from .travel import travel_sign
 
 
 COURSE_SPEED = 3.0          # m/s: horizontal speed from which the GNSS course gives heading
@@ -229,7 +230,8 @@ def _untracked(t, w, f, mounting):
     return Alignment(float(t0), 0.0, 0.0, 0.0, np.zeros(3), attitude.as_wxyz(q_nb),
                      w[rest].mean(axis=0), np.zeros(3), (float(t0), float(t1)),
                      f"a rest {t0:.2f}-{t1:.2f} s judged from the IMU alone (no GNSS track)"
-                     f"{later}; level from its mean specific force; position and heading "
+                     f"{later}{vertical_rate_said(t, w, f, t0, t1)}; level from its mean "
+                     "specific force; position and heading "
                      "assumed 0; the Earth's rate (up to 7.3e-05 rad/s) left in the gyro bias: "
                      "no position, no heading", at_rest_start=t0 <= t[0] + QUIET_WINDOW_S,
                      bias_basis={"gyro": "earth_rate_left", "accel": "none"})

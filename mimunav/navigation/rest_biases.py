@@ -13,7 +13,8 @@ import numpy as np
 
 from ..frames import attitude, earth
 from .attitude_biases import ATTITUDE_BIAS_WINDOW_S, biases_from_attitude
-from .rests import G0, MIN_STATIC_S, quiet_stretches, rate_mean_se
+from .rests import (G0, MIN_STATIC_S, quiet_stretches, rate_mean_se, vertical_rate,
+                    vertical_rate_said)
 
 ACROSS_GRAVITY = ("the accelerometers' bias across gravity from the reference's level (a "
                   "mounting's tilt error reads as that bias, g per rad)")
@@ -140,7 +141,38 @@ def biases_at_a_rest(t, w, f, mounting, track, rests, quiet=None):
              "accel": "all" if level_known else "along_gravity",
              "gravity_sensor_axes": up_at_rest(f[k])}
     return (gyro_bias, accel_bias, (t0, t1),
-            f"biases from {where} {t0:.2f}-{t1:.2f} s ({note})", basis)
+            f"biases from {where} {t0:.2f}-{t1:.2f} s ({note}{_vertical(track, t, w, f, t0, t1)})",
+            basis)
+
+
+def _vertical(track, t, w, f, t0, t1):
+    """`rests.vertical_rate_said` of the rest [t0, t1] s, '' where the reference's heading
+    shows no turn there (`_heading_held`)."""
+    return "" if heading_held(track, t, w, f, t0, t1) else vertical_rate_said(t, w, f, t0, t1)
+
+
+def heading_held(track, t, w, f, t0, t1):
+    """Whether the reference's attitude shows the vehicle not turning about the vertical
+    over the rest [t0, t1] s: between its first and last epochs there (half the rest apart
+    at least) its heading moves less than a quarter of what the IMU's mean rate about its
+    down (`rests.vertical_rate`) would turn it - so that rate is the gyro's bias, not a
+    turntable's turn."""
+    q = track.get("q_nb")
+    if q is None:
+        return False
+    inside = np.flatnonzero(np.isfinite(q).all(axis=1) & (track["t"] >= t0) &
+                            (track["t"] <= t1))
+    if len(inside) < 2:
+        return False
+    e0, e1 = (float(track["t"][j]) for j in inside[[0, -1]])
+    if e1 - e0 < 0.5 * (t1 - t0):       # the reference covers half the rest at least
+        return False
+    k = (t >= t0) & (t <= t1)
+    along = vertical_rate(w[k], f[k])[2]
+    yaw0, yaw1 = (attitude.as_euler(attitude.from_wxyz(np.asarray(q[j], float)))[0]
+                  for j in inside[[0, -1]])
+    turned = abs(math.remainder(float(yaw1 - yaw0), 2 * math.pi))
+    return turned < 0.25 * abs(along) * (e1 - e0)
 
 
 REST_SCATTER = 2.0      # a rest is given up for the reference's attitude only where its 1 s

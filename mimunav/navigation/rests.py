@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from ..frames import attitude, earth
+from ..frames import earth
 from ..motion.track import white_noise
 
 
@@ -18,10 +18,9 @@ STATIC_AVERAGE_S = 1.0      # s: the track's velocity is averaged over this befo
                             # 1 s they scatter 0.03)
 MIN_STATIC_S = 2.0          # s: a shorter rest cannot give a level and a gyro bias
                             # (1 cm/s RTK velocity noise -> 0.2 deg course noise)
-DIRECTION_SPAN_S = 5.0      # s either side: the track's acceleration that tells reversing
-DIRECTION_STEP_S = 1.0      # s: the means it is compared in (`travel_sign`)
-DIRECTION_ACCEL = 0.1       # m/s^2: horizontal acceleration (std) that can tell it (a gentle
 STILL_TOLERANCE = 0.5       # m/s: a noisy reference shows rest when its speed's 2-sigma upper
+                            # bound - a line fitted through its positions (`track_still`) -
+                            # lies below this
 
 
 def rest_intervals(t_track, v_ned, t_first, t_last, h=None):
@@ -288,6 +287,11 @@ QUIET_SPREAD = 3.0          # x the quietest twentieth's spread: still quiet (th
 QUIET_SPREAD_TRACKED = 4.0  # the same where a reference track also judges each stretch
 QUIET_HOLE = 2              # windows: a louder moment inside a rest does not split it
 QUIET_RATE = math.radians(1.0)      # rad/s: a resting consumer gyro's mean rate over a run (its bias) stays below
+#                                     it - or the data show it is no turn (`_no_turn`: an
+#                                     ADIS16448's 4.3 deg/s across gravity, EuRoC's)
+TURN_SHOWN = 4.0            # a steady rate across gravity turns the specific force by its rate
+#                             times the run's span: beyond this many times the turn the run
+#                             shows (its first and last fifths' mean directions), it is none
 G0 = 9.80665                # m/s^2, standard gravity (a resting IMU feels about this)
 REST_GRAVITY = 0.2 * G0     # m/s^2: | |mean f| - g | at a rest a reference shows, at most: beyond
                             # any MEMS part's bias (a consumer accelerometer's 0.05 g), far below
@@ -300,8 +304,9 @@ def quiet_stretches(t, w, f, track=None):
     """Rests judged from the IMU, [(t0, t1)] s of at least MIN_STATIC_S: runs of
     QUIET_WINDOW_S windows whose gyro and specific-force-magnitude scatter are within
     QUIET_SPREAD (QUIET_SPREAD_TRACKED with a track) times
-    the quietest twentieth of the recording's windows, whose mean rate is below QUIET_RATE and
-    whose mean specific force is gravity's size (REST_GRAVITY: a phone's 45 mg bias had
+    the quietest twentieth of the recording's windows, whose mean rate is below QUIET_RATE -
+    or, where no such run is found, is no turn the data show (`_no_turn`: taken as bias) -
+    and whose mean specific force is gravity's size (REST_GRAVITY: a phone's 45 mg bias had
     failed 0.3 m/s^2 and lost a minute on a table), and which the reference
     `track` (when it covers them) does not show moving: a run the reference shows at rest
     (`track_still`: a noisy plain GNSS fix, metres apart epoch to epoch, hid a 33 s rest
@@ -333,7 +338,12 @@ def quiet_stretches(t, w, f, track=None):
     # 30 s rest past QUIET_RATE, 0.67-1.08 deg/s about a 0.39 deg/s bias, and lost the rest)
     quiet = steady & (np.abs(np.linalg.norm(cut(f).mean(axis=1), axis=1) - G0) < REST_GRAVITY)
     runs = [run for t0, t1 in _runs(quiet, cut(t)[:, 0], cut(t)[:, -1])
-            for run in steady_runs(t, w, f, t0, t1)[0] if _mean_rate(t, w, *run) < QUIET_RATE]
+            for run in steady_runs(t, w, f, t0, t1)[0]]
+    # a run whose gyro reads QUIET_RATE or more is a bias only where no rest reads less
+    # (a turntable's 5 deg/s after a true rest had been the longer 'rest')
+    judged = [(run, _no_turn(t, w, f, *run)) for run in runs]
+    runs = [run for run, how in judged if how == "still"] or \
+        [run for run, how in judged if how == "bias"]
     if track is None or len(track["t"]) < 2:
         return runs
     mid = cut(t).mean(axis=1)
@@ -350,10 +360,59 @@ def quiet_stretches(t, w, f, track=None):
     return out
 
 
-def _mean_rate(t, w, t0, t1):
-    """|mean rate| (rad/s) of the samples w at stamps t (s) in [t0, t1]."""
+REST_GRAVITY_BIAS = 0.05 * G0   # m/s^2: | |mean f| - g | at most where a gyro's reading of
+#                                 QUIET_RATE or more is taken as bias: a consumer
+#                                 accelerometer's bias; a coordinated turn banked 18 deg or
+#                                 more, whose specific force holds still in the body as a
+#                                 rest's does, reads beyond (1/cos: 0.05 g)
+
+
+def _no_turn(t, w, f, t0, t1):
+    """How the IMU's mean rate over [t0, t1] (rad/s, samples w at stamps t s) reads: "still"
+    below QUIET_RATE; "bias" where it is no steady turn the data show - across the mean
+    down below REST_RATE and TURN_SHOWN times beyond what the specific force f turned
+    (EuRoC's first 5 s: a gyro reading 4.3 deg/s across gravity, f's direction moved 0.02
+    deg where that rate turns it 13 - the rest had been refused), along it below REST_RATE
+    (which f cannot show: taken as bias, and said so, `vertical_rate_said`), and |f| within
+    REST_GRAVITY_BIAS of g (no banked turn); else "turn"."""
     k = (t >= t0) & (t <= t1)
-    return float(np.linalg.norm(w[k].mean(axis=0)))
+    mean, down, along = vertical_rate(w[k], f[k])
+    if float(np.linalg.norm(mean)) < QUIET_RATE:
+        return "still"
+    across = float(np.linalg.norm(mean - along * down))
+    size = float(np.linalg.norm(f[k].mean(axis=0)))
+    if max(abs(along), across) >= REST_RATE or abs(size - G0) > REST_GRAVITY_BIAS:
+        return "turn"
+    fifth = max(int(k.sum()) // 5, 1)
+    first, last = (x / np.linalg.norm(x) for x in (f[k][:fifth].mean(axis=0),
+                                                   f[k][-fifth:].mean(axis=0)))
+    shown = math.acos(min(1.0, float(first @ last)))
+    # the fifths' centres lie 0.8 of the run apart
+    return "bias" if across < QUIET_RATE or across * (t1 - t0) * 0.8 > TURN_SHOWN * shown \
+        else "turn"
+
+
+def vertical_rate_said(t, w, f, t0, t1):
+    """'' or, where the IMU's mean rate about its mean down over the rest [t0, t1] reaches
+    QUIET_RATE, that it is taken as the gyro's bias though a steady turn about the vertical
+    would read alike (the specific force does not show one)."""
+    k = (t >= t0) & (t <= t1)
+    along = vertical_rate(w[k], f[k])[2]
+    if abs(along) < QUIET_RATE:
+        return ""
+    return (f"; its {math.degrees(along):+.2f} deg/s about the vertical (positive: turning "
+            "right, seen from above) taken as the gyro's bias: a steady turn about the "
+            "vertical reads alike - the specific force does not show one, and the IMU alone "
+            "cannot tell them")
+
+
+def vertical_rate(w, f):
+    """(mean rate (rad/s), mean down (unit, from the mean specific force f), the mean rate's
+    component along it) of a rest's samples w, f: what a steady turn about the vertical
+    would read, which the specific force cannot tell from a bias."""
+    mean = w.mean(axis=0)
+    down = -f.mean(axis=0) / np.linalg.norm(f.mean(axis=0))
+    return mean, down, float(mean @ down)
 
 
 def _runs(mask, starts, ends):
@@ -394,119 +453,6 @@ def track_still(track, t0, t1):
     resid = ned - x @ coef
     se = np.sqrt(np.sum(resid ** 2, axis=0) / (len(x) - 2) / np.sum(x[:, 1] ** 2))
     return float(np.hypot(*coef[1])) + 2 * float(np.hypot(*se)) <= STILL_TOLERANCE
-
-
-def track_acceleration(t, v_ned):
-    """(horizontal speed m/s, course rate rad/s, horizontal acceleration in the direction of
-    travel as along + 1j * across m/s^2 - along = d speed/dt, across = speed x course rate,
-    positive to the right) of a track at epochs t (s) with velocity v_ned (m/s)."""
-    v = np.asarray(v_ned, float)
-    speed = np.hypot(v[:, 0], v[:, 1])
-    course = np.unwrap(np.arctan2(v[:, 1], v[:, 0]))
-    course_rate = np.gradient(course, t)
-    return speed, course_rate, np.gradient(speed, t) + 1j * speed * course_rate
-
-
-def acceleration_match(z_imu, z_track):
-    """(gain, coherence 0..1) of the vehicle-frame horizontal specific force z_imu regressed
-    on the track's horizontal acceleration z_track (both x + 1j y, `track_acceleration`),
-    each less its mean (the tilt's gravity leak): gain = sum(z_imu conj(z_track)) /
-    sum|z_track|^2, complex - its angle is the yaw that turns the track's acceleration into
-    the IMU's, its size their ratio (1 for a car's IMU mounted as stated)."""
-    z_imu, z_track = z_imu - z_imu.mean(), z_track - z_track.mean()
-    cross = np.sum(z_imu * np.conj(z_track))
-    power = math.sqrt(np.sum(abs(z_imu) ** 2) * np.sum(abs(z_track) ** 2))
-    return complex(cross / np.sum(abs(z_track) ** 2)), float(abs(cross) / power) if power else 0.0
-
-
-def along_across_gains(z_imu, z_ref):
-    """(gain along, gain across): the least-squares slopes of the IMU's horizontal specific
-    force (x + 1j y, turned onto the track's axes) on the track's acceleration (along + 1j
-    across), each component on its own, less their means. A car's are alike (the RTKLIB
-    drive 1.04 and 1.04, a phone's 0.98 and 0.88, a noisy 10 Hz track's 0.33 and 0.51); a
-    train on canted curves felt 0.94 along and -0.17 across."""
-    z_imu, z_ref = z_imu - z_imu.mean(), z_ref - z_ref.mean()
-    return (float(z_imu.real @ z_ref.real / (z_ref.real @ z_ref.real)),
-            float(z_imu.imag @ z_ref.imag / (z_ref.imag @ z_ref.imag)))
-
-
-def match_angle_se(z_imu, z_ref, blocks=10):
-    """The standard error (rad) of the angle of `acceleration_match`'s gain: the jackknife
-    over `blocks` consecutive blocks of the epochs."""
-    block = np.arange(len(z_ref)) * blocks // len(z_ref)
-    parts = np.array([np.angle(acceleration_match(z_imu[block != b], z_ref[block != b])[0])
-                      for b in range(blocks)])
-    parts = np.angle(np.exp(1j * (parts - np.angle(np.mean(np.exp(1j * parts))))))
-    return math.sqrt((blocks - 1) / blocks * np.sum(parts ** 2))
-
-
-TRACK_FORCE_RATIO = 1.25   # a car's IMU reads its track's horizontal acceleration at 1 up to
-#                            its body's lean and the road's camber (a few degrees of g: 0.92-
-#                            1.07 on the RTKLIB drive, its excerpt and a phone's); beyond
-#                            0.8-1.25 the specific force is not the track's (a railway's cant
-#                            took a train's to 0.39) and its angle tells neither a mounting
-#                            nor a direction of travel
-
-
-def travel_sign(t, f, mounting, track, t0, span=DIRECTION_SPAN_S, undecided=1.0):
-    """+1 when the vehicle moves forward at t0 (s), -1 when it reverses (the course is the
-    heading + 180 deg: speed changes and the centripetal force act the other way in the
-    vehicle frame). Over t0 +- span, where the along-track acceleration varies by
-    DIRECTION_ACCEL: the IMU's forward specific force (vehicle x) regressed on it (each less
-    its mean), a gain beyond +-0.5 at a correlation beyond 0.5. Else the horizontal
-    specific force (x + 1j y) on the track's acceleration (along + 1j across,
-    `track_acceleration`): a complex gain whose real part lies beyond +-0.5 at coherence
-    above 0.5 - and whose size may be 1 (`follows_track`), the vehicle's specific force its
-    track's: a banked road, a railway's cant, an aircraft's coordinated turn take up the
-    centripetal force (gain -0.03 to -0.24 on a simulated copter-like flight).
-    `undecided` where the data cannot tell (a constant speed on a straight road; fewer than
-    5 epochs): forward (1) for an alignment, which must face somewhere; 0 for a vote
-    (`diagnosis.track.reversing`)."""
-    k = np.flatnonzero((track["t"] >= t0 - span) & (track["t"] <= t0 + span))
-    if len(k) < 5:
-        return undecided
-    # both sides as means over steps of at least DIRECTION_STEP_S: a 10 Hz track with 5 cm
-    # fixes differenced has 3-5 m/s^2 of acceleration noise epoch to epoch, and no move of
-    # a car was ever coherent with it
-    step = max(float(np.median(np.diff(track["t"][k]))), DIRECTION_STEP_S)
-    grid = np.arange(t0 - span, t0 + span + 1e-9, step)
-    v = means_around(track["t"], track["v_ned"], grid, step / 2)
-    known = np.isfinite(v).all(axis=1)
-    grid, v = grid[known], v[known]
-    if len(grid) < 5:
-        return undecided
-    _, _, z_track = track_acceleration(grid, v)
-    near = slice(*np.searchsorted(t, [t0 - span - step, t0 + span + step]))   # the IMU
-    f_v = attitude.rotate(mounting.q_vs, means_around(t[near], f[near], grid, step / 2))
-    if not np.isfinite(f_v).all():
-        return undecided
-    # along the track first: across it a banked road or a railway's cant takes up the turn
-    # (a train entering canted curves had read -1 there: three windows faced backwards)
-    along = z_track.real - z_track.real.mean()
-    if np.std(along) >= DIRECTION_ACCEL:
-        forward = f_v[:, 0] - f_v[:, 0].mean()
-        gain = float(forward @ along / (along @ along))
-        if abs(float(np.corrcoef(forward, along)[0, 1])) > 0.5 and abs(gain) > 0.5:
-            return float(np.sign(gain))
-    # at a steady speed, the turns - where the vehicle's specific force is its track's
-    # acceleration in size (TRACK_FORCE_RATIO): a flat road's car, not a canted track's
-    if np.std(z_track) < DIRECTION_ACCEL:
-        return undecided
-    gain, coherence = acceleration_match(f_v[:, 0] + 1j * f_v[:, 1], z_track)
-    if coherence > 0.5 and abs(gain.real) > 0.5 and follows_track(gain, coherence):
-        return float(np.sign(gain.real))
-    return undecided
-
-
-def follows_track(gain, coherence):
-    """Whether a vehicle's horizontal specific force is its track's acceleration in size
-    (`acceleration_match`'s gain and coherence): the gain is the least-squares slope on the
-    track, shrunk by the track's own noise, and gain / coherence^2 the reverse slope,
-    swollen by the IMU's; the true size lies between, and must reach into
-    1/TRACK_FORCE_RATIO .. TRACK_FORCE_RATIO (a noisy 10 Hz car track: 0.43 .. 0.99; a
-    canted railway's train at a steady speed: its lateral force a fraction of the turn's)."""
-    size = abs(gain)
-    return size <= TRACK_FORCE_RATIO and size / max(coherence, 1e-9) ** 2 >= 1 / TRACK_FORCE_RATIO
 
 
 def means_around(t, x, epochs, half):
