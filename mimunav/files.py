@@ -55,7 +55,7 @@ def write_atomic(path, text, force=False):
     crash never leaves a half-written file; an existing file is kept unless force."""
     path = os.fspath(path)
     if os.path.exists(path) and not force:
-        raise FileExistsError(f"{path} exists; pass force to replace it")
+        raise FileExistsError(f"{path} exists; use --force to replace it")
     fd, tmp = temporary_beside(path, os.path.basename(path))
     try:
         with os.fdopen(fd, "w") as fh:

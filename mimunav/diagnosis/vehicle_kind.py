@@ -93,7 +93,8 @@ def mounting_beyond_range(rejected, flight):
         return [f"the import measured the mounting's yaw at {yaw.group(1)} deg against the "
                 "GNSS course, and measures nothing of its roll and pitch, about which the "
                 "fit turns " + ("(its axes not known here)" if turn is None else "mostly")
-                + ": a mounting tilted beyond 20 deg may be the cause (--mounting-rpy-deg), "
+                + ": a mounting tilted beyond 20 deg may be the cause (mimunav import "
+                "--mounting-rpy-deg), "
                 "or the reference does not carry the term here"]
     if abs(math.radians(float(yaw.group(1)))) <= SMALL_ANGLE_MOUNTING:
         return [f"the import measured the mounting's yaw at {yaw.group(1)} deg against the "

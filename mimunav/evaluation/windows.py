@@ -126,16 +126,20 @@ def why_no_windows(truth, lengths, first, min_speed, max_gap, half):
     gaps = np.diff(truth.t)
     largest, length = (gaps.max() if len(gaps) else 0.0), min(lengths)
     conditions = [
-        (speed.max() >= min_speed, f"a horizontal speed of {min_speed:g} m/s at a window's "
-                                   f"start (the reference peaks at {speed.max():.2f} m/s "
-                                   f"over +-{half:.3g} s: --min-speed)"),
         (span > length, f"{length:g} s of reference after the rest and the alignment's "
-                        f"{half:.3g} s ({span:.1f} s: --lengths)")]
+                        f"{half:.3g} s (it holds {max(span, 0.0):.1f} s: a shorter window, "
+                        "mimunav windows --lengths)")]
+    if min_speed > 0:                       # a speed of 0 is no condition to name
+        conditions.insert(0, (speed.max() >= min_speed,
+                              f"a horizontal speed of {min_speed:g} m/s at a window's start "
+                              f"(the reference peaks at {speed.max():.2f} m/s over "
+                              f"+-{half:.3g} s: mimunav windows --min-speed)"))
     failed = [text for ok, text in conditions if not ok]
     met = [text for ok, text in conditions if ok]
     head = f"no free-inertial window of {length:g} s fits this recording: "
     gap = (f"; the reference's gaps above {max_gap:g} s (the largest {largest:.2f} s: "
-           "--max-gap) leave out the windows they meet" if largest > max_gap else "")
+           "mimunav windows --max-gap) leave out the windows they meet"
+           if largest > max_gap else "")
     if failed:
         return head + "it lacks " + "; ".join(failed) + \
             (f" (it has {'; '.join(met)}{gap})" if met else gap)

@@ -133,7 +133,7 @@ def _reference(bag, available, pose_topic, origin, pose_azimuth, reference_statu
                                  "pose topic (--pose-topic)")
         frame = LocalFrame.from_axes(
             "z_up", origin, None if pose_azimuth in (None, "unknown") else float(pose_azimuth),
-            taken=(90.0, "REP-103's ENU; --pose-azimuth DEG gives it"))
+            taken=(90.0, "REP-103's ENU; mimunav import --pose-azimuth DEG gives it"))
         reference, meta = _pose_reference(bag, available, pose_topic, frame)
         return reference, {**meta, "frame": frame.description}, frame
     if pose_azimuth is not None:

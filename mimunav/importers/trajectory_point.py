@@ -159,8 +159,8 @@ def _check_the_imus_point(rec, p, cov):
         f"{', '.join(f'{x:+.3f}' for x in off)} m (vehicle frame FRD; standard errors "
         f"{', '.join(f'{x:.2g}' for x in np.sqrt(np.diag(mine[1] + cov)))}) from where the "
         "reference IMU's do: the IMU lies that much the other way from where its lever arm "
-        "given puts it (--lever-arm-m, --reference-imu-lever-arm-m; a table spec's "
-        "lever_arm_m)")
+        "given puts it (mimunav import --lever-arm-m, --reference-imu-lever-arm-m; a table "
+        "spec's lever_arm_m)")
 
 
 def _same(p, q, cov):

@@ -339,8 +339,9 @@ def write(out_dir, n_units=20, first_seed=1000, workers=2, progress=True, force=
 def _orientations_markdown(study):
     mg = 1e3 / 9.80665
     lines = ["## Field calibration without a turntable: how many orientations", "",
-             f"`--method ellipsoid` on the first N orientations of a hand-held run (seed S4; "
-             f"nobody measured the attitudes) against `--method twelve-position` on a turntable "
+             f"`mimunav calibrate --method ellipsoid` on the first N orientations of a hand-held "
+             f"run (seed S4; nobody measured the attitudes) against `--method twelve-position` "
+             f"on a turntable "
              f"(seed S2), the same {len(study['twelve-position'])} units, both checked on a fresh "
              "twelve-position run: the rotation-invariant error ||f| - g| (RMS over its windows) "
              "and the zero-g offset against the truth (median [min, max] over units, mg).", "",
@@ -392,7 +393,7 @@ def _markdown(units, checks, png_name):
              f"({len(exact)} units, seeds {exact[0]['seed']}-{exact[-1]['seed']}, each twice). "
              "Each unit is drawn from seed S1 Table 2 and datasheet values "
              "(`mimunav.sensors.mimu`), run through the simulated thermal chamber, rate table "
-             "and centrifuge (`mimunav.lab`) and fitted with `--method entire` "
+             "and centrifuge (`mimunav.lab`) and fitted with `mimunav calibrate --method entire` "
              "(`mimunav.lab.calibrate`). z = (fitted - true) / reported standard error, the truth "
              "expressed in the fit's gauge (temperature polynomials vanish at the file's "
              "reference readings).", "",

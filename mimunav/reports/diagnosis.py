@@ -232,7 +232,7 @@ def _finding_lines(doc):
             vec = f" (vector {_vec(f['vector'])}, {f.get('frame', 'sensor')} axes" + (
                 f"; turned {_vec(np.degrees(f['vector_vehicle']))} deg about the vehicle's "
                 "forward, right, down axes" if "vector_vehicle" in f else "") + (
-                "; the mounting that holds it: --mounting-rpy-deg "
+                "; the mounting that holds it: mimunav import --mounting-rpy-deg "
                 + " ".join(f"{a:g}" for a in f["mounting_rpy_deg"])
                 if "mounting_rpy_deg" in f else "") + ")" if "vector" in f else ""
             lines.append(

@@ -134,7 +134,7 @@ def write(log, out_dir, channel="/mimu/imu", cal_path=None, static=None, dynamic
     """Run `mimunav drift`; returns the folder."""
     cal = Calibration.load(cal_path) if cal_path else None
     t, w, f, rests = outputs(log, channel, cal)
-    t0, t1, _ = choose_span(t, w, f, rests, static)
+    t0, t1, _ = choose_span(t, w, f, rests, static, option="--static")
     rate = 1.0 / float(np.median(np.diff(t)))
     result = analyse(t, w, (t0, t1), dynamic, rate, window_s, max_order)
     doc = document(result, log, channel, cal_path, (t0, t1), dynamic, window_s)

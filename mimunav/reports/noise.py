@@ -112,16 +112,17 @@ def still_spans(t, w, f):
     return [(t[0] + a - 1, t[0] + b + 1) for a, b in _runs(np.arange(n), still)]
 
 
-def choose_span(t, w, f, rests, span=None):
+def choose_span(t, w, f, rests, span=None, option="--span"):
     """The static span (t0, t1) s to analyse and how it was chosen: the given one (clipped
     to the data), else the longest static candidate among the reference's rests, then the
-    still stretches."""
+    still stretches; `option`: the command's own option that gives one, for its messages
+    (`mimunav noise --span`, `mimunav drift --static`)."""
     if span is not None:
         t0, t1 = max(span[0], float(t[0])), min(span[1], float(t[-1]))
-        _check_span(t, w, f, t0, t1, given=True)
+        _check_span(t, w, f, t0, t1, option=None)
         clipped = (t0, t1) != tuple(span)
-        return float(t0), float(t1), "given (--span" + (", clipped to the data)" if clipped
-                                                       else ")")
+        return float(t0), float(t1), f"given ({option}" + (", clipped to the data)" if clipped
+                                                          else ")")
     candidates = sorted(((b - a, a, b, "the longest static rest of the log's reference "
                           "(/truth/state)") for a, b in rests if b - a >= MIN_SPAN_S),
                         reverse=True)
@@ -130,7 +131,7 @@ def choose_span(t, w, f, rests, span=None):
     refused = []
     for _, t0, t1, how in candidates:
         try:
-            _check_span(t, w, f, t0, t1)
+            _check_span(t, w, f, t0, t1, option)
         except InputError as exc:
             refused.append(str(exc))
             continue
@@ -139,10 +140,12 @@ def choose_span(t, w, f, rests, span=None):
     longest = max((b - a for a, b in still_spans(t, w, f)), default=0.0)
     raise InputError(f"no static span of {MIN_SPAN_S:g} s found (longest still stretch "
                      f"{longest:.0f} s{'; ' + refused[0] if refused else ''}); give one with "
-                     "--span T0:T1 (s)")
+                     f"{option} T0:T1 (s)")
 
 
-def _check_span(t, w, f, t0, t1, given=False):
+def _check_span(t, w, f, t0, t1, option="--span"):
+    """Refuse a span [t0, t1] s that is no rest; option: how the command takes one (None:
+    the span was given), for the hint."""
     k = (t >= t0) & (t <= t1)
     if np.isnan(w[k]).any():
         raise InputError(f"span {t0:g}:{t1:g} s: the MIMU turns on its platform "
@@ -150,7 +153,7 @@ def _check_span(t, w, f, t0, t1, given=False):
     if t1 - t0 < MIN_SPAN_S or k.sum() < 100:
         raise InputError(f"span {t0:g}:{t1:g} s holds {k.sum()} samples over "
                          f"{t1 - t0:.0f} s; need >= {MIN_SPAN_S:g} s")
-    hint = "" if given else " (give --span)"
+    hint = "" if option is None else f" (give {option})"
     for name, x, limit, unit, k_unit in (("gyro", w, STILL_GYRO, "deg/s", 180 / math.pi),
                                          ("accelerometer", f, STILL_ACCEL, "m/s^2", 1.0)):
         m = _second_means(t[k], x[k])

@@ -347,7 +347,8 @@ def _markdown(scenario, profile, unit, doc, budget, trad_budget, stats, probabil
         "The models' numbers that are no option (drawn per unit, or fixed), each with its "
         "source; those marked assumed are not from the seeds:", "",
         *model_numbers_markdown(scenario), "",
-        "**Traditional** (`--method traditional`) is what the paper's introduction says its "
+        "**Traditional** (`mimunav calibrate --method traditional`) is what the paper's "
+        "introduction says its "
         "refs [2-5] calibrate - '交叉耦合系数, 加速度表的零位和一阶标度因数和陀螺的标度因数': "
         "cross-coupling, the accelerometers' zero and first-order scale factors, the gyros' "
         "scale factors - from multi-position statics and a single-axis rate table at room "

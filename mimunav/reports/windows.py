@@ -49,14 +49,15 @@ def doubts(flight, time_shift_s):
     if said and not time_shift_s:
         out.append(f"the import could not decide the reference trajectory's clock against the "
                    f"IMU's ({said}): these errors hold the lag too - where the recording's own "
-                   "notes give it, --time-shift S here (or --reference-time-offset S at import)")
+                   "notes give it, mimunav windows --time-shift S (or mimunav import "
+                   "--reference-time-offset S)")
     late = (flight.recording or {}).get("reference_clock_unapplied_s")
     if late and not time_shift_s:   # `importers.checks`: measured, left as the IMU's latency
         out.append(f"the import measured the reference trajectory's stamps "
                    f"{abs(late) * 1e3:.0f} ms {'late' if late > 0 else 'early'} on the IMU's "
                    "and left it as the IMU's latency: these errors hold that lag - where it is "
-                   f"the two clocks' offset, --time-shift {late:+.3f} here (or "
-                   "--reference-time-offset at import) takes it out")
+                   f"the two clocks' offset, mimunav windows --time-shift {late:+.3f} (or "
+                   "mimunav import --reference-time-offset) takes it out")
     off = (flight.recording or {}).get("imu_point_off")
     if off:         # `importers.trajectory_point`: the IMU not where its arm says
         out.append(f"{off}: these errors hold that arm's transfer too")

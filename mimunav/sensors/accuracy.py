@@ -30,7 +30,8 @@ AUTOPILOT_MEMS = {"gyro_scale": 2.5e-3, "accel_scale": 2.5e-3,
                   "gyro_misalignment_rad": 6.25e-3, "accel_misalignment_rad": 5e-3,
                   "gyro_bias": float(np.radians(0.05)), "accel_bias": 0.5 * 20e-3 * 9.80665}
 AUTOPILOT_MEMS_SOURCE = ("an autopilot's MEMS IMU: half the ICM-42688-P datasheet's tolerances "
-                         "(sensors.accuracy.AUTOPILOT_MEMS); --reference-accuracy states others")
+                         "(sensors.accuracy.AUTOPILOT_MEMS); mimunav diagnose "
+                         "--reference-accuracy states others")
 
 
 @dataclass(frozen=True)

@@ -28,7 +28,7 @@ def test_windows_of_an_ideal_imu_stay_at_the_alignment_error(tmp_path):
     assert max(ends10) < 0.05 and max(ends30) < 0.44, (max(ends10), max(ends30))
     # a recording that holds no window says why and what option would help (issue 16: a walk
     # returned zero windows and exit 0)
-    with pytest.raises(ValueError, match="peaks at .* m/s over .* s: --min-speed"):
+    with pytest.raises(ValueError, match="peaks at .* m/s over .* s: mimunav windows --min-speed"):
         windows.run_all(flight, lengths=(10.0,), min_speed=1e3)
     assert main(["windows", str(path), "--min-speed", "1000"]) == 2
 
@@ -80,21 +80,23 @@ def test_reference_floor_of_a_window_from_the_stated_sigmas():
 
 
 def test_no_window_says_which_condition_the_recording_fails():
-    """A reference that moves (0.85 m/s at most, above a 0 m/s gate) but spans 6.4 s after
+    """A reference that moves (0.85 m/s at most, above a 0.5 m/s gate) but spans 6.4 s after
     its rest, for 10 s windows (the Pixhawk log): the refusal names the span as what it
     lacks and the speed as met - it had listed speed, gaps and span as needs, the speed
-    first, as if the speed had failed; a reference gap leaves out only the windows it meets,
-    so it is said as that, not as a lack."""
+    first, as if the speed had failed; a gate of 0 m/s (a reference with attitude) is no
+    condition, not named (its 'speed of 0 m/s' had read as a cause); a reference gap leaves
+    out only the windows it meets, so it is said as that, not as a lack."""
     from types import SimpleNamespace
 
     from mimunav.evaluation.windows import why_no_windows
     t = np.arange(0.0, 8.4, 0.2)
     truth = SimpleNamespace(t=t, v_ned=np.column_stack([0.85 * np.sin(t / 3), 0 * t, 0 * t]))
-    said = why_no_windows(truth, [10.0, 30.0], 1.8, 0.0, 1.0, 0.25)
+    said = why_no_windows(truth, [10.0, 30.0], 1.8, 0.5, 1.0, 0.25)
     lacks, has = said.split("it lacks ")[1].split(" (it has ")
     assert lacks.startswith("10 s of reference after the rest and the alignment's 0.25 s "
-                            "(6.4 s")
+                            "(it holds 6.4 s")
     assert "speed" in has and "gap" not in said and "speed" not in lacks
+    assert "speed" not in why_no_windows(truth, [10.0, 30.0], 1.8, 0.0, 1.0, 0.25)
     # 10.2 s of reference: not enough for 10 s windows and the alignment's 0.25 s before them
     t10 = np.arange(0.0, 10.21, 0.2)
     short = SimpleNamespace(t=t10, v_ned=np.column_stack([0 * t10 + 5.0, 0 * t10, 0 * t10]))
@@ -104,9 +106,9 @@ def test_no_window_says_which_condition_the_recording_fails():
     # a gap leaves out the windows it meets: said, never as what the recording lacks
     gappy = SimpleNamespace(t=np.delete(t, range(20, 30)), v_ned=np.delete(truth.v_ned,
                                                                           range(20, 30), 0))
-    said = why_no_windows(gappy, [10.0], 1.8, 0.0, 1.0, 0.25)
+    said = why_no_windows(gappy, [10.0], 1.8, 0.5, 1.0, 0.25)
     assert "lacks" in said and "gap" not in said.split(" (it has ")[0]
-    assert "gaps above 1 s (the largest 2.20 s: --max-gap) leave out" in said
+    assert "gaps above 1 s (the largest 2.20 s: mimunav windows --max-gap) leave out" in said
 
 
 def test_windows_leave_out_every_window_an_imu_gap_meets(tmp_path):
@@ -302,7 +304,7 @@ def test_windows_on_a_trajectory_clock_the_import_left_open_say_so():
                                                                 "early ...)"})
     (why,) = doubts(flight, 0.0)
     assert "could not decide the reference trajectory's clock" in why and "0.70 s early" in why
-    assert "--time-shift S here" in why
+    assert "mimunav windows --time-shift S" in why
     assert doubts(flight, -0.7) == [] and doubts(SimpleNamespace(recording={}), 0.0) == []
     # an IMU its own forces place off its lever arm given (`importers.trajectory_point`)
     (off,) = doubts(SimpleNamespace(recording={"imu_point_off": "the IMU's own ... 12 m"}), 0.0)
