@@ -108,7 +108,7 @@ def scan_unit_s(t):
     """The scan's second (s) over bins at times t (s): 1, or half the bins' median spacing
     where that is longer than SCAN_WINDOW_S."""
     spacing = float(np.median(np.diff(t))) if len(t) > 1 else 0.0
-    return max(1.0, 0.5 * spacing) if spacing > SCAN_WINDOW_S else 1.0
+    return 0.5 * spacing if spacing > SCAN_WINDOW_S else 1.0
 
 
 def overlaps(a, b, margin_s=0.0):

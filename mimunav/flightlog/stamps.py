@@ -316,21 +316,65 @@ def rounded_clock(ns):
     # a gap: a step beyond the rounded steps' own spread (a period of 1.2 ticks steps by
     # 1 and 2; a median step of 1 had made every 2 a gap)
     cuts = np.flatnonzero(step > float(np.median(step)) + 1.5 * tick) + 1
+    uniform, rate = _lines_through_runs(ns, cuts, ROUNDING_SHARE * tick)
+    return (None, "") if uniform is None else (uniform, (
+        f"stamped in whole {tick * 1e3:g} ms of a uniform {rate:.6g} Hz clock (every stamp "
+        f"within half a tick of it, {len(cuts) + 1} run(s) between gaps): that clock's times are "
+        f"used, not the rounding's (its error {tick / math.sqrt(12) * 1e3:.2g} ms rms)"))
+
+
+def _lines_through_runs(ns, cuts, within):
+    """(stamps ns (N,) int64, rate Hz) of the uniform clock behind stamps ns: each run
+    between the `cuts` (indices that start a run) of CLOCK_RUN samples or more replaced by
+    the line fitted over its samples - (None, None) where a stamp lies beyond `within` (s)
+    of its line or the runs so fitted hold under half the samples; the rate over the steps
+    inside runs."""
+    t = (ns - ns[0]) / 1e9
     out, fitted = t.copy(), 0
     for a, b in zip(np.r_[0, cuts], np.r_[cuts, len(t)]):
         if b - a < CLOCK_RUN:
             continue
         k = np.arange(b - a, dtype=float)
         line = np.polyval(np.polyfit(k, t[a:b], 1), k)
-        if np.max(np.abs(t[a:b] - line)) > ROUNDING_SHARE * tick:
-            return None, ""
+        if np.max(np.abs(t[a:b] - line)) > within:
+            return None, None
         out[a:b], fitted = line, fitted + b - a
     if fitted < 0.5 * len(t):
-        return None, ""
-    inside = np.ones(len(step), bool)
+        return None, None
+    inside = np.ones(len(t) - 1, bool)
     inside[cuts - 1] = False
-    rate = inside.sum() / float(np.sum(np.diff(out)[inside]))
-    return ns[0] + np.round(out * 1e9).astype(np.int64), (
-        f"stamped in whole {tick * 1e3:g} ms of a uniform {rate:.6g} Hz clock (every stamp "
-        f"within half a tick of it, {len(cuts) + 1} run(s) between gaps): that clock's times are "
-        f"used, not the rounding's (its error {tick / math.sqrt(12) * 1e3:.2g} ms rms)")
+    return (ns[0] + np.round(out * 1e9).astype(np.int64),
+            inside.sum() / float(np.sum(np.diff(out)[inside])))
+
+
+BURSTS = 4.0            # a channel's mean step this many times its median step: its stamps
+#                         come in bursts (a host reading a sensor's queue k samples at a
+#                         time, a phone's batched events), not one a sample
+
+
+def burst_clock(ns):
+    """(stamps ns (N,) int64, words) of a uniform clock behind stamps written in bursts -
+    the mean step BURSTS times the median step or more: a host stamping each read of a
+    sensor's queue, its samples a few us apart (a 400 Hz part read every 16 ms had read
+    475 Hz and 4505 'missed' samples) - or (None, ''): each run between missed reads (a step
+    beyond 2.5 times the reads' median interval) fitted by a line over its samples and taken
+    when every stamp lies within one read interval of it and the runs so fitted hold most
+    of the samples. The line lies up to a read interval off the samples' true times, a
+    constant lag the clock checks against a reference measure."""
+    ns = np.asarray(ns, np.int64)
+    if len(ns) < 10 * CLOCK_RUN:
+        return None, ""
+    t = (ns - ns[0]) / 1e9
+    step = np.diff(t)
+    if not float(np.mean(step)) >= BURSTS * float(np.median(step)):
+        return None, ""
+    read = float(np.median(step[step > BURSTS * float(np.median(step))]))
+    cuts = np.flatnonzero(step > 2.5 * read) + 1
+    uniform, rate = _lines_through_runs(ns, cuts, read)
+    return (None, "") if uniform is None else (uniform, (
+        f"stamped in bursts: the stamps are a host's reads {read * 1e3:.3g} ms apart (their "
+        f"median step {np.median(step) * 1e6:.3g} us), not the samples' times - a uniform "
+        f"{rate:.6g} Hz clock through them is used ({len(cuts) + 1} run(s) between missed "
+        f"reads, every stamp within one read of it); it lies up to {read * 1e3:.3g} ms off "
+        "the samples' own times, a constant lag the clock checks against a reference "
+        "measure"))

@@ -10,7 +10,7 @@ import numpy as np
 from ..navigation import alignment
 from ..navigation.rest_biases import level
 from ..frames import attitude
-from ..flightlog.stamps import rounded_clock
+from ..flightlog.stamps import burst_clock, rounded_clock
 from .aliasing import aliased
 from .attitude_check import check_rates_along, mounting_against_attitude
 from .course_check import REFUSED_OFFSET_S, check_against_course, local_mean, not_a_car, \
@@ -106,14 +106,21 @@ def check_recording(rec):
 
 def _uniform_clocks(rec):
     """The IMU's and the reference IMU's stamps, where they are whole ticks of a uniform
-    clock, replaced by that clock's times (`stamps.rounded_clock`) and said so."""
-    ns, said = rounded_clock(rec.imu_ns)
+    clock (`stamps.rounded_clock`) or a host's reads of bursts of samples
+    (`stamps.burst_clock`), replaced by that clock's times and said so."""
+    ns, said = _uniform(rec.imu_ns)
     if ns is not None:
         rec.imu_ns, rec.real["imu_stamps"] = ns, said
     if rec.reference_imu is not None:
-        ns, said = rounded_clock(rec.reference_imu["ns"])
+        ns, said = _uniform(rec.reference_imu["ns"])
         if ns is not None:
             rec.reference_imu["ns"], rec.real["reference_imu_stamps"] = ns, said
+
+
+def _uniform(ns):
+    """`stamps.rounded_clock`'s clock of the stamps ns, else `stamps.burst_clock`'s."""
+    clock = rounded_clock(ns)
+    return clock if clock[0] is not None else burst_clock(ns)
 
 
 HEADING_OFF_COURSE_DEG = 10.0   # deg: a car's reference heading from its own course, the

@@ -520,6 +520,27 @@ def test_an_imu_stamped_in_whole_ms_is_given_its_uniform_clock(pair_motion):
     assert "whole 1 ms of a uniform" in rec.real["reference_imu_stamps"]
 
 
+def test_an_imu_stamped_in_a_hosts_bursts_is_given_its_uniform_clock(pair_motion):
+    """A host reading the IMU's queue every 16 ms and stamping its samples 20 us apart: the
+    stamps are the reads', not the samples' (read as 475 Hz and thousands of 'missed'
+    samples); the import's check puts them on the uniform clock through them, the
+    reference IMU left as it is, and says so - the clocks then measured as before, within
+    a read interval."""
+    ns, w, f, w_r, f_r = pair_motion
+    rel = ns - ns[0]
+    reads = np.arange(0, rel[-1] + 16_000_000, 16_000_000)
+    read = np.searchsorted(reads, rel)
+    first = np.r_[0, np.flatnonzero(np.diff(read)) + 1]
+    within = np.arange(len(rel)) - np.repeat(first, np.diff(np.r_[first, len(rel)]))
+    rec = _recording(ns, w, f, w_r, f_r)
+    rec.imu_ns = ns[0] + reads[read] + within * 20_000
+    checks.check_recording(rec)
+    step = np.diff(rec.imu_ns)
+    assert np.ptp(step) <= 2 and abs(np.median(np.diff(ns)) - step.mean()) < 1e3
+    assert "stamped in bursts" in rec.real["imu_stamps"]
+    assert "reference_imu_stamps" not in rec.real
+
+
 @pytest.mark.parametrize("late_s", [0.043, 0.0455])
 def test_a_reference_at_half_the_rate_is_timed_whatever_the_lag_s_phase(late_s):
     """A 100 Hz reference (interval means, 3e-4 rad/s of white noise: a tactical IMU's
