@@ -347,15 +347,19 @@ def _lines_through_runs(ns, cuts, within):
             inside.sum() / float(np.sum(np.diff(out)[inside])))
 
 
-BURSTS = 4.0            # a channel's mean step this many times its median step: its stamps
-#                         come in bursts (a host reading a sensor's queue k samples at a
-#                         time, a phone's batched events), not one a sample
+BURSTS = 4.0            # a step this many times the median step is a host's read (the
+#                         samples of a read lie a few us apart: a host reading a sensor's
+#                         queue k samples at a time, a phone's batched events)
+READS_SHARE = 0.02      # of the steps at least: reads of 50 samples or fewer - a grid's
+#                         few long gaps are no bursts (two 10 min runs 2 h apart had made
+#                         the mean step 4 times the median, and been 'one read')
 
 
 def burst_clock(ns):
     """(stamps ns (N,) int64, words) of a uniform clock behind stamps written in bursts -
-    the mean step BURSTS times the median step or more: a host stamping each read of a
-    sensor's queue, its samples a few us apart (a 400 Hz part read every 16 ms had read
+    READS_SHARE of the steps or more BURSTS times the median step, and the mean step too: a
+    host stamping each read
+    of a sensor's queue, its samples a few us apart (a 400 Hz part read every 16 ms had read
     475 Hz and 4505 'missed' samples) - or (None, ''): each run between missed reads (a step
     beyond 2.5 times the reads' median interval) fitted by a line over its samples and taken
     when every stamp lies within one read interval of it and the runs so fitted hold most
@@ -366,9 +370,12 @@ def burst_clock(ns):
         return None, ""
     t = (ns - ns[0]) / 1e9
     step = np.diff(t)
-    if not float(np.mean(step)) >= BURSTS * float(np.median(step)):
+    reads = step > BURSTS * float(np.median(step))
+    # the samples of a read closer than their mean interval over the span (a grid that
+    # loses runs of samples steps by whole periods), and the reads a share of the steps
+    if reads.mean() < READS_SHARE or float(np.mean(step)) < BURSTS * float(np.median(step)):
         return None, ""
-    read = float(np.median(step[step > BURSTS * float(np.median(step))]))
+    read = float(np.median(step[reads]))
     cuts = np.flatnonzero(step > 2.5 * read) + 1
     uniform, rate = _lines_through_runs(ns, cuts, read)
     return (None, "") if uniform is None else (uniform, (

@@ -555,6 +555,18 @@ def test_a_grids_lost_samples_and_a_hosts_bursts_are_read_for_what_they_are():
     within = np.arange(len(true)) - np.repeat(first, np.diff(np.r_[first, len(true)]))
     for burst in ((reads[read] + within * 20e3).astype(np.int64), reads[read].astype(np.int64)):
         assert mean_rate_hz(burst) < 500.0
+    # the uniform clock behind the reads (`burst_clock`, which the import applies): the
+    # samples' times to 1 us, and no clock for a grid that is no burst - two 10 min runs 2 h
+    # apart (their mean step 4 times the median: they had been 'one read'), a radio link
+    # losing 5 samples at a time
+    from mimunav.flightlog.stamps import burst_clock
+    uniform, said = burst_clock((reads[read] + within * 20e3).astype(np.int64))
+    assert np.abs((uniform - uniform[0]) - true).max() < 1e3 and "bursts" in said
+    assert burst_clock(np.r_[true, true[-1] + 7.2e12 + true].astype(np.int64))[0] is None
+    keep = np.ones(200, bool)
+    for start in (20, 60, 100, 140, 180):
+        keep[start:start + 5] = False
+    assert burst_clock((np.arange(200) * 10_000_000)[keep])[0] is None
 
 
 def test_a_free_running_samplers_jitter_is_no_gap():
