@@ -350,6 +350,9 @@ def _lines_through_runs(ns, cuts, within):
 BURSTS = 4.0            # a step this many times the median step is a host's read (the
 #                         samples of a read lie a few us apart: a host reading a sensor's
 #                         queue k samples at a time, a phone's batched events)
+BURST_STEP = 100e-6     # s: the samples of a read lie closer than any IMU samples (8 kHz:
+#                         125 us) - a grid recording a few samples every few seconds
+#                         (duty-cycled) steps by its own period inside its windows
 READS_SHARE = 0.02      # of the steps at least: reads of 50 samples or fewer - a grid's
 #                         few long gaps are no bursts (two 10 min runs 2 h apart had made
 #                         the mean step 4 times the median, and been 'one read')
@@ -357,8 +360,8 @@ READS_SHARE = 0.02      # of the steps at least: reads of 50 samples or fewer - 
 
 def burst_clock(ns):
     """(stamps ns (N,) int64, words) of a uniform clock behind stamps written in bursts -
-    READS_SHARE of the steps or more BURSTS times the median step, and the mean step too: a
-    host stamping each read
+    READS_SHARE of the steps or more BURSTS times the median step, and the mean step too,
+    the median step under BURST_STEP: a host stamping each read
     of a sensor's queue, its samples a few us apart (a 400 Hz part read every 16 ms had read
     475 Hz and 4505 'missed' samples) - or (None, ''): each run between missed reads (a step
     beyond 2.5 times the reads' median interval) fitted by a line over its samples and taken
@@ -373,7 +376,8 @@ def burst_clock(ns):
     reads = step > BURSTS * float(np.median(step))
     # the samples of a read closer than their mean interval over the span (a grid that
     # loses runs of samples steps by whole periods), and the reads a share of the steps
-    if reads.mean() < READS_SHARE or float(np.mean(step)) < BURSTS * float(np.median(step)):
+    if reads.mean() < READS_SHARE or float(np.mean(step)) < BURSTS * float(np.median(step)) \
+            or float(np.median(step)) >= BURST_STEP:
         return None, ""
     read = float(np.median(step[reads]))
     cuts = np.flatnonzero(step > 2.5 * read) + 1

@@ -13,8 +13,7 @@ import json
 import numpy as np
 
 from ..navigation import alignment
-from ..navigation.rest_biases import heading_held
-from ..navigation.rests import vertical_rate_said
+from ..navigation.rest_biases import vertical_note
 from ..flightlog import LogWriter
 from ..flightlog import schemas as S
 from ..sensors.accuracy import Accuracy
@@ -217,16 +216,14 @@ def summary(rec, align, path):
 
 
 def _about_the_vertical(rec, align):
-    """'' or, where the rest's rate about the vertical reaches `rests.QUIET_RATE` and no
-    reference heading shows it held there (`rest_biases.heading_held`), that this part is a
-    bias or a steady turn (`rests.vertical_rate_said`)."""
+    """'' or what the rest says of its rate about the vertical (`rest_biases.vertical_note`:
+    a bias the IMU alone cannot tell from a steady turn, or the reference's turn), where the
+    initial state's words do not say it already."""
     t = (rec.imu_ns - rec.imu_ns[0]) / 1e9
     ref = rec.reference or {}
-    if "q_nb" in ref and heading_held(
-            {"t": (np.asarray(ref["ns"], np.int64) - rec.imu_ns[0]) / 1e9,
-             "q_nb": np.asarray(ref["q_nb"], float)}, t, rec.w, rec.f, *align.static):
-        return ""
-    said = vertical_rate_said(t, rec.w, rec.f, *align.static)
+    track = {"t": (np.asarray(ref["ns"], np.int64) - rec.imu_ns[0]) / 1e9,
+             "q_nb": np.asarray(ref["q_nb"], float)} if "q_nb" in ref else {}
+    said = vertical_note(track, t, rec.w, rec.f, *align.static)
     return f"; {said[2:]}" if said and said not in align.method else ""
 
 

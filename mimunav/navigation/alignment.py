@@ -35,7 +35,8 @@ from ..frames import attitude, earth
 from ..errors import InputError
 from ..motion.carrier import declared
 from .rest_biases import (ACROSS_GRAVITY, biases_at_a_rest, horizontal_earth_rate, level,
-                          reference_attitude, reference_level, rest_biases, up_at_rest)
+                          reference_attitude, reference_level, rest_biases, up_at_rest,
+                          vertical_note)
 from .rests import (MIN_STATIC_S, QUIET_WINDOW_S, STATIC_MARGIN_S, STATIC_SPEED, felt_at_rest,
                     means_around, quiet_stretches, rest_intervals, track_still, velocity_noise,
                     vertical_rate_said, yaw_turned)
@@ -320,6 +321,9 @@ def _from_rest(t, w, f, mounting, track, interval, still_until=-math.inf):
         notes.append(_no_heading(track, interval))
     q_nb = attitude.from_euler(np.array(yaw), np.array(pitch), np.array(roll))
     gyro_bias, accel_bias = rest_biases(w[rest], f[rest], q_nb * q_vs, lat, h, level_known)
+    vertical = vertical_note(track, t, w, f, float(t[0]), float(t_end))
+    if vertical:                    # a turntable's rate beside a still track
+        notes.append(vertical[2:])
     if level_known:
         notes.append(ACROSS_GRAVITY + _tilt_alike(accel_bias, f[rest].mean(axis=0)))
     true_north = heading != "assumed" and track.get("heading_known", True)

@@ -141,38 +141,46 @@ def biases_at_a_rest(t, w, f, mounting, track, rests, quiet=None):
              "accel": "all" if level_known else "along_gravity",
              "gravity_sensor_axes": up_at_rest(f[k])}
     return (gyro_bias, accel_bias, (t0, t1),
-            f"biases from {where} {t0:.2f}-{t1:.2f} s ({note}{_vertical(track, t, w, f, t0, t1)})",
+            f"biases from {where} {t0:.2f}-{t1:.2f} s ({note}{vertical_note(track, t, w, f, t0, t1)})",
             basis)
 
 
-def _vertical(track, t, w, f, t0, t1):
-    """`rests.vertical_rate_said` of the rest [t0, t1] s, '' where the reference's heading
-    shows no turn there (`_heading_held`)."""
-    return "" if heading_held(track, t, w, f, t0, t1) else vertical_rate_said(t, w, f, t0, t1)
+def vertical_note(track, t, w, f, t0, t1):
+    """'' or what a rest [t0, t1] s says of the IMU's mean rate about its down (rad/s, from
+    samples w, f at stamps t s) where it reaches `rests.QUIET_RATE`: a turn, where the
+    reference's heading over the rest turns (`heading_turn`) by more than a quarter of what
+    that rate turns - the gyro's bias about the vertical then not measured there; '' where it
+    turns less (a bias); else `rests.vertical_rate_said` (the IMU alone cannot tell)."""
+    k = (t >= t0) & (t <= t1)
+    along = vertical_rate(w[k], f[k])[2]
+    turn = heading_turn(track, t0, t1)
+    if turn is None:
+        return vertical_rate_said(t, w, f, t0, t1)
+    turned, span = turn
+    if abs(turned) < 0.25 * abs(along) * span:
+        return ""
+    return (f"; the reference's heading turns {math.degrees(turned):+.1f} deg over the rest "
+            f"({math.degrees(turned) / span:+.2f} deg/s): the IMU's "
+            f"{math.degrees(along):+.2f} deg/s about the vertical is that turn's, and the "
+            "gyro's bias about the vertical is not measured here")
 
 
-def heading_held(track, t, w, f, t0, t1):
-    """Whether the reference's attitude shows the vehicle not turning about the vertical
-    over the rest [t0, t1] s: between its first and last epochs there (half the rest apart
-    at least) its heading moves less than a quarter of what the IMU's mean rate about its
-    down (`rests.vertical_rate`) would turn it - so that rate is the gyro's bias, not a
-    turntable's turn."""
+def heading_turn(track, t0, t1):
+    """(the reference's heading turn over [t0, t1] s, rad - its epoch-to-epoch changes
+    unwrapped: a turntable's 300 deg had read -60 -, the span it covers, s), or None where its
+    attitude covers under half of [t0, t1]."""
     q = track.get("q_nb")
     if q is None:
-        return False
+        return None
     inside = np.flatnonzero(np.isfinite(q).all(axis=1) & (track["t"] >= t0) &
                             (track["t"] <= t1))
     if len(inside) < 2:
-        return False
+        return None
     e0, e1 = (float(track["t"][j]) for j in inside[[0, -1]])
     if e1 - e0 < 0.5 * (t1 - t0):       # the reference covers half the rest at least
-        return False
-    k = (t >= t0) & (t <= t1)
-    along = vertical_rate(w[k], f[k])[2]
-    yaw0, yaw1 = (attitude.as_euler(attitude.from_wxyz(np.asarray(q[j], float)))[0]
-                  for j in inside[[0, -1]])
-    turned = abs(math.remainder(float(yaw1 - yaw0), 2 * math.pi))
-    return turned < 0.25 * abs(along) * (e1 - e0)
+        return None
+    yaw = np.unwrap(attitude.as_euler(attitude.from_wxyz(np.asarray(q[inside], float)))[0])
+    return float(yaw[-1] - yaw[0]), e1 - e0
 
 
 REST_SCATTER = 2.0      # a rest is given up for the reference's attitude only where its 1 s

@@ -373,15 +373,18 @@ def _no_turn(t, w, f, t0, t1):
     down below REST_RATE and TURN_SHOWN times beyond what the specific force f turned
     (EuRoC's first 5 s: a gyro reading 4.3 deg/s across gravity, f's direction moved 0.02
     deg where that rate turns it 13 - the rest had been refused), along it below REST_RATE
-    (which f cannot show: taken as bias, and said so, `vertical_rate_said`), and |f| within
-    REST_GRAVITY_BIAS of g (no banked turn); else "turn"."""
+    (which f cannot show: taken as bias, and said so, `vertical_rate_said`), |f| within
+    REST_GRAVITY_BIAS of g, and no steady level turn would read that rate and f alike
+    (`_level_turn`: a coordinated turn holds f still in the body as a rest does, a
+    turntable turns about f); else "turn"."""
     k = (t >= t0) & (t <= t1)
     mean, down, along = vertical_rate(w[k], f[k])
     if float(np.linalg.norm(mean)) < QUIET_RATE:
         return "still"
     across = float(np.linalg.norm(mean - along * down))
     size = float(np.linalg.norm(f[k].mean(axis=0)))
-    if max(abs(along), across) >= REST_RATE or abs(size - G0) > REST_GRAVITY_BIAS:
+    if max(abs(along), across) >= REST_RATE or abs(size - G0) > REST_GRAVITY_BIAS or \
+            _level_turn(across, along, size):
         return "turn"
     fifth = max(int(k.sum()) // 5, 1)
     first, last = (x / np.linalg.norm(x) for x in (f[k][:fifth].mean(axis=0),
@@ -390,6 +393,18 @@ def _no_turn(t, w, f, t0, t1):
     # the fifths' centres lie 0.8 of the run apart
     return "bias" if across < QUIET_RATE or across * (t1 - t0) * 0.8 > TURN_SHOWN * shown \
         else "turn"
+
+
+def _level_turn(across, along, size):
+    """Whether a mean rate (rad/s, `across` and `along` the mean specific force's axis) could
+    be a steady level turn: turning at a rate about the vertical, a vehicle feels its
+    centripetal acceleration a beside g, its specific force tilted from the vertical by
+    atan(a / g) - the angle between its rate and f - and its size g / cos of that angle (a
+    coordinated turn banked 15 deg, a car circling, a turntable at 0). It is one unless f's
+    size lies 2 REST_GRAVITY_BIAS (the accelerometer's bias, both ways) below that: EuRoC's
+    rest at 67 deg reads 1.00 g where a turn reads 2.6."""
+    turn_size = G0 * math.hypot(across, along) / max(abs(along), 1e-12)
+    return size > turn_size - 2 * REST_GRAVITY_BIAS
 
 
 def vertical_rate_said(t, w, f, t0, t1):

@@ -567,6 +567,10 @@ def test_a_grids_lost_samples_and_a_hosts_bursts_are_read_for_what_they_are():
     for start in (20, 60, 100, 140, 180):
         keep[start:start + 5] = False
     assert burst_clock((np.arange(200) * 10_000_000)[keep])[0] is None
+    # a grid recording 0.5 s every 2 s (duty-cycled): its samples 10 ms apart in a window are
+    # no read's (a clock through the windows had moved its stamps by seconds)
+    cycled = np.arange(20000) * 10_000_000
+    assert burst_clock(cycled[(cycled // 10_000_000) % 200 < 50])[0] is None
 
 
 def test_a_free_running_samplers_jitter_is_no_gap():

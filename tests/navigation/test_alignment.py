@@ -251,6 +251,16 @@ def test_a_rest_is_judged_by_what_the_specific_force_shows_not_by_the_gyros_bias
     banked = np.radians(6.0) * np.array([0.0, math.sin(bank), math.cos(bank)]) + w - bias
     assert quiet_stretches(t, banked, np.tile([0.0, 0.0, -9.81 / math.cos(bank)], (len(t), 1))
                            + rng.normal(0.0, 0.03, (len(t), 3))) == []
+    # a steady level turn reads its rate about a specific force tilted by its centripetal
+    # acceleration, g / cos of that tilt in size: no rest though f holds still - a car
+    # circling at 5 deg/s and 5 m/s, an aircraft banked 15 deg at 20 m/s (7.5 deg/s), a
+    # turntable all record long (a rest, with the table's rate as bias, they had been)
+    for rate, speed in ((5.0, 5.0), (7.53, 20.0), (5.0, 0.0)):
+        centripetal = np.radians(rate) * speed
+        tilt = math.atan2(centripetal, 9.81)
+        turning = np.radians(rate) * np.array([0.0, math.sin(tilt), math.cos(tilt)])
+        felt = [0.0, 0.0, -math.hypot(9.81, centripetal)] + rng.normal(0.0, 0.03, (len(t), 3))
+        assert quiet_stretches(t, turning + w - bias, felt) == [], (rate, speed)
     # a true rest, then a turntable at 5 deg/s: the rest alone (the turn had been the longer)
     level = np.tile([0.0, 0.0, -9.81], (len(t), 1)) + rng.normal(0.0, 0.03, (len(t), 3))
     table = w - bias + np.where(t[:, None] < 4.0, 0.0, np.radians([0.0, 0.0, 5.0]))
@@ -260,6 +270,28 @@ def test_a_rest_is_judged_by_what_the_specific_force_shows_not_by_the_gyros_bias
     pitched = np.column_stack([9.81 * np.sin(angle), np.zeros_like(t), -9.81 * np.cos(angle)])
     turning = np.radians([0.0, 4.0, 0.0]) + rng.normal(0.0, np.radians(0.2), (len(t), 3))
     assert quiet_stretches(t, turning, pitched + rng.normal(0.0, 0.03, (len(t), 3))) == []
+
+
+def test_a_rest_the_reference_shows_turning_measures_no_bias_about_the_vertical():
+    """A turntable at 5 deg/s for 60 s beside a reference whose attitude turns with it (its
+    position still): the 300 deg it turns is counted epoch to epoch (from its first and last
+    headings it had read -60, 'held', and the table's rate passed as the gyro's bias); the
+    words say the rate about the vertical is the turn's and no bias is measured there. A
+    reference heading held still leaves the rate as bias, unsaid."""
+    from mimunav.frames import attitude
+    from mimunav.navigation.rest_biases import vertical_note
+    t = np.arange(0.0, 60.0, 0.01)
+    w = np.tile(np.radians([0.2, -0.3, 5.25]), (len(t), 1))
+    f = np.tile([0.0, 0.0, -9.81], (len(t), 1))
+    epochs = np.arange(0.0, 60.0, 0.1)
+    turning = {"t": epochs, "q_nb": attitude.as_wxyz(attitude.from_euler(
+        np.radians(5.0) * epochs, 0 * epochs, 0 * epochs))}
+    said = vertical_note(turning, t, w, f, 0.0, 59.9)
+    assert "turns +299.0 deg" in said and "not measured here" in said, said
+    held = dict(turning, q_nb=attitude.as_wxyz(attitude.from_euler(0 * epochs, 0 * epochs,
+                                                                  0 * epochs)))
+    assert vertical_note(held, t, w, f, 0.0, 59.9) == ""
+    assert "the IMU alone cannot tell" in vertical_note({}, t, w, f, 0.0, 59.9)
 
 
 def test_no_initial_state_is_a_clear_error():
