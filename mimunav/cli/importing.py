@@ -1,5 +1,6 @@
 """The import command: a recording nobody here wrote into a contract log."""
 import argparse
+import re
 from pathlib import Path
 
 import numpy as np
@@ -31,7 +32,9 @@ def add_import(sub):
     """The `import` command's parser."""
     p = sub.add_parser("import", help="turn a recording nobody here wrote into a contract log "
                        "(/mimu/imu in SI sensor axes, /truth/state, /gnss/fix, metadata of what "
-                       "is real and what is assumed)")
+                       "is real and what is assumed)", add_help=False)
+    p.add_argument("-h", "--help", action=_KindHelp, help="show this help and exit; after a "
+                   "kind (mimunav import ulog --help), that kind's options only")
     p.add_argument("kind", choices=KINDS,
                    help="rtklib: folder with imu_*.csv, its RTKLIB .tag and an RTKLIB .pos; "
                    "ros1, ros2: a ROS bag of either - a ROS 2 MCAP file, a rosbag2 folder "
@@ -156,4 +159,38 @@ class _SpecKeys(argparse.Action):
     def __call__(self, parser, namespace, values, option_string=None):
         from ..importers import table
         print(table.__doc__.strip())
+        parser.exit()
+
+
+_KIND_LIST = re.compile(r"(?:^|; |, )((?:%s)(?:[/, ]+(?:%s))*):" % (("|".join(KINDS),) * 2))
+
+
+def serves(action, kind):
+    """Whether an import option serves `kind`: its help names the kinds it is for
+    ("ros1/ros2, ulog: ...", "dataflash: ...; ulog: ...") and `kind` among them, or names
+    none ("every importer: ...", -o)."""
+    named = {k for match in _KIND_LIST.findall(action.help or "")
+             for k in re.split(r"[/, ]+", match)}
+    return not named or kind in named
+
+
+class _KindHelp(argparse.Action):
+    """--help: the whole help, or after a kind (`mimunav import ulog --help`) the options
+    that serve that kind (`serves`)."""
+
+    def __init__(self, option_strings, dest, **kwargs):
+        super().__init__(option_strings, dest, nargs=0, default=argparse.SUPPRESS, **kwargs)
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        kind = getattr(namespace, "kind", None)
+        if kind is None:
+            parser.print_help()
+            parser.exit()
+        shown = [a for a in parser._actions if a.option_strings and serves(a, kind)]
+        formatter = parser.formatter_class(prog=parser.prog)
+        formatter.add_usage(f"{parser.prog} {kind} SOURCE -o OUTPUT [options]", None, [])
+        formatter.start_section(f"options that serve {kind} (mimunav import --help: all)")
+        formatter.add_arguments(shown)
+        formatter.end_section()
+        print(formatter.format_help(), end="")
         parser.exit()
