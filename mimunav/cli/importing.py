@@ -64,9 +64,10 @@ def add_import(sub):
                    "(3 3D, 4 DGPS, 5 RTK float, 6 RTK fixed), default 3")
     p.add_argument("-o", "--output", required=True, help="log to write (.mcap)")
     p.add_argument("--mounting-rpy-deg", type=number(-360.0, 360.0), nargs=3, metavar=("ROLL", "PITCH", "YAW"),
-                   help="sensor -> vehicle (FRD) rotation, deg (default: rtklib the README's "
-                   "180 0 180; ros1/ros2 180 0 0, REP-103 x forward, y left, z up; ulog and "
-                   "dataflash 0 0 0, the autopilot's FRD body frame; table: the spec's axes)")
+                   help="every importer: sensor -> vehicle (FRD) rotation, deg (default: "
+                   "rtklib the README's 180 0 180; ros1/ros2 180 0 0, REP-103 x forward, y "
+                   "left, z up; ulog and dataflash 0 0 0, the autopilot's FRD body frame; "
+                   "table: the spec's axes)")
     p.add_argument("--reference-imu-time-offset", type=number(-60.0, 60.0), default=None,
                    metavar="S", help="ros1/ros2, table, ulog, dataflash: added to the "
                    "reference IMU's stamps, s, before the import measures the two IMUs' offset from their rotation "
@@ -168,10 +169,10 @@ _KIND_LIST = re.compile(r"(?:^|; |, )((?:%s)(?:[/, ]+(?:%s))*):" % (("|".join(KI
 def serves(action, kind):
     """Whether an import option serves `kind`: its help names the kinds it is for
     ("ros1/ros2, ulog: ...", "dataflash: ...; ulog: ...") and `kind` among them, or names
-    none ("every importer: ...", -o)."""
-    named = {k for match in _KIND_LIST.findall(action.help or "")
-             for k in re.split(r"[/, ]+", match)}
-    return not named or kind in named
+    none (-o), or starts "every importer:" (its defaults per kind named after it)."""
+    text = action.help or ""
+    named = {k for match in _KIND_LIST.findall(text) for k in re.split(r"[/, ]+", match)}
+    return text.startswith("every importer:") or not named or kind in named
 
 
 class _KindHelp(argparse.Action):

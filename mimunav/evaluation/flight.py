@@ -273,9 +273,11 @@ def _streamed(log, path, epoch, reference_imu):
 
 
 def refuse_gaps(flight, max_gap_s=MAX_GAP_S, warn_shorter=False):
-    """LogError when the MIMU misses samples for longer than max_gap_s (s) anywhere: the
-    navigation would bridge the gap with one sample. With warn_shorter, the shorter gaps are
-    reported on stderr."""
+    """LogError when the MIMU misses samples for longer than max_gap_s (s) after the
+    navigation's start (the initial state's time: a gap before it is never navigated - a
+    KITTI drive's 1.92 s at its first stamp had refused the navigation level from 5.9 s):
+    the navigation would bridge the gap with one sample. With warn_shorter, the shorter gaps
+    are reported on stderr."""
     from ..errors import warn
     from ..flightlog.stamps import longest_gap, missing_samples
     t = flight.mimu_t
@@ -284,14 +286,17 @@ def refuse_gaps(flight, max_gap_s=MAX_GAP_S, warn_shorter=False):
     gaps = missing_samples(np.round(t * 1e9).astype(np.int64))
     if not gaps:
         return
-    k, n = longest_gap(t, gaps)
-    if t[k + 1] - t[k] > max_gap_s:
+    navigated = [(k, n) for k, n in gaps if t[k + 1] > flight.initial.t]
+    k, n = longest_gap(t, navigated) if navigated else (0, 0)
+    if navigated and t[k + 1] - t[k] > max_gap_s:
+        sides = [f"{a:.3f}:{b:.3f}" for a, b in ((t[0], t[k]), (t[k + 1], t[-1])) if b > a]
         raise LogError(f"{flight.path}: the MIMU misses {n} samples between t = {t[k]:.3f} "
                        f"and {t[k + 1]:.3f} s ({sum(m for _, m in gaps)} in all): "
                        f"navigation would bridge {t[k + 1] - t[k]:.3g} s with one "
                        f"sample; cut the log at the gap: mimunav cut LOG --span "
-                       f"{t[0]:.3f}:{t[k]:.3f} (or {t[k + 1]:.3f}:{t[-1]:.3f}) -o OUT")
+                       f"{' (or '.join(sides)}{')' if len(sides) > 1 else ''} -o OUT")
     if warn_shorter:
+        k, n = longest_gap(t, gaps)
         warn(f"{flight.path}: the MIMU misses {sum(m for _, m in gaps)} samples in "
              f"{len(gaps)} gaps (longest {t[k + 1] - t[k]:.3g} s at t = {t[k]:.3f} s)")
 

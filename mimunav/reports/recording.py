@@ -72,6 +72,10 @@ def write(log_path, out_dir, force=False, progress=True, min_speed=None,
     diag = doc = no_diagnosis = None
     try:
         if flight.truth is None and flight.fog_t is None:
+            if level == "sensor":
+                raise InputError(f"{log_path}: no reference IMU (/fog/imu) for the sensor "
+                                 "level, and no reference trajectory (/truth/state) for the "
+                                 "others")
             raise no_reference(log_path, ("the navigation and track levels" if level == "auto"
                                           else f"the {level} level")
                                + ", and no reference IMU (/fog/imu) for the sensor level")

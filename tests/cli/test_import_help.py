@@ -5,7 +5,8 @@ from mimunav.cli import main
 
 
 @pytest.mark.parametrize("kind, shown, hidden", [
-    ("ulog", ["--imu-instance", "--reference-imu-lever-arm-m", "--lever-arm-m", "-o OUTPUT"],
+    ("ulog", ["--imu-instance", "--reference-imu-lever-arm-m", "--lever-arm-m", "-o OUTPUT",
+              "--mounting-rpy-deg"],
      ["--imu-topic", "--gps-status", "--root", "--solutions"]),
     ("table", ["--root", "--spec-keys", "--reference-time-offset", "--mounting-rpy-deg"],
      ["--imu-instance", "--pose-topic", "--gps-status"]),
