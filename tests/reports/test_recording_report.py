@@ -40,7 +40,9 @@ def test_report_recording_of_the_excerpt_and_its_refusals(tmp_path):
     assert "the sensor level needs a reference IMU (/fog/imu)" in text
     assert main(["report", "recording", str(log), "-o", str(tmp_path / "walk"),
                  "--level", "track", "--vehicle", "pedestrian"]) == 0
-    assert "--level track models a car" in (tmp_path / "walk" / "recording.md").read_text()
+    walk = (tmp_path / "walk" / "recording.md").read_text()
+    assert "--level track models a car" in walk
+    assert "`mimunav report recording drive.mcap --level track --vehicle pedestrian`" in walk
     assert main(["report", "calibration", "--vehicle", "car"]) == 2
     bare = tmp_path / "bare.mcap"                        # no /truth/state
     flight = Flight.load(log, reference_imu=False)
