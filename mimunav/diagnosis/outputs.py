@@ -555,11 +555,13 @@ def span_means(t, x, span=SPAN_S):
 
 
 def spans(t, rows, condition, gap_s=2.0, max_spans=20):
-    """[{"t0", "t1", "condition"}] of the contiguous runs of rows (gaps below gap_s merged)."""
+    """[{"t0", "t1", "condition"}] of the contiguous runs of rows (gaps below gap_s merged;
+    rows with no other row between them one run however far apart: the two sides of a
+    1.92 s hole in a drive's stamps had been listed as two spans)."""
     if not rows.any():
         return []
     idx = np.flatnonzero(rows)
-    breaks = np.flatnonzero(np.diff(t[idx]) > gap_s)
+    breaks = np.flatnonzero((np.diff(t[idx]) > gap_s) & (np.diff(idx) > 1))
     starts, ends = np.r_[idx[0], idx[breaks + 1]], np.r_[idx[breaks], idx[-1]]
     return [{"t0": float(t[a]), "t1": float(t[b]), "condition": condition}
             for a, b in list(zip(starts, ends))[:max_spans]]

@@ -173,7 +173,8 @@ def initial_alignment(t, w, f, mounting, track=None):
     elif len(fast):
         t0 = float(track["t"][fast[0]])
         q_nb = moving_attitude(t, w - gyro_bias, f - accel_bias, mounting, track, t0, half)
-        notes.append(f"moving alignment at t = {t0:.2f} s ({speed[fast[0]]:.1f} m/s): the "
+        notes.append(f"moving alignment at t = {t0:.2f} s ({speed[fast[0]]:.1f} m/s, the "
+                     f"horizontal speed's mean over +-{half:g} s): the "
                      f"IMU's velocity increment over {2 * half:.1f} s (turned by its gyro) "
                      "matched to the reference's, forward axis to its velocity"
                      + ("" if track.get("faces_course", True) else f" - "

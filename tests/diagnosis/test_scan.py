@@ -49,3 +49,16 @@ def test_bins_longer_than_the_window_stand_out_only_where_they_lie():
     assert [e["channel"] for e in found] == ["gyro.z"]
     assert found[0]["t0"] <= t[50] < found[0]["t1"]
     assert abs(found[0]["size"] - 0.2) < 0.05
+
+
+def test_rows_either_side_of_a_hole_in_the_stamps_are_one_span():
+    """The samples left out beside a 1.92 s hole in a drive's stamps (KITTI's first): one
+    span 0.0-2.0 s, not '0.0 s, 1.9-2.0 s'; flagged rows with unflagged ones between them
+    and further apart than gap_s stay two."""
+    from mimunav.diagnosis.outputs import spans
+    t = np.r_[0.0, np.arange(1.92, 10.0, 0.01)]
+    rows = t < 2.0
+    assert [(s["t0"], round(s["t1"], 2)) for s in spans(t, rows, "gap", gap_s=0.5)] == \
+        [(0.0, 1.99)]
+    rows |= (t > 5.0) & (t < 5.5)
+    assert len(spans(t, rows, "gap", gap_s=0.5)) == 2
