@@ -167,6 +167,8 @@ def _check_heading_against_course(rec, q, ok):
             "the convention the import reads (a heading from north, clockwise; a yaw from "
             "east, counter-clockwise, is heading = 90 deg - yaw: `scale` and `offset` in a "
             "table spec, the offset in the column's unit - 1.5707963 in rad)?"
+            + (f" Or is its {rec.reference_meta['attitude_as']} wrong?"
+               if "attitude_as" in rec.reference_meta else "")
             + (" Or does it drive in reverse most of the time?" if abs(mean) > 150 else "")
             + ("" if declared else " (Judged a car from its track; if it is not "
                "one, declare what it is: --vehicle, or the spec's `vehicle`.)"))
@@ -233,15 +235,29 @@ def skew_measured_by(rec):
 
 
 def _upside_down(rec, f_n, g):
-    """Where the specific force turned into NED reads down (f_n m/s^2, g its size): the
-    mounting that turns the IMU's z half a turn about its x - z down where z up was taken (a
-    ROS topic's FRD IMU read by REP-103's FLU had been refused naming no option)."""
+    """Where the specific force turned into NED reads down (f_n m/s^2, g its size), which of
+    the two turns it: the IMU as mounted, when its own median specific force in the vehicle
+    frame reads the vehicle upside down - the mounting that turns its z half a turn about
+    its x (a ROS topic's FRD IMU read by REP-103's FLU had been refused naming no option) -,
+    or the reference's attitude, when the IMU reads the vehicle upright (a FLU body's
+    rotation matrix read as FRD: following the mounting hint had made a clean log of an
+    upside-down car, an independent check); both where it reads neither."""
     if f_n[2] < 0.8 * g:
         return ""
     q_vs = rec.mounting.q_vs * np.quaternion(0.0, 1.0, 0.0, 0.0)
     yaw, pitch, roll = (round(float(np.degrees(x)), 1) + 0.0 for x in attitude.as_euler(q_vs))
-    return (f" - it reads down: if the IMU's z points down where up was taken (FRD read as "
-            f"FLU), --mounting-rpy-deg {roll:g} {pitch:g} {yaw:g}")
+    mounting = (f"if the IMU's z points down where up was taken (FRD read as FLU), "
+                f"--mounting-rpy-deg {roll:g} {pitch:g} {yaw:g}")
+    attitude_axes = ("the reference attitude's body is turned: its axes are not the "
+                     "vehicle's FRD (a table spec's body_axes = \"FLU\" for a ROS or KAIST "
+                     "body) or it rotates the other way (NED or grid to body)")
+    up = attitude.rotate(rec.mounting.q_vs, np.median(rec.f, axis=0))[2]
+    if up < -0.8 * g:
+        return (f" - it reads down, and the IMU as mounted reads the vehicle upright (its "
+                f"specific force {up:+.2f} m/s^2 along the vehicle's down): {attitude_axes}")
+    if up > 0.8 * g:
+        return f" - it reads down, as the IMU as mounted reads the vehicle: {mounting}"
+    return f" - it reads down: {mounting}; or {attitude_axes}"
 
 
 FELT_GRAVITY_SHARE = 0.05   # of the recording's 1 s means: at least this share (and 3 s)

@@ -322,6 +322,10 @@ def read(path, mounting=None, root=None):
     if "attitude_rpy" in spec.section("reference"):     # what a wrong attitude may be
         meta["attitude_as"] = ("columns' order (attitude_rpy: roll, pitch, yaw of body -> "
                                "NED, turned by yaw, then pitch, then roll) or unit")
+    if "attitude_matrix" in spec.section("reference"):
+        meta["attitude_as"] = ("matrix layout (attitude_matrix: R11 R12 R13 R21 ... row by "
+                               "row; a column-major one is its transpose, the rotation the "
+                               "other way), its rotates or body_axes")
     second, ref_how = None, None
     if spec.section("reference_imu"):
         t_r, w_r, f_r = _imu(spec, "reference_imu")

@@ -17,8 +17,10 @@ QUANTITIES = ("position_ecef", "latitude", "longitude", "height", "position_loca
               "position_utm", "velocity_ned", "velocity_ecef", "velocity_local", "ground_speed",
               "course", "attitude_wxyz", "attitude_rpy", "attitude_matrix")
 ATTITUDES = ("attitude_wxyz", "attitude_rpy", "attitude_matrix")
-ORTHONORMAL = 1e-3      # a rotation matrix's |R R^T - I| at most this (its rows written to
-#                         6 digits hold 1e-6; a scaled or sheared one is no attitude)
+ORTHONORMAL = 5e-3      # a rotation matrix's |R R^T - I| at most this: written to 3 digits
+#                         it reaches 1.4e-3 (0.05 deg of attitude once made orthonormal: taken;
+#                         a KAIST-like drive's had been refused in 8 % of its rows), to 2
+#                         digits 1.4e-2 (0.5 deg), a 1 % scale 2e-2 - no attitude
 _Q_NED_ENU = quaternion.from_rotation_matrix(np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0],
                                                        [0.0, 0.0, -1.0]]))  # ENU -> NED
 GEODETIC = ("latitude", "longitude", "height")
@@ -262,9 +264,9 @@ def _from_utm(spec, enh):
 
 def _matrix_quaternions(spec, rows):
     """[reference] attitude_matrix's rows (M, 9: R11 R12 R13 R21 ... R33, the first row
-    first) as w, x, y, z rows; a matrix further than ORTHONORMAL from a rotation refused,
-    naming the worst row (a scaled or sheared one, a transposed layout still orthonormal
-    is caught by the import's attitude checks against the IMU's rates)."""
+    first) as w, x, y, z rows, made orthonormal; a matrix further than ORTHONORMAL from a
+    rotation refused, naming the worst row (a scaled or sheared one; a transposed layout,
+    still orthonormal, is caught by the import's attitude checks against the IMU)."""
     r = np.asarray(rows, float).reshape(-1, 3, 3)
     off = np.abs(np.einsum("kij,klj->kil", r, r) - np.eye(3)).max(axis=(1, 2))
     det = np.linalg.det(r)
@@ -274,7 +276,8 @@ def _matrix_quaternions(spec, rows):
         raise RecordingError(f"{spec.path}: [reference] attitude_matrix row {k} is no "
                              f"rotation (|R R^T - I| {off[k]:.2g}, det {det[k]:.3g}): nine "
                              "columns R11 R12 R13 R21 ... R33 of a proper rotation, the first "
-                             "row first")
+                             f"row first, written to 3 digits or more (|R R^T - I| up to "
+                             f"{ORTHONORMAL:g})")
     return attitude.as_wxyz(quaternion.from_rotation_matrix(r, nonorthogonal=True))
 
 

@@ -1112,11 +1112,21 @@ def test_an_imu_read_upside_down_is_refused_naming_the_mounting_that_rights_it()
     it imports."""
     rec = _attitude_pair((0.0, 0.0, 0.0), (180.0, 0.0, 90.0))
     rec.reference_imu = None
-    with pytest.raises(RecordingError, match=r"it reads down: .* --mounting-rpy-deg 0 0 0$"):
+    with pytest.raises(RecordingError, match=r"it reads down, as the IMU as mounted reads the "
+                       r"vehicle: .* --mounting-rpy-deg 0 0 0$"):
         checks.check_recording(rec)
     rec = _attitude_pair((0.0, 0.0, 0.0), (180.0, 0.0, 90.0), given=(0.0, 0.0, 0.0))
     rec.reference_imu = None
     checks.check_recording(rec)
+    # the IMU mounted right, the reference's attitude of a FLU body read as FRD: the IMU
+    # reads the vehicle upright, so the attitude's axes are named, not a mounting (which,
+    # followed, had made a clean log of an upside-down car - an independent check)
+    flu = quaternion.from_rotation_matrix(np.diag([1.0, -1.0, -1.0]))
+    rec.reference["q_nb"] = quaternion.as_float_array(
+        quaternion.from_float_array(rec.reference["q_nb"]) * flu)
+    with pytest.raises(RecordingError, match=r"the IMU as mounted reads the vehicle upright .*"
+                       r"body_axes = \"FLU\""):
+        checks.check_recording(rec)
 
 
 def test_instantaneous_samples_read_as_such_put_no_lag_between_two_exact_clocks(tmp_path):

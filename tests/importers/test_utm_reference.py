@@ -97,6 +97,18 @@ def test_a_utm_grid_or_a_matrix_not_said_whole_is_refused(tmp_path):
     with pytest.raises(RecordingError, match="body_axes names the vehicle's axes"):
         table.read(_spec(tmp_path, extra='attitude_of = "imu"'))
     rows = np.loadtxt(tmp_path / "pose.csv", delimiter=",")
+    # a matrix written to 3 digits is a rotation to 1.4e-3: taken, made orthonormal (8 % of
+    # a KAIST-like drive's rows had been refused as 'no rotation')
+    rounded = rows.copy()
+    rounded[:, [1, 2, 3, 5, 6, 7, 9, 10, 11]] = np.round(rounded[:, [1, 2, 3, 5, 6, 7, 9, 10,
+                                                                    11]], 3)
+    np.savetxt(tmp_path / "pose.csv", rounded, delimiter=",", fmt="%.17g")
+    exact = table.read(_spec(tmp_path)).reference["q_nb"]
+    np.savetxt(tmp_path / "pose.csv", rows, delimiter=",", fmt="%.17g")
+    turned = quaternion.from_float_array(exact) * np.conjugate(quaternion.from_float_array(
+        table.read(_spec(tmp_path)).reference["q_nb"]))
+    angle = 2 * np.arccos(np.clip(np.abs(quaternion.as_float_array(turned)[:, 0]), 0, 1))
+    assert np.degrees(angle).max() < 0.1                # q and -q alike
     rows[7, 1:4] *= 1.01                                        # a scaled first row
     np.savetxt(tmp_path / "pose.csv", rows, delimiter=",", fmt="%.17g")
     with pytest.raises(RecordingError, match=r"attitude_matrix row 7 is no rotation"):
