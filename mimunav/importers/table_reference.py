@@ -233,12 +233,10 @@ def _attitude_ned(spec, wxyz, lat, lon, convergence=None):
         q_en = quaternion.from_rotation_matrix(earth.ned_to_ecef_matrix(lat, lon))
         q = np.conjugate(q_en) * q
     elif _rotates(spec, rotations[0]) == "body_to_utm":
-        # grid north lies the convergence clockwise of true north: the grid's axes turn
-        # into true east, north, up by -convergence about up
-        half = -0.5 * np.asarray(convergence, float)
-        q_true_grid = quaternion.from_float_array(np.column_stack(
-            [np.cos(half), np.zeros_like(half), np.zeros_like(half), np.sin(half)]))
-        q = _Q_NED_ENU * q_true_grid * q
+        # grid north lies the convergence clockwise of true north: the grid's NED turns into
+        # the true one by the convergence about down
+        zero = np.zeros_like(convergence)
+        q = attitude.from_euler(np.asarray(convergence, float), zero, zero) * _Q_NED_ENU * q
     return attitude.as_wxyz(q)
 
 

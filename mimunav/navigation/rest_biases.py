@@ -141,8 +141,8 @@ def biases_at_a_rest(t, w, f, mounting, track, rests, quiet=None):
              "accel": "all" if level_known else "along_gravity",
              "gravity_sensor_axes": up_at_rest(f[k])}
     return (gyro_bias, accel_bias, (t0, t1),
-            f"biases from {where} {t0:.2f}-{t1:.2f} s ({note}{vertical_note(track, t, w, f, t0, t1)})",
-            basis)
+            f"biases from {where} {t0:.2f}-{t1:.2f} s "
+            f"({note}{vertical_note(track, t, w, f, t0, t1)})", basis)
 
 
 def vertical_note(track, t, w, f, t0, t1):

@@ -72,11 +72,7 @@ def write(log_path, out_dir, force=False, progress=True, min_speed=None,
     cal = Calibration.identity()
     diag = doc = no_diagnosis = None
     try:
-        if flight.truth is None and flight.fog_t is None:
-            if level == "sensor":
-                raise InputError(f"{log_path}: no reference IMU (/fog/imu) for the sensor "
-                                 "level, and no reference trajectory (/truth/state) for the "
-                                 "others")
+        if flight.truth is None and flight.fog_t is None and level != "sensor":
             raise no_reference(log_path, ("the navigation and track levels" if level == "auto"
                                           else f"the {level} level")
                                + ", and no reference IMU (/fog/imu) for the sensor level")
