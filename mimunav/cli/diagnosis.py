@@ -224,14 +224,11 @@ def finding_line(f):
 
 
 def not_confirmed_lines(doc):
-    """The terms chosen in training and then not confirmed (`not_confirmed`: the held-out
-    test, the physical range, a recording's halves or its library check), each with why, for
-    the terminal - those not already said among the reasons the diagnosis is inconclusive."""
-    said = " ".join(doc.get("inconclusive_reasons", []))
-    rejected = [r for r in doc.get("not_confirmed", []) if r.get("rejected")]
-    again = [r.get("label", r.get("effect", "?")) for r in rejected if r["rejected"] in said]
-    return [f"  not confirmed: {r.get('label', r.get('effect', '?'))}: {r['rejected']}"
-            for r in rejected if r["rejected"] not in said] + (
+    """The terms chosen in training and then not confirmed, each with why, for the terminal
+    (`document.not_confirmed_said`)."""
+    from ..diagnosis.document import not_confirmed_said     # the numeric stack: not at start
+    alone, again = not_confirmed_said(doc)
+    return [f"  not confirmed: {label}: {why}" for label, why in alone] + (
         [f"  not confirmed, for a reason the diagnosis is inconclusive: {', '.join(again)}"]
         if again else [])
 

@@ -180,3 +180,17 @@ def clock_text(clock):
             f"{clock['sd_s'] * 1e3:.2g}; on the data alone {clock['data_s'] * 1e3:+.3g} +- "
             f"{clock['data_sd_s'] * 1e3:.2g} ms, the import measured it to "
             f"{clock['import_1sigma_s'] * 1e3:.2g} ms)")
+
+
+def not_confirmed_said(doc):
+    """([(label, why)] of the terms chosen in training and then not confirmed (`doc`'s
+    not_confirmed: the held-out test, the physical range, a recording's halves or its library
+    check) whose why the reasons the diagnosis is inconclusive do not say already, [the
+    labels of those whose why they say]) - one reading for the terminal and the report (the
+    report had dropped a term whose label began a reason)."""
+    said = " ".join(doc.get("inconclusive_reasons", []))
+    rejected = [r for r in doc.get("not_confirmed", []) if r.get("rejected")]
+    label = [r.get("label", r.get("effect", "?")) for r in rejected]
+    return ([(a, r["rejected"]) for a, r in zip(label, rejected) if r["rejected"] not in said],
+            [a for a, r in zip(label, rejected) if r["rejected"] in said])
+

@@ -362,10 +362,28 @@ GRAVITY_ANGLE_DEG = 5.0     # the 1 s mean specific forces differ in direction b
                             # degrees) shows here, at rest too
 
 
+SAME_DATA = 1e-9    # of a channel's rms: a residual this small is the numbers' rounding
+#                     (float64 keeps 16 digits, a float32 log 7; two sensors differ at 1e-3)
+
+
+def _alike(measured, predicted, keep):
+    """The largest rms of measured - predicted over a channel's rms (usable samples
+    `keep`) where every channel is within SAME_DATA, else None."""
+    if not keep.any():
+        return None
+    worst = 0.0
+    for c in range(6):
+        m, p = measured[:, c][keep], predicted[:, c][keep]
+        size = float(np.sqrt(np.mean(m * m)))
+        worst = max(worst, float(np.sqrt(np.mean((m - p) ** 2))) / size if size > 0 else 0.0)
+    return worst if worst <= SAME_DATA else None
+
+
 def agreement(t, measured, predicted, usable, channels):
     """Whether the reference's prediction follows the recorded MIMU: {"bin_s", "channels":
     {label: {"correlation", "predicted_spread"}}, "gravity_angle_deg", "failures": [why],
-    "failed": [the sensor of each failure: "accel" or "gyro"]} from
+    "failed": [the sensor of each failure: "accel" or "gyro"], "alike": the residual's rms
+    over the outputs' where it is their rounding (`_alike`; absent otherwise)} from
     the AGREEMENT_BIN_S means of the usable samples (t s; measured and predicted (N, 6):
     accel m/s^2 then gyro rad/s, MIMU axes; read as x[:, c]). A channel that moves (its
     predicted means spread by MOVING_SPREAD) must correlate to AGREEMENT_CORRELATION; the
@@ -384,6 +402,14 @@ def agreement(t, measured, predicted, usable, channels):
                               for c in range(6)])[full] / count[full, None]
              for x in (measured, predicted)]
     out = {"bin_s": AGREEMENT_BIN_S, "channels": {}, "failures": [], "failed": []}
+    alike = _alike(measured, predicted, keep)
+    if alike is not None:
+        out["alike"] = alike
+        out["failed"] += ["accel", "gyro"]
+        out["failures"].append(
+            f"the MIMU's outputs equal the reference IMU's prediction to {alike:.2g} of their "
+            "rms on every channel - the numbers' rounding, no sensor's error: one sensor's "
+            "data twice? The residual holds nothing to diagnose")
     for c, (sensor, axis) in enumerate(channels):
         m, p = means[0][:, c], means[1][:, c]
         spread = float(np.std(p)) if len(p) >= 5 else 0.0
@@ -406,6 +432,14 @@ def agreement(t, measured, predicted, usable, channels):
                 f"predicted ones spread by {spread:.3g} - the two IMUs' clocks, mountings or "
                 "units disagree, or they are not on one vehicle" + (
                     _undeclared_arm(means[1][:, 3:]) if sensor == "accel" else ""))
+    _gravity_angle(out, means)
+    return out
+
+
+def _gravity_angle(out, means):
+    """Into `agreement`'s out: the median angle between the two IMUs' 1 s mean specific
+    forces (means: measured, predicted (n, 6)), and beyond GRAVITY_ANGLE_DEG a failure - or
+    a note where a small turn and a MEMS bias carry the difference."""
     f_m, f_p = means[0][:, :3], means[1][:, :3]
     with np.errstate(invalid="ignore", divide="ignore"):
         cos = np.einsum("ij,ij->i", f_m, f_p) / (np.linalg.norm(f_m, axis=1) *
@@ -441,7 +475,6 @@ def agreement(t, measured, predicted, usable, channels):
                     f" - or an accelerometer bias of {across:.3g} m/s^2 across gravity, which "
                     "reads the same (the motion holds too little of a second direction to "
                     "tell them)"))
-    return out
 
 
 def free_turn(mine, theirs):

@@ -205,10 +205,18 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
     if not findings:        # what the halves set aside was there, but not the same throughout
         diag.inconclusive += set_aside_reasons(aside) + beyond_range_reasons(rejected)
     if prep.agreement is not None:
-        diag.reference_agreement = prep.agreement
-        diag.inconclusive = (diag.inconclusive + prep.agreement["failures"]
-                             + prep.agreement.get("untested", []))
+        _judged_by(diag, prep.agreement)
     return diag
+
+
+def _judged_by(diag, agreement):
+    """The diagnosis with the reference's `agreement` beside it: its failures and what it
+    left untested make it inconclusive; a residual of rounding holds no excursion."""
+    diag.reference_agreement = agreement
+    if "alike" in agreement:
+        diag.unexplained = []
+    diag.inconclusive = (diag.inconclusive + agreement["failures"]
+                         + agreement.get("untested", []))
 
 
 @dataclass

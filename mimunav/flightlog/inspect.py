@@ -3,7 +3,7 @@
 import numpy as np
 
 from . import schemas
-from .stamps import mean_rate_hz, missing_samples, rate_segments
+from .stamps import mean_rate_hz, missing_samples, rate_segments, scheduled
 
 
 def channel_report(log, topic, origin_ns=None):
@@ -28,7 +28,7 @@ def channel_report(log, topic, origin_ns=None):
     rep.update(rate_hz=mean_rate_hz(t), duration_s=(t[-1] - t[0]) / 1e9,
                start_ns=int(t[0]), gaps=[((t[k] - t0) / 1e9, (t[k + 1] - t0) / 1e9)
                                           for k, _ in gaps],
-               missing=missing,
+               missing=missing, scheduled=scheduled(gaps),
                jitter_ms=float(1.4826 * np.median(np.abs(step - nominal)) / 1e6),
                backwards=log.time_reversals.get(topic, 0), duplicates=int(np.sum(step == 0)))
     if "sample_index" in msgs.dtype.names:
@@ -146,7 +146,8 @@ def describe(log, unreadable=None):
                     f"{hz:.4g} Hz from {t_s:.3f} s" for t_s, hz in r["rates"]))
             if r["gaps"]:
                 problems.append(f"{len(r['gaps'])} gaps, {r['missing']} samples missing "
-                                f"(first {r['gaps'][0][0]:.3f}-{r['gaps'][0][1]:.3f} s)")
+                                f"(first {r['gaps'][0][0]:.3f}-{r['gaps'][0][1]:.3f} s"
+                                + (f"; {r['scheduled']}" if r.get("scheduled") else "") + ")")
             if r["jitter_ms"] > 0.05 * 1e3 / r["rate_hz"]:
                 problems.append(f"stamp jitter {r['jitter_ms']:.2g} ms (robust sigma)")
             if r.get("dropped"):

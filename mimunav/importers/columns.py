@@ -193,11 +193,11 @@ def _text_rows(path, limit=None, first_is_data=None):
         lines = fh.readlines()[skip:] if limit is None else \
             [line for _, line in zip(range(skip + limit), fh)][skip:]
     rows = [r for r in (csv.reader(lines, delimiter=sep) if sep else (x.split() for x in lines))
-            if any(c.strip() for c in r) and not r[0].lstrip().startswith("#")]
+            if any(c.strip() for c in r) and not _commented(r[0])]
     if header and first_is_data is not None and rows and first_is_data(rows[0]):
         header = False
     names = header_names(path, sep, skip) if header else None
-    if header and lines and not lines[0].lstrip().startswith("#"):
+    if header and lines and not _commented(lines[0]):
         rows.pop(0)                                 # the header row (a '#' one is left out)
     if rows and len(rows[-1]) != len(rows[0]) and limit is None:
         rows.pop()                                  # cut short (`load_spec` says so)
@@ -220,14 +220,23 @@ def _picked(path, data, names, columns):
     return data[:, list(columns)]
 
 
+COMMENT_MARKS = ("#", "//")     # what a comment line starts with (an Xsens export's '//')
+
+
+def _commented(line):
+    """Whether a line (or a row's first cell) of a table is a comment."""
+    return line.lstrip().startswith(COMMENT_MARKS)
+
+
 def _csv_layout(path):
     """(separator - None: runs of whitespace -, lines before the header or data, whether a
     header row names the columns) of a CSV or text table: Excel's `sep=` line, else commas,
     else whitespace when the first data line is whitespace-separated numbers (KITTI's, TUM's
-    text tables). Lines starting with '#' before the data are comments; the last of them is
-    the header when it names as many columns as the data has ('# timestamp tx ty tz ...'),
-    and a first line that is not all numbers is one too (over whitespace-separated numbers,
-    as many names as they have columns: a text table's header without its '#')."""
+    text tables). Lines starting with '#' or '//' (an Xsens export's) before the data are
+    comments; the last of them is the header when it names as many columns as the data has
+    ('# timestamp tx ty tz ...'), and a first line that is not all numbers is one too (over
+    whitespace-separated numbers, as many names as they have columns: a text table's header
+    without its '#')."""
     with open(path) as fh, text_file(path):
         lines = [line for _, line in zip(range(LAYOUT_LINES), fh)]
     sep, skip = ",", 0
@@ -238,7 +247,7 @@ def _csv_layout(path):
                                  ", ; tab |")
         skip = 1
     k = skip
-    while k < len(lines) and (not lines[k].strip() or lines[k].lstrip().startswith("#")):
+    while k < len(lines) and (not lines[k].strip() or _commented(lines[k])):
         k += 1
     data = lines[k].strip() if k < len(lines) else ""
     if not skip and "," not in data and len(data.split()) > 1 and \
@@ -253,7 +262,7 @@ def _csv_layout(path):
     if not all(_number(x) for x in cells(data)):
         return sep, k, True
     before = lines[k - 1].lstrip() if k > skip else ""
-    named = cells(before[1:]) if before.startswith("#") else []
+    named = cells(before.lstrip("#/")) if _commented(before) else []
     if len(named) == len(cells(data)) and not all(_number(x) for x in named):
         return sep, k - 1, True
     return sep, k, False

@@ -51,6 +51,7 @@ def pair(rec):
         raise RecordingError(f"{rec.name}: the reference IMU's median |specific force| is "
                              f"{g:.3g} m/s^2, not about 9.8: is its accelerometer's unit right?")
     _check_units(rec)
+    _check_distinct(rec)
     clock = clock_offset(rec)
     rec.real["reference_imu_clock"] = clock["said"]
     if clock["offset_s"] is None and not abs(clock.get("peak_lag_s", math.inf)) <= GRID_S:
@@ -83,6 +84,29 @@ def _check_overlap(rec):
                              f"{utc_text(ref['ns'][-1])}) covers less than half of the IMU's span "
                              f"({utc_text(rec.imu_ns[0])} .. {utc_text(rec.imu_ns[-1])}): do the "
                              "two share a time base?")
+
+
+SAME_DATA = 1e-9            # of a channel's rms: two IMUs' samples closer than this at their
+#                             common stamps are one sensor's numbers twice (float64 keeps 16
+#                             digits, a float32 log 7; two sensors' noise differs at 1e-3)
+
+
+def _check_distinct(rec):
+    """A reference IMU must be another sensor: refuses (RecordingError) one whose samples at
+    the stamps it shares with the IMU equal the IMU's to SAME_DATA of their rms (one file
+    given twice: its 'residual' is the numbers' rounding, scanned as excursions at z 6)."""
+    ref = rec.reference_imu
+    common, mine, theirs = np.intersect1d(rec.imu_ns, ref["ns"], return_indices=True)
+    if len(common) < 0.5 * len(rec.imu_ns):
+        return
+    for a, b in ((rec.w, ref["w"]), (rec.f, ref["f"])):
+        a, b = a[mine], b[theirs]
+        if not np.all(np.abs(a - b) <= SAME_DATA * np.sqrt(np.mean(a * a, axis=0))):
+            return
+    raise RecordingError(f"{rec.name}: the reference IMU's samples are the IMU's own ("
+                         f"{len(common)} stamps alike, every value equal to {SAME_DATA:g} of "
+                         "its rms): one recording given twice? A reference IMU must be "
+                         "another sensor")
 
 
 def _check_units(rec):

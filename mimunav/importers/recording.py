@@ -27,16 +27,26 @@ class RecordingError(InputError):
     """A recording that cannot be turned into a contract log, with what and where."""
 
 
+QUATERNION_SCALE = 0.01    # |q| held by every row within 1e-3 of one value this near 1 is
+#                            a device's scale of its quaternions (an NGIMU writes 0.99831),
+#                            which normalising removes; an attitude's rows vary by far less
+
+
 def unit_quaternions(wxyz, where):
-    """Rows of w, x, y, z as unit quaternions (an array of them); rows further than 1e-3 from
-    unit length refused, naming `where` and the worst row (not an attitude: columns in
-    another order - ROS's x, y, z, w - or a rotation vector)."""
+    """Rows of w, x, y, z as unit quaternions (an array of them), each divided by its
+    length; refused, naming `where` and the worst row, where a row lies further than 1e-3
+    from unit length - or from the one length every row holds within QUATERNION_SCALE of 1
+    - (not an attitude: a rotation vector, angles or another column among the four; an
+    order of the four leaves |q| alike)."""
     q = attitude.from_wxyz(wxyz)
     norm = np.abs(q)
-    if np.any(np.abs(norm - 1) > 1e-3):
-        k = int(np.argmax(np.abs(norm - 1)))
+    held = float(np.median(norm))
+    if abs(held - 1) > QUATERNION_SCALE or np.any(np.abs(norm - held) > 1e-3):
+        held = held if abs(held - 1) <= QUATERNION_SCALE else 1.0
+        k = int(np.argmax(np.abs(norm - held)))
         raise RecordingError(f"{where} is no unit quaternion (|q| {norm[k]:.4g} at row {k}): "
-                             "the columns w, x, y, z in that order?")
+                             "are the four columns an attitude's w, x, y, z - no rotation "
+                             "vector, angle or other column among them?")
     return q / norm
 
 

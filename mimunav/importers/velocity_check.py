@@ -13,10 +13,12 @@ horizontal specific force in NED over 1 s must be the reference's horizontal acc
 in size, within SCALE_LIMIT either way, where the two are one motion (coherence at least
 COHERENT) - a unit of the positions (mm and m confused) reads a thousand times off.
 """
+import math
+
 import numpy as np
 
 from ..motion.track import velocity_from_positions
-from ..navigation.rests import span_means
+from ..navigation.rests import G0, span_means
 from ..navigation.travel import acceleration_match
 from .recording import RecordingError
 
@@ -90,12 +92,18 @@ MOVING = 0.1        # m/s^2: the larger of the two's rms about its mean, at leas
 #                     drive's both are round-off, whose coherence means nothing)
 
 
+STILL_LEAK = 0.5    # m/s^2: gravity's leak through an attitude 3 deg off, more than a
+#                     reference's attitude errs (the IMU's f in NED of a still vehicle varies
+#                     by that leak alone); a leg's IMU on a walk: 1.16, a hand's 0.2-1.0
+
+
 def check_acceleration_scale(rec, t, v_ned, f_ned):
     """Refuse (RecordingError) a reference whose horizontal acceleration over 1 s (from its
     velocity v_ned, m/s, at t - 0.5 and t + 0.5 s) is more than SCALE_LIMIT times the IMU's
     horizontal specific force (f_ned: (M, 3) m/s^2 in NED at the reference's epochs t, s,
     where its attitude holds), or less than 1/SCALE_LIMIT, where the two are coherent and
-    one of them moves (MOVING)."""
+    one of them moves (MOVING); a reference that holds still where the IMU's horizontal
+    specific force in NED varies beyond STILL_LEAK."""
     v = np.asarray(v_ned, float)
     inside = (t - 0.5 >= t[0]) & (t + 0.5 <= t[-1])
     a = np.column_stack([np.interp(t + 0.5, t, v[:, i]) - np.interp(t - 0.5, t, v[:, i])
@@ -105,8 +113,16 @@ def check_acceleration_scale(rec, t, v_ned, f_ned):
     if ok.sum() < MIN_EPOCHS:
         return
     z_imu, z_track = f[ok, 0] + 1j * f[ok, 1], a[ok, 0] + 1j * a[ok, 1]
-    spread = max(float(np.sqrt(np.mean(np.abs(z - z.mean()) ** 2))) for z in (z_imu, z_track))
-    if spread < MOVING:
+    spreads = [float(np.sqrt(np.mean(np.abs(z - z.mean()) ** 2))) for z in (z_imu, z_track)]
+    if spreads[1] == 0 and spreads[0] >= STILL_LEAK:
+        raise RecordingError(
+            f"{rec.name}: the reference holds still (its velocity the same at every epoch) "
+            f"where the IMU's horizontal specific force, turned into NED by the reference's "
+            f"attitude, varies by {spreads[0]:.3g} m/s^2 rms over 1 s - more than an attitude "
+            f"{math.degrees(STILL_LEAK / G0):.0f} deg off leaks of gravity: its positions are "
+            "not this motion's (a placeholder?). A reference of attitude alone is not read: "
+            "leave the reference out to import the IMU alone")
+    if max(spreads) < MOVING:
         return
     gain, coherence = acceleration_match(z_imu, z_track)
     if coherence >= COHERENT and not 1 / SCALE_LIMIT <= abs(gain) <= SCALE_LIMIT:

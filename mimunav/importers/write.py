@@ -18,7 +18,8 @@ from ..flightlog import LogWriter
 from ..flightlog import schemas as S
 from ..sensors.accuracy import Accuracy
 from .recording import UNKNOWN_ATTITUDE, heading_source
-from ..flightlog.stamps import longest_gap, mean_rate_hz, missing_samples, rate_segments
+from ..flightlog.stamps import (longest_gap, mean_rate_hz, missing_samples, rate_segments,
+                               scheduled)
 from .checks import (differenced, reference_track, check_recording,
                      resting_upright, velocity_lag_s)
 from .velocity_check import positions_velocity
@@ -169,6 +170,7 @@ def summary(rec, align, path):
         k = longest_gap(t, gaps)[0]
         lines.append(f"gaps: the IMU misses {sum(m for _, m in gaps)} samples in {len(gaps)} "
                      f"gaps (longest {t[k + 1] - t[k]:.3g} s at t = {t[k]:.3f} s)"
+                     + (f"; {scheduled(gaps)}" if scheduled(gaps) else "")
                      + (f"; {rec.real['imu_time']}" if "misses" in rec.real.get("imu_time", "")
                         else ""))
     if "reference" in rec.real:

@@ -31,11 +31,15 @@ def acceleration_match(z_imu, z_track):
     on the track's horizontal acceleration z_track (both x + 1j y, `track_acceleration`),
     each less its mean (the tilt's gravity leak): gain = sum(z_imu conj(z_track)) /
     sum|z_track|^2, complex - its angle is the yaw that turns the track's acceleration into
-    the IMU's, its size their ratio (1 for a car's IMU mounted as stated)."""
+    the IMU's, its size their ratio (1 for a car's IMU mounted as stated); nan and 0 for a
+    track that holds still."""
     z_imu, z_track = z_imu - z_imu.mean(), z_track - z_track.mean()
     cross = np.sum(z_imu * np.conj(z_track))
-    power = math.sqrt(np.sum(abs(z_imu) ** 2) * np.sum(abs(z_track) ** 2))
-    return complex(cross / np.sum(abs(z_track) ** 2)), float(abs(cross) / power) if power else 0.0
+    track = float(np.sum(abs(z_track) ** 2))
+    power = math.sqrt(np.sum(abs(z_imu) ** 2) * track)
+    if not track:                           # a track that holds still: no gain to it
+        return complex(math.nan, math.nan), 0.0
+    return complex(cross / track), float(abs(cross) / power) if power else 0.0
 
 
 def along_across_gains(z_imu, z_ref):

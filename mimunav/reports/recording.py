@@ -28,7 +28,7 @@ from ..evaluation import windows
 from ..evaluation.flight import Flight, no_reference
 from ..compensation.calibration_file import Calibration
 from ..diagnosis import levels
-from ..diagnosis.document import document
+from ..diagnosis.document import document, not_confirmed_said
 from ..compensation.calibration_file import with_found
 from ..errors import InputError
 from ..files import atomic_folder, refuse_inputs
@@ -212,9 +212,11 @@ def markdown(log_path, meta, channels, flight, docs, no_windows, doc, no_diagnos
                  if "vector" in f else f"{f['coefficient']:.4g} {f['units']} (95 % interval ")
         lines.append(f"- found {f['label']}: {value}[{f['ci95'][0]:.4g}, {f['ci95'][1]:.4g}]; "
                      f"attribution {f.get('attribution', '')})")
-    for f in doc["not_confirmed"]:
-        if not any(r.startswith(f["label"]) for r in doc.get("inconclusive_reasons", [])):
-            lines.append(f"- not confirmed {f['label']}: {f['rejected']}")
+    alone, again = not_confirmed_said(doc)
+    lines += [f"- not confirmed {label}: {why}" for label, why in alone]
+    if again:
+        lines.append(f"- not confirmed, for a reason the diagnosis is inconclusive: "
+                     f"{', '.join(again)}")
     lag = doc.get("time_lag", {})
     if "tau_s" in lag:
         lines.append(f"- time lag of the IMU from the yaw rate: {lag['tau_s'] * 1e3:.1f} ms "

@@ -121,8 +121,9 @@ def _swing():
     w = np.column_stack([0.3 * np.sin(2 * np.pi * t / 4.0), 0 * t, 0 * t])
     f = np.tile([0.0, 0.0, -9.81], (len(t), 1))
     ns = EPOCH_NS + np.round(t * 1e9).astype(np.int64)
+    noise = np.random.default_rng(6).normal(0.0, 1e-3, f.shape)     # another sensor's
     return Recording("swing", "test", ns, w, f, Mounting(),
-                     reference_imu=dict(ns=ns + 1_000_000_000, w=w.copy(), f=f.copy(),
+                     reference_imu=dict(ns=ns + 1_000_000_000, w=w.copy(), f=f + noise,
                                         mounting=Mounting(), model="nav")), ns
 
 
@@ -245,6 +246,24 @@ def test_a_mirrored_triad_is_refused_naming_it(pair_motion):
                                                  "the vehicle's . axis.*check the accel "
                                                  "columns"):
             pairing.pair(_recording(ns, w, f, w_r, f_r * sign))
+
+
+def test_a_reference_imu_that_is_the_imus_own_samples_is_refused(pair_motion):
+    """One file given as IMU and reference IMU (a leg IMU's data shipped under two names):
+    refused naming it, where it had imported with a mounting 'measured 0.0 deg (standard
+    error 5.6e-14)' and diagnosed excursions of the numbers' rounding; the same samples with
+    a sensor's noise added pass."""
+    ns, w, f, _, _ = pair_motion
+    rec = Recording("pair", "test", ns, w, f, Mounting.from_axes("FLU"),
+                    reference_imu=dict(ns=ns.copy(), w=w.copy(), f=f.copy(),
+                                       mounting=Mounting.from_axes("FLU"), model="copy"))
+    with pytest.raises(RecordingError, match="the IMU's own .*one recording given twice"):
+        pairing.pair(rec)
+    rng = np.random.default_rng(2)
+    noisy = dict(rec.reference_imu, w=w + rng.normal(0, 1e-3, w.shape),
+                 f=f + rng.normal(0, 1e-2, f.shape))
+    pairing.pair(Recording("pair", "test", ns, w, f, Mounting.from_axes("FLU"),
+                           reference_imu=noisy))
 
 
 @pytest.fixture(scope="module")
@@ -1145,7 +1164,9 @@ def test_instantaneous_samples_read_as_such_put_no_lag_between_two_exact_clocks(
     stamps = EPOCH_NS + np.round(t * 1e9).astype(np.int64)
     bag = tmp_path / "pair.mcap"
     with LogWriter(bag) as log:
-        log.write("/mems", S.IMU, "mems", stamps[::2], **S.imu_fields(w[::2], f[::2]))
+        noise = np.random.default_rng(7).normal(0.0, 1e-5, w.shape)     # another sensor
+        log.write("/mems", S.IMU, "mems", stamps[::2],
+                  **S.imu_fields((w + noise)[::2], f[::2]))
         log.write("/ref", S.IMU, "ref", stamps, **S.imu_fields(w, f))
     for sampling, lag_ms in (("interval_mean", 2.5), ("instant", 0.0)):
         rec = registry.read("ros2", str(bag), Mounting(), imu_topic="/mems",

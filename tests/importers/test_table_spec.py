@@ -4,6 +4,7 @@ too short), any count size as a scale, increments instead of rates, a logger's r
 Excel's `sep=` line, a second clock's offset per section, and the sensor's range with its
 clipped samples counted."""
 import numpy as np
+import quaternion
 import pytest
 
 from mimunav.flightlog import FlightLog
@@ -260,6 +261,12 @@ def test_text_tables_separated_by_spaces_with_comment_lines_and_zoned_date_times
     (tmp_path / "named.txt").write_text("timestamp tx ty tz qx qy qz qw\n" + rows + "\n")
     np.testing.assert_allclose(columns.load_spec(str(tmp_path / "named.txt"), ["tx", "qw"]),
                                [[0.1 * k, 1.0] for k in range(4)])
+    # an Xsens export: '//' comment lines, then tab-separated names over the numbers
+    (tmp_path / "xsens.txt").write_text("// Start Time: 0\n// Sample rate: 50.0Hz\n"
+                                        "Counter\tAcc_X\tGyr_Z\n2552\t4.37424\t0.05086\n"
+                                        "2553\t4.474578\t0.031548\n")
+    np.testing.assert_allclose(columns.load_spec(str(tmp_path / "xsens.txt"), ["Gyr_Z"]),
+                               [[0.05086], [0.031548]])
     (tmp_path / "bare.txt").write_text("# no names here\n" + rows + "\n")
     assert columns.load_spec(str(tmp_path / "bare.txt"), [1]).ravel().tolist() == \
         pytest.approx([0.0, 0.1, 0.2, 0.3])
@@ -629,3 +636,20 @@ def test_a_rate_switched_mid_record_keeps_each_parts_interval():
     rate = np.linalg.norm(dv / dt[:, None], axis=1)
     away = np.abs(np.arange(len(true)) - 10000) > STEADY_SPAN + 1
     assert np.abs(rate[away] / 9.81 - 1).max() < 0.005, np.abs(rate[away] / 9.81 - 1).max()
+
+
+def test_a_devices_constant_quaternion_scale_is_normalised_and_a_varying_one_refused():
+    """An NGIMU writes every quaternion 0.99831 long (499 of 499 rows): normalised, where it
+    had been refused as 'no unit quaternion ... the columns w, x, y, z in that order?' - an
+    order leaves |q| alike; rows whose lengths vary (a rotation vector among the columns)
+    and a scale beyond 1 % are refused, naming the columns' content."""
+    from mimunav.importers.recording import unit_quaternions
+    rng = np.random.default_rng(4)
+    q = rng.normal(size=(50, 4))
+    q /= np.linalg.norm(q, axis=1)[:, None]
+    got = unit_quaternions(0.99831 * q, "ngimu")
+    np.testing.assert_allclose(np.abs(got), 1.0)
+    np.testing.assert_allclose(quaternion.as_float_array(got), q, atol=1e-12)
+    for bad in (q * rng.uniform(0.9, 1.1, (50, 1)), 0.97 * q):
+        with pytest.raises(RecordingError, match="no unit quaternion.*attitude's w, x, y, z"):
+            unit_quaternions(bad, "ngimu")

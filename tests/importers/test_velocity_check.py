@@ -107,3 +107,20 @@ def test_positions_a_thousand_times_off_the_imus_specific_force_are_refused(lean
             check_acceleration_scale(rec, t, ref["v_ned"] * unit, f_ned)
     else:
         check_acceleration_scale(rec, t, ref["v_ned"] * unit, f_ned)
+
+
+def test_a_reference_that_holds_still_beside_a_moving_imu_is_refused():
+    """An AHRS's attitude imported with a made-up position of zeros (a reference of attitude
+    alone is not read): its velocity never changes where the IMU's horizontal specific force
+    in NED swings by 1.6 m/s^2 rms (1 s means) - refused, naming a placeholder; a still
+    vehicle's IMU, whose f in NED wanders by gravity's leak through a 1 deg attitude error,
+    passes."""
+    ref = _drive()
+    t = (ref["ns"] - ref["ns"][0]) / 1e9
+    still = np.zeros((len(t), 3))
+    swing = np.column_stack([1.7 * np.sin(t), 1.7 * np.cos(1.3 * t), np.full_like(t, -9.81)])
+    with pytest.raises(RecordingError, match="holds still .* 1.61 m/s\\^2 rms.*placeholder"):
+        check_acceleration_scale(_recording(ref), t, still, swing)
+    leak = np.column_stack([9.81 * np.radians(1.0) * np.sin(t), np.zeros_like(t),
+                            np.full_like(t, -9.81)])
+    check_acceleration_scale(_recording(ref), t, still, leak)

@@ -287,7 +287,14 @@ def test_a_rest_the_reference_shows_turning_measures_no_bias_about_the_vertical(
     turning = {"t": epochs, "q_nb": attitude.as_wxyz(attitude.from_euler(
         np.radians(5.0) * epochs, 0 * epochs, 0 * epochs))}
     said = vertical_note(turning, t, w, f, 0.0, 59.9)
-    assert "turns +299.0 deg" in said and "not measured here" in said, said
+    assert "turns +299.0 deg" in said and "is that turn's" in said, said
+    # an AHRS's heading settling by 3.5 deg over a rest its gyro reads still (-0.01 deg/s):
+    # the two disagree, said so (it had been 'the IMU's -0.01 deg/s ... is that turn's')
+    still = np.tile(np.radians([0.0, 0.0, -0.01]), (len(t), 1))
+    settling = dict(turning, q_nb=attitude.as_wxyz(attitude.from_euler(
+        np.radians(-3.5) * (1 - np.exp(-epochs / 3)), 0 * epochs, 0 * epochs)))
+    said = vertical_note(settling, t[t < 6.0], still[t < 6.0], f[t < 6.0], 0.0, 5.99)
+    assert "where the IMU reads -0.01 deg/s" in said and "not confirmed" in said, said
     held = dict(turning, q_nb=attitude.as_wxyz(attitude.from_euler(0 * epochs, 0 * epochs,
                                                                   0 * epochs)))
     assert vertical_note(held, t, w, f, 0.0, 59.9) == ""

@@ -59,3 +59,22 @@ def test_report_recording_of_the_excerpt_and_its_refusals(tmp_path):
     cut.write_bytes(bare.read_bytes()[:4000])
     assert main(["report", "recording", str(cut), "-o", str(tmp_path / "none")]) == 2
     assert not (tmp_path / "none").exists()
+
+
+def test_the_terms_not_confirmed_are_read_alike_by_the_terminal_and_the_report():
+    """An x-IMU's diagnosis set two size_effect terms aside, one for a reason among those
+    that make it inconclusive: the terminal listed both, the report only the other (a reason
+    began with the first's label) - both now list one alone, the other as said."""
+    from mimunav.cli.diagnosis import not_confirmed_lines
+    from mimunav.diagnosis.document import not_confirmed_said
+    doc = {"inconclusive_reasons": ["size_effect accel.x: the halves disagree beyond their "
+                                    "intervals"],
+           "not_confirmed": [{"label": "size_effect accel.x", "rejected": "held-out p = 0.1"},
+                             {"label": "size_effect accel.y", "rejected": "held-out p = 0.71"},
+                             {"label": "bias_shift gyro.z",
+                              "rejected": "the halves disagree beyond their intervals"}]}
+    alone, again = not_confirmed_said(doc)
+    assert alone == [("size_effect accel.x", "held-out p = 0.1"),
+                     ("size_effect accel.y", "held-out p = 0.71")]
+    assert again == ["bias_shift gyro.z"]
+    assert len(not_confirmed_lines(doc)) == 3
