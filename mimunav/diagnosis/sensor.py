@@ -203,7 +203,9 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
                          + [shadow, design.bins_doubt, not shadow and clock_doubt(clock)]
                          if why]
     if not findings:        # what the halves set aside was there, but not the same throughout
-        diag.inconclusive += set_aside_reasons(aside) + beyond_range_reasons(rejected)
+        diag.inconclusive += set_aside_reasons(aside) + beyond_range_reasons(rejected) + [
+            why for why in [output_tests and outputs.bias_untested(int(conds["quiet"].sum()))]
+            if why]
     if prep.agreement is not None:
         _judged_by(diag, prep.agreement)
     return diag

@@ -279,7 +279,7 @@ def refuse_gaps(flight, max_gap_s=MAX_GAP_S, warn_shorter=False):
     the navigation would bridge the gap with one sample. With warn_shorter, the shorter gaps
     are reported on stderr."""
     from ..errors import warn
-    from ..flightlog.stamps import longest_gap, missing_samples
+    from ..flightlog.stamps import longest_gap, missing_samples, scheduled
     t = flight.mimu_t
     if len(t) <= 10:
         return
@@ -298,7 +298,8 @@ def refuse_gaps(flight, max_gap_s=MAX_GAP_S, warn_shorter=False):
     if warn_shorter:
         k, n = longest_gap(t, gaps)
         warn(f"{flight.path}: the MIMU misses {sum(m for _, m in gaps)} samples in "
-             f"{len(gaps)} gaps (longest {t[k + 1] - t[k]:.3g} s at t = {t[k]:.3f} s)")
+             f"{len(gaps)} gaps (longest {t[k + 1] - t[k]:.3g} s at t = {t[k]:.3f} s)"
+             + (f"; {scheduled(gaps)}" if scheduled(gaps) else ""))
 
 
 def check_plausible(flight, max_gap_s=None, fog_sample=None):

@@ -59,34 +59,18 @@ def mean_rate_hz(t: np.ndarray) -> float:
 
 def _merge_alike(step, bounds):
     """The run bounds with each pair of neighbouring runs of one rate (periods within
-    RATE_CHANGE, or `_one_grid`) merged, and every run shorter than RATE_RUN steps (no rate by the
+    RATE_CHANGE) merged, and every run shorter than RATE_RUN steps (no rate by the
     definition) merged into the run before it."""
     merged = list(bounds)
     while len(merged) > 2:
-        periods = [_run_period(step[a:b]) for a, b in zip(merged[:-1], merged[1:])]
+        periods = [_period(step[a:b]) for a, b in zip(merged[:-1], merged[1:])]
         alike = [i for i in range(1, len(merged) - 1)
                  if abs(periods[i] / periods[i - 1] - 1) <= RATE_CHANGE
-                 or merged[i + 1] - merged[i] < RATE_RUN
-                 or _one_grid(step[merged[i - 1]:merged[i + 1]], merged[i] - merged[i - 1])]
+                 or merged[i + 1] - merged[i] < RATE_RUN]
         if not alike:
             break
         del merged[alike[0]]
     return merged
-
-
-def _one_grid(step, split):
-    """Whether two neighbouring runs of steps (ns; the second from index `split`) are one
-    grid that lost samples: their stamps lock to one grid (`_locked_grid`) and each run
-    steps by one slot of it at the median - a sampler switched to half its rate on the
-    same clock locks too, but steps by two. (Runs of one 100 Hz grid that lost 30 % of its
-    samples, jittered by 3 ms rms, had read periods of 9.3 and 10.3 ms, too few stamps
-    each to lock, and split the channel: its rate read 80 Hz.)"""
-    rel = np.concatenate([[0.0], np.cumsum(step)])
-    locked = _locked_grid(rel, _near_step(step, _period(step)))
-    if locked is None:
-        return False
-    slot = np.diff(np.round((rel - locked[1]) / locked[0]))
-    return np.median(slot[:split]) == 1 and np.median(slot[split:]) == 1
 
 
 def _period(step):
@@ -94,17 +78,6 @@ def _period(step):
     rel = np.concatenate([[0.0], np.cumsum(step)])
     span = max(1, min(100, len(step) // 10))
     return float(np.median((rel[span:] - rel[:-span]) / span))
-
-
-def _run_period(step):
-    """The period (ns) of a run of steps (ns): its locked grid's (`_locked_grid`) - lost
-    samples lengthen the median step over many samples by their share (two halves of one
-    100 Hz run that lost 30 % had read 14.1 and 15.0 ms, a change of rate) -, else that
-    median step's."""
-    period = _period(step)
-    rel = np.concatenate([[0.0], np.cumsum(step)])
-    locked = _locked_grid(rel, _near_step(step, period)) if len(step) > 1 else None
-    return locked[0] if locked else period
 
 
 def missing_samples(t: np.ndarray, smoothing: float = 0.02) -> list[tuple]:
@@ -126,14 +99,15 @@ def missing_samples(t: np.ndarray, smoothing: float = 0.02) -> list[tuple]:
         if period <= 0:
             continue
         rel = (t[a:b + 1] - int(t[a])).astype(float)
-        locked = _locked_grid(rel, _near_step(np.diff(rel), period))
-        if locked:
+        first = _near_step(np.diff(rel), period)
+        locked = _locked_grid(rel, first)
+        if locked:              # a grid whose phase holds: no free-running sampler's
             gaps = _on_the_grid(rel, *locked, smoothing)
         elif free_running(np.diff(rel)):
             out += [(int(a + k), n) for k, n in _long_steps(np.diff(rel), period)]
             continue
         else:
-            gaps = _refitted(rel, _near_step(np.diff(rel), period), smoothing)
+            gaps = _refitted(rel, first, smoothing)
         if gaps is None:
             gaps = _over_the_span(rel, _empty_slots(rel, period, smoothing), smoothing)
         out += [(int(a + k), int(gaps[k])) for k in np.flatnonzero(gaps)]
@@ -161,9 +135,15 @@ def _locked_grid(rel, period):
     the sum's resolution, 1 / span), carried over the whole span by the drift of the
     sums' phases over each LOCK_FIRST periods (`_phase_drift`), the sums over the first
     span and the whole beyond LOCK_SIGMAS of noise's, and LOCK_HELD of the stamps in spans
-    whose sums hold a phase (a 100 Hz run then 118 Hz had locked to the first). The phase: where the whole sum's
-    angle puts the grid's first point."""
+    whose sums hold a phase (a 100 Hz run then 118 Hz had locked to the first). The phase:
+    where the whole sum's angle puts the grid's first point. None too (`_lockable`) for
+    stamps that go back, too few, far sparser than `period`, or in ticks coarser than a
+    period's 1 / LOCK_ALIAS."""
+    if not _lockable(rel, period):
+        return None
     part = rel[rel <= min(float(rel[-1]), LOCK_FIRST * period)]
+    if len(part) < LOCK_MIN:
+        return None
     cell = 1.0 / float(part[-1])
     fs = _strongest_frequency(part, period) + np.arange(-8, 9) * cell / 8
     z = _phasor_sums(part, fs)
@@ -172,12 +152,35 @@ def _locked_grid(rel, period):
         return None
     f = float(fs[k])
     for _ in range(2):
-        drift, held = _phase_drift(rel, f, LOCK_FIRST * period)
+        drift, held, scatter = _phase_drift(rel, f, LOCK_FIRST * period)
         f -= drift
     (whole,) = _phasor_sums(rel, np.array([f]))
-    if held < LOCK_HELD or not abs(whole) > LOCK_SIGMAS * math.sqrt(len(rel)):
-        return None
+    if held < LOCK_HELD or scatter > LOCK_SCATTER or \
+            not abs(whole) > LOCK_SIGMAS * math.sqrt(len(rel)) \
+            or np.median(np.diff(rel)) < 0.5 / f:   # most steps a fraction of the period:
+        return None                                 # windows of a duty cycle, no grid
     return 1.0 / f, float(np.angle(whole)) / (2 * math.pi * f)
+
+
+LOCK_MIN = 64           # stamps in the first span at least (a lone first stamp before a
+#                         pause of 2000 periods had left one, and a sum's resolution of 1/0)
+LOCK_ALIAS = 2.25       # stamps in whole ticks (ms) sum alike at f and 1 / tick - f, which
+#                         lies beyond LOCK_WIDTH of f only for ticks under period / 2.25 (a
+#                         600 Hz part stamped in ms had locked to 400 Hz)
+
+
+def _lockable(rel, period):
+    """Whether stamps rel (ns from the first) can be locked (`_locked_grid`): they never go
+    back (a swapped pair, a clock stepped back: a chunk before the first), they hold fewer
+    LOCK_FIRST-period chunks than stamps (bursts 1 ns apart read a 1 ns period and asked for
+    a chunk every 2 us of a 2 min log: 2.5 GB), and they lie in no tick of LOCK_ALIAS
+    periods or more."""
+    if len(rel) < LOCK_MIN or rel[-1] <= 0 or np.any(np.diff(rel) < 0):
+        return False
+    if rel[-1] / (LOCK_FIRST * period) > len(rel):
+        return False
+    tick = stamp_tick(rel / 1e9)
+    return tick is None or tick * 1e9 < period / LOCK_ALIAS
 
 
 def _strongest_frequency(t, period):
@@ -193,27 +196,34 @@ def _strongest_frequency(t, period):
 
 
 CHUNK_SIGMAS = 3.0      # a chunk's sum over sqrt(n) that gives its phase to 0.24 rad rms
+LOCK_SCATTER = 3.0      # the chunks' phases about their line, in their noise's rms, at most:
+#                         a grid's are its jitter's (about 1); a free-running sampler's
+#                         wander (3 % interval jitter had locked, its count off by 84 of 959)
 LOCK_HELD = 0.9         # of the stamps: in chunks whose sums hold a phase (a grid's chunks
 #                         all do, but for a short last one; a run of another rate does not)
 
 
 def _phase_drift(rel, f, chunk):
-    """(drift, held): how far (1/ns) f lies above the stamps' frequency - the phases of the
-    stamps' sums at f over each `chunk` ns (those beyond CHUNK_SIGMAS of noise's) turn by
-    2 pi times that per ns: the slope of their unwrapped angles on the chunks' mean times,
-    weighted by the sums' sizes (0 with fewer than two such chunks) -, and the share of
-    the stamps in those chunks."""
+    """(drift, held, scatter): how far (1/ns) f lies above the stamps' frequency - the phases
+    of the stamps' sums at f over each `chunk` ns (those beyond CHUNK_SIGMAS of noise's)
+    turn by 2 pi times that per ns: the slope of their unwrapped angles on the chunks' mean
+    times, weighted by the sums' sizes -, the share of the stamps in those chunks, and the
+    rms of their phases about that line in their own noise's (sqrt(n / 2) / |sum|, rad):
+    about 1 on a grid, where a free-running sampler's phase wanders (0 and nan with fewer
+    than three such chunks)."""
     at = (rel // chunk).astype(np.int64)
     phasor = np.exp(2j * math.pi * ((f * rel) % 1.0))
     z = np.bincount(at, phasor.real) + 1j * np.bincount(at, phasor.imag)
     n = np.bincount(at).astype(float)
     held = np.abs(z) > CHUNK_SIGMAS * np.sqrt(n)
     share = float(n[held].sum() / len(rel))
-    if held.sum() < 2:
-        return 0.0, share
+    if held.sum() < 3:
+        return 0.0, share, math.nan
     centre = np.bincount(at, rel)[held] / n[held]
-    slope = np.polyfit(centre, np.unwrap(np.angle(z[held])), 1, w=np.abs(z[held]))[0]
-    return float(slope) / (2 * math.pi), share
+    line = np.polyfit(centre, np.unwrap(np.angle(z[held])), 1, w=np.abs(z[held]))
+    off = np.angle(z[held] * np.exp(-1j * np.polyval(line, centre)))
+    scatter = float(np.sqrt(np.mean((off * np.abs(z[held]) / np.sqrt(n[held] / 2)) ** 2)))
+    return float(line[0]) / (2 * math.pi), share, scatter
 
 
 def _phasor_sums(t, fs):

@@ -90,12 +90,24 @@ def from_euler(yaw: ArrayLike, pitch: ArrayLike, roll: ArrayLike) -> np.ndarray:
         sy * cp * cr - cy * sp * sr], axis=-1))
 
 
+GIMBAL_LOCK = 1e-9     # cos(pitch) below which roll and yaw are one angle: their two
+#                        arctan2s read rounding (a mounting of 90 deg turns, pitch 90 to
+#                        1e-16, had printed roll 49.4 and yaw -79.7 for 0 and -90)
+
+
 def as_euler(q_nb: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(yaw, pitch, roll) in rad of q_nb (z-y-x)."""
+    """(yaw, pitch, roll) in rad of q_nb (z-y-x; C = q_nb's rotation matrix, body -> nav:
+    yaw = atan2(C21, C11), pitch = atan2(-C31, hypot(C32, C33)), roll = atan2(C32, C33)).
+    At pitch +-90 deg (cos(pitch) under GIMBAL_LOCK) only yaw -+ roll is defined: roll is
+    0 and yaw atan2(-C12, C22), the same rotation."""
     w, x, y, z = np.moveaxis(quaternion.as_float_array(q_nb), -1, 0)
-    yaw = np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
-    pitch = np.arcsin(np.clip(2 * (w * y - x * z), -1.0, 1.0))
-    roll = np.arctan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
+    c32, c33 = 2 * (w * x + y * z), 1 - 2 * (x * x + y * y)
+    level = np.hypot(c32, c33)
+    pitch = np.arctan2(2 * (w * y - x * z), level)
+    locked = level < GIMBAL_LOCK
+    yaw = np.where(locked, np.arctan2(2 * (w * z - x * y), 1 - 2 * (x * x + z * z)),
+                   np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z)))
+    roll = np.where(locked, 0.0, np.arctan2(c32, c33))
     return yaw, pitch, roll
 
 

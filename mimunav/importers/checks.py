@@ -17,6 +17,7 @@ from .course_check import REFUSED_OFFSET_S, check_against_course, local_mean, no
     offset_advice
 from .imu_clock import GRID_S, late_or_early, trajectory_clock
 from .pairing import pair
+from .same_data import check_distinct
 from .trajectory_point import check_trajectory_point
 from .recording import G0, RecordingError, utc_text
 from .vehicle_check import check_declared_vehicle
@@ -64,9 +65,10 @@ def check_recording(rec):
     check_declared_vehicle(rec, reference_track(rec, int(rec.imu_ns[0])))
     if rec.reference_imu is not None:
         _check_rate(rec.name, "reference IMU", rec.reference_imu["ns"])
+        check_distinct(rec)
         pair(rec)
         rec.aliased = aliased(rec)
-    g = _gravity_sized(rec)
+    _check_gravity_felt(rec)
     ref = rec.reference
     q = None if ref is None else ref.get("q_nb")
     if q is None or np.isfinite(q).all(axis=1).sum() < 10:
@@ -77,7 +79,9 @@ def check_recording(rec):
     k = np.clip(np.searchsorted(rec.imu_ns, t_ref), 0, len(rec.imu_ns) - 1)
     q_ns = attitude.from_wxyz(q[ok]) * rec.mounting.q_vs
     f_ned = attitude.rotate(q_ns, local_mean(rec.f, k))
-    f_n = np.median(f_ned, axis=0)
+    # the median specific force in NED is gravity's for any vehicle whose acceleration
+    # averages out: G0, not the IMU's median |f| (a swinging foot's reads 13.3, centripetal)
+    g, f_n = G0, np.median(f_ned, axis=0)
     if f_n[2] > -0.8 * g or np.hypot(f_n[0], f_n[1]) > 0.3 * g:
         raise RecordingError(f"{rec.name}: the specific force turned into NED by the mounting and "
                              f"the reference attitude is {np.round(f_n, 2).tolist()} m/s^2 in the "
@@ -265,10 +269,10 @@ FELT_GRAVITY_SHARE = 0.05   # of the recording's 1 s means: at least this share 
                             # hovering, cruising or under a parachute; a coast is no unit error
 
 
-def _gravity_sized(rec):
-    """The median |specific force| (m/s^2) of the 1 s means that feel between 0.5 and 2 g;
-    refused when fewer than FELT_GRAVITY_SHARE of them (or 3 s) do: g read as m/s^2 (all
-    near 1) or m/s^2 read as g (near 96) - not a free fall or a boost between rests."""
+def _check_gravity_felt(rec):
+    """Refuses (RecordingError) an IMU whose 1 s means of |specific force| lie between 0.5
+    and 2 g for fewer than FELT_GRAVITY_SHARE of them (or 3 s): g read as m/s^2 (all near
+    1) or m/s^2 read as g (near 96) - not a free fall or a boost between rests."""
     t = (rec.imu_ns - rec.imu_ns[0]) / 1e9
     sec = np.floor(t).astype(int)
     count = np.bincount(sec)
@@ -286,7 +290,6 @@ def _gravity_sized(rec):
                              f"{float(np.median(size)):.3g} m/s^2); a vehicle on Earth feels "
                              "about 9.8 for a part of its record: is the accelerometer's unit "
                              "(g or m/s^2) right?")
-    return float(np.median(size[felt]))
 
 
 def _check_overlap(rec):

@@ -369,10 +369,25 @@ def header_names(path, sep, skip):
     return names
 
 
+def _names_filled(path, sep, skip):
+    """The CSV for the reader: its path, or its lines with the header's (line `skip`) empty
+    names written c0, c1, ... - the reader drops an empty name, and pandas' index column
+    (a header's empty first cell) had made every line 'another column count than the
+    first'."""
+    names = header_names(path, sep, skip)
+    if all(names):
+        return path
+    with open(path) as fh, text_file(path):
+        lines = fh.readlines()
+    lines[skip] = (sep or " ").join(n or f"c{k}" for k, n in enumerate(names)) + "\n"
+    return lines
+
+
 def _read_csv(path, header, notes, sep=",", skip=0):
     """The numbers of a CSV after `skip` lines: a structured array named by its header row
     when it has one (the reader's names, which `header_names` corrects), else (N, columns)."""
-    read = lambda **kw: np.genfromtxt(path, delimiter=sep, names=True if header else None,  # noqa: E731
+    source = _names_filled(path, sep, skip) if header else path
+    read = lambda **kw: np.genfromtxt(source, delimiter=sep, names=True if header else None,  # noqa: E731
                                       dtype=float, invalid_raise=True, skip_header=skip,
                                       ndmin=0 if header else 2, **kw)
     try:

@@ -354,7 +354,8 @@ def _drift(t, offsets, variances):
     ok = np.isfinite(offsets) & np.isfinite(variances)
     if ok.sum() < 5:
         return 0.0, math.inf, math.nan, math.nan
-    t, y, weight = t[ok], offsets[ok], 1.0 / variances[ok]
+    # a variance under a picosecond squared is rounding (two IMUs' exact samples: 0)
+    t, y, weight = t[ok], offsets[ok], 1.0 / np.maximum(variances[ok], 1e-24)
     centre = float(np.sum(weight * t) / np.sum(weight))
     x = t - centre
     slope = float(np.sum(weight * x * y) / np.sum(weight * x * x))

@@ -51,7 +51,6 @@ def pair(rec):
         raise RecordingError(f"{rec.name}: the reference IMU's median |specific force| is "
                              f"{g:.3g} m/s^2, not about 9.8: is its accelerometer's unit right?")
     _check_units(rec)
-    _check_distinct(rec)
     clock = clock_offset(rec)
     rec.real["reference_imu_clock"] = clock["said"]
     if clock["offset_s"] is None and not abs(clock.get("peak_lag_s", math.inf)) <= GRID_S:
@@ -84,29 +83,6 @@ def _check_overlap(rec):
                              f"{utc_text(ref['ns'][-1])}) covers less than half of the IMU's span "
                              f"({utc_text(rec.imu_ns[0])} .. {utc_text(rec.imu_ns[-1])}): do the "
                              "two share a time base?")
-
-
-SAME_DATA = 1e-9            # of a channel's rms: two IMUs' samples closer than this at their
-#                             common stamps are one sensor's numbers twice (float64 keeps 16
-#                             digits, a float32 log 7; two sensors' noise differs at 1e-3)
-
-
-def _check_distinct(rec):
-    """A reference IMU must be another sensor: refuses (RecordingError) one whose samples at
-    the stamps it shares with the IMU equal the IMU's to SAME_DATA of their rms (one file
-    given twice: its 'residual' is the numbers' rounding, scanned as excursions at z 6)."""
-    ref = rec.reference_imu
-    common, mine, theirs = np.intersect1d(rec.imu_ns, ref["ns"], return_indices=True)
-    if len(common) < 0.5 * len(rec.imu_ns):
-        return
-    for a, b in ((rec.w, ref["w"]), (rec.f, ref["f"])):
-        a, b = a[mine], b[theirs]
-        if not np.all(np.abs(a - b) <= SAME_DATA * np.sqrt(np.mean(a * a, axis=0))):
-            return
-    raise RecordingError(f"{rec.name}: the reference IMU's samples are the IMU's own ("
-                         f"{len(common)} stamps alike, every value equal to {SAME_DATA:g} of "
-                         "its rms): one recording given twice? A reference IMU must be "
-                         "another sensor")
 
 
 def _check_units(rec):
@@ -181,10 +157,9 @@ def _turn_mountings(rec, clock_se, means, ok, mids):
     if in_theirs := _arm_in_their_frame(rec, means, ok, mids, turn):   # the IMU's frame off
         turn, angle, how, apart, se = _measured_turn(rec, means, ok)
     seen = bool(how)
-    # a triad mirrored (a sign, an axis order) is no turn: after the best turn one of its
-    # moving axes runs against the other IMU's; named as given where an axis does so there too
-    # (a mirrored accelerometer can turn the gyros against each other) - as given alone, a turn
-    # of 180 deg runs two axes against (a FOG turned 180 deg in yaw had been refused as one)
+    # a mirrored triad (a sign, an axis order) is no turn: after the best turn an axis runs
+    # against the other IMU's, named as given where one does there too (a mirrored accel turns
+    # the gyros against) - as given alone, 180 deg runs two against (a FOG so turned was refused)
     vehicle = [(attitude.rotate(rec.mounting.q_vs, means[0][k][ok]),
                 attitude.rotate(ref["mounting"].q_vs, means[1][k][ok])) for k in range(2)]
     said = {when: [why for (mine, theirs), sensor in zip(vehicle, ("gyro", "accel"))
@@ -239,6 +214,7 @@ def _turn_mountings(rec, clock_se, means, ok, mids):
             + (f": {hint.format(roll=roll, pitch=pitch, yaw=yaw)})" if hint else ")"))
     if how == "free" and _halves_apart(rec, means, ok, said):
         return
+    _check_placed(rec, angle, se, (roll, pitch, yaw), hint)
     imus = [(vehicle[0][0], vehicle[1][0] - means[0][2][ok]), (vehicle[0][1], vehicle[1][1])]
     whose, held, turns = whose_turn(rec.reference, mids[ok], imus, angle,
                                     (TURNING_RATE, MOVING_FORCE), SPAN_SHARE)
@@ -252,6 +228,23 @@ def _turn_mountings(rec, clock_se, means, ok, mids):
     ref["mounting"] = Mounting(attitude.as_wxyz(fixed), ref["mounting"].lever_arm_m)
     rec.real["reference_imu_mounting"] = f"measured {said}: turned so" + (f" ({held})" if held
                                                                           else "")
+
+
+def _check_placed(rec, angle, se, rpy, hint):
+    """Refuses (RecordingError) a turn between the two IMUs (angle, its standard error se,
+    deg) that the data do not place within SMALL_TURN_DEG: no mounting to take (two feet of
+    a walker: 45 deg, se 20, had been 'turned so'); rpy: the best turn's roll, pitch, yaw
+    texts."""
+    if se <= SMALL_TURN_DEG:
+        return
+    roll, pitch, yaw = rpy
+    raise RecordingError(
+        f"{rec.name}: the reference IMU's mounting lies {angle:.1f} deg from the IMU's "
+        f"(standard error {se:.2g} deg), which the data do not place within the "
+        f"{SMALL_TURN_DEG:g} deg the diagnosis' mounting terms fit: do the two share one "
+        f"motion? If so, give its mounting from the installation (the data's best turn, "
+        f"as uncertain: roll, pitch, yaw {roll}, {pitch}, {yaw} deg" + (
+            f": {hint.format(roll=roll, pitch=pitch, yaw=yaw)})" if hint else ")"))
 
 
 ARM_FRAME_DEG = 5.0      # deg: the gyros' own turn from which the lever arm given is asked

@@ -97,8 +97,11 @@ def _position_keys(spec):
         return [k for k in keys if k not in GEODETIC]
     missing = [k for k in GEODETIC if k not in keys]
     if missing:
+        alone = len(missing) == len(GEODETIC) and any(k.startswith("attitude") for k in keys)
         raise RecordingError(f"{where} has no {', '.join(missing)} (give latitude, longitude "
-                             "and height, position_ecef, or position_local with local_frame)")
+                             "and height, position_ecef, or position_local with local_frame)"
+                             + ("; a reference of attitude alone is not read - leave "
+                                "[reference] out to import the IMU alone" if alone else ""))
     return keys
 
 

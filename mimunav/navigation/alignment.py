@@ -206,10 +206,10 @@ def _no_initial_state(t, track, speed, inside, half):
             f"its epochs faster than {COURSE_SPEED:g} m/s all lie in stretches the "
             "IMU and its positions show at rest (a noisy fix's speed)"
             if moving.any() else
-            f"where {half:g} s of IMU and it lie on both sides its speed peaks at "
-            f"{speed[inside].max():.2f} m/s, below {COURSE_SPEED:g} m/s (over all of "
-            f"it: {speed.max():.2f} m/s)" if inside.any() else
-            f"none of its epochs has {half:g} s of IMU and of it on both sides (the "
+            f"at its epochs with {half:.3g} s of IMU and of it on both sides its speed "
+            f"peaks at {speed[inside].max():.2f} m/s, below {COURSE_SPEED:g} m/s (over all "
+            f"of it: {speed.max():.2f} m/s)" if inside.any() else
+            f"none of its epochs has {half:.3g} s of IMU and of it on both sides (the "
             f"IMU's record is {t[-1] - t[0]:.2f} s, its "
             f"{track['t'][-1] - track['t'][0]:.2f} s): too short") +
         " for a moving alignment")

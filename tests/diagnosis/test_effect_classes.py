@@ -576,3 +576,15 @@ def test_a_bias_beside_a_lattice_is_still_tested():
     assert lo <= 1e-3 <= hi, found["bias_shift gyro.y"]
     coarse = [f["label"] for f in sensor.diagnose(with_gyro_y(0.01, 0.0), cal).findings]
     assert "bias_shift gyro.y" not in coarse and "quantization gyro.y" in coarse
+
+
+def test_bias_tests_without_quiet_flight_say_they_did_not_run():
+    """A walker's foot never rests: the bias tests read no bin (they read quiet flight only)
+    and return nothing - an injected 0.5 deg/s offset had been neither found nor said
+    untested; the words say so with the count, and say nothing once the bins suffice."""
+    quiet = np.zeros(outputs.BIAS_QUIET_BINS - 1, bool)
+    quiet[:40] = True
+    assert outputs.bias_tests(None, None, quiet, 0.05, None) == []
+    said = outputs.bias_untested(int(quiet.sum()))
+    assert "not tested: 40 bins of quiet flight, 100 needed" in said
+    assert outputs.bias_untested(outputs.BIAS_QUIET_BINS) == ""

@@ -594,6 +594,39 @@ def test_a_grid_that_lost_a_third_of_its_samples_is_counted_whole(lost, jitter_m
         assert abs(mean_rate_hz(stamps) - 100.0) < 0.1
 
 
+def test_the_grid_lock_keeps_off_what_is_no_one_grid():
+    """An independent review of the phasor lock: a 100 -> 50 Hz switch on one clock that
+    lost 2 % stays two rates with its losses counted (a lock over both had merged them, 0
+    counted); a free-running sampler's 3 % interval jitter is no grid (its chunks' phases
+    wander: it had locked, 875 of 959 counted); stamps in whole ms of a 600 Hz part sum
+    alike at 400 Hz, so no lock is tried (it had read 537.7 Hz); a lone first stamp before
+    a pause, a swapped pair and a clock stepped back read without an error (they had
+    divided by zero or binned negative times)."""
+    from mimunav.flightlog.stamps import _locked_grid, missing_samples, rate_segments
+    ms = 1_000_000
+    keep = np.random.default_rng(1).random(6000) >= 0.02
+    keep[[0, -1]] = True
+    switched = np.r_[np.arange(3000) * 10 * ms, 30_000 * ms + np.arange(3000) * 20 * ms][keep]
+    assert len(rate_segments(switched)) == 2
+    assert abs(sum(m for _, m in missing_samples(switched)) - (~keep).sum()) <= 1
+    rng = np.random.default_rng(0)
+    steps = np.maximum(5 * ms * (1 + 0.03 * rng.normal(0, 1, 49999)), 0.25 * ms)
+    free = np.r_[0, np.cumsum(steps)]
+    keep = rng.random(50000) >= 0.02
+    keep[[0, -1]] = True
+    free = np.round(free[keep]).astype(np.int64)
+    assert sum(m for _, m in missing_samples(free)) == (~keep).sum()
+    k = np.flatnonzero(np.random.default_rng(0).random(8000) >= 0.1)
+    in_ms = np.floor((k + 0.37) * 1e3 / 600) * ms
+    assert _locked_grid(in_ms - in_ms[0], 1e9 / 600) is None
+    grid = np.arange(5000) * 10 * ms
+    swapped, back = grid.copy(), grid.copy()
+    swapped[[0, 1]] = swapped[[1, 0]]
+    back[30:] -= 500 * ms
+    assert missing_samples(np.r_[0, 25_000 * ms + grid]) == [(0, 2499)]
+    assert missing_samples(swapped) == [] and missing_samples(back) == []
+
+
 def test_gaps_on_a_schedule_are_said_to_be_one():
     """An x-IMU's stamps are its packet numbers: a packet of another kind after every 128
     inertial samples steps them as a lost sample would (98 'missed', 258 Hz for 256) - the

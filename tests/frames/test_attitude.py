@@ -52,6 +52,25 @@ def test_pitch_at_minus_90_deg_survives_round_off():
         np.testing.assert_allclose(pitch, sign * np.pi / 2, atol=1e-7)
 
 
+def test_euler_angles_at_pitch_90_deg_give_back_the_rotation():
+    """At pitch +-90 deg roll and yaw are one angle (yaw - roll at +90, yaw + roll at -90):
+    a mounting made of 90 deg turns (roll 0, pitch 90, yaw -90), composed with rounding, had
+    printed [49.4, 90.0, -79.7] - 39 deg of another rotation, which pasted back into a spec
+    was measured 39.1 deg off. The angles now give back the rotation (scipy's Rotation, an
+    independent library, as the oracle), with roll 0 at the lock."""
+    from scipy.spatial.transform import Rotation
+    turns = Rotation.from_euler("ZYX", [-90.0, 90.0, 0.0], degrees=True) * \
+        Rotation.from_rotvec([1e-17, 0.0, 0.0])
+    q = attitude.from_wxyz(np.roll(turns.as_quat(), 1))
+    yaw, pitch, roll = attitude.as_euler(q)
+    assert np.degrees([roll, pitch, yaw]) == pytest.approx([0.0, 90.0, -90.0], abs=1e-9)
+    for angles in ([-90.0, 90.0, 30.0], [20.0, -90.0, 40.0], [170.0, -89.99999, -170.0]):
+        r = Rotation.from_euler("ZYX", angles, degrees=True)
+        got = attitude.as_euler(attitude.from_wxyz(np.roll(r.as_quat(), 1)))
+        back = Rotation.from_euler("ZYX", np.array(got).ravel())
+        assert (back.inv() * r).magnitude() < 1e-9
+
+
 def test_euler_of_a_quaternion_array_of_any_shape():
     """as_euler works elementwise on a (2, 3) array as on its flattened copy."""
     rng = np.random.default_rng(3)

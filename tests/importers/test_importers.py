@@ -672,6 +672,11 @@ def test_a_csv_cut_mid_line_loses_only_that_line(tmp_path):
     (tmp_path / "bad.csv").write_text("t,wx,wy\n0.0,1\n0.1,3,4\n0.2,5,6\n")
     with pytest.raises(RecordingError, match="line\\(s\\) 2 have another column count"):
         columns.load_spec(str(tmp_path / "bad.csv"), None, {})
+    # pandas' to_csv(): its index column's header cell is empty (gaitmap's motion capture had
+    # been refused as 'line(s) 2, 3, 4, 5, 6 have another column count than the first')
+    (tmp_path / "pandas.csv").write_text(",L_FCC,L_FCC\n0,33250.8,10563.8\n1,33250.9,10563.7\n")
+    assert columns.load_spec(str(tmp_path / "pandas.csv"), [0, 2]).tolist() == \
+        [[0.0, 10563.8], [1.0, 10563.7]]
 
 
 @pytest.mark.parametrize("wrong, message", [

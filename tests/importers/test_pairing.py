@@ -11,7 +11,7 @@ import quaternion
 
 from mimunav.frames import attitude
 from mimunav.frames.mounting import Mounting
-from mimunav.importers import checks, imu_clock, pairing, series
+from mimunav.importers import checks, imu_clock, pairing, same_data, series
 from mimunav.importers.recording import Recording, RecordingError
 from mimunav.motion import truth
 from mimunav.motion.profile import Profile
@@ -258,12 +258,27 @@ def test_a_reference_imu_that_is_the_imus_own_samples_is_refused(pair_motion):
                     reference_imu=dict(ns=ns.copy(), w=w.copy(), f=f.copy(),
                                        mounting=Mounting.from_axes("FLU"), model="copy"))
     with pytest.raises(RecordingError, match="the IMU's own .*one recording given twice"):
-        pairing.pair(rec)
+        same_data.check_distinct(rec)
     rng = np.random.default_rng(2)
-    noisy = dict(rec.reference_imu, w=w + rng.normal(0, 1e-3, w.shape),
-                 f=f + rng.normal(0, 1e-2, f.shape))
-    pairing.pair(Recording("pair", "test", ns, w, f, Mounting.from_axes("FLU"),
-                           reference_imu=noisy))
+    noisy = Recording("pair", "test", ns, w, f, Mounting.from_axes("FLU"), reference_imu=dict(
+        rec.reference_imu, w=w + rng.normal(0, 1e-3, w.shape), f=f + rng.normal(0, 1e-2, f.shape)))
+    same_data.check_distinct(noisy)
+    pairing.pair(noisy)
+
+
+def test_a_turn_the_data_do_not_place_is_refused_not_taken(pair_motion):
+    """Two IMUs on different feet of a walker had their mounting 'measured 45.1 deg
+    (standard error 20) ... turned so'; here the reference's record runs backwards in time
+    (the same kind of motion, not this one): its best turn, 180 deg with a standard error of
+    4.8, is beyond the 3 deg the diagnosis' mounting terms fit - refused, asking whether the
+    two share one motion, not taken."""
+    ns, w, f, _, _ = pair_motion
+    rec = Recording("pair", "test", ns, w, f, Mounting.from_axes("FLU"),
+                    reference_imu=dict(ns=ns.copy(), w=w[::-1].copy(), f=f[::-1].copy(),
+                                       mounting=Mounting.from_axes("FLU"), model="other"))
+    with pytest.raises(RecordingError, match=r"standard error [0-9.]+ deg\), which the data do "
+                                             r"not place .* share one motion"):
+        pairing.pair(rec)
 
 
 @pytest.fixture(scope="module")

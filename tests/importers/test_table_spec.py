@@ -168,6 +168,15 @@ attitude_rpy = { file = "ref.csv", columns = ["r", "p", "y"], unit = "deg" }
     # what a refusal of this attitude names (a helicopter's yaw, pitch, roll order had been
     # blamed on a quaternion's convention)
     assert rec.reference_meta["attitude_as"].startswith("columns' order (attitude_rpy")
+    # an AHRS's attitude alone (no position): refused, saying it is not read and how to go on
+    alone = section.split("\n")
+    alone = "\n".join(line for line in alone if not line.startswith(("latitude", "longitude",
+                                                                       "height", "velocity")))
+    (tmp_path / "alone.toml").write_text(SPEC.format(rate=RATES, force=FORCES, extra="")
+                                         + alone)
+    with pytest.raises(RecordingError, match="attitude alone is not read - leave .reference. "
+                                             "out"):
+        table.read(tmp_path / "alone.toml")
 
 
 def test_text_columns_and_dropped_rows_are_refused_saying_why(tmp_path, capsys):

@@ -489,6 +489,32 @@ def test_the_reference_attitudes_accelerometer_bias_allows_for_the_lever_arm():
     assert np.abs(unaware).max() > 5e-3, unaware
 
 
+def test_windows_that_turn_far_give_no_biases_from_the_reference_attitude(monkeypatch):
+    """A foot swinging through 30 deg of roll and pitch a quarter cycle apart once a second
+    (coning; its reference attitude exact at 100 Hz, the IMU's rates the exact interval
+    means at 1 kHz, no bias): a window's mean rate is no longer its net turn over its span,
+    nor its attitude at mid-window the others' - a walker's foot had given 'biases' of 8
+    deg/s and 4.6 m/s^2 with standard errors of 1 deg/s and 22 mg. Every window turns
+    beyond WINDOW_TURN: no biases from the reference (the caller takes 0 and says so);
+    allowed any turn, the same windows read a gyro bias of tenths of a rad/s."""
+    rate, amplitude = 1000.0, math.radians(30.0)
+    t = np.arange(0.0, 30.0, 1.0 / rate)
+    phase = 2 * math.pi * t
+    q_nb = attitude.from_euler(0 * t, amplitude * np.cos(phase), amplitude * np.sin(phase))
+    step = attitude.as_scipy(q_nb[:-1]).inv() * attitude.as_scipy(q_nb[1:])
+    w = np.vstack([np.zeros((1, 3)), step.as_rotvec() * rate])
+    g = float(earth.normal_gravity(LAT0, H0))
+    f = attitude.rotate(np.conjugate(q_nb), np.array([0.0, 0.0, -g]))
+    k = np.arange(0, len(t), 10)
+    track = {"t": t[k], "lat": np.full(len(k), LAT0), "lon": np.full(len(k), LON0),
+             "h": np.full(len(k), H0), "v_ned": np.zeros((len(k), 3)),
+             "q_nb": attitude.as_wxyz(q_nb[k])}
+    assert attitude_biases.biases_from_attitude(t, w, f, Mounting(), track) is None
+    monkeypatch.setattr(attitude_biases, "WINDOW_TURN", math.inf)
+    (gyro, _), _, _ = attitude_biases.biases_from_attitude(t, w, f, Mounting(), track)
+    assert np.abs(gyro).max() > 0.1, gyro
+
+
 def test_a_hand_held_rest_with_tremor_and_bias_is_a_rest():
     """A phone held still for 30 s in a walker's hand: a gyro bias of 0.82 deg/s and a
     1.5 Hz tremor of 1 deg/s lift some 0.5 s windows' mean rate past QUIET_RATE (1 deg/s),
