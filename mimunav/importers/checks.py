@@ -79,20 +79,7 @@ def check_recording(rec):
     k = np.clip(np.searchsorted(rec.imu_ns, t_ref), 0, len(rec.imu_ns) - 1)
     q_ns = attitude.from_wxyz(q[ok]) * rec.mounting.q_vs
     f_ned = attitude.rotate(q_ns, local_mean(rec.f, k))
-    # the median specific force in NED is gravity's for any vehicle whose acceleration
-    # averages out: G0, not the IMU's median |f| (a swinging foot's reads 13.3, centripetal)
-    g, f_n = G0, np.median(f_ned, axis=0)
-    if f_n[2] > -0.8 * g or np.hypot(f_n[0], f_n[1]) > 0.3 * g:
-        raise RecordingError(f"{rec.name}: the specific force turned into NED by the mounting and "
-                             f"the reference attitude is {np.round(f_n, 2).tolist()} m/s^2 in the "
-                             f"median, not [0, 0, -{g:.1f}]: the sensor axes, the mounting or "
-                             "the attitude's " + rec.reference_meta.get("attitude_as",
-                                                                         ATTITUDE_AS) + " is wrong"
-                             + ("; or the attitude is not the reference IMU's own (attitude_of "
-                                "= \"reference_imu\" turned it by that IMU's mounting onto the "
-                                "vehicle: is it the vehicle's, attitude_of = \"vehicle\"?)"
-                                if rec.reference_meta.get("attitude_of") == "reference_imu"
-                                else "") + _upside_down(rec, f_n, g))
+    check_down(rec, f_ned)
     rate = attitude.turn_rate(t_ref / 1e9, attitude.from_wxyz(q[ok]))
     ref_rate = float(np.percentile(rate, 99))
     imu_rate = float(np.percentile(np.linalg.norm(local_mean(rec.w, k), axis=1), 99))
@@ -106,6 +93,26 @@ def check_recording(rec):
     #                                                         refuse as such first
     mounting_against_attitude(rec)
     check_trajectory_point(rec)     # once the attitude and its clock hold
+
+
+def check_down(rec, f_ned):
+    """Refuse (RecordingError) a recording whose specific force turned into NED by the
+    mounting and the reference attitude (f_ned (M, 3), m/s^2, at the reference's epochs)
+    does not point down in the median: gravity's, for any vehicle whose acceleration
+    averages out - G0, not the IMU's median |f| (a swinging foot's reads 13.3, centripetal,
+    and a right mounting had been refused against it)."""
+    g, f_n = G0, np.median(f_ned, axis=0)
+    if f_n[2] > -0.8 * g or np.hypot(f_n[0], f_n[1]) > 0.3 * g:
+        raise RecordingError(f"{rec.name}: the specific force turned into NED by the mounting and "
+                             f"the reference attitude is {np.round(f_n, 2).tolist()} m/s^2 in the "
+                             f"median, not [0, 0, -{g:.1f}]: the sensor axes, the mounting or "
+                             "the attitude's " + rec.reference_meta.get("attitude_as",
+                                                                         ATTITUDE_AS) + " is wrong"
+                             + ("; or the attitude is not the reference IMU's own (attitude_of "
+                                "= \"reference_imu\" turned it by that IMU's mounting onto the "
+                                "vehicle: is it the vehicle's, attitude_of = \"vehicle\"?)"
+                                if rec.reference_meta.get("attitude_of") == "reference_imu"
+                                else "") + _upside_down(rec, f_n, g))
 
 
 def _uniform_clocks(rec):

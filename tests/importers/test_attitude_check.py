@@ -89,3 +89,21 @@ def test_a_bounce_half_a_period_late_is_judged_at_the_clock_s_lag(read_as):
     said = late.real["reference_attitude_rates"]
     assert "its stamps taken +0.70 s late" in said, (late.real["reference_clock"], said)
     assert "x: correlation +1.00" in said, said
+
+
+def test_the_specific_force_in_ned_is_compared_with_gravity_not_the_imus_size():
+    """An IMU 0.2 m off the axis of a table turning once a second: it feels 7.9 m/s^2 toward
+    the axis besides gravity, |f| 12.6 m/s^2 (a walker's foot read 13.3), while its specific
+    force turned into NED by the right attitude is gravity in the median - taken (it had
+    been refused as 'not [0, 0, -12.6]'); the attitude turned upside down is refused."""
+    from types import SimpleNamespace
+    t = np.arange(0.0, 30.0, 0.01)
+    q_nb = attitude.from_euler(2 * np.pi * t, 0 * t, 0 * t)
+    f_b = np.array([-(2 * np.pi) ** 2 * 0.2, 0.0, 0.0]) + \
+        attitude.rotate(np.conjugate(q_nb), np.array([0.0, 0.0, -9.81]))
+    assert np.linalg.norm(f_b, axis=1).mean() > 12.5
+    rec = SimpleNamespace(name="table", reference_meta={}, mounting=Mounting(), f=f_b)
+    checks.check_down(rec, attitude.rotate(q_nb, f_b))
+    flipped = q_nb * np.quaternion(0.0, 1.0, 0.0, 0.0)
+    with pytest.raises(RecordingError, match=r"not \[0, 0, -9.8\]"):
+        checks.check_down(rec, attitude.rotate(flipped, f_b))
