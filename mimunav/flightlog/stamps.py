@@ -358,20 +358,27 @@ def longest_gap(t, gaps):
 SCHEDULED_GAPS = 10     # gaps at least: so many at one interval are a schedule, not chance
 
 
+SCHEDULED_SHARE = 0.9   # of the gaps at least on the schedule (a few lost samples beside it)
+
+
 def scheduled(gaps):
     """Words on gaps (`missing_samples`' [(k, n)]) that recur like a schedule - SCHEDULED_GAPS
-    or more, each of the same count, every so many samples to one - or ''. Lost samples
-    fall at random; a stream that sends another message every k samples, stamped by a
-    count of its messages, makes the same stamps (an x-IMU's packet numbers: a packet of
-    another kind after every 128 samples read as 98 lost samples and 258 Hz for 256)."""
-    if len(gaps) < SCHEDULED_GAPS or len({n for _, n in gaps}) > 1:
+    or more, SCHEDULED_SHARE of them of one count and every so many samples (to one) from
+    the gap before - or ''. Lost samples fall at random; a stream that sends another
+    message every k samples, stamped by a count of its messages, makes the same stamps (an
+    x-IMU's packet numbers: a packet of another kind after every 128 samples read as 98 lost
+    samples and 258 Hz for 256)."""
+    if len(gaps) < SCHEDULED_GAPS:
         return ""
     every = np.diff([k for k, _ in gaps])
-    if np.ptp(every) > 1:
+    counts = np.array([n for _, n in gaps[1:]])
+    period, size = int(np.median(every)), int(np.median(counts))
+    on = (np.abs(every - period) <= 1) & (counts == size)
+    if on.sum() < max(SCHEDULED_GAPS, SCHEDULED_SHARE * len(every)):
         return ""
-    return (f"the gaps recur every {int(np.median(every))} samples, each of {gaps[0][1]}: "
-            "lost samples fall at random - stamps that count a stream's messages, another "
-            "kind sent on that schedule, step alike; if so they are no times")
+    return (f"{int(on.sum()) + 1} of the {len(gaps)} gaps recur every {period} samples, each "
+            f"of {size}: lost samples fall at random - stamps that count a stream's "
+            "messages, another kind sent on that schedule, step alike; if so they are no times")
 
 
 FREE_RUNNING_SPREAD = 1.7     # a grid's spans of SPAN_STEPS steps scatter as its single

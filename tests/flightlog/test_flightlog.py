@@ -630,11 +630,15 @@ def test_the_grid_lock_keeps_off_what_is_no_one_grid():
 def test_gaps_on_a_schedule_are_said_to_be_one():
     """An x-IMU's stamps are its packet numbers: a packet of another kind after every 128
     inertial samples steps them as a lost sample would (98 'missed', 258 Hz for 256) - the
-    gaps' schedule is said; gaps at random, or of different sizes, say nothing."""
+    gaps' schedule is said, also beside a few samples truly lost; gaps at random, or of
+    different sizes, say nothing."""
     from mimunav.flightlog.stamps import missing_samples, scheduled
     grid = np.arange(12724) * 3_876_000
     gaps = missing_samples(np.delete(grid, np.arange(128, 12724, 129)))
     assert len(gaps) == 98 and "recur every 128 samples, each of 1" in scheduled(gaps)
+    # three samples truly lost beside the schedule (an independent review: it had gone silent)
+    beside = missing_samples(np.delete(grid, np.r_[np.arange(128, 12724, 129), 1000, 5000, 9001]))
+    assert "95 of the 101 gaps recur every 128 samples" in scheduled(beside)
     rng = np.random.default_rng(5)
     assert scheduled(missing_samples(np.delete(grid, rng.choice(12724, 98, replace=False)))) == ""
     assert scheduled([(128 * k, 1 + k % 2) for k in range(1, 40)]) == ""
