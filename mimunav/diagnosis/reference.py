@@ -19,6 +19,7 @@ from .design import CHANNELS, white_per_bin
 from .outputs import noise_sigma_of
 from ..errors import InputError
 from ..evaluation.replay import resample
+from ..importers.same_data import SAME_DATA
 from ..motion.intervals import RunningIntegral, intervals
 from ..motion.truth import Kinematics, body_rate_and_specific_force
 
@@ -360,10 +361,6 @@ GRAVITY_ANGLE_DEG = 5.0     # the 1 s mean specific forces differ in direction b
                             # this (the median over the seconds: a clipped boost does not move
                             # it): a tilt larger than the diagnosis' small-angle terms (a few
                             # degrees) shows here, at rest too
-
-
-SAME_DATA = 1e-9    # of a channel's rms: a residual this small is the numbers' rounding
-#                     (float64 keeps 16 digits, a float32 log 7; two sensors differ at 1e-3)
 
 
 def _alike(measured, predicted, keep):

@@ -299,7 +299,7 @@ def refuse_gaps(flight, max_gap_s=MAX_GAP_S, warn_shorter=False):
         k, n = longest_gap(t, gaps)
         warn(f"{flight.path}: the MIMU misses {sum(m for _, m in gaps)} samples in "
              f"{len(gaps)} gaps (longest {t[k + 1] - t[k]:.3g} s at t = {t[k]:.3f} s)"
-             + (f"; {scheduled(gaps)}" if scheduled(gaps) else ""))
+             + (f"; {said}" if (said := scheduled(gaps)) else ""))
 
 
 def check_plausible(flight, max_gap_s=None, fog_sample=None):

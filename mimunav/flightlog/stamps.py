@@ -142,7 +142,7 @@ def _locked_grid(rel, period):
     if not _lockable(rel, period):
         return None
     part = rel[rel <= min(float(rel[-1]), LOCK_FIRST * period)]
-    if len(part) < LOCK_MIN:
+    if len(part) < LOCK_MIN or part[-1] <= 0:      # 64 alike stamps first: no span
         return None
     cell = 1.0 / float(part[-1])
     fs = _strongest_frequency(part, period) + np.arange(-8, 9) * cell / 8
@@ -356,8 +356,6 @@ def longest_gap(t, gaps):
 
 
 SCHEDULED_GAPS = 10     # gaps at least: so many at one interval are a schedule, not chance
-
-
 SCHEDULED_SHARE = 0.9   # of the gaps at least on the schedule (a few lost samples beside it)
 
 

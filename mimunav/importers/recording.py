@@ -271,7 +271,7 @@ def rate_onto(t, t_w, w, what, unit_s=1.0):
     said = (f"{what} misses {sum(m for _, m in gaps)} samples in {len(gaps)} gaps (longest "
             f"{(t_w[k + 1] - t_w[k]) * unit_s:.4g} s, from {(t_w[k] - t_w[0]) * unit_s:.6g} s "
             f"of its record): the {int(np.sum(inside & ~keep))} specific-force samples inside "
-            "them left out" + (f"; {scheduled(gaps)}" if scheduled(gaps) else ""))
+            "them left out" + (f"; {regular}" if (regular := scheduled(gaps)) else ""))
     return keep, w_at, said
 
 

@@ -7,9 +7,10 @@ import numpy as np
 from .recording import RecordingError
 
 
-SAME_DATA = 1e-9            # of a channel's rms: two IMUs' samples closer than this at their
-#                             common stamps are one sensor's numbers twice (float64 keeps 16
-#                             digits, a float32 log 7; two sensors' noise differs at 1e-3)
+SAME_DATA = 1e-9            # of a channel's rms: two IMUs' samples (or a residual) closer than
+#                             this are one sensor's numbers twice, their difference rounding
+#                             (float64 keeps 16 digits, a float32 log 7; two sensors' noise
+#                             differs at 1e-3) - the sensor level's agreement reads it too
 
 
 def check_distinct(rec):

@@ -170,7 +170,7 @@ def summary(rec, align, path):
         k = longest_gap(t, gaps)[0]
         lines.append(f"gaps: the IMU misses {sum(m for _, m in gaps)} samples in {len(gaps)} "
                      f"gaps (longest {t[k + 1] - t[k]:.3g} s at t = {t[k]:.3f} s)"
-                     + (f"; {scheduled(gaps)}" if scheduled(gaps) else "")
+                     + (f"; {regular}" if (regular := scheduled(gaps)) else "")
                      + (f"; {rec.real['imu_time']}" if "misses" in rec.real.get("imu_time", "")
                         else ""))
     if "reference" in rec.real:
