@@ -75,6 +75,8 @@ def _diagnosed(args, painter):
         print(f"  {doc['bins']['why']}")
     for f in doc["findings"]:
         print(finding_line(f))
+    for why in doc.get("untested", []):
+        print(f"  beside them, {why}")
     for line in clock_lines(doc.get("reference_clock")):
         print(line)
     lag = doc.get("time_lag", {})
@@ -110,7 +112,9 @@ LEFT_OUT = (("transfer_shocks_left_out", "the lever-arm transfer misses a shock"
             ("clips_counted_left_out", "the IMU's own clip counter rose"),
             ("gaps_left_out", "an IMU misses samples (either IMU's stamps step over a gap)"),
             ("refuted_fixes_left_out", "a reference fix lay off the IMU's own forces (the "
-                                       "fix left out of the track)"))
+                                       "fix left out of the track)"),
+            ("rails_left_out", "an output sat at its extreme, bit for bit, where the "
+                               "reference read beyond (a rail too short to name saturation)"))
 
 
 def left_out_lines(doc):

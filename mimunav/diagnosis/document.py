@@ -33,7 +33,8 @@ def document(log_path, diag, alpha=0.05):
         doc["within_reference_accuracy"] = json_ready(diag.within_reference)
     for key, spans in (("transfer_shocks_left_out", "shocks"),
                        ("clips_counted_left_out", "clips_counted"), ("gaps_left_out", "gaps"),
-                       ("refuted_fixes_left_out", "fixes_refuted")):
+                       ("refuted_fixes_left_out", "fixes_refuted"),
+                       ("rails_left_out", "rails")):
         if getattr(getattr(diag, "design", None), spans, None):
             doc[key] = json_ready(getattr(diag.design, spans))
     if getattr(diag, "reference_check", None):
@@ -50,6 +51,8 @@ def document(log_path, diag, alpha=0.05):
         doc["reference_clock"] = json_ready(diag.reference_clock)
     if getattr(diag, "time_lag", None):
         doc["time_lag"] = json_ready(diag.time_lag)
+    if getattr(diag, "untested", None):
+        doc["untested"] = diag.untested
     reasons = getattr(diag, "inconclusive", None) or []
     doc["conclusive"] = not reasons
     if reasons:

@@ -114,7 +114,7 @@ def saturation(t, measured, predicted, rows, train, full_scale, steps=None, sigm
     findings = []
     for c, (sensor, axis) in enumerate(CHANNELS):
         sides, y = {}, measured[:, c]
-        x = predicted[:, c] + _own_offset(y, predicted[:, c], rows)
+        x = predicted[:, c] + own_offset(y, predicted[:, c], rows)
         for sign in (1.0, -1.0):
             side = _clip_side(sign * y, sign * x, rows, train, sigma[c], full_scale[sensor])
             if side:
@@ -125,7 +125,7 @@ def saturation(t, measured, predicted, rows, train, full_scale, steps=None, sigm
     return findings, clipped
 
 
-def _own_offset(y, x, rows):
+def own_offset(y, x, rows):
     """The channel's offset from its input, SI: the median of y - x over the `rows` whose
     input lies inside the range the output reached (a clip's samples, however many, do not
     move it). The input is judged beyond the output's reach as the output would read it,

@@ -19,7 +19,7 @@ from .design import CHANNELS, white_per_bin
 from .outputs import noise_sigma_of
 from ..errors import InputError
 from ..evaluation.replay import resample
-from ..importers.same_data import SAME_DATA
+from ..importers.same_data import SAME_DATA, follows
 from ..motion.intervals import RunningIntegral, intervals
 from ..motion.truth import Kinematics, body_rate_and_specific_force
 
@@ -363,24 +363,21 @@ GRAVITY_ANGLE_DEG = 5.0     # the 1 s mean specific forces differ in direction b
                             # degrees) shows here, at rest too
 
 
-def _alike(measured, predicted, keep):
-    """The largest rms of measured - predicted over a channel's rms (usable samples
-    `keep`) where every channel is within SAME_DATA, else None."""
+def _alike(measured, predicted, keep, channels):
+    """[the labels of the channels whose outputs go sample by sample with the reference
+    IMU's prediction (`importers.same_data.follows`: its rounding, up to an offset and a
+    scale) over the usable samples `keep`]."""
     if not keep.any():
-        return None
-    worst = 0.0
-    for c in range(6):
-        m, p = measured[:, c][keep], predicted[:, c][keep]
-        size = float(np.sqrt(np.mean(m * m)))
-        worst = max(worst, float(np.sqrt(np.mean((m - p) ** 2))) / size if size > 0 else 0.0)
-    return worst if worst <= SAME_DATA else None
+        return []
+    return [f"{sensor}.{axis}" for c, (sensor, axis) in enumerate(channels)
+            if follows(measured[:, c][keep], predicted[:, c][keep])]
 
 
 def agreement(t, measured, predicted, usable, channels):
     """Whether the reference's prediction follows the recorded MIMU: {"bin_s", "channels":
     {label: {"correlation", "predicted_spread"}}, "gravity_angle_deg", "failures": [why],
-    "failed": [the sensor of each failure: "accel" or "gyro"], "alike": the residual's rms
-    over the outputs' where it is their rounding (`_alike`; absent otherwise)} from
+    "failed": [the sensor of each failure: "accel" or "gyro"], "alike": [the channels whose
+    residual is their rounding] (`_alike`; absent where none is)} from
     the AGREEMENT_BIN_S means of the usable samples (t s; measured and predicted (N, 6):
     accel m/s^2 then gyro rad/s, MIMU axes; read as x[:, c]). A channel that moves (its
     predicted means spread by MOVING_SPREAD) must correlate to AGREEMENT_CORRELATION; the
@@ -399,14 +396,16 @@ def agreement(t, measured, predicted, usable, channels):
                               for c in range(6)])[full] / count[full, None]
              for x in (measured, predicted)]
     out = {"bin_s": AGREEMENT_BIN_S, "channels": {}, "failures": [], "failed": []}
-    alike = _alike(measured, predicted, keep)
-    if alike is not None:
+    alike = _alike(measured, predicted, keep, channels)
+    if alike:
         out["alike"] = alike
-        out["failed"] += ["accel", "gyro"]
+        out["failed"] += sorted({label.split(".")[0] for label in alike})
         out["failures"].append(
-            f"the MIMU's outputs equal the reference IMU's prediction to {alike:.2g} of their "
-            "rms on every channel - the numbers' rounding, no sensor's error: one sensor's "
-            "data twice? The residual holds nothing to diagnose")
+            f"the MIMU's {'outputs' if len(alike) == 6 else ', '.join(alike)} go sample by "
+            "sample with the reference IMU's prediction (their changes equal to within "
+            f"{SAME_DATA:g} of their rms, up to an offset and a scale) - the numbers' rounding, "
+            "no sensor's error: one sensor's data twice? The residual holds nothing to "
+            "diagnose there")
     for c, (sensor, axis) in enumerate(channels):
         m, p = means[0][:, c], means[1][:, c]
         spread = float(np.std(p)) if len(p) >= 5 else 0.0

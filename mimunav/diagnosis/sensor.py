@@ -89,6 +89,7 @@ from .confirmation import (Extremes, beta_of, beyond_range, beyond_range_reasons
 from .removal import (REFERENCE_BEYOND_SIGMA, beside_reference, held_excursions,
                       offset_readings, read_every_way, reference_beyond_stated,
                       removal_sigma)
+from .rails import short_rails
 from .selection import select
 
 
@@ -127,6 +128,8 @@ class SensorDiagnosis:
                                     # (`confirmation.recording_checks`), None when not measured
     reference_clock: dict = None    # the reference IMU's clock beside the findings
                                     # (`confirmation.clock_reading`), None when not fitted
+    untested: list = dataclasses.field(default_factory=list)  # [what went untested, in
+                                    # words] beside findings (without any: inconclusive)
 
 
 def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander=None,
@@ -202,10 +205,10 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
     diag.inconclusive = [why for why in prep.jitter + doubts + read_twice
                          + [shadow, design.bins_doubt, not shadow and clock_doubt(clock)]
                          if why]
+    untested = [w for w in [output_tests and outputs.bias_untested(int(conds["quiet"].sum()))] if w]
     if not findings:        # what the halves set aside was there, but not the same throughout
-        diag.inconclusive += set_aside_reasons(aside) + beyond_range_reasons(rejected) + [
-            why for why in [output_tests and outputs.bias_untested(int(conds["quiet"].sum()))]
-            if why]
+        diag.inconclusive += set_aside_reasons(aside) + beyond_range_reasons(rejected) + untested
+    diag.untested = untested if findings else []    # a review's spinning IMU's bias unsaid
     if prep.agreement is not None:
         _judged_by(diag, prep.agreement)
     return diag
@@ -213,10 +216,11 @@ def diagnose(flight, cal, alpha=0.05, candidates=None, accuracy=None, max_wander
 
 def _judged_by(diag, agreement):
     """The diagnosis with the reference's `agreement` beside it: its failures and what it
-    left untested make it inconclusive; a residual of rounding holds no excursion."""
+    left untested make it inconclusive; a channel's residual of rounding holds no excursion."""
     diag.reference_agreement = agreement
     if "alike" in agreement:
-        diag.unexplained = []
+        diag.unexplained = [u for u in diag.unexplained
+                            if f"{u.get('sensor')}.{u.get('axis')}" not in agreement["alike"]]
     diag.inconclusive = (diag.inconclusive + agreement["failures"]
                          + agreement.get("untested", []))
 
@@ -284,7 +288,7 @@ def _prepared(flight, cal, acc, candidates, output_tests, samples, bin_s, noise_
                              usable & ~gapped)
     counted = outputs.counted_clips(t, flight.recording)
     usable &= ~shocks & ~counted & ~gapped
-    on_outputs, quantized = [], set()
+    on_outputs, quantized, rails = [], set(), np.zeros(len(t), bool)
     acc = measured_steps(flight, acc, spill)
     cands = library.candidates() if candidates is None else candidates
     check = agreement(t, spill.series("measured"), spill.series("predicted"), usable,
@@ -293,8 +297,9 @@ def _prepared(flight, cal, acc, candidates, output_tests, samples, bin_s, noise_
         output_tests = False
         cands, check["untested"] = library.on_agreeing_gyros(cands, check["failed"])
     if output_tests:
-        on_outputs, clipped, quantized = _output_findings(cal, samples, finite, full_scale)
-        usable = usable & ~clipped
+        on_outputs, clipped, quantized, rails = _output_findings(cal, samples, finite,
+                                                                 full_scale)
+        usable = usable & ~clipped & ~rails
         # a quantized output's error depends on where its input falls between two steps:
         # terms of that channel alone would fit the lattice, not physics
         cands = [c for c in cands if not _on_channels_only(c, quantized)]
@@ -313,6 +318,8 @@ def _prepared(flight, cal, acc, candidates, output_tests, samples, bin_s, noise_
     design.arm_given = bool(np.any(lever))
     design.reference = acc
     design.shocks = outputs.spans(t, shocks, "the lever-arm transfer misses a shock: left out")
+    design.rails = outputs.spans(t, rails, "an output at its extreme, bit for bit, where the "
+                                 "reference reads beyond: a rail too short to name, left out")
     design.clips_counted = outputs.spans(t, counted, "the IMU's own clip counter rose: left out",
                                          gap_s=0.5)
     design.gaps = outputs.spans(t, gapped, "an IMU misses samples: left out", gap_s=0.5)
@@ -516,7 +523,8 @@ def _too_little(flight, prep, bin_s, block_s, because):
 
 def _output_findings(cal, samples, finite, full_scale):
     """(saturation and quantization findings, samples clipped (N,) bool, quantized channels
-    {channel index}): the tests on the outputs themselves (`outputs`), on every sample the
+    {channel index}, samples at a rail too short to name (N,) bool: `outputs.short_rails`):
+    the tests on the outputs themselves (`outputs`), on every sample the
     compensation did not repair (a sample stuck at an extreme is flagged SATURATED there and
     is tested here), a column at a time. Quantization first: a quantized channel's clip test
     allows its step."""
@@ -535,8 +543,10 @@ def _output_findings(cal, samples, finite, full_scale):
     train = outputs.block_index(t, SPLIT_BLOCK_S) % 2 == 0
     clips, clipped = outputs.saturation(t, measured, predicted, rows, train, full_scale, steps,
                                         sigma if np.array_equal(live, rows) else None)
+    rails = short_rails(measured, predicted, rows, sigma,
+                                {(c["sensor"], c["axis"]) for c in clips}) & ~clipped
     own = outputs.noise_sigma_of(lambda c: np.where(live, measured[:, c], np.nan), 6)
-    return clips + found, clipped, outputs.undithered(steps, sigma, own)
+    return clips + found, clipped, outputs.undithered(steps, sigma, own), rails
 
 
 def _on_channels_only(term, channels):

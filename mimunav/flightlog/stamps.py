@@ -362,8 +362,9 @@ SCHEDULED_SHARE = 0.9   # of the gaps at least on the schedule (a few lost sampl
 def scheduled(gaps):
     """Words on gaps (`missing_samples`' [(k, n)]) that recur like a schedule - SCHEDULED_GAPS
     or more, SCHEDULED_SHARE of them of one count and every so many samples (to one) from
-    the gap before - or ''. Lost samples fall at random; a stream that sends another
-    message every k samples, stamped by a count of its messages, makes the same stamps (an
+    the gap before - or ''. A logger dropping samples at each buffer write (an SD card's
+    flush) loses them so, and a stream that sends another message every k samples,
+    stamped by a count of its messages, makes the same stamps (an
     x-IMU's packet numbers: a packet of another kind after every 128 samples read as 98 lost
     samples and 258 Hz for 256)."""
     if len(gaps) < SCHEDULED_GAPS:
@@ -375,8 +376,9 @@ def scheduled(gaps):
     if on.sum() < max(SCHEDULED_GAPS, SCHEDULED_SHARE * len(every)):
         return ""
     return (f"{int(on.sum()) + 1} of the {len(gaps)} gaps recur every {period} samples, each "
-            f"of {size}: lost samples fall at random - stamps that count a stream's "
-            "messages, another kind sent on that schedule, step alike; if so they are no times")
+            f"of {size}: a logger that drops samples at each of its buffer's writes loses "
+            "them so, and stamps that count a stream's messages, another kind sent on that "
+            "schedule, step alike - if so they are no times")
 
 
 FREE_RUNNING_SPREAD = 1.7     # a grid's spans of SPAN_STEPS steps scatter as its single

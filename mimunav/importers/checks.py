@@ -9,6 +9,7 @@ import numpy as np
 
 from ..navigation import alignment
 from ..navigation.rest_biases import level
+from ..navigation.strapdown import MAX_RATE
 from ..frames import attitude
 from ..flightlog.stamps import burst_clock, rounded_clock
 from .aliasing import aliased
@@ -16,6 +17,7 @@ from .attitude_check import check_rates_along, mounting_against_attitude
 from .course_check import REFUSED_OFFSET_S, check_against_course, local_mean, not_a_car, \
     offset_advice
 from .imu_clock import GRID_S, late_or_early, trajectory_clock
+from .lever import lever_force_samples
 from .pairing import pair
 from .same_data import check_distinct
 from .trajectory_point import check_trajectory_point
@@ -69,6 +71,7 @@ def check_recording(rec):
         pair(rec)
         rec.aliased = aliased(rec)
     _check_gravity_felt(rec)
+    _check_rates_unit(rec)
     ref = rec.reference
     q = None if ref is None else ref.get("q_nb")
     if q is None or np.isfinite(q).all(axis=1).sum() < 10:
@@ -87,7 +90,12 @@ def check_recording(rec):
         raise RecordingError(f"{rec.name}: the gyro's rates reach {imu_rate:.3g}, the reference "
                              f"attitude turns at up to {ref_rate:.3g} rad/s: is the gyro's unit "
                              "(deg/s or rad/s) right?")
-    check_acceleration_scale(rec, t_ref / 1e9, ref["v_ned"][ok], f_ned)
+    # of the trajectory's point: the IMU's lever arm from it removed (an IMU 0.2 m off a rate
+    # table's axis, its arm declared, had been refused as beside a reference held still)
+    arm = lever_force_samples(rec.imu_ns, attitude.rotate(rec.mounting.q_vs, rec.w),
+                              rec.mounting.lever_arm_m)
+    check_acceleration_scale(rec, t_ref / 1e9, ref["v_ned"][ok],
+                             f_ned - attitude.rotate(attitude.from_wxyz(q[ok]), local_mean(arm, k)))
     _check_heading_against_course(rec, q, ok)
     check_rates_along(rec, _check_reference_clock(rec))     # after the clock: seconds off
     #                                                         refuse as such first
@@ -297,6 +305,28 @@ def _check_gravity_felt(rec):
                              f"{float(np.median(size)):.3g} m/s^2); a vehicle on Earth feels "
                              "about 9.8 for a part of its record: is the accelerometer's unit "
                              "(g or m/s^2) right?")
+
+
+RATE_SHARE = 0.999      # of the samples: a gyro's rates beyond MAX_RATE on more of them are
+#                         no wild value's (one sample) but the unit's (deg/s read as rad/s)
+
+
+def _check_rates_unit(rec):
+    """Refuses (RecordingError) an IMU (or reference IMU) whose |angular rate| exceeds the
+    navigator's MAX_RATE (rad/s: above any navigation gyro's range) on more than
+    1 - RATE_SHARE of its samples: deg/s read as rad/s - a Shimmer's hand-waved gyro so
+    declared had been imported at peaks of 729 rad/s, and refused only at `diagnose` in
+    words of angle increments."""
+    for whose, w in (("IMU", rec.w), ("reference IMU", (rec.reference_imu or {}).get("w"))):
+        if w is None or not len(w):
+            continue
+        top = float(np.quantile(np.linalg.norm(w, axis=1), RATE_SHARE))
+        if top > MAX_RATE:
+            raise RecordingError(
+                f"{rec.name}: the {whose}'s angular rates reach {top:.4g} rad/s "
+                f"({math.degrees(top):.4g} deg/s; {100 * RATE_SHARE:g} % of its samples lie "
+                f"below that), beyond any navigation gyro's range ({MAX_RATE:g} rad/s): are "
+                "they in deg/s? (a table spec's unit = \"deg/s\")")
 
 
 def _check_overlap(rec):

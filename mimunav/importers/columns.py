@@ -95,11 +95,17 @@ def files_of(path):
     return found
 
 
+COMPRESSED = (".gz", ".zip", ".xz", ".bz2", ".zst")
+
+
 def _load_one(path, notes):
     """(the numbers of one file, (N, columns); its header's names, or None)."""
     if not os.path.exists(path):
         raise RecordingError(f"{path}: no such file")
     names = None
+    if path.endswith(COMPRESSED):
+        raise RecordingError(f"{path}: a compressed file - decompress it (gunzip, unzip, unxz, "
+                             "bunzip2) and name the file it holds")
     if path.endswith((".csv", ".txt")):
         sep, skip, header = _csv_layout(path)
         data = _read_csv(path, header, notes, sep, skip)
@@ -240,8 +246,9 @@ def _csv_layout(path):
     with open(path) as fh, text_file(path):
         lines = [line for _, line in zip(range(LAYOUT_LINES), fh)]
     sep, skip = ",", 0
-    if lines and lines[0].strip().lower().startswith("sep="):     # Excel's separator line
-        sep = lines[0].strip()[4:5] or ","
+    first = lines[0].rstrip("\r\n").strip(" ").strip('"') if lines else ""
+    if first.lower().startswith("sep="):     # Excel's separator line (quoted: Consensys's)
+        sep = first[4:5] or ","
         if sep not in (",", ";", "\t", "|"):
             raise RecordingError(f"{path}: separator line {lines[0].strip()!r}: one of "
                                  ", ; tab |")

@@ -103,20 +103,26 @@ def _initial_state(log, flight, meta, t0, t1, epoch):
                     "reference", "reference")
         if "/mimu/imu" in log.channels:
             return _realigned(log, truth, t, t0, t1, epoch, meta)
+    elif "/mimu/imu" in log.channels and "recording" in meta:   # an IMU alone or beside a
+        return _realigned(log, None, None, t0, t1, epoch, meta)  # reference IMU: as imported
     raise InputError(f"the initial state (t = {initial.get('t')}) lies outside the span and the "
-                     "log has no reference to start the span from: cut a span that holds it")
+                     "log has no reference trajectory to start the span from, nor an imported "
+                     "IMU (/mimu/imu) to align on it: cut a span that holds it")
 
 
 def _realigned(log, truth, t_ref, t0, t1, epoch, meta):
-    """The alignment of an imported recording redone on the span's /mimu/imu and track."""
+    """The alignment of an imported recording redone on the span's /mimu/imu and track (the
+    reference trajectory `truth` at t_ref s; None: the IMU alone, as its import aligned it -
+    a Shimmer's pair of accelerometers could be cut only from 0 s)."""
     imu = log.read("/mimu/imu", fields=("angular_velocity", "linear_acceleration"))
     t = (imu["log_time"].astype(np.int64) - epoch) / 1e9
     k = (t >= t0) & (t <= t1)
-    inside = (t_ref >= t0) & (t_ref <= t1)
-    if k.sum() < 10 or inside.sum() < 2:
-        raise InputError(f"the span {t0:g}-{t1:g} s holds {int(k.sum())} IMU samples and "
-                         f"{int(inside.sum())} reference epochs: too few to start from")
-    track = {"t": t_ref[inside], "lat": truth["latitude"][inside],
+    inside = np.zeros(0, bool) if truth is None else (t_ref >= t0) & (t_ref <= t1)
+    if k.sum() < 10 or (truth is not None and inside.sum() < 2):
+        raise InputError(f"the span {t0:g}-{t1:g} s holds {int(k.sum())} IMU samples" + (
+            "" if truth is None else f" and {int(inside.sum())} reference epochs")
+            + ": too few to start from")
+    track = None if truth is None else {"t": t_ref[inside], "lat": truth["latitude"][inside],
              "lon": truth["longitude"][inside], "h": truth["height"][inside],
              "v_ned": np.asarray(truth["velocity_ned"], float)[inside],
              "heading_known": (meta.get("recording") or {}).get("reference_heading_known",

@@ -43,3 +43,14 @@ def arm_cov(design, gap):
                       for b in range(ARM_BLOCKS)])
     centred = parts - parts.mean(axis=0)
     return (ARM_BLOCKS - 1) / ARM_BLOCKS * centred.T @ centred + 1e-12 * np.eye(len(centred.T))
+
+
+def lever_force_samples(ns, w_v, r):
+    """(N, 3) m/s^2, vehicle frame: dw/dt x r + w x (w x r) at each of an IMU's samples (rates
+    w_v rad/s, vehicle frame, at its stamps ns; dw/dt their central differences), r in m -
+    for means over a few samples (`course_check.local_mean`)."""
+    r = np.asarray(r, float)
+    if not np.any(r) or len(ns) < 2:
+        return np.zeros((len(ns), 3))
+    dw = np.gradient(w_v, ns / 1e9, axis=0)
+    return np.cross(dw, r) + np.cross(w_v, np.cross(w_v, r))

@@ -159,7 +159,7 @@ def _turn_mountings(rec, clock_se, means, ok, mids):
     seen = bool(how)
     # a mirrored triad (a sign, an axis order) is no turn: after the best turn an axis runs
     # against the other IMU's, named as given where one does there too (a mirrored accel turns
-    # the gyros against) - as given alone, 180 deg runs two against (a FOG so turned was refused)
+    # the gyros against) - as given alone, 180 deg runs two against (a FOG, a Shimmer's export)
     vehicle = [(attitude.rotate(rec.mounting.q_vs, means[0][k][ok]),
                 attitude.rotate(ref["mounting"].q_vs, means[1][k][ok])) for k in range(2)]
     said = {when: [why for (mine, theirs), sensor in zip(vehicle, ("gyro", "accel"))
@@ -171,7 +171,7 @@ def _turn_mountings(rec, clock_se, means, ok, mids):
                  "gyro and the accelerometer columns", turn.apply))}
     given, after = said.values()
     if after or apart:
-        raise RecordingError(f"{rec.name}: {(given or after or [apart])[0]}")
+        raise RecordingError(f"{rec.name}: {(given or after)[0] if after else apart}")
     fixed = attitude.from_scipy(turn) * ref["mounting"].q_vs
     yaw, pitch, roll = (angle_text(a) for a in attitude.as_euler(fixed))
     hint = ref.get("mounting_hint")
@@ -518,10 +518,17 @@ def _triads_apart(each, kinds):
         apart = math.degrees(math.acos(np.clip(u[:, 0] @ decided[0].apply(vt[0]), -1, 1)))
     if apart <= TRIADS_APART_DEG:
         return ""
-    return (f"the two IMUs' gyros and their accelerometers turn onto each other {apart:.0f} deg "
-            "apart: no mounting turns one triad of a unit without the other - a column's "
-            "sign or the axes' order differs between one IMU's gyros and its accelerometers: "
-            "check the gyro and the accelerometer columns of both IMUs")
+    said = (f"the two IMUs' gyros and their accelerometers turn onto each other {apart:.0f} deg "
+            "apart: no mounting turns one triad of a unit without the other - ")
+    if apart >= SIGN_APART_DEG:
+        return said + ("a column's sign or the axes' order differs between one IMU's gyros and "
+                       "its accelerometers: check the gyro and the accelerometer columns of "
+                       "both IMUs")
+    return said + ("too little for a column's sign or the axes' order (they turn a triad by "
+                   f"{SIGN_APART_DEG:g} deg or more); one IMU's triads were aligned apart - a "
+                   "calibration that turned one triad and not the other (a logger's raw and "
+                   "calibrated exports), or two units' triads given as one IMU: check which "
+                   "columns each IMU's triads come from")
 
 
 def _fit_arm(rec, means, ok, mids):
@@ -584,6 +591,9 @@ def _lever_force(rec, mids, r=None):
 
 TRIADS_APART_DEG = 5.0      # deg: a unit's two triads lie within their few mrad of each
 #                             other; turns this far apart are no mounting, but a sign
+SIGN_APART_DEG = 45.0       # deg: a column's sign or two axes swapped in one triad turn its
+#                             best fit by this or more (a glider's gyro z: 70; x and y swapped:
+#                             67); a Shimmer's calibration turned its gyros 8 deg off its accels
 TRIADS_AGREE_DEG = 0.2      # deg: a triad's own turn within this of both triads' (a unit's
 #                             agree to its 1-3 mrad misalignments), else they differ: no turn
 MOVING_FORCE = 0.3          # m/s^2: 1 s mean specific forces' spread that turns the boxes

@@ -289,9 +289,19 @@ def clipped_note(w, f, rng):
     at = at_range(w, f, rng)
     if not at.any():
         return ""
+    beyond = [f"{name} to {peak / rng[key]:.3g} times it" for x, key, name in (
+        (w, "gyro_rad_s", "the rates"), (f, "accel_m_s2", "the specific forces"))
+        if key in rng and (peak := float(np.abs(x).max())) > RANGE_PAST * rng[key]]
     return (f"{int(at.sum())} samples at the range given or within 0.1 % of it on some axis "
             "(clipped by the sensor's own limit, or about to be: the diagnosis leaves them out "
-            "of every test, no finding)")
+            "of every test, no finding)" + (
+                f"; but {' and '.join(beyond)} reach beyond it: that range is not the one the "
+                "outputs were clipped at (another setting of the part, or outputs calibrated "
+                "past its rails) - check it" if beyond else ""))
+
+
+RANGE_PAST = 1.01       # of the range given: outputs beyond it (a Shimmer's calibrated gyro
+#                         to 1.46 times a 500 deg/s range) say the range is not the sensor's
 
 
 def _rate_hz(t):

@@ -97,13 +97,18 @@ STILL_LEAK = 0.5    # m/s^2: gravity's leak through an attitude 3 deg off, more 
 #                     by that leak alone); a leg's IMU on a walk: 1.16, a hand's 0.2-1.0
 
 
+STILL_FLOOR = 1e-6  # m/s^2 rms over 1 s: a reference held still, its velocity's rounding
+#                     aside (a zero velocity differenced from positions reads 1e-8 m/s)
+
+
 def check_acceleration_scale(rec, t, v_ned, f_ned):
     """Refuse (RecordingError) a reference whose horizontal acceleration over 1 s (from its
     velocity v_ned, m/s, at t - 0.5 and t + 0.5 s) is more than SCALE_LIMIT times the IMU's
     horizontal specific force (f_ned: (M, 3) m/s^2 in NED at the reference's epochs t, s,
-    where its attitude holds), or less than 1/SCALE_LIMIT, where the two are coherent and
-    one of them moves (MOVING); a reference that holds still where the IMU's horizontal
-    specific force in NED varies beyond STILL_LEAK."""
+    where its attitude holds; of the trajectory's point: the IMU's lever arm's force taken
+    out), or less than 1/SCALE_LIMIT, where the two are coherent and
+    one of them moves (MOVING); a reference that holds still (within STILL_FLOOR) where the
+    IMU's horizontal specific force in NED varies beyond STILL_LEAK."""
     v = np.asarray(v_ned, float)
     inside = (t - 0.5 >= t[0]) & (t + 0.5 <= t[-1])
     a = np.column_stack([np.interp(t + 0.5, t, v[:, i]) - np.interp(t - 0.5, t, v[:, i])
@@ -114,7 +119,7 @@ def check_acceleration_scale(rec, t, v_ned, f_ned):
         return
     z_imu, z_track = f[ok, 0] + 1j * f[ok, 1], a[ok, 0] + 1j * a[ok, 1]
     spreads = [float(np.sqrt(np.mean(np.abs(z - z.mean()) ** 2))) for z in (z_imu, z_track)]
-    if spreads[1] == 0 and spreads[0] >= STILL_LEAK:
+    if spreads[1] <= STILL_FLOOR and spreads[0] >= STILL_LEAK:
         raise RecordingError(
             f"{rec.name}: the reference holds still (its velocity the same at every epoch) "
             f"where the IMU's horizontal specific force, turned into NED by the reference's "

@@ -14,9 +14,10 @@ from ..frames import attitude, earth
 
 ATTITUDE_BIAS_WINDOW_S = 1.0    # s: windows of the gyro bias from a reference attitude
 MIN_ATTITUDE_BIAS_WINDOWS = 10
-WINDOW_TURN = 0.35      # rad the IMU turns through in a window, at most (a car's 20 deg/s
-#                         turn): the window's attitude at mid-window stands for its others
-#                         to half that, and its rates' axis holds - a swinging foot turns
+WINDOW_TURN = 0.35      # rad the IMU's attitude spans in a window, at most (a car's 20
+#                         deg/s turn; `_turned`): the window's attitude at mid-window stands
+#                         for its others to half that, and its rates' axis holds - a swinging
+#                         foot turns
 #                         3 rad a second, and its 'biases' had read 8 deg/s and 4.6 m/s^2 with
 #                         standard errors of 1 deg/s and 22 mg
 
@@ -61,7 +62,7 @@ def biases_from_attitude(t, w, f, mounting, track, window=ATTITUDE_BIAS_WINDOW_S
                            + np.cross(2 * w_ie + w_en, v)) \
         - _mean_gravity_body(rot, t_q, step, earth.gravity_ned(lat, h))
     k0, k1 = np.searchsorted(t, edges, side="right"), np.searchsorted(t, t_q[b], side="right")
-    use = (k1 - k0 >= 2) & (_turned(w, k0, k1, span) <= WINDOW_TURN)
+    use = (k1 - k0 >= 2) & (_turned(t, w, k0, k1) <= WINDOW_TURN)
     if use.sum() < MIN_ATTITUDE_BIAS_WINDOWS:
         return None
     q_sv = np.conjugate(mounting.q_vs)
@@ -88,12 +89,28 @@ def biases_from_attitude(t, w, f, mounting, track, window=ATTITUDE_BIAS_WINDOW_S
     return median_difference(w, rate), median_difference(f, force), int(use.sum())
 
 
-def _turned(w, k0, k1, span):
-    """(n,) rad: the angle the rates w (N, 3, rad/s) turn through in each window of samples
-    (k0, k1] lasting span s (their mean |w| times the span; nan for an empty window)."""
-    c = np.r_[0.0, np.cumsum(np.linalg.norm(w, axis=1))]
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return (c[k1] - c[k0]) / (k1 - k0) * span
+def _turned(t, w, k0, k1):
+    """(n,) rad: how far the attitude strays within each window of samples (k0, k1]: twice
+    the largest angle of the rates w (N, 3, rad/s, stamps t s) integrated from the window's
+    mean attitude (small angles) - a steady turn's whole angle, a vibration's few mrad (the
+    mean |w| had counted an engine's 0.3 rad/s rms of vibration, 0.8 mrad of angle, as a
+    turn and every window had been left out); nan for an empty window."""
+    dt = np.diff(t, prepend=t[0] - (t[1] - t[0] if len(t) > 1 else 0.0))
+    angle = np.cumsum(w * dt[:, None], axis=0)
+    out = np.full(len(k0), np.nan)
+    size = k1 - k0
+    full = np.flatnonzero(size > 0)
+    if not len(full):
+        return out
+    window = np.repeat(full, size[full])
+    rows = np.concatenate([np.arange(k0[j], k1[j]) for j in full])
+    sums = np.zeros((len(k0), 3))
+    np.add.at(sums, window, angle[rows])
+    stray = np.linalg.norm(angle[rows] - sums[window] / size[window, None], axis=1)
+    most = np.zeros(len(k0))
+    np.maximum.at(most, window, stray)
+    out[full] = 2.0 * most[full]
+    return out
 
 
 def _mean_gravity_body(rot, t_q, step, g_n):

@@ -100,6 +100,9 @@ def _verdict_lines(doc, cal_label):
                   "physics (the contract's verdict field says "
                   f"`{doc['verdict']}`), because", ""]
         lines += [f"- {r}" for r in doc["inconclusive_reasons"]] + [""]
+    if doc.get("untested"):
+        lines += ["**Untested** beside the findings:", ""] + [
+            f"- {r}" for r in doc["untested"]] + [""]
     return lines + _inflation_lines(doc)
 
 

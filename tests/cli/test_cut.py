@@ -113,3 +113,26 @@ def test_a_cut_recording_is_aligned_again_on_its_imports_biases(tmp_path):
                                  "h": h[on_ref], "v_ned": v[on_ref]})
     assert off(start["attitude_wxyz"]) < 0.5 * off(attitude.as_wxyz(
         attitude.from_wxyz(np.asarray(left_in.q_nb)))), (off(start["attitude_wxyz"]),)
+
+
+def test_an_imu_recorded_alone_is_cut_anywhere_aligned_again_on_the_span(tmp_path):
+    """An IMU imported alone (no reference trajectory: the import levels it on its mean
+    specific force, position and heading assumed 0) cut from 10 s: aligned again on the
+    span's IMU as the import did on the whole - a Shimmer's recording could be cut only from
+    0 s ('no reference to start the span from')."""
+    from mimunav.frames.mounting import Mounting
+    from mimunav.importers.recording import Recording
+    from mimunav.importers.write import write_log
+    t = np.arange(1, 3001) * 0.01
+    rng = np.random.default_rng(4)
+    w = rng.normal(0, 1e-3, (len(t), 3)) + [0.0, 0.0, 0.3 * np.sin(0.5)]
+    f = rng.normal(0, 1e-2, (len(t), 3)) + [0.0, 0.0, -9.80]
+    epoch = 1_700_000_000_000_000_000
+    log, out = tmp_path / "alone.mcap", tmp_path / "cut.mcap"
+    write_log(Recording("alone", "", epoch + np.round(t * 1e9).astype(np.int64), w, f,
+                        Mounting.from_axes("FRD")), log)
+    assert main(["cut", str(log), "--span", "10:20", "-o", str(out)]) == 0
+    with FlightLog(out) as fl:
+        cut = fl.metadata()
+    assert 10.0 <= cut["flight"]["initial_state"]["t"] <= 10.02
+    assert cut["cut"]["initial_state"].startswith("the alignment redone on the span")

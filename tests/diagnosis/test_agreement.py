@@ -46,10 +46,19 @@ def test_one_sensors_data_twice_is_no_residual_to_scan():
     measured = _motion(t)
     rounded = measured * (1 + 1e-15 * np.sign(np.sin(t * 7)))[:, None]
     twice = agreement(t, measured, rounded, np.ones(len(t), bool), CHANNELS)
-    assert twice["alike"] < 1e-14 and any("data twice" in why for why in twice["failures"])
+    assert len(twice["alike"]) == 6 and any("data twice" in why for why in twice["failures"])
     stored = measured.astype(np.float32).astype(float)
     assert "alike" not in agreement(t, measured + 1e-6, stored, np.ones(len(t), bool),
                                     CHANNELS)
+    # one channel a copy, with an offset and a scale (an independent review's gyro.x copied
+    # beside five channels of another sensor, its rounding named excursions at z -12): that
+    # channel failed, its sensor's findings with it
+    rng = np.random.default_rng(5)
+    other = measured + rng.normal(0, [0.05] * 3 + [0.005] * 3, measured.shape)
+    other[:, 3] = 1.001 * measured[:, 3] + 0.002
+    one = agreement(t, other, measured, np.ones(len(t), bool), CHANNELS)
+    assert one["alike"] == ["gyro.x"] and one["failed"] == ["gyro"]
+    assert any("gyro.x go sample by sample" in why for why in one["failures"])
 
 
 def test_an_accelerometer_that_disagrees_names_an_undeclared_lever_arm_at_its_rates():
@@ -62,7 +71,8 @@ def test_an_accelerometer_that_disagrees_names_an_undeclared_lever_arm_at_its_ra
     predicted = np.zeros((len(t), 6))
     predicted[:, 1], predicted[:, 4] = -9.81 + 0.3 * np.sin(t), spin
     predicted[:, 0] = 1.0 * np.sin(t / 3)
-    measured = predicted.copy()
+    measured = predicted + np.random.default_rng(6).normal(0, [0.05] * 3 + [0.005] * 3,
+                                                            predicted.shape)
     measured[:, 0] -= spin ** 2 * 0.018
     failed = agreement(t, measured, predicted, np.ones(len(t), bool), CHANNELS)["failures"]
     assert len(failed) == 1 and "accel.x" in failed[0]

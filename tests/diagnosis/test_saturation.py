@@ -39,3 +39,29 @@ def test_a_rail_below_the_range_is_found_at_its_level():
     assert abs(found[0]["coefficient"] - 1.5) < 0.01
     truly = predicted[:, 2] + 0.245 > 1.5 + 0.05
     assert clipped[truly].all()
+
+
+def test_a_rail_too_short_to_name_is_left_out_and_a_peak_is_not():
+    """A Shimmer's low-noise accelerometer flat at -24.6145 m/s^2 on 7 samples while its
+    wide-range twin read to -57.5: too few to name a saturation (SATURATION_MIN_SAMPLES),
+    but those samples - and those whose input comes near the rail - are left out of the fit
+    (they had hidden a cross-coupling and left an excursion); a live peak beyond every other
+    sample, however far its input, is no rail; nor is one sample at the extreme (a spike
+    of the reference's)."""
+    from mimunav.diagnosis.rails import short_rails
+    t, measured, predicted, rows, train = _record()
+    burst = np.arange(5000, 5007)
+    predicted[burst, 1] = -np.linspace(30.0, 57.5, 7)        # accel.y's input beyond the rail
+    measured[:, 1] = predicted[:, 1] + 0.01 * np.random.default_rng(7).standard_normal(len(t))
+    measured[burst, 1] = -24.6145
+    sigma = np.full(6, 0.01)
+    assert outputs.saturation(t, measured, predicted, rows, train, FULL_SCALE)[0] == []
+    rails = short_rails(measured, predicted, rows, sigma, set())
+    assert set(np.flatnonzero(rails)) == set(burst)
+    live = measured.copy()
+    live[burst, 1] = predicted[burst, 1] * 0.98 + 0.01        # a peak: scale error, no rail
+    assert not short_rails(live, predicted, rows, sigma, set()).any()
+    once = measured.copy()
+    once[burst[1:], 1] = -24.0 - 0.01 * np.arange(6)          # at the extreme on one sample
+    assert not short_rails(once, predicted, rows, sigma, set()).any()
+    assert not short_rails(measured, predicted, rows, sigma, {("accel", "y")}).any()

@@ -635,6 +635,24 @@ def test_a_record_too_short_to_check_its_units_says_so():
         check_recording(rec)
 
 
+def test_rates_in_deg_s_declared_rad_s_are_refused_at_import():
+    """A hand-waved IMU's gyro (rates to 300 deg/s) declared in rad/s: refused at import
+    naming deg/s (a Shimmer's had imported at peaks of 729 'rad/s', refused only at
+    `diagnose` in words of angle increments); in rad/s, and with one wild sample far beyond
+    (a bit flipped), it passes this check."""
+    from mimunav.importers.checks import check_recording
+    t = np.arange(0.0, 30.0, 0.01)
+    deg = 300.0 * np.column_stack([np.sin(2.1 * t), np.cos(1.3 * t), np.sin(0.7 * t)])
+    f = np.tile([0.0, 0.0, -9.8], (len(t), 1))
+    ns = 1_700_000_000_000_000_000 + np.round(t * 1e9).astype(np.int64)
+    with pytest.raises(RecordingError, match="angular rates reach .* rad/s .*beyond any "
+                                             "navigation gyro's range .*in deg/s"):
+        check_recording(Recording("waved", "", ns, deg, f, Mounting()))
+    rad = np.radians(deg)
+    rad[1000] = [400.0, 0.0, 0.0]
+    check_recording(Recording("waved", "", ns, rad, f, Mounting()))
+
+
 def test_rtklib_pos_without_velocity_or_without_fix_epochs(tmp_path):
     """RTKLIB's default .pos has no velocity columns: the reference velocity comes from the
     positions' central differences (not an empty reference); a .pos with no epoch of the

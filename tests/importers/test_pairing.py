@@ -257,13 +257,64 @@ def test_a_reference_imu_that_is_the_imus_own_samples_is_refused(pair_motion):
     rec = Recording("pair", "test", ns, w, f, Mounting.from_axes("FLU"),
                     reference_imu=dict(ns=ns.copy(), w=w.copy(), f=f.copy(),
                                        mounting=Mounting.from_axes("FLU"), model="copy"))
-    with pytest.raises(RecordingError, match="the IMU's own .*one recording given twice"):
+    with pytest.raises(RecordingError, match="every channel .* alike.*one recording given twice"):
         same_data.check_distinct(rec)
     rng = np.random.default_rng(2)
     noisy = Recording("pair", "test", ns, w, f, Mounting.from_axes("FLU"), reference_imu=dict(
         rec.reference_imu, w=w + rng.normal(0, 1e-3, w.shape), f=f + rng.normal(0, 1e-2, f.shape)))
     same_data.check_distinct(noisy)
     pairing.pair(noisy)
+
+
+def test_a_reference_imu_sharing_one_triad_of_the_imus_is_refused_naming_it(pair_motion):
+    """One board's gyro given to both of its accelerometers (a Shimmer's low-noise and
+    wide-range ones): refused naming the gyro - its clock had been 'measured' to 0.0025 ms
+    and its turn to 7e-14 deg, the accelerometers 6 ms and 1 deg apart; the IMU's own
+    samples given again in other axes (a copy turned 90 deg) are one recording twice."""
+    ns, w, f, _, _ = pair_motion
+    rng = np.random.default_rng(3)
+    own = Mounting.from_axes("FLU")
+    shared = Recording("pair", "test", ns, w, f, own, reference_imu=dict(
+        ns=ns.copy(), w=w.copy(), f=f + rng.normal(0, 1e-2, f.shape), mounting=own, model="wr"))
+    with pytest.raises(RecordingError, match="IMU's gyro x, gyro y, gyro z and the reference "
+                                             "IMU's go sample by sample alike.*one sensor's"):
+        same_data.check_distinct(shared)
+    turned = Recording("pair", "test", ns, w, f, own, reference_imu=dict(
+        ns=ns.copy(), w=np.column_stack([w[:, 1], -w[:, 0], w[:, 2]]),
+        f=np.column_stack([f[:, 1], -f[:, 0], f[:, 2]]), mounting=own, model="copy"))
+    with pytest.raises(RecordingError, match="one recording given twice"):
+        same_data.check_distinct(turned)
+    # one channel, or a copy with an offset that steps (Android's calibrated gyro beside its
+    # uncalibrated one) and a scale: a review's one copied gyro.x had hidden its 2e-3 rad/s
+    # bias and had its rounding scanned as excursions at z -12
+    stepped = w * 1.001 + np.where(np.arange(len(w))[:, None] < len(w) // 2, 0.002, -0.001)
+    for copy, said in ((np.column_stack([w[:, 0], w[:, 1:] + rng.normal(0, 1e-3, (len(w), 2))]),
+                        "gyro x and"), (stepped, "gyro x, gyro y, gyro z and")):
+        with pytest.raises(RecordingError, match=f"IMU's {said} the reference IMU's go"):
+            same_data.check_distinct(Recording("pair", "test", ns, w, f, own, reference_imu=dict(
+                shared.reference_imu, w=copy)))
+    still = np.zeros_like(w)        # two coarse gyros at rest, both reading 0: no copy told
+    quiet = Recording("pair", "test", ns, still, f, own, reference_imu=dict(
+        ns=ns.copy(), w=still.copy(), f=f + rng.normal(0, 1e-2, f.shape), mounting=own,
+        model="quiet"))
+    same_data.check_distinct(quiet)
+
+
+def test_triads_a_few_degrees_apart_are_refused_as_such_not_as_a_sign(pair_motion):
+    """The reference IMU's gyro triad turned 10 deg off its accelerometers about its x (a
+    logger's calibrated export beside its raw one; about its y, the axis this flight's
+    rates hold least of, the turn is not seen) and its mounting given 180 deg off: the
+    best turn takes the 180 deg, so no axis is called mirrored (a Shimmer's raw and
+    calibrated exports had been refused as 'a reflection, which no mounting can turn'), and
+    10 deg is named too little for a column's sign or the axes' order."""
+    from scipy.spatial.transform import Rotation
+    ns, w, f, w_r, f_r = pair_motion
+    w_r = Rotation.from_euler("x", 10.0, degrees=True).apply(w_r)
+    with pytest.raises(RecordingError) as refused:
+        pairing.pair(_recording(ns, w, f, w_r, f_r, rpy=(0.0, 0.0, 90.0)))
+    said = str(refused.value)
+    assert "10 deg apart" in said and "too little for a column's sign" in said, said
+    assert "reflection" not in said, said
 
 
 def test_a_turn_the_data_do_not_place_is_refused_not_taken(pair_motion):
@@ -652,12 +703,14 @@ def _attitude_pair(imu_rpy, ref_rpy, lever_arm_m=(0.0, 0.0, 0.0), given=None):
     traj = run.trajectory
     mounting = Mounting.from_axes("FLU", lever_arm_m) if given is None else \
         Mounting.from_rpy_deg(given, lever_arm_m)
+    noise = np.random.default_rng(11).normal(0.0, 1e-5, (len(ns), 6))  # another sensor's
     return Recording("turned", "test", ns, dth * RATE, dv * RATE, mounting,
                      reference=dict(ns=EPOCH_NS + np.round(traj.t[k] * 1e9).astype(np.int64),
                                     lat=traj.lat[k], lon=traj.lon[k], h=traj.h[k],
                                     v_ned=traj.v_ned[k], q_nb=quaternion.as_float_array(
                                         traj.q_nb[k])),
-                     reference_imu=dict(ns=ns, w=dth_r * RATE, f=dv_r * RATE, model="nav",
+                     reference_imu=dict(ns=ns, w=dth_r * RATE + noise[:, :3],
+                                        f=dv_r * RATE + noise[:, 3:], model="nav",
                                         mounting=Mounting.from_rpy_deg((180.0, 0.0, 90.0))))
 
 
@@ -1179,9 +1232,9 @@ def test_instantaneous_samples_read_as_such_put_no_lag_between_two_exact_clocks(
     stamps = EPOCH_NS + np.round(t * 1e9).astype(np.int64)
     bag = tmp_path / "pair.mcap"
     with LogWriter(bag) as log:
-        noise = np.random.default_rng(7).normal(0.0, 1e-5, w.shape)     # another sensor
+        noise = np.random.default_rng(7).normal(0.0, 1e-5, (len(t), 6))    # another sensor
         log.write("/mems", S.IMU, "mems", stamps[::2],
-                  **S.imu_fields((w + noise)[::2], f[::2]))
+                  **S.imu_fields((w + noise[:, :3])[::2], (f + noise[:, 3:])[::2]))
         log.write("/ref", S.IMU, "ref", stamps, **S.imu_fields(w, f))
     for sampling, lag_ms in (("interval_mean", 2.5), ("instant", 0.0)):
         rec = registry.read("ros2", str(bag), Mounting(), imu_topic="/mems",

@@ -86,6 +86,18 @@ def test_repeated_rows_are_left_out_and_a_separator_line_is_read(tmp_path):
     _imu(tmp_path, rows=rows, sep=";", edit=lambda d: d[100].__setitem__(1, 0.7))
     with pytest.raises(RecordingError, match="repeats the time .* with other values"):
         table.read(tmp_path / "spec.toml")
+    # Consensys's export: the line quoted, lines ending CRLF (its columns had been refused as
+    # of another count than the first line's); a compressed file is named as such (a numpy
+    # error about pickles had been the answer)
+    _imu(tmp_path, sep="\t")
+    text = (tmp_path / "imu.csv").read_text().replace("sep=\t", '"sep=\t"')
+    (tmp_path / "imu.csv").write_bytes(text.replace("\n", "\r\n").encode())
+    assert len(table.read(tmp_path / "spec.toml").imu_ns) == N
+    (tmp_path / "spec.toml").write_text((tmp_path / "spec.toml").read_text().replace(
+        '"imu.csv"', '"imu.csv.gz"'))
+    (tmp_path / "imu.csv.gz").write_bytes(b"\x1f\x8b")
+    with pytest.raises(RecordingError, match="a compressed file - decompress it"):
+        table.read(tmp_path / "spec.toml")
 
 
 def test_a_sections_own_clock_offset_and_the_sensors_range(tmp_path):
@@ -98,6 +110,12 @@ def test_a_sections_own_clock_offset_and_the_sensors_range(tmp_path):
     assert rec.range == pytest.approx({"gyro_rad_s": clip, "accel_m_s2": 4 * 9.80665})
     assert rec.real["clipped"].startswith(f"{int((np.abs(w) >= 0.999 * clip).any(1).sum())} "
                                           "samples at the range")
+    assert "reach beyond it" not in rec.real["clipped"]
+    # a range given below the outputs (a Shimmer's 500 deg/s beside calibrated rates to 729):
+    # said not to be the sensor's
+    _imu(tmp_path, clip=clip, extra="range = { angular_rate = { value = 8, unit = \"deg/s\" } }")
+    said = table.read(tmp_path / "spec.toml").real["clipped"]
+    assert "the rates to 1.25 times it reach beyond it" in said, said
     write_log(rec, tmp_path / "out.mcap")
     with FlightLog(tmp_path / "out.mcap") as log:
         assert log.metadata()["sensor/mimu"]["range"]["gyro_rad_s"] == pytest.approx(clip)
