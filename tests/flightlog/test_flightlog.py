@@ -690,6 +690,25 @@ def test_a_channels_rate_is_its_mean_over_the_span_missing_samples_counted():
     assert lost["missing"] == 1 and lost["rate_hz"] == pytest.approx(100.0, abs=1e-6)
 
 
+def test_a_long_jittered_lossy_grid_is_one_rate_read_in_its_time():
+    """A 50-minute phone log at 200 Hz, its stamps jittered by a fifth of a period and a
+    fifth of its samples lost: its 100-step block medians scatter by 3.5 %, so a change of
+    rate must stand out of that scatter (`CHANGE_SIGMAS`), not 5 % alone - it had been cut
+    into 14 rates, read 183.5 Hz by its median step, in 35 s (2 M stamps: 196 s)."""
+    from mimunav.flightlog.stamps import mean_rate_hz, rate_segments
+    rng = np.random.default_rng(0)
+    n = 600_000
+    t = np.arange(n) * 0.005 + rng.normal(0, 0.2 * 0.005, n)
+    t = np.sort((t[rng.random(n) >= 0.2] * 1e9).astype(np.int64) + 10 ** 18)
+    assert len(rate_segments(t)) == 1
+    assert mean_rate_hz(t) == pytest.approx(200.0, rel=1e-4)
+    # a logger switched from 200 to 180 Hz under the same jitter: two rates still
+    step = np.r_[np.full(n // 2, 5e6), np.full(n // 2, 5e6 * 200 / 180)]
+    switched = np.cumsum(step) + rng.normal(0, 0.2 * 5e6, n)
+    switched = np.sort(switched[rng.random(n) >= 0.2].astype(np.int64) + 10 ** 18)
+    assert len(rate_segments(switched)) == 2
+
+
 def test_stamps_in_whole_ms_of_a_uniform_clock_give_back_that_clock():
     """A flight computer's millis() of a 501.3 Hz part (steps of 1, 2 and 3 ms) with a 0.4 s
     gap: each run between gaps fitted by a line, every stamp within a tick of it, and the
