@@ -73,6 +73,8 @@ def _diagnosed(args, painter):
             print(f"  because {reason}")
     if doc.get("bins", {}).get("why"):
         print(f"  {doc['bins']['why']}")
+    for line in grade_lines(doc):
+        print(line)
     for f in doc["findings"]:
         print(finding_line(f))
     for why in doc.get("untested", []):
@@ -115,6 +117,14 @@ LEFT_OUT = (("transfer_shocks_left_out", "the lever-arm transfer misses a shock"
                                        "fix left out of the track)"),
             ("rails_left_out", "an output sat at its extreme, bit for bit, where the "
                                "reference read beyond (a rail too short to name saturation)"))
+
+
+def grade_lines(doc):
+    """The terminal's line on a reference IMU whose default FOG grade its own data contradict
+    (`diagnosis.reference_grade`: its source says so)."""
+    for part in doc.get("reference_accuracy", {}).get("source", "").split("; "):
+        if "FOG grade is contradicted" in part:
+            yield f"  the reference IMU: {part}"
 
 
 def left_out_lines(doc):

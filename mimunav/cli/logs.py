@@ -89,9 +89,9 @@ def _cut(args):
     from ..files import refuse_inputs
     from ..importers.cut import cut
     refuse_inputs([args.output], [args.log])
-    count, how = cut(args.log, args.output, *args.span, force=args.force)
-    print(f"wrote {args.output}: {count} messages in {args.span[0]:g}-{args.span[1]:g} s; "
-          f"initial state: {how}")
+    count, how, (first, last) = cut(args.log, args.output, *args.span, force=args.force)
+    print(f"wrote {args.output}: {count} messages in {args.span[0]:g}-{args.span[1]:g} s "
+          f"(stamped {first:.3f}-{last:.3f} s); initial state: {how}")
     return 0
 
 

@@ -90,6 +90,7 @@ from .removal import (REFERENCE_BEYOND_SIGMA, beside_reference, held_excursions,
                       offset_readings, read_every_way, reference_beyond_stated,
                       removal_sigma)
 from .rails import short_rails
+from .reference_grade import rest_graded
 from .selection import select
 
 
@@ -289,7 +290,7 @@ def _prepared(flight, cal, acc, candidates, output_tests, samples, bin_s, noise_
     counted = outputs.counted_clips(t, flight.recording)
     usable &= ~shocks & ~counted & ~gapped
     on_outputs, quantized, rails = [], set(), np.zeros(len(t), bool)
-    acc = measured_steps(flight, acc, spill)
+    acc = rest_graded(flight, measured_steps(flight, acc, spill))
     cands = library.candidates() if candidates is None else candidates
     check = agreement(t, spill.series("measured"), spill.series("predicted"), usable,
                       CHANNELS) if check_reference else None

@@ -21,7 +21,8 @@ from .recording import heading_source
 
 def cut(log_path, out, t0, t1, force=False):
     """Write the part of the log at `log_path` stamped in [t0, t1] s (since its epoch) to
-    `out`; returns (message count, how the initial state was found)."""
+    `out`; returns (message count, how the initial state was found, (first, last) stamp
+    written, s since the epoch)."""
     with FlightLog(log_path) as log:
         meta = log.metadata()
         flight = meta.get("flight")
@@ -31,7 +32,7 @@ def cut(log_path, out, t0, t1, force=False):
         epoch = int(flight["epoch_unix_ns"])
         lo, hi = epoch + int(round(t0 * 1e9)), epoch + int(round(t1 * 1e9))
         initial, how, heading, attitude_from = _initial_state(log, flight, meta, t0, t1, epoch)
-        count, generic = 0, []
+        count, generic, written = 0, [], [np.inf, -np.inf]
         with LogWriter(out, force=force) as dst, open(log_path, "rb") as fh:
             reader = make_reader(fh)
             for record in reader.iter_metadata():
@@ -56,6 +57,8 @@ def cut(log_path, out, t0, t1, force=False):
                             dst.write_encoded(topic, log.schema_name(topic),
                                               msgs["payload"][keep], stamps[keep])
                             count += int(keep.sum())
+                            written = [min(written[0], (stamps[keep][0] - epoch) / 1e9),
+                                       max(written[1], (stamps[keep][-1] - epoch) / 1e9)]
                 except LayoutError:
                     generic.append(topic)
             fh.seek(0)
@@ -63,7 +66,7 @@ def cut(log_path, out, t0, t1, force=False):
                 if lo <= message.log_time <= hi:    # (the time arguments' names differ
                     dst.copy(schema, channel, message)  # between mcap releases)
                     count += 1
-    return count, how
+    return count, how, tuple(written)
 
 
 def _restarted(values, how, heading, attitude_from):

@@ -163,3 +163,30 @@ def test_terms_the_halves_set_aside_say_why_nothing_found_is_no_clean_bill():
     other = {"label": "x", "rejected": "held-out p = 0.5, needs < 0.025"}
     said = confirmation.set_aside_reasons([aside, other])
     assert said == [f"lever_arm imu.all: {aside['rejected']}"]
+
+
+@pytest.mark.parametrize("bias_deg_h, stated, mems", [(1.0, False, False), (10.0, False, False),
+                                                      (720.0, False, True),
+                                                      (720.0, True, False)])
+def test_a_default_fog_grade_the_references_rest_contradicts_is_mems_grade(bias_deg_h, stated,
+                                                                           mems):
+    """At the import's rest a FOG-IMU's gyros read the Earth's 15 deg/h within 1 deg/h (a
+    tactical part's within 10): the default grade stands; a MEMS part's 0.2 deg/s (720
+    deg/h) contradicts it - MEMS grade, its gyro bias stability the excess, said (a
+    Shimmer's MEMS pair had had its couplings charged to the MIMU alone). A stated gyro bias
+    is not overruled."""
+    from mimunav.diagnosis.reference_grade import rest_graded
+    from mimunav.frames.earth import OMEGA
+    rng = np.random.default_rng(2)
+    t = np.arange(0.0, 60.0, 0.01)
+    earth = OMEGA * np.array([0.6, 0.0, -0.8])                 # its heading and latitude: any
+    w = earth + bias_deg_h * DEG_H * np.array([0.0, 0.6, 0.8]) + rng.normal(0, 1e-3, (len(t), 3))
+    w[t > 20.0] += 0.3                                         # it moves after its rest
+    flight = SimpleNamespace(source="recording", recording={"static_s": [0.5, 19.5]}, fog_t=t,
+                             fog_blocks=lambda: iter([(t, w, np.zeros_like(w))]))
+    given = Accuracy.parse(f"gyro_bias={1 * DEG_H}") if stated else Accuracy()
+    graded = rest_graded(flight, given)
+    assert graded.mems_grade == mems, graded.source
+    if mems:
+        assert graded.gyro_bias == pytest.approx((bias_deg_h - 15.04) * DEG_H, rel=0.05)
+        assert "the default FOG grade is contradicted" in graded.source
